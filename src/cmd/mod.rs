@@ -1,0 +1,149 @@
+//! Subcommands of the `clipsat` binary, and the options they share.
+
+pub(crate) mod info;
+pub(crate) mod render;
+
+use clap::Args;
+use clipsat::source::{
+    self, procedural::ProceduralParams, LoadOptions, RawFormat, RawLayout, TerrainSpec,
+};
+use clipsat::{Error, Heightmap, Profile, Result};
+
+/// Options that choose and read a terrain.
+#[derive(Args, Clone, Debug, Default)]
+pub(crate) struct TerrainArgs {
+    /// Terrain file (.png, .tif, .hgt, .raw/.r16/.f32) or `procedural[:seed=S,size=N,spacing=M]`.
+    /// Default: the built-in procedural terrain.
+    #[arg(long, value_name = "T")]
+    pub(crate) terrain: Option<String>,
+    /// Sample spacing in metres, overriding the file's own (needed for PNG and raw files; default 30).
+    #[arg(long, value_name = "M")]
+    pub(crate) spacing: Option<f32>,
+    /// Metres per stored unit for PNG and raw u16 files (default 0.1 for 16-bit, 1 for 8-bit).
+    #[arg(long, value_name = "S")]
+    pub(crate) height_scale: Option<f32>,
+    /// Metres added to every height after scaling.
+    #[arg(
+        long,
+        value_name = "M",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    pub(crate) height_offset: f32,
+    /// Raw file dimensions, WxH samples.
+    #[arg(long, value_name = "WxH")]
+    pub(crate) raw_size: Option<String>,
+    /// Raw file sample type: u16 or f32 (little-endian).
+    #[arg(long, value_name = "u16|f32")]
+    pub(crate) raw_format: Option<String>,
+    /// Refuse files declaring more samples than this (checked before allocating).
+    #[arg(long, value_name = "N", default_value_t = source::DEFAULT_MAX_SAMPLES)]
+    pub(crate) max_samples: u64,
+}
+
+impl TerrainArgs {
+    /// What `--terrain` names.
+    pub(crate) fn spec(&self) -> Result<TerrainSpec> {
+        TerrainSpec::parse(self.terrain.as_deref().unwrap_or("procedural"))
+    }
+
+    /// Loads the terrain these options name.
+    pub(crate) fn load(&self) -> Result<(String, Heightmap)> {
+        let spec = self.spec()?;
+        let raw = match (&self.raw_size, &self.raw_format) {
+            (None, None) => None,
+            (Some(size), format) => {
+                let bad = |reason: String| Error::Arg {
+                    arg: "--raw-size".into(),
+                    reason,
+                };
+                let (w, h) = size
+                    .split_once(['x', 'X'])
+                    .ok_or_else(|| bad(format!("`{size}` is not WxH")))?;
+                let width = w
+                    .trim()
+                    .parse()
+                    .map_err(|_| bad(format!("width `{w}` is not a number")))?;
+                let height = h
+                    .trim()
+                    .parse()
+                    .map_err(|_| bad(format!("height `{h}` is not a number")))?;
+                let format = match format.as_deref().unwrap_or("u16") {
+                    "u16" => RawFormat::U16,
+                    "f32" => RawFormat::F32,
+                    other => {
+                        return Err(Error::Arg {
+                            arg: "--raw-format".into(),
+                            reason: format!("`{other}` is not u16 or f32"),
+                        })
+                    }
+                };
+                Some(RawLayout {
+                    width,
+                    height,
+                    format,
+                })
+            }
+            (None, Some(_)) => {
+                return Err(Error::Arg {
+                    arg: "--raw-format".into(),
+                    reason: "needs --raw-size WxH too".into(),
+                })
+            }
+        };
+        let opts = LoadOptions {
+            spacing: self.spacing,
+            height_scale: self.height_scale,
+            height_offset: self.height_offset,
+            raw,
+            max_samples: self.max_samples,
+        };
+        match spec {
+            TerrainSpec::Procedural(p) => {
+                let p = ProceduralParams {
+                    spacing: self.spacing.unwrap_or(p.spacing),
+                    ..p
+                };
+                Ok((
+                    format!("procedural(seed={}, size={})", p.seed, p.size),
+                    source::procedural::generate(&p)?,
+                ))
+            }
+            TerrainSpec::File(path) => {
+                Ok((path.display().to_string(), source::load(&path, &opts)?))
+            }
+        }
+    }
+}
+
+/// The `--profile` option.
+#[derive(Args, Clone, Debug)]
+pub(crate) struct ProfileArgs {
+    /// Budget profile: a shipped name (gles3-low, gles3-mid, desktop) or a path to a TOML file.
+    #[arg(long, value_name = "P", default_value = clipsat::profile::DEFAULT_PROFILE)]
+    pub(crate) profile: String,
+}
+
+impl ProfileArgs {
+    pub(crate) fn load(&self) -> Result<Profile> {
+        Profile::load(&self.profile)
+    }
+}
+
+/// Writes `value` as pretty JSON on stdout.
+pub(crate) fn print_json(value: &serde_json::Value) {
+    println!(
+        "{}",
+        serde_json::to_string_pretty(value).unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"))
+    );
+}
+
+/// Creates the parent folder of an output file.
+pub(crate) fn ensure_parent(path: &std::path::Path) -> Result<()> {
+    match path.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() => {
+            std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, "cannot create folder", e))
+        }
+        _ => Ok(()),
+    }
+}

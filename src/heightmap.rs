@@ -1,0 +1,161 @@
+//! Stage 0, the source: a regular grid of heights in metres, whatever file or generator it came from.
+
+use std::path::Path;
+
+use crate::{Error, Result};
+
+/// A north-up, row-major grid of heights in metres on square cells of `spacing` metres.
+///
+/// Every sample is finite: constructors refuse NaN and infinities, so later stages need not check.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Heightmap {
+    width: u32,
+    height: u32,
+    spacing: f32,
+    heights: Vec<f32>,
+    voids_filled: u64,
+}
+
+impl Heightmap {
+    /// A heightmap of `width` x `height` samples; `heights` is row-major, row 0 the northernmost.
+    ///
+    /// `origin` names where the samples came from, for error messages.
+    pub fn new(
+        origin: &Path,
+        width: u32,
+        height: u32,
+        spacing: f32,
+        heights: Vec<f32>,
+    ) -> Result<Self> {
+        if width < 2 || height < 2 {
+            return Err(Error::format(
+                origin,
+                format!("{width} x {height} samples: need at least 2 x 2"),
+            ));
+        }
+        if !(spacing.is_finite() && spacing > 0.0) {
+            return Err(Error::format(
+                origin,
+                format!("sample spacing {spacing} m: must be finite and positive"),
+            ));
+        }
+        let expected = u64::from(width) * u64::from(height);
+        if heights.len() as u64 != expected {
+            return Err(Error::format(
+                origin,
+                format!(
+                    "{} samples given for {width} x {height} = {expected}",
+                    heights.len()
+                ),
+            ));
+        }
+        if let Some(i) = heights.iter().position(|h| !h.is_finite()) {
+            let (x, y) = (i % width as usize, i / width as usize);
+            return Err(Error::NonFinite {
+                path: origin.into(),
+                x: u32::try_from(x).unwrap_or(u32::MAX),
+                y: u32::try_from(y).unwrap_or(u32::MAX),
+                value: heights[i],
+            });
+        }
+        Ok(Self {
+            width,
+            height,
+            spacing,
+            heights,
+            voids_filled: 0,
+        })
+    }
+
+    /// Records how many void samples the loader filled.
+    #[must_use]
+    pub fn with_voids_filled(mut self, voids: u64) -> Self {
+        self.voids_filled = voids;
+        self
+    }
+
+    /// Samples per row.
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+
+    /// Rows.
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+
+    /// Distance between neighbouring samples, metres.
+    pub fn spacing(&self) -> f32 {
+        self.spacing
+    }
+
+    /// All samples, row-major.
+    pub fn heights(&self) -> &[f32] {
+        &self.heights
+    }
+
+    /// Void samples the loader filled (SRTM -32768, GeoTIFF nodata).
+    pub fn voids_filled(&self) -> u64 {
+        self.voids_filled
+    }
+
+    /// The sample at column `x`, row `y`. Panics outside the grid (a caller bug, not bad input).
+    pub fn at(&self, x: u32, y: u32) -> f32 {
+        assert!(
+            x < self.width && y < self.height,
+            "heightmap sample ({x}, {y}) outside {}x{}",
+            self.width,
+            self.height
+        );
+        self.heights[y as usize * self.width as usize + x as usize]
+    }
+
+    /// The sample at integer grid coordinates, clamped to the edge: the terrain extends flat beyond its border.
+    pub fn at_clamped(&self, x: i64, y: i64) -> f32 {
+        let xc = x.clamp(0, i64::from(self.width) - 1) as usize;
+        let yc = y.clamp(0, i64::from(self.height) - 1) as usize;
+        self.heights[yc * self.width as usize + xc]
+    }
+
+    /// Lowest and highest sample, metres.
+    pub fn range(&self) -> (f32, f32) {
+        self.heights
+            .iter()
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &h| {
+                (lo.min(h), hi.max(h))
+            })
+    }
+
+    /// World position (x east, y north, metres) of grid sample column `u`, row `v`: x = u s, y = (rows - 1 - v) s.
+    ///
+    /// Row 0 is the north edge; the south-west corner sample sits at the world origin.
+    pub fn grid_to_world(&self, u: f64, v: f64) -> (f64, f64) {
+        let s = f64::from(self.spacing);
+        (u * s, (f64::from(self.height - 1) - v) * s)
+    }
+
+    /// Inverse of [`Heightmap::grid_to_world`]: fractional column and row of a world position.
+    pub fn world_to_grid(&self, x: f64, y: f64) -> (f64, f64) {
+        let s = f64::from(self.spacing);
+        (x / s, f64::from(self.height - 1) - y / s)
+    }
+
+    /// Height at a world position by bilinear interpolation, clamped at the border.
+    pub fn height_at_world(&self, x: f64, y: f64) -> f32 {
+        let (u, v) = self.world_to_grid(x, y);
+        let (u0, v0) = (u.floor(), v.floor());
+        let (fu, fv) = ((u - u0) as f32, (v - v0) as f32);
+        let (iu, iv) = (u0 as i64, v0 as i64);
+        let a = self.at_clamped(iu, iv) * (1.0 - fu) + self.at_clamped(iu + 1, iv) * fu;
+        let b = self.at_clamped(iu, iv + 1) * (1.0 - fu) + self.at_clamped(iu + 1, iv + 1) * fu;
+        a * (1.0 - fv) + b * fv
+    }
+
+    /// Extent in metres, (east-west, north-south).
+    pub fn extent_m(&self) -> (f64, f64) {
+        (
+            f64::from(self.width - 1) * f64::from(self.spacing),
+            f64::from(self.height - 1) * f64::from(self.spacing),
+        )
+    }
+}

@@ -1,0 +1,43 @@
+//! The `clipsat` command line. Each subcommand lives in `src/cmd/`; the library does the work.
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+mod cmd;
+
+/// Fixed-budget terrain rendering for OpenGL ES 3.0 class GPUs.
+#[derive(Parser)]
+#[command(name = "clipsat", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Describe a terrain: size, spacing, height range, voids, and the GPU memory each shipped profile needs.
+    Info(cmd::info::InfoArgs),
+    /// Render one frame offscreen to a PNG.
+    Render(cmd::render::RenderArgs),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Info(args) => cmd::info::run(&args),
+        Command::Render(args) => cmd::render::run(&args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            let mut source = std::error::Error::source(&e);
+            while let Some(s) = source {
+                eprintln!("  caused by: {s}");
+                source = s.source();
+            }
+            ExitCode::from(2)
+        }
+    }
+}

@@ -1,0 +1,311 @@
+//! Budgets: the profile that sizes every buffer at start-up and bounds every frame's work.
+//!
+//! A profile is a TOML file (`profiles/*.toml`); the three shipped ones are compiled in, so `--profile
+//! gles3-low` works from any directory. Loading validates every field and names the one at fault.
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::{Error, Result};
+
+/// The profiles shipped in `profiles/`, by name, with their TOML text.
+pub const SHIPPED: [(&str, &str); 3] = [
+    ("gles3-low", include_str!("../profiles/gles3-low.toml")),
+    ("gles3-mid", include_str!("../profiles/gles3-mid.toml")),
+    ("desktop", include_str!("../profiles/desktop.toml")),
+];
+
+/// The profile used when none is named.
+pub const DEFAULT_PROFILE: &str = "gles3-mid";
+
+/// A budget profile: what one device class can afford. Units are in the field names.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Profile {
+    /// Short name, printed in reports.
+    pub name: String,
+    /// Clipmap geometry.
+    pub clipmap: ClipmapBudget,
+    /// Per-frame work and memory limits.
+    pub budget: FrameBudget,
+    /// Viewport and accuracy target.
+    pub view: View,
+    /// The shading features the device may use.
+    pub shading: Shading,
+}
+
+/// Clipmap geometry (GC section 3).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ClipmapBudget {
+    /// Vertices per ring side, n = 2^k - 1 (GC section 3).
+    pub n: u32,
+    /// Number of rings L; level 0 is the finest.
+    pub levels: u32,
+    /// Samples held beyond the active region on each side, so SAT LOD may refine a distant block.
+    pub clip_margin: u32,
+}
+
+/// Per-frame work and memory limits. Work is counted in samples and primitives, never in time.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FrameBudget {
+    /// Height samples written into the rings per frame, at most.
+    pub update_samples_per_frame: u32,
+    /// Draw calls per frame, at most.
+    pub max_draws: u32,
+    /// Triangles per frame, at most.
+    pub max_triangles: u32,
+    /// Bytes of GPU memory everything created at start-up may take.
+    pub gpu_memory_bytes: u64,
+}
+
+/// Viewport and accuracy target.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct View {
+    /// Screen-space geometric error bound for SAT LOD, pixels.
+    pub epsilon_px: f32,
+    /// Viewport width, pixels.
+    pub width: u32,
+    /// Viewport height, pixels.
+    pub height: u32,
+    /// Vertical field of view, degrees.
+    pub fov_y_deg: f32,
+}
+
+/// Shading features a device class may use; a scene may ask for less, never more.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Shading {
+    /// Allowed features.
+    pub features: Vec<Feature>,
+    /// Spherical-Gaussian light lobes, at most.
+    pub max_sg_lights: u32,
+}
+
+/// One shading feature.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Feature {
+    /// Height ramp, Lambert and nothing else.
+    Basic,
+    /// Reduced spherical-Gaussian diffuse shading.
+    Sg,
+    /// SAT-filtered horizon visibility (soft shadows).
+    Visibility,
+    /// SG specular.
+    Specular,
+    /// Distance fog.
+    Fog,
+    /// Fractal detail synthesised below the data's resolution (GC section 8).
+    Synthesis,
+}
+
+/// GPU memory one profile needs, by part, in bytes. `Renderer::new` allocates exactly this.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct Footprint {
+    /// Ring heights: one RG32F (z, z_c) 2D array texture, `clip_size^2 x levels`.
+    pub heights: u64,
+    /// Ring normals: one RGBA8 2D array texture of the same size.
+    pub normals: u64,
+    /// Static block meshes (xy as 2 x u16 per vertex) and their u16 index buffers.
+    pub meshes: u64,
+    /// Colour (RGBA8) and depth (32-bit) targets at the viewport size, plus one padded readback row set.
+    pub targets: u64,
+    /// Uniform buffers: one 256-byte slot per level plus one per frame.
+    pub uniforms: u64,
+}
+
+impl Footprint {
+    /// Sum of the parts.
+    pub fn total(&self) -> u64 {
+        self.heights + self.normals + self.meshes + self.targets + self.uniforms
+    }
+}
+
+/// Largest 2D texture side on the GLES 3.0 floor (`Limits::downlevel_webgl2_defaults`).
+pub const MAX_TEXTURE_SIDE: u32 = 2048;
+/// Most array layers on the GLES 3.0 floor.
+pub const MAX_TEXTURE_LAYERS: u32 = 256;
+/// Most rings a profile may ask for (g_L = g_0 2^L must stay exact in f32).
+pub const MAX_LEVELS: u32 = 16;
+
+impl Profile {
+    /// A shipped profile by name, or a profile file by path.
+    pub fn load(name_or_path: &str) -> Result<Self> {
+        if let Some((_, text)) = SHIPPED.iter().find(|(n, _)| *n == name_or_path) {
+            return Self::parse(name_or_path, text);
+        }
+        let path = Path::new(name_or_path);
+        if !path.exists() {
+            let names: Vec<&str> = SHIPPED.iter().map(|(n, _)| *n).collect();
+            return Err(Error::Arg {
+                arg: "--profile".into(),
+                reason: format!(
+                    "`{name_or_path}` is neither a shipped profile ({}) nor a file",
+                    names.join(", ")
+                ),
+            });
+        }
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, "cannot read", e))?;
+        Self::parse(name_or_path, &text)
+    }
+
+    /// Parses and validates a profile's TOML text; `source_name` names it in errors.
+    pub fn parse(source_name: &str, text: &str) -> Result<Self> {
+        let profile: Self = toml::from_str(text).map_err(|e| {
+            // toml's message names the missing, unknown or mistyped key; keep its line and column too.
+            let msg = e.message().to_string();
+            let field = msg.split('`').nth(1).unwrap_or("?").to_string();
+            let at = e
+                .span()
+                .map(|s| line_col(text, s.start))
+                .unwrap_or_default();
+            Error::config(source_name, field, format!("{msg}{at}"))
+        })?;
+        profile.validate(source_name)?;
+        Ok(profile)
+    }
+
+    /// Checks every constraint the later stages rely on; the error names the field.
+    pub fn validate(&self, source_name: &str) -> Result<()> {
+        let bad = |field: &str, reason: String| Err(Error::config(source_name, field, reason));
+        let c = &self.clipmap;
+        if c.n < 15 || !(c.n + 1).is_power_of_two() {
+            return bad(
+                "clipmap.n",
+                format!(
+                    "{} is not 2^k - 1 with k >= 4 (15, 31, 63, 127, 255, ...)",
+                    c.n
+                ),
+            );
+        }
+        if c.levels == 0 || c.levels > MAX_LEVELS {
+            return bad(
+                "clipmap.levels",
+                format!("{} is not in 1..={MAX_LEVELS}", c.levels),
+            );
+        }
+        if self.clip_size() > MAX_TEXTURE_SIDE {
+            return bad(
+                "clipmap.clip_margin",
+                format!(
+                    "n + 1 + 2 * margin = {} exceeds the GLES 3.0 texture side {MAX_TEXTURE_SIDE}",
+                    self.clip_size()
+                ),
+            );
+        }
+        let b = &self.budget;
+        if b.update_samples_per_frame == 0 {
+            return bad(
+                "budget.update_samples_per_frame",
+                "must be positive: a zero budget never fills a ring".into(),
+            );
+        }
+        if b.max_draws == 0 {
+            return bad("budget.max_draws", "must be positive".into());
+        }
+        if b.max_triangles == 0 {
+            return bad("budget.max_triangles", "must be positive".into());
+        }
+        let v = &self.view;
+        if !(v.epsilon_px.is_finite() && v.epsilon_px > 0.0) {
+            return bad(
+                "view.epsilon_px",
+                format!("{} must be a positive number of pixels", v.epsilon_px),
+            );
+        }
+        for (field, side) in [("view.width", v.width), ("view.height", v.height)] {
+            if side == 0 || side > MAX_TEXTURE_SIDE {
+                return bad(
+                    field,
+                    format!("{side} is not in 1..={MAX_TEXTURE_SIDE} pixels"),
+                );
+            }
+        }
+        if !(v.fov_y_deg.is_finite() && v.fov_y_deg > 1.0 && v.fov_y_deg < 179.0) {
+            return bad(
+                "view.fov_y_deg",
+                format!("{} is not in (1, 179) degrees", v.fov_y_deg),
+            );
+        }
+        if self.shading.features.is_empty() {
+            return bad(
+                "shading.features",
+                "list at least one feature (\"basic\")".into(),
+            );
+        }
+        let need = self.footprint().total();
+        if b.gpu_memory_bytes == 0 || need > b.gpu_memory_bytes {
+            return bad(
+                "budget.gpu_memory_bytes",
+                format!(
+                    "the profile needs {need} bytes of GPU memory but the budget is {}",
+                    b.gpu_memory_bytes
+                ),
+            );
+        }
+        Ok(())
+    }
+
+    /// Side of the toroidal clip texture: n + 1 (GC's n plus the wrap row) plus the margin on each side.
+    pub fn clip_size(&self) -> u32 {
+        self.clipmap.n + 1 + 2 * self.clipmap.clip_margin
+    }
+
+    /// Block side m = (n + 1) / 4 vertices (GPU Gems 2, ch. 2).
+    pub fn block_m(&self) -> u32 {
+        (self.clipmap.n + 1) / 4
+    }
+
+    /// Whether the profile allows `feature`.
+    pub fn allows(&self, feature: Feature) -> bool {
+        self.shading.features.contains(&feature)
+    }
+
+    /// The GPU memory this profile needs; see [`Footprint`] for what each part holds.
+    pub fn footprint(&self) -> Footprint {
+        let s = u64::from(self.clip_size());
+        let l = u64::from(self.clipmap.levels);
+        let m = u64::from(self.block_m());
+        // Block (m x m), fix-up (m x 3, two orientations), trim ((2m+1) x 2, two orientations) and one
+        // interior-fill quad mesh, each with xy vertices (4 bytes) and u16 indices (2 bytes, 6 per quad).
+        let grids = [(m, m), (m, 3), (3, m), (2 * m + 1, 2), (2, 2 * m + 1)];
+        let meshes = grids
+            .iter()
+            .map(|&(w, h)| w * h * 4 + (w - 1) * (h - 1) * 6 * 2)
+            .sum::<u64>();
+        let (w, h) = (u64::from(self.view.width), u64::from(self.view.height));
+        let padded_row = (w * 4).div_ceil(256) * 256;
+        Footprint {
+            heights: s * s * l * 8,
+            normals: s * s * l * 4,
+            meshes,
+            targets: w * h * 4 + w * h * 4 + padded_row * h,
+            uniforms: (l + 1) * 256,
+        }
+    }
+}
+
+fn line_col(text: &str, offset: usize) -> String {
+    let before = &text[..offset.min(text.len())];
+    let line = before.matches('\n').count() + 1;
+    let col = before.len() - before.rfind('\n').map_or(0, |i| i + 1) + 1;
+    format!(" (line {line}, column {col})")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shipped_profiles_load() {
+        for (name, _) in SHIPPED {
+            let p = Profile::load(name).unwrap_or_else(|e| panic!("{name}: {e}"));
+            assert_eq!(p.name, name);
+            assert!(p.footprint().total() <= p.budget.gpu_memory_bytes);
+        }
+    }
+}
