@@ -17,6 +17,7 @@ mod error;
 pub mod gpu;
 pub mod hash;
 mod heightmap;
+pub mod plot;
 pub mod profile;
 pub mod source;
 
