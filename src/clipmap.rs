@@ -521,11 +521,19 @@ impl Clipmap {
                         .get(a, b)[0]
                 }
             };
+            let size = ring.size as usize;
+            let tx0 = ring.index(band.x0, 0);
             for j in band.y0..band.y1() {
+                // Toroidal addressing, stepped along the row instead of a division per texel.
+                let row = ring.index(0, j);
+                let mut tx = tx0;
                 for i in band.x0..band.x1() {
                     let t = this.texel(level, i, j, &coarse);
-                    let idx = ring.index(i, j);
-                    ring.texels[idx] = t;
+                    ring.texels[row + tx] = t;
+                    tx += 1;
+                    if tx == size {
+                        tx = 0;
+                    }
                     zsum.write_u64((u64::from(t[0].to_bits()) << 32) | u64::from(t[1].to_bits()));
                 }
             }

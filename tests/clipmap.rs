@@ -169,13 +169,13 @@ fn run_motions(frames: u64, prof: &Profile, synth: u32) {
 
 #[test]
 fn constraints_hold_on_long_runs() {
-    // n = 31, S = 40: 1500 frames per motion; the budget (6 rows) is tight enough to go stale.
-    run_motions(1500, &profile(31, 6, 4, 240), 0);
+    // n = 31, S = 40: 3000 frames per motion; the budget (6 rows) is tight enough to go stale.
+    run_motions(3000, &profile(31, 6, 4, 240), 0);
 }
 
 #[test]
 fn constraints_hold_with_synthesis() {
-    run_motions(600, &profile(15, 6, 2, 100), 2);
+    run_motions(2000, &profile(15, 6, 2, 100), 2);
 }
 
 /// The long variant: `cargo test --release --test clipmap -- --ignored long_runs`.
@@ -320,7 +320,8 @@ fn synthesis_adds_detail_below_the_data() {
     let prof = profile(15, 5, 2, 100_000);
     let mut cm = Clipmap::new(&hm, &prof, ClipmapOptions { synth_levels: 2 }).expect("clipmap");
     assert_eq!(cm.g0(), 7.5);
-    cm.update(DVec3::new(1920.0, 1920.0, 250.0))
+    let ground = f64::from(hm.height_at_world(1920.0, 1920.0));
+    cm.update(DVec3::new(1920.0, 1920.0, ground + 2.0))
         .expect("update");
     let f = cm.frame();
     assert!(
@@ -470,4 +471,43 @@ fn puget_sound_fly_through() {
         check_frame(&cm, "puget");
     }
     assert_eq!(cm.frame().stale_levels, 0);
+}
+
+/// Fill throughput at n = 255 (desktop profile): every frame teleports, so every level refills all
+/// clip_size^2 samples. Prints samples/s; wall-clock time is only printed, never asserted.
+/// `cargo test --release --test clipmap -- --ignored --nocapture throughput`.
+#[test]
+#[ignore]
+fn throughput() {
+    let hm = terrain(1025, 30.0, 200.0);
+    for synth in [0, 1] {
+        let mut prof = Profile::load("desktop").expect("profile");
+        let s = prof.clip_size();
+        prof.budget.update_samples_per_frame = s * s * prof.clipmap.levels;
+        let mut cm = Clipmap::new(
+            &hm,
+            &prof,
+            ClipmapOptions {
+                synth_levels: synth,
+            },
+        )
+        .expect("clipmap");
+        let frames = 20u32;
+        let start = std::time::Instant::now();
+        let mut samples = 0u64;
+        for t in 0..frames {
+            // Jumps far enough that no level keeps anything (coarsest spacing 30 m * 2^10).
+            let x = 15_000.0 + f64::from(t % 2) * 2_000_000.0;
+            let f = cm.update(DVec3::new(x, 15_000.0, 100.0)).expect("update");
+            samples += u64::from(f.samples_updated);
+        }
+        let secs = start.elapsed().as_secs_f64();
+        eprintln!(
+            "synth_levels {synth}: n {} clip_size {s}: {samples} samples in {frames} frames, {secs:.3} s, \
+             {:.1} M samples/s, {:.2} ms per full {s}x{s} level",
+            prof.clipmap.n,
+            samples as f64 / secs / 1e6,
+            secs * 1e3 * f64::from(s * s) / samples as f64
+        );
+    }
 }
