@@ -27,6 +27,9 @@ pub struct ClipmapOptions {
 /// The narrowest active region (vertices per side) still rendered; narrower cropped levels are disabled.
 pub const MIN_ACTIVE: u32 = 5;
 
+/// Largest |lattice coordinate| of an eye, 2^48 level-0 samples (2.8e15 m at 10 m spacing).
+const MAX_LATTICE: f64 = (1u64 << 48) as f64;
+
 /// The viewer-height rule: level l is disabled above 0.4 n g_l over the terrain (design.md).
 pub const HEIGHT_FACTOR: f64 = 0.4;
 
@@ -74,6 +77,20 @@ impl Ring {
 }
 
 /// A broken GC section 5 constraint, naming the constraint and the level.
+///
+/// The constraints, on the regions of GC section 3 (clip = data held, active = rendered), with A ⊘ 2 the
+/// region coarsened to the next level's lattice and A ⊖ 1 the region eroded by one sample:
+///
+/// 1. active_region(l) ⊆ clip_region(l): every rendered vertex has data.
+/// 2. active_region(l) ⊘ 2 ⊆ active_region(l+1) ⊖ 1: each level nests inside the next coarser one with at
+///    least one coarse sample of border, so the coarser ring's render region is a true ring and the
+///    transition region has room.
+/// 3. The corners of active_region(l) lie on level l+1's lattice (even coordinates), so the boundary vertices
+///    of the finer level coincide with coarser vertices (no T-junctions; z_c = z there).
+/// 4. The enabled levels are a contiguous range ending at the coarsest: disabled levels are the finest ones.
+///
+/// The GC paper text itself was not at hand while writing this; these are the constraints as design.md and
+/// the paper's section 5 describe them, in the form the renderer relies on.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 #[non_exhaustive]
 pub enum ConstraintViolation {
@@ -373,6 +390,12 @@ impl Clipmap {
             return Err(Error::Camera(format!("eye position {eye} is not finite")));
         }
         let p = self.eye_lattice(eye);
+        // Lattice coordinates stay far inside i64 (and doubled corners cannot overflow).
+        if !(p.0.abs() < MAX_LATTICE && p.1.abs() < MAX_LATTICE) {
+            return Err(Error::Camera(format!(
+                "eye position {eye} is too far from the terrain for the clipmap lattice"
+            )));
+        }
         let h = self.height_above_terrain(eye);
         let lv = self.levels as usize;
 
