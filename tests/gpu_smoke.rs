@@ -18,10 +18,11 @@ fn sloped() -> Heightmap {
     let n = 129u32;
     let heights = (0..n * n)
         .map(|i| {
-            let (u, v) = (f64::from(i % n), f64::from(i / n));
+            // Exact: i % n and i / n are below 2^24.
+            let (u, v) = ((i % n) as f32, (i / n) as f32);
             let ridge = 400.0 * (-((u - 80.0).powi(2) + (v - 50.0).powi(2)) / 600.0).exp();
             let waves = 60.0 * (u * 0.15).sin() * (v * 0.11).cos();
-            (u * 4.0 + (128.0 - v) * 3.0 - 120.0 + ridge + waves) as f32
+            u * 4.0 + (128.0 - v) * 3.0 - 120.0 + ridge + waves
         })
         .collect();
     Heightmap::new(Path::new("<sloped>"), n, n, 30.0, heights).expect("valid synthetic terrain")
@@ -39,8 +40,17 @@ fn render(gpu: &Gpu, hm: &Heightmap) -> Frame {
     brute.render(&camera, W, H).expect("brute-force frame")
 }
 
-fn sky_rgba8() -> [u8; 4] {
-    shaders::SKY.map(|c| (c * 255.0).round() as u8)
+/// The top-left pixel of the default view is sky: check it is the clear colour and return it.
+fn sky(img: &clipsat::gpu::readback::Image) -> [u8; 4] {
+    let p = img.pixel(0, 0);
+    for (got, want) in p.iter().zip(shaders::SKY) {
+        assert!(
+            (f64::from(*got) / 255.0 - want).abs() <= 1.0 / 255.0,
+            "top-left pixel {p:?} is not the sky colour {:?}",
+            shaders::SKY
+        );
+    }
+    p
 }
 
 #[test]
@@ -53,7 +63,10 @@ fn adapter_is_opengl_es_3_0() {
     );
     assert_eq!(r.backend, "Gl");
     assert_eq!(r.mode, "strict");
-    assert!(!r.compute && !r.vertex_storage, "GLES 3.0 has neither: {r:?}");
+    assert!(
+        !r.compute && !r.vertex_storage,
+        "GLES 3.0 has neither: {r:?}"
+    );
 }
 
 #[test]
@@ -100,9 +113,17 @@ fn image_is_not_blank() {
     let gpu = strict();
     let frame = render(&gpu, &sloped());
     let img = &frame.image;
-    let sky = sky_rgba8();
-    let colours: BTreeSet<[u8; 4]> = img.rgba.chunks_exact(4).map(|p| [p[0], p[1], p[2], p[3]]).collect();
-    assert!(colours.len() > 50, "only {} distinct colours", colours.len());
+    let sky = sky(img);
+    let colours: BTreeSet<[u8; 4]> = img
+        .rgba
+        .chunks_exact(4)
+        .map(|p| [p[0], p[1], p[2], p[3]])
+        .collect();
+    assert!(
+        colours.len() > 50,
+        "only {} distinct colours",
+        colours.len()
+    );
     // The default view looks down on the terrain: the bottom-centre pixel is terrain, not sky.
     let bottom = img.pixel(W / 2, H - 5);
     assert_ne!(bottom, sky, "terrain expected at the bottom of the view");
@@ -121,7 +142,10 @@ fn gpus_on_several_threads() {
         let handles: Vec<_> = (0..3)
             .map(|_| s.spawn(|| render(&strict(), &sloped()).image_hash))
             .collect();
-        handles.into_iter().map(|h| h.join().expect("render thread")).collect()
+        handles
+            .into_iter()
+            .map(|h| h.join().expect("render thread"))
+            .collect()
     });
     assert!(hashes.windows(2).all(|w| w[0] == w[1]), "{hashes:x?}");
 }
@@ -134,4 +158,35 @@ fn refuses_oversized_images() {
     let mut brute = BruteForce::new(&gpu, &hm).expect("set-up");
     assert!(brute.render(&camera, 4096, 100).is_err());
     assert!(brute.render(&camera, 0, 100).is_err());
+}
+
+#[test]
+fn refuses_terrain_beyond_the_floor() {
+    // 3000 x 4000 samples: the u32 index buffer needs 288 MB, over the 256 MiB buffer limit.
+    let hm = Heightmap::new(Path::new("<big>"), 3000, 4000, 10.0, vec![0.0; 3000 * 4000])
+        .expect("valid terrain");
+    let gpu = strict();
+    let err = BruteForce::new(&gpu, &hm).expect_err("over the GLES 3.0 floor");
+    assert!(matches!(err, clipsat::Error::Gpu(_)), "{err}");
+    assert!(err.to_string().contains("too large"), "{err}");
+}
+
+#[test]
+fn strict_survives_a_gl_mode_gpu() {
+    // Both modes share EGL's one surfaceless display; a wgpu GL device coming and going must not take
+    // the strict context down with it.
+    let hm = sloped();
+    let strict_gpu = strict();
+    let before = render(&strict_gpu, &hm).image_hash;
+    {
+        let gl = Gpu::new(GpuMode::Gl).expect("wgpu GL backend on llvmpipe");
+        assert_eq!(gl.report().mode, "gl");
+        let frame = render(&gl, &hm);
+        assert_eq!(frame.image.rgba.len(), (W * H * 4) as usize);
+    }
+    assert_eq!(render(&strict_gpu, &hm).image_hash, before);
+    assert_eq!(
+        Gpu::new(GpuMode::Auto).expect("auto").report().mode,
+        "strict"
+    );
 }

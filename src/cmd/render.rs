@@ -135,6 +135,9 @@ fn camera(args: &RenderArgs, hm: &Heightmap, profile_fov: f64) -> Result<Camera>
     camera.with_clip((far * 1e-5).max(0.05), far)
 }
 
+/// The largest render target side on the GLES 3.0 floor (`Limits::downlevel_webgl2_defaults`).
+const MAX_SIDE: u32 = 2048;
+
 fn parse_size(text: &str) -> Result<(u32, u32)> {
     let bad = |reason: String| Error::Arg {
         arg: "--size".into(),
@@ -147,8 +150,12 @@ fn parse_size(text: &str) -> Result<(u32, u32)> {
         s.trim()
             .parse::<u32>()
             .ok()
-            .filter(|&v| v > 0)
-            .ok_or_else(|| bad(format!("`{s}` is not a positive whole number of pixels")))
+            .filter(|&v| (1..=MAX_SIDE).contains(&v))
+            .ok_or_else(|| {
+                bad(format!(
+                    "`{s}` is not a whole number of pixels in 1..={MAX_SIDE} (the GLES 3.0 floor)"
+                ))
+            })
     };
     Ok((parse(w)?, parse(h)?))
 }

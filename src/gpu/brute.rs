@@ -86,7 +86,11 @@ impl<'g> BruteForce<'g> {
             .get_downlevel_capabilities()
             .flags
             .contains(wgpu::DownlevelFlags::FULL_DRAW_INDEX_UINT32);
-        let max_index = if full_u32 { u64::from(u32::MAX) } else { (1 << 24) - 1 };
+        let max_index = if full_u32 {
+            u64::from(u32::MAX)
+        } else {
+            (1 << 24) - 1
+        };
         let too_big = |what: String| {
             Error::Gpu(format!(
                 "terrain {columns} x {rows} is too large for the brute-force reference on the GLES 3.0 \
@@ -201,11 +205,11 @@ impl<'g> BruteForce<'g> {
             gpu.queue()
                 .write_buffer(&self.uniforms, 0, bytemuck::bytes_of(&globals));
             let color_view = targets.color.create_view(&Default::default());
-            let mut encoder = gpu
-                .device()
-                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                    label: Some("brute frame"),
-                });
+            let mut encoder =
+                gpu.device()
+                    .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                        label: Some("brute frame"),
+                    });
             {
                 let [r, g, b, a] = shaders::SKY;
                 let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
@@ -253,6 +257,11 @@ impl<'g> BruteForce<'g> {
 
     /// Uniforms for `camera`: the anchor is the grid sample nearest the eye, clamped into the grid, so
     /// positions near the viewer are small f32 numbers.
+    #[expect(
+        clippy::cast_possible_truncation,
+        reason = "f64 -> f32 is the intended GPU precision once offsets are camera-relative; \
+                  col and row are clamped integers inside a u32 grid"
+    )]
     fn globals(&self, camera: &Camera, aspect: f64) -> Globals {
         let s = self.spacing;
         let eye = camera.eye;
@@ -260,15 +269,14 @@ impl<'g> BruteForce<'g> {
         let row_from_south = (eye.y / s).round().clamp(0.0, f64::from(self.rows - 1));
         let row = f64::from(self.rows - 1) - row_from_south;
         let anchor = DVec3::new(col * s, row_from_south * s, 0.0) - eye;
-        // In range: clamped to the grid, whose sides are u32.
-        #[expect(
-            clippy::cast_possible_truncation,
-            reason = "col and row are clamped integers inside the grid"
-        )]
-        let (col, row) = (col as i32, row as i32);
         Globals {
             view_proj: camera.view_proj_relative(aspect).to_cols_array(),
-            grid: [col, row, i32::try_from(self.columns).unwrap_or(i32::MAX), 0],
+            grid: [
+                col as i32,
+                row as i32,
+                i32::try_from(self.columns).unwrap_or(i32::MAX),
+                0,
+            ],
             anchor_rel: [
                 anchor.x as f32,
                 anchor.y as f32,
@@ -292,7 +300,7 @@ impl Drop for BruteForce<'_> {
 fn vertex_data(hm: &Heightmap) -> Vec<[f32; 3]> {
     let (w, h) = (i64::from(hm.width()), i64::from(hm.height()));
     let s = hm.spacing();
-    let mut out = Vec::with_capacity((w * h) as usize);
+    let mut out = Vec::with_capacity(hm.heights().len());
     for v in 0..h {
         for u in 0..w {
             let (u0, u1) = ((u - 1).max(0), (u + 1).min(w - 1));

@@ -50,9 +50,9 @@ pub(super) fn pin_gles_version() {
 
 /// An EGL display + OpenGL ES 3.0 context, current on the thread that made it. Destroyed on drop.
 ///
-/// The display is not terminated on drop: EGL returns one shared display per platform, so terminating it
-/// would pull the context from under every other [`super::Gpu`] in the process (wgpu's GL backend
-/// reference-counts the same display). A process keeps one initialised display, as EGL intends.
+/// The display is not terminated on drop: EGL returns one display per platform, shared by every context
+/// in the process (wgpu's GL backend uses the same one), so terminating it would destroy the contexts of
+/// every other live [`super::Gpu`]. A process keeps one initialised display, as EGL intends.
 pub(super) struct StrictContext {
     egl: &'static EglInstance,
     display: egl::Display,

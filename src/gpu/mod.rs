@@ -14,6 +14,7 @@ pub mod readback;
 pub mod shaders;
 
 use std::marker::PhantomData;
+use std::sync::OnceLock;
 
 use serde::Serialize;
 
@@ -129,9 +130,7 @@ impl Gpu {
 
     fn handles(&self) -> &Handles {
         self.bind();
-        self.handles
-            .as_ref()
-            .expect("Gpu handles exist until drop")
+        self.handles.as_ref().expect("Gpu handles exist until drop")
     }
 
     /// The device (its GL context made current first).
@@ -204,11 +203,7 @@ impl Gpu {
     fn new_gl() -> Result<Self> {
         #[cfg(unix)]
         egl::pin_gles_version();
-        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
-            backends: wgpu::Backends::GL,
-            flags: wgpu::InstanceFlags::empty().with_env(),
-            ..wgpu::InstanceDescriptor::new_without_display_handle()
-        });
+        let instance = gl_instance();
         let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
             power_preference: wgpu::PowerPreference::None,
             force_fallback_adapter: false,
@@ -298,6 +293,23 @@ impl Drop for Gpu {
     }
 }
 
+/// wgpu's GL instance, one per process and never dropped.
+///
+/// EGL hands out one display per platform, shared by every context in the process. Dropping a wgpu GL
+/// instance terminates that display (wgpu reference-counts only its own uses), which would destroy the
+/// contexts of live strict-mode `Gpu`s too. Keeping the instance alive avoids that.
+fn gl_instance() -> wgpu::Instance {
+    static GL: OnceLock<wgpu::Instance> = OnceLock::new();
+    GL.get_or_init(|| {
+        wgpu::Instance::new(wgpu::InstanceDescriptor {
+            backends: wgpu::Backends::GL,
+            flags: wgpu::InstanceFlags::empty().with_env(),
+            ..wgpu::InstanceDescriptor::new_without_display_handle()
+        })
+    })
+    .clone()
+}
+
 /// The driver part of a GL version string: "OpenGL ES 3.0 Mesa 22.3.6" -> "Mesa 22.3.6".
 fn driver_from_version(version: &str) -> String {
     if let Some(i) = version.find("Mesa") {
@@ -306,4 +318,29 @@ fn driver_from_version(version: &str) -> String {
     let rest = version.strip_prefix("OpenGL ES ").unwrap_or(version);
     rest.split_once(' ')
         .map_or_else(String::new, |(_, tail)| tail.trim().to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn driver_from_gl_version() {
+        assert_eq!(
+            driver_from_version("OpenGL ES 3.0 Mesa 22.3.6"),
+            "Mesa 22.3.6"
+        );
+        assert_eq!(
+            driver_from_version("4.5 (Core Profile) Mesa 22.3.6"),
+            "Mesa 22.3.6"
+        );
+        assert_eq!(
+            driver_from_version(
+                "OpenGL ES 3.2 V@0502.0 (GIT@d4cfdf3, Ic907de5ed0) (Date:09/30/20)"
+            ),
+            "V@0502.0 (GIT@d4cfdf3, Ic907de5ed0) (Date:09/30/20)"
+        );
+        assert!("bogus".parse::<GpuMode>().is_err());
+        assert_eq!("strict".parse::<GpuMode>().ok(), Some(GpuMode::Strict));
+    }
 }

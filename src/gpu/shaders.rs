@@ -45,12 +45,16 @@ impl BasicShading {
     /// Shading for a terrain whose heights span `range` (m) over a horizontal `diagonal` (m).
     ///
     /// The land ramp runs from max(lowest, 0) to the highest sample, so every terrain uses the whole
-    /// ramp; water is anything at or below 0 m. Fog halves the colour at twice the diagonal. The sun sits
+    /// ramp; water is anything at or below 0 m. Fog halves the colour at 1.5 diagonals. The sun sits
     /// in the north-west, 40 degrees up, as in cartographic hill shading.
+    #[expect(
+        clippy::cast_possible_truncation,
+        reason = "fog density is a small positive number, f32 is its GPU precision"
+    )]
     pub fn for_terrain(range: (f32, f32), diagonal: f64) -> Self {
         let lo = range.0.max(0.0);
         let hi = range.1.max(lo + 1.0);
-        let fog_density = std::f64::consts::LN_2 / (2.0 * diagonal.max(1.0));
+        let fog_density = std::f64::consts::LN_2 / (1.5 * diagonal.max(1.0));
         let (az, el) = (315f32.to_radians(), 40f32.to_radians());
         // Azimuth clockwise from north: east = sin, north = cos.
         let sun = Vec3::new(az.sin() * el.cos(), az.cos() * el.cos(), el.sin()).normalize();
