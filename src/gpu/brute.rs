@@ -416,3 +416,31 @@ fn pipeline(device: &wgpu::Device, layout: &wgpu::BindGroupLayout) -> wgpu::Rend
         cache: None,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn mesh_of_a_tilted_plane() {
+        // z = 2 x + 3 y over a 4 x 3 grid of 10 m cells: every normal is (-2, -3, 1) normalised.
+        let (w, h, s) = (4u32, 3u32, 10.0f32);
+        let heights = (0..w * h)
+            .map(|i| {
+                let (u, v) = ((i % w) as f32, (i / w) as f32);
+                2.0 * u * s + 3.0 * (h as f32 - 1.0 - v) * s
+            })
+            .collect();
+        let hm =
+            Heightmap::new(std::path::Path::new("<plane>"), w, h, s, heights).expect("valid plane");
+        let n = glam::Vec3::new(-2.0, -3.0, 1.0).normalize();
+        for (i, [z, nx, ny]) in vertex_data(&hm).into_iter().enumerate() {
+            assert_eq!(z, hm.heights()[i]);
+            assert!((nx - n.x).abs() < 1e-6 && (ny - n.y).abs() < 1e-6, "{i}");
+        }
+        let idx = index_data(w, h);
+        assert_eq!(idx.len(), 3 * 2 * 6);
+        assert_eq!(&idx[..6], &[0, 4, 5, 0, 5, 1]);
+        assert!(idx.iter().all(|&i| i < w * h));
+    }
+}
