@@ -58,6 +58,20 @@ impl Camera {
         })
     }
 
+    /// A camera that shows all of `hm` with its relief: outside the south-west corner, above the highest
+    /// sample, looking north-east across the centre; 60 degree field of view, clip planes fitted to the
+    /// terrain so depth precision is spent on it.
+    pub fn default_for(hm: &crate::Heightmap) -> Result<Self> {
+        let (ex, ey) = hm.extent_m();
+        let (lo, hi) = hm.range();
+        let (lo, hi) = (f64::from(lo), f64::from(hi));
+        let size = ex.max(ey);
+        let eye = DVec3::new(-0.1 * ex, -0.1 * ey, hi + 0.3 * size);
+        let target = DVec3::new(0.5 * ex, 0.5 * ey, lo);
+        let far = (DVec3::new(ex, ey, lo) - eye).length() * 1.5;
+        Self::new(eye, target, 60.0)?.with_clip((far * 1e-5).max(0.1), far)
+    }
+
     /// Sets the clip planes (metres); `near` must be positive and below `far`.
     pub fn with_clip(mut self, near: f64, far: f64) -> Result<Self> {
         if !(near.is_finite() && far.is_finite() && near > 0.0 && far > near) {

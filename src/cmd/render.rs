@@ -1,9 +1,19 @@
 //! `clipsat render`: one frame, offscreen, to a PNG.
+//!
+//! For now it draws the brute-force full-resolution grid (the ground truth); the clipmap renderer will
+//! become the default and brute force will stay behind `--brute`.
+
+use std::time::Instant;
 
 use clap::Args;
-use clipsat::{Error, Result};
+use clipsat::camera::parse_vec3;
+use clipsat::gpu::brute::BruteForce;
+use clipsat::gpu::{Gpu, GpuMode};
+use clipsat::{hash, Camera, Error, Heightmap, Result};
+use glam::DVec3;
+use serde_json::json;
 
-use super::{ProfileArgs, TerrainArgs};
+use super::{ensure_parent, print_json, ProfileArgs, TerrainArgs};
 
 #[derive(Args, Debug)]
 pub(crate) struct RenderArgs {
@@ -11,15 +21,145 @@ pub(crate) struct RenderArgs {
     terrain: TerrainArgs,
     #[command(flatten)]
     profile: ProfileArgs,
+    /// Eye position X,Y,Z in metres (x east, y north, z up; the south-west sample is at 0,0).
+    /// Default: outside the south-west corner, above the highest peak.
+    #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
+    camera: Option<String>,
+    /// The point looked at, X,Y,Z in metres. Default: past the terrain's centre, toward the north-east.
+    #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
+    look_at: Option<String>,
+    /// Vertical field of view in degrees. Default: the profile's.
+    #[arg(long, value_name = "DEG")]
+    fov: Option<f64>,
+    /// Image size, WxH pixels (each side at most 2048, the GLES 3.0 floor). Default: the profile's viewport.
+    #[arg(long, value_name = "WxH")]
+    size: Option<String>,
     /// Output PNG.
     #[arg(long, value_name = "FILE.png", default_value = "out/frame.png")]
     out: std::path::PathBuf,
+    /// GL context: strict (a real OpenGL ES 3.0 context), gl (wgpu's own GL backend) or auto.
+    #[arg(long, value_name = "auto|strict|gl", default_value = "auto")]
+    gpu: String,
     /// Print a machine-readable summary on stdout.
     #[arg(long)]
     json: bool,
 }
 
 pub(crate) fn run(args: &RenderArgs) -> Result<()> {
-    let _ = (&args.terrain, &args.profile, &args.out, args.json);
-    Err(Error::Gpu("render is not written yet".into()))
+    let mode: GpuMode = args.gpu.parse()?;
+    let profile = args.profile.load()?;
+    let (size_w, size_h) = match &args.size {
+        Some(s) => parse_size(s)?,
+        None => (profile.view.width, profile.view.height),
+    };
+    let (terrain_name, hm) = args.terrain.load()?;
+    let camera = camera(args, &hm, f64::from(profile.view.fov_y_deg))?;
+
+    let gpu = Gpu::new(mode)?;
+    let t0 = Instant::now();
+    let mut brute = BruteForce::new(&gpu, &hm)?;
+    let setup_ms = t0.elapsed().as_secs_f64() * 1e3;
+    let t1 = Instant::now();
+    let frame = brute.render(&camera, size_w, size_h)?;
+    let ms = t1.elapsed().as_secs_f64() * 1e3;
+    ensure_parent(&args.out)?;
+    frame.image.save_png(&args.out)?;
+
+    let report = gpu.report();
+    if args.json {
+        print_json(&json!({
+            "renderer": "brute",
+            "terrain": terrain_name,
+            "profile": profile.name,
+            "adapter": {
+                "name": report.name,
+                "backend": report.backend,
+                "gl_version": report.gl_version,
+                "driver": report.driver,
+                "mode": report.mode,
+            },
+            "width": size_w,
+            "height": size_h,
+            "camera": {
+                "eye": camera.eye.to_array(),
+                "look_at": camera.target.to_array(),
+                "fov_y_deg": camera.fov_y_deg,
+            },
+            "triangles": frame.triangles,
+            "image_hash": hash::hex(frame.image_hash),
+            "out": args.out.display().to_string(),
+            "setup_ms": round2(setup_ms),
+            "ms": round2(ms),
+        }));
+    } else {
+        println!(
+            "{}: {size_w}x{size_h}, {} triangles (brute force), image {} in {:.1} ms on {} ({})",
+            args.out.display(),
+            frame.triangles,
+            hash::hex(frame.image_hash),
+            ms,
+            report.name,
+            report.gl_version,
+        );
+    }
+    Ok(())
+}
+
+/// The camera the options ask for; missing parts come from [`Camera::default_for`].
+fn camera(args: &RenderArgs, hm: &Heightmap, profile_fov: f64) -> Result<Camera> {
+    let default = Camera::default_for(hm)?;
+    let fov = args.fov.unwrap_or(profile_fov);
+    if args.camera.is_none() && args.look_at.is_none() {
+        return Camera::new(default.eye, default.target, fov)?.with_clip(default.near, default.far);
+    }
+    let eye = match &args.camera {
+        Some(t) => parse_vec3("--camera", t)?,
+        None => default.eye,
+    };
+    let target = match &args.look_at {
+        Some(t) => parse_vec3("--look-at", t)?,
+        None => default.target,
+    };
+    let camera = Camera::new(eye, target, fov)?;
+    // Fit the clip planes to the terrain's bounding box as seen from this eye.
+    let (ex, ey) = hm.extent_m();
+    let (lo, hi) = hm.range();
+    let far = [0.0, ex]
+        .into_iter()
+        .flat_map(|x| [0.0, ey].map(|y| (x, y)))
+        .flat_map(|(x, y)| [lo, hi].map(|z| DVec3::new(x, y, f64::from(z))))
+        .map(|corner| corner.distance(eye))
+        .fold(0.0, f64::max)
+        * 1.1;
+    let far = far.max(10.0);
+    camera.with_clip((far * 1e-5).max(0.05), far)
+}
+
+/// The largest render target side on the GLES 3.0 floor (`Limits::downlevel_webgl2_defaults`).
+const MAX_SIDE: u32 = 2048;
+
+fn parse_size(text: &str) -> Result<(u32, u32)> {
+    let bad = |reason: String| Error::Arg {
+        arg: "--size".into(),
+        reason,
+    };
+    let (w, h) = text
+        .split_once(['x', 'X'])
+        .ok_or_else(|| bad(format!("`{text}` is not WxH")))?;
+    let parse = |s: &str| {
+        s.trim()
+            .parse::<u32>()
+            .ok()
+            .filter(|&v| (1..=MAX_SIDE).contains(&v))
+            .ok_or_else(|| {
+                bad(format!(
+                    "`{s}` is not a whole number of pixels in 1..={MAX_SIDE} (the GLES 3.0 floor)"
+                ))
+            })
+    };
+    Ok((parse(w)?, parse(h)?))
+}
+
+fn round2(v: f64) -> f64 {
+    (v * 100.0).round() / 100.0
 }

@@ -1,1 +1,346 @@
 //! Stage 3, the GPU: wgpu on the OpenGL ES 3.0 floor. Only this module (and the renderer) touches wgpu.
+//!
+//! Every device is created with [`wgpu::Limits::downlevel_webgl2_defaults`] (2048^2 textures, no compute,
+//! no storage buffers): the GLES 3.0 floor everything must fit. [`GpuMode`] picks how the GL context is
+//! made; the tests use [`GpuMode::Strict`], a real OpenGL ES 3.0 context.
+//!
+//! A [`Gpu`] is bound to the thread that made it (GL contexts are current per thread): keep the
+//! renderer on the thread that made it. The type is neither `Send` nor `Sync`, so the compiler enforces it.
+
+pub mod brute;
+#[cfg(unix)]
+mod egl;
+pub mod readback;
+pub mod shaders;
+
+use std::marker::PhantomData;
+use std::sync::OnceLock;
+
+use serde::Serialize;
+
+use crate::{Error, Result};
+
+/// How to obtain the GL context.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum GpuMode {
+    /// A real OpenGL ES 3.0 context through EGL (surfaceless Mesa platform), wrapped by wgpu.
+    ///
+    /// Sets `MESA_GLES_VERSION_OVERRIDE=3.0` (unless already set) before EGL starts, so Mesa reports
+    /// exactly ES 3.0 rather than the highest ES version it supports.
+    Strict,
+    /// wgpu's own GL backend, headless. On Mesa this is usually a desktop GL 4.5 context.
+    Gl,
+    /// [`GpuMode::Strict`] if it works, else [`GpuMode::Gl`].
+    #[default]
+    Auto,
+}
+
+impl std::str::FromStr for GpuMode {
+    type Err = Error;
+
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "strict" => Ok(Self::Strict),
+            "gl" => Ok(Self::Gl),
+            "auto" => Ok(Self::Auto),
+            other => Err(Error::Arg {
+                arg: "--gpu".into(),
+                reason: format!("`{other}` is not auto, strict or gl"),
+            }),
+        }
+    }
+}
+
+/// What the adapter says about itself, for reports and goldens (image hashes are exact per driver).
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+pub struct AdapterReport {
+    /// The renderer (GL_RENDERER), e.g. "llvmpipe (LLVM 15.0.6, 256 bits)".
+    pub name: String,
+    /// The wgpu backend, e.g. "Gl".
+    pub backend: String,
+    /// The GL version string (GL_VERSION), e.g. "OpenGL ES 3.0 Mesa 22.3.6".
+    pub gl_version: String,
+    /// The driver and its version, e.g. "Mesa 22.3.6" (from the GL version string when wgpu has none).
+    pub driver: String,
+    /// wgpu's driver info field, verbatim.
+    pub driver_info: String,
+    /// Which [`GpuMode`] made the context: "strict" or "gl".
+    pub mode: String,
+    /// Whether the adapter offers compute shaders (a GLES 3.0 device does not).
+    pub compute: bool,
+    /// Whether the adapter offers storage buffers in vertex shaders (a GLES 3.0 device does not).
+    pub vertex_storage: bool,
+}
+
+/// The wgpu objects, dropped before the GL context they live in.
+#[derive(Debug)]
+struct Handles {
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    adapter: wgpu::Adapter,
+    // Kept alive for the adapter's sake; never used after creation.
+    _instance: wgpu::Instance,
+}
+
+/// A GPU device on the GLES 3.0 floor, with its queue. Not `Send`: keep it on the thread that made it.
+#[derive(Debug)]
+pub struct Gpu {
+    handles: Option<Handles>,
+    /// Declared after `handles`, so that it is destroyed after them (see `Drop`).
+    #[cfg(unix)]
+    strict: Option<egl::StrictContext>,
+    report: AdapterReport,
+    _not_send: PhantomData<*const ()>,
+}
+
+const NO_ADAPTER_HINT: &str = "install Mesa's llvmpipe with EGL: run `bash .ci/setup`, or \
+     `apt-get install libegl1 libegl-mesa0 libgles2 libgl1-mesa-dri`";
+
+impl Gpu {
+    /// Creates a device in `mode`. [`Error::NoAdapter`] says how to get one when none exists.
+    pub fn new(mode: GpuMode) -> Result<Self> {
+        match mode {
+            GpuMode::Strict => Self::new_strict(),
+            GpuMode::Gl => Self::new_gl(),
+            GpuMode::Auto => Self::new_strict().or_else(|strict| {
+                Self::new_gl().map_err(|gl| {
+                    Error::NoAdapter(format!(
+                        "strict GLES 3.0: {strict}; wgpu GL: {gl}; {NO_ADAPTER_HINT}"
+                    ))
+                })
+            }),
+        }
+    }
+
+    /// What the adapter reports.
+    pub fn report(&self) -> &AdapterReport {
+        &self.report
+    }
+
+    /// Makes this GPU's GL context current on the calling thread. Every accessor does it; call it
+    /// yourself before dropping wgpu resources when several `Gpu`s share a thread.
+    pub fn bind(&self) {
+        #[cfg(unix)]
+        if let Some(ctx) = &self.strict {
+            if let Err(e) = ctx.make_current() {
+                panic!("GL context of this Gpu can no longer be made current: {e}");
+            }
+        }
+    }
+
+    fn handles(&self) -> &Handles {
+        self.bind();
+        self.handles.as_ref().expect("Gpu handles exist until drop")
+    }
+
+    /// The device (its GL context made current first).
+    pub fn device(&self) -> &wgpu::Device {
+        &self.handles().device
+    }
+
+    /// The queue (its GL context made current first).
+    pub fn queue(&self) -> &wgpu::Queue {
+        &self.handles().queue
+    }
+
+    /// The adapter (its GL context made current first).
+    pub fn adapter(&self) -> &wgpu::Adapter {
+        &self.handles().adapter
+    }
+
+    /// Runs `f` inside validation and out-of-memory error scopes, turning captured wgpu errors into
+    /// [`Error::Gpu`] instead of wgpu's default panic.
+    pub fn scoped<T>(&self, what: &str, f: impl FnOnce() -> Result<T>) -> Result<T> {
+        let device = self.device();
+        let oom = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let out = f();
+        let v = pollster::block_on(validation.pop());
+        let o = pollster::block_on(oom.pop());
+        match (v, o) {
+            (Some(e), _) | (None, Some(e)) => Err(Error::Gpu(format!("{what}: {e}"))),
+            (None, None) => out,
+        }
+    }
+
+    #[cfg(unix)]
+    fn new_strict() -> Result<Self> {
+        let ctx = egl::StrictContext::new()?;
+        // No backends: the adapter comes from our context, and a GL instance of wgpu's own would open
+        // (and on drop terminate) the same EGL display.
+        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
+            backends: wgpu::Backends::empty(),
+            flags: wgpu::InstanceFlags::empty(),
+            ..wgpu::InstanceDescriptor::new_without_display_handle()
+        });
+        let options = wgpu::GlBackendOptions {
+            gles_minor_version: wgpu::Gles3MinorVersion::Version0,
+            ..Default::default()
+        };
+        // SAFETY: the context is current on this thread (StrictContext::new made it so) and outlives
+        // every wgpu object: `Gpu::drop` re-binds it, drops the handles, then destroys it.
+        let exposed =
+            unsafe { wgpu_hal::gles::Adapter::new_external(|n| ctx.proc_address(n), options) }
+                .ok_or_else(|| {
+                    Error::NoAdapter(
+                        "wgpu could not use the OpenGL ES 3.0 context (GL_VERSION unparsable or \
+                         below ES 3.0)"
+                            .into(),
+                    )
+                })?;
+        // SAFETY: the hal adapter is of the GLES backend this wgpu build enables.
+        let adapter = unsafe { instance.create_adapter_from_hal(exposed) };
+        Self::finish(instance, adapter, Some(ctx), "strict")
+    }
+
+    #[cfg(not(unix))]
+    fn new_strict() -> Result<Self> {
+        Err(Error::NoAdapter(
+            "the strict GLES 3.0 mode needs EGL (Linux/Unix)".into(),
+        ))
+    }
+
+    fn new_gl() -> Result<Self> {
+        #[cfg(unix)]
+        egl::pin_gles_version();
+        let instance = gl_instance();
+        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+            power_preference: wgpu::PowerPreference::None,
+            force_fallback_adapter: false,
+            compatible_surface: None,
+            apply_limit_buckets: false,
+        }))
+        .map_err(|e| Error::NoAdapter(format!("wgpu GL backend: {e}; {NO_ADAPTER_HINT}")))?;
+        Self::finish(
+            instance,
+            adapter,
+            #[cfg(unix)]
+            None,
+            "gl",
+        )
+    }
+
+    fn finish(
+        instance: wgpu::Instance,
+        adapter: wgpu::Adapter,
+        #[cfg(unix)] strict: Option<egl::StrictContext>,
+        mode: &str,
+    ) -> Result<Self> {
+        let limits = wgpu::Limits::downlevel_webgl2_defaults();
+        let have = adapter.limits();
+        let mut short = Vec::new();
+        limits.check_limits_with_fail_fn(&have, false, |name, want, got| {
+            short.push(format!("{name}: adapter has {got}, need {want}"));
+        });
+        if !short.is_empty() {
+            return Err(Error::NoAdapter(format!(
+                "adapter {:?} is below the GLES 3.0 / WebGL2 floor: {}",
+                adapter.get_info().name,
+                short.join(", ")
+            )));
+        }
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("clipsat"),
+            required_features: wgpu::Features::empty(),
+            required_limits: limits,
+            experimental_features: wgpu::ExperimentalFeatures::disabled(),
+            memory_hints: wgpu::MemoryHints::MemoryUsage,
+            trace: wgpu::Trace::Off,
+        }))
+        .map_err(|e| Error::NoAdapter(format!("request_device on the GLES 3.0 floor: {e}")))?;
+        let info = adapter.get_info();
+        let flags = adapter.get_downlevel_capabilities().flags;
+        let gl_version = info.driver_info.clone();
+        let driver = if info.driver.is_empty() {
+            driver_from_version(&gl_version)
+        } else {
+            info.driver.clone()
+        };
+        let report = AdapterReport {
+            name: info.name.clone(),
+            backend: format!("{:?}", info.backend),
+            gl_version,
+            driver,
+            driver_info: info.driver_info.clone(),
+            mode: mode.into(),
+            compute: flags.contains(wgpu::DownlevelFlags::COMPUTE_SHADERS),
+            vertex_storage: flags.contains(wgpu::DownlevelFlags::VERTEX_STORAGE),
+        };
+        Ok(Self {
+            handles: Some(Handles {
+                device,
+                queue,
+                adapter,
+                _instance: instance,
+            }),
+            #[cfg(unix)]
+            strict,
+            report,
+            _not_send: PhantomData,
+        })
+    }
+}
+
+impl Drop for Gpu {
+    fn drop(&mut self) {
+        // wgpu-hal's external GL adapter requires its context current while its objects drop.
+        #[cfg(unix)]
+        if let Some(ctx) = &self.strict {
+            let _ = ctx.make_current();
+        }
+        self.handles = None;
+        // `strict` drops next and destroys the context.
+    }
+}
+
+/// wgpu's GL instance, one per process and never dropped.
+///
+/// EGL hands out one display per platform, shared by every context in the process. Dropping a wgpu GL
+/// instance terminates that display (wgpu reference-counts only its own uses), which would destroy the
+/// contexts of live strict-mode `Gpu`s too. Keeping the instance alive avoids that.
+fn gl_instance() -> wgpu::Instance {
+    static GL: OnceLock<wgpu::Instance> = OnceLock::new();
+    GL.get_or_init(|| {
+        wgpu::Instance::new(wgpu::InstanceDescriptor {
+            backends: wgpu::Backends::GL,
+            flags: wgpu::InstanceFlags::empty().with_env(),
+            ..wgpu::InstanceDescriptor::new_without_display_handle()
+        })
+    })
+    .clone()
+}
+
+/// The driver part of a GL version string: "OpenGL ES 3.0 Mesa 22.3.6" -> "Mesa 22.3.6".
+fn driver_from_version(version: &str) -> String {
+    if let Some(i) = version.find("Mesa") {
+        return version[i..].trim().to_string();
+    }
+    let rest = version.strip_prefix("OpenGL ES ").unwrap_or(version);
+    rest.split_once(' ')
+        .map_or_else(String::new, |(_, tail)| tail.trim().to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn driver_from_gl_version() {
+        assert_eq!(
+            driver_from_version("OpenGL ES 3.0 Mesa 22.3.6"),
+            "Mesa 22.3.6"
+        );
+        assert_eq!(
+            driver_from_version("4.5 (Core Profile) Mesa 22.3.6"),
+            "Mesa 22.3.6"
+        );
+        assert_eq!(
+            driver_from_version(
+                "OpenGL ES 3.2 V@0502.0 (GIT@d4cfdf3, Ic907de5ed0) (Date:09/30/20)"
+            ),
+            "V@0502.0 (GIT@d4cfdf3, Ic907de5ed0) (Date:09/30/20)"
+        );
+        assert!("bogus".parse::<GpuMode>().is_err());
+        assert_eq!("strict".parse::<GpuMode>().ok(), Some(GpuMode::Strict));
+    }
+}

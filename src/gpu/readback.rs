@@ -1,0 +1,123 @@
+//! Stage 3 -> image: read an RGBA8 render target back into tightly packed rows, hash it, save it.
+
+use std::path::Path;
+use std::sync::mpsc;
+
+use super::Gpu;
+use crate::{hash, Error, Result};
+
+/// A read-back frame: `width * height * 4` bytes, RGBA8, rows top to bottom, no padding.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Image {
+    /// Pixels per row.
+    pub width: u32,
+    /// Rows.
+    pub height: u32,
+    /// Tightly packed RGBA8 bytes.
+    pub rgba: Vec<u8>,
+}
+
+impl Image {
+    /// The image hash: [`hash::hash_bytes`] of the tight RGBA8 bytes (exact for a given driver).
+    pub fn hash(&self) -> u64 {
+        hash::hash_bytes(&self.rgba)
+    }
+
+    /// The pixel at column `x`, row `y` (row 0 at the top). Panics outside the image (a caller bug).
+    pub fn pixel(&self, x: u32, y: u32) -> [u8; 4] {
+        assert!(
+            x < self.width && y < self.height,
+            "pixel ({x}, {y}) outside {}x{}",
+            self.width,
+            self.height
+        );
+        let i = (y as usize * self.width as usize + x as usize) * 4;
+        [
+            self.rgba[i],
+            self.rgba[i + 1],
+            self.rgba[i + 2],
+            self.rgba[i + 3],
+        ]
+    }
+
+    /// Writes the image as an 8-bit RGBA PNG.
+    pub fn save_png(&self, path: &Path) -> Result<()> {
+        image::save_buffer(
+            path,
+            &self.rgba,
+            self.width,
+            self.height,
+            image::ExtendedColorType::Rgba8,
+        )
+        .map_err(|e| match e {
+            image::ImageError::IoError(io) => Error::io(path, "cannot write", io),
+            other => Error::io(path, "cannot write", std::io::Error::other(other)),
+        })
+    }
+}
+
+/// Copies an `Rgba8Unorm` texture (usage `COPY_SRC`) to the CPU, dropping wgpu's 256-byte row padding.
+pub fn read_rgba8(gpu: &Gpu, texture: &wgpu::Texture) -> Result<Image> {
+    if texture.format() != wgpu::TextureFormat::Rgba8Unorm {
+        return Err(Error::Gpu(format!(
+            "readback needs an Rgba8Unorm texture, got {:?}",
+            texture.format()
+        )));
+    }
+    let (width, height) = (texture.width(), texture.height());
+    let tight = width as usize * 4;
+    let padded = u32::try_from(tight.next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT as usize))
+        .map_err(|_| Error::Gpu(format!("texture {width} px wide is too wide to read back")))?;
+    let buffer = gpu.scoped("readback", || {
+        let device = gpu.device();
+        let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("readback"),
+            size: u64::from(padded) * u64::from(height),
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("readback"),
+        });
+        encoder.copy_texture_to_buffer(
+            texture.as_image_copy(),
+            wgpu::TexelCopyBufferInfo {
+                buffer: &buffer,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(padded),
+                    rows_per_image: Some(height),
+                },
+            },
+            texture.size(),
+        );
+        gpu.queue().submit([encoder.finish()]);
+        Ok(buffer)
+    })?;
+    let (tx, rx) = mpsc::channel();
+    buffer.map_async(wgpu::MapMode::Read, .., move |r| {
+        // The receiver outlives the poll below; a send error cannot happen.
+        let _ = tx.send(r);
+    });
+    gpu.device()
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| Error::Gpu(format!("readback: waiting for the GPU: {e}")))?;
+    rx.try_recv()
+        .map_err(|_| Error::Gpu("readback: map callback did not run".into()))?
+        .map_err(|e| Error::Gpu(format!("readback: map failed: {e}")))?;
+    let mut rgba = Vec::with_capacity(tight * height as usize);
+    {
+        let view = buffer
+            .get_mapped_range(..)
+            .map_err(|e| Error::Gpu(format!("readback: mapped range: {e}")))?;
+        for row in view.chunks_exact(padded as usize) {
+            rgba.extend_from_slice(&row[..tight]);
+        }
+    }
+    buffer.unmap();
+    Ok(Image {
+        width,
+        height,
+        rgba,
+    })
+}
