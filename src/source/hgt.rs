@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use super::{check_size, fill_voids, metres_per_degree_latitude, LoadOptions};
+use super::{check_size, fill_voids, metres_per_degree_latitude, to_f32, LoadOptions};
 use crate::{Error, Heightmap, Result};
 
 /// SRTM's void marker.
@@ -48,7 +48,7 @@ pub(super) fn load(path: &Path, len: u64, opts: &LoadOptions) -> Result<Heightma
     let voids = fill_voids(path, side as usize, &mut heights)?;
     let spacing = opts.spacing.unwrap_or_else(|| {
         let lat = latitude_from_name(path).map_or(0.0, |south| south + 0.5);
-        (metres_per_degree_latitude(lat) * arcsec / 3600.0) as f32
+        to_f32(metres_per_degree_latitude(lat) * arcsec / 3600.0)
     });
     Ok(Heightmap::new(path, side, side, spacing, heights)?.with_voids_filled(voids))
 }

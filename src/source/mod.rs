@@ -158,7 +158,7 @@ fn read_magic(path: &Path) -> Result<Vec<u8>> {
 /// Refuses `width` x `height` over [`LoadOptions::max_samples`], before anything is allocated.
 fn check_size(path: &Path, width: u64, height: u64, opts: &LoadOptions) -> Result<usize> {
     let samples = width.saturating_mul(height);
-    if samples > opts.max_samples || usize::try_from(samples).is_err() {
+    if samples > opts.max_samples {
         return Err(Error::TooLarge {
             path: path.into(),
             width,
@@ -173,8 +173,23 @@ fn check_size(path: &Path, width: u64, height: u64, opts: &LoadOptions) -> Resul
             format!("{width} x {height} samples: need at least 2 x 2"),
         ));
     }
-    // Fits in usize: checked just above.
-    Ok(samples as usize)
+    usize::try_from(samples).map_err(|_| Error::TooLarge {
+        path: path.into(),
+        width,
+        height,
+        samples,
+        limit: opts.max_samples,
+    })
+}
+
+/// Rounds metres to the f32 a [`Heightmap`] holds; out-of-range values become infinite and are refused
+/// later as [`Error::NonFinite`].
+#[expect(
+    clippy::cast_possible_truncation,
+    reason = "f64 to f32 rounding is the intent; overflow shows up as infinity"
+)]
+fn to_f32(v: f64) -> f32 {
+    v as f32
 }
 
 /// Replaces the void samples, marked NaN, by the mean of their nearest valid neighbours; returns how many.
@@ -227,7 +242,7 @@ fn fill_voids(path: &Path, width: usize, heights: &mut [f32]) -> Result<u64> {
                 }
             }
             // Every wave member has a known neighbour: that is how it got into the wave.
-            values.push((sum / f64::from(count.max(1))) as f32);
+            values.push(to_f32(sum / f64::from(count.max(1))));
         }
         for (&i, &v) in wave.iter().zip(&values) {
             heights[i] = v;

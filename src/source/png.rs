@@ -6,7 +6,7 @@ use std::path::Path;
 use image::codecs::png::PngDecoder;
 use image::{ColorType, ImageDecoder, Limits};
 
-use super::{check_size, LoadOptions, DEFAULT_SPACING_M};
+use super::{check_size, to_f32, LoadOptions, DEFAULT_SPACING_M};
 use crate::{Error, Heightmap, Result};
 
 /// The PNG signature.
@@ -78,7 +78,7 @@ pub(super) fn load(path: &Path, opts: &LoadOptions, magic: &[u8]) -> Result<Heig
         .map_err(|e| corrupt(path, &e))?;
     // In f64, so that 0.1 m units land on the nearest f32 (whole metres exactly, as a TIFF holds them).
     let offset = f64::from(opts.height_offset);
-    let to_m = |v: u16| (f64::from(v) * scale + offset) as f32;
+    let to_m = |v: u16| to_f32(f64::from(v) * scale + offset);
     let heights: Vec<f32> = if bytes_per_sample == 1 {
         bytes.iter().map(|&v| to_m(v.into())).collect()
     } else {

@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use super::{check_size, LoadOptions, RawFormat, DEFAULT_SPACING_M};
+use super::{check_size, to_f32, LoadOptions, RawFormat, DEFAULT_SPACING_M};
 use crate::{Error, Heightmap, Result};
 
 /// Loads a raw file laid out as [`LoadOptions::raw`] says; its length must match exactly.
@@ -48,7 +48,7 @@ pub(super) fn load(path: &Path, len: u64, opts: &LoadOptions) -> Result<Heightma
             let off = f64::from(offset);
             bytes
                 .chunks_exact(2)
-                .map(|c| (f64::from(u16::from_le_bytes([c[0], c[1]])) * scale + off) as f32)
+                .map(|c| to_f32(f64::from(u16::from_le_bytes([c[0], c[1]])) * scale + off))
                 .collect()
         }
         // Non-finite samples stay so, and `Heightmap::new` refuses them with their position.

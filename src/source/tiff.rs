@@ -8,7 +8,7 @@ use tiff::decoder::{Decoder, DecodingResult, Limits};
 use tiff::tags::Tag;
 use tiff::ColorType;
 
-use super::{check_size, fill_voids, metres_per_degree_latitude, LoadOptions};
+use super::{check_size, fill_voids, metres_per_degree_latitude, to_f32, LoadOptions};
 use crate::{Error, Heightmap, Result};
 
 /// Whether `magic` starts like a TIFF or BigTIFF file (`II*\0`, `MM\0*`, and the BigTIFF 43 forms).
@@ -72,11 +72,11 @@ pub(super) fn load(path: &Path, opts: &LoadOptions, magic: &[u8]) -> Result<Heig
     };
     let w = width as usize;
     let mut heights: Vec<f32> = match image {
-        DecodingResult::I16(v) => convert(path, w, &v, |s| f64::from(s), is_void, scale, offset)?,
-        DecodingResult::U16(v) => convert(path, w, &v, |s| f64::from(s), is_void, scale, offset)?,
-        DecodingResult::I32(v) => convert(path, w, &v, |s| f64::from(s), is_void, scale, offset)?,
-        DecodingResult::U8(v) => convert(path, w, &v, |s| f64::from(s), is_void, scale, offset)?,
-        DecodingResult::F32(v) => convert(path, w, &v, |s| f64::from(s), is_void, scale, offset)?,
+        DecodingResult::I16(v) => convert(path, w, &v, f64::from, is_void, scale, offset)?,
+        DecodingResult::U16(v) => convert(path, w, &v, f64::from, is_void, scale, offset)?,
+        DecodingResult::I32(v) => convert(path, w, &v, f64::from, is_void, scale, offset)?,
+        DecodingResult::U8(v) => convert(path, w, &v, f64::from, is_void, scale, offset)?,
+        DecodingResult::F32(v) => convert(path, w, &v, f64::from, is_void, scale, offset)?,
         DecodingResult::F64(v) => convert(path, w, &v, |s| s, is_void, scale, offset)?,
         other => {
             return Err(Error::format(
@@ -123,7 +123,7 @@ fn convert<T: Copy>(
             out.push(f32::NAN);
             continue;
         }
-        let h = (v * scale + offset) as f32;
+        let h = to_f32(v * scale + offset);
         if !h.is_finite() {
             return Err(Error::NonFinite {
                 path: path.into(),
@@ -246,6 +246,6 @@ impl GeoTags {
         } else {
             size
         };
-        Ok(metres as f32)
+        Ok(to_f32(metres))
     }
 }
