@@ -66,7 +66,11 @@ pub enum TerrainSpec {
     File(PathBuf),
 }
 
+mod hgt;
+mod png;
 pub mod procedural;
+mod raw;
+mod tiff;
 
 impl TerrainSpec {
     /// Parses `--terrain`: `procedural[:seed=S,size=N,spacing=M]` (also `builtin`), else a file path.
@@ -102,7 +106,191 @@ impl TerrainSpec {
 
 /// Loads a terrain file, choosing the format from its extension: `.png`, `.tif`/`.tiff`, `.hgt`,
 /// `.raw`/`.r16`/`.f32` (the raw ones need [`LoadOptions::raw`]).
+///
+/// PNG and TIFF files must also start with their magic number. A file with another extension is
+/// accepted when its magic number says PNG or TIFF. Spacing, when neither the file nor
+/// [`LoadOptions::spacing`] gives it, is [`DEFAULT_SPACING_M`] for PNG and raw files; a GeoTIFF without
+/// georeferencing needs `--spacing`.
 pub fn load(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
-    let _ = opts;
-    Err(Error::format(path, "loader not written yet"))
+    let meta = std::fs::metadata(path).map_err(|e| Error::io(path, "cannot read", e))?;
+    if !meta.is_file() {
+        return Err(Error::format(path, "not a regular file"));
+    }
+    if meta.len() == 0 {
+        return Err(Error::format(path, "file is empty"));
+    }
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .unwrap_or_default();
+    let magic = read_magic(path)?;
+    match ext.as_str() {
+        "png" => png::load(path, opts, &magic),
+        "tif" | "tiff" => tiff::load(path, opts, &magic),
+        "hgt" => hgt::load(path, meta.len(), opts),
+        "raw" | "r16" | "f32" => raw::load(path, meta.len(), opts),
+        _ if magic.starts_with(&png::MAGIC) => png::load(path, opts, &magic),
+        _ if tiff::has_magic(&magic) => tiff::load(path, opts, &magic),
+        _ => Err(Error::format(
+            path,
+            format!(
+                "unknown terrain format `.{ext}`: expected .png, .tif/.tiff, .hgt or .raw/.r16/.f32"
+            ),
+        )),
+    }
+}
+
+/// Spacing assumed for PNG and raw files when [`LoadOptions::spacing`] is not given, metres.
+pub const DEFAULT_SPACING_M: f32 = 30.0;
+
+/// The first (up to) 8 bytes of a file, for magic-number checks.
+fn read_magic(path: &Path) -> Result<Vec<u8>> {
+    use std::io::Read;
+    let f = std::fs::File::open(path).map_err(|e| Error::io(path, "cannot open", e))?;
+    let mut magic = Vec::with_capacity(8);
+    f.take(8)
+        .read_to_end(&mut magic)
+        .map_err(|e| Error::io(path, "cannot read", e))?;
+    Ok(magic)
+}
+
+/// Refuses `width` x `height` over [`LoadOptions::max_samples`], before anything is allocated.
+fn check_size(path: &Path, width: u64, height: u64, opts: &LoadOptions) -> Result<usize> {
+    let samples = width.saturating_mul(height);
+    if samples > opts.max_samples {
+        return Err(Error::TooLarge {
+            path: path.into(),
+            width,
+            height,
+            samples,
+            limit: opts.max_samples,
+        });
+    }
+    if width < 2 || height < 2 {
+        return Err(Error::format(
+            path,
+            format!("{width} x {height} samples: need at least 2 x 2"),
+        ));
+    }
+    usize::try_from(samples).map_err(|_| Error::TooLarge {
+        path: path.into(),
+        width,
+        height,
+        samples,
+        limit: opts.max_samples,
+    })
+}
+
+/// Rounds metres to the f32 a [`Heightmap`] holds; out-of-range values become infinite and are refused
+/// later as [`Error::NonFinite`].
+#[expect(
+    clippy::cast_possible_truncation,
+    reason = "f64 to f32 rounding is the intent; overflow shows up as infinity"
+)]
+fn to_f32(v: f64) -> f32 {
+    v as f32
+}
+
+/// Replaces the void samples, marked NaN, by the mean of their nearest valid neighbours; returns how many.
+///
+/// Voids are filled in waves outward from the valid samples: each wave takes the mean of the 4-neighbours
+/// known before it, in a fixed order, so the result is deterministic. Callers must have refused genuine
+/// NaN and infinite samples already. An all-void grid is an error.
+fn fill_voids(path: &Path, width: usize, heights: &mut [f32]) -> Result<u64> {
+    let n = heights.len();
+    let voids = heights.iter().filter(|h| h.is_nan()).count();
+    if voids == 0 {
+        return Ok(0);
+    }
+    if voids == n {
+        return Err(Error::format(path, "every sample is void (nodata)"));
+    }
+    let rows = n / width;
+    let neighbours = |i: usize| {
+        let (x, y) = (i % width, i / width);
+        [
+            (x > 0).then(|| i - 1),
+            (x + 1 < width).then(|| i + 1),
+            (y > 0).then(|| i - width),
+            (y + 1 < rows).then(|| i + width),
+        ]
+    };
+    // `queued` marks voids already in a wave, so each is filled exactly once.
+    let mut queued = vec![false; n];
+    let mut wave: Vec<usize> = Vec::new();
+    for i in 0..n {
+        if heights[i].is_nan()
+            && neighbours(i)
+                .iter()
+                .flatten()
+                .any(|&j| !heights[j].is_nan())
+        {
+            queued[i] = true;
+            wave.push(i);
+        }
+    }
+    let mut values: Vec<f32> = Vec::new();
+    while !wave.is_empty() {
+        values.clear();
+        for &i in &wave {
+            let (mut sum, mut count) = (0.0f64, 0u32);
+            for j in neighbours(i).into_iter().flatten() {
+                if !heights[j].is_nan() {
+                    sum += f64::from(heights[j]);
+                    count += 1;
+                }
+            }
+            // Every wave member has a known neighbour: that is how it got into the wave.
+            values.push(to_f32(sum / f64::from(count.max(1))));
+        }
+        for (&i, &v) in wave.iter().zip(&values) {
+            heights[i] = v;
+        }
+        let mut next = Vec::new();
+        for &i in &wave {
+            for j in neighbours(i).into_iter().flatten() {
+                if heights[j].is_nan() && !queued[j] {
+                    queued[j] = true;
+                    next.push(j);
+                }
+            }
+        }
+        next.sort_unstable();
+        wave = next;
+    }
+    Ok(voids as u64)
+}
+
+/// Metres per degree of latitude at latitude `lat_deg` (the meridian arc on the WGS84 ellipsoid, series
+/// form: 111132.954 - 559.822 cos 2phi + 1.175 cos 4phi).
+pub fn metres_per_degree_latitude(lat_deg: f64) -> f64 {
+    let phi = lat_deg.to_radians();
+    111_132.954 - 559.822 * (2.0 * phi).cos() + 1.175 * (4.0 * phi).cos()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fills_voids_from_neighbours() {
+        let nan = f32::NAN;
+        let mut h = vec![1.0, nan, 3.0, nan, nan, nan, 7.0, nan, 9.0];
+        let n = fill_voids(Path::new("t"), 3, &mut h).unwrap();
+        assert_eq!(n, 5);
+        assert_eq!(h[1], 2.0);
+        assert_eq!(h[3], 4.0);
+        assert_eq!(h[4], 5.0);
+        assert!(h.iter().all(|v| v.is_finite()));
+        let mut all = vec![nan; 4];
+        assert!(fill_voids(Path::new("t"), 2, &mut all).is_err());
+    }
+
+    #[test]
+    fn meridian_arc() {
+        // 1 degree of latitude: 110574 m at the equator, 111694 m at the poles.
+        assert!((metres_per_degree_latitude(0.0) - 110_574.3).abs() < 1.0);
+        assert!((metres_per_degree_latitude(90.0) - 111_693.9).abs() < 1.0);
+    }
 }

@@ -1,0 +1,80 @@
+//! Stage 0, the source: SRTM `.hgt` tiles (headerless big-endian int16, 1201^2 or 3601^2, void = -32768).
+
+use std::path::Path;
+
+use super::{check_size, fill_voids, metres_per_degree_latitude, to_f32, LoadOptions};
+use crate::{Error, Heightmap, Result};
+
+/// SRTM's void marker.
+const VOID: i16 = -32768;
+
+/// Loads an SRTM tile; the side (1201 for 3", 3601 for 1") follows from the file length.
+///
+/// Cells are square here, with the N-S spacing: 3 or 1 arc-seconds of meridian arc in metres at the
+/// tile's centre latitude (read from a name like `N57E011`; the equator if the name says nothing). The
+/// true E-W spacing is that times cos(latitude), so a tile far from the equator is stretched E-W.
+/// [`LoadOptions::spacing`] overrides. Voids are filled from their neighbours and counted.
+pub(super) fn load(path: &Path, len: u64, opts: &LoadOptions) -> Result<Heightmap> {
+    let (side, arcsec) = match len {
+        2_884_802 => (1201u32, 3.0),
+        25_934_402 => (3601u32, 1.0),
+        _ => {
+            return Err(Error::SizeMismatch {
+                path: path.into(),
+                actual: len,
+                expected: "2884802 bytes (SRTM3, 1201 x 1201 int16) or 25934402 bytes \
+                           (SRTM1, 3601 x 3601 int16)"
+                    .into(),
+            })
+        }
+    };
+    check_size(path, side.into(), side.into(), opts)?;
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, "cannot read", e))?;
+    if bytes.len() as u64 != len {
+        return Err(Error::SizeMismatch {
+            path: path.into(),
+            actual: bytes.len() as u64,
+            expected: format!("{len} bytes (the length when first checked)"),
+        });
+    }
+    let mut heights: Vec<f32> = bytes
+        .chunks_exact(2)
+        .map(|c| match i16::from_be_bytes([c[0], c[1]]) {
+            VOID => f32::NAN,
+            v => f32::from(v),
+        })
+        .collect();
+    drop(bytes);
+    let voids = fill_voids(path, side as usize, &mut heights)?;
+    let spacing = opts.spacing.unwrap_or_else(|| {
+        let lat = latitude_from_name(path).map_or(0.0, |south| south + 0.5);
+        to_f32(metres_per_degree_latitude(lat) * arcsec / 3600.0)
+    });
+    Ok(Heightmap::new(path, side, side, spacing, heights)?.with_voids_filled(voids))
+}
+
+/// The south edge latitude of a tile named like `N57E011` or `s12w077`, degrees.
+fn latitude_from_name(path: &Path) -> Option<f64> {
+    let stem = path.file_stem()?.to_str()?;
+    let b = stem.as_bytes();
+    let sign = match b.first()?.to_ascii_uppercase() {
+        b'N' => 1.0,
+        b'S' => -1.0,
+        _ => return None,
+    };
+    let digits = stem.get(1..3)?;
+    let lat: u8 = digits.parse().ok()?;
+    (lat <= 90).then_some(sign * f64::from(lat))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn latitude_names() {
+        assert_eq!(latitude_from_name(Path::new("a/N57E011.hgt")), Some(57.0));
+        assert_eq!(latitude_from_name(Path::new("s12w077.hgt")), Some(-12.0));
+        assert_eq!(latitude_from_name(Path::new("tile.hgt")), None);
+    }
+}

@@ -1,0 +1,251 @@
+//! Stage 0, the source: single-band GeoTIFF height maps (int16, uint16, int32, float32, float64;
+//! stripped or tiled), with spacing from a world file or the GeoTIFF tags and GDAL nodata voids filled.
+
+use std::io::BufReader;
+use std::path::{Path, PathBuf};
+
+use tiff::decoder::{Decoder, DecodingResult, Limits};
+use tiff::tags::Tag;
+use tiff::ColorType;
+
+use super::{check_size, fill_voids, metres_per_degree_latitude, to_f32, LoadOptions};
+use crate::{Error, Heightmap, Result};
+
+/// Whether `magic` starts like a TIFF or BigTIFF file (`II*\0`, `MM\0*`, and the BigTIFF 43 forms).
+pub(super) fn has_magic(magic: &[u8]) -> bool {
+    matches!(
+        magic.get(..4),
+        Some([b'I', b'I', 42 | 43, 0] | [b'M', b'M', 0, 42 | 43])
+    )
+}
+
+/// GTModelTypeGeoKey: 1 projected, 2 geographic (degrees).
+const GT_MODEL_TYPE_GEO_KEY: u16 = 1024;
+const MODEL_TYPE_GEOGRAPHIC: u16 = 2;
+
+/// Loads a single-band TIFF. Heights are `value * height_scale + height_offset` (scale default 1).
+///
+/// Spacing, first found: [`LoadOptions::spacing`]; a `.tfw` world file beside the file (its N-S pixel
+/// size, line 4); the ModelPixelScaleTag's N-S size. When the GeoKeyDirectory says the model is
+/// geographic, that size is in degrees and becomes metres of meridian arc at the grid's centre latitude
+/// (from the tie point). Cells are taken as square with the N-S spacing. With none of these the load fails
+/// and asks for `--spacing`. GDAL_NODATA samples are voids: filled from their neighbours and counted.
+pub(super) fn load(path: &Path, opts: &LoadOptions, magic: &[u8]) -> Result<Heightmap> {
+    if !has_magic(magic) {
+        return Err(Error::format(
+            path,
+            format!(
+                "wrong magic number for TIFF: starts with {magic:02x?}, expected `II*\\0` or `MM\\0*`"
+            ),
+        ));
+    }
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, "cannot open", e))?;
+    let mut dec = Decoder::new(BufReader::new(file)).map_err(|e| corrupt(path, &e))?;
+    let (width, height) = dec.dimensions().map_err(|e| corrupt(path, &e))?;
+    let samples = check_size(path, width.into(), height.into(), opts)?;
+    let mut limits = Limits::default();
+    // Room for the whole image at 8 bytes a sample; `check_size` already bounded it.
+    limits.decoding_buffer_size = samples.saturating_mul(8).saturating_add(1 << 20);
+    limits.intermediate_buffer_size = limits.decoding_buffer_size;
+    let mut dec = dec.with_limits(limits);
+    match dec.colortype().map_err(|e| corrupt(path, &e))? {
+        ColorType::Gray(_) => {}
+        other => {
+            return Err(Error::format(
+                path,
+                format!("TIFF is {other:?}; height maps must have a single grey band"),
+            ))
+        }
+    }
+    let nodata = tag_ascii(&mut dec, Tag::GdalNodata)
+        .and_then(|s| s.trim().trim_end_matches('\0').trim().parse::<f64>().ok());
+    let geo = GeoTags::read(&mut dec);
+    let image = dec.read_image().map_err(|e| corrupt(path, &e))?;
+
+    let scale = opts.height_scale.map_or(1.0, f64::from);
+    let offset = f64::from(opts.height_offset);
+    let is_void = |v: f64| match nodata {
+        None => false,
+        Some(nd) if nd.is_nan() => v.is_nan(),
+        // Relative tolerance: GDAL prints float nodata such as -3.4028e38 in decimal, not bit-exact.
+        Some(nd) => v == nd || (v - nd).abs() <= 1e-6 * nd.abs(),
+    };
+    let w = width as usize;
+    let mut heights: Vec<f32> = match image {
+        DecodingResult::I16(v) => convert(path, w, &v, f64::from, is_void, scale, offset)?,
+        DecodingResult::U16(v) => convert(path, w, &v, f64::from, is_void, scale, offset)?,
+        DecodingResult::I32(v) => convert(path, w, &v, f64::from, is_void, scale, offset)?,
+        DecodingResult::U8(v) => convert(path, w, &v, f64::from, is_void, scale, offset)?,
+        DecodingResult::F32(v) => convert(path, w, &v, f64::from, is_void, scale, offset)?,
+        DecodingResult::F64(v) => convert(path, w, &v, |s| s, is_void, scale, offset)?,
+        other => {
+            return Err(Error::format(
+                path,
+                format!(
+                    "unsupported TIFF sample type {}: use int16, uint16, int32, float32 or float64",
+                    sample_name(&other)
+                ),
+            ))
+        }
+    };
+    if heights.len() != samples {
+        return Err(Error::format(
+            path,
+            format!(
+                "TIFF decoded to {} samples for {width} x {height}",
+                heights.len()
+            ),
+        ));
+    }
+    let voids = fill_voids(path, w, &mut heights)?;
+    let spacing = match opts.spacing {
+        Some(s) => s,
+        None => geo.spacing(path, height)?,
+    };
+    Ok(Heightmap::new(path, width, height, spacing, heights)?.with_voids_filled(voids))
+}
+
+/// Converts samples to metres, voids to NaN (for [`fill_voids`]); a non-finite sample that is not a
+/// void is refused here, since filling would otherwise spread it.
+fn convert<T: Copy>(
+    path: &Path,
+    width: usize,
+    src: &[T],
+    to_f64: impl Fn(T) -> f64,
+    is_void: impl Fn(f64) -> bool,
+    scale: f64,
+    offset: f64,
+) -> Result<Vec<f32>> {
+    let mut out = Vec::with_capacity(src.len());
+    for (i, &s) in src.iter().enumerate() {
+        let v = to_f64(s);
+        if is_void(v) {
+            out.push(f32::NAN);
+            continue;
+        }
+        let h = to_f32(v * scale + offset);
+        if !h.is_finite() {
+            return Err(Error::NonFinite {
+                path: path.into(),
+                x: u32::try_from(i % width).unwrap_or(u32::MAX),
+                y: u32::try_from(i / width).unwrap_or(u32::MAX),
+                value: h,
+            });
+        }
+        out.push(h);
+    }
+    Ok(out)
+}
+
+fn sample_name(r: &DecodingResult) -> &'static str {
+    match r {
+        DecodingResult::U8(_) => "uint8",
+        DecodingResult::U16(_) => "uint16",
+        DecodingResult::U32(_) => "uint32",
+        DecodingResult::U64(_) => "uint64",
+        DecodingResult::F16(_) => "float16",
+        DecodingResult::F32(_) => "float32",
+        DecodingResult::F64(_) => "float64",
+        DecodingResult::I8(_) => "int8",
+        DecodingResult::I16(_) => "int16",
+        DecodingResult::I32(_) => "int32",
+        DecodingResult::I64(_) => "int64",
+    }
+}
+
+fn corrupt(path: &Path, e: &tiff::TiffError) -> Error {
+    Error::format(path, format!("corrupt, truncated or unsupported TIFF: {e}"))
+}
+
+/// An optional ASCII tag; a malformed one reads as absent.
+fn tag_ascii<R: std::io::Read + std::io::Seek>(dec: &mut Decoder<R>, tag: Tag) -> Option<String> {
+    dec.find_tag(tag).ok().flatten()?.into_string().ok()
+}
+
+fn tag_f64s<R: std::io::Read + std::io::Seek>(dec: &mut Decoder<R>, tag: Tag) -> Option<Vec<f64>> {
+    dec.find_tag(tag).ok().flatten()?.into_f64_vec().ok()
+}
+
+/// The georeferencing tags that matter for spacing.
+struct GeoTags {
+    pixel_scale: Option<Vec<f64>>,
+    tiepoint: Option<Vec<f64>>,
+    geographic: bool,
+    world_file: Option<PathBuf>,
+}
+
+impl GeoTags {
+    fn read<R: std::io::Read + std::io::Seek>(dec: &mut Decoder<R>) -> Self {
+        let keys: Vec<u16> = dec
+            .find_tag(Tag::GeoKeyDirectoryTag)
+            .ok()
+            .flatten()
+            .and_then(|v| v.into_u16_vec().ok())
+            .unwrap_or_default();
+        // Header (4 shorts), then entries of (key, location, count, value); location 0 = value inline.
+        let geographic = keys.get(4..).is_some_and(|entries| {
+            entries.chunks_exact(4).any(|e| {
+                e[0] == GT_MODEL_TYPE_GEO_KEY && e[1] == 0 && e[3] == MODEL_TYPE_GEOGRAPHIC
+            })
+        });
+        Self {
+            pixel_scale: tag_f64s(dec, Tag::ModelPixelScaleTag),
+            tiepoint: tag_f64s(dec, Tag::ModelTiepointTag),
+            geographic,
+            world_file: None,
+        }
+    }
+
+    /// N-S spacing in metres, or an error asking for `--spacing`.
+    fn spacing(mut self, path: &Path, rows: u32) -> Result<f32> {
+        self.world_file = ["tfw", "TFW", "tifw", "tiffw"]
+            .iter()
+            .map(|e| path.with_extension(e))
+            .find(|p| p.is_file());
+        let mid_row = f64::from(rows - 1) / 2.0;
+        // (N-S pixel size, latitude of the grid's middle row if geographic)
+        let found: Option<(f64, f64)> = if let Some(tfw) = &self.world_file {
+            let text = std::fs::read_to_string(tfw)
+                .map_err(|e| Error::io(tfw.clone(), "cannot read world file", e))?;
+            let nums: Vec<f64> = text
+                .split_whitespace()
+                .map(str::parse)
+                .collect::<Result<_, _>>()
+                .map_err(|_| Error::format(tfw.clone(), "world file line is not a number"))?;
+            if nums.len() != 6 {
+                return Err(Error::format(
+                    tfw.clone(),
+                    format!("world file has {} numbers, expected 6", nums.len()),
+                ));
+            }
+            // Lines: x size, rotation, rotation, y size (negative), x and y of the first pixel's centre.
+            Some((nums[3].abs(), nums[5] - mid_row * nums[3].abs()))
+        } else {
+            self.pixel_scale
+                .as_ref()
+                .and_then(|s| s.get(1).copied())
+                .filter(|s| *s > 0.0)
+                .map(|sy| {
+                    let lat = match self.tiepoint.as_deref() {
+                        // (i, j, k, x, y, z): pixel (i, j) sits at model (x, y).
+                        Some([_, j, _, _, y, ..]) => y - (mid_row - j) * sy,
+                        _ => 0.0,
+                    };
+                    (sy, lat)
+                })
+        };
+        let Some((size, lat)) = found.filter(|(s, _)| s.is_finite() && *s > 0.0) else {
+            return Err(Error::format(
+                path,
+                "no sample spacing: the TIFF has no ModelPixelScale tag and no .tfw world file beside \
+                 it; give one with --spacing M",
+            ));
+        };
+        let metres = if self.geographic {
+            size * metres_per_degree_latitude(lat.clamp(-90.0, 90.0))
+        } else {
+            size
+        };
+        Ok(to_f32(metres))
+    }
+}

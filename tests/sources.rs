@@ -1,0 +1,577 @@
+//! Stage 0, the source: every shared data file loads as its sidecar `.txt` describes, and every kind of
+//! bad input gives its typed error, never a panic.
+
+use std::path::{Path, PathBuf};
+
+use clipsat::source::{self, LoadOptions, RawFormat, RawLayout};
+use clipsat::{Error, Heightmap};
+
+// ---- the shared data ----------------------------------------------------------------------------
+
+/// What a sidecar `.txt` states about a file.
+struct Expect {
+    file: &'static str,
+    width: u32,
+    height: u32,
+    /// Metres; checked within 1 %.
+    spacing: f32,
+    /// Range in metres as the sidecar prints it, and half its last printed digit.
+    lo: f32,
+    hi: f32,
+    rounding: f32,
+    /// Spacing to pass in: PNG carries none.
+    spacing_opt: Option<f32>,
+}
+
+/// Loads a shared data file, or `None` (with a printed reason) when it is missing outside CI.
+fn load_shared(name: &str, opts: &LoadOptions) -> Option<Heightmap> {
+    let path = clipsat::data_dir().join(name);
+    if !path.is_file() {
+        let msg = format!("shared data file {} is missing", path.display());
+        if std::env::var("CI").as_deref() == Ok("true") {
+            panic!("{msg} (CI=true requires it; set CLIPSAT_DATA)");
+        }
+        eprintln!("skipping: {msg}");
+        return None;
+    }
+    match source::load(&path, opts) {
+        Ok(hm) => Some(hm),
+        Err(e) => panic!("{name} failed to load: {e}"),
+    }
+}
+
+fn check(e: &Expect) -> Option<Heightmap> {
+    let opts = LoadOptions {
+        spacing: e.spacing_opt,
+        ..LoadOptions::default()
+    };
+    let hm = load_shared(e.file, &opts)?;
+    assert_eq!(
+        (hm.width(), hm.height()),
+        (e.width, e.height),
+        "{} dims",
+        e.file
+    );
+    let rel = (hm.spacing() - e.spacing).abs() / e.spacing;
+    assert!(
+        rel <= 0.01,
+        "{}: spacing {} m, sidecar says {} m",
+        e.file,
+        hm.spacing(),
+        e.spacing
+    );
+    let (lo, hi) = hm.range();
+    assert!(
+        (lo - e.lo).abs() <= e.rounding && (hi - e.hi).abs() <= e.rounding,
+        "{}: range {lo} .. {hi}, sidecar says {} .. {}",
+        e.file,
+        e.lo,
+        e.hi
+    );
+    assert_eq!(hm.voids_filled(), 0, "{}: sidecar says no voids", e.file);
+    Some(hm)
+}
+
+#[test]
+fn puget_sound_png() {
+    // PNG has no spacing: the sidecar's 160 m is passed in explicitly.
+    check(&Expect {
+        file: "ps_height_1k.png",
+        width: 1025,
+        height: 1025,
+        spacing: 160.0,
+        lo: 0.0,
+        hi: 4379.8,
+        rounding: 0.05,
+        spacing_opt: Some(160.0),
+    });
+}
+
+#[test]
+fn kossou_tif_and_png_copy_agree_exactly() {
+    // 3 arc-seconds of latitude; the sidecar's ~92.6 m is the 1852 m-per-arc-minute approximation.
+    let tif = check(&Expect {
+        file: "n07_w006_3arc_v2.tif",
+        width: 1201,
+        height: 1201,
+        spacing: 92.6,
+        lo: 145.0,
+        hi: 546.0,
+        rounding: 0.5,
+        spacing_opt: None,
+    });
+    let png = check(&Expect {
+        file: "n07_w006_3arc_v2_u16dm.png",
+        width: 1201,
+        height: 1201,
+        spacing: 92.6,
+        lo: 145.0,
+        hi: 546.0,
+        rounding: 0.5,
+        spacing_opt: Some(92.6),
+    });
+    if let (Some(t), Some(p)) = (tif, png) {
+        assert!(t.heights() == p.heights(), "PNG copy differs from the TIFF");
+    }
+}
+
+#[test]
+fn big_tujunga_tiled_tif_with_world_file_and_png_copy() {
+    let tif = check(&Expect {
+        file: "srtm_bigtujunga30m_utm11.tif",
+        width: 1197,
+        height: 643,
+        spacing: 30.0,
+        lo: 315.0,
+        hi: 2295.0,
+        rounding: 0.5,
+        spacing_opt: None,
+    });
+    let png = check(&Expect {
+        file: "srtm_bigtujunga30m_utm11_u16dm.png",
+        width: 1197,
+        height: 643,
+        spacing: 30.0,
+        lo: 315.0,
+        hi: 2295.0,
+        rounding: 0.5,
+        spacing_opt: Some(30.0),
+    });
+    if let (Some(t), Some(p)) = (tif, png) {
+        assert!(t.heights() == p.heights(), "PNG copy differs from the TIFF");
+    }
+}
+
+#[test]
+fn aletsch_f32_tif() {
+    check(&Expect {
+        file: "aletsch_200m.tif",
+        width: 358,
+        height: 310,
+        spacing: 200.0,
+        lo: 502.0,
+        hi: 4216.3,
+        rounding: 0.05,
+        spacing_opt: None,
+    });
+}
+
+#[test]
+fn lidar_f32_tif() {
+    check(&Expect {
+        file: "lidar_pkg_dem_1m_400x400.tif",
+        width: 400,
+        height: 400,
+        spacing: 1.0,
+        lo: 379.66,
+        hi: 410.76,
+        rounding: 0.005,
+        spacing_opt: None,
+    });
+}
+
+#[test]
+fn srtm_hgt() {
+    check(&Expect {
+        file: "N57E011.hgt",
+        width: 1201,
+        height: 1201,
+        spacing: 92.6,
+        lo: -6.0,
+        hi: 163.0,
+        rounding: 0.5,
+        spacing_opt: None,
+    });
+}
+
+// ---- fixtures -----------------------------------------------------------------------------------
+
+/// A fresh folder under the system temp dir, unique to this test and process; removed on drop.
+struct TempDir(PathBuf);
+
+impl std::ops::Deref for TempDir {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+fn temp_dir(test: &str) -> TempDir {
+    let dir = std::env::temp_dir().join(format!("clipsat-sources-{}-{test}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("create temp dir");
+    TempDir(dir)
+}
+
+fn write(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, bytes).expect("write fixture");
+    p
+}
+
+fn load(p: &Path) -> Result<Heightmap, Error> {
+    source::load(p, &LoadOptions::default())
+}
+
+fn crc32(bytes: &[u8]) -> u32 {
+    let mut c = !0u32;
+    for &b in bytes {
+        c ^= u32::from(b);
+        for _ in 0..8 {
+            c = if c & 1 != 0 {
+                0xEDB8_8320 ^ (c >> 1)
+            } else {
+                c >> 1
+            };
+        }
+    }
+    !c
+}
+
+fn png_chunk(out: &mut Vec<u8>, kind: &[u8; 4], data: &[u8]) {
+    out.extend_from_slice(&u32::try_from(data.len()).unwrap().to_be_bytes());
+    let start = out.len();
+    out.extend_from_slice(kind);
+    out.extend_from_slice(data);
+    let crc = crc32(&out[start..]);
+    out.extend_from_slice(&crc.to_be_bytes());
+}
+
+/// A PNG whose IHDR declares `w` x `h` 16-bit grey, with a correct CRC and no image data.
+fn png_header_only(w: u32, h: u32) -> Vec<u8> {
+    let mut out = vec![0x89, b'P', b'N', b'G', b'\r', b'\n', 0x1A, b'\n'];
+    let mut ihdr = Vec::new();
+    ihdr.extend_from_slice(&w.to_be_bytes());
+    ihdr.extend_from_slice(&h.to_be_bytes());
+    ihdr.extend_from_slice(&[16, 0, 0, 0, 0]);
+    png_chunk(&mut out, b"IHDR", &ihdr);
+    png_chunk(&mut out, b"IEND", &[]);
+    out
+}
+
+/// A small real 16-bit grey PNG, values 0..4095.
+fn small_png16(dir: &Path) -> PathBuf {
+    let img = image::ImageBuffer::<image::Luma<u16>, _>::from_fn(64, 48, |x, y| {
+        image::Luma([u16::try_from((x * 64 + y) % 4096).unwrap()])
+    });
+    let p = dir.join("small16.png");
+    img.save(&p).expect("save png");
+    p
+}
+
+/// A little-endian TIFF declaring `w` x `h` int16 in one strip, hand-made so nothing is allocated.
+fn tiff_header_only(w: u32, h: u32) -> Vec<u8> {
+    let mut out = b"II*\0".to_vec();
+    out.extend_from_slice(&8u32.to_le_bytes());
+    let entries: [(u16, u16, u32); 10] = [
+        (256, 4, w),   // ImageWidth, LONG
+        (257, 4, h),   // ImageLength
+        (258, 3, 16),  // BitsPerSample, SHORT
+        (259, 3, 1),   // Compression: none
+        (262, 3, 1),   // Photometric: BlackIsZero
+        (273, 4, 200), // StripOffsets
+        (277, 3, 1),   // SamplesPerPixel
+        (278, 4, h),   // RowsPerStrip
+        (279, 4, 64),  // StripByteCounts
+        (339, 3, 2),   // SampleFormat: signed int
+    ];
+    out.extend_from_slice(&u16::try_from(entries.len()).unwrap().to_le_bytes());
+    for (tag, ty, v) in entries {
+        out.extend_from_slice(&tag.to_le_bytes());
+        out.extend_from_slice(&ty.to_le_bytes());
+        out.extend_from_slice(&1u32.to_le_bytes());
+        if ty == 3 {
+            out.extend_from_slice(&u16::try_from(v).unwrap_or(0).to_le_bytes());
+            out.extend_from_slice(&[0, 0]);
+        } else {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    out.extend_from_slice(&0u32.to_le_bytes());
+    out.resize(264, 0);
+    out
+}
+
+/// A float32 TIFF written with the tiff crate's encoder, with optional GDAL nodata and geo tags.
+fn f32_tiff(dir: &Path, name: &str, w: u32, h: u32, data: &[f32], geo: bool) -> PathBuf {
+    use tiff::encoder::{colortype::Gray32Float, TiffEncoder};
+    use tiff::tags::Tag;
+    let p = dir.join(name);
+    let file = std::fs::File::create(&p).expect("create tiff");
+    let mut enc = TiffEncoder::new(file).expect("tiff encoder");
+    let mut img = enc.new_image::<Gray32Float>(w, h).expect("tiff image");
+    img.encoder()
+        .write_tag(Tag::GdalNodata, "-9999")
+        .expect("nodata tag");
+    if geo {
+        // Geographic (GTModelTypeGeoKey = 2), 3 arc-second pixels, north-west corner at 8 N.
+        let keys: [u16; 8] = [1, 1, 0, 1, 1024, 0, 1, 2];
+        img.encoder()
+            .write_tag(Tag::GeoKeyDirectoryTag, &keys[..])
+            .expect("geokeys");
+        let scale = [1.0 / 1200.0, 1.0 / 1200.0, 0.0f64];
+        img.encoder()
+            .write_tag(Tag::ModelPixelScaleTag, &scale[..])
+            .expect("pixel scale");
+        let tie = [0.0, 0.0, 0.0, -6.0, 8.0, 0.0f64];
+        img.encoder()
+            .write_tag(Tag::ModelTiepointTag, &tie[..])
+            .expect("tiepoint");
+    }
+    img.write_data(data).expect("tiff data");
+    p
+}
+
+fn assert_format(r: Result<Heightmap, Error>, needle: &str) {
+    match r {
+        Err(Error::Format { reason, .. }) => assert!(
+            reason.contains(needle),
+            "reason `{reason}` does not mention `{needle}`"
+        ),
+        other => panic!("expected Error::Format mentioning `{needle}`, got {other:?}"),
+    }
+}
+
+// ---- good fixtures ------------------------------------------------------------------------------
+
+#[test]
+fn png_scales_and_offsets() {
+    let dir = temp_dir("png_scale");
+    let p = small_png16(&dir);
+    let hm = load(&p).unwrap();
+    assert_eq!((hm.width(), hm.height(), hm.spacing()), (64, 48, 30.0));
+    assert_eq!(hm.at(1, 2), 6.6); // value 66 at 0.1 m
+    let opts = LoadOptions {
+        height_scale: Some(2.0),
+        height_offset: -5.0,
+        spacing: Some(10.0),
+        ..LoadOptions::default()
+    };
+    let hm = source::load(&p, &opts).unwrap();
+    assert_eq!((hm.at(1, 2), hm.spacing()), (66.0 * 2.0 - 5.0, 10.0));
+
+    let img8 = image::ImageBuffer::<image::Luma<u8>, _>::from_fn(8, 8, |x, _| {
+        image::Luma([u8::try_from(x).unwrap()])
+    });
+    let p8 = dir.join("small8.png");
+    img8.save(&p8).unwrap();
+    assert_eq!(load(&p8).unwrap().at(7, 0), 7.0);
+
+    let rgb = image::RgbImage::new(8, 8);
+    let prgb = dir.join("rgb.png");
+    rgb.save(&prgb).unwrap();
+    assert_format(load(&prgb), "greyscale");
+}
+
+#[test]
+fn tiff_nodata_filled_and_geographic_spacing() {
+    let dir = temp_dir("tiff_nodata");
+    let mut data: Vec<f32> = (0..16).map(|i| i as f32).collect();
+    data[5] = -9999.0;
+    data[6] = -9999.0;
+    let p = f32_tiff(&dir, "voids.tif", 4, 4, &data, true);
+    let hm = load(&p).unwrap();
+    assert_eq!(hm.voids_filled(), 2);
+    assert!(hm.heights().iter().all(|h| (0.0..16.0).contains(h)));
+    // 1/1200 degree of latitude near 7.99 N is about 92.16 m.
+    assert!((hm.spacing() - 92.16).abs() < 0.05, "{}", hm.spacing());
+
+    let p = f32_tiff(&dir, "nospacing.tif", 4, 4, &data, false);
+    assert_format(load(&p), "--spacing");
+    let opts = LoadOptions {
+        spacing: Some(5.0),
+        ..LoadOptions::default()
+    };
+    assert_eq!(source::load(&p, &opts).unwrap().spacing(), 5.0);
+}
+
+#[test]
+fn raw_u16_and_f32() {
+    let dir = temp_dir("raw_ok");
+    let bytes: Vec<u8> = (0..12u16).flat_map(|v| (v * 10).to_le_bytes()).collect();
+    let p = write(&dir, "t.r16", &bytes);
+    let opts = LoadOptions {
+        raw: Some(RawLayout {
+            width: 4,
+            height: 3,
+            format: RawFormat::U16,
+        }),
+        ..LoadOptions::default()
+    };
+    let hm = source::load(&p, &opts).unwrap();
+    assert_eq!((hm.width(), hm.height(), hm.at(3, 2)), (4, 3, 11.0));
+    let bytes: Vec<u8> = (0..12)
+        .flat_map(|v| (v as f32 * 0.5).to_le_bytes())
+        .collect();
+    let p = write(&dir, "t.f32", &bytes);
+    let opts = LoadOptions {
+        raw: Some(RawLayout {
+            width: 4,
+            height: 3,
+            format: RawFormat::F32,
+        }),
+        ..LoadOptions::default()
+    };
+    assert_eq!(source::load(&p, &opts).unwrap().at(3, 2), 5.5);
+}
+
+#[test]
+fn hgt_voids_filled_and_counted() {
+    let dir = temp_dir("hgt_voids");
+    let mut bytes = vec![0u8; 2_884_802];
+    for (i, c) in bytes.chunks_exact_mut(2).enumerate() {
+        let v: i16 = if i == 1201 * 600 + 600 { -32768 } else { 100 };
+        c.copy_from_slice(&v.to_be_bytes());
+    }
+    let p = write(&dir, "S12W077.hgt", &bytes);
+    let hm = load(&p).unwrap();
+    assert_eq!((hm.voids_filled(), hm.at(600, 600)), (1, 100.0));
+    assert!((hm.spacing() - 92.2).abs() < 0.2, "{}", hm.spacing());
+}
+
+// ---- bad input ----------------------------------------------------------------------------------
+
+#[test]
+fn empty_files() {
+    let dir = temp_dir("empty");
+    for name in ["e.png", "e.tif", "e.hgt", "e.raw"] {
+        assert_format(load(&write(&dir, name, &[])), "empty");
+    }
+}
+
+#[test]
+fn wrong_magic() {
+    let dir = temp_dir("magic");
+    assert_format(load(&write(&dir, "x.png", b"GIF89a, not a png")), "magic");
+    assert_format(
+        load(&write(&dir, "x.tif", b"\x89PNG\r\n\x1a\n...")),
+        "magic",
+    );
+    assert_format(load(&write(&dir, "x.dem", b"whatever")), ".png");
+}
+
+#[test]
+fn truncated_files() {
+    let dir = temp_dir("truncated");
+    let png = std::fs::read(small_png16(&dir)).unwrap();
+    for cut in [png.len() / 2, 30, 12] {
+        let p = write(&dir, "cut.png", &png[..cut]);
+        assert_format(load(&p), "PNG");
+    }
+    let data: Vec<f32> = (0..64 * 64).map(|i| i as f32).collect();
+    let tif = std::fs::read(f32_tiff(&dir, "full.tif", 64, 64, &data, true)).unwrap();
+    for cut in [tif.len() / 2, tif.len() - 10, 6] {
+        let p = write(&dir, "cut.tif", &tif[..cut]);
+        assert_format(load(&p), "TIFF");
+    }
+    let p = write(&dir, "N00E000.hgt", &vec![0u8; 2_884_802 - 2]);
+    match load(&p) {
+        Err(Error::SizeMismatch {
+            actual, expected, ..
+        }) => {
+            assert_eq!(actual, 2_884_800);
+            assert!(expected.contains("2884802") && expected.contains("25934402"));
+        }
+        other => panic!("expected SizeMismatch, got {other:?}"),
+    }
+}
+
+#[test]
+fn huge_declared_dimensions_refused_before_allocating() {
+    let dir = temp_dir("huge");
+    let p = write(&dir, "huge.png", &png_header_only(100_000, 100_000));
+    match load(&p) {
+        Err(Error::TooLarge {
+            width,
+            height,
+            samples,
+            ..
+        }) => assert_eq!((width, height, samples), (100_000, 100_000, 10_000_000_000)),
+        other => panic!("expected TooLarge, got {other:?}"),
+    }
+    let p = write(&dir, "huge.tif", &tiff_header_only(100_000, 100_000));
+    assert!(
+        matches!(load(&p), Err(Error::TooLarge { .. })),
+        "{:?}",
+        load(&p)
+    );
+    // Within the limit, a header-only PNG is just truncated.
+    let p = write(&dir, "small.png", &png_header_only(10, 10));
+    assert_format(load(&p), "PNG");
+    // A lower limit applies too.
+    let opts = LoadOptions {
+        max_samples: 1000,
+        ..LoadOptions::default()
+    };
+    let p = small_png16(&dir);
+    assert!(matches!(
+        source::load(&p, &opts),
+        Err(Error::TooLarge { .. })
+    ));
+}
+
+#[test]
+fn non_finite_samples_refused() {
+    let dir = temp_dir("nonfinite");
+    for (i, bad) in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY]
+        .into_iter()
+        .enumerate()
+    {
+        let mut data = vec![1.0f32; 12];
+        data[4 + 2] = bad; // column 2, row 1
+        let p = f32_tiff(&dir, &format!("bad{i}.tif"), 4, 3, &data, true);
+        match load(&p) {
+            Err(Error::NonFinite { x, y, .. }) => assert_eq!((x, y), (2, 1)),
+            other => panic!("TIFF with {bad}: expected NonFinite, got {other:?}"),
+        }
+        let bytes: Vec<u8> = data.iter().flat_map(|v| v.to_le_bytes()).collect();
+        let p = write(&dir, &format!("bad{i}.f32"), &bytes);
+        let opts = LoadOptions {
+            raw: Some(RawLayout {
+                width: 4,
+                height: 3,
+                format: RawFormat::F32,
+            }),
+            ..LoadOptions::default()
+        };
+        match source::load(&p, &opts) {
+            Err(Error::NonFinite { x, y, .. }) => assert_eq!((x, y), (2, 1)),
+            other => panic!("raw with {bad}: expected NonFinite, got {other:?}"),
+        }
+    }
+}
+
+#[test]
+fn raw_size_problems() {
+    let dir = temp_dir("raw_bad");
+    let p = write(&dir, "t.raw", &[0u8; 24]);
+    assert_format(load(&p), "--raw-size");
+    let layout = |w, h| LoadOptions {
+        raw: Some(RawLayout {
+            width: w,
+            height: h,
+            format: RawFormat::U16,
+        }),
+        ..LoadOptions::default()
+    };
+    match source::load(&p, &layout(4, 4)) {
+        Err(Error::SizeMismatch {
+            actual, expected, ..
+        }) => assert_eq!((actual, expected.as_str()), (24, "32 bytes (4 x 4 u16)")),
+        other => panic!("expected SizeMismatch, got {other:?}"),
+    }
+    assert!(matches!(
+        source::load(&p, &layout(1 << 20, 1 << 20)),
+        Err(Error::TooLarge { .. })
+    ));
+    assert!(matches!(
+        source::load(&dir.join("missing.raw"), &layout(4, 3)),
+        Err(Error::Io { .. })
+    ));
+}
