@@ -14,6 +14,7 @@
 
 pub mod camera;
 mod error;
+pub mod flight;
 pub mod gpu;
 pub mod hash;
 mod heightmap;
