@@ -19,15 +19,15 @@ fn terrain(size: u32, spacing: f32, f: impl Fn(u32, u32) -> f32) -> Heightmap {
 /// Rolling hills with a sharp 3 km spike near the middle and a high ridge along one side.
 fn rugged() -> Heightmap {
     terrain(257, 30.0, |u, v| {
-        let (x, y) = (f64::from(u), f64::from(v));
+        let (x, y) = (u as f32, v as f32);
         let hills = 300.0 * (x / 17.0).sin() * (y / 23.0).cos() + 400.0;
         let spike = if (u, v) == (130, 126) { 3000.0 } else { 0.0 };
         let ridge = if u > 200 {
-            1500.0 * (f64::from(u) - 200.0) / 56.0
+            1500.0 * (x - 200.0) / 56.0
         } else {
             0.0
         };
-        (hills + spike + ridge) as f32
+        hills + spike + ridge
     })
 }
 
@@ -100,8 +100,8 @@ fn cameras_are_a_pure_function_of_the_frame() {
         let a = Flight::new(path, 37.5, &hm).expect("flight");
         let b = Flight::new(path, 37.5, &hm).expect("flight");
         let forward: Vec<_> = (0..FRAMES).map(|f| a.camera(f)).collect();
-        for f in (0..FRAMES).rev() {
-            assert_eq!(b.camera(f), forward[f as usize], "{path} frame {f}");
+        for (f, cam) in forward.iter().enumerate().rev() {
+            assert_eq!(b.camera(f as u64), *cam, "{path} frame {f}");
         }
     }
 }
