@@ -111,6 +111,10 @@ impl Heightmap {
     }
 
     /// The sample at integer grid coordinates, clamped to the edge: the terrain extends flat beyond its border.
+    #[expect(
+        clippy::cast_possible_truncation,
+        reason = "clamped into 0..width and 0..height, which are u32"
+    )]
     pub fn at_clamped(&self, x: i64, y: i64) -> f32 {
         let xc = x.clamp(0, i64::from(self.width) - 1) as usize;
         let yc = y.clamp(0, i64::from(self.height) - 1) as usize;
@@ -141,6 +145,10 @@ impl Heightmap {
     }
 
     /// Height at a world position by bilinear interpolation, clamped at the border.
+    #[expect(
+        clippy::cast_possible_truncation,
+        reason = "fractions in [0, 1) as f32; floors are clamped on lookup"
+    )]
     pub fn height_at_world(&self, x: f64, y: f64) -> f32 {
         let (u, v) = self.world_to_grid(x, y);
         let (u0, v0) = (u.floor(), v.floor());

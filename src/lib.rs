@@ -12,15 +12,20 @@
 //! Everything is sized at start-up from a budget [`Profile`]; per-frame work is bounded in samples and
 //! primitives, and deterministic.
 
+pub mod budget;
 pub mod camera;
+pub mod clipmap;
 mod error;
 pub mod flight;
+pub mod frame;
 pub mod gpu;
 pub mod hash;
 mod heightmap;
 pub mod plot;
 pub mod profile;
+pub mod pyramid;
 pub mod source;
+pub mod synthesis;
 
 pub use camera::Camera;
 pub use error::{Error, Result};

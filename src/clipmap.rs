@@ -1,0 +1,713 @@
+//! Stage 2, the per-frame plan: the geometry clipmap on the CPU (Losasso & Hoppe 2004, "GC").
+//!
+//! [`Clipmap::new`] bakes the pyramid and allocates every ring; [`Clipmap::update`] then runs one frame
+//! without allocating: desired regions from the eye, a budgeted coarse-to-fine update (GC section 5), the
+//! fill from the pyramid or by synthesis (GC sections 4 and 8), active-region cropping and the frame record.
+//!
+//! Lattice conventions: sample (i, j) of level l sits at level-0 lattice point (i 2^l, j 2^l); i is the
+//! column (east), j the row (south, like the heightmap's rows). Level-0 spacing is g_0 = data spacing /
+//! 2^synth_levels, so data sample (u, v) is level-0 lattice point (u 2^s, v 2^s).
+
+use glam::DVec3;
+
+use crate::budget::{needed_samples, plan_level};
+use crate::frame::{Frame, LevelFrame, LevelState, Rect, MAX_LEVELS};
+use crate::hash::Hash64;
+use crate::pyramid::Pyramid;
+use crate::synthesis::{extrapolate_sigmas, synthesize, NoiseTable};
+use crate::{Error, Heightmap, Profile, Result};
+
+/// Options beyond the profile.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ClipmapOptions {
+    /// Rings finer than the data, synthesised (GC section 8); 0 by default. Must be below the level count.
+    pub synth_levels: u32,
+}
+
+/// The narrowest active region (vertices per side) still rendered; narrower cropped levels are disabled.
+pub const MIN_ACTIVE: u32 = 5;
+
+/// Largest |lattice coordinate| of an eye, 2^48 level-0 samples (2.8e15 m at 10 m spacing).
+const MAX_LATTICE: f64 = (1u64 << 48) as f64;
+
+/// The viewer-height rule: level l is disabled above 0.4 n g_l over the terrain (design.md).
+pub const HEIGHT_FACTOR: f64 = 0.4;
+
+/// One ring's storage: `size x size` (z, z_c) pairs, texel (i mod size, j mod size) for lattice sample (i, j).
+///
+/// The layout is RG32F, row-major: the GPU uploads these bytes as they are.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Ring {
+    size: u32,
+    texels: Vec<[f32; 2]>,
+}
+
+impl Ring {
+    /// Side of the toroidal storage, `profile.clip_size()`.
+    pub fn size(&self) -> u32 {
+        self.size
+    }
+
+    /// All texels, row-major, (z, z_c) each.
+    pub fn texels(&self) -> &[[f32; 2]] {
+        &self.texels
+    }
+
+    /// The texels as bytes (RG32F), for `write_texture`.
+    pub fn bytes(&self) -> &[u8] {
+        bytemuck::cast_slice(&self.texels)
+    }
+
+    /// Texel index of lattice sample (i, j).
+    #[inline]
+    #[expect(
+        clippy::cast_possible_truncation,
+        reason = "rem_euclid by the ring size is in 0..size"
+    )]
+    pub fn index(&self, i: i64, j: i64) -> usize {
+        let s = i64::from(self.size);
+        (j.rem_euclid(s) * s + i.rem_euclid(s)) as usize
+    }
+
+    /// The stored (z, z_c) of lattice sample (i, j) (meaningful inside the level's clip region).
+    #[inline]
+    pub fn get(&self, i: i64, j: i64) -> [f32; 2] {
+        self.texels[self.index(i, j)]
+    }
+}
+
+/// A broken GC section 5 constraint, naming the constraint and the level.
+///
+/// The constraints, on the regions of GC section 3 (clip = data held, active = rendered), with A ⊘ 2 the
+/// region coarsened to the next level's lattice and A ⊖ 1 the region eroded by one sample:
+///
+/// 1. active_region(l) ⊆ clip_region(l): every rendered vertex has data.
+/// 2. active_region(l) ⊘ 2 ⊆ active_region(l+1) ⊖ 1: each level nests inside the next coarser one with at
+///    least one coarse sample of border, so the coarser ring's render region is a true ring and the
+///    transition region has room.
+/// 3. The corners of active_region(l) lie on level l+1's lattice (even coordinates), so the boundary vertices
+///    of the finer level coincide with coarser vertices (no T-junctions; z_c = z there).
+/// 4. The enabled levels are a contiguous range ending at the coarsest: disabled levels are the finest ones.
+///
+/// The GC paper text itself was not at hand while writing this; these are the constraints as design.md and
+/// the paper's section 5 describe them, in the form the renderer relies on.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum ConstraintViolation {
+    /// (1) active_region(l) is not inside clip_region(l): rendered vertices without data.
+    #[error(
+        "constraint 1, level {level}: active region {active:?} is not inside clip region {clip:?}"
+    )]
+    ActiveOutsideClip {
+        /// Level.
+        level: u32,
+        /// Its active region.
+        active: Rect,
+        /// Its clip region.
+        clip: Rect,
+    },
+    /// (2) active_region(l) coarsened is not inside active_region(l+1) eroded by one coarse sample.
+    #[error(
+        "constraint 2, level {level}: active region {active:?} is not nested in level {}'s {coarser:?} \
+         with a one-sample border",
+        level + 1
+    )]
+    NotNested {
+        /// The finer level.
+        level: u32,
+        /// Its active region.
+        active: Rect,
+        /// The coarser level's active region.
+        coarser: Rect,
+    },
+    /// (3) a corner of active_region(l) is not on the coarser level's lattice (an odd coordinate).
+    #[error("constraint 3, level {level}: active region {active:?} has a corner off the coarser lattice")]
+    OffCoarseLattice {
+        /// Level.
+        level: u32,
+        /// Its active region.
+        active: Rect,
+    },
+    /// (4) an enabled level has a disabled coarser level: enabled levels must be a contiguous coarse range.
+    #[error("constraint 4, level {level}: enabled while coarser level {} is disabled", level + 1)]
+    NotContiguous {
+        /// The enabled level.
+        level: u32,
+    },
+}
+
+/// The geometry clipmap: pyramid, rings, clip regions and the last frame's record.
+#[derive(Clone, Debug)]
+pub struct Clipmap {
+    pyramid: Pyramid,
+    noise: NoiseTable,
+    /// Noise amplitude per synthesised ring (index l < synth_levels); 0 elsewhere.
+    sigmas: [f32; MAX_LEVELS],
+    rings: Vec<Ring>,
+    /// Clip regions (valid data), per level.
+    valid: [Rect; MAX_LEVELS],
+    n: u32,
+    size: u32,
+    margin: u32,
+    levels: u32,
+    synth: u32,
+    budget: u32,
+    g0: f64,
+    data_spacing: f64,
+    data_rows: u32,
+    frame: Frame,
+    next_index: u64,
+}
+
+impl Clipmap {
+    /// Bakes the pyramid and allocates every ring from the profile; the only place that allocates.
+    pub fn new(terrain: &Heightmap, profile: &Profile, opts: ClipmapOptions) -> Result<Self> {
+        profile.validate(&profile.name)?;
+        let levels = profile.clipmap.levels;
+        let size = profile.clip_size();
+        if opts.synth_levels >= levels {
+            return Err(Error::Arg {
+                arg: "synth_levels".into(),
+                reason: format!(
+                    "{} synthesised rings leave no data ring among the profile's {levels}",
+                    opts.synth_levels
+                ),
+            });
+        }
+        if profile.budget.update_samples_per_frame < size {
+            return Err(Error::config(
+                &profile.name,
+                "budget.update_samples_per_frame",
+                format!(
+                    "{} is less than one ring row ({size} samples): no ring could ever be filled",
+                    profile.budget.update_samples_per_frame
+                ),
+            ));
+        }
+        let pyramid = Pyramid::build(terrain);
+        let mut sigmas = [0.0f32; MAX_LEVELS];
+        if opts.synth_levels > 0 {
+            let stds = [pyramid.residual_std(0), pyramid.residual_std(1)];
+            for (o, s) in sigmas
+                .iter_mut()
+                .zip(extrapolate_sigmas(&stds, opts.synth_levels))
+            {
+                *o = s;
+            }
+        }
+        let texels = size as usize * size as usize;
+        let rings = (0..levels)
+            .map(|_| Ring {
+                size,
+                texels: vec![[0.0; 2]; texels],
+            })
+            .collect();
+        let data_spacing = f64::from(terrain.spacing());
+        Ok(Self {
+            pyramid,
+            noise: NoiseTable::default(),
+            sigmas,
+            rings,
+            valid: [Rect::EMPTY; MAX_LEVELS],
+            n: profile.clipmap.n,
+            size,
+            margin: profile.clipmap.clip_margin,
+            levels,
+            synth: opts.synth_levels,
+            budget: profile.budget.update_samples_per_frame,
+            g0: data_spacing / f64::from(1u32 << opts.synth_levels),
+            data_spacing,
+            data_rows: terrain.height(),
+            frame: Frame::default(),
+            next_index: 0,
+        })
+    }
+
+    /// Level-0 grid spacing, metres.
+    pub fn g0(&self) -> f64 {
+        self.g0
+    }
+
+    /// Number of rings.
+    pub fn levels(&self) -> u32 {
+        self.levels
+    }
+
+    /// Vertices per active-region side, n.
+    pub fn n(&self) -> u32 {
+        self.n
+    }
+
+    /// Rings finer than the data.
+    pub fn synth_levels(&self) -> u32 {
+        self.synth
+    }
+
+    /// The pyramid the rings are filled from.
+    pub fn pyramid(&self) -> &Pyramid {
+        &self.pyramid
+    }
+
+    /// The last frame's record.
+    pub fn frame(&self) -> &Frame {
+        &self.frame
+    }
+
+    /// Ring `level`'s storage; panics past the coarsest level.
+    pub fn ring(&self, level: u32) -> &Ring {
+        &self.rings[level as usize]
+    }
+
+    /// The eye's position in level-0 lattice units (column east, row south).
+    pub fn eye_lattice(&self, eye: DVec3) -> (f64, f64) {
+        let u = eye.x / self.data_spacing;
+        let v = f64::from(self.data_rows - 1) - eye.y / self.data_spacing;
+        let k = f64::from(1u32 << self.synth);
+        (u * k, v * k)
+    }
+
+    /// The desired active region of `level` for an eye at level-0 lattice point `p`: n x n vertices, its
+    /// corners on the coarser lattice (even coordinates), centred on the eye to within one coarse cell.
+    ///
+    /// x0 = 2 floor(p_l / 2) - (n - 1)/2 + 1 with p_l = p / 2^l: the eye lies in the middle two cells, and the
+    /// finer level then sits m - 1 or m coarse cells from the coarser level's edge (m = (n + 1)/4), the
+    /// nesting of GC section 3 with its one-cell L-shaped strip.
+    pub fn desired_active(&self, level: u32, p: (f64, f64)) -> Rect {
+        let scale = f64::from(1u32 << (level + 1));
+        let half = i64::from((self.n - 1) / 2);
+        #[expect(
+            clippy::cast_possible_truncation,
+            reason = "floor of a finite lattice coordinate within i64"
+        )]
+        let snap = |c: f64| 2 * (c / scale).floor() as i64 - half + 1;
+        Rect {
+            x0: snap(p.0),
+            y0: snap(p.1),
+            w: self.n,
+            h: self.n,
+        }
+    }
+
+    /// The desired clip region: `size x size` around the desired active region, `margin` samples to the
+    /// west and north, `margin + 1` to the east and south (n + 1 + 2 margin is even, n odd).
+    pub fn desired_clip(&self, active: &Rect) -> Rect {
+        let m = i64::from(self.margin);
+        Rect {
+            x0: active.x0 - m,
+            y0: active.y0 - m,
+            w: self.size,
+            h: self.size,
+        }
+    }
+
+    /// The height of ring `level` at its lattice sample (i, j): a pure function, evaluated directly (no ring
+    /// storage). This is the CPU twin every filled texel must equal bit for bit.
+    pub fn sample(&self, level: u32, i: i64, j: i64) -> [f32; 2] {
+        let coarse = |a: i64, b: i64| self.direct_z(level + 1, a, b);
+        self.texel(level, i, j, &coarse)
+    }
+
+    fn direct_z(&self, level: u32, i: i64, j: i64) -> f32 {
+        if level >= self.synth {
+            self.pyramid.at(level - self.synth, i, j)
+        } else {
+            let coarse = |a: i64, b: i64| self.direct_z(level + 1, a, b);
+            synthesize(
+                coarse,
+                &self.noise,
+                self.sigmas[level as usize],
+                level,
+                i,
+                j,
+            )
+        }
+    }
+
+    /// (z, z_c) of `level` at (i, j), given the next coarser ring's z through `coarse`.
+    #[inline]
+    fn texel(&self, level: u32, i: i64, j: i64, coarse: &impl Fn(i64, i64) -> f32) -> [f32; 2] {
+        let z = if level >= self.synth {
+            self.pyramid.at(level - self.synth, i, j)
+        } else {
+            synthesize(
+                coarse,
+                &self.noise,
+                self.sigmas[level as usize],
+                level,
+                i,
+                j,
+            )
+        };
+        if level + 1 >= self.levels {
+            return [z, z];
+        }
+        [z, coarse_surface(coarse, i, j)]
+    }
+
+    /// Samples still to write before every enabled-by-height level reaches its desired clip region for an
+    /// eye at `eye`, with an unlimited budget (what [`Clipmap::update`] would write in total if the eye
+    /// stayed there).
+    pub fn pending_samples(&self, eye: DVec3) -> u64 {
+        let p = self.eye_lattice(eye);
+        let h = self.height_above_terrain(eye);
+        (0..self.levels)
+            .filter(|&l| self.height_enabled(l, h))
+            .map(|l| {
+                let d = self.desired_clip(&self.desired_active(l, p));
+                needed_samples(&self.valid[l as usize], &d, self.size)
+            })
+            .sum()
+    }
+
+    /// The eye's height above the terrain (bilinear in the data, clamped at its edges), metres, >= 0.
+    pub fn height_above_terrain(&self, eye: DVec3) -> f64 {
+        let u = eye.x / self.data_spacing;
+        let v = f64::from(self.data_rows - 1) - eye.y / self.data_spacing;
+        let (u0, v0) = (u.floor(), v.floor());
+        let (fu, fv) = (u - u0, v - v0);
+        #[expect(
+            clippy::cast_possible_truncation,
+            reason = "floor of a finite coordinate; clamped on lookup"
+        )]
+        let (iu, iv) = (u0 as i64, v0 as i64);
+        let l0 = self.pyramid.level(0);
+        let at = |a: i64, b: i64| f64::from(l0.at_clamped(a, b));
+        let a = at(iu, iv) * (1.0 - fu) + at(iu + 1, iv) * fu;
+        let b = at(iu, iv + 1) * (1.0 - fu) + at(iu + 1, iv + 1) * fu;
+        (eye.z - (a * (1.0 - fv) + b * fv)).max(0.0)
+    }
+
+    /// The viewer-height rule; the coarsest level always stays, so something is always drawn (GPU Gems 2
+    /// ch. 2 likewise keeps at least one level).
+    fn height_enabled(&self, level: u32, h: f64) -> bool {
+        level + 1 == self.levels
+            || h <= HEIGHT_FACTOR * f64::from(self.n) * self.g0 * f64::from(1u32 << level)
+    }
+
+    /// One frame: plan under the budget (coarse to fine), fill, crop, disable; allocation-free.
+    pub fn update(&mut self, eye: DVec3) -> Result<&Frame> {
+        if !eye.is_finite() {
+            return Err(Error::Camera(format!("eye position {eye} is not finite")));
+        }
+        let p = self.eye_lattice(eye);
+        // Lattice coordinates stay far inside i64 (and doubled corners cannot overflow).
+        if !(p.0.abs() < MAX_LATTICE && p.1.abs() < MAX_LATTICE) {
+            return Err(Error::Camera(format!(
+                "eye position {eye} is too far from the terrain for the clipmap lattice"
+            )));
+        }
+        let h = self.height_above_terrain(eye);
+        let lv = self.levels as usize;
+
+        let mut frame = std::mem::take(&mut self.frame);
+        frame.levels.clear();
+        frame.uploads.clear();
+        frame.index = self.next_index;
+        frame.budget = self.budget;
+        let mut zsum = Hash64::new();
+        let mut samples = [0u32; MAX_LEVELS];
+        let mut complete = [false; MAX_LEVELS];
+        let mut desired = [Rect::EMPTY; MAX_LEVELS];
+
+        // GC section 5: walk coarse to fine; stop at the first level the budget cannot finish, so a coarse
+        // level is never stale while a finer one is updated.
+        let mut left = self.budget;
+        let mut stopped = false;
+        for l in (0..self.levels).rev() {
+            let li = l as usize;
+            desired[li] = self.desired_active(l, p);
+            if !self.height_enabled(l, h) {
+                continue;
+            }
+            let d = self.desired_clip(&desired[li]);
+            if stopped {
+                complete[li] = self.valid[li] == d;
+                continue;
+            }
+            let plan = plan_level(l, &self.valid[li], &d, self.size, left);
+            for band in &plan.bands {
+                self.fill(l, band, &mut zsum);
+            }
+            for u in &plan.uploads {
+                frame.uploads.push(*u).map_err(|_| Error::Capacity {
+                    what: "frame uploads",
+                    capacity: frame.uploads.capacity(),
+                })?;
+            }
+            self.valid[li] = plan.valid;
+            samples[li] = plan.samples;
+            left -= plan.samples;
+            complete[li] = plan.complete;
+            stopped = !plan.complete;
+        }
+
+        // Active regions, coarse to fine: desired, cropped to the clip region and to the coarser active
+        // region eroded by one coarse sample, corners snapped inward to even coordinates.
+        let mut actives = [Rect::EMPTY; MAX_LEVELS];
+        let mut disabled_below = false;
+        for l in (0..lv).rev() {
+            let l32 = u32::try_from(l).expect("level < MAX_LEVELS");
+            if disabled_below || !self.height_enabled(l32, h) {
+                disabled_below = true;
+                continue;
+            }
+            let mut a = desired[l].intersect(&self.valid[l]);
+            if l + 1 < lv {
+                a = a.intersect(&nest_limit(&actives[l + 1]));
+            }
+            let a = snap_even(&a);
+            if a.w < MIN_ACTIVE || a.h < MIN_ACTIVE {
+                disabled_below = true;
+                continue;
+            }
+            actives[l] = a;
+        }
+
+        let (mut total_samples, mut updated, mut stale, mut disabled, mut tris) = (0, 0, 0, 0, 0);
+        for l in 0..lv {
+            let a = actives[l];
+            let state = if a.is_empty() {
+                disabled += 1;
+                LevelState::Disabled
+            } else if !complete[l] {
+                stale += 1;
+                LevelState::Stale
+            } else if samples[l] > 0 {
+                LevelState::Updated
+            } else {
+                LevelState::Current
+            };
+            if samples[l] > 0 {
+                updated += 1;
+            }
+            total_samples += samples[l];
+            let t = if a.is_empty() {
+                0
+            } else {
+                let quads = |w: u32, h: u32| (w - 1) * (h - 1);
+                let inner = if l > 0 && !actives[l - 1].is_empty() {
+                    quads(actives[l - 1].w.div_ceil(2), actives[l - 1].h.div_ceil(2))
+                } else {
+                    0
+                };
+                2 * (quads(a.w, a.h) - inner)
+            };
+            tris += t;
+            frame
+                .levels
+                .push(LevelFrame {
+                    state,
+                    clip: self.valid[l],
+                    active: a,
+                    samples_updated: samples[l],
+                    triangles: t,
+                })
+                .map_err(|_| Error::Capacity {
+                    what: "frame levels",
+                    capacity: MAX_LEVELS,
+                })?;
+        }
+        frame.samples_updated = total_samples;
+        frame.levels_updated = updated;
+        frame.stale_levels = stale;
+        frame.disabled_levels = disabled;
+        frame.triangles = tris;
+        zsum.write_u32(total_samples);
+        frame.z_checksum = zsum.finish();
+        frame.hash = frame.compute_hash();
+        self.frame = frame;
+        self.next_index += 1;
+        Ok(&self.frame)
+    }
+
+    /// Fills one band of ring `level` (GC sections 4 and 8), hashing the written bits in order.
+    fn fill(&mut self, level: u32, band: &Rect, zsum: &mut Hash64) {
+        let li = level as usize;
+        // Take the ring out so the coarser ring (synthesis) and the pyramid can be read while writing it.
+        let mut ring = std::mem::replace(
+            &mut self.rings[li],
+            Ring {
+                size: 0,
+                texels: Vec::new(),
+            },
+        );
+        {
+            let this = &*self;
+            let pyramid_coarse = level + 1 >= this.synth;
+            let coarser = this.rings.get(li + 1);
+            let coarse = |a: i64, b: i64| -> f32 {
+                if pyramid_coarse {
+                    this.pyramid.at(level + 1 - this.synth, a, b)
+                } else {
+                    coarser
+                        .expect("a synthesised ring has a coarser ring")
+                        .get(a, b)[0]
+                }
+            };
+            let size = ring.size as usize;
+            let tx0 = ring.index(band.x0, 0);
+            for j in band.y0..band.y1() {
+                // Toroidal addressing, stepped along the row instead of a division per texel.
+                let row = ring.index(0, j);
+                let mut tx = tx0;
+                for i in band.x0..band.x1() {
+                    let t = this.texel(level, i, j, &coarse);
+                    ring.texels[row + tx] = t;
+                    tx += 1;
+                    if tx == size {
+                        tx = 0;
+                    }
+                    zsum.write_u64((u64::from(t[0].to_bits()) << 32) | u64::from(t[1].to_bits()));
+                }
+            }
+        }
+        self.rings[li] = ring;
+    }
+
+    /// GC section 5 constraints (1)-(4) on the last frame; see [`ConstraintViolation`].
+    pub fn check_constraints(&self) -> Result<(), ConstraintViolation> {
+        let levels = &self.frame.levels;
+        for (l, lf) in levels.iter().enumerate() {
+            let level = u32::try_from(l).expect("level < MAX_LEVELS");
+            let a = lf.active;
+            if a.is_empty() {
+                continue;
+            }
+            if !lf.clip.contains(&a) {
+                return Err(ConstraintViolation::ActiveOutsideClip {
+                    level,
+                    active: a,
+                    clip: lf.clip,
+                });
+            }
+            if a.x0 & 1 != 0 || a.y0 & 1 != 0 || (a.x1() - 1) & 1 != 0 || (a.y1() - 1) & 1 != 0 {
+                return Err(ConstraintViolation::OffCoarseLattice { level, active: a });
+            }
+            if let Some(c) = levels.get(l + 1) {
+                if c.active.is_empty() {
+                    return Err(ConstraintViolation::NotContiguous { level });
+                }
+                if !nest_limit(&c.active).contains(&a) {
+                    return Err(ConstraintViolation::NotNested {
+                        level,
+                        active: a,
+                        coarser: c.active,
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// z_c at fine vertex (i, j): the coarser level's piecewise-linear surface there (GC section 4's z_c).
+///
+/// Even-even: the coarse sample. Odd on one axis: the mean of the two coarse neighbours along that edge.
+/// Odd-odd: the mean of the two coarse samples on the quad's (i, j)-(i+1, j+1) diagonal, the project-wide
+/// triangulation (renderer and SAT error maps split every quad the same way).
+#[inline]
+fn coarse_surface(coarse: &impl Fn(i64, i64) -> f32, i: i64, j: i64) -> f32 {
+    let (ci, cj) = (i >> 1, j >> 1);
+    match (i & 1, j & 1) {
+        (0, 0) => coarse(ci, cj),
+        (1, 0) => (coarse(ci, cj) + coarse(ci + 1, cj)) * 0.5,
+        (0, 1) => (coarse(ci, cj) + coarse(ci, cj + 1)) * 0.5,
+        _ => (coarse(ci, cj) + coarse(ci + 1, cj + 1)) * 0.5,
+    }
+}
+
+/// The region of level l allowed by constraint (2): the coarser active region `c` eroded by one coarse
+/// sample, in level-l units (vertices 2 (c.x0 + 1) ..= 2 (c.x1 - 2)).
+fn nest_limit(c: &Rect) -> Rect {
+    if c.w < 3 || c.h < 3 {
+        return Rect::EMPTY;
+    }
+    Rect::from_bounds(
+        2 * (c.x0 + 1),
+        2 * (c.y0 + 1),
+        2 * (c.x1() - 2) + 1,
+        2 * (c.y1() - 2) + 1,
+    )
+}
+
+/// Shrinks a vertex rectangle so its first and last vertex are even (constraint 3).
+fn snap_even(r: &Rect) -> Rect {
+    if r.is_empty() {
+        return Rect::EMPTY;
+    }
+    let x0 = r.x0 + (r.x0 & 1);
+    let y0 = r.y0 + (r.y0 & 1);
+    let xl = (r.x1() - 1) - ((r.x1() - 1) & 1);
+    let yl = (r.y1() - 1) - ((r.y1() - 1) & 1);
+    Rect::from_bounds(x0, y0, xl + 1, yl + 1)
+}
+
+/// The morph weight alpha of GC section 6.2 for a vertex of one level.
+///
+/// All quantities are in that level's lattice units: `(x, y)` the vertex, `viewer` the eye's (x, y)
+/// projected into the level, `active` the level's active region (x_min = active.x0, x_max = active.x1() - 1),
+/// `n` the ring size. With w = n / 10:
+///
+/// ```text
+/// alpha_x = clamp((|x - v_x| - ((x_max - x_min) / 2 - w - 1)) / w, 0, 1)
+/// alpha   = max(alpha_x, alpha_y)
+/// ```
+///
+/// so alpha is 0 in the interior and reaches 1 over the last w samples before the outer boundary, where the
+/// vertex takes the coarser level's surface z_c: z' = (1 - alpha) z + alpha z_c. The vertex shader mirrors
+/// this expression in f32 operation for operation.
+pub fn morph_alpha(x: f32, y: f32, viewer: [f32; 2], active: &Rect, n: u32) -> f32 {
+    #[expect(
+        clippy::cast_precision_loss,
+        reason = "active widths are at most 2048, exact in f32"
+    )]
+    let (half_x, half_y) = ((active.w as f32 - 1.0) * 0.5, (active.h as f32 - 1.0) * 0.5);
+    #[expect(clippy::cast_precision_loss, reason = "n < 2048, exact in f32")]
+    let w = n as f32 / 10.0;
+    let ax = (((x - viewer[0]).abs() - (half_x - w - 1.0)) / w).clamp(0.0, 1.0);
+    let ay = (((y - viewer[1]).abs() - (half_y - w - 1.0)) / w).clamp(0.0, 1.0);
+    ax.max(ay)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn morph_alpha_interior_boundary_continuous() {
+        let n = 63;
+        let a = Rect {
+            x0: 0,
+            y0: 0,
+            w: n,
+            h: n,
+        };
+        let v = [31.0, 31.0];
+        assert_eq!(morph_alpha(31.0, 31.0, v, &a, n), 0.0);
+        assert_eq!(morph_alpha(20.0, 40.0, v, &a, n), 0.0);
+        assert_eq!(morph_alpha(0.0, 31.0, v, &a, n), 1.0);
+        assert_eq!(morph_alpha(31.0, 62.0, v, &a, n), 1.0);
+        // Continuous: Lipschitz 1/w along a line from the centre to the edge.
+        let mut prev = 0.0;
+        for k in 0..=620 {
+            let x = 31.0 + k as f32 * 0.05;
+            let al = morph_alpha(x, 31.0, v, &a, n);
+            assert!((al - prev).abs() <= 0.05 / 6.3 + 1e-5, "jump at x = {x}");
+            assert!(al >= prev);
+            prev = al;
+        }
+    }
+
+    #[test]
+    fn snapping_and_nesting() {
+        let r = snap_even(&Rect::from_bounds(1, 2, 10, 9));
+        assert_eq!(r, Rect::from_bounds(2, 2, 9, 9));
+        let c = Rect {
+            x0: 0,
+            y0: 0,
+            w: 15,
+            h: 15,
+        };
+        assert_eq!(nest_limit(&c), Rect::from_bounds(2, 2, 27, 27));
+    }
+}
