@@ -116,7 +116,7 @@ impl fmt::Display for Path {
 /// A camera path laid over one terrain at one speed: frame index in, [`Camera`] out.
 ///
 /// Everything is computed in [`Flight::new`]; [`Flight::camera`] allocates nothing.
-#[derive(Clone, Debug)]
+#[derive(Clone)]
 pub struct Flight<'a> {
     path: Path,
     speed: f64,
@@ -129,6 +129,18 @@ pub struct Flight<'a> {
     envelope: Envelope,
     /// `figure8`: cumulative arc length at parameter t = i * TAU / FIGURE8_STEPS.
     arc: Vec<f64>,
+}
+
+impl fmt::Debug for Flight<'_> {
+    // Not derived: the terrain's samples would flood any message that prints a flight.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Flight")
+            .field("path", &self.path)
+            .field("speed", &self.speed)
+            .field("fov_y_deg", &self.fov_y_deg)
+            .field("min_clearance", &self.min_clearance)
+            .finish_non_exhaustive()
+    }
 }
 
 /// One point of a track: where, and which way (unit, horizontal).
