@@ -16,6 +16,7 @@ pub mod budget;
 pub mod camera;
 pub mod clipmap;
 mod error;
+pub mod flight;
 pub mod frame;
 pub mod gpu;
 pub mod hash;

@@ -16,6 +16,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Fly a camera path on the CPU: per-frame clipmap updates under the budget, statistics and hashes.
+    Fly(cmd::fly::FlyArgs),
     /// Describe a terrain: size, spacing, height range, voids, and the GPU memory each shipped profile needs.
     Info(cmd::info::InfoArgs),
     /// Render one frame offscreen to a PNG.
@@ -25,6 +27,7 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
+        Command::Fly(args) => cmd::fly::run(&args),
         Command::Info(args) => cmd::info::run(&args),
         Command::Render(args) => cmd::render::run(&args),
     };

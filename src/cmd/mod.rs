@@ -1,5 +1,6 @@
 //! Subcommands of the `clipsat` binary, and the options they share.
 
+pub(crate) mod fly;
 pub(crate) mod info;
 pub(crate) mod render;
 

@@ -1,0 +1,320 @@
+//! `clipsat fly`: the per-frame plan without a GPU. Flies a camera path, updates the clipmap every frame
+//! under the profile's budget, checks GC section 5's constraints, and reports per-frame statistics and hashes.
+
+use std::fs::File;
+use std::io::{BufWriter, IsTerminal, Write};
+use std::path::{Path as FsPath, PathBuf};
+
+use clap::Args;
+use clipsat::clipmap::{Clipmap, ClipmapOptions};
+use clipsat::flight::{Flight, Path};
+use clipsat::frame::Frame;
+use clipsat::hash::{hex, Hash64};
+use clipsat::plot::{LinePlot, Series};
+use clipsat::{Error, Result};
+use indicatif::{ProgressBar, ProgressStyle};
+use serde_json::json;
+
+use super::{ProfileArgs, TerrainArgs};
+
+/// The path flown when none is named.
+const DEFAULT_PATH: &str = "figure8";
+
+#[derive(Args, Debug)]
+pub(crate) struct FlyArgs {
+    #[command(flatten)]
+    terrain: TerrainArgs,
+    #[command(flatten)]
+    profile: ProfileArgs,
+    /// Camera path: straight, circle, figure8, dive, teleport or teleport:K (jump every K frames).
+    #[arg(long, value_name = "NAME", default_value = DEFAULT_PATH)]
+    path: String,
+    /// Speed along the path, metres per frame.
+    #[arg(
+        long,
+        value_name = "M",
+        default_value_t = 50.0,
+        allow_negative_numbers = true
+    )]
+    speed: f64,
+    /// Frames to fly.
+    #[arg(
+        long,
+        value_name = "N",
+        default_value_t = 600,
+        allow_negative_numbers = true
+    )]
+    frames: i64,
+    /// Rings finer than the data, synthesised (GC section 8).
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    synth_levels: u32,
+    /// Write one CSV row per frame here.
+    #[arg(long, value_name = "FILE")]
+    csv: Option<PathBuf>,
+    /// Plot samples updated and stale levels against the frame, as PNG.
+    #[arg(long, value_name = "FILE.png")]
+    plot: Option<PathBuf>,
+    /// Print a machine-readable summary on stdout (and no progress bar).
+    #[arg(long)]
+    json: bool,
+}
+
+/// What the statistics keep of one frame.
+#[derive(Clone, Copy, Debug)]
+struct Row {
+    samples_updated: u32,
+    stale_levels: u32,
+    disabled_levels: u32,
+    triangles: u32,
+}
+
+pub(crate) fn run(args: &FlyArgs) -> Result<()> {
+    let path: Path = args.path.parse()?;
+    let frames = u64::try_from(args.frames)
+        .ok()
+        .filter(|&f| f > 0)
+        .ok_or_else(|| Error::Arg {
+            arg: "--frames".into(),
+            reason: format!("{}: fly at least 1 frame", args.frames),
+        })?;
+    let profile = args.profile.load()?;
+    let (terrain_name, hm) = args.terrain.load()?;
+    let flight =
+        Flight::new(path, args.speed, &hm)?.with_fov_y_deg(f64::from(profile.view.fov_y_deg));
+    let mut clipmap = Clipmap::new(
+        &hm,
+        &profile,
+        ClipmapOptions {
+            synth_levels: args.synth_levels,
+        },
+    )?;
+
+    // Every buffer the loop writes to is sized here; the loop itself allocates nothing.
+    let mut rows: Vec<Row> = Vec::new();
+    let cap = usize::try_from(frames).unwrap_or(usize::MAX);
+    rows.try_reserve_exact(cap).map_err(|_| Error::Arg {
+        arg: "--frames".into(),
+        reason: format!("{frames}: too many frames to keep statistics for"),
+    })?;
+    let mut csv = match &args.csv {
+        Some(p) => Some((p, open_csv(p, clipmap.levels())?)),
+        None => None,
+    };
+    let progress = if args.json || !std::io::stderr().is_terminal() {
+        ProgressBar::hidden()
+    } else {
+        let pb = ProgressBar::new(frames);
+        if let Ok(style) =
+            ProgressStyle::with_template("{bar:40} {pos}/{len} frames, {per_sec}, eta {eta}")
+        {
+            pb.set_style(style);
+        }
+        pb
+    };
+
+    let mut run_hash = Hash64::new();
+    let mut violations = 0u64;
+    let mut final_hash = 0;
+    for f in 0..frames {
+        let camera = flight.camera(f);
+        let frame = clipmap.update(camera.eye)?;
+        run_hash.write_u64(frame.hash);
+        final_hash = frame.hash;
+        rows.push(Row {
+            samples_updated: frame.samples_updated,
+            stale_levels: frame.stale_levels,
+            disabled_levels: frame.disabled_levels,
+            triangles: frame.triangles,
+        });
+        if let Some((p, w)) = &mut csv {
+            write_row(w, frame).map_err(|e| Error::io(*p, "cannot write", e))?;
+        }
+        if let Err(v) = clipmap.check_constraints() {
+            if violations == 0 {
+                eprintln!("frame {f}: {v}");
+            }
+            violations += 1;
+        }
+        if f % 64 == 0 {
+            progress.set_position(f);
+        }
+    }
+    progress.finish_and_clear();
+    if let Some((p, mut w)) = csv {
+        w.flush().map_err(|e| Error::io(p, "cannot write", e))?;
+    }
+
+    let budget = profile.budget.update_samples_per_frame;
+    let stats = Stats::of(&rows, budget);
+    if let Some(p) = &args.plot {
+        plot(&rows, budget, &profile.name, path, p)?;
+    }
+    if args.json {
+        super::print_json(&json!({
+            "terrain": terrain_name,
+            "profile": profile.name,
+            "path": path.to_string(),
+            "speed": args.speed,
+            "frames": frames,
+            "synth_levels": args.synth_levels,
+            "levels": clipmap.levels(),
+            "g0_m": clipmap.g0(),
+            "budget": budget,
+            "final_hash": hex(final_hash),
+            "run_hash": hex(run_hash.finish()),
+            "frames_over_budget": stats.over_budget,
+            "max_stale_levels": stats.max_stale,
+            "frames_with_stale_levels": stats.frames_stale,
+            "max_disabled_levels": stats.max_disabled,
+            "constraint_violations": violations,
+            "samples_updated_p50": stats.samples[0],
+            "samples_updated_p99": stats.samples[1],
+            "samples_updated_max": stats.samples[2],
+            "samples_updated_mean": stats.samples_mean,
+            "triangles_p50": stats.triangles[0],
+            "triangles_max": stats.triangles[2],
+            "csv": args.csv.as_ref().map(|p| p.display().to_string()),
+            "plot": args.plot.as_ref().map(|p| p.display().to_string()),
+        }));
+    } else {
+        println!("terrain      {terrain_name}");
+        println!(
+            "profile      {} (n {}, {} levels, g0 {} m, budget {budget} samples/frame)",
+            profile.name,
+            profile.clipmap.n,
+            clipmap.levels(),
+            clipmap.g0()
+        );
+        println!(
+            "flight       {path} at {} m/frame, {frames} frames",
+            args.speed
+        );
+        println!("                        p50        p99        max");
+        let [a, b, c] = stats.samples;
+        println!("samples      {a:>14} {b:>10} {c:>10}");
+        let [a, b, c] = stats.triangles;
+        println!("triangles    {a:>14} {b:>10} {c:>10}");
+        println!(
+            "stale levels max {} ({} frames with any), disabled max {}",
+            stats.max_stale, stats.frames_stale, stats.max_disabled
+        );
+        println!(
+            "over budget  {} frames; constraint violations {violations}",
+            stats.over_budget
+        );
+        println!("final hash   {}", hex(final_hash));
+    }
+    Ok(())
+}
+
+/// Summary statistics of a run; percentiles by nearest rank.
+struct Stats {
+    samples: [u32; 3],
+    samples_mean: f64,
+    triangles: [u32; 3],
+    over_budget: usize,
+    max_stale: u32,
+    frames_stale: usize,
+    max_disabled: u32,
+}
+
+impl Stats {
+    fn of(rows: &[Row], budget: u32) -> Self {
+        let pct = |mut v: Vec<u32>| {
+            v.sort_unstable();
+            let at = |percent: usize| {
+                let rank = (percent * v.len()).div_ceil(100);
+                v.get(rank.max(1) - 1).copied().unwrap_or(0)
+            };
+            [at(50), at(99), v.last().copied().unwrap_or(0)]
+        };
+        let total: u64 = rows.iter().map(|r| u64::from(r.samples_updated)).sum();
+        Self {
+            samples: pct(rows.iter().map(|r| r.samples_updated).collect()),
+            samples_mean: total as f64 / rows.len().max(1) as f64,
+            triangles: pct(rows.iter().map(|r| r.triangles).collect()),
+            over_budget: rows.iter().filter(|r| r.samples_updated > budget).count(),
+            max_stale: rows.iter().map(|r| r.stale_levels).max().unwrap_or(0),
+            frames_stale: rows.iter().filter(|r| r.stale_levels > 0).count(),
+            max_disabled: rows.iter().map(|r| r.disabled_levels).max().unwrap_or(0),
+        }
+    }
+}
+
+fn open_csv(path: &FsPath, levels: u32) -> Result<BufWriter<File>> {
+    super::ensure_parent(path)?;
+    let file = File::create(path).map_err(|e| Error::io(path, "cannot create", e))?;
+    let mut w = BufWriter::with_capacity(1 << 16, file);
+    let mut header = String::from(
+        "frame,samples_updated,budget_used,levels_updated,stale_levels,disabled_levels,triangles,hash",
+    );
+    for l in 0..levels {
+        header.push_str(&format!(",active_l{l}"));
+    }
+    writeln!(w, "{header}").map_err(|e| Error::io(path, "cannot write", e))?;
+    Ok(w)
+}
+
+/// One CSV row; `write!` into the buffered writer formats in place, without allocating.
+fn write_row(w: &mut impl Write, f: &Frame) -> std::io::Result<()> {
+    let used = f64::from(f.samples_updated) / f64::from(f.budget.max(1));
+    write!(
+        w,
+        "{},{},{used:.4},{},{},{},{},{:016x}",
+        f.index,
+        f.samples_updated,
+        f.levels_updated,
+        f.stale_levels,
+        f.disabled_levels,
+        f.triangles,
+        f.hash
+    )?;
+    for l in &f.levels {
+        write!(w, ",{}x{}", l.active.w, l.active.h)?;
+    }
+    writeln!(w)
+}
+
+fn plot(rows: &[Row], budget: u32, profile: &str, path: Path, out: &FsPath) -> Result<()> {
+    super::ensure_parent(out)?;
+    let frame_x = |i: usize| i as f64;
+    let plot = LinePlot {
+        title: format!("clipsat fly: {path}, profile {profile}"),
+        x_label: "frame".into(),
+        y_label: "samples updated".into(),
+        y2_label: "stale levels".into(),
+        x_log: false,
+        series: vec![
+            Series {
+                name: "samples updated".into(),
+                points: rows
+                    .iter()
+                    .enumerate()
+                    .map(|(i, r)| (frame_x(i), f64::from(r.samples_updated)))
+                    .collect(),
+                color: [31, 119, 180],
+                right_axis: false,
+            },
+            Series {
+                name: "budget".into(),
+                points: vec![
+                    (0.0, f64::from(budget)),
+                    (frame_x(rows.len().saturating_sub(1)), f64::from(budget)),
+                ],
+                color: [120, 120, 120],
+                right_axis: false,
+            },
+            Series {
+                name: "stale levels".into(),
+                points: rows
+                    .iter()
+                    .enumerate()
+                    .map(|(i, r)| (frame_x(i), f64::from(r.stale_levels)))
+                    .collect(),
+                color: [214, 39, 40],
+                right_axis: true,
+            },
+        ],
+    };
+    plot.write_png(out, 1200, 600)
+}

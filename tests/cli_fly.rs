@@ -1,0 +1,175 @@
+//! `clipsat fly` end to end: the built binary, its JSON, CSV and plot outputs, determinism, and clean refusals.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use clipsat::plot::LinePlot;
+
+fn clipsat(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_clipsat"))
+        .args(args)
+        .output()
+        .expect("run the clipsat binary")
+}
+
+/// A fresh folder for one test's outputs.
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join("cli_fly")
+        .join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("create scratch folder");
+    dir
+}
+
+fn json_of(out: &Output) -> serde_json::Value {
+    assert!(
+        out.status.success(),
+        "clipsat fly failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("stdout is JSON")
+}
+
+const SHORT: [&str; 8] = [
+    "fly",
+    "--profile",
+    "gles3-low",
+    "--path",
+    "teleport:10",
+    "--frames",
+    "40",
+    "--json",
+];
+
+#[test]
+fn short_fly_writes_json_csv_and_plot() {
+    let dir = scratch("outputs");
+    // Nested folders that do not exist yet: fly creates them.
+    let csv = dir.join("deep/er/fly.csv");
+    let png = dir.join("plots/fly.png");
+    let mut args = SHORT.to_vec();
+    let (csv_s, png_s) = (csv.to_string_lossy(), png.to_string_lossy());
+    args.extend(["--csv", &csv_s, "--plot", &png_s]);
+    let j = json_of(&clipsat(&args));
+
+    assert_eq!(j["frames"], 40);
+    assert_eq!(j["profile"], "gles3-low");
+    assert_eq!(j["path"], "teleport:10");
+    assert_eq!(j["speed"], 50.0);
+    assert!(j["terrain"].as_str().is_some_and(|t| !t.is_empty()));
+    let hash = j["final_hash"].as_str().expect("final_hash is a string");
+    assert!(
+        hash.len() == 16 && hash.chars().all(|c| c.is_ascii_hexdigit()),
+        "final_hash {hash} is not 16 hex digits"
+    );
+    assert_eq!(j["frames_over_budget"], 0);
+    assert_eq!(j["constraint_violations"], 0);
+    let budget = j["budget"].as_u64().expect("budget");
+    let p50 = j["samples_updated_p50"].as_u64().expect("p50");
+    let p99 = j["samples_updated_p99"].as_u64().expect("p99");
+    let max = j["samples_updated_max"].as_u64().expect("max");
+    assert!(
+        p50 <= p99 && p99 <= max && max <= budget,
+        "{p50} {p99} {max} {budget}"
+    );
+    assert!(max > 0, "the first frame fills rings");
+    assert!(j["max_stale_levels"].as_u64().is_some());
+    let t50 = j["triangles_p50"].as_u64().expect("triangles_p50");
+    assert!(t50 <= j["triangles_max"].as_u64().expect("triangles_max"));
+
+    let text = std::fs::read_to_string(&csv).expect("CSV written");
+    let mut lines = text.lines();
+    let header = lines.next().expect("CSV header");
+    assert!(
+        header.starts_with("frame,samples_updated,budget_used,"),
+        "{header}"
+    );
+    assert!(header.contains(",hash,active_l0"), "{header}");
+    let rows: Vec<&str> = lines.collect();
+    assert_eq!(rows.len(), 40);
+    let cols = header.split(',').count();
+    for (i, row) in rows.iter().enumerate() {
+        let fields: Vec<&str> = row.split(',').collect();
+        assert_eq!(fields.len(), cols, "row {i}: {row}");
+        assert_eq!(fields[0], i.to_string());
+    }
+    assert!(
+        rows[39].contains(hash),
+        "last CSV row carries the final hash"
+    );
+
+    // The plot stage is written in parallel; until LinePlot writes files, only say so.
+    let probe = dir.join("probe.png");
+    let plot_writes = LinePlot::default().write_png(&probe, 64, 32).is_ok() && probe.exists();
+    if plot_writes {
+        let bytes = std::fs::read(&png).expect("plot written");
+        assert!(bytes.starts_with(b"\x89PNG"), "plot is a PNG");
+    } else {
+        eprintln!("skipping the PNG check: clipsat::plot::LinePlot does not write files yet");
+    }
+}
+
+#[test]
+fn same_fly_gives_the_same_hashes() {
+    let a = json_of(&clipsat(&SHORT));
+    let b = json_of(&clipsat(&SHORT));
+    assert_eq!(a["final_hash"], b["final_hash"]);
+    assert_eq!(a["run_hash"], b["run_hash"]);
+    assert_eq!(a, b);
+}
+
+#[test]
+fn default_fly_prints_a_summary() {
+    let out = clipsat(&["fly", "--frames", "60"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    for want in ["figure8", "samples", "triangles", "final hash"] {
+        assert!(text.contains(want), "summary lacks `{want}`:\n{text}");
+    }
+}
+
+#[test]
+fn bad_inputs_fail_with_a_clear_error() {
+    let dir = scratch("bad");
+    let blocker = dir.join("a-file");
+    std::fs::write(&blocker, b"not a folder").expect("write blocker");
+    let csv_under_file = blocker.join("fly.csv");
+    let csv_s = csv_under_file.to_string_lossy();
+    let cases: [(&[&str], &str); 7] = [
+        (&["--speed", "-1"], "--speed"),
+        (&["--speed", "0"], "--speed"),
+        (&["--path", "nope"], "--path"),
+        (&["--path", "teleport:0"], "--path"),
+        (&["--frames", "0"], "--frames"),
+        (&["--profile", "missing.toml"], "missing.toml"),
+        (&["--frames", "2", "--csv", &csv_s], "a-file"),
+    ];
+    for (extra, names) in cases {
+        let mut args = vec!["fly"];
+        args.extend_from_slice(extra);
+        if !extra.contains(&"--frames") {
+            args.extend(["--frames", "5"]);
+        }
+        let out = clipsat(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{extra:?} should fail");
+        assert!(!err.contains("panicked"), "{extra:?} panicked: {err}");
+        // One error line; an I/O error adds the operating system's cause below it.
+        assert!(
+            err.trim()
+                .lines()
+                .skip(1)
+                .all(|l| l.starts_with("  caused by: ")),
+            "{extra:?}: not one error line: {err}"
+        );
+        assert!(
+            err.starts_with("error: ") && err.contains(names),
+            "{extra:?}: the error should name {names}: {err}"
+        );
+    }
+}
