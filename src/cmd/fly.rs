@@ -177,32 +177,34 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
             "plot": args.plot.as_ref().map(|p| p.display().to_string()),
         }));
     } else {
-        println!("terrain      {terrain_name}");
-        println!(
+        outln!("terrain      {terrain_name}");
+        outln!(
             "profile      {} (n {}, {} levels, g0 {} m, budget {budget} samples/frame)",
             profile.name,
             profile.clipmap.n,
             clipmap.levels(),
             clipmap.g0()
         );
-        println!(
+        outln!(
             "flight       {path} at {} m/frame, {frames} frames",
             args.speed
         );
-        println!("                        p50        p99        max");
+        outln!("                        p50        p99        max");
         let [a, b, c] = stats.samples;
-        println!("samples      {a:>14} {b:>10} {c:>10}");
+        outln!("samples      {a:>14} {b:>10} {c:>10}");
         let [a, b, c] = stats.triangles;
-        println!("triangles    {a:>14} {b:>10} {c:>10}");
-        println!(
+        outln!("triangles    {a:>14} {b:>10} {c:>10}");
+        outln!(
             "stale levels max {} ({} frames with any), disabled max {}",
-            stats.max_stale, stats.frames_stale, stats.max_disabled
+            stats.max_stale,
+            stats.frames_stale,
+            stats.max_disabled
         );
-        println!(
+        outln!(
             "over budget  {} frames; constraint violations {violations}",
             stats.over_budget
         );
-        println!("final hash   {}", hex(final_hash));
+        outln!("final hash   {}", hex(final_hash));
     }
     Ok(())
 }

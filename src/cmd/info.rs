@@ -57,8 +57,8 @@ pub(crate) fn run(args: &InfoArgs) -> Result<()> {
         }));
         return Ok(());
     }
-    println!("terrain   {name}");
-    println!(
+    outln!("terrain   {name}");
+    outln!(
         "samples   {} x {} at {} m ({:.1} x {:.1} km)",
         hm.width(),
         hm.height(),
@@ -66,11 +66,11 @@ pub(crate) fn run(args: &InfoArgs) -> Result<()> {
         ex / 1e3,
         ey / 1e3
     );
-    println!("heights   {lo:.1} .. {hi:.1} m");
-    println!("voids     {} filled", hm.voids_filled());
-    println!("profile     GPU memory needed / budget    coarsest ring span");
+    outln!("heights   {lo:.1} .. {hi:.1} m");
+    outln!("voids     {} filled", hm.voids_filled());
+    outln!("profile     GPU memory needed / budget    coarsest ring span");
     for p in &profiles {
-        println!(
+        outln!(
             "{:<11} {:>9.2} MiB / {:>7.1} MiB    {:>8.1} km",
             p["profile"].as_str().unwrap_or("?"),
             p["gpu_bytes"].as_f64().unwrap_or(0.0) / 1048576.0,

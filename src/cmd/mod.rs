@@ -1,5 +1,13 @@
 //! Subcommands of the `clipsat` binary, and the options they share.
 
+/// `println!` that stops quietly when stdout is closed (`clipsat ... | head`) instead of panicking.
+macro_rules! outln {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout().lock(), $($arg)*);
+    }};
+}
+
 pub(crate) mod fly;
 pub(crate) mod info;
 pub(crate) mod render;
@@ -133,7 +141,7 @@ impl ProfileArgs {
 
 /// Writes `value` as pretty JSON on stdout.
 pub(crate) fn print_json(value: &serde_json::Value) {
-    println!(
+    outln!(
         "{}",
         serde_json::to_string_pretty(value).unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"))
     );

@@ -92,7 +92,7 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
             "ms": round2(ms),
         }));
     } else {
-        println!(
+        outln!(
             "{}: {size_w}x{size_h}, {} triangles (brute force), image {} in {:.1} ms on {} ({})",
             args.out.display(),
             frame.triangles,
