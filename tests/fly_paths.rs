@@ -1,0 +1,129 @@
+//! The per-frame plan over every named camera path: GC section 5 constraints and the budget hold on every
+//! frame, on the procedural terrain and on Puget Sound, and the frame-hash sequence is pinned so that a debug
+//! and a release build can be checked against the same number.
+//!
+//! Release check of the same goldens: `cargo test --release --test fly_paths`.
+
+use clipsat::clipmap::{Clipmap, ClipmapOptions};
+use clipsat::flight::{Flight, Path};
+use clipsat::frame::LevelState;
+use clipsat::hash::{hex, Hash64};
+use clipsat::source::{self, procedural, LoadOptions};
+use clipsat::{Heightmap, Profile};
+
+const PATHS: [Path; 5] = [
+    Path::Straight,
+    Path::Circle,
+    Path::Figure8,
+    Path::Dive,
+    Path::Teleport { every: 150 },
+];
+
+/// Flies `frames` frames and checks every one; returns the hash of the frame-hash sequence.
+fn fly(hm: &Heightmap, profile: &str, path: Path, speed: f64, frames: u64, synth: u32) -> u64 {
+    let prof = Profile::load(profile).expect("shipped profile");
+    let mut cm = Clipmap::new(
+        hm,
+        &prof,
+        ClipmapOptions {
+            synth_levels: synth,
+        },
+    )
+    .expect("clipmap");
+    let flight = Flight::new(path, speed, hm).expect("flight");
+    let budget = prof.budget.update_samples_per_frame;
+    let mut run = Hash64::new();
+    let mut stale_frames = 0u32;
+    for f in 0..frames {
+        let frame = cm.update(flight.camera(f).eye).expect("update");
+        let tag = format!("{profile} {path} frame {f}");
+        assert!(
+            frame.samples_updated <= budget,
+            "{tag}: {} samples over budget {budget}",
+            frame.samples_updated
+        );
+        // Coarse to fine: once a level is left stale, no finer level may have been written this frame.
+        let mut seen_stale = false;
+        for l in (0..frame.levels.len()).rev() {
+            match frame.levels[l].state {
+                LevelState::Stale => seen_stale = true,
+                LevelState::Updated => {
+                    assert!(!seen_stale, "{tag}: level {l} updated below a stale level")
+                }
+                _ => {}
+            }
+        }
+        stale_frames += u32::from(frame.stale_levels > 0);
+        run.write_u64(frame.hash);
+        if let Err(v) = cm.check_constraints() {
+            panic!("{tag}: {v}");
+        }
+    }
+    eprintln!("{profile} {path}: {frames} frames, {stale_frames} with stale levels");
+    run.finish()
+}
+
+fn procedural_terrain() -> Heightmap {
+    procedural::generate(&procedural::ProceduralParams {
+        seed: 1,
+        size: 513,
+        spacing: 30.0,
+    })
+    .expect("procedural")
+}
+
+fn puget() -> Option<Heightmap> {
+    let path = clipsat::data_dir().join("ps_height_1k.png");
+    if !path.exists() {
+        assert!(
+            std::env::var("CI").as_deref() != Ok("true"),
+            "{} is missing (CI=true)",
+            path.display()
+        );
+        eprintln!("skip: {} is missing", path.display());
+        return None;
+    }
+    Some(
+        source::load(
+            &path,
+            &LoadOptions {
+                spacing: Some(160.0),
+                ..Default::default()
+            },
+        )
+        .expect("ps_height_1k.png"),
+    )
+}
+
+#[test]
+fn every_path_on_the_procedural_terrain() {
+    let hm = procedural_terrain();
+    for path in PATHS {
+        fly(&hm, "gles3-low", path, 120.0, 2000, 1);
+    }
+}
+
+#[test]
+fn every_path_on_puget_sound() {
+    let Some(hm) = puget() else { return };
+    for path in PATHS {
+        fly(&hm, "gles3-mid", path, 400.0, 2000, 0);
+    }
+}
+
+/// Frame hashes are exact: the same fly-through gives the same sequence in every build. If this changes,
+/// every user's stored hashes break: only update the constant for an intended change of the frame record.
+#[test]
+fn frame_hash_sequence_is_pinned() {
+    let hm = procedural_terrain();
+    let a = fly(&hm, "gles3-low", Path::Figure8, 200.0, 300, 1);
+    let b = fly(&hm, "gles3-low", Path::Figure8, 200.0, 300, 1);
+    assert_eq!(a, b, "two runs differ");
+    assert_eq!(
+        hex(a),
+        GOLDEN_FIGURE8,
+        "frame-hash sequence changed (debug and release must agree)"
+    );
+}
+
+const GOLDEN_FIGURE8: &str = "17e27404a93b6dbe";
