@@ -126,4 +126,48 @@ fn frame_hash_sequence_is_pinned() {
     );
 }
 
-const GOLDEN_FIGURE8: &str = "17e27404a93b6dbe";
+const GOLDEN_FIGURE8: &str = "0f79f50531807d11";
+
+/// On every shipped profile: a fast flight leaves fine levels stale; once the viewer stops, every level is
+/// current again within ceil(pending / B') frames, B' = the budget rounded down to whole rows of the clip
+/// texture (the planner's unit of work). For gles3-low and gles3-mid B' = B exactly.
+#[test]
+fn shipped_profiles_recover_after_a_fast_flight() {
+    let hm = procedural_terrain();
+    for name in ["gles3-low", "gles3-mid", "desktop"] {
+        let prof = Profile::load(name).expect("shipped profile");
+        let s = u64::from(prof.clip_size());
+        let budget = u64::from(prof.budget.update_samples_per_frame);
+        let rows_budget = budget / s * s;
+        if name != "desktop" {
+            assert_eq!(rows_budget, budget, "{name}: budget is not whole rows");
+        }
+        let mut cm = Clipmap::new(&hm, &prof, ClipmapOptions::default()).expect("clipmap");
+        let flight = Flight::new(Path::Straight, 2000.0, &hm).expect("flight");
+        let mut stale_seen = false;
+        for f in 0..40 {
+            stale_seen |= cm
+                .update(flight.camera(f).eye)
+                .expect("update")
+                .stale_levels
+                > 0;
+        }
+        assert!(stale_seen, "{name}: 2 km/frame never left a level stale");
+        let eye = flight.camera(40).eye;
+        let pending = cm.pending_samples(eye);
+        let bound = pending.div_ceil(rows_budget);
+        let mut frames = 0;
+        while cm.pending_samples(eye) > 0 {
+            let frame = cm.update(eye).expect("update");
+            assert!(u64::from(frame.samples_updated) <= budget);
+            frames += 1;
+            assert!(
+                frames <= bound,
+                "{name}: not recovered within ceil({pending} / {rows_budget}) = {bound} frames"
+            );
+        }
+        let frame = cm.frame();
+        assert_eq!(frame.stale_levels, 0, "{name}");
+        eprintln!("{name}: {pending} samples pending after the flight, recovered in {frames} frames (bound {bound})");
+    }
+}
