@@ -1,0 +1,316 @@
+//! The GLES 3.0 clipmap renderer on the strict OpenGL ES 3.0 context (Mesa llvmpipe): watertightness over
+//! fly-throughs with stale levels and a teleport, the GPU height texture against the CPU rings, vertex
+//! positions against the CPU twin, memory against the profile's footprint, culling against no culling, and
+//! morphing against popping.
+
+mod render_support;
+
+use clipsat::frame::LevelState;
+use clipsat::mesh;
+use clipsat::renderer::{
+    self, cpu_vertex, crack_pixels, render_frame, FrameOptions, Renderer, VertexProbe, CRACK_CLEAR,
+    CRACK_CLEAR_RGBA8,
+};
+use render_support::*;
+
+const W: u32 = 160;
+const H: u32 = 90;
+
+fn loud() -> FrameOptions {
+    FrameOptions {
+        clear: CRACK_CLEAR,
+        ..FrameOptions::default()
+    }
+}
+
+/// 200 frames of a fast flight on a small budget (levels go stale) with a teleport at frame 120: no crack
+/// pixel on any frame, GC constraints hold, and at the end the GPU texture equals the CPU rings exactly.
+#[test]
+fn watertight_fly_through_with_stale_levels_and_teleport() {
+    let gpu = strict();
+    let hm = relief();
+    let p = profile("gles3-low", W, H, Some(1600));
+    let mut cm = clipmap(&hm, &p);
+    let mut r = Renderer::new(&gpu, &p, &cm).expect("renderer");
+    let (mut stale_frames, mut worst) = (0, 0);
+    for i in 0..200 {
+        let cam = flight(&hm, i, 240.0, 150.0, Some(120));
+        let f = cm.update(cam.eye).expect("update");
+        if f.levels.iter().any(|l| l.state == LevelState::Stale) {
+            stale_frames += 1;
+        }
+        cm.check_constraints().expect("GC constraints");
+        let out = render_frame(&mut r, &cm, &cam, &loud()).expect("frame");
+        let cracks = crack_pixels(&out.image, CRACK_CLEAR_RGBA8);
+        if std::env::var_os("CLIPSAT_DUMP").is_some() && i % 20 == 0 {
+            let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"));
+            let _ = out.image.save_png(&dir.join(format!("fly-{i}.png")));
+            eprintln!(
+                "frame {i}: {:?} stale {}",
+                out.stats,
+                cm.frame().stale_levels
+            );
+        }
+        if cracks > 0 && worst == 0 {
+            let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"));
+            let _ = out.image.save_png(&dir.join(format!("crack-{i}.png")));
+        }
+        worst = worst.max(cracks);
+        assert_eq!(
+            cracks,
+            0,
+            "frame {i}: {cracks} crack pixels; levels {:?}",
+            cm.frame().levels
+        );
+    }
+    assert!(
+        stale_frames > 20,
+        "the path must exercise stale levels: {stale_frames} frames"
+    );
+    let gpu_rings = r.read_heights().expect("height readback");
+    for (l, layer) in gpu_rings.iter().enumerate() {
+        let cpu = cm.ring(u32::try_from(l).expect("level")).texels();
+        assert_eq!(layer.len(), cpu.len());
+        let diff = layer
+            .iter()
+            .zip(cpu)
+            .filter(|(a, b)| a[0].to_bits() != b[0].to_bits() || a[1].to_bits() != b[1].to_bits())
+            .count();
+        assert_eq!(diff, 0, "level {l}: {diff} texels differ from the CPU ring");
+    }
+}
+
+/// The vertex shader's clip-space positions (read back bit for bit by the vertex probe) match the CPU twin
+/// for blocks and skirts of several levels, including a frame far from the origin.
+#[test]
+fn vertex_positions_match_the_cpu_twin() {
+    let gpu = strict();
+    let hm = relief();
+    let p = profile("gles3-low", W, H, None);
+    let mut cm = clipmap(&hm, &p);
+    let mut r = Renderer::new(&gpu, &p, &cm).expect("renderer");
+    let probe = VertexProbe::new(&r).expect("probe");
+    let cam = flight(&hm, 7, 37.0, 120.0, None);
+    for _ in 0..40 {
+        cm.update(cam.eye).expect("update");
+    }
+    render_frame(&mut r, &cm, &cam, &FrameOptions::default()).expect("frame");
+    let draws = r.draws().len();
+    let mut checked = 0;
+    let mut worst_px = 0.0f64;
+    for k in (0..draws)
+        .step_by(draws.div_ceil(12).max(1))
+        .chain([draws - 1])
+    {
+        let d = r.draws()[k];
+        let gpu_clip = probe.capture(&r, k).expect("capture");
+        let u = r.draw_uniform(k);
+        let m = match d.kind {
+            clipsat::cull::DrawKind::Block => mesh::block(p.block_m()),
+            clipsat::cull::DrawKind::Skirt => mesh::skirt(p.clipmap.n + 1),
+        };
+        assert_eq!(gpu_clip.len(), m.vertices.len());
+        for (v, g) in m.vertices.iter().zip(&gpu_clip) {
+            let c = cpu_vertex(r.globals(), &u, cm.ring(d.level), *v).clip;
+            let w_rel = ((g[3] - c[3]) / c[3].abs().max(1.0)).abs();
+            assert!(
+                w_rel < 1e-4,
+                "draw {k} vertex {v:?}: w {} vs {}",
+                g[3],
+                c[3]
+            );
+            if c[3] > 1.0 {
+                let px = |a: f32, w: f32, side: u32| f64::from(a / w) * f64::from(side) * 0.5;
+                let e = (px(g[0], g[3], W) - px(c[0], c[3], W))
+                    .abs()
+                    .max((px(g[1], g[3], H) - px(c[1], c[3], H)).abs());
+                worst_px = worst_px.max(e);
+            }
+            checked += 1;
+        }
+    }
+    assert!(checked > 1000, "{checked}");
+    assert!(worst_px < 0.01, "GPU and CPU twin differ by {worst_px} px");
+}
+
+/// The ledger's bytes equal the profile's footprint; 300 frames create no GPU object.
+#[test]
+fn memory_equals_footprint_and_nothing_grows() {
+    let gpu = strict();
+    let hm = relief();
+    for name in ["gles3-low", "gles3-mid"] {
+        let p = profile(name, W, H, None);
+        let mut cm = clipmap(&hm, &p);
+        let mut r = Renderer::new(&gpu, &p, &cm).expect("renderer");
+        assert_eq!(
+            r.ledger().bytes(),
+            p.footprint().total(),
+            "{name}: {:?}",
+            r.ledger()
+        );
+        let count = r.ledger().count();
+        let frames = if name == "gles3-low" { 300 } else { 20 };
+        for i in 0..frames {
+            let cam = flight(&hm, i, 90.0, 200.0, None);
+            cm.update(cam.eye).expect("update");
+            r.upload(&cm).expect("upload");
+            let s = r.draw(&cm, &cam, &FrameOptions::default()).expect("draw");
+            assert!(s.draws <= p.budget.max_draws);
+            assert!(s.triangles <= u64::from(p.budget.max_triangles));
+        }
+        assert_eq!(r.ledger().count(), count);
+        assert_eq!(r.ledger().bytes(), p.footprint().total());
+    }
+}
+
+/// Culling never drops a block with a visible pixel: images with and without culling are identical, and
+/// culling does drop blocks.
+#[test]
+fn culling_keeps_every_visible_block() {
+    let gpu = strict();
+    let hm = relief();
+    let p = profile("gles3-low", W, H, None);
+    let mut cm = clipmap(&hm, &p);
+    let mut r = Renderer::new(&gpu, &p, &cm).expect("renderer");
+    let mut dropped = 0;
+    for i in 0..40 {
+        let cam = flight(&hm, i, 120.0, 150.0, None);
+        cm.update(cam.eye).expect("update");
+        let on = render_frame(&mut r, &cm, &cam, &FrameOptions::default()).expect("frame");
+        let off = FrameOptions {
+            cull: false,
+            ..FrameOptions::default()
+        };
+        let all = render_frame(&mut r, &cm, &cam, &off).expect("frame");
+        assert_eq!(
+            on.image_hash, all.image_hash,
+            "frame {i}: culling changed the image"
+        );
+        dropped += on.stats.cull.culled;
+        assert!(on.stats.draws <= all.stats.draws);
+    }
+    assert!(dropped > 0);
+}
+
+/// The draw-list overflow is a typed error, never a silent truncation.
+#[test]
+fn too_many_draws_is_a_capacity_error() {
+    let gpu = strict();
+    let hm = relief();
+    let mut p = profile("gles3-low", W, H, None);
+    p.budget.max_draws = 8;
+    let mut cm = clipmap(&hm, &p);
+    let mut r = Renderer::new(&gpu, &p, &cm).expect("renderer");
+    let cam = flight(&hm, 0, 0.0, 150.0, None);
+    for _ in 0..20 {
+        cm.update(cam.eye).expect("update");
+    }
+    r.upload(&cm).expect("upload");
+    let opts = FrameOptions {
+        cull: false,
+        ..FrameOptions::default()
+    };
+    match r.draw(&cm, &cam, &opts) {
+        Err(clipsat::Error::Capacity { .. }) => {}
+        other => panic!("expected Error::Capacity, got {other:?}"),
+    }
+    let _ = renderer::CRACK_CLEAR;
+}
+
+/// The closing-note numbers, per shipped profile at 640 x 360 on the relief terrain: clipmap triangles,
+/// draws and ms per frame against the brute-force full grid of the same view, what culling saves, and
+/// the upload time per frame of a fast fly-through. Also writes both renders as PNGs to the target tmpdir.
+///
+/// `cargo test --release --test render_clipmap -- --ignored --nocapture bench`
+#[test]
+#[ignore = "timing run: cargo test --release --test render_clipmap -- --ignored --nocapture bench"]
+fn bench_clipmap_vs_brute_force() {
+    use std::time::Instant;
+    let gpu = strict();
+    let hm = relief();
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"));
+    let (w, h) = (640, 360);
+    let mut brute = clipsat::gpu::brute::BruteForce::new(&gpu, &hm).expect("brute");
+    for name in ["gles3-low", "gles3-mid", "desktop"] {
+        let p = profile(name, w, h, None);
+        let mut cm = clipmap(&hm, &p);
+        let mut r = Renderer::new(&gpu, &p, &cm).expect("renderer");
+        // Fast fly-through: upload time per frame (write_texture calls, flushed by the frame's submit).
+        let (mut up_ms, mut up_bytes, mut frames_ms) = (0.0, 0u64, 0.0);
+        let n = 60;
+        for i in 0..n {
+            let cam = flight(&hm, i, 240.0, 150.0, None);
+            cm.update(cam.eye).expect("update");
+            let t = Instant::now();
+            let u = r.upload(&cm).expect("upload");
+            gpu.device()
+                .poll(wgpu::PollType::wait_indefinitely())
+                .expect("poll");
+            up_ms += t.elapsed().as_secs_f64() * 1e3;
+            up_bytes += u.upload_bytes;
+            let t = Instant::now();
+            r.draw(&cm, &cam, &FrameOptions::default()).expect("draw");
+            r.read_image().expect("readback");
+            frames_ms += t.elapsed().as_secs_f64() * 1e3;
+        }
+        // One view, filled: clipmap with and without culling, and brute force.
+        let cam = flight(&hm, 20, 0.0, 300.0, None);
+        for _ in 0..200 {
+            cm.update(cam.eye).expect("update");
+            if cm.frame().stale_levels == 0 && cm.pending_samples(cam.eye) == 0 {
+                break;
+            }
+        }
+        let time = |f: &mut dyn FnMut()| {
+            f();
+            let t = Instant::now();
+            for _ in 0..5 {
+                f();
+            }
+            t.elapsed().as_secs_f64() * 1e3 / 5.0
+        };
+        let mut on = None;
+        let on_ms = time(&mut || {
+            on = Some(render_frame(&mut r, &cm, &cam, &FrameOptions::default()).expect("frame"))
+        });
+        let off_opts = FrameOptions {
+            cull: false,
+            ..FrameOptions::default()
+        };
+        let mut off = None;
+        let off_ms =
+            time(&mut || off = Some(render_frame(&mut r, &cm, &cam, &off_opts).expect("frame")));
+        let (on, off) = (on.expect("ran"), off.expect("ran"));
+        let mut bf = None;
+        let brute_ms = time(&mut || bf = Some(brute.render(&cam, w, h).expect("brute")));
+        let bf = bf.expect("ran");
+        on.image
+            .save_png(&dir.join(format!("bench-{name}-clipmap.png")))
+            .expect("png");
+        bf.image
+            .save_png(&dir.join(format!("bench-{name}-brute.png")))
+            .expect("png");
+        println!(
+            "{name} {w}x{h}: clipmap {} tris {} draws {:.2} ms | no cull {} tris {} draws {:.2} ms | \
+             cull saves x{:.2} tris x{:.2} draws | brute {} tris {:.2} ms | fly {n} frames: upload {:.3} ms/frame \
+             ({:.0} KiB/frame), draw+readback {:.2} ms/frame | cracks {}",
+            on.stats.triangles,
+            on.stats.draws,
+            on_ms,
+            off.stats.triangles,
+            off.stats.draws,
+            off_ms,
+            off.stats.triangles as f64 / on.stats.triangles as f64,
+            f64::from(off.stats.draws) / f64::from(on.stats.draws),
+            bf.triangles,
+            brute_ms,
+            up_ms / f64::from(n),
+            up_bytes as f64 / 1024.0 / f64::from(n),
+            frames_ms / f64::from(n),
+            {
+                let loud = render_frame(&mut r, &cm, &cam, &loud()).expect("frame");
+                crack_pixels(&loud.image, CRACK_CLEAR_RGBA8)
+            },
+        );
+    }
+}
