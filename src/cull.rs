@@ -65,6 +65,8 @@ pub struct DrawParams {
     pub max_draws: u32,
     /// Frustum-cull blocks (off: draw every block, the cross-check reference).
     pub cull: bool,
+    /// Draw the skirts that close level boundaries (off only to show what they hide).
+    pub skirts: bool,
     /// Viewport width / height.
     pub aspect: f64,
 }
@@ -305,10 +307,10 @@ pub fn build_draws(
             stats.skirts += 1;
             Ok(())
         };
-        if Some(li) != coarsest_enabled {
+        if params.skirts && Some(li) != coarsest_enabled {
             skirt(active)?;
         }
-        if !hole.is_empty() {
+        if params.skirts && !hole.is_empty() {
             skirt(hole)?;
         }
     }

@@ -74,6 +74,8 @@ pub struct FrameOptions {
     pub morph: bool,
     /// Frustum culling of blocks (off: every block is drawn).
     pub cull: bool,
+    /// Skirts on level boundaries (off only to show the cracks they close).
+    pub skirts: bool,
 }
 
 impl Default for FrameOptions {
@@ -82,6 +84,7 @@ impl Default for FrameOptions {
             clear: shaders::SKY,
             morph: true,
             cull: true,
+            skirts: true,
         }
     }
 }
@@ -652,6 +655,7 @@ impl<'g> Renderer<'g> {
                 block_quads: self.block_quads,
                 max_draws: self.max_draws,
                 cull: opts.cull,
+                skirts: opts.skirts,
                 aspect,
             },
             &mut self.draws,
