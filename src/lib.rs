@@ -15,15 +15,18 @@
 pub mod budget;
 pub mod camera;
 pub mod clipmap;
+pub mod cull;
 mod error;
 pub mod flight;
 pub mod frame;
 pub mod gpu;
 pub mod hash;
 mod heightmap;
+pub mod mesh;
 pub mod plot;
 pub mod profile;
 pub mod pyramid;
+pub mod renderer;
 pub mod source;
 pub mod synthesis;
 

@@ -103,27 +103,33 @@ pub enum Feature {
     Synthesis,
 }
 
-/// GPU memory one profile needs, by part, in bytes. `Renderer::new` allocates exactly this.
+/// GPU memory one profile needs, by part, in bytes. `Renderer::new` allocates exactly this (its ledger
+/// is checked against it by a test).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
 pub struct Footprint {
-    /// Ring heights: one RG32F (z, z_c) 2D array texture, `clip_size^2 x levels`.
+    /// Ring heights: one RG32F (z, z_c) 2D array texture, `clip_size^2 x` [`Profile::height_layers`].
+    /// Normals are derived from the geometry in the vertex shader (GC section 6.3): no normal texture.
     pub heights: u64,
-    /// Ring normals: one RGBA8 2D array texture of the same size.
-    pub normals: u64,
-    /// Static block meshes (xy as 2 x u16 per vertex) and their u16 index buffers.
+    /// The static block mesh ((m + 1)^2 vertices) and ring skirt mesh (around n + 1 quads), 8-byte
+    /// vertices and u16 indices; one pair serves every level (see `mesh`).
     pub meshes: u64,
-    /// Colour (RGBA8) and depth (32-bit) targets at the viewport size, plus one padded readback row set.
+    /// Colour (RGBA8) and depth (32-bit) targets at the viewport size, plus one padded readback buffer.
     pub targets: u64,
-    /// Uniform buffers: one 256-byte slot per level plus one per frame.
+    /// Uniform buffers: the globals plus one 256-byte slot per draw (`budget.max_draws`).
     pub uniforms: u64,
 }
 
 impl Footprint {
     /// Sum of the parts.
     pub fn total(&self) -> u64 {
-        self.heights + self.normals + self.meshes + self.targets + self.uniforms
+        self.heights + self.meshes + self.targets + self.uniforms
     }
 }
+
+/// Bytes of the clipmap renderer's global uniform block (view-projection, shading, parameters).
+pub const GLOBALS_BYTES: u64 = 128;
+/// Bytes of one per-draw uniform slot: the GLES 3.0 floor's uniform offset alignment.
+pub const DRAW_SLOT_BYTES: u64 = 256;
 
 /// Largest 2D texture side on the GLES 3.0 floor (`Limits::downlevel_webgl2_defaults`).
 pub const MAX_TEXTURE_SIDE: u32 = 2048;
@@ -265,26 +271,30 @@ impl Profile {
         self.shading.features.contains(&feature)
     }
 
+    /// Layers of the ring height array texture: the level count, except that wgpu's GL backend takes a
+    /// one-layer texture for a plain 2D texture and a square one with a multiple of 6 layers for a cube
+    /// map, so those counts get one spare layer.
+    pub fn height_layers(&self) -> u32 {
+        let l = self.clipmap.levels;
+        if l == 1 || l.is_multiple_of(6) {
+            l + 1
+        } else {
+            l
+        }
+    }
+
     /// The GPU memory this profile needs; see [`Footprint`] for what each part holds.
     pub fn footprint(&self) -> Footprint {
         let s = u64::from(self.clip_size());
-        let l = u64::from(self.clipmap.levels);
-        let m = u64::from(self.block_m());
-        // Block (m x m), fix-up (m x 3, two orientations), trim ((2m+1) x 2, two orientations) and one
-        // interior-fill quad mesh, each with xy vertices (4 bytes) and u16 indices (2 bytes, 6 per quad).
-        let grids = [(m, m), (m, 3), (3, m), (2 * m + 1, 2), (2, 2 * m + 1)];
-        let meshes = grids
-            .iter()
-            .map(|&(w, h)| w * h * 4 + (w - 1) * (h - 1) * 6 * 2)
-            .sum::<u64>();
+        let meshes =
+            crate::mesh::block_bytes(self.block_m()) + crate::mesh::skirt_bytes(self.clipmap.n + 1);
         let (w, h) = (u64::from(self.view.width), u64::from(self.view.height));
         let padded_row = (w * 4).div_ceil(256) * 256;
         Footprint {
-            heights: s * s * l * 8,
-            normals: s * s * l * 4,
+            heights: s * s * u64::from(self.height_layers()) * 8,
             meshes,
             targets: w * h * 4 + w * h * 4 + padded_row * h,
-            uniforms: (l + 1) * 256,
+            uniforms: GLOBALS_BYTES + u64::from(self.budget.max_draws) * DRAW_SLOT_BYTES,
         }
     }
 }

@@ -1,15 +1,18 @@
 //! `clipsat render`: one frame, offscreen, to a PNG.
 //!
-//! For now it draws the brute-force full-resolution grid (the ground truth); the clipmap renderer will
-//! become the default and brute force will stay behind `--brute`.
+//! By default it draws the geometry clipmap (`clipsat::renderer`): the clipmap is updated until the budget
+//! has filled every level at the camera, then rendered, and rendered once more against a magenta clear to
+//! count crack pixels. `--brute` draws the brute-force full-resolution grid (the ground truth) instead.
 
 use std::time::Instant;
 
 use clap::Args;
 use clipsat::camera::parse_vec3;
+use clipsat::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::gpu::brute::BruteForce;
 use clipsat::gpu::{Gpu, GpuMode};
-use clipsat::{hash, Camera, Error, Heightmap, Result};
+use clipsat::renderer::{self, FrameOptions, Renderer};
+use clipsat::{hash, Camera, Error, Heightmap, Profile, Result};
 use glam::DVec3;
 use serde_json::json;
 
@@ -43,7 +46,19 @@ pub(crate) struct RenderArgs {
     /// Print a machine-readable summary on stdout.
     #[arg(long)]
     json: bool,
+    /// Draw the brute-force full-resolution grid (the ground truth) instead of the clipmap.
+    #[arg(long)]
+    brute: bool,
+    /// Clipmap only: disable the GC 6.2 transition morph.
+    #[arg(long)]
+    no_morph: bool,
+    /// Clipmap only: disable frustum culling.
+    #[arg(long)]
+    no_cull: bool,
 }
+
+/// Most clipmap updates `render` runs to let the budget fill every level at the camera.
+const MAX_FILL_FRAMES: u32 = 10_000;
 
 pub(crate) fn run(args: &RenderArgs) -> Result<()> {
     let mode: GpuMode = args.gpu.parse()?;
@@ -56,11 +71,145 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
     let camera = camera(args, &hm, f64::from(profile.view.fov_y_deg))?;
 
     let gpu = Gpu::new(mode)?;
+    if args.brute {
+        return run_brute(
+            args,
+            &gpu,
+            &terrain_name,
+            &hm,
+            &profile,
+            &camera,
+            (size_w, size_h),
+        );
+    }
+    let mut profile = profile;
+    profile.view.width = size_w;
+    profile.view.height = size_h;
     let t0 = Instant::now();
-    let mut brute = BruteForce::new(&gpu, &hm)?;
+    let mut clipmap = Clipmap::new(&hm, &profile, ClipmapOptions::default())?;
+    // Update until no level is stale and nothing is pending at the eye (bounded).
+    let mut fill_frames = 0;
+    loop {
+        let frame = clipmap.update(camera.eye)?;
+        fill_frames += 1;
+        let done = frame.stale_levels == 0 && clipmap.pending_samples(camera.eye) == 0;
+        if done || fill_frames >= MAX_FILL_FRAMES {
+            break;
+        }
+    }
+    let mut r = Renderer::new(&gpu, &profile, &clipmap)?;
+    let setup_ms = t0.elapsed().as_secs_f64() * 1e3;
+    let opts = FrameOptions {
+        morph: !args.no_morph,
+        cull: !args.no_cull,
+        ..FrameOptions::default()
+    };
+    let t1 = Instant::now();
+    let frame = renderer::render_frame(&mut r, &clipmap, &camera, &opts)?;
+    let ms = t1.elapsed().as_secs_f64() * 1e3;
+    let loud = renderer::render_frame(
+        &mut r,
+        &clipmap,
+        &camera,
+        &FrameOptions {
+            clear: renderer::CRACK_CLEAR,
+            ..opts
+        },
+    )?;
+    let crack_pixels = renderer::crack_pixels(&loud.image, renderer::CRACK_CLEAR_RGBA8);
+    ensure_parent(&args.out)?;
+    frame.image.save_png(&args.out)?;
+
+    let report = gpu.report();
+    let cf = clipmap.frame();
+    if args.json {
+        let levels: Vec<_> = cf
+            .levels
+            .iter()
+            .map(|l| {
+                json!({
+                    "state": format!("{:?}", l.state),
+                    "active": [l.active.x0, l.active.y0, l.active.w, l.active.h],
+                })
+            })
+            .collect();
+        print_json(&json!({
+            "renderer": "clipmap",
+            "terrain": terrain_name,
+            "profile": profile.name,
+            "adapter": adapter_json(&gpu),
+            "width": size_w,
+            "height": size_h,
+            "camera": camera_json(&camera),
+            "fill_frames": fill_frames,
+            "stale_levels": cf.stale_levels,
+            "disabled_levels": cf.disabled_levels,
+            "levels": levels,
+            "triangles": frame.stats.triangles,
+            "draws": frame.stats.draws,
+            "blocks": frame.stats.cull.blocks,
+            "blocks_culled": frame.stats.cull.culled,
+            "skirts": frame.stats.cull.skirts,
+            "morph": opts.morph,
+            "cull": opts.cull,
+            "gpu_bytes": r.ledger().bytes(),
+            "gpu_objects": r.ledger().count(),
+            "image_hash": hash::hex(frame.image_hash),
+            "crack_pixels": crack_pixels,
+            "out": args.out.display().to_string(),
+            "setup_ms": round2(setup_ms),
+            "ms": round2(ms),
+        }));
+    } else {
+        println!(
+            "{}: {size_w}x{size_h}, {} triangles in {} draws (clipmap, {} levels stale), image {}, \
+             {crack_pixels} crack pixels, {:.1} ms on {} ({})",
+            args.out.display(),
+            frame.stats.triangles,
+            frame.stats.draws,
+            cf.stale_levels,
+            hash::hex(frame.image_hash),
+            ms,
+            report.name,
+            report.gl_version,
+        );
+    }
+    Ok(())
+}
+
+fn adapter_json(gpu: &Gpu) -> serde_json::Value {
+    let report = gpu.report();
+    json!({
+        "name": report.name,
+        "backend": report.backend,
+        "gl_version": report.gl_version,
+        "driver": report.driver,
+        "mode": report.mode,
+    })
+}
+
+fn camera_json(camera: &Camera) -> serde_json::Value {
+    json!({
+        "eye": camera.eye.to_array(),
+        "look_at": camera.target.to_array(),
+        "fov_y_deg": camera.fov_y_deg,
+    })
+}
+
+fn run_brute(
+    args: &RenderArgs,
+    gpu: &Gpu,
+    terrain_name: &str,
+    hm: &Heightmap,
+    profile: &Profile,
+    camera: &Camera,
+    (size_w, size_h): (u32, u32),
+) -> Result<()> {
+    let t0 = Instant::now();
+    let mut brute = BruteForce::new(gpu, hm)?;
     let setup_ms = t0.elapsed().as_secs_f64() * 1e3;
     let t1 = Instant::now();
-    let frame = brute.render(&camera, size_w, size_h)?;
+    let frame = brute.render(camera, size_w, size_h)?;
     let ms = t1.elapsed().as_secs_f64() * 1e3;
     ensure_parent(&args.out)?;
     frame.image.save_png(&args.out)?;
@@ -71,20 +220,10 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
             "renderer": "brute",
             "terrain": terrain_name,
             "profile": profile.name,
-            "adapter": {
-                "name": report.name,
-                "backend": report.backend,
-                "gl_version": report.gl_version,
-                "driver": report.driver,
-                "mode": report.mode,
-            },
+            "adapter": adapter_json(gpu),
             "width": size_w,
             "height": size_h,
-            "camera": {
-                "eye": camera.eye.to_array(),
-                "look_at": camera.target.to_array(),
-                "fov_y_deg": camera.fov_y_deg,
-            },
+            "camera": camera_json(camera),
             "triangles": frame.triangles,
             "image_hash": hash::hex(frame.image_hash),
             "out": args.out.display().to_string(),

@@ -7,10 +7,16 @@ use glam::Vec3;
 /// The basic shading library: height ramp, Lambert sun, sky, fog. No entry points.
 pub const BASIC_SHADING_WGSL: &str = include_str!("../../shaders_gles/basic_shading.wgsl");
 const BRUTE_WGSL: &str = include_str!("../../shaders_gles/brute.wgsl");
+const CLIPMAP_WGSL: &str = include_str!("../../shaders_gles/clipmap.wgsl");
 
 /// The brute-force reference program: basic shading + `brute.wgsl`.
 pub fn brute() -> String {
     [BASIC_SHADING_WGSL, BRUTE_WGSL].concat()
+}
+
+/// The clipmap renderer's program: basic shading + `clipmap.wgsl`.
+pub fn clipmap() -> String {
+    [BASIC_SHADING_WGSL, CLIPMAP_WGSL].concat()
 }
 
 /// Every file in `shaders_gles/`, by file name, as the renderer assembles it. A library file (no entry
@@ -19,6 +25,7 @@ pub fn sources() -> Vec<(&'static str, String)> {
     vec![
         ("basic_shading.wgsl", BASIC_SHADING_WGSL.to_string()),
         ("brute.wgsl", brute()),
+        ("clipmap.wgsl", clipmap()),
     ]
 }
 

@@ -1,0 +1,140 @@
+// Stage 3, the GPU: the geometry clipmap renderer (Losasso & Hoppe 2004, "GC"). Concatenated after
+// basic_shading.wgsl (src/gpu/shaders.rs).
+//
+// Every draw places one static mesh (a block or the ring skirt, src/mesh.rs) on a level's lattice: vertex
+// (x, y) goes to lattice point origin + (x, y), clamped into the draw's rectangle. Heights come from one
+// RG32F 2D array texture (layer = level, texel = lattice point mod S, toroidal), read with textureLoad
+// because float textures are not filterable on GLES 3.0. Lattice coordinates are relative to the level's
+// anchor (its active region's first vertex) and positions relative to the eye, both prepared in f64 on the
+// CPU, so a terrain far from the origin loses no f32 precision.
+
+// Mirrors `clipsat::renderer::Globals`.
+struct Globals {
+    // Camera-relative view-projection (Camera::view_proj_relative).
+    view_proj: mat4x4<f32>,
+    shading: BasicShading,
+    // x: morph factor (1: GC 6.2 morphing, 0: off); y: skirt floor height (m); z, w: capture target size.
+    params: vec4<f32>,
+}
+
+// Mirrors `clipsat::renderer::DrawUniform`; one 256-byte slot per draw, bound with a dynamic offset.
+struct DrawUniform {
+    // xy: mesh origin (anchor-relative lattice units); z: array layer (level); w: ring size S.
+    origin: vec4<i32>,
+    // The clamp rectangle, inclusive, anchor-relative: x0, y0, x1, y1.
+    bounds: vec4<i32>,
+    // The level's active region, inclusive, anchor-relative: x0, y0, x1, y1.
+    region: vec4<i32>,
+    // xy: texel of the anchor (anchor mod S); zw: unused.
+    tex: vec4<i32>,
+    // xyz: world position of the anchor at height 0 minus the eye (m); w: level spacing g_l (m).
+    anchor_rel: vec4<f32>,
+    // xy: the viewer in the level's lattice units, anchor-relative; z, w: (active w - 1) / 2, (active h - 1) / 2.
+    morph: vec4<f32>,
+    // x: the transition width w = n / 10 (GC 6.2); yzw: unused.
+    morph_w: vec4<f32>,
+}
+
+@group(0) @binding(0) var<uniform> globals: Globals;
+@group(0) @binding(1) var heights: texture_2d_array<f32>;
+@group(1) @binding(0) var<uniform> draw: DrawUniform;
+
+// (z, z_c) at anchor-relative lattice point p (p >= 0 inside the active region).
+fn clip_fetch(p: vec2<i32>) -> vec2<f32> {
+    let t = (draw.tex.xy + p) % vec2<i32>(draw.origin.w);
+    return textureLoad(heights, t, draw.origin.z, 0).xy;
+}
+
+// GC section 6.2's alpha, operation for operation as `clipsat::clipmap::morph_alpha`.
+fn clip_morph_alpha(x: f32, y: f32) -> f32 {
+    let w = draw.morph_w.x;
+    let ax = clamp((abs(x - draw.morph.x) - (draw.morph.z - w - 1.0)) / w, 0.0, 1.0);
+    let ay = clamp((abs(y - draw.morph.y) - (draw.morph.w - w - 1.0)) / w, 0.0, 1.0);
+    return max(ax, ay);
+}
+
+struct TerrainVertex {
+    // Position relative to the eye (m).
+    rel: vec3<f32>,
+    // Geometric normal (not unit).
+    normal: vec3<f32>,
+    // Height (m).
+    height: f32,
+}
+
+// v: mesh vertex (x, y, skirt flag, unused).
+fn clip_vertex(v: vec4<u32>) -> TerrainVertex {
+    let p = clamp(draw.origin.xy + vec2<i32>(v.xy), draw.bounds.xy, draw.bounds.zw);
+    let zz = clip_fetch(p);
+    let alpha = clip_morph_alpha(f32(p.x), f32(p.y)) * globals.params.x;
+    // GC 6.2: z' = (1 - alpha) z + alpha z_c.
+    let z = (1.0 - alpha) * zz.x + alpha * zz.y;
+    // GC 6.3: normals from the geometry, central differences of z and z_c blended with the same alpha;
+    // one-sided at the active region's edge.
+    let xm = max(p.x - 1, draw.region.x);
+    let xp = min(p.x + 1, draw.region.z);
+    let yn = max(p.y - 1, draw.region.y);
+    let ys = min(p.y + 1, draw.region.w);
+    let g = draw.anchor_rel.w;
+    let dx = (clip_fetch(vec2<i32>(xp, p.y)) - clip_fetch(vec2<i32>(xm, p.y))) / (f32(xp - xm) * g);
+    // Rows run south, so north minus south is the gradient along +y (north).
+    let dy = (clip_fetch(vec2<i32>(p.x, yn)) - clip_fetch(vec2<i32>(p.x, ys))) / (f32(ys - yn) * g);
+    let gx = (1.0 - alpha) * dx.x + alpha * dx.y;
+    let gy = (1.0 - alpha) * dy.x + alpha * dy.y;
+    var h = z;
+    if (v.z != 0u) {
+        // The skirt's lower edge hangs to the floor below every height.
+        h = min(z, globals.params.y);
+    }
+    var out: TerrainVertex;
+    out.rel = draw.anchor_rel.xyz + vec3<f32>(f32(p.x) * g, -f32(p.y) * g, h);
+    out.normal = vec3<f32>(-gx, -gy, 1.0);
+    out.height = z;
+    return out;
+}
+
+struct VsOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) rel: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+    @location(2) height: f32,
+}
+
+@vertex
+fn vs_main(@location(0) v: vec4<u32>) -> VsOut {
+    let t = clip_vertex(v);
+    var out: VsOut;
+    out.clip = globals.view_proj * vec4<f32>(t.rel, 1.0);
+    out.rel = t.rel;
+    out.normal = t.normal;
+    out.height = t.height;
+    return out;
+}
+
+@fragment
+fn fs_main(v: VsOut) -> @location(0) vec4<f32> {
+    return vec4<f32>(basic_shade(v.height, v.normal, length(v.rel), globals.shading), 1.0);
+}
+
+// The vertex probe: draws the mesh as points, vertex k on pixel (k mod W, k / W) of a W x H Rgba32Uint
+// target, carrying the exact bits of its clip-space position (tests compare them with the CPU twin).
+struct CaptureOut {
+    @builtin(position) pixel: vec4<f32>,
+    @location(0) @interpolate(flat) clip: vec4<f32>,
+}
+
+@vertex
+fn vs_capture(@builtin(vertex_index) k: u32, @location(0) v: vec4<u32>) -> CaptureOut {
+    let t = clip_vertex(v);
+    let size = globals.params.zw;
+    let px = vec2<f32>(f32(k % u32(size.x)), f32(k / u32(size.x))) + vec2<f32>(0.5);
+    var out: CaptureOut;
+    out.pixel = vec4<f32>(px.x / size.x * 2.0 - 1.0, 1.0 - px.y / size.y * 2.0, 0.5, 1.0);
+    out.clip = globals.view_proj * vec4<f32>(t.rel, 1.0);
+    return out;
+}
+
+@fragment
+fn fs_capture(v: CaptureOut) -> @location(0) vec4<u32> {
+    return bitcast<vec4<u32>>(v.clip);
+}

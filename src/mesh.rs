@@ -1,0 +1,149 @@
+//! Stage 3 input, built once at start-up: the static block meshes the clipmap renderer draws (pure CPU).
+//!
+//! GPU Gems 2 ch. 2 draws each ring from m x m blocks (m = (n + 1) / 4), fix-ups, L-shaped trims and
+//! stitches. This renderer uses a simpler tiling that stays correct when the budget crops an active region
+//! to any even-aligned rectangle (GC section 5): the render region, active(l) minus active(l - 1), is split
+//! into at most four rectangles, each tiled by one B x B-quad block mesh (B = m) whose vertices the vertex
+//! shader clamps into the rectangle. Clamped vertices collapse the block's surplus quads into zero-area
+//! triangles, so coverage is exactly the rectangle whatever its size: no fix-up or trim meshes are needed,
+//! and a full ring (bands m - 1 and m quads thick) takes 12 blocks, as in GPU Gems 2.
+//!
+//! Level boundaries are closed by skirts (flanges, as in the SAT paper) rather than GC section 6.2's
+//! zero-area stitches, because cropped (stale) levels can leave the outer morph weight below 1 and the
+//! SAT-LOD issue will draw neighbouring blocks at different levels: one ring-shaped skirt mesh, a loop of
+//! vertical quads around a (n + 1)-quad square, clamped onto any rectangle's boundary the same way.
+//!
+//! Meshes are in lattice units, so one block and one skirt mesh serve every level (the level's spacing and
+//! origin are per-draw uniforms); that is all "the precomputed per-level vertex buffers" need to hold.
+
+/// One mesh vertex: lattice x (east), lattice y (south), skirt flag (1 = the skirt's lower edge), unused.
+///
+/// Mirrors the `@location(0) vec4<u32>` (Uint16x4) vertex attribute of `shaders_gles/clipmap.wgsl`.
+pub type MeshVertex = [u16; 4];
+
+/// A static mesh: vertices and a u16 triangle list.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Mesh {
+    /// Vertices.
+    pub vertices: Vec<MeshVertex>,
+    /// Triangle list indices into `vertices`.
+    pub indices: Vec<u16>,
+}
+
+impl Mesh {
+    /// Triangles the mesh draws (degenerate ones included).
+    pub fn triangles(&self) -> u32 {
+        u32::try_from(self.indices.len() / 3).expect("u16-indexed mesh")
+    }
+
+    /// Bytes of its vertex and index buffers on the GPU.
+    pub fn bytes(&self) -> u64 {
+        (self.vertices.len() * std::mem::size_of::<MeshVertex>() + self.indices.len() * 2) as u64
+    }
+}
+
+/// Bytes of [`block`]`(quads)`'s buffers, without building it (for the profile's footprint).
+pub fn block_bytes(quads: u32) -> u64 {
+    let q = u64::from(quads);
+    (q + 1) * (q + 1) * 8 + q * q * 6 * 2
+}
+
+/// Bytes of [`skirt`]`(side)`'s buffers, without building it.
+pub fn skirt_bytes(side: u32) -> u64 {
+    let s = u64::from(side);
+    2 * (4 * s + 1) * 8 + 4 * s * 6 * 2
+}
+
+/// A `quads x quads` grid of vertices (0..=quads)^2, two triangles per quad.
+///
+/// Quads split along (i, j)-(i+1, j+1), the project-wide diagonal (the one `clipmap`'s odd-odd z_c and the
+/// brute-force reference use), so the clipmap surface is the same piecewise-linear surface.
+pub fn block(quads: u32) -> Mesh {
+    let side = quads + 1;
+    assert!(
+        side * side <= 1 << 16,
+        "block of {quads} quads exceeds u16 indices"
+    );
+    let q = u16::try_from(quads).expect("checked above");
+    let mut vertices = Vec::with_capacity(side as usize * side as usize);
+    for y in 0..=q {
+        for x in 0..=q {
+            vertices.push([x, y, 0, 0]);
+        }
+    }
+    let mut indices = Vec::with_capacity(quads as usize * quads as usize * 6);
+    let s = q + 1;
+    for y in 0..q {
+        for x in 0..q {
+            let nw = y * s + x;
+            let (ne, sw) = (nw + 1, nw + s);
+            let se = sw + 1;
+            indices.extend_from_slice(&[nw, sw, se, nw, se, ne]);
+        }
+    }
+    Mesh { vertices, indices }
+}
+
+/// A closed skirt around the square [0, side]^2: for each of the 4 side + 1 boundary points (walked
+/// clockwise on screen: north edge east-bound, east edge south-bound, ...), an upper vertex (flag 0) and a
+/// lower one (flag 1), joined by two triangles per boundary segment.
+pub fn skirt(side: u32) -> Mesh {
+    let points = 4 * side + 1;
+    assert!(
+        2 * points <= 1 << 16,
+        "skirt of side {side} exceeds u16 indices"
+    );
+    let s = u16::try_from(side).expect("checked above");
+    let mut vertices = Vec::with_capacity(2 * points as usize);
+    for k in 0..points {
+        let k = u16::try_from(k).expect("checked above");
+        let (x, y) = match k / s.max(1) {
+            0 => (k, 0),
+            1 => (s, k - s),
+            2 => (3 * s - k, s),
+            _ => (0, (4 * s).saturating_sub(k)),
+        };
+        vertices.push([x, y, 0, 0]);
+        vertices.push([x, y, 1, 0]);
+    }
+    let mut indices = Vec::with_capacity(4 * side as usize * 6);
+    for k in 0..4 * s {
+        let (t0, b0, t1, b1) = (2 * k, 2 * k + 1, 2 * k + 2, 2 * k + 3);
+        indices.extend_from_slice(&[t0, b0, b1, t0, b1, t1]);
+    }
+    Mesh { vertices, indices }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn block_is_a_grid_with_the_project_diagonal() {
+        let b = block(4);
+        assert_eq!(b.vertices.len(), 25);
+        assert_eq!(b.triangles(), 32);
+        assert_eq!(&b.indices[..6], &[0, 5, 6, 0, 6, 1]);
+        assert_eq!(b.bytes(), block_bytes(4));
+        assert!(b.indices.iter().all(|&i| usize::from(i) < b.vertices.len()));
+    }
+
+    #[test]
+    fn skirt_walks_the_square_boundary() {
+        let s = skirt(4);
+        assert_eq!(s.vertices.len(), 2 * 17);
+        assert_eq!(s.bytes(), skirt_bytes(4));
+        // Every upper vertex is on the boundary; consecutive points are one lattice step apart; closed.
+        let tops: Vec<[u16; 4]> = s.vertices.iter().step_by(2).copied().collect();
+        for w in tops.windows(2) {
+            let d = (i32::from(w[0][0]) - i32::from(w[1][0])).abs()
+                + (i32::from(w[0][1]) - i32::from(w[1][1])).abs();
+            assert_eq!(d, 1, "{w:?}");
+        }
+        assert_eq!(tops[0], tops[16]);
+        assert!(tops
+            .iter()
+            .all(|v| v[0] == 0 || v[0] == 4 || v[1] == 0 || v[1] == 4));
+        assert!(s.vertices.iter().skip(1).step_by(2).all(|v| v[2] == 1));
+    }
+}

@@ -1,0 +1,1242 @@
+//! Stage 3, the GPU: the GLES 3.0 geometry clipmap renderer (Losasso & Hoppe 2004, "GC").
+//!
+//! [`Renderer::new`] creates every GPU object, sized from the profile, and records each in a [`Ledger`]
+//! whose bytes equal [`Profile::footprint`]. A frame then creates nothing but a command encoder:
+//!
+//! 1. [`Renderer::upload`]: the frame's `uploads` (at most 4 sub-rectangles per level) go straight from
+//!    [`Ring::bytes`] into one RG32F 2D array texture (S x S x L, toroidal) with `write_texture`, no copies.
+//! 2. [`Renderer::draw`]: the draw list ([`crate::cull`]), one 256-byte uniform slot per draw (one
+//!    `write_buffer`), one render pass with a Depth32Float buffer and the basic shading.
+//! 3. [`Renderer::read_image`]: readback into the preallocated buffer.
+//!
+//! The vertex shader (`shaders_gles/clipmap.wgsl`) morphs z' = (1 - alpha) z + alpha z_c with GC 6.2's
+//! alpha ([`crate::clipmap::morph_alpha`]) and derives normals from the geometry (GC 6.3); [`cpu_vertex`]
+//! is its CPU twin.
+
+use bytemuck::{Pod, Zeroable};
+use glam::{Mat4, Vec4};
+use wgpu::util::DeviceExt;
+
+use crate::clipmap::{morph_alpha, Clipmap, Ring};
+use crate::cull::{self, DrawKind, DrawList, DrawParams, DrawStats, MAX_DRAWS};
+use crate::frame::Rect;
+use crate::gpu::readback::Image;
+use crate::gpu::shaders::{self, BasicShading};
+use crate::gpu::Gpu;
+use crate::mesh::{self, Mesh, MeshVertex};
+use crate::profile::{DRAW_SLOT_BYTES, GLOBALS_BYTES};
+use crate::{Camera, Error, Profile, Result};
+
+/// The renderer's global uniforms; mirrors `Globals` in `shaders_gles/clipmap.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct Globals {
+    /// Camera-relative view-projection.
+    pub view_proj: [f32; 16],
+    /// Basic shading parameters.
+    pub shading: BasicShading,
+    /// x: morph factor (1 on, 0 off); y: skirt floor (m); z, w: vertex-probe target size.
+    pub params: [f32; 4],
+}
+const _: () = assert!(std::mem::size_of::<Globals>() as u64 == GLOBALS_BYTES);
+
+/// One draw's uniforms; mirrors `DrawUniform` in `shaders_gles/clipmap.wgsl`. Lattice values are relative
+/// to the level's anchor, the first vertex of its active region.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct DrawUniform {
+    /// xy: mesh origin; z: array layer; w: ring size S.
+    pub origin: [i32; 4],
+    /// Clamp rectangle, inclusive: x0, y0, x1, y1.
+    pub bounds: [i32; 4],
+    /// Active region, inclusive: x0, y0, x1, y1.
+    pub active: [i32; 4],
+    /// xy: texel of the anchor (anchor mod S).
+    pub tex: [i32; 4],
+    /// xyz: world position of the anchor at height 0 minus the eye (m); w: level spacing (m).
+    pub anchor_rel: [f32; 4],
+    /// xy: viewer (level units); z, w: (active w - 1) / 2, (active h - 1) / 2.
+    pub morph: [f32; 4],
+    /// x: transition width n / 10; y: n; zw: unused.
+    pub morph_w: [f32; 4],
+}
+const _: () = assert!(std::mem::size_of::<DrawUniform>() == 112);
+
+/// The loud clear colour of crack measurements: pure magenta, a colour the shading never makes.
+pub const CRACK_CLEAR: [f64; 4] = [1.0, 0.0, 1.0, 1.0];
+
+/// Per-frame switches.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrameOptions {
+    /// Clear colour (display-encoded RGBA).
+    pub clear: [f64; 4],
+    /// GC 6.2 transition morphing (off: every vertex takes its own level's z).
+    pub morph: bool,
+    /// Frustum culling of blocks (off: every block is drawn).
+    pub cull: bool,
+    /// Skirts on level boundaries (off only to show the cracks they close).
+    pub skirts: bool,
+}
+
+impl Default for FrameOptions {
+    fn default() -> Self {
+        Self {
+            clear: shaders::SKY,
+            morph: true,
+            cull: true,
+            skirts: true,
+        }
+    }
+}
+
+/// What a GPU object is, for the [`Ledger`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum ObjectKind {
+    /// A buffer (bytes counted).
+    Buffer,
+    /// A texture (bytes counted).
+    Texture,
+    /// A texture view.
+    TextureView,
+    /// A shader module.
+    ShaderModule,
+    /// A bind group layout.
+    BindGroupLayout,
+    /// A bind group.
+    BindGroup,
+    /// A pipeline layout.
+    PipelineLayout,
+    /// A render pipeline.
+    RenderPipeline,
+}
+
+/// One object [`Renderer::new`] created.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct LedgerEntry {
+    /// Its label.
+    pub label: &'static str,
+    /// What it is.
+    pub kind: ObjectKind,
+    /// GPU memory it holds (0 for objects without storage).
+    pub bytes: u64,
+}
+
+/// Every GPU object the renderer created and the bytes each holds; only [`Renderer::new`] writes it.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Ledger {
+    entries: Vec<LedgerEntry>,
+}
+
+impl Ledger {
+    fn note(&mut self, label: &'static str, kind: ObjectKind, bytes: u64) {
+        self.entries.push(LedgerEntry { label, kind, bytes });
+    }
+
+    /// The objects, in creation order.
+    pub fn entries(&self) -> &[LedgerEntry] {
+        &self.entries
+    }
+
+    /// Objects created.
+    pub fn count(&self) -> usize {
+        self.entries.len()
+    }
+
+    /// Bytes of GPU memory held.
+    pub fn bytes(&self) -> u64 {
+        self.entries.iter().map(|e| e.bytes).sum()
+    }
+}
+
+/// What one frame did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct FrameStats {
+    /// Draw calls.
+    pub draws: u32,
+    /// Blocks drawn, culled, and skirts drawn.
+    pub cull: DrawStats,
+    /// Triangles submitted (the zero-area ones of clamped blocks included).
+    pub triangles: u64,
+    /// `write_texture` calls this frame.
+    pub uploads: u32,
+    /// Bytes they copied.
+    pub upload_bytes: u64,
+    /// Whether the whole texture was re-sent (first frame, or frames were skipped).
+    pub full_upload: bool,
+}
+
+const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
+const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+const HEIGHT_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rg32Float;
+/// Bytes per mesh vertex (Uint16x4).
+const VERTEX_BYTES: u64 = std::mem::size_of::<MeshVertex>() as u64;
+/// [`DRAW_SLOT_BYTES`] as a slice stride.
+#[expect(clippy::cast_possible_truncation, reason = "256 fits every usize")]
+const SLOT: usize = DRAW_SLOT_BYTES as usize;
+/// Width of the vertex-probe target, pixels.
+const PROBE_WIDTH: u32 = 64;
+
+/// A static mesh on the GPU.
+#[derive(Debug)]
+struct GpuMesh {
+    vertices: wgpu::Buffer,
+    indices: wgpu::Buffer,
+    index_count: u32,
+    vertex_count: u32,
+}
+
+/// The clipmap renderer. Borrows the [`Gpu`] it lives on.
+#[derive(Debug)]
+pub struct Renderer<'g> {
+    gpu: &'g Gpu,
+    ledger: Ledger,
+    heights: wgpu::Texture,
+    block: GpuMesh,
+    skirt: GpuMesh,
+    globals: wgpu::Buffer,
+    draw_slots: wgpu::Buffer,
+    // Layouts kept with the groups and pipeline made from them (ledgered objects live as long as the renderer).
+    _group0_layout: wgpu::BindGroupLayout,
+    _group1_layout: wgpu::BindGroupLayout,
+    group0: wgpu::BindGroup,
+    group1: wgpu::BindGroup,
+    module: wgpu::ShaderModule,
+    pipeline_layout: wgpu::PipelineLayout,
+    pipeline: wgpu::RenderPipeline,
+    color: wgpu::Texture,
+    color_view: wgpu::TextureView,
+    depth_view: wgpu::TextureView,
+    readback: wgpu::Buffer,
+    padded_row: u32,
+    width: u32,
+    height: u32,
+    n: u32,
+    size: u32,
+    levels: u32,
+    block_quads: u32,
+    max_draws: u32,
+    max_triangles: u32,
+    skirt_floor: f32,
+    shading: BasicShading,
+    probe_size: [u32; 2],
+    /// The draw list and its uniform bytes, allocated once.
+    draws: Box<DrawList>,
+    slots: Vec<u8>,
+    /// The clipmap frame whose uploads the texture holds.
+    synced: Option<u64>,
+    last_globals: Globals,
+}
+
+fn texture_bytes(desc: &wgpu::TextureDescriptor<'_>) -> u64 {
+    let texel = desc
+        .format
+        .block_copy_size(Some(wgpu::TextureAspect::All))
+        .unwrap_or(4);
+    u64::from(desc.size.width)
+        * u64::from(desc.size.height)
+        * u64::from(desc.size.depth_or_array_layers)
+        * u64::from(texel)
+}
+
+impl<'g> Renderer<'g> {
+    /// Creates every buffer, texture and pipeline for `profile` (viewport `profile.view`) and the clipmap's
+    /// terrain; nothing else is created until the renderer drops.
+    pub fn new(gpu: &'g Gpu, profile: &Profile, clipmap: &Clipmap) -> Result<Self> {
+        profile.validate(&profile.name)?;
+        let c = &profile.clipmap;
+        if clipmap.n() != c.n
+            || clipmap.levels() != c.levels
+            || clipmap.ring(0).size() != profile.clip_size()
+        {
+            return Err(Error::config(
+                &profile.name,
+                "clipmap",
+                "the clipmap was built from a different profile",
+            ));
+        }
+        if profile.budget.max_draws as usize > MAX_DRAWS {
+            return Err(Error::config(
+                &profile.name,
+                "budget.max_draws",
+                format!(
+                    "{} exceeds the renderer's fixed capacity {MAX_DRAWS}",
+                    profile.budget.max_draws
+                ),
+            ));
+        }
+        let limits = gpu.device().limits();
+        if u64::from(limits.min_uniform_buffer_offset_alignment) > DRAW_SLOT_BYTES {
+            return Err(Error::Gpu(format!(
+                "uniform offset alignment {} exceeds the {DRAW_SLOT_BYTES}-byte draw slot",
+                limits.min_uniform_buffer_offset_alignment
+            )));
+        }
+        let layers = profile.height_layers();
+        if layers > limits.max_texture_array_layers {
+            return Err(Error::Gpu(format!(
+                "{layers} height layers exceed the device's {}",
+                limits.max_texture_array_layers
+            )));
+        }
+        let (width, height) = (profile.view.width, profile.view.height);
+        let size = profile.clip_size();
+        let block_quads = profile.block_m();
+        let block_mesh = mesh::block(block_quads);
+        let skirt_mesh = mesh::skirt(c.n + 1);
+        let probe_rows = u32::try_from(block_mesh.vertices.len().max(skirt_mesh.vertices.len()))
+            .expect("u16-indexed meshes")
+            .div_ceil(PROBE_WIDTH);
+
+        // Shading and skirt floor from the data (pyramid level 0 is the terrain itself).
+        let data = clipmap.pyramid().level(0);
+        let (lo, hi) = data
+            .heights()
+            .iter()
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &z| {
+                (a.min(z), b.max(z))
+            });
+        let spacing = clipmap.g0() * f64::from(1u32 << clipmap.synth_levels());
+        let diagonal = f64::from(data.width()).hypot(f64::from(data.height())) * spacing;
+        let shading = BasicShading::for_terrain((lo, hi), diagonal);
+        #[expect(
+            clippy::cast_possible_truncation,
+            reason = "the level-0 spacing as an f32 metre offset"
+        )]
+        let skirt_floor = lo - (0.5 * (hi - lo)).max(10.0 * clipmap.g0() as f32);
+        let padded_row = (width * 4).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+        let max_draws = profile.budget.max_draws;
+
+        gpu.scoped("clipmap renderer set-up", || {
+            let device = gpu.device();
+            let mut ledger = Ledger::default();
+            let texture = |ledger: &mut Ledger, desc: wgpu::TextureDescriptor<'static>| {
+                ledger.note(
+                    desc.label.unwrap_or("texture"),
+                    ObjectKind::Texture,
+                    texture_bytes(&desc),
+                );
+                device.create_texture(&desc)
+            };
+            let heights = texture(
+                &mut ledger,
+                wgpu::TextureDescriptor {
+                    label: Some("clipmap heights"),
+                    size: wgpu::Extent3d {
+                        width: size,
+                        height: size,
+                        depth_or_array_layers: layers,
+                    },
+                    mip_level_count: 1,
+                    sample_count: 1,
+                    dimension: wgpu::TextureDimension::D2,
+                    format: HEIGHT_FORMAT,
+                    usage: wgpu::TextureUsages::TEXTURE_BINDING
+                        | wgpu::TextureUsages::COPY_DST
+                        | wgpu::TextureUsages::COPY_SRC,
+                    view_formats: &[],
+                },
+            );
+            let target = |label, format, usage| wgpu::TextureDescriptor {
+                label: Some(label),
+                size: wgpu::Extent3d {
+                    width,
+                    height,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage,
+                view_formats: &[],
+            };
+            let color = texture(
+                &mut ledger,
+                target(
+                    "clipmap color",
+                    COLOR_FORMAT,
+                    wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+                ),
+            );
+            let depth = texture(
+                &mut ledger,
+                target(
+                    "clipmap depth",
+                    DEPTH_FORMAT,
+                    wgpu::TextureUsages::RENDER_ATTACHMENT,
+                ),
+            );
+            let heights_view = heights.create_view(&wgpu::TextureViewDescriptor {
+                label: Some("clipmap heights"),
+                dimension: Some(wgpu::TextureViewDimension::D2Array),
+                ..Default::default()
+            });
+            ledger.note("clipmap heights view", ObjectKind::TextureView, 0);
+            let color_view = color.create_view(&Default::default());
+            ledger.note("clipmap color view", ObjectKind::TextureView, 0);
+            let depth_view = depth.create_view(&Default::default());
+            ledger.note("clipmap depth view", ObjectKind::TextureView, 0);
+
+            let buffer = |ledger: &mut Ledger, label: &'static str, size: u64, usage| {
+                ledger.note(label, ObjectKind::Buffer, size);
+                device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some(label),
+                    size,
+                    usage,
+                    mapped_at_creation: false,
+                })
+            };
+            let globals = buffer(
+                &mut ledger,
+                "clipmap globals",
+                GLOBALS_BYTES,
+                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            );
+            let draw_slots = buffer(
+                &mut ledger,
+                "clipmap draw slots",
+                u64::from(max_draws) * DRAW_SLOT_BYTES,
+                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            );
+            let readback = buffer(
+                &mut ledger,
+                "clipmap readback",
+                u64::from(padded_row) * u64::from(height),
+                wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            );
+            let upload_mesh = |ledger: &mut Ledger, label: &'static str, m: &Mesh| {
+                ledger.note(
+                    label,
+                    ObjectKind::Buffer,
+                    m.vertices.len() as u64 * VERTEX_BYTES,
+                );
+                ledger.note(label, ObjectKind::Buffer, m.indices.len() as u64 * 2);
+                GpuMesh {
+                    vertices: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                        label: Some(label),
+                        contents: bytemuck::cast_slice(&m.vertices),
+                        usage: wgpu::BufferUsages::VERTEX,
+                    }),
+                    indices: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                        label: Some(label),
+                        contents: bytemuck::cast_slice(&m.indices),
+                        usage: wgpu::BufferUsages::INDEX,
+                    }),
+                    index_count: u32::try_from(m.indices.len()).expect("u16-indexed mesh"),
+                    vertex_count: u32::try_from(m.vertices.len()).expect("u16-indexed mesh"),
+                }
+            };
+            let block = upload_mesh(&mut ledger, "clipmap block mesh", &block_mesh);
+            let skirt = upload_mesh(&mut ledger, "clipmap skirt mesh", &skirt_mesh);
+
+            let group0_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("clipmap globals"),
+                entries: &[
+                    wgpu::BindGroupLayoutEntry {
+                        binding: 0,
+                        visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+                        ty: wgpu::BindingType::Buffer {
+                            ty: wgpu::BufferBindingType::Uniform,
+                            has_dynamic_offset: false,
+                            min_binding_size: wgpu::BufferSize::new(GLOBALS_BYTES),
+                        },
+                        count: None,
+                    },
+                    wgpu::BindGroupLayoutEntry {
+                        binding: 1,
+                        visibility: wgpu::ShaderStages::VERTEX,
+                        ty: wgpu::BindingType::Texture {
+                            sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                            view_dimension: wgpu::TextureViewDimension::D2Array,
+                            multisampled: false,
+                        },
+                        count: None,
+                    },
+                ],
+            });
+            ledger.note("clipmap globals layout", ObjectKind::BindGroupLayout, 0);
+            let draw_size = std::mem::size_of::<DrawUniform>() as u64;
+            let group1_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("clipmap draw"),
+                entries: &[wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::VERTEX,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: true,
+                        min_binding_size: wgpu::BufferSize::new(draw_size),
+                    },
+                    count: None,
+                }],
+            });
+            ledger.note("clipmap draw layout", ObjectKind::BindGroupLayout, 0);
+            let group0 = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("clipmap globals"),
+                layout: &group0_layout,
+                entries: &[
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: globals.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: wgpu::BindingResource::TextureView(&heights_view),
+                    },
+                ],
+            });
+            ledger.note("clipmap globals group", ObjectKind::BindGroup, 0);
+            let group1 = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("clipmap draw"),
+                layout: &group1_layout,
+                entries: &[wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                        buffer: &draw_slots,
+                        offset: 0,
+                        size: wgpu::BufferSize::new(draw_size),
+                    }),
+                }],
+            });
+            ledger.note("clipmap draw group", ObjectKind::BindGroup, 0);
+            let source = shaders::clipmap();
+            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("clipmap.wgsl"),
+                source: wgpu::ShaderSource::Wgsl(source.into()),
+            });
+            ledger.note("clipmap.wgsl", ObjectKind::ShaderModule, 0);
+            let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("clipmap"),
+                bind_group_layouts: &[Some(&group0_layout), Some(&group1_layout)],
+                immediate_size: 0,
+            });
+            ledger.note("clipmap pipeline layout", ObjectKind::PipelineLayout, 0);
+            let pipeline = terrain_pipeline(device, &pipeline_layout, &module);
+            ledger.note("clipmap pipeline", ObjectKind::RenderPipeline, 0);
+
+            let mut draws: Box<DrawList> = Box::default();
+            draws.clear();
+            Ok(Self {
+                gpu,
+                ledger,
+                heights,
+                block,
+                skirt,
+                globals,
+                draw_slots,
+                _group0_layout: group0_layout,
+                _group1_layout: group1_layout,
+                group0,
+                group1,
+                module,
+                pipeline_layout,
+                pipeline,
+                color,
+                color_view,
+                depth_view,
+                readback,
+                padded_row,
+                width,
+                height,
+                n: c.n,
+                size,
+                levels: c.levels,
+                block_quads,
+                max_draws,
+                max_triangles: profile.budget.max_triangles,
+                skirt_floor,
+                shading,
+                probe_size: [PROBE_WIDTH, probe_rows],
+                draws,
+                slots: vec![0; max_draws as usize * SLOT],
+                synced: None,
+                last_globals: Globals::zeroed(),
+            })
+        })
+    }
+
+    /// Every object [`Renderer::new`] created.
+    pub fn ledger(&self) -> &Ledger {
+        &self.ledger
+    }
+
+    /// The last frame's draw list.
+    pub fn draws(&self) -> &DrawList {
+        &self.draws
+    }
+
+    /// The uniforms of the last frame's draw `i`.
+    pub fn draw_uniform(&self, i: usize) -> DrawUniform {
+        let at = i * SLOT;
+        bytemuck::pod_read_unaligned(&self.slots[at..at + std::mem::size_of::<DrawUniform>()])
+    }
+
+    /// The last frame's global uniforms.
+    pub fn globals(&self) -> &Globals {
+        &self.last_globals
+    }
+
+    /// Image size, pixels.
+    pub fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+
+    /// The basic shading parameters (the brute-force reference of the same terrain uses the same).
+    pub fn shading(&self) -> BasicShading {
+        self.shading
+    }
+
+    /// Brings the height texture up to the clipmap's last frame: that frame's `uploads` when it directly
+    /// follows the one last synced, nothing when it is the same, every level in full otherwise (the first
+    /// frame of a clipmap that has run before, or frames that were never uploaded).
+    pub fn upload(&mut self, clipmap: &Clipmap) -> Result<FrameStats> {
+        let frame = clipmap.frame();
+        let mut stats = FrameStats::default();
+        let incremental = match self.synced {
+            Some(i) if i == frame.index => return Ok(stats),
+            Some(i) => i + 1 == frame.index,
+            None => frame.index == 0,
+        };
+        let gpu = self.gpu;
+        let s = self.size;
+        let write = |stats: &mut FrameStats, level: u32, x: u32, y: u32, w: u32, h: u32| {
+            let ring = clipmap.ring(level);
+            gpu.queue().write_texture(
+                wgpu::TexelCopyTextureInfo {
+                    texture: &self.heights,
+                    mip_level: 0,
+                    origin: wgpu::Origin3d { x, y, z: level },
+                    aspect: wgpu::TextureAspect::All,
+                },
+                ring.bytes(),
+                wgpu::TexelCopyBufferLayout {
+                    offset: (u64::from(y) * u64::from(s) + u64::from(x)) * 8,
+                    bytes_per_row: Some(s * 8),
+                    rows_per_image: Some(h),
+                },
+                wgpu::Extent3d {
+                    width: w,
+                    height: h,
+                    depth_or_array_layers: 1,
+                },
+            );
+            stats.uploads += 1;
+            stats.upload_bytes += u64::from(w) * u64::from(h) * 8;
+        };
+        gpu.scoped("clipmap upload", || {
+            if incremental {
+                for u in &frame.uploads {
+                    write(&mut stats, u.level, u.tex_x, u.tex_y, u.w, u.h);
+                }
+            } else {
+                stats.full_upload = true;
+                for level in 0..self.levels {
+                    write(&mut stats, level, 0, 0, s, s);
+                }
+            }
+            Ok(())
+        })?;
+        self.synced = Some(frame.index);
+        Ok(stats)
+    }
+
+    /// Builds the draw list of the clipmap's last frame seen from `camera`, writes the uniforms and renders
+    /// into the colour target (call [`Renderer::upload`] first; [`render_frame`] does both).
+    pub fn draw(
+        &mut self,
+        clipmap: &Clipmap,
+        camera: &Camera,
+        opts: &FrameOptions,
+    ) -> Result<FrameStats> {
+        let aspect = f64::from(self.width) / f64::from(self.height);
+        let cull = cull::build_draws(
+            clipmap,
+            camera,
+            &DrawParams {
+                block_quads: self.block_quads,
+                max_draws: self.max_draws,
+                cull: opts.cull,
+                skirts: opts.skirts,
+                aspect,
+            },
+            &mut self.draws,
+        )?;
+        let mut triangles = 0u64;
+        for (k, d) in self.draws.iter().enumerate() {
+            let u = draw_uniform(clipmap, camera, d, self.n, self.size);
+            let at = k * SLOT;
+            self.slots[at..at + std::mem::size_of::<DrawUniform>()]
+                .copy_from_slice(bytemuck::bytes_of(&u));
+            triangles += u64::from(self.mesh(d.kind).index_count / 3);
+        }
+        if triangles > u64::from(self.max_triangles) {
+            return Err(Error::Capacity {
+                what: "triangles per frame (budget.max_triangles)",
+                capacity: self.max_triangles as usize,
+            });
+        }
+        let globals = Globals {
+            view_proj: camera.view_proj_relative(aspect).to_cols_array(),
+            shading: self.shading,
+            params: [
+                if opts.morph { 1.0 } else { 0.0 },
+                self.skirt_floor,
+                self.probe_size[0] as f32,
+                self.probe_size[1] as f32,
+            ],
+        };
+        self.last_globals = globals;
+        let used = self.draws.len() * SLOT;
+        let gpu = self.gpu;
+        gpu.scoped("clipmap frame", || {
+            let queue = gpu.queue();
+            queue.write_buffer(&self.globals, 0, bytemuck::bytes_of(&globals));
+            if used > 0 {
+                queue.write_buffer(&self.draw_slots, 0, &self.slots[..used]);
+            }
+            let mut encoder =
+                gpu.device()
+                    .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                        label: Some("clipmap frame"),
+                    });
+            {
+                let [r, g, b, a] = opts.clear;
+                let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("clipmap"),
+                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                        view: &self.color_view,
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(wgpu::Color { r, g, b, a }),
+                            store: wgpu::StoreOp::Store,
+                        },
+                    })],
+                    depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                        view: &self.depth_view,
+                        depth_ops: Some(wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(1.0),
+                            store: wgpu::StoreOp::Discard,
+                        }),
+                        stencil_ops: None,
+                    }),
+                    timestamp_writes: None,
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                });
+                pass.set_pipeline(&self.pipeline);
+                pass.set_bind_group(0, &self.group0, &[]);
+                let mut bound = None;
+                for (k, d) in self.draws.iter().enumerate() {
+                    let m = self.mesh(d.kind);
+                    if bound != Some(d.kind) {
+                        pass.set_vertex_buffer(0, m.vertices.slice(..));
+                        pass.set_index_buffer(m.indices.slice(..), wgpu::IndexFormat::Uint16);
+                        bound = Some(d.kind);
+                    }
+                    let offset = u32::try_from(k as u64 * DRAW_SLOT_BYTES)
+                        .expect("draw slots fit a u32 offset");
+                    pass.set_bind_group(1, &self.group1, &[offset]);
+                    pass.draw_indexed(0..m.index_count, 0, 0..1);
+                }
+            }
+            gpu.queue().submit([encoder.finish()]);
+            Ok(())
+        })?;
+        Ok(FrameStats {
+            draws: u32::try_from(self.draws.len()).expect("draws <= MAX_DRAWS"),
+            cull,
+            triangles,
+            ..FrameStats::default()
+        })
+    }
+
+    fn mesh(&self, kind: DrawKind) -> &GpuMesh {
+        match kind {
+            DrawKind::Block => &self.block,
+            DrawKind::Skirt => &self.skirt,
+        }
+    }
+
+    /// Reads the colour target back (into the preallocated buffer) as a tight RGBA8 image.
+    pub fn read_image(&self) -> Result<Image> {
+        let gpu = self.gpu;
+        gpu.scoped("clipmap readback", || {
+            let mut encoder =
+                gpu.device()
+                    .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                        label: Some("clipmap readback"),
+                    });
+            encoder.copy_texture_to_buffer(
+                self.color.as_image_copy(),
+                wgpu::TexelCopyBufferInfo {
+                    buffer: &self.readback,
+                    layout: wgpu::TexelCopyBufferLayout {
+                        offset: 0,
+                        bytes_per_row: Some(self.padded_row),
+                        rows_per_image: Some(self.height),
+                    },
+                },
+                self.color.size(),
+            );
+            gpu.queue().submit([encoder.finish()]);
+            Ok(())
+        })?;
+        let rows = map_read(gpu, &self.readback, self.padded_row, self.width * 4)?;
+        Ok(Image {
+            width: self.width,
+            height: self.height,
+            rgba: rows,
+        })
+    }
+
+    /// Diagnostic (allocates a buffer; not for the frame loop): every layer of the height texture read
+    /// back, `size x size` (z, z_c) texels per level, row-major, as the GPU holds them.
+    pub fn read_heights(&self) -> Result<Vec<Vec<[f32; 2]>>> {
+        let gpu = self.gpu;
+        let s = self.size;
+        let padded = (s * 8).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+        let mut out = Vec::new();
+        for level in 0..self.levels {
+            let buffer = gpu.scoped("height readback", || {
+                let device = gpu.device();
+                let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("height readback"),
+                    size: u64::from(padded) * u64::from(s),
+                    usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+                    mapped_at_creation: false,
+                });
+                let mut encoder = device.create_command_encoder(&Default::default());
+                encoder.copy_texture_to_buffer(
+                    wgpu::TexelCopyTextureInfo {
+                        texture: &self.heights,
+                        mip_level: 0,
+                        origin: wgpu::Origin3d {
+                            x: 0,
+                            y: 0,
+                            z: level,
+                        },
+                        aspect: wgpu::TextureAspect::All,
+                    },
+                    wgpu::TexelCopyBufferInfo {
+                        buffer: &buffer,
+                        layout: wgpu::TexelCopyBufferLayout {
+                            offset: 0,
+                            bytes_per_row: Some(padded),
+                            rows_per_image: Some(s),
+                        },
+                    },
+                    wgpu::Extent3d {
+                        width: s,
+                        height: s,
+                        depth_or_array_layers: 1,
+                    },
+                );
+                gpu.queue().submit([encoder.finish()]);
+                Ok(buffer)
+            })?;
+            let bytes = map_read(gpu, &buffer, padded, s * 8)?;
+            out.push(bytemuck::pod_collect_to_vec(&bytes));
+        }
+        Ok(out)
+    }
+}
+
+impl Drop for Renderer<'_> {
+    fn drop(&mut self) {
+        // Its objects are GL objects of this Gpu's context: make it current before they go.
+        self.gpu.bind();
+    }
+}
+
+/// Maps `buffer`, copies `tight` bytes of each `padded`-byte row, unmaps.
+fn map_read(gpu: &Gpu, buffer: &wgpu::Buffer, padded: u32, tight: u32) -> Result<Vec<u8>> {
+    let (tx, rx) = std::sync::mpsc::channel();
+    buffer.map_async(wgpu::MapMode::Read, .., move |r| {
+        // The receiver outlives the poll below; a send error cannot happen.
+        let _ = tx.send(r);
+    });
+    gpu.device()
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| Error::Gpu(format!("readback: waiting for the GPU: {e}")))?;
+    rx.try_recv()
+        .map_err(|_| Error::Gpu("readback: map callback did not run".into()))?
+        .map_err(|e| Error::Gpu(format!("readback: map failed: {e}")))?;
+    let mut out = Vec::new();
+    {
+        let view = buffer
+            .get_mapped_range(..)
+            .map_err(|e| Error::Gpu(format!("readback: mapped range: {e}")))?;
+        out.reserve(view.len() / padded as usize * tight as usize);
+        for row in view.chunks_exact(padded as usize) {
+            out.extend_from_slice(&row[..tight as usize]);
+        }
+    }
+    buffer.unmap();
+    Ok(out)
+}
+
+/// The uniforms of draw `d`: lattice values relative to the level's anchor (its active region's first
+/// vertex), the anchor's position relative to the eye computed in f64.
+#[expect(
+    clippy::cast_possible_truncation,
+    reason = "anchor-relative lattice offsets are below the ring size; f64 -> f32 after subtracting the eye \
+              is the intended GPU precision"
+)]
+pub fn draw_uniform(
+    clipmap: &Clipmap,
+    camera: &Camera,
+    d: &cull::Draw,
+    n: u32,
+    size: u32,
+) -> DrawUniform {
+    let a = clipmap.frame().levels[d.level as usize].active;
+    let (ax, ay) = (a.x0, a.y0);
+    let rel = |v: i64, o: i64| (v - o) as i32;
+    let k = f64::from(1u32 << d.level);
+    let p = clipmap.eye_lattice(camera.eye);
+    let g0 = clipmap.g0();
+    #[expect(
+        clippy::cast_precision_loss,
+        reason = "lattice coordinates are below 2^48"
+    )]
+    let (fx, fy) = (ax as f64, ay as f64);
+    let s = i64::from(size);
+    DrawUniform {
+        origin: [
+            rel(d.origin[0], ax),
+            rel(d.origin[1], ay),
+            d.level as i32,
+            size as i32,
+        ],
+        bounds: [
+            rel(d.bounds.x0, ax),
+            rel(d.bounds.y0, ay),
+            rel(d.bounds.x1() - 1, ax),
+            rel(d.bounds.y1() - 1, ay),
+        ],
+        active: [0, 0, a.w as i32 - 1, a.h as i32 - 1],
+        tex: [ax.rem_euclid(s) as i32, ay.rem_euclid(s) as i32, 0, 0],
+        anchor_rel: [
+            ((fx * k - p.0) * g0) as f32,
+            (-(fy * k - p.1) * g0) as f32,
+            (-camera.eye.z) as f32,
+            (g0 * k) as f32,
+        ],
+        morph: [
+            (p.0 / k - fx) as f32,
+            (p.1 / k - fy) as f32,
+            (a.w as f32 - 1.0) * 0.5,
+            (a.h as f32 - 1.0) * 0.5,
+        ],
+        morph_w: [n as f32 / 10.0, n as f32, 0.0, 0.0],
+    }
+}
+
+/// One vertex as the vertex shader computes it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CpuVertex {
+    /// Clip-space position.
+    pub clip: [f32; 4],
+    /// Position relative to the eye (m).
+    pub rel: [f32; 3],
+    /// Morphed height z' (m).
+    pub height: f32,
+    /// Morph weight alpha.
+    pub alpha: f32,
+}
+
+/// The CPU twin of `clip_vertex` + `vs_main` in `shaders_gles/clipmap.wgsl`, in f32, with the CPU's
+/// [`morph_alpha`] evaluated in the same anchor-relative coordinates.
+#[expect(
+    clippy::cast_precision_loss,
+    reason = "anchor-relative lattice offsets are small integers, exact in f32"
+)]
+pub fn cpu_vertex(globals: &Globals, u: &DrawUniform, ring: &Ring, v: MeshVertex) -> CpuVertex {
+    let px = (u.origin[0] + i32::from(v[0])).clamp(u.bounds[0], u.bounds[2]);
+    let py = (u.origin[1] + i32::from(v[1])).clamp(u.bounds[1], u.bounds[3]);
+    let s = u.origin[3];
+    let fetch = |x: i32, y: i32| {
+        let tx = (u.tex[0] + x) % s;
+        let ty = (u.tex[1] + y) % s;
+        ring.texels()[(ty * s + tx) as usize]
+    };
+    let [z, zc] = fetch(px, py);
+    let active = Rect {
+        x0: 0,
+        y0: 0,
+        w: (u.active[2] + 1) as u32,
+        h: (u.active[3] + 1) as u32,
+    };
+    let alpha = morph_alpha(
+        px as f32,
+        py as f32,
+        [u.morph[0], u.morph[1]],
+        &active,
+        #[expect(
+            clippy::cast_possible_truncation,
+            reason = "n is stored exactly as an f32"
+        )]
+        {
+            u.morph_w[1] as u32
+        },
+    ) * globals.params[0];
+    let zm = (1.0 - alpha) * z + alpha * zc;
+    let h = if v[2] != 0 {
+        zm.min(globals.params[1])
+    } else {
+        zm
+    };
+    let g = u.anchor_rel[3];
+    let rel = [
+        u.anchor_rel[0] + px as f32 * g,
+        u.anchor_rel[1] + -(py as f32) * g,
+        u.anchor_rel[2] + h,
+    ];
+    let clip = Mat4::from_cols_array(&globals.view_proj) * Vec4::new(rel[0], rel[1], rel[2], 1.0);
+    CpuVertex {
+        clip: clip.to_array(),
+        rel,
+        height: zm,
+        alpha,
+    }
+}
+
+/// One rendered frame.
+#[derive(Clone, Debug)]
+pub struct RenderedFrame {
+    /// The read-back image.
+    pub image: Image,
+    /// [`Image::hash`] of it.
+    pub image_hash: u64,
+    /// What the frame did.
+    pub stats: FrameStats,
+}
+
+/// Upload, draw and read back the clipmap's last frame: what `clipsat render` and `clipsat fly --render`
+/// call once per [`Clipmap::update`].
+pub fn render_frame(
+    renderer: &mut Renderer<'_>,
+    clipmap: &Clipmap,
+    camera: &Camera,
+    opts: &FrameOptions,
+) -> Result<RenderedFrame> {
+    let up = renderer.upload(clipmap)?;
+    let mut stats = renderer.draw(clipmap, camera, opts)?;
+    stats.uploads = up.uploads;
+    stats.upload_bytes = up.upload_bytes;
+    stats.full_upload = up.full_upload;
+    let image = renderer.read_image()?;
+    Ok(RenderedFrame {
+        image_hash: image.hash(),
+        image,
+        stats,
+    })
+}
+
+/// Clear-colour pixels inside the terrain's silhouette: in each pixel column, the pixels of colour `clear`
+/// lying between the lowest and the highest pixel of any other colour. A watertight render has none.
+pub fn crack_pixels(image: &Image, clear: [u8; 4]) -> u64 {
+    let mut cracks = 0;
+    for x in 0..image.width {
+        let is_clear = |y: u32| image.pixel(x, y) == clear;
+        let Some(top) = (0..image.height).find(|&y| !is_clear(y)) else {
+            continue;
+        };
+        let bottom = (0..image.height)
+            .rev()
+            .find(|&y| !is_clear(y))
+            .expect("a non-clear pixel exists");
+        cracks += (top..=bottom).filter(|&y| is_clear(y)).count() as u64;
+    }
+    cracks
+}
+
+/// [`CRACK_CLEAR`] as RGBA8.
+pub const CRACK_CLEAR_RGBA8: [u8; 4] = [255, 0, 255, 255];
+
+fn terrain_pipeline(
+    device: &wgpu::Device,
+    layout: &wgpu::PipelineLayout,
+    module: &wgpu::ShaderModule,
+) -> wgpu::RenderPipeline {
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some("clipmap"),
+        layout: Some(layout),
+        vertex: wgpu::VertexState {
+            module,
+            entry_point: Some("vs_main"),
+            compilation_options: Default::default(),
+            buffers: &[Some(vertex_layout())],
+        },
+        primitive: wgpu::PrimitiveState {
+            topology: wgpu::PrimitiveTopology::TriangleList,
+            front_face: wgpu::FrontFace::Ccw,
+            // Skirts and terrain seen from below show back faces; draw both sides.
+            cull_mode: None,
+            ..Default::default()
+        },
+        depth_stencil: Some(wgpu::DepthStencilState {
+            format: DEPTH_FORMAT,
+            depth_write_enabled: Some(true),
+            depth_compare: Some(wgpu::CompareFunction::Less),
+            stencil: Default::default(),
+            bias: Default::default(),
+        }),
+        multisample: Default::default(),
+        fragment: Some(wgpu::FragmentState {
+            module,
+            entry_point: Some("fs_main"),
+            compilation_options: Default::default(),
+            targets: &[Some(wgpu::ColorTargetState {
+                format: COLOR_FORMAT,
+                blend: None,
+                write_mask: wgpu::ColorWrites::ALL,
+            })],
+        }),
+        multiview_mask: None,
+        cache: None,
+    })
+}
+
+fn vertex_layout() -> wgpu::VertexBufferLayout<'static> {
+    const ATTRS: [wgpu::VertexAttribute; 1] = wgpu::vertex_attr_array![0 => Uint16x4];
+    wgpu::VertexBufferLayout {
+        array_stride: VERTEX_BYTES,
+        step_mode: wgpu::VertexStepMode::Vertex,
+        attributes: &ATTRS,
+    }
+}
+
+/// Test instrument: runs the renderer's vertex shader over one draw of the last frame as points and reads
+/// back the clip-space position of every mesh vertex, bit for bit (an Rgba32Uint target). Creates its own
+/// pipeline and target (outside the renderer's ledger).
+#[derive(Debug)]
+pub struct VertexProbe {
+    pipeline: wgpu::RenderPipeline,
+    target: wgpu::Texture,
+    view: wgpu::TextureView,
+    buffer: wgpu::Buffer,
+    size: [u32; 2],
+}
+
+impl VertexProbe {
+    /// The probe for `renderer`'s pipeline layout and shader.
+    pub fn new(renderer: &Renderer<'_>) -> Result<Self> {
+        let gpu = renderer.gpu;
+        let size = renderer.probe_size;
+        gpu.scoped("vertex probe set-up", || {
+            let device = gpu.device();
+            let target = device.create_texture(&wgpu::TextureDescriptor {
+                label: Some("vertex probe"),
+                size: wgpu::Extent3d {
+                    width: size[0],
+                    height: size[1],
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: wgpu::TextureFormat::Rgba32Uint,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+                view_formats: &[],
+            });
+            let view = target.create_view(&Default::default());
+            let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("vertex probe readback"),
+                size: u64::from(size[0]) * 16 * u64::from(size[1]),
+                usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+                mapped_at_creation: false,
+            });
+            let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some("vertex probe"),
+                layout: Some(&renderer.pipeline_layout),
+                vertex: wgpu::VertexState {
+                    module: &renderer.module,
+                    entry_point: Some("vs_capture"),
+                    compilation_options: Default::default(),
+                    buffers: &[Some(vertex_layout())],
+                },
+                primitive: wgpu::PrimitiveState {
+                    topology: wgpu::PrimitiveTopology::PointList,
+                    ..Default::default()
+                },
+                depth_stencil: None,
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &renderer.module,
+                    entry_point: Some("fs_capture"),
+                    compilation_options: Default::default(),
+                    targets: &[Some(wgpu::ColorTargetState {
+                        format: wgpu::TextureFormat::Rgba32Uint,
+                        blend: None,
+                        write_mask: wgpu::ColorWrites::ALL,
+                    })],
+                }),
+                multiview_mask: None,
+                cache: None,
+            });
+            Ok(Self {
+                pipeline,
+                target,
+                view,
+                buffer,
+                size,
+            })
+        })
+    }
+
+    /// The GPU's clip-space position of every vertex of the last frame's draw `index`, in mesh order.
+    pub fn capture(&self, renderer: &Renderer<'_>, index: usize) -> Result<Vec<[f32; 4]>> {
+        let gpu = renderer.gpu;
+        let d = renderer.draws.get(index).ok_or_else(|| Error::Arg {
+            arg: "draw index".into(),
+            reason: format!("{index} is past the {} draws", renderer.draws.len()),
+        })?;
+        let m = renderer.mesh(d.kind);
+        gpu.scoped("vertex probe", || {
+            let mut encoder = gpu.device().create_command_encoder(&Default::default());
+            {
+                let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("vertex probe"),
+                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                        view: &self.view,
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                            store: wgpu::StoreOp::Store,
+                        },
+                    })],
+                    depth_stencil_attachment: None,
+                    timestamp_writes: None,
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                });
+                pass.set_pipeline(&self.pipeline);
+                pass.set_bind_group(0, &renderer.group0, &[]);
+                let offset = u32::try_from(index as u64 * DRAW_SLOT_BYTES)
+                    .expect("draw slots fit a u32 offset");
+                pass.set_bind_group(1, &renderer.group1, &[offset]);
+                pass.set_vertex_buffer(0, m.vertices.slice(..));
+                pass.draw(0..m.vertex_count, 0..1);
+            }
+            encoder.copy_texture_to_buffer(
+                self.target.as_image_copy(),
+                wgpu::TexelCopyBufferInfo {
+                    buffer: &self.buffer,
+                    layout: wgpu::TexelCopyBufferLayout {
+                        offset: 0,
+                        bytes_per_row: Some(self.size[0] * 16),
+                        rows_per_image: Some(self.size[1]),
+                    },
+                },
+                self.target.size(),
+            );
+            gpu.queue().submit([encoder.finish()]);
+            Ok(())
+        })?;
+        let bytes = map_read(gpu, &self.buffer, self.size[0] * 16, self.size[0] * 16)?;
+        let texels: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(&bytes);
+        Ok(texels[..m.vertex_count as usize].to_vec())
+    }
+}
