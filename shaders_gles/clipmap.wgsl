@@ -15,6 +15,8 @@ struct Globals {
     shading: BasicShading,
     // x: morph factor (1: GC 6.2 morphing, 0: off); y: skirt floor height (m); z, w: capture target size.
     params: vec4<f32>,
+    // The data's horizontal extent relative to the eye (m): x min, y min, x max, y max.
+    extent: vec4<f32>,
 }
 
 // Mirrors `clipsat::renderer::DrawUniform`; one 256-byte slot per draw, bound with a dynamic offset.
@@ -88,6 +90,10 @@ fn clip_vertex(v: vec4<u32>) -> TerrainVertex {
     }
     var out: TerrainVertex;
     out.rel = draw.anchor_rel.xyz + vec3<f32>(f32(p.x) * g, -f32(p.y) * g, h);
+    // Geometry beyond the data collapses onto its border: the rings reach far past a small terrain, and the
+    // border-clamped heights there would draw as streaks. The clamp is continuous per vertex, so it opens
+    // no crack; the CPU twin (`renderer::cpu_vertex`) mirrors it.
+    out.rel = vec3<f32>(min(max(out.rel.xy, globals.extent.xy), globals.extent.zw), out.rel.z);
     out.normal = vec3<f32>(-gx, -gy, 1.0);
     out.height = z;
     return out;

@@ -69,6 +69,9 @@ pub struct DrawParams {
     pub skirts: bool,
     /// Viewport width / height.
     pub aspect: f64,
+    /// The data's horizontal extent relative to the eye (m): x min, y min, x max, y max. The vertex shader
+    /// clamps positions into it, so block boxes are clamped the same way.
+    pub extent: [f64; 4],
 }
 
 /// What the draw list holds.
@@ -183,6 +186,7 @@ fn block_box(
     eye_l: (f64, f64),
     z: (f32, f32),
     eye_z: f64,
+    extent: &[f64; 4],
 ) -> (DVec3, DVec3) {
     let g0 = clipmap.g0();
     let k = f64::from(1u32 << level);
@@ -198,11 +202,16 @@ fn block_box(
         -((r.y1() - 1) as f64 * k - eye_l.1) * g0,
         -(r.y0 as f64 * k - eye_l.1) * g0,
     );
-    // The morphed height lies between z and z_c up to f32 rounding; pad by a centimetre and a relative bit.
+    // The vertex shader collapses geometry beyond the data onto its border: clamp the box likewise.
+    let cx = |x: f64| x.max(extent[0]).min(extent[2]);
+    let cy = |y: f64| y.max(extent[1]).min(extent[3]);
+    // The morphed height lies between z and z_c up to f32 rounding; pad by a centimetre and a relative bit
+    // (and the clamp's f32 rounding horizontally).
     let pad = 0.01 + 1e-5 * f64::from(z.0.abs().max(z.1.abs()));
+    let hpad = 0.01 + 1e-6 * extent.iter().fold(0.0f64, |m, e| m.max(e.abs()));
     (
-        DVec3::new(x0, y0, f64::from(z.0) - eye_z - pad),
-        DVec3::new(x1, y1, f64::from(z.1) - eye_z + pad),
+        DVec3::new(cx(x0) - hpad, cy(y0) - hpad, f64::from(z.0) - eye_z - pad),
+        DVec3::new(cx(x1) + hpad, cy(y1) + hpad, f64::from(z.1) - eye_z + pad),
     )
 }
 
@@ -280,7 +289,8 @@ pub fn build_draws(
                     let visible = !params.cull || {
                         let c = d.covered(params.block_quads);
                         let z = height_range(clipmap, level, &c);
-                        let (lo, hi) = block_box(clipmap, level, &c, eye_l, z, camera.eye.z);
+                        let (lo, hi) =
+                            block_box(clipmap, level, &c, eye_l, z, camera.eye.z, &params.extent);
                         frustum.intersects(lo, hi)
                     };
                     if visible {

@@ -37,6 +37,8 @@ pub struct Globals {
     pub shading: BasicShading,
     /// x: morph factor (1 on, 0 off); y: skirt floor (m); z, w: vertex-probe target size.
     pub params: [f32; 4],
+    /// The data's horizontal extent relative to the eye (m): x min, y min, x max, y max.
+    pub extent: [f32; 4],
 }
 const _: () = assert!(std::mem::size_of::<Globals>() as u64 == GLOBALS_BYTES);
 
@@ -217,6 +219,8 @@ pub struct Renderer<'g> {
     max_draws: u32,
     max_triangles: u32,
     skirt_floor: f32,
+    /// The data's last sample in level-0 lattice units (east, south).
+    data_lattice: (f64, f64),
     shading: BasicShading,
     probe_size: [u32; 2],
     /// The draw list and its uniform bytes, allocated once.
@@ -296,6 +300,11 @@ impl<'g> Renderer<'g> {
                 (a.min(z), b.max(z))
             });
         let spacing = clipmap.g0() * f64::from(1u32 << clipmap.synth_levels());
+        let synth = f64::from(1u32 << clipmap.synth_levels());
+        let data_lattice = (
+            f64::from(data.width() - 1) * synth,
+            f64::from(data.height() - 1) * synth,
+        );
         let diagonal = f64::from(data.width()).hypot(f64::from(data.height())) * spacing;
         let shading = BasicShading::for_terrain((lo, hi), diagonal);
         #[expect(
@@ -544,6 +553,7 @@ impl<'g> Renderer<'g> {
                 max_draws,
                 max_triangles: profile.budget.max_triangles,
                 skirt_floor,
+                data_lattice,
                 shading,
                 probe_size: [PROBE_WIDTH, probe_rows],
                 draws,
@@ -657,6 +667,7 @@ impl<'g> Renderer<'g> {
                 cull: opts.cull,
                 skirts: opts.skirts,
                 aspect,
+                extent: data_extent_rel(clipmap, camera, self.data_lattice),
             },
             &mut self.draws,
         )?;
@@ -683,6 +694,7 @@ impl<'g> Renderer<'g> {
                 self.probe_size[0] as f32,
                 self.probe_size[1] as f32,
             ],
+            extent: to_f32x4(data_extent_rel(clipmap, camera, self.data_lattice)),
         };
         self.last_globals = globals;
         let used = self.draws.len() * SLOT;
@@ -932,6 +944,27 @@ pub fn draw_uniform(
     }
 }
 
+/// The data's horizontal extent relative to the eye (m), for [`Globals::extent`]: lattice x grows east and
+/// lattice y south, so the north edge (lattice y 0) is the largest y.
+fn data_extent_rel(clipmap: &Clipmap, camera: &Camera, data_lattice: (f64, f64)) -> [f64; 4] {
+    let p = clipmap.eye_lattice(camera.eye);
+    let g0 = clipmap.g0();
+    [
+        -p.0 * g0,
+        -(data_lattice.1 - p.1) * g0,
+        (data_lattice.0 - p.0) * g0,
+        p.1 * g0,
+    ]
+}
+
+#[expect(
+    clippy::cast_possible_truncation,
+    reason = "eye-relative metre offsets as f32, like every position the GPU sees"
+)]
+fn to_f32x4(v: [f64; 4]) -> [f32; 4] {
+    v.map(|e| e as f32)
+}
+
 /// One vertex as the vertex shader computes it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CpuVertex {
@@ -987,9 +1020,10 @@ pub fn cpu_vertex(globals: &Globals, u: &DrawUniform, ring: &Ring, v: MeshVertex
         zm
     };
     let g = u.anchor_rel[3];
+    let e = globals.extent;
     let rel = [
-        u.anchor_rel[0] + px as f32 * g,
-        u.anchor_rel[1] + -(py as f32) * g,
+        (u.anchor_rel[0] + px as f32 * g).max(e[0]).min(e[2]),
+        (u.anchor_rel[1] + -(py as f32) * g).max(e[1]).min(e[3]),
         u.anchor_rel[2] + h,
     ];
     let clip = Mat4::from_cols_array(&globals.view_proj) * Vec4::new(rel[0], rel[1], rel[2], 1.0);

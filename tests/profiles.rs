@@ -59,8 +59,8 @@ fn design_table_values() {
     // design.md "Budgets": gles3-low n=63 L=8 ~8k; gles3-mid n=127 L=10 ~32k; desktop n=255 L=11 n^2.
     // Low and mid are whole rows of their clip texture (S = 80, 160): updates are spent in rows.
     let expect = [
-        ("gles3-low", 63, 8, 8192),
-        ("gles3-mid", 127, 10, 32768),
+        ("gles3-low", 63, 8, 8160),
+        ("gles3-mid", 127, 10, 32640),
         ("desktop", 255, 11, 255 * 255),
     ];
     for (name, n, l, b) in expect {

@@ -403,29 +403,9 @@ fn bench_clipmap_vs_brute_force() {
 }
 
 /// The watertight fly-through on Puget Sound (`ps_height_1k.png`, 160 m spacing, 0.1 m units).
-///
-/// Ignored until the PNG loader is merged (it is a stub on this branch):
-/// `cargo test --test render_clipmap -- --ignored watertight_puget_sound`
 #[test]
-#[ignore = "needs the terrain loaders branch: cargo test --test render_clipmap -- --ignored watertight_puget_sound"]
 fn watertight_puget_sound() {
-    let path = clipsat::data_dir().join("ps_height_1k.png");
-    if !path.exists() {
-        if std::env::var("CI").is_ok_and(|v| v == "true") {
-            panic!(
-                "{} is missing (shared data must be present on CI)",
-                path.display()
-            );
-        }
-        eprintln!("skipping: {} is missing", path.display());
-        return;
-    }
-    let opts = clipsat::source::LoadOptions {
-        spacing: Some(160.0),
-        height_scale: Some(0.1),
-        ..Default::default()
-    };
-    let hm = clipsat::source::load(&path, &opts).expect("Puget Sound loads");
+    let Some(hm) = puget() else { return };
     let gpu = strict();
     let p = profile("gles3-low", W, H, Some(1600));
     let mut cm = clipmap(&hm, &p);

@@ -1,4 +1,5 @@
-//! Golden images of the clipmap renderer: 3 views x 2 terrains at 160 x 90 on gles3-low.
+//! Golden images of the clipmap renderer: 3 views x 3 terrains (procedural, Puget Sound, synthetic terraces)
+//! at 160 x 90 on gles3-low.
 //!
 //! `tests/goldens/hashes.txt` holds exact image hashes per driver, lines `adapter|driver<TAB>view<TAB>hash`;
 //! a driver with a stored hash must match it exactly. Every view also has a small PNG, compared with a
@@ -6,8 +7,8 @@
 //! PNGs and this driver's hashes. A failure writes `<view>-actual.png` and `<view>-diff.png` beside the
 //! golden (gitignored).
 //!
-//! The procedural terrain is a flat stub on this branch: re-bless its views (`procedural-*`) once the real
-//! generator is merged: `CLIPSAT_BLESS=1 cargo test --test render_goldens`.
+//! Puget Sound comes from the shared data: without it the `puget-*` views are skipped (a failure under
+//! `CI=true`).
 
 mod render_support;
 
@@ -129,13 +130,15 @@ fn golden_views() {
     let dir = goldens_dir();
     let hashes_path = dir.join("hashes.txt");
     let mut hashes = read_hashes(&hashes_path);
-    let flat = procedural::generate(&ProceduralParams {
+    let proc = procedural::generate(&ProceduralParams {
         size: 257,
         ..Default::default()
     })
     .expect("procedural terrain");
     let mut failures = Vec::new();
-    for (tname, hm) in [("procedural", flat), ("terraces", terraces())] {
+    let mut terrains = vec![("procedural", proc), ("terraces", terraces())];
+    terrains.extend(puget().map(|hm| ("puget", hm)));
+    for (tname, hm) in terrains {
         for (vname, cam) in views(&hm) {
             let name = format!("{tname}-{vname}");
             let img = render(&gpu, &hm, &cam);

@@ -99,3 +99,24 @@ pub fn flight(hm: &Heightmap, i: u32, speed: f64, alt: f64, teleport: Option<u32
     let z = ground(hm, x, y).max(0.0) + alt;
     camera(DVec3::new(x, y, z), DVec3::new(1.0, 0.3, -0.35))
 }
+
+/// Puget Sound 1k (160 m spacing, 0.1 m units) from the shared data, or `None` with a printed reason
+/// when it is missing (a failure under `CI=true`).
+pub fn puget() -> Option<Heightmap> {
+    let path = clipsat::data_dir().join("ps_height_1k.png");
+    if !path.exists() {
+        assert!(
+            std::env::var("CI").as_deref() != Ok("true"),
+            "{} is missing (shared data must be present on CI)",
+            path.display()
+        );
+        eprintln!("skipping: {} is missing", path.display());
+        return None;
+    }
+    let opts = clipsat::source::LoadOptions {
+        spacing: Some(160.0),
+        height_scale: Some(0.1),
+        ..Default::default()
+    };
+    Some(clipsat::source::load(&path, &opts).expect("Puget Sound loads"))
+}
