@@ -24,6 +24,7 @@ mod heightmap;
 pub mod plot;
 pub mod profile;
 pub mod pyramid;
+pub mod sat;
 pub mod source;
 pub mod synthesis;
 
