@@ -12,6 +12,7 @@
 //! Everything is sized at start-up from a budget [`Profile`]; per-frame work is bounded in samples and
 //! primitives, and deterministic.
 
+pub mod bake;
 pub mod budget;
 pub mod camera;
 pub mod clipmap;
@@ -21,6 +22,7 @@ pub mod frame;
 pub mod gpu;
 pub mod hash;
 mod heightmap;
+pub mod lod;
 pub mod plot;
 pub mod profile;
 pub mod pyramid;
