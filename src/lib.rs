@@ -12,6 +12,7 @@
 //! Everything is sized at start-up from a budget [`Profile`]; per-frame work is bounded in samples and
 //! primitives, and deterministic.
 
+pub mod bake;
 pub mod budget;
 pub mod camera;
 pub mod clipmap;
@@ -22,11 +23,13 @@ pub mod frame;
 pub mod gpu;
 pub mod hash;
 mod heightmap;
+pub mod lod;
 pub mod mesh;
 pub mod plot;
 pub mod profile;
 pub mod pyramid;
 pub mod renderer;
+pub mod sat;
 pub mod source;
 pub mod synthesis;
 

@@ -22,6 +22,8 @@ enum Command {
     Info(cmd::info::InfoArgs),
     /// Render one frame offscreen to a PNG.
     Render(cmd::render::RenderArgs),
+    /// Tune the SAT LOD exponent p: estimate and bound errors against the exact block maximum, per p.
+    TuneP(cmd::tune_p::TunePArgs),
 }
 
 fn main() -> ExitCode {
@@ -30,6 +32,7 @@ fn main() -> ExitCode {
         Command::Fly(args) => cmd::fly::run(&args),
         Command::Info(args) => cmd::info::run(&args),
         Command::Render(args) => cmd::render::run(&args),
+        Command::TuneP(args) => cmd::tune_p::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

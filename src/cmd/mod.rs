@@ -11,6 +11,7 @@ macro_rules! outln {
 pub(crate) mod fly;
 pub(crate) mod info;
 pub(crate) mod render;
+pub(crate) mod tune_p;
 
 use clap::Args;
 use clipsat::source::{
