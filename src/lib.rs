@@ -21,9 +21,13 @@ pub mod frame;
 pub mod gpu;
 pub mod hash;
 mod heightmap;
+pub mod horizon;
 pub mod plot;
 pub mod profile;
 pub mod pyramid;
+pub mod scene;
+pub mod sg;
+pub mod shading;
 pub mod source;
 pub mod synthesis;
 
