@@ -131,52 +131,70 @@ fn frame_dir(axis: Vec3, t: Vec3, b: Vec3, u: f32, phi: f32) -> Vec3 {
 }
 
 /// SAT paper eq. 11 over M x N patches of the lobe's own frame, each patch weighted by its visible
-/// fraction. Per patch, with u = 1 - cos theta:
+/// energy. Per patch, with u = 1 - cos theta:
 /// f = mu (phi2 - phi1) / lambda (e^(-lambda u1) - e^(-lambda u2))
 ///   = mu (phi2 - phi1) e^(-lambda u1) (u2 - u1) (1 - e^(-lambda (u2 - u1))) / (lambda (u2 - u1)),
 /// the second form exact for small lambda and thin bands (no difference of nearly equal exponentials).
+///
+/// PatchVis: the patch's height span z = sin(elevation) over its corners and centre is cut at the sine of
+/// the cut elevation at the azimuth of its centre; the visible fraction s of the span is taken as the
+/// fraction of the patch's u range on its higher side (inner or outer edge), and weighted by the lobe's
+/// energy over that sub-range in closed form. For a lobe about the zenith z = 1 - u, so this is exact on
+/// flat ground; a linear weight would miss that a band's energy sits at its inner edge.
 fn integrate_patches(p: &Sg, n: Vec3, horizon: &[f32], drop: f32, patches: Patches) -> Vec3 {
     let (bands, sectors) = (patches.bands(), patches.sectors());
     let (t, b) = sg::basis(p.axis);
     let dphi = TAU / sectors as f32;
-    // Elevations at the band edges x sector edges, computed once and shared by neighbouring patches.
-    let mut edge_el = [[0.0f32; MAX_SECTORS]; MAX_BANDS + 1];
+    // Heights z at the band edges x sector edges, computed once and shared by neighbouring patches.
+    let mut edge_z = [[0.0f32; MAX_SECTORS]; MAX_BANDS + 1];
     let mut edge_u = [0.0f32; MAX_BANDS + 1];
-    for (i, row) in edge_el.iter_mut().enumerate().take(bands + 1) {
+    for (i, row) in edge_z.iter_mut().enumerate().take(bands + 1) {
         edge_u[i] = band_edge(p.lambda, i as f32 / bands as f32);
-        for (k, e) in row.iter_mut().enumerate().take(sectors) {
-            *e = elevation(frame_dir(p.axis, t, b, edge_u[i], k as f32 * dphi));
+        for (k, z) in row.iter_mut().enumerate().take(sectors) {
+            *z = frame_dir(p.axis, t, b, edge_u[i], k as f32 * dphi).z;
         }
     }
     let mut total = 0.0f32;
     for i in 0..bands {
         let (u1, u2) = (edge_u[i], edge_u[i + 1]);
         let du = u2 - u1;
-        let band = (-p.lambda * u1).exp() * du * sg::one_minus_exp_over(p.lambda * du);
+        let whole = sg::one_minus_exp_over(p.lambda * du);
+        let band = (-p.lambda * u1).exp() * du * whole;
         let u_mid = band_edge(p.lambda, (i as f32 + 0.5) / bands as f32);
         for k in 0..sectors {
-            let phi_mid = (k as f32 + 0.5) * dphi;
-            let centre = frame_dir(p.axis, t, b, u_mid, phi_mid);
-            let e_mid = elevation(centre);
+            let centre = frame_dir(p.axis, t, b, u_mid, (k as f32 + 0.5) * dphi);
             let k2 = (k + 1) % sectors;
+            let (inner, outer) = (
+                edge_z[i][k] + edge_z[i][k2],
+                edge_z[i + 1][k] + edge_z[i + 1][k2],
+            );
             let corners = [
-                edge_el[i][k],
-                edge_el[i][k2],
-                edge_el[i + 1][k],
-                edge_el[i + 1][k2],
+                edge_z[i][k],
+                edge_z[i][k2],
+                edge_z[i + 1][k],
+                edge_z[i + 1][k2],
             ];
-            let (mut lo, mut hi) = (e_mid, e_mid);
+            let (mut lo, mut hi) = (centre.z, centre.z);
             for c in corners {
                 lo = lo.min(c);
                 hi = hi.max(c);
             }
-            let cut = cut_elevation(n, horizon, drop, centre.y.atan2(centre.x));
-            let visible = if hi - lo > 1e-6 {
+            let cut = cut_elevation(n, horizon, drop, centre.y.atan2(centre.x))
+                .max(-FRAC_PI_2)
+                .sin();
+            let s = if hi - lo > 1e-7 {
                 ((hi - cut) / (hi - lo)).clamp(0.0, 1.0)
-            } else if e_mid > cut {
+            } else if centre.z > cut {
                 1.0
             } else {
                 0.0
+            };
+            // Energy of the visible sub-range over the band's, in expm1-safe form.
+            let part = s * sg::one_minus_exp_over(p.lambda * s * du) / whole;
+            let visible = if inner >= outer {
+                part
+            } else {
+                (-p.lambda * (1.0 - s) * du).exp() * part
             };
             total += band * visible;
         }
@@ -296,6 +314,17 @@ impl HorizonTable {
     }
 }
 
+/// Which cosine [`reference`] integrates against.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum RefCosine {
+    /// The true clamped cosine, averaged over the vMF: the physical answer.
+    #[default]
+    Exact,
+    /// [`shade`]'s own model, the vMF-widened cosine SG cut at the lowered tangent plane: isolates the
+    /// error of the patch integration and of PatchVis from the error of the SG fit.
+    SgModel,
+}
+
 /// Quadrature density of [`reference`]: midpoints in (energy fraction, phi) of each light's own frame.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct RefGrid {
@@ -303,6 +332,8 @@ pub struct RefGrid {
     pub theta: u32,
     /// Phi samples.
     pub phi: u32,
+    /// The cosine integrated against.
+    pub cosine: RefCosine,
 }
 
 impl Default for RefGrid {
@@ -310,6 +341,7 @@ impl Default for RefGrid {
         Self {
             theta: 256,
             phi: 512,
+            cosine: RefCosine::Exact,
         }
     }
 }
@@ -410,7 +442,17 @@ pub fn reference(inputs: &RefInputs<'_>, scene: &Scene, grid: RefGrid) -> DVec3 
     let vmf = Vmf::from_mean_normal(inputs.r.as_vec3());
     let single = len >= f64::from(sg::R_MAX);
     let kappa = f64::from(vmf.kappa);
-    let g = VmfCosine::new(kappa, single);
+    let model = grid.cosine == RefCosine::SgModel;
+    let g = VmfCosine::new(kappa, single || model);
+    let cos_sg = Sg {
+        axis: vmf.axis,
+        lambda: sg::COSINE_LAMBDA,
+        mu: Vec3::splat(sg::COSINE_MU),
+    }
+    .convolve_vmf(vmf.kappa);
+    let (cos_lambda, cos_mu) = (f64::from(cos_sg.lambda), f64::from(cos_sg.mu.x));
+    let drop = f64::from(plane_drop(vmf.kappa));
+    let n_model = vmf.axis.as_dvec3();
     let horizon = inputs.horizon.filter(|_| scene.effects.visibility);
     let m = &scene.material;
     let spec_on = scene.effects.specular && m.ks > 0.0;
@@ -442,7 +484,18 @@ pub fn reference(inputs: &RefInputs<'_>, scene: &Scene, grid: RefGrid) -> DVec3 
                         continue;
                     }
                 }
-                diff += g.at(d.dot(n));
+                diff += if model {
+                    let a = d.y.atan2(d.x);
+                    let plane =
+                        (-(n_model.x * a.cos() + n_model.y * a.sin())).atan2(n_model.z) - drop;
+                    if d.z.clamp(-1.0, 1.0).asin() > plane {
+                        cos_mu * (cos_lambda * (d.dot(n_model) - 1.0)).exp()
+                    } else {
+                        0.0
+                    }
+                } else {
+                    g.at(d.dot(n))
+                };
                 if spec_on {
                     let h = (d + inputs.view).normalize_or(n);
                     spec +=
