@@ -369,7 +369,7 @@ pub fn apply_fog(colour: Vec3, distance_m: f32, fog: Option<&Fog>) -> Vec3 {
         None => colour,
         Some(f) => {
             let keep = (-f.density_per_km * distance_m.max(0.0) * 1e-3).exp();
-            f.rgb + (colour - f.rgb) * keep
+            colour * keep + f.rgb * (1.0 - keep)
         }
     }
 }
