@@ -12,6 +12,7 @@
 //! Everything is sized at start-up from a budget [`Profile`]; per-frame work is bounded in samples and
 //! primitives, and deterministic.
 
+pub mod bake;
 pub mod budget;
 pub mod camera;
 pub mod clipmap;
@@ -22,9 +23,11 @@ pub mod gpu;
 pub mod hash;
 mod heightmap;
 pub mod horizon;
+pub mod lod;
 pub mod plot;
 pub mod profile;
 pub mod pyramid;
+pub mod sat;
 pub mod scene;
 pub mod sg;
 pub mod shading;

@@ -1,0 +1,354 @@
+//! SAT LOD: error maps against the clipmap's own surface, estimate <= exact <= conservative on the
+//! numerical hard cases (flat terrain, a one-sample needle, errors from 1e-6 m to 1e4 m, p = 2 and 64),
+//! per-frame selection, and the bake cache refusing corrupted files.
+#![expect(
+    clippy::cast_possible_truncation,
+    reason = "test arithmetic on values known to be in range"
+)]
+
+use std::path::Path;
+
+use clipsat::bake::{bake_lod, cache_key, cache_path, BakeParams, CacheOutcome};
+use clipsat::clipmap::{Clipmap, ClipmapOptions};
+use clipsat::lod::{error_map, LevelTables, Lod, LodFrame, LodMode, LodTables, P};
+use clipsat::pyramid::Pyramid;
+use clipsat::sat::pow_unit;
+use clipsat::{Camera, Heightmap, Profile};
+use glam::DVec3;
+
+fn terrain(w: u32, h: u32, spacing: f32, f: impl Fn(u32, u32) -> f32) -> Heightmap {
+    let heights = (0..h)
+        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .map(|(x, y)| f(x, y))
+        .collect();
+    Heightmap::new(Path::new("<test>"), w, h, spacing, heights).expect("test terrain")
+}
+
+fn hash01(x: u32, y: u32) -> f64 {
+    let mut z = (u64::from(x) << 32 | u64::from(y)).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 29)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    (z >> 11) as f64 / (1u64 << 53) as f64
+}
+
+/// estimate <= exact <= conservative <= E, and exact equals a brute-force max of the error map.
+fn check_block(t: &LevelTables, p: u32, errs: &[f32], w: u32, b: (u32, u32, u32, u32)) {
+    let be = t.block(p, b.0, b.1, b.2, b.3);
+    let mut m = 0.0f32;
+    for y in b.1..b.3 {
+        for x in b.0..b.2 {
+            m = m.max(errs[(y * w + x) as usize]);
+        }
+    }
+    assert_eq!(be.exact, f64::from(m), "exact max, box {b:?}");
+    assert!(
+        be.estimate <= be.exact && be.exact <= be.conservative,
+        "p {p} box {b:?}: {be:?}"
+    );
+    assert!(be.conservative <= f64::from(t.e_max()));
+    assert!(be.estimate >= 0.0 && be.estimate.is_finite());
+}
+
+/// The error map is |H_0 - PL(H_L)| with PL built from the clipmap's own samples, split along the
+/// (i, j)-(i+1, j+1) diagonal.
+#[test]
+fn error_map_matches_clipmap_surface() {
+    let hm = terrain(129, 97, 10.0, |x, y| {
+        (hash01(x, y) * 100.0) as f32 + (x * y) as f32 * 0.01
+    });
+    let profile = Profile::load("gles3-low").expect("profile");
+    let clip = Clipmap::new(&hm, &profile, ClipmapOptions::default()).expect("clipmap");
+    for k in 1..4u32 {
+        let errs = error_map(clip.pyramid(), k);
+        let s = 1i64 << k;
+        for (x, y) in [
+            (0i64, 0i64),
+            (1, 0),
+            (0, 1),
+            (3, 5),
+            (5, 3),
+            (7, 7),
+            (100, 90),
+            (128, 96),
+            (127, 95),
+        ] {
+            let (i, j) = (x.div_euclid(s), y.div_euclid(s));
+            let (fx, fy) = ((x - i * s) as f64 / s as f64, (y - j * s) as f64 / s as f64);
+            let z = |a: i64, b: i64| f64::from(clip.sample(k, a, b)[0]);
+            let pl = if fx >= fy {
+                z(i, j) * (1.0 - fx) + z(i + 1, j) * (fx - fy) + z(i + 1, j + 1) * fy
+            } else {
+                z(i, j) * (1.0 - fy) + z(i, j + 1) * (fy - fx) + z(i + 1, j + 1) * fx
+            };
+            let h0 = f64::from(hm.at(x as u32, y as u32));
+            let got = errs[(y * 129 + x) as usize];
+            assert!(
+                (f64::from(got) - (h0 - pl).abs()).abs() <= 1e-3,
+                "level {k} ({x}, {y}): {got} vs {}",
+                (h0 - pl).abs()
+            );
+        }
+        // At odd-odd level-(k-1) vertices the level-k surface is the diagonal mean: the clipmap's z_c.
+        for (i, j) in [(1i64, 1i64), (3, 5), (9, 7)] {
+            let zc = clip.sample(k - 1, i, j)[1];
+            let (x, y) = (i << (k - 1), j << (k - 1));
+            let h0 = hm.at(x as u32, y as u32);
+            let e = errs[(y * 129 + x) as usize];
+            assert!(
+                (e - (h0 - zc).abs()).abs() <= 1e-3,
+                "z_c at level {} ({i}, {j})",
+                k - 1
+            );
+        }
+    }
+}
+
+/// Flat terrain: E = 0 at every level, no NaN, and every block takes the coarsest level.
+#[test]
+fn flat_terrain_takes_the_coarsest_level() {
+    let hm = terrain(257, 257, 30.0, |_, _| 123.0);
+    let mut profile = Profile::load("gles3-low").expect("profile");
+    profile.budget.update_samples_per_frame = u32::MAX;
+    let mut clip = Clipmap::new(&hm, &profile, ClipmapOptions::default()).expect("clipmap");
+    let tables =
+        LodTables::build(clip.pyramid(), profile.clipmap.levels, P, |_| {}).expect("tables");
+    for t in &tables.levels {
+        assert_eq!(t.e_max(), 0.0);
+        let b = t.block(P, 0, 0, 257, 257);
+        assert_eq!((b.estimate, b.exact, b.conservative), (0.0, 0.0, 0.0));
+    }
+    let lod = Lod::for_clipmap(tables, &profile, &clip, &hm);
+    let eye = DVec3::new(3840.0, 3840.0, 200.0);
+    let frame = clip.update(eye).expect("frame").clone();
+    let cam = Camera::new(eye, DVec3::new(5000.0, 5000.0, 123.0), 60.0).expect("camera");
+    let mut out = LodFrame::new_boxed();
+    for mode in [LodMode::Sat, LodMode::SatConservative, LodMode::Exact] {
+        lod.select(&frame, &cam, mode, &mut out).expect("select");
+        assert!(!out.blocks.is_empty());
+        let coarsest = profile.clipmap.levels - 1;
+        for b in &out.blocks {
+            assert_eq!(b.wanted, coarsest, "{mode}: {b:?}");
+            assert_eq!(b.level, coarsest, "{mode}: {b:?}");
+            assert_eq!(b.eta_m, 0.0);
+        }
+        assert_eq!(out.blocks_clamped, 0);
+    }
+}
+
+/// A one-sample needle on a flat plain: the block holding it has exact = conservative-or-less = the
+/// needle's error (about the needle's height, less what the filtered coarse level keeps of it), at p = 2
+/// and at p = 64, where (e/E)^p of the other samples underflows.
+#[test]
+fn needle_is_never_missed() {
+    let (w, h, needle) = (257u32, 257u32, (101u32, 77u32));
+    let height = 1000.0f32;
+    let hm = terrain(
+        w,
+        h,
+        30.0,
+        |x, y| if (x, y) == needle { height } else { 0.0 },
+    );
+    let pyr = Pyramid::build(&hm);
+    for p in [2u32, 8, 64] {
+        for k in 1..7u32 {
+            let errs = error_map(&pyr, k);
+            let t = LevelTables::build(w, h, errs.clone(), p).expect("tables");
+            let e_needle = errs[(needle.1 * w + needle.0) as usize];
+            assert!(
+                e_needle >= 0.8 * height,
+                "level {k}: needle error {e_needle}"
+            );
+            for b in [
+                (96, 64, 128, 96),
+                (101, 77, 102, 78),
+                (0, 0, w, h),
+                (64, 64, 160, 160),
+                (0, 0, 50, 50),
+            ] {
+                check_block(&t, p, &errs, w, b);
+            }
+            let be = t.block(p, 96, 64, 128, 96);
+            assert!(
+                be.conservative >= f64::from(e_needle),
+                "p {p} level {k}: {be:?}"
+            );
+            assert!(t.block(p, 101, 77, 102, 78).conservative >= f64::from(e_needle));
+        }
+    }
+}
+
+/// Errors from about 1e-6 m to 1e4 m in one terrain, p at both ends of the tuning range: every block
+/// ordered, and its SAT sum within the stated bound of an f64 brute-force sum.
+#[test]
+fn errors_spanning_ten_decades() {
+    let (w, h) = (257u32, 129u32);
+    // Amplitude 10^(-6 + 10 x / w): roughness grows ten decades west to east.
+    let hm = terrain(w, h, 10.0, |x, y| {
+        let amp = 10f64.powf(-6.0 + 10.0 * f64::from(x) / f64::from(w));
+        (amp * (hash01(x, y) - 0.5) + 5000.0) as f32
+    });
+    let pyr = Pyramid::build(&hm);
+    for p in [2u32, 64] {
+        for k in [1u32, 3, 5] {
+            let errs = error_map(&pyr, k);
+            let t = LevelTables::build(w, h, errs.clone(), p).expect("tables");
+            let (sat, _) = t.tables().expect("nonzero errors");
+            let e = f64::from(t.e_max());
+            for bx in 0..16u32 {
+                for by in 0..8u32 {
+                    let b = (
+                        bx * 16,
+                        by * 16,
+                        (bx * 16 + 17).min(w),
+                        (by * 16 + 17).min(h),
+                    );
+                    check_block(&t, p, &errs, w, b);
+                    let mut s = 0.0f64;
+                    for y in b.1..b.3 {
+                        for x in b.0..b.2 {
+                            s += pow_unit(f64::from(errs[(y * w + x) as usize]) / e, p);
+                        }
+                    }
+                    let n = f64::from((b.2 - b.0) * (b.3 - b.1));
+                    let got = sat.box_sum(b.0, b.1, b.2, b.3);
+                    assert!(
+                        got >= s * (1.0 - 1e-13) && got <= s * (1.0 + 1e-13) + n * sat.quantum(),
+                        "p {p} level {k} {b:?}: {got} vs {s}"
+                    );
+                }
+            }
+        }
+    }
+}
+
+/// Selection on a rough terrain: Sat picks levels no finer than Exact, Conservative no coarser; blocks
+/// stay within the profile's draw budget; Distance keeps every block on its ring.
+#[test]
+fn selection_orders_the_modes() {
+    let hm = terrain(257, 257, 30.0, |x, y| {
+        (300.0 * (f64::from(x) / 9.0).sin() * (f64::from(y) / 13.0).cos() + 80.0 * hash01(x, y))
+            as f32
+    });
+    let mut profile = Profile::load("gles3-low").expect("profile");
+    profile.budget.update_samples_per_frame = u32::MAX;
+    let mut clip = Clipmap::new(&hm, &profile, ClipmapOptions::default()).expect("clipmap");
+    let tables =
+        LodTables::build(clip.pyramid(), profile.clipmap.levels, P, |_| {}).expect("tables");
+    let lod = Lod::for_clipmap(tables, &profile, &clip, &hm);
+    let mut outs: Vec<Box<LodFrame>> = (0..4).map(|_| LodFrame::new_boxed()).collect();
+    for (eye, target) in [
+        (
+            DVec3::new(3840.0, 3840.0, 700.0),
+            DVec3::new(6000.0, 6000.0, 0.0),
+        ),
+        (
+            DVec3::new(1000.0, 6000.0, 3000.0),
+            DVec3::new(4000.0, 3000.0, 0.0),
+        ),
+    ] {
+        let frame = clip.update(eye).expect("frame").clone();
+        let cam = Camera::new(eye, target, 60.0).expect("camera");
+        let modes = [
+            LodMode::Distance,
+            LodMode::Sat,
+            LodMode::Exact,
+            LodMode::SatConservative,
+        ];
+        for (mode, out) in modes.iter().zip(outs.iter_mut()) {
+            lod.select(&frame, &cam, *mode, out).expect("select");
+            assert!(out.blocks.len() <= profile.budget.max_draws as usize);
+        }
+        for b in &outs[0].blocks {
+            assert_eq!(b.level, b.ring);
+        }
+        let (sat, exact, cons) = (&outs[1].blocks, &outs[2].blocks, &outs[3].blocks);
+        assert_eq!(sat.len(), exact.len());
+        for ((s, e), c) in sat.iter().zip(exact.iter()).zip(cons.iter()) {
+            assert_eq!((s.rect, s.ring), (e.rect, e.ring));
+            assert!(
+                s.wanted >= e.wanted && e.wanted >= c.wanted,
+                "{s:?} {e:?} {c:?}"
+            );
+            assert!(
+                e.bound_px <= profile.view.epsilon_px || e.level < e.wanted || e.wanted < e.level
+            );
+        }
+        let levels: std::collections::BTreeSet<u32> = exact.iter().map(|b| b.level).collect();
+        assert!(
+            levels.len() > 1,
+            "a rough terrain should need more than one level: {levels:?}"
+        );
+    }
+}
+
+/// The bake cache: miss, hit (identical tables), and every damaged file refused and rebaked.
+#[test]
+fn bake_cache_detects_damage() {
+    let hm = terrain(65, 33, 25.0, |x, y| (hash01(x, y) * 50.0) as f32);
+    let pyr = Pyramid::build(&hm);
+    let params = BakeParams {
+        p: 8,
+        levels: 5,
+        synth_levels: 0,
+        g0: 25.0,
+    };
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("lod-cache-test");
+    let _ = std::fs::remove_dir_all(&dir);
+    let (a, o) = bake_lod(&hm, &pyr, &params, &dir, false).expect("bake");
+    assert_eq!(o, CacheOutcome::Baked);
+    let (b, o) = bake_lod(&hm, &pyr, &params, &dir, false).expect("hit");
+    assert_eq!(o, CacheOutcome::Hit);
+    assert_eq!(a, b);
+    let path = cache_path(&dir, cache_key(&hm, &params));
+    let good = std::fs::read(&path).expect("cache file");
+    let damages: [(&str, Vec<u8>); 5] = [
+        ("flipped byte", {
+            let mut v = good.clone();
+            let i = v.len() / 2;
+            v[i] ^= 0x40;
+            v
+        }),
+        ("truncated", good[..good.len() - 100].to_vec()),
+        ("empty", Vec::new()),
+        ("garbage", vec![0xAB; 4096]),
+        ("bad magic", {
+            let mut v = good.clone();
+            v[0] = b'X';
+            v
+        }),
+    ];
+    for (what, bytes) in damages {
+        std::fs::write(&path, &bytes).expect("write damaged");
+        let (c, o) = bake_lod(&hm, &pyr, &params, &dir, false).expect("rebake");
+        assert!(matches!(o, CacheOutcome::Rebaked(_)), "{what}: {o:?}");
+        assert_eq!(c, a, "{what}");
+        assert_eq!(std::fs::read(&path).expect("rewritten"), good, "{what}");
+    }
+    // Another terrain's valid file under this key's name: refused by the key in its header.
+    let other = terrain(65, 33, 25.0, |x, y| (hash01(y, x) * 50.0) as f32);
+    let (_, _) = bake_lod(&other, &Pyramid::build(&other), &params, &dir, false).expect("other");
+    let other_bytes =
+        std::fs::read(cache_path(&dir, cache_key(&other, &params))).expect("other file");
+    std::fs::write(&path, other_bytes).expect("swap");
+    let (c, o) = bake_lod(&hm, &pyr, &params, &dir, false).expect("rebake");
+    assert!(
+        matches!(&o, CacheOutcome::Rebaked(r) if r.contains("key")),
+        "{o:?}"
+    );
+    assert_eq!(c, a);
+    // Different parameters are a different key.
+    let p64 = BakeParams { p: 64, ..params };
+    assert_ne!(cache_key(&hm, &p64), cache_key(&hm, &params));
+    assert_eq!(
+        bake_lod(&hm, &pyr, &p64, &dir, false).expect("p64").1,
+        CacheOutcome::Baked
+    );
+}
+
+#[test]
+fn lod_mode_parses() {
+    for name in LodMode::NAMES {
+        let m: LodMode = name.parse().expect("mode");
+        assert_eq!(m.to_string(), name);
+    }
+    assert!("fast".parse::<LodMode>().is_err());
+}
