@@ -353,3 +353,121 @@ fn patch_counts_error_and_cost_small() {
 fn patch_counts_error_and_cost_full() {
     patch_table(4);
 }
+
+#[test]
+fn sat_footprint_averages_match_brute_force() {
+    let hm = terrain();
+    let hz = horizon::bake(&hm, 8, 64.0).unwrap_or_else(|e| panic!("{e}"));
+    let sats = horizon::FootprintSats::build(&hm, &hz).unwrap_or_else(|e| panic!("{e}"));
+    let mut worst = 0.0f32;
+    for (x0, y0, x1, y1) in [
+        (0, 0, 0, 0),
+        (3, 5, 4, 6),
+        (10, 10, 25, 17),
+        (0, 0, 63, 63),
+        (38, 40, 42, 60),
+        (60, 1, 63, 2),
+    ] {
+        let a = horizon::box_average(&hm, &hz, x0, y0, x1, y1);
+        let b = sats.box_average(x0, y0, x1, y1);
+        worst = worst.max((a.r - b.r).abs().max_element());
+        for (p, q) in a.horizon.iter().zip(&b.horizon) {
+            worst = worst.max((p - q).abs());
+        }
+    }
+    println!("SAT vs brute-force box means: worst difference {worst:.2e}");
+    assert!(worst < 1e-6, "{worst}");
+}
+
+/// The GPU format for the normal and horizon SATs: R32UI wrapping fixed point against RGBA32F (plain, and
+/// with the global mean subtracted, Hensley et al. 2005), on a 1024^2 grid of values in [0, 1] - the size
+/// of a clip texture - for footprint boxes of 1 to 64^2 samples anywhere in the grid.
+#[test]
+#[expect(
+    clippy::cast_possible_truncation,
+    reason = "simulating f32 and u32 GPU tables from values in [0, 1]"
+)]
+fn gpu_sat_format_error() {
+    let n = 1024usize;
+    // Deterministic values in [0, 1]: a smooth field plus hash noise, like mapped horizons.
+    let v: Vec<f64> = (0..n * n)
+        .map(|i| {
+            let (x, y) = ((i % n) as f64, (i / n) as f64);
+            let h = ((i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 40) as f64
+                / f64::from(1u32 << 24);
+            (0.5 + 0.3 * (x * 0.01).sin() * (y * 0.013).cos() + 0.2 * (h - 0.5)).clamp(0.0, 1.0)
+        })
+        .collect();
+    let prefix = |val: &dyn Fn(usize) -> f64| -> Vec<f64> {
+        let mut t = vec![0.0; n * n];
+        for y in 0..n {
+            let mut row = 0.0;
+            for x in 0..n {
+                row += val(y * n + x);
+                t[y * n + x] = row + if y > 0 { t[(y - 1) * n + x] } else { 0.0 };
+            }
+        }
+        t
+    };
+    // f32 tables: every partial sum rounded to f32, as a GPU-built or uploaded table would be.
+    let f32_table = |offset: f64| -> Vec<f32> {
+        let mut t = vec![0.0f32; n * n];
+        for y in 0..n {
+            let mut row = 0.0f32;
+            for x in 0..n {
+                row += (v[y * n + x] - offset) as f32;
+                t[y * n + x] = row + if y > 0 { t[(y - 1) * n + x] } else { 0.0 };
+            }
+        }
+        t
+    };
+    let exact = prefix(&|i| v[i]);
+    let mean = exact[n * n - 1] / (n * n) as f64;
+    let plain = f32_table(0.0);
+    let offset = f32_table(mean);
+    // R32UI: Q fractional bits so a 64^2 box of ones stays below 2^32: 4096 * 2^Q < 2^32 -> Q = 20.
+    let q = 20;
+    let scale = f64::from(1u32 << q);
+    let quant: Vec<u32> = v.iter().map(|x| (x * scale).round() as u32).collect();
+    let mut fixed = vec![0u32; n * n];
+    for y in 0..n {
+        let mut row = 0u32;
+        for x in 0..n {
+            row = row.wrapping_add(quant[y * n + x]);
+            fixed[y * n + x] = row.wrapping_add(if y > 0 { fixed[(y - 1) * n + x] } else { 0 });
+        }
+    }
+    let corner = |x: usize, y: usize, w: usize| (x + w - 1, y + w - 1);
+    let (mut e_plain, mut e_offset, mut e_fixed) = (0.0f64, 0.0f64, 0.0f64);
+    for w in [1usize, 2, 4, 8, 16, 32, 64] {
+        for (x, y) in [(1usize, 1usize), (500, 300), (n - 70, n - 70), (900, 17)] {
+            let (x1, y1) = corner(x, y, w);
+            let samples = (w * w) as f64;
+            let exact_mean = (exact[y1 * n + x1] - exact[(y - 1) * n + x1] - exact[y1 * n + x - 1]
+                + exact[(y - 1) * n + x - 1])
+                / samples;
+            let f = |t: &[f32]| {
+                f64::from(
+                    t[y1 * n + x1] - t[(y - 1) * n + x1] - t[y1 * n + x - 1]
+                        + t[(y - 1) * n + x - 1],
+                ) / samples
+            };
+            e_plain = e_plain.max((f(&plain) - exact_mean).abs());
+            e_offset = e_offset.max((f(&offset) + mean - exact_mean).abs());
+            let s = fixed[y1 * n + x1]
+                .wrapping_sub(fixed[(y - 1) * n + x1])
+                .wrapping_sub(fixed[y1 * n + x - 1])
+                .wrapping_add(fixed[(y - 1) * n + x - 1]);
+            e_fixed = e_fixed.max((f64::from(s) / scale / samples - exact_mean).abs());
+        }
+    }
+    println!(
+        "1024^2 grid, boxes 1..64^2, max |error| of a box mean: RGBA32F plain {e_plain:.2e}, \
+         RGBA32F mean-offset {e_offset:.2e}, R32UI wrapping fixed point (Q = {q}) {e_fixed:.2e}"
+    );
+    assert!(
+        e_fixed <= 0.5 / scale + 1e-12,
+        "fixed point error is the rounding only"
+    );
+    assert!(e_fixed < e_offset && e_offset < e_plain);
+}
