@@ -23,6 +23,7 @@ pub mod frame;
 pub mod gpu;
 pub mod hash;
 mod heightmap;
+pub mod horizon;
 pub mod lod;
 pub mod mesh;
 pub mod plot;
@@ -30,6 +31,9 @@ pub mod profile;
 pub mod pyramid;
 pub mod renderer;
 pub mod sat;
+pub mod scene;
+pub mod sg;
+pub mod shading;
 pub mod source;
 pub mod synthesis;
 
