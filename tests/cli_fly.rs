@@ -169,3 +169,53 @@ fn bad_inputs_fail_with_a_clear_error() {
         );
     }
 }
+
+/// `fly --render DIR` renders every K-th frame with the clipmap renderer, writes the PNGs and their image
+/// hashes, and the hashes repeat exactly on a second run (same driver).
+#[test]
+fn fly_render_writes_frames_and_image_hashes() {
+    let run = |name: &str| {
+        let dir = scratch(name);
+        let d = dir.to_str().expect("utf-8 temp path");
+        let args = [
+            "fly",
+            "--profile",
+            "gles3-low",
+            "--frames",
+            "12",
+            "--path",
+            "teleport:6",
+            "--speed",
+            "300",
+            "--render",
+            d,
+            "--render-every",
+            "5",
+            "--size",
+            "96x54",
+            "--json",
+        ];
+        let v = json_of(&clipsat(&args));
+        let renders = v["renders"].as_array().expect("renders").clone();
+        assert_eq!(renders.len(), 3, "frames 0, 5, 10");
+        for (r, f) in renders.iter().zip([0, 5, 10]) {
+            assert_eq!(r["frame"], f);
+            let png = dir.join(format!("frame_{f:06}.png"));
+            let img = image::open(&png).unwrap_or_else(|e| panic!("{}: {e}", png.display()));
+            assert_eq!((img.width(), img.height()), (96, 54));
+        }
+        let listed =
+            std::fs::read_to_string(dir.join("image_hashes.txt")).expect("image_hashes.txt");
+        let last = renders[2]["image_hash"].as_str().expect("hash").to_string();
+        assert!(
+            listed.lines().any(|l| l == format!("10\t{last}")),
+            "{listed}"
+        );
+        renders
+    };
+    assert_eq!(
+        run("render_a"),
+        run("render_b"),
+        "image hashes differ between two runs"
+    );
+}

@@ -9,8 +9,10 @@ use clap::Args;
 use clipsat::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::flight::{Flight, Path};
 use clipsat::frame::Frame;
+use clipsat::gpu::{Gpu, GpuMode};
 use clipsat::hash::{hex, Hash64};
 use clipsat::plot::{LinePlot, Series};
+use clipsat::renderer::{render_frame, FrameOptions, Renderer};
 use clipsat::{Error, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
@@ -57,6 +59,19 @@ pub(crate) struct FlyArgs {
     /// Print a machine-readable summary on stdout (and no progress bar).
     #[arg(long)]
     json: bool,
+    /// Also render every K-th frame (see --render-every) with the clipmap renderer into DIR as PNGs, and
+    /// report each one's image hash (DIR/image_hashes.txt, and in --json).
+    #[arg(long, value_name = "DIR")]
+    render: Option<PathBuf>,
+    /// With --render: render frames 0, K, 2K, ...
+    #[arg(long, value_name = "K", default_value_t = 10)]
+    render_every: u64,
+    /// With --render: image size, WxH pixels. Default: the profile's viewport.
+    #[arg(long, value_name = "WxH")]
+    size: Option<String>,
+    /// With --render: GL context, strict (a real OpenGL ES 3.0 context), gl or auto.
+    #[arg(long, value_name = "auto|strict|gl", default_value = "auto")]
+    gpu: String,
 }
 
 /// What the statistics keep of one frame.
@@ -112,6 +127,36 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
         pb
     };
 
+    // Rendering (optional) reads every image back, so it allocates per rendered frame; the planning above
+    // does not.
+    let gpu = match &args.render {
+        Some(dir) => {
+            if args.render_every == 0 {
+                return Err(Error::Arg {
+                    arg: "--render-every".into(),
+                    reason: "must be at least 1".into(),
+                });
+            }
+            std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, "cannot create folder", e))?;
+            Some(Gpu::new(args.gpu.parse::<GpuMode>()?)?)
+        }
+        None => None,
+    };
+    let mut render_profile = profile.clone();
+    if let Some(size) = &args.size {
+        (render_profile.view.width, render_profile.view.height) = super::render::parse_size(size)?;
+    }
+    let mut renderer = match &gpu {
+        Some(gpu) => Some(Renderer::new(gpu, &render_profile, &clipmap)?),
+        None => None,
+    };
+    let mut renders: Vec<(u64, u64)> = match &args.render {
+        Some(_) => {
+            Vec::with_capacity(usize::try_from(frames / args.render_every.max(1) + 1).unwrap_or(0))
+        }
+        None => Vec::new(),
+    };
+
     let mut run_hash = Hash64::new();
     let mut violations = 0u64;
     let mut final_hash = 0;
@@ -135,11 +180,30 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
             }
             violations += 1;
         }
+        if let (Some(r), Some(dir)) = (&mut renderer, &args.render) {
+            if f % args.render_every == 0 {
+                let out = render_frame(r, &clipmap, &camera, &FrameOptions::default())?;
+                out.image.save_png(&dir.join(format!("frame_{f:06}.png")))?;
+                renders.push((f, out.image_hash));
+            }
+        }
         if f % 64 == 0 {
             progress.set_position(f);
         }
     }
     progress.finish_and_clear();
+    if let Some(dir) = &args.render {
+        let path = dir.join("image_hashes.txt");
+        let mut text = format!(
+            "# clipsat fly image hashes: {terrain_name}, profile {}, {path_name} at {} m/frame, {}x{}\n",
+            profile.name, args.speed, render_profile.view.width, render_profile.view.height,
+            path_name = args.path,
+        );
+        for (f, h) in &renders {
+            text.push_str(&format!("{f}\t{}\n", hex(*h)));
+        }
+        std::fs::write(&path, text).map_err(|e| Error::io(&path, "cannot write", e))?;
+    }
     if let Some((p, mut w)) = csv {
         w.flush().map_err(|e| Error::io(p, "cannot write", e))?;
     }
@@ -175,6 +239,11 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
             "triangles_max": stats.triangles[2],
             "csv": args.csv.as_ref().map(|p| p.display().to_string()),
             "plot": args.plot.as_ref().map(|p| p.display().to_string()),
+            "render_dir": args.render.as_ref().map(|p| p.display().to_string()),
+            "renders": renders
+                .iter()
+                .map(|(f, h)| json!({ "frame": f, "image_hash": hex(*h) }))
+                .collect::<Vec<_>>(),
         }));
     } else {
         outln!("terrain      {terrain_name}");
@@ -205,6 +274,14 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
             stats.over_budget
         );
         outln!("final hash   {}", hex(final_hash));
+        if let (Some(dir), Some((f, h))) = (&args.render, renders.last()) {
+            outln!(
+                "rendered     {} frames into {} (frame {f}: image {})",
+                renders.len(),
+                dir.display(),
+                hex(*h)
+            );
+        }
     }
     Ok(())
 }

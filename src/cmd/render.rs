@@ -277,7 +277,7 @@ fn camera(args: &RenderArgs, hm: &Heightmap, profile_fov: f64) -> Result<Camera>
 /// The largest render target side on the GLES 3.0 floor (`Limits::downlevel_webgl2_defaults`).
 const MAX_SIDE: u32 = 2048;
 
-fn parse_size(text: &str) -> Result<(u32, u32)> {
+pub(crate) fn parse_size(text: &str) -> Result<(u32, u32)> {
     let bad = |reason: String| Error::Arg {
         arg: "--size".into(),
         reason,
