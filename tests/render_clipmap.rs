@@ -402,6 +402,25 @@ fn bench_clipmap_vs_brute_force() {
     }
 }
 
+/// The same watertight fly-through on the built-in procedural terrain (ridges, valleys and plains).
+#[test]
+fn watertight_procedural() {
+    let hm =
+        clipsat::source::procedural::generate(&clipsat::source::procedural::ProceduralParams {
+            size: 513,
+            ..Default::default()
+        })
+        .expect("procedural terrain");
+    let gpu = strict();
+    let p = profile("gles3-low", W, H, Some(1600));
+    let mut cm = clipmap(&hm, &p);
+    let mut r = Renderer::new(&gpu, &p, &cm).expect("renderer");
+    let (cracks, stale_frames) = fly_cracks(&mut r, &mut cm, &hm, 200, &loud());
+    assert!(stale_frames > 20, "{stale_frames}");
+    let bad: Vec<(usize, &u64)> = cracks.iter().enumerate().filter(|(_, &c)| c > 0).collect();
+    assert!(bad.is_empty(), "crack pixels on (frame, pixels): {bad:?}");
+}
+
 /// The watertight fly-through on Puget Sound (`ps_height_1k.png`, 160 m spacing, 0.1 m units).
 #[test]
 fn watertight_puget_sound() {
