@@ -377,6 +377,44 @@ impl Clipmap {
         (eye.z - (a * (1.0 - fv) + b * fv)).max(0.0)
     }
 
+    /// Height (m) of the surface the last frame draws under the eye's xy: the finest enabled level whose
+    /// active region holds the eye, piecewise linear with the project's diagonal ((i, j)-(i+1, j+1)), before
+    /// the morph. `None` when no level holds it.
+    ///
+    /// While the budget has filled only coarse rings, their smoothed surface can lie hundreds of metres
+    /// above a steep valley floor: keep a camera above this, not only above the data, or it sees the
+    /// surface's back faces.
+    pub fn surface_height(&self, eye: DVec3) -> Option<f32> {
+        let p = self.eye_lattice(eye);
+        self.frame.levels.iter().enumerate().find_map(|(l, lf)| {
+            let a = lf.active;
+            let k = f64::from(1u32 << l);
+            let (x, y) = (p.0 / k, p.1 / k);
+            let (x0, y0) = (x.floor(), y.floor());
+            #[expect(
+                clippy::cast_possible_truncation,
+                reason = "the eye is validated finite and its lattice range checked by update"
+            )]
+            let (i, j) = (x0 as i64, y0 as i64);
+            let inside =
+                !a.is_empty() && i >= a.x0 && j >= a.y0 && i + 1 < a.x1() && j + 1 < a.y1();
+            if !inside {
+                return None;
+            }
+            let ring = &self.rings[l];
+            let z = |di: i64, dj: i64| f64::from(ring.get(i + di, j + dj)[0]);
+            let (fx, fy) = (x - x0, y - y0);
+            // The two triangles of quad (i, j) split along (i, j)-(i+1, j+1).
+            let h = if fx >= fy {
+                z(0, 0) + fx * (z(1, 0) - z(0, 0)) + fy * (z(1, 1) - z(1, 0))
+            } else {
+                z(0, 0) + fy * (z(0, 1) - z(0, 0)) + fx * (z(1, 1) - z(0, 1))
+            };
+            #[expect(clippy::cast_possible_truncation, reason = "a height in metres")]
+            Some(h as f32)
+        })
+    }
+
     /// The viewer-height rule; the coarsest level always stays, so something is always drawn (GPU Gems 2
     /// ch. 2 likewise keeps at least one level).
     fn height_enabled(&self, level: u32, h: f64) -> bool {

@@ -525,3 +525,26 @@ fn thread_cpu_seconds() -> f64 {
     let ticks = |k: usize| f.get(k).and_then(|v| v.parse::<f64>().ok()).unwrap_or(0.0);
     (ticks(11) + ticks(12)) / 100.0
 }
+
+/// `surface_height` is the drawn piecewise-linear surface: exact on a tilted plane once every level is
+/// current (level 0 holds the eye, and linear interpolation reproduces a plane), and `None` away from data.
+#[test]
+fn surface_height_follows_the_drawn_surface() {
+    let n = 129u32;
+    let heights = (0..n * n)
+        .map(|i| 3.0 * (i % n) as f32 + 0.5 * (i / n) as f32 + 10.0)
+        .collect();
+    let hm = Heightmap::new(std::path::Path::new("<plane>"), n, n, 10.0, heights).expect("plane");
+    let mut cm =
+        Clipmap::new(&hm, &profile(31, 4, 2, 100_000), ClipmapOptions::default()).expect("clipmap");
+    let eye = DVec3::new(613.7, 588.2, 400.0);
+    for _ in 0..4 {
+        cm.update(eye).expect("update");
+    }
+    assert_eq!(cm.frame().stale_levels, 0);
+    let (u, v) = (613.7 / 10.0, 128.0 - 588.2 / 10.0);
+    let want = 3.0 * u + 0.5 * v + 10.0;
+    let got = f64::from(cm.surface_height(eye).expect("level 0 holds the eye"));
+    assert!((got - want).abs() < 1e-3, "surface {got} vs plane {want}");
+    assert_eq!(cm.surface_height(DVec3::new(1e7, 1e7, 400.0)), None);
+}

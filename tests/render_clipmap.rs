@@ -32,11 +32,20 @@ fn fly_cracks(
     frames: u32,
     opts: &FrameOptions,
 ) -> (Vec<u64>, u32) {
+    let alt = 150.0;
     let mut stale_frames = 0;
     let mut cracks = Vec::new();
     for i in 0..frames {
-        let cam = flight(hm, i, 240.0, 150.0, Some(120));
-        let f = cm.update(cam.eye).expect("update");
+        let mut cam = flight(hm, i, 240.0, alt, Some(120));
+        cm.update(cam.eye).expect("update");
+        // Keep the eye above the drawn surface too (see `Clipmap::surface_height`): under it, the clear
+        // colour shows through back faces, which is not a crack.
+        if let Some(h) = cm.surface_height(cam.eye) {
+            let lift = (f64::from(h) + alt - cam.eye.z).max(0.0);
+            cam.eye.z += lift;
+            cam.target.z += lift;
+        }
+        let f = cm.frame();
         if f.levels.iter().any(|l| l.state == LevelState::Stale) {
             stale_frames += 1;
         }
