@@ -90,10 +90,6 @@ fn clip_vertex(v: vec4<u32>) -> TerrainVertex {
     }
     var out: TerrainVertex;
     out.rel = draw.anchor_rel.xyz + vec3<f32>(f32(p.x) * g, -f32(p.y) * g, h);
-    // Geometry beyond the data collapses onto its border: the rings reach far past a small terrain, and the
-    // border-clamped heights there would draw as streaks. The clamp is continuous per vertex, so it opens
-    // no crack; the CPU twin (`renderer::cpu_vertex`) mirrors it.
-    out.rel = vec3<f32>(min(max(out.rel.xy, globals.extent.xy), globals.extent.zw), out.rel.z);
     out.normal = vec3<f32>(-gx, -gy, 1.0);
     out.height = z;
     return out;
@@ -119,6 +115,11 @@ fn vs_main(@location(0) v: vec4<u32>) -> VsOut {
 
 @fragment
 fn fs_main(v: VsOut) -> @location(0) vec4<f32> {
+    // The rings reach far past a small terrain, where the edge-clamped heights would draw as streaks: cut
+    // every level at the same vertical planes, the data's border, as the brute-force reference ends there.
+    if (any(v.rel.xy < globals.extent.xy) || any(v.rel.xy > globals.extent.zw)) {
+        discard;
+    }
     return vec4<f32>(basic_shade(v.height, v.normal, length(v.rel), globals.shading), 1.0);
 }
 

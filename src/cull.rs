@@ -69,8 +69,8 @@ pub struct DrawParams {
     pub skirts: bool,
     /// Viewport width / height.
     pub aspect: f64,
-    /// The data's horizontal extent relative to the eye (m): x min, y min, x max, y max. The vertex shader
-    /// clamps positions into it, so block boxes are clamped the same way.
+    /// The data's horizontal extent relative to the eye (m): x min, y min, x max, y max. The fragment
+    /// shader discards everything outside it, so blocks wholly outside are culled.
     pub extent: [f64; 4],
 }
 
@@ -202,16 +202,23 @@ fn block_box(
         -((r.y1() - 1) as f64 * k - eye_l.1) * g0,
         -(r.y0 as f64 * k - eye_l.1) * g0,
     );
-    // The vertex shader collapses geometry beyond the data onto its border: clamp the box likewise.
-    let cx = |x: f64| x.max(extent[0]).min(extent[2]);
-    let cy = |y: f64| y.max(extent[1]).min(extent[3]);
-    // The morphed height lies between z and z_c up to f32 rounding; pad by a centimetre and a relative bit
-    // (and the clamp's f32 rounding horizontally).
+    // The morphed height lies between z and z_c up to f32 rounding; pad by a centimetre and a relative bit.
     let pad = 0.01 + 1e-5 * f64::from(z.0.abs().max(z.1.abs()));
+    // The fragment shader discards everything beyond the data: shrink the box to the part inside it (an
+    // inverted box, lo > hi, means none is, and the frustum test then fails). The pad covers the f32
+    // rounding of the shader's comparison.
     let hpad = 0.01 + 1e-6 * extent.iter().fold(0.0f64, |m, e| m.max(e.abs()));
     (
-        DVec3::new(cx(x0) - hpad, cy(y0) - hpad, f64::from(z.0) - eye_z - pad),
-        DVec3::new(cx(x1) + hpad, cy(y1) + hpad, f64::from(z.1) - eye_z + pad),
+        DVec3::new(
+            x0.max(extent[0] - hpad),
+            y0.max(extent[1] - hpad),
+            f64::from(z.0) - eye_z - pad,
+        ),
+        DVec3::new(
+            x1.min(extent[2] + hpad),
+            y1.min(extent[3] + hpad),
+            f64::from(z.1) - eye_z + pad,
+        ),
     )
 }
 
@@ -291,7 +298,7 @@ pub fn build_draws(
                         let z = height_range(clipmap, level, &c);
                         let (lo, hi) =
                             block_box(clipmap, level, &c, eye_l, z, camera.eye.z, &params.extent);
-                        frustum.intersects(lo, hi)
+                        lo.x <= hi.x && lo.y <= hi.y && frustum.intersects(lo, hi)
                     };
                     if visible {
                         push(out, d)?;

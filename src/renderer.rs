@@ -37,7 +37,8 @@ pub struct Globals {
     pub shading: BasicShading,
     /// x: morph factor (1 on, 0 off); y: skirt floor (m); z, w: vertex-probe target size.
     pub params: [f32; 4],
-    /// The data's horizontal extent relative to the eye (m): x min, y min, x max, y max.
+    /// The data's horizontal extent relative to the eye (m): x min, y min, x max, y max. Fragments
+    /// outside it are discarded.
     pub extent: [f32; 4],
 }
 const _: () = assert!(std::mem::size_of::<Globals>() as u64 == GLOBALS_BYTES);
@@ -1020,10 +1021,9 @@ pub fn cpu_vertex(globals: &Globals, u: &DrawUniform, ring: &Ring, v: MeshVertex
         zm
     };
     let g = u.anchor_rel[3];
-    let e = globals.extent;
     let rel = [
-        (u.anchor_rel[0] + px as f32 * g).max(e[0]).min(e[2]),
-        (u.anchor_rel[1] + -(py as f32) * g).max(e[1]).min(e[3]),
+        u.anchor_rel[0] + px as f32 * g,
+        u.anchor_rel[1] + -(py as f32) * g,
         u.anchor_rel[2] + h,
     ];
     let clip = Mat4::from_cols_array(&globals.view_proj) * Vec4::new(rel[0], rel[1], rel[2], 1.0);
