@@ -66,9 +66,11 @@ impl Camera {
         let (lo, hi) = hm.range();
         let (lo, hi) = (f64::from(lo), f64::from(hi));
         let size = ex.max(ey);
-        let eye = DVec3::new(-0.1 * ex, -0.1 * ey, hi + 0.3 * size);
-        let target = DVec3::new(0.5 * ex, 0.5 * ey, lo);
-        let far = (DVec3::new(ex, ey, lo) - eye).length() * 1.5;
+        let (ox, oy) = hm.origin();
+        let o = DVec3::new(ox, oy, 0.0);
+        let eye = o + DVec3::new(-0.1 * ex, -0.1 * ey, hi + 0.3 * size);
+        let target = o + DVec3::new(0.5 * ex, 0.5 * ey, lo);
+        let far = (o + DVec3::new(ex, ey, lo) - eye).length() * 1.5;
         Self::new(eye, target, 60.0)?.with_clip((far * 1e-5).max(0.1), far)
     }
 

@@ -155,6 +155,8 @@ pub struct Clipmap {
     g0: f64,
     data_spacing: f64,
     data_rows: u32,
+    /// The terrain's world origin ([`Heightmap::origin`]), subtracted in f64 before any lattice maths.
+    origin: (f64, f64),
     frame: Frame,
     next_index: u64,
 }
@@ -218,6 +220,7 @@ impl Clipmap {
             g0: data_spacing / f64::from(1u32 << opts.synth_levels),
             data_spacing,
             data_rows: terrain.height(),
+            origin: terrain.origin(),
             frame: Frame::default(),
             next_index: 0,
         })
@@ -258,10 +261,10 @@ impl Clipmap {
         &self.rings[level as usize]
     }
 
-    /// The eye's position in level-0 lattice units (column east, row south).
+    /// The eye's position in level-0 lattice units (column east, row south), relative to the terrain's
+    /// origin (subtracted first, in f64, so a far-placed terrain keeps its precision).
     pub fn eye_lattice(&self, eye: DVec3) -> (f64, f64) {
-        let u = eye.x / self.data_spacing;
-        let v = f64::from(self.data_rows - 1) - eye.y / self.data_spacing;
+        let (u, v) = self.eye_grid(eye);
         let k = f64::from(1u32 << self.synth);
         (u * k, v * k)
     }
@@ -361,8 +364,7 @@ impl Clipmap {
 
     /// The eye's height above the terrain (bilinear in the data, clamped at its edges), metres, >= 0.
     pub fn height_above_terrain(&self, eye: DVec3) -> f64 {
-        let u = eye.x / self.data_spacing;
-        let v = f64::from(self.data_rows - 1) - eye.y / self.data_spacing;
+        let (u, v) = self.eye_grid(eye);
         let (u0, v0) = (u.floor(), v.floor());
         let (fu, fv) = (u - u0, v - v0);
         #[expect(
@@ -413,6 +415,13 @@ impl Clipmap {
             #[expect(clippy::cast_possible_truncation, reason = "a height in metres")]
             Some(h as f32)
         })
+    }
+
+    /// The eye in fractional data-grid units (column, row), as [`Heightmap::world_to_grid`].
+    fn eye_grid(&self, eye: DVec3) -> (f64, f64) {
+        let u = (eye.x - self.origin.0) / self.data_spacing;
+        let v = f64::from(self.data_rows - 1) - (eye.y - self.origin.1) / self.data_spacing;
+        (u, v)
     }
 
     /// The viewer-height rule; the coarsest level always stays, so something is always drawn (GPU Gems 2

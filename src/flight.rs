@@ -232,8 +232,11 @@ impl<'a> Flight<'a> {
             Path::Circle => self.cruise(self.circle(s)),
             Path::Figure8 => self.cruise(self.figure8(s)),
         };
-        let ground = f64::from(self.terrain.height_at_world(eye.x, eye.y));
-        let eye = DVec3::new(eye.x, eye.y, eye.z.max(ground + self.min_clearance));
+        // Paths are laid out relative to the terrain's south-west corner; place them at its origin.
+        let (ox, oy) = self.terrain.origin();
+        let (x, y) = (eye.x + ox, eye.y + oy);
+        let ground = f64::from(self.terrain.height_at_world(x, y));
+        let eye = DVec3::new(x, y, eye.z.max(ground + self.min_clearance));
         Camera::new(eye, eye + look * LOOK_AHEAD_M, self.fov_y_deg).unwrap_or_else(|e| {
             panic!(
                 "flight {} made an invalid camera at frame {frame}: {e}",
@@ -348,7 +351,9 @@ impl<'a> Flight<'a> {
         let run = 0.5 * (self.hi - self.lo).min_element();
         let ext = (self.hi - self.lo).max_element() / (1.0 - 2.0 * BORDER);
         let top = DIVE_TOP_M.min(10.0 * ext);
-        let ground = f64::from(self.terrain.height_at_world(c.x, c.y)) + self.min_clearance;
+        let (ox, oy) = self.terrain.origin();
+        let ground =
+            f64::from(self.terrain.height_at_world(c.x + ox, c.y + oy)) + self.min_clearance;
         let bottom = c.extend(ground);
         let (sin, cos) = (210f64).to_radians().sin_cos();
         let start = (c + run * DVec2::new(cos, sin)).extend(ground + top);
@@ -391,7 +396,9 @@ impl Envelope {
         let mut cell_max = vec![f64::NEG_INFINITY; cells_x * cells_y];
         for v in 0..terrain.height() {
             for u in 0..terrain.width() {
+                // Local to the terrain's south-west corner, like the tracks.
                 let (x, y) = terrain.grid_to_world(f64::from(u), f64::from(v));
+                let (x, y) = (x - terrain.origin().0, y - terrain.origin().1);
                 let (cx, cy) = (
                     index(x / cell).min(cells_x - 1),
                     index(y / cell).min(cells_y - 1),

@@ -14,6 +14,8 @@ pub struct Heightmap {
     spacing: f32,
     heights: Vec<f32>,
     voids_filled: u64,
+    /// World position (x east, y north, metres) of the south-west corner sample; (0, 0) unless placed.
+    origin: (f64, f64),
 }
 
 impl Heightmap {
@@ -64,6 +66,7 @@ impl Heightmap {
             spacing,
             heights,
             voids_filled: 0,
+            origin: (0.0, 0.0),
         })
     }
 
@@ -72,6 +75,25 @@ impl Heightmap {
     pub fn with_voids_filled(mut self, voids: u64) -> Self {
         self.voids_filled = voids;
         self
+    }
+
+    /// Places the terrain in the world: its south-west corner sample at (`x`, `y`) metres instead of the
+    /// origin. Every stage maps world to grid through [`Heightmap::world_to_grid`] (in f64, the offset
+    /// subtracted first), so a terrain 1e6 m out renders like one at the origin. Panics on a non-finite
+    /// offset (a caller bug).
+    #[must_use]
+    pub fn with_origin(mut self, x: f64, y: f64) -> Self {
+        assert!(
+            x.is_finite() && y.is_finite(),
+            "terrain origin ({x}, {y}) must be finite"
+        );
+        self.origin = (x, y);
+        self
+    }
+
+    /// World position of the south-west corner sample, metres.
+    pub fn origin(&self) -> (f64, f64) {
+        self.origin
     }
 
     /// Samples per row.
@@ -130,18 +152,25 @@ impl Heightmap {
             })
     }
 
-    /// World position (x east, y north, metres) of grid sample column `u`, row `v`: x = u s, y = (rows - 1 - v) s.
+    /// World position (x east, y north, metres) of grid sample column `u`, row `v`: x = x0 + u s,
+    /// y = y0 + (rows - 1 - v) s, with (x0, y0) the [`Heightmap::origin`].
     ///
-    /// Row 0 is the north edge; the south-west corner sample sits at the world origin.
+    /// Row 0 is the north edge; the south-west corner sample sits at the origin, (0, 0) by default.
     pub fn grid_to_world(&self, u: f64, v: f64) -> (f64, f64) {
         let s = f64::from(self.spacing);
-        (u * s, (f64::from(self.height - 1) - v) * s)
+        (
+            self.origin.0 + u * s,
+            self.origin.1 + (f64::from(self.height - 1) - v) * s,
+        )
     }
 
     /// Inverse of [`Heightmap::grid_to_world`]: fractional column and row of a world position.
     pub fn world_to_grid(&self, x: f64, y: f64) -> (f64, f64) {
         let s = f64::from(self.spacing);
-        (x / s, f64::from(self.height - 1) - y / s)
+        (
+            (x - self.origin.0) / s,
+            f64::from(self.height - 1) - (y - self.origin.1) / s,
+        )
     }
 
     /// Height at a world position by bilinear interpolation, clamped at the border.

@@ -161,16 +161,7 @@ impl Profile {
 
     /// Parses and validates a profile's TOML text; `source_name` names it in errors.
     pub fn parse(source_name: &str, text: &str) -> Result<Self> {
-        let profile: Self = toml::from_str(text).map_err(|e| {
-            // toml's message names the missing, unknown or mistyped key; keep its line and column too.
-            let msg = e.message().to_string();
-            let field = msg.split('`').nth(1).unwrap_or("?").to_string();
-            let at = e
-                .span()
-                .map(|s| line_col(text, s.start))
-                .unwrap_or_default();
-            Error::config(source_name, field, format!("{msg}{at}"))
-        })?;
+        let profile: Self = toml::from_str(text).map_err(|e| toml_error(source_name, text, &e))?;
         profile.validate(source_name)?;
         Ok(profile)
     }
@@ -299,8 +290,48 @@ impl Profile {
     }
 }
 
+/// A TOML parse error as [`Error::Config`]: the key written where the error points (mistyped values), or
+/// else the field toml's message names (missing, unknown keys), with line and column.
+pub(crate) fn toml_error(source_name: &str, text: &str, e: &toml::de::Error) -> Error {
+    let msg = e.message().to_string();
+    let start = e.span().map(|s| s.start);
+    let field = start
+        .and_then(|o| key_at(text, o))
+        .or_else(|| msg.split('`').nth(1).map(str::to_owned))
+        .unwrap_or_else(|| "?".to_owned());
+    let at = start.map(|o| line_col(text, o)).unwrap_or_default();
+    Error::config(source_name, field, format!("{msg}{at}"))
+}
+
+/// The dotted key whose value starts at byte `offset` (`material.kd`, `lights[1].rgb`), read back from the
+/// text: the key before `=` on that line, under the nearest table header above it.
+fn key_at(text: &str, offset: usize) -> Option<String> {
+    let before = text.get(..offset)?;
+    let line_start = before.rfind('\n').map_or(0, |i| i + 1);
+    let key = before[line_start..].split_once('=')?.0.trim();
+    if key.is_empty() || key.starts_with(['#', '[']) {
+        return None;
+    }
+    let above = &before[..line_start];
+    let table = above.lines().rev().map(str::trim).find_map(|l| {
+        if let Some(name) = l.strip_prefix("[[").and_then(|r| r.split_once("]]")) {
+            let header = format!("[[{}]]", name.0);
+            let index = above.lines().filter(|x| x.trim() == header).count();
+            Some(format!("{}[{}]", name.0.trim(), index.saturating_sub(1)))
+        } else {
+            l.strip_prefix('[')
+                .and_then(|r| r.split_once(']'))
+                .map(|(n, _)| n.trim().to_owned())
+        }
+    });
+    Some(match table {
+        Some(t) => format!("{t}.{key}"),
+        None => key.to_owned(),
+    })
+}
+
 fn line_col(text: &str, offset: usize) -> String {
-    let before = &text[..offset.min(text.len())];
+    let before = text.get(..offset).unwrap_or(text);
     let line = before.matches('\n').count() + 1;
     let col = before.len() - before.rfind('\n').map_or(0, |i| i + 1) + 1;
     format!(" (line {line}, column {col})")

@@ -183,15 +183,8 @@ impl Scene {
 
     /// Parses and validates a scene's TOML text; `source_name` names it in errors.
     pub fn parse(source_name: &str, text: &str) -> Result<Self> {
-        let file: SceneFile = toml::from_str(text).map_err(|e| {
-            let msg = e.message().to_string();
-            let field = msg.split('`').nth(1).unwrap_or("?").to_string();
-            let at = e
-                .span()
-                .map(|s| line_col(text, s.start))
-                .unwrap_or_default();
-            Error::config(source_name, field, format!("{msg}{at}"))
-        })?;
+        let file: SceneFile =
+            toml::from_str(text).map_err(|e| crate::profile::toml_error(source_name, text, &e))?;
         Self::from_file(source_name, &file)
     }
 
@@ -372,11 +365,4 @@ pub fn apply_fog(colour: Vec3, distance_m: f32, fog: Option<&Fog>) -> Vec3 {
             colour * keep + f.rgb * (1.0 - keep)
         }
     }
-}
-
-fn line_col(text: &str, offset: usize) -> String {
-    let before = &text[..offset.min(text.len())];
-    let line = before.matches('\n').count() + 1;
-    let col = before.len() - before.rfind('\n').map_or(0, |i| i + 1) + 1;
-    format!(" (line {line}, column {col})")
 }

@@ -171,3 +171,36 @@ fn fog_blends_toward_its_colour() {
     assert!((far - Vec3::new(0.55, 0.45, 0.4)).length() < 1e-4);
     assert_eq!(scene::apply_fog(c, 1e6, None), c);
 }
+
+#[test]
+fn missing_and_mistyped_fields_are_refused() {
+    // (edit, what the error must mention); each is refused with a config error, never a panic.
+    let cases: [(&str, &str, &str); 8] = [
+        ("name = \"noon\"", "", "name"),
+        ("ks = 0.0", "", "ks"),
+        ("roughness = 0.8", "roughness = \"rough\"", "roughness"),
+        ("kd = [0.32, 0.29, 0.24]", "kd = [0.32, 0.29]", "kd"),
+        ("sharpness = 1.5", "sharpness = nan", "lights[1].sharpness"),
+        ("sharpness = 1.5", "sharpness = inf", "lights[1].sharpness"),
+        ("fog = false", "fog = 3", "fog"),
+        ("[material]", "material = 7\n[materialx]", "material"),
+    ];
+    for (from, to, needle) in cases {
+        assert!(NOON.contains(from), "{from}");
+        let text = NOON.replacen(from, to, 1);
+        match Scene::parse("noon-edit", &text) {
+            Err(e @ Error::Config { .. }) => {
+                let msg = e.to_string();
+                assert!(msg.contains(needle), "`{to}`: {msg} does not name {needle}");
+            }
+            Err(other) => panic!("`{to}`: expected a config error, got {other}"),
+            Ok(_) => panic!("`{to}` accepted"),
+        }
+    }
+    for garbage in ["", "\u{0}\u{1}", "name = ", "[[lights]]\nkind = \"sun\""] {
+        assert!(
+            matches!(Scene::parse("g", garbage), Err(Error::Config { .. })),
+            "{garbage:?}"
+        );
+    }
+}

@@ -17,6 +17,7 @@ use clipsat::{Error, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 
+use super::hashes::{self, HashFile};
 use super::{ProfileArgs, TerrainArgs};
 
 /// The path flown when none is named.
@@ -72,6 +73,13 @@ pub(crate) struct FlyArgs {
     /// With --render: GL context, strict (a real OpenGL ES 3.0 context), gl or auto.
     #[arg(long, value_name = "auto|strict|gl", default_value = "auto")]
     gpu: String,
+    /// Write every frame's hash here, one `frame<TAB>hash` line each, under a header naming the run.
+    #[arg(long, value_name = "FILE")]
+    hash_out: Option<PathBuf>,
+    /// Fly again and compare every frame's hash with FILE (written by --hash-out for the same run); exit 1
+    /// at the first frame that differs.
+    #[arg(long, value_name = "FILE")]
+    check: Option<PathBuf>,
 }
 
 /// What the statistics keep of one frame.
@@ -156,6 +164,34 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
         }
         None => Vec::new(),
     };
+    // Frame-hash file: the header is checked before flying, the hashes as they come.
+    let params = [
+        ("terrain", terrain_name.clone()),
+        ("terrain_hash", hashes::terrain_hash(&hm)),
+        ("profile", profile.name.clone()),
+        ("path", path.to_string()),
+        ("speed", args.speed.to_string()),
+        ("frames", frames.to_string()),
+        ("synth_levels", args.synth_levels.to_string()),
+    ];
+    let expected: Option<HashFile> = match &args.check {
+        Some(p) => {
+            let file = hashes::read(p)?;
+            file.check_params(p, &params)?;
+            Some(file)
+        }
+        None => None,
+    };
+    let mut frame_hashes: Vec<u64> = Vec::new();
+    if args.hash_out.is_some() {
+        frame_hashes
+            .try_reserve_exact(cap)
+            .map_err(|_| Error::Arg {
+                arg: "--frames".into(),
+                reason: format!("{frames}: too many frames to keep hashes for"),
+            })?;
+    }
+    let mut mismatch = None;
 
     let mut run_hash = Hash64::new();
     let mut violations = 0u64;
@@ -163,6 +199,16 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
     for f in 0..frames {
         let camera = flight.camera(f);
         let frame = clipmap.update(camera.eye)?;
+        if args.hash_out.is_some() {
+            frame_hashes.push(frame.hash);
+        }
+        if let Some(e) = &expected {
+            let want = usize::try_from(f).ok().and_then(|i| e.hashes.get(i));
+            if want != Some(&frame.hash) {
+                mismatch = Some((f, want.copied(), frame.hash));
+                break;
+            }
+        }
         run_hash.write_u64(frame.hash);
         final_hash = frame.hash;
         rows.push(Row {
@@ -207,6 +253,15 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
     if let Some((p, mut w)) = csv {
         w.flush().map_err(|e| Error::io(p, "cannot write", e))?;
     }
+    if let Some(p) = &args.hash_out {
+        hashes::write(p, &params, &frame_hashes)?;
+    }
+    if let Some((f, want, got)) = mismatch {
+        // A failed check is a result, not an error in the input: exit 1, as `cmp` and `diff` do.
+        let want = want.map_or_else(|| "nothing".to_owned(), hex);
+        eprintln!("check failed: frame {f}: expected {want}, got {}", hex(got));
+        std::process::exit(1);
+    }
 
     let budget = profile.budget.update_samples_per_frame;
     let stats = Stats::of(&rows, budget);
@@ -244,6 +299,8 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
                 .iter()
                 .map(|(f, h)| json!({ "frame": f, "image_hash": hex(*h) }))
                 .collect::<Vec<_>>(),
+            "hash_out": args.hash_out.as_ref().map(|p| p.display().to_string()),
+            "checked_against": args.check.as_ref().map(|p| p.display().to_string()),
         }));
     } else {
         outln!("terrain      {terrain_name}");
@@ -281,6 +338,9 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
                 dir.display(),
                 hex(*h)
             );
+        }
+        if let Some(p) = &args.check {
+            outln!("check        {frames} frames match {}", p.display());
         }
     }
     Ok(())

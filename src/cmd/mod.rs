@@ -9,6 +9,7 @@ macro_rules! outln {
 }
 
 pub(crate) mod fly;
+pub(crate) mod hashes;
 pub(crate) mod info;
 pub(crate) mod render;
 pub(crate) mod tune_p;

@@ -1,0 +1,131 @@
+//! Proves the whole frame-planning path allocates nothing: `Clipmap::update` and `cull::build_draws` under a
+//! counting global allocator, on every shipped profile and every camera path. Its own test binary (the
+//! global allocator is per binary), one test, so nothing else allocates meanwhile; only this thread counts.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use clipsat::clipmap::{Clipmap, ClipmapOptions};
+use clipsat::cull::{build_draws, DrawList, DrawParams};
+use clipsat::flight::{Flight, Path};
+use clipsat::source::procedural::{generate, ProceduralParams};
+use clipsat::Profile;
+
+struct Counting;
+
+static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
+
+thread_local! {
+    static COUNTING: Cell<bool> = const { Cell::new(false) };
+}
+
+fn note() {
+    if COUNTING.with(Cell::get) {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+    }
+}
+
+// SAFETY: forwards every call to the system allocator unchanged; only counts.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        note();
+        // SAFETY: the caller upholds `GlobalAlloc::alloc`'s contract, passed on as is.
+        unsafe { System.alloc(layout) }
+    }
+
+    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
+        note();
+        // SAFETY: as above.
+        unsafe { System.alloc_zeroed(layout) }
+    }
+
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        note();
+        // SAFETY: as above.
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        // SAFETY: as above.
+        unsafe { System.dealloc(ptr, layout) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+/// Allocations `f` makes on this thread.
+fn count(f: impl FnOnce()) -> u64 {
+    let before = ALLOCATIONS.load(Ordering::Relaxed);
+    COUNTING.with(|c| c.set(true));
+    f();
+    COUNTING.with(|c| c.set(false));
+    ALLOCATIONS.load(Ordering::Relaxed) - before
+}
+
+#[test]
+fn update_and_draw_list_allocate_nothing() {
+    assert!(count(|| drop(std::hint::black_box(vec![1u8; 16]))) > 0);
+    let hm = generate(&ProceduralParams {
+        seed: 5,
+        size: 513,
+        spacing: 30.0,
+    })
+    .expect("procedural");
+    let data_lattice = (f64::from(hm.width() - 1), f64::from(hm.height() - 1));
+    for name in ["gles3-low", "gles3-mid", "desktop"] {
+        let prof = Profile::load(name).expect("shipped profile");
+        for synth_levels in [0, 1] {
+            let mut cm =
+                Clipmap::new(&hm, &prof, ClipmapOptions { synth_levels }).expect("clipmap");
+            let k = f64::from(1u32 << synth_levels);
+            let mut draws = DrawList::new();
+            let aspect = f64::from(prof.view.width) / f64::from(prof.view.height);
+            for path in [
+                Path::Straight,
+                Path::Circle,
+                Path::Figure8,
+                Path::Dive,
+                Path::Teleport { every: 30 },
+            ] {
+                let flight = Flight::new(path, 150.0, &hm)
+                    .expect("flight")
+                    .with_fov_y_deg(f64::from(prof.view.fov_y_deg));
+                // Warm-up outside the count: the first frames fill the rings.
+                for f in 0..5 {
+                    cm.update(flight.camera(f).eye).expect("update");
+                }
+                let mut frames = 0u32;
+                let n = count(|| {
+                    for f in 5..50 {
+                        let cam = flight.camera(f);
+                        cm.update(cam.eye).expect("update");
+                        let p = cm.eye_lattice(cam.eye);
+                        let g0 = cm.g0();
+                        let params = DrawParams {
+                            block_quads: (prof.clipmap.n + 1) / 4,
+                            max_draws: prof.budget.max_draws,
+                            cull: true,
+                            skirts: true,
+                            aspect,
+                            extent: [
+                                -p.0 * g0,
+                                -(data_lattice.1 * k - p.1) * g0,
+                                (data_lattice.0 * k - p.0) * g0,
+                                p.1 * g0,
+                            ],
+                        };
+                        build_draws(&cm, &cam, &params, &mut draws).expect("draws");
+                        frames += 1;
+                    }
+                });
+                assert_eq!(
+                    n, 0,
+                    "{name} synth {synth_levels} {path}: {n} allocations in {frames} planned frames"
+                );
+                assert!(!draws.is_empty(), "{name} {path}: nothing drawn");
+            }
+        }
+    }
+}

@@ -1,0 +1,331 @@
+//! Bad input everywhere: each case is a clear error or a documented clamp, never a panic, and a refused
+//! input leaves no trace in the next frame.
+//!
+//! Documented behaviour tested here:
+//! - `Clipmap::update` refuses a non-finite eye and an eye beyond the lattice (|coordinate| >= 2^48 level-0
+//!   samples) with `Error::Camera`, before touching any state.
+//! - Any finite eye inside the lattice is accepted, however far from the data: the terrain extends flat
+//!   beyond its border (edge samples repeat), so rings fill with edge heights. An eye at or below the ground
+//!   counts as height 0 (every level enabled); a very high eye keeps only the coarsest level.
+//! - `clipsat render --camera/--look-at` refuses NaN, infinite and coincident points with exit 2.
+//!
+//! Profile fields are covered by tests/profiles.rs, scene fields by tests/scene.rs, loaders by
+//! tests/sources.rs; here the same file problems go through the binary.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use clipsat::clipmap::{Clipmap, ClipmapOptions};
+use clipsat::flight::{Flight, Path as FlightPath};
+use clipsat::source::procedural::{generate, ProceduralParams};
+use clipsat::{Error, Heightmap, Profile};
+use glam::DVec3;
+
+fn terrain() -> Heightmap {
+    generate(&ProceduralParams {
+        seed: 3,
+        size: 257,
+        spacing: 30.0,
+    })
+    .expect("procedural")
+}
+
+fn clipmap(hm: &Heightmap, synth: u32) -> Clipmap {
+    let p = Profile::load("gles3-low").expect("profile");
+    Clipmap::new(
+        hm,
+        &p,
+        ClipmapOptions {
+            synth_levels: synth,
+        },
+    )
+    .expect("clipmap")
+}
+
+/// Every texel of every active region equals the CPU twin `Clipmap::sample`: the rings hold no stale or
+/// corrupted data where they are drawn.
+fn assert_rings_true(cm: &Clipmap, tag: &str) {
+    let frame = cm.frame();
+    for (l, lf) in frame.levels.iter().enumerate() {
+        let a = lf.active;
+        if a.is_empty() {
+            continue;
+        }
+        let l32 = u32::try_from(l).expect("level");
+        let ring = cm.ring(l32);
+        for j in a.y0..a.y0 + i64::from(a.h) {
+            for i in a.x0..a.x0 + i64::from(a.w) {
+                let (got, want) = (ring.get(i, j), cm.sample(l32, i, j));
+                assert!(
+                    got[0].to_bits() == want[0].to_bits() && got[1].to_bits() == want[1].to_bits(),
+                    "{tag}: level {l} sample ({i}, {j}) is {got:?}, expected {want:?}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn refused_eyes_leave_no_trace() {
+    let hm = terrain();
+    let flight = Flight::new(FlightPath::Figure8, 90.0, &hm).expect("flight");
+    let bad = [
+        DVec3::new(f64::NAN, 100.0, 300.0),
+        DVec3::new(100.0, f64::INFINITY, 300.0),
+        DVec3::new(100.0, 100.0, f64::NEG_INFINITY),
+        DVec3::new(1e300, 100.0, 300.0),
+        DVec3::new(100.0, -1e17, 300.0),
+    ];
+    for synth in [0, 1] {
+        let mut clean = clipmap(&hm, synth);
+        let mut dirty = clipmap(&hm, synth);
+        for f in 0..80u64 {
+            let eye = flight.camera(f).eye;
+            if f % 10 == 3 {
+                let before = dirty.frame().hash;
+                for b in bad {
+                    match dirty.update(b) {
+                        Err(Error::Camera(msg)) => assert!(!msg.is_empty()),
+                        other => panic!("eye {b}: expected a camera error, got {other:?}"),
+                    }
+                    assert_eq!(
+                        dirty.frame().hash,
+                        before,
+                        "a refused eye changed the frame"
+                    );
+                }
+            }
+            let want = clean.update(eye).expect("update").hash;
+            let got = dirty.update(eye).expect("update").hash;
+            assert_eq!(
+                got, want,
+                "synth {synth} frame {f}: differs after refused eyes"
+            );
+        }
+        assert_rings_true(&dirty, "after refused eyes");
+    }
+}
+
+#[test]
+fn far_low_and_high_eyes_are_clamped_not_panics() {
+    let hm = terrain();
+    let (ex, ey) = hm.extent_m();
+    let centre = DVec3::new(ex / 2.0, ey / 2.0, 400.0);
+    let accepted = [
+        ("1e7 m east", DVec3::new(1e7, ey / 2.0, 400.0)),
+        ("1e7 m south-west", DVec3::new(-1e7, -1e7, 400.0)),
+        ("near the lattice edge", DVec3::new(1e15, -1e15, 400.0)),
+        ("at sea level", DVec3::new(ex / 2.0, ey / 2.0, 0.0)),
+        ("far below ground", DVec3::new(ex / 3.0, ey / 3.0, -5000.0)),
+        ("1e6 m up", DVec3::new(ex / 2.0, ey / 2.0, 1e6)),
+        ("1e12 m up", DVec3::new(ex / 2.0, ey / 2.0, 1e12)),
+    ];
+    for synth in [0, 1] {
+        let mut cm = clipmap(&hm, synth);
+        let prof = Profile::load("gles3-low").expect("profile");
+        let budget = prof.budget.update_samples_per_frame;
+        for (what, eye) in accepted {
+            for _ in 0..3 {
+                let f = cm
+                    .update(eye)
+                    .unwrap_or_else(|e| panic!("{what}: refused: {e}"));
+                assert!(f.samples_updated <= budget, "{what}: over budget");
+                if let Err(v) = cm.check_constraints() {
+                    panic!("synth {synth}, {what}: {v}");
+                }
+            }
+            if eye.z >= 1e6 {
+                // Only the coarsest level is kept far above the terrain.
+                let frame = cm.frame();
+                assert_eq!(
+                    frame.disabled_levels,
+                    cm.levels() - 1,
+                    "{what}: disabled levels"
+                );
+            }
+            // Back home: the rings converge to the true heights.
+            while cm.pending_samples(centre) > 0 {
+                cm.update(centre).expect("update");
+            }
+            assert_rings_true(&cm, what);
+        }
+    }
+}
+
+// ---- through the binary ---------------------------------------------------------------------------
+
+fn clipsat(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_clipsat"))
+        .args(args)
+        .output()
+        .expect("run the clipsat binary")
+}
+
+fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// Exit 2 with one `error:` line mentioning `needle`, no panic.
+fn assert_refused(out: &Output, needle: &str, what: &str) {
+    let err = stderr(out);
+    assert_eq!(out.status.code(), Some(2), "{what}: {err}");
+    assert!(!err.contains("panicked"), "{what}: {err}");
+    assert!(
+        err.starts_with("error: ") && err.lines().count() == 1,
+        "{what}: not a one-line error: {err}"
+    );
+    assert!(
+        err.contains(needle),
+        "{what}: error does not name `{needle}`: {err}"
+    );
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join("bad_input")
+        .join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("create scratch folder");
+    dir
+}
+
+#[test]
+fn render_refuses_bad_cameras_and_survives_odd_ones() {
+    let dir = scratch("render");
+    let out = dir.join("x.png");
+    let o = out.to_string_lossy();
+    let base = [
+        "render",
+        "--profile",
+        "gles3-low",
+        "--terrain",
+        "procedural:size=129",
+        "--size",
+        "64x36",
+        "--out",
+        &o,
+        "--json",
+    ];
+    let refused = [
+        ("nan,0,500", "1000,1000,0", "not finite"),
+        ("0,inf,500", "1000,1000,0", "not finite"),
+        ("0,0,500", "-inf,1000,0", "not finite"),
+        ("100,200,300", "100,200,300", "zero length"),
+        ("100,200,300", "100,200,-50", "straight"),
+        ("1,2", "100,200,300", "--camera"),
+        ("1,2,x", "100,200,300", "--camera"),
+    ];
+    for (eye, at, needle) in refused {
+        let mut a = base.to_vec();
+        a.extend(["--camera", eye, "--look-at", at]);
+        assert_refused(&clipsat(&a), needle, &format!("{eye} -> {at}"));
+    }
+    // Accepted: far away, at and below the ground, very high. The frame renders (clear sky or terrain).
+    let accepted = [
+        ("1e7,1e7,500", "1900,1900,0"),
+        ("-1e7,500,500", "1900,1900,0"),
+        ("1900,1900,0", "3000,3000,0"),
+        ("1900,1900,-3000", "3000,3000,-2900"),
+        ("1900,1900,1e6", "1901,1950,0"),
+    ];
+    for (eye, at) in accepted {
+        let mut a = base.to_vec();
+        a.extend(["--camera", eye, "--look-at", at]);
+        let r = clipsat(&a);
+        let err = stderr(&r);
+        assert!(r.status.success(), "{eye} -> {at}: {err}");
+        assert!(!err.contains("panicked"), "{eye} -> {at}: {err}");
+        let j: serde_json::Value = serde_json::from_slice(&r.stdout).expect("JSON");
+        assert!(j["image_hash"].is_string(), "{j}");
+    }
+}
+
+fn crc32(bytes: &[u8]) -> u32 {
+    let mut c = !0u32;
+    for &b in bytes {
+        c ^= u32::from(b);
+        for _ in 0..8 {
+            c = if c & 1 == 1 {
+                0xEDB8_8320 ^ (c >> 1)
+            } else {
+                c >> 1
+            };
+        }
+    }
+    !c
+}
+
+/// A PNG that declares `w` x `h` 16-bit grey (valid CRCs) and holds no pixels.
+fn png_header(w: u32, h: u32) -> Vec<u8> {
+    let mut out = b"\x89PNG\r\n\x1a\n".to_vec();
+    let mut data = w.to_be_bytes().to_vec();
+    data.extend(h.to_be_bytes());
+    data.extend([16, 0, 0, 0, 0]);
+    out.extend(u32::try_from(data.len()).expect("len").to_be_bytes());
+    let start = out.len();
+    out.extend(b"IHDR");
+    out.extend(&data);
+    let crc = crc32(&out[start..]);
+    out.extend(crc.to_be_bytes());
+    out
+}
+
+#[test]
+fn bad_terrain_files_exit_2_naming_the_file() {
+    let dir = scratch("terrain");
+    let f32s = |v: &[f32]| -> Vec<u8> { v.iter().flat_map(|x| x.to_le_bytes()).collect() };
+    let mut nan = vec![1.0f32; 12];
+    nan[6] = f32::NAN;
+    let cases: Vec<(&str, Vec<u8>, Vec<&str>)> = vec![
+        ("empty.png", Vec::new(), vec![]),
+        ("empty.tif", Vec::new(), vec![]),
+        ("magic.png", b"GIF89a, not a png".to_vec(), vec![]),
+        ("magic.tif", b"\x89PNG\r\n\x1a\n....".to_vec(), vec![]),
+        ("truncated.png", png_header(64, 64), vec![]),
+        (
+            "truncated.tif",
+            b"II*\x00\x08\x00\x00\x00\x0a".to_vec(),
+            vec![],
+        ),
+        ("N00E000.hgt", vec![0u8; 1000], vec![]),
+        ("huge.png", png_header(200_000, 200_000), vec![]),
+        (
+            "huge.raw",
+            vec![0u8; 64],
+            vec!["--raw-size", "200000x200000"],
+        ),
+        ("short.raw", vec![0u8; 64], vec!["--raw-size", "100x100"]),
+        (
+            "nan.f32",
+            f32s(&nan),
+            vec!["--raw-size", "4x3", "--raw-format", "f32"],
+        ),
+        (
+            "inf.f32",
+            f32s(&[1.0, f32::INFINITY, 0.0, 0.0]),
+            vec!["--raw-size", "2x2", "--raw-format", "f32"],
+        ),
+        ("text.dem", b"whatever".to_vec(), vec![]),
+    ];
+    for (name, bytes, extra) in &cases {
+        let p = dir.join(name);
+        std::fs::write(&p, bytes).expect("write fixture");
+        let t = p.to_string_lossy();
+        let named = p.display().to_string();
+        for cmd in [
+            vec!["info", "--terrain", &t],
+            vec!["fly", "--terrain", &t, "--frames", "2"],
+        ] {
+            let mut a = cmd.clone();
+            a.extend(extra.iter().copied());
+            assert_refused(&clipsat(&a), &named, &format!("{} {name}", cmd[0]));
+        }
+    }
+    let missing = dir.join("missing.tif");
+    let m = missing.to_string_lossy();
+    assert_refused(
+        &clipsat(&["info", "--terrain", &m]),
+        &missing.display().to_string(),
+        "missing file",
+    );
+}

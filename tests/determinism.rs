@@ -1,0 +1,142 @@
+//! Determinism: outputs depend on the inputs only, not on llvmpipe's thread count (`LP_NUM_THREADS`), on
+//! other load on the machine, or on the run. The binary runs as a subprocess so each run gets its own
+//! environment and its own GL context.
+//!
+//! Debug against release is pinned elsewhere: `frame_hash_sequence_is_pinned` in tests/fly_paths.rs holds a
+//! golden frame-hash sequence that `cargo test --release --test fly_paths` must reproduce.
+
+use std::process::{Command, Output};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+fn clipsat(args: &[&str], env: &[(&str, &str)]) -> Output {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_clipsat"));
+    c.args(args);
+    for (k, v) in env {
+        c.env(k, v);
+    }
+    c.output().expect("run the clipsat binary")
+}
+
+fn json(out: &Output) -> serde_json::Value {
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "clipsat failed: {err}");
+    assert!(!err.contains("panicked"), "{err}");
+    serde_json::from_slice(&out.stdout).expect("stdout is JSON")
+}
+
+fn field(j: &serde_json::Value, key: &str) -> String {
+    j[key]
+        .as_str()
+        .unwrap_or_else(|| panic!("no `{key}` in {j}"))
+        .to_owned()
+}
+
+const FLY: [&str; 12] = [
+    "fly",
+    "--profile",
+    "gles3-low",
+    "--terrain",
+    "procedural:size=257",
+    "--path",
+    "teleport:25",
+    "--frames",
+    "100",
+    "--speed",
+    "150",
+    "--json",
+];
+
+/// The per-frame hashes of a `fly` run (through `--hash-out`) and its run hash.
+fn fly_hashes(tag: &str, env: &[(&str, &str)]) -> (String, String) {
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("determinism");
+    std::fs::create_dir_all(&dir).expect("scratch folder");
+    let file = dir.join(format!("{tag}.txt"));
+    let f = file.to_string_lossy();
+    let mut args = FLY.to_vec();
+    args.extend(["--hash-out", &f]);
+    let j = json(&clipsat(&args, env));
+    let text = std::fs::read_to_string(&file).expect("hash file");
+    (text, field(&j, "run_hash"))
+}
+
+const RENDER: [&str; 12] = [
+    "render",
+    "--profile",
+    "gles3-low",
+    "--terrain",
+    "procedural:size=257",
+    "--size",
+    "160x90",
+    "--camera",
+    "-500,-500,900",
+    "--look-at",
+    "3000,3000,0",
+    "--json",
+];
+
+fn render_hash(tag: &str, env: &[(&str, &str)]) -> String {
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("determinism");
+    std::fs::create_dir_all(&dir).expect("scratch folder");
+    let png = dir.join(format!("{tag}.png"));
+    let p = png.to_string_lossy();
+    let mut args = RENDER.to_vec();
+    args.extend(["--out", &p]);
+    field(&json(&clipsat(&args, env)), "image_hash")
+}
+
+#[test]
+fn the_same_fly_through_twice_gives_the_same_frame_hashes() {
+    let a = fly_hashes("twice-a", &[]);
+    let b = fly_hashes("twice-b", &[]);
+    assert_eq!(a, b);
+    // And `--check` agrees with it.
+    let file = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("determinism/twice-a.txt");
+    let f = file.to_string_lossy();
+    let mut args = FLY.to_vec();
+    args.extend(["--check", &f]);
+    json(&clipsat(&args, &[]));
+}
+
+#[test]
+fn llvmpipe_thread_count_changes_nothing() {
+    let one = render_hash("lp1", &[("LP_NUM_THREADS", "1")]);
+    let four = render_hash("lp4", &[("LP_NUM_THREADS", "4")]);
+    assert_eq!(one, four, "image hash with LP_NUM_THREADS=1 vs 4");
+    // The CPU plan does not use llvmpipe, but the environment must not leak into it either.
+    let one = fly_hashes("fly-lp1", &[("LP_NUM_THREADS", "1")]);
+    let four = fly_hashes("fly-lp4", &[("LP_NUM_THREADS", "4")]);
+    assert_eq!(one, four, "frame hashes with LP_NUM_THREADS=1 vs 4");
+    eprintln!("image {one:?} / frames {}", four.1);
+}
+
+#[test]
+fn concurrent_cpu_load_changes_nothing() {
+    let quiet_image = render_hash("quiet", &[("LP_NUM_THREADS", "4")]);
+    let quiet_fly = fly_hashes("quiet", &[]);
+
+    // Busy threads compete with the render and the flight for the CPU (timing changes, results must not).
+    let stop = Arc::new(AtomicBool::new(false));
+    let busy: Vec<_> = (0..4)
+        .map(|i| {
+            let stop = Arc::clone(&stop);
+            std::thread::spawn(move || {
+                let mut x = 0x9E37_79B9_u64 + i;
+                while !stop.load(Ordering::Relaxed) {
+                    for _ in 0..10_000 {
+                        x = x.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+                    }
+                    std::hint::black_box(x);
+                }
+            })
+        })
+        .collect();
+    let loaded_image = render_hash("loaded", &[("LP_NUM_THREADS", "4")]);
+    let loaded_fly = fly_hashes("loaded", &[]);
+    stop.store(true, Ordering::Relaxed);
+    for t in busy {
+        t.join().expect("busy thread");
+    }
+    assert_eq!(quiet_image, loaded_image, "image hash under load");
+    assert_eq!(quiet_fly, loaded_fly, "frame hashes under load");
+}

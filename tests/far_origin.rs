@@ -1,0 +1,107 @@
+//! Far from the origin: a terrain placed 1e6 m out (`Heightmap::with_origin`) plans and renders like the
+//! same terrain at the origin, because the offset is subtracted in f64 before any lattice maths
+//! (`Clipmap::eye_lattice`) and the GPU only sees eye-relative positions (`Camera::view_proj_relative`).
+
+mod render_support;
+
+use clipsat::clipmap::{Clipmap, ClipmapOptions};
+use clipsat::flight::{Flight, Path};
+use clipsat::gpu::readback::Image;
+use clipsat::renderer::{render_frame, FrameOptions, Renderer};
+use glam::DVec3;
+
+/// Offsets tried, metres east and north.
+const OFFSETS: [(f64, f64); 3] = [
+    (1.0e6, 1.0e6),
+    (-1.0e6, 2.5e6),
+    (1.0e6 + 0.37, -1.0e6 + 0.61),
+];
+
+#[test]
+fn the_plan_is_the_same_far_from_the_origin() {
+    let base = render_support::relief();
+    let prof = render_support::profile("gles3-low", 160, 90, None);
+    for (ox, oy) in OFFSETS {
+        let far = base.clone().with_origin(ox, oy);
+        for path in [Path::Figure8, Path::Teleport { every: 30 }, Path::Dive] {
+            let (fa, fb) = (
+                Flight::new(path, 60.0, &base).expect("flight"),
+                Flight::new(path, 60.0, &far).expect("flight"),
+            );
+            let mut a = Clipmap::new(&base, &prof, ClipmapOptions::default()).expect("clipmap");
+            let mut b = Clipmap::new(&far, &prof, ClipmapOptions::default()).expect("clipmap");
+            for f in 0..150 {
+                let (ea, eb) = (fa.camera(f).eye, fb.camera(f).eye);
+                let moved = eb - ea;
+                assert!(
+                    (moved - DVec3::new(ox, oy, 0.0)).abs().max_element() < 1e-6,
+                    "{path} frame {f}: the flight moved by {moved}, not the offset"
+                );
+                let ha = a.update(ea).expect("update").hash;
+                let hb = b.update(eb).expect("update").hash;
+                assert_eq!(
+                    ha, hb,
+                    "offset ({ox}, {oy}) {path} frame {f}: frame differs"
+                );
+                let (pa, pb) = (a.eye_lattice(ea), b.eye_lattice(eb));
+                assert!(
+                    (pa.0 - pb.0).abs() < 1e-6 && (pa.1 - pb.1).abs() < 1e-6,
+                    "{path} frame {f}: eye lattice {pa:?} vs {pb:?}"
+                );
+            }
+        }
+    }
+}
+
+/// Largest per-channel difference and the mean absolute difference (RGB, 8-bit levels).
+fn diff(a: &Image, b: &Image) -> (u8, f64) {
+    let (mut max, mut sum) = (0u8, 0u64);
+    for (p, q) in a.rgba.chunks_exact(4).zip(b.rgba.chunks_exact(4)) {
+        for c in 0..3 {
+            let d = p[c].abs_diff(q[c]);
+            max = max.max(d);
+            sum += u64::from(d);
+        }
+    }
+    (max, sum as f64 / (a.rgba.len() / 4 * 3) as f64)
+}
+
+#[test]
+fn the_image_is_the_same_far_from_the_origin() {
+    let gpu = render_support::strict();
+    let base = render_support::relief();
+    let prof = render_support::profile("gles3-low", 160, 90, None);
+    let mut exact = 0;
+    let mut frames = 0;
+    let mut worst = (0u8, 0.0f64);
+    for (ox, oy) in OFFSETS {
+        let far = base.clone().with_origin(ox, oy);
+        let offset = DVec3::new(ox, oy, 0.0);
+        let mut a = Clipmap::new(&base, &prof, ClipmapOptions::default()).expect("clipmap");
+        let mut b = Clipmap::new(&far, &prof, ClipmapOptions::default()).expect("clipmap");
+        let mut ra = Renderer::new(&gpu, &prof, &a).expect("renderer");
+        let mut rb = Renderer::new(&gpu, &prof, &b).expect("renderer");
+        for i in 0..8 {
+            let cam = render_support::flight(&base, i * 9, 120.0, 250.0, Some(5 * 9));
+            let mut cam_far = cam;
+            cam_far.eye += offset;
+            cam_far.target += offset;
+            a.update(cam.eye).expect("update");
+            b.update(cam_far.eye).expect("update");
+            let ia = render_frame(&mut ra, &a, &cam, &FrameOptions::default()).expect("frame");
+            let ib = render_frame(&mut rb, &b, &cam_far, &FrameOptions::default()).expect("frame");
+            let (max, mean) = diff(&ia.image, &ib.image);
+            assert!(
+                max <= 2 && mean < 0.05,
+                "offset ({ox}, {oy}) frame {i}: images differ, max {max} levels, mean {mean:.4}"
+            );
+            exact += u32::from(ia.image_hash == ib.image_hash);
+            frames += 1;
+            worst = (worst.0.max(max), worst.1.max(mean));
+        }
+    }
+    eprintln!(
+        "{frames} frames: {exact} bit-identical; worst max diff {} levels, worst mean {:.5}",
+        worst.0, worst.1
+    );
+}
