@@ -253,14 +253,15 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
     if let Some((p, mut w)) = csv {
         w.flush().map_err(|e| Error::io(p, "cannot write", e))?;
     }
-    if let Some(p) = &args.hash_out {
-        hashes::write(p, &params, &frame_hashes)?;
-    }
     if let Some((f, want, got)) = mismatch {
-        // A failed check is a result, not an error in the input: exit 1, as `cmp` and `diff` do.
+        // A failed check is a result, not an error in the input: exit 1, as `cmp` and `diff` do (and no
+        // partial --hash-out file).
         let want = want.map_or_else(|| "nothing".to_owned(), hex);
         eprintln!("check failed: frame {f}: expected {want}, got {}", hex(got));
         std::process::exit(1);
+    }
+    if let Some(p) = &args.hash_out {
+        hashes::write(p, &params, &frame_hashes)?;
     }
 
     let budget = profile.budget.update_samples_per_frame;
