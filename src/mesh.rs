@@ -54,7 +54,8 @@ pub fn skirt_bytes(side: u32) -> u64 {
     2 * (4 * s + 1) * 8 + 4 * s * 6 * 2
 }
 
-/// A `quads x quads` grid of vertices (0..=quads)^2, two triangles per quad.
+/// A `quads x quads` grid of vertices (0..=quads)^2, two triangles per quad, in shell order: indices
+/// `0..6 k^2` are the top-left k x k quads ([`block_prefix`]).
 ///
 /// Quads split along (i, j)-(i+1, j+1), the project-wide diagonal (the one `clipmap`'s odd-odd z_c and the
 /// brute-force reference use), so the clipmap surface is the same piecewise-linear surface.
@@ -73,15 +74,28 @@ pub fn block(quads: u32) -> Mesh {
     }
     let mut indices = Vec::with_capacity(quads as usize * quads as usize * 6);
     let s = q + 1;
-    for y in 0..q {
-        for x in 0..q {
-            let nw = y * s + x;
-            let (ne, sw) = (nw + 1, nw + s);
-            let se = sw + 1;
-            indices.extend_from_slice(&[nw, sw, se, nw, se, ne]);
+    let mut quad = |x: u16, y: u16| {
+        let nw = y * s + x;
+        let (ne, sw) = (nw + 1, nw + s);
+        let se = sw + 1;
+        indices.extend_from_slice(&[nw, sw, se, nw, se, ne]);
+    };
+    // Shell order (quads with max(x, y) = k after every quad of a smaller k): the first k^2 quads are the
+    // k x k top-left square, so a block of fewer quads (SAT LOD) draws a prefix of the index buffer.
+    for k in 0..q {
+        for y in 0..k {
+            quad(k, y);
+        }
+        for x in 0..=k {
+            quad(x, k);
         }
     }
     Mesh { vertices, indices }
+}
+
+/// Indices of [`block`]'s top-left `k x k` quads (a prefix of its index buffer).
+pub fn block_prefix(k: u32) -> u32 {
+    6 * k * k
 }
 
 /// A closed skirt around the square [0, side]^2: for each of the 4 side + 1 boundary points (walked
@@ -126,6 +140,18 @@ mod tests {
         assert_eq!(&b.indices[..6], &[0, 5, 6, 0, 6, 1]);
         assert_eq!(b.bytes(), block_bytes(4));
         assert!(b.indices.iter().all(|&i| usize::from(i) < b.vertices.len()));
+        // Every prefix of k^2 quads is exactly the k x k top-left square.
+        for k in 0..=4u16 {
+            let n = block_prefix(u32::from(k)) as usize;
+            let mut seen: Vec<u16> = b.indices[..n].to_vec();
+            seen.sort_unstable();
+            seen.dedup();
+            assert!(seen.iter().all(|&i| i % 5 <= k && i / 5 <= k), "k {k}");
+            assert_eq!(
+                seen.len(),
+                if k == 0 { 0 } else { usize::from(k + 1).pow(2) }
+            );
+        }
     }
 
     #[test]
