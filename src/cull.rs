@@ -19,6 +19,8 @@ pub enum DrawKind {
     Block,
     /// The ring skirt mesh, clamped onto the boundary of `bounds`.
     Skirt,
+    /// The tile skirt mesh (around m quads), clamped onto the boundary of `bounds`: a SAT LOD tile's skirt.
+    TileSkirt,
 }
 
 /// One draw call: a mesh placed at `origin` of a level's lattice, its vertices clamped into `bounds`.
@@ -33,15 +35,18 @@ pub struct Draw {
     /// Vertex rectangle (level units) the mesh's vertices are clamped into.
     pub bounds: Rect,
     /// Blocks: the top-left `quads x quads` of the block mesh are drawn (the whole mesh when it is the
-    /// mesh's size; SAT LOD blocks of fewer quads draw a prefix, [`crate::mesh::block_prefix`]). Skirts: 0.
+    /// mesh's size; SAT LOD blocks of fewer quads draw a prefix, [`crate::mesh::block_prefix`]). Tile
+    /// skirts: the tile's side, picking the loop ([`crate::mesh::skirt_loop_range`]). Ring skirts: 0.
     pub quads: u32,
+    /// SAT LOD: the block's wanted level was finer than any held data covering it (the selection clamped).
+    pub clamped: bool,
 }
 
 impl Draw {
     /// The vertices this draw really covers: its mesh footprint at `origin` clamped into `bounds`.
     pub fn covered(&self, block_quads: u32) -> Rect {
         match self.kind {
-            DrawKind::Skirt => self.bounds,
+            DrawKind::Skirt | DrawKind::TileSkirt => self.bounds,
             DrawKind::Block => {
                 let q = i64::from(block_quads);
                 Rect::from_bounds(
@@ -292,6 +297,7 @@ pub fn build_draws(
                         origin: [r.x0 + bx, r.y0 + by],
                         bounds: r,
                         quads: params.block_quads,
+                        clamped: false,
                     };
                     let visible = !params.cull || {
                         let c = d.covered(params.block_quads);
@@ -320,6 +326,7 @@ pub fn build_draws(
                     origin: [bounds.x0, bounds.y0],
                     bounds,
                     quads: 0,
+                    clamped: false,
                 },
             )?;
             stats.skirts += 1;
@@ -411,9 +418,10 @@ fn piece_level(frame: &crate::frame::Frame, ring: u32, selected: u32, p: &Rect) 
 /// Builds the SAT LOD draw list (design.md "SAT LOD" 6-7) into `out` (cleared first): every block of `lod`
 /// minus the finer ring's active region, drawn at the level the selection chose, as tiles of at most m x m
 /// quads of that level (one block-mesh draw each, a prefix of its indices when smaller). Blocks are culled
-/// like [`build_draws`]'s. Skirts: each level's outer and hole boundaries as in [`build_draws`], plus one
-/// around each tile of a block drawn at another level than its ring or edge-adjacent to such a block of the
-/// same ring, so every boundary between different levels has a skirt on both sides. More than
+/// like [`build_draws`]'s. Skirts (the smallest tile skirt loop that spans the tile, culled with it): around
+/// each tile of a block that is drawn at another level than its ring, is edge-adjacent to such a block of the
+/// same ring, or lies on its ring's outer or hole boundary, so every boundary between different levels has a
+/// skirt on both sides. More than
 /// `params.max_draws` draws is an [`Error::Capacity`].
 pub fn build_lod_draws(
     clipmap: &Clipmap,
@@ -456,17 +464,23 @@ pub fn build_lod_draws(
                 .any(|p| piece_level(frame, b.ring, b.level, p) != b.ring)
     };
     let blocks = &lod.blocks;
+    let mut differ = [false; crate::lod::MAX_LOD_BLOCKS];
+    for (f, b) in differ.iter_mut().zip(blocks.iter()) {
+        *f = differs(b);
+    }
     for (i, b) in blocks.iter().enumerate() {
         let (cx, cy) = cell(&b.rect);
-        // Blocks are ring by ring, row-major: neighbours of the same ring are near in the list.
+        // A block on its ring's outer boundary or on the hole borders another ring, drawn at another level.
+        let a = frame.levels[b.ring as usize].active;
+        let r = &b.rect;
+        let on_ring_edge = r.x0 == a.x0 || r.y0 == a.y0 || r.x1() == a.x1() || r.y1() == a.y1();
         let needs_skirt = params.skirts
-            && (differs(b)
+            && (differ[i]
+                || on_ring_edge
+                || !r.intersect(&hole_of(b.ring)).is_empty()
                 || blocks.iter().enumerate().any(|(j, o)| {
                     let (ox, oy) = cell(&o.rect);
-                    j != i
-                        && o.ring == b.ring
-                        && (ox - cx).abs() + (oy - cy).abs() == 1
-                        && differs(o)
+                    differ[j] && o.ring == b.ring && (ox - cx).abs() + (oy - cy).abs() == 1
                 }));
         for p in block_pieces(&b.rect, &hole_of(b.ring)) {
             let level = piece_level(frame, b.ring, b.level, &p);
@@ -492,6 +506,7 @@ pub fn build_lod_draws(
                         origin: [tile.x0, tile.y0],
                         bounds: tile,
                         quads,
+                        clamped: b.wanted < b.level,
                     };
                     let visible = !params.cull || {
                         let z = height_range(clipmap, level, &tile);
@@ -513,8 +528,7 @@ pub fn build_lod_draws(
                             push(
                                 out,
                                 Draw {
-                                    kind: DrawKind::Skirt,
-                                    quads: 0,
+                                    kind: DrawKind::TileSkirt,
                                     ..d
                                 },
                             )?;
@@ -527,34 +541,6 @@ pub fn build_lod_draws(
                 }
                 by += m;
             }
-        }
-    }
-    // The rings' own boundaries, as in the distance draw list.
-    let coarsest_enabled = frame.levels.iter().rposition(|l| !l.active.is_empty());
-    for (li, lf) in frame.levels.iter().enumerate() {
-        let level = u32::try_from(li).expect("level < MAX_LEVELS");
-        if lf.active.is_empty() || !params.skirts {
-            continue;
-        }
-        let h = hole_of(level);
-        for bounds in [
-            (Some(li) != coarsest_enabled).then_some(lf.active),
-            (!h.is_empty()).then_some(h),
-        ]
-        .into_iter()
-        .flatten()
-        {
-            push(
-                out,
-                Draw {
-                    level,
-                    kind: DrawKind::Skirt,
-                    origin: [bounds.x0, bounds.y0],
-                    bounds,
-                    quads: 0,
-                },
-            )?;
-            stats.skirts += 1;
         }
     }
     Ok(stats)

@@ -207,6 +207,7 @@ pub struct Renderer<'g> {
     heights: wgpu::Texture,
     block: GpuMesh,
     skirt: GpuMesh,
+    tile_skirt: GpuMesh,
     globals: wgpu::Buffer,
     draw_slots: wgpu::Buffer,
     // Layouts kept with the groups and pipeline made from them (ledgered objects live as long as the renderer).
@@ -302,6 +303,7 @@ impl<'g> Renderer<'g> {
         let block_quads = profile.block_m();
         let block_mesh = mesh::block(block_quads);
         let skirt_mesh = mesh::skirt(c.n + 1);
+        let tile_skirt_mesh = mesh::skirt_loops(block_quads);
         let probe_rows = u32::try_from(block_mesh.vertices.len().max(skirt_mesh.vertices.len()))
             .expect("u16-indexed meshes")
             .div_ceil(PROBE_WIDTH);
@@ -452,6 +454,7 @@ impl<'g> Renderer<'g> {
             };
             let block = upload_mesh(&mut ledger, "clipmap block mesh", &block_mesh);
             let skirt = upload_mesh(&mut ledger, "clipmap skirt mesh", &skirt_mesh);
+            let tile_skirt = upload_mesh(&mut ledger, "clipmap tile skirt mesh", &tile_skirt_mesh);
 
             let group0_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                 label: Some("clipmap globals"),
@@ -545,6 +548,7 @@ impl<'g> Renderer<'g> {
                 heights,
                 block,
                 skirt,
+                tile_skirt,
                 globals,
                 draw_slots,
                 _group0_layout: group0_layout,
@@ -608,9 +612,16 @@ impl<'g> Renderer<'g> {
     }
 
     fn index_count(&self, d: &cull::Draw) -> u32 {
+        let r = self.index_range(d);
+        r.end - r.start
+    }
+
+    /// The part of its mesh's index buffer draw `d` draws.
+    fn index_range(&self, d: &cull::Draw) -> std::ops::Range<u32> {
         match d.kind {
-            DrawKind::Block => mesh::block_prefix(d.quads.min(self.block_quads)),
-            DrawKind::Skirt => self.skirt.index_count,
+            DrawKind::Block => 0..mesh::block_prefix(d.quads.min(self.block_quads)),
+            DrawKind::Skirt => 0..self.skirt.index_count,
+            DrawKind::TileSkirt => mesh::skirt_loop_range(self.block_quads, d.quads),
         }
     }
 
@@ -813,7 +824,7 @@ impl<'g> Renderer<'g> {
                     let offset = u32::try_from(k as u64 * DRAW_SLOT_BYTES)
                         .expect("draw slots fit a u32 offset");
                     pass.set_bind_group(1, &self.group1, &[offset]);
-                    pass.draw_indexed(0..self.index_count(d), 0, 0..1);
+                    pass.draw_indexed(self.index_range(d), 0, 0..1);
                 }
             }
             gpu.queue().submit([encoder.finish()]);
@@ -832,6 +843,7 @@ impl<'g> Renderer<'g> {
         match kind {
             DrawKind::Block => &self.block,
             DrawKind::Skirt => &self.skirt,
+            DrawKind::TileSkirt => &self.tile_skirt,
         }
     }
 
@@ -1201,6 +1213,9 @@ pub fn crack_pixels(image: &Image, clear: [u8; 4]) -> u64 {
 pub struct ScreenError {
     /// The largest projected vertical error over the measured samples, pixels.
     pub max_px: f64,
+    /// The same over blocks whose selected level was not clamped to the held data (the ones the error
+    /// bound is a promise about; equal to `max_px` in distance mode).
+    pub max_px_unclamped: f64,
     /// Data samples measured (inside the frustum).
     pub samples: u64,
     /// Every `stride`-th sample in x and y was measured (1: all).
@@ -1227,26 +1242,27 @@ pub fn screen_error(
     let spacing = clipmap.g0() * f64::from(1u32 << clipmap.synth_levels());
     let (w, h) = (renderer.width, renderer.height);
     let frustum = cull::Frustum::new(camera, f64::from(w) / f64::from(h));
+    // The data's last sample in level-0 lattice units.
+    let last = (
+        i64::from(data.width() - 1) << clipmap.synth_levels(),
+        i64::from(data.height() - 1) << clipmap.synth_levels(),
+    );
     let boxes = || {
         renderer
             .draws
             .iter()
             .filter(|d| d.kind == DrawKind::Block)
-            .map(move |d| {
+            .filter_map(move |d| {
                 let c = d.covered(d.quads.max(1));
                 let l = d.level;
-                let b = tables.data_box(
-                    synth,
-                    c.x0 << l,
-                    c.y0 << l,
-                    (c.x1() - 1) << l,
-                    (c.y1() - 1) << l,
-                );
-                (l, b)
+                let (a, cc, b, dd) = (c.x0 << l, c.y0 << l, (c.x1() - 1) << l, (c.y1() - 1) << l);
+                // Geometry past the data collapses onto its border (not a surface to measure).
+                let inside = b >= 0 && dd >= 0 && a <= last.0 && cc <= last.1;
+                inside.then(|| (l, d.clamped, tables.data_box(synth, a, cc, b, dd)))
             })
     };
     let total: u64 = boxes()
-        .map(|(_, (x0, y0, x1, y1))| u64::from(x1 - x0) * u64::from(y1 - y0))
+        .map(|(_, _, (x0, y0, x1, y1))| u64::from(x1 - x0) * u64::from(y1 - y0))
         .sum();
     let mut stride = 1u32;
     while total / u64::from(stride * stride) > SCREEN_ERROR_SAMPLES {
@@ -1257,7 +1273,7 @@ pub fn screen_error(
         ..ScreenError::default()
     };
     let top = f64::from(data.height() - 1) * spacing;
-    for (l, (x0, y0, x1, y1)) in boxes() {
+    for (l, clamped, (x0, y0, x1, y1)) in boxes() {
         let errors = l
             .checked_sub(synth)
             .and_then(|k| tables.level(k))
@@ -1281,7 +1297,11 @@ pub fn screen_error(
                 }
                 let e = f64::from(errors[y as usize * tables.width as usize + x as usize]);
                 out.samples += 1;
-                out.max_px = out.max_px.max(e * camera.pixels_per_metre(rel.length(), h));
+                let px = e * camera.pixels_per_metre(rel.length(), h);
+                out.max_px = out.max_px.max(px);
+                if !clamped {
+                    out.max_px_unclamped = out.max_px_unclamped.max(px);
+                }
             }
         }
     }

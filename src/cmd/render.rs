@@ -211,6 +211,7 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
             "blocks_clamped": frame.stats.blocks_clamped,
             "pieces_capped": frame.stats.cull.pieces_capped,
             "max_screen_error_px": measured.map(|m| m.max_px),
+            "max_screen_error_unclamped_px": measured.map(|m| m.max_px_unclamped),
             "screen_error_samples": measured.map(|m| m.samples),
             "screen_error_stride": measured.map(|m| m.stride),
             "rmse_vs_ground_truth": rmse,
