@@ -19,6 +19,8 @@ pub enum DrawKind {
     Block,
     /// The ring skirt mesh, clamped onto the boundary of `bounds`.
     Skirt,
+    /// The tile skirt mesh (around m quads), clamped onto the boundary of `bounds`: a SAT LOD tile's skirt.
+    TileSkirt,
 }
 
 /// One draw call: a mesh placed at `origin` of a level's lattice, its vertices clamped into `bounds`.
@@ -32,13 +34,19 @@ pub struct Draw {
     pub origin: [i64; 2],
     /// Vertex rectangle (level units) the mesh's vertices are clamped into.
     pub bounds: Rect,
+    /// Blocks: the top-left `quads x quads` of the block mesh are drawn (the whole mesh when it is the
+    /// mesh's size; SAT LOD blocks of fewer quads draw a prefix, [`crate::mesh::block_prefix`]). Tile
+    /// skirts: the tile's side, picking the loop ([`crate::mesh::skirt_loop_range`]). Ring skirts: 0.
+    pub quads: u32,
+    /// SAT LOD: the block's wanted level was finer than any held data covering it (the selection clamped).
+    pub clamped: bool,
 }
 
 impl Draw {
     /// The vertices this draw really covers: its mesh footprint at `origin` clamped into `bounds`.
     pub fn covered(&self, block_quads: u32) -> Rect {
         match self.kind {
-            DrawKind::Skirt => self.bounds,
+            DrawKind::Skirt | DrawKind::TileSkirt => self.bounds,
             DrawKind::Block => {
                 let q = i64::from(block_quads);
                 Rect::from_bounds(
@@ -83,6 +91,9 @@ pub struct DrawStats {
     pub culled: u32,
     /// Skirts drawn.
     pub skirts: u32,
+    /// SAT LOD: block pieces drawn finer than the selected level because a coarser level's lattice does not
+    /// meet the piece's corners (a piece is clipped by the active region or the hole at odd vertices).
+    pub pieces_capped: u32,
 }
 
 /// The finer level's active region in this level's units: vertices a.x0/2 ..= (a.x1 - 1)/2 (its corners are
@@ -292,6 +303,8 @@ pub fn build_draws(
                         kind: DrawKind::Block,
                         origin: [r.x0 + bx, r.y0 + by],
                         bounds: r,
+                        quads: params.block_quads,
+                        clamped: false,
                     };
                     let visible = !params.cull || {
                         let c = d.covered(params.block_quads);
@@ -319,6 +332,8 @@ pub fn build_draws(
                     kind: DrawKind::Skirt,
                     origin: [bounds.x0, bounds.y0],
                     bounds,
+                    quads: 0,
+                    clamped: false,
                 },
             )?;
             stats.skirts += 1;
@@ -329,6 +344,210 @@ pub fn build_draws(
         }
         if params.skirts && !hole.is_empty() {
             skirt(hole)?;
+        }
+    }
+    Ok(stats)
+}
+
+/// The pieces of a LOD block: its vertex rectangle `r` minus the quads inside `hole` (the finer ring's
+/// active region, drawn by that ring), as at most four rectangles sharing boundary vertices.
+pub fn block_pieces(r: &Rect, hole: &Rect) -> heapless::Vec<Rect, 4> {
+    let mut out = heapless::Vec::new();
+    // Quad ranges [x0, x1) x [y0, y1).
+    let (qx0, qy0, qx1, qy1) = (r.x0, r.y0, r.x1() - 1, r.y1() - 1);
+    let (hx0, hy0, hx1, hy1) = if hole.is_empty() {
+        (0, 0, 0, 0)
+    } else {
+        (
+            hole.x0.max(qx0),
+            hole.y0.max(qy0),
+            (hole.x1() - 1).min(qx1),
+            (hole.y1() - 1).min(qy1),
+        )
+    };
+    let quads = |x0: i64, y0: i64, x1: i64, y1: i64| Rect::from_bounds(x0, y0, x1 + 1, y1 + 1);
+    if hx0 >= hx1 || hy0 >= hy1 {
+        if qx1 > qx0 && qy1 > qy0 {
+            out.push(*r).expect("one piece");
+        }
+        return out;
+    }
+    for (x0, y0, x1, y1) in [
+        (qx0, qy0, qx1, hy0),
+        (qx0, hy1, qx1, qy1),
+        (qx0, hy0, hx0, hy1),
+        (hx1, hy0, qx1, hy1),
+    ] {
+        if x1 > x0 && y1 > y0 {
+            out.push(quads(x0, y0, x1, y1)).expect("four pieces");
+        }
+    }
+    out
+}
+
+/// The level-`level` vertex rectangle of ring `ring`'s vertex rectangle `p`, and whether it is exact (the
+/// corners of `p` are vertices of `level`; always for `level <= ring`).
+fn at_level(p: &Rect, ring: u32, level: u32) -> (Rect, bool) {
+    let conv = |v: i64| (v << ring) >> level;
+    let exact = [p.x0, p.x1() - 1, p.y0, p.y1() - 1]
+        .iter()
+        .all(|&v| (v << ring) == (conv(v) << level));
+    (
+        Rect::from_bounds(
+            conv(p.x0),
+            conv(p.y0),
+            conv(p.x1() - 1) + 1,
+            conv(p.y1() - 1) + 1,
+        ),
+        exact,
+    )
+}
+
+/// The level a piece of a ring-`ring` block selected at `selected` is drawn at: `selected` when finer or
+/// equal; when coarser, the coarsest level up to `selected` whose lattice meets the piece's corners and whose
+/// clip region holds it (a block mesh of that level then covers the piece exactly).
+fn piece_level(frame: &crate::frame::Frame, ring: u32, selected: u32, p: &Rect) -> u32 {
+    if selected <= ring {
+        return selected;
+    }
+    let mut level = selected;
+    while level > ring {
+        let (r, exact) = at_level(p, ring, level);
+        let clip = frame.levels[level as usize].clip;
+        if exact && r.w >= 2 && r.h >= 2 && !clip.is_empty() && clip.contains(&r) {
+            break;
+        }
+        level -= 1;
+    }
+    level
+}
+
+/// Builds the SAT LOD draw list (design.md "SAT LOD" 6-7) into `out` (cleared first): every block of `lod`
+/// minus the finer ring's active region, drawn at the level the selection chose, as tiles of at most m x m
+/// quads of that level (one block-mesh draw each, a prefix of its indices when smaller). Blocks are culled
+/// like [`build_draws`]'s. Skirts (the smallest tile skirt loop that spans the tile, culled with it): around
+/// each tile of a block that is drawn at another level than its ring, is edge-adjacent to such a block of the
+/// same ring, or lies on its ring's outer or hole boundary, so every boundary between different levels has a
+/// skirt on both sides. More than
+/// `params.max_draws` draws is an [`Error::Capacity`].
+pub fn build_lod_draws(
+    clipmap: &Clipmap,
+    camera: &Camera,
+    params: &DrawParams,
+    lod: &crate::lod::LodFrame,
+    out: &mut DrawList,
+) -> Result<DrawStats> {
+    out.clear();
+    let frame = clipmap.frame();
+    let frustum = Frustum::new(camera, params.aspect);
+    let eye_l = clipmap.eye_lattice(camera.eye);
+    let cap = (params.max_draws as usize).min(MAX_DRAWS);
+    let mut stats = DrawStats::default();
+    let push = |out: &mut DrawList, d: Draw| -> Result<()> {
+        if out.len() >= cap {
+            return Err(Error::Capacity {
+                what: "draws per frame (budget.max_draws)",
+                capacity: cap,
+            });
+        }
+        out.push(d).map_err(|_| Error::Capacity {
+            what: "draws per frame",
+            capacity: MAX_DRAWS,
+        })
+    };
+    let m = i64::from(params.block_quads);
+    let hole_of = |ring: u32| -> Rect {
+        match ring.checked_sub(1) {
+            Some(f) => hole(&frame.levels[f as usize].active),
+            None => Rect::EMPTY,
+        }
+    };
+    let cell = |r: &Rect| (r.x0.div_euclid(m), r.y0.div_euclid(m));
+    // Whether any piece of block `b` is drawn at another level than its ring.
+    let differs = |b: &crate::lod::BlockLod| -> bool {
+        b.level != b.ring
+            && block_pieces(&b.rect, &hole_of(b.ring))
+                .iter()
+                .any(|p| piece_level(frame, b.ring, b.level, p) != b.ring)
+    };
+    let blocks = &lod.blocks;
+    let mut differ = [false; crate::lod::MAX_LOD_BLOCKS];
+    for (f, b) in differ.iter_mut().zip(blocks.iter()) {
+        *f = differs(b);
+    }
+    for (i, b) in blocks.iter().enumerate() {
+        let (cx, cy) = cell(&b.rect);
+        // A block on its ring's outer boundary or on the hole borders another ring, drawn at another level.
+        let a = frame.levels[b.ring as usize].active;
+        let r = &b.rect;
+        let on_ring_edge = r.x0 == a.x0 || r.y0 == a.y0 || r.x1() == a.x1() || r.y1() == a.y1();
+        let needs_skirt = params.skirts
+            && (differ[i]
+                || on_ring_edge
+                || !r.intersect(&hole_of(b.ring)).is_empty()
+                || blocks.iter().enumerate().any(|(j, o)| {
+                    let (ox, oy) = cell(&o.rect);
+                    differ[j] && o.ring == b.ring && (ox - cx).abs() + (oy - cy).abs() == 1
+                }));
+        for p in block_pieces(&b.rect, &hole_of(b.ring)) {
+            let level = piece_level(frame, b.ring, b.level, &p);
+            if level != b.level {
+                stats.pieces_capped += 1;
+            }
+            let (r, _) = at_level(&p, b.ring, level);
+            let (qw, qh) = (i64::from(r.w) - 1, i64::from(r.h) - 1);
+            let mut by = 0;
+            while by < qh {
+                let mut bx = 0;
+                while bx < qw {
+                    let tile = Rect::from_bounds(
+                        r.x0 + bx,
+                        r.y0 + by,
+                        (r.x0 + bx + m).min(r.x1() - 1) + 1,
+                        (r.y0 + by + m).min(r.y1() - 1) + 1,
+                    );
+                    let quads = tile.w.max(tile.h) - 1;
+                    let d = Draw {
+                        level,
+                        kind: DrawKind::Block,
+                        origin: [tile.x0, tile.y0],
+                        bounds: tile,
+                        quads,
+                        clamped: b.wanted < b.level,
+                    };
+                    let visible = !params.cull || {
+                        let z = height_range(clipmap, level, &tile);
+                        let (lo, hi) = block_box(
+                            clipmap,
+                            level,
+                            &tile,
+                            eye_l,
+                            z,
+                            camera.eye.z,
+                            &params.extent,
+                        );
+                        frustum.intersects(lo, hi)
+                    };
+                    if visible {
+                        push(out, d)?;
+                        stats.blocks += 1;
+                        if needs_skirt {
+                            push(
+                                out,
+                                Draw {
+                                    kind: DrawKind::TileSkirt,
+                                    ..d
+                                },
+                            )?;
+                            stats.skirts += 1;
+                        }
+                    } else {
+                        stats.culled += 1;
+                    }
+                    bx += m;
+                }
+                by += m;
+            }
         }
     }
     Ok(stats)
@@ -355,6 +574,39 @@ mod tests {
                 assert_eq!(n, usize::from(!in_hole), "quad ({i}, {j})");
             }
         }
+    }
+
+    #[test]
+    fn block_pieces_cover_the_block_minus_the_hole() {
+        let r = Rect::from_bounds(0, 0, 9, 9);
+        for h in [
+            Rect::EMPTY,
+            Rect::from_bounds(3, 4, 20, 20),
+            Rect::from_bounds(-5, -5, 4, 30),
+            Rect::from_bounds(2, 2, 6, 6),
+            Rect::from_bounds(-5, -5, 30, 30),
+        ] {
+            let pieces = block_pieces(&r, &h);
+            for j in 0..8 {
+                for i in 0..8 {
+                    let in_hole =
+                        !h.is_empty() && i >= h.x0 && i < h.x1() - 1 && j >= h.y0 && j < h.y1() - 1;
+                    let n = pieces
+                        .iter()
+                        .filter(|p| i >= p.x0 && i < p.x1() - 1 && j >= p.y0 && j < p.y1() - 1)
+                        .count();
+                    assert_eq!(n, usize::from(!in_hole), "hole {h:?} quad ({i}, {j})");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn at_level_is_exact_on_aligned_corners() {
+        let p = Rect::from_bounds(8, 4, 17, 13);
+        assert_eq!(at_level(&p, 1, 3), (Rect::from_bounds(2, 1, 5, 4), true));
+        assert!(!at_level(&p, 1, 4).1);
+        assert_eq!(at_level(&p, 1, 0), (Rect::from_bounds(16, 8, 33, 25), true));
     }
 
     #[test]

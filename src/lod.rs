@@ -527,6 +527,21 @@ impl Lod {
         )
     }
 
+    /// Sets the screen-space error bound epsilon, pixels (the profile's `view.epsilon_px` until set).
+    pub fn set_epsilon_px(&mut self, epsilon_px: f64) {
+        self.epsilon_px = epsilon_px;
+    }
+
+    /// The screen-space error bound epsilon, pixels.
+    pub fn epsilon_px(&self) -> f64 {
+        self.epsilon_px
+    }
+
+    /// Rings finer than the data (clipmap level = data level + this).
+    pub fn synth_levels(&self) -> u32 {
+        self.synth
+    }
+
     /// The baked tables.
     pub fn tables(&self) -> &LodTables {
         &self.tables

@@ -54,7 +54,8 @@ pub fn skirt_bytes(side: u32) -> u64 {
     2 * (4 * s + 1) * 8 + 4 * s * 6 * 2
 }
 
-/// A `quads x quads` grid of vertices (0..=quads)^2, two triangles per quad.
+/// A `quads x quads` grid of vertices (0..=quads)^2, two triangles per quad, in shell order: indices
+/// `0..6 k^2` are the top-left k x k quads ([`block_prefix`]).
 ///
 /// Quads split along (i, j)-(i+1, j+1), the project-wide diagonal (the one `clipmap`'s odd-odd z_c and the
 /// brute-force reference use), so the clipmap surface is the same piecewise-linear surface.
@@ -73,15 +74,72 @@ pub fn block(quads: u32) -> Mesh {
     }
     let mut indices = Vec::with_capacity(quads as usize * quads as usize * 6);
     let s = q + 1;
-    for y in 0..q {
-        for x in 0..q {
-            let nw = y * s + x;
-            let (ne, sw) = (nw + 1, nw + s);
-            let se = sw + 1;
-            indices.extend_from_slice(&[nw, sw, se, nw, se, ne]);
+    let mut quad = |x: u16, y: u16| {
+        let nw = y * s + x;
+        let (ne, sw) = (nw + 1, nw + s);
+        let se = sw + 1;
+        indices.extend_from_slice(&[nw, sw, se, nw, se, ne]);
+    };
+    // Shell order (quads with max(x, y) = k after every quad of a smaller k): the first k^2 quads are the
+    // k x k top-left square, so a block of fewer quads (SAT LOD) draws a prefix of the index buffer.
+    for k in 0..q {
+        for y in 0..k {
+            quad(k, y);
+        }
+        for x in 0..=k {
+            quad(x, k);
         }
     }
     Mesh { vertices, indices }
+}
+
+/// Indices of [`block`]'s top-left `k x k` quads (a prefix of its index buffer).
+pub fn block_prefix(k: u32) -> u32 {
+    6 * k * k
+}
+
+/// The tile skirt loops: closed skirts ([`skirt`]) of sides 1, 2, 4, ..., `max_side` (a power of two) in one
+/// mesh, so a tile of k quads hangs the smallest loop of side >= k ([`skirt_loop_range`]) rather than one of
+/// `max_side`.
+pub fn skirt_loops(max_side: u32) -> Mesh {
+    assert!(
+        max_side.is_power_of_two(),
+        "skirt loops up to a power of two"
+    );
+    let mut out = Mesh::default();
+    let mut side = 1;
+    while side <= max_side {
+        let base = u16::try_from(out.vertices.len()).expect("skirt loops exceed u16 indices");
+        let l = skirt(side);
+        out.vertices.extend_from_slice(&l.vertices);
+        out.indices.extend(
+            l.indices
+                .iter()
+                .map(|&i| i.checked_add(base).expect("skirt loops exceed u16 indices")),
+        );
+        side *= 2;
+    }
+    out
+}
+
+/// Bytes of [`skirt_loops`]`(max_side)`'s buffers, without building it.
+pub fn skirt_loops_bytes(max_side: u32) -> u64 {
+    let mut side = 1;
+    let mut bytes = 0;
+    while side <= max_side {
+        bytes += skirt_bytes(side);
+        side *= 2;
+    }
+    bytes
+}
+
+/// The index range of the smallest loop of [`skirt_loops`]`(max_side)` whose side is at least `quads`
+/// (capped at `max_side`).
+pub fn skirt_loop_range(max_side: u32, quads: u32) -> std::ops::Range<u32> {
+    let side = quads.max(1).next_power_of_two().min(max_side);
+    // Loop of side s has 4 s segments of 6 indices; the loops before it sum to 24 (side - 1).
+    let first = 24 * (side - 1);
+    first..first + 24 * side
 }
 
 /// A closed skirt around the square [0, side]^2: for each of the 4 side + 1 boundary points (walked
@@ -126,6 +184,33 @@ mod tests {
         assert_eq!(&b.indices[..6], &[0, 5, 6, 0, 6, 1]);
         assert_eq!(b.bytes(), block_bytes(4));
         assert!(b.indices.iter().all(|&i| usize::from(i) < b.vertices.len()));
+        // Every prefix of k^2 quads is exactly the k x k top-left square.
+        for k in 0..=4u16 {
+            let n = block_prefix(u32::from(k)) as usize;
+            let mut seen: Vec<u16> = b.indices[..n].to_vec();
+            seen.sort_unstable();
+            seen.dedup();
+            assert!(seen.iter().all(|&i| i % 5 <= k && i / 5 <= k), "k {k}");
+            assert_eq!(
+                seen.len(),
+                if k == 0 { 0 } else { usize::from(k + 1).pow(2) }
+            );
+        }
+    }
+
+    #[test]
+    fn skirt_loops_hold_every_power_of_two() {
+        let m = skirt_loops(8);
+        assert_eq!(m.bytes(), skirt_loops_bytes(8));
+        assert_eq!(m.indices.len(), skirt_loop_range(8, 8).end as usize);
+        for (q, side) in [(0, 1), (1, 1), (2, 2), (3, 4), (5, 8), (8, 8), (20, 8)] {
+            let r = skirt_loop_range(8, q);
+            let ix = &m.indices[r.start as usize..r.end as usize];
+            // The loop's upper vertices span exactly [0, side] in x and y.
+            let xs: Vec<u16> = ix.iter().map(|&i| m.vertices[usize::from(i)][0]).collect();
+            assert_eq!(xs.iter().max(), Some(&side), "q {q}");
+            assert_eq!(ix.len(), 24 * usize::from(side));
+        }
     }
 
     #[test]

@@ -110,8 +110,8 @@ pub struct Footprint {
     /// Ring heights: one RG32F (z, z_c) 2D array texture, `clip_size^2 x` [`Profile::height_layers`].
     /// Normals are derived from the geometry in the vertex shader (GC section 6.3): no normal texture.
     pub heights: u64,
-    /// The static block mesh ((m + 1)^2 vertices) and ring skirt mesh (around n + 1 quads), 8-byte
-    /// vertices and u16 indices; one pair serves every level (see `mesh`).
+    /// The static block mesh ((m + 1)^2 vertices), ring skirt mesh (around n + 1 quads) and SAT LOD tile
+    /// skirt loops (around 1, 2, 4, ..., m quads), 8-byte vertices and u16 indices; one set serves every level (see `mesh`).
     pub meshes: u64,
     /// Colour (RGBA8) and depth (32-bit) targets at the viewport size, plus one padded readback buffer.
     pub targets: u64,
@@ -277,8 +277,9 @@ impl Profile {
     /// The GPU memory this profile needs; see [`Footprint`] for what each part holds.
     pub fn footprint(&self) -> Footprint {
         let s = u64::from(self.clip_size());
-        let meshes =
-            crate::mesh::block_bytes(self.block_m()) + crate::mesh::skirt_bytes(self.clipmap.n + 1);
+        let meshes = crate::mesh::block_bytes(self.block_m())
+            + crate::mesh::skirt_bytes(self.clipmap.n + 1)
+            + crate::mesh::skirt_loops_bytes(self.block_m());
         let (w, h) = (u64::from(self.view.width), u64::from(self.view.height));
         let padded_row = (w * 4).div_ceil(256) * 256;
         Footprint {

@@ -23,6 +23,7 @@ use crate::frame::Rect;
 use crate::gpu::readback::Image;
 use crate::gpu::shaders::{self, BasicShading};
 use crate::gpu::Gpu;
+use crate::lod::{Lod, LodFrame, LodMode};
 use crate::mesh::{self, Mesh, MeshVertex};
 use crate::profile::{DRAW_SLOT_BYTES, GLOBALS_BYTES};
 use crate::{Camera, Error, Profile, Result};
@@ -79,6 +80,12 @@ pub struct FrameOptions {
     pub cull: bool,
     /// Skirts on level boundaries (off only to show the cracks they close).
     pub skirts: bool,
+    /// How blocks choose their level. `Distance` draws each ring at its own level (the plain geometry
+    /// clipmap); the SAT modes draw each LOD block at the level [`crate::lod::Lod::select`] chose (the
+    /// renderer needs [`Renderer::set_lod`]), unmorphed, with skirts where levels change.
+    pub lod: LodMode,
+    /// The SAT modes' screen-space error bound, pixels; None: the profile's `view.epsilon_px`.
+    pub epsilon_px: Option<f32>,
 }
 
 impl Default for FrameOptions {
@@ -88,6 +95,8 @@ impl Default for FrameOptions {
             morph: true,
             cull: true,
             skirts: true,
+            lod: LodMode::Distance,
+            epsilon_px: None,
         }
     }
 }
@@ -166,6 +175,9 @@ pub struct FrameStats {
     pub upload_bytes: u64,
     /// Whether the whole texture was re-sent (first frame, or frames were skipped).
     pub full_upload: bool,
+    /// SAT modes: LOD blocks whose wanted level is finer than the held data (see
+    /// [`crate::lod::LodFrame::blocks_clamped`]); 0 in distance mode.
+    pub blocks_clamped: u32,
 }
 
 const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
@@ -196,6 +208,7 @@ pub struct Renderer<'g> {
     heights: wgpu::Texture,
     block: GpuMesh,
     skirt: GpuMesh,
+    tile_skirt: GpuMesh,
     globals: wgpu::Buffer,
     draw_slots: wgpu::Buffer,
     // Layouts kept with the groups and pipeline made from them (ledgered objects live as long as the renderer).
@@ -227,6 +240,9 @@ pub struct Renderer<'g> {
     /// The draw list and its uniform bytes, allocated once.
     draws: Box<DrawList>,
     slots: Vec<u8>,
+    /// The SAT LOD selector (set by [`Renderer::set_lod`]) and its per-frame output, allocated once.
+    lod: Option<Lod>,
+    lod_frame: Box<LodFrame>,
     /// The clipmap frame whose uploads the texture holds.
     synced: Option<u64>,
     last_globals: Globals,
@@ -288,6 +304,7 @@ impl<'g> Renderer<'g> {
         let block_quads = profile.block_m();
         let block_mesh = mesh::block(block_quads);
         let skirt_mesh = mesh::skirt(c.n + 1);
+        let tile_skirt_mesh = mesh::skirt_loops(block_quads);
         let probe_rows = u32::try_from(block_mesh.vertices.len().max(skirt_mesh.vertices.len()))
             .expect("u16-indexed meshes")
             .div_ceil(PROBE_WIDTH);
@@ -438,6 +455,7 @@ impl<'g> Renderer<'g> {
             };
             let block = upload_mesh(&mut ledger, "clipmap block mesh", &block_mesh);
             let skirt = upload_mesh(&mut ledger, "clipmap skirt mesh", &skirt_mesh);
+            let tile_skirt = upload_mesh(&mut ledger, "clipmap tile skirt mesh", &tile_skirt_mesh);
 
             let group0_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                 label: Some("clipmap globals"),
@@ -531,6 +549,7 @@ impl<'g> Renderer<'g> {
                 heights,
                 block,
                 skirt,
+                tile_skirt,
                 globals,
                 draw_slots,
                 _group0_layout: group0_layout,
@@ -559,6 +578,8 @@ impl<'g> Renderer<'g> {
                 probe_size: [PROBE_WIDTH, probe_rows],
                 draws,
                 slots: vec![0; max_draws as usize * SLOT],
+                lod: None,
+                lod_frame: LodFrame::new_boxed(),
                 synced: None,
                 last_globals: Globals::zeroed(),
             })
@@ -568,6 +589,41 @@ impl<'g> Renderer<'g> {
     /// Every object [`Renderer::new`] created.
     pub fn ledger(&self) -> &Ledger {
         &self.ledger
+    }
+
+    /// Gives the renderer the SAT LOD selector the SAT modes need (built for this clipmap's terrain:
+    /// [`Lod::for_clipmap`]).
+    pub fn set_lod(&mut self, lod: Lod) {
+        self.lod = Some(lod);
+    }
+
+    /// The SAT LOD selector, if set.
+    pub fn lod(&self) -> Option<&Lod> {
+        self.lod.as_ref()
+    }
+
+    /// The last SAT-mode frame's block levels (empty before one).
+    pub fn lod_frame(&self) -> &LodFrame {
+        &self.lod_frame
+    }
+
+    /// Triangles draw `d` submits (the zero-area ones of clamped blocks included).
+    pub fn draw_triangles(&self, d: &cull::Draw) -> u32 {
+        self.index_count(d) / 3
+    }
+
+    fn index_count(&self, d: &cull::Draw) -> u32 {
+        let r = self.index_range(d);
+        r.end - r.start
+    }
+
+    /// The part of its mesh's index buffer draw `d` draws.
+    fn index_range(&self, d: &cull::Draw) -> std::ops::Range<u32> {
+        match d.kind {
+            DrawKind::Block => 0..mesh::block_prefix(d.quads.min(self.block_quads)),
+            DrawKind::Skirt => 0..self.skirt.index_count,
+            DrawKind::TileSkirt => mesh::skirt_loop_range(self.block_quads, d.quads),
+        }
     }
 
     /// The last frame's draw list.
@@ -659,26 +715,44 @@ impl<'g> Renderer<'g> {
         opts: &FrameOptions,
     ) -> Result<FrameStats> {
         let aspect = f64::from(self.width) / f64::from(self.height);
-        let cull = cull::build_draws(
-            clipmap,
-            camera,
-            &DrawParams {
-                block_quads: self.block_quads,
-                max_draws: self.max_draws,
-                cull: opts.cull,
-                skirts: opts.skirts,
-                aspect,
-                extent: data_extent_rel(clipmap, camera, self.data_lattice),
-            },
-            &mut self.draws,
-        )?;
+        let params = DrawParams {
+            block_quads: self.block_quads,
+            max_draws: self.max_draws,
+            cull: opts.cull,
+            skirts: opts.skirts,
+            aspect,
+            extent: data_extent_rel(clipmap, camera, self.data_lattice),
+        };
+        let sat = opts.lod != LodMode::Distance;
+        let mut blocks_clamped = 0;
+        let cull = if sat {
+            let lod = self.lod.as_mut().ok_or_else(|| Error::Arg {
+                arg: "--lod".into(),
+                reason: format!(
+                    "`{}` needs the SAT LOD tables (Renderer::set_lod)",
+                    opts.lod
+                ),
+            })?;
+            if let Some(e) = opts.epsilon_px {
+                lod.set_epsilon_px(f64::from(e));
+            }
+            lod.select(clipmap.frame(), camera, opts.lod, &mut self.lod_frame)?;
+            blocks_clamped = self.lod_frame.blocks_clamped;
+            cull::build_lod_draws(clipmap, camera, &params, &self.lod_frame, &mut self.draws)?
+        } else {
+            cull::build_draws(clipmap, camera, &params, &mut self.draws)?
+        };
         let mut triangles = 0u64;
         for (k, d) in self.draws.iter().enumerate() {
-            let u = draw_uniform(clipmap, camera, d, self.n, self.size);
+            let u = if sat {
+                lod_draw_uniform(clipmap, camera, d, self.n, self.size)
+            } else {
+                draw_uniform(clipmap, camera, d, self.n, self.size)
+            };
             let at = k * SLOT;
             self.slots[at..at + std::mem::size_of::<DrawUniform>()]
                 .copy_from_slice(bytemuck::bytes_of(&u));
-            triangles += u64::from(self.mesh(d.kind).index_count / 3);
+            triangles += u64::from(self.index_count(d) / 3);
         }
         if triangles > u64::from(self.max_triangles) {
             return Err(Error::Capacity {
@@ -690,7 +764,9 @@ impl<'g> Renderer<'g> {
             view_proj: camera.view_proj_relative(aspect).to_cols_array(),
             shading: self.shading,
             params: [
-                if opts.morph { 1.0 } else { 0.0 },
+                // SAT modes draw each block's own level unmorphed (skirts close the level changes), so the
+                // surface is the PL(H_L) the error bound is about.
+                if opts.morph && !sat { 1.0 } else { 0.0 },
                 self.skirt_floor,
                 self.probe_size[0] as f32,
                 self.probe_size[1] as f32,
@@ -749,7 +825,7 @@ impl<'g> Renderer<'g> {
                     let offset = u32::try_from(k as u64 * DRAW_SLOT_BYTES)
                         .expect("draw slots fit a u32 offset");
                     pass.set_bind_group(1, &self.group1, &[offset]);
-                    pass.draw_indexed(0..m.index_count, 0, 0..1);
+                    pass.draw_indexed(self.index_range(d), 0, 0..1);
                 }
             }
             gpu.queue().submit([encoder.finish()]);
@@ -759,6 +835,7 @@ impl<'g> Renderer<'g> {
             draws: u32::try_from(self.draws.len()).expect("draws <= MAX_DRAWS"),
             cull,
             triangles,
+            blocks_clamped,
             ..FrameStats::default()
         })
     }
@@ -767,6 +844,7 @@ impl<'g> Renderer<'g> {
         match kind {
             DrawKind::Block => &self.block,
             DrawKind::Skirt => &self.skirt,
+            DrawKind::TileSkirt => &self.tile_skirt,
         }
     }
 
@@ -945,6 +1023,51 @@ pub fn draw_uniform(
     }
 }
 
+/// The uniforms of SAT LOD draw `d`: like [`draw_uniform`], but anchored at the level's clip region (a block
+/// drawn finer than its ring lies outside that level's active region, inside its held data), with the
+/// region for one-sided normals the clip region and no morph.
+#[expect(
+    clippy::cast_possible_truncation,
+    reason = "clip-relative lattice offsets are below the ring size; f64 -> f32 after subtracting the eye \
+              is the intended GPU precision"
+)]
+pub fn lod_draw_uniform(
+    clipmap: &Clipmap,
+    camera: &Camera,
+    d: &cull::Draw,
+    n: u32,
+    size: u32,
+) -> DrawUniform {
+    let c = clipmap.frame().levels[d.level as usize].clip;
+    let mut u = draw_uniform(clipmap, camera, d, n, size);
+    let (ax, ay) = (c.x0, c.y0);
+    let rel = |v: i64, o: i64| (v - o) as i32;
+    let k = f64::from(1u32 << d.level);
+    let p = clipmap.eye_lattice(camera.eye);
+    let g0 = clipmap.g0();
+    #[expect(
+        clippy::cast_precision_loss,
+        reason = "lattice coordinates are below 2^48"
+    )]
+    let (fx, fy) = (ax as f64, ay as f64);
+    let s = i64::from(size);
+    u.origin[0] = rel(d.origin[0], ax);
+    u.origin[1] = rel(d.origin[1], ay);
+    u.bounds = [
+        rel(d.bounds.x0, ax),
+        rel(d.bounds.y0, ay),
+        rel(d.bounds.x1() - 1, ax),
+        rel(d.bounds.y1() - 1, ay),
+    ];
+    u.active = [0, 0, c.w as i32 - 1, c.h as i32 - 1];
+    u.tex = [ax.rem_euclid(s) as i32, ay.rem_euclid(s) as i32, 0, 0];
+    u.anchor_rel[0] = ((fx * k - p.0) * g0) as f32;
+    u.anchor_rel[1] = (-(fy * k - p.1) * g0) as f32;
+    // alpha = 0 everywhere: the transition band starts past any lattice point.
+    u.morph = [0.0, 0.0, 1.0e9, 1.0e9];
+    u
+}
+
 /// The data's horizontal extent relative to the eye (m), for [`Globals::extent`]: lattice x grows east and
 /// lattice y south, so the north edge (lattice y 0) is the largest y.
 fn data_extent_rel(clipmap: &Clipmap, camera: &Camera, data_lattice: (f64, f64)) -> [f64; 4] {
@@ -1083,6 +1206,123 @@ pub fn crack_pixels(image: &Image, clear: [u8; 4]) -> u64 {
         cracks += (top..=bottom).filter(|&y| is_clear(y)).count() as u64;
     }
     cracks
+}
+
+/// The measured screen-space error of a drawn frame ([`screen_error`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ScreenError {
+    /// The largest projected vertical error over the measured samples, pixels.
+    pub max_px: f64,
+    /// The same over blocks whose selected level was not clamped to the held data (the ones the error
+    /// bound is a promise about; equal to `max_px` in distance mode).
+    pub max_px_unclamped: f64,
+    /// Data samples measured (inside the frustum).
+    pub samples: u64,
+    /// Every `stride`-th sample in x and y was measured (1: all).
+    pub stride: u32,
+}
+
+/// Most data samples [`screen_error`] visits; past it, it subsamples with a uniform stride.
+pub const SCREEN_ERROR_SAMPLES: u64 = 1 << 22;
+
+/// Measures the last frame's screen-space error (a measurement, not the frame path): for each data sample
+/// under a drawn block of level L, the error map value e_L = |H_0 - PL(H_L)| (design.md "SAT LOD" 1, from
+/// `lod`'s tables) projected at that sample's distance, e * [`Camera::pixels_per_metre`], for samples inside
+/// the view frustum. The GC 6.2 morph of distance mode is not modelled (its vertices lie between levels L
+/// and L + 1). Visits at most [`SCREEN_ERROR_SAMPLES`] samples (a uniform stride past it).
+pub fn screen_error(
+    renderer: &Renderer<'_>,
+    clipmap: &Clipmap,
+    camera: &Camera,
+    lod: &Lod,
+) -> ScreenError {
+    let tables = lod.tables();
+    let synth = lod.synth_levels();
+    let data = clipmap.pyramid().level(0);
+    let spacing = clipmap.g0() * f64::from(1u32 << clipmap.synth_levels());
+    let (w, h) = (renderer.width, renderer.height);
+    let frustum = cull::Frustum::new(camera, f64::from(w) / f64::from(h));
+    // The data's last sample in level-0 lattice units.
+    let last = (
+        i64::from(data.width() - 1) << clipmap.synth_levels(),
+        i64::from(data.height() - 1) << clipmap.synth_levels(),
+    );
+    let boxes = || {
+        renderer
+            .draws
+            .iter()
+            .filter(|d| d.kind == DrawKind::Block)
+            .filter_map(move |d| {
+                let c = d.covered(d.quads.max(1));
+                let l = d.level;
+                let (a, cc, b, dd) = (c.x0 << l, c.y0 << l, (c.x1() - 1) << l, (c.y1() - 1) << l);
+                // Geometry past the data collapses onto its border (not a surface to measure).
+                let inside = b >= 0 && dd >= 0 && a <= last.0 && cc <= last.1;
+                inside.then(|| (l, d.clamped, tables.data_box(synth, a, cc, b, dd)))
+            })
+    };
+    let total: u64 = boxes()
+        .map(|(_, _, (x0, y0, x1, y1))| u64::from(x1 - x0) * u64::from(y1 - y0))
+        .sum();
+    let mut stride = 1u32;
+    while total / u64::from(stride * stride) > SCREEN_ERROR_SAMPLES {
+        stride += 1;
+    }
+    let mut out = ScreenError {
+        stride,
+        ..ScreenError::default()
+    };
+    let top = f64::from(data.height() - 1) * spacing;
+    for (l, clamped, (x0, y0, x1, y1)) in boxes() {
+        let errors = l
+            .checked_sub(synth)
+            .and_then(|k| tables.level(k))
+            .and_then(|t| t.tables())
+            .map(|(_, max)| max.values());
+        let Some(errors) = errors else {
+            // The data level or finer: no error against the data.
+            continue;
+        };
+        // Aligned to the stride so overlapping boxes visit the same samples.
+        for y in (y0.next_multiple_of(stride)..y1).step_by(stride as usize) {
+            for x in (x0.next_multiple_of(stride)..x1).step_by(stride as usize) {
+                let z = f64::from(data.at_clamped(i64::from(x), i64::from(y)));
+                let rel = glam::DVec3::new(
+                    f64::from(x) * spacing - camera.eye.x,
+                    top - f64::from(y) * spacing - camera.eye.y,
+                    z - camera.eye.z,
+                );
+                if !frustum.intersects(rel, rel) {
+                    continue;
+                }
+                let e = f64::from(errors[y as usize * tables.width as usize + x as usize]);
+                out.samples += 1;
+                let px = e * camera.pixels_per_metre(rel.length(), h);
+                out.max_px = out.max_px.max(px);
+                if !clamped {
+                    out.max_px_unclamped = out.max_px_unclamped.max(px);
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Root-mean-square difference of two RGBA8 images of the same size over every pixel and the R, G, B
+/// channels, in 0..255 units (None when the sizes differ).
+pub fn image_rmse(a: &Image, b: &Image) -> Option<f64> {
+    if a.width != b.width || a.height != b.height || a.rgba.len() != b.rgba.len() {
+        return None;
+    }
+    let (mut sum, mut n) = (0.0f64, 0u64);
+    for (p, q) in a.rgba.chunks_exact(4).zip(b.rgba.chunks_exact(4)) {
+        for c in 0..3 {
+            let d = f64::from(p[c]) - f64::from(q[c]);
+            sum += d * d;
+            n += 1;
+        }
+    }
+    Some(if n == 0 { 0.0 } else { (sum / n as f64).sqrt() })
 }
 
 /// [`CRACK_CLEAR`] as RGBA8.

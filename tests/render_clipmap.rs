@@ -204,6 +204,7 @@ fn vertex_positions_match_the_cpu_twin() {
         let m = match d.kind {
             clipsat::cull::DrawKind::Block => mesh::block(p.block_m()),
             clipsat::cull::DrawKind::Skirt => mesh::skirt(p.clipmap.n + 1),
+            clipsat::cull::DrawKind::TileSkirt => mesh::skirt_loops(p.block_m()),
         };
         assert_eq!(gpu_clip.len(), m.vertices.len());
         for (v, g) in m.vertices.iter().zip(&gpu_clip) {

@@ -11,6 +11,7 @@ use clipsat::flight::{Flight, Path};
 use clipsat::frame::Frame;
 use clipsat::gpu::{Gpu, GpuMode};
 use clipsat::hash::{hex, Hash64};
+use clipsat::lod::{Lod, LodFrame, LodMode};
 use clipsat::plot::{LinePlot, Series};
 use clipsat::renderer::{render_frame, FrameOptions, Renderer};
 use clipsat::{Error, Result};
@@ -80,6 +81,13 @@ pub(crate) struct FlyArgs {
     /// at the first frame that differs.
     #[arg(long, value_name = "FILE")]
     check: Option<PathBuf>,
+    /// Block level selection: distance (each ring at its own level), sat, sat-conservative or exact. The
+    /// SAT modes select every frame's block levels (SAT paper algorithm 1) and hash them into the frame hash.
+    #[arg(long, value_name = "MODE", default_value = "distance")]
+    lod: String,
+    /// SAT LOD screen-space error bound, pixels. Default: the profile's view.epsilon_px.
+    #[arg(long, value_name = "PX")]
+    epsilon: Option<f32>,
 }
 
 /// What the statistics keep of one frame.
@@ -100,6 +108,8 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
             arg: "--frames".into(),
             reason: format!("{}: fly at least 1 frame", args.frames),
         })?;
+    let lod_mode: LodMode = args.lod.parse()?;
+    let epsilon = super::render::parse_epsilon(args.epsilon)?;
     let profile = args.profile.load()?;
     let (terrain_name, hm) = args.terrain.load()?;
     let flight =
@@ -111,6 +121,19 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
             synth_levels: args.synth_levels,
         },
     )?;
+
+    let mut lod = match lod_mode {
+        LodMode::Distance => None,
+        _ => {
+            let mut l = super::render::lod_for(&hm, &profile, &clipmap, !args.json)?;
+            if let Some(e) = epsilon {
+                l.set_epsilon_px(f64::from(e));
+            }
+            Some(l)
+        }
+    };
+    let mut lod_frame = LodFrame::new_boxed();
+    let mut blocks_clamped_max = 0u32;
 
     // Every buffer the loop writes to is sized here; the loop itself allocates nothing.
     let mut rows: Vec<Row> = Vec::new();
@@ -173,6 +196,12 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
         ("speed", args.speed.to_string()),
         ("frames", frames.to_string()),
         ("synth_levels", args.synth_levels.to_string()),
+        ("lod", args.lod.clone()),
+        (
+            "epsilon",
+            args.epsilon
+                .map_or_else(|| "profile".to_string(), |e| e.to_string()),
+        ),
     ];
     let expected: Option<HashFile> = match &args.check {
         Some(p) => {
@@ -199,18 +228,29 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
     for f in 0..frames {
         let camera = flight.camera(f);
         let frame = clipmap.update(camera.eye)?;
+        let frame_hash = match &mut lod {
+            Some(l) => {
+                l.select(frame, &camera, lod_mode, &mut lod_frame)?;
+                blocks_clamped_max = blocks_clamped_max.max(lod_frame.blocks_clamped);
+                let mut h = Hash64::new();
+                h.write_u64(frame.hash);
+                lod_frame.hash_into(&mut h);
+                h.finish()
+            }
+            None => frame.hash,
+        };
         if args.hash_out.is_some() {
-            frame_hashes.push(frame.hash);
+            frame_hashes.push(frame_hash);
         }
         if let Some(e) = &expected {
             let want = usize::try_from(f).ok().and_then(|i| e.hashes.get(i));
-            if want != Some(&frame.hash) {
-                mismatch = Some((f, want.copied(), frame.hash));
+            if want != Some(&frame_hash) {
+                mismatch = Some((f, want.copied(), frame_hash));
                 break;
             }
         }
-        run_hash.write_u64(frame.hash);
-        final_hash = frame.hash;
+        run_hash.write_u64(frame_hash);
+        final_hash = frame_hash;
         rows.push(Row {
             samples_updated: frame.samples_updated,
             stale_levels: frame.stale_levels,
@@ -280,6 +320,9 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
             "levels": clipmap.levels(),
             "g0_m": clipmap.g0(),
             "budget": budget,
+            "lod": lod_mode.to_string(),
+            "epsilon_px": lod.as_ref().map(Lod::epsilon_px),
+            "blocks_clamped_max": blocks_clamped_max,
             "final_hash": hex(final_hash),
             "run_hash": hex(run_hash.finish()),
             "frames_over_budget": stats.over_budget,

@@ -7,10 +7,12 @@
 use std::time::Instant;
 
 use clap::Args;
+use clipsat::bake::{self, BakeParams};
 use clipsat::camera::parse_vec3;
 use clipsat::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::gpu::brute::BruteForce;
 use clipsat::gpu::{Gpu, GpuMode};
+use clipsat::lod::{Lod, LodMode};
 use clipsat::renderer::{self, FrameOptions, Renderer};
 use clipsat::{hash, Camera, Error, Heightmap, Profile, Result};
 use glam::DVec3;
@@ -55,6 +57,48 @@ pub(crate) struct RenderArgs {
     /// Clipmap only: disable frustum culling.
     #[arg(long)]
     no_cull: bool,
+    /// Clipmap only: block level selection, distance (each ring at its own level), sat (SFAMF estimate),
+    /// sat-conservative (never below the true max) or exact (max pyramid).
+    #[arg(long, value_name = "MODE", default_value = "distance")]
+    lod: String,
+    /// SAT LOD screen-space error bound, pixels. Default: the profile's view.epsilon_px.
+    #[arg(long, value_name = "PX")]
+    epsilon: Option<f32>,
+}
+
+/// The SAT LOD selector for `clipmap`'s terrain: tables from the bake cache ([`bake::default_cache_dir`]),
+/// baked (progress bar on stderr when `progress`) on a miss.
+pub(crate) fn lod_for(
+    hm: &Heightmap,
+    profile: &Profile,
+    clipmap: &Clipmap,
+    progress: bool,
+) -> Result<Lod> {
+    let params = BakeParams {
+        p: clipsat::lod::P,
+        levels: profile.clipmap.levels,
+        synth_levels: clipmap.synth_levels(),
+        g0: clipmap.g0(),
+    };
+    let (tables, _) = bake::bake_lod(
+        hm,
+        clipmap.pyramid(),
+        &params,
+        &bake::default_cache_dir(),
+        progress,
+    )?;
+    Ok(Lod::for_clipmap(tables, profile, clipmap, hm))
+}
+
+/// Parses `--epsilon`: a positive, finite number of pixels.
+pub(crate) fn parse_epsilon(epsilon: Option<f32>) -> Result<Option<f32>> {
+    match epsilon {
+        Some(e) if !(e.is_finite() && e > 0.0) => Err(Error::Arg {
+            arg: "--epsilon".into(),
+            reason: format!("{e}: a positive number of pixels"),
+        }),
+        e => Ok(e),
+    }
 }
 
 /// Most clipmap updates `render` runs to let the budget fill every level at the camera.
@@ -62,6 +106,8 @@ const MAX_FILL_FRAMES: u32 = 10_000;
 
 pub(crate) fn run(args: &RenderArgs) -> Result<()> {
     let mode: GpuMode = args.gpu.parse()?;
+    let lod_mode: LodMode = args.lod.parse()?;
+    let epsilon = parse_epsilon(args.epsilon)?;
     let profile = args.profile.load()?;
     let (size_w, size_h) = match &args.size {
         Some(s) => parse_size(s)?,
@@ -98,10 +144,16 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
         }
     }
     let mut r = Renderer::new(&gpu, &profile, &clipmap)?;
+    // The error maps serve the SAT modes and the measured error of any mode.
+    if lod_mode != LodMode::Distance || args.json {
+        r.set_lod(lod_for(&hm, &profile, &clipmap, !args.json)?);
+    }
     let setup_ms = t0.elapsed().as_secs_f64() * 1e3;
     let opts = FrameOptions {
         morph: !args.no_morph,
         cull: !args.no_cull,
+        lod: lod_mode,
+        epsilon_px: epsilon,
         ..FrameOptions::default()
     };
     let t1 = Instant::now();
@@ -117,12 +169,19 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
         },
     )?;
     let crack_pixels = renderer::crack_pixels(&loud.image, renderer::CRACK_CLEAR_RGBA8);
+    // The measured error of what was drawn (the draw list is the same for both renders above).
+    let measured = r
+        .lod()
+        .map(|lod| renderer::screen_error(&r, &clipmap, &camera, lod));
     ensure_parent(&args.out)?;
     frame.image.save_png(&args.out)?;
 
     let report = gpu.report();
     let cf = clipmap.frame();
     if args.json {
+        let truth = BruteForce::new(&gpu, &hm)?.render(&camera, size_w, size_h)?;
+        let rmse = renderer::image_rmse(&frame.image, &truth.image);
+        let epsilon_used = r.lod().map(Lod::epsilon_px);
         let levels: Vec<_> = cf
             .levels
             .iter()
@@ -147,6 +206,15 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
             "levels": levels,
             "triangles": frame.stats.triangles,
             "draws": frame.stats.draws,
+            "lod": lod_mode.to_string(),
+            "epsilon_px": epsilon_used,
+            "blocks_clamped": frame.stats.blocks_clamped,
+            "pieces_capped": frame.stats.cull.pieces_capped,
+            "max_screen_error_px": measured.map(|m| m.max_px),
+            "max_screen_error_unclamped_px": measured.map(|m| m.max_px_unclamped),
+            "screen_error_samples": measured.map(|m| m.samples),
+            "screen_error_stride": measured.map(|m| m.stride),
+            "rmse_vs_ground_truth": rmse,
             "blocks": frame.stats.cull.blocks,
             "blocks_culled": frame.stats.cull.culled,
             "skirts": frame.stats.cull.skirts,
