@@ -8,6 +8,7 @@ macro_rules! outln {
     }};
 }
 
+pub(crate) mod bench;
 pub(crate) mod fly;
 pub(crate) mod info;
 pub(crate) mod render;
