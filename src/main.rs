@@ -16,6 +16,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Benchmarks: `bench lod` compares the LOD estimators across error bounds on the shared terrains.
+    Bench(cmd::bench::BenchArgs),
     /// Fly a camera path on the CPU: per-frame clipmap updates under the budget, statistics and hashes.
     Fly(cmd::fly::FlyArgs),
     /// Describe a terrain: size, spacing, height range, voids, and the GPU memory each shipped profile needs.
@@ -29,6 +31,7 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
+        Command::Bench(args) => cmd::bench::run(&args),
         Command::Fly(args) => cmd::fly::run(&args),
         Command::Info(args) => cmd::info::run(&args),
         Command::Render(args) => cmd::render::run(&args),
