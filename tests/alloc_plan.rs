@@ -1,14 +1,17 @@
-//! Proves the whole frame-planning path allocates nothing: `Clipmap::update` and `cull::build_draws` under a
-//! counting global allocator, on every shipped profile and every camera path. Its own test binary (the
-//! global allocator is per binary), one test, so nothing else allocates meanwhile; only this thread counts.
+//! Proves the whole frame-planning path allocates nothing: `Clipmap::update`, SAT LOD selection and
+//! `cull::build_draws` / `build_lod_draws` under a counting global allocator, on every shipped profile and
+//! every camera path. Its own test binary (the
+//! global allocator is per binary); counting is per thread, so the tests may run in parallel.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 use std::sync::atomic::{AtomicU64, Ordering};
 
+use clipsat::bake::{bake_lod, BakeParams};
 use clipsat::clipmap::{Clipmap, ClipmapOptions};
-use clipsat::cull::{build_draws, DrawList, DrawParams};
+use clipsat::cull::{build_draws, build_lod_draws, DrawList, DrawParams};
 use clipsat::flight::{Flight, Path};
+use clipsat::lod::{Lod, LodFrame, LodMode, P};
 use clipsat::source::procedural::{generate, ProceduralParams};
 use clipsat::Profile;
 
@@ -127,5 +130,62 @@ fn update_and_draw_list_allocate_nothing() {
                 assert!(!draws.is_empty(), "{name} {path}: nothing drawn");
             }
         }
+    }
+}
+
+/// The SAT LOD half of the planning path: `Lod::select` and `build_lod_draws` in each SAT estimator.
+#[test]
+fn lod_selection_allocates_nothing() {
+    let hm = generate(&ProceduralParams {
+        seed: 5,
+        size: 257,
+        spacing: 30.0,
+    })
+    .expect("procedural");
+    let prof = Profile::load("gles3-mid").expect("shipped profile");
+    let mut cm = Clipmap::new(&hm, &prof, ClipmapOptions::default()).expect("clipmap");
+    let params = BakeParams {
+        p: P,
+        levels: prof.clipmap.levels,
+        synth_levels: 0,
+        g0: cm.g0(),
+    };
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("alloc-lod-cache");
+    let (tables, _) = bake_lod(&hm, cm.pyramid(), &params, &dir, false).expect("LOD tables");
+    let lod = Lod::for_clipmap(tables, &prof, &cm, &hm);
+    let mut lod_frame = LodFrame::new_boxed();
+    let mut draws = DrawList::new();
+    let aspect = f64::from(prof.view.width) / f64::from(prof.view.height);
+    let data_lattice = (f64::from(hm.width() - 1), f64::from(hm.height() - 1));
+    let flight = Flight::new(Path::Figure8, 120.0, &hm).expect("flight");
+    for f in 0..5 {
+        cm.update(flight.camera(f).eye).expect("update");
+    }
+    for mode in [LodMode::Sat, LodMode::SatConservative, LodMode::Exact] {
+        let n = count(|| {
+            for f in 5..40 {
+                let cam = flight.camera(f);
+                cm.update(cam.eye).expect("update");
+                lod.select(cm.frame(), &cam, mode, &mut lod_frame)
+                    .expect("select");
+                let p = cm.eye_lattice(cam.eye);
+                let g0 = cm.g0();
+                let params = DrawParams {
+                    block_quads: (prof.clipmap.n + 1) / 4,
+                    max_draws: prof.budget.max_draws,
+                    cull: true,
+                    skirts: true,
+                    aspect,
+                    extent: [
+                        -p.0 * g0,
+                        -(data_lattice.1 - p.1) * g0,
+                        (data_lattice.0 - p.0) * g0,
+                        p.1 * g0,
+                    ],
+                };
+                build_lod_draws(&cm, &cam, &params, &lod_frame, &mut draws).expect("draws");
+            }
+        });
+        assert_eq!(n, 0, "{mode:?}: {n} allocations in 35 planned frames");
     }
 }
