@@ -1,7 +1,7 @@
 //! Proves the whole frame-planning path allocates nothing: `Clipmap::update`, SAT LOD selection and
 //! `cull::build_draws` / `build_lod_draws` under a counting global allocator, on every shipped profile and
-//! every camera path. Its own test binary (the
-//! global allocator is per binary); counting is per thread, so the tests may run in parallel.
+//! every camera path. Its own test binary (the global allocator is per binary); counting is per thread, so
+//! the tests may run in parallel.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
