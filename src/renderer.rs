@@ -872,7 +872,8 @@ impl<'g> Renderer<'g> {
             gpu.queue().submit([encoder.finish()]);
             Ok(())
         })?;
-        let rows = map_read(gpu, &self.readback, self.padded_row, self.width * 4)?;
+        let rows =
+            crate::gpu::readback::map_rows(gpu, &self.readback, self.padded_row, self.width * 4)?;
         Ok(Image {
             width: self.width,
             height: self.height,
@@ -925,7 +926,7 @@ impl<'g> Renderer<'g> {
                 gpu.queue().submit([encoder.finish()]);
                 Ok(buffer)
             })?;
-            let bytes = map_read(gpu, &buffer, padded, s * 8)?;
+            let bytes = crate::gpu::readback::map_rows(gpu, &buffer, padded, s * 8)?;
             out.push(bytemuck::pod_collect_to_vec(&bytes));
         }
         Ok(out)
@@ -937,33 +938,6 @@ impl Drop for Renderer<'_> {
         // Its objects are GL objects of this Gpu's context: make it current before they go.
         self.gpu.bind();
     }
-}
-
-/// Maps `buffer`, copies `tight` bytes of each `padded`-byte row, unmaps.
-fn map_read(gpu: &Gpu, buffer: &wgpu::Buffer, padded: u32, tight: u32) -> Result<Vec<u8>> {
-    let (tx, rx) = std::sync::mpsc::channel();
-    buffer.map_async(wgpu::MapMode::Read, .., move |r| {
-        // The receiver outlives the poll below; a send error cannot happen.
-        let _ = tx.send(r);
-    });
-    gpu.device()
-        .poll(wgpu::PollType::wait_indefinitely())
-        .map_err(|e| Error::Gpu(format!("readback: waiting for the GPU: {e}")))?;
-    rx.try_recv()
-        .map_err(|_| Error::Gpu("readback: map callback did not run".into()))?
-        .map_err(|e| Error::Gpu(format!("readback: map failed: {e}")))?;
-    let mut out = Vec::new();
-    {
-        let view = buffer
-            .get_mapped_range(..)
-            .map_err(|e| Error::Gpu(format!("readback: mapped range: {e}")))?;
-        out.reserve(view.len() / padded as usize * tight as usize);
-        for row in view.chunks_exact(padded as usize) {
-            out.extend_from_slice(&row[..tight as usize]);
-        }
-    }
-    buffer.unmap();
-    Ok(out)
 }
 
 /// The uniforms of draw `d`: lattice values relative to the level's anchor (its active region's first
@@ -1509,7 +1483,12 @@ impl VertexProbe {
             gpu.queue().submit([encoder.finish()]);
             Ok(())
         })?;
-        let bytes = map_read(gpu, &self.buffer, self.size[0] * 16, self.size[0] * 16)?;
+        let bytes = crate::gpu::readback::map_rows(
+            gpu,
+            &self.buffer,
+            self.size[0] * 16,
+            self.size[0] * 16,
+        )?;
         let texels: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(&bytes);
         Ok(texels[..m.vertex_count as usize].to_vec())
     }

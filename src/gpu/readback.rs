@@ -94,6 +94,17 @@ pub fn read_rgba8(gpu: &Gpu, texture: &wgpu::Texture) -> Result<Image> {
         gpu.queue().submit([encoder.finish()]);
         Ok(buffer)
     })?;
+    let rgba = map_rows(gpu, &buffer, padded, u32::try_from(tight).unwrap_or(padded))?;
+    Ok(Image {
+        width,
+        height,
+        rgba,
+    })
+}
+
+/// Maps a MAP_READ `buffer` whose rows are `padded` bytes apart, copies the first `tight` bytes of each row
+/// into one tightly packed vector, and unmaps it. Waits for the GPU.
+pub fn map_rows(gpu: &Gpu, buffer: &wgpu::Buffer, padded: u32, tight: u32) -> Result<Vec<u8>> {
     let (tx, rx) = mpsc::channel();
     buffer.map_async(wgpu::MapMode::Read, .., move |r| {
         // The receiver outlives the poll below; a send error cannot happen.
@@ -105,19 +116,16 @@ pub fn read_rgba8(gpu: &Gpu, texture: &wgpu::Texture) -> Result<Image> {
     rx.try_recv()
         .map_err(|_| Error::Gpu("readback: map callback did not run".into()))?
         .map_err(|e| Error::Gpu(format!("readback: map failed: {e}")))?;
-    let mut rgba = Vec::with_capacity(tight * height as usize);
+    let mut out = Vec::new();
     {
         let view = buffer
             .get_mapped_range(..)
             .map_err(|e| Error::Gpu(format!("readback: mapped range: {e}")))?;
+        out.reserve(view.len() / padded as usize * tight as usize);
         for row in view.chunks_exact(padded as usize) {
-            rgba.extend_from_slice(&row[..tight]);
+            out.extend_from_slice(&row[..tight as usize]);
         }
     }
     buffer.unmap();
-    Ok(Image {
-        width,
-        height,
-        rgba,
-    })
+    Ok(out)
 }
