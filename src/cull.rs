@@ -247,6 +247,21 @@ fn height_range(clipmap: &Clipmap, level: u32, r: &Rect) -> (f32, f32) {
     (lo, hi)
 }
 
+/// Appends `d` unless the list already holds `cap` draws (the profile's `max_draws`, at most
+/// [`MAX_DRAWS`]): overflow is an [`Error::Capacity`], never a silent drop.
+fn push_capped(out: &mut DrawList, d: Draw, cap: usize) -> Result<()> {
+    if out.len() >= cap {
+        return Err(Error::Capacity {
+            what: "draws per frame (budget.max_draws)",
+            capacity: cap,
+        });
+    }
+    out.push(d).map_err(|_| Error::Capacity {
+        what: "draws per frame",
+        capacity: MAX_DRAWS,
+    })
+}
+
 /// Builds the draw list of the clipmap's last frame seen from `camera` into `out` (cleared first).
 ///
 /// Per enabled level, finest first: the render region's rectangles tiled by blocks (each frustum-culled
@@ -266,18 +281,7 @@ pub fn build_draws(
     let eye_l = clipmap.eye_lattice(camera.eye);
     let cap = (params.max_draws as usize).min(MAX_DRAWS);
     let mut stats = DrawStats::default();
-    let push = |out: &mut DrawList, d: Draw| -> Result<()> {
-        if out.len() >= cap {
-            return Err(Error::Capacity {
-                what: "draws per frame (budget.max_draws)",
-                capacity: cap,
-            });
-        }
-        out.push(d).map_err(|_| Error::Capacity {
-            what: "draws per frame",
-            capacity: MAX_DRAWS,
-        })
-    };
+    let push = |out: &mut DrawList, d: Draw| push_capped(out, d, cap);
     let coarsest_enabled = frame.levels.iter().rposition(|l| !l.active.is_empty());
     let q = i64::from(params.block_quads);
     for (li, lf) in frame.levels.iter().enumerate() {
@@ -443,18 +447,7 @@ pub fn build_lod_draws(
     let eye_l = clipmap.eye_lattice(camera.eye);
     let cap = (params.max_draws as usize).min(MAX_DRAWS);
     let mut stats = DrawStats::default();
-    let push = |out: &mut DrawList, d: Draw| -> Result<()> {
-        if out.len() >= cap {
-            return Err(Error::Capacity {
-                what: "draws per frame (budget.max_draws)",
-                capacity: cap,
-            });
-        }
-        out.push(d).map_err(|_| Error::Capacity {
-            what: "draws per frame",
-            capacity: MAX_DRAWS,
-        })
-    };
+    let push = |out: &mut DrawList, d: Draw| push_capped(out, d, cap);
     let m = i64::from(params.block_quads);
     let hole_of = |ring: u32| -> Rect {
         match ring.checked_sub(1) {

@@ -138,24 +138,36 @@ pub const MAX_TEXTURE_LAYERS: u32 = 256;
 /// Most rings a profile may ask for (g_L = g_0 2^L must stay exact in f32).
 pub const MAX_LEVELS: u32 = 16;
 
+/// The TOML text of a shipped `what` (profile, scene) by name, or of a file by path; `arg` names the option
+/// in the error when it is neither.
+pub(crate) fn shipped_or_file(
+    shipped: &[(&str, &'static str)],
+    arg: &str,
+    what: &str,
+    name_or_path: &str,
+) -> Result<std::borrow::Cow<'static, str>> {
+    if let Some((_, text)) = shipped.iter().find(|(n, _)| *n == name_or_path) {
+        return Ok(std::borrow::Cow::Borrowed(text));
+    }
+    let path = Path::new(name_or_path);
+    if !path.exists() {
+        let names: Vec<&str> = shipped.iter().map(|(n, _)| *n).collect();
+        return Err(Error::Arg {
+            arg: arg.into(),
+            reason: format!(
+                "`{name_or_path}` is neither a shipped {what} ({}) nor a file",
+                names.join(", ")
+            ),
+        });
+    }
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, "cannot read", e))?;
+    Ok(std::borrow::Cow::Owned(text))
+}
+
 impl Profile {
     /// A shipped profile by name, or a profile file by path.
     pub fn load(name_or_path: &str) -> Result<Self> {
-        if let Some((_, text)) = SHIPPED.iter().find(|(n, _)| *n == name_or_path) {
-            return Self::parse(name_or_path, text);
-        }
-        let path = Path::new(name_or_path);
-        if !path.exists() {
-            let names: Vec<&str> = SHIPPED.iter().map(|(n, _)| *n).collect();
-            return Err(Error::Arg {
-                arg: "--profile".into(),
-                reason: format!(
-                    "`{name_or_path}` is neither a shipped profile ({}) nor a file",
-                    names.join(", ")
-                ),
-            });
-        }
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, "cannot read", e))?;
+        let text = shipped_or_file(&SHIPPED, "--profile", "profile", name_or_path)?;
         Self::parse(name_or_path, &text)
     }
 

@@ -788,30 +788,13 @@ impl<'g> Renderer<'g> {
                         label: Some("clipmap frame"),
                     });
             {
-                let [r, g, b, a] = opts.clear;
-                let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                    label: Some("clipmap"),
-                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                        view: &self.color_view,
-                        depth_slice: None,
-                        resolve_target: None,
-                        ops: wgpu::Operations {
-                            load: wgpu::LoadOp::Clear(wgpu::Color { r, g, b, a }),
-                            store: wgpu::StoreOp::Store,
-                        },
-                    })],
-                    depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                        view: &self.depth_view,
-                        depth_ops: Some(wgpu::Operations {
-                            load: wgpu::LoadOp::Clear(1.0),
-                            store: wgpu::StoreOp::Discard,
-                        }),
-                        stencil_ops: None,
-                    }),
-                    timestamp_writes: None,
-                    occlusion_query_set: None,
-                    multiview_mask: None,
-                });
+                let mut pass = crate::gpu::clear_pass(
+                    &mut encoder,
+                    "clipmap",
+                    &self.color_view,
+                    &self.depth_view,
+                    opts.clear,
+                );
                 pass.set_pipeline(&self.pipeline);
                 pass.set_bind_group(0, &self.group0, &[]);
                 let mut bound = None;

@@ -5,8 +5,6 @@
 //! every field and names the one at fault; [`Scene::check_profile`] refuses features the profile does not
 //! allow; [`Scene::needs`] tells the renderer what to bake, bind and compile, and nothing more.
 
-use std::path::Path;
-
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
@@ -163,21 +161,7 @@ pub fn direction(azimuth_deg: f32, elevation_deg: f32) -> Vec3 {
 impl Scene {
     /// A shipped scene by name, or a scene file by path.
     pub fn load(name_or_path: &str) -> Result<Self> {
-        if let Some((_, text)) = SHIPPED.iter().find(|(n, _)| *n == name_or_path) {
-            return Self::parse(name_or_path, text);
-        }
-        let path = Path::new(name_or_path);
-        if !path.exists() {
-            let names: Vec<&str> = SHIPPED.iter().map(|(n, _)| *n).collect();
-            return Err(Error::Arg {
-                arg: "--scene".into(),
-                reason: format!(
-                    "`{name_or_path}` is neither a shipped scene ({}) nor a file",
-                    names.join(", ")
-                ),
-            });
-        }
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, "cannot read", e))?;
+        let text = crate::profile::shipped_or_file(&SHIPPED, "--scene", "scene", name_or_path)?;
         Self::parse(name_or_path, &text)
     }
 

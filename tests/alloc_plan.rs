@@ -3,10 +3,6 @@
 //! every camera path. Its own test binary (the global allocator is per binary); counting is per thread, so
 //! the tests may run in parallel.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-use std::sync::atomic::{AtomicU64, Ordering};
-
 use clipsat::bake::{bake_lod, BakeParams};
 use clipsat::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::cull::{build_draws, build_lod_draws, DrawList, DrawParams};
@@ -15,56 +11,33 @@ use clipsat::lod::{Lod, LodFrame, LodMode, P};
 use clipsat::source::procedural::{generate, ProceduralParams};
 use clipsat::Profile;
 
-struct Counting;
+mod counting_alloc;
+use counting_alloc::count;
 
-static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
-
-thread_local! {
-    static COUNTING: Cell<bool> = const { Cell::new(false) };
-}
-
-fn note() {
-    if COUNTING.with(Cell::get) {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+/// The renderer's draw parameters for `cam`: culling and skirts on, the data's extent (last sample at
+/// `data_lattice` data cells, `k` level-0 cells each) relative to the eye.
+fn draw_params(
+    cm: &Clipmap,
+    cam: &clipsat::Camera,
+    prof: &Profile,
+    data_lattice: (f64, f64),
+    k: f64,
+) -> DrawParams {
+    let p = cm.eye_lattice(cam.eye);
+    let g0 = cm.g0();
+    DrawParams {
+        block_quads: (prof.clipmap.n + 1) / 4,
+        max_draws: prof.budget.max_draws,
+        cull: true,
+        skirts: true,
+        aspect: f64::from(prof.view.width) / f64::from(prof.view.height),
+        extent: [
+            -p.0 * g0,
+            -(data_lattice.1 * k - p.1) * g0,
+            (data_lattice.0 * k - p.0) * g0,
+            p.1 * g0,
+        ],
     }
-}
-
-// SAFETY: forwards every call to the system allocator unchanged; only counts.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        note();
-        // SAFETY: the caller upholds `GlobalAlloc::alloc`'s contract, passed on as is.
-        unsafe { System.alloc(layout) }
-    }
-
-    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-        note();
-        // SAFETY: as above.
-        unsafe { System.alloc_zeroed(layout) }
-    }
-
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        note();
-        // SAFETY: as above.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: as above.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-}
-
-#[global_allocator]
-static GLOBAL: Counting = Counting;
-
-/// Allocations `f` makes on this thread.
-fn count(f: impl FnOnce()) -> u64 {
-    let before = ALLOCATIONS.load(Ordering::Relaxed);
-    COUNTING.with(|c| c.set(true));
-    f();
-    COUNTING.with(|c| c.set(false));
-    ALLOCATIONS.load(Ordering::Relaxed) - before
 }
 
 #[test]
@@ -84,7 +57,6 @@ fn update_and_draw_list_allocate_nothing() {
                 Clipmap::new(&hm, &prof, ClipmapOptions { synth_levels }).expect("clipmap");
             let k = f64::from(1u32 << synth_levels);
             let mut draws = DrawList::new();
-            let aspect = f64::from(prof.view.width) / f64::from(prof.view.height);
             for path in [
                 Path::Straight,
                 Path::Circle,
@@ -104,21 +76,7 @@ fn update_and_draw_list_allocate_nothing() {
                     for f in 5..50 {
                         let cam = flight.camera(f);
                         cm.update(cam.eye).expect("update");
-                        let p = cm.eye_lattice(cam.eye);
-                        let g0 = cm.g0();
-                        let params = DrawParams {
-                            block_quads: (prof.clipmap.n + 1) / 4,
-                            max_draws: prof.budget.max_draws,
-                            cull: true,
-                            skirts: true,
-                            aspect,
-                            extent: [
-                                -p.0 * g0,
-                                -(data_lattice.1 * k - p.1) * g0,
-                                (data_lattice.0 * k - p.0) * g0,
-                                p.1 * g0,
-                            ],
-                        };
+                        let params = draw_params(&cm, &cam, &prof, data_lattice, k);
                         build_draws(&cm, &cam, &params, &mut draws).expect("draws");
                         frames += 1;
                     }
@@ -155,7 +113,6 @@ fn lod_selection_allocates_nothing() {
     let lod = Lod::for_clipmap(tables, &prof, &cm, &hm);
     let mut lod_frame = LodFrame::new_boxed();
     let mut draws = DrawList::new();
-    let aspect = f64::from(prof.view.width) / f64::from(prof.view.height);
     let data_lattice = (f64::from(hm.width() - 1), f64::from(hm.height() - 1));
     let flight = Flight::new(Path::Figure8, 120.0, &hm).expect("flight");
     for f in 0..5 {
@@ -168,21 +125,7 @@ fn lod_selection_allocates_nothing() {
                 cm.update(cam.eye).expect("update");
                 lod.select(cm.frame(), &cam, mode, &mut lod_frame)
                     .expect("select");
-                let p = cm.eye_lattice(cam.eye);
-                let g0 = cm.g0();
-                let params = DrawParams {
-                    block_quads: (prof.clipmap.n + 1) / 4,
-                    max_draws: prof.budget.max_draws,
-                    cull: true,
-                    skirts: true,
-                    aspect,
-                    extent: [
-                        -p.0 * g0,
-                        -(data_lattice.1 - p.1) * g0,
-                        (data_lattice.0 - p.0) * g0,
-                        p.1 * g0,
-                    ],
-                };
+                let params = draw_params(&cm, &cam, &prof, data_lattice, 1.0);
                 build_lod_draws(&cm, &cam, &params, &lod_frame, &mut draws).expect("draws");
             }
         });

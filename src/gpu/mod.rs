@@ -320,6 +320,41 @@ fn driver_from_version(version: &str) -> String {
         .map_or_else(String::new, |(_, tail)| tail.trim().to_string())
 }
 
+/// Begins the one kind of pass every renderer here draws: colour cleared to `clear` (RGBA, 0..1) and
+/// stored, depth cleared to 1 and discarded after the pass.
+pub fn clear_pass<'e>(
+    encoder: &'e mut wgpu::CommandEncoder,
+    label: &str,
+    color: &wgpu::TextureView,
+    depth: &wgpu::TextureView,
+    clear: [f64; 4],
+) -> wgpu::RenderPass<'e> {
+    let [r, g, b, a] = clear;
+    encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+        label: Some(label),
+        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+            view: color,
+            depth_slice: None,
+            resolve_target: None,
+            ops: wgpu::Operations {
+                load: wgpu::LoadOp::Clear(wgpu::Color { r, g, b, a }),
+                store: wgpu::StoreOp::Store,
+            },
+        })],
+        depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+            view: depth,
+            depth_ops: Some(wgpu::Operations {
+                load: wgpu::LoadOp::Clear(1.0),
+                store: wgpu::StoreOp::Discard,
+            }),
+            stencil_ops: None,
+        }),
+        timestamp_writes: None,
+        occlusion_query_set: None,
+        multiview_mask: None,
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
