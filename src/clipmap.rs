@@ -226,6 +226,11 @@ impl Clipmap {
         })
     }
 
+    /// World (x, y) of the terrain's south-west sample (`Heightmap::origin`), metres.
+    pub fn origin(&self) -> (f64, f64) {
+        self.origin
+    }
+
     /// Level-0 grid spacing, metres.
     pub fn g0(&self) -> f64 {
         self.g0

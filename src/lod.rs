@@ -473,6 +473,8 @@ pub struct Lod {
     synth: u32,
     m: u32,
     g0: f64,
+    /// World x of level-0 lattice column 0 (the west edge), metres.
+    x_left: f64,
     /// World y of level-0 lattice row 0 (the north edge), metres.
     y_top: f64,
     z_range: (f64, f64),
@@ -484,22 +486,25 @@ pub struct Lod {
 impl Lod {
     /// A selector for a clipmap of `profile` over the terrain the tables were built from.
     ///
-    /// `g0` is the level-0 spacing, `y_top` the world y of lattice row 0, `z_range` the terrain's height
-    /// range (the blocks' vertical extent, so the closest point is never farther than the true one).
+    /// `g0` is the level-0 spacing, `corner` the world (x, y) of lattice point (0, 0) (the north-west data
+    /// sample), `z_range` the terrain's height range (the blocks' vertical extent, so the closest point is
+    /// never farther than the true one).
     pub fn new(
         tables: LodTables,
         profile: &crate::Profile,
         synth: u32,
         g0: f64,
-        y_top: f64,
+        corner: (f64, f64),
         z_range: (f64, f64),
     ) -> Self {
+        let (x_left, y_top) = corner;
         Self {
             tables,
             levels: profile.clipmap.levels.min(crate::profile::MAX_LEVELS),
             synth,
             m: profile.block_m(),
             g0,
+            x_left,
             y_top,
             z_range,
             epsilon_px: f64::from(profile.view.epsilon_px),
@@ -516,13 +521,15 @@ impl Lod {
         terrain: &crate::Heightmap,
     ) -> Self {
         let (lo, hi) = terrain.range();
-        let y_top = f64::from(terrain.height() - 1) * f64::from(terrain.spacing());
+        // Heightmap::grid_to_world: sample (0, 0) sits at origin + (0, (rows - 1) s).
+        let (ox, oy) = terrain.origin();
+        let y_top = oy + f64::from(terrain.height() - 1) * f64::from(terrain.spacing());
         Self::new(
             tables,
             profile,
             clipmap.synth_levels(),
             clipmap.g0(),
-            y_top,
+            (ox, y_top),
             (f64::from(lo), f64::from(hi)),
         )
     }
@@ -562,8 +569,8 @@ impl Lod {
             reason = "lattice coordinates below 2^48 are exact in f64"
         )]
         let (x0, x1, yn, ys) = (
-            a as f64 * g,
-            b as f64 * g,
+            self.x_left + a as f64 * g,
+            self.x_left + b as f64 * g,
             self.y_top - c as f64 * g,
             self.y_top - d as f64 * g,
         );

@@ -1229,7 +1229,8 @@ pub fn screen_error(
         stride,
         ..ScreenError::default()
     };
-    let top = f64::from(data.height() - 1) * spacing;
+    let (ox, oy) = clipmap.origin();
+    let top = oy + f64::from(data.height() - 1) * spacing;
     for (l, clamped, (x0, y0, x1, y1)) in boxes() {
         let errors = l
             .checked_sub(synth)
@@ -1245,7 +1246,7 @@ pub fn screen_error(
             for x in (x0.next_multiple_of(stride)..x1).step_by(stride as usize) {
                 let z = f64::from(data.at_clamped(i64::from(x), i64::from(y)));
                 let rel = glam::DVec3::new(
-                    f64::from(x) * spacing - camera.eye.x,
+                    ox + f64::from(x) * spacing - camera.eye.x,
                     top - f64::from(y) * spacing - camera.eye.y,
                     z - camera.eye.z,
                 );

@@ -105,3 +105,59 @@ fn the_image_is_the_same_far_from_the_origin() {
         worst.0, worst.1
     );
 }
+
+/// SAT LOD selection measures block distances from the eye in world metres, so the terrain's origin must
+/// enter them: far out, every block keeps the level it gets at the origin.
+#[test]
+fn sat_lod_chooses_the_same_levels_far_from_the_origin() {
+    use clipsat::bake::{bake_lod, BakeParams};
+    use clipsat::hash::Hash64;
+    use clipsat::lod::{Lod, LodFrame, LodMode, P};
+    let base = render_support::relief();
+    let prof = render_support::profile("gles3-low", 160, 90, None);
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("lod-cache-far");
+    let lod_for = |hm: &clipsat::Heightmap, cm: &Clipmap| {
+        let params = BakeParams {
+            p: P,
+            levels: prof.clipmap.levels,
+            synth_levels: cm.synth_levels(),
+            g0: cm.g0(),
+        };
+        let (tables, _) = bake_lod(hm, cm.pyramid(), &params, &dir, false).expect("LOD tables");
+        Lod::for_clipmap(tables, &prof, cm, hm)
+    };
+    let (mut fa, mut fb) = (LodFrame::new_boxed(), LodFrame::new_boxed());
+    for (ox, oy) in OFFSETS {
+        let far = base.clone().with_origin(ox, oy);
+        let offset = DVec3::new(ox, oy, 0.0);
+        let mut a = Clipmap::new(&base, &prof, ClipmapOptions::default()).expect("clipmap");
+        let mut b = Clipmap::new(&far, &prof, ClipmapOptions::default()).expect("clipmap");
+        let (la, lb) = (lod_for(&base, &a), lod_for(&far, &b));
+        let mut coarser = 0;
+        for i in 0..8 {
+            let cam = render_support::flight(&base, i * 9, 120.0, 250.0, Some(5 * 9));
+            let mut cam_far = cam;
+            cam_far.eye += offset;
+            cam_far.target += offset;
+            a.update(cam.eye).expect("update");
+            b.update(cam_far.eye).expect("update");
+            la.select(a.frame(), &cam, LodMode::Sat, &mut fa)
+                .expect("select");
+            lb.select(b.frame(), &cam_far, LodMode::Sat, &mut fb)
+                .expect("select");
+            let (mut ha, mut hb) = (Hash64::new(), Hash64::new());
+            fa.hash_into(&mut ha);
+            fb.hash_into(&mut hb);
+            assert_eq!(
+                ha.finish(),
+                hb.finish(),
+                "offset ({ox}, {oy}) frame {i}: SAT LOD chose different levels far from the origin"
+            );
+            coarser += fa.blocks_coarser;
+        }
+        assert!(
+            coarser > 0,
+            "the views must exercise coarser-than-ring blocks"
+        );
+    }
+}

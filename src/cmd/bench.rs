@@ -42,9 +42,10 @@ struct BenchLodArgs {
     /// Frames of a figure-8 flight per terrain.
     #[arg(long, value_name = "N", default_value_t = 12)]
     frames: u32,
-    /// Image size, WxH pixels.
-    #[arg(long, value_name = "WxH", default_value = "320x180")]
-    size: String,
+    /// Image size, WxH pixels; default: the profile's viewport, the size its epsilon is meant for
+    /// (screen-space error scales with the image height).
+    #[arg(long, value_name = "WxH")]
+    size: Option<String>,
     /// GL context: strict, gl or auto.
     #[arg(long, value_name = "auto|strict|gl", default_value = "auto")]
     gpu: String,
@@ -56,6 +57,14 @@ const MODES: [LodMode; 4] = [
     LodMode::Sat,
     LodMode::SatConservative,
     LodMode::Exact,
+];
+
+/// Plot colour per entry of [`MODES`].
+const MODE_COLORS: [[u8; 3]; 4] = [
+    [120, 120, 120],
+    [31, 119, 180],
+    [214, 39, 40],
+    [44, 160, 44],
 ];
 
 /// The benchmark terrains: shared file, spacing and height scale overrides (PNG needs both).
@@ -86,7 +95,6 @@ pub(crate) fn run(args: &BenchArgs) -> Result<()> {
 
 fn run_lod(args: &BenchLodArgs) -> Result<()> {
     let mode: GpuMode = args.gpu.parse()?;
-    let (w, h) = parse_size(&args.size)?;
     if args.frames == 0 {
         return Err(Error::Arg {
             arg: "--frames".into(),
@@ -94,6 +102,10 @@ fn run_lod(args: &BenchLodArgs) -> Result<()> {
         });
     }
     let mut profile = args.profile.load()?;
+    let (w, h) = match &args.size {
+        Some(text) => parse_size(text)?,
+        None => (profile.view.width, profile.view.height),
+    };
     profile.view.width = w;
     profile.view.height = h;
     // Every frame fully updated: the comparison is about LOD, not the update budget.
@@ -181,11 +193,14 @@ fn run_lod(args: &BenchLodArgs) -> Result<()> {
     }
     bar.finish_and_clear();
     let md = args.out.join("lod.md");
-    std::fs::write(&md, table(&results, &skipped, args, &profile.name))
+    std::fs::write(&md, table(&results, &skipped, args, &profile.name, (w, h)))
         .map_err(|e| Error::io(&md, "cannot write", e))?;
     let png = args.out.join("lod.png");
     plot(&results, &png)?;
     outln!("{}\n{}", md.display(), png.display());
+    for png in plot_cost(&results, &args.out)? {
+        outln!("{}", png.display());
+    }
     Ok(())
 }
 
@@ -194,30 +209,37 @@ fn table(
     skipped: &[String],
     args: &BenchLodArgs,
     profile: &str,
+    (w, h): (u32, u32),
 ) -> String {
     let mut s = format!(
-        "# clipsat bench lod\n\nProfile {profile}, {} frames of a figure-8 flight per terrain at {}, full update \
+        "# clipsat bench lod\n\nProfile {profile}, {} frames of a figure-8 flight per terrain at {w}x{h}, full update \
          budget. Means per frame, except max screen error (the largest over the frames) and frames over epsilon \
          (measured max screen error > epsilon; `renderer::screen_error`: |H_0 - PL(H_L)| projected at each data \
          sample in the frustum, clamped blocks included). LOD time: `Lod::select` alone (0 for distance, which \
          selects nothing). Render time: upload, draw and readback on this machine's GL driver. RMSE: RGB, \
          0..255, every pixel, against the brute-force render.\n\n",
-        args.frames, args.size
+        args.frames
     );
     if !skipped.is_empty() {
         s.push_str(&format!("Skipped: {}.\n\n", skipped.join(", ")));
     }
     s.push_str(
-        "| terrain | epsilon px | LOD | triangles | LOD us | render ms | max screen error px | frames over eps | \
-         blocks clamped | RMSE |\n|---|---|---|---|---|---|---|---|---|---|\n",
+        "| terrain | epsilon px | LOD | triangles | LOD us | render ms | render / distance | max screen error px | \
+         frames over eps | blocks clamped | RMSE |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for (name, eps, mode, a) in results {
         let n = f64::from(a.frames.max(1));
+        // The ratio to the distance row of the same terrain and epsilon, measured in the same run.
+        let base = results
+            .iter()
+            .find(|r| r.0 == *name && r.1 == *eps && r.2 == LodMode::Distance)
+            .map_or(f64::NAN, |r| r.3.render_ms / f64::from(r.3.frames.max(1)));
         s.push_str(&format!(
-            "| {name} | {eps} | {mode} | {:.0} | {:.1} | {:.1} | {:.3} | {:.0} % | {:.1} | {:.2} |\n",
+            "| {name} | {eps} | {mode} | {:.0} | {:.1} | {:.1} | {:.2} | {:.3} | {:.0} % | {:.1} | {:.2} |\n",
             a.triangles / n,
             a.lod_us / n,
             a.render_ms / n,
+            a.render_ms / n / base,
             a.max_error_px,
             100.0 * f64::from(a.frames_over) / n,
             a.clamped / n,
@@ -228,12 +250,6 @@ fn table(
 }
 
 fn plot(results: &[(String, f32, LodMode, Acc)], out: &std::path::Path) -> Result<()> {
-    const COLORS: [[u8; 3]; 4] = [
-        [120, 120, 120],
-        [31, 119, 180],
-        [214, 39, 40],
-        [44, 160, 44],
-    ];
     let mut series = Vec::new();
     let mut names: Vec<&str> = results.iter().map(|r| r.0.as_str()).collect();
     names.dedup();
@@ -248,7 +264,7 @@ fn plot(results: &[(String, f32, LodMode, Acc)], out: &std::path::Path) -> Resul
             series.push(Series {
                 name: format!("{short} {mode}"),
                 points,
-                color: COLORS[mi],
+                color: MODE_COLORS[mi],
                 right_axis: false,
             });
         }
@@ -262,6 +278,49 @@ fn plot(results: &[(String, f32, LodMode, Acc)], out: &std::path::Path) -> Resul
         series,
     }
     .write_png(out, 960, 600)
+}
+
+/// What accuracy costs in time: per terrain, render ms per frame against the measured max screen error, one
+/// line per estimator through epsilon 0.5 .. 8 (`lod-time-<terrain>.png`).
+fn plot_cost(
+    results: &[(String, f32, LodMode, Acc)],
+    dir: &std::path::Path,
+) -> Result<Vec<PathBuf>> {
+    let mut names: Vec<&str> = results.iter().map(|r| r.0.as_str()).collect();
+    names.dedup();
+    let mut out = Vec::new();
+    for name in names {
+        let series = MODES
+            .iter()
+            .zip(MODE_COLORS)
+            .map(|(mode, color)| Series {
+                name: mode.to_string(),
+                points: results
+                    .iter()
+                    .filter(|r| r.0 == name && r.2 == *mode)
+                    .map(|r| {
+                        let n = f64::from(r.3.frames.max(1));
+                        (r.3.max_error_px, r.3.render_ms / n)
+                    })
+                    .collect(),
+                color,
+                right_axis: false,
+            })
+            .collect();
+        let short = name.split(['_', '.']).next().unwrap_or(name);
+        let png = dir.join(format!("lod-time-{short}.png"));
+        LinePlot {
+            title: format!("{name}: time against measured error, epsilon 0.5 .. 8"),
+            x_label: "max screen error (px)".into(),
+            y_label: "render ms / frame".into(),
+            y2_label: String::new(),
+            x_log: true,
+            series,
+        }
+        .write_png(&png, 960, 600)?;
+        out.push(png);
+    }
+    Ok(out)
 }
 
 fn parse_size(text: &str) -> Result<(u32, u32)> {
