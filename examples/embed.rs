@@ -17,7 +17,7 @@ use clipsat::{Heightmap, Profile, Result};
 
 /// The (frame hash, image hash) of three frames 100 m apart along a figure-8 over `terrain`, rendered with
 /// the `gles3-low` profile at 320 x 180 pixels.
-fn three_frames(terrain: &Heightmap) -> Result<[(u64, u64); 3]> {
+pub(crate) fn three_frames(terrain: &Heightmap) -> Result<[(u64, u64); 3]> {
     let mut profile = Profile::load("gles3-low")?;
     (profile.view.width, profile.view.height) = (320, 180);
     let gpu = Gpu::new(GpuMode::Auto)?;
