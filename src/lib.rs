@@ -1,16 +1,71 @@
 //! clipsat: fixed-budget terrain rendering for OpenGL ES 3.0 class GPUs.
 //!
+//! clipsat renders large height fields on GPUs with no tessellation, no compute and no storage buffers
+//! (Android-class GLES 3.0), inside a budget fixed at start-up. It combines three published techniques:
+//!
+//! - **geometry clipmaps** (Losasso & Hoppe 2004): nested rings of n x n vertices around the viewer, updated
+//!   toroidally under a per-frame budget of samples ([`clipmap`], [`budget`]);
+//! - **summed-area-table LOD** (Li et al. 2021, eq. 6 and algorithm 1): each block takes the coarsest level
+//!   whose screen-space error bound, estimated in O(1) from SATs, stays under epsilon pixels ([`sat`],
+//!   [`bake`], [`lod`]);
+//! - **reduced spherical-Gaussian shading** (Li et al. 2021, section 5): SG lights, a vMF normal
+//!   distribution and SAT-filtered visibility, integrated in closed form over 4 x 8 patches ([`sg`],
+//!   [`shading`], [`horizon`], [`scene`]).
+//!
+//! Everything is sized once from a budget [`Profile`]; per-frame work is bounded in samples and primitives,
+//! and every frame has a deterministic 64-bit hash.
+//!
+//! # Pipeline
+//!
 //! Data flows one way, and each module holds one stage:
 //!
 //! ```text
-//! source (files, procedural) -> Heightmap
-//!   -> bake (pyramid, error SATs, normal and visibility SATs; cached)
-//!   -> per-frame plan (CPU, pure, allocation-free: clipmap update, LOD, culling, draw list, frame hash)
-//!   -> gpu (wgpu on the GLES 3.0 floor) -> image -> image hash
+//! source      files (PNG, GeoTIFF, SRTM .hgt, raw) or procedural     -> Heightmap     source, Heightmap
+//!   -> bake   height pyramid, error SATs, normal and visibility SATs  (cached)        pyramid, bake, sat, horizon
+//!   -> per-frame plan (CPU, pure, allocation-free)
+//!             camera path -> budgeted coarse-to-fine update -> fill   -> frame record  flight, budget, clipmap,
+//!             -> per-block LOD -> frustum cull -> draw list           -> frame hash    synthesis, frame, lod, cull
+//!   -> GPU    wgpu on the GLES 3.0 floor: upload the plan, draw, shade                 gpu, renderer, mesh
+//!   -> image  RGBA8 readback / PNG                                    -> image hash    gpu::readback, hash
 //! ```
 //!
-//! Everything is sized at start-up from a budget [`Profile`]; per-frame work is bounded in samples and
-//! primitives, and deterministic.
+//! The plan is a pure function of (terrain, profile, camera path, frame index), so `clipsat fly` runs it
+//! without a GPU. The image hash is exact for a given driver.
+//!
+//! # Getting started, headless
+//!
+//! Render one frame of a small procedural terrain and read its hashes. On a machine without a GPU this runs
+//! on Mesa llvmpipe through EGL (`bash .ci/setup` installs it).
+//!
+//! ```
+//! use clipsat::clipmap::{Clipmap, ClipmapOptions};
+//! use clipsat::flight::{Flight, Path};
+//! use clipsat::gpu::{Gpu, GpuMode};
+//! use clipsat::renderer::{render_frame, FrameOptions, Renderer};
+//! use clipsat::source::procedural::{generate, ProceduralParams};
+//! use clipsat::Profile;
+//!
+//! # fn main() -> clipsat::Result<()> {
+//! // A source: 257 x 257 samples at 30 m.
+//! let terrain = generate(&ProceduralParams { size: 257, ..ProceduralParams::default() })?;
+//! // The budget everything is sized from, with a small viewport.
+//! let mut profile = Profile::load("gles3-low")?;
+//! (profile.view.width, profile.view.height) = (160, 90);
+//! // The per-frame plan: a camera from a flight path, a budgeted clipmap update, its frame hash.
+//! let camera = Flight::new(Path::Figure8, 50.0, &terrain)?.camera(0);
+//! let mut clipmap = Clipmap::new(&terrain, &profile, ClipmapOptions::default())?;
+//! let plan_hash = clipmap.update(camera.eye)?.hash;
+//! // The GPU: a strict OpenGL ES 3.0 context if Mesa offers one, and a renderer sized from the profile.
+//! let gpu = Gpu::new(GpuMode::Auto)?;
+//! let mut renderer = Renderer::new(&gpu, &profile, &clipmap)?;
+//! let frame = render_frame(&mut renderer, &clipmap, &camera, &FrameOptions::default())?;
+//! assert_eq!((frame.image.width, frame.image.height), (160, 90));
+//! println!("plan {plan_hash:016x}, image {:016x}", frame.image_hash);
+//! # Ok(())
+//! # }
+//! ```
+//!
+//! `examples/embed.rs` does the same for three frames along a path, on the procedural terrain or a file.
 
 pub mod bake;
 pub mod budget;

@@ -16,7 +16,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Benchmarks: `bench lod` compares the LOD estimators across error bounds on the shared terrains.
+    /// Benchmarks: `bench lod` compares the LOD estimators across error bounds on the shared terrains; `bench
+    /// all` writes one report of every measurement.
     Bench(cmd::bench::BenchArgs),
     /// Fly a camera path on the CPU: per-frame clipmap updates under the budget, statistics and hashes.
     Fly(cmd::fly::FlyArgs),

@@ -3,7 +3,7 @@
 //! against.
 //!
 //! [`shade`] is f32, allocation-free and written as the WGSL will be: fixed loops over lights, theta
-//! bands and phi sectors, no library calls WGSL lacks. [`reference`] integrates the same light transport
+//! bands and phi sectors, no library calls WGSL lacks. [`reference()`] integrates the same light transport
 //! densely in f64 with the true clamped cosine (averaged over the vMF normal distribution) and ray-marched
 //! visibility, so every approximation of [`shade`] shows up in its error.
 //!
@@ -314,7 +314,7 @@ impl HorizonTable {
     }
 }
 
-/// Which cosine [`reference`] integrates against.
+/// Which cosine [`reference()`] integrates against.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum RefCosine {
     /// The true clamped cosine, averaged over the vMF: the physical answer.
@@ -325,7 +325,7 @@ pub enum RefCosine {
     SgModel,
 }
 
-/// Quadrature density of [`reference`]: midpoints in (energy fraction, phi) of each light's own frame.
+/// Quadrature density of [`reference()`]: midpoints in (energy fraction, phi) of each light's own frame.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct RefGrid {
     /// Theta samples (uniform in the light's energy fraction, i.e. importance-sampled).

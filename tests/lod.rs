@@ -352,3 +352,79 @@ fn lod_mode_parses() {
     }
     assert!("fast".parse::<LodMode>().is_err());
 }
+
+/// The 16385 x 16385 extent at full resolution (design.md "SAT LOD" hard cases): an error field spanning
+/// ten decades (1e-6 .. 1e4 m) with one needle, the level tables built as the bake builds them (1.1 GB of
+/// errors, a 2.1 GB SAT, a 1.4 GB max pyramid), then blocks of every size up to the whole extent keep
+/// estimate <= exact <= conservative and their SAT sums match a compensated f64 sum within
+/// 1e-12 relative + n quanta. Heavy, so ignored by default:
+/// `cargo test --release --test lod -- --ignored extent_16385`.
+#[test]
+#[ignore = "5 GB and about a minute in release: cargo test --release --test lod -- --ignored extent_16385"]
+fn extent_16385_full_resolution_tables() {
+    let side = 16385u32;
+    let needle = (9_999u32, 4_321u32);
+    let errs: Vec<f32> = (0..side)
+        .flat_map(|y| (0..side).map(move |x| (x, y)))
+        .map(|(x, y)| {
+            if (x, y) == needle {
+                1e4
+            } else {
+                (10f64.powf(-6.0 + 9.0 * f64::from(x) / f64::from(side)) * hash01(x, y)) as f32
+            }
+        })
+        .collect();
+    let t = LevelTables::build(side, side, errs.clone(), P).expect("tables");
+    let (sat, _) = t.tables().expect("nonzero errors");
+    assert_eq!(t.e_max(), 1e4);
+    let e = f64::from(t.e_max());
+    let mut boxes = vec![
+        (0, 0, side, side),
+        (needle.0, needle.1, needle.0 + 1, needle.1 + 1),
+        (needle.0 - 16, needle.1 - 16, needle.0 + 17, needle.1 + 17),
+        (0, 0, 33, 33),
+        (side - 33, side - 33, side, side),
+        (0, 0, 4097, side),
+    ];
+    for k in 0..64u32 {
+        let s = 33 << (k % 8);
+        let (x0, y0) = (k * 251 % (side - s), k * 977 % (side - s));
+        boxes.push((x0, y0, x0 + s, y0 + s));
+    }
+    for b in boxes {
+        let be = t.block(P, b.0, b.1, b.2, b.3);
+        assert!(
+            be.estimate <= be.exact && be.exact <= be.conservative && be.conservative <= e,
+            "box {b:?}: {be:?}"
+        );
+        let has_needle = (b.0..b.2).contains(&needle.0) && (b.1..b.3).contains(&needle.1);
+        if has_needle {
+            assert_eq!(be.exact, e, "the needle is the max of {b:?}");
+            assert_eq!(
+                be.conservative, e,
+                "the conservative bound keeps the needle in {b:?}"
+            );
+        }
+        // Neumaier-compensated reference sum of (e/E)^p.
+        let (mut s, mut comp) = (0.0f64, 0.0f64);
+        for y in b.1..b.3 {
+            for x in b.0..b.2 {
+                let v = pow_unit(f64::from(errs[(y * side + x) as usize]) / e, P);
+                let t = s + v;
+                comp += if s.abs() >= v.abs() {
+                    (s - t) + v
+                } else {
+                    (v - t) + s
+                };
+                s = t;
+            }
+        }
+        let s = s + comp;
+        let n = f64::from(b.2 - b.0) * f64::from(b.3 - b.1);
+        let got = sat.box_sum(b.0, b.1, b.2, b.3);
+        assert!(
+            got >= s * (1.0 - 1e-12) && got <= s * (1.0 + 1e-12) + n * sat.quantum(),
+            "{b:?}: SAT {got} vs f64 {s}"
+        );
+    }
+}

@@ -14,7 +14,7 @@ use clipsat::lod::{LodFrame, LodMode};
 use clipsat::plot::{LinePlot, Series};
 use clipsat::renderer::{self, FrameOptions, Renderer};
 use clipsat::source::{self, LoadOptions};
-use clipsat::{Error, Result};
+use clipsat::{Error, Heightmap, Profile, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::ProfileArgs;
@@ -30,6 +30,9 @@ enum BenchWhat {
     /// SAT LOD against distance LOD: triangles, LOD time, render time, measured screen error and image
     /// RMSE against the brute-force render, for epsilon 0.5 .. 8 px and every estimator.
     Lod(BenchLodArgs),
+    /// Every benchmark on the procedural terrain and each shared terrain present: LOD, shading, update
+    /// budget against speed and memory per profile, as DIR/report.md with PNG plots beside it.
+    All(super::bench_all::BenchAllArgs),
 }
 
 #[derive(Args, Debug)]
@@ -41,9 +44,8 @@ struct BenchLodArgs {
     out: PathBuf,
     /// Frames of a figure-8 flight per terrain.
     #[arg(long, value_name = "N", default_value_t = 12)]
-    frames: u32,
-    /// Image size, WxH pixels; default: the profile's viewport, the size its epsilon is meant for
-    /// (screen-space error scales with the image height).
+    pub(crate) frames: u32,
+    /// Image size, WxH pixels.
     #[arg(long, value_name = "WxH")]
     size: Option<String>,
     /// GL context: strict, gl or auto.
@@ -51,20 +53,12 @@ struct BenchLodArgs {
     gpu: String,
 }
 
-const EPSILONS: [f32; 5] = [0.5, 1.0, 2.0, 4.0, 8.0];
-const MODES: [LodMode; 4] = [
+pub(crate) const EPSILONS: [f32; 5] = [0.5, 1.0, 2.0, 4.0, 8.0];
+pub(crate) const MODES: [LodMode; 4] = [
     LodMode::Distance,
     LodMode::Sat,
     LodMode::SatConservative,
     LodMode::Exact,
-];
-
-/// Plot colour per entry of [`MODES`].
-const MODE_COLORS: [[u8; 3]; 4] = [
-    [120, 120, 120],
-    [31, 119, 180],
-    [214, 39, 40],
-    [44, 160, 44],
 ];
 
 /// The benchmark terrains: shared file, spacing and height scale overrides (PNG needs both).
@@ -74,22 +68,32 @@ const TERRAINS: [(&str, Option<f32>, Option<f32>); 3] = [
     ("srtm_bigtujunga30m_utm11.tif", None, None),
 ];
 
+/// One (terrain, epsilon, estimator) of the LOD measurement.
+#[derive(Clone, Debug)]
+pub(crate) struct LodResult {
+    pub(crate) terrain: String,
+    pub(crate) epsilon: f32,
+    pub(crate) mode: LodMode,
+    pub(crate) acc: Acc,
+}
+
 /// Sums over the frames of one (terrain, epsilon, mode).
 #[derive(Clone, Copy, Debug, Default)]
-struct Acc {
+pub(crate) struct Acc {
     frames: u32,
-    triangles: f64,
-    lod_us: f64,
-    render_ms: f64,
-    max_error_px: f64,
-    frames_over: u32,
-    rmse: f64,
-    clamped: f64,
+    pub(crate) triangles: f64,
+    pub(crate) lod_us: f64,
+    pub(crate) render_ms: f64,
+    pub(crate) max_error_px: f64,
+    pub(crate) frames_over: u32,
+    pub(crate) rmse: f64,
+    pub(crate) clamped: f64,
 }
 
 pub(crate) fn run(args: &BenchArgs) -> Result<()> {
     match &args.what {
         BenchWhat::Lod(a) => run_lod(a),
+        BenchWhat::All(a) => super::bench_all::run(a),
     }
 }
 
@@ -101,32 +105,28 @@ fn run_lod(args: &BenchLodArgs) -> Result<()> {
             reason: "0: bench at least 1 frame".into(),
         });
     }
-    let mut profile = args.profile.load()?;
+    let profile = args.profile.load()?;
     let (w, h) = match &args.size {
         Some(text) => parse_size(text)?,
         None => (profile.view.width, profile.view.height),
     };
-    profile.view.width = w;
-    profile.view.height = h;
-    // Every frame fully updated: the comparison is about LOD, not the update budget.
-    profile.budget.update_samples_per_frame = u32::MAX;
+    let profile = lod_profile(profile, w, h);
     std::fs::create_dir_all(&args.out)
         .map_err(|e| Error::io(&args.out, "cannot create the output folder", e))?;
     let gpu = Gpu::new(mode)?;
-    let configs = (EPSILONS.len() * MODES.len()) as u64;
-    let bar = ProgressBar::new(TERRAINS.len() as u64 * u64::from(args.frames) * configs);
+    let bar = ProgressBar::new(TERRAINS.len() as u64 * lod_steps(args.frames));
     if let Ok(style) =
         ProgressStyle::with_template("bench lod {bar:30} {pos}/{len} {msg} {elapsed}")
     {
         bar.set_style(style);
     }
-    let mut results: Vec<(String, f32, LodMode, Acc)> = Vec::new();
+    let mut results: Vec<LodResult> = Vec::new();
     let mut skipped = Vec::new();
     for (name, spacing, scale) in TERRAINS {
         let path = clipsat::data_dir().join(name);
         if !path.exists() {
             skipped.push(format!("{name} (missing)"));
-            bar.inc(u64::from(args.frames) * configs);
+            bar.inc(lod_steps(args.frames));
             continue;
         }
         bar.set_message(name);
@@ -138,155 +138,174 @@ fn run_lod(args: &BenchLodArgs) -> Result<()> {
                 ..Default::default()
             },
         )?;
-        let mut clipmap = Clipmap::new(&hm, &profile, ClipmapOptions::default())?;
-        let mut r = Renderer::new(&gpu, &profile, &clipmap)?;
-        let mut lod = super::render::lod_for(&hm, &profile, &clipmap, false)?;
-        let mut brute = BruteForce::new(&gpu, &hm)?;
-        let flight = Flight::new(Path::Figure8, 0.004 * hm.extent_m().0.max(1.0), &hm)?
-            .with_fov_y_deg(f64::from(profile.view.fov_y_deg));
-        let mut spare = LodFrame::new_boxed();
-        let mut accs = vec![Acc::default(); EPSILONS.len() * MODES.len()];
-        for f in 0..u64::from(args.frames) {
-            let camera = flight.camera(f);
-            clipmap.update(camera.eye)?;
-            let truth = brute.render(&camera, w, h)?;
-            for (ci, acc) in accs.iter_mut().enumerate() {
-                let eps = EPSILONS[ci / MODES.len()];
-                let mode = MODES[ci % MODES.len()];
-                lod.set_epsilon_px(f64::from(eps));
-                let t = Instant::now();
-                if mode != LodMode::Distance {
-                    lod.select(clipmap.frame(), &camera, mode, &mut spare)?;
-                }
-                let lod_us = t.elapsed().as_secs_f64() * 1e6;
-                let opts = FrameOptions {
-                    lod: mode,
-                    epsilon_px: Some(eps),
-                    ..FrameOptions::default()
-                };
-                if mode != LodMode::Distance && r.lod().is_none() {
-                    r.set_lod(lod.clone());
-                }
-                let t = Instant::now();
-                let frame = renderer::render_frame(&mut r, &clipmap, &camera, &opts)?;
-                let render_ms = t.elapsed().as_secs_f64() * 1e3;
-                let err = renderer::screen_error(&r, &clipmap, &camera, &lod);
-                acc.frames += 1;
-                acc.triangles += frame.stats.triangles as f64;
-                acc.lod_us += lod_us;
-                acc.render_ms += render_ms;
-                acc.max_error_px = acc.max_error_px.max(err.max_px);
-                acc.frames_over += u32::from(err.max_px > f64::from(eps));
-                acc.rmse += renderer::image_rmse(&frame.image, &truth.image).unwrap_or(f64::NAN);
-                acc.clamped += f64::from(frame.stats.blocks_clamped);
-                bar.inc(1);
-            }
-        }
-        for (ci, acc) in accs.into_iter().enumerate() {
-            results.push((
-                name.to_string(),
-                EPSILONS[ci / MODES.len()],
-                MODES[ci % MODES.len()],
-                acc,
-            ));
-        }
+        results.extend(measure_lod(&gpu, &profile, name, &hm, args.frames, &bar)?);
     }
     bar.finish_and_clear();
     let md = args.out.join("lod.md");
-    std::fs::write(&md, table(&results, &skipped, args, &profile.name, (w, h)))
-        .map_err(|e| Error::io(&md, "cannot write", e))?;
+    let mut text = format!(
+        "# clipsat bench lod\n\nProfile {}, {} frames of a figure-8 flight per terrain at {w}x{h}, full update \
+         budget. {LOD_TABLE_NOTE}\n\n",
+        profile.name, args.frames
+    );
+    if !skipped.is_empty() {
+        text.push_str(&format!("Skipped: {}.\n\n", skipped.join(", ")));
+    }
+    text.push_str(&lod_table(&results, true));
+    std::fs::write(&md, text).map_err(|e| Error::io(&md, "cannot write", e))?;
     let png = args.out.join("lod.png");
-    plot(&results, &png)?;
+    lod_plot(&results, "clipsat bench lod: triangles per frame", &png)?;
     outln!("{}\n{}", md.display(), png.display());
-    for png in plot_cost(&results, &args.out)? {
+    for png in lod_cost_plots(&results, &args.out)? {
         outln!("{}", png.display());
     }
     Ok(())
 }
 
-fn table(
-    results: &[(String, f32, LodMode, Acc)],
-    skipped: &[String],
-    args: &BenchLodArgs,
-    profile: &str,
-    (w, h): (u32, u32),
-) -> String {
-    let mut s = format!(
-        "# clipsat bench lod\n\nProfile {profile}, {} frames of a figure-8 flight per terrain at {w}x{h}, full update \
-         budget. Means per frame, except max screen error (the largest over the frames) and frames over epsilon \
-         (measured max screen error > epsilon; `renderer::screen_error`: |H_0 - PL(H_L)| projected at each data \
-         sample in the frustum, clamped blocks included). LOD time: `Lod::select` alone (0 for distance, which \
-         selects nothing). Render time: upload, draw and readback on this machine's GL driver. RMSE: RGB, \
-         0..255, every pixel, against the brute-force render.\n\n",
-        args.frames
-    );
-    if !skipped.is_empty() {
-        s.push_str(&format!("Skipped: {}.\n\n", skipped.join(", ")));
+/// What the LOD table's columns mean (shared by `bench lod` and `bench all`).
+pub(crate) const LOD_TABLE_NOTE: &str = "Means per frame, except max screen error (the largest over the frames) \
+    and frames over epsilon (measured max screen error > epsilon; `renderer::screen_error`: |H_0 - PL(H_L)| \
+    projected at each data sample in the frustum, clamped blocks included). LOD time: `Lod::select` alone (0 \
+    for distance, which selects nothing). Render time: upload, draw and readback on this machine's GL driver. \
+    RMSE: RGB, 0..255, every pixel, against the brute-force render.";
+
+/// The profile the LOD measurements use: `w` x `h` pixels and every frame fully updated (the comparison is
+/// about LOD, not the update budget).
+pub(crate) fn lod_profile(mut profile: Profile, w: u32, h: u32) -> Profile {
+    profile.view.width = w;
+    profile.view.height = h;
+    profile.budget.update_samples_per_frame = u32::MAX;
+    profile
+}
+
+/// Progress steps [`measure_lod`] takes for one terrain.
+pub(crate) fn lod_steps(frames: u32) -> u64 {
+    u64::from(frames) * (EPSILONS.len() * MODES.len()) as u64
+}
+
+/// Flies `frames` frames of a figure-8 over one terrain and measures every (epsilon, estimator): the one
+/// LOD measurement `bench lod` and `bench all` share. `profile` comes from [`lod_profile`].
+pub(crate) fn measure_lod(
+    gpu: &Gpu,
+    profile: &Profile,
+    name: &str,
+    hm: &Heightmap,
+    frames: u32,
+    bar: &ProgressBar,
+) -> Result<Vec<LodResult>> {
+    let (w, h) = (profile.view.width, profile.view.height);
+    let mut clipmap = Clipmap::new(hm, profile, ClipmapOptions::default())?;
+    let mut r = Renderer::new(gpu, profile, &clipmap)?;
+    let mut lod = super::render::lod_for(hm, profile, &clipmap, false)?;
+    let mut brute = BruteForce::new(gpu, hm)?;
+    let flight = Flight::new(Path::Figure8, 0.004 * hm.extent_m().0.max(1.0), hm)?
+        .with_fov_y_deg(f64::from(profile.view.fov_y_deg));
+    let mut spare = LodFrame::new_boxed();
+    let mut accs = vec![Acc::default(); EPSILONS.len() * MODES.len()];
+    for f in 0..u64::from(frames) {
+        let camera = flight.camera(f);
+        clipmap.update(camera.eye)?;
+        let truth = brute.render(&camera, w, h)?;
+        for (ci, acc) in accs.iter_mut().enumerate() {
+            let eps = EPSILONS[ci / MODES.len()];
+            let mode = MODES[ci % MODES.len()];
+            lod.set_epsilon_px(f64::from(eps));
+            let t = Instant::now();
+            if mode != LodMode::Distance {
+                lod.select(clipmap.frame(), &camera, mode, &mut spare)?;
+            }
+            let lod_us = t.elapsed().as_secs_f64() * 1e6;
+            let opts = FrameOptions {
+                lod: mode,
+                epsilon_px: Some(eps),
+                ..FrameOptions::default()
+            };
+            if mode != LodMode::Distance && r.lod().is_none() {
+                r.set_lod(lod.clone());
+            }
+            let t = Instant::now();
+            let frame = renderer::render_frame(&mut r, &clipmap, &camera, &opts)?;
+            let render_ms = t.elapsed().as_secs_f64() * 1e3;
+            let err = renderer::screen_error(&r, &clipmap, &camera, &lod);
+            acc.frames += 1;
+            acc.triangles += frame.stats.triangles as f64;
+            acc.lod_us += lod_us;
+            acc.render_ms += render_ms;
+            acc.max_error_px = acc.max_error_px.max(err.max_px);
+            acc.frames_over += u32::from(err.max_px > f64::from(eps));
+            acc.rmse += renderer::image_rmse(&frame.image, &truth.image).unwrap_or(f64::NAN);
+            acc.clamped += f64::from(frame.stats.blocks_clamped);
+            bar.inc(1);
+        }
     }
-    s.push_str(
-        "| terrain | epsilon px | LOD | triangles | LOD us | render ms | render / distance | max screen error px | \
-         frames over eps | blocks clamped | RMSE |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
+    Ok(accs
+        .into_iter()
+        .enumerate()
+        .map(|(ci, acc)| LodResult {
+            terrain: name.to_string(),
+            epsilon: EPSILONS[ci / MODES.len()],
+            mode: MODES[ci % MODES.len()],
+            acc,
+        })
+        .collect())
+}
+
+/// The LOD results as a Markdown table. With `ratios`, render time is also given as a ratio to distance LOD
+/// on the same terrain and epsilon, and LOD time as a ratio to `exact` (baselines measured in the same run).
+pub(crate) fn lod_table(results: &[LodResult], ratios: bool) -> String {
+    let mut s = String::from(
+        "| terrain | epsilon px | LOD | triangles | LOD us | render ms | max screen error px | frames over eps | \
+         blocks clamped | RMSE |",
     );
-    for (name, eps, mode, a) in results {
-        let n = f64::from(a.frames.max(1));
-        // The ratio to the distance row of the same terrain and epsilon, measured in the same run.
-        let base = results
+    if ratios {
+        s.push_str(" LOD time / exact | render time / distance |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    } else {
+        s.push_str("\n|---|---|---|---|---|---|---|---|---|---|\n");
+    }
+    let base = |r: &LodResult, mode: LodMode| {
+        results
             .iter()
-            .find(|r| r.0 == *name && r.1 == *eps && r.2 == LodMode::Distance)
-            .map_or(f64::NAN, |r| r.3.render_ms / f64::from(r.3.frames.max(1)));
+            .find(|b| b.terrain == r.terrain && b.epsilon == r.epsilon && b.mode == mode)
+            .map(|b| b.acc)
+    };
+    for r in results {
+        let a = &r.acc;
+        let n = f64::from(a.frames.max(1));
         s.push_str(&format!(
-            "| {name} | {eps} | {mode} | {:.0} | {:.1} | {:.1} | {:.2} | {:.3} | {:.0} % | {:.1} | {:.2} |\n",
+            "| {} | {} | {} | {:.0} | {:.1} | {:.1} | {:.3} | {:.0} % | {:.1} | {:.2} |",
+            r.terrain,
+            r.epsilon,
+            r.mode,
             a.triangles / n,
             a.lod_us / n,
             a.render_ms / n,
-            a.render_ms / n / base,
             a.max_error_px,
             100.0 * f64::from(a.frames_over) / n,
             a.clamped / n,
             a.rmse / n,
         ));
+        if ratios {
+            let lod_ratio = match base(r, LodMode::Exact) {
+                Some(b) if r.mode != LodMode::Distance && b.lod_us > 0.0 => {
+                    format!("{:.2}", a.lod_us / b.lod_us)
+                }
+                _ => "-".to_string(),
+            };
+            let render_ratio = match base(r, LodMode::Distance) {
+                Some(b) if b.render_ms > 0.0 => format!("{:.2}", a.render_ms / b.render_ms),
+                _ => "-".to_string(),
+            };
+            s.push_str(&format!(" {lod_ratio} | {render_ratio} |"));
+        }
+        s.push('\n');
     }
     s
 }
 
-fn plot(results: &[(String, f32, LodMode, Acc)], out: &std::path::Path) -> Result<()> {
-    let mut series = Vec::new();
-    let mut names: Vec<&str> = results.iter().map(|r| r.0.as_str()).collect();
-    names.dedup();
-    for name in names {
-        for (mi, mode) in MODES.iter().enumerate() {
-            let points = results
-                .iter()
-                .filter(|r| r.0 == name && r.2 == *mode)
-                .map(|r| (f64::from(r.1), r.3.triangles / f64::from(r.3.frames.max(1))))
-                .collect();
-            let short = name.split(['_', '.']).next().unwrap_or(name);
-            series.push(Series {
-                name: format!("{short} {mode}"),
-                points,
-                color: MODE_COLORS[mi],
-                right_axis: false,
-            });
-        }
-    }
-    LinePlot {
-        title: "clipsat bench lod: triangles per frame".into(),
-        x_label: "epsilon (px)".into(),
-        y_label: "triangles".into(),
-        y2_label: String::new(),
-        x_log: true,
-        series,
-    }
-    .write_png(out, 960, 600)
-}
-
+/// Plots triangles per frame against epsilon, one line per (terrain, estimator).
 /// What accuracy costs in time: per terrain, render ms per frame against the measured max screen error, one
-/// line per estimator through epsilon 0.5 .. 8 (`lod-time-<terrain>.png`).
-fn plot_cost(
-    results: &[(String, f32, LodMode, Acc)],
-    dir: &std::path::Path,
-) -> Result<Vec<PathBuf>> {
-    let mut names: Vec<&str> = results.iter().map(|r| r.0.as_str()).collect();
+/// line per estimator through epsilon 0.5 .. 8. Writes `lod-time-<terrain>.png` files and returns them.
+pub(crate) fn lod_cost_plots(results: &[LodResult], dir: &std::path::Path) -> Result<Vec<PathBuf>> {
+    let mut names: Vec<&str> = results.iter().map(|r| r.terrain.as_str()).collect();
     names.dedup();
     let mut out = Vec::new();
     for name in names {
@@ -297,10 +316,10 @@ fn plot_cost(
                 name: mode.to_string(),
                 points: results
                     .iter()
-                    .filter(|r| r.0 == name && r.2 == *mode)
+                    .filter(|r| r.terrain == name && r.mode == *mode)
                     .map(|r| {
-                        let n = f64::from(r.3.frames.max(1));
-                        (r.3.max_error_px, r.3.render_ms / n)
+                        let n = f64::from(r.acc.frames.max(1));
+                        (r.acc.max_error_px, r.acc.render_ms / n)
                     })
                     .collect(),
                 color,
@@ -323,7 +342,51 @@ fn plot_cost(
     Ok(out)
 }
 
-fn parse_size(text: &str) -> Result<(u32, u32)> {
+/// Plot colour per entry of [`MODES`].
+const MODE_COLORS: [[u8; 3]; 4] = [
+    [120, 120, 120],
+    [31, 119, 180],
+    [214, 39, 40],
+    [44, 160, 44],
+];
+
+pub(crate) fn lod_plot(results: &[LodResult], title: &str, out: &std::path::Path) -> Result<()> {
+    let mut series = Vec::new();
+    let mut names: Vec<&str> = results.iter().map(|r| r.terrain.as_str()).collect();
+    names.dedup();
+    for name in names {
+        for (mi, mode) in MODES.iter().enumerate() {
+            let points = results
+                .iter()
+                .filter(|r| r.terrain == name && r.mode == *mode)
+                .map(|r| {
+                    (
+                        f64::from(r.epsilon),
+                        r.acc.triangles / f64::from(r.acc.frames.max(1)),
+                    )
+                })
+                .collect();
+            let short = name.split(['_', '.']).next().unwrap_or(name);
+            series.push(Series {
+                name: format!("{short} {mode}"),
+                points,
+                color: MODE_COLORS[mi],
+                right_axis: false,
+            });
+        }
+    }
+    LinePlot {
+        title: title.into(),
+        x_label: "epsilon (px)".into(),
+        y_label: "triangles".into(),
+        y2_label: String::new(),
+        x_log: true,
+        series,
+    }
+    .write_png(out, 960, 600)
+}
+
+pub(crate) fn parse_size(text: &str) -> Result<(u32, u32)> {
     let bad = || Error::Arg {
         arg: "--size".into(),
         reason: format!("`{text}` is not WxH pixels (1..=2048 each)"),

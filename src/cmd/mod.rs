@@ -9,6 +9,7 @@ macro_rules! outln {
 }
 
 pub(crate) mod bench;
+pub(crate) mod bench_all;
 pub(crate) mod fly;
 pub(crate) mod hashes;
 pub(crate) mod info;

@@ -1,0 +1,626 @@
+//! `clipsat bench all`: one report of what accuracy costs (LOD, shading, update budget, memory) on the
+//! procedural terrain and every shared terrain present, as DIR/report.md with PNG plots beside it. A
+//! measurement tool: it allocates freely and reads the wall clock (its timings are not part of any hash).
+
+use std::fmt::Write as _;
+use std::path::{Path as FsPath, PathBuf};
+use std::time::Instant;
+
+use clap::Args;
+use clipsat::clipmap::{Clipmap, ClipmapOptions};
+use clipsat::flight::{Flight, Path};
+use clipsat::gpu::{Gpu, GpuMode};
+use clipsat::lod::LodMode;
+use clipsat::plot::{LinePlot, Series};
+use clipsat::renderer::{self, FrameOptions, Renderer};
+use clipsat::source::procedural::{self, ProceduralParams};
+use clipsat::source::{self, LoadOptions};
+use clipsat::{Error, Heightmap, Profile, Result};
+use indicatif::{ProgressBar, ProgressStyle};
+
+use super::bench::{self, LodResult};
+use super::ProfileArgs;
+
+#[derive(Args, Debug)]
+pub(crate) struct BenchAllArgs {
+    #[command(flatten)]
+    profile: ProfileArgs,
+    /// Output folder for report.md and its PNG plots.
+    #[arg(long, value_name = "DIR")]
+    out: PathBuf,
+    /// A small run for tests: the procedural terrain only (257 x 257), few frames, small images.
+    #[arg(long)]
+    quick: bool,
+    /// GL context: strict, gl or auto.
+    #[arg(long, value_name = "auto|strict|gl", default_value = "auto")]
+    gpu: String,
+}
+
+/// The shared terrains `bench all` measures when present: file, spacing and height scale overrides (PNG
+/// needs both).
+const SHARED: [(&str, Option<f32>, Option<f32>); 6] = [
+    ("ps_height_1k.png", Some(160.0), Some(0.1)),
+    ("n07_w006_3arc_v2.tif", None, None),
+    ("srtm_bigtujunga30m_utm11.tif", None, None),
+    ("aletsch_200m.tif", None, None),
+    ("lidar_pkg_dem_1m_400x400.tif", None, None),
+    ("N57E011.hgt", None, None),
+];
+
+/// Flight speeds of the budget section, as multiples of the speed the update budget sustains.
+const SPEEDS_FULL: [f64; 7] = [0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0];
+const SPEEDS_QUICK: [f64; 4] = [0.25, 1.0, 4.0, 16.0];
+
+/// Plot colours, one per terrain.
+const COLORS: [[u8; 3]; 7] = [
+    [31, 119, 180],
+    [214, 39, 40],
+    [44, 160, 44],
+    [148, 103, 189],
+    [255, 127, 14],
+    [140, 86, 75],
+    [120, 120, 120],
+];
+
+/// How big a run is.
+struct Plan {
+    procedural: ProceduralParams,
+    shared: bool,
+    lod_frames: u32,
+    size: (u32, u32),
+    speeds: &'static [f64],
+    fly_frames: u64,
+}
+
+impl Plan {
+    fn new(quick: bool) -> Self {
+        if quick {
+            Self {
+                procedural: ProceduralParams {
+                    size: 257,
+                    ..ProceduralParams::default()
+                },
+                shared: false,
+                lod_frames: 2,
+                size: (160, 90),
+                speeds: &SPEEDS_QUICK,
+                fly_frames: 24,
+            }
+        } else {
+            Self {
+                procedural: ProceduralParams::default(),
+                shared: true,
+                lod_frames: 12,
+                size: (320, 180),
+                speeds: &SPEEDS_FULL,
+                fly_frames: 300,
+            }
+        }
+    }
+}
+
+/// The machine and adapter every figure states.
+struct Machine {
+    cpu: String,
+    cores: usize,
+    adapter: String,
+}
+
+impl Machine {
+    fn detect(gpu: &Gpu) -> Self {
+        let cpu = std::fs::read_to_string("/proc/cpuinfo")
+            .ok()
+            .and_then(|t| {
+                t.lines()
+                    .find(|l| l.starts_with("model name"))
+                    .and_then(|l| l.split_once(':'))
+                    .map(|(_, v)| v.trim().to_string())
+            })
+            .unwrap_or_else(|| "unknown CPU".to_string());
+        let cores = std::thread::available_parallelism().map_or(1, usize::from);
+        let r = gpu.report();
+        Self {
+            cpu,
+            cores,
+            adapter: format!("{} ({}, {} {})", r.name, r.driver, r.backend, r.mode),
+        }
+    }
+
+    fn line(&self) -> String {
+        format!(
+            "Measured on {}, {} cores available; adapter {}.",
+            self.cpu, self.cores, self.adapter
+        )
+    }
+}
+
+/// One (terrain, speed) of the budget section.
+struct BudgetRow {
+    terrain: String,
+    multiple: f64,
+    speed_m: f64,
+    samples_mean: f64,
+    samples_max: u32,
+    over_budget: usize,
+    stale_mean: f64,
+    stale_max: u32,
+    frames_stale: usize,
+    update_us: f64,
+}
+
+/// One profile of the memory section.
+struct MemoryRow {
+    profile: String,
+    budget: u64,
+    footprint: clipsat::profile::Footprint,
+    ledger: u64,
+    objects: usize,
+    peak_rss: Option<u64>,
+}
+
+pub(crate) fn run(args: &BenchAllArgs) -> Result<()> {
+    let plan = Plan::new(args.quick);
+    let mode: GpuMode = args.gpu.parse()?;
+    let profile = args.profile.load()?;
+    std::fs::create_dir_all(&args.out)
+        .map_err(|e| Error::io(&args.out, "cannot create the output folder", e))?;
+    let gpu = Gpu::new(mode)?;
+    let machine = Machine::detect(&gpu);
+
+    let mut terrains: Vec<(String, Heightmap)> = vec![(
+        format!("procedural-{}", plan.procedural.size),
+        procedural::generate(&plan.procedural)?,
+    )];
+    let mut skipped = Vec::new();
+    if plan.shared {
+        for (name, spacing, scale) in SHARED {
+            let path = clipsat::data_dir().join(name);
+            if !path.exists() {
+                outln!("skip {name}: not in {}", clipsat::data_dir().display());
+                skipped.push(format!("{name} (missing)"));
+                continue;
+            }
+            let opts = LoadOptions {
+                spacing,
+                height_scale: scale,
+                ..Default::default()
+            };
+            terrains.push((name.to_string(), source::load(&path, &opts)?));
+        }
+    } else {
+        outln!("skip the shared terrains: --quick measures the procedural terrain only");
+        skipped.push("every shared terrain (--quick)".to_string());
+    }
+
+    let shipped = clipsat::profile::SHIPPED.len() as u64;
+    let steps = shipped
+        + terrains.len() as u64
+            * (bench::lod_steps(plan.lod_frames) + plan.speeds.len() as u64 * plan.fly_frames);
+    let bar = ProgressBar::new(steps);
+    if let Ok(style) =
+        ProgressStyle::with_template("bench all {bar:30} {pos}/{len} {msg} {elapsed}")
+    {
+        bar.set_style(style);
+    }
+
+    let t0 = Instant::now();
+    // Memory first: the process peak RSS then grows by one profile at a time.
+    bar.set_message("memory");
+    let memory = measure_memory(&gpu, &terrains[0].1, plan.size, &bar)?;
+
+    let lod_profile = bench::lod_profile(profile.clone(), plan.size.0, plan.size.1);
+    let mut lod: Vec<LodResult> = Vec::new();
+    for (name, hm) in &terrains {
+        bar.set_message(format!("lod {name}"));
+        lod.extend(bench::measure_lod(
+            &gpu,
+            &lod_profile,
+            name,
+            hm,
+            plan.lod_frames,
+            &bar,
+        )?);
+    }
+
+    let mut budget = Vec::new();
+    for (name, hm) in &terrains {
+        bar.set_message(format!("budget {name}"));
+        budget.extend(measure_budget(&profile, name, hm, &plan, &bar)?);
+    }
+    bar.finish_and_clear();
+    let wall_s = t0.elapsed().as_secs_f64();
+
+    let out = &args.out;
+    let mut md = String::new();
+    let _ = writeln!(md, "# clipsat bench all\n");
+    let _ = writeln!(
+        md,
+        "{}\n\nProfile {} ({} run). Terrains: {}.{} The whole run took {wall_s:.0} s; every timing below \
+         is also given as a ratio to a baseline measured in the same run, which carries across machines \
+         better than milliseconds do.\n",
+        machine.line(),
+        profile.name,
+        if args.quick { "--quick" } else { "full" },
+        terrains
+            .iter()
+            .map(|(n, hm)| format!("{n} ({} x {})", hm.width(), hm.height()))
+            .collect::<Vec<_>>()
+            .join(", "),
+        if skipped.is_empty() {
+            String::new()
+        } else {
+            format!(" Skipped: {}.", skipped.join(", "))
+        },
+    );
+    md.push_str(&headline(&lod, &budget, &memory, &profile));
+    md.push_str(&lod_section(out, &lod, &plan, &machine, &profile)?);
+    md.push_str(&shading_section(out, &machine)?);
+    md.push_str(&budget_section(out, &budget, &plan, &machine, &profile)?);
+    md.push_str(&memory_section(&memory, &machine));
+    let report = out.join("report.md");
+    std::fs::write(&report, md).map_err(|e| Error::io(&report, "cannot write", e))?;
+    outln!("{}", report.display());
+    Ok(())
+}
+
+/// The headline: SAT against distance LOD at 1 px, the fastest speed without stale levels, the memory of
+/// each profile.
+fn headline(lod: &[LodResult], budget: &[BudgetRow], memory: &[MemoryRow], p: &Profile) -> String {
+    let mut s = String::from("## Headline\n\n");
+    let mut names: Vec<&str> = lod.iter().map(|r| r.terrain.as_str()).collect();
+    names.dedup();
+    let find = |t: &str, mode: LodMode| {
+        lod.iter()
+            .find(|r| r.terrain == t && r.epsilon == 1.0 && r.mode == mode)
+    };
+    s.push_str(
+        "At epsilon = 1 px, per terrain: SAT LOD (`sat`, the paper's estimate) against distance LOD (each ring \
+         at its own level), and the measured worst screen error of each.\n\n| terrain | triangles sat / \
+         distance | render time sat / distance | max error px: distance | sat | sat-conservative | exact |\n\
+         |---|---|---|---|---|---|---|\n",
+    );
+    for t in names {
+        let (Some(d), Some(sat), Some(c), Some(x)) = (
+            find(t, LodMode::Distance),
+            find(t, LodMode::Sat),
+            find(t, LodMode::SatConservative),
+            find(t, LodMode::Exact),
+        ) else {
+            continue;
+        };
+        let _ = writeln!(
+            s,
+            "| {t} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} |",
+            sat.acc.triangles / d.acc.triangles.max(1.0),
+            sat.acc.render_ms / d.acc.render_ms.max(f64::MIN_POSITIVE),
+            d.acc.max_error_px,
+            sat.acc.max_error_px,
+            c.acc.max_error_px,
+            x.acc.max_error_px,
+        );
+    }
+    let mut names: Vec<&str> = budget.iter().map(|r| r.terrain.as_str()).collect();
+    names.dedup();
+    let _ = write!(
+        s,
+        "\nUpdate budget ({} samples/frame, profile {}): the fastest flight with no stale level, as a multiple \
+         of the sustained speed v* (see below): ",
+        p.budget.update_samples_per_frame, p.name
+    );
+    let parts: Vec<String> = names
+        .iter()
+        .map(|t| {
+            let best = budget
+                .iter()
+                .filter(|r| r.terrain == *t && r.frames_stale == 0)
+                .map(|r| r.multiple)
+                .fold(None, |m: Option<f64>, x| Some(m.map_or(x, |m| m.max(x))));
+            match best {
+                Some(m) => format!("{t} {m}x"),
+                None => format!("{t} none"),
+            }
+        })
+        .collect();
+    s.push_str(&parts.join(", "));
+    s.push_str(".\n\nGPU memory (renderer ledger) per shipped profile: ");
+    let parts: Vec<String> = memory
+        .iter()
+        .map(|m| format!("{} {}", m.profile, mib(m.ledger)))
+        .collect();
+    s.push_str(&parts.join(", "));
+    s.push_str(".\n\n");
+    s
+}
+
+fn lod_section(
+    out: &FsPath,
+    lod: &[LodResult],
+    plan: &Plan,
+    machine: &Machine,
+    profile: &Profile,
+) -> Result<String> {
+    let png = "lod.png";
+    bench::lod_plot(lod, "LOD: triangles per frame", &out.join(png))?;
+    let mut s = String::from("## LOD: triangles, time and error against epsilon\n\n");
+    let _ = writeln!(
+        s,
+        "Profile {}, {} frames of a figure-8 flight per terrain at {}x{} px, full update budget (`bench lod`'s \
+         measurement). {} Baselines, per terrain and epsilon in this run: LOD time against `exact` (the max \
+         range query), render time against `distance`.\n",
+        profile.name,
+        plan.lod_frames,
+        plan.size.0,
+        plan.size.1,
+        bench::LOD_TABLE_NOTE
+    );
+    let _ = writeln!(
+        s,
+        "![triangles per frame against epsilon]({png})\n\n*Figure: triangles per frame against epsilon, per \
+         terrain and estimator. {}*\n",
+        machine.line()
+    );
+    for png in bench::lod_cost_plots(lod, out)? {
+        let name = png.file_name().and_then(|n| n.to_str()).unwrap_or_default();
+        let _ = writeln!(
+            s,
+            "![render time against measured error]({name})\n\n*Figure: render ms per frame against the \
+             measured max screen error, one line per estimator through epsilon 0.5 .. 8. {}*\n",
+            machine.line()
+        );
+    }
+    let _ = writeln!(s, "*Table: {}*\n", machine.line());
+    s.push_str(&bench::lod_table(lod, true));
+    s.push('\n');
+    Ok(s)
+}
+
+/// The shading section: error against patch count.
+///
+/// MERGE POINT: the shading bench (`bench shading`, issue 6) is written in parallel; at merge, call its
+/// measuring function here and write its table and plot. Until then this says so.
+fn shading_section(_out: &FsPath, machine: &Machine) -> Result<String> {
+    Ok(format!(
+        "## Shading: error against patch count\n\nNot measured in this build (`bench shading` is not part of \
+         it yet). {}\n\n",
+        machine.line()
+    ))
+}
+
+/// Flies a straight line over `hm` at multiples of the speed the profile's update budget sustains and
+/// counts what the budget updates and leaves stale (GC section 5).
+fn measure_budget(
+    profile: &Profile,
+    name: &str,
+    hm: &Heightmap,
+    plan: &Plan,
+    bar: &ProgressBar,
+) -> Result<Vec<BudgetRow>> {
+    let mut rows = Vec::new();
+    let b = profile.budget.update_samples_per_frame;
+    for &multiple in plan.speeds {
+        let mut clipmap = Clipmap::new(hm, profile, ClipmapOptions::default())?;
+        let v = multiple * sustained_speed(profile, clipmap.g0());
+        let flight =
+            Flight::new(Path::Straight, v, hm)?.with_fov_y_deg(f64::from(profile.view.fov_y_deg));
+        // Frame 0 fills every level from nothing; the statistics start at frame 1.
+        clipmap.update(flight.camera(0).eye)?;
+        bar.inc(1);
+        let (mut samples, mut samples_max, mut over) = (0u64, 0u32, 0usize);
+        let (mut stale, mut stale_max, mut frames_stale) = (0u64, 0u32, 0usize);
+        let mut update_s = 0.0;
+        for f in 1..plan.fly_frames {
+            let eye = flight.camera(f).eye;
+            let t = Instant::now();
+            let frame = clipmap.update(eye)?;
+            update_s += t.elapsed().as_secs_f64();
+            samples += u64::from(frame.samples_updated);
+            samples_max = samples_max.max(frame.samples_updated);
+            over += usize::from(frame.samples_updated > b);
+            stale += u64::from(frame.stale_levels);
+            stale_max = stale_max.max(frame.stale_levels);
+            frames_stale += usize::from(frame.stale_levels > 0);
+            bar.inc(1);
+        }
+        let n = (plan.fly_frames.saturating_sub(1)).max(1) as f64;
+        rows.push(BudgetRow {
+            terrain: name.to_string(),
+            multiple,
+            speed_m: v,
+            samples_mean: samples as f64 / n,
+            samples_max,
+            over_budget: over,
+            stale_mean: stale as f64 / n,
+            stale_max,
+            frames_stale,
+            update_us: update_s * 1e6 / n,
+        });
+    }
+    Ok(rows)
+}
+
+/// v* = B g0 / (2 s): a straight move of v metres per frame along one axis makes level l fill s v / g_l
+/// samples (GC section 5), and the sum over levels stays under 2 s v / g0, so v* is about the speed the
+/// budget B keeps up with.
+fn sustained_speed(profile: &Profile, g0: f64) -> f64 {
+    f64::from(profile.budget.update_samples_per_frame) * g0
+        / (2.0 * f64::from(profile.clip_size().max(1)))
+}
+
+fn budget_section(
+    out: &FsPath,
+    rows: &[BudgetRow],
+    plan: &Plan,
+    machine: &Machine,
+    profile: &Profile,
+) -> Result<String> {
+    let png = "budget.png";
+    let mut names: Vec<&str> = rows.iter().map(|r| r.terrain.as_str()).collect();
+    names.dedup();
+    let mut series = Vec::new();
+    for (i, t) in names.iter().enumerate() {
+        let color = COLORS[i % COLORS.len()];
+        let short = t.split(['_', '.']).next().unwrap_or(t);
+        let of = |f: &dyn Fn(&BudgetRow) -> f64| {
+            rows.iter()
+                .filter(|r| r.terrain == *t)
+                .map(|r| (r.multiple, f(r)))
+                .collect::<Vec<_>>()
+        };
+        series.push(Series {
+            name: format!("{short} samples"),
+            points: of(&|r| r.samples_mean),
+            color,
+            right_axis: false,
+        });
+        series.push(Series {
+            name: format!("{short} stale"),
+            points: of(&|r| r.stale_mean),
+            color: color.map(|c| c / 2 + 120),
+            right_axis: true,
+        });
+    }
+    LinePlot {
+        title: "Updates and stale levels vs speed".into(),
+        x_label: "speed / v*".into(),
+        y_label: "samples / frame".into(),
+        y2_label: "stale levels / frame".into(),
+        x_log: true,
+        series,
+    }
+    .write_png(&out.join(png), 960, 480)?;
+
+    let mut s = String::from("## Budget: samples updated and stale levels against speed\n\n");
+    let _ = writeln!(
+        s,
+        "Profile {} (n {}, {} levels, clip size s = {}, budget B = {} samples/frame). A straight flight \
+         (`--path straight`, the terrain's diagonal, back and forth) of {} frames per speed; frame 0 (the \
+         initial fill) is left out. Speeds are multiples of v* = B g0 / (2 s), the first-order speed the \
+         budget sustains (GC section 5: a level of spacing g_l moving v m/frame along one axis fills \
+         s v / g_l samples). The diagonal path needs both axes, so stale levels may start just below 1x. \
+         Update time: `Clipmap::update` alone, baseline the 1x speed on the same terrain in this run.\n",
+        profile.name,
+        profile.clipmap.n,
+        profile.clipmap.levels,
+        profile.clip_size(),
+        profile.budget.update_samples_per_frame,
+        plan.fly_frames,
+    );
+    let _ = writeln!(
+        s,
+        "![samples updated and stale levels against speed]({png})\n\n*Figure: mean samples updated (left \
+         axis) and mean stale levels (right axis, lighter) per frame against speed / v*. {}*\n",
+        machine.line()
+    );
+    let _ = writeln!(s, "*Table: {}*\n", machine.line());
+    s.push_str(
+        "| terrain | speed / v* | m/frame | samples mean | samples max | frames over B | stale levels mean | \
+         stale max | frames with stale | update us | update time / 1x |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for r in rows {
+        let base = rows
+            .iter()
+            .find(|b| b.terrain == r.terrain && b.multiple == 1.0)
+            .map(|b| b.update_us);
+        let ratio = match base {
+            Some(b) if b > 0.0 => format!("{:.2}", r.update_us / b),
+            _ => "-".into(),
+        };
+        let _ = writeln!(
+            s,
+            "| {} | {} | {:.0} | {:.0} | {} | {} | {:.2} | {} | {} | {:.0} | {ratio} |",
+            r.terrain,
+            r.multiple,
+            r.speed_m,
+            r.samples_mean,
+            r.samples_max,
+            r.over_budget,
+            r.stale_mean,
+            r.stale_max,
+            r.frames_stale,
+            r.update_us,
+        );
+    }
+    s.push('\n');
+    Ok(s)
+}
+
+/// Builds each shipped profile's clipmap and renderer on `hm`, renders one frame, and records the profile's
+/// planned footprint, the renderer ledger and the process peak RSS after it.
+fn measure_memory(
+    gpu: &Gpu,
+    hm: &Heightmap,
+    size: (u32, u32),
+    bar: &ProgressBar,
+) -> Result<Vec<MemoryRow>> {
+    let mut rows = Vec::new();
+    for (name, _) in clipsat::profile::SHIPPED {
+        let mut p = Profile::load(name)?;
+        (p.view.width, p.view.height) = size;
+        let mut clipmap = Clipmap::new(hm, &p, ClipmapOptions::default())?;
+        let camera = Flight::new(Path::Figure8, 50.0, hm)?
+            .with_fov_y_deg(f64::from(p.view.fov_y_deg))
+            .camera(0);
+        clipmap.update(camera.eye)?;
+        let mut r = Renderer::new(gpu, &p, &clipmap)?;
+        renderer::render_frame(&mut r, &clipmap, &camera, &FrameOptions::default())?;
+        rows.push(MemoryRow {
+            profile: p.name.clone(),
+            budget: p.budget.gpu_memory_bytes,
+            footprint: p.footprint(),
+            ledger: r.ledger().bytes(),
+            objects: r.ledger().count(),
+            peak_rss: peak_rss(),
+        });
+        bar.inc(1);
+    }
+    Ok(rows)
+}
+
+fn memory_section(rows: &[MemoryRow], machine: &Machine) -> String {
+    let mut s = String::from("## Memory: peak per profile\n\n");
+    let _ = writeln!(
+        s,
+        "Each shipped profile's clipmap and renderer built on the procedural terrain (viewport shrunk to this \
+         run's image size), one frame rendered. Footprint: the profile's planned GPU bytes \
+         (`Profile::footprint`); ledger: the bytes the renderer actually created (`Renderer::ledger`), \
+         to compare with the footprint; peak RSS: the process's VmHWM after that profile, so it includes \
+         the profiles before it (measured in profile order, first thing in the run).\n\n*Table: {}*\n",
+        machine.line()
+    );
+    s.push_str(
+        "| profile | GPU budget | footprint | heights | meshes | targets | uniforms | ledger | objects | \
+         process peak RSS |\n|---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for m in rows {
+        let f = &m.footprint;
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            m.profile,
+            mib(m.budget),
+            mib(f.total()),
+            mib(f.heights),
+            mib(f.meshes),
+            mib(f.targets),
+            mib(f.uniforms),
+            mib(m.ledger),
+            m.objects,
+            m.peak_rss.map_or_else(|| "-".to_string(), mib),
+        );
+    }
+    s.push('\n');
+    s
+}
+
+/// The process's peak resident set (VmHWM in /proc/self/status), bytes; None off Linux.
+fn peak_rss() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+fn mib(bytes: u64) -> String {
+    format!("{:.2} MiB", bytes as f64 / (1024.0 * 1024.0))
+}

@@ -1,0 +1,55 @@
+//! `clipsat bench all --quick` end to end: the built binary writes report.md with every section and its PNG
+//! plots (procedural terrain only, a few seconds on llvmpipe).
+
+use std::path::Path;
+use std::process::Command;
+
+#[test]
+fn quick_report_has_every_section_and_its_plots() {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("cli_bench_all");
+    let _ = std::fs::remove_dir_all(&dir);
+    let out = Command::new(env!("CARGO_BIN_EXE_clipsat"))
+        .args(["bench", "all", "--quick", "--profile", "gles3-low", "--out"])
+        .arg(&dir)
+        .output()
+        .expect("run the clipsat binary");
+    assert!(
+        out.status.success(),
+        "clipsat bench all failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains("skip"),
+        "no skip line for the shared terrains: {stdout}"
+    );
+    let report = std::fs::read_to_string(dir.join("report.md")).expect("report.md is written");
+    for section in [
+        "## Headline",
+        "## LOD: triangles, time and error against epsilon",
+        "## Shading: error against patch count",
+        "## Budget: samples updated and stale levels against speed",
+        "## Memory: peak per profile",
+        "Measured on ",
+        "render time / distance",
+        "update time / 1x",
+        "| gles3-low |",
+        "| desktop |",
+    ] {
+        assert!(
+            report.contains(section),
+            "report.md lacks `{section}`:\n{report}"
+        );
+    }
+    for png in ["lod.png", "budget.png"] {
+        assert!(
+            report.contains(&format!("]({png})")),
+            "report.md does not show {png}"
+        );
+        let img = image::open(dir.join(png)).unwrap_or_else(|e| panic!("{png}: {e}"));
+        assert!(
+            img.width() >= 320 && img.height() >= 240,
+            "{png} is too small"
+        );
+    }
+}
