@@ -1,0 +1,204 @@
+//! The GPU half of SG shading: the WGSL `sg_shade` against its CPU twin `shading::shade` (probe pipeline),
+//! the SAT texture lookup against brute-force box means, and the per-scene variants (what is baked, bound
+//! and compiled).
+
+mod render_support;
+
+use clipsat::gpu::sat_textures::{ShadingBake, MAX_BOX_SIDE};
+use clipsat::gpu::sg_probe::{shade_gpu, ProbeCase};
+use clipsat::gpu::shaders::{self, SgVariant};
+use clipsat::horizon;
+use clipsat::renderer::{render_frame, FrameOptions, Renderer};
+use clipsat::scene::{Needs, Scene};
+use clipsat::shading::{self, Inputs, Patches};
+use glam::Vec3;
+
+/// Deterministic inputs covering the hard cases: flat (r = z), tilted, |r| -> 0 and -> 1, a vertical
+/// cliff (r horizontal), grazing and overhead views, low and high horizons.
+fn cases(d: usize) -> Vec<ProbeCase> {
+    let mut out = Vec::new();
+    let dirs = [
+        Vec3::Z,
+        Vec3::new(0.3, -0.2, 0.9),
+        Vec3::new(-0.7, 0.1, 0.7),
+        Vec3::new(1.0, 0.0, 0.0),
+        Vec3::new(0.0, -0.6, 0.8),
+        Vec3::new(0.5, 0.5, 0.2),
+    ];
+    let lens = [1.0, 0.9999, 0.98, 0.8, 0.4, 1e-4];
+    let views = [
+        Vec3::Z,
+        Vec3::new(0.6, 0.0, 0.8),
+        Vec3::new(-0.2, 0.97, 0.05),
+    ];
+    let mut seed = 1u32;
+    for dir in dirs {
+        for len in lens {
+            for view in views {
+                let mut hz = heapless::Vec::new();
+                for _ in 0..d {
+                    seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+                    let t = (seed >> 8) as f32 / (1u32 << 24) as f32;
+                    let _ = hz.push(-0.4 + 1.1 * t);
+                }
+                out.push(ProbeCase {
+                    r: dir.normalize() * len,
+                    view: view.normalize(),
+                    horizon: hz,
+                });
+            }
+        }
+    }
+    out
+}
+
+/// GPU vs CPU twin, every shipped scene x patch count, visibility with D = 8 where the scene has it.
+/// Tolerance: 2e-3 relative to the largest channel of the scene's results, plus 2e-3 of the value
+/// (llvmpipe's exp/log/atan2/sin differ from Rust's by a few ulps, and band edges amplify that near
+/// |r| -> 1 where kappa is 1e4).
+#[test]
+fn gpu_shading_matches_cpu_twin() {
+    let gpu = render_support::strict();
+    let mut report = Vec::new();
+    for (name, _) in clipsat::scene::SHIPPED {
+        let scene = Scene::load(name).expect("shipped scene");
+        let d = if scene.effects.visibility { 8 } else { 0 };
+        let cases = cases(d);
+        for patches in Patches::ALL {
+            let gpu_out = shade_gpu(&gpu, &scene, patches, &cases).expect("probe");
+            let cpu: Vec<Vec3> = cases
+                .iter()
+                .map(|c| {
+                    shading::shade(
+                        &Inputs {
+                            r: c.r,
+                            horizon: &c.horizon,
+                            view: c.view,
+                        },
+                        &scene,
+                        patches,
+                    )
+                })
+                .collect();
+            let scale = cpu.iter().map(|c| c.max_element()).fold(0.0f32, f32::max);
+            let mut worst = 0.0f32;
+            for (i, (g, c)) in gpu_out.iter().zip(&cpu).enumerate() {
+                assert!(g.is_finite() && g.min_element() >= 0.0, "{name} {i}: {g}");
+                let err = (*g - *c).abs().max_element();
+                worst = worst.max(err / scale);
+                assert!(
+                    err <= 2e-3 * scale + 2e-3 * c.max_element(),
+                    "{name} {} case {i} ({:?}): gpu {g} cpu {c}",
+                    patches.label(),
+                    cases[i]
+                );
+            }
+            report.push(format!("{name} {}: {worst:.2e}", patches.label()));
+        }
+    }
+    println!("max |gpu - cpu| / scene max: {}", report.join(", "));
+}
+
+/// The shader's 4-corner wrapping-u32 lookup (its CPU twin `ShadingBake::box_mean`) against brute-force
+/// box means of texel normals and horizons.
+#[test]
+fn sat_texture_box_means_match_brute_force() {
+    let hm = render_support::terraces();
+    let needs = Needs {
+        bake_horizons: true,
+        bind_visibility: true,
+        ..Needs::default()
+    };
+    let bake = ShadingBake::bake(&hm, &needs, 8, 2048).expect("bake");
+    assert_eq!(bake.step(), 1);
+    assert_eq!(bake.baked(), ["normal_sat", "horizons", "horizon_sat"]);
+    let hz = horizon::bake(&hm, 8, horizon::DEFAULT_MAX_SAMPLES).expect("horizons");
+    let mut worst = (0.0f32, 0.0f32);
+    for (x0, y0, side) in [(0, 0, 1), (10, 20, 5), (100, 7, 63), (200, 200, 56), (250, 0, 7)] {
+        let hi = (x0 + side - 1, y0 + side - 1);
+        let (r, a) = bake.box_mean((x0, y0), hi);
+        let b = horizon::box_average(&hm, &hz, x0, y0, hi.0, hi.1);
+        worst.0 = worst.0.max((r - b.r).abs().max_element());
+        for (p, q) in a.iter().zip(&b.horizon) {
+            worst.1 = worst.1.max((p - q).abs());
+        }
+    }
+    // f32 conversion of a sum up to 2^32 (2^-24 relative) and the 2^-20 quantum.
+    assert!(worst.0 < 2e-6 && worst.1 < 6e-6, "{worst:?}");
+    println!("box mean max error: normal {:.1e}, horizon {:.1e} rad", worst.0, worst.1);
+    // Larger boxes are capped, not wrapped: a 100-sample request averages 63.
+    let (r, _) = bake.box_mean((0, 0), (99, 99));
+    let b = horizon::box_average(&hm, &hz, 0, 0, MAX_BOX_SIDE - 1, MAX_BOX_SIDE - 1);
+    assert!((r - b.r).abs().max_element() < 2e-6);
+}
+
+#[test]
+fn terrain_larger_than_the_texture_side_uses_a_pyramid_level() {
+    let hm = render_support::terraces();
+    let bake = ShadingBake::bake(&hm, &Needs::default(), 8, 200).expect("bake");
+    assert_eq!((bake.step(), bake.width()), (2, 129));
+    assert_eq!(bake.baked(), ["normal_sat"]);
+}
+
+#[test]
+fn variants_compile_only_what_the_scene_declares() {
+    for v in SgVariant::all() {
+        let text = shaders::sg_clipmap(v);
+        assert_eq!(text.contains("fn sg_warped_ndf"), v.specular, "{}", v.label());
+        assert_eq!(text.contains("sat_horizon"), v.visibility, "{}", v.label());
+        assert!(text.contains(&format!("const SG_BANDS: u32 = {}u;", v.patches.bands())));
+    }
+}
+
+/// A scene without shadows bakes no horizons and binds no visibility texture; one with them does; the SG
+/// frame differs from the basic one and is lit (not all sky).
+#[test]
+fn renderer_bakes_and_binds_only_what_the_scene_needs() {
+    let gpu = render_support::strict();
+    let hm = render_support::terraces();
+    let profile = render_support::profile("gles3-low", 96, 64, None);
+    let mut clipmap = render_support::clipmap(&hm, &profile);
+    let camera = clipsat::Camera::default_for(&hm).expect("camera");
+    let mut renderer = Renderer::new(&gpu, &profile, &clipmap).expect("renderer");
+    assert_eq!(renderer.bound_textures(), ["heights"]);
+    assert!(renderer.baked().is_empty());
+    clipmap.update(camera.eye).expect("update");
+    let opts = FrameOptions::default();
+    let basic = render_frame(&mut renderer, &clipmap, &camera, &opts).expect("basic frame");
+
+    let noon = Scene::load("noon").expect("noon");
+    renderer
+        .set_sg(&hm, &noon, Patches::P4x8, true)
+        .expect("sg noon");
+    assert_eq!(renderer.bound_textures(), ["heights", "sat_normal"]);
+    assert_eq!(renderer.baked(), ["normal_sat"]);
+    assert_eq!(renderer.sg_layout_entries(), Some(2));
+    let sg = render_frame(&mut renderer, &clipmap, &camera, &opts).expect("sg frame");
+    assert_ne!(sg.image.hash(), basic.image.hash());
+    let sky = clipsat::gpu::shaders::SKY.map(|c| (c * 255.0).round() as u8);
+    let lit = sg
+        .image
+        .rgba
+        .chunks_exact(4)
+        .filter(|p| p[..3] != sky[..3])
+        .count();
+    assert!(lit > 96 * 64 / 4, "{lit} terrain pixels");
+
+    let evening = Scene::load("evening").expect("evening");
+    renderer
+        .set_sg(&hm, &evening, Patches::P2x4, false)
+        .expect("sg evening, no shadows");
+    assert_eq!(renderer.bound_textures(), ["heights", "sat_normal"]);
+    assert_eq!(renderer.baked(), ["normal_sat"]);
+    assert!(renderer.sg_variant().is_some_and(|v| v.specular && !v.visibility));
+    renderer
+        .set_sg(&hm, &evening, Patches::P2x4, true)
+        .expect("sg evening");
+    assert_eq!(
+        renderer.bound_textures(),
+        ["heights", "sat_normal", "sat_horizon"]
+    );
+    assert_eq!(renderer.baked(), ["normal_sat", "horizons", "horizon_sat"]);
+    assert_eq!(renderer.sg_layout_entries(), Some(3));
+    render_frame(&mut renderer, &clipmap, &camera, &opts).expect("sg evening frame");
+}
