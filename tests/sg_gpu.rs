@@ -53,9 +53,9 @@ fn cases(d: usize) -> Vec<ProbeCase> {
 }
 
 /// GPU vs CPU twin, every shipped scene x patch count, visibility with D = 8 where the scene has it.
-/// Tolerance: 2e-3 relative to the largest channel of the scene's results, plus 2e-3 of the value
-/// (llvmpipe's exp/log/atan2/sin differ from Rust's by a few ulps, and band edges amplify that near
-/// |r| -> 1 where kappa is 1e4).
+/// Tolerance: 5e-4 of the largest channel of the scene's results (llvmpipe's exp/log/atan2/sin differ
+/// from Rust's by a few ulps, and band edges amplify that near |r| -> 1 where kappa is 1e4). Measured
+/// on llvmpipe: at most 9.7e-5 (noon), 4.9e-5 (evening), 1.7e-6 (overcast).
 #[test]
 fn gpu_shading_matches_cpu_twin() {
     let gpu = render_support::strict();
@@ -87,7 +87,7 @@ fn gpu_shading_matches_cpu_twin() {
                 let err = (*g - *c).abs().max_element();
                 worst = worst.max(err / scale);
                 assert!(
-                    err <= 2e-3 * scale + 2e-3 * c.max_element(),
+                    err <= 5e-4 * scale,
                     "{name} {} case {i} ({:?}): gpu {g} cpu {c}",
                     patches.label(),
                     cases[i]
