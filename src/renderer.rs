@@ -23,13 +23,13 @@ use crate::frame::Rect;
 use crate::gpu::readback::Image;
 use crate::gpu::sat_textures::{SatTextures, ShadingBake, MAX_BOX_SIDE};
 use crate::gpu::shaders::{self, BasicShading, SgSceneUniform, SgVariant};
-use crate::horizon::DEFAULT_AZIMUTHS;
-use crate::scene::Scene;
-use crate::shading::Patches;
 use crate::gpu::Gpu;
+use crate::horizon::DEFAULT_AZIMUTHS;
 use crate::lod::{Lod, LodFrame, LodMode};
 use crate::mesh::{self, Mesh, MeshVertex};
 use crate::profile::{DRAW_SLOT_BYTES, GLOBALS_BYTES};
+use crate::scene::Scene;
+use crate::shading::Patches;
 use crate::{Camera, Error, Heightmap, Profile, Result};
 
 /// The renderer's global uniforms; mirrors `Globals` in `shaders_gles/clipmap.wgsl`.

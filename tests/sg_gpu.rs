@@ -114,7 +114,13 @@ fn sat_texture_box_means_match_brute_force() {
     assert_eq!(bake.baked(), ["normal_sat", "horizons", "horizon_sat"]);
     let hz = horizon::bake(&hm, 8, horizon::DEFAULT_MAX_SAMPLES).expect("horizons");
     let mut worst = (0.0f32, 0.0f32);
-    for (x0, y0, side) in [(0, 0, 1), (10, 20, 5), (100, 7, 63), (200, 200, 56), (250, 0, 7)] {
+    for (x0, y0, side) in [
+        (0, 0, 1),
+        (10, 20, 5),
+        (100, 7, 63),
+        (200, 200, 56),
+        (250, 0, 7),
+    ] {
         let hi = (x0 + side - 1, y0 + side - 1);
         let (r, a) = bake.box_mean((x0, y0), hi);
         let b = horizon::box_average(&hm, &hz, x0, y0, hi.0, hi.1);
@@ -125,7 +131,10 @@ fn sat_texture_box_means_match_brute_force() {
     }
     // f32 conversion of a sum up to 2^32 (2^-24 relative) and the 2^-20 quantum.
     assert!(worst.0 < 2e-6 && worst.1 < 6e-6, "{worst:?}");
-    println!("box mean max error: normal {:.1e}, horizon {:.1e} rad", worst.0, worst.1);
+    println!(
+        "box mean max error: normal {:.1e}, horizon {:.1e} rad",
+        worst.0, worst.1
+    );
     // Larger boxes are capped, not wrapped: a 100-sample request averages 63.
     let (r, _) = bake.box_mean((0, 0), (99, 99));
     let b = horizon::box_average(&hm, &hz, 0, 0, MAX_BOX_SIDE - 1, MAX_BOX_SIDE - 1);
@@ -144,7 +153,12 @@ fn terrain_larger_than_the_texture_side_uses_a_pyramid_level() {
 fn variants_compile_only_what_the_scene_declares() {
     for v in SgVariant::all() {
         let text = shaders::sg_clipmap(v);
-        assert_eq!(text.contains("fn sg_warped_ndf"), v.specular, "{}", v.label());
+        assert_eq!(
+            text.contains("fn sg_warped_ndf"),
+            v.specular,
+            "{}",
+            v.label()
+        );
         assert_eq!(text.contains("sat_horizon"), v.visibility, "{}", v.label());
         assert!(text.contains(&format!("const SG_BANDS: u32 = {}u;", v.patches.bands())));
     }
@@ -190,7 +204,9 @@ fn renderer_bakes_and_binds_only_what_the_scene_needs() {
         .expect("sg evening, no shadows");
     assert_eq!(renderer.bound_textures(), ["heights", "sat_normal"]);
     assert_eq!(renderer.baked(), ["normal_sat"]);
-    assert!(renderer.sg_variant().is_some_and(|v| v.specular && !v.visibility));
+    assert!(renderer
+        .sg_variant()
+        .is_some_and(|v| v.specular && !v.visibility));
     renderer
         .set_sg(&hm, &evening, Patches::P2x4, true)
         .expect("sg evening");

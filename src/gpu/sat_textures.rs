@@ -201,7 +201,8 @@ impl ShadingBake {
         let mut hz = heapless::Vec::new();
         for k in 0..self.azimuths as usize {
             let layer = &self.horizon[(k / 4) * texels * 4..(k / 4 + 1) * texels * 4];
-            let a = sum(layer, k % 4) as f32 * q * std::f32::consts::PI - std::f32::consts::FRAC_PI_2;
+            let a =
+                sum(layer, k % 4) as f32 * q * std::f32::consts::PI - std::f32::consts::FRAC_PI_2;
             // D <= MAX_AZIMUTHS = 16, the capacity.
             let _ = hz.push(a);
         }

@@ -41,7 +41,10 @@ pub fn sources() -> Vec<(&'static str, String)> {
             "sg_shading.wgsl",
             sg_library(SgVariant::default(), SG_NO_SPECULAR_WGSL),
         ),
-        ("sg_specular.wgsl", sg_library(SgVariant::default(), SG_SPECULAR_WGSL)),
+        (
+            "sg_specular.wgsl",
+            sg_library(SgVariant::default(), SG_SPECULAR_WGSL),
+        ),
         (
             "sg_no_specular.wgsl",
             sg_library(SgVariant::default(), SG_NO_SPECULAR_WGSL),
@@ -208,7 +211,11 @@ impl SgSceneUniform {
         #[expect(clippy::cast_precision_loss, reason = "at most MAX_SG_LIGHTS")]
         let count = scene.lights.len() as f32;
         u.kd_count = [m.kd.x, m.kd.y, m.kd.z, count];
-        let vis = if scene.effects.visibility { azimuths } else { 0 };
+        let vis = if scene.effects.visibility {
+            azimuths
+        } else {
+            0
+        };
         #[expect(clippy::cast_precision_loss, reason = "at most MAX_AZIMUTHS")]
         let vis = vis as f32;
         let ks = if scene.effects.specular { m.ks } else { 0.0 };
