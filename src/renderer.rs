@@ -622,6 +622,22 @@ impl<'g> Renderer<'g> {
     ) -> Result<()> {
         let mut scene = scene.clone();
         scene.effects.visibility &= shadows;
+        let max_side = self.gpu.device().limits().max_texture_dimension_2d;
+        let bake = ShadingBake::bake(hm, &scene.needs(), DEFAULT_AZIMUTHS, max_side)?;
+        self.set_sg_baked(hm, &scene, patches, &bake)
+    }
+
+    /// [`Renderer::set_sg`] with the tables already baked (e.g. one bake shared by several patch counts).
+    /// Visibility is used when the scene asks for it and `bake` holds horizons.
+    pub fn set_sg_baked(
+        &mut self,
+        hm: &Heightmap,
+        scene: &Scene,
+        patches: Patches,
+        bake: &ShadingBake,
+    ) -> Result<()> {
+        let mut scene = scene.clone();
+        scene.effects.visibility &= bake.azimuths() > 0;
         let needs = scene.needs();
         let variant = SgVariant {
             patches,
@@ -630,9 +646,7 @@ impl<'g> Renderer<'g> {
         };
         let gpu = self.gpu;
         let device = gpu.device();
-        let max_side = device.limits().max_texture_dimension_2d;
-        let bake = ShadingBake::bake(hm, &needs, DEFAULT_AZIMUTHS, max_side)?;
-        let textures = SatTextures::upload(gpu, &bake)?;
+        let textures = SatTextures::upload(gpu, bake)?;
         let mut u = SgSceneUniform::new(&scene, bake.azimuths())?;
         #[expect(clippy::cast_precision_loss, reason = "grid sizes <= 16385")]
         let grid = [
