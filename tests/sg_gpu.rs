@@ -189,6 +189,10 @@ fn renderer_bakes_and_binds_only_what_the_scene_needs() {
     assert_eq!(renderer.sg_layout_entries(), Some(2));
     let sg = render_frame(&mut renderer, &clipmap, &camera, &opts).expect("sg frame");
     assert_ne!(sg.image.hash(), basic.image.hash());
+    #[expect(
+        clippy::cast_possible_truncation,
+        reason = "colours in [0, 1] as bytes"
+    )]
     let sky = clipsat::gpu::shaders::SKY.map(|c| (c * 255.0).round() as u8);
     let lit = sg
         .image

@@ -13,7 +13,7 @@ use clipsat::horizon;
 use clipsat::scene::{self, Scene};
 use clipsat::shading::{self, HorizonTable, Patches, RefCosine, RefGrid, RefInputs};
 use clipsat::{Camera, Error, Heightmap, Profile, Result};
-use glam::{DVec3, Vec3, Vec4};
+use glam::{DVec3, Vec4};
 
 /// The shading options shared by `render` and `fly`.
 #[derive(Args, Debug, Clone)]
@@ -173,7 +173,7 @@ fn hit(hm: &Heightmap, eye: DVec3, dir: DVec3, far: f64) -> Option<(f64, f64, DV
 fn encode(linear: DVec3, distance: f64, scene: &Scene) -> [f64; 3] {
     #[expect(clippy::cast_possible_truncation, reason = "a distance in metres")]
     let c = scene::apply_fog(linear.as_vec3(), distance as f32, scene.fog.as_ref());
-    let c = Vec3::from(c).as_dvec3();
+    let c = c.as_dvec3();
     [c.x, c.y, c.z].map(|v| v.clamp(0.0, 1.0).powf(1.0 / 2.2))
 }
 

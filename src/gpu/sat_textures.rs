@@ -82,7 +82,7 @@ impl ShadingBake {
             for k in 1..pyramid.len() {
                 let l = pyramid.level(k);
                 step *= 2;
-                if l.width() + 1 <= max_side && l.height() + 1 <= max_side {
+                if l.width() < max_side && l.height() < max_side {
                     level = Some(Heightmap::new(
                         Path::new("shading grid"),
                         l.width(),
@@ -109,7 +109,7 @@ impl ShadingBake {
             .collect();
         let at = |x: u32, y: u32| y as usize * w as usize + x as usize;
         let mut normal = vec![0u32; texels * 4];
-        for c in 0..3 {
+        for c in [0usize, 1, 2] {
             let sat = Sat::build(w, h, 1, SAT_FRAC_BITS, |x, y| {
                 ((normals[at(x, y)][c] + 1.0) * 0.5).clamp(0.0, 1.0)
             })?;
