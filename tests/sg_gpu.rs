@@ -222,3 +222,94 @@ fn renderer_bakes_and_binds_only_what_the_scene_needs() {
     assert_eq!(renderer.sg_layout_entries(), Some(3));
     render_frame(&mut renderer, &clipmap, &camera, &opts).expect("sg evening frame");
 }
+
+/// `render --shading sg --json` reports what was bound and baked; `--no-shadows` drops the horizons;
+/// basic shading refuses SG-only flags.
+#[test]
+fn cli_render_reports_bound_textures_and_baked() {
+    let out = std::env::temp_dir().join(format!("clipsat_sg_cli_{}.png", std::process::id()));
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "render",
+            "--terrain",
+            "procedural:size=129",
+            "--profile",
+            "desktop",
+            "--size",
+            "64x48",
+            "--out",
+        ];
+        let out = out.to_string_lossy().into_owned();
+        args.push(&out);
+        args.extend_from_slice(extra);
+        std::process::Command::new(env!("CARGO_BIN_EXE_clipsat"))
+            .args(&args)
+            .output()
+            .expect("run clipsat")
+    };
+    let json = |o: &std::process::Output| -> serde_json::Value {
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        serde_json::from_slice(&o.stdout).expect("json")
+    };
+    let v = json(&run(&["--shading", "sg", "--scene", "evening", "--json"]));
+    assert_eq!(
+        v["bound_textures"],
+        serde_json::json!(["heights", "sat_normal", "sat_horizon"])
+    );
+    assert_eq!(
+        v["baked"],
+        serde_json::json!(["normal_sat", "horizons", "horizon_sat"])
+    );
+    assert!(v["shading_rmse_vs_reference"].is_null(), "{v}");
+    let v = json(&run(&[
+        "--shading",
+        "sg",
+        "--scene",
+        "evening",
+        "--no-shadows",
+        "--json",
+    ]));
+    assert_eq!(
+        v["bound_textures"],
+        serde_json::json!(["heights", "sat_normal"])
+    );
+    assert_eq!(v["baked"], serde_json::json!(["normal_sat"]));
+    let refused = run(&["--no-shadows"]);
+    assert_eq!(refused.status.code(), Some(2));
+    let _ = std::fs::remove_file(&out);
+}
+
+/// `--reference` against the CPU reference on a small view: the RMSE stays small. Slow in a debug build
+/// (dense f64 quadrature per reference pixel): `cargo test --test sg_gpu -- --ignored`.
+#[test]
+#[ignore]
+fn cli_render_reference_error_is_small() {
+    let out = std::env::temp_dir().join(format!("clipsat_sg_ref_{}.png", std::process::id()));
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_clipsat"))
+        .args([
+            "render",
+            "--terrain",
+            "procedural:size=129",
+            "--profile",
+            "desktop",
+        ])
+        .args([
+            "--size",
+            "64x48",
+            "--shading",
+            "sg",
+            "--scene",
+            "evening",
+            "--reference",
+        ])
+        .arg("--json")
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .expect("run clipsat");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    let e = v["shading_rmse_vs_reference"].as_f64().expect("rmse");
+    assert!(e < 0.05 && v["reference_pixels"].as_u64() > Some(50), "{v}");
+    let _ = std::fs::remove_file(&out);
+}
