@@ -313,3 +313,71 @@ fn cli_render_reference_error_is_small() {
     assert!(e < 0.05 && v["reference_pixels"].as_u64() > Some(50), "{v}");
     let _ = std::fs::remove_file(&out);
 }
+
+/// Golden SG frame: procedural 257^2 terrain, evening scene (visibility, specular, fog), 4x8, 160 x 90 on
+/// gles3-low's clipmap. `tests/goldens/sg_hashes.txt` holds the exact hash per driver
+/// (`adapter|driver<TAB>view<TAB>hash`); `tests/goldens/sg-procedural-evening.png` is compared with the
+/// same tolerance as tests/render_goldens.rs (mean 3, max 160 levels per channel) on other drivers.
+/// `CLIPSAT_BLESS=1` rewrites both.
+#[test]
+fn golden_sg_frame() {
+    let gpu = render_support::strict();
+    let report = gpu.report();
+    let key = format!("{}|{}", report.name, report.driver);
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/goldens");
+    let (png, hashes) = (
+        dir.join("sg-procedural-evening.png"),
+        dir.join("sg_hashes.txt"),
+    );
+    let hm =
+        clipsat::source::procedural::generate(&clipsat::source::procedural::ProceduralParams {
+            size: 257,
+            ..Default::default()
+        })
+        .expect("procedural terrain");
+    let mut profile = render_support::profile("gles3-low", 160, 90, None);
+    profile.budget.update_samples_per_frame = u32::MAX;
+    let mut cm = render_support::clipmap(&hm, &profile);
+    let cam = clipsat::Camera::default_for(&hm).expect("camera");
+    cm.update(cam.eye).expect("update");
+    let mut r = Renderer::new(&gpu, &profile, &cm).expect("renderer");
+    let scene = Scene::load("evening").expect("evening");
+    r.set_sg(&hm, &scene, Patches::P4x8, true).expect("sg");
+    let img = render_frame(&mut r, &cm, &cam, &FrameOptions::default())
+        .expect("frame")
+        .image;
+    let h = clipsat::hash::hex(img.hash());
+    let line = format!("{key}\tsg-procedural-evening\t{h}");
+    if std::env::var_os("CLIPSAT_BLESS").is_some_and(|v| v == "1") {
+        img.save_png(&png).expect("write golden");
+        let mut lines: Vec<String> = std::fs::read_to_string(&hashes)
+            .unwrap_or_default()
+            .lines()
+            .filter(|l| !l.starts_with(&format!("{key}\t")) && !l.starts_with('#'))
+            .map(str::to_string)
+            .collect();
+        lines.push(line);
+        lines.sort();
+        let text = format!(
+            "# Exact SG golden hashes per driver (tests/sg_gpu.rs golden_sg_frame).\n{}\n",
+            lines.join("\n")
+        );
+        std::fs::write(&hashes, text).expect("write hashes");
+        return;
+    }
+    let stored = std::fs::read_to_string(&hashes).unwrap_or_default();
+    if let Some(l) = stored.lines().find(|l| l.starts_with(&format!("{key}\t"))) {
+        assert_eq!(l, line, "exact hash for this driver");
+    }
+    let golden = image::open(&png)
+        .unwrap_or_else(|e| panic!("{}: {e}; run CLIPSAT_BLESS=1", png.display()))
+        .to_rgba8();
+    assert_eq!((golden.width(), golden.height()), (img.width, img.height));
+    let (mut sum, mut max) = (0u64, 0u8);
+    for (a, b) in golden.as_raw().iter().zip(&img.rgba) {
+        sum += u64::from(a.abs_diff(*b));
+        max = max.max(a.abs_diff(*b));
+    }
+    let mean = sum as f64 / img.rgba.len() as f64;
+    assert!(mean <= 3.0 && max <= 160, "mean {mean:.3}, max {max}");
+}
