@@ -31,7 +31,11 @@ fn every_shader_file_is_assembled() {
 fn every_entry_point_translates_to_glsl_es_300() {
     let mut failures = Vec::new();
     let mut translated = 0;
-    for (name, text) in shaders::sources() {
+    let all = shaders::sources()
+        .into_iter()
+        .map(|(n, t)| (n.to_string(), t))
+        .chain(shaders::sg_variants());
+    for (name, text) in all {
         let module = match naga::front::wgsl::parse_str(&text) {
             Ok(m) => m,
             Err(e) => {

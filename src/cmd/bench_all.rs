@@ -70,6 +70,9 @@ struct Plan {
     size: (u32, u32),
     speeds: &'static [f64],
     fly_frames: u64,
+    /// Image size and timed frames of the shading section.
+    shading_size: (u32, u32),
+    shading_frames: u32,
 }
 
 impl Plan {
@@ -85,6 +88,8 @@ impl Plan {
                 size: (160, 90),
                 speeds: &SPEEDS_QUICK,
                 fly_frames: 24,
+                shading_size: (160, 90),
+                shading_frames: 1,
             }
         } else {
             Self {
@@ -94,6 +99,8 @@ impl Plan {
                 size: (320, 180),
                 speeds: &SPEEDS_FULL,
                 fly_frames: 300,
+                shading_size: (320, 180),
+                shading_frames: 3,
             }
         }
     }
@@ -192,8 +199,10 @@ pub(crate) fn run(args: &BenchAllArgs) -> Result<()> {
         skipped.push("every shared terrain (--quick)".to_string());
     }
 
+    let (shading_terrains, shading_skipped) = bench::shading_terrains(plan.shared)?;
     let shipped = clipsat::profile::SHIPPED.len() as u64;
     let steps = shipped
+        + bench::shading_steps(shading_terrains.len())
         + terrains.len() as u64
             * (bench::lod_steps(plan.lod_frames) + plan.speeds.len() as u64 * plan.fly_frames);
     let bar = ProgressBar::new(steps);
@@ -221,6 +230,15 @@ pub(crate) fn run(args: &BenchAllArgs) -> Result<()> {
             &bar,
         )?);
     }
+
+    let shading = bench::measure_shading(
+        &gpu,
+        &profile,
+        &shading_terrains,
+        plan.shading_size,
+        plan.shading_frames,
+        &bar,
+    )?;
 
     let mut budget = Vec::new();
     for (name, hm) in &terrains {
@@ -252,9 +270,15 @@ pub(crate) fn run(args: &BenchAllArgs) -> Result<()> {
             format!(" Skipped: {}.", skipped.join(", "))
         },
     );
-    md.push_str(&headline(&lod, &budget, &memory, &profile));
+    md.push_str(&headline(&lod, &shading, &budget, &memory, &profile));
     md.push_str(&lod_section(out, &lod, &plan, &machine, &profile)?);
-    md.push_str(&shading_section(out, &machine)?);
+    md.push_str(&shading_section(
+        out,
+        &shading,
+        &shading_skipped,
+        &plan,
+        &machine,
+    )?);
     md.push_str(&budget_section(out, &budget, &plan, &machine, &profile)?);
     md.push_str(&memory_section(&memory, &machine));
     let report = out.join("report.md");
@@ -263,9 +287,15 @@ pub(crate) fn run(args: &BenchAllArgs) -> Result<()> {
     Ok(())
 }
 
-/// The headline: SAT against distance LOD at 1 px, the fastest speed without stale levels, the memory of
-/// each profile.
-fn headline(lod: &[LodResult], budget: &[BudgetRow], memory: &[MemoryRow], p: &Profile) -> String {
+/// The headline: SAT against distance LOD at 1 px, SG shading at 4x8 patches, the fastest speed without
+/// stale levels, the memory of each profile.
+fn headline(
+    lod: &[LodResult],
+    shading: &[bench::ShadingRow],
+    budget: &[BudgetRow],
+    memory: &[MemoryRow],
+    p: &Profile,
+) -> String {
     let mut s = String::from("## Headline\n\n");
     let mut names: Vec<&str> = lod.iter().map(|r| r.terrain.as_str()).collect();
     names.dedup();
@@ -297,6 +327,26 @@ fn headline(lod: &[LodResult], budget: &[BudgetRow], memory: &[MemoryRow], p: &P
             sat.acc.max_error_px,
             c.acc.max_error_px,
             x.acc.max_error_px,
+        );
+    }
+    let parts: Vec<String> = shading
+        .iter()
+        .filter(|r| r.patches == clipsat::shading::Patches::P4x8 && r.effects == "+specular")
+        .map(|r| {
+            format!(
+                "{} {:.1}x basic, RMSE {:.4}",
+                r.terrain,
+                r.ms / r.basic_ms.max(1e-9),
+                r.rmse
+            )
+        })
+        .collect();
+    if !parts.is_empty() {
+        let _ = write!(
+            s,
+            "\nSG shading, 4x8 patches with visibility and specular, time against basic shading and RMSE \
+             (0..1) against the CPU reference: {}.\n",
+            parts.join(", ")
         );
     }
     let mut names: Vec<&str> = budget.iter().map(|r| r.terrain.as_str()).collect();
@@ -374,16 +424,61 @@ fn lod_section(
     Ok(s)
 }
 
-/// The shading section: error against patch count.
-///
-/// MERGE POINT: the shading bench (`bench shading`, issue 6) is written in parallel; at merge, call its
-/// measuring function here and write its table and plot. Until then this says so.
-fn shading_section(_out: &FsPath, machine: &Machine) -> Result<String> {
-    Ok(format!(
-        "## Shading: error against patch count\n\nNot measured in this build (`bench shading` is not part of \
-         it yet). {}\n\n",
+/// The shading section: SG error against the CPU reference and cost against basic shading, per patch
+/// count and effect set (`bench shading`'s measurement).
+fn shading_section(
+    out: &FsPath,
+    rows: &[bench::ShadingRow],
+    skipped: &[String],
+    plan: &Plan,
+    machine: &Machine,
+) -> Result<String> {
+    let png = "shading.png";
+    bench::shading_plot(rows, &out.join(png))?;
+    let mut s = String::from("## Shading: error against patch count\n\n");
+    let _ = writeln!(
+        s,
+        "Reduced SG shading (evening scene, no fog, default camera) at {}x{} px, {} timed frame(s) per \
+         configuration: ms per frame and its ratio to basic shading measured in the same run (baseline), and \
+         RMSE / max error (display-encoded, 0..1) against the CPU reference `shading::reference` on a {g} x \
+         {g} pixel grid.{}\n",
+        plan.shading_size.0,
+        plan.shading_size.1,
+        plan.shading_frames,
+        if skipped.is_empty() {
+            String::new()
+        } else {
+            format!(" Skipped: {}.", skipped.join(", "))
+        },
+        g = super::sg::REF_GRID,
+    );
+    let _ = writeln!(
+        s,
+        "![RMSE against time per frame]({png})\n\n*Figure: RMSE against time per frame / basic shading, one \
+         line per terrain and effect set through 2x4, 4x8 and 8x16 patches. {}*\n",
         machine.line()
-    ))
+    );
+    let _ = writeln!(
+        s,
+        "*Table: {}*\n\n| terrain | patches | effects | ms | x basic | RMSE | max error |\n\
+         |---|---|---|---|---|---|---|",
+        machine.line()
+    );
+    for r in rows {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {:.1} | {:.2} | {:.4} | {:.4} |",
+            r.terrain,
+            r.patches.label(),
+            r.effects,
+            r.ms,
+            r.ms / r.basic_ms.max(1e-9),
+            r.rmse,
+            r.max
+        );
+    }
+    s.push('\n');
+    Ok(s)
 }
 
 /// Flies a straight line over `hm` at multiples of the speed the profile's update budget sustains and

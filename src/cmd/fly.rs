@@ -30,6 +30,8 @@ pub(crate) struct FlyArgs {
     terrain: TerrainArgs,
     #[command(flatten)]
     profile: ProfileArgs,
+    #[command(flatten)]
+    shading: super::sg::ShadingArgs,
     /// Camera path: straight, circle, figure8, dive, teleport or teleport:K (jump every K frames).
     #[arg(long, value_name = "NAME", default_value = DEFAULT_PATH)]
     path: String,
@@ -111,6 +113,13 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
     let lod_mode: LodMode = args.lod.parse()?;
     let epsilon = super::render::parse_epsilon(args.epsilon)?;
     let profile = args.profile.load()?;
+    let sg = args.shading.choice(&profile)?;
+    if sg.is_some() && args.render.is_none() {
+        return Err(Error::Arg {
+            arg: "--shading".into(),
+            reason: "sg shading needs --render DIR (fly simulates without a GPU otherwise)".into(),
+        });
+    }
     let (terrain_name, hm) = args.terrain.load()?;
     let flight =
         Flight::new(path, args.speed, &hm)?.with_fov_y_deg(f64::from(profile.view.fov_y_deg));
@@ -178,9 +187,17 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
         (render_profile.view.width, render_profile.view.height) = super::render::parse_size(size)?;
     }
     let mut renderer = match &gpu {
-        Some(gpu) => Some(Renderer::new(gpu, &render_profile, &clipmap)?),
+        Some(gpu) => {
+            let mut r = Renderer::new(gpu, &render_profile, &clipmap)?;
+            if let Some(sg) = &sg {
+                r.set_sg(&hm, &sg.scene, sg.patches, sg.shadows)?;
+            }
+            Some(r)
+        }
         None => None,
     };
+    // Reference errors of the rendered frames (--reference): (sum of squared RMSEs, max error, frames).
+    let mut ref_acc = (0.0f64, 0.0f64, 0u32);
     let mut renders: Vec<(u64, u64)> = match &args.render {
         Some(_) => {
             Vec::with_capacity(usize::try_from(frames / args.render_every.max(1) + 1).unwrap_or(0))
@@ -271,6 +288,16 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
                 let out = render_frame(r, &clipmap, &camera, &FrameOptions::default())?;
                 out.image.save_png(&dir.join(format!("frame_{f:06}.png")))?;
                 renders.push((f, out.image_hash));
+                if let (Some(sg), true) = (&sg, args.shading.reference) {
+                    let size = (render_profile.view.width, render_profile.view.height);
+                    let e = super::sg::reference(&hm, &camera, size, &sg.effective_scene())
+                        .error(&out.image, super::sg::sky_rgba8());
+                    ref_acc = (
+                        ref_acc.0 + e.rmse * e.rmse,
+                        ref_acc.1.max(e.max),
+                        ref_acc.2 + 1,
+                    );
+                }
             }
         }
         if f % 64 == 0 {
@@ -343,6 +370,14 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
                 .iter()
                 .map(|(f, h)| json!({ "frame": f, "image_hash": hex(*h) }))
                 .collect::<Vec<_>>(),
+            "shading": if sg.is_some() { "sg" } else { "basic" },
+            "scene": sg.as_ref().map(|s| s.scene.name.clone()),
+            "patches": sg.as_ref().map(|s| s.patches.label()),
+            "bound_textures": renderer.as_ref().map(|r| r.bound_textures().to_vec()),
+            "baked": renderer.as_ref().map(|r| r.baked().to_vec()),
+            "shading_rmse_vs_reference": (ref_acc.2 > 0)
+                .then(|| (ref_acc.0 / f64::from(ref_acc.2)).sqrt()),
+            "shading_max_error_vs_reference": (ref_acc.2 > 0).then_some(ref_acc.1),
             "hash_out": args.hash_out.as_ref().map(|p| p.display().to_string()),
             "checked_against": args.check.as_ref().map(|p| p.display().to_string()),
         }));

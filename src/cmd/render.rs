@@ -18,6 +18,7 @@ use clipsat::{hash, Camera, Error, Heightmap, Profile, Result};
 use glam::DVec3;
 use serde_json::json;
 
+use super::sg::ShadingArgs;
 use super::{ensure_parent, print_json, ProfileArgs, TerrainArgs};
 
 #[derive(Args, Debug)]
@@ -26,6 +27,8 @@ pub(crate) struct RenderArgs {
     terrain: TerrainArgs,
     #[command(flatten)]
     profile: ProfileArgs,
+    #[command(flatten)]
+    shading: ShadingArgs,
     /// Eye position X,Y,Z in metres (x east, y north, z up; the south-west sample is at 0,0).
     /// Default: outside the south-west corner, above the highest peak.
     #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
@@ -116,8 +119,15 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
     let (terrain_name, hm) = args.terrain.load()?;
     let camera = camera(args, &hm, f64::from(profile.view.fov_y_deg))?;
 
+    let sg = args.shading.choice(&profile)?;
     let gpu = Gpu::new(mode)?;
     if args.brute {
+        if sg.is_some() {
+            return Err(Error::Arg {
+                arg: "--shading".into(),
+                reason: "sg shades the clipmap renderer; --brute has basic shading only".into(),
+            });
+        }
         return run_brute(
             args,
             &gpu,
@@ -148,6 +158,9 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
     if lod_mode != LodMode::Distance || args.json {
         r.set_lod(lod_for(&hm, &profile, &clipmap, !args.json)?);
     }
+    if let Some(sg) = &sg {
+        r.set_sg(&hm, &sg.scene, sg.patches, sg.shadows)?;
+    }
     let setup_ms = t0.elapsed().as_secs_f64() * 1e3;
     let opts = FrameOptions {
         morph: !args.no_morph,
@@ -175,6 +188,14 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
         .map(|lod| renderer::screen_error(&r, &clipmap, &camera, lod));
     ensure_parent(&args.out)?;
     frame.image.save_png(&args.out)?;
+    let reference = match (&sg, args.shading.reference) {
+        (Some(sg), true) => {
+            let reference =
+                super::sg::reference(&hm, &camera, (size_w, size_h), &sg.effective_scene());
+            Some(reference.error(&frame.image, super::sg::sky_rgba8()))
+        }
+        _ => None,
+    };
 
     let report = gpu.report();
     let cf = clipmap.frame();
@@ -192,7 +213,18 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
                 })
             })
             .collect();
-        print_json(&json!({
+        let shading = json!({
+            "shading": if sg.is_some() { "sg" } else { "basic" },
+            "scene": sg.as_ref().map(|s| s.scene.name.clone()),
+            "patches": sg.as_ref().map(|s| s.patches.label()),
+            "shadows": sg.as_ref().map(|s| s.shadows && s.scene.effects.visibility),
+            "bound_textures": r.bound_textures(),
+            "baked": r.baked(),
+            "shading_rmse_vs_reference": reference.map(|e| e.rmse),
+            "shading_max_error_vs_reference": reference.map(|e| e.max),
+            "reference_pixels": reference.map(|e| e.pixels),
+        });
+        let mut out = json!({
             "renderer": "clipmap",
             "terrain": terrain_name,
             "profile": profile.name,
@@ -224,10 +256,15 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
             "gpu_objects": r.ledger().count(),
             "image_hash": hash::hex(frame.image_hash),
             "crack_pixels": crack_pixels,
+
             "out": args.out.display().to_string(),
             "setup_ms": round2(setup_ms),
             "ms": round2(ms),
-        }));
+        });
+        if let (Some(o), serde_json::Value::Object(extra)) = (out.as_object_mut(), shading) {
+            o.extend(extra);
+        }
+        print_json(&out);
     } else {
         println!(
             "{}: {size_w}x{size_h}, {} triangles in {} draws (clipmap, {} levels stale), image {}, \
@@ -241,6 +278,12 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
             report.name,
             report.gl_version,
         );
+        if let Some(e) = reference {
+            println!(
+                "shading vs CPU reference ({} pixels): rmse {:.4}, max {:.4}",
+                e.pixels, e.rmse, e.max
+            );
+        }
     }
     Ok(())
 }

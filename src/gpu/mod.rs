@@ -11,6 +11,8 @@ pub mod brute;
 #[cfg(unix)]
 mod egl;
 pub mod readback;
+pub mod sat_textures;
+pub mod sg_probe;
 pub mod shaders;
 
 use std::marker::PhantomData;

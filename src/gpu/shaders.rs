@@ -4,10 +4,21 @@
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 
+use crate::scene::Scene;
+use crate::shading::Patches;
+use crate::{Error, Result};
+
 /// The basic shading library: height ramp, Lambert sun, sky, fog. No entry points.
 pub const BASIC_SHADING_WGSL: &str = include_str!("../../shaders_gles/basic_shading.wgsl");
 const BRUTE_WGSL: &str = include_str!("../../shaders_gles/brute.wgsl");
 const CLIPMAP_WGSL: &str = include_str!("../../shaders_gles/clipmap.wgsl");
+const SG_SHADING_WGSL: &str = include_str!("../../shaders_gles/sg_shading.wgsl");
+const SG_SPECULAR_WGSL: &str = include_str!("../../shaders_gles/sg_specular.wgsl");
+const SG_NO_SPECULAR_WGSL: &str = include_str!("../../shaders_gles/sg_no_specular.wgsl");
+const SG_VISIBILITY_WGSL: &str = include_str!("../../shaders_gles/sg_visibility.wgsl");
+const SG_NO_VISIBILITY_WGSL: &str = include_str!("../../shaders_gles/sg_no_visibility.wgsl");
+const SG_CLIPMAP_WGSL: &str = include_str!("../../shaders_gles/sg_clipmap.wgsl");
+const SG_PROBE_WGSL: &str = include_str!("../../shaders_gles/sg_probe.wgsl");
 
 /// The brute-force reference program: basic shading + `brute.wgsl`.
 pub fn brute() -> String {
@@ -26,7 +37,196 @@ pub fn sources() -> Vec<(&'static str, String)> {
         ("basic_shading.wgsl", BASIC_SHADING_WGSL.to_string()),
         ("brute.wgsl", brute()),
         ("clipmap.wgsl", clipmap()),
+        (
+            "sg_shading.wgsl",
+            sg_library(SgVariant::default(), SG_NO_SPECULAR_WGSL),
+        ),
+        (
+            "sg_specular.wgsl",
+            sg_library(SgVariant::default(), SG_SPECULAR_WGSL),
+        ),
+        (
+            "sg_no_specular.wgsl",
+            sg_library(SgVariant::default(), SG_NO_SPECULAR_WGSL),
+        ),
+        ("sg_visibility.wgsl", sg_clipmap(SgVariant::ALL_ON)),
+        ("sg_no_visibility.wgsl", sg_clipmap(SgVariant::default())),
+        ("sg_clipmap.wgsl", sg_clipmap(SgVariant::ALL_ON)),
+        ("sg_probe.wgsl", sg_probe(SgVariant::ALL_ON)),
     ]
+}
+
+/// One SG shader variant: what the text of a program contains (design.md "Only the effects a scene
+/// calls for"). Each effect set is its own text and its own pipeline.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SgVariant {
+    /// Theta bands x phi sectors of the patch integration (a WGSL constant).
+    pub patches: Patches,
+    /// Horizon SATs are declared and fetched (`sg_visibility.wgsl`), else `sg_no_visibility.wgsl`.
+    pub visibility: bool,
+    /// The specular term is compiled (`sg_specular.wgsl`), else the zero stub `sg_no_specular.wgsl`.
+    pub specular: bool,
+}
+
+impl SgVariant {
+    /// Everything on, 4x8.
+    pub const ALL_ON: Self = Self {
+        patches: Patches::P4x8,
+        visibility: true,
+        specular: true,
+    };
+
+    /// Every variant: 3 patch counts x visibility x specular.
+    pub fn all() -> Vec<Self> {
+        let mut out = Vec::new();
+        for patches in Patches::ALL {
+            for visibility in [false, true] {
+                for specular in [false, true] {
+                    out.push(Self {
+                        patches,
+                        visibility,
+                        specular,
+                    });
+                }
+            }
+        }
+        out
+    }
+
+    /// "4x8+vis+spec" style label.
+    pub fn label(&self) -> String {
+        let mut s = self.patches.label().to_string();
+        if self.visibility {
+            s.push_str("+vis");
+        }
+        if self.specular {
+            s.push_str("+spec");
+        }
+        s
+    }
+}
+
+fn sg_library(v: SgVariant, specular: &str) -> String {
+    let bands = format!(
+        "// Variant {}: M theta bands.\nconst SG_BANDS: u32 = {}u;\n\n",
+        v.label(),
+        v.patches.bands()
+    );
+    [bands.as_str(), SG_SHADING_WGSL, specular].concat()
+}
+
+fn sg_specular_text(v: SgVariant) -> &'static str {
+    if v.specular {
+        SG_SPECULAR_WGSL
+    } else {
+        SG_NO_SPECULAR_WGSL
+    }
+}
+
+/// The clipmap renderer's SG program for variant `v`: basic shading + `clipmap.wgsl` + `sg_shading.wgsl`
+/// + the variant's specular and visibility files + `sg_clipmap.wgsl` (entry points `vs_main`, `fs_sg`).
+pub fn sg_clipmap(v: SgVariant) -> String {
+    let visibility = if v.visibility {
+        SG_VISIBILITY_WGSL
+    } else {
+        SG_NO_VISIBILITY_WGSL
+    };
+    [
+        BASIC_SHADING_WGSL,
+        CLIPMAP_WGSL,
+        &sg_library(v, sg_specular_text(v)),
+        visibility,
+        SG_CLIPMAP_WGSL,
+    ]
+    .concat()
+}
+
+/// The SG probe program for variant `v` (its visibility flag only says whether the scene's D is used):
+/// `sg_shading.wgsl` + specular file + `sg_probe.wgsl`.
+pub fn sg_probe(v: SgVariant) -> String {
+    [sg_library(v, sg_specular_text(v)).as_str(), SG_PROBE_WGSL].concat()
+}
+
+/// Every SG program variant, named `file[label]`, for validation.
+pub fn sg_variants() -> Vec<(String, String)> {
+    let mut out = Vec::new();
+    for v in SgVariant::all() {
+        out.push((format!("sg_clipmap.wgsl[{}]", v.label()), sg_clipmap(v)));
+        out.push((format!("sg_probe.wgsl[{}]", v.label()), sg_probe(v)));
+    }
+    out
+}
+
+/// Most SG light lobes a shader variant holds: the largest `shading.max_sg_lights` of the shipped
+/// profiles (desktop); mirrors `SG_MAX_LIGHTS` in `shaders_gles/sg_shading.wgsl`.
+pub const MAX_SG_LIGHTS: usize = 8;
+
+/// One SG light; mirrors `SgLight` in `shaders_gles/sg_shading.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct SgLightUniform {
+    /// xyz: unit axis, w: sharpness.
+    pub axis_lambda: [f32; 4],
+    /// rgb: amplitude, w: unused.
+    pub mu: [f32; 4],
+}
+const _: () = assert!(std::mem::size_of::<SgLightUniform>() == 32);
+
+/// The SG scene uniform; mirrors `SgScene` in `shaders_gles/sg_shading.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct SgSceneUniform {
+    /// The light lobes; the first `kd_count[3]` are used.
+    pub lights: [SgLightUniform; MAX_SG_LIGHTS],
+    /// rgb: k_d, w: number of lights.
+    pub kd_count: [f32; 4],
+    /// x: k_s, y: roughness, z: azimuths D (0: visibility off), w: fog extinction (1/m, 0: off).
+    pub material: [f32; 4],
+    /// rgb: fog colour (linear).
+    pub fog: [f32; 4],
+    /// x, y: the data's span in samples (width - 1, height - 1); z: data samples per shading-grid sample;
+    /// w: largest footprint box side, samples.
+    pub grid: [f32; 4],
+}
+const _: () = assert!(std::mem::size_of::<SgSceneUniform>() == 320);
+
+impl SgSceneUniform {
+    /// The uniform for `scene`: lights, material, fog; `azimuths` is D when visibility is bound (else 0).
+    /// `grid` is left zero (the renderer fills it).
+    pub fn new(scene: &Scene, azimuths: u32) -> Result<Self> {
+        if scene.lights.len() > MAX_SG_LIGHTS {
+            return Err(Error::Capacity {
+                what: "SG light lobes per scene",
+                capacity: MAX_SG_LIGHTS,
+            });
+        }
+        let mut u = Self::default();
+        for (slot, l) in u.lights.iter_mut().zip(&scene.lights) {
+            *slot = SgLightUniform {
+                axis_lambda: [l.axis.x, l.axis.y, l.axis.z, l.lambda],
+                mu: [l.mu.x, l.mu.y, l.mu.z, 0.0],
+            };
+        }
+        let m = &scene.material;
+        #[expect(clippy::cast_precision_loss, reason = "at most MAX_SG_LIGHTS")]
+        let count = scene.lights.len() as f32;
+        u.kd_count = [m.kd.x, m.kd.y, m.kd.z, count];
+        let vis = if scene.effects.visibility {
+            azimuths
+        } else {
+            0
+        };
+        #[expect(clippy::cast_precision_loss, reason = "at most MAX_AZIMUTHS")]
+        let vis = vis as f32;
+        let ks = if scene.effects.specular { m.ks } else { 0.0 };
+        let (fog_density, fog_rgb) = match &scene.fog {
+            Some(f) => (f.density_per_km * 1e-3, f.rgb),
+            None => (0.0, Vec3::ZERO),
+        };
+        u.material = [ks, m.roughness, vis, fog_density];
+        u.fog = [fog_rgb.x, fog_rgb.y, fog_rgb.z, 0.0];
+        Ok(u)
+    }
 }
 
 /// Uniform parameters of the basic shading; mirrors `BasicShading` in `shaders_gles/basic_shading.wgsl`.

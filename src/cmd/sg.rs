@@ -1,0 +1,288 @@
+//! `render` / `fly` / `bench shading`: the SG shading options (`--shading`, `--scene`, `--patches`,
+//! `--no-shadows`, `--reference`) and the CPU reference image they are measured against.
+//!
+//! The reference is computed on a fixed grid of pixels (not the whole image: each pixel costs a dense
+//! hemisphere quadrature): a ray through the pixel centre is marched against the bilinear heightmap for
+//! the hit point, the exact (f64) mean of texel normals over the pixel's footprint box gives r, the
+//! horizon is ray-marched at 64 azimuths, and `shading::reference` integrates it; fog and display encoding
+//! follow as in the shader. Pixels whose ray leaves the data, or that show sky on the GPU, are skipped.
+
+use clap::Args;
+use clipsat::gpu::readback::Image;
+use clipsat::horizon;
+use clipsat::scene::{self, Scene};
+use clipsat::shading::{self, HorizonTable, Patches, RefCosine, RefGrid, RefInputs};
+use clipsat::{Camera, Error, Heightmap, Profile, Result};
+use glam::{DVec3, Vec4};
+
+/// The shading options shared by `render` and `fly`.
+#[derive(Args, Debug, Clone)]
+pub(crate) struct ShadingArgs {
+    /// Shading: basic (height ramp + Lambert, the default) or sg (reduced spherical Gaussians).
+    #[arg(long, value_name = "basic|sg", default_value = "basic")]
+    pub(crate) shading: String,
+    /// SG scene: a shipped name (noon, evening, overcast) or a TOML file. Default with --shading sg: noon.
+    #[arg(long, value_name = "FILE|NAME")]
+    pub(crate) scene: Option<String>,
+    /// SG patches per lobe, MxN: 2x4, 4x8 or 8x16.
+    #[arg(long, value_name = "MxN", default_value = "4x8")]
+    pub(crate) patches: String,
+    /// SG: drop visibility (no horizon bake, no visibility texture) even if the scene asks for it.
+    #[arg(long)]
+    pub(crate) no_shadows: bool,
+    /// SG: also compute a CPU reference of the same view on a pixel grid and report the error.
+    #[arg(long)]
+    pub(crate) reference: bool,
+}
+
+/// What `--shading sg` resolved to.
+#[derive(Clone, Debug)]
+pub(crate) struct SgChoice {
+    pub(crate) scene: Scene,
+    pub(crate) patches: Patches,
+    pub(crate) shadows: bool,
+}
+
+impl SgChoice {
+    /// The scene as rendered: visibility off under `--no-shadows`.
+    pub(crate) fn effective_scene(&self) -> Scene {
+        let mut s = self.scene.clone();
+        s.effects.visibility &= self.shadows;
+        s
+    }
+}
+
+/// Parses `--patches`.
+pub(crate) fn parse_patches(text: &str) -> Result<Patches> {
+    Patches::ALL
+        .into_iter()
+        .find(|p| p.label() == text)
+        .ok_or_else(|| Error::Arg {
+            arg: "--patches".into(),
+            reason: format!("`{text}` is not one of 2x4, 4x8, 8x16"),
+        })
+}
+
+impl ShadingArgs {
+    /// None for basic shading; the scene (checked against the profile), patches and shadows for sg.
+    pub(crate) fn choice(&self, profile: &Profile) -> Result<Option<SgChoice>> {
+        let patches = parse_patches(&self.patches)?;
+        match self.shading.as_str() {
+            "basic" => {
+                let sg_only = [
+                    (self.scene.is_some(), "--scene"),
+                    (self.no_shadows, "--no-shadows"),
+                    (self.reference, "--reference"),
+                    (patches != Patches::default(), "--patches"),
+                ];
+                match sg_only.iter().find(|(on, _)| *on) {
+                    Some((_, arg)) => Err(Error::Arg {
+                        arg: (*arg).into(),
+                        reason: "applies to SG shading: add --shading sg".into(),
+                    }),
+                    None => Ok(None),
+                }
+            }
+            "sg" => {
+                let name = self.scene.as_deref().unwrap_or("noon");
+                let scene = Scene::load(name)?;
+                scene.check_profile(name, profile)?;
+                Ok(Some(SgChoice {
+                    scene,
+                    patches,
+                    shadows: !self.no_shadows,
+                }))
+            }
+            other => Err(Error::Arg {
+                arg: "--shading".into(),
+                reason: format!("`{other}` is not basic or sg"),
+            }),
+        }
+    }
+}
+
+/// The reference colours (display-encoded, [0, 1]) at a fixed grid of pixels.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Reference {
+    pixels: Vec<((u32, u32), [f64; 3])>,
+}
+
+/// Error of an image against a [`Reference`], display-encoded units in [0, 1].
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct RefError {
+    pub(crate) rmse: f64,
+    pub(crate) max: f64,
+    pub(crate) pixels: usize,
+}
+
+/// Reference pixels per image side, at most (a `REF_GRID` x `REF_GRID` grid).
+pub(crate) const REF_GRID: u32 = 24;
+
+/// The ray through pixel (px, py)'s centre, from the eye (unit direction).
+fn pixel_ray(camera: &Camera, size: (u32, u32), px: u32, py: u32) -> DVec3 {
+    let aspect = f64::from(size.0) / f64::from(size.1);
+    let inv = camera.view_proj_relative(aspect).inverse();
+    #[expect(clippy::cast_possible_truncation, reason = "NDC in [-1, 1]")]
+    let ndc = (
+        ((f64::from(px) + 0.5) / f64::from(size.0) * 2.0 - 1.0) as f32,
+        (1.0 - (f64::from(py) + 0.5) / f64::from(size.1) * 2.0) as f32,
+    );
+    let p = inv * Vec4::new(ndc.0, ndc.1, 0.5, 1.0);
+    (p.truncate() / p.w).as_dvec3().normalize()
+}
+
+/// First hit of the ray from `eye` along `dir` with the bilinear height field, as grid (u, v); None if it
+/// leaves the data or the far plane first.
+fn hit(hm: &Heightmap, eye: DVec3, dir: DVec3, far: f64) -> Option<(f64, f64, DVec3)> {
+    let step = f64::from(hm.spacing()) * 0.5;
+    let (w, h) = (f64::from(hm.width() - 1), f64::from(hm.height() - 1));
+    let above = |t: f64| {
+        let p = eye + dir * t;
+        let (u, v) = hm.world_to_grid(p.x, p.y);
+        let inside = (0.0..=w).contains(&u) && (0.0..=h).contains(&v);
+        (inside, p.z - horizon::height_bilinear(hm, u, v), u, v)
+    };
+    let mut t0 = 0.0;
+    let mut t = step;
+    while t < far {
+        let (inside, dz, _, _) = above(t);
+        if dz <= 0.0 {
+            if !inside {
+                return None;
+            }
+            // Bisect to the surface.
+            let (mut a, mut b) = (t0, t);
+            for _ in 0..30 {
+                let m = 0.5 * (a + b);
+                if above(m).1 > 0.0 {
+                    a = m;
+                } else {
+                    b = m;
+                }
+            }
+            let (_, _, u, v) = above(b);
+            return Some((u, v, eye + dir * b));
+        }
+        t0 = t;
+        t += step.max(t * 1e-3);
+    }
+    None
+}
+
+/// Display encoding of the shader: fog, clamp, gamma 1/2.2.
+fn encode(linear: DVec3, distance: f64, scene: &Scene) -> [f64; 3] {
+    #[expect(clippy::cast_possible_truncation, reason = "a distance in metres")]
+    let c = scene::apply_fog(linear.as_vec3(), distance as f32, scene.fog.as_ref());
+    let c = c.as_dvec3();
+    [c.x, c.y, c.z].map(|v| v.clamp(0.0, 1.0).powf(1.0 / 2.2))
+}
+
+/// The CPU reference of `scene` (as rendered) seen from `camera` at image size `size`, on a grid of at
+/// most [`REF_GRID`]^2 pixels.
+pub(crate) fn reference(
+    hm: &Heightmap,
+    camera: &Camera,
+    size: (u32, u32),
+    scene: &Scene,
+) -> Reference {
+    let mut pixels = Vec::new();
+    let grid = RefGrid {
+        theta: 96,
+        phi: 192,
+        cosine: RefCosine::Exact,
+    };
+    for gy in 0..REF_GRID.min(size.1) {
+        for gx in 0..REF_GRID.min(size.0) {
+            let px = (2 * gx + 1) * size.0 / (2 * REF_GRID.min(size.0));
+            let py = (2 * gy + 1) * size.1 / (2 * REF_GRID.min(size.1));
+            let dir = pixel_ray(camera, size, px, py);
+            let Some((u, v, p)) = hit(hm, camera.eye, dir, camera.far) else {
+                continue;
+            };
+            // The footprint: the hit points of the neighbouring pixels' rays.
+            let mut half = 0.5f64;
+            for (dx, dy) in [(1, 0), (0, 1)] {
+                let d2 = pixel_ray(camera, size, px + dx, py + dy);
+                let dist = p.distance(camera.eye);
+                let q = camera.eye + d2 * dist;
+                let (u2, v2) = hm.world_to_grid(q.x, q.y);
+                half = half.max(0.5 * (u2 - u).abs().max((v2 - v).abs()));
+            }
+            let half = half.min(f64::from(crate_box_side()) * 0.5);
+            #[expect(clippy::cast_possible_truncation, reason = "grid indices, clamped")]
+            let (x0, y0, x1, y1) = (
+                (u - half + 0.5).floor().max(0.0) as u32,
+                (v - half + 0.5).floor().max(0.0) as u32,
+                (u + half + 0.5).floor().max(0.0) as u32,
+                (v + half + 0.5).floor().max(0.0) as u32,
+            );
+            let mut r = DVec3::ZERO;
+            let mut n = 0.0f64;
+            for y in y0..=y1.min(hm.height() - 1) {
+                for x in x0..=x1.min(hm.width() - 1) {
+                    r += horizon::texel_normal(hm, x, y);
+                    n += 1.0;
+                }
+            }
+            let r = r / n.max(1.0);
+            let table = scene
+                .effects
+                .visibility
+                .then(|| HorizonTable::march(hm, u, v, 64, horizon::DEFAULT_MAX_SAMPLES));
+            let c = shading::reference(
+                &RefInputs {
+                    r,
+                    view: -dir,
+                    horizon: table.as_ref(),
+                },
+                scene,
+                grid,
+            );
+            pixels.push(((px, py), encode(c, p.distance(camera.eye), scene)));
+        }
+    }
+    Reference { pixels }
+}
+
+fn crate_box_side() -> u32 {
+    clipsat::gpu::sat_textures::MAX_BOX_SIDE
+}
+
+impl Reference {
+    /// RMSE and max error of `image` at the reference pixels it shows terrain at (not `sky`).
+    pub(crate) fn error(&self, image: &Image, sky: [u8; 4]) -> RefError {
+        let (mut sum, mut max, mut n) = (0.0f64, 0.0f64, 0usize);
+        for ((x, y), c) in &self.pixels {
+            let p = image.pixel(*x, *y);
+            if p == sky {
+                continue;
+            }
+            for k in 0..3 {
+                let e = (f64::from(p[k]) / 255.0 - c[k]).abs();
+                sum += e * e;
+                max = max.max(e);
+            }
+            n += 1;
+        }
+        #[expect(clippy::cast_precision_loss, reason = "pixel counts")]
+        let rmse = if n > 0 {
+            (sum / (3 * n) as f64).sqrt()
+        } else {
+            0.0
+        };
+        RefError {
+            rmse,
+            max,
+            pixels: n,
+        }
+    }
+}
+
+/// The clear colour of every render as RGBA8.
+pub(crate) fn sky_rgba8() -> [u8; 4] {
+    #[expect(
+        clippy::cast_possible_truncation,
+        reason = "colours in [0, 1] scaled to bytes"
+    )]
+    clipsat::gpu::shaders::SKY.map(|c| (c * 255.0).round() as u8)
+}

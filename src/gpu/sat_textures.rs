@@ -1,0 +1,290 @@
+//! Stage 1 and 3, bake and GPU: the shading SATs as GPU textures - the normal SAT and the horizon SATs
+//! (SAT paper section 5, algorithm 2), in the measured GPU format, and their CPU twin lookup.
+//!
+//! Format: wrapping u32 fixed point with Q = [`SAT_FRAC_BITS`] = 20 fractional bits, four channels per
+//! RGBA32UI texel (integer textures, read with `textureLoad`: GLES 3.0 filters neither integer nor float
+//! textures). Measured by `tests/shading.rs gpu_sat_format_error` on a 1024^2 grid, boxes of 1 to 64^2
+//! samples: max error of a box mean 4.4e-7, against 1.7e-4 for RGBA32F with the global mean subtracted and
+//! 4.5e-3 for plain RGBA32F. Sums wrap mod 2^32, and a corner difference is exact as long as the box's
+//! sum stays below 2^32: values are <= 1, so a box of at most [`MAX_BOX_SIDE`]^2 = 63^2 samples
+//! (63^2 2^20 < 2^32; 64^2 of ones would wrap to 0) is always exact; the shader caps the footprint there.
+//!
+//! Each table is padded with a zero row and column: entry (x, y) = sum over samples [0, x) x [0, y), so a
+//! box at the border needs no branch. The tables are the low 32 bits of [`crate::sat::Sat`]'s exact u64
+//! sums (the same quantisation up, to a multiple of 2^-20).
+//!
+//! Size: GLES 3.0 guarantees only 2048-texel sides (`max_texture_dimension_2d`). A terrain whose padded
+//! table would be larger is shaded from the first pyramid level ([`crate::pyramid`]) that fits: level k's
+//! sample (i, j) sits on data sample (i 2^k, j 2^k), its normals and horizons are baked on that level, and
+//! [`ShadingBake::step`] = 2^k tells the shader to divide its data coordinates by it.
+
+use std::path::Path;
+
+use glam::Vec3;
+
+use crate::gpu::Gpu;
+use crate::horizon::{self, MAX_AZIMUTHS};
+use crate::pyramid::Pyramid;
+use crate::sat::Sat;
+use crate::scene::Needs;
+use crate::{Error, Heightmap, Result};
+
+/// Fractional bits of the GPU SATs.
+pub const SAT_FRAC_BITS: u32 = 20;
+/// Largest footprint box side, samples, whose wrapping u32 sum is always exact.
+pub const MAX_BOX_SIDE: u32 = 63;
+
+/// The shading tables baked for a scene, as the GPU textures hold them.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ShadingBake {
+    width: u32,
+    height: u32,
+    step: u32,
+    azimuths: u32,
+    /// (width + 1) x (height + 1) texels, 4 u32 each: (n + 1) / 2 per normal component, 0.
+    normal: Vec<u32>,
+    /// Layers of (width + 1) x (height + 1) texels, 4 azimuths each: (a + pi/2) / pi.
+    horizon: Vec<u32>,
+    baked: Vec<&'static str>,
+}
+
+/// The padded wrapping-u32 table of a u64 SAT: entry (x + 1, y + 1) is the inclusive sum at (x, y).
+fn padded(sat: &Sat, w: u32, h: u32, out: &mut [u32], channel: usize) {
+    let t = sat.table();
+    for y in 0..h as usize {
+        for x in 0..w as usize {
+            let at = ((y + 1) * (w as usize + 1) + x + 1) * 4 + channel;
+            #[expect(
+                clippy::cast_possible_truncation,
+                reason = "sums mod 2^32: box differences stay exact below 2^32 (module docs)"
+            )]
+            let low = t[y * w as usize + x] as u32;
+            out[at] = low;
+        }
+    }
+}
+
+impl ShadingBake {
+    /// Bakes what `needs` asks for on the finest level of `hm` whose padded tables fit `max_side` texels:
+    /// always the normal SAT; the horizons ([`horizon::bake`], `azimuths` of them) and their SATs only when
+    /// `needs.bake_horizons`.
+    pub fn bake(hm: &Heightmap, needs: &Needs, azimuths: u32, max_side: u32) -> Result<Self> {
+        if azimuths == 0 || azimuths > MAX_AZIMUTHS {
+            return Err(Error::Arg {
+                arg: "azimuths".into(),
+                reason: format!("{azimuths} is not in 1..={MAX_AZIMUTHS}"),
+            });
+        }
+        let mut level = None;
+        let mut step = 1u32;
+        if hm.width() + 1 > max_side || hm.height() + 1 > max_side {
+            let pyramid = Pyramid::build(hm);
+            for k in 1..pyramid.len() {
+                let l = pyramid.level(k);
+                step *= 2;
+                if l.width() < max_side && l.height() < max_side {
+                    level = Some(Heightmap::new(
+                        Path::new("shading grid"),
+                        l.width(),
+                        l.height(),
+                        hm.spacing() * step as f32,
+                        l.heights().to_vec(),
+                    )?);
+                    break;
+                }
+            }
+            if level.is_none() {
+                return Err(Error::Capacity {
+                    what: "shading SAT side (max_texture_dimension_2d)",
+                    capacity: max_side as usize,
+                });
+            }
+        }
+        let grid = level.as_ref().unwrap_or(hm);
+        let (w, h) = (grid.width(), grid.height());
+        let texels = (w as usize + 1) * (h as usize + 1);
+        let normals: Vec<glam::DVec3> = (0..h)
+            .flat_map(|y| (0..w).map(move |x| (x, y)))
+            .map(|(x, y)| horizon::texel_normal(grid, x, y))
+            .collect();
+        let at = |x: u32, y: u32| y as usize * w as usize + x as usize;
+        let mut normal = vec![0u32; texels * 4];
+        for c in [0usize, 1, 2] {
+            let sat = Sat::build(w, h, 1, SAT_FRAC_BITS, |x, y| {
+                ((normals[at(x, y)][c] + 1.0) * 0.5).clamp(0.0, 1.0)
+            })?;
+            padded(&sat, w, h, &mut normal, c);
+        }
+        let mut baked = vec!["normal_sat"];
+        let mut horizon = Vec::new();
+        let mut d = 0;
+        if needs.bake_horizons {
+            let hz = horizon::bake(grid, azimuths, horizon::DEFAULT_MAX_SAMPLES)?;
+            d = azimuths;
+            let layers = d.div_ceil(4) as usize;
+            horizon = vec![0u32; layers * texels * 4];
+            for k in 0..d as usize {
+                let sat = Sat::build(w, h, 1, SAT_FRAC_BITS, |x, y| {
+                    ((f64::from(hz.at(x, y)[k]) + std::f64::consts::FRAC_PI_2)
+                        / std::f64::consts::PI)
+                        .clamp(0.0, 1.0)
+                })?;
+                let layer = &mut horizon[(k / 4) * texels * 4..(k / 4 + 1) * texels * 4];
+                padded(&sat, w, h, layer, k % 4);
+            }
+            baked.extend(["horizons", "horizon_sat"]);
+        }
+        Ok(Self {
+            width: w,
+            height: h,
+            step,
+            azimuths: d,
+            normal,
+            horizon,
+            baked,
+        })
+    }
+
+    /// Shading-grid samples per row.
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+
+    /// Shading-grid rows.
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+
+    /// Data samples per shading-grid sample (1 unless the terrain exceeds the texture side).
+    pub fn step(&self) -> u32 {
+        self.step
+    }
+
+    /// D, the horizon azimuths baked (0: none).
+    pub fn azimuths(&self) -> u32 {
+        self.azimuths
+    }
+
+    /// The maps baked, by name: `normal_sat`, and `horizons`, `horizon_sat` when visibility is on.
+    pub fn baked(&self) -> &[&'static str] {
+        &self.baked
+    }
+
+    /// The CPU twin of the shader's footprint fetch: mean normal r and the D mean horizon angles over the
+    /// inclusive box [lo, hi] (clamped to the grid, side capped at [`MAX_BOX_SIDE`]), in the shader's f32
+    /// operations.
+    #[expect(clippy::cast_precision_loss, reason = "as the shader: f32(u32)")]
+    pub fn box_mean(&self, lo: (u32, u32), hi: (u32, u32)) -> (Vec3, heapless::Vec<f32, 16>) {
+        let lo = (lo.0.min(self.width - 1), lo.1.min(self.height - 1));
+        let hi = (
+            hi.0.clamp(lo.0, (lo.0 + MAX_BOX_SIDE - 1).min(self.width - 1)),
+            hi.1.clamp(lo.1, (lo.1 + MAX_BOX_SIDE - 1).min(self.height - 1)),
+        );
+        let pw = self.width as usize + 1;
+        let texels = pw * (self.height as usize + 1);
+        let sum = |table: &[u32], c: usize| {
+            let e = |x: u32, y: u32| table[(y as usize * pw + x as usize) * 4 + c];
+            e(hi.0 + 1, hi.1 + 1)
+                .wrapping_sub(e(lo.0, hi.1 + 1))
+                .wrapping_sub(e(hi.0 + 1, lo.1))
+                .wrapping_add(e(lo.0, lo.1))
+        };
+        let count = ((hi.0 - lo.0 + 1) * (hi.1 - lo.1 + 1)) as f32;
+        let q = 1.0 / (count * 1_048_576.0);
+        let r = Vec3::new(
+            sum(&self.normal, 0) as f32,
+            sum(&self.normal, 1) as f32,
+            sum(&self.normal, 2) as f32,
+        ) * q
+            * 2.0
+            - Vec3::ONE;
+        let mut hz = heapless::Vec::new();
+        for k in 0..self.azimuths as usize {
+            let layer = &self.horizon[(k / 4) * texels * 4..(k / 4 + 1) * texels * 4];
+            let a =
+                sum(layer, k % 4) as f32 * q * std::f32::consts::PI - std::f32::consts::FRAC_PI_2;
+            // D <= MAX_AZIMUTHS = 16, the capacity.
+            let _ = hz.push(a);
+        }
+        (r, hz)
+    }
+}
+
+/// The shading SATs on the GPU: `sat_normal` (RGBA32UI 2D) and, with visibility, `sat_horizon` (RGBA32UI
+/// 2D array, D / 4 layers).
+#[derive(Debug)]
+pub struct SatTextures {
+    normal: wgpu::Texture,
+    normal_view: wgpu::TextureView,
+    horizon: Option<(wgpu::Texture, wgpu::TextureView)>,
+}
+
+impl SatTextures {
+    /// Creates and fills the textures of `bake`.
+    pub fn upload(gpu: &Gpu, bake: &ShadingBake) -> Result<Self> {
+        let (pw, ph) = (bake.width + 1, bake.height + 1);
+        gpu.scoped("shading SAT upload", || {
+            let make = |label: &str, layers: u32, data: &[u32]| {
+                let size = wgpu::Extent3d {
+                    width: pw,
+                    height: ph,
+                    depth_or_array_layers: layers,
+                };
+                let t = gpu.device().create_texture(&wgpu::TextureDescriptor {
+                    label: Some(label),
+                    size,
+                    mip_level_count: 1,
+                    sample_count: 1,
+                    dimension: wgpu::TextureDimension::D2,
+                    format: wgpu::TextureFormat::Rgba32Uint,
+                    usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+                    view_formats: &[],
+                });
+                gpu.queue().write_texture(
+                    t.as_image_copy(),
+                    bytemuck::cast_slice(data),
+                    wgpu::TexelCopyBufferLayout {
+                        offset: 0,
+                        bytes_per_row: Some(pw * 16),
+                        rows_per_image: Some(ph),
+                    },
+                    size,
+                );
+                t
+            };
+            let normal = make("sat_normal", 1, &bake.normal);
+            let normal_view = normal.create_view(&Default::default());
+            let horizon = (bake.azimuths > 0).then(|| {
+                let t = make("sat_horizon", bake.azimuths.div_ceil(4), &bake.horizon);
+                let v = t.create_view(&wgpu::TextureViewDescriptor {
+                    dimension: Some(wgpu::TextureViewDimension::D2Array),
+                    ..Default::default()
+                });
+                (t, v)
+            });
+            Ok(Self {
+                normal,
+                normal_view,
+                horizon,
+            })
+        })
+    }
+
+    /// The normal SAT's view.
+    pub fn normal_view(&self) -> &wgpu::TextureView {
+        &self.normal_view
+    }
+
+    /// The horizon SATs' view, when baked.
+    pub fn horizon_view(&self) -> Option<&wgpu::TextureView> {
+        self.horizon.as_ref().map(|(_, v)| v)
+    }
+
+    /// GPU bytes held.
+    pub fn bytes(&self) -> u64 {
+        let b = |t: &wgpu::Texture| {
+            u64::from(t.width()) * u64::from(t.height()) * u64::from(t.depth_or_array_layers()) * 16
+        };
+        b(&self.normal) + self.horizon.as_ref().map_or(0, |(t, _)| b(t))
+    }
+}

@@ -1,0 +1,383 @@
+//! The GPU half of SG shading: the WGSL `sg_shade` against its CPU twin `shading::shade` (probe pipeline),
+//! the SAT texture lookup against brute-force box means, and the per-scene variants (what is baked, bound
+//! and compiled).
+
+mod render_support;
+
+use clipsat::gpu::sat_textures::{ShadingBake, MAX_BOX_SIDE};
+use clipsat::gpu::sg_probe::{shade_gpu, ProbeCase};
+use clipsat::gpu::shaders::{self, SgVariant};
+use clipsat::horizon;
+use clipsat::renderer::{render_frame, FrameOptions, Renderer};
+use clipsat::scene::{Needs, Scene};
+use clipsat::shading::{self, Inputs, Patches};
+use glam::Vec3;
+
+/// Deterministic inputs covering the hard cases: flat (r = z), tilted, |r| -> 0 and -> 1, a vertical
+/// cliff (r horizontal), grazing and overhead views, low and high horizons.
+fn cases(d: usize) -> Vec<ProbeCase> {
+    let mut out = Vec::new();
+    let dirs = [
+        Vec3::Z,
+        Vec3::new(0.3, -0.2, 0.9),
+        Vec3::new(-0.7, 0.1, 0.7),
+        Vec3::new(1.0, 0.0, 0.0),
+        Vec3::new(0.0, -0.6, 0.8),
+        Vec3::new(0.5, 0.5, 0.2),
+    ];
+    let lens = [1.0, 0.9999, 0.98, 0.8, 0.4, 1e-4];
+    let views = [
+        Vec3::Z,
+        Vec3::new(0.6, 0.0, 0.8),
+        Vec3::new(-0.2, 0.97, 0.05),
+    ];
+    let mut seed = 1u32;
+    for dir in dirs {
+        for len in lens {
+            for view in views {
+                let mut hz = heapless::Vec::new();
+                for _ in 0..d {
+                    seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+                    let t = (seed >> 8) as f32 / (1u32 << 24) as f32;
+                    let _ = hz.push(-0.4 + 1.1 * t);
+                }
+                out.push(ProbeCase {
+                    r: dir.normalize() * len,
+                    view: view.normalize(),
+                    horizon: hz,
+                });
+            }
+        }
+    }
+    out
+}
+
+/// GPU vs CPU twin, every shipped scene x patch count, visibility with D = 8 where the scene has it.
+/// Tolerance: 5e-4 of the largest channel of the scene's results (llvmpipe's exp/log/atan2/sin differ
+/// from Rust's by a few ulps, and band edges amplify that near |r| -> 1 where kappa is 1e4). Measured
+/// on llvmpipe: at most 9.7e-5 (noon), 4.9e-5 (evening), 1.7e-6 (overcast).
+#[test]
+fn gpu_shading_matches_cpu_twin() {
+    let gpu = render_support::strict();
+    let mut report = Vec::new();
+    for (name, _) in clipsat::scene::SHIPPED {
+        let scene = Scene::load(name).expect("shipped scene");
+        let d = if scene.effects.visibility { 8 } else { 0 };
+        let cases = cases(d);
+        for patches in Patches::ALL {
+            let gpu_out = shade_gpu(&gpu, &scene, patches, &cases).expect("probe");
+            let cpu: Vec<Vec3> = cases
+                .iter()
+                .map(|c| {
+                    shading::shade(
+                        &Inputs {
+                            r: c.r,
+                            horizon: &c.horizon,
+                            view: c.view,
+                        },
+                        &scene,
+                        patches,
+                    )
+                })
+                .collect();
+            let scale = cpu.iter().map(|c| c.max_element()).fold(0.0f32, f32::max);
+            let mut worst = 0.0f32;
+            for (i, (g, c)) in gpu_out.iter().zip(&cpu).enumerate() {
+                assert!(g.is_finite() && g.min_element() >= 0.0, "{name} {i}: {g}");
+                let err = (*g - *c).abs().max_element();
+                worst = worst.max(err / scale);
+                assert!(
+                    err <= 5e-4 * scale,
+                    "{name} {} case {i} ({:?}): gpu {g} cpu {c}",
+                    patches.label(),
+                    cases[i]
+                );
+            }
+            report.push(format!("{name} {}: {worst:.2e}", patches.label()));
+        }
+    }
+    println!("max |gpu - cpu| / scene max: {}", report.join(", "));
+}
+
+/// The shader's 4-corner wrapping-u32 lookup (its CPU twin `ShadingBake::box_mean`) against brute-force
+/// box means of texel normals and horizons.
+#[test]
+fn sat_texture_box_means_match_brute_force() {
+    let hm = render_support::terraces();
+    let needs = Needs {
+        bake_horizons: true,
+        bind_visibility: true,
+        ..Needs::default()
+    };
+    let bake = ShadingBake::bake(&hm, &needs, 8, 2048).expect("bake");
+    assert_eq!(bake.step(), 1);
+    assert_eq!(bake.baked(), ["normal_sat", "horizons", "horizon_sat"]);
+    let hz = horizon::bake(&hm, 8, horizon::DEFAULT_MAX_SAMPLES).expect("horizons");
+    let mut worst = (0.0f32, 0.0f32);
+    for (x0, y0, side) in [
+        (0, 0, 1),
+        (10, 20, 5),
+        (100, 7, 63),
+        (200, 200, 56),
+        (250, 0, 7),
+    ] {
+        let hi = (x0 + side - 1, y0 + side - 1);
+        let (r, a) = bake.box_mean((x0, y0), hi);
+        let b = horizon::box_average(&hm, &hz, x0, y0, hi.0, hi.1);
+        worst.0 = worst.0.max((r - b.r).abs().max_element());
+        for (p, q) in a.iter().zip(&b.horizon) {
+            worst.1 = worst.1.max((p - q).abs());
+        }
+    }
+    // f32 conversion of a sum up to 2^32 (2^-24 relative) and the 2^-20 quantum.
+    assert!(worst.0 < 2e-6 && worst.1 < 6e-6, "{worst:?}");
+    println!(
+        "box mean max error: normal {:.1e}, horizon {:.1e} rad",
+        worst.0, worst.1
+    );
+    // Larger boxes are capped, not wrapped: a 100-sample request averages 63.
+    let (r, _) = bake.box_mean((0, 0), (99, 99));
+    let b = horizon::box_average(&hm, &hz, 0, 0, MAX_BOX_SIDE - 1, MAX_BOX_SIDE - 1);
+    assert!((r - b.r).abs().max_element() < 2e-6);
+}
+
+#[test]
+fn terrain_larger_than_the_texture_side_uses_a_pyramid_level() {
+    let hm = render_support::terraces();
+    let bake = ShadingBake::bake(&hm, &Needs::default(), 8, 200).expect("bake");
+    assert_eq!((bake.step(), bake.width()), (2, 129));
+    assert_eq!(bake.baked(), ["normal_sat"]);
+}
+
+#[test]
+fn variants_compile_only_what_the_scene_declares() {
+    for v in SgVariant::all() {
+        let text = shaders::sg_clipmap(v);
+        assert_eq!(
+            text.contains("fn sg_warped_ndf"),
+            v.specular,
+            "{}",
+            v.label()
+        );
+        assert_eq!(text.contains("sat_horizon"), v.visibility, "{}", v.label());
+        assert!(text.contains(&format!("const SG_BANDS: u32 = {}u;", v.patches.bands())));
+    }
+}
+
+/// A scene without shadows bakes no horizons and binds no visibility texture; one with them does; the SG
+/// frame differs from the basic one and is lit (not all sky).
+#[test]
+fn renderer_bakes_and_binds_only_what_the_scene_needs() {
+    let gpu = render_support::strict();
+    let hm = render_support::terraces();
+    let profile = render_support::profile("gles3-low", 96, 64, None);
+    let mut clipmap = render_support::clipmap(&hm, &profile);
+    let camera = clipsat::Camera::default_for(&hm).expect("camera");
+    let mut renderer = Renderer::new(&gpu, &profile, &clipmap).expect("renderer");
+    assert_eq!(renderer.bound_textures(), ["heights"]);
+    assert!(renderer.baked().is_empty());
+    clipmap.update(camera.eye).expect("update");
+    let opts = FrameOptions::default();
+    let basic = render_frame(&mut renderer, &clipmap, &camera, &opts).expect("basic frame");
+
+    let noon = Scene::load("noon").expect("noon");
+    renderer
+        .set_sg(&hm, &noon, Patches::P4x8, true)
+        .expect("sg noon");
+    assert_eq!(renderer.bound_textures(), ["heights", "sat_normal"]);
+    assert_eq!(renderer.baked(), ["normal_sat"]);
+    assert_eq!(renderer.sg_layout_entries(), Some(2));
+    let sg = render_frame(&mut renderer, &clipmap, &camera, &opts).expect("sg frame");
+    assert_ne!(sg.image.hash(), basic.image.hash());
+    #[expect(
+        clippy::cast_possible_truncation,
+        reason = "colours in [0, 1] as bytes"
+    )]
+    let sky = clipsat::gpu::shaders::SKY.map(|c| (c * 255.0).round() as u8);
+    let lit = sg
+        .image
+        .rgba
+        .chunks_exact(4)
+        .filter(|p| p[..3] != sky[..3])
+        .count();
+    assert!(lit > 96 * 64 / 4, "{lit} terrain pixels");
+
+    let evening = Scene::load("evening").expect("evening");
+    renderer
+        .set_sg(&hm, &evening, Patches::P2x4, false)
+        .expect("sg evening, no shadows");
+    assert_eq!(renderer.bound_textures(), ["heights", "sat_normal"]);
+    assert_eq!(renderer.baked(), ["normal_sat"]);
+    assert!(renderer
+        .sg_variant()
+        .is_some_and(|v| v.specular && !v.visibility));
+    renderer
+        .set_sg(&hm, &evening, Patches::P2x4, true)
+        .expect("sg evening");
+    assert_eq!(
+        renderer.bound_textures(),
+        ["heights", "sat_normal", "sat_horizon"]
+    );
+    assert_eq!(renderer.baked(), ["normal_sat", "horizons", "horizon_sat"]);
+    assert_eq!(renderer.sg_layout_entries(), Some(3));
+    render_frame(&mut renderer, &clipmap, &camera, &opts).expect("sg evening frame");
+}
+
+/// `render --shading sg --json` reports what was bound and baked; `--no-shadows` drops the horizons;
+/// basic shading refuses SG-only flags.
+#[test]
+fn cli_render_reports_bound_textures_and_baked() {
+    let out = std::env::temp_dir().join(format!("clipsat_sg_cli_{}.png", std::process::id()));
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "render",
+            "--terrain",
+            "procedural:size=129",
+            "--profile",
+            "desktop",
+            "--size",
+            "64x48",
+            "--out",
+        ];
+        let out = out.to_string_lossy().into_owned();
+        args.push(&out);
+        args.extend_from_slice(extra);
+        std::process::Command::new(env!("CARGO_BIN_EXE_clipsat"))
+            .args(&args)
+            .output()
+            .expect("run clipsat")
+    };
+    let json = |o: &std::process::Output| -> serde_json::Value {
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        serde_json::from_slice(&o.stdout).expect("json")
+    };
+    let v = json(&run(&["--shading", "sg", "--scene", "evening", "--json"]));
+    assert_eq!(
+        v["bound_textures"],
+        serde_json::json!(["heights", "sat_normal", "sat_horizon"])
+    );
+    assert_eq!(
+        v["baked"],
+        serde_json::json!(["normal_sat", "horizons", "horizon_sat"])
+    );
+    assert!(v["shading_rmse_vs_reference"].is_null(), "{v}");
+    let v = json(&run(&[
+        "--shading",
+        "sg",
+        "--scene",
+        "evening",
+        "--no-shadows",
+        "--json",
+    ]));
+    assert_eq!(
+        v["bound_textures"],
+        serde_json::json!(["heights", "sat_normal"])
+    );
+    assert_eq!(v["baked"], serde_json::json!(["normal_sat"]));
+    let refused = run(&["--no-shadows"]);
+    assert_eq!(refused.status.code(), Some(2));
+    let _ = std::fs::remove_file(&out);
+}
+
+/// `--reference` against the CPU reference on a small view: the RMSE stays small. Slow in a debug build
+/// (dense f64 quadrature per reference pixel): `cargo test --test sg_gpu -- --ignored`.
+#[test]
+#[ignore]
+fn cli_render_reference_error_is_small() {
+    let out = std::env::temp_dir().join(format!("clipsat_sg_ref_{}.png", std::process::id()));
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_clipsat"))
+        .args([
+            "render",
+            "--terrain",
+            "procedural:size=129",
+            "--profile",
+            "desktop",
+        ])
+        .args([
+            "--size",
+            "64x48",
+            "--shading",
+            "sg",
+            "--scene",
+            "evening",
+            "--reference",
+        ])
+        .arg("--json")
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .expect("run clipsat");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    let e = v["shading_rmse_vs_reference"].as_f64().expect("rmse");
+    assert!(e < 0.05 && v["reference_pixels"].as_u64() > Some(50), "{v}");
+    let _ = std::fs::remove_file(&out);
+}
+
+/// Golden SG frame: procedural 257^2 terrain, evening scene (visibility, specular, fog), 4x8, 160 x 90 on
+/// gles3-low's clipmap. `tests/goldens/sg_hashes.txt` holds the exact hash per driver
+/// (`adapter|driver<TAB>view<TAB>hash`); `tests/goldens/sg-procedural-evening.png` is compared with the
+/// same tolerance as tests/render_goldens.rs (mean 3, max 160 levels per channel) on other drivers.
+/// `CLIPSAT_BLESS=1` rewrites both.
+#[test]
+fn golden_sg_frame() {
+    let gpu = render_support::strict();
+    let report = gpu.report();
+    let key = format!("{}|{}", report.name, report.driver);
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/goldens");
+    let (png, hashes) = (
+        dir.join("sg-procedural-evening.png"),
+        dir.join("sg_hashes.txt"),
+    );
+    let hm =
+        clipsat::source::procedural::generate(&clipsat::source::procedural::ProceduralParams {
+            size: 257,
+            ..Default::default()
+        })
+        .expect("procedural terrain");
+    let mut profile = render_support::profile("gles3-low", 160, 90, None);
+    profile.budget.update_samples_per_frame = u32::MAX;
+    let mut cm = render_support::clipmap(&hm, &profile);
+    let cam = clipsat::Camera::default_for(&hm).expect("camera");
+    cm.update(cam.eye).expect("update");
+    let mut r = Renderer::new(&gpu, &profile, &cm).expect("renderer");
+    let scene = Scene::load("evening").expect("evening");
+    r.set_sg(&hm, &scene, Patches::P4x8, true).expect("sg");
+    let img = render_frame(&mut r, &cm, &cam, &FrameOptions::default())
+        .expect("frame")
+        .image;
+    let h = clipsat::hash::hex(img.hash());
+    let line = format!("{key}\tsg-procedural-evening\t{h}");
+    if std::env::var_os("CLIPSAT_BLESS").is_some_and(|v| v == "1") {
+        img.save_png(&png).expect("write golden");
+        let mut lines: Vec<String> = std::fs::read_to_string(&hashes)
+            .unwrap_or_default()
+            .lines()
+            .filter(|l| !l.starts_with(&format!("{key}\t")) && !l.starts_with('#'))
+            .map(str::to_string)
+            .collect();
+        lines.push(line);
+        lines.sort();
+        let text = format!(
+            "# Exact SG golden hashes per driver (tests/sg_gpu.rs golden_sg_frame).\n{}\n",
+            lines.join("\n")
+        );
+        std::fs::write(&hashes, text).expect("write hashes");
+        return;
+    }
+    let stored = std::fs::read_to_string(&hashes).unwrap_or_default();
+    if let Some(l) = stored.lines().find(|l| l.starts_with(&format!("{key}\t"))) {
+        assert_eq!(l, line, "exact hash for this driver");
+    }
+    let golden = image::open(&png)
+        .unwrap_or_else(|e| panic!("{}: {e}; run CLIPSAT_BLESS=1", png.display()))
+        .to_rgba8();
+    assert_eq!((golden.width(), golden.height()), (img.width, img.height));
+    let (mut sum, mut max) = (0u64, 0u8);
+    for (a, b) in golden.as_raw().iter().zip(&img.rgba) {
+        sum += u64::from(a.abs_diff(*b));
+        max = max.max(a.abs_diff(*b));
+    }
+    let mean = sum as f64 / img.rgba.len() as f64;
+    assert!(mean <= 3.0 && max <= 160, "mean {mean:.3}, max {max}");
+}
