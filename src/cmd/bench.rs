@@ -520,10 +520,13 @@ pub(crate) fn run_shading(args: &BenchShadingArgs) -> Result<ShadingReport> {
     })
 }
 
+/// Named terrains to measure, and the names of those skipped because their file is missing.
+pub(crate) type NamedTerrains = (Vec<(String, Heightmap)>, Vec<String>);
+
 /// The terrains `bench shading` measures: the 257 x 257 procedural terrain, then (when `shared`) Puget
 /// Sound and Big Tujunga. A missing shared file is skipped with a printed reason, or an error under
 /// CI=true. Returns the terrains and the names skipped.
-pub(crate) fn shading_terrains(shared: bool) -> Result<(Vec<(String, Heightmap)>, Vec<String>)> {
+pub(crate) fn shading_terrains(shared: bool) -> Result<NamedTerrains> {
     let ci = std::env::var("CI").is_ok_and(|v| v == "true");
     let mut terrains = vec![(
         "procedural-257".to_string(),
