@@ -1,5 +1,5 @@
 // Stage 3, the GPU: the geometry clipmap renderer (Losasso & Hoppe 2004, "GC"). Concatenated after
-// basic_shading.wgsl (src/gpu/shaders.rs).
+// basic_shading.wgsl and debug_view.wgsl (src/gpu/shaders.rs).
 //
 // Every draw places one static mesh (a block or the ring skirt, src/mesh.rs) on a level's lattice: vertex
 // (x, y) goes to lattice point origin + (x, y), clamped into the draw's rectangle. Heights come from one
@@ -120,7 +120,9 @@ fn fs_main(v: VsOut) -> @location(0) vec4<f32> {
     if (any(v.rel.xy < globals.extent.xy) || any(v.rel.xy > globals.extent.zw)) {
         discard;
     }
-    return vec4<f32>(basic_shade(v.height, v.normal, length(v.rel), globals.shading), 1.0);
+    let shaded = basic_shade(v.height, v.normal, length(v.rel), globals.shading);
+    // debug_view.wgsl: the level-colour and wireframe views (the normal view returns `shaded`).
+    return vec4<f32>(debug_view(shaded, v.rel, v.normal), 1.0);
 }
 
 // The vertex probe: draws the mesh as points, vertex k on pixel (k mod W, k / W) of a W x H Rgba32Uint

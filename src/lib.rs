@@ -72,6 +72,7 @@ pub mod budget;
 pub mod camera;
 pub mod clipmap;
 pub mod cull;
+pub mod debug_view;
 mod error;
 pub mod flight;
 pub mod frame;
@@ -91,6 +92,7 @@ pub mod sg;
 pub mod shading;
 pub mod source;
 pub mod synthesis;
+pub mod view;
 
 pub use camera::Camera;
 pub use error::{Error, Result};

@@ -27,6 +27,9 @@ enum Command {
     Render(cmd::render::RenderArgs),
     /// Tune the SAT LOD exponent p: estimate and bound errors against the exact block maximum, per p.
     TuneP(cmd::tune_p::TunePArgs),
+    /// Fly interactively in a window: WASD and mouse-look, keys for the LOD mode, epsilon and debug views.
+    #[cfg(feature = "view")]
+    View(cmd::view::ViewArgs),
 }
 
 fn main() -> ExitCode {
@@ -37,6 +40,8 @@ fn main() -> ExitCode {
         Command::Info(args) => cmd::info::run(&args),
         Command::Render(args) => cmd::render::run(&args),
         Command::TuneP(args) => cmd::tune_p::run(&args),
+        #[cfg(feature = "view")]
+        Command::View(args) => cmd::view::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

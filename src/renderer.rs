@@ -19,6 +19,7 @@ use wgpu::util::DeviceExt;
 
 use crate::clipmap::{morph_alpha, Clipmap, Ring};
 use crate::cull::{self, DrawKind, DrawList, DrawParams, DrawStats, MAX_DRAWS};
+use crate::debug_view::DebugView;
 use crate::frame::Rect;
 use crate::gpu::readback::Image;
 use crate::gpu::sat_textures::{SatTextures, ShadingBake, MAX_BOX_SIDE};
@@ -90,6 +91,9 @@ pub struct FrameOptions {
     pub lod: LodMode,
     /// The SAT modes' screen-space error bound, pixels; None: the profile's `view.epsilon_px`.
     pub epsilon_px: Option<f32>,
+    /// What the fragment shader shows: the normal shading or a debug view (level colours, wireframe).
+    /// The first frame drawn in a debug view creates its program and pipeline, once.
+    pub debug: DebugView,
 }
 
 impl Default for FrameOptions {
@@ -101,6 +105,7 @@ impl Default for FrameOptions {
             skirts: true,
             lod: LodMode::Distance,
             epsilon_px: None,
+            debug: DebugView::Normal,
         }
     }
 }
@@ -223,6 +228,8 @@ pub struct Renderer<'g> {
     module: wgpu::ShaderModule,
     pipeline_layout: wgpu::PipelineLayout,
     pipeline: wgpu::RenderPipeline,
+    /// The debug views' pipelines (index code - 1), made on first use.
+    debug_pipelines: [Option<wgpu::RenderPipeline>; 2],
     color: wgpu::Texture,
     color_view: wgpu::TextureView,
     depth_view: wgpu::TextureView,
@@ -509,7 +516,8 @@ impl<'g> Renderer<'g> {
                 label: Some("clipmap draw"),
                 entries: &[wgpu::BindGroupLayoutEntry {
                     binding: 0,
-                    visibility: wgpu::ShaderStages::VERTEX,
+                    // The fragment stage reads the draw's level and lattice in the debug views.
+                    visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
                     ty: wgpu::BindingType::Buffer {
                         ty: wgpu::BufferBindingType::Uniform,
                         has_dynamic_offset: true,
@@ -580,6 +588,7 @@ impl<'g> Renderer<'g> {
                 module,
                 pipeline_layout,
                 pipeline,
+                debug_pipelines: [None, None],
                 color,
                 color_view,
                 depth_view,
@@ -958,6 +967,7 @@ impl<'g> Renderer<'g> {
             extent: to_f32x4(data_extent_rel(clipmap, camera, self.data_lattice)),
         };
         self.last_globals = globals;
+        self.ensure_debug_pipeline(opts.debug)?;
         let used = self.draws.len() * SLOT;
         let gpu = self.gpu;
         gpu.scoped("clipmap frame", || {
@@ -979,12 +989,18 @@ impl<'g> Renderer<'g> {
                     &self.depth_view,
                     opts.clear,
                 );
-                match &self.sg {
-                    Some(sg) => {
+                // A debug view replaces the shading, SG included.
+                match (opts.debug.code(), &self.sg) {
+                    (0, Some(sg)) => {
                         pass.set_pipeline(&sg.pipeline);
                         pass.set_bind_group(2, &sg.group, &[]);
                     }
-                    None => pass.set_pipeline(&self.pipeline),
+                    (0, None) => pass.set_pipeline(&self.pipeline),
+                    (k, _) => pass.set_pipeline(
+                        self.debug_pipelines[k as usize - 1]
+                            .as_ref()
+                            .expect("ensure_debug_pipeline made it"),
+                    ),
                 }
                 pass.set_bind_group(0, &self.group0, &[]);
                 let mut bound = None;
@@ -1011,6 +1027,35 @@ impl<'g> Renderer<'g> {
             blocks_clamped,
             ..FrameStats::default()
         })
+    }
+
+    /// Makes `view`'s program and pipeline on its first use (noted in the ledger; no memory).
+    fn ensure_debug_pipeline(&mut self, view: DebugView) -> Result<()> {
+        let k = match view.code() {
+            0 => return Ok(()),
+            k => k as usize - 1,
+        };
+        if self.debug_pipelines[k].is_some() {
+            return Ok(());
+        }
+        let gpu = self.gpu;
+        let pipeline = gpu.scoped("clipmap debug view", || {
+            let device = gpu.device();
+            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("clipmap.wgsl (debug view)"),
+                source: wgpu::ShaderSource::Wgsl(shaders::clipmap_view(view).into()),
+            });
+            Ok(terrain_pipeline(
+                device,
+                &self.pipeline_layout,
+                &module,
+                "fs_main",
+            ))
+        })?;
+        self.ledger
+            .note("clipmap debug view pipeline", ObjectKind::RenderPipeline, 0);
+        self.debug_pipelines[k] = Some(pipeline);
+        Ok(())
     }
 
     fn mesh(&self, kind: DrawKind) -> &GpuMesh {

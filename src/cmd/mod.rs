@@ -16,6 +16,8 @@ pub(crate) mod info;
 pub(crate) mod render;
 pub(crate) mod sg;
 pub(crate) mod tune_p;
+#[cfg(feature = "view")]
+pub(crate) mod view;
 
 use clap::Args;
 use clipsat::source::{

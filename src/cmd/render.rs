@@ -10,6 +10,7 @@ use clap::Args;
 use clipsat::bake::{self, BakeParams};
 use clipsat::camera::parse_vec3;
 use clipsat::clipmap::{Clipmap, ClipmapOptions};
+use clipsat::debug_view::DebugView;
 use clipsat::gpu::brute::BruteForce;
 use clipsat::gpu::{Gpu, GpuMode};
 use clipsat::lod::{Lod, LodMode};
@@ -67,6 +68,10 @@ pub(crate) struct RenderArgs {
     /// SAT LOD screen-space error bound, pixels. Default: the profile's view.epsilon_px.
     #[arg(long, value_name = "PX")]
     epsilon: Option<f32>,
+    /// Clipmap only: a debug view, levels (blocks coloured by their drawn level, as in the SAT paper's
+    /// figure 3) or wireframe (the lattice lines in the level colours).
+    #[arg(long, value_name = "normal|levels|wireframe", default_value = "normal")]
+    debug: String,
 }
 
 /// The SAT LOD selector for `clipmap`'s terrain: tables from the bake cache ([`bake::default_cache_dir`]),
@@ -110,6 +115,7 @@ const MAX_FILL_FRAMES: u32 = 10_000;
 pub(crate) fn run(args: &RenderArgs) -> Result<()> {
     let mode: GpuMode = args.gpu.parse()?;
     let lod_mode: LodMode = args.lod.parse()?;
+    let debug: DebugView = args.debug.parse()?;
     let epsilon = parse_epsilon(args.epsilon)?;
     let profile = args.profile.load()?;
     let (size_w, size_h) = match &args.size {
@@ -167,6 +173,7 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
         cull: !args.no_cull,
         lod: lod_mode,
         epsilon_px: epsilon,
+        debug,
         ..FrameOptions::default()
     };
     let t1 = Instant::now();

@@ -4,6 +4,7 @@
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 
+use crate::debug_view::DebugView;
 use crate::scene::Scene;
 use crate::shading::Patches;
 use crate::{Error, Result};
@@ -19,15 +20,23 @@ const SG_VISIBILITY_WGSL: &str = include_str!("../../shaders_gles/sg_visibility.
 const SG_NO_VISIBILITY_WGSL: &str = include_str!("../../shaders_gles/sg_no_visibility.wgsl");
 const SG_CLIPMAP_WGSL: &str = include_str!("../../shaders_gles/sg_clipmap.wgsl");
 const SG_PROBE_WGSL: &str = include_str!("../../shaders_gles/sg_probe.wgsl");
+const DEBUG_VIEW_WGSL: &str = include_str!("../../shaders_gles/debug_view.wgsl");
 
 /// The brute-force reference program: basic shading + `brute.wgsl`.
 pub fn brute() -> String {
     [BASIC_SHADING_WGSL, BRUTE_WGSL].concat()
 }
 
-/// The clipmap renderer's program: basic shading + `clipmap.wgsl`.
+/// The clipmap renderer's program: basic shading + `debug_view.wgsl` + `clipmap.wgsl`, normal view.
 pub fn clipmap() -> String {
-    [BASIC_SHADING_WGSL, CLIPMAP_WGSL].concat()
+    clipmap_view(DebugView::Normal)
+}
+
+/// The clipmap renderer's program for a debug view: the `DEBUG_VIEW` constant goes last, so line numbers
+/// in shader errors match the files.
+pub fn clipmap_view(view: DebugView) -> String {
+    let constant = format!("\nconst DEBUG_VIEW: u32 = {}u;\n", view.code());
+    [BASIC_SHADING_WGSL, DEBUG_VIEW_WGSL, CLIPMAP_WGSL, &constant].concat()
 }
 
 /// Every file in `shaders_gles/`, by file name, as the renderer assembles it. A library file (no entry
@@ -53,6 +62,7 @@ pub fn sources() -> Vec<(&'static str, String)> {
         ("sg_no_visibility.wgsl", sg_clipmap(SgVariant::default())),
         ("sg_clipmap.wgsl", sg_clipmap(SgVariant::ALL_ON)),
         ("sg_probe.wgsl", sg_probe(SgVariant::ALL_ON)),
+        ("debug_view.wgsl", clipmap_view(DebugView::Wireframe)),
     ]
 }
 
@@ -123,7 +133,7 @@ fn sg_specular_text(v: SgVariant) -> &'static str {
     }
 }
 
-/// The clipmap renderer's SG program for variant `v`: basic shading + `clipmap.wgsl` + `sg_shading.wgsl`
+/// The clipmap renderer's SG program for variant `v`: [`clipmap`] + `sg_shading.wgsl`
 /// + the variant's specular and visibility files + `sg_clipmap.wgsl` (entry points `vs_main`, `fs_sg`).
 pub fn sg_clipmap(v: SgVariant) -> String {
     let visibility = if v.visibility {
@@ -132,8 +142,7 @@ pub fn sg_clipmap(v: SgVariant) -> String {
         SG_NO_VISIBILITY_WGSL
     };
     [
-        BASIC_SHADING_WGSL,
-        CLIPMAP_WGSL,
+        clipmap().as_str(),
         &sg_library(v, sg_specular_text(v)),
         visibility,
         SG_CLIPMAP_WGSL,

@@ -1,0 +1,410 @@
+//! `clipsat view`: an interactive fly-through window (winit), the front end of the whole pipeline.
+//!
+//! Each frame runs exactly what the frame hashes are made of: the clipmap update under the budget, then
+//! the strict GLES 3.0 [`Renderer`] offscreen and its readback; the stats line is stamped into that image
+//! on the CPU ([`clipsat::plot::stamp_text`]) and it is presented with softbuffer. No GPU surface is
+//! involved, so the window works wherever the offscreen renderer does (Xvfb + Mesa llvmpipe included).
+//! The input -> camera state machine is [`clipsat::view::ViewState`]; this file only maps winit events.
+
+use std::num::NonZeroU32;
+use std::rc::Rc;
+use std::time::{Duration, Instant};
+
+use clap::Args;
+use clipsat::camera::parse_vec3;
+use clipsat::clipmap::{Clipmap, ClipmapOptions};
+use clipsat::debug_view::DebugView;
+use clipsat::gpu::readback::Image;
+use clipsat::gpu::{Gpu, GpuMode};
+use clipsat::lod::LodMode;
+use clipsat::plot::{stamp_text, stamp_width};
+use clipsat::renderer::{self, Renderer};
+use clipsat::view::{Action, Move, ViewState};
+use clipsat::{Camera, Error, Heightmap, Profile, Result};
+use winit::application::ApplicationHandler;
+use winit::dpi::PhysicalSize;
+use winit::event::{ElementState, MouseButton, WindowEvent};
+use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop};
+use winit::keyboard::{KeyCode, PhysicalKey};
+use winit::window::{Window, WindowId};
+
+use super::render::{lod_for, parse_epsilon, parse_size};
+use super::{ProfileArgs, TerrainArgs};
+
+#[derive(Args, Debug)]
+pub(crate) struct ViewArgs {
+    #[command(flatten)]
+    terrain: TerrainArgs,
+    #[command(flatten)]
+    profile: ProfileArgs,
+    /// Start position X,Y,Z in metres. Default: as `render`'s default camera.
+    #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
+    camera: Option<String>,
+    /// Rendered image size, WxH pixels (the window scales it). Default: the profile's viewport.
+    #[arg(long, value_name = "WxH")]
+    size: Option<String>,
+    /// GL context: strict (a real OpenGL ES 3.0 context), gl (wgpu's own GL backend) or auto.
+    #[arg(long, value_name = "auto|strict|gl", default_value = "auto")]
+    gpu: String,
+    /// Flight speed, m/s (shift: 5x). Default: a twentieth of the terrain's size per second.
+    #[arg(long, value_name = "M/S")]
+    speed: Option<f64>,
+    /// Initial LOD mode: distance, sat, sat-conservative or exact (key L cycles).
+    #[arg(long, value_name = "MODE", default_value = "distance")]
+    lod: String,
+    /// Initial SAT LOD error bound, pixels (keys [ and ]). Default: the profile's view.epsilon_px.
+    #[arg(long, value_name = "PX")]
+    epsilon: Option<f32>,
+    /// Initial view: normal, levels or wireframe (key V cycles).
+    #[arg(long, value_name = "VIEW", default_value = "normal")]
+    debug: String,
+    /// Close the window after this many seconds (scripted runs and tests).
+    #[arg(long, value_name = "SECS")]
+    exit_after: Option<f64>,
+}
+
+/// The keys, printed at start.
+const HELP: &str = "keys: WASD fly, E/space up, Q/C down, shift fast, arrows or left-drag look, \
+L lod mode, [ ] epsilon, M morph, K cull, V view (normal/levels/wireframe), 1-4 shading effects, Esc quit";
+
+pub(crate) fn run(args: &ViewArgs) -> Result<()> {
+    let mode: GpuMode = args.gpu.parse()?;
+    let lod: LodMode = args.lod.parse()?;
+    let debug: DebugView = args.debug.parse()?;
+    let epsilon = parse_epsilon(args.epsilon)?;
+    let mut profile = args.profile.load()?;
+    if let Some(s) = &args.size {
+        (profile.view.width, profile.view.height) = parse_size(s)?;
+    }
+    let (terrain_name, hm) = args.terrain.load()?;
+    let mut camera = Camera::default_for(&hm)?;
+    if let Some(text) = &args.camera {
+        let eye = parse_vec3("--camera", text)?;
+        camera = Camera::new(eye, eye + camera.forward(), camera.fov_y_deg)?
+            .with_clip(camera.near, camera.far)?;
+    }
+    camera.fov_y_deg = f64::from(profile.view.fov_y_deg);
+    let (ex, ey) = hm.extent_m();
+    let speed = args.speed.unwrap_or(0.05 * ex.max(ey)).max(1e-3);
+    let mut state = ViewState::new(&camera, speed, epsilon.unwrap_or(profile.view.epsilon_px));
+    state.lod = lod;
+    state.debug = debug;
+
+    let gpu = Gpu::new(mode)?;
+    let clipmap = Clipmap::new(&hm, &profile, ClipmapOptions::default())?;
+    let renderer = Renderer::new(&gpu, &profile, &clipmap)?;
+    let event_loop = EventLoop::new().map_err(|e| window_error("cannot open the event loop", e))?;
+    event_loop.set_control_flow(ControlFlow::Poll);
+    eprintln!(
+        "clipsat view: {terrain_name}, profile {}, {}",
+        profile.name,
+        gpu_name(&gpu)
+    );
+    eprintln!("{HELP}");
+    let mut app = App {
+        hm: &hm,
+        profile: &profile,
+        clipmap,
+        renderer,
+        state,
+        clearance: (2.0 * f64::from(hm.spacing())).max(30.0),
+        window: None,
+        drag: None,
+        last: None,
+        started: None,
+        exit_after: args.exit_after.map(Duration::from_secs_f64),
+        frame_ms: Vec::new(),
+        error: None,
+    };
+    event_loop
+        .run_app(&mut app)
+        .map_err(|e| window_error("event loop", e))?;
+    if let Some(e) = app.error {
+        return Err(e);
+    }
+    if !app.frame_ms.is_empty() {
+        let n = app.frame_ms.len();
+        // The first frame fills every level and compiles the pipeline: report the rest.
+        let steady = if n > 1 {
+            &app.frame_ms[1..]
+        } else {
+            &app.frame_ms[..]
+        };
+        let mean = steady.iter().sum::<f64>() / steady.len() as f64;
+        let mut sorted = steady.to_vec();
+        sorted.sort_by(f64::total_cmp);
+        outln!(
+            "frames {n}, ms/frame (update + render + readback + present) mean {mean:.1}, median {:.1}, first {:.1}",
+            sorted[sorted.len() / 2],
+            app.frame_ms[0]
+        );
+    }
+    Ok(())
+}
+
+fn gpu_name(gpu: &Gpu) -> String {
+    let r = gpu.report();
+    format!("{}, {}", r.name, r.gl_version)
+}
+
+fn window_error(what: &str, e: impl std::fmt::Display) -> Error {
+    Error::Gpu(format!("clipsat view: {what}: {e}"))
+}
+
+/// The window and its softbuffer surface.
+struct Presenter {
+    window: Rc<Window>,
+    surface: softbuffer::Surface<Rc<Window>, Rc<Window>>,
+    // Kept alive as long as the surface.
+    _context: softbuffer::Context<Rc<Window>>,
+}
+
+struct App<'a, 'g> {
+    hm: &'a Heightmap,
+    profile: &'a Profile,
+    clipmap: Clipmap,
+    renderer: Renderer<'g>,
+    state: ViewState,
+    clearance: f64,
+    window: Option<Presenter>,
+    /// The cursor position while the left button is held (mouse-look).
+    drag: Option<(f64, f64)>,
+    last: Option<Instant>,
+    started: Option<Instant>,
+    exit_after: Option<Duration>,
+    frame_ms: Vec<f64>,
+    error: Option<Error>,
+}
+
+impl App<'_, '_> {
+    fn fail(&mut self, event_loop: &ActiveEventLoop, e: Error) {
+        self.error.get_or_insert(e);
+        event_loop.exit();
+    }
+
+    fn open(&mut self, event_loop: &ActiveEventLoop) -> Result<()> {
+        let (w, h) = (self.profile.view.width, self.profile.view.height);
+        let attrs = Window::default_attributes()
+            .with_title("clipsat view")
+            .with_inner_size(PhysicalSize::new(w, h));
+        let window = Rc::new(
+            event_loop
+                .create_window(attrs)
+                .map_err(|e| window_error("cannot create the window", e))?,
+        );
+        let context = softbuffer::Context::new(window.clone())
+            .map_err(|e| window_error("softbuffer context", e))?;
+        let surface = softbuffer::Surface::new(&context, window.clone())
+            .map_err(|e| window_error("softbuffer surface", e))?;
+        // Without a window manager (Xvfb) nothing else gives the window the keyboard.
+        window.focus_window();
+        self.window = Some(Presenter {
+            window,
+            surface,
+            _context: context,
+        });
+        Ok(())
+    }
+
+    /// One frame: fly, update the clipmap, render, stamp the stats, present.
+    fn frame(&mut self) -> Result<()> {
+        let t0 = Instant::now();
+        let dt = self.last.map_or(0.0, |t| (t0 - t).as_secs_f64().min(0.25));
+        self.last = Some(t0);
+        self.state.step(dt);
+        // The drawn surface under the eye (it can lie above the data while coarse rings fill), else the data.
+        let eye = self.state.eye;
+        let ground = self.clipmap.surface_height(eye).map_or_else(
+            || f64::from(self.hm.height_at_world(eye.x, eye.y)),
+            f64::from,
+        );
+        self.state.keep_above(ground, self.clearance);
+        let camera = self.state.camera()?;
+        let frame = self.clipmap.update(camera.eye)?;
+        let (samples, stale) = (frame.samples_updated, frame.stale_levels);
+        if self.state.lod != LodMode::Distance && self.renderer.lod().is_none() {
+            eprintln!("clipsat view: loading the SAT LOD tables (baked once, then cached)...");
+            let lod = lod_for(self.hm, self.profile, &self.clipmap, true)?;
+            self.renderer.set_lod(lod);
+        }
+        let opts = self.state.frame_options();
+        let mut out = renderer::render_frame(&mut self.renderer, &self.clipmap, &camera, &opts)?;
+        let ms = self
+            .frame_ms
+            .last()
+            .copied()
+            .unwrap_or_else(|| t0.elapsed().as_secs_f64() * 1e3);
+        let lines = [
+            format!(
+                "tri {}  samples {}  stale {}  {:.1} ms",
+                out.stats.triangles, samples, stale, ms
+            ),
+            self.state.describe(),
+        ];
+        overlay(&mut out.image, &lines);
+        self.present(&out.image)?;
+        self.frame_ms.push(t0.elapsed().as_secs_f64() * 1e3);
+        Ok(())
+    }
+
+    fn present(&mut self, image: &Image) -> Result<()> {
+        let Some(w) = self.window.as_mut() else {
+            return Ok(());
+        };
+        let size = w.window.inner_size();
+        let (Some(ww), Some(wh)) = (NonZeroU32::new(size.width), NonZeroU32::new(size.height))
+        else {
+            return Ok(());
+        };
+        w.surface
+            .resize(ww, wh)
+            .map_err(|e| window_error("softbuffer resize", e))?;
+        let mut buf = w
+            .surface
+            .buffer_mut()
+            .map_err(|e| window_error("softbuffer buffer", e))?;
+        // Nearest-neighbour scale of the rendered image onto the window.
+        let (iw, ih) = (image.width as usize, image.height as usize);
+        let (ww, wh) = (size.width as usize, size.height as usize);
+        for y in 0..wh {
+            let sy = y * ih / wh;
+            let row = &image.rgba[sy * iw * 4..(sy + 1) * iw * 4];
+            for x in 0..ww {
+                let p = &row[x * iw / ww * 4..][..3];
+                buf[y * ww + x] = u32::from(p[0]) << 16 | u32::from(p[1]) << 8 | u32::from(p[2]);
+            }
+        }
+        buf.present()
+            .map_err(|e| window_error("softbuffer present", e))?;
+        Ok(())
+    }
+}
+
+/// Stamps `lines` at the top-left of `image` over a dark band.
+fn overlay(image: &mut Image, lines: &[String]) {
+    const SCALE: i32 = 2;
+    const LINE: i32 = 9 * SCALE;
+    let width = lines
+        .iter()
+        .map(|l| stamp_width(l, SCALE))
+        .max()
+        .unwrap_or(0)
+        + 8;
+    let height = LINE * i32::try_from(lines.len()).unwrap_or(0) + 6;
+    let (iw, ih) = (image.width as usize, image.height as usize);
+    for y in 0..usize::try_from(height).unwrap_or(0).min(ih) {
+        for x in 0..usize::try_from(width).unwrap_or(0).min(iw) {
+            let p = &mut image.rgba[(y * iw + x) * 4..][..3];
+            for c in p {
+                *c /= 3;
+            }
+        }
+    }
+    for (line, y) in lines.iter().zip((4..).step_by(LINE as usize)) {
+        stamp_text(
+            &mut image.rgba,
+            image.width,
+            (4, y),
+            SCALE,
+            line,
+            [255, 255, 255, 255],
+        );
+    }
+}
+
+fn flight_key(code: KeyCode) -> Option<Move> {
+    Some(match code {
+        KeyCode::KeyW => Move::Forward,
+        KeyCode::KeyS => Move::Back,
+        KeyCode::KeyA => Move::Left,
+        KeyCode::KeyD => Move::Right,
+        KeyCode::KeyE | KeyCode::Space => Move::Up,
+        KeyCode::KeyQ | KeyCode::KeyC => Move::Down,
+        KeyCode::ArrowLeft => Move::TurnLeft,
+        KeyCode::ArrowRight => Move::TurnRight,
+        KeyCode::ArrowUp => Move::LookUp,
+        KeyCode::ArrowDown => Move::LookDown,
+        KeyCode::ShiftLeft | KeyCode::ShiftRight => Move::Fast,
+        _ => return None,
+    })
+}
+
+fn action_key(code: KeyCode) -> Option<Action> {
+    Some(match code {
+        KeyCode::KeyL => Action::CycleLod,
+        KeyCode::BracketRight => Action::EpsilonUp,
+        KeyCode::BracketLeft => Action::EpsilonDown,
+        KeyCode::KeyM => Action::ToggleMorph,
+        KeyCode::KeyK => Action::ToggleCull,
+        KeyCode::KeyV => Action::CycleDebug,
+        KeyCode::Digit1 => Action::ToggleShading(0),
+        KeyCode::Digit2 => Action::ToggleShading(1),
+        KeyCode::Digit3 => Action::ToggleShading(2),
+        KeyCode::Digit4 => Action::ToggleShading(3),
+        _ => return None,
+    })
+}
+
+impl ApplicationHandler for App<'_, '_> {
+    fn resumed(&mut self, event_loop: &ActiveEventLoop) {
+        if self.window.is_none() {
+            if let Err(e) = self.open(event_loop) {
+                self.fail(event_loop, e);
+            }
+            self.started = Some(Instant::now());
+        }
+    }
+
+    fn window_event(&mut self, event_loop: &ActiveEventLoop, _id: WindowId, event: WindowEvent) {
+        match event {
+            WindowEvent::CloseRequested => event_loop.exit(),
+            WindowEvent::Focused(false) => self.state.release_all(),
+            WindowEvent::KeyboardInput { event, .. } => {
+                let PhysicalKey::Code(code) = event.physical_key else {
+                    return;
+                };
+                let pressed = event.state == ElementState::Pressed;
+                if code == KeyCode::Escape && pressed {
+                    event_loop.exit();
+                } else if let Some(m) = flight_key(code) {
+                    self.state.key(m, pressed);
+                } else if let Some(a) = action_key(code).filter(|_| pressed && !event.repeat) {
+                    self.state.action(a);
+                }
+            }
+            WindowEvent::MouseInput {
+                state,
+                button: MouseButton::Left,
+                ..
+            } => {
+                self.drag = (state == ElementState::Pressed).then_some((f64::NAN, f64::NAN));
+            }
+            WindowEvent::CursorMoved { position, .. } => {
+                if let Some((x, y)) = self.drag {
+                    if x.is_finite() {
+                        self.state.look(position.x - x, position.y - y);
+                    }
+                    self.drag = Some((position.x, position.y));
+                }
+            }
+            WindowEvent::RedrawRequested => {
+                if let Err(e) = self.frame() {
+                    self.fail(event_loop, e);
+                }
+            }
+            _ => {}
+        }
+    }
+
+    fn about_to_wait(&mut self, event_loop: &ActiveEventLoop) {
+        if let (Some(t), Some(limit)) = (self.started, self.exit_after) {
+            if t.elapsed() >= limit {
+                event_loop.exit();
+                return;
+            }
+        }
+        if let Some(w) = &self.window {
+            w.window.request_redraw();
+        }
+    }
+}

@@ -1,0 +1,382 @@
+//! The interactive viewer's state (`clipsat view`): held keys, mouse motion and toggle keys in; a camera
+//! and the renderer's [`FrameOptions`] out. Pure and windowless, so it is tested without a display; the
+//! window (src/cmd/view.rs) only maps winit events onto [`Move`] and [`Action`].
+
+use glam::DVec3;
+
+use crate::debug_view::DebugView;
+use crate::lod::LodMode;
+use crate::renderer::FrameOptions;
+use crate::{Camera, Result};
+
+/// A key held for flight.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Move {
+    /// Along the look direction (W).
+    Forward,
+    /// Against it (S).
+    Back,
+    /// Strafe left (A).
+    Left,
+    /// Strafe right (D).
+    Right,
+    /// Straight up (E, space).
+    Up,
+    /// Straight down (Q, C).
+    Down,
+    /// Turn left (left arrow).
+    TurnLeft,
+    /// Turn right (right arrow).
+    TurnRight,
+    /// Look up (up arrow).
+    LookUp,
+    /// Look down (down arrow).
+    LookDown,
+    /// Times [`ViewState::FAST`] speed while held (shift).
+    Fast,
+}
+
+impl Move {
+    const COUNT: usize = 11;
+
+    fn index(self) -> usize {
+        self as usize
+    }
+}
+
+/// A one-shot key.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Action {
+    /// distance -> sat -> sat-conservative -> exact -> distance (L).
+    CycleLod,
+    /// Epsilon times 1.25 (]).
+    EpsilonUp,
+    /// Epsilon over 1.25 ([).
+    EpsilonDown,
+    /// GC 6.2 morphing on/off (M).
+    ToggleMorph,
+    /// Frustum culling on/off (K).
+    ToggleCull,
+    /// normal -> levels -> wireframe (V).
+    CycleDebug,
+    /// Shading effect `k` (0..[`SHADING_TOGGLES`]) on/off (keys 1..4); see [`ViewState::shading`].
+    ToggleShading(u8),
+}
+
+/// How many shading-effect toggles the viewer offers.
+pub const SHADING_TOGGLES: u8 = 4;
+
+/// The viewer's whole state.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ViewState {
+    /// Eye, metres.
+    pub eye: DVec3,
+    /// Look azimuth, radians, anticlockwise from east (x).
+    pub yaw: f64,
+    /// Look elevation, radians, within +/- [`ViewState::MAX_PITCH`].
+    pub pitch: f64,
+    /// Vertical field of view, degrees.
+    pub fov_y_deg: f64,
+    /// Clip planes, metres.
+    pub near_far: (f64, f64),
+    /// Flight speed, metres per second.
+    pub speed: f64,
+    /// Radians per pixel of mouse motion.
+    pub mouse_sensitivity: f64,
+    /// LOD mode.
+    pub lod: LodMode,
+    /// SAT LOD error bound, pixels.
+    pub epsilon_px: f32,
+    /// GC 6.2 morphing.
+    pub morph: bool,
+    /// Frustum culling.
+    pub cull: bool,
+    /// Debug view.
+    pub debug: DebugView,
+    /// Shading-effect toggles, bit k for effect k, all on at start. A placeholder until the SG shading
+    /// path lands: wire [`ViewState::shading`] into the frame's shading options there.
+    pub shading_bits: u32,
+    held: [bool; Move::COUNT],
+}
+
+impl ViewState {
+    /// Speed factor while [`Move::Fast`] is held.
+    pub const FAST: f64 = 5.0;
+    /// The steepest look up or down (radians, 85 degrees): the camera needs a defined "up".
+    pub const MAX_PITCH: f64 = 85.0 * std::f64::consts::PI / 180.0;
+    /// Turn rate of the arrow keys, radians per second.
+    pub const TURN_RATE: f64 = 1.2;
+
+    /// Starts at `camera`, flying `speed` m/s, with the SAT LOD bound `epsilon_px`.
+    pub fn new(camera: &Camera, speed: f64, epsilon_px: f32) -> Self {
+        let f = camera.forward();
+        let pitch = f.z.clamp(-1.0, 1.0).asin();
+        Self {
+            eye: camera.eye,
+            yaw: f.y.atan2(f.x),
+            pitch: pitch.clamp(-Self::MAX_PITCH, Self::MAX_PITCH),
+            fov_y_deg: camera.fov_y_deg,
+            near_far: (camera.near, camera.far),
+            speed,
+            mouse_sensitivity: 0.003,
+            lod: LodMode::Distance,
+            epsilon_px,
+            morph: true,
+            cull: true,
+            debug: DebugView::Normal,
+            shading_bits: (1 << SHADING_TOGGLES) - 1,
+            held: [false; Move::COUNT],
+        }
+    }
+
+    /// A flight key went down (`pressed`) or up.
+    pub fn key(&mut self, m: Move, pressed: bool) {
+        self.held[m.index()] = pressed;
+    }
+
+    /// Whether a flight key is held.
+    pub fn held(&self, m: Move) -> bool {
+        self.held[m.index()]
+    }
+
+    /// Releases every key (the window lost focus).
+    pub fn release_all(&mut self) {
+        self.held = [false; Move::COUNT];
+    }
+
+    /// Applies a one-shot key.
+    pub fn action(&mut self, a: Action) {
+        match a {
+            Action::CycleLod => {
+                self.lod = match self.lod {
+                    LodMode::Distance => LodMode::Sat,
+                    LodMode::Sat => LodMode::SatConservative,
+                    LodMode::SatConservative => LodMode::Exact,
+                    LodMode::Exact => LodMode::Distance,
+                }
+            }
+            Action::EpsilonUp => self.epsilon_px = (self.epsilon_px * 1.25).min(256.0),
+            Action::EpsilonDown => self.epsilon_px = (self.epsilon_px / 1.25).max(0.05),
+            Action::ToggleMorph => self.morph = !self.morph,
+            Action::ToggleCull => self.cull = !self.cull,
+            Action::CycleDebug => self.debug = self.debug.next(),
+            Action::ToggleShading(k) if k < SHADING_TOGGLES => self.shading_bits ^= 1 << k,
+            Action::ToggleShading(_) => {}
+        }
+    }
+
+    /// Whether shading effect `k` is on (the hook for the SG shading path's effect toggles).
+    pub fn shading(&self, k: u8) -> bool {
+        k < SHADING_TOGGLES && self.shading_bits & (1 << k) != 0
+    }
+
+    /// Mouse-look: `dx`, `dy` pixels of motion (right, down) turn right and look down.
+    pub fn look(&mut self, dx: f64, dy: f64) {
+        self.yaw -= dx * self.mouse_sensitivity;
+        self.pitch =
+            (self.pitch - dy * self.mouse_sensitivity).clamp(-Self::MAX_PITCH, Self::MAX_PITCH);
+    }
+
+    /// Unit look direction.
+    pub fn forward(&self) -> DVec3 {
+        let (sy, cy) = self.yaw.sin_cos();
+        let (sp, cp) = self.pitch.sin_cos();
+        DVec3::new(cy * cp, sy * cp, sp)
+    }
+
+    /// Advances `dt` seconds of flight with the held keys: W/S along the look direction, A/D across it
+    /// (horizontal), up/down along z, the arrows turn.
+    pub fn step(&mut self, dt: f64) {
+        let held = self.held;
+        let axis = |plus: Move, minus: Move| {
+            f64::from(u8::from(held[plus.index()])) - f64::from(u8::from(held[minus.index()]))
+        };
+        self.yaw += axis(Move::TurnLeft, Move::TurnRight) * Self::TURN_RATE * dt;
+        self.pitch = (self.pitch + axis(Move::LookUp, Move::LookDown) * Self::TURN_RATE * dt)
+            .clamp(-Self::MAX_PITCH, Self::MAX_PITCH);
+        let f = self.forward();
+        let right = DVec3::new(self.yaw.sin(), -self.yaw.cos(), 0.0);
+        let dir = f * axis(Move::Forward, Move::Back)
+            + right * axis(Move::Right, Move::Left)
+            + DVec3::Z * axis(Move::Up, Move::Down);
+        if dir.length_squared() > 0.0 {
+            let fast = if self.held(Move::Fast) {
+                Self::FAST
+            } else {
+                1.0
+            };
+            self.eye += dir.normalize() * self.speed * fast * dt;
+        }
+    }
+
+    /// Keeps the eye at least `clearance` metres above `ground` (metres).
+    pub fn keep_above(&mut self, ground: f64, clearance: f64) {
+        self.eye.z = self.eye.z.max(ground + clearance);
+    }
+
+    /// The camera of this state.
+    pub fn camera(&self) -> Result<Camera> {
+        Camera::new(self.eye, self.eye + self.forward(), self.fov_y_deg)?
+            .with_clip(self.near_far.0, self.near_far.1)
+    }
+
+    /// The renderer's options for this state.
+    pub fn frame_options(&self) -> FrameOptions {
+        FrameOptions {
+            morph: self.morph,
+            cull: self.cull,
+            lod: self.lod,
+            epsilon_px: Some(self.epsilon_px),
+            debug: self.debug,
+            ..FrameOptions::default()
+        }
+    }
+
+    /// One line describing the toggles, for the stats overlay.
+    pub fn describe(&self) -> String {
+        format!(
+            "{} eps {:.2}px morph {} cull {} view {}",
+            self.lod,
+            self.epsilon_px,
+            on_off(self.morph),
+            on_off(self.cull),
+            self.debug
+        )
+    }
+}
+
+fn on_off(b: bool) -> &'static str {
+    if b {
+        "on"
+    } else {
+        "off"
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn state() -> ViewState {
+        let cam = Camera::new(
+            DVec3::new(0.0, 0.0, 100.0),
+            DVec3::new(100.0, 0.0, 100.0),
+            60.0,
+        )
+        .expect("camera");
+        ViewState::new(&cam, 10.0, 1.0)
+    }
+
+    fn close(a: DVec3, b: DVec3) -> bool {
+        (a - b).length() < 1e-9
+    }
+
+    #[test]
+    fn starts_looking_where_the_camera_looks() {
+        let s = state();
+        assert!(close(s.forward(), DVec3::X));
+        let c = s.camera().expect("camera");
+        assert!(close(c.forward(), DVec3::X));
+        assert!(close(c.eye, DVec3::new(0.0, 0.0, 100.0)));
+    }
+
+    #[test]
+    fn wasd_and_up_down_move_the_eye() {
+        let mut s = state();
+        s.key(Move::Forward, true);
+        s.step(1.0);
+        assert!(close(s.eye, DVec3::new(10.0, 0.0, 100.0)), "{}", s.eye);
+        s.key(Move::Forward, false);
+        // Looking east, right is south (-y).
+        s.key(Move::Right, true);
+        s.step(0.5);
+        assert!(close(s.eye, DVec3::new(10.0, -5.0, 100.0)), "{}", s.eye);
+        s.key(Move::Right, false);
+        s.key(Move::Left, true);
+        s.key(Move::Fast, true);
+        s.step(0.1);
+        assert!(close(s.eye, DVec3::new(10.0, 0.0, 100.0)), "{}", s.eye);
+        s.release_all();
+        s.key(Move::Up, true);
+        s.step(2.0);
+        assert!(close(s.eye, DVec3::new(10.0, 0.0, 120.0)), "{}", s.eye);
+        // Forward and back cancel; diagonals are not faster.
+        s.release_all();
+        s.key(Move::Forward, true);
+        s.key(Move::Back, true);
+        s.step(1.0);
+        assert!(close(s.eye, DVec3::new(10.0, 0.0, 120.0)));
+        s.key(Move::Back, false);
+        s.key(Move::Left, true);
+        let before = s.eye;
+        s.step(1.0);
+        assert!(((s.eye - before).length() - 10.0).abs() < 1e-9);
+        s.keep_above(200.0, 30.0);
+        assert_eq!(s.eye.z, 230.0);
+    }
+
+    #[test]
+    fn mouse_look_turns_and_pitch_is_clamped() {
+        let mut s = state();
+        // Moving the mouse left by a quarter turn looks north.
+        let quarter = std::f64::consts::FRAC_PI_2 / s.mouse_sensitivity;
+        s.look(-quarter, 0.0);
+        assert!(close(s.forward(), DVec3::Y), "{}", s.forward());
+        // W now flies north.
+        s.key(Move::Forward, true);
+        s.step(1.0);
+        assert!(close(s.eye, DVec3::new(0.0, 10.0, 100.0)), "{}", s.eye);
+        // Mouse up looks up, never past MAX_PITCH, and the camera stays valid.
+        s.look(0.0, -1e6);
+        assert_eq!(s.pitch, ViewState::MAX_PITCH);
+        assert!(s.camera().is_ok());
+        s.look(0.0, 2e6);
+        assert_eq!(s.pitch, -ViewState::MAX_PITCH);
+        assert!(s.camera().is_ok());
+        // Arrow keys turn at TURN_RATE.
+        let mut t = state();
+        t.key(Move::TurnLeft, true);
+        t.step(0.5);
+        assert!((t.yaw - 0.5 * ViewState::TURN_RATE).abs() < 1e-12);
+    }
+
+    #[test]
+    fn toggles_cycle_and_reach_the_frame_options() {
+        let mut s = state();
+        let modes: Vec<LodMode> = (0..5)
+            .map(|_| {
+                s.action(Action::CycleLod);
+                s.lod
+            })
+            .collect();
+        assert_eq!(
+            modes,
+            [
+                LodMode::Sat,
+                LodMode::SatConservative,
+                LodMode::Exact,
+                LodMode::Distance,
+                LodMode::Sat
+            ]
+        );
+        s.action(Action::EpsilonUp);
+        assert_eq!(s.epsilon_px, 1.25);
+        s.action(Action::EpsilonDown);
+        s.action(Action::EpsilonDown);
+        assert_eq!(s.epsilon_px, 0.8);
+        s.action(Action::ToggleMorph);
+        s.action(Action::ToggleCull);
+        s.action(Action::CycleDebug);
+        let o = s.frame_options();
+        assert_eq!(
+            (o.lod, o.epsilon_px, o.morph, o.cull, o.debug),
+            (LodMode::Sat, Some(0.8), false, false, DebugView::Levels)
+        );
+        assert!(s.shading(2));
+        s.action(Action::ToggleShading(2));
+        assert!(!s.shading(2) && s.shading(1));
+        s.action(Action::ToggleShading(9));
+        assert!(!s.shading(9));
+        assert!(s.describe().contains("view levels"), "{}", s.describe());
+    }
+}

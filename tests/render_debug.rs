@@ -1,0 +1,108 @@
+//! The renderer's debug views (`render --debug`): the level-colour view shows each drawn level in its own
+//! colour, in distance and SAT LOD modes alike, the wireframe view draws lattice lines, and the normal view
+//! is the default rendering. Headless strict GLES 3.0 on llvmpipe.
+
+mod render_support;
+
+use std::collections::BTreeMap;
+
+use clipsat::bake::{bake_lod, BakeParams};
+use clipsat::clipmap::Clipmap;
+use clipsat::debug_view::{level_of_pixel, DebugView};
+use clipsat::gpu::readback::Image;
+use clipsat::lod::{Lod, LodMode, P};
+use clipsat::renderer::{render_frame, FrameOptions, Renderer};
+use clipsat::{Camera, Heightmap, Profile};
+use render_support::{clipmap, profile, relief, strict};
+
+fn lod(hm: &Heightmap, p: &Profile, cm: &Clipmap) -> Lod {
+    let params = BakeParams {
+        p: P,
+        levels: p.clipmap.levels,
+        synth_levels: cm.synth_levels(),
+        g0: cm.g0(),
+    };
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("lod-cache");
+    let (tables, _) = bake_lod(hm, cm.pyramid(), &params, &dir, false).expect("LOD tables");
+    Lod::for_clipmap(tables, p, cm, hm)
+}
+
+/// Pixels per level colour found in `image`.
+fn level_pixels(image: &Image) -> BTreeMap<u32, u64> {
+    let mut found = BTreeMap::new();
+    for px in image.rgba.chunks_exact(4) {
+        if let Some(l) = level_of_pixel([px[0], px[1], px[2], px[3]]) {
+            *found.entry(l).or_insert(0) += 1;
+        }
+    }
+    found
+}
+
+#[test]
+fn level_colours_show_the_drawn_levels() {
+    let gpu = strict();
+    let hm = relief();
+    let p = profile("gles3-low", 192, 108, None);
+    let cam = Camera::default_for(&hm).expect("camera");
+    let mut cm = clipmap(&hm, &p);
+    for _ in 0..10_000 {
+        let f = cm.update(cam.eye).expect("update");
+        if f.stale_levels == 0 && cm.pending_samples(cam.eye) == 0 {
+            break;
+        }
+    }
+    let mut r = Renderer::new(&gpu, &p, &cm).expect("renderer");
+    r.set_lod(lod(&hm, &p, &cm));
+    let normal = render_frame(&mut r, &cm, &cam, &FrameOptions::default()).expect("frame");
+    let explicit = FrameOptions {
+        debug: DebugView::Normal,
+        ..FrameOptions::default()
+    };
+    let again = render_frame(&mut r, &cm, &cam, &explicit).expect("frame");
+    assert_eq!(normal.image_hash, again.image_hash);
+    for mode in [LodMode::Distance, LodMode::Sat] {
+        let opts = FrameOptions {
+            lod: mode,
+            debug: DebugView::Levels,
+            ..FrameOptions::default()
+        };
+        let out = render_frame(&mut r, &cm, &cam, &opts).expect("levels frame");
+        let drawn: Vec<u32> = r.draws().iter().map(|d| d.level).collect();
+        let found = level_pixels(&out.image);
+        let shown: Vec<u32> = found
+            .iter()
+            .filter(|(_, &n)| n >= 20)
+            .map(|(&l, _)| l)
+            .collect();
+        assert!(
+            shown.len() >= 3,
+            "{mode}: level colours {found:?}, drawn levels {drawn:?}"
+        );
+        for l in &shown {
+            assert!(
+                drawn.contains(l),
+                "{mode}: level {l} coloured but not drawn ({drawn:?})"
+            );
+        }
+        // The normal view shows no level colours in quantity.
+        let stray: u64 = level_pixels(&normal.image).values().sum();
+        let shaded: u64 = found.values().sum();
+        assert!(
+            stray * 4 < shaded,
+            "normal view: {stray} level-coloured pixels, levels view {shaded}"
+        );
+    }
+    let wire = render_frame(
+        &mut r,
+        &cm,
+        &cam,
+        &FrameOptions {
+            debug: DebugView::Wireframe,
+            ..FrameOptions::default()
+        },
+    )
+    .expect("wireframe frame");
+    let lines: u64 = level_pixels(&wire.image).values().sum();
+    assert!(lines > 200, "wireframe: {lines} line pixels");
+    assert_ne!(wire.image_hash, normal.image_hash);
+}

@@ -1,0 +1,274 @@
+//! `clipsat view` under a virtual X display: starts `Xvfb`, opens the window, flies it with real X input
+//! events from `xdotool` (W held, a mouse-look drag, V for the level-colour view), screenshots the display
+//! with `xwd` and checks the pictures are not blank and that the keys changed what is drawn. The normal-view
+//! screenshot is saved as examples/pictures/view-xvfb.png.
+//!
+//! Ignored by default (needs Xvfb, xdotool and xwd, and takes about a minute on llvmpipe):
+//! `bash .ci/view-xvfb`, or `cargo test --test view_xvfb -- --ignored --nocapture`.
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+use std::thread::sleep;
+use std::time::{Duration, Instant};
+
+const W: u32 = 640;
+const H: u32 = 360;
+
+/// Kills and reaps a child process when dropped (the test's own Xvfb and viewer only).
+struct Reaped(Child);
+
+impl Drop for Reaped {
+    fn drop(&mut self) {
+        // SIGTERM first, so Xvfb removes its lock file and socket; SIGKILL if it lingers.
+        let pid = self.0.id().to_string();
+        let _ = Command::new("kill").args(["-TERM", &pid]).status();
+        for _ in 0..50 {
+            if matches!(self.0.try_wait(), Ok(Some(_))) {
+                return;
+            }
+            sleep(Duration::from_millis(100));
+        }
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn have(tool: &str) -> bool {
+    Command::new("sh")
+        .args(["-c", &format!("command -v {tool}")])
+        .stdout(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success())
+}
+
+fn run(display: &str, cmd: &str, args: &[&str]) -> Output {
+    Command::new(cmd)
+        .args(args)
+        .env("DISPLAY", display)
+        .output()
+        .unwrap_or_else(|e| panic!("{cmd}: {e}"))
+}
+
+fn xdotool(display: &str, args: &[&str]) {
+    let out = run(display, "xdotool", args);
+    assert!(
+        out.status.success(),
+        "xdotool {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// A tight RGB8 picture of the whole X screen, from `xwd -root` (XWD format, version 7, ZPixmap).
+fn screenshot(display: &str) -> (u32, u32, Vec<u8>) {
+    let out = run(display, "xwd", &["-root", "-silent"]);
+    assert!(
+        out.status.success(),
+        "xwd: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    parse_xwd(&out.stdout)
+}
+
+fn parse_xwd(data: &[u8]) -> (u32, u32, Vec<u8>) {
+    let field = |i: usize| {
+        let b = &data[i * 4..i * 4 + 4];
+        u32::from_be_bytes([b[0], b[1], b[2], b[3]])
+    };
+    assert!(data.len() >= 100, "xwd: {} bytes", data.len());
+    let (header, version, format) = (field(0) as usize, field(1), field(2));
+    assert_eq!((version, format), (7, 2), "xwd: version 7 ZPixmap expected");
+    let (w, h) = (field(4), field(5));
+    let (byte_order, bpp, stride) = (field(7), field(11), field(12) as usize);
+    let masks = [field(14), field(15), field(16)];
+    let ncolors = field(19) as usize;
+    assert_eq!(bpp, 32, "xwd: 32 bits per pixel expected");
+    let start = header + 12 * ncolors;
+    let mut rgb = Vec::with_capacity(w as usize * h as usize * 3);
+    for y in 0..h as usize {
+        for x in 0..w as usize {
+            let at = start + y * stride + x * 4;
+            let b = [data[at], data[at + 1], data[at + 2], data[at + 3]];
+            let v = if byte_order == 0 {
+                u32::from_le_bytes(b)
+            } else {
+                u32::from_be_bytes(b)
+            };
+            for m in masks {
+                let c = (v & m) >> m.trailing_zeros();
+                rgb.push(u8::try_from(c).unwrap_or(u8::MAX));
+            }
+        }
+    }
+    (w, h, rgb)
+}
+
+fn distinct_colours(rgb: &[u8]) -> usize {
+    let mut seen: Vec<[u8; 3]> = rgb.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+    seen.sort_unstable();
+    seen.dedup();
+    seen.len()
+}
+
+fn free_display() -> u32 {
+    (90..200)
+        .find(|n| {
+            !Path::new(&format!("/tmp/.X11-unix/X{n}")).exists()
+                && !Path::new(&format!("/tmp/.X{n}-lock")).exists()
+        })
+        .expect("a free X display number in 90..200")
+}
+
+#[test]
+#[ignore = "needs Xvfb, xdotool and xwd; run: bash .ci/view-xvfb"]
+fn view_flies_under_xvfb() {
+    let missing: Vec<&str> = ["Xvfb", "xdotool", "xwd"]
+        .into_iter()
+        .filter(|t| !have(t))
+        .collect();
+    if !missing.is_empty() {
+        let why = format!("missing {missing:?} (bash .ci/view-xvfb installs them)");
+        if std::env::var("CI").as_deref() == Ok("true") {
+            panic!("{why}");
+        }
+        eprintln!("skipped: {why}");
+        return;
+    }
+    let n = free_display();
+    let display = format!(":{n}");
+    let _xvfb = Reaped(
+        Command::new("Xvfb")
+            .args([
+                display.as_str(),
+                "-screen",
+                "0",
+                &format!("{W}x{H}x24"),
+                "-nolisten",
+                "tcp",
+            ])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("Xvfb"),
+    );
+    let socket = PathBuf::from(format!("/tmp/.X11-unix/X{n}"));
+    let t0 = Instant::now();
+    while !socket.exists() {
+        assert!(
+            t0.elapsed() < Duration::from_secs(20),
+            "Xvfb {display} did not start"
+        );
+        sleep(Duration::from_millis(100));
+    }
+
+    let mut view = Reaped(
+        Command::new(env!("CARGO_BIN_EXE_clipsat"))
+            .args([
+                "view",
+                "--profile",
+                "gles3-low",
+                "--size",
+                &format!("{W}x{H}"),
+                "--exit-after",
+                "120",
+            ])
+            .env("DISPLAY", &display)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("clipsat view"),
+    );
+    // Wait for the window and its first frames.
+    let t0 = Instant::now();
+    let window = loop {
+        let out = run(&display, "xdotool", &["search", "--name", "clipsat view"]);
+        let ids = String::from_utf8_lossy(&out.stdout);
+        if let Some(id) = ids
+            .split_whitespace()
+            .next()
+            .filter(|_| out.status.success())
+        {
+            break id.to_string();
+        }
+        if let Ok(Some(status)) = view.0.try_wait() {
+            panic!("clipsat view exited early: {status}");
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(60),
+            "no clipsat view window"
+        );
+        sleep(Duration::from_millis(200));
+    };
+    sleep(Duration::from_secs(4));
+    let (_, _, start) = screenshot(&display);
+
+    // There is no window manager to give the window the keyboard focus: take it, then fly.
+    xdotool(&display, &["windowfocus", "--sync", &window]);
+    let (cx, cy) = ((W / 2).to_string(), (H / 2).to_string());
+    xdotool(&display, &["mousemove", &cx, &cy]);
+    xdotool(&display, &["keydown", "w"]);
+    sleep(Duration::from_millis(2500));
+    xdotool(&display, &["keyup", "w"]);
+    xdotool(&display, &["mousedown", "1"]);
+    for _ in 0..10 {
+        xdotool(&display, &["mousemove_relative", "--", "-8", "2"]);
+        sleep(Duration::from_millis(50));
+    }
+    xdotool(&display, &["mouseup", "1"]);
+    sleep(Duration::from_secs(2));
+    let (w, h, flown) = screenshot(&display);
+    xdotool(&display, &["key", "v"]);
+    sleep(Duration::from_secs(3));
+    let (_, _, levels) = screenshot(&display);
+    xdotool(&display, &["key", "Escape"]);
+
+    let t0 = Instant::now();
+    let status = loop {
+        if let Some(s) = view.0.try_wait().expect("wait") {
+            break s;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(30),
+            "Escape did not close the window"
+        );
+        sleep(Duration::from_millis(100));
+    };
+    let mut stdout = String::new();
+    let mut stderr = String::new();
+    use std::io::Read as _;
+    if let Some(mut s) = view.0.stdout.take() {
+        let _ = s.read_to_string(&mut stdout);
+    }
+    if let Some(mut s) = view.0.stderr.take() {
+        let _ = s.read_to_string(&mut stderr);
+    }
+    eprintln!("clipsat view stdout: {stdout}\nstderr: {stderr}");
+    assert!(status.success(), "clipsat view: {status}\n{stderr}");
+
+    let pictures = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/pictures");
+    std::fs::create_dir_all(&pictures).expect("examples/pictures");
+    let png = pictures.join("view-xvfb.png");
+    image::save_buffer(&png, &flown, w, h, image::ExtendedColorType::Rgb8)
+        .expect("save screenshot");
+    eprintln!("screenshot: {}", png.display());
+
+    // Shaded terrain has thousands of colours; the level view's flat colours under a Lambert factor and
+    // the stats text a few hundred. A blank or single-colour window has a handful.
+    for (name, shot, least) in [
+        ("start", &start, 1000),
+        ("flown", &flown, 1000),
+        ("levels", &levels, 100),
+    ] {
+        let colours = distinct_colours(shot);
+        eprintln!("{name} screenshot: {colours} colours");
+        assert!(
+            colours > least,
+            "{name} screenshot: only {colours} colours (blank?)"
+        );
+    }
+    assert_ne!(start, flown, "W and the mouse drag did not move the camera");
+    assert_ne!(flown, levels, "V did not change the view");
+    assert!(
+        stdout.contains("ms/frame"),
+        "no frame-time summary on stdout: {stdout}"
+    );
+}
