@@ -136,7 +136,7 @@ pub fn bake_uncached(pyramid: &Pyramid, params: &BakeParams, progress: bool) -> 
     Ok(tables)
 }
 
-fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     if let Some(dir) = path.parent() {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, "cannot create folder", e))?;
     }
@@ -171,20 +171,23 @@ fn encode(t: &LodTables, key: u64) -> Vec<u8> {
             }
         }
     }
-    let mut h = Hash64::new();
-    h.write_bytes(&out);
-    out.extend_from_slice(&h.finish().to_le_bytes());
+    seal(&mut out);
     out
 }
 
 /// A little-endian reader that refuses to run past the end.
-struct Reader<'a> {
+pub(crate) struct Reader<'a> {
     bytes: &'a [u8],
     at: usize,
 }
 
 impl Reader<'_> {
-    fn take(&mut self, n: usize) -> std::result::Result<&[u8], String> {
+    /// Whether every byte has been read.
+    pub(crate) fn done(&self) -> bool {
+        self.at == self.bytes.len()
+    }
+
+    pub(crate) fn take(&mut self, n: usize) -> std::result::Result<&[u8], String> {
         let end = self.at.checked_add(n).filter(|&e| e <= self.bytes.len());
         let end = end.ok_or_else(|| format!("truncated at byte {}", self.at))?;
         let s = &self.bytes[self.at..end];
@@ -192,22 +195,34 @@ impl Reader<'_> {
         Ok(s)
     }
 
-    fn u32(&mut self) -> std::result::Result<u32, String> {
+    pub(crate) fn u32(&mut self) -> std::result::Result<u32, String> {
         let mut w = [0u8; 4];
         w.copy_from_slice(self.take(4)?);
         Ok(u32::from_le_bytes(w))
     }
 
-    fn u64(&mut self) -> std::result::Result<u64, String> {
+    pub(crate) fn u64(&mut self) -> std::result::Result<u64, String> {
         let mut w = [0u8; 8];
         w.copy_from_slice(self.take(8)?);
         Ok(u64::from_le_bytes(w))
     }
 }
 
-fn decode(bytes: &[u8], key: u64, params: &BakeParams) -> std::result::Result<LodTables, String> {
-    if bytes.len() < 8 + 8 || &bytes[..8] != MAGIC {
-        return Err("not a clipsat LOD cache file (bad magic)".into());
+/// Appends the trailing [`Hash64`] of every byte so far (the last 8 bytes of every cache file).
+pub(crate) fn seal(out: &mut Vec<u8>) {
+    let mut h = Hash64::new();
+    h.write_bytes(out);
+    out.extend_from_slice(&h.finish().to_le_bytes());
+}
+
+/// Checks a cache file's magic and trailing hash ([`seal`]); a reader just past the magic, over the body.
+pub(crate) fn unseal<'a>(
+    bytes: &'a [u8],
+    magic: &[u8; 8],
+    what: &str,
+) -> std::result::Result<Reader<'a>, String> {
+    if bytes.len() < 8 + 8 || &bytes[..8] != magic {
+        return Err(format!("not a clipsat {what} cache file (bad magic)"));
     }
     let (body, trailer) = bytes.split_at(bytes.len() - 8);
     let mut h = Hash64::new();
@@ -217,7 +232,11 @@ fn decode(bytes: &[u8], key: u64, params: &BakeParams) -> std::result::Result<Lo
     if h.finish() != u64::from_le_bytes(t) {
         return Err("content hash mismatch (corrupted file)".into());
     }
-    let mut r = Reader { bytes: body, at: 8 };
+    Ok(Reader { bytes: body, at: 8 })
+}
+
+fn decode(bytes: &[u8], key: u64, params: &BakeParams) -> std::result::Result<LodTables, String> {
+    let mut r = unseal(bytes, MAGIC, "LOD")?;
     let version = r.u32()?;
     if version != FORMAT_VERSION {
         return Err(format!(
@@ -270,7 +289,7 @@ fn decode(bytes: &[u8], key: u64, params: &BakeParams) -> std::result::Result<Lo
         };
         out.push(LevelTables::from_parts(e_max, tables));
     }
-    if r.at != body.len() {
+    if !r.done() {
         return Err("trailing bytes".into());
     }
     Ok(LodTables {

@@ -619,7 +619,8 @@ impl<'g> Renderer<'g> {
 
     /// Switches the renderer to SG shading (SAT paper section 5) for `scene` over the terrain `hm` (the one
     /// the clipmap was built from), integrating over `patches`; `shadows: false` drops visibility even if
-    /// the scene asks for it. Bakes, binds and compiles only what the scene needs ([`Scene::needs`]): no
+    /// the scene asks for it. Bakes (through the disk cache, [`ShadingBake::bake_cached`]), binds and compiles
+    /// only what the scene needs ([`Scene::needs`]): no
     /// horizon maps or visibility texture without visibility, no specular code without specular. The SG
     /// objects are outside the profile's ledger (like the SAT LOD tables of [`Renderer::set_lod`]).
     pub fn set_sg(
@@ -632,7 +633,13 @@ impl<'g> Renderer<'g> {
         let mut scene = scene.clone();
         scene.effects.visibility &= shadows;
         let max_side = self.gpu.device().limits().max_texture_dimension_2d;
-        let bake = ShadingBake::bake(hm, &scene.needs(), DEFAULT_AZIMUTHS, max_side)?;
+        let (bake, _) = ShadingBake::bake_cached(
+            hm,
+            &scene.needs(),
+            DEFAULT_AZIMUTHS,
+            max_side,
+            &crate::bake::default_cache_dir(),
+        )?;
         self.set_sg_baked(hm, &scene, patches, &bake)
     }
 
@@ -750,6 +757,11 @@ impl<'g> Renderer<'g> {
         })?;
         self.sg = Some(sg);
         Ok(())
+    }
+
+    /// Back to the basic shading: drops the SG textures, bind group and pipeline ([`Renderer::set_sg`]).
+    pub fn set_basic_shading(&mut self) {
+        self.sg = None;
     }
 
     /// The names of the textures the current shading binds: `heights`, plus `sat_normal` and, with

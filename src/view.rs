@@ -7,6 +7,7 @@ use glam::DVec3;
 use crate::debug_view::DebugView;
 use crate::lod::LodMode;
 use crate::renderer::FrameOptions;
+use crate::scene::Scene;
 use crate::{Camera, Result};
 
 /// A key held for flight.
@@ -59,12 +60,60 @@ pub enum Action {
     ToggleCull,
     /// normal -> levels -> wireframe (V).
     CycleDebug,
-    /// Shading effect `k` (0..[`SHADING_TOGGLES`]) on/off (keys 1..4); see [`ViewState::shading`].
-    ToggleShading(u8),
+    /// A shading switch on/off (keys 1..4).
+    Toggle(Shading),
 }
 
-/// How many shading-effect toggles the viewer offers.
-pub const SHADING_TOGGLES: u8 = 4;
+/// The viewer's shading switches.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Shading {
+    /// SG shading (SAT paper section 5) instead of the basic shading (1).
+    Sg,
+    /// SG: horizon visibility, soft terrain shadows (2).
+    Visibility,
+    /// SG: specular (3).
+    Specular,
+    /// SG: distance fog, where the scene gives its parameters (4).
+    Fog,
+}
+
+/// What the viewer shades with: [`ViewState::shading`] applied to a scene.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ShadingSwitches {
+    /// SG shading on.
+    pub sg: bool,
+    /// Horizon visibility.
+    pub visibility: bool,
+    /// Specular.
+    pub specular: bool,
+    /// Fog.
+    pub fog: bool,
+}
+
+impl ShadingSwitches {
+    /// The scene's own effects, with SG on or off.
+    pub fn from_scene(scene: &Scene, sg: bool) -> Self {
+        Self {
+            sg,
+            visibility: scene.effects.visibility,
+            specular: scene.effects.specular,
+            fog: scene.effects.fog,
+        }
+    }
+
+    /// `scene` with its effects set to these switches, or None for basic shading. Fog stays off in a
+    /// scene that gives no fog parameters.
+    pub fn apply(&self, scene: &Scene) -> Option<Scene> {
+        if !self.sg {
+            return None;
+        }
+        let mut s = scene.clone();
+        s.effects.visibility = self.visibility;
+        s.effects.specular = self.specular;
+        s.effects.fog = self.fog && s.fog.is_some();
+        Some(s)
+    }
+}
 
 /// The viewer's whole state.
 #[derive(Clone, Debug, PartialEq)]
@@ -93,9 +142,8 @@ pub struct ViewState {
     pub cull: bool,
     /// Debug view.
     pub debug: DebugView,
-    /// Shading-effect toggles, bit k for effect k, all on at start. A placeholder until the SG shading
-    /// path lands: wire [`ViewState::shading`] into the frame's shading options there.
-    pub shading_bits: u32,
+    /// The shading switches (keys 1..4); the window re-binds the renderer when they change.
+    pub shading: ShadingSwitches,
     held: [bool; Move::COUNT],
 }
 
@@ -124,7 +172,12 @@ impl ViewState {
             morph: true,
             cull: true,
             debug: DebugView::Normal,
-            shading_bits: (1 << SHADING_TOGGLES) - 1,
+            shading: ShadingSwitches {
+                sg: false,
+                visibility: true,
+                specular: true,
+                fog: true,
+            },
             held: [false; Move::COUNT],
         }
     }
@@ -160,14 +213,17 @@ impl ViewState {
             Action::ToggleMorph => self.morph = !self.morph,
             Action::ToggleCull => self.cull = !self.cull,
             Action::CycleDebug => self.debug = self.debug.next(),
-            Action::ToggleShading(k) if k < SHADING_TOGGLES => self.shading_bits ^= 1 << k,
-            Action::ToggleShading(_) => {}
+            Action::Toggle(t) => {
+                let s = &mut self.shading;
+                let b = match t {
+                    Shading::Sg => &mut s.sg,
+                    Shading::Visibility => &mut s.visibility,
+                    Shading::Specular => &mut s.specular,
+                    Shading::Fog => &mut s.fog,
+                };
+                *b = !*b;
+            }
         }
-    }
-
-    /// Whether shading effect `k` is on (the hook for the SG shading path's effect toggles).
-    pub fn shading(&self, k: u8) -> bool {
-        k < SHADING_TOGGLES && self.shading_bits & (1 << k) != 0
     }
 
     /// Mouse-look: `dx`, `dy` pixels of motion (right, down) turn right and look down.
@@ -234,8 +290,19 @@ impl ViewState {
 
     /// One line describing the toggles, for the stats overlay.
     pub fn describe(&self) -> String {
+        let sh = &self.shading;
+        let shading = if sh.sg {
+            format!(
+                "sg vis {} spec {} fog {}",
+                on_off(sh.visibility),
+                on_off(sh.specular),
+                on_off(sh.fog)
+            )
+        } else {
+            "basic".to_string()
+        };
         format!(
-            "{} eps {:.2}px morph {} cull {} view {}",
+            "{} eps {:.2}px morph {} cull {} view {} {shading}",
             self.lod,
             self.epsilon_px,
             on_off(self.morph),
@@ -372,11 +439,34 @@ mod tests {
             (o.lod, o.epsilon_px, o.morph, o.cull, o.debug),
             (LodMode::Sat, Some(0.8), false, false, DebugView::Levels)
         );
-        assert!(s.shading(2));
-        s.action(Action::ToggleShading(2));
-        assert!(!s.shading(2) && s.shading(1));
-        s.action(Action::ToggleShading(9));
-        assert!(!s.shading(9));
-        assert!(s.describe().contains("view levels"), "{}", s.describe());
+        assert!(
+            s.describe().contains("view levels basic"),
+            "{}",
+            s.describe()
+        );
+        let scene = Scene::load("evening").expect("shipped scene");
+        s.shading = ShadingSwitches::from_scene(&scene, false);
+        assert_eq!(s.shading.apply(&scene), None, "basic shading has no scene");
+        s.action(Action::Toggle(Shading::Sg));
+        assert_eq!(s.shading.apply(&scene).as_ref(), Some(&scene));
+        s.action(Action::Toggle(Shading::Visibility));
+        s.action(Action::Toggle(Shading::Specular));
+        let applied = s.shading.apply(&scene).expect("sg on");
+        assert!(!applied.effects.visibility && !applied.effects.specular && applied.effects.fog);
+        assert!(!applied.needs().bake_horizons && !applied.needs().specular_code);
+        assert!(
+            s.describe().contains("sg vis off spec off fog on"),
+            "{}",
+            s.describe()
+        );
+    }
+
+    #[test]
+    fn fog_needs_the_scenes_parameters() {
+        let noon = Scene::load("noon").expect("shipped scene");
+        let mut sw = ShadingSwitches::from_scene(&noon, true);
+        sw.fog = true;
+        let applied = sw.apply(&noon).expect("sg on");
+        assert_eq!(applied.effects.fog, noon.fog.is_some());
     }
 }

@@ -1,7 +1,8 @@
 //! `clipsat view` under a virtual X display: starts `Xvfb`, opens the window, flies it with real X input
-//! events from `xdotool` (W held, a mouse-look drag, V for the level-colour view), screenshots the display
-//! with `xwd` and checks the pictures are not blank and that the keys changed what is drawn. The normal-view
-//! screenshot is saved as examples/pictures/view-xvfb.png.
+//! events from `xdotool` (W held, a mouse-look drag, V for the level-colour view, 1 for SG shading),
+//! screenshots the display with `xwd` and checks the pictures are not blank and that the keys changed
+//! what is drawn. The screenshots are saved as examples/pictures/view-xvfb.png (normal view) and
+//! view-xvfb-sg.png (SG shading).
 //!
 //! Ignored by default (needs Xvfb, xdotool and xwd, and takes about a minute on llvmpipe):
 //! `bash .ci/view-xvfb`, or `cargo test --test view_xvfb -- --ignored --nocapture`.
@@ -13,6 +14,8 @@ use std::time::{Duration, Instant};
 
 const W: u32 = 640;
 const H: u32 = 360;
+/// Seconds allowed for the SG switch: the shading bake of the 1025^2 terrain, then frames.
+const SG_WAIT_S: u64 = 25;
 
 /// Kills and reaps a child process when dropped (the test's own Xvfb and viewer only).
 struct Reaped(Child);
@@ -219,6 +222,13 @@ fn view_flies_under_xvfb() {
     xdotool(&display, &["key", "v"]);
     sleep(Duration::from_secs(3));
     let (_, _, levels) = screenshot(&display);
+    // V twice more is back to the normal view; 1 switches to SG shading (the first switch bakes the
+    // shading SATs of the scene, noon: normals and horizons).
+    xdotool(&display, &["key", "v"]);
+    xdotool(&display, &["key", "v"]);
+    xdotool(&display, &["key", "1"]);
+    sleep(Duration::from_secs(SG_WAIT_S));
+    let (_, _, sg) = screenshot(&display);
     xdotool(&display, &["key", "Escape"]);
 
     let t0 = Instant::now();
@@ -250,6 +260,10 @@ fn view_flies_under_xvfb() {
     image::save_buffer(&png, &flown, w, h, image::ExtendedColorType::Rgb8)
         .expect("save screenshot");
     eprintln!("screenshot: {}", png.display());
+    let png_sg = pictures.join("view-xvfb-sg.png");
+    image::save_buffer(&png_sg, &sg, w, h, image::ExtendedColorType::Rgb8)
+        .expect("save screenshot");
+    eprintln!("screenshot: {}", png_sg.display());
 
     // Shaded terrain has thousands of colours; the level view's flat colours under a Lambert factor and
     // the stats text a few hundred. A blank or single-colour window has a handful.
@@ -257,6 +271,7 @@ fn view_flies_under_xvfb() {
         ("start", &start, 1000),
         ("flown", &flown, 1000),
         ("levels", &levels, 100),
+        ("sg", &sg, 1000),
     ] {
         let colours = distinct_colours(shot);
         eprintln!("{name} screenshot: {colours} colours");
@@ -267,6 +282,11 @@ fn view_flies_under_xvfb() {
     }
     assert_ne!(start, flown, "W and the mouse drag did not move the camera");
     assert_ne!(flown, levels, "V did not change the view");
+    assert_ne!(flown, sg, "1 did not switch to SG shading");
+    assert!(
+        stderr.contains("baking the shading SATs"),
+        "key 1 baked nothing: {stderr}"
+    );
     assert!(
         stdout.contains("ms/frame"),
         "no frame-time summary on stdout: {stdout}"

@@ -15,11 +15,15 @@ use clipsat::camera::parse_vec3;
 use clipsat::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::debug_view::DebugView;
 use clipsat::gpu::readback::Image;
+use clipsat::gpu::sat_textures::ShadingBake;
 use clipsat::gpu::{Gpu, GpuMode};
+use clipsat::horizon::DEFAULT_AZIMUTHS;
 use clipsat::lod::LodMode;
 use clipsat::plot::{stamp_text, stamp_width};
 use clipsat::renderer::{self, Renderer};
-use clipsat::view::{Action, Move, ViewState};
+use clipsat::scene::Scene;
+use clipsat::shading::Patches;
+use clipsat::view::{Action, Move, Shading, ShadingSwitches, ViewState};
 use clipsat::{Camera, Error, Heightmap, Profile, Result};
 use winit::application::ApplicationHandler;
 use winit::dpi::PhysicalSize;
@@ -29,6 +33,7 @@ use winit::keyboard::{KeyCode, PhysicalKey};
 use winit::window::{Window, WindowId};
 
 use super::render::{lod_for, parse_epsilon, parse_size};
+use super::sg::ShadingArgs;
 use super::{ProfileArgs, TerrainArgs};
 
 #[derive(Args, Debug)]
@@ -37,6 +42,8 @@ pub(crate) struct ViewArgs {
     terrain: TerrainArgs,
     #[command(flatten)]
     profile: ProfileArgs,
+    #[command(flatten)]
+    shading: ShadingArgs,
     /// Start position X,Y,Z in metres. Default: as `render`'s default camera.
     #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
     camera: Option<String>,
@@ -65,7 +72,8 @@ pub(crate) struct ViewArgs {
 
 /// The keys, printed at start.
 const HELP: &str = "keys: WASD fly, E/space up, Q/C down, shift fast, arrows or left-drag look, \
-L lod mode, [ ] epsilon, M morph, K cull, V view (normal/levels/wireframe), 1-4 shading effects, Esc quit";
+L lod mode, [ ] epsilon, M morph, K cull, V view (normal/levels/wireframe), \
+1 basic/SG shading, 2 visibility, 3 specular, 4 fog, Esc quit";
 
 pub(crate) fn run(args: &ViewArgs) -> Result<()> {
     let mode: GpuMode = args.gpu.parse()?;
@@ -89,10 +97,36 @@ pub(crate) fn run(args: &ViewArgs) -> Result<()> {
     let mut state = ViewState::new(&camera, speed, epsilon.unwrap_or(profile.view.epsilon_px));
     state.lod = lod;
     state.debug = debug;
+    if args.shading.reference {
+        return Err(Error::Arg {
+            arg: "--reference".into(),
+            reason: "applies to render and fly, not view".into(),
+        });
+    }
+    // Key 1 switches SG on and off, so the scene is loaded either way (checked against the profile when
+    // SG is first switched on).
+    let (scene, patches) = match args.shading.choice(&profile)? {
+        Some(c) => {
+            state.shading = ShadingSwitches::from_scene(&c.scene, true);
+            state.shading.visibility &= c.shadows;
+            (c.scene, c.patches)
+        }
+        None => {
+            let scene = Scene::load("noon")?;
+            state.shading = ShadingSwitches::from_scene(&scene, false);
+            (scene, Patches::default())
+        }
+    };
 
     let gpu = Gpu::new(mode)?;
     let clipmap = Clipmap::new(&hm, &profile, ClipmapOptions::default())?;
     let renderer = Renderer::new(&gpu, &profile, &clipmap)?;
+    let max_texture_side = gpu.device().limits().max_texture_dimension_2d;
+    // The renderer starts with the basic shading.
+    let applied = ShadingSwitches {
+        sg: false,
+        ..state.shading
+    };
     let event_loop = EventLoop::new().map_err(|e| window_error("cannot open the event loop", e))?;
     event_loop.set_control_flow(ControlFlow::Poll);
     eprintln!(
@@ -107,6 +141,11 @@ pub(crate) fn run(args: &ViewArgs) -> Result<()> {
         clipmap,
         renderer,
         state,
+        scene,
+        patches,
+        max_texture_side,
+        bake: None,
+        applied,
         clearance: (2.0 * f64::from(hm.spacing())).max(30.0),
         window: None,
         drag: None,
@@ -165,6 +204,14 @@ struct App<'a, 'g> {
     clipmap: Clipmap,
     renderer: Renderer<'g>,
     state: ViewState,
+    /// The SG scene the shading switches apply to, and its patch count.
+    scene: Scene,
+    patches: Patches,
+    max_texture_side: u32,
+    /// The shading SATs, baked when SG is first switched on (again if visibility is switched on later).
+    bake: Option<ShadingBake>,
+    /// The switches the renderer is set up for.
+    applied: ShadingSwitches,
     clearance: f64,
     window: Option<Presenter>,
     /// The cursor position while the left button is held (mouse-look).
@@ -227,6 +274,7 @@ impl App<'_, '_> {
             let lod = lod_for(self.hm, self.profile, &self.clipmap, true)?;
             self.renderer.set_lod(lod);
         }
+        self.sync_shading()?;
         let opts = self.state.frame_options();
         let mut out = renderer::render_frame(&mut self.renderer, &self.clipmap, &camera, &opts)?;
         let ms = self
@@ -244,6 +292,53 @@ impl App<'_, '_> {
         overlay(&mut out.image, &lines);
         self.present(&out.image)?;
         self.frame_ms.push(t0.elapsed().as_secs_f64() * 1e3);
+        Ok(())
+    }
+
+    /// Sets the renderer up for the shading switches when a key changed them: bake what the scene now
+    /// needs (once), bind and compile its variant. A scene the profile forbids switches SG back off.
+    fn sync_shading(&mut self) -> Result<()> {
+        let want = self.state.shading;
+        if want == self.applied {
+            return Ok(());
+        }
+        match want.apply(&self.scene) {
+            None => self.renderer.set_basic_shading(),
+            Some(scene) => {
+                if let Err(e) = scene.check_profile(&scene.name, self.profile) {
+                    eprintln!("clipsat view: SG shading stays off: {e}");
+                    self.state.shading.sg = false;
+                    self.renderer.set_basic_shading();
+                    self.applied = self.state.shading;
+                    return Ok(());
+                }
+                let needs = scene.needs();
+                let stale = self
+                    .bake
+                    .as_ref()
+                    .is_none_or(|b| needs.bake_horizons && b.azimuths() == 0);
+                if stale {
+                    eprintln!(
+                        "clipsat view: baking the shading SATs for `{}`...",
+                        scene.name
+                    );
+                    let (bake, outcome) = ShadingBake::bake_cached(
+                        self.hm,
+                        &needs,
+                        DEFAULT_AZIMUTHS,
+                        self.max_texture_side,
+                        &clipsat::bake::default_cache_dir(),
+                    )?;
+                    eprintln!("clipsat view: shading SATs {outcome:?}");
+                    self.bake = Some(bake);
+                }
+                if let Some(bake) = &self.bake {
+                    self.renderer
+                        .set_sg_baked(self.hm, &scene, self.patches, bake)?;
+                }
+            }
+        }
+        self.applied = want;
         Ok(())
     }
 
@@ -337,10 +432,10 @@ fn action_key(code: KeyCode) -> Option<Action> {
         KeyCode::KeyM => Action::ToggleMorph,
         KeyCode::KeyK => Action::ToggleCull,
         KeyCode::KeyV => Action::CycleDebug,
-        KeyCode::Digit1 => Action::ToggleShading(0),
-        KeyCode::Digit2 => Action::ToggleShading(1),
-        KeyCode::Digit3 => Action::ToggleShading(2),
-        KeyCode::Digit4 => Action::ToggleShading(3),
+        KeyCode::Digit1 => Action::Toggle(Shading::Sg),
+        KeyCode::Digit2 => Action::Toggle(Shading::Visibility),
+        KeyCode::Digit3 => Action::Toggle(Shading::Specular),
+        KeyCode::Digit4 => Action::Toggle(Shading::Fog),
         _ => return None,
     })
 }

@@ -22,12 +22,34 @@ use std::path::Path;
 
 use glam::Vec3;
 
+use crate::bake::{seal, unseal, write_atomic, CacheOutcome};
 use crate::gpu::Gpu;
+use crate::hash::{hex, Hash64};
 use crate::horizon::{self, MAX_AZIMUTHS};
 use crate::pyramid::Pyramid;
 use crate::sat::Sat;
 use crate::scene::Needs;
 use crate::{Error, Heightmap, Result};
+
+const SHADING_MAGIC: &[u8; 8] = b"CSATSHD1";
+/// Bumped whenever the shading cache layout or the meaning of a baked number changes.
+const SHADING_FORMAT_VERSION: u32 = 1;
+
+/// The shading cache key: the terrain's content and every parameter that changes the tables.
+fn shading_cache_key(hm: &Heightmap, needs: &Needs, azimuths: u32, max_side: u32) -> u64 {
+    let mut h = Hash64::new();
+    h.write_u32(SHADING_FORMAT_VERSION);
+    h.write_u32(hm.width());
+    h.write_u32(hm.height());
+    h.write_f32(hm.spacing());
+    h.write_bytes(bytemuck::cast_slice::<f32, u8>(hm.heights()));
+    h.write_u32(u32::from(needs.bake_horizons));
+    h.write_u32(azimuths);
+    h.write_u32(max_side);
+    h.write_u32(SAT_FRAC_BITS);
+    h.write_u64(horizon::DEFAULT_MAX_SAMPLES.to_bits());
+    h.finish()
+}
 
 /// Fractional bits of the GPU SATs.
 pub const SAT_FRAC_BITS: u32 = 20;
@@ -139,6 +161,96 @@ impl ShadingBake {
             height: h,
             step,
             azimuths: d,
+            normal,
+            horizon,
+            baked,
+        })
+    }
+
+    /// [`ShadingBake::bake`] through the disk cache in `dir` ([`crate::bake::default_cache_dir`]): a
+    /// valid `shading-<key>.bin` is read, else the tables are baked and written. The key hashes the
+    /// terrain (size, spacing, every height's bits) and every bake parameter; a damaged or mismatched
+    /// file is rebaked, never trusted. Layout, little-endian: magic `CSATSHD1`, format version, key,
+    /// width, height, step, azimuths, the normal table, the horizon table (u32 each), a trailing hash.
+    pub fn bake_cached(
+        hm: &Heightmap,
+        needs: &Needs,
+        azimuths: u32,
+        max_side: u32,
+        dir: &Path,
+    ) -> Result<(Self, CacheOutcome)> {
+        let key = shading_cache_key(hm, needs, azimuths, max_side);
+        let path = dir.join(format!("shading-{}.bin", hex(key)));
+        let refused = match std::fs::read(&path) {
+            Ok(bytes) => match Self::decode(&bytes, key, needs.bake_horizons) {
+                Ok(b) => return Ok((b, CacheOutcome::Hit)),
+                Err(reason) => Some(reason),
+            },
+            Err(_) => None,
+        };
+        let bake = Self::bake(hm, needs, azimuths, max_side)?;
+        let outcome = match write_atomic(&path, &bake.encode(key)) {
+            Err(e) => CacheOutcome::NotCached(e.to_string()),
+            Ok(()) => refused.map_or(CacheOutcome::Baked, CacheOutcome::Rebaked),
+        };
+        Ok((bake, outcome))
+    }
+
+    fn encode(&self, key: u64) -> Vec<u8> {
+        let mut out = Vec::with_capacity(48 + 4 * (self.normal.len() + self.horizon.len()));
+        out.extend_from_slice(SHADING_MAGIC);
+        out.extend_from_slice(&SHADING_FORMAT_VERSION.to_le_bytes());
+        out.extend_from_slice(&key.to_le_bytes());
+        for w in [self.width, self.height, self.step, self.azimuths] {
+            out.extend_from_slice(&w.to_le_bytes());
+        }
+        for v in self.normal.iter().chain(&self.horizon) {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+        seal(&mut out);
+        out
+    }
+
+    fn decode(bytes: &[u8], key: u64, horizons: bool) -> std::result::Result<Self, String> {
+        let mut r = unseal(bytes, SHADING_MAGIC, "shading")?;
+        let version = r.u32()?;
+        if version != SHADING_FORMAT_VERSION {
+            return Err(format!(
+                "format version {version}, expected {SHADING_FORMAT_VERSION}"
+            ));
+        }
+        if r.u64()? != key {
+            return Err("key does not match".into());
+        }
+        let (width, height, step, azimuths) = (r.u32()?, r.u32()?, r.u32()?, r.u32()?);
+        if width == 0 || height == 0 || !step.is_power_of_two() || azimuths > MAX_AZIMUTHS {
+            return Err("sizes in the header are out of range".into());
+        }
+        if horizons != (azimuths > 0) {
+            return Err("horizon tables do not match the key".into());
+        }
+        let texels = (width as usize + 1) * (height as usize + 1);
+        let mut table = |n: usize| -> std::result::Result<Vec<u32>, String> {
+            let bytes = r.take(n.checked_mul(4).ok_or("size overflow")?)?;
+            Ok(bytes
+                .chunks_exact(4)
+                .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+                .collect())
+        };
+        let normal = table(texels * 4)?;
+        let horizon = table(azimuths.div_ceil(4) as usize * texels * 4)?;
+        if !r.done() {
+            return Err("trailing bytes".into());
+        }
+        let mut baked = vec!["normal_sat"];
+        if azimuths > 0 {
+            baked.extend(["horizons", "horizon_sat"]);
+        }
+        Ok(Self {
+            width,
+            height,
+            step,
+            azimuths,
             normal,
             horizon,
             baked,
@@ -286,5 +398,50 @@ impl SatTextures {
             u64::from(t.width()) * u64::from(t.height()) * u64::from(t.depth_or_array_layers()) * 16
         };
         b(&self.normal) + self.horizon.as_ref().map_or(0, |(t, _)| b(t))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::source::procedural::{generate, ProceduralParams};
+
+    #[test]
+    fn cache_round_trips_and_refuses_damage() {
+        let hm = generate(&ProceduralParams {
+            size: 33,
+            ..Default::default()
+        })
+        .expect("terrain");
+        let dir =
+            std::env::temp_dir().join(format!("clipsat-shading-cache-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let needs = Needs {
+            bake_horizons: true,
+            ..Needs::default()
+        };
+        let (first, outcome) = ShadingBake::bake_cached(&hm, &needs, 8, 2048, &dir).expect("bake");
+        assert_eq!(outcome, CacheOutcome::Baked);
+        let (again, outcome) = ShadingBake::bake_cached(&hm, &needs, 8, 2048, &dir).expect("hit");
+        assert_eq!(outcome, CacheOutcome::Hit);
+        assert_eq!(again, first);
+        // Another parameter is another file; no horizons reads back no horizons.
+        let (plain, outcome) =
+            ShadingBake::bake_cached(&hm, &Needs::default(), 8, 2048, &dir).expect("plain");
+        assert_eq!((outcome, plain.azimuths()), (CacheOutcome::Baked, 0));
+        assert_eq!(plain.baked(), ["normal_sat"]);
+        // A flipped byte fails the trailing hash: rebaked, same tables.
+        let path = dir.join(format!(
+            "shading-{}.bin",
+            hex(shading_cache_key(&hm, &needs, 8, 2048))
+        ));
+        let mut bytes = std::fs::read(&path).expect("cache file");
+        bytes[40] ^= 1;
+        std::fs::write(&path, &bytes).expect("damage");
+        let (fixed, outcome) =
+            ShadingBake::bake_cached(&hm, &needs, 8, 2048, &dir).expect("rebake");
+        assert!(matches!(outcome, CacheOutcome::Rebaked(_)), "{outcome:?}");
+        assert_eq!(fixed, first);
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }
