@@ -158,7 +158,11 @@ impl LinePlot {
 
         // Title, axis labels.
         if !self.title.is_empty() {
-            let ts = s + 1;
+            // One size up, smaller if that would not fit the width.
+            let ts = (1..=s + 1)
+                .rev()
+                .find(|&k| text_width(&self.title, k) <= w - 2 * cw)
+                .unwrap_or(1);
             let tw = text_width(&self.title, ts);
             c.text(&self.title, (w - tw) / 2, ch, ts, [0, 0, 0]);
         }
@@ -185,22 +189,38 @@ impl LinePlot {
             .filter(|sr| !sr.name.is_empty())
             .collect();
         if !named.is_empty() {
-            let swatch = 4 * cw;
-            let lw = named
-                .iter()
-                .map(|sr| {
-                    let tag = if sr.right_axis && has_right {
-                        " (right)"
-                    } else {
-                        ""
-                    };
-                    text_width(&sr.name, s) + text_width(tag, s)
+            let tag = |sr: &Series| {
+                if sr.right_axis && has_right {
+                    " (right)"
+                } else {
+                    ""
+                }
+            };
+            // The legend's box at font size k: (width, height).
+            let boxed = |k: i32| {
+                let lw = named
+                    .iter()
+                    .map(|sr| text_width(&sr.name, k) + text_width(tag(sr), k))
+                    .max()
+                    .unwrap_or(0);
+                (
+                    4 * 6 * k + 2 * 6 * k + lw,
+                    to_i32(named.len()) * (11 * k) + 9 * k / 2,
+                )
+            };
+            // Full size unless the box would cover more than an eighth of the axes.
+            let (pw, ph) = (plot.x1 - plot.x0, plot.y1 - plot.y0);
+            let s = (1..=s)
+                .rev()
+                .find(|&k| {
+                    let (bw, bh) = boxed(k);
+                    bw * bh * 8 <= pw * ph && bw <= pw - 4 * cw
                 })
-                .max()
-                .unwrap_or(0);
+                .unwrap_or(1);
+            let (cw, ch) = (6 * s, 9 * s);
+            let swatch = 4 * cw;
             let row = ch + 2 * s;
-            let bw = swatch + cw + lw + cw;
-            let bh = to_i32(named.len()) * row + ch / 2;
+            let (bw, bh) = boxed(s);
             // The corner of the axes that hides the fewest data points.
             let corners = [
                 (plot.x0 + 2 * cw, plot.y0 + ch),
@@ -254,12 +274,7 @@ impl LinePlot {
                     sr.color,
                     &whole,
                 );
-                let tag = if sr.right_axis && has_right {
-                    " (right)"
-                } else {
-                    ""
-                };
-                let name = format!("{}{tag}", sr.name);
+                let name = format!("{}{}", sr.name, tag(sr));
                 c.text(&name, bx + cw / 2 + swatch + cw / 2, ty, s, axis);
             }
         }

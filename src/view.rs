@@ -290,25 +290,29 @@ impl ViewState {
 
     /// One line describing the toggles, for the stats overlay.
     pub fn describe(&self) -> String {
-        let sh = &self.shading;
-        let shading = if sh.sg {
-            format!(
-                "sg vis {} spec {} fog {}",
-                on_off(sh.visibility),
-                on_off(sh.specular),
-                on_off(sh.fog)
-            )
-        } else {
-            "basic".to_string()
-        };
         format!(
-            "{} eps {:.2}px morph {} cull {} view {} {shading}",
+            "{} eps {:.2}px morph {} cull {} view {}",
             self.lod,
             self.epsilon_px,
             on_off(self.morph),
             on_off(self.cull),
             self.debug
         )
+    }
+
+    /// The shading switches in one line, for the stats overlay.
+    pub fn describe_shading(&self) -> String {
+        let sh = &self.shading;
+        if sh.sg {
+            format!(
+                "shading sg  vis {}  spec {}  fog {}",
+                on_off(sh.visibility),
+                on_off(sh.specular),
+                on_off(sh.fog)
+            )
+        } else {
+            "shading basic".to_string()
+        }
     }
 }
 
@@ -439,11 +443,8 @@ mod tests {
             (o.lod, o.epsilon_px, o.morph, o.cull, o.debug),
             (LodMode::Sat, Some(0.8), false, false, DebugView::Levels)
         );
-        assert!(
-            s.describe().contains("view levels basic"),
-            "{}",
-            s.describe()
-        );
+        assert!(s.describe().contains("view levels"), "{}", s.describe());
+        assert_eq!(s.describe_shading(), "shading basic");
         let scene = Scene::load("evening").expect("shipped scene");
         s.shading = ShadingSwitches::from_scene(&scene, false);
         assert_eq!(s.shading.apply(&scene), None, "basic shading has no scene");
@@ -454,10 +455,9 @@ mod tests {
         let applied = s.shading.apply(&scene).expect("sg on");
         assert!(!applied.effects.visibility && !applied.effects.specular && applied.effects.fog);
         assert!(!applied.needs().bake_horizons && !applied.needs().specular_code);
-        assert!(
-            s.describe().contains("sg vis off spec off fog on"),
-            "{}",
-            s.describe()
+        assert_eq!(
+            s.describe_shading(),
+            "shading sg  vis off  spec off  fog on"
         );
     }
 

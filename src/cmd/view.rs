@@ -288,6 +288,7 @@ impl App<'_, '_> {
                 out.stats.triangles, samples, stale, ms
             ),
             self.state.describe(),
+            self.state.describe_shading(),
         ];
         overlay(&mut out.image, &lines);
         self.present(&out.image)?;
@@ -296,7 +297,8 @@ impl App<'_, '_> {
     }
 
     /// Sets the renderer up for the shading switches when a key changed them: bake what the scene now
-    /// needs (once), bind and compile its variant. A scene the profile forbids switches SG back off.
+    /// needs (once, through the cache), bind and compile its variant. A switch to effects the profile
+    /// does not allow is refused with the reason, and the switches go back to what is drawn.
     fn sync_shading(&mut self) -> Result<()> {
         let want = self.state.shading;
         if want == self.applied {
@@ -306,10 +308,9 @@ impl App<'_, '_> {
             None => self.renderer.set_basic_shading(),
             Some(scene) => {
                 if let Err(e) = scene.check_profile(&scene.name, self.profile) {
-                    eprintln!("clipsat view: SG shading stays off: {e}");
-                    self.state.shading.sg = false;
-                    self.renderer.set_basic_shading();
-                    self.applied = self.state.shading;
+                    // Refuse the key, keep what is drawn.
+                    eprintln!("clipsat view: switch refused: {e}");
+                    self.state.shading = self.applied;
                     return Ok(());
                 }
                 let needs = scene.needs();
