@@ -95,6 +95,16 @@ fn clip_vertex(v: vec4<u32>) -> TerrainVertex {
     return out;
 }
 
+// The rings reach far past a small terrain, where the edge-clamped heights would draw as streaks: every
+// level is cut at the same vertical planes, the data's border, as the brute-force reference ends there.
+// The cut is inset by a few f32 ulps of the extent, so a skirt hanging exactly on the border (a SAT LOD
+// tile edge on lattice line 0) is cut away whole rather than speckled by rounding.
+fn outside_data(rel: vec2<f32>) -> bool {
+    let e = globals.extent;
+    let tol = 0.02 + 4.0e-6 * max(max(abs(e.x), abs(e.y)), max(abs(e.z), abs(e.w)));
+    return any(rel < e.xy + vec2<f32>(tol)) || any(rel > e.zw - vec2<f32>(tol));
+}
+
 struct VsOut {
     @builtin(position) clip: vec4<f32>,
     @location(0) rel: vec3<f32>,
@@ -115,9 +125,7 @@ fn vs_main(@location(0) v: vec4<u32>) -> VsOut {
 
 @fragment
 fn fs_main(v: VsOut) -> @location(0) vec4<f32> {
-    // The rings reach far past a small terrain, where the edge-clamped heights would draw as streaks: cut
-    // every level at the same vertical planes, the data's border, as the brute-force reference ends there.
-    if (any(v.rel.xy < globals.extent.xy) || any(v.rel.xy > globals.extent.zw)) {
+    if (outside_data(v.rel.xy)) {
         discard;
     }
     let shaded = basic_shade(v.height, v.normal, length(v.rel), globals.shading);

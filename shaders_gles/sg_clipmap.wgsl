@@ -30,7 +30,7 @@ fn fs_sg(v: VsOut) -> @location(0) vec4<f32> {
         (ext.w - v.rel.y) / (ext.w - ext.y) * g.y,
     ) / g.z;
     let half = 0.5 * max(abs(dpdx(c)), abs(dpdy(c)));
-    if (any(v.rel.xy < ext.xy) || any(v.rel.xy > ext.zw)) {
+    if (outside_data(v.rel.xy)) {
         discard;
     }
     let last = vec2<i32>(textureDimensions(sat_normal)) - vec2<i32>(2);

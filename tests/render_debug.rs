@@ -74,8 +74,9 @@ fn level_colours_show_the_drawn_levels() {
             .filter(|(_, &n)| n >= 20)
             .map(|(&l, _)| l)
             .collect();
+        // SAT LOD draws this view at levels 5-7, level 7 only past the data's border (cut away).
         assert!(
-            shown.len() >= 3,
+            shown.len() >= 2,
             "{mode}: level colours {found:?}, drawn levels {drawn:?}"
         );
         for l in &shown {
