@@ -6,26 +6,12 @@ mod render_support;
 
 use std::collections::BTreeMap;
 
-use clipsat::bake::{bake_lod, BakeParams};
-use clipsat::clipmap::Clipmap;
 use clipsat::debug_view::{level_of_pixel, DebugView};
 use clipsat::gpu::readback::Image;
-use clipsat::lod::{Lod, LodMode, P};
+use clipsat::lod::LodMode;
 use clipsat::renderer::{render_frame, FrameOptions, Renderer};
-use clipsat::{Camera, Heightmap, Profile};
-use render_support::{clipmap, profile, relief, strict};
-
-fn lod(hm: &Heightmap, p: &Profile, cm: &Clipmap) -> Lod {
-    let params = BakeParams {
-        p: P,
-        levels: p.clipmap.levels,
-        synth_levels: cm.synth_levels(),
-        g0: cm.g0(),
-    };
-    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("lod-cache");
-    let (tables, _) = bake_lod(hm, cm.pyramid(), &params, &dir, false).expect("LOD tables");
-    Lod::for_clipmap(tables, p, cm, hm)
-}
+use clipsat::Camera;
+use render_support::{clipmap, lod, profile, relief, strict};
 
 /// Pixels per level colour found in `image`.
 fn level_pixels(image: &Image) -> BTreeMap<u32, u64> {

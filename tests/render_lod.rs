@@ -5,29 +5,15 @@
 
 mod render_support;
 
-use clipsat::bake::{bake_lod, BakeParams};
 use clipsat::clipmap::Clipmap;
-use clipsat::lod::{Lod, LodMode, P};
+use clipsat::lod::LodMode;
 use clipsat::renderer::{
     crack_pixels, render_frame, screen_error, FrameOptions, Renderer, CRACK_CLEAR,
     CRACK_CLEAR_RGBA8,
 };
 use clipsat::{Camera, Heightmap, Profile};
 use glam::DVec3;
-use render_support::{camera, clipmap, flight, profile, puget, strict};
-
-/// The SAT LOD selector for `cm`'s terrain, with the bake cache in the test target folder.
-fn lod(hm: &Heightmap, p: &Profile, cm: &Clipmap) -> Lod {
-    let params = BakeParams {
-        p: P,
-        levels: p.clipmap.levels,
-        synth_levels: cm.synth_levels(),
-        g0: cm.g0(),
-    };
-    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("lod-cache");
-    let (tables, _) = bake_lod(hm, cm.pyramid(), &params, &dir, false).expect("LOD tables");
-    Lod::for_clipmap(tables, p, cm, hm)
-}
+use render_support::{camera, clipmap, flight, lod, profile, puget, strict};
 
 fn loud(mode: LodMode) -> FrameOptions {
     FrameOptions {

@@ -8,8 +8,10 @@
 
 use std::path::Path;
 
+use clipsat::bake::{bake_lod, BakeParams};
 use clipsat::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::gpu::{Gpu, GpuMode};
+use clipsat::lod::{Lod, P};
 use clipsat::{Camera, Heightmap, Profile};
 use glam::DVec3;
 
@@ -119,4 +121,17 @@ pub fn puget() -> Option<Heightmap> {
         ..Default::default()
     };
     Some(clipsat::source::load(&path, &opts).expect("Puget Sound loads"))
+}
+
+/// The SAT LOD selector for `cm`'s terrain, with the bake cache in the test target folder.
+pub fn lod(hm: &Heightmap, p: &Profile, cm: &Clipmap) -> Lod {
+    let params = BakeParams {
+        p: P,
+        levels: p.clipmap.levels,
+        synth_levels: cm.synth_levels(),
+        g0: cm.g0(),
+    };
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("lod-cache");
+    let (tables, _) = bake_lod(hm, cm.pyramid(), &params, &dir, false).expect("LOD tables");
+    Lod::for_clipmap(tables, p, cm, hm)
 }
