@@ -72,6 +72,13 @@ pub enum LodMode {
 impl LodMode {
     /// The names [`LodMode::from_str`] accepts.
     pub const NAMES: [&'static str; 4] = ["distance", "sat", "sat-conservative", "exact"];
+    /// Every mode, in the order of [`LodMode::NAMES`].
+    pub const ALL: [LodMode; 4] = [
+        LodMode::Distance,
+        LodMode::Sat,
+        LodMode::SatConservative,
+        LodMode::Exact,
+    ];
 }
 
 impl FromStr for LodMode {

@@ -96,12 +96,7 @@ fn watertight_on_the_data_border() {
     let cm = filled(&hm, &p, cam.eye);
     let mut r = Renderer::new(&gpu, &p, &cm).expect("renderer");
     r.set_lod(lod(&hm, &p, &cm));
-    for mode in [
-        LodMode::Distance,
-        LodMode::Sat,
-        LodMode::SatConservative,
-        LodMode::Exact,
-    ] {
+    for mode in LodMode::ALL {
         for epsilon in [1.0, 8.0] {
             let (_, _, _, _, cracks) = measure(&mut r, &cm, &cam, mode, epsilon);
             assert_eq!(cracks, 0, "{mode} at {epsilon} px: crack pixels");
@@ -189,12 +184,7 @@ fn puget_sound_error_bound() {
         let cm = filled(&hm, &p, eye);
         let mut r = Renderer::new(&gpu, &p, &cm).expect("renderer");
         r.set_lod(lod(&hm, &p, &cm));
-        for mode in [
-            LodMode::Distance,
-            LodMode::Sat,
-            LodMode::SatConservative,
-            LodMode::Exact,
-        ] {
+        for mode in LodMode::ALL {
             let (tris, max, unclamped, clamped, cracks) = measure(&mut r, &cm, &cam, mode, eps);
             eprintln!(
                 "puget view {k} {mode} eps {eps}: {tris} triangles, max error {max:.3} px, \

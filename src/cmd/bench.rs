@@ -75,12 +75,7 @@ struct BenchLodArgs {
 }
 
 pub(crate) const EPSILONS: [f32; 5] = [0.5, 1.0, 2.0, 4.0, 8.0];
-pub(crate) const MODES: [LodMode; 4] = [
-    LodMode::Distance,
-    LodMode::Sat,
-    LodMode::SatConservative,
-    LodMode::Exact,
-];
+pub(crate) const MODES: [LodMode; 4] = LodMode::ALL;
 
 /// The benchmark terrains: shared file, spacing and height scale overrides (PNG needs both).
 const TERRAINS: [(&str, Option<f32>, Option<f32>); 3] = [
