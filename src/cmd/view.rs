@@ -70,6 +70,9 @@ pub(crate) struct ViewArgs {
     exit_after: Option<f64>,
 }
 
+/// Frame times kept for the closing summary.
+const FRAME_LOG: usize = 1 << 16;
+
 /// The keys, printed at start.
 const HELP: &str = "keys: WASD fly, E/space up, Q/C down, shift fast, arrows or left-drag look, \
 L lod mode, [ ] epsilon, M morph, K cull, V view (normal/levels/wireframe), \
@@ -152,7 +155,9 @@ pub(crate) fn run(args: &ViewArgs) -> Result<()> {
         last: None,
         started: None,
         exit_after: args.exit_after.map(Duration::from_secs_f64),
-        frame_ms: Vec::new(),
+        frame_ms: Vec::with_capacity(FRAME_LOG),
+        frames: 0,
+        last_ms: 0.0,
         error: None,
     };
     event_loop
@@ -162,7 +167,7 @@ pub(crate) fn run(args: &ViewArgs) -> Result<()> {
         return Err(e);
     }
     if !app.frame_ms.is_empty() {
-        let n = app.frame_ms.len();
+        let (n, frames) = (app.frame_ms.len(), app.frames);
         // The first frame fills every level and compiles the pipeline: report the rest.
         let steady = if n > 1 {
             &app.frame_ms[1..]
@@ -173,7 +178,7 @@ pub(crate) fn run(args: &ViewArgs) -> Result<()> {
         let mut sorted = steady.to_vec();
         sorted.sort_by(f64::total_cmp);
         outln!(
-            "frames {n}, ms/frame (update + render + readback + present) mean {mean:.1}, median {:.1}, first {:.1}",
+            "frames {frames}, ms/frame of the first {n} (update + render + readback + present) mean {mean:.1}, median {:.1}, first {:.1}",
             sorted[sorted.len() / 2],
             app.frame_ms[0]
         );
@@ -219,7 +224,12 @@ struct App<'a, 'g> {
     last: Option<Instant>,
     started: Option<Instant>,
     exit_after: Option<Duration>,
+    /// The first [`FRAME_LOG`] frame times, ms (preallocated: a long session does not grow it).
     frame_ms: Vec<f64>,
+    /// Frames shown.
+    frames: u64,
+    /// The last frame's time, ms.
+    last_ms: f64,
     error: Option<Error>,
 }
 
@@ -277,11 +287,12 @@ impl App<'_, '_> {
         self.sync_shading()?;
         let opts = self.state.frame_options();
         let mut out = renderer::render_frame(&mut self.renderer, &self.clipmap, &camera, &opts)?;
-        let ms = self
-            .frame_ms
-            .last()
-            .copied()
-            .unwrap_or_else(|| t0.elapsed().as_secs_f64() * 1e3);
+        // The previous frame's whole time (this one's is not known until it is presented).
+        let ms = if self.frames == 0 {
+            t0.elapsed().as_secs_f64() * 1e3
+        } else {
+            self.last_ms
+        };
         let lines = [
             format!(
                 "tri {}  samples {}  stale {}  {:.1} ms",
@@ -292,7 +303,11 @@ impl App<'_, '_> {
         ];
         overlay(&mut out.image, &lines);
         self.present(&out.image)?;
-        self.frame_ms.push(t0.elapsed().as_secs_f64() * 1e3);
+        if self.frame_ms.len() < FRAME_LOG {
+            self.frame_ms.push(t0.elapsed().as_secs_f64() * 1e3);
+        }
+        self.last_ms = t0.elapsed().as_secs_f64() * 1e3;
+        self.frames += 1;
         Ok(())
     }
 
