@@ -35,6 +35,15 @@ struct DrawUniform {
     morph: vec4<f32>,
     // x: the transition width w = n / 10 (GC 6.2); yzw: unused.
     morph_w: vec4<f32>,
+    // SAT LOD snapped tiles (`clipsat::cull::Draw::fine`): x: the fine level; y: s, this level's spacing in
+    // fine lattice units (1: not snapped, and the fields below repeat the ones above); zw: unused.
+    fine: vec4<i32>,
+    // The clamp rectangle in fine units, inclusive, fine-anchor-relative.
+    fine_bounds: vec4<i32>,
+    // xy: this level's anchor in fine units, fine-anchor-relative; zw: unused.
+    fine_origin: vec4<i32>,
+    // xyz: world position of the fine anchor at height 0 minus the eye (m); w: the fine spacing (m).
+    fine_rel: vec4<f32>,
 }
 
 @group(0) @binding(0) var<uniform> globals: Globals;
@@ -64,9 +73,21 @@ struct TerrainVertex {
     height: f32,
 }
 
-// v: mesh vertex (x, y, skirt flag, unused).
+// v: mesh vertex (x, y, skirt flag, unused). The vertex is placed on the fine lattice and clamped into the
+// fine bounds; where that lands on this level's lattice it is this level's vertex, else (the edge of a
+// snapped SAT LOD tile) a point of this level's surface between its vertices.
 fn clip_vertex(v: vec4<u32>) -> TerrainVertex {
-    let p = clamp(draw.origin.xy + vec2<i32>(v.xy), draw.bounds.xy, draw.bounds.zw);
+    let s = draw.fine.y;
+    let pf = clamp(
+        draw.fine_origin.xy + (draw.origin.xy + vec2<i32>(v.xy)) * s,
+        draw.fine_bounds.xy,
+        draw.fine_bounds.zw,
+    );
+    let q = pf - draw.fine_origin.xy;
+    if (any(q % vec2<i32>(s) != vec2<i32>(0))) {
+        return snapped_vertex(v, q, pf);
+    }
+    let p = q / s;
     let zz = clip_fetch(p);
     let alpha = clip_morph_alpha(f32(p.x), f32(p.y)) * globals.params.x;
     // GC 6.2: z' = (1 - alpha) z + alpha z_c.
@@ -103,6 +124,45 @@ fn outside_data(rel: vec2<f32>) -> bool {
     let e = globals.extent;
     let tol = 0.02 + 4.0e-6 * max(max(abs(e.x), abs(e.y)), max(abs(e.z), abs(e.w)));
     return any(rel < e.xy + vec2<f32>(tol)) || any(rel > e.zw - vec2<f32>(tol));
+}
+
+// A snapped tile's edge vertex, at q in this level's units times s (anchor-relative): the point of this
+// level's piecewise-linear surface there, split along the (i, j)-(i+1, j+1) diagonal as everywhere, so the
+// tile is exactly this level's surface cut at the piece's edge (SAT LOD draws do not morph). The normal is
+// the triangle's. Positions use the fine lattice (`fine_rel`), where the neighbouring pieces' vertices lie.
+fn snapped_vertex(v: vec4<u32>, q: vec2<i32>, pf: vec2<i32>) -> TerrainVertex {
+    let s = draw.fine.y;
+    let c = q / s;
+    let f = vec2<f32>(q - c * s) / f32(s);
+    // The cell's far corner, kept on the tile (a point on its last lattice line has weight 0 there).
+    let cmax = (draw.fine_bounds.zw - draw.fine_origin.xy + vec2<i32>(s - 1)) / s;
+    let c1 = min(c + vec2<i32>(1), cmax);
+    let z00 = clip_fetch(c).x;
+    let z11 = clip_fetch(c1).x;
+    var dzx: f32;
+    var dzy: f32;
+    if (f.x >= f.y) {
+        let z10 = clip_fetch(vec2<i32>(c1.x, c.y)).x;
+        dzx = z10 - z00;
+        dzy = z11 - z10;
+    } else {
+        let z01 = clip_fetch(vec2<i32>(c.x, c1.y)).x;
+        dzx = z11 - z01;
+        dzy = z01 - z00;
+    }
+    let z = z00 + f.x * dzx + f.y * dzy;
+    var h = z;
+    if (v.z != 0u) {
+        h = min(z, globals.params.y);
+    }
+    let g = draw.anchor_rel.w;
+    let gf = draw.fine_rel.w;
+    var out: TerrainVertex;
+    out.rel = draw.fine_rel.xyz + vec3<f32>(f32(pf.x) * gf, -f32(pf.y) * gf, h);
+    // Rows run south: the gradient along +y (north) is minus the one along the rows.
+    out.normal = vec3<f32>(-dzx / g, dzy / g, 1.0);
+    out.height = z;
+    return out;
 }
 
 struct VsOut {

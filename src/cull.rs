@@ -32,8 +32,12 @@ pub struct Draw {
     pub kind: DrawKind,
     /// Lattice position (level units) of the mesh's vertex (0, 0).
     pub origin: [i64; 2],
-    /// Vertex rectangle (level units) the mesh's vertices are clamped into.
+    /// Vertex rectangle the mesh's vertices are clamped into, in the lattice of level `fine`.
     pub bounds: Rect,
+    /// The level whose lattice `bounds` is in: `level`, except for a SAT LOD snapped tile, whose mesh steps
+    /// in `level` units while its edge vertices clamp onto the finer ring's lattice, on the level's
+    /// piecewise-linear surface ([`build_lod_draws`]).
+    pub fine: u32,
     /// Blocks: the top-left `quads x quads` of the block mesh are drawn (the whole mesh when it is the
     /// mesh's size; SAT LOD blocks of fewer quads draw a prefix, [`crate::mesh::block_prefix`]). Tile
     /// skirts: the tile's side, picking the loop ([`crate::mesh::skirt_loop_range`]). Ring skirts: 0.
@@ -43,17 +47,19 @@ pub struct Draw {
 }
 
 impl Draw {
-    /// The vertices this draw really covers: its mesh footprint at `origin` clamped into `bounds`.
+    /// The vertices this draw really covers, in level `fine`'s lattice: its mesh footprint at `origin`
+    /// clamped into `bounds`.
     pub fn covered(&self, block_quads: u32) -> Rect {
         match self.kind {
             DrawKind::Skirt | DrawKind::TileSkirt => self.bounds,
             DrawKind::Block => {
                 let q = i64::from(block_quads);
+                let shift = self.level - self.fine;
                 Rect::from_bounds(
-                    self.origin[0],
-                    self.origin[1],
-                    self.origin[0] + q + 1,
-                    self.origin[1] + q + 1,
+                    self.origin[0] << shift,
+                    self.origin[1] << shift,
+                    ((self.origin[0] + q) << shift) + 1,
+                    ((self.origin[1] + q) << shift) + 1,
                 )
                 .intersect(&self.bounds)
             }
@@ -91,9 +97,9 @@ pub struct DrawStats {
     pub culled: u32,
     /// Skirts drawn.
     pub skirts: u32,
-    /// SAT LOD: block pieces drawn finer than the selected level because a coarser level's lattice does not
-    /// meet the piece's corners (a piece is clipped by the active region or the hole at odd vertices).
-    pub pieces_capped: u32,
+    /// SAT LOD: block pieces drawn as snapped tiles, because the selected level's lattice does not meet
+    /// their corners (a piece clipped by the active region or the hole at odd vertices).
+    pub pieces_snapped: u32,
 }
 
 /// The finer level's active region in this level's units: vertices a.x0/2 ..= (a.x1 - 1)/2 (its corners are
@@ -307,6 +313,7 @@ pub fn build_draws(
                         kind: DrawKind::Block,
                         origin: [r.x0 + bx, r.y0 + by],
                         bounds: r,
+                        fine: level,
                         quads: params.block_quads,
                         clamped: false,
                     };
@@ -336,6 +343,7 @@ pub fn build_draws(
                     kind: DrawKind::Skirt,
                     origin: [bounds.x0, bounds.y0],
                     bounds,
+                    fine: level,
                     quads: 0,
                     clamped: false,
                 },
@@ -457,16 +465,11 @@ pub fn build_lod_draws(
     };
     let cell = |r: &Rect| (r.x0.div_euclid(m), r.y0.div_euclid(m));
     // Whether any piece of block `b` is drawn at another level than its ring.
-    let differs = |b: &crate::lod::BlockLod| -> bool {
-        b.level != b.ring
-            && block_pieces(&b.rect, &hole_of(b.ring))
-                .iter()
-                .any(|p| piece_level(frame, b.ring, b.level, p) != b.ring)
-    };
+    // Every piece of a block is drawn at the block's level (snapped where its corners need it).
     let blocks = &lod.blocks;
     let mut differ = [false; crate::lod::MAX_LOD_BLOCKS];
     for (f, b) in differ.iter_mut().zip(blocks.iter()) {
-        *f = differs(b);
+        *f = b.level != b.ring;
     }
     for (i, b) in blocks.iter().enumerate() {
         let (cx, cy) = cell(&b.rect);
@@ -483,37 +486,67 @@ pub fn build_lod_draws(
                     differ[j] && o.ring == b.ring && (ox - cx).abs() + (oy - cy).abs() == 1
                 }));
         for p in block_pieces(&b.rect, &hole_of(b.ring)) {
-            let level = piece_level(frame, b.ring, b.level, &p);
-            if level != b.level {
-                stats.pieces_capped += 1;
-            }
-            let (r, _) = at_level(&p, b.ring, level);
-            let (qw, qh) = (i64::from(r.w) - 1, i64::from(r.h) - 1);
+            let whole = piece_level(frame, b.ring, b.level, &p);
+            // A piece whose corners the selected level's lattice meets is tiled at that level exactly.
+            // Otherwise (clipped by the ring's edge or the hole at odd vertices) it is still drawn at the
+            // selected level, as snapped tiles: the mesh steps in that level's units over the piece's
+            // outward-rounded extent, and the vertices clamp onto the piece's edge in the ring's lattice,
+            // where they take the level's piecewise-linear surface. The tile is that level's surface cut
+            // at the piece's edge; skirts close the step to the neighbours, as between any two levels.
+            let (level, fine) = if whole == b.level {
+                (whole, whole)
+            } else {
+                stats.pieces_snapped += 1;
+                (b.level, b.ring)
+            };
+            let shift = level - fine;
+            let ceil_shr = |v: i64| -((-v) >> shift);
+            let (ring_p, _) = at_level(&p, b.ring, fine);
+            let span = Rect::from_bounds(
+                ring_p.x0 >> shift,
+                ring_p.y0 >> shift,
+                ceil_shr(ring_p.x1() - 1) + 1,
+                ceil_shr(ring_p.y1() - 1) + 1,
+            );
+            let (qw, qh) = (i64::from(span.w) - 1, i64::from(span.h) - 1);
             let mut by = 0;
             while by < qh {
                 let mut bx = 0;
                 while bx < qw {
                     let tile = Rect::from_bounds(
-                        r.x0 + bx,
-                        r.y0 + by,
-                        (r.x0 + bx + m).min(r.x1() - 1) + 1,
-                        (r.y0 + by + m).min(r.y1() - 1) + 1,
+                        span.x0 + bx,
+                        span.y0 + by,
+                        (span.x0 + bx + m).min(span.x1() - 1) + 1,
+                        (span.y0 + by + m).min(span.y1() - 1) + 1,
                     );
-                    let quads = tile.w.max(tile.h) - 1;
+                    bx += m;
+                    // The tile's vertices in the fine lattice, clamped to the piece.
+                    let bounds = Rect::from_bounds(
+                        tile.x0 << shift,
+                        tile.y0 << shift,
+                        ((tile.x1() - 1) << shift) + 1,
+                        ((tile.y1() - 1) << shift) + 1,
+                    )
+                    .intersect(&ring_p);
+                    if bounds.w < 2 || bounds.h < 2 {
+                        continue;
+                    }
                     let d = Draw {
                         level,
                         kind: DrawKind::Block,
                         origin: [tile.x0, tile.y0],
-                        bounds: tile,
-                        quads,
+                        bounds,
+                        fine,
+                        quads: tile.w.max(tile.h) - 1,
                         clamped: b.wanted < b.level,
                     };
                     let visible = !params.cull || {
+                        // Every vertex is a point of the level's surface over the tile's cells.
                         let z = height_range(clipmap, level, &tile);
                         let (lo, hi) = block_box(
                             clipmap,
-                            level,
-                            &tile,
+                            fine,
+                            &bounds,
                             eye_l,
                             z,
                             camera.eye.z,
@@ -537,7 +570,6 @@ pub fn build_lod_draws(
                     } else {
                         stats.culled += 1;
                     }
-                    bx += m;
                 }
                 by += m;
             }

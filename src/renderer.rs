@@ -68,8 +68,28 @@ pub struct DrawUniform {
     pub morph: [f32; 4],
     /// x: transition width n / 10; y: n; zw: unused.
     pub morph_w: [f32; 4],
+    /// SAT LOD snapped tiles ([`cull::Draw::fine`]): x: fine level; y: s, this level's spacing in fine
+    /// lattice units (1: not snapped, and the fine fields repeat the ones above); zw: unused.
+    pub fine: [i32; 4],
+    /// Clamp rectangle in fine units, inclusive, fine-anchor-relative.
+    pub fine_bounds: [i32; 4],
+    /// xy: this level's anchor in fine units, fine-anchor-relative; zw: unused.
+    pub fine_origin: [i32; 4],
+    /// xyz: world position of the fine anchor at height 0 minus the eye (m); w: fine spacing (m).
+    pub fine_rel: [f32; 4],
 }
-const _: () = assert!(std::mem::size_of::<DrawUniform>() == 112);
+const _: () = assert!(std::mem::size_of::<DrawUniform>() == 176);
+
+impl DrawUniform {
+    /// Fills the fine fields for a draw that is not snapped: the fine level is the draw's own.
+    fn unsnapped(mut self) -> Self {
+        self.fine = [self.origin[2], 1, 0, 0];
+        self.fine_bounds = self.bounds;
+        self.fine_origin = [0; 4];
+        self.fine_rel = self.anchor_rel;
+        self
+    }
+}
 
 /// The loud clear colour of crack measurements: pure magenta, a colour the shading never makes.
 pub const CRACK_CLEAR: [f64; 4] = [1.0, 0.0, 1.0, 1.0];
@@ -1224,7 +1244,9 @@ pub fn draw_uniform(
             (a.h as f32 - 1.0) * 0.5,
         ],
         morph_w: [n as f32 / 10.0, n as f32, 0.0, 0.0],
+        ..DrawUniform::default()
     }
+    .unsnapped()
 }
 
 /// The uniforms of SAT LOD draw `d`: like [`draw_uniform`], but anchored at the level's clip region (a block
@@ -1269,6 +1291,32 @@ pub fn lod_draw_uniform(
     u.anchor_rel[1] = (-(fy * k - p.1) * g0) as f32;
     // alpha = 0 everywhere: the transition band starts past any lattice point.
     u.morph = [0.0, 0.0, 1.0e9, 1.0e9];
+    if d.fine == d.level {
+        return u.unsnapped();
+    }
+    // A snapped tile: `d.bounds` is in the fine level's lattice, anchored at that level's clip region.
+    let f = clipmap.frame().levels[d.fine as usize].clip;
+    let shift = d.level - d.fine;
+    let kf = f64::from(1u32 << d.fine);
+    #[expect(
+        clippy::cast_precision_loss,
+        reason = "lattice coordinates are below 2^48"
+    )]
+    let (gx, gy) = (f.x0 as f64, f.y0 as f64);
+    u.fine = [d.fine as i32, 1 << shift, 0, 0];
+    u.fine_bounds = [
+        rel(d.bounds.x0, f.x0),
+        rel(d.bounds.y0, f.y0),
+        rel(d.bounds.x1() - 1, f.x0),
+        rel(d.bounds.y1() - 1, f.y0),
+    ];
+    u.fine_origin = [rel(ax << shift, f.x0), rel(ay << shift, f.y0), 0, 0];
+    u.fine_rel = [
+        ((gx * kf - p.0) * g0) as f32,
+        (-(gy * kf - p.1) * g0) as f32,
+        (-camera.eye.z) as f32,
+        (g0 * kf) as f32,
+    ];
     u
 }
 
@@ -1307,20 +1355,30 @@ pub struct CpuVertex {
 }
 
 /// The CPU twin of `clip_vertex` + `vs_main` in `shaders_gles/clipmap.wgsl`, in f32, with the CPU's
-/// [`morph_alpha`] evaluated in the same anchor-relative coordinates.
+/// [`morph_alpha`] evaluated in the same anchor-relative coordinates, `ring` the draw's level's ring.
 #[expect(
     clippy::cast_precision_loss,
     reason = "anchor-relative lattice offsets are small integers, exact in f32"
 )]
 pub fn cpu_vertex(globals: &Globals, u: &DrawUniform, ring: &Ring, v: MeshVertex) -> CpuVertex {
-    let px = (u.origin[0] + i32::from(v[0])).clamp(u.bounds[0], u.bounds[2]);
-    let py = (u.origin[1] + i32::from(v[1])).clamp(u.bounds[1], u.bounds[3]);
+    let sn = u.fine[1];
+    let qx = (u.fine_origin[0] + (u.origin[0] + i32::from(v[0])) * sn)
+        .clamp(u.fine_bounds[0], u.fine_bounds[2])
+        - u.fine_origin[0];
+    let qy = (u.fine_origin[1] + (u.origin[1] + i32::from(v[1])) * sn)
+        .clamp(u.fine_bounds[1], u.fine_bounds[3])
+        - u.fine_origin[1];
     let s = u.origin[3];
     let fetch = |x: i32, y: i32| {
         let tx = (u.tex[0] + x) % s;
         let ty = (u.tex[1] + y) % s;
         ring.texels()[(ty * s + tx) as usize]
     };
+    if qx % sn != 0 || qy % sn != 0 {
+        let pf = (qx + u.fine_origin[0], qy + u.fine_origin[1]);
+        return cpu_snapped_vertex(globals, u, &fetch, v, (qx, qy), pf);
+    }
+    let (px, py) = (qx / sn, qy / sn);
     let [z, zc] = fetch(px, py);
     let active = Rect {
         x0: 0,
@@ -1359,6 +1417,61 @@ pub fn cpu_vertex(globals: &Globals, u: &DrawUniform, ring: &Ring, v: MeshVertex
         rel,
         height: zm,
         alpha,
+    }
+}
+
+/// [`cpu_vertex`] on a snapped tile's edge: the level's piecewise-linear surface at `q` (level units
+/// times s, anchor-relative), placed at fine point `pf`, as the shader's `snapped_vertex`.
+#[expect(
+    clippy::cast_precision_loss,
+    reason = "anchor-relative lattice offsets are small integers, exact in f32"
+)]
+fn cpu_snapped_vertex(
+    globals: &Globals,
+    u: &DrawUniform,
+    fetch: &dyn Fn(i32, i32) -> [f32; 2],
+    v: MeshVertex,
+    (qx, qy): (i32, i32),
+    (px, py): (i32, i32),
+) -> CpuVertex {
+    let s = u.fine[1];
+    let (cx, cy) = (qx / s, qy / s);
+    let (fx, fy) = (
+        (qx - cx * s) as f32 / s as f32,
+        (qy - cy * s) as f32 / s as f32,
+    );
+    let cmax = |b: i32, o: i32| (b - o + s - 1) / s;
+    let (c1x, c1y) = (
+        (cx + 1).min(cmax(u.fine_bounds[2], u.fine_origin[0])),
+        (cy + 1).min(cmax(u.fine_bounds[3], u.fine_origin[1])),
+    );
+    let z00 = fetch(cx, cy)[0];
+    let z11 = fetch(c1x, c1y)[0];
+    let (dzx, dzy) = if fx >= fy {
+        let z10 = fetch(c1x, cy)[0];
+        (z10 - z00, z11 - z10)
+    } else {
+        let z01 = fetch(cx, c1y)[0];
+        (z11 - z01, z01 - z00)
+    };
+    let z = z00 + fx * dzx + fy * dzy;
+    let h = if v[2] != 0 {
+        z.min(globals.params[1])
+    } else {
+        z
+    };
+    let g = u.fine_rel[3];
+    let rel = [
+        u.fine_rel[0] + px as f32 * g,
+        u.fine_rel[1] + -(py as f32) * g,
+        u.fine_rel[2] + h,
+    ];
+    let clip = Mat4::from_cols_array(&globals.view_proj) * Vec4::new(rel[0], rel[1], rel[2], 1.0);
+    CpuVertex {
+        clip: clip.to_array(),
+        rel,
+        height: z,
+        alpha: 0.0,
     }
 }
 
@@ -1457,9 +1570,11 @@ pub fn screen_error(
             .iter()
             .filter(|d| d.kind == DrawKind::Block)
             .filter_map(move |d| {
+                // In the fine lattice: a snapped tile is its level's surface cut at the piece's edge, so
+                // its level's error map over the covered samples is exact.
                 let c = d.covered(d.quads.max(1));
-                let l = d.level;
-                let (a, cc, b, dd) = (c.x0 << l, c.y0 << l, (c.x1() - 1) << l, (c.y1() - 1) << l);
+                let (l, f) = (d.level, d.fine);
+                let (a, cc, b, dd) = (c.x0 << f, c.y0 << f, (c.x1() - 1) << f, (c.y1() - 1) << f);
                 // Geometry past the data collapses onto its border (not a surface to measure).
                 let inside = b >= 0 && dd >= 0 && a <= last.0 && cc <= last.1;
                 inside.then(|| (l, d.clamped, tables.data_box(synth, a, cc, b, dd)))

@@ -180,6 +180,24 @@ fn morphing_prevents_popping() {
 /// for blocks and skirts of several levels, including a frame far from the origin.
 #[test]
 fn vertex_positions_match_the_cpu_twin() {
+    twin_check(&FrameOptions::default(), false);
+}
+
+/// The same for SAT LOD's snapped tiles (a mesh of a coarse level whose edge vertices clamp onto the
+/// finer ring's lattice and take its heights): every snapped draw of the frame is checked.
+#[test]
+fn snapped_tile_vertices_match_the_cpu_twin() {
+    let opts = FrameOptions {
+        lod: clipsat::lod::LodMode::Sat,
+        epsilon_px: Some(8.0),
+        ..FrameOptions::default()
+    };
+    twin_check(&opts, true);
+}
+
+/// Renders one frame of a flight with `opts` and compares the vertex probe with [`cpu_vertex`] for a
+/// sample of the draws (every snapped tile when `snapped`, which must then exist).
+fn twin_check(opts: &FrameOptions, snapped: bool) {
     let gpu = strict();
     let hm = relief();
     let p = profile("gles3-low", W, H, None);
@@ -190,14 +208,25 @@ fn vertex_positions_match_the_cpu_twin() {
     for _ in 0..40 {
         cm.update(cam.eye).expect("update");
     }
-    render_frame(&mut r, &cm, &cam, &FrameOptions::default()).expect("frame");
+    if snapped {
+        r.set_lod(render_support::lod(&hm, &p, &cm));
+    }
+    render_frame(&mut r, &cm, &cam, opts).expect("frame");
     let draws = r.draws().len();
+    let picked: Vec<usize> = if snapped {
+        (0..draws)
+            .filter(|&k| r.draws()[k].fine != r.draws()[k].level)
+            .collect()
+    } else {
+        (0..draws)
+            .step_by(draws.div_ceil(12).max(1))
+            .chain([draws - 1])
+            .collect()
+    };
+    assert!(!picked.is_empty(), "no snapped tiles in this frame");
     let mut checked = 0;
     let mut worst_px = 0.0f64;
-    for k in (0..draws)
-        .step_by(draws.div_ceil(12).max(1))
-        .chain([draws - 1])
-    {
+    for k in picked {
         let d = r.draws()[k];
         let gpu_clip = probe.capture(&r, k).expect("capture");
         let u = r.draw_uniform(k);

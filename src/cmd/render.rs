@@ -189,6 +189,9 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
         },
     )?;
     let crack_pixels = renderer::crack_pixels(&loud.image, renderer::CRACK_CLEAR_RGBA8);
+    if let Some(p) = std::env::var_os("CLIPSAT_DUMP_LOUD") {
+        let _ = loud.image.save_png(std::path::Path::new(&p));
+    }
     // The measured error of what was drawn (the draw list is the same for both renders above).
     let measured = r
         .lod()
@@ -248,7 +251,7 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
             "lod": lod_mode.to_string(),
             "epsilon_px": epsilon_used,
             "blocks_clamped": frame.stats.blocks_clamped,
-            "pieces_capped": frame.stats.cull.pieces_capped,
+            "pieces_snapped": frame.stats.cull.pieces_snapped,
             "max_screen_error_px": measured.map(|m| m.max_px),
             "max_screen_error_unclamped_px": measured.map(|m| m.max_px_unclamped),
             "screen_error_samples": measured.map(|m| m.samples),
