@@ -1294,7 +1294,8 @@ pub fn lod_draw_uniform(
     if d.fine == d.level {
         return u.unsnapped();
     }
-    // A snapped tile: `d.bounds` is in the fine level's lattice, anchored at that level's clip region.
+    // A snapped tile: `d.bounds` is in the fine level's lattice, anchored at that level's clip region; the
+    // shader clamps to `fine_bounds` only, so `bounds` above is not used.
     let f = clipmap.frame().levels[d.fine as usize].clip;
     let shift = d.level - d.fine;
     let kf = f64::from(1u32 << d.fine);
