@@ -464,26 +464,23 @@ pub fn build_lod_draws(
         }
     };
     let cell = |r: &Rect| (r.x0.div_euclid(m), r.y0.div_euclid(m));
-    // Whether any piece of block `b` is drawn at another level than its ring.
-    // Every piece of a block is drawn at the block's level (snapped where its corners need it).
+    // Every piece of a block is drawn at the block's level (snapped where its corners need it), so a block
+    // differs from its ring exactly when its level does.
+    let differs = |b: &crate::lod::BlockLod| b.level != b.ring;
     let blocks = &lod.blocks;
-    let mut differ = [false; crate::lod::MAX_LOD_BLOCKS];
-    for (f, b) in differ.iter_mut().zip(blocks.iter()) {
-        *f = b.level != b.ring;
-    }
-    for (i, b) in blocks.iter().enumerate() {
+    for b in blocks.iter() {
         let (cx, cy) = cell(&b.rect);
         // A block on its ring's outer boundary or on the hole borders another ring, drawn at another level.
         let a = frame.levels[b.ring as usize].active;
         let r = &b.rect;
         let on_ring_edge = r.x0 == a.x0 || r.y0 == a.y0 || r.x1() == a.x1() || r.y1() == a.y1();
         let needs_skirt = params.skirts
-            && (differ[i]
+            && (differs(b)
                 || on_ring_edge
                 || !r.intersect(&hole_of(b.ring)).is_empty()
-                || blocks.iter().enumerate().any(|(j, o)| {
+                || blocks.iter().any(|o| {
                     let (ox, oy) = cell(&o.rect);
-                    differ[j] && o.ring == b.ring && (ox - cx).abs() + (oy - cy).abs() == 1
+                    differs(o) && o.ring == b.ring && (ox - cx).abs() + (oy - cy).abs() == 1
                 }));
         for p in block_pieces(&b.rect, &hole_of(b.ring)) {
             let whole = piece_level(frame, b.ring, b.level, &p);

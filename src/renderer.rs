@@ -1401,22 +1401,39 @@ pub fn cpu_vertex(globals: &Globals, u: &DrawUniform, ring: &Ring, v: MeshVertex
         },
     ) * globals.params[0];
     let zm = (1.0 - alpha) * z + alpha * zc;
+    placed(globals, v, u.anchor_rel, (px, py), zm, alpha)
+}
+
+/// The vertex at lattice point `p` of the lattice anchored at `anchor` (xyz: position relative to the eye,
+/// w: spacing) with height `z`, a skirt's lower vertex hanging to the floor, as `clip_vertex` places it.
+#[expect(
+    clippy::cast_precision_loss,
+    reason = "anchor-relative lattice offsets are small integers, exact in f32"
+)]
+fn placed(
+    globals: &Globals,
+    v: MeshVertex,
+    anchor: [f32; 4],
+    (px, py): (i32, i32),
+    z: f32,
+    alpha: f32,
+) -> CpuVertex {
     let h = if v[2] != 0 {
-        zm.min(globals.params[1])
+        z.min(globals.params[1])
     } else {
-        zm
+        z
     };
-    let g = u.anchor_rel[3];
+    let g = anchor[3];
     let rel = [
-        u.anchor_rel[0] + px as f32 * g,
-        u.anchor_rel[1] + -(py as f32) * g,
-        u.anchor_rel[2] + h,
+        anchor[0] + px as f32 * g,
+        anchor[1] + -(py as f32) * g,
+        anchor[2] + h,
     ];
     let clip = Mat4::from_cols_array(&globals.view_proj) * Vec4::new(rel[0], rel[1], rel[2], 1.0);
     CpuVertex {
         clip: clip.to_array(),
         rel,
-        height: zm,
+        height: z,
         alpha,
     }
 }
@@ -1433,7 +1450,7 @@ fn cpu_snapped_vertex(
     fetch: &dyn Fn(i32, i32) -> [f32; 2],
     v: MeshVertex,
     (qx, qy): (i32, i32),
-    (px, py): (i32, i32),
+    pf: (i32, i32),
 ) -> CpuVertex {
     let s = u.fine[1];
     let (cx, cy) = (qx / s, qy / s);
@@ -1456,24 +1473,7 @@ fn cpu_snapped_vertex(
         (z11 - z01, z01 - z00)
     };
     let z = z00 + fx * dzx + fy * dzy;
-    let h = if v[2] != 0 {
-        z.min(globals.params[1])
-    } else {
-        z
-    };
-    let g = u.fine_rel[3];
-    let rel = [
-        u.fine_rel[0] + px as f32 * g,
-        u.fine_rel[1] + -(py as f32) * g,
-        u.fine_rel[2] + h,
-    ];
-    let clip = Mat4::from_cols_array(&globals.view_proj) * Vec4::new(rel[0], rel[1], rel[2], 1.0);
-    CpuVertex {
-        clip: clip.to_array(),
-        rel,
-        height: z,
-        alpha: 0.0,
-    }
+    placed(globals, v, u.fine_rel, pf, z, 0.0)
 }
 
 /// One rendered frame.

@@ -75,7 +75,6 @@ struct BenchLodArgs {
 }
 
 pub(crate) const EPSILONS: [f32; 5] = [0.5, 1.0, 2.0, 4.0, 8.0];
-pub(crate) const MODES: [LodMode; 4] = LodMode::ALL;
 
 /// The benchmark terrains: shared file, spacing and height scale overrides (PNG needs both).
 const TERRAINS: [(&str, Option<f32>, Option<f32>); 3] = [
@@ -210,7 +209,7 @@ pub(crate) fn lod_profile(mut profile: Profile, w: u32, h: u32) -> Profile {
 
 /// Progress steps [`measure_lod`] takes for one terrain.
 pub(crate) fn lod_steps(frames: u32) -> u64 {
-    u64::from(frames) * (EPSILONS.len() * MODES.len()) as u64
+    u64::from(frames) * (EPSILONS.len() * LodMode::ALL.len()) as u64
 }
 
 /// Flies `frames` frames of a figure-8 over one terrain and measures every (epsilon, estimator): the one
@@ -231,14 +230,14 @@ pub(crate) fn measure_lod(
     let flight = Flight::new(Path::Figure8, 0.004 * hm.extent_m().0.max(1.0), hm)?
         .with_fov_y_deg(f64::from(profile.view.fov_y_deg));
     let mut spare = LodFrame::new_boxed();
-    let mut accs = vec![Acc::default(); EPSILONS.len() * MODES.len()];
+    let mut accs = vec![Acc::default(); EPSILONS.len() * LodMode::ALL.len()];
     for f in 0..u64::from(frames) {
         let camera = flight.camera(f);
         clipmap.update(camera.eye)?;
         let truth = brute.render(&camera, w, h)?;
         for (ci, acc) in accs.iter_mut().enumerate() {
-            let eps = EPSILONS[ci / MODES.len()];
-            let mode = MODES[ci % MODES.len()];
+            let eps = EPSILONS[ci / LodMode::ALL.len()];
+            let mode = LodMode::ALL[ci % LodMode::ALL.len()];
             lod.set_epsilon_px(f64::from(eps));
             let t = Instant::now();
             if mode != LodMode::Distance {
@@ -274,8 +273,8 @@ pub(crate) fn measure_lod(
         .enumerate()
         .map(|(ci, acc)| LodResult {
             terrain: name.to_string(),
-            epsilon: EPSILONS[ci / MODES.len()],
-            mode: MODES[ci % MODES.len()],
+            epsilon: EPSILONS[ci / LodMode::ALL.len()],
+            mode: LodMode::ALL[ci % LodMode::ALL.len()],
             acc,
         })
         .collect())
@@ -342,7 +341,7 @@ pub(crate) fn lod_cost_plots(results: &[LodResult], dir: &std::path::Path) -> Re
     names.dedup();
     let mut out = Vec::new();
     for name in names {
-        let series = MODES
+        let series = LodMode::ALL
             .iter()
             .zip(MODE_COLORS)
             .map(|(mode, color)| Series {
@@ -375,7 +374,7 @@ pub(crate) fn lod_cost_plots(results: &[LodResult], dir: &std::path::Path) -> Re
     Ok(out)
 }
 
-/// Plot colour per entry of [`MODES`].
+/// Plot colour per entry of [`LodMode::ALL`].
 const MODE_COLORS: [[u8; 3]; 4] = [
     [120, 120, 120],
     [31, 119, 180],
@@ -388,7 +387,7 @@ pub(crate) fn lod_plot(results: &[LodResult], title: &str, out: &std::path::Path
     let mut names: Vec<&str> = results.iter().map(|r| r.terrain.as_str()).collect();
     names.dedup();
     for name in names {
-        for (mi, mode) in MODES.iter().enumerate() {
+        for (mi, mode) in LodMode::ALL.iter().enumerate() {
             let points = results
                 .iter()
                 .filter(|r| r.terrain == name && r.mode == *mode)

@@ -189,9 +189,6 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
         },
     )?;
     let crack_pixels = renderer::crack_pixels(&loud.image, renderer::CRACK_CLEAR_RGBA8);
-    if let Some(p) = std::env::var_os("CLIPSAT_DUMP_LOUD") {
-        let _ = loud.image.save_png(std::path::Path::new(&p));
-    }
     // The measured error of what was drawn (the draw list is the same for both renders above).
     let measured = r
         .lod()
