@@ -6,9 +6,10 @@
 use std::hint::black_box;
 use std::time::Duration;
 
-use clipsat::clipmap::{Clipmap, ClipmapOptions};
-use clipsat::flight::{Flight, Path};
-use clipsat::lod::{error_map, LevelTables, Lod, LodFrame, LodMode, LodTables, P};
+use clipsat::bake::lod_tables::{error_map, LevelTables, LodTables, P};
+use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
+use clipsat::plan::flight::{Flight, Path};
+use clipsat::plan::lod::{Lod, LodFrame, LodMode};
 use clipsat::source::procedural::{generate, ProceduralParams};
 use clipsat::Profile;
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
@@ -59,7 +60,7 @@ fn select_per_frame(c: &mut Criterion) {
 /// (b) Building one level's tables (SAT of (e/E)^p and max pyramid) on 1025^2 samples.
 fn sat_build_per_level(c: &mut Criterion) {
     let terrain = generate(&ProceduralParams::default()).expect("procedural terrain");
-    let pyramid = clipsat::pyramid::Pyramid::build(&terrain);
+    let pyramid = clipsat::bake::pyramid::Pyramid::build(&terrain);
     let errors = error_map(&pyramid, 3);
     let (w, h) = (terrain.width(), terrain.height());
     let mut group = c.benchmark_group("lod_bake_level_1025");

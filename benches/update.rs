@@ -7,8 +7,8 @@ use std::hint::black_box;
 use std::path::Path as FsPath;
 use std::time::Duration;
 
-use clipsat::clipmap::{Clipmap, ClipmapOptions};
-use clipsat::flight::{Flight, Path};
+use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
+use clipsat::plan::flight::{Flight, Path};
 use clipsat::profile::SHIPPED;
 use clipsat::source::{self, LoadOptions};
 use clipsat::{Heightmap, Profile};

@@ -7,11 +7,11 @@
 //! cargo run --release --example embed -- ../shared/data/N57E011.hgt
 //! ```
 
-use clipsat::clipmap::{Clipmap, ClipmapOptions};
-use clipsat::flight::{Flight, Path};
+use clipsat::gpu::renderer::{render_frame, FrameOptions, Renderer};
 use clipsat::gpu::{Gpu, GpuMode};
 use clipsat::hash::hex;
-use clipsat::renderer::{render_frame, FrameOptions, Renderer};
+use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
+use clipsat::plan::flight::{Flight, Path};
 use clipsat::source::{self, procedural, LoadOptions};
 use clipsat::{Heightmap, Profile, Result};
 

@@ -4,29 +4,30 @@
 //! (Android-class GLES 3.0), inside a budget fixed at start-up. It combines three published techniques:
 //!
 //! - **geometry clipmaps** (Losasso & Hoppe 2004): nested rings of n x n vertices around the viewer, updated
-//!   toroidally under a per-frame budget of samples ([`clipmap`], [`budget`]);
+//!   toroidally under a per-frame budget of samples ([`plan::clipmap`], [`plan::budget`]);
 //! - **summed-area-table LOD** (Li et al. 2021, eq. 6 and algorithm 1): each block takes the coarsest level
-//!   whose screen-space error bound, estimated in O(1) from SATs, stays under epsilon pixels ([`sat`],
-//!   [`bake`], [`lod`]);
+//!   whose screen-space error bound, estimated in O(1) from SATs, stays under epsilon pixels ([`bake::sat`],
+//!   [`bake::lod_tables`], [`plan::lod`]);
 //! - **reduced spherical-Gaussian shading** (Li et al. 2021, section 5): SG lights, a vMF normal
-//!   distribution and SAT-filtered visibility, integrated in closed form over 4 x 8 patches ([`sg`],
-//!   [`shading`], [`horizon`], [`scene`]).
+//!   distribution and SAT-filtered visibility, integrated in closed form over 4 x 8 patches
+//!   ([`shading::sg`], [`shading`], [`bake::horizon`], [`shading::scene`]).
 //!
 //! Everything is sized once from a budget [`Profile`]; per-frame work is bounded in samples and primitives,
 //! and every frame has a deterministic 64-bit hash.
 //!
 //! # Pipeline
 //!
-//! Data flows one way, and each module holds one stage:
+//! Data flows one way, and each folder holds one stage (ARCHITECTURE.md has the files and invariants):
 //!
 //! ```text
-//! source      files (PNG, GeoTIFF, SRTM .hgt, raw) or procedural     -> Heightmap     source, Heightmap
-//!   -> bake   height pyramid, error SATs, normal and visibility SATs  (cached)        pyramid, bake, sat, horizon
-//!   -> per-frame plan (CPU, pure, allocation-free)
-//!             camera path -> budgeted coarse-to-fine update -> fill   -> frame record  flight, budget, clipmap,
-//!             -> per-block LOD -> frustum cull -> draw list           -> frame hash    synthesis, frame, lod, cull
-//!   -> GPU    wgpu on the GLES 3.0 floor: upload the plan, draw, shade                 gpu, renderer, mesh
-//!   -> image  RGBA8 readback / PNG                                    -> image hash    gpu::readback, hash
+//! source/   files (PNG, GeoTIFF, SRTM .hgt, raw) or procedural     -> Heightmap
+//!   -> bake/    height pyramid, SATs, LOD tables, horizons (cached)
+//!   -> plan/    per frame, CPU, pure, allocation-free: camera path -> budgeted clipmap update
+//!               -> per-block LOD -> frustum cull -> draw list, packed uniforms -> frame hash
+//!   -> gpu/     wgpu on the GLES 3.0 floor (the only module that touches wgpu): upload, draw, shade,
+//!               read back                                             -> image, image hash
+//! shading/  the SG and basic shading maths (CPU side), twin/ the CPU twins of the shaders,
+//! measure/  screen error, cracks and RMSE of drawn frames
 //! ```
 //!
 //! The plan is a pure function of (terrain, profile, camera path, frame index), so `clipsat fly` runs it
@@ -38,10 +39,10 @@
 //! on Mesa llvmpipe through EGL (`bash .ci/setup` installs it).
 //!
 //! ```
-//! use clipsat::clipmap::{Clipmap, ClipmapOptions};
-//! use clipsat::flight::{Flight, Path};
+//! use clipsat::gpu::renderer::{render_frame, FrameOptions, Renderer};
 //! use clipsat::gpu::{Gpu, GpuMode};
-//! use clipsat::renderer::{render_frame, FrameOptions, Renderer};
+//! use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
+//! use clipsat::plan::flight::{Flight, Path};
 //! use clipsat::source::procedural::{generate, ProceduralParams};
 //! use clipsat::Profile;
 //!
@@ -68,36 +69,20 @@
 //! `examples/embed.rs` does the same for three frames along a path, on the procedural terrain or a file.
 
 pub mod bake;
-pub mod budget;
-pub mod camera;
-pub mod clipmap;
-pub mod cull;
-pub mod debug_view;
 mod error;
-pub mod flight;
-pub mod frame;
 pub mod gpu;
 pub mod hash;
-mod heightmap;
-pub mod horizon;
-pub mod lod;
-pub mod mesh;
-pub mod plot;
+pub mod measure;
+pub mod plan;
 pub mod profile;
-pub mod pyramid;
-pub mod renderer;
-pub mod sat;
-pub mod scene;
-pub mod sg;
 pub mod shading;
 pub mod source;
-pub mod synthesis;
-pub mod view;
+pub mod twin;
 
-pub use camera::Camera;
 pub use error::{Error, Result};
-pub use heightmap::Heightmap;
+pub use plan::camera::Camera;
 pub use profile::Profile;
+pub use source::Heightmap;
 
 /// Where the shared terrain data lives: `$CLIPSAT_DATA`, else `../shared/data` beside the crate.
 pub fn data_dir() -> std::path::PathBuf {

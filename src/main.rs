@@ -1,10 +1,12 @@
-//! The `clipsat` command line. Each subcommand lives in `src/cmd/`; the library does the work.
+//! The `clipsat` command line. Each subcommand lives in `src/app/cmd/`; the library does the work.
 
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
-mod cmd;
+mod app;
+
+use app::cmd;
 
 /// Fixed-budget terrain rendering for OpenGL ES 3.0 class GPUs.
 #[derive(Parser)]

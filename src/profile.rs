@@ -289,9 +289,9 @@ impl Profile {
     /// The GPU memory this profile needs; see [`Footprint`] for what each part holds.
     pub fn footprint(&self) -> Footprint {
         let s = u64::from(self.clip_size());
-        let meshes = crate::mesh::block_bytes(self.block_m())
-            + crate::mesh::skirt_bytes(self.clipmap.n + 1)
-            + crate::mesh::skirt_loops_bytes(self.block_m());
+        let meshes = crate::plan::mesh::block_bytes(self.block_m())
+            + crate::plan::mesh::skirt_bytes(self.clipmap.n + 1)
+            + crate::plan::mesh::skirt_loops_bytes(self.block_m());
         let (w, h) = (u64::from(self.view.width), u64::from(self.view.height));
         let padded_row = (w * 4).div_ceil(256) * 256;
         Footprint {

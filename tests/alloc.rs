@@ -7,7 +7,7 @@
     reason = "the test terrain is an f64 formula stored as f32 heights"
 )]
 
-use clipsat::clipmap::{Clipmap, ClipmapOptions};
+use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::profile::ClipmapBudget;
 use clipsat::{Heightmap, Profile};
 use glam::DVec3;

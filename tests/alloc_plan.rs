@@ -3,11 +3,12 @@
 //! every camera path. Its own test binary (the global allocator is per binary); counting is per thread, so
 //! the tests may run in parallel.
 
+use clipsat::bake::lod_tables::P;
 use clipsat::bake::{bake_lod, BakeParams};
-use clipsat::clipmap::{Clipmap, ClipmapOptions};
-use clipsat::cull::{build_draws, build_lod_draws, DrawList, DrawParams};
-use clipsat::flight::{Flight, Path};
-use clipsat::lod::{Lod, LodFrame, LodMode, P};
+use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
+use clipsat::plan::cull::{build_draws, build_lod_draws, DrawList, DrawParams};
+use clipsat::plan::flight::{Flight, Path};
+use clipsat::plan::lod::{Lod, LodFrame, LodMode};
 use clipsat::source::procedural::{generate, ProceduralParams};
 use clipsat::Profile;
 

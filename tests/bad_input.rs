@@ -15,8 +15,8 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use clipsat::clipmap::{Clipmap, ClipmapOptions};
-use clipsat::flight::{Flight, Path as FlightPath};
+use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
+use clipsat::plan::flight::{Flight, Path as FlightPath};
 use clipsat::source::procedural::{generate, ProceduralParams};
 use clipsat::{Error, Heightmap, Profile};
 use glam::DVec3;

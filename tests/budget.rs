@@ -8,10 +8,10 @@
 
 mod render_support;
 
-use clipsat::clipmap::{Clipmap, ClipmapOptions};
-use clipsat::flight::{Flight, Path};
-use clipsat::frame::LevelState;
-use clipsat::renderer::{render_frame, FrameOptions, Renderer};
+use clipsat::gpu::renderer::{render_frame, FrameOptions, Renderer};
+use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
+use clipsat::plan::flight::{Flight, Path};
+use clipsat::plan::frame::LevelState;
 use clipsat::source::{self, LoadOptions};
 use clipsat::{Heightmap, Profile};
 

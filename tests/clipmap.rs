@@ -6,10 +6,10 @@
     reason = "test terrains are f64 formulas stored as f32 heights; levels < 16"
 )]
 
-use clipsat::clipmap::{morph_alpha, Clipmap, ClipmapOptions};
-use clipsat::frame::{LevelState, Rect};
+use clipsat::bake::pyramid::{predict, Pyramid};
+use clipsat::plan::clipmap::{morph_alpha, Clipmap, ClipmapOptions};
+use clipsat::plan::frame::{LevelState, Rect};
 use clipsat::profile::ClipmapBudget;
-use clipsat::pyramid::{predict, Pyramid};
 use clipsat::{Heightmap, Profile};
 use glam::DVec3;
 

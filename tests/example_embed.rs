@@ -1,10 +1,10 @@
 //! `examples/embed.rs` (the minimal embedding) builds, and its three frames hash the same on every run and
 //! the same as the library's own render path over the same camera.
 
-use clipsat::clipmap::{Clipmap, ClipmapOptions};
-use clipsat::flight::{Flight, Path};
+use clipsat::gpu::renderer::{render_frame, FrameOptions, Renderer};
 use clipsat::gpu::{Gpu, GpuMode};
-use clipsat::renderer::{render_frame, FrameOptions, Renderer};
+use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
+use clipsat::plan::flight::{Flight, Path};
 use clipsat::source::procedural::{generate, ProceduralParams};
 use clipsat::Profile;
 

@@ -4,10 +4,10 @@
 
 mod render_support;
 
-use clipsat::clipmap::{Clipmap, ClipmapOptions};
-use clipsat::flight::{Flight, Path};
 use clipsat::gpu::readback::Image;
-use clipsat::renderer::{render_frame, FrameOptions, Renderer};
+use clipsat::gpu::renderer::{render_frame, FrameOptions, Renderer};
+use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
+use clipsat::plan::flight::{Flight, Path};
 use glam::DVec3;
 
 /// Offsets tried, metres east and north.
@@ -110,9 +110,10 @@ fn the_image_is_the_same_far_from_the_origin() {
 /// enter them: far out, every block keeps the level it gets at the origin.
 #[test]
 fn sat_lod_chooses_the_same_levels_far_from_the_origin() {
+    use clipsat::bake::lod_tables::P;
     use clipsat::bake::{bake_lod, BakeParams};
     use clipsat::hash::Hash64;
-    use clipsat::lod::{Lod, LodFrame, LodMode, P};
+    use clipsat::plan::lod::{Lod, LodFrame, LodMode};
     let base = render_support::relief();
     let prof = render_support::profile("gles3-low", 160, 90, None);
     let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("lod-cache-far");

@@ -2,7 +2,7 @@
 
 use std::path::Path as FsPath;
 
-use clipsat::flight::{Flight, Path, CRUISE_HEIGHT_M, DEFAULT_TELEPORT_EVERY, PATH_NAMES};
+use clipsat::plan::flight::{Flight, Path, CRUISE_HEIGHT_M, DEFAULT_TELEPORT_EVERY, PATH_NAMES};
 use clipsat::{Error, Heightmap};
 
 const FRAMES: u64 = 1500;

@@ -4,10 +4,10 @@
 //!
 //! Release check of the same goldens: `cargo test --release --test fly_paths`.
 
-use clipsat::clipmap::{Clipmap, ClipmapOptions};
-use clipsat::flight::{Flight, Path};
-use clipsat::frame::LevelState;
 use clipsat::hash::{hex, Hash64};
+use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
+use clipsat::plan::flight::{Flight, Path};
+use clipsat::plan::frame::LevelState;
 use clipsat::source::{self, procedural, LoadOptions};
 use clipsat::{Heightmap, Profile};
 

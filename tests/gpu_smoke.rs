@@ -5,7 +5,8 @@ use std::collections::BTreeSet;
 use std::path::Path;
 
 use clipsat::gpu::brute::{BruteForce, Frame};
-use clipsat::gpu::{shaders, Gpu, GpuMode};
+use clipsat::gpu::{Gpu, GpuMode};
+use clipsat::shading::basic::SKY;
 use clipsat::source::procedural::{self, ProceduralParams};
 use clipsat::{Camera, Heightmap};
 
@@ -43,11 +44,11 @@ fn render(gpu: &Gpu, hm: &Heightmap) -> Frame {
 /// The top-left pixel of the default view is sky: check it is the clear colour and return it.
 fn sky(img: &clipsat::gpu::readback::Image) -> [u8; 4] {
     let p = img.pixel(0, 0);
-    for (got, want) in p.iter().zip(shaders::SKY) {
+    for (got, want) in p.iter().zip(SKY) {
         assert!(
             (f64::from(*got) / 255.0 - want).abs() <= 1.0 / 255.0,
             "top-left pixel {p:?} is not the sky colour {:?}",
-            shaders::SKY
+            SKY
         );
     }
     p

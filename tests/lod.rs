@@ -8,11 +8,12 @@
 
 use std::path::Path;
 
+use clipsat::bake::lod_tables::{error_map, LevelTables, LodTables, P};
+use clipsat::bake::pyramid::Pyramid;
+use clipsat::bake::sat::pow_unit;
 use clipsat::bake::{bake_lod, cache_key, cache_path, BakeParams, CacheOutcome};
-use clipsat::clipmap::{Clipmap, ClipmapOptions};
-use clipsat::lod::{error_map, LevelTables, Lod, LodFrame, LodMode, LodTables, P};
-use clipsat::pyramid::Pyramid;
-use clipsat::sat::pow_unit;
+use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
+use clipsat::plan::lod::{Lod, LodFrame, LodMode};
 use clipsat::{Camera, Heightmap, Profile};
 use glam::DVec3;
 

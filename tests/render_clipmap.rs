@@ -5,12 +5,11 @@
 
 mod render_support;
 
-use clipsat::frame::LevelState;
-use clipsat::mesh;
-use clipsat::renderer::{
-    self, cpu_vertex, crack_pixels, render_frame, FrameOptions, Renderer, VertexProbe, CRACK_CLEAR,
-    CRACK_CLEAR_RGBA8,
-};
+use clipsat::gpu::renderer::{render_frame, FrameOptions, Renderer, VertexProbe};
+use clipsat::measure::{crack_pixels, CRACK_CLEAR, CRACK_CLEAR_RGBA8};
+use clipsat::plan::frame::LevelState;
+use clipsat::plan::mesh;
+use clipsat::twin::clipmap::cpu_vertex;
 use render_support::*;
 
 const W: u32 = 160;
@@ -27,7 +26,7 @@ fn loud() -> FrameOptions {
 /// checking the GC constraints; returns the crack pixels of each frame and how many frames had stale levels.
 fn fly_cracks(
     r: &mut Renderer<'_>,
-    cm: &mut clipsat::clipmap::Clipmap,
+    cm: &mut clipsat::plan::clipmap::Clipmap,
     hm: &clipsat::Heightmap,
     frames: u32,
     opts: &FrameOptions,
@@ -188,7 +187,7 @@ fn vertex_positions_match_the_cpu_twin() {
 #[test]
 fn snapped_tile_vertices_match_the_cpu_twin() {
     let opts = FrameOptions {
-        lod: clipsat::lod::LodMode::Sat,
+        lod: clipsat::plan::lod::LodMode::Sat,
         epsilon_px: Some(8.0),
         ..FrameOptions::default()
     };
@@ -231,9 +230,9 @@ fn twin_check(opts: &FrameOptions, snapped: bool) {
         let gpu_clip = probe.capture(&r, k).expect("capture");
         let u = r.draw_uniform(k);
         let m = match d.kind {
-            clipsat::cull::DrawKind::Block => mesh::block(p.block_m()),
-            clipsat::cull::DrawKind::Skirt => mesh::skirt(p.clipmap.n + 1),
-            clipsat::cull::DrawKind::TileSkirt => mesh::skirt_loops(p.block_m()),
+            clipsat::plan::cull::DrawKind::Block => mesh::block(p.block_m()),
+            clipsat::plan::cull::DrawKind::Skirt => mesh::skirt(p.clipmap.n + 1),
+            clipsat::plan::cull::DrawKind::TileSkirt => mesh::skirt_loops(p.block_m()),
         };
         assert_eq!(gpu_clip.len(), m.vertices.len());
         for (v, g) in m.vertices.iter().zip(&gpu_clip) {
@@ -340,7 +339,7 @@ fn too_many_draws_is_a_capacity_error() {
         Err(clipsat::Error::Capacity { .. }) => {}
         other => panic!("expected Error::Capacity, got {other:?}"),
     }
-    let _ = renderer::CRACK_CLEAR;
+    let _ = CRACK_CLEAR;
 }
 
 /// The closing-note numbers, per shipped profile at 640 x 360 on the relief terrain: clipmap triangles,

@@ -6,10 +6,10 @@ mod render_support;
 
 use std::collections::BTreeMap;
 
-use clipsat::debug_view::{level_of_pixel, DebugView};
 use clipsat::gpu::readback::Image;
-use clipsat::lod::LodMode;
-use clipsat::renderer::{render_frame, FrameOptions, Renderer};
+use clipsat::gpu::renderer::{render_frame, FrameOptions, Renderer};
+use clipsat::plan::lod::LodMode;
+use clipsat::shading::debug_view::{level_of_pixel, DebugView};
 use clipsat::Camera;
 use render_support::{clipmap, lod, profile, relief, strict};
 

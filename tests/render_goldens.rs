@@ -16,7 +16,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use clipsat::gpu::readback::Image;
-use clipsat::renderer::{render_frame, FrameOptions, Renderer};
+use clipsat::gpu::renderer::{render_frame, FrameOptions, Renderer};
 use clipsat::source::procedural::{self, ProceduralParams};
 use clipsat::{hash, Camera, Heightmap};
 use glam::DVec3;

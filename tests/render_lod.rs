@@ -5,12 +5,10 @@
 
 mod render_support;
 
-use clipsat::clipmap::Clipmap;
-use clipsat::lod::LodMode;
-use clipsat::renderer::{
-    crack_pixels, render_frame, screen_error, FrameOptions, Renderer, CRACK_CLEAR,
-    CRACK_CLEAR_RGBA8,
-};
+use clipsat::gpu::renderer::{render_frame, FrameOptions, Renderer};
+use clipsat::measure::{crack_pixels, screen_error, CRACK_CLEAR, CRACK_CLEAR_RGBA8};
+use clipsat::plan::clipmap::Clipmap;
+use clipsat::plan::lod::LodMode;
 use clipsat::{Camera, Heightmap, Profile};
 use glam::DVec3;
 use render_support::{camera, clipmap, flight, lod, profile, puget, strict};

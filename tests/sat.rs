@@ -7,7 +7,7 @@
     reason = "test arithmetic on values known to be in range"
 )]
 
-use clipsat::sat::{pow_unit, Sat};
+use clipsat::bake::sat::{pow_unit, Sat};
 
 /// A deterministic pseudo-random value in [0, 1) per sample.
 fn noise(x: u32, y: u32) -> f64 {

@@ -1,7 +1,7 @@
 //! Scenes: shipped scenes load, every bad field is named, features are checked against the profile, and
 //! `needs()` asks for exactly what the scene declares.
 
-use clipsat::scene::{self, Scene};
+use clipsat::shading::scene::{self, Scene};
 use clipsat::shading::{self, Inputs, Patches};
 use clipsat::{Error, Profile};
 use glam::Vec3;

@@ -4,12 +4,12 @@
 
 mod render_support;
 
+use clipsat::bake::horizon;
+use clipsat::gpu::renderer::{render_frame, FrameOptions, Renderer};
 use clipsat::gpu::sat_textures::{ShadingBake, MAX_BOX_SIDE};
 use clipsat::gpu::sg_probe::{shade_gpu, ProbeCase};
 use clipsat::gpu::shaders::{self, SgVariant};
-use clipsat::horizon;
-use clipsat::renderer::{render_frame, FrameOptions, Renderer};
-use clipsat::scene::{Needs, Scene};
+use clipsat::shading::scene::{Needs, Scene};
 use clipsat::shading::{self, Inputs, Patches};
 use glam::Vec3;
 
@@ -60,7 +60,7 @@ fn cases(d: usize) -> Vec<ProbeCase> {
 fn gpu_shading_matches_cpu_twin() {
     let gpu = render_support::strict();
     let mut report = Vec::new();
-    for (name, _) in clipsat::scene::SHIPPED {
+    for (name, _) in clipsat::shading::scene::SHIPPED {
         let scene = Scene::load(name).expect("shipped scene");
         let d = if scene.effects.visibility { 8 } else { 0 };
         let cases = cases(d);
@@ -193,7 +193,7 @@ fn renderer_bakes_and_binds_only_what_the_scene_needs() {
         clippy::cast_possible_truncation,
         reason = "colours in [0, 1] as bytes"
     )]
-    let sky = clipsat::gpu::shaders::SKY.map(|c| (c * 255.0).round() as u8);
+    let sky = clipsat::shading::basic::SKY.map(|c| (c * 255.0).round() as u8);
     let lit = sg
         .image
         .rgba

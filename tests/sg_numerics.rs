@@ -1,7 +1,7 @@
 //! SG numerics at the extremes (design.md "Numerics"): sharpness from 1e-6 to 1e4, products whose raw
 //! exponents overflow, the vMF clamp and the kappa approximation.
 
-use clipsat::sg::{self, Sg, Vmf};
+use clipsat::shading::sg::{self, Sg, Vmf};
 use glam::{DVec3, Vec3};
 
 const LAMBDAS: [f32; 9] = [1e-6, 1e-4, 1e-2, 0.5, 2.133, 10.0, 100.0, 1e3, 1e4];

@@ -4,9 +4,9 @@
 use std::path::Path;
 use std::time::Instant;
 
-use clipsat::horizon::{self, Horizons};
-use clipsat::scene::{direction, Effects, Material, Scene};
-use clipsat::sg::Sg;
+use clipsat::bake::horizon::{self, Horizons};
+use clipsat::shading::scene::{direction, Effects, Material, Scene};
+use clipsat::shading::sg::Sg;
 use clipsat::shading::{self, HorizonTable, Inputs, Patches, RefCosine, RefGrid, RefInputs};
 use clipsat::Heightmap;
 use glam::{DVec3, Vec3};

@@ -1,18 +1,18 @@
 //! The interactive viewer's state (`clipsat view`): held keys, mouse motion and toggle keys in; a camera
 //! and the renderer's [`FrameOptions`] out. Pure and windowless, so it is tested without a display; the
-//! window (src/cmd/view.rs) only maps winit events onto [`Move`] and [`Action`].
+//! window (src/app/cmd/view.rs) only maps winit events onto [`Move`] and [`Action`].
 
 use glam::DVec3;
 
-use crate::debug_view::DebugView;
-use crate::lod::LodMode;
-use crate::renderer::FrameOptions;
-use crate::scene::Scene;
-use crate::{Camera, Result};
+use clipsat::gpu::renderer::FrameOptions;
+use clipsat::plan::lod::LodMode;
+use clipsat::shading::debug_view::DebugView;
+use clipsat::shading::scene::Scene;
+use clipsat::{Camera, Result};
 
 /// A key held for flight.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Move {
+pub(crate) enum Move {
     /// Along the look direction (W).
     Forward,
     /// Against it (S).
@@ -47,7 +47,7 @@ impl Move {
 
 /// A one-shot key.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Action {
+pub(crate) enum Action {
     /// distance -> sat -> sat-conservative -> exact -> distance (L).
     CycleLod,
     /// Epsilon times 1.25 (]).
@@ -66,7 +66,7 @@ pub enum Action {
 
 /// The viewer's shading switches.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Shading {
+pub(crate) enum Shading {
     /// SG shading (SAT paper section 5) instead of the basic shading (1).
     Sg,
     /// SG: horizon visibility, soft terrain shadows (2).
@@ -79,20 +79,20 @@ pub enum Shading {
 
 /// What the viewer shades with: [`ViewState::shading`] applied to a scene.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct ShadingSwitches {
+pub(crate) struct ShadingSwitches {
     /// SG shading on.
-    pub sg: bool,
+    pub(crate) sg: bool,
     /// Horizon visibility.
-    pub visibility: bool,
+    pub(crate) visibility: bool,
     /// Specular.
-    pub specular: bool,
+    pub(crate) specular: bool,
     /// Fog.
-    pub fog: bool,
+    pub(crate) fog: bool,
 }
 
 impl ShadingSwitches {
     /// The scene's own effects, with SG on or off.
-    pub fn from_scene(scene: &Scene, sg: bool) -> Self {
+    pub(crate) fn from_scene(scene: &Scene, sg: bool) -> Self {
         Self {
             sg,
             visibility: scene.effects.visibility,
@@ -103,7 +103,7 @@ impl ShadingSwitches {
 
     /// `scene` with its effects set to these switches, or None for basic shading. Fog stays off in a
     /// scene that gives no fog parameters.
-    pub fn apply(&self, scene: &Scene) -> Option<Scene> {
+    pub(crate) fn apply(&self, scene: &Scene) -> Option<Scene> {
         if !self.sg {
             return None;
         }
@@ -117,46 +117,46 @@ impl ShadingSwitches {
 
 /// The viewer's whole state.
 #[derive(Clone, Debug, PartialEq)]
-pub struct ViewState {
+pub(crate) struct ViewState {
     /// Eye, metres.
-    pub eye: DVec3,
+    pub(crate) eye: DVec3,
     /// Look azimuth, radians, anticlockwise from east (x).
-    pub yaw: f64,
+    pub(crate) yaw: f64,
     /// Look elevation, radians, within +/- [`ViewState::MAX_PITCH`].
-    pub pitch: f64,
+    pub(crate) pitch: f64,
     /// Vertical field of view, degrees.
-    pub fov_y_deg: f64,
+    pub(crate) fov_y_deg: f64,
     /// Clip planes, metres.
-    pub near_far: (f64, f64),
+    pub(crate) near_far: (f64, f64),
     /// Flight speed, metres per second.
-    pub speed: f64,
+    pub(crate) speed: f64,
     /// Radians per pixel of mouse motion.
-    pub mouse_sensitivity: f64,
+    pub(crate) mouse_sensitivity: f64,
     /// LOD mode.
-    pub lod: LodMode,
+    pub(crate) lod: LodMode,
     /// SAT LOD error bound, pixels.
-    pub epsilon_px: f32,
+    pub(crate) epsilon_px: f32,
     /// GC 6.2 morphing.
-    pub morph: bool,
+    pub(crate) morph: bool,
     /// Frustum culling.
-    pub cull: bool,
+    pub(crate) cull: bool,
     /// Debug view.
-    pub debug: DebugView,
+    pub(crate) debug: DebugView,
     /// The shading switches (keys 1..4); the window re-binds the renderer when they change.
-    pub shading: ShadingSwitches,
+    pub(crate) shading: ShadingSwitches,
     held: [bool; Move::COUNT],
 }
 
 impl ViewState {
     /// Speed factor while [`Move::Fast`] is held.
-    pub const FAST: f64 = 5.0;
+    pub(crate) const FAST: f64 = 5.0;
     /// The steepest look up or down (radians, 85 degrees): the camera needs a defined "up".
-    pub const MAX_PITCH: f64 = 85.0 * std::f64::consts::PI / 180.0;
+    pub(crate) const MAX_PITCH: f64 = 85.0 * std::f64::consts::PI / 180.0;
     /// Turn rate of the arrow keys, radians per second.
-    pub const TURN_RATE: f64 = 1.2;
+    pub(crate) const TURN_RATE: f64 = 1.2;
 
     /// Starts at `camera`, flying `speed` m/s, with the SAT LOD bound `epsilon_px`.
-    pub fn new(camera: &Camera, speed: f64, epsilon_px: f32) -> Self {
+    pub(crate) fn new(camera: &Camera, speed: f64, epsilon_px: f32) -> Self {
         let f = camera.forward();
         let pitch = f.z.clamp(-1.0, 1.0).asin();
         Self {
@@ -183,22 +183,22 @@ impl ViewState {
     }
 
     /// A flight key went down (`pressed`) or up.
-    pub fn key(&mut self, m: Move, pressed: bool) {
+    pub(crate) fn key(&mut self, m: Move, pressed: bool) {
         self.held[m.index()] = pressed;
     }
 
     /// Whether a flight key is held.
-    pub fn held(&self, m: Move) -> bool {
+    pub(crate) fn held(&self, m: Move) -> bool {
         self.held[m.index()]
     }
 
     /// Releases every key (the window lost focus).
-    pub fn release_all(&mut self) {
+    pub(crate) fn release_all(&mut self) {
         self.held = [false; Move::COUNT];
     }
 
     /// Applies a one-shot key.
-    pub fn action(&mut self, a: Action) {
+    pub(crate) fn action(&mut self, a: Action) {
         match a {
             Action::CycleLod => {
                 self.lod = match self.lod {
@@ -227,14 +227,14 @@ impl ViewState {
     }
 
     /// Mouse-look: `dx`, `dy` pixels of motion (right, down) turn right and look down.
-    pub fn look(&mut self, dx: f64, dy: f64) {
+    pub(crate) fn look(&mut self, dx: f64, dy: f64) {
         self.yaw -= dx * self.mouse_sensitivity;
         self.pitch =
             (self.pitch - dy * self.mouse_sensitivity).clamp(-Self::MAX_PITCH, Self::MAX_PITCH);
     }
 
     /// Unit look direction.
-    pub fn forward(&self) -> DVec3 {
+    pub(crate) fn forward(&self) -> DVec3 {
         let (sy, cy) = self.yaw.sin_cos();
         let (sp, cp) = self.pitch.sin_cos();
         DVec3::new(cy * cp, sy * cp, sp)
@@ -242,7 +242,7 @@ impl ViewState {
 
     /// Advances `dt` seconds of flight with the held keys: W/S along the look direction, A/D across it
     /// (horizontal), up/down along z, the arrows turn.
-    pub fn step(&mut self, dt: f64) {
+    pub(crate) fn step(&mut self, dt: f64) {
         let held = self.held;
         let axis = |plus: Move, minus: Move| {
             f64::from(u8::from(held[plus.index()])) - f64::from(u8::from(held[minus.index()]))
@@ -266,18 +266,18 @@ impl ViewState {
     }
 
     /// Keeps the eye at least `clearance` metres above `ground` (metres).
-    pub fn keep_above(&mut self, ground: f64, clearance: f64) {
+    pub(crate) fn keep_above(&mut self, ground: f64, clearance: f64) {
         self.eye.z = self.eye.z.max(ground + clearance);
     }
 
     /// The camera of this state.
-    pub fn camera(&self) -> Result<Camera> {
+    pub(crate) fn camera(&self) -> Result<Camera> {
         Camera::new(self.eye, self.eye + self.forward(), self.fov_y_deg)?
             .with_clip(self.near_far.0, self.near_far.1)
     }
 
     /// The renderer's options for this state.
-    pub fn frame_options(&self) -> FrameOptions {
+    pub(crate) fn frame_options(&self) -> FrameOptions {
         FrameOptions {
             morph: self.morph,
             cull: self.cull,
@@ -289,7 +289,7 @@ impl ViewState {
     }
 
     /// One line describing the toggles, for the stats overlay.
-    pub fn describe(&self) -> String {
+    pub(crate) fn describe(&self) -> String {
         format!(
             "{} eps {:.2}px morph {} cull {} view {}",
             self.lod,
@@ -301,7 +301,7 @@ impl ViewState {
     }
 
     /// The shading switches in one line, for the stats overlay.
-    pub fn describe_shading(&self) -> String {
+    pub(crate) fn describe_shading(&self) -> String {
         let sh = &self.shading;
         if sh.sg {
             format!(

@@ -10,7 +10,7 @@ use std::f64::consts::{FRAC_PI_2, TAU};
 
 use glam::{DVec3, Vec3};
 
-use crate::sat::Sat;
+use crate::bake::sat::Sat;
 use crate::{Error, Heightmap, Result};
 
 /// Default number of baked azimuths D.

@@ -1,4 +1,12 @@
-//! Stage 1, bake: the LOD tables ([`crate::lod`]) baked once and cached on disk, keyed by a content hash.
+//! Stage 1, bake: everything computed once per terrain before the first frame.
+//!
+//! - [`pyramid`]: the height pyramid (GC section 4);
+//! - [`sat`]: summed-area tables in exact fixed point;
+//! - [`lod_tables`]: the SAT LOD error maps, their SATs and max pyramids (design.md "SAT LOD");
+//! - [`horizon`]: horizon angles for SG visibility (SAT paper section 5);
+//! - this file: the LOD tables' disk cache, keyed by a content hash.
+//!
+//! # The cache
 //!
 //! The cache folder is `$CLIPSAT_CACHE` when set, else `target/clipsat-cache` under the current folder
 //! (inside the build tree, so `cargo clean` clears it and nothing leaks into the user's home). A file is
@@ -11,14 +19,19 @@
 //! not match is rebaked and overwritten, never trusted and never a panic. Files are written to a temporary
 //! name and renamed, so a killed bake leaves no half file under the real name.
 
+pub mod horizon;
+pub mod lod_tables;
+pub mod pyramid;
+pub mod sat;
+
 use std::path::{Path, PathBuf};
 
 use indicatif::{ProgressBar, ProgressStyle};
 
+use crate::bake::lod_tables::{LevelTables, LodTables, RangeMax};
+use crate::bake::pyramid::Pyramid;
+use crate::bake::sat::Sat;
 use crate::hash::{hex, Hash64};
-use crate::lod::{LevelTables, LodTables, RangeMax};
-use crate::pyramid::Pyramid;
-use crate::sat::Sat;
 use crate::{Error, Heightmap, Result};
 
 const MAGIC: &[u8; 8] = b"CSATLOD1";

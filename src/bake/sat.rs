@@ -1,7 +1,7 @@
 //! Stage 1, bake: summed-area tables in exact u64 fixed point (design.md "SAT LOD" 2 and 4; Li et al. 2021).
 //!
 //! A generic SAT over a `width x height` grid of values in [0, 1], answering box sums in O(1) (four
-//! lookups). Used for the LOD error SATs of (e_L / E_L)^p ([`crate::lod`]), and meant for the normal and
+//! lookups). Used for the LOD error SATs of (e_L / E_L)^p ([`crate::bake::lod_tables`]), and meant for the normal and
 //! visibility SATs too (map each channel into [0, 1] first, e.g. (n + 1) / 2).
 //!
 //! # Representation, and why

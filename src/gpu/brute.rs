@@ -10,8 +10,9 @@ use glam::DVec3;
 use wgpu::util::DeviceExt;
 
 use super::readback::{self, Image};
-use super::shaders::{self, BasicShading};
+use super::shaders;
 use super::Gpu;
+use crate::shading::basic::{BasicShading, SKY};
 use crate::{Camera, Error, Heightmap, Result};
 
 /// The brute-force program's uniforms; mirrors `Globals` in `shaders_gles/brute.wgsl`.
@@ -211,13 +212,8 @@ impl<'g> BruteForce<'g> {
                         label: Some("brute frame"),
                     });
             {
-                let mut pass = super::clear_pass(
-                    &mut encoder,
-                    "brute",
-                    &color_view,
-                    &targets.depth,
-                    shaders::SKY,
-                );
+                let mut pass =
+                    super::clear_pass(&mut encoder, "brute", &color_view, &targets.depth, SKY);
                 pass.set_pipeline(&self.pipeline);
                 pass.set_bind_group(0, &self.bind_group, &[]);
                 pass.set_vertex_buffer(0, self.vertices.slice(..));

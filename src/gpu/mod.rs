@@ -1,4 +1,4 @@
-//! Stage 3, the GPU: wgpu on the OpenGL ES 3.0 floor. Only this module (and the renderer) touches wgpu.
+//! Stage 3, the GPU: wgpu on the OpenGL ES 3.0 floor. Only this module touches wgpu.
 //!
 //! Every device is created with [`wgpu::Limits::downlevel_webgl2_defaults`] (2048^2 textures, no compute,
 //! no storage buffers): the GLES 3.0 floor everything must fit. [`GpuMode`] picks how the GL context is
@@ -11,6 +11,7 @@ pub mod brute;
 #[cfg(unix)]
 mod egl;
 pub mod readback;
+pub mod renderer;
 pub mod sat_textures;
 pub mod sg_probe;
 pub mod shaders;

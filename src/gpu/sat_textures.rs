@@ -10,11 +10,11 @@
 //! (63^2 2^20 < 2^32; 64^2 of ones would wrap to 0) is always exact; the shader caps the footprint there.
 //!
 //! Each table is padded with a zero row and column: entry (x, y) = sum over samples [0, x) x [0, y), so a
-//! box at the border needs no branch. The tables are the low 32 bits of [`crate::sat::Sat`]'s exact u64
+//! box at the border needs no branch. The tables are the low 32 bits of [`crate::bake::sat::Sat`]'s exact u64
 //! sums (the same quantisation up, to a multiple of 2^-20).
 //!
 //! Size: GLES 3.0 guarantees only 2048-texel sides (`max_texture_dimension_2d`). A terrain whose padded
-//! table would be larger is shaded from the first pyramid level ([`crate::pyramid`]) that fits: level k's
+//! table would be larger is shaded from the first pyramid level ([`crate::bake::pyramid`]) that fits: level k's
 //! sample (i, j) sits on data sample (i 2^k, j 2^k), its normals and horizons are baked on that level, and
 //! [`ShadingBake::step`] = 2^k tells the shader to divide its data coordinates by it.
 
@@ -22,13 +22,13 @@ use std::path::Path;
 
 use glam::Vec3;
 
+use crate::bake::horizon::{self, MAX_AZIMUTHS};
+use crate::bake::pyramid::Pyramid;
+use crate::bake::sat::Sat;
 use crate::bake::{seal, unseal, write_atomic, CacheOutcome};
 use crate::gpu::Gpu;
 use crate::hash::{hex, Hash64};
-use crate::horizon::{self, MAX_AZIMUTHS};
-use crate::pyramid::Pyramid;
-use crate::sat::Sat;
-use crate::scene::Needs;
+use crate::shading::scene::Needs;
 use crate::{Error, Heightmap, Result};
 
 const SHADING_MAGIC: &[u8; 8] = b"CSATSHD1";

@@ -5,10 +5,10 @@
 use glam::Vec3;
 use wgpu::util::DeviceExt;
 
+use crate::bake::horizon::MAX_AZIMUTHS;
 use crate::gpu::shaders::{self, SgSceneUniform, SgVariant};
 use crate::gpu::Gpu;
-use crate::horizon::MAX_AZIMUTHS;
-use crate::scene::Scene;
+use crate::shading::scene::Scene;
 use crate::shading::Patches;
 use crate::{Error, Result};
 

@@ -7,7 +7,7 @@
 //! toroidal texture interval on one axis and the whole texture on the other, so a level never needs more
 //! than 4 upload rectangles per frame.
 
-use crate::frame::{Rect, Upload};
+use crate::plan::frame::{Rect, Upload};
 
 /// The plan for one level this frame.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]

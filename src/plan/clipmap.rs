@@ -10,11 +10,11 @@
 
 use glam::DVec3;
 
-use crate::budget::{needed_samples, plan_level};
-use crate::frame::{Frame, LevelFrame, LevelState, Rect, MAX_LEVELS};
+use crate::bake::pyramid::Pyramid;
 use crate::hash::Hash64;
-use crate::pyramid::Pyramid;
-use crate::synthesis::{extrapolate_sigmas, synthesize, NoiseTable};
+use crate::plan::budget::{needed_samples, plan_level};
+use crate::plan::frame::{Frame, LevelFrame, LevelState, Rect, MAX_LEVELS};
+use crate::plan::synthesis::{extrapolate_sigmas, synthesize, NoiseTable};
 use crate::{Error, Heightmap, Profile, Result};
 
 /// Options beyond the profile.

@@ -1,12 +1,12 @@
 //! Stage 2, the per-frame plan: the draw list. Each level's render region (active(l) minus active(l - 1),
-//! GC section 3) is split into rectangles and tiled with blocks ([`crate::mesh`]); blocks whose bounding box
+//! GC section 3) is split into rectangles and tiled with blocks ([`crate::plan::mesh`]); blocks whose bounding box
 //! misses the view frustum are dropped (GC section 6: view-frustum culling per block). Pure CPU and
 //! allocation-free: the list is a fixed-capacity [`DrawList`] bounded by the profile's `max_draws`.
 
 use glam::{DMat4, DVec3, DVec4};
 
-use crate::clipmap::Clipmap;
-use crate::frame::Rect;
+use crate::plan::clipmap::Clipmap;
+use crate::plan::frame::Rect;
 use crate::{Camera, Error, Result};
 
 /// Most draws any profile may ask for (`budget.max_draws` is checked against it at start-up).
@@ -39,8 +39,8 @@ pub struct Draw {
     /// piecewise-linear surface ([`build_lod_draws`]).
     pub fine: u32,
     /// Blocks: the top-left `quads x quads` of the block mesh are drawn (the whole mesh when it is the
-    /// mesh's size; SAT LOD blocks of fewer quads draw a prefix, [`crate::mesh::block_prefix`]). Tile
-    /// skirts: the tile's side, picking the loop ([`crate::mesh::skirt_loop_range`]). Ring skirts: 0.
+    /// mesh's size; SAT LOD blocks of fewer quads draw a prefix, [`crate::plan::mesh::block_prefix`]). Tile
+    /// skirts: the tile's side, picking the loop ([`crate::plan::mesh::skirt_loop_range`]). Ring skirts: 0.
     pub quads: u32,
     /// SAT LOD: the block's wanted level was finer than any held data covering it (the selection clamped).
     pub clamped: bool,
@@ -418,7 +418,7 @@ fn at_level(p: &Rect, ring: u32, level: u32) -> (Rect, bool) {
 /// The level a piece of a ring-`ring` block selected at `selected` is drawn at: `selected` when finer or
 /// equal; when coarser, the coarsest level up to `selected` whose lattice meets the piece's corners and whose
 /// clip region holds it (a block mesh of that level then covers the piece exactly).
-fn piece_level(frame: &crate::frame::Frame, ring: u32, selected: u32, p: &Rect) -> u32 {
+fn piece_level(frame: &crate::plan::frame::Frame, ring: u32, selected: u32, p: &Rect) -> u32 {
     if selected <= ring {
         return selected;
     }
@@ -446,7 +446,7 @@ pub fn build_lod_draws(
     clipmap: &Clipmap,
     camera: &Camera,
     params: &DrawParams,
-    lod: &crate::lod::LodFrame,
+    lod: &crate::plan::lod::LodFrame,
     out: &mut DrawList,
 ) -> Result<DrawStats> {
     out.clear();
@@ -466,7 +466,7 @@ pub fn build_lod_draws(
     let cell = |r: &Rect| (r.x0.div_euclid(m), r.y0.div_euclid(m));
     // Every piece of a block is drawn at the block's level (snapped where its corners need it), so a block
     // differs from its ring exactly when its level does.
-    let differs = |b: &crate::lod::BlockLod| b.level != b.ring;
+    let differs = |b: &crate::plan::lod::BlockLod| b.level != b.ring;
     let blocks = &lod.blocks;
     for b in blocks.iter() {
         let (cx, cy) = cell(&b.rect);

@@ -4,7 +4,7 @@
 //! 50 x 50 table of unit Gaussian samples (GC section 8 uses a 50 x 50 table too), looked up through a hash
 //! of the lattice coordinates, so the fill is a pure function of (level, i, j) with no visible tiling.
 
-use crate::pyramid::predict;
+use crate::bake::pyramid::predict;
 
 /// Side of the noise table.
 pub const NOISE_SIDE: usize = 50;

@@ -9,14 +9,20 @@ use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
 use crate::profile::{Feature, Profile};
-use crate::sg::Sg;
+use crate::shading::sg::Sg;
 use crate::{Error, Result};
 
 /// The scenes shipped in `profiles/scenes/`, by name, with their TOML text.
 pub const SHIPPED: [(&str, &str); 3] = [
-    ("noon", include_str!("../profiles/scenes/noon.toml")),
-    ("evening", include_str!("../profiles/scenes/evening.toml")),
-    ("overcast", include_str!("../profiles/scenes/overcast.toml")),
+    ("noon", include_str!("../../profiles/scenes/noon.toml")),
+    (
+        "evening",
+        include_str!("../../profiles/scenes/evening.toml"),
+    ),
+    (
+        "overcast",
+        include_str!("../../profiles/scenes/overcast.toml"),
+    ),
 ];
 
 /// Sharpest light lobe a scene may declare: the numerics are tested up to here (`tests/sg_numerics.rs`).

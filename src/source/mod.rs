@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::{Error, Heightmap, Result};
+use crate::{Error, Result};
 
 /// How to read a terrain file. The defaults suit the data in `../shared/data`.
 #[derive(Clone, Debug, PartialEq)]
@@ -66,11 +66,14 @@ pub enum TerrainSpec {
     File(PathBuf),
 }
 
+mod heightmap;
 mod hgt;
 mod png;
 pub mod procedural;
 mod raw;
 mod tiff;
+
+pub use heightmap::Heightmap;
 
 impl TerrainSpec {
     /// Parses `--terrain`: `procedural[:seed=S,size=N,spacing=M]` (also `builtin`), else a file path.

@@ -8,10 +8,11 @@
 
 use std::path::Path;
 
+use clipsat::bake::lod_tables::P;
 use clipsat::bake::{bake_lod, BakeParams};
-use clipsat::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::gpu::{Gpu, GpuMode};
-use clipsat::lod::{Lod, P};
+use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
+use clipsat::plan::lod::Lod;
 use clipsat::{Camera, Heightmap, Profile};
 use glam::DVec3;
 

@@ -9,7 +9,6 @@ macro_rules! outln {
 }
 
 pub(crate) mod bench;
-pub(crate) mod bench_all;
 pub(crate) mod fly;
 pub(crate) mod hashes;
 pub(crate) mod info;

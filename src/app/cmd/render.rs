@@ -1,6 +1,6 @@
 //! `clipsat render`: one frame, offscreen, to a PNG.
 //!
-//! By default it draws the geometry clipmap (`clipsat::renderer`): the clipmap is updated until the budget
+//! By default it draws the geometry clipmap (`clipsat::gpu::renderer`): the clipmap is updated until the budget
 //! has filled every level at the camera, then rendered, and rendered once more against a magenta clear to
 //! count crack pixels. `--brute` draws the brute-force full-resolution grid (the ground truth) instead.
 
@@ -8,13 +8,14 @@ use std::time::Instant;
 
 use clap::Args;
 use clipsat::bake::{self, BakeParams};
-use clipsat::camera::parse_vec3;
-use clipsat::clipmap::{Clipmap, ClipmapOptions};
-use clipsat::debug_view::DebugView;
 use clipsat::gpu::brute::BruteForce;
+use clipsat::gpu::renderer::{self, FrameOptions, Renderer};
 use clipsat::gpu::{Gpu, GpuMode};
-use clipsat::lod::{Lod, LodMode};
-use clipsat::renderer::{self, FrameOptions, Renderer};
+use clipsat::measure;
+use clipsat::plan::camera::parse_vec3;
+use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
+use clipsat::plan::lod::{Lod, LodMode};
+use clipsat::shading::debug_view::DebugView;
 use clipsat::{hash, Camera, Error, Heightmap, Profile, Result};
 use glam::DVec3;
 use serde_json::json;
@@ -83,7 +84,7 @@ pub(crate) fn lod_for(
     progress: bool,
 ) -> Result<Lod> {
     let params = BakeParams {
-        p: clipsat::lod::P,
+        p: clipsat::bake::lod_tables::P,
         levels: profile.clipmap.levels,
         synth_levels: clipmap.synth_levels(),
         g0: clipmap.g0(),
@@ -184,15 +185,15 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
         &clipmap,
         &camera,
         &FrameOptions {
-            clear: renderer::CRACK_CLEAR,
+            clear: measure::CRACK_CLEAR,
             ..opts
         },
     )?;
-    let crack_pixels = renderer::crack_pixels(&loud.image, renderer::CRACK_CLEAR_RGBA8);
+    let crack_pixels = measure::crack_pixels(&loud.image, measure::CRACK_CLEAR_RGBA8);
     // The measured error of what was drawn (the draw list is the same for both renders above).
     let measured = r
         .lod()
-        .map(|lod| renderer::screen_error(&r, &clipmap, &camera, lod));
+        .map(|lod| measure::screen_error(&r, &clipmap, &camera, lod));
     ensure_parent(&args.out)?;
     frame.image.save_png(&args.out)?;
     let reference = match (&sg, args.shading.reference) {
@@ -208,7 +209,7 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
     let cf = clipmap.frame();
     if args.json {
         let truth = BruteForce::new(&gpu, &hm)?.render(&camera, size_w, size_h)?;
-        let rmse = renderer::image_rmse(&frame.image, &truth.image);
+        let rmse = measure::image_rmse(&frame.image, &truth.image);
         let epsilon_used = r.lod().map(Lod::epsilon_px);
         let levels: Vec<_> = cf
             .levels

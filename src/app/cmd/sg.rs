@@ -8,9 +8,9 @@
 //! follow as in the shader. Pixels whose ray leaves the data, or that show sky on the GPU, are skipped.
 
 use clap::Args;
+use clipsat::bake::horizon;
 use clipsat::gpu::readback::Image;
-use clipsat::horizon;
-use clipsat::scene::{self, Scene};
+use clipsat::shading::scene::{self, Scene};
 use clipsat::shading::{self, HorizonTable, Patches, RefCosine, RefGrid, RefInputs};
 use clipsat::{Camera, Error, Heightmap, Profile, Result};
 use glam::{DVec3, Vec4};
@@ -284,5 +284,5 @@ pub(crate) fn sky_rgba8() -> [u8; 4] {
         clippy::cast_possible_truncation,
         reason = "colours in [0, 1] scaled to bytes"
     )]
-    clipsat::gpu::shaders::SKY.map(|c| (c * 255.0).round() as u8)
+    clipsat::shading::basic::SKY.map(|c| (c * 255.0).round() as u8)
 }

@@ -5,9 +5,9 @@
 use std::io::IsTerminal;
 
 use clap::Args;
-use clipsat::lod::{error_map, LevelTables};
-use clipsat::pyramid::Pyramid;
-use clipsat::sat::pow_unit;
+use clipsat::bake::lod_tables::{error_map, LevelTables};
+use clipsat::bake::pyramid::Pyramid;
+use clipsat::bake::sat::pow_unit;
 use clipsat::Result;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;

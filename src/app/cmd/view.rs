@@ -2,28 +2,28 @@
 //!
 //! Each frame runs exactly what the frame hashes are made of: the clipmap update under the budget, then
 //! the strict GLES 3.0 [`Renderer`] offscreen and its readback; the stats line is stamped into that image
-//! on the CPU ([`clipsat::plot::stamp_text`]) and it is presented with softbuffer. No GPU surface is
+//! on the CPU ([`crate::app::plot::stamp_text`]) and it is presented with softbuffer. No GPU surface is
 //! involved, so the window works wherever the offscreen renderer does (Xvfb + Mesa llvmpipe included).
-//! The input -> camera state machine is [`clipsat::view::ViewState`]; this file only maps winit events.
+//! The input -> camera state machine is [`crate::app::view_keys::ViewState`]; this file only maps winit events.
 
 use std::num::NonZeroU32;
 use std::rc::Rc;
 use std::time::{Duration, Instant};
 
+use crate::app::plot::{stamp_text, stamp_width};
+use crate::app::view_keys::{Action, Move, Shading, ShadingSwitches, ViewState};
 use clap::Args;
-use clipsat::camera::parse_vec3;
-use clipsat::clipmap::{Clipmap, ClipmapOptions};
-use clipsat::debug_view::DebugView;
+use clipsat::bake::horizon::DEFAULT_AZIMUTHS;
 use clipsat::gpu::readback::Image;
+use clipsat::gpu::renderer::{self, Renderer};
 use clipsat::gpu::sat_textures::ShadingBake;
 use clipsat::gpu::{Gpu, GpuMode};
-use clipsat::horizon::DEFAULT_AZIMUTHS;
-use clipsat::lod::LodMode;
-use clipsat::plot::{stamp_text, stamp_width};
-use clipsat::renderer::{self, Renderer};
-use clipsat::scene::Scene;
+use clipsat::plan::camera::parse_vec3;
+use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
+use clipsat::plan::lod::LodMode;
+use clipsat::shading::debug_view::DebugView;
+use clipsat::shading::scene::Scene;
 use clipsat::shading::Patches;
-use clipsat::view::{Action, Move, Shading, ShadingSwitches, ViewState};
 use clipsat::{Camera, Error, Heightmap, Profile, Result};
 use winit::application::ApplicationHandler;
 use winit::dpi::PhysicalSize;

@@ -1,37 +1,41 @@
 //! Pictures of measurements: small line plots written as PNG (fly-through statistics, accuracy against time).
 
+mod font;
+
 use std::path::Path;
 
-use crate::{Error, Result};
+use clipsat::{Error, Result};
+
+use font::glyph;
 
 /// One named series of (x, y) points, drawn as a polyline.
 #[derive(Clone, Debug)]
-pub struct Series {
+pub(crate) struct Series {
     /// Legend text.
-    pub name: String,
+    pub(crate) name: String,
     /// Points in data units.
-    pub points: Vec<(f64, f64)>,
+    pub(crate) points: Vec<(f64, f64)>,
     /// RGB colour.
-    pub color: [u8; 3],
+    pub(crate) color: [u8; 3],
     /// Plot against the right-hand axis instead of the left.
-    pub right_axis: bool,
+    pub(crate) right_axis: bool,
 }
 
 /// A line plot with a title, axis labels and a legend.
 #[derive(Clone, Debug, Default)]
-pub struct LinePlot {
+pub(crate) struct LinePlot {
     /// Title across the top.
-    pub title: String,
+    pub(crate) title: String,
     /// X axis label.
-    pub x_label: String,
+    pub(crate) x_label: String,
     /// Left Y axis label.
-    pub y_label: String,
+    pub(crate) y_label: String,
     /// Right Y axis label (used when a series has `right_axis`).
-    pub y2_label: String,
+    pub(crate) y2_label: String,
     /// Log scale on the X axis.
-    pub x_log: bool,
+    pub(crate) x_log: bool,
     /// The series.
-    pub series: Vec<Series>,
+    pub(crate) series: Vec<Series>,
 }
 
 impl LinePlot {
@@ -40,7 +44,7 @@ impl LinePlot {
     /// White background, grid, ticks with numeric labels, title, axis labels, legend (in the corner of
     /// the axes that hides the fewest points), optional log X and a right-hand axis for series with `right_axis`. Non-finite points
     /// (and X <= 0 on a log axis) are skipped. The picture depends only on the plot, not on the machine.
-    pub fn write_png(&self, path: &Path, width: u32, height: u32) -> Result<()> {
+    pub(crate) fn write_png(&self, path: &Path, width: u32, height: u32) -> Result<()> {
         let canvas = self.render(width, height)?;
         let img = image::RgbImage::from_raw(width, height, canvas.pixels)
             .ok_or_else(|| Error::format(path, "plot buffer has the wrong size"))?;
@@ -525,7 +529,11 @@ impl Canvas {
 /// Stamps `text` in the plots' 5x7 font onto a tight RGBA8 image (`width` pixels per row), top-left
 /// corner at (x, y), each font pixel `scale` x `scale`, clipped to the image. `clipsat view` writes its
 /// stats line with it.
-pub fn stamp_text(
+#[cfg_attr(
+    not(feature = "view"),
+    expect(dead_code, reason = "only `clipsat view` stamps text")
+)]
+pub(crate) fn stamp_text(
     rgba: &mut [u8],
     width: u32,
     (x, y): (i32, i32),
@@ -555,7 +563,11 @@ pub fn stamp_text(
 }
 
 /// The width in pixels of `text` stamped at `scale` by [`stamp_text`].
-pub fn stamp_width(text: &str, scale: i32) -> i32 {
+#[cfg_attr(
+    not(feature = "view"),
+    expect(dead_code, reason = "only `clipsat view` stamps text")
+)]
+pub(crate) fn stamp_width(text: &str, scale: i32) -> i32 {
     text_width(text, scale)
 }
 
@@ -580,527 +592,6 @@ fn text_width(text: &str, s: i32) -> i32 {
         n * 6 * s - s
     }
 }
-
-/// The 5x7 rows of `c` (bit 4 is the left column); an outlined box for characters the font lacks.
-fn glyph(c: char) -> [u8; 7] {
-    if c == ' ' {
-        return [0; 7];
-    }
-    FONT.iter().find(|(g, _)| *g == c).map_or(
-        [
-            0b11111, 0b10001, 0b10001, 0b10001, 0b10001, 0b10001, 0b11111,
-        ],
-        |(_, rows)| *rows,
-    )
-}
-
-/// A small hand-drawn 5x7 font: digits, letters and the punctuation plots need.
-const FONT: &[(char, [u8; 7])] = &[
-    (
-        '0',
-        [
-            0b01110, 0b10001, 0b10011, 0b10101, 0b11001, 0b10001, 0b01110,
-        ],
-    ),
-    (
-        '1',
-        [
-            0b00100, 0b01100, 0b00100, 0b00100, 0b00100, 0b00100, 0b01110,
-        ],
-    ),
-    (
-        '2',
-        [
-            0b01110, 0b10001, 0b00001, 0b00010, 0b00100, 0b01000, 0b11111,
-        ],
-    ),
-    (
-        '3',
-        [
-            0b11111, 0b00010, 0b00100, 0b00010, 0b00001, 0b10001, 0b01110,
-        ],
-    ),
-    (
-        '4',
-        [
-            0b00010, 0b00110, 0b01010, 0b10010, 0b11111, 0b00010, 0b00010,
-        ],
-    ),
-    (
-        '5',
-        [
-            0b11111, 0b10000, 0b11110, 0b00001, 0b00001, 0b10001, 0b01110,
-        ],
-    ),
-    (
-        '6',
-        [
-            0b00110, 0b01000, 0b10000, 0b11110, 0b10001, 0b10001, 0b01110,
-        ],
-    ),
-    (
-        '7',
-        [
-            0b11111, 0b00001, 0b00010, 0b00100, 0b01000, 0b01000, 0b01000,
-        ],
-    ),
-    (
-        '8',
-        [
-            0b01110, 0b10001, 0b10001, 0b01110, 0b10001, 0b10001, 0b01110,
-        ],
-    ),
-    (
-        '9',
-        [
-            0b01110, 0b10001, 0b10001, 0b01111, 0b00001, 0b00010, 0b01100,
-        ],
-    ),
-    (
-        'A',
-        [
-            0b01110, 0b10001, 0b10001, 0b11111, 0b10001, 0b10001, 0b10001,
-        ],
-    ),
-    (
-        'B',
-        [
-            0b11110, 0b10001, 0b10001, 0b11110, 0b10001, 0b10001, 0b11110,
-        ],
-    ),
-    (
-        'C',
-        [
-            0b01110, 0b10001, 0b10000, 0b10000, 0b10000, 0b10001, 0b01110,
-        ],
-    ),
-    (
-        'D',
-        [
-            0b11100, 0b10010, 0b10001, 0b10001, 0b10001, 0b10010, 0b11100,
-        ],
-    ),
-    (
-        'E',
-        [
-            0b11111, 0b10000, 0b10000, 0b11110, 0b10000, 0b10000, 0b11111,
-        ],
-    ),
-    (
-        'F',
-        [
-            0b11111, 0b10000, 0b10000, 0b11110, 0b10000, 0b10000, 0b10000,
-        ],
-    ),
-    (
-        'G',
-        [
-            0b01110, 0b10001, 0b10000, 0b10111, 0b10001, 0b10001, 0b01111,
-        ],
-    ),
-    (
-        'H',
-        [
-            0b10001, 0b10001, 0b10001, 0b11111, 0b10001, 0b10001, 0b10001,
-        ],
-    ),
-    (
-        'I',
-        [
-            0b01110, 0b00100, 0b00100, 0b00100, 0b00100, 0b00100, 0b01110,
-        ],
-    ),
-    (
-        'J',
-        [
-            0b00111, 0b00010, 0b00010, 0b00010, 0b00010, 0b10010, 0b01100,
-        ],
-    ),
-    (
-        'K',
-        [
-            0b10001, 0b10010, 0b10100, 0b11000, 0b10100, 0b10010, 0b10001,
-        ],
-    ),
-    (
-        'L',
-        [
-            0b10000, 0b10000, 0b10000, 0b10000, 0b10000, 0b10000, 0b11111,
-        ],
-    ),
-    (
-        'M',
-        [
-            0b10001, 0b11011, 0b10101, 0b10101, 0b10001, 0b10001, 0b10001,
-        ],
-    ),
-    (
-        'N',
-        [
-            0b10001, 0b10001, 0b11001, 0b10101, 0b10011, 0b10001, 0b10001,
-        ],
-    ),
-    (
-        'O',
-        [
-            0b01110, 0b10001, 0b10001, 0b10001, 0b10001, 0b10001, 0b01110,
-        ],
-    ),
-    (
-        'P',
-        [
-            0b11110, 0b10001, 0b10001, 0b11110, 0b10000, 0b10000, 0b10000,
-        ],
-    ),
-    (
-        'Q',
-        [
-            0b01110, 0b10001, 0b10001, 0b10001, 0b10101, 0b10010, 0b01101,
-        ],
-    ),
-    (
-        'R',
-        [
-            0b11110, 0b10001, 0b10001, 0b11110, 0b10100, 0b10010, 0b10001,
-        ],
-    ),
-    (
-        'S',
-        [
-            0b01111, 0b10000, 0b10000, 0b01110, 0b00001, 0b00001, 0b11110,
-        ],
-    ),
-    (
-        'T',
-        [
-            0b11111, 0b00100, 0b00100, 0b00100, 0b00100, 0b00100, 0b00100,
-        ],
-    ),
-    (
-        'U',
-        [
-            0b10001, 0b10001, 0b10001, 0b10001, 0b10001, 0b10001, 0b01110,
-        ],
-    ),
-    (
-        'V',
-        [
-            0b10001, 0b10001, 0b10001, 0b10001, 0b10001, 0b01010, 0b00100,
-        ],
-    ),
-    (
-        'W',
-        [
-            0b10001, 0b10001, 0b10001, 0b10101, 0b10101, 0b10101, 0b01010,
-        ],
-    ),
-    (
-        'X',
-        [
-            0b10001, 0b10001, 0b01010, 0b00100, 0b01010, 0b10001, 0b10001,
-        ],
-    ),
-    (
-        'Y',
-        [
-            0b10001, 0b10001, 0b10001, 0b01010, 0b00100, 0b00100, 0b00100,
-        ],
-    ),
-    (
-        'Z',
-        [
-            0b11111, 0b00001, 0b00010, 0b00100, 0b01000, 0b10000, 0b11111,
-        ],
-    ),
-    (
-        'a',
-        [
-            0b00000, 0b00000, 0b01110, 0b00001, 0b01111, 0b10001, 0b01111,
-        ],
-    ),
-    (
-        'b',
-        [
-            0b10000, 0b10000, 0b10110, 0b11001, 0b10001, 0b10001, 0b11110,
-        ],
-    ),
-    (
-        'c',
-        [
-            0b00000, 0b00000, 0b01110, 0b10000, 0b10000, 0b10001, 0b01110,
-        ],
-    ),
-    (
-        'd',
-        [
-            0b00001, 0b00001, 0b01101, 0b10011, 0b10001, 0b10001, 0b01111,
-        ],
-    ),
-    (
-        'e',
-        [
-            0b00000, 0b00000, 0b01110, 0b10001, 0b11111, 0b10000, 0b01110,
-        ],
-    ),
-    (
-        'f',
-        [
-            0b00110, 0b01001, 0b01000, 0b11100, 0b01000, 0b01000, 0b01000,
-        ],
-    ),
-    (
-        'g',
-        [
-            0b00000, 0b01111, 0b10001, 0b10001, 0b01111, 0b00001, 0b01110,
-        ],
-    ),
-    (
-        'h',
-        [
-            0b10000, 0b10000, 0b10110, 0b11001, 0b10001, 0b10001, 0b10001,
-        ],
-    ),
-    (
-        'i',
-        [
-            0b00100, 0b00000, 0b01100, 0b00100, 0b00100, 0b00100, 0b01110,
-        ],
-    ),
-    (
-        'j',
-        [
-            0b00010, 0b00000, 0b00110, 0b00010, 0b00010, 0b10010, 0b01100,
-        ],
-    ),
-    (
-        'k',
-        [
-            0b10000, 0b10000, 0b10010, 0b10100, 0b11000, 0b10100, 0b10010,
-        ],
-    ),
-    (
-        'l',
-        [
-            0b01100, 0b00100, 0b00100, 0b00100, 0b00100, 0b00100, 0b01110,
-        ],
-    ),
-    (
-        'm',
-        [
-            0b00000, 0b00000, 0b11010, 0b10101, 0b10101, 0b10001, 0b10001,
-        ],
-    ),
-    (
-        'n',
-        [
-            0b00000, 0b00000, 0b10110, 0b11001, 0b10001, 0b10001, 0b10001,
-        ],
-    ),
-    (
-        'o',
-        [
-            0b00000, 0b00000, 0b01110, 0b10001, 0b10001, 0b10001, 0b01110,
-        ],
-    ),
-    (
-        'p',
-        [
-            0b00000, 0b00000, 0b11110, 0b10001, 0b11110, 0b10000, 0b10000,
-        ],
-    ),
-    (
-        'q',
-        [
-            0b00000, 0b00000, 0b01101, 0b10011, 0b01111, 0b00001, 0b00001,
-        ],
-    ),
-    (
-        'r',
-        [
-            0b00000, 0b00000, 0b10110, 0b11001, 0b10000, 0b10000, 0b10000,
-        ],
-    ),
-    (
-        's',
-        [
-            0b00000, 0b00000, 0b01110, 0b10000, 0b01110, 0b00001, 0b11110,
-        ],
-    ),
-    (
-        't',
-        [
-            0b01000, 0b01000, 0b11100, 0b01000, 0b01000, 0b01001, 0b00110,
-        ],
-    ),
-    (
-        'u',
-        [
-            0b00000, 0b00000, 0b10001, 0b10001, 0b10001, 0b10011, 0b01101,
-        ],
-    ),
-    (
-        'v',
-        [
-            0b00000, 0b00000, 0b10001, 0b10001, 0b10001, 0b01010, 0b00100,
-        ],
-    ),
-    (
-        'w',
-        [
-            0b00000, 0b00000, 0b10001, 0b10001, 0b10101, 0b10101, 0b01010,
-        ],
-    ),
-    (
-        'x',
-        [
-            0b00000, 0b00000, 0b10001, 0b01010, 0b00100, 0b01010, 0b10001,
-        ],
-    ),
-    (
-        'y',
-        [
-            0b00000, 0b00000, 0b10001, 0b10001, 0b01111, 0b00001, 0b01110,
-        ],
-    ),
-    (
-        'z',
-        [
-            0b00000, 0b00000, 0b11111, 0b00010, 0b00100, 0b01000, 0b11111,
-        ],
-    ),
-    (
-        '.',
-        [
-            0b00000, 0b00000, 0b00000, 0b00000, 0b00000, 0b01100, 0b01100,
-        ],
-    ),
-    (
-        ',',
-        [
-            0b00000, 0b00000, 0b00000, 0b00000, 0b01100, 0b00100, 0b01000,
-        ],
-    ),
-    (
-        '-',
-        [
-            0b00000, 0b00000, 0b00000, 0b11111, 0b00000, 0b00000, 0b00000,
-        ],
-    ),
-    (
-        '+',
-        [
-            0b00000, 0b00100, 0b00100, 0b11111, 0b00100, 0b00100, 0b00000,
-        ],
-    ),
-    (
-        '%',
-        [
-            0b11000, 0b11001, 0b00010, 0b00100, 0b01000, 0b10011, 0b00011,
-        ],
-    ),
-    (
-        '/',
-        [
-            0b00000, 0b00001, 0b00010, 0b00100, 0b01000, 0b10000, 0b00000,
-        ],
-    ),
-    (
-        '(',
-        [
-            0b00010, 0b00100, 0b01000, 0b01000, 0b01000, 0b00100, 0b00010,
-        ],
-    ),
-    (
-        ')',
-        [
-            0b01000, 0b00100, 0b00010, 0b00010, 0b00010, 0b00100, 0b01000,
-        ],
-    ),
-    (
-        ':',
-        [
-            0b00000, 0b01100, 0b01100, 0b00000, 0b01100, 0b01100, 0b00000,
-        ],
-    ),
-    (
-        '_',
-        [
-            0b00000, 0b00000, 0b00000, 0b00000, 0b00000, 0b00000, 0b11111,
-        ],
-    ),
-    (
-        '=',
-        [
-            0b00000, 0b00000, 0b11111, 0b00000, 0b11111, 0b00000, 0b00000,
-        ],
-    ),
-    (
-        '\'',
-        [
-            0b01100, 0b00100, 0b01000, 0b00000, 0b00000, 0b00000, 0b00000,
-        ],
-    ),
-    (
-        '[',
-        [
-            0b01110, 0b01000, 0b01000, 0b01000, 0b01000, 0b01000, 0b01110,
-        ],
-    ),
-    (
-        ']',
-        [
-            0b01110, 0b00010, 0b00010, 0b00010, 0b00010, 0b00010, 0b01110,
-        ],
-    ),
-    (
-        '<',
-        [
-            0b00010, 0b00100, 0b01000, 0b10000, 0b01000, 0b00100, 0b00010,
-        ],
-    ),
-    (
-        '>',
-        [
-            0b01000, 0b00100, 0b00010, 0b00001, 0b00010, 0b00100, 0b01000,
-        ],
-    ),
-    (
-        '^',
-        [
-            0b00100, 0b01010, 0b10001, 0b00000, 0b00000, 0b00000, 0b00000,
-        ],
-    ),
-    (
-        '*',
-        [
-            0b00000, 0b00100, 0b10101, 0b01110, 0b10101, 0b00100, 0b00000,
-        ],
-    ),
-    (
-        '#',
-        [
-            0b01010, 0b01010, 0b11111, 0b01010, 0b11111, 0b01010, 0b01010,
-        ],
-    ),
-    (
-        '?',
-        [
-            0b01110, 0b10001, 0b00001, 0b00010, 0b00100, 0b00000, 0b00100,
-        ],
-    ),
-    (
-        '!',
-        [
-            0b00100, 0b00100, 0b00100, 0b00100, 0b00100, 0b00000, 0b00100,
-        ],
-    ),
-    (
-        '|',
-        [
-            0b00100, 0b00100, 0b00100, 0b00100, 0b00100, 0b00100, 0b00100,
-        ],
-    ),
-];
 
 #[cfg(test)]
 mod tests {
@@ -1193,7 +684,10 @@ mod tests {
         assert_eq!(t.first().map(|t| t.1.as_str()), Some("0"));
         assert_eq!(t.last().map(|t| t.1.as_str()), Some("10"));
         for c in "0123456789.-+e%/():,_x=".chars() {
-            assert!(FONT.iter().any(|(g, _)| *g == c), "glyph {c:?} missing");
+            assert!(
+                font::FONT.iter().any(|(g, _)| *g == c),
+                "glyph {c:?} missing"
+            );
         }
     }
 }

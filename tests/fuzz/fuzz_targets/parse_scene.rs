@@ -6,7 +6,7 @@ libfuzzer_sys::fuzz_target!(|data: &[u8]| {
     let Ok(text) = std::str::from_utf8(data) else {
         return;
     };
-    if let Ok(s) = clipsat::scene::Scene::parse("fuzz", text) {
+    if let Ok(s) = clipsat::shading::scene::Scene::parse("fuzz", text) {
         let _ = s.needs();
         let _ = s.features();
     }

@@ -6,20 +6,21 @@ use std::fmt::Write as _;
 use std::path::{Path as FsPath, PathBuf};
 use std::time::Instant;
 
+use crate::app::plot::{LinePlot, Series};
 use clap::Args;
-use clipsat::clipmap::{Clipmap, ClipmapOptions};
-use clipsat::flight::{Flight, Path};
+use clipsat::gpu::renderer::{self, FrameOptions, Renderer};
 use clipsat::gpu::{Gpu, GpuMode};
-use clipsat::lod::LodMode;
-use clipsat::plot::{LinePlot, Series};
-use clipsat::renderer::{self, FrameOptions, Renderer};
+use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
+use clipsat::plan::flight::{Flight, Path};
+use clipsat::plan::lod::LodMode;
 use clipsat::source::procedural::{self, ProceduralParams};
 use clipsat::source::{self, LoadOptions};
 use clipsat::{Error, Heightmap, Profile, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 
-use super::bench::{self, LodResult};
-use super::ProfileArgs;
+use super::{lod, shading};
+use crate::app::cmd::ProfileArgs;
+use lod::LodResult;
 
 #[derive(Args, Debug)]
 pub(crate) struct BenchAllArgs {
@@ -199,12 +200,12 @@ pub(crate) fn run(args: &BenchAllArgs) -> Result<()> {
         skipped.push("every shared terrain (--quick)".to_string());
     }
 
-    let (shading_terrains, shading_skipped) = bench::shading_terrains(plan.shared)?;
+    let (shading_terrains, shading_skipped) = shading::shading_terrains(plan.shared)?;
     let shipped = clipsat::profile::SHIPPED.len() as u64;
     let steps = shipped
-        + bench::shading_steps(shading_terrains.len())
+        + shading::shading_steps(shading_terrains.len())
         + terrains.len() as u64
-            * (bench::lod_steps(plan.lod_frames) + plan.speeds.len() as u64 * plan.fly_frames);
+            * (lod::lod_steps(plan.lod_frames) + plan.speeds.len() as u64 * plan.fly_frames);
     let bar = ProgressBar::new(steps);
     if let Ok(style) =
         ProgressStyle::with_template("bench all {bar:30} {pos}/{len} {msg} {elapsed}")
@@ -217,11 +218,11 @@ pub(crate) fn run(args: &BenchAllArgs) -> Result<()> {
     bar.set_message("memory");
     let memory = measure_memory(&gpu, &terrains[0].1, plan.size, &bar)?;
 
-    let lod_profile = bench::lod_profile(profile.clone(), plan.size.0, plan.size.1);
+    let lod_profile = lod::lod_profile(profile.clone(), plan.size.0, plan.size.1);
     let mut lod: Vec<LodResult> = Vec::new();
     for (name, hm) in &terrains {
         bar.set_message(format!("lod {name}"));
-        lod.extend(bench::measure_lod(
+        lod.extend(lod::measure_lod(
             &gpu,
             &lod_profile,
             name,
@@ -231,7 +232,7 @@ pub(crate) fn run(args: &BenchAllArgs) -> Result<()> {
         )?);
     }
 
-    let shading = bench::measure_shading(
+    let shading = shading::measure_shading(
         &gpu,
         &profile,
         &shading_terrains,
@@ -291,7 +292,7 @@ pub(crate) fn run(args: &BenchAllArgs) -> Result<()> {
 /// stale levels, the memory of each profile.
 fn headline(
     lod: &[LodResult],
-    shading: &[bench::ShadingRow],
+    shading: &[shading::ShadingRow],
     budget: &[BudgetRow],
     memory: &[MemoryRow],
     p: &Profile,
@@ -399,7 +400,7 @@ fn lod_section(
     profile: &Profile,
 ) -> Result<String> {
     let png = "lod.png";
-    bench::lod_plot(lod, "LOD: triangles per frame", &out.join(png))?;
+    lod::lod_plot(lod, "LOD: triangles per frame", &out.join(png))?;
     let mut s = String::from("## LOD: triangles, time and error against epsilon\n\n");
     let _ = writeln!(
         s,
@@ -410,7 +411,7 @@ fn lod_section(
         plan.lod_frames,
         plan.size.0,
         plan.size.1,
-        bench::LOD_TABLE_NOTE
+        lod::LOD_TABLE_NOTE
     );
     let _ = writeln!(
         s,
@@ -418,7 +419,7 @@ fn lod_section(
          terrain and estimator. {}*\n",
         machine.line()
     );
-    for png in bench::lod_cost_plots(lod, out)? {
+    for png in lod::lod_cost_plots(lod, out)? {
         let name = png.file_name().and_then(|n| n.to_str()).unwrap_or_default();
         let _ = writeln!(
             s,
@@ -428,7 +429,7 @@ fn lod_section(
         );
     }
     let _ = writeln!(s, "*Table: {}*\n", machine.line());
-    s.push_str(&bench::lod_table(lod, true));
+    s.push_str(&lod::lod_table(lod, true));
     s.push('\n');
     Ok(s)
 }
@@ -437,13 +438,13 @@ fn lod_section(
 /// count and effect set (`bench shading`'s measurement).
 fn shading_section(
     out: &FsPath,
-    rows: &[bench::ShadingRow],
+    rows: &[shading::ShadingRow],
     skipped: &[String],
     plan: &Plan,
     machine: &Machine,
 ) -> Result<String> {
     let png = "shading.png";
-    bench::shading_plot(rows, &out.join(png))?;
+    shading::shading_plot(rows, &out.join(png))?;
     let mut s = String::from("## Shading: error against patch count\n\n");
     let _ = writeln!(
         s,
@@ -459,7 +460,7 @@ fn shading_section(
         } else {
             format!(" Skipped: {}.", skipped.join(", "))
         },
-        g = super::sg::REF_GRID,
+        g = crate::app::cmd::sg::REF_GRID,
     );
     let _ = writeln!(
         s,

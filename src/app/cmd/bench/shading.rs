@@ -1,0 +1,323 @@
+//! `clipsat bench shading`: SG shading against basic shading and the CPU reference, per patch count and
+//! effect set. A measurement tool: it allocates freely and reads the wall clock.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use clap::Args;
+use clipsat::gpu::renderer::{self, FrameOptions, Renderer};
+use clipsat::gpu::{Gpu, GpuMode};
+use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
+use clipsat::source::{self, LoadOptions};
+use clipsat::{Error, Heightmap, Profile, Result};
+use indicatif::{ProgressBar, ProgressStyle};
+
+use super::common::{parse_size, TERRAINS};
+use crate::app::cmd::ProfileArgs;
+use crate::app::plot::{LinePlot, Series};
+
+#[derive(Args, Debug)]
+pub(crate) struct BenchShadingArgs {
+    #[command(flatten)]
+    profile: ProfileArgs,
+    /// Output folder for shading.md and shading.png.
+    #[arg(long, value_name = "DIR")]
+    pub(super) out: PathBuf,
+    /// Timed frames per configuration (after one warm-up frame).
+    #[arg(long, value_name = "N", default_value_t = 3)]
+    frames: u32,
+    /// Image size, WxH pixels.
+    #[arg(long, value_name = "WxH", default_value = "320x180")]
+    size: String,
+    /// GL context: strict, gl or auto.
+    #[arg(long, value_name = "auto|strict|gl", default_value = "auto")]
+    gpu: String,
+}
+
+/// The effect sets of `bench shading`, cumulative: (label, visibility, specular).
+const SHADING_EFFECTS: [(&str, bool, bool); 3] = [
+    ("diffuse", false, false),
+    ("+visibility", true, false),
+    ("+specular", true, true),
+];
+
+/// One measured configuration of `bench shading`.
+#[derive(Clone, Debug)]
+pub(crate) struct ShadingRow {
+    pub(crate) terrain: String,
+    pub(crate) patches: clipsat::shading::Patches,
+    pub(crate) effects: &'static str,
+    pub(crate) ms: f64,
+    pub(crate) basic_ms: f64,
+    pub(crate) rmse: f64,
+    pub(crate) max: f64,
+    pub(crate) pixels: usize,
+}
+
+/// What `bench shading` measured: the rows, the terrains skipped and the Markdown written.
+#[derive(Clone, Debug)]
+pub(crate) struct ShadingReport {
+    pub(crate) rows: Vec<ShadingRow>,
+    pub(crate) skipped: Vec<String>,
+    pub(crate) markdown: String,
+}
+
+/// Mean ms of `frames` renders (after one untimed warm-up: shader compilation).
+fn time_frames(
+    r: &mut Renderer<'_>,
+    clipmap: &Clipmap,
+    camera: &clipsat::Camera,
+    frames: u32,
+) -> Result<(f64, clipsat::gpu::readback::Image)> {
+    let opts = FrameOptions::default();
+    let mut image = renderer::render_frame(r, clipmap, camera, &opts)?.image;
+    let t0 = Instant::now();
+    for _ in 0..frames {
+        image = renderer::render_frame(r, clipmap, camera, &opts)?.image;
+    }
+    Ok((t0.elapsed().as_secs_f64() * 1e3 / f64::from(frames), image))
+}
+
+/// `clipsat bench shading`: the procedural terrain, Puget Sound and Big Tujunga (a missing file is skipped
+/// with a printed reason; under CI=true it is an error), one view each (the default camera), the evening
+/// scene without fog. Writes DIR/shading.md and DIR/shading.png and returns the report.
+pub(crate) fn run_shading(args: &BenchShadingArgs) -> Result<ShadingReport> {
+    let mode: GpuMode = args.gpu.parse()?;
+    let size = parse_size(&args.size)?;
+    if args.frames == 0 {
+        return Err(Error::Arg {
+            arg: "--frames".into(),
+            reason: "0: bench at least 1 frame".into(),
+        });
+    }
+    let profile = args.profile.load()?;
+    std::fs::create_dir_all(&args.out)
+        .map_err(|e| Error::io(&args.out, "cannot create the output folder", e))?;
+    let gpu = Gpu::new(mode)?;
+    let (terrains, skipped) = shading_terrains(true)?;
+    let bar = ProgressBar::new(shading_steps(terrains.len()));
+    if let Ok(style) =
+        ProgressStyle::with_template("bench shading {bar:30} {pos}/{len} {msg} {elapsed}")
+    {
+        bar.set_style(style);
+    }
+    let rows = measure_shading(&gpu, &profile, &terrains, size, args.frames, &bar)?;
+    bar.finish_and_clear();
+    let md = shading_markdown(&rows, &skipped, &gpu, &profile, size, args.frames);
+    let md_path = args.out.join("shading.md");
+    std::fs::write(&md_path, &md).map_err(|e| Error::io(&md_path, "cannot write", e))?;
+    shading_plot(&rows, &args.out.join("shading.png"))?;
+    Ok(ShadingReport {
+        rows,
+        skipped,
+        markdown: md,
+    })
+}
+
+/// Named terrains to measure, and the names of those skipped because their file is missing.
+pub(crate) type NamedTerrains = (Vec<(String, Heightmap)>, Vec<String>);
+
+/// The terrains `bench shading` measures: the 257 x 257 procedural terrain, then (when `shared`) Puget
+/// Sound and Big Tujunga. A missing shared file is skipped with a printed reason, or an error under
+/// CI=true. Returns the terrains and the names skipped.
+pub(crate) fn shading_terrains(shared: bool) -> Result<NamedTerrains> {
+    let ci = std::env::var("CI").is_ok_and(|v| v == "true");
+    let mut terrains = vec![(
+        "procedural-257".to_string(),
+        source::procedural::generate(&source::procedural::ProceduralParams {
+            size: 257,
+            ..Default::default()
+        })?,
+    )];
+    let mut skipped = Vec::new();
+    if !shared {
+        return Ok((terrains, skipped));
+    }
+    for (name, spacing, scale) in [TERRAINS[0], TERRAINS[2]] {
+        let path = clipsat::data_dir().join(name);
+        if !path.exists() {
+            if ci {
+                return Err(Error::Arg {
+                    arg: "bench shading".into(),
+                    reason: format!("{} is missing (CI=true)", path.display()),
+                });
+            }
+            eprintln!(
+                "bench shading: skipping {name}: {} is missing",
+                path.display()
+            );
+            skipped.push(name.to_string());
+            continue;
+        }
+        let hm = source::load(
+            &path,
+            &LoadOptions {
+                spacing,
+                height_scale: scale,
+                ..Default::default()
+            },
+        )?;
+        terrains.push((name.to_string(), hm));
+    }
+    Ok((terrains, skipped))
+}
+
+/// Progress steps of [`measure_shading`] over `terrains` terrains.
+pub(crate) fn shading_steps(terrains: usize) -> u64 {
+    (terrains * SHADING_EFFECTS.len() * clipsat::shading::Patches::ALL.len()) as u64
+}
+
+/// Measures every (terrain, effects, patches) at `size`: ms per frame against basic shading in the same
+/// run, and the error against the CPU reference.
+pub(crate) fn measure_shading(
+    gpu: &Gpu,
+    profile: &Profile,
+    terrains: &[(String, Heightmap)],
+    (w, h): (u32, u32),
+    frames: u32,
+    bar: &ProgressBar,
+) -> Result<Vec<ShadingRow>> {
+    use clipsat::gpu::sat_textures::ShadingBake;
+    use clipsat::shading::scene::{Needs, Scene};
+    use clipsat::shading::Patches;
+
+    let mut profile = profile.clone();
+    profile.view.width = w;
+    profile.view.height = h;
+    let mut base = Scene::load("evening")?;
+    base.effects.fog = false;
+    base.fog = None;
+    let max_side = gpu.device().limits().max_texture_dimension_2d;
+    let mut rows = Vec::new();
+    for (name, hm) in terrains {
+        bar.set_message(format!("shading {name}"));
+        let camera = clipsat::Camera::default_for(hm)?;
+        let mut clipmap = Clipmap::new(hm, &profile, ClipmapOptions::default())?;
+        // Fill every level at the eye.
+        for _ in 0..10_000 {
+            let frame = clipmap.update(camera.eye)?;
+            if frame.stale_levels == 0 && clipmap.pending_samples(camera.eye) == 0 {
+                break;
+            }
+        }
+        let mut r = Renderer::new(gpu, &profile, &clipmap)?;
+        let (basic_ms, _) = time_frames(&mut r, &clipmap, &camera, frames)?;
+        let bake_vis = ShadingBake::bake(
+            hm,
+            &Needs {
+                bake_horizons: true,
+                ..Needs::default()
+            },
+            clipsat::bake::horizon::DEFAULT_AZIMUTHS,
+            max_side,
+        )?;
+        let bake_plain = ShadingBake::bake(hm, &Needs::default(), 8, max_side)?;
+        for (label, vis, spec) in SHADING_EFFECTS {
+            let mut scene = base.clone();
+            scene.effects.visibility = vis;
+            scene.effects.specular = spec;
+            let reference = crate::app::cmd::sg::reference(hm, &camera, (w, h), &scene);
+            for patches in Patches::ALL {
+                let bake = if vis { &bake_vis } else { &bake_plain };
+                r.set_sg_baked(hm, &scene, patches, bake)?;
+                let (ms, image) = time_frames(&mut r, &clipmap, &camera, frames)?;
+                let e = reference.error(&image, crate::app::cmd::sg::sky_rgba8());
+                rows.push(ShadingRow {
+                    terrain: name.clone(),
+                    patches,
+                    effects: label,
+                    ms,
+                    basic_ms,
+                    rmse: e.rmse,
+                    max: e.max,
+                    pixels: e.pixels,
+                });
+                bar.inc(1);
+            }
+        }
+    }
+    Ok(rows)
+}
+
+/// The Markdown table of [`measure_shading`]'s rows, with what was measured and how.
+pub(crate) fn shading_markdown(
+    rows: &[ShadingRow],
+    skipped: &[String],
+    gpu: &Gpu,
+    profile: &Profile,
+    (w, h): (u32, u32),
+    frames: u32,
+) -> String {
+    let mut md = format!(
+        "# clipsat bench shading\n\nSG shading on {}, {w}x{h}, profile {}, the evening scene \
+         without fog, default camera; ms per frame (upload + draw + readback, mean of {frames} after a \
+         warm-up) and its ratio to basic shading in the same run; RMSE and max error (display-encoded, \
+         0..1) against the CPU reference (`shading::reference`: ray-cast hit, exact footprint normals, \
+         horizons marched at 64 azimuths, 96 x 192 quadrature) on a {g} x {g} pixel grid.\n\n\
+         | terrain | patches | effects | ms | x basic | RMSE | max error | pixels |\n\
+         |---|---|---|---|---|---|---|---|\n",
+        gpu.report().name,
+        profile.name,
+        g = crate::app::cmd::sg::REF_GRID,
+    );
+    for row in rows {
+        md.push_str(&format!(
+            "| {} | {} | {} | {:.1} | {:.2} | {:.4} | {:.4} | {} |\n",
+            row.terrain,
+            row.patches.label(),
+            row.effects,
+            row.ms,
+            row.ms / row.basic_ms.max(1e-9),
+            row.rmse,
+            row.max,
+            row.pixels
+        ));
+    }
+    if !skipped.is_empty() {
+        md.push_str(&format!("\nSkipped (missing): {}\n", skipped.join(", ")));
+    }
+    md
+}
+
+/// RMSE against time per frame (as a multiple of basic shading), one line per (terrain, effects) through
+/// the patch counts.
+pub(crate) fn shading_plot(rows: &[ShadingRow], path: &std::path::Path) -> Result<()> {
+    let colours = [
+        [31, 119, 180],
+        [255, 127, 14],
+        [44, 160, 44],
+        [214, 39, 40],
+        [148, 103, 189],
+        [140, 86, 75],
+        [227, 119, 194],
+        [127, 127, 127],
+        [188, 189, 34],
+    ];
+    let mut names: Vec<&str> = rows.iter().map(|r| r.terrain.as_str()).collect();
+    names.dedup();
+    let mut series = Vec::new();
+    for name in names {
+        for (label, _, _) in SHADING_EFFECTS {
+            let points = rows
+                .iter()
+                .filter(|r| r.terrain == name && r.effects == label)
+                .map(|r| (r.ms / r.basic_ms.max(1e-9), r.rmse))
+                .collect();
+            series.push(Series {
+                name: format!("{name} {label}"),
+                points,
+                color: colours[series.len() % colours.len()],
+                right_axis: false,
+            });
+        }
+    }
+    LinePlot {
+        title: "clipsat bench shading: 2x4, 4x8, 8x16 patches".into(),
+        x_label: "time per frame / basic shading".into(),
+        y_label: "RMSE vs CPU reference".into(),
+        y2_label: String::new(),
+        x_log: false,
+        series,
+    }
+    .write_png(path, 960, 600)
+}

@@ -1,0 +1,7 @@
+//! Application code of the `clipsat` binary, not library API: the subcommands ([`cmd`]), the PNG plots
+//! they write ([`plot`]) and the interactive view's key map ([`view_keys`]).
+
+pub(crate) mod cmd;
+pub(crate) mod plot;
+#[cfg(feature = "view")]
+pub(crate) mod view_keys;

@@ -1,0 +1,144 @@
+//! Stage 3, the GPU: a test instrument that reads back the vertex shader's clip-space output.
+
+use super::{vertex_layout, Renderer};
+use crate::profile::DRAW_SLOT_BYTES;
+use crate::{Error, Result};
+
+/// Test instrument: runs the renderer's vertex shader over one draw of the last frame as points and reads
+/// back the clip-space position of every mesh vertex, bit for bit (an Rgba32Uint target). Creates its own
+/// pipeline and target (outside the renderer's ledger).
+#[derive(Debug)]
+pub struct VertexProbe {
+    pipeline: wgpu::RenderPipeline,
+    target: wgpu::Texture,
+    view: wgpu::TextureView,
+    buffer: wgpu::Buffer,
+    size: [u32; 2],
+}
+
+impl VertexProbe {
+    /// The probe for `renderer`'s pipeline layout and shader.
+    pub fn new(renderer: &Renderer<'_>) -> Result<Self> {
+        let gpu = renderer.gpu;
+        let size = renderer.probe_size;
+        gpu.scoped("vertex probe set-up", || {
+            let device = gpu.device();
+            let target = device.create_texture(&wgpu::TextureDescriptor {
+                label: Some("vertex probe"),
+                size: wgpu::Extent3d {
+                    width: size[0],
+                    height: size[1],
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: wgpu::TextureFormat::Rgba32Uint,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+                view_formats: &[],
+            });
+            let view = target.create_view(&Default::default());
+            let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("vertex probe readback"),
+                size: u64::from(size[0]) * 16 * u64::from(size[1]),
+                usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+                mapped_at_creation: false,
+            });
+            let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some("vertex probe"),
+                layout: Some(&renderer.pipeline_layout),
+                vertex: wgpu::VertexState {
+                    module: &renderer.module,
+                    entry_point: Some("vs_capture"),
+                    compilation_options: Default::default(),
+                    buffers: &[Some(vertex_layout())],
+                },
+                primitive: wgpu::PrimitiveState {
+                    topology: wgpu::PrimitiveTopology::PointList,
+                    ..Default::default()
+                },
+                depth_stencil: None,
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &renderer.module,
+                    entry_point: Some("fs_capture"),
+                    compilation_options: Default::default(),
+                    targets: &[Some(wgpu::ColorTargetState {
+                        format: wgpu::TextureFormat::Rgba32Uint,
+                        blend: None,
+                        write_mask: wgpu::ColorWrites::ALL,
+                    })],
+                }),
+                multiview_mask: None,
+                cache: None,
+            });
+            Ok(Self {
+                pipeline,
+                target,
+                view,
+                buffer,
+                size,
+            })
+        })
+    }
+
+    /// The GPU's clip-space position of every vertex of the last frame's draw `index`, in mesh order.
+    pub fn capture(&self, renderer: &Renderer<'_>, index: usize) -> Result<Vec<[f32; 4]>> {
+        let gpu = renderer.gpu;
+        let d = renderer.draws.get(index).ok_or_else(|| Error::Arg {
+            arg: "draw index".into(),
+            reason: format!("{index} is past the {} draws", renderer.draws.len()),
+        })?;
+        let m = renderer.mesh(d.kind);
+        gpu.scoped("vertex probe", || {
+            let mut encoder = gpu.device().create_command_encoder(&Default::default());
+            {
+                let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("vertex probe"),
+                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                        view: &self.view,
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                            store: wgpu::StoreOp::Store,
+                        },
+                    })],
+                    depth_stencil_attachment: None,
+                    timestamp_writes: None,
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                });
+                pass.set_pipeline(&self.pipeline);
+                pass.set_bind_group(0, &renderer.group0, &[]);
+                let offset = u32::try_from(index as u64 * DRAW_SLOT_BYTES)
+                    .expect("draw slots fit a u32 offset");
+                pass.set_bind_group(1, &renderer.group1, &[offset]);
+                pass.set_vertex_buffer(0, m.vertices.slice(..));
+                pass.draw(0..m.vertex_count, 0..1);
+            }
+            encoder.copy_texture_to_buffer(
+                self.target.as_image_copy(),
+                wgpu::TexelCopyBufferInfo {
+                    buffer: &self.buffer,
+                    layout: wgpu::TexelCopyBufferLayout {
+                        offset: 0,
+                        bytes_per_row: Some(self.size[0] * 16),
+                        rows_per_image: Some(self.size[1]),
+                    },
+                },
+                self.target.size(),
+            );
+            gpu.queue().submit([encoder.finish()]);
+            Ok(())
+        })?;
+        let bytes = crate::gpu::readback::map_rows(
+            gpu,
+            &self.buffer,
+            self.size[0] * 16,
+            self.size[0] * 16,
+        )?;
+        let texels: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(&bytes);
+        Ok(texels[..m.vertex_count as usize].to_vec())
+    }
+}

@@ -1,0 +1,8 @@
+//! Measurements of drawn frames (not the frame path): the projected screen-space error against the data,
+//! cracks in the silhouette and the RMSE between two images. CPU only.
+
+mod image;
+mod screen_error;
+
+pub use image::{crack_pixels, image_rmse, CRACK_CLEAR, CRACK_CLEAR_RGBA8};
+pub use screen_error::{screen_error, ScreenError, SCREEN_ERROR_SAMPLES};

@@ -1,0 +1,111 @@
+//! Measurements: the screen-space error of a drawn frame against the data (design.md "SAT LOD" 1). Not
+//! the frame path.
+
+use crate::gpu::renderer::Renderer;
+use crate::plan::clipmap::Clipmap;
+use crate::plan::cull::{self, DrawKind};
+use crate::plan::lod::Lod;
+use crate::Camera;
+
+/// The measured screen-space error of a drawn frame ([`screen_error`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ScreenError {
+    /// The largest projected vertical error over the measured samples, pixels.
+    pub max_px: f64,
+    /// The same over blocks whose selected level was not clamped to the held data (the ones the error
+    /// bound is a promise about; equal to `max_px` in distance mode).
+    pub max_px_unclamped: f64,
+    /// Data samples measured (inside the frustum).
+    pub samples: u64,
+    /// Every `stride`-th sample in x and y was measured (1: all).
+    pub stride: u32,
+}
+
+/// Most data samples [`screen_error`] visits; past it, it subsamples with a uniform stride.
+pub const SCREEN_ERROR_SAMPLES: u64 = 1 << 22;
+
+/// Measures the last frame's screen-space error (a measurement, not the frame path): for each data sample
+/// under a drawn block of level L, the error map value e_L = |H_0 - PL(H_L)| (design.md "SAT LOD" 1, from
+/// `lod`'s tables) projected at that sample's distance, e * [`Camera::pixels_per_metre`], for samples inside
+/// the view frustum. The GC 6.2 morph of distance mode is not modelled (its vertices lie between levels L
+/// and L + 1). Visits at most [`SCREEN_ERROR_SAMPLES`] samples (a uniform stride past it).
+pub fn screen_error(
+    renderer: &Renderer<'_>,
+    clipmap: &Clipmap,
+    camera: &Camera,
+    lod: &Lod,
+) -> ScreenError {
+    let tables = lod.tables();
+    let synth = lod.synth_levels();
+    let data = clipmap.pyramid().level(0);
+    let spacing = clipmap.g0() * f64::from(1u32 << clipmap.synth_levels());
+    let (w, h) = renderer.size();
+    let frustum = cull::Frustum::new(camera, f64::from(w) / f64::from(h));
+    // The data's last sample in level-0 lattice units.
+    let last = (
+        i64::from(data.width() - 1) << clipmap.synth_levels(),
+        i64::from(data.height() - 1) << clipmap.synth_levels(),
+    );
+    let boxes = || {
+        renderer
+            .draws()
+            .iter()
+            .filter(|d| d.kind == DrawKind::Block)
+            .filter_map(move |d| {
+                // In the fine lattice: a snapped tile is its level's surface cut at the piece's edge, so
+                // its level's error map over the covered samples is exact.
+                let c = d.covered(d.quads.max(1));
+                let (l, f) = (d.level, d.fine);
+                let (a, cc, b, dd) = (c.x0 << f, c.y0 << f, (c.x1() - 1) << f, (c.y1() - 1) << f);
+                // Geometry past the data collapses onto its border (not a surface to measure).
+                let inside = b >= 0 && dd >= 0 && a <= last.0 && cc <= last.1;
+                inside.then(|| (l, d.clamped, tables.data_box(synth, a, cc, b, dd)))
+            })
+    };
+    let total: u64 = boxes()
+        .map(|(_, _, (x0, y0, x1, y1))| u64::from(x1 - x0) * u64::from(y1 - y0))
+        .sum();
+    let mut stride = 1u32;
+    while total / u64::from(stride * stride) > SCREEN_ERROR_SAMPLES {
+        stride += 1;
+    }
+    let mut out = ScreenError {
+        stride,
+        ..ScreenError::default()
+    };
+    let (ox, oy) = clipmap.origin();
+    let top = oy + f64::from(data.height() - 1) * spacing;
+    for (l, clamped, (x0, y0, x1, y1)) in boxes() {
+        let errors = l
+            .checked_sub(synth)
+            .and_then(|k| tables.level(k))
+            .and_then(|t| t.tables())
+            .map(|(_, max)| max.values());
+        let Some(errors) = errors else {
+            // The data level or finer: no error against the data.
+            continue;
+        };
+        // Aligned to the stride so overlapping boxes visit the same samples.
+        for y in (y0.next_multiple_of(stride)..y1).step_by(stride as usize) {
+            for x in (x0.next_multiple_of(stride)..x1).step_by(stride as usize) {
+                let z = f64::from(data.at_clamped(i64::from(x), i64::from(y)));
+                let rel = glam::DVec3::new(
+                    ox + f64::from(x) * spacing - camera.eye.x,
+                    top - f64::from(y) * spacing - camera.eye.y,
+                    z - camera.eye.z,
+                );
+                if !frustum.intersects(rel, rel) {
+                    continue;
+                }
+                let e = f64::from(errors[y as usize * tables.width as usize + x as usize]);
+                out.samples += 1;
+                let px = e * camera.pixels_per_metre(rel.length(), h);
+                out.max_px = out.max_px.max(px);
+                if !clamped {
+                    out.max_px_unclamped = out.max_px_unclamped.max(px);
+                }
+            }
+        }
+    }
+    out
+}

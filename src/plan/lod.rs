@@ -1,0 +1,340 @@
+//! Stage 2, the per-frame plan: allocation-free block LOD selection (design.md "SAT LOD", after Li et al.
+//! 2021, "SAT paper", algorithm 1) over the tables [`crate::bake::lod_tables`] bakes.
+//!
+//! # Blocks
+//!
+//! The LOD block of ring l is a cell of a fixed world grid: m x m quads of level l (m = `profile.block_m()`),
+//! cell (c, r) covering level-l vertices [c m, (c + 1) m] x [r m, (r + 1) m], i.e. level-0 lattice
+//! multiples of m 2^l, so coarser levels up to l + log2 m have samples on its corners. Each frame, ring l
+//! contributes the cells that meet its active region (clipped to it) and are not wholly inside the finer
+//! ring's active region (the hole). The renderer draws each block at its chosen level, covering the clipped
+//! cell; skirts hide the cracks (design.md "SAT LOD" 7). A full ring of n = 4m - 1 vertices meets at most
+//! 6 x 6 cells, so a frame has at most 36 L blocks, and selection is O(blocks x levels).
+
+/// Defined beside the tables whose estimators it chooses.
+pub use crate::bake::lod_tables::LodMode;
+use crate::bake::lod_tables::{ceil_shr, LodTables};
+use crate::plan::camera::Camera;
+use crate::plan::frame::{Frame, Rect, MAX_LEVELS};
+use crate::{Error, Result};
+
+/// Capacity of a frame's block list; the profile's `max_draws` is the limit actually enforced.
+pub const MAX_LOD_BLOCKS: usize = 4096;
+
+/// One block of a frame and the level it is drawn at.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BlockLod {
+    /// The ring whose render region the block belongs to.
+    pub ring: u32,
+    /// The block's vertices in ring `ring`'s lattice (a cell of the fixed grid, clipped to the active region).
+    pub rect: Rect,
+    /// The level it is drawn at.
+    pub level: u32,
+    /// The level the error bound asked for, before clamping to the held data.
+    pub wanted: u32,
+    /// The object-space error of `level` over the block under the frame's mode, metres.
+    pub eta_m: f32,
+    /// The screen-space bound of `level`, pixels.
+    pub bound_px: f32,
+}
+
+/// The LOD part of a frame: blocks and the levels they are drawn at. Fixed-capacity: allocation-free.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LodFrame {
+    /// Blocks, ring by ring (finest first), row-major cells within a ring.
+    pub blocks: heapless::Vec<BlockLod, MAX_LOD_BLOCKS>,
+    /// Blocks whose wanted level is finer than any level whose held data covers them: the error the memory
+    /// budget cannot pay for.
+    pub blocks_clamped: u32,
+    /// Blocks drawn coarser than their own ring.
+    pub blocks_coarser: u32,
+    /// Blocks drawn finer than their own ring.
+    pub blocks_finer: u32,
+}
+
+impl LodFrame {
+    /// A frame with no blocks (boxed: the block list is large).
+    pub fn new_boxed() -> Box<Self> {
+        Box::default()
+    }
+
+    /// The block-to-level part of the frame hash (for the frame record).
+    pub fn hash_into(&self, h: &mut crate::hash::Hash64) {
+        h.write_u64(self.blocks.len() as u64);
+        for b in &self.blocks {
+            h.write_u32(b.ring);
+            h.write_i64(b.rect.x0);
+            h.write_i64(b.rect.y0);
+            h.write_u32(b.rect.w);
+            h.write_u32(b.rect.h);
+            h.write_u32(b.level);
+        }
+        h.write_u32(self.blocks_clamped);
+    }
+}
+
+/// The per-frame LOD selector: SAT paper algorithm 1 over the fixed block grid, with the clamp to the
+/// held data. Built once; [`Lod::select`] allocates nothing.
+#[derive(Clone, Debug)]
+pub struct Lod {
+    tables: LodTables,
+    levels: u32,
+    synth: u32,
+    m: u32,
+    g0: f64,
+    /// World x of level-0 lattice column 0 (the west edge), metres.
+    x_left: f64,
+    /// World y of level-0 lattice row 0 (the north edge), metres.
+    y_top: f64,
+    z_range: (f64, f64),
+    epsilon_px: f64,
+    view_height: u32,
+    max_blocks: usize,
+}
+
+impl Lod {
+    /// A selector for a clipmap of `profile` over the terrain the tables were built from.
+    ///
+    /// `g0` is the level-0 spacing, `corner` the world (x, y) of lattice point (0, 0) (the north-west data
+    /// sample), `z_range` the terrain's height range (the blocks' vertical extent, so the closest point is
+    /// never farther than the true one).
+    pub fn new(
+        tables: LodTables,
+        profile: &crate::Profile,
+        synth: u32,
+        g0: f64,
+        corner: (f64, f64),
+        z_range: (f64, f64),
+    ) -> Self {
+        let (x_left, y_top) = corner;
+        Self {
+            tables,
+            levels: profile.clipmap.levels.min(crate::profile::MAX_LEVELS),
+            synth,
+            m: profile.block_m(),
+            g0,
+            x_left,
+            y_top,
+            z_range,
+            epsilon_px: f64::from(profile.view.epsilon_px),
+            view_height: profile.view.height,
+            max_blocks: (profile.budget.max_draws as usize).min(MAX_LOD_BLOCKS),
+        }
+    }
+
+    /// A selector for `clipmap`'s geometry (its level-0 spacing, synthesised rings and terrain placement).
+    pub fn for_clipmap(
+        tables: LodTables,
+        profile: &crate::Profile,
+        clipmap: &crate::plan::clipmap::Clipmap,
+        terrain: &crate::Heightmap,
+    ) -> Self {
+        let (lo, hi) = terrain.range();
+        // Heightmap::grid_to_world: sample (0, 0) sits at origin + (0, (rows - 1) s).
+        let (ox, oy) = terrain.origin();
+        let y_top = oy + f64::from(terrain.height() - 1) * f64::from(terrain.spacing());
+        Self::new(
+            tables,
+            profile,
+            clipmap.synth_levels(),
+            clipmap.g0(),
+            (ox, y_top),
+            (f64::from(lo), f64::from(hi)),
+        )
+    }
+
+    /// Sets the screen-space error bound epsilon, pixels (the profile's `view.epsilon_px` until set).
+    pub fn set_epsilon_px(&mut self, epsilon_px: f64) {
+        self.epsilon_px = epsilon_px;
+    }
+
+    /// The screen-space error bound epsilon, pixels.
+    pub fn epsilon_px(&self) -> f64 {
+        self.epsilon_px
+    }
+
+    /// Rings finer than the data (clipmap level = data level + this).
+    pub fn synth_levels(&self) -> u32 {
+        self.synth
+    }
+
+    /// The baked tables.
+    pub fn tables(&self) -> &LodTables {
+        &self.tables
+    }
+
+    /// The screen-space bound of an object-space error `eta` at distance `dist`, pixels (SAT paper eq. 6): a
+    /// vertical segment of +/- eta at the block's closest point, projected on the viewport.
+    pub fn bound_px(&self, camera: &Camera, eta: f64, dist: f64) -> f64 {
+        2.0 * eta * camera.pixels_per_metre(dist, self.view_height)
+    }
+
+    /// The distance from the eye to the closest point of a level-0 lattice box [a, b] x [c, d] (inclusive
+    /// vertices), its height spanning the terrain's range.
+    fn closest_distance(&self, camera: &Camera, a: i64, c: i64, b: i64, d: i64) -> f64 {
+        let g = self.g0;
+        #[expect(
+            clippy::cast_precision_loss,
+            reason = "lattice coordinates below 2^48 are exact in f64"
+        )]
+        let (x0, x1, yn, ys) = (
+            self.x_left + a as f64 * g,
+            self.x_left + b as f64 * g,
+            self.y_top - c as f64 * g,
+            self.y_top - d as f64 * g,
+        );
+        let e = camera.eye;
+        let px = e.x.clamp(x0, x1);
+        let py = e.y.clamp(ys, yn);
+        let pz = e.z.clamp(self.z_range.0, self.z_range.1);
+        ((px - e.x).powi(2) + (py - e.y).powi(2) + (pz - e.z).powi(2)).sqrt()
+    }
+
+    /// Chooses every block's level for `frame` seen from `camera` (SAT paper algorithm 1): from the coarsest
+    /// level to the finest, the first whose bound is <= epsilon; then the nearest level whose clip region
+    /// covers the block. Writes `out`; allocation-free. Fails with [`Error::Capacity`] past
+    /// `profile.budget.max_draws` blocks.
+    pub fn select(
+        &self,
+        frame: &Frame,
+        camera: &Camera,
+        mode: LodMode,
+        out: &mut LodFrame,
+    ) -> Result<()> {
+        out.blocks.clear();
+        out.blocks_clamped = 0;
+        out.blocks_coarser = 0;
+        out.blocks_finer = 0;
+        let levels = frame.levels.len().min(self.levels as usize);
+        let m = i64::from(self.m);
+        for l in 0..levels {
+            let a = frame.levels[l].active;
+            if a.is_empty() {
+                continue;
+            }
+            let l32 = u32::try_from(l).expect("level < MAX_LEVELS");
+            // The hole: the finer ring's active vertices, in this ring's lattice (its corners are even).
+            let hole = match l.checked_sub(1).map(|f| frame.levels[f].active) {
+                Some(f) if !f.is_empty() => Rect::from_bounds(
+                    f.x0 >> 1,
+                    f.y0 >> 1,
+                    ((f.x1() - 1) >> 1) + 1,
+                    ((f.y1() - 1) >> 1) + 1,
+                ),
+                _ => Rect::EMPTY,
+            };
+            let (ax1, ay1) = (a.x1() - 1, a.y1() - 1);
+            for cy in a.y0.div_euclid(m)..=(ay1 - 1).div_euclid(m) {
+                for cx in a.x0.div_euclid(m)..=(ax1 - 1).div_euclid(m) {
+                    let r = Rect::from_bounds(
+                        (cx * m).max(a.x0),
+                        (cy * m).max(a.y0),
+                        ((cx + 1) * m).min(ax1) + 1,
+                        ((cy + 1) * m).min(ay1) + 1,
+                    );
+                    if r.w < 2 || r.h < 2 || hole.contains(&r) {
+                        continue;
+                    }
+                    let b = self.choose(frame, camera, mode, l32, r);
+                    if b.wanted < b.level {
+                        out.blocks_clamped += 1;
+                    }
+                    if b.level > l32 {
+                        out.blocks_coarser += 1;
+                    } else if b.level < l32 {
+                        out.blocks_finer += 1;
+                    }
+                    if out.blocks.len() >= self.max_blocks {
+                        return Err(Error::Capacity {
+                            what: "LOD blocks (profile budget.max_draws)",
+                            capacity: self.max_blocks,
+                        });
+                    }
+                    out.blocks.push(b).map_err(|_| Error::Capacity {
+                        what: "LOD blocks",
+                        capacity: MAX_LOD_BLOCKS,
+                    })?;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// One block: algorithm 1, then the clamp.
+    fn choose(
+        &self,
+        frame: &Frame,
+        camera: &Camera,
+        mode: LodMode,
+        ring: u32,
+        r: Rect,
+    ) -> BlockLod {
+        // Level-0 lattice box of the block (inclusive vertices).
+        let (a, c, b, d) = (
+            r.x0 << ring,
+            r.y0 << ring,
+            (r.x1() - 1) << ring,
+            (r.y1() - 1) << ring,
+        );
+        let dist = self.closest_distance(camera, a, c, b, d);
+        let (x0, y0, x1, y1) = self.tables.data_box(self.synth, a, c, b, d);
+        let eta_of = |level: u32| -> f64 {
+            match level
+                .checked_sub(self.synth)
+                .and_then(|k| self.tables.level(k))
+            {
+                Some(t) => t.eta(mode, self.tables.p, x0, y0, x1, y1),
+                // Past the baked levels: unknown error, never chosen by the bound.
+                None => f64::INFINITY,
+            }
+        };
+        let levels = u32::try_from(frame.levels.len()).expect("levels < MAX_LEVELS");
+        let mut wanted = ring;
+        if mode != LodMode::Distance {
+            wanted = self.synth;
+            for level in (self.synth..levels).rev() {
+                if self.bound_px(camera, eta_of(level), dist) <= self.epsilon_px {
+                    wanted = level;
+                    break;
+                }
+            }
+        }
+        let covers = |level: u32| -> bool {
+            let lf = &frame.levels[level as usize];
+            let box_l = Rect::from_bounds(
+                a >> level,
+                c >> level,
+                ceil_shr(b, level) + 1,
+                ceil_shr(d, level) + 1,
+            );
+            !lf.clip.is_empty() && lf.clip.contains(&box_l)
+        };
+        let level = if covers(wanted) {
+            wanted
+        } else {
+            ((wanted + 1)..levels)
+                .find(|&l| covers(l))
+                .or_else(|| (0..wanted).rev().find(|&l| covers(l)))
+                .unwrap_or(ring)
+        };
+        let eta = if mode == LodMode::Distance {
+            0.0
+        } else {
+            eta_of(level)
+        };
+        #[expect(clippy::cast_possible_truncation, reason = "reported in f32")]
+        BlockLod {
+            ring,
+            rect: r,
+            level,
+            wanted,
+            eta_m: eta as f32,
+            bound_px: self.bound_px(camera, eta, dist) as f32,
+        }
+    }
+}
+
+/// The most blocks one frame of `profile` can have: at most 6 x 6 cells meet a ring's active region.
+pub fn max_blocks_per_frame(profile: &crate::Profile) -> usize {
+    36 * (profile.clipmap.levels as usize).min(MAX_LEVELS)
+}

@@ -1,0 +1,22 @@
+//! Stage 2, the per-frame plan: CPU only, pure and allocation-free after construction.
+//!
+//! In data-flow order:
+//!
+//! - [`flight`] and [`camera`]: the camera of frame i, a pure function of the path and i (no clock);
+//! - [`budget`], [`clipmap`], [`synthesis`]: the budgeted coarse-to-fine toroidal update of every ring
+//!   (GC sections 3-5 and 8), recorded in a [`frame::Frame`] with its hash;
+//! - [`lod`]: SAT LOD block selection over the tables of [`crate::bake::lod_tables`];
+//! - [`cull`]: frustum culling into the fixed-capacity draw list;
+//! - [`uniforms`]: the packed `#[repr(C)]` uniforms each draw needs;
+//! - [`mesh`]: the static block meshes (built once at start-up) the draws index.
+
+pub mod budget;
+pub mod camera;
+pub mod clipmap;
+pub mod cull;
+pub mod flight;
+pub mod frame;
+pub mod lod;
+pub mod mesh;
+pub mod synthesis;
+pub mod uniforms;

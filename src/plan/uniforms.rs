@@ -1,0 +1,226 @@
+//! Stage 2, the per-frame plan: the packed uniforms of a frame (plan output, `#[repr(C)]` Pod, no wgpu).
+//! [`Globals`] and [`DrawUniform`] mirror `shaders_gles/clipmap.wgsl`; [`draw_uniform`] and
+//! [`lod_draw_uniform`] fill one draw's slot from the clipmap frame and the camera, the anchor's position
+//! relative to the eye computed in f64 (GC 5.2's camera-relative precision).
+
+use bytemuck::{Pod, Zeroable};
+
+use crate::plan::clipmap::Clipmap;
+use crate::plan::cull;
+use crate::profile::GLOBALS_BYTES;
+use crate::shading::basic::BasicShading;
+use crate::Camera;
+
+/// The renderer's global uniforms; mirrors `Globals` in `shaders_gles/clipmap.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct Globals {
+    /// Camera-relative view-projection.
+    pub view_proj: [f32; 16],
+    /// Basic shading parameters.
+    pub shading: BasicShading,
+    /// x: morph factor (1 on, 0 off); y: skirt floor (m); z, w: vertex-probe target size.
+    pub params: [f32; 4],
+    /// The data's horizontal extent relative to the eye (m): x min, y min, x max, y max. Fragments
+    /// outside it are discarded.
+    pub extent: [f32; 4],
+}
+const _: () = assert!(std::mem::size_of::<Globals>() as u64 == GLOBALS_BYTES);
+
+/// One draw's uniforms; mirrors `DrawUniform` in `shaders_gles/clipmap.wgsl`. Lattice values are relative
+/// to the level's anchor, the first vertex of its active region.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct DrawUniform {
+    /// xy: mesh origin; z: array layer; w: ring size S.
+    pub origin: [i32; 4],
+    /// Clamp rectangle, inclusive: x0, y0, x1, y1.
+    pub bounds: [i32; 4],
+    /// Active region, inclusive: x0, y0, x1, y1.
+    pub active: [i32; 4],
+    /// xy: texel of the anchor (anchor mod S).
+    pub tex: [i32; 4],
+    /// xyz: world position of the anchor at height 0 minus the eye (m); w: level spacing (m).
+    pub anchor_rel: [f32; 4],
+    /// xy: viewer (level units); z, w: (active w - 1) / 2, (active h - 1) / 2.
+    pub morph: [f32; 4],
+    /// x: transition width n / 10; y: n; zw: unused.
+    pub morph_w: [f32; 4],
+    /// SAT LOD snapped tiles ([`cull::Draw::fine`]): x: fine level; y: s, this level's spacing in fine
+    /// lattice units (1: not snapped, and the fine fields repeat the ones above); zw: unused.
+    pub fine: [i32; 4],
+    /// Clamp rectangle in fine units, inclusive, fine-anchor-relative.
+    pub fine_bounds: [i32; 4],
+    /// xy: this level's anchor in fine units, fine-anchor-relative; zw: unused.
+    pub fine_origin: [i32; 4],
+    /// xyz: world position of the fine anchor at height 0 minus the eye (m); w: fine spacing (m).
+    pub fine_rel: [f32; 4],
+}
+const _: () = assert!(std::mem::size_of::<DrawUniform>() == 176);
+
+impl DrawUniform {
+    /// Fills the fine fields for a draw that is not snapped: the fine level is the draw's own.
+    fn unsnapped(mut self) -> Self {
+        self.fine = [self.origin[2], 1, 0, 0];
+        self.fine_bounds = self.bounds;
+        self.fine_origin = [0; 4];
+        self.fine_rel = self.anchor_rel;
+        self
+    }
+}
+
+/// The uniforms of draw `d`: lattice values relative to the level's anchor (its active region's first
+/// vertex), the anchor's position relative to the eye computed in f64.
+#[expect(
+    clippy::cast_possible_truncation,
+    reason = "anchor-relative lattice offsets are below the ring size; f64 -> f32 after subtracting the eye \
+              is the intended GPU precision"
+)]
+pub fn draw_uniform(
+    clipmap: &Clipmap,
+    camera: &Camera,
+    d: &cull::Draw,
+    n: u32,
+    size: u32,
+) -> DrawUniform {
+    let a = clipmap.frame().levels[d.level as usize].active;
+    let (ax, ay) = (a.x0, a.y0);
+    let rel = |v: i64, o: i64| (v - o) as i32;
+    let k = f64::from(1u32 << d.level);
+    let p = clipmap.eye_lattice(camera.eye);
+    let g0 = clipmap.g0();
+    #[expect(
+        clippy::cast_precision_loss,
+        reason = "lattice coordinates are below 2^48"
+    )]
+    let (fx, fy) = (ax as f64, ay as f64);
+    let s = i64::from(size);
+    DrawUniform {
+        origin: [
+            rel(d.origin[0], ax),
+            rel(d.origin[1], ay),
+            d.level as i32,
+            size as i32,
+        ],
+        bounds: [
+            rel(d.bounds.x0, ax),
+            rel(d.bounds.y0, ay),
+            rel(d.bounds.x1() - 1, ax),
+            rel(d.bounds.y1() - 1, ay),
+        ],
+        active: [0, 0, a.w as i32 - 1, a.h as i32 - 1],
+        tex: [ax.rem_euclid(s) as i32, ay.rem_euclid(s) as i32, 0, 0],
+        anchor_rel: [
+            ((fx * k - p.0) * g0) as f32,
+            (-(fy * k - p.1) * g0) as f32,
+            (-camera.eye.z) as f32,
+            (g0 * k) as f32,
+        ],
+        morph: [
+            (p.0 / k - fx) as f32,
+            (p.1 / k - fy) as f32,
+            (a.w as f32 - 1.0) * 0.5,
+            (a.h as f32 - 1.0) * 0.5,
+        ],
+        morph_w: [n as f32 / 10.0, n as f32, 0.0, 0.0],
+        ..DrawUniform::default()
+    }
+    .unsnapped()
+}
+
+/// The uniforms of SAT LOD draw `d`: like [`draw_uniform`], but anchored at the level's clip region (a block
+/// drawn finer than its ring lies outside that level's active region, inside its held data), with the
+/// region for one-sided normals the clip region and no morph.
+#[expect(
+    clippy::cast_possible_truncation,
+    reason = "clip-relative lattice offsets are below the ring size; f64 -> f32 after subtracting the eye \
+              is the intended GPU precision"
+)]
+pub fn lod_draw_uniform(
+    clipmap: &Clipmap,
+    camera: &Camera,
+    d: &cull::Draw,
+    n: u32,
+    size: u32,
+) -> DrawUniform {
+    let c = clipmap.frame().levels[d.level as usize].clip;
+    let mut u = draw_uniform(clipmap, camera, d, n, size);
+    let (ax, ay) = (c.x0, c.y0);
+    let rel = |v: i64, o: i64| (v - o) as i32;
+    let k = f64::from(1u32 << d.level);
+    let p = clipmap.eye_lattice(camera.eye);
+    let g0 = clipmap.g0();
+    #[expect(
+        clippy::cast_precision_loss,
+        reason = "lattice coordinates are below 2^48"
+    )]
+    let (fx, fy) = (ax as f64, ay as f64);
+    let s = i64::from(size);
+    u.origin[0] = rel(d.origin[0], ax);
+    u.origin[1] = rel(d.origin[1], ay);
+    u.bounds = [
+        rel(d.bounds.x0, ax),
+        rel(d.bounds.y0, ay),
+        rel(d.bounds.x1() - 1, ax),
+        rel(d.bounds.y1() - 1, ay),
+    ];
+    u.active = [0, 0, c.w as i32 - 1, c.h as i32 - 1];
+    u.tex = [ax.rem_euclid(s) as i32, ay.rem_euclid(s) as i32, 0, 0];
+    u.anchor_rel[0] = ((fx * k - p.0) * g0) as f32;
+    u.anchor_rel[1] = (-(fy * k - p.1) * g0) as f32;
+    // alpha = 0 everywhere: the transition band starts past any lattice point.
+    u.morph = [0.0, 0.0, 1.0e9, 1.0e9];
+    if d.fine == d.level {
+        return u.unsnapped();
+    }
+    // A snapped tile: `d.bounds` is in the fine level's lattice, anchored at that level's clip region; the
+    // shader clamps to `fine_bounds` only, so `bounds` above is not used.
+    let f = clipmap.frame().levels[d.fine as usize].clip;
+    let shift = d.level - d.fine;
+    let kf = f64::from(1u32 << d.fine);
+    #[expect(
+        clippy::cast_precision_loss,
+        reason = "lattice coordinates are below 2^48"
+    )]
+    let (gx, gy) = (f.x0 as f64, f.y0 as f64);
+    u.fine = [d.fine as i32, 1 << shift, 0, 0];
+    u.fine_bounds = [
+        rel(d.bounds.x0, f.x0),
+        rel(d.bounds.y0, f.y0),
+        rel(d.bounds.x1() - 1, f.x0),
+        rel(d.bounds.y1() - 1, f.y0),
+    ];
+    u.fine_origin = [rel(ax << shift, f.x0), rel(ay << shift, f.y0), 0, 0];
+    u.fine_rel = [
+        ((gx * kf - p.0) * g0) as f32,
+        (-(gy * kf - p.1) * g0) as f32,
+        (-camera.eye.z) as f32,
+        (g0 * kf) as f32,
+    ];
+    u
+}
+
+/// The data's horizontal extent relative to the eye (m), for [`Globals::extent`]: lattice x grows east and
+/// lattice y south, so the north edge (lattice y 0) is the largest y.
+pub(crate) fn data_extent_rel(
+    clipmap: &Clipmap,
+    camera: &Camera,
+    data_lattice: (f64, f64),
+) -> [f64; 4] {
+    let p = clipmap.eye_lattice(camera.eye);
+    let g0 = clipmap.g0();
+    [
+        -p.0 * g0,
+        -(data_lattice.1 - p.1) * g0,
+        (data_lattice.0 - p.0) * g0,
+        p.1 * g0,
+    ]
+}
+
+#[expect(
+    clippy::cast_possible_truncation,
+    reason = "eye-relative metre offsets as f32, like every position the GPU sees"
+)]
+pub(crate) fn to_f32x4(v: [f64; 4]) -> [f32; 4] {
+    v.map(|e| e as f32)
+}

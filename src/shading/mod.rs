@@ -1,0 +1,32 @@
+//! Shading: the CPU twin of the fragment shader's reduced SG integration (SAT paper section 5,
+//! algorithms 2 and 3; design.md "Shading: reduced SG integration") and the f64 reference it is measured
+//! against.
+//!
+//! [`shade`] is f32, allocation-free and written as the WGSL will be: fixed loops over lights, theta
+//! bands and phi sectors, no library calls WGSL lacks. [`reference()`] integrates the same light transport
+//! densely in f64 with the true clamped cosine (averaged over the vMF normal distribution) and ray-marched
+//! visibility, so every approximation of [`shade`] shows up in its error.
+//!
+//! The approximations of [`shade`], each measured by `tests/shading.rs`:
+//! - the clamped cosine is one SG (lambda 2.133, mu 1.17; [`crate::shading::sg::COSINE_LAMBDA`]), widened by the vMF
+//!   with [`sg::Sg::convolve_vmf`], and cut at the mean normal's tangent plane lowered by the vMF's angular
+//!   spread ([`plane_drop`]);
+//! - each patch's visibility is the fraction of its elevation span (over its corners and centre) above the
+//!   horizon at the azimuth of its centre, the horizon interpolated between the D baked azimuths;
+//! - specular: Fresnel = 1 (folded into k_s), the implicit geometry term G = (n.i)(n.o), so the BRDF is
+//!   D(h) / 4; the cosine is taken at the product lobe's axis and visibility as the fraction of the lobe's
+//!   one-sigma cap above the horizon.
+//!
+//! Files: `basic.rs` (the basic shading's parameters), `scene.rs` (lights, material, effects), `sg.rs` (spherical Gaussians and the vMF), `integrate.rs`
+//! ([`shade`], the CPU twin of `shaders_gles/sg_shading.wgsl`), `reference.rs` ([`reference()`], the f64
+//! reference) and `debug_view.rs` (the debug views' CPU side).
+
+pub mod basic;
+pub mod debug_view;
+mod integrate;
+mod reference;
+pub mod scene;
+pub mod sg;
+
+pub use integrate::{plane_drop, shade, warped_ndf, Inputs, Patches, MAX_BANDS, MAX_SECTORS};
+pub use reference::{reference, HorizonTable, RefCosine, RefGrid, RefInputs};

@@ -1,0 +1,8 @@
+//! CPU twins of the shaders in `shaders_gles/`: the same arithmetic in f32 on the CPU, no wgpu, so tests
+//! compare what the GPU computes against them.
+//!
+//! - [`clipmap`]: `shaders_gles/clipmap.wgsl` (vertex placement, morph, snapped tiles).
+//! - The SG integration of `shaders_gles/sg_shading.wgsl` has its twin in [`crate::shading::shade`]
+//!   (with its f64 reference, [`crate::shading::reference()`]), beside the SG maths it shares.
+
+pub mod clipmap;
