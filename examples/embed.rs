@@ -1,13 +1,17 @@
-//! Embedding clipsat, the whole pipeline in one page: load a terrain (the built-in procedural one, or the
-//! file named on the command line), build a clipmap and a renderer from a profile, render three frames along
-//! a short flight, and print each frame's plan hash and image hash.
+//! Embedding clipsat headless, the whole pipeline in one page: load a terrain (the built-in procedural one,
+//! or the file named on the command line), build a clipmap and an offscreen renderer from a profile, render
+//! three frames along a short flight, and print each frame's clipmap hash, plan hash and image hash.
+//!
+//! The offscreen renderer plans each frame ([`clipsat::plan::frame_plan::Planner`] into a
+//! [`clipsat::plan::frame_plan::FramePlan`], a value), prepares it on the GPU and reads the image back.
+//! `examples/own_device.rs` draws the same terrain into a wgpu device and render pass of its own.
 //!
 //! ```sh
 //! cargo run --release --example embed                      # procedural terrain
 //! cargo run --release --example embed -- ../shared/data/N57E011.hgt
 //! ```
 
-use clipsat::gpu::renderer::{render_frame, FrameOptions, Renderer};
+use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen, OffscreenOptions};
 use clipsat::gpu::{Gpu, GpuMode};
 use clipsat::hash::hex;
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
@@ -15,23 +19,24 @@ use clipsat::plan::flight::{Flight, Path};
 use clipsat::source::{self, procedural, LoadOptions};
 use clipsat::{Heightmap, Profile, Result};
 
-/// The (frame hash, image hash) of three frames 100 m apart along a figure-8 over `terrain`, rendered with
-/// the `gles3-low` profile at 320 x 180 pixels.
-pub(crate) fn three_frames(terrain: &Heightmap) -> Result<[(u64, u64); 3]> {
+/// The (clipmap frame hash, plan hash, image hash) of three frames 100 m apart along a figure-8 over
+/// `terrain`, rendered with the `gles3-low` profile at 320 x 180 pixels.
+pub(crate) fn three_frames(terrain: &Heightmap) -> Result<[(u64, u64, u64); 3]> {
     let mut profile = Profile::load("gles3-low")?;
     (profile.view.width, profile.view.height) = (320, 180);
     let gpu = Gpu::new(GpuMode::Auto)?;
     let mut clipmap = Clipmap::new(terrain, &profile, ClipmapOptions::default())?;
-    let mut renderer = Renderer::new(&gpu, &profile, &clipmap)?;
+    // The LOD mode and shading are fixed here (the default: distance LOD, basic shading).
+    let mut renderer = Offscreen::new(&gpu, &profile, &clipmap, OffscreenOptions::default())?;
     let flight = Flight::new(Path::Figure8, 100.0, terrain)?;
-    let mut out = [(0, 0); 3];
+    let mut out = [(0, 0, 0); 3];
     for (f, slot) in (0u64..).zip(out.iter_mut()) {
         let camera = flight.camera(f);
-        // The CPU plan: which samples to update under the budget, and the frame record's hash.
+        // The CPU clipmap update: which samples to update under the budget, and the frame record's hash.
         let frame_hash = clipmap.update(camera.eye)?.hash;
-        // The GPU: upload the plan's rectangles, draw, read the image back.
+        // The frame plan (uploads, LOD, draws, uniforms), then the GPU: upload, draw, read the image back.
         let frame = render_frame(&mut renderer, &clipmap, &camera, &FrameOptions::default())?;
-        *slot = (frame_hash, frame.image_hash);
+        *slot = (frame_hash, renderer.plan().hash(), frame.image_hash);
     }
     Ok(out)
 }
@@ -43,8 +48,13 @@ fn main() -> std::process::ExitCode {
     };
     match terrain.and_then(|t| three_frames(&t)) {
         Ok(frames) => {
-            for (f, (plan, image)) in frames.iter().enumerate() {
-                println!("frame {f}: plan {} image {}", hex(*plan), hex(*image));
+            for (f, (clip, plan, image)) in frames.iter().enumerate() {
+                println!(
+                    "frame {f}: clipmap {} plan {} image {}",
+                    hex(*clip),
+                    hex(*plan),
+                    hex(*image)
+                );
             }
             std::process::ExitCode::SUCCESS
         }

@@ -83,6 +83,15 @@ pub enum Error {
         /// Why it is refused.
         reason: String,
     },
+    /// A value handed to the library is refused (an option, a plan for another frame, an index); names
+    /// what, in the library's words (the binary maps it to its flags).
+    #[error("{what}: {reason}")]
+    Invalid {
+        /// What was refused.
+        what: String,
+        /// Why.
+        reason: String,
+    },
     /// A camera is unusable (NaN, zero look direction, ...).
     #[error("camera: {0}")]
     Camera(String),

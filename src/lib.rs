@@ -39,7 +39,7 @@
 //! on Mesa llvmpipe through EGL (`bash .ci/setup` installs it).
 //!
 //! ```
-//! use clipsat::gpu::renderer::{render_frame, FrameOptions, Renderer};
+//! use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen, OffscreenOptions};
 //! use clipsat::gpu::{Gpu, GpuMode};
 //! use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 //! use clipsat::plan::flight::{Flight, Path};
@@ -56,17 +56,42 @@
 //! let camera = Flight::new(Path::Figure8, 50.0, &terrain)?.camera(0);
 //! let mut clipmap = Clipmap::new(&terrain, &profile, ClipmapOptions::default())?;
 //! let plan_hash = clipmap.update(camera.eye)?.hash;
-//! // The GPU: a strict OpenGL ES 3.0 context if Mesa offers one, and a renderer sized from the profile.
+//! // The GPU: a strict OpenGL ES 3.0 context if Mesa offers one, and a renderer sized from the profile
+//! // (LOD mode and shading fixed here: distance LOD, basic shading).
 //! let gpu = Gpu::new(GpuMode::Auto)?;
-//! let mut renderer = Renderer::new(&gpu, &profile, &clipmap)?;
+//! let mut renderer = Offscreen::new(&gpu, &profile, &clipmap, OffscreenOptions::default())?;
+//! // One frame: the plan (uploads, LOD, draws, uniforms) as a value, uploaded, drawn, read back.
 //! let frame = render_frame(&mut renderer, &clipmap, &camera, &FrameOptions::default())?;
 //! assert_eq!((frame.image.width, frame.image.height), (160, 90));
-//! println!("plan {plan_hash:016x}, image {:016x}", frame.image_hash);
+//! println!(
+//!     "clipmap {plan_hash:016x}, plan {:016x}, image {:016x}",
+//!     renderer.plan().hash(),
+//!     frame.image_hash
+//! );
 //! # Ok(())
 //! # }
 //! ```
 //!
 //! `examples/embed.rs` does the same for three frames along a path, on the procedural terrain or a file.
+//!
+//! # On your own device, in your own render pass
+//!
+//! The renderer itself ([`gpu::renderer::Renderer`]) takes the caller's `wgpu::Device` and `wgpu::Queue`
+//! (GLES 3.0 downlevel limits suffice) and records into the caller's `wgpu::RenderPass`, the pattern of
+//! egui-wgpu and glyphon:
+//!
+//! ```text
+//! let mut planner = Planner::new(&profile, &clipmap, LodSetup::Distance)?;   // CPU, once
+//! let mut plan = planner.new_plan();                                           // preallocated, once
+//! let mut terrain = Renderer::new(&device, &queue, &RendererOptions { color_format, .. }, &profile)?;
+//! // per frame:
+//! clipmap.update(camera.eye)?;
+//! planner.plan(&clipmap, &camera, &PlanParams::default(), &mut plan)?;       // pure, allocation-free
+//! terrain.prepare(&queue, &clipmap, &plan)?;                                   // uploads
+//! terrain.render(&mut pass);                                                   // draws into your pass
+//! ```
+//!
+//! `examples/own_device.rs` is that, complete: its own instance, adapter, device, targets and pass.
 
 pub mod bake;
 mod error;

@@ -8,7 +8,7 @@
 
 mod render_support;
 
-use clipsat::gpu::renderer::{render_frame, FrameOptions, Renderer};
+use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen};
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::plan::flight::{Flight, Path};
 use clipsat::plan::frame::LevelState;
@@ -130,7 +130,7 @@ fn draw_and_triangle_budgets_on_every_rendered_frame() {
         for (tname, hm) in &terrains {
             let prof = render_support::profile(name, 160, 90, None);
             let mut cm = Clipmap::new(hm, &prof, ClipmapOptions::default()).expect("clipmap");
-            let mut r = Renderer::new(&gpu, &prof, &cm).expect("renderer");
+            let mut r = Offscreen::new(&gpu, &prof, &cm, Default::default()).expect("renderer");
             let ledger = r.ledger().clone();
             let (ex, ey) = hm.extent_m();
             let mut frames = 0;

@@ -1,7 +1,7 @@
 //! `examples/embed.rs` (the minimal embedding) builds, and its three frames hash the same on every run and
 //! the same as the library's own render path over the same camera.
 
-use clipsat::gpu::renderer::{render_frame, FrameOptions, Renderer};
+use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen, OffscreenOptions};
 use clipsat::gpu::{Gpu, GpuMode};
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::plan::flight::{Flight, Path};
@@ -31,15 +31,17 @@ fn embed_example_hashes_are_deterministic_and_match_the_library() {
     (profile.view.width, profile.view.height) = (320, 180);
     let gpu = Gpu::new(GpuMode::Auto).expect("GPU");
     let mut clipmap = Clipmap::new(&terrain, &profile, ClipmapOptions::default()).expect("clipmap");
-    let mut renderer = Renderer::new(&gpu, &profile, &clipmap).expect("renderer");
+    let mut renderer =
+        Offscreen::new(&gpu, &profile, &clipmap, OffscreenOptions::default()).expect("renderer");
     let flight = Flight::new(Path::Figure8, 100.0, &terrain).expect("flight");
     for (f, want) in (0u64..).zip(first) {
         let camera = flight.camera(f);
-        let plan = clipmap.update(camera.eye).expect("update").hash;
+        let clip = clipmap.update(camera.eye).expect("update").hash;
         let image = render_frame(&mut renderer, &clipmap, &camera, &FrameOptions::default())
             .expect("render")
             .image_hash;
-        assert_eq!((plan, image), want, "frame {f} differs from the example's");
+        let plan = renderer.plan().hash();
+        assert_eq!((clip, plan, image), want, "frame {f} differs from the example's");
     }
     assert!(
         first.windows(2).all(|w| w[0] != w[1]),

@@ -5,7 +5,7 @@
 mod render_support;
 
 use clipsat::gpu::readback::Image;
-use clipsat::gpu::renderer::{render_frame, FrameOptions, Renderer};
+use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen};
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::plan::flight::{Flight, Path};
 use glam::DVec3;
@@ -79,8 +79,8 @@ fn the_image_is_the_same_far_from_the_origin() {
         let offset = DVec3::new(ox, oy, 0.0);
         let mut a = Clipmap::new(&base, &prof, ClipmapOptions::default()).expect("clipmap");
         let mut b = Clipmap::new(&far, &prof, ClipmapOptions::default()).expect("clipmap");
-        let mut ra = Renderer::new(&gpu, &prof, &a).expect("renderer");
-        let mut rb = Renderer::new(&gpu, &prof, &b).expect("renderer");
+        let mut ra = Offscreen::new(&gpu, &prof, &a, Default::default()).expect("renderer");
+        let mut rb = Offscreen::new(&gpu, &prof, &b, Default::default()).expect("renderer");
         for i in 0..8 {
             let cam = render_support::flight(&base, i * 9, 120.0, 250.0, Some(5 * 9));
             let mut cam_far = cam;

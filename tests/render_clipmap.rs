@@ -5,7 +5,8 @@
 
 mod render_support;
 
-use clipsat::gpu::renderer::{render_frame, FrameOptions, Renderer, VertexProbe};
+use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen};
+use clipsat::gpu::renderer::VertexProbe;
 use clipsat::measure::{crack_pixels, CRACK_CLEAR, CRACK_CLEAR_RGBA8};
 use clipsat::plan::frame::LevelState;
 use clipsat::plan::mesh;
@@ -25,7 +26,7 @@ fn loud() -> FrameOptions {
 /// Flies `frames` frames of a fast flight on a small budget (levels go stale) with a teleport at frame 120,
 /// checking the GC constraints; returns the crack pixels of each frame and how many frames had stale levels.
 fn fly_cracks(
-    r: &mut Renderer<'_>,
+    r: &mut Offscreen<'_>,
     cm: &mut clipsat::plan::clipmap::Clipmap,
     hm: &clipsat::Heightmap,
     frames: u32,
@@ -69,7 +70,7 @@ fn watertight_fly_through_with_stale_levels_and_teleport() {
     let hm = relief();
     let p = profile("gles3-low", W, H, Some(1600));
     let mut cm = clipmap(&hm, &p);
-    let mut r = Renderer::new(&gpu, &p, &cm).expect("renderer");
+    let mut r = Offscreen::new(&gpu, &p, &cm, Default::default()).expect("renderer");
     let (cracks, stale_frames) = fly_cracks(&mut r, &mut cm, &hm, 200, &loud());
     assert!(
         stale_frames > 20,
@@ -123,7 +124,7 @@ fn morphing_prevents_popping() {
     let mut stats = Vec::new();
     for morph in [true, false] {
         let mut cm = clipmap(&hm, &p);
-        let mut r = Renderer::new(&gpu, &p, &cm).expect("renderer");
+        let mut r = Offscreen::new(&gpu, &p, &cm, Default::default()).expect("renderer");
         let opts = FrameOptions {
             morph,
             ..FrameOptions::default()
@@ -187,7 +188,6 @@ fn vertex_positions_match_the_cpu_twin() {
 #[test]
 fn snapped_tile_vertices_match_the_cpu_twin() {
     let opts = FrameOptions {
-        lod: clipsat::plan::lod::LodMode::Sat,
         epsilon_px: Some(8.0),
         ..FrameOptions::default()
     };
@@ -195,21 +195,30 @@ fn snapped_tile_vertices_match_the_cpu_twin() {
 }
 
 /// Renders one frame of a flight with `opts` and compares the vertex probe with [`cpu_vertex`] for a
-/// sample of the draws (every snapped tile when `snapped`, which must then exist).
+/// sample of the draws (every snapped tile when `snapped`, drawn in SAT mode, which must then exist).
 fn twin_check(opts: &FrameOptions, snapped: bool) {
     let gpu = strict();
     let hm = relief();
     let p = profile("gles3-low", W, H, None);
     let mut cm = clipmap(&hm, &p);
-    let mut r = Renderer::new(&gpu, &p, &cm).expect("renderer");
-    let probe = VertexProbe::new(&r).expect("probe");
     let cam = flight(&hm, 7, 37.0, 120.0, None);
     for _ in 0..40 {
         cm.update(cam.eye).expect("update");
     }
-    if snapped {
-        r.set_lod(render_support::lod(&hm, &p, &cm));
-    }
+    let mut r = if snapped {
+        let tables = render_support::lod(&hm, &p, &cm);
+        render_support::renderer_in(
+            &gpu,
+            &p,
+            &cm,
+            clipsat::plan::lod::LodMode::Sat,
+            Some(&tables),
+            clipsat::shading::debug_view::DebugView::Normal,
+        )
+    } else {
+        render_support::renderer(&gpu, &p, &cm)
+    };
+    let probe = VertexProbe::new(&r).expect("probe");
     render_frame(&mut r, &cm, &cam, opts).expect("frame");
     let draws = r.draws().len();
     let picked: Vec<usize> = if snapped {
@@ -266,7 +275,7 @@ fn memory_equals_footprint_and_nothing_grows() {
     for name in ["gles3-low", "gles3-mid"] {
         let p = profile(name, W, H, None);
         let mut cm = clipmap(&hm, &p);
-        let mut r = Renderer::new(&gpu, &p, &cm).expect("renderer");
+        let mut r = Offscreen::new(&gpu, &p, &cm, Default::default()).expect("renderer");
         assert_eq!(
             r.ledger().bytes(),
             p.footprint().total(),
@@ -278,8 +287,7 @@ fn memory_equals_footprint_and_nothing_grows() {
         for i in 0..frames {
             let cam = flight(&hm, i, 90.0, 200.0, None);
             cm.update(cam.eye).expect("update");
-            r.upload(&cm).expect("upload");
-            let s = r.draw(&cm, &cam, &FrameOptions::default()).expect("draw");
+            let s = r.frame(&cm, &cam, &FrameOptions::default()).expect("frame");
             assert!(s.draws <= p.budget.max_draws);
             assert!(s.triangles <= u64::from(p.budget.max_triangles));
         }
@@ -296,7 +304,7 @@ fn culling_keeps_every_visible_block() {
     let hm = relief();
     let p = profile("gles3-low", W, H, None);
     let mut cm = clipmap(&hm, &p);
-    let mut r = Renderer::new(&gpu, &p, &cm).expect("renderer");
+    let mut r = Offscreen::new(&gpu, &p, &cm, Default::default()).expect("renderer");
     let mut dropped = 0;
     for i in 0..40 {
         let cam = flight(&hm, i, 120.0, 150.0, None);
@@ -325,17 +333,16 @@ fn too_many_draws_is_a_capacity_error() {
     let mut p = profile("gles3-low", W, H, None);
     p.budget.max_draws = 8;
     let mut cm = clipmap(&hm, &p);
-    let mut r = Renderer::new(&gpu, &p, &cm).expect("renderer");
+    let mut r = Offscreen::new(&gpu, &p, &cm, Default::default()).expect("renderer");
     let cam = flight(&hm, 0, 0.0, 150.0, None);
     for _ in 0..20 {
         cm.update(cam.eye).expect("update");
     }
-    r.upload(&cm).expect("upload");
     let opts = FrameOptions {
         cull: false,
         ..FrameOptions::default()
     };
-    match r.draw(&cm, &cam, &opts) {
+    match r.frame(&cm, &cam, &opts) {
         Err(clipsat::Error::Capacity { .. }) => {}
         other => panic!("expected Error::Capacity, got {other:?}"),
     }
@@ -359,22 +366,22 @@ fn bench_clipmap_vs_brute_force() {
     for name in ["gles3-low", "gles3-mid", "desktop"] {
         let p = profile(name, w, h, None);
         let mut cm = clipmap(&hm, &p);
-        let mut r = Renderer::new(&gpu, &p, &cm).expect("renderer");
+        let mut r = Offscreen::new(&gpu, &p, &cm, Default::default()).expect("renderer");
         // Fast fly-through: upload time per frame (write_texture calls, flushed by the frame's submit).
         let (mut up_ms, mut up_bytes, mut frames_ms) = (0.0, 0u64, 0.0);
         let n = 60;
         for i in 0..n {
             let cam = flight(&hm, i, 240.0, 150.0, None);
             cm.update(cam.eye).expect("update");
+            // Upload, draw and read back together (prepare and render share one submit now).
             let t = Instant::now();
-            let u = r.upload(&cm).expect("upload");
+            let u = r.frame(&cm, &cam, &FrameOptions::default()).expect("frame");
             gpu.device()
                 .poll(wgpu::PollType::wait_indefinitely())
                 .expect("poll");
             up_ms += t.elapsed().as_secs_f64() * 1e3;
             up_bytes += u.upload_bytes;
             let t = Instant::now();
-            r.draw(&cm, &cam, &FrameOptions::default()).expect("draw");
             r.read_image().expect("readback");
             frames_ms += t.elapsed().as_secs_f64() * 1e3;
         }
@@ -452,7 +459,7 @@ fn watertight_procedural() {
     let gpu = strict();
     let p = profile("gles3-low", W, H, Some(1600));
     let mut cm = clipmap(&hm, &p);
-    let mut r = Renderer::new(&gpu, &p, &cm).expect("renderer");
+    let mut r = Offscreen::new(&gpu, &p, &cm, Default::default()).expect("renderer");
     let (cracks, stale_frames) = fly_cracks(&mut r, &mut cm, &hm, 200, &loud());
     assert!(stale_frames > 20, "{stale_frames}");
     let bad: Vec<(usize, &u64)> = cracks.iter().enumerate().filter(|(_, &c)| c > 0).collect();
@@ -466,7 +473,7 @@ fn watertight_puget_sound() {
     let gpu = strict();
     let p = profile("gles3-low", W, H, Some(1600));
     let mut cm = clipmap(&hm, &p);
-    let mut r = Renderer::new(&gpu, &p, &cm).expect("renderer");
+    let mut r = Offscreen::new(&gpu, &p, &cm, Default::default()).expect("renderer");
     let (cracks, stale_frames) = fly_cracks(&mut r, &mut cm, &hm, 200, &loud());
     assert!(stale_frames > 20, "{stale_frames}");
     let bad: Vec<(usize, &u64)> = cracks.iter().enumerate().filter(|(_, &c)| c > 0).collect();

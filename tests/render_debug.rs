@@ -7,11 +7,11 @@ mod render_support;
 use std::collections::BTreeMap;
 
 use clipsat::gpu::readback::Image;
-use clipsat::gpu::renderer::{render_frame, FrameOptions, Renderer};
+use clipsat::gpu::headless::{render_frame, FrameOptions};
 use clipsat::plan::lod::LodMode;
 use clipsat::shading::debug_view::{level_of_pixel, DebugView};
 use clipsat::Camera;
-use render_support::{clipmap, lod, profile, relief, strict};
+use render_support::{clipmap, lod, profile, relief, renderer_in, strict};
 
 /// Pixels per level colour found in `image`.
 fn level_pixels(image: &Image) -> BTreeMap<u32, u64> {
@@ -37,22 +37,14 @@ fn level_colours_show_the_drawn_levels() {
             break;
         }
     }
-    let mut r = Renderer::new(&gpu, &p, &cm).expect("renderer");
-    r.set_lod(lod(&hm, &p, &cm));
+    let tables = lod(&hm, &p, &cm);
+    let mut r = renderer_in(&gpu, &p, &cm, LodMode::Distance, None, DebugView::Normal);
     let normal = render_frame(&mut r, &cm, &cam, &FrameOptions::default()).expect("frame");
-    let explicit = FrameOptions {
-        debug: DebugView::Normal,
-        ..FrameOptions::default()
-    };
-    let again = render_frame(&mut r, &cm, &cam, &explicit).expect("frame");
+    let again = render_frame(&mut r, &cm, &cam, &FrameOptions::default()).expect("frame");
     assert_eq!(normal.image_hash, again.image_hash);
     for mode in [LodMode::Distance, LodMode::Sat] {
-        let opts = FrameOptions {
-            lod: mode,
-            debug: DebugView::Levels,
-            ..FrameOptions::default()
-        };
-        let out = render_frame(&mut r, &cm, &cam, &opts).expect("levels frame");
+        let mut r = renderer_in(&gpu, &p, &cm, mode, Some(&tables), DebugView::Levels);
+        let out = render_frame(&mut r, &cm, &cam, &FrameOptions::default()).expect("levels frame");
         let drawn: Vec<u32> = r.draws().iter().map(|d| d.level).collect();
         let found = level_pixels(&out.image);
         let shown: Vec<u32> = found
@@ -79,16 +71,8 @@ fn level_colours_show_the_drawn_levels() {
             "normal view: {stray} level-coloured pixels, levels view {shaded}"
         );
     }
-    let wire = render_frame(
-        &mut r,
-        &cm,
-        &cam,
-        &FrameOptions {
-            debug: DebugView::Wireframe,
-            ..FrameOptions::default()
-        },
-    )
-    .expect("wireframe frame");
+    let mut r = renderer_in(&gpu, &p, &cm, LodMode::Distance, None, DebugView::Wireframe);
+    let wire = render_frame(&mut r, &cm, &cam, &FrameOptions::default()).expect("wireframe frame");
     let lines: u64 = level_pixels(&wire.image).values().sum();
     assert!(lines > 200, "wireframe: {lines} line pixels");
     assert_ne!(wire.image_hash, normal.image_hash);

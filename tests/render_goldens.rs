@@ -16,7 +16,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use clipsat::gpu::readback::Image;
-use clipsat::gpu::renderer::{render_frame, FrameOptions, Renderer};
+use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen};
 use clipsat::source::procedural::{self, ProceduralParams};
 use clipsat::{hash, Camera, Heightmap};
 use glam::DVec3;
@@ -62,7 +62,7 @@ fn render(gpu: &clipsat::gpu::Gpu, hm: &Heightmap, cam: &Camera) -> Image {
             break;
         }
     }
-    let mut r = Renderer::new(gpu, &p, &cm).expect("renderer");
+    let mut r = Offscreen::new(gpu, &p, &cm, Default::default()).expect("renderer");
     render_frame(&mut r, &cm, cam, &FrameOptions::default())
         .expect("frame")
         .image

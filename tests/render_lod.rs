@@ -5,18 +5,20 @@
 
 mod render_support;
 
-use clipsat::gpu::renderer::{render_frame, FrameOptions, Renderer};
+use clipsat::gpu::headless::{render_frame, FrameOptions};
+use clipsat::gpu::Gpu;
+use clipsat::plan::lod::Lod;
+use clipsat::shading::debug_view::DebugView;
 use clipsat::measure::{crack_pixels, screen_error, CRACK_CLEAR, CRACK_CLEAR_RGBA8};
 use clipsat::plan::clipmap::Clipmap;
 use clipsat::plan::lod::LodMode;
 use clipsat::{Camera, Heightmap, Profile};
 use glam::DVec3;
-use render_support::{camera, clipmap, flight, lod, profile, puget, strict};
+use render_support::{camera, clipmap, flight, lod, profile, puget, renderer_in, strict};
 
-fn loud(mode: LodMode) -> FrameOptions {
+fn loud() -> FrameOptions {
     FrameOptions {
         clear: CRACK_CLEAR,
-        lod: mode,
         ..FrameOptions::default()
     }
 }
@@ -32,12 +34,12 @@ fn fly_cracks(hm: &Heightmap, frames: u32, speed: f64) -> Vec<(LodMode, u32, u64
         // of an empty clipmap have no fine rings, and there the distance renderer without culling shows
         // clear pixels too (frame 4 of this flight on the procedural terrain).
         let mut cm = filled(hm, &p, flight(hm, 0, speed, 150.0, None).eye);
-        let mut r = Renderer::new(&gpu, &p, &cm).expect("renderer");
-        r.set_lod(lod(hm, &p, &cm));
+        let tables = lod(hm, &p, &cm);
+        let mut r = renderer_in(&gpu, &p, &cm, mode, Some(&tables), DebugView::Normal);
         for i in 0..frames {
             let cam = flight(hm, i, speed, 150.0, Some(30));
             cm.update(cam.eye).expect("update");
-            let out = render_frame(&mut r, &cm, &cam, &loud(mode)).expect("frame");
+            let out = render_frame(&mut r, &cm, &cam, &loud()).expect("frame");
             let c = crack_pixels(&out.image, CRACK_CLEAR_RGBA8);
             if c > 0 {
                 if std::env::var_os("CLIPSAT_DUMP").is_some() {
@@ -92,32 +94,33 @@ fn watertight_on_the_data_border() {
     let p = profile("gles3-mid", 640, 360, None);
     let cam = Camera::default_for(&hm).expect("camera");
     let cm = filled(&hm, &p, cam.eye);
-    let mut r = Renderer::new(&gpu, &p, &cm).expect("renderer");
-    r.set_lod(lod(&hm, &p, &cm));
+    let tables = lod(&hm, &p, &cm);
     for mode in LodMode::ALL {
         for epsilon in [1.0, 8.0] {
-            let (_, _, _, _, cracks) = measure(&mut r, &cm, &cam, mode, epsilon);
+            let (_, _, _, _, cracks) = measure(&gpu, &p, &tables, &cm, &cam, mode, epsilon);
             assert_eq!(cracks, 0, "{mode} at {epsilon} px: crack pixels");
         }
     }
 }
 
-/// Renders `cam` in `mode`; returns (triangles, measured max error px, the same over unclamped blocks,
-/// blocks clamped, crack pixels).
+/// Renders `cam` in `mode` (a renderer built for it); returns (triangles, measured max error px, the same
+/// over unclamped blocks, blocks clamped, crack pixels).
 fn measure(
-    r: &mut Renderer<'_>,
+    gpu: &Gpu,
+    p: &Profile,
+    tables: &Lod,
     cm: &Clipmap,
     cam: &Camera,
     mode: LodMode,
     epsilon: f32,
 ) -> (u64, f64, f64, u32, u64) {
+    let mut r = renderer_in(gpu, p, cm, mode, Some(tables), DebugView::Normal);
     let opts = FrameOptions {
-        lod: mode,
         epsilon_px: Some(epsilon),
-        ..loud(mode)
+        ..loud()
     };
-    let out = render_frame(r, cm, cam, &opts).expect("frame");
-    let e = screen_error(r, cm, cam, r.lod().expect("lod"));
+    let out = render_frame(&mut r, cm, cam, &opts).expect("frame");
+    let e = screen_error(r.plan(), r.size(), cm, cam, tables);
     (
         out.stats.triangles,
         e.max_px,
@@ -180,10 +183,10 @@ fn puget_sound_error_bound() {
         let eye = top + *off;
         let cam = camera(eye, *dir);
         let cm = filled(&hm, &p, eye);
-        let mut r = Renderer::new(&gpu, &p, &cm).expect("renderer");
-        r.set_lod(lod(&hm, &p, &cm));
+        let tables = lod(&hm, &p, &cm);
         for mode in LodMode::ALL {
-            let (tris, max, unclamped, clamped, cracks) = measure(&mut r, &cm, &cam, mode, eps);
+            let (tris, max, unclamped, clamped, cracks) =
+                measure(&gpu, &p, &tables, &cm, &cam, mode, eps);
             eprintln!(
                 "puget view {k} {mode} eps {eps}: {tris} triangles, max error {max:.3} px, \
                  {unclamped:.3} px over unclamped blocks, {clamped} blocks clamped, {cracks} cracks"
@@ -252,10 +255,9 @@ fn gentle_terrain_triangles() {
     for (k, (eye, dir)) in views.iter().enumerate() {
         let cam = camera(*eye, *dir);
         let cm = filled(&hm, &p, *eye);
-        let mut r = Renderer::new(&gpu, &p, &cm).expect("renderer");
-        r.set_lod(lod(&hm, &p, &cm));
-        let mut run = |mode| {
-            let m = measure(&mut r, &cm, &cam, mode, eps);
+        let tables = lod(&hm, &p, &cm);
+        let run = |mode| {
+            let m = measure(&gpu, &p, &tables, &cm, &cam, mode, eps);
             eprintln!(
                 "n07 view {k} {mode} eps {eps}: {} triangles, max error {:.3} px ({:.3} unclamped), \
                  {} clamped, {} cracks",

@@ -5,7 +5,7 @@
 mod render_support;
 
 use clipsat::bake::horizon;
-use clipsat::gpu::renderer::{render_frame, FrameOptions, Renderer};
+use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen};
 use clipsat::gpu::sat_textures::{ShadingBake, MAX_BOX_SIDE};
 use clipsat::gpu::sg_probe::{shade_gpu, ProbeCase};
 use clipsat::gpu::shaders::{self, SgVariant};
@@ -173,7 +173,7 @@ fn renderer_bakes_and_binds_only_what_the_scene_needs() {
     let profile = render_support::profile("gles3-low", 96, 64, None);
     let mut clipmap = render_support::clipmap(&hm, &profile);
     let camera = clipsat::Camera::default_for(&hm).expect("camera");
-    let mut renderer = Renderer::new(&gpu, &profile, &clipmap).expect("renderer");
+    let mut renderer = Offscreen::new(&gpu, &profile, &clipmap, Default::default()).expect("renderer");
     assert_eq!(renderer.bound_textures(), ["heights"]);
     assert!(renderer.baked().is_empty());
     clipmap.update(camera.eye).expect("update");
@@ -181,12 +181,11 @@ fn renderer_bakes_and_binds_only_what_the_scene_needs() {
     let basic = render_frame(&mut renderer, &clipmap, &camera, &opts).expect("basic frame");
 
     let noon = Scene::load("noon").expect("noon");
-    renderer
-        .set_sg(&hm, &noon, Patches::P4x8, true)
+    let mut renderer = Offscreen::with_sg(&gpu, &profile, &clipmap, &hm, &noon, Patches::P4x8, true)
         .expect("sg noon");
     assert_eq!(renderer.bound_textures(), ["heights", "sat_normal"]);
     assert_eq!(renderer.baked(), ["normal_sat"]);
-    assert_eq!(renderer.sg_layout_entries(), Some(2));
+    assert_eq!(renderer.renderer().sg_layout_entries(), Some(2));
     let sg = render_frame(&mut renderer, &clipmap, &camera, &opts).expect("sg frame");
     assert_ne!(sg.image.hash(), basic.image.hash());
     #[expect(
@@ -203,23 +202,23 @@ fn renderer_bakes_and_binds_only_what_the_scene_needs() {
     assert!(lit > 96 * 64 / 4, "{lit} terrain pixels");
 
     let evening = Scene::load("evening").expect("evening");
-    renderer
-        .set_sg(&hm, &evening, Patches::P2x4, false)
+    let renderer = Offscreen::with_sg(&gpu, &profile, &clipmap, &hm, &evening, Patches::P2x4, false)
         .expect("sg evening, no shadows");
     assert_eq!(renderer.bound_textures(), ["heights", "sat_normal"]);
     assert_eq!(renderer.baked(), ["normal_sat"]);
     assert!(renderer
+        .renderer()
         .sg_variant()
         .is_some_and(|v| v.specular && !v.visibility));
-    renderer
-        .set_sg(&hm, &evening, Patches::P2x4, true)
-        .expect("sg evening");
+    let mut renderer =
+        Offscreen::with_sg(&gpu, &profile, &clipmap, &hm, &evening, Patches::P2x4, true)
+            .expect("sg evening");
     assert_eq!(
         renderer.bound_textures(),
         ["heights", "sat_normal", "sat_horizon"]
     );
     assert_eq!(renderer.baked(), ["normal_sat", "horizons", "horizon_sat"]);
-    assert_eq!(renderer.sg_layout_entries(), Some(3));
+    assert_eq!(renderer.renderer().sg_layout_entries(), Some(3));
     render_frame(&mut renderer, &clipmap, &camera, &opts).expect("sg evening frame");
 }
 
@@ -340,9 +339,9 @@ fn golden_sg_frame() {
     let mut cm = render_support::clipmap(&hm, &profile);
     let cam = clipsat::Camera::default_for(&hm).expect("camera");
     cm.update(cam.eye).expect("update");
-    let mut r = Renderer::new(&gpu, &profile, &cm).expect("renderer");
     let scene = Scene::load("evening").expect("evening");
-    r.set_sg(&hm, &scene, Patches::P4x8, true).expect("sg");
+    let mut r =
+        Offscreen::with_sg(&gpu, &profile, &cm, &hm, &scene, Patches::P4x8, true).expect("sg");
     let img = render_frame(&mut r, &cm, &cam, &FrameOptions::default())
         .expect("frame")
         .image;

@@ -4,7 +4,7 @@
 
 use glam::DVec3;
 
-use clipsat::gpu::renderer::FrameOptions;
+use clipsat::gpu::headless::FrameOptions;
 use clipsat::plan::lod::LodMode;
 use clipsat::shading::debug_view::DebugView;
 use clipsat::shading::scene::Scene;
@@ -276,14 +276,13 @@ impl ViewState {
             .with_clip(self.near_far.0, self.near_far.1)
     }
 
-    /// The renderer's options for this state.
+    /// The per-frame options for this state (the LOD mode, debug view and shading are the renderer's,
+    /// fixed when it is built).
     pub(crate) fn frame_options(&self) -> FrameOptions {
         FrameOptions {
             morph: self.morph,
             cull: self.cull,
-            lod: self.lod,
             epsilon_px: Some(self.epsilon_px),
-            debug: self.debug,
             ..FrameOptions::default()
         }
     }
@@ -440,7 +439,7 @@ mod tests {
         s.action(Action::CycleDebug);
         let o = s.frame_options();
         assert_eq!(
-            (o.lod, o.epsilon_px, o.morph, o.cull, o.debug),
+            (s.lod, o.epsilon_px, o.morph, o.cull, s.debug),
             (LodMode::Sat, Some(0.8), false, false, DebugView::Levels)
         );
         assert!(s.describe().contains("view levels"), "{}", s.describe());

@@ -10,6 +10,7 @@
 pub mod brute;
 #[cfg(unix)]
 mod egl;
+pub mod headless;
 pub mod readback;
 pub mod renderer;
 pub mod sat_textures;
@@ -46,8 +47,8 @@ impl std::str::FromStr for GpuMode {
             "strict" => Ok(Self::Strict),
             "gl" => Ok(Self::Gl),
             "auto" => Ok(Self::Auto),
-            other => Err(Error::Arg {
-                arg: "--gpu".into(),
+            other => Err(Error::Invalid {
+                what: "GPU mode".into(),
                 reason: format!("`{other}` is not auto, strict or gl"),
             }),
         }

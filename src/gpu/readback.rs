@@ -58,6 +58,15 @@ impl Image {
 
 /// Copies an `Rgba8Unorm` texture (usage `COPY_SRC`) to the CPU, dropping wgpu's 256-byte row padding.
 pub fn read_rgba8(gpu: &Gpu, texture: &wgpu::Texture) -> Result<Image> {
+    gpu.scoped("readback", || read_rgba8_on(gpu.device(), gpu.queue(), texture))
+}
+
+/// [`read_rgba8`] on any device and queue (a caller's own; errors surface through its error scopes).
+pub fn read_rgba8_on(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    texture: &wgpu::Texture,
+) -> Result<Image> {
     if texture.format() != wgpu::TextureFormat::Rgba8Unorm {
         return Err(Error::Gpu(format!(
             "readback needs an Rgba8Unorm texture, got {:?}",
@@ -68,8 +77,7 @@ pub fn read_rgba8(gpu: &Gpu, texture: &wgpu::Texture) -> Result<Image> {
     let tight = width as usize * 4;
     let padded = u32::try_from(tight.next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT as usize))
         .map_err(|_| Error::Gpu(format!("texture {width} px wide is too wide to read back")))?;
-    let buffer = gpu.scoped("readback", || {
-        let device = gpu.device();
+    let buffer = {
         let buffer = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("readback"),
             size: u64::from(padded) * u64::from(height),
@@ -91,10 +99,10 @@ pub fn read_rgba8(gpu: &Gpu, texture: &wgpu::Texture) -> Result<Image> {
             },
             texture.size(),
         );
-        gpu.queue().submit([encoder.finish()]);
-        Ok(buffer)
-    })?;
-    let rgba = map_rows(gpu, &buffer, padded, u32::try_from(tight).unwrap_or(padded))?;
+        queue.submit([encoder.finish()]);
+        buffer
+    };
+    let rgba = map_rows_on(device, &buffer, padded, u32::try_from(tight).unwrap_or(padded))?;
     Ok(Image {
         width,
         height,
@@ -105,12 +113,22 @@ pub fn read_rgba8(gpu: &Gpu, texture: &wgpu::Texture) -> Result<Image> {
 /// Maps a MAP_READ `buffer` whose rows are `padded` bytes apart, copies the first `tight` bytes of each row
 /// into one tightly packed vector, and unmaps it. Waits for the GPU.
 pub fn map_rows(gpu: &Gpu, buffer: &wgpu::Buffer, padded: u32, tight: u32) -> Result<Vec<u8>> {
+    map_rows_on(gpu.device(), buffer, padded, tight)
+}
+
+/// [`map_rows`] on any device.
+pub fn map_rows_on(
+    device: &wgpu::Device,
+    buffer: &wgpu::Buffer,
+    padded: u32,
+    tight: u32,
+) -> Result<Vec<u8>> {
     let (tx, rx) = mpsc::channel();
     buffer.map_async(wgpu::MapMode::Read, .., move |r| {
         // The receiver outlives the poll below; a send error cannot happen.
         let _ = tx.send(r);
     });
-    gpu.device()
+    device
         .poll(wgpu::PollType::wait_indefinitely())
         .map_err(|e| Error::Gpu(format!("readback: waiting for the GPU: {e}")))?;
     rx.try_recv()

@@ -26,7 +26,7 @@ use crate::bake::horizon::{self, MAX_AZIMUTHS};
 use crate::bake::pyramid::Pyramid;
 use crate::bake::sat::Sat;
 use crate::bake::{seal, unseal, write_atomic, CacheOutcome};
-use crate::gpu::Gpu;
+use crate::gpu::renderer::Ledgered;
 use crate::hash::{hex, Hash64};
 use crate::shading::scene::Needs;
 use crate::{Error, Heightmap, Result};
@@ -332,18 +332,19 @@ pub struct SatTextures {
 }
 
 impl SatTextures {
-    /// Creates and fills the textures of `bake`.
-    pub fn upload(gpu: &Gpu, bake: &ShadingBake) -> Result<Self> {
+    /// Creates (through the renderer's [`Ledgered`] device) and fills the textures of `bake`.
+    pub fn upload(dev: &mut Ledgered<'_>, queue: &wgpu::Queue, bake: &ShadingBake) -> Self {
         let (pw, ph) = (bake.width + 1, bake.height + 1);
-        gpu.scoped("shading SAT upload", || {
-            let make = |label: &str, layers: u32, data: &[u32]| {
-                let size = wgpu::Extent3d {
-                    width: pw,
-                    height: ph,
-                    depth_or_array_layers: layers,
-                };
-                let t = gpu.device().create_texture(&wgpu::TextureDescriptor {
-                    label: Some(label),
+        let mut make = |label: &'static str, layers: u32, data: &[u32]| {
+            let size = wgpu::Extent3d {
+                width: pw,
+                height: ph,
+                depth_or_array_layers: layers,
+            };
+            let t = dev.texture(
+                label,
+                &wgpu::TextureDescriptor {
+                    label: None,
                     size,
                     mip_level_count: 1,
                     sample_count: 1,
@@ -351,35 +352,40 @@ impl SatTextures {
                     format: wgpu::TextureFormat::Rgba32Uint,
                     usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
                     view_formats: &[],
-                });
-                gpu.queue().write_texture(
-                    t.as_image_copy(),
-                    bytemuck::cast_slice(data),
-                    wgpu::TexelCopyBufferLayout {
-                        offset: 0,
-                        bytes_per_row: Some(pw * 16),
-                        rows_per_image: Some(ph),
-                    },
-                    size,
-                );
-                t
-            };
-            let normal = make("sat_normal", 1, &bake.normal);
-            let normal_view = normal.create_view(&Default::default());
-            let horizon = (bake.azimuths > 0).then(|| {
-                let t = make("sat_horizon", bake.azimuths.div_ceil(4), &bake.horizon);
-                let v = t.create_view(&wgpu::TextureViewDescriptor {
+                },
+            );
+            queue.write_texture(
+                t.as_image_copy(),
+                bytemuck::cast_slice(data),
+                wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(pw * 16),
+                    rows_per_image: Some(ph),
+                },
+                size,
+            );
+            t
+        };
+        let normal = make("sat_normal", 1, &bake.normal);
+        let horizon = (bake.azimuths > 0)
+            .then(|| make("sat_horizon", bake.azimuths.div_ceil(4), &bake.horizon));
+        let normal_view = dev.view("sat_normal view", &normal, &Default::default());
+        let horizon = horizon.map(|t| {
+            let v = dev.view(
+                "sat_horizon view",
+                &t,
+                &wgpu::TextureViewDescriptor {
                     dimension: Some(wgpu::TextureViewDimension::D2Array),
                     ..Default::default()
-                });
-                (t, v)
-            });
-            Ok(Self {
-                normal,
-                normal_view,
-                horizon,
-            })
-        })
+                },
+            );
+            (t, v)
+        });
+        Self {
+            normal,
+            normal_view,
+            horizon,
+        }
     }
 
     /// The normal SAT's view.

@@ -1,7 +1,7 @@
 //! Measurements: the screen-space error of a drawn frame against the data (design.md "SAT LOD" 1). Not
 //! the frame path.
 
-use crate::gpu::renderer::Renderer;
+use crate::plan::frame_plan::FramePlan;
 use crate::plan::clipmap::Clipmap;
 use crate::plan::cull::{self, DrawKind};
 use crate::plan::lod::Lod;
@@ -24,13 +24,15 @@ pub struct ScreenError {
 /// Most data samples [`screen_error`] visits; past it, it subsamples with a uniform stride.
 pub const SCREEN_ERROR_SAMPLES: u64 = 1 << 22;
 
-/// Measures the last frame's screen-space error (a measurement, not the frame path): for each data sample
+/// Measures a planned frame's screen-space error in a `view` (width, height) viewport (a measurement, not
+/// the frame path): for each data sample
 /// under a drawn block of level L, the error map value e_L = |H_0 - PL(H_L)| (design.md "SAT LOD" 1, from
 /// `lod`'s tables) projected at that sample's distance, e * [`Camera::pixels_per_metre`], for samples inside
 /// the view frustum. The GC 6.2 morph of distance mode is not modelled (its vertices lie between levels L
 /// and L + 1). Visits at most [`SCREEN_ERROR_SAMPLES`] samples (a uniform stride past it).
 pub fn screen_error(
-    renderer: &Renderer<'_>,
+    plan: &FramePlan,
+    view: (u32, u32),
     clipmap: &Clipmap,
     camera: &Camera,
     lod: &Lod,
@@ -39,7 +41,7 @@ pub fn screen_error(
     let synth = lod.synth_levels();
     let data = clipmap.pyramid().level(0);
     let spacing = clipmap.g0() * f64::from(1u32 << clipmap.synth_levels());
-    let (w, h) = renderer.size();
+    let (w, h) = view;
     let frustum = cull::Frustum::new(camera, f64::from(w) / f64::from(h));
     // The data's last sample in level-0 lattice units.
     let last = (
@@ -47,8 +49,7 @@ pub fn screen_error(
         i64::from(data.height() - 1) << clipmap.synth_levels(),
     );
     let boxes = || {
-        renderer
-            .draws()
+        plan.draws()
             .iter()
             .filter(|d| d.kind == DrawKind::Block)
             .filter_map(move |d| {

@@ -15,6 +15,7 @@ use crate::hash::Hash64;
 use crate::plan::budget::{needed_samples, plan_level};
 use crate::plan::frame::{Frame, LevelFrame, LevelState, Rect, MAX_LEVELS};
 use crate::plan::synthesis::{extrapolate_sigmas, synthesize, NoiseTable};
+use crate::plan::uploads::UploadStamps;
 use crate::{Error, Heightmap, Profile, Result};
 
 /// Options beyond the profile.
@@ -159,6 +160,8 @@ pub struct Clipmap {
     origin: (f64, f64),
     frame: Frame,
     next_index: u64,
+    /// Which frame last wrote each texel column and row ([`Clipmap::upload_stamps`]).
+    stamps: UploadStamps,
 }
 
 impl Clipmap {
@@ -223,6 +226,7 @@ impl Clipmap {
             origin: terrain.origin(),
             frame: Frame::default(),
             next_index: 0,
+            stamps: UploadStamps::new(levels, size),
         })
     }
 
@@ -254,6 +258,12 @@ impl Clipmap {
     /// The pyramid the rings are filled from.
     pub fn pyramid(&self) -> &Pyramid {
         &self.pyramid
+    }
+
+    /// Which frame last wrote each texel column and row of every ring: the rectangles a plan uploads
+    /// after skipped frames ([`UploadStamps::since`]).
+    pub fn upload_stamps(&self) -> &UploadStamps {
+        &self.stamps
     }
 
     /// The last frame's record.
@@ -567,6 +577,7 @@ impl Clipmap {
         zsum.write_u32(total_samples);
         frame.z_checksum = zsum.finish();
         frame.hash = frame.compute_hash();
+        self.stamps.note(frame.index, &frame.uploads);
         self.frame = frame;
         self.next_index += 1;
         Ok(&self.frame)

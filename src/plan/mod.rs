@@ -8,6 +8,9 @@
 //! - [`lod`]: SAT LOD block selection over the tables of [`crate::bake::lod_tables`];
 //! - [`cull`]: frustum culling into the fixed-capacity draw list;
 //! - [`uniforms`]: the packed `#[repr(C)]` uniforms each draw needs;
+//! - [`uploads`]: which ring rectangles the GPU copy still lacks (the union over skipped frames);
+//! - [`frame_plan`]: all of the above for one frame as a value, the [`frame_plan::FramePlan`] the GPU
+//!   stage uploads and draws;
 //! - [`mesh`]: the static block meshes (built once at start-up) the draws index.
 
 pub mod budget;
@@ -16,7 +19,9 @@ pub mod clipmap;
 pub mod cull;
 pub mod flight;
 pub mod frame;
+pub mod frame_plan;
 pub mod lod;
 pub mod mesh;
 pub mod synthesis;
 pub mod uniforms;
+pub mod uploads;

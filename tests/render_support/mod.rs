@@ -136,3 +136,35 @@ pub fn lod(hm: &Heightmap, p: &Profile, cm: &Clipmap) -> Lod {
     let (tables, _) = bake_lod(hm, cm.pyramid(), &params, &dir, false).expect("LOD tables");
     Lod::for_clipmap(tables, p, cm, hm)
 }
+
+/// The headless renderer with distance LOD and basic shading.
+pub fn renderer<'g>(
+    gpu: &'g Gpu,
+    p: &Profile,
+    cm: &Clipmap,
+) -> clipsat::gpu::headless::Offscreen<'g> {
+    clipsat::gpu::headless::Offscreen::new(gpu, p, cm, Default::default()).expect("renderer")
+}
+
+/// The headless renderer in LOD `mode` (with `lod`'s tables for the SAT modes) and debug view `debug`.
+pub fn renderer_in<'g>(
+    gpu: &'g Gpu,
+    p: &Profile,
+    cm: &Clipmap,
+    mode: clipsat::plan::lod::LodMode,
+    lod: Option<&Lod>,
+    debug: clipsat::shading::debug_view::DebugView,
+) -> clipsat::gpu::headless::Offscreen<'g> {
+    let lod = clipsat::plan::frame_plan::LodSetup::new(mode, lod.cloned()).expect("LOD tables");
+    clipsat::gpu::headless::Offscreen::new(
+        gpu,
+        p,
+        cm,
+        clipsat::gpu::headless::OffscreenOptions {
+            lod,
+            debug,
+            ..Default::default()
+        },
+    )
+    .expect("renderer")
+}

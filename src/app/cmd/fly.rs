@@ -7,13 +7,15 @@ use std::path::{Path as FsPath, PathBuf};
 
 use crate::app::plot::{LinePlot, Series};
 use clap::Args;
-use clipsat::gpu::renderer::{render_frame, FrameOptions, Renderer};
+use clipsat::gpu::headless::{self, render_frame, FrameOptions, Offscreen, OffscreenOptions};
+use clipsat::gpu::renderer::{SgShading, Shading};
 use clipsat::gpu::{Gpu, GpuMode};
 use clipsat::hash::{hex, Hash64};
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::plan::flight::{Flight, Path};
 use clipsat::plan::frame::Frame;
-use clipsat::plan::lod::{Lod, LodFrame, LodMode};
+use clipsat::plan::frame_plan::{LodSetup, PlanParams, Planner};
+use clipsat::plan::lod::{Lod, LodMode};
 use clipsat::{Error, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
@@ -131,17 +133,23 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
         },
     )?;
 
-    let mut lod = match lod_mode {
+    let lod = match lod_mode {
         LodMode::Distance => None,
-        _ => {
-            let mut l = super::render::lod_for(&hm, &profile, &clipmap, !args.json)?;
-            if let Some(e) = epsilon {
-                l.set_epsilon_px(f64::from(e));
-            }
-            Some(l)
-        }
+        _ => Some(super::render::lod_for(
+            &hm,
+            &profile,
+            &clipmap,
+            !args.json,
+        )?),
     };
-    let mut lod_frame = LodFrame::new_boxed();
+    // Every frame is planned (the SAT modes' block levels go into the frame hash); the plan is allocated
+    // here, once.
+    let mut planner = Planner::new(&profile, &clipmap, LodSetup::new(lod_mode, lod)?)?;
+    let mut plan = planner.new_plan();
+    let plan_params = PlanParams {
+        epsilon_px: epsilon,
+        ..PlanParams::default()
+    };
     let mut blocks_clamped_max = 0u32;
 
     // Every buffer the loop writes to is sized here; the loop itself allocates nothing.
@@ -186,16 +194,41 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
     if let Some(size) = &args.size {
         (render_profile.view.width, render_profile.view.height) = super::render::parse_size(size)?;
     }
+    let baked = match (&gpu, &sg) {
+        (Some(gpu), Some(sg)) => Some(headless::sg_bake(
+            gpu.device().limits().max_texture_dimension_2d,
+            &hm,
+            &sg.scene,
+            sg.shadows,
+        )?),
+        _ => None,
+    };
+    let shading = match (&sg, &baked) {
+        (Some(sg), Some((scene, bake))) => Shading::Sg(SgShading {
+            terrain: &hm,
+            scene,
+            patches: sg.patches,
+            bake,
+        }),
+        _ => Shading::Basic,
+    };
+    // The rendered frames draw the plain geometry clipmap (distance LOD) at the render size.
     let mut renderer = match &gpu {
-        Some(gpu) => {
-            let mut r = Renderer::new(gpu, &render_profile, &clipmap)?;
-            if let Some(sg) = &sg {
-                r.set_sg(&hm, &sg.scene, sg.patches, sg.shadows)?;
-            }
-            Some(r)
-        }
+        Some(gpu) => Some(Offscreen::new(
+            gpu,
+            &render_profile,
+            &clipmap,
+            OffscreenOptions {
+                shading,
+                ..OffscreenOptions::default()
+            },
+        )?),
         None => None,
     };
+    // Samples uploaded per rendered frame (the union of the frames since the last one), and whole-texture
+    // refills after the first rendered frame.
+    let mut upload_samples_max = 0u64;
+    let mut full_uploads = 0u32;
     // Reference errors of the rendered frames (--reference): (sum of squared RMSEs, max error, frames).
     let mut ref_acc = (0.0f64, 0.0f64, 0u32);
     let mut renders: Vec<(u64, u64)> = match &args.render {
@@ -244,17 +277,18 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
     let mut final_hash = 0;
     for f in 0..frames {
         let camera = flight.camera(f);
-        let frame = clipmap.update(camera.eye)?;
-        let frame_hash = match &mut lod {
-            Some(l) => {
-                l.select(frame, &camera, lod_mode, &mut lod_frame)?;
-                blocks_clamped_max = blocks_clamped_max.max(lod_frame.blocks_clamped);
+        clipmap.update(camera.eye)?;
+        planner.plan(&clipmap, &camera, &plan_params, &mut plan)?;
+        let frame = clipmap.frame();
+        let frame_hash = match lod_mode {
+            LodMode::Distance => frame.hash,
+            _ => {
+                blocks_clamped_max = blocks_clamped_max.max(plan.lod_frame().blocks_clamped);
                 let mut h = Hash64::new();
                 h.write_u64(frame.hash);
-                lod_frame.hash_into(&mut h);
+                plan.lod_frame().hash_into(&mut h);
                 h.finish()
             }
-            None => frame.hash,
         };
         if args.hash_out.is_some() {
             frame_hashes.push(frame_hash);
@@ -286,6 +320,10 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
         if let (Some(r), Some(dir)) = (&mut renderer, &args.render) {
             if f % args.render_every == 0 {
                 let out = render_frame(r, &clipmap, &camera, &FrameOptions::default())?;
+                upload_samples_max = upload_samples_max.max(out.stats.upload_samples);
+                if out.stats.full_upload && f > 0 {
+                    full_uploads += 1;
+                }
                 out.image.save_png(&dir.join(format!("frame_{f:06}.png")))?;
                 renders.push((f, out.image_hash));
                 if let (Some(sg), true) = (&sg, args.shading.reference) {
@@ -348,7 +386,9 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
             "g0_m": clipmap.g0(),
             "budget": budget,
             "lod": lod_mode.to_string(),
-            "epsilon_px": lod.as_ref().map(Lod::epsilon_px),
+            "epsilon_px": planner.lod().map(Lod::epsilon_px),
+            "upload_samples_max": renderer.as_ref().map(|_| upload_samples_max),
+            "full_uploads_after_first": renderer.as_ref().map(|_| full_uploads),
             "blocks_clamped_max": blocks_clamped_max,
             "final_hash": hex(final_hash),
             "run_hash": hex(run_hash.finish()),

@@ -9,11 +9,13 @@ use std::time::Instant;
 use clap::Args;
 use clipsat::bake::{self, BakeParams};
 use clipsat::gpu::brute::BruteForce;
-use clipsat::gpu::renderer::{self, FrameOptions, Renderer};
+use clipsat::gpu::headless::{self, render_frame, FrameOptions, Offscreen, OffscreenOptions};
+use clipsat::gpu::renderer::{SgShading, Shading};
 use clipsat::gpu::{Gpu, GpuMode};
 use clipsat::measure;
 use clipsat::plan::camera::parse_vec3;
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
+use clipsat::plan::frame_plan::LodSetup;
 use clipsat::plan::lod::{Lod, LodMode};
 use clipsat::shading::debug_view::DebugView;
 use clipsat::{hash, Camera, Error, Heightmap, Profile, Result};
@@ -160,27 +162,51 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
             break;
         }
     }
-    let mut r = Renderer::new(&gpu, &profile, &clipmap)?;
     // The error maps serve the SAT modes and the measured error of any mode.
-    if lod_mode != LodMode::Distance || args.json {
-        r.set_lod(lod_for(&hm, &profile, &clipmap, !args.json)?);
-    }
-    if let Some(sg) = &sg {
-        r.set_sg(&hm, &sg.scene, sg.patches, sg.shadows)?;
-    }
+    let lod = if lod_mode != LodMode::Distance || args.json {
+        Some(lod_for(&hm, &profile, &clipmap, !args.json)?)
+    } else {
+        None
+    };
+    let baked = match &sg {
+        Some(sg) => Some(headless::sg_bake(
+            gpu.device().limits().max_texture_dimension_2d,
+            &hm,
+            &sg.scene,
+            sg.shadows,
+        )?),
+        None => None,
+    };
+    let shading = match (&sg, &baked) {
+        (Some(sg), Some((scene, bake))) => Shading::Sg(SgShading {
+            terrain: &hm,
+            scene,
+            patches: sg.patches,
+            bake,
+        }),
+        _ => Shading::Basic,
+    };
+    let mut r = Offscreen::new(
+        &gpu,
+        &profile,
+        &clipmap,
+        OffscreenOptions {
+            lod: LodSetup::new(lod_mode, lod.clone())?,
+            shading,
+            debug,
+        },
+    )?;
     let setup_ms = t0.elapsed().as_secs_f64() * 1e3;
     let opts = FrameOptions {
         morph: !args.no_morph,
         cull: !args.no_cull,
-        lod: lod_mode,
         epsilon_px: epsilon,
-        debug,
         ..FrameOptions::default()
     };
     let t1 = Instant::now();
-    let frame = renderer::render_frame(&mut r, &clipmap, &camera, &opts)?;
+    let frame = render_frame(&mut r, &clipmap, &camera, &opts)?;
     let ms = t1.elapsed().as_secs_f64() * 1e3;
-    let loud = renderer::render_frame(
+    let loud = render_frame(
         &mut r,
         &clipmap,
         &camera,
@@ -191,9 +217,10 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
     )?;
     let crack_pixels = measure::crack_pixels(&loud.image, measure::CRACK_CLEAR_RGBA8);
     // The measured error of what was drawn (the draw list is the same for both renders above).
-    let measured = r
-        .lod()
-        .map(|lod| measure::screen_error(&r, &clipmap, &camera, lod));
+    // The SAT modes measure with the epsilon they drew at (the planner's selector).
+    let lod_used = r.lod().or(lod.as_ref());
+    let measured =
+        lod_used.map(|l| measure::screen_error(r.plan(), r.size(), &clipmap, &camera, l));
     ensure_parent(&args.out)?;
     frame.image.save_png(&args.out)?;
     let reference = match (&sg, args.shading.reference) {
@@ -210,7 +237,7 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
     if args.json {
         let truth = BruteForce::new(&gpu, &hm)?.render(&camera, size_w, size_h)?;
         let rmse = measure::image_rmse(&frame.image, &truth.image);
-        let epsilon_used = r.lod().map(Lod::epsilon_px);
+        let epsilon_used = lod_used.map(Lod::epsilon_px);
         let levels: Vec<_> = cf
             .levels
             .iter()

@@ -1,7 +1,7 @@
 //! `clipsat view`: an interactive fly-through window (winit), the front end of the whole pipeline.
 //!
 //! Each frame runs exactly what the frame hashes are made of: the clipmap update under the budget, then
-//! the strict GLES 3.0 [`Renderer`] offscreen and its readback; the stats line is stamped into that image
+//! the strict GLES 3.0 `Offscreen` renderer and its readback; the stats line is stamped into that image
 //! on the CPU ([`crate::app::plot::stamp_text`]) and it is presented with softbuffer. No GPU surface is
 //! involved, so the window works wherever the offscreen renderer does (Xvfb + Mesa llvmpipe included).
 //! The input -> camera state machine is [`crate::app::view_keys::ViewState`]; this file only maps winit events.
@@ -15,7 +15,10 @@ use crate::app::view_keys::{Action, Move, Shading, ShadingSwitches, ViewState};
 use clap::Args;
 use clipsat::bake::horizon::DEFAULT_AZIMUTHS;
 use clipsat::gpu::readback::Image;
-use clipsat::gpu::renderer::{self, Renderer};
+use clipsat::gpu::headless::{render_frame, Offscreen, OffscreenOptions};
+use clipsat::gpu::renderer::{self as gpu_renderer, SgShading};
+use clipsat::plan::frame_plan::LodSetup;
+use clipsat::plan::lod::Lod;
 use clipsat::gpu::sat_textures::ShadingBake;
 use clipsat::gpu::{Gpu, GpuMode};
 use clipsat::plan::camera::parse_vec3;
@@ -123,7 +126,7 @@ pub(crate) fn run(args: &ViewArgs) -> Result<()> {
 
     let gpu = Gpu::new(mode)?;
     let clipmap = Clipmap::new(&hm, &profile, ClipmapOptions::default())?;
-    let renderer = Renderer::new(&gpu, &profile, &clipmap)?;
+    let renderer = Offscreen::new(&gpu, &profile, &clipmap, OffscreenOptions::default())?;
     let max_texture_side = gpu.device().limits().max_texture_dimension_2d;
     // The renderer starts with the basic shading.
     let applied = ShadingSwitches {
@@ -141,8 +144,11 @@ pub(crate) fn run(args: &ViewArgs) -> Result<()> {
     let mut app = App {
         hm: &hm,
         profile: &profile,
+        gpu: &gpu,
         clipmap,
         renderer,
+        built: (LodMode::Distance, DebugView::Normal),
+        lod: None,
         state,
         scene,
         patches,
@@ -206,8 +212,13 @@ struct Presenter {
 struct App<'a, 'g> {
     hm: &'a Heightmap,
     profile: &'a Profile,
+    gpu: &'g Gpu,
     clipmap: Clipmap,
-    renderer: Renderer<'g>,
+    renderer: Offscreen<'g>,
+    /// The LOD mode and debug view the renderer was built with.
+    built: (LodMode, DebugView),
+    /// The SAT LOD tables, loaded when a SAT mode is first chosen.
+    lod: Option<Lod>,
     state: ViewState,
     /// The SG scene the shading switches apply to, and its patch count.
     scene: Scene,
@@ -279,14 +290,13 @@ impl App<'_, '_> {
         let camera = self.state.camera()?;
         let frame = self.clipmap.update(camera.eye)?;
         let (samples, stale) = (frame.samples_updated, frame.stale_levels);
-        if self.state.lod != LodMode::Distance && self.renderer.lod().is_none() {
+        if self.state.lod != LodMode::Distance && self.lod.is_none() {
             eprintln!("clipsat view: loading the SAT LOD tables (baked once, then cached)...");
-            let lod = lod_for(self.hm, self.profile, &self.clipmap, true)?;
-            self.renderer.set_lod(lod);
+            self.lod = Some(lod_for(self.hm, self.profile, &self.clipmap, true)?);
         }
         self.sync_shading()?;
         let opts = self.state.frame_options();
-        let mut out = renderer::render_frame(&mut self.renderer, &self.clipmap, &camera, &opts)?;
+        let mut out = render_frame(&mut self.renderer, &self.clipmap, &camera, &opts)?;
         // The previous frame's whole time (this one's is not known until it is presented).
         let ms = if self.frames == 0 {
             t0.elapsed().as_secs_f64() * 1e3
@@ -316,11 +326,13 @@ impl App<'_, '_> {
     /// does not allow is refused with the reason, and the switches go back to what is drawn.
     fn sync_shading(&mut self) -> Result<()> {
         let want = self.state.shading;
-        if want == self.applied {
+        let built = (self.state.lod, self.state.debug);
+        if want == self.applied && built == self.built {
             return Ok(());
         }
+        let lod = LodSetup::new(self.state.lod, self.lod.clone())?;
         match want.apply(&self.scene) {
-            None => self.renderer.set_basic_shading(),
+            None => self.rebuild(lod, gpu_renderer::Shading::Basic)?,
             Some(scene) => {
                 if let Err(e) = scene.check_profile(&scene.name, self.profile) {
                     // Refuse the key, keep what is drawn.
@@ -348,13 +360,40 @@ impl App<'_, '_> {
                     eprintln!("clipsat view: shading SATs {outcome:?}");
                     self.bake = Some(bake);
                 }
-                if let Some(bake) = &self.bake {
-                    self.renderer
-                        .set_sg_baked(self.hm, &scene, self.patches, bake)?;
-                }
+                let bake = self.bake.take();
+                let built = match &bake {
+                    Some(b) => self.rebuild(
+                        lod,
+                        gpu_renderer::Shading::Sg(SgShading {
+                            terrain: self.hm,
+                            scene: &scene,
+                            patches: self.patches,
+                            bake: b,
+                        }),
+                    ),
+                    None => Ok(()),
+                };
+                self.bake = bake;
+                built?;
             }
         }
         self.applied = want;
+        self.built = (self.state.lod, self.state.debug);
+        Ok(())
+    }
+
+    /// Builds the renderer again for a new LOD mode, debug view or shading (they are fixed per renderer).
+    fn rebuild(&mut self, lod: LodSetup, shading: gpu_renderer::Shading<'_>) -> Result<()> {
+        self.renderer = Offscreen::new(
+            self.gpu,
+            self.profile,
+            &self.clipmap,
+            OffscreenOptions {
+                lod,
+                shading,
+                debug: self.state.debug,
+            },
+        )?;
         Ok(())
     }
 

@@ -1,4 +1,6 @@
-//! Stage 3, the GPU: the renderer's ledger of every GPU object it created and the bytes each holds.
+//! Stage 3, the GPU: the ledger of every GPU object the renderer creates and the bytes each holds, and
+//! [`Ledgered`], the one way the renderer creates them: each creation is recorded as it happens, so the
+//! ledger cannot miss an object (a source scan test finds no other `create_*` call in the renderer).
 
 /// What a GPU object is, for the [`Ledger`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -21,7 +23,7 @@ pub enum ObjectKind {
     RenderPipeline,
 }
 
-/// One object [`Renderer::new`](super::Renderer::new) created.
+/// One object the renderer created.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct LedgerEntry {
     /// Its label.
@@ -32,14 +34,14 @@ pub struct LedgerEntry {
     pub bytes: u64,
 }
 
-/// Every GPU object the renderer created and the bytes each holds; only [`Renderer::new`](super::Renderer::new) writes it.
+/// Every GPU object the renderer created and the bytes each holds; only [`Ledgered`] writes it.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct Ledger {
     entries: Vec<LedgerEntry>,
 }
 
 impl Ledger {
-    pub(super) fn note(&mut self, label: &'static str, kind: ObjectKind, bytes: u64) {
+    fn note(&mut self, label: &'static str, kind: ObjectKind, bytes: u64) {
         self.entries.push(LedgerEntry { label, kind, bytes });
     }
 
@@ -56,5 +58,217 @@ impl Ledger {
     /// Bytes of GPU memory held.
     pub fn bytes(&self) -> u64 {
         self.entries.iter().map(|e| e.bytes).sum()
+    }
+
+    /// Objects of `kind`.
+    pub fn count_of(&self, kind: ObjectKind) -> usize {
+        self.entries.iter().filter(|e| e.kind == kind).count()
+    }
+
+    /// Appends `other`'s entries (e.g. a headless target's objects after the renderer's).
+    pub fn extend(&mut self, other: &Ledger) {
+        self.entries.extend_from_slice(&other.entries);
+    }
+}
+
+/// Bytes a texture of `desc` holds (one mip level).
+pub fn texture_bytes(desc: &wgpu::TextureDescriptor<'_>) -> u64 {
+    let texel = desc
+        .format
+        .block_copy_size(Some(wgpu::TextureAspect::All))
+        .unwrap_or(4);
+    u64::from(desc.size.width)
+        * u64::from(desc.size.height)
+        * u64::from(desc.size.depth_or_array_layers)
+        * u64::from(texel)
+        * u64::from(desc.sample_count)
+}
+
+/// A device that records every object it creates in a [`Ledger`]: the renderer's only way to create one.
+/// Each method takes the object's label separately (the ledger keeps it) and sets it on the descriptor.
+#[derive(Debug)]
+pub struct Ledgered<'d> {
+    device: &'d wgpu::Device,
+    ledger: Ledger,
+}
+
+impl<'d> Ledgered<'d> {
+    /// Starts an empty ledger over `device`.
+    pub fn new(device: &'d wgpu::Device) -> Self {
+        Self {
+            device,
+            ledger: Ledger::default(),
+        }
+    }
+
+    /// The device, for what creates nothing (limits, error scopes).
+    pub fn device(&self) -> &'d wgpu::Device {
+        self.device
+    }
+
+    /// The ledger so far.
+    pub fn ledger(&self) -> &Ledger {
+        &self.ledger
+    }
+
+    /// The finished ledger.
+    pub fn finish(self) -> Ledger {
+        self.ledger
+    }
+
+    /// A texture.
+    pub fn texture(
+        &mut self,
+        label: &'static str,
+        desc: &wgpu::TextureDescriptor<'_>,
+    ) -> wgpu::Texture {
+        self.note(label, ObjectKind::Texture, texture_bytes(desc));
+        let desc = wgpu::TextureDescriptor {
+            label: Some(label),
+            ..desc.clone()
+        };
+        self.device.create_texture(&desc)
+    }
+
+    /// A view of `texture`.
+    pub fn view(
+        &mut self,
+        label: &'static str,
+        texture: &wgpu::Texture,
+        desc: &wgpu::TextureViewDescriptor<'_>,
+    ) -> wgpu::TextureView {
+        self.note(label, ObjectKind::TextureView, 0);
+        let desc = wgpu::TextureViewDescriptor {
+            label: Some(label),
+            ..desc.clone()
+        };
+        texture.create_view(&desc)
+    }
+
+    /// An uninitialised buffer.
+    pub fn buffer(
+        &mut self,
+        label: &'static str,
+        size: u64,
+        usage: wgpu::BufferUsages,
+    ) -> wgpu::Buffer {
+        self.note(label, ObjectKind::Buffer, size);
+        self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size,
+            usage,
+            mapped_at_creation: false,
+        })
+    }
+
+    /// A buffer holding `contents`.
+    pub fn buffer_init(
+        &mut self,
+        label: &'static str,
+        contents: &[u8],
+        usage: wgpu::BufferUsages,
+    ) -> wgpu::Buffer {
+        use wgpu::util::DeviceExt;
+        self.note(label, ObjectKind::Buffer, contents.len() as u64);
+        self.device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage,
+            })
+    }
+
+    /// A texture holding `data` (one mip level, layers in order).
+    pub fn texture_with_data(
+        &mut self,
+        queue: &wgpu::Queue,
+        label: &'static str,
+        desc: &wgpu::TextureDescriptor<'_>,
+        data: &[u8],
+    ) -> wgpu::Texture {
+        use wgpu::util::DeviceExt;
+        self.note(label, ObjectKind::Texture, texture_bytes(desc));
+        let desc = wgpu::TextureDescriptor {
+            label: Some(label),
+            ..desc.clone()
+        };
+        self.device.create_texture_with_data(
+            queue,
+            &desc,
+            wgpu::util::TextureDataOrder::LayerMajor,
+            data,
+        )
+    }
+
+    /// A bind group layout.
+    pub fn bind_group_layout(
+        &mut self,
+        label: &'static str,
+        entries: &[wgpu::BindGroupLayoutEntry],
+    ) -> wgpu::BindGroupLayout {
+        self.note(label, ObjectKind::BindGroupLayout, 0);
+        self.device
+            .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some(label),
+                entries,
+            })
+    }
+
+    /// A bind group.
+    pub fn bind_group(
+        &mut self,
+        label: &'static str,
+        layout: &wgpu::BindGroupLayout,
+        entries: &[wgpu::BindGroupEntry<'_>],
+    ) -> wgpu::BindGroup {
+        self.note(label, ObjectKind::BindGroup, 0);
+        self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some(label),
+            layout,
+            entries,
+        })
+    }
+
+    /// A WGSL shader module.
+    pub fn shader_module(&mut self, label: &'static str, wgsl: String) -> wgpu::ShaderModule {
+        self.note(label, ObjectKind::ShaderModule, 0);
+        self.device
+            .create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some(label),
+                source: wgpu::ShaderSource::Wgsl(wgsl.into()),
+            })
+    }
+
+    /// A pipeline layout.
+    pub fn pipeline_layout(
+        &mut self,
+        label: &'static str,
+        bind_group_layouts: &[Option<&wgpu::BindGroupLayout>],
+    ) -> wgpu::PipelineLayout {
+        self.note(label, ObjectKind::PipelineLayout, 0);
+        self.device
+            .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some(label),
+                bind_group_layouts,
+                immediate_size: 0,
+            })
+    }
+
+    /// A render pipeline.
+    pub fn render_pipeline(
+        &mut self,
+        label: &'static str,
+        desc: &wgpu::RenderPipelineDescriptor<'_>,
+    ) -> wgpu::RenderPipeline {
+        self.note(label, ObjectKind::RenderPipeline, 0);
+        let desc = wgpu::RenderPipelineDescriptor {
+            label: Some(label),
+            ..desc.clone()
+        };
+        self.device.create_render_pipeline(&desc)
+    }
+
+    fn note(&mut self, label: &'static str, kind: ObjectKind, bytes: u64) {
+        self.ledger.note(label, kind, bytes);
     }
 }

@@ -1,70 +1,102 @@
-//! Stage 3, the GPU: the GLES 3.0 geometry clipmap renderer (Losasso & Hoppe 2004, "GC").
+//! Stage 3, the GPU: the GLES 3.0 geometry clipmap renderer (Losasso & Hoppe 2004, "GC") on the caller's
+//! own device, drawing into the caller's own render pass (the egui-wgpu / glyphon pattern).
 //!
-//! [`Renderer::new`] creates every GPU object, sized from the profile, and records each in a [`Ledger`]
-//! whose bytes equal [`Profile::footprint`]. A frame then creates nothing but a command encoder:
+//! [`Renderer::new`] takes a `&wgpu::Device`, a `&wgpu::Queue`, the [`RendererOptions`] fixed for its life
+//! (target formats, sample count, shading variant, debug view) and the [`Profile`]; it creates every GPU
+//! object once, through [`Ledgered`], whose ledger's bytes are the renderer's part of
+//! [`Profile::footprint`] (heights, meshes, uniforms). A frame then creates nothing:
 //!
-//! 1. [`Renderer::upload`]: the frame's `uploads` (at most 4 sub-rectangles per level) go straight from
-//!    [`Ring::bytes`](crate::plan::clipmap::Ring::bytes) into one RG32F 2D array texture (S x S x L, toroidal) with `write_texture`, no copies.
-//! 2. [`Renderer::draw`]: the draw list ([`crate::plan::cull`]), one 256-byte uniform slot per draw (one
-//!    `write_buffer`), one render pass with a Depth32Float buffer and the basic shading.
-//! 3. [`Renderer::read_image`]: readback into the preallocated buffer.
+//! 1. [`Renderer::prepare`]: the plan's upload rectangles ([`FramePlan::uploads`]) go straight from
+//!    [`Ring::bytes`](crate::plan::clipmap::Ring::bytes) into one RG32F 2D array texture (S x S x L,
+//!    toroidal) with `write_texture`; the plan's uniforms go into the globals and draw-slot buffers.
+//! 2. [`Renderer::render`]: the plan's draws recorded into the caller's `wgpu::RenderPass`.
+//!
+//! The plan itself is CPU work ([`crate::plan::frame_plan::Planner`]). [`crate::gpu::headless::Offscreen`]
+//! is one user of this API: clipsat's strict EGL context, offscreen targets, read-back and image hash.
 //!
 //! The vertex shader (`shaders_gles/clipmap.wgsl`) morphs z' = (1 - alpha) z + alpha z_c with GC 6.2's
 //! alpha ([`crate::plan::clipmap::morph_alpha`]) and derives normals from the geometry (GC 6.3);
-//! [`crate::twin::clipmap::cpu_vertex`] is its CPU twin. The uniforms it writes are packed by
-//! [`crate::plan::uniforms`].
+//! [`crate::twin::clipmap::cpu_vertex`] is its CPU twin.
 //!
-//! Files: this one holds the type and its set-up; `frame.rs` upload, draw and read-back; `sg.rs` the SG
-//! shading variant; `ledger.rs` the object ledger; `probe.rs` the vertex-probe test instrument.
+//! Files: this one holds the type and its set-up; `frame.rs` prepare and render; `sg.rs` the SG shading
+//! variant; `ledger.rs` the object ledger and [`Ledgered`]; `probe.rs` the vertex-probe test instrument.
 
 mod frame;
 mod ledger;
 mod probe;
 mod sg;
 
-pub use frame::{render_frame, FrameOptions, FrameStats, RenderedFrame};
-pub use ledger::{Ledger, LedgerEntry, ObjectKind};
+pub use frame::PrepareStats;
+pub use ledger::{texture_bytes, Ledger, LedgerEntry, Ledgered, ObjectKind};
 pub use probe::VertexProbe;
+pub use sg::SgShading;
 use sg::SgState;
 
-use bytemuck::Zeroable;
-use wgpu::util::DeviceExt;
-
 use crate::gpu::shaders;
-use crate::gpu::Gpu;
-use crate::plan::clipmap::Clipmap;
-use crate::plan::cull::{self, DrawKind, DrawList, MAX_DRAWS};
-use crate::plan::lod::{Lod, LodFrame};
+use crate::plan::cull::{DrawKind, MAX_DRAWS};
+use crate::plan::frame_plan::PlannedDraw;
 use crate::plan::mesh::{self, Mesh, MeshVertex};
-use crate::plan::uniforms::{DrawUniform, Globals};
+use crate::plan::uniforms::DrawUniform;
 use crate::profile::{DRAW_SLOT_BYTES, GLOBALS_BYTES};
-use crate::shading::basic::BasicShading;
+use crate::shading::debug_view::DebugView;
 use crate::{Error, Profile, Result};
 
-const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
-const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+#[cfg(doc)]
+use crate::plan::frame_plan::FramePlan;
+
 const HEIGHT_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rg32Float;
 /// Bytes per mesh vertex (Uint16x4).
 const VERTEX_BYTES: u64 = std::mem::size_of::<MeshVertex>() as u64;
-/// [`DRAW_SLOT_BYTES`] as a slice stride.
-#[expect(clippy::cast_possible_truncation, reason = "256 fits every usize")]
-const SLOT: usize = DRAW_SLOT_BYTES as usize;
-/// Width of the vertex-probe target, pixels.
-const PROBE_WIDTH: u32 = 64;
+
+/// How the terrain is shaded, fixed when the renderer is built.
+#[derive(Clone, Copy, Debug, Default)]
+pub enum Shading<'a> {
+    /// The basic directional shading of `shaders_gles/basic_shading.wgsl`.
+    #[default]
+    Basic,
+    /// Reduced SG shading (SAT paper section 5) of a scene over baked tables.
+    Sg(SgShading<'a>),
+}
+
+/// What is fixed for a renderer's life (vello's `RendererOptions`; the per-frame switches are
+/// [`crate::plan::frame_plan::PlanParams`]).
+#[derive(Clone, Copy, Debug)]
+pub struct RendererOptions<'a> {
+    /// The colour attachment's format in the caller's pass.
+    pub color_format: wgpu::TextureFormat,
+    /// The depth attachment's format (the terrain depth-tests with `Less`).
+    pub depth_format: wgpu::TextureFormat,
+    /// The pass's sample count.
+    pub sample_count: u32,
+    /// The shading variant.
+    pub shading: Shading<'a>,
+    /// A debug view replacing the shading (level colours, wireframe); `Normal` draws the shading.
+    pub debug: DebugView,
+}
+
+impl Default for RendererOptions<'_> {
+    fn default() -> Self {
+        Self {
+            color_format: wgpu::TextureFormat::Rgba8Unorm,
+            depth_format: wgpu::TextureFormat::Depth32Float,
+            sample_count: 1,
+            shading: Shading::Basic,
+            debug: DebugView::Normal,
+        }
+    }
+}
 
 /// A static mesh on the GPU.
 #[derive(Debug)]
 struct GpuMesh {
     vertices: wgpu::Buffer,
     indices: wgpu::Buffer,
-    index_count: u32,
     vertex_count: u32,
 }
 
-/// The clipmap renderer. Borrows the [`Gpu`] it lives on.
+/// The clipmap renderer on a caller's device; see the module doc.
 #[derive(Debug)]
-pub struct Renderer<'g> {
-    gpu: &'g Gpu,
+pub struct Renderer {
     ledger: Ledger,
     heights: wgpu::Texture,
     block: GpuMesh,
@@ -72,74 +104,38 @@ pub struct Renderer<'g> {
     tile_skirt: GpuMesh,
     globals: wgpu::Buffer,
     draw_slots: wgpu::Buffer,
-    // Layouts kept with the groups and pipeline made from them (ledgered objects live as long as the renderer).
+    // Layouts kept with the groups and pipelines made from them.
     _group0_layout: wgpu::BindGroupLayout,
     _group1_layout: wgpu::BindGroupLayout,
     group0: wgpu::BindGroup,
     group1: wgpu::BindGroup,
     module: wgpu::ShaderModule,
     pipeline_layout: wgpu::PipelineLayout,
+    /// The pipeline drawn: basic shading, or the debug view's.
     pipeline: wgpu::RenderPipeline,
-    /// The debug views' pipelines (index code - 1), made on first use.
-    debug_pipelines: [Option<wgpu::RenderPipeline>; 2],
-    color: wgpu::Texture,
-    color_view: wgpu::TextureView,
-    depth_view: wgpu::TextureView,
-    readback: wgpu::Buffer,
-    padded_row: u32,
-    width: u32,
-    height: u32,
-    n: u32,
+    sg: Option<SgState>,
+    debug: DebugView,
     size: u32,
     levels: u32,
-    block_quads: u32,
     max_draws: u32,
-    max_triangles: u32,
-    skirt_floor: f32,
-    /// The data's last sample in level-0 lattice units (east, south).
-    data_lattice: (f64, f64),
-    shading: BasicShading,
-    probe_size: [u32; 2],
-    /// The draw list and its uniform bytes, allocated once.
-    draws: Box<DrawList>,
-    slots: Vec<u8>,
-    /// The SAT LOD selector (set by [`Renderer::set_lod`]) and its per-frame output, allocated once.
-    lod: Option<Lod>,
-    lod_frame: Box<LodFrame>,
-    /// The clipmap frame whose uploads the texture holds.
+    /// The clipmap frame whose rectangles the texture holds.
     synced: Option<u64>,
-    last_globals: Globals,
-    /// SG shading, when [`Renderer::set_sg`] chose it (else the basic shading).
-    sg: Option<SgState>,
+    /// The prepared plan's draws, copied by [`Renderer::prepare`] (allocated once).
+    prepared: Box<heapless::Vec<PlannedDraw, MAX_DRAWS>>,
 }
 
-fn texture_bytes(desc: &wgpu::TextureDescriptor<'_>) -> u64 {
-    let texel = desc
-        .format
-        .block_copy_size(Some(wgpu::TextureAspect::All))
-        .unwrap_or(4);
-    u64::from(desc.size.width)
-        * u64::from(desc.size.height)
-        * u64::from(desc.size.depth_or_array_layers)
-        * u64::from(texel)
-}
-
-impl<'g> Renderer<'g> {
-    /// Creates every buffer, texture and pipeline for `profile` (viewport `profile.view`) and the clipmap's
-    /// terrain; nothing else is created until the renderer drops.
-    pub fn new(gpu: &'g Gpu, profile: &Profile, clipmap: &Clipmap) -> Result<Self> {
+impl Renderer {
+    /// Creates every buffer, texture and pipeline for `profile` on `device` (which must offer the GLES 3.0
+    /// downlevel limits, [`wgpu::Limits::downlevel_webgl2_defaults`]); nothing else is created until the
+    /// renderer drops. GPU validation errors surface through the device's error scopes or handler.
+    pub fn new(
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        options: &RendererOptions<'_>,
+        profile: &Profile,
+    ) -> Result<Self> {
         profile.validate(&profile.name)?;
         let c = &profile.clipmap;
-        if clipmap.n() != c.n
-            || clipmap.levels() != c.levels
-            || clipmap.ring(0).size() != profile.clip_size()
-        {
-            return Err(Error::config(
-                &profile.name,
-                "clipmap",
-                "the clipmap was built from a different profile",
-            ));
-        }
         if profile.budget.max_draws as usize > MAX_DRAWS {
             return Err(Error::config(
                 &profile.name,
@@ -150,7 +146,7 @@ impl<'g> Renderer<'g> {
                 ),
             ));
         }
-        let limits = gpu.device().limits();
+        let limits = device.limits();
         if u64::from(limits.min_uniform_buffer_offset_alignment) > DRAW_SLOT_BYTES {
             return Err(Error::Gpu(format!(
                 "uniform offset alignment {} exceeds the {DRAW_SLOT_BYTES}-byte draw slot",
@@ -164,293 +160,190 @@ impl<'g> Renderer<'g> {
                 limits.max_texture_array_layers
             )));
         }
-        let (width, height) = (profile.view.width, profile.view.height);
         let size = profile.clip_size();
         let block_quads = profile.block_m();
-        let block_mesh = mesh::block(block_quads);
-        let skirt_mesh = mesh::skirt(c.n + 1);
-        let tile_skirt_mesh = mesh::skirt_loops(block_quads);
-        let probe_rows = u32::try_from(block_mesh.vertices.len().max(skirt_mesh.vertices.len()))
-            .expect("u16-indexed meshes")
-            .div_ceil(PROBE_WIDTH);
-
-        // Shading and skirt floor from the data (pyramid level 0 is the terrain itself).
-        let data = clipmap.pyramid().level(0);
-        let (lo, hi) = data
-            .heights()
-            .iter()
-            .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &z| {
-                (a.min(z), b.max(z))
-            });
-        let spacing = clipmap.g0() * f64::from(1u32 << clipmap.synth_levels());
-        let synth = f64::from(1u32 << clipmap.synth_levels());
-        let data_lattice = (
-            f64::from(data.width() - 1) * synth,
-            f64::from(data.height() - 1) * synth,
-        );
-        let diagonal = f64::from(data.width()).hypot(f64::from(data.height())) * spacing;
-        let shading = BasicShading::for_terrain((lo, hi), diagonal);
-        #[expect(
-            clippy::cast_possible_truncation,
-            reason = "the level-0 spacing as an f32 metre offset"
-        )]
-        let skirt_floor = lo - (0.5 * (hi - lo)).max(10.0 * clipmap.g0() as f32);
-        let padded_row = (width * 4).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
         let max_draws = profile.budget.max_draws;
 
-        gpu.scoped("clipmap renderer set-up", || {
-            let device = gpu.device();
-            let mut ledger = Ledger::default();
-            let texture = |ledger: &mut Ledger, desc: wgpu::TextureDescriptor<'static>| {
-                ledger.note(
-                    desc.label.unwrap_or("texture"),
-                    ObjectKind::Texture,
-                    texture_bytes(&desc),
-                );
-                device.create_texture(&desc)
-            };
-            let heights = texture(
-                &mut ledger,
-                wgpu::TextureDescriptor {
-                    label: Some("clipmap heights"),
-                    size: wgpu::Extent3d {
-                        width: size,
-                        height: size,
-                        depth_or_array_layers: layers,
-                    },
-                    mip_level_count: 1,
-                    sample_count: 1,
-                    dimension: wgpu::TextureDimension::D2,
-                    format: HEIGHT_FORMAT,
-                    usage: wgpu::TextureUsages::TEXTURE_BINDING
-                        | wgpu::TextureUsages::COPY_DST
-                        | wgpu::TextureUsages::COPY_SRC,
-                    view_formats: &[],
-                },
-            );
-            let target = |label, format, usage| wgpu::TextureDescriptor {
-                label: Some(label),
+        let mut dev = Ledgered::new(device);
+        let heights = dev.texture(
+            "clipmap heights",
+            &wgpu::TextureDescriptor {
+                label: None,
                 size: wgpu::Extent3d {
-                    width,
-                    height,
-                    depth_or_array_layers: 1,
+                    width: size,
+                    height: size,
+                    depth_or_array_layers: layers,
                 },
                 mip_level_count: 1,
                 sample_count: 1,
                 dimension: wgpu::TextureDimension::D2,
-                format,
-                usage,
+                format: HEIGHT_FORMAT,
+                usage: wgpu::TextureUsages::TEXTURE_BINDING
+                    | wgpu::TextureUsages::COPY_DST
+                    | wgpu::TextureUsages::COPY_SRC,
                 view_formats: &[],
-            };
-            let color = texture(
-                &mut ledger,
-                target(
-                    "clipmap color",
-                    COLOR_FORMAT,
-                    wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
-                ),
-            );
-            let depth = texture(
-                &mut ledger,
-                target(
-                    "clipmap depth",
-                    DEPTH_FORMAT,
-                    wgpu::TextureUsages::RENDER_ATTACHMENT,
-                ),
-            );
-            let heights_view = heights.create_view(&wgpu::TextureViewDescriptor {
-                label: Some("clipmap heights"),
+            },
+        );
+        let heights_view = dev.view(
+            "clipmap heights view",
+            &heights,
+            &wgpu::TextureViewDescriptor {
                 dimension: Some(wgpu::TextureViewDimension::D2Array),
                 ..Default::default()
-            });
-            ledger.note("clipmap heights view", ObjectKind::TextureView, 0);
-            let color_view = color.create_view(&Default::default());
-            ledger.note("clipmap color view", ObjectKind::TextureView, 0);
-            let depth_view = depth.create_view(&Default::default());
-            ledger.note("clipmap depth view", ObjectKind::TextureView, 0);
+            },
+        );
+        let uniform = wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST;
+        let globals = dev.buffer("clipmap globals", GLOBALS_BYTES, uniform);
+        let draw_slots = dev.buffer(
+            "clipmap draw slots",
+            u64::from(max_draws) * DRAW_SLOT_BYTES,
+            uniform,
+        );
+        let mut upload_mesh = |label: &'static str, m: &Mesh| GpuMesh {
+            vertices: dev.buffer_init(
+                label,
+                bytemuck::cast_slice(&m.vertices),
+                wgpu::BufferUsages::VERTEX,
+            ),
+            indices: dev.buffer_init(
+                label,
+                bytemuck::cast_slice(&m.indices),
+                wgpu::BufferUsages::INDEX,
+            ),
+            vertex_count: u32::try_from(m.vertices.len()).expect("u16-indexed mesh"),
+        };
+        let block = upload_mesh("clipmap block mesh", &mesh::block(block_quads));
+        let skirt = upload_mesh("clipmap skirt mesh", &mesh::skirt(c.n + 1));
+        let tile_skirt = upload_mesh(
+            "clipmap tile skirt mesh",
+            &mesh::skirt_loops(block_quads),
+        );
 
-            let buffer = |ledger: &mut Ledger, label: &'static str, size: u64, usage| {
-                ledger.note(label, ObjectKind::Buffer, size);
-                device.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some(label),
-                    size,
-                    usage,
-                    mapped_at_creation: false,
-                })
-            };
-            let globals = buffer(
-                &mut ledger,
-                "clipmap globals",
-                GLOBALS_BYTES,
-                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            );
-            let draw_slots = buffer(
-                &mut ledger,
-                "clipmap draw slots",
-                u64::from(max_draws) * DRAW_SLOT_BYTES,
-                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            );
-            let readback = buffer(
-                &mut ledger,
-                "clipmap readback",
-                u64::from(padded_row) * u64::from(height),
-                wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-            );
-            let upload_mesh = |ledger: &mut Ledger, label: &'static str, m: &Mesh| {
-                ledger.note(
-                    label,
-                    ObjectKind::Buffer,
-                    m.vertices.len() as u64 * VERTEX_BYTES,
-                );
-                ledger.note(label, ObjectKind::Buffer, m.indices.len() as u64 * 2);
-                GpuMesh {
-                    vertices: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                        label: Some(label),
-                        contents: bytemuck::cast_slice(&m.vertices),
-                        usage: wgpu::BufferUsages::VERTEX,
-                    }),
-                    indices: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                        label: Some(label),
-                        contents: bytemuck::cast_slice(&m.indices),
-                        usage: wgpu::BufferUsages::INDEX,
-                    }),
-                    index_count: u32::try_from(m.indices.len()).expect("u16-indexed mesh"),
-                    vertex_count: u32::try_from(m.vertices.len()).expect("u16-indexed mesh"),
-                }
-            };
-            let block = upload_mesh(&mut ledger, "clipmap block mesh", &block_mesh);
-            let skirt = upload_mesh(&mut ledger, "clipmap skirt mesh", &skirt_mesh);
-            let tile_skirt = upload_mesh(&mut ledger, "clipmap tile skirt mesh", &tile_skirt_mesh);
-
-            let group0_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                label: Some("clipmap globals"),
-                entries: &[
-                    wgpu::BindGroupLayoutEntry {
-                        binding: 0,
-                        visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
-                        ty: wgpu::BindingType::Buffer {
-                            ty: wgpu::BufferBindingType::Uniform,
-                            has_dynamic_offset: false,
-                            min_binding_size: wgpu::BufferSize::new(GLOBALS_BYTES),
-                        },
-                        count: None,
-                    },
-                    wgpu::BindGroupLayoutEntry {
-                        binding: 1,
-                        visibility: wgpu::ShaderStages::VERTEX,
-                        ty: wgpu::BindingType::Texture {
-                            sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                            view_dimension: wgpu::TextureViewDimension::D2Array,
-                            multisampled: false,
-                        },
-                        count: None,
-                    },
-                ],
-            });
-            ledger.note("clipmap globals layout", ObjectKind::BindGroupLayout, 0);
-            let draw_size = std::mem::size_of::<DrawUniform>() as u64;
-            let group1_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                label: Some("clipmap draw"),
-                entries: &[wgpu::BindGroupLayoutEntry {
+        let group0_layout = dev.bind_group_layout(
+            "clipmap globals layout",
+            &[
+                wgpu::BindGroupLayoutEntry {
                     binding: 0,
-                    // The fragment stage reads the draw's level and lattice in the debug views.
                     visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
                     ty: wgpu::BindingType::Buffer {
                         ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: true,
-                        min_binding_size: wgpu::BufferSize::new(draw_size),
+                        has_dynamic_offset: false,
+                        min_binding_size: wgpu::BufferSize::new(GLOBALS_BYTES),
                     },
                     count: None,
-                }],
-            });
-            ledger.note("clipmap draw layout", ObjectKind::BindGroupLayout, 0);
-            let group0 = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("clipmap globals"),
-                layout: &group0_layout,
-                entries: &[
-                    wgpu::BindGroupEntry {
-                        binding: 0,
-                        resource: globals.as_entire_binding(),
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::VERTEX,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                        view_dimension: wgpu::TextureViewDimension::D2Array,
+                        multisampled: false,
                     },
-                    wgpu::BindGroupEntry {
-                        binding: 1,
-                        resource: wgpu::BindingResource::TextureView(&heights_view),
-                    },
-                ],
-            });
-            ledger.note("clipmap globals group", ObjectKind::BindGroup, 0);
-            let group1 = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("clipmap draw"),
-                layout: &group1_layout,
-                entries: &[wgpu::BindGroupEntry {
+                    count: None,
+                },
+            ],
+        );
+        let draw_size = std::mem::size_of::<DrawUniform>() as u64;
+        let group1_layout = dev.bind_group_layout(
+            "clipmap draw layout",
+            &[wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                // The fragment stage reads the draw's level and lattice in the debug views.
+                visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: true,
+                    min_binding_size: wgpu::BufferSize::new(draw_size),
+                },
+                count: None,
+            }],
+        );
+        let group0 = dev.bind_group(
+            "clipmap globals group",
+            &group0_layout,
+            &[
+                wgpu::BindGroupEntry {
                     binding: 0,
-                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                        buffer: &draw_slots,
-                        offset: 0,
-                        size: wgpu::BufferSize::new(draw_size),
-                    }),
-                }],
-            });
-            ledger.note("clipmap draw group", ObjectKind::BindGroup, 0);
-            let source = shaders::clipmap();
-            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("clipmap.wgsl"),
-                source: wgpu::ShaderSource::Wgsl(source.into()),
-            });
-            ledger.note("clipmap.wgsl", ObjectKind::ShaderModule, 0);
-            let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some("clipmap"),
-                bind_group_layouts: &[Some(&group0_layout), Some(&group1_layout)],
-                immediate_size: 0,
-            });
-            ledger.note("clipmap pipeline layout", ObjectKind::PipelineLayout, 0);
-            let pipeline = terrain_pipeline(device, &pipeline_layout, &module, "fs_main");
-            ledger.note("clipmap pipeline", ObjectKind::RenderPipeline, 0);
-
-            let mut draws: Box<DrawList> = Box::default();
-            draws.clear();
-            Ok(Self {
-                gpu,
-                ledger,
-                heights,
-                block,
-                skirt,
-                tile_skirt,
-                globals,
-                draw_slots,
-                _group0_layout: group0_layout,
-                _group1_layout: group1_layout,
-                group0,
-                group1,
-                module,
-                pipeline_layout,
-                pipeline,
-                debug_pipelines: [None, None],
-                color,
-                color_view,
-                depth_view,
-                readback,
-                padded_row,
-                width,
-                height,
-                n: c.n,
-                size,
-                levels: c.levels,
-                block_quads,
-                max_draws,
-                max_triangles: profile.budget.max_triangles,
-                skirt_floor,
-                data_lattice,
-                shading,
-                probe_size: [PROBE_WIDTH, probe_rows],
-                draws,
-                slots: vec![0; max_draws as usize * SLOT],
-                lod: None,
-                lod_frame: LodFrame::new_boxed(),
-                synced: None,
-                last_globals: Globals::zeroed(),
-                sg: None,
-            })
+                    resource: globals.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::TextureView(&heights_view),
+                },
+            ],
+        );
+        let group1 = dev.bind_group(
+            "clipmap draw group",
+            &group1_layout,
+            &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                    buffer: &draw_slots,
+                    offset: 0,
+                    size: wgpu::BufferSize::new(draw_size),
+                }),
+            }],
+        );
+        let module = dev.shader_module("clipmap.wgsl", shaders::clipmap());
+        let pipeline_layout = dev.pipeline_layout(
+            "clipmap pipeline layout",
+            &[Some(&group0_layout), Some(&group1_layout)],
+        );
+        let targets = Targets::of(options);
+        let pipeline = if options.debug == DebugView::Normal {
+            terrain_pipeline(
+                &mut dev,
+                "clipmap pipeline",
+                &pipeline_layout,
+                &module,
+                "fs_main",
+                &targets,
+            )
+        } else {
+            let debug_module =
+                dev.shader_module("clipmap.wgsl (debug view)", shaders::clipmap_view(options.debug));
+            terrain_pipeline(
+                &mut dev,
+                "clipmap debug view pipeline",
+                &pipeline_layout,
+                &debug_module,
+                "fs_main",
+                &targets,
+            )
+        };
+        let sg = match &options.shading {
+            Shading::Basic => None,
+            Shading::Sg(s) => Some(SgState::new(
+                &mut dev,
+                queue,
+                s,
+                [&group0_layout, &group1_layout],
+                &targets,
+            )?),
+        };
+        Ok(Self {
+            ledger: dev.finish(),
+            heights,
+            block,
+            skirt,
+            tile_skirt,
+            globals,
+            draw_slots,
+            _group0_layout: group0_layout,
+            _group1_layout: group1_layout,
+            group0,
+            group1,
+            module,
+            pipeline_layout,
+            pipeline,
+            sg,
+            debug: options.debug,
+            size,
+            levels: c.levels,
+            max_draws,
+            synced: None,
+            prepared: Box::default(),
         })
     }
 
@@ -459,65 +352,41 @@ impl<'g> Renderer<'g> {
         &self.ledger
     }
 
-    /// Gives the renderer the SAT LOD selector the SAT modes need (built for this clipmap's terrain:
-    /// [`Lod::for_clipmap`]).
-    pub fn set_lod(&mut self, lod: Lod) {
-        self.lod = Some(lod);
+    /// The ring height texture (S x S x levels, RG32F).
+    pub fn heights(&self) -> &wgpu::Texture {
+        &self.heights
     }
 
-    /// The SAT LOD selector, if set.
-    pub fn lod(&self) -> Option<&Lod> {
-        self.lod.as_ref()
+    /// Rings (array layers) in use.
+    pub fn levels(&self) -> u32 {
+        self.levels
     }
 
-    /// The last SAT-mode frame's block levels (empty before one).
-    pub fn lod_frame(&self) -> &LodFrame {
-        &self.lod_frame
-    }
-
-    /// Triangles draw `d` submits (the zero-area ones of clamped blocks included).
-    pub fn draw_triangles(&self, d: &cull::Draw) -> u32 {
-        self.index_count(d) / 3
-    }
-
-    fn index_count(&self, d: &cull::Draw) -> u32 {
-        let r = self.index_range(d);
-        r.end - r.start
-    }
-
-    /// The part of its mesh's index buffer draw `d` draws.
-    fn index_range(&self, d: &cull::Draw) -> std::ops::Range<u32> {
-        match d.kind {
-            DrawKind::Block => 0..mesh::block_prefix(d.quads.min(self.block_quads)),
-            DrawKind::Skirt => 0..self.skirt.index_count,
-            DrawKind::TileSkirt => mesh::skirt_loop_range(self.block_quads, d.quads),
+    /// The names of the textures the shading binds: `heights`, plus `sat_normal` and, with visibility,
+    /// `sat_horizon` under SG shading.
+    pub fn bound_textures(&self) -> &[&'static str] {
+        match &self.sg {
+            Some(sg) => &sg.bound,
+            None => &["heights"],
         }
     }
 
-    /// The last frame's draw list.
-    pub fn draws(&self) -> &DrawList {
-        &self.draws
+    /// The maps baked for the shading (none for basic shading).
+    pub fn baked(&self) -> &[&'static str] {
+        match &self.sg {
+            Some(sg) => &sg.baked,
+            None => &[],
+        }
     }
 
-    /// The uniforms of the last frame's draw `i`.
-    pub fn draw_uniform(&self, i: usize) -> DrawUniform {
-        let at = i * SLOT;
-        bytemuck::pod_read_unaligned(&self.slots[at..at + std::mem::size_of::<DrawUniform>()])
+    /// The SG shader variant in use, if any.
+    pub fn sg_variant(&self) -> Option<shaders::SgVariant> {
+        self.sg.as_ref().map(|s| s.variant)
     }
 
-    /// The last frame's global uniforms.
-    pub fn globals(&self) -> &Globals {
-        &self.last_globals
-    }
-
-    /// Image size, pixels.
-    pub fn size(&self) -> (u32, u32) {
-        (self.width, self.height)
-    }
-
-    /// The basic shading parameters (the brute-force reference of the same terrain uses the same).
-    pub fn shading(&self) -> BasicShading {
-        self.shading
+    /// Entries of the SG bind group layout (group 2), under SG shading: 2 without visibility, 3 with.
+    pub fn sg_layout_entries(&self) -> Option<usize> {
+        self.sg.as_ref().map(|s| s.layout_entries)
     }
 
     fn mesh(&self, kind: DrawKind) -> &GpuMesh {
@@ -529,56 +398,75 @@ impl<'g> Renderer<'g> {
     }
 }
 
-impl Drop for Renderer<'_> {
-    fn drop(&mut self) {
-        // Its objects are GL objects of this Gpu's context: make it current before they go.
-        self.gpu.bind();
+/// The caller's attachment formats and sample count, for every pipeline.
+#[derive(Clone, Copy, Debug)]
+struct Targets {
+    color: wgpu::TextureFormat,
+    depth: wgpu::TextureFormat,
+    samples: u32,
+}
+
+impl Targets {
+    fn of(o: &RendererOptions<'_>) -> Self {
+        Self {
+            color: o.color_format,
+            depth: o.depth_format,
+            samples: o.sample_count,
+        }
     }
 }
 
 fn terrain_pipeline(
-    device: &wgpu::Device,
+    dev: &mut Ledgered<'_>,
+    label: &'static str,
     layout: &wgpu::PipelineLayout,
     module: &wgpu::ShaderModule,
     fragment_entry: &str,
+    targets: &Targets,
 ) -> wgpu::RenderPipeline {
-    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-        label: Some("clipmap"),
-        layout: Some(layout),
-        vertex: wgpu::VertexState {
-            module,
-            entry_point: Some("vs_main"),
-            compilation_options: Default::default(),
-            buffers: &[Some(vertex_layout())],
+    dev.render_pipeline(
+        label,
+        &wgpu::RenderPipelineDescriptor {
+            label: None,
+            layout: Some(layout),
+            vertex: wgpu::VertexState {
+                module,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: &[Some(vertex_layout())],
+            },
+            primitive: wgpu::PrimitiveState {
+                topology: wgpu::PrimitiveTopology::TriangleList,
+                front_face: wgpu::FrontFace::Ccw,
+                // Skirts and terrain seen from below show back faces; draw both sides.
+                cull_mode: None,
+                ..Default::default()
+            },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: targets.depth,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: wgpu::MultisampleState {
+                count: targets.samples,
+                ..Default::default()
+            },
+            fragment: Some(wgpu::FragmentState {
+                module,
+                entry_point: Some(fragment_entry),
+                compilation_options: Default::default(),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format: targets.color,
+                    blend: None,
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+            }),
+            multiview_mask: None,
+            cache: None,
         },
-        primitive: wgpu::PrimitiveState {
-            topology: wgpu::PrimitiveTopology::TriangleList,
-            front_face: wgpu::FrontFace::Ccw,
-            // Skirts and terrain seen from below show back faces; draw both sides.
-            cull_mode: None,
-            ..Default::default()
-        },
-        depth_stencil: Some(wgpu::DepthStencilState {
-            format: DEPTH_FORMAT,
-            depth_write_enabled: Some(true),
-            depth_compare: Some(wgpu::CompareFunction::Less),
-            stencil: Default::default(),
-            bias: Default::default(),
-        }),
-        multisample: Default::default(),
-        fragment: Some(wgpu::FragmentState {
-            module,
-            entry_point: Some(fragment_entry),
-            compilation_options: Default::default(),
-            targets: &[Some(wgpu::ColorTargetState {
-                format: COLOR_FORMAT,
-                blend: None,
-                write_mask: wgpu::ColorWrites::ALL,
-            })],
-        }),
-        multiview_mask: None,
-        cache: None,
-    })
+    )
 }
 
 fn vertex_layout() -> wgpu::VertexBufferLayout<'static> {

@@ -1,6 +1,8 @@
-//! Stage 3, the GPU: a test instrument that reads back the vertex shader's clip-space output.
+//! Stage 3, the GPU: a test instrument that reads back the vertex shader's clip-space output (its objects
+//! are made through its own [`Ledgered`], outside the renderer's ledger).
 
-use super::{vertex_layout, Renderer};
+use super::{vertex_layout, Ledgered};
+use crate::gpu::headless::Offscreen;
 use crate::profile::DRAW_SLOT_BYTES;
 use crate::{Error, Result};
 
@@ -17,14 +19,15 @@ pub struct VertexProbe {
 }
 
 impl VertexProbe {
-    /// The probe for `renderer`'s pipeline layout and shader.
-    pub fn new(renderer: &Renderer<'_>) -> Result<Self> {
-        let gpu = renderer.gpu;
-        let size = renderer.probe_size;
+    /// The probe for `offscreen`'s pipeline layout and shader.
+    pub fn new(offscreen: &Offscreen<'_>) -> Result<Self> {
+        let gpu = offscreen.gpu();
+        let renderer = offscreen.renderer();
+        let size = offscreen.planner().probe_size();
         gpu.scoped("vertex probe set-up", || {
-            let device = gpu.device();
-            let target = device.create_texture(&wgpu::TextureDescriptor {
-                label: Some("vertex probe"),
+            let mut dev = Ledgered::new(gpu.device());
+            let target = dev.texture("vertex probe", &wgpu::TextureDescriptor {
+                label: None,
                 size: wgpu::Extent3d {
                     width: size[0],
                     height: size[1],
@@ -37,15 +40,14 @@ impl VertexProbe {
                 usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
                 view_formats: &[],
             });
-            let view = target.create_view(&Default::default());
-            let buffer = device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("vertex probe readback"),
-                size: u64::from(size[0]) * 16 * u64::from(size[1]),
-                usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-                mapped_at_creation: false,
-            });
-            let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some("vertex probe"),
+            let view = dev.view("vertex probe view", &target, &Default::default());
+            let buffer = dev.buffer(
+                "vertex probe readback",
+                u64::from(size[0]) * 16 * u64::from(size[1]),
+                wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            );
+            let pipeline = dev.render_pipeline("vertex probe", &wgpu::RenderPipelineDescriptor {
+                label: None,
                 layout: Some(&renderer.pipeline_layout),
                 vertex: wgpu::VertexState {
                     module: &renderer.module,
@@ -83,11 +85,13 @@ impl VertexProbe {
     }
 
     /// The GPU's clip-space position of every vertex of the last frame's draw `index`, in mesh order.
-    pub fn capture(&self, renderer: &Renderer<'_>, index: usize) -> Result<Vec<[f32; 4]>> {
-        let gpu = renderer.gpu;
-        let d = renderer.draws.get(index).ok_or_else(|| Error::Arg {
-            arg: "draw index".into(),
-            reason: format!("{index} is past the {} draws", renderer.draws.len()),
+    pub fn capture(&self, offscreen: &Offscreen<'_>, index: usize) -> Result<Vec<[f32; 4]>> {
+        let gpu = offscreen.gpu();
+        let renderer = offscreen.renderer();
+        let draws = offscreen.draws();
+        let d = draws.get(index).ok_or_else(|| Error::Invalid {
+            what: "draw index".into(),
+            reason: format!("{index} is past the {} draws", draws.len()),
         })?;
         let m = renderer.mesh(d.kind);
         gpu.scoped("vertex probe", || {

@@ -8,7 +8,7 @@ use std::time::Instant;
 
 use crate::app::plot::{LinePlot, Series};
 use clap::Args;
-use clipsat::gpu::renderer::{self, FrameOptions, Renderer};
+use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen, OffscreenOptions};
 use clipsat::gpu::{Gpu, GpuMode};
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::plan::flight::{Flight, Path};
@@ -674,8 +674,8 @@ fn measure_memory(
             .with_fov_y_deg(f64::from(p.view.fov_y_deg))
             .camera(0);
         clipmap.update(camera.eye)?;
-        let mut r = Renderer::new(gpu, &p, &clipmap)?;
-        renderer::render_frame(&mut r, &clipmap, &camera, &FrameOptions::default())?;
+        let mut r = Offscreen::new(gpu, &p, &clipmap, OffscreenOptions::default())?;
+        render_frame(&mut r, &clipmap, &camera, &FrameOptions::default())?;
         rows.push(MemoryRow {
             profile: p.name.clone(),
             budget: p.budget.gpu_memory_bytes,
@@ -695,7 +695,7 @@ fn memory_section(rows: &[MemoryRow], machine: &Machine) -> String {
         s,
         "Each shipped profile's clipmap and renderer built on the procedural terrain (viewport shrunk to this \
          run's image size), one frame rendered. Footprint: the profile's planned GPU bytes \
-         (`Profile::footprint`); ledger: the bytes the renderer actually created (`Renderer::ledger`), \
+         (`Profile::footprint`); ledger: the bytes the renderer actually created (`Offscreen::ledger`), \
          to compare with the footprint; peak RSS: the process's VmHWM after that profile, so it includes \
          the profiles before it (measured in profile order, first thing in the run).\n\n*Table: {}*\n",
         machine.line()

@@ -7,12 +7,13 @@ use std::time::Instant;
 
 use clap::Args;
 use clipsat::gpu::brute::BruteForce;
-use clipsat::gpu::renderer::{self, FrameOptions, Renderer};
+use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen, OffscreenOptions};
+use clipsat::plan::frame_plan::LodSetup;
 use clipsat::gpu::{Gpu, GpuMode};
 use clipsat::measure;
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::plan::flight::{Flight, Path};
-use clipsat::plan::lod::{LodFrame, LodMode};
+use clipsat::plan::lod::LodMode;
 use clipsat::source::{self, LoadOptions};
 use clipsat::{Error, Heightmap, Profile, Result};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -134,7 +135,7 @@ pub(crate) const LOD_TABLE_NOTE: &str = "Means per frame, except max screen erro
     and frames over epsilon (measured max screen error > epsilon; `measure::screen_error`: |H_0 - PL(H_L)| \
     projected at each data sample in the frustum, clamped blocks included). Unclamped max: the same over the \
     blocks drawn at the level they wanted, i.e. the estimator's own error without what the clip margin \
-    cannot hold (for distance, every block). LOD time: `Lod::select` alone (0 \
+    cannot hold (for distance, every block). LOD time: the frame plan (`Planner::plan`: selection, culling, uniforms; \
     for distance, which selects nothing). Render time: upload, draw and readback on this machine's GL driver. \
     RMSE: RGB, 0..255, every pixel, against the brute-force render.";
 
@@ -164,12 +165,25 @@ pub(crate) fn measure_lod(
 ) -> Result<Vec<LodResult>> {
     let (w, h) = (profile.view.width, profile.view.height);
     let mut clipmap = Clipmap::new(hm, profile, ClipmapOptions::default())?;
-    let mut r = Renderer::new(gpu, profile, &clipmap)?;
-    let mut lod = crate::app::cmd::render::lod_for(hm, profile, &clipmap, false)?;
+    let lod = crate::app::cmd::render::lod_for(hm, profile, &clipmap, false)?;
+    // One renderer per LOD mode (the mode is fixed when a renderer is built).
+    let mut renderers = LodMode::ALL
+        .iter()
+        .map(|&mode| {
+            Offscreen::new(
+                gpu,
+                profile,
+                &clipmap,
+                OffscreenOptions {
+                    lod: LodSetup::new(mode, Some(lod.clone()))?,
+                    ..OffscreenOptions::default()
+                },
+            )
+        })
+        .collect::<Result<Vec<_>>>()?;
     let mut brute = BruteForce::new(gpu, hm)?;
     let flight = Flight::new(Path::Figure8, 0.004 * hm.extent_m().0.max(1.0), hm)?
         .with_fov_y_deg(f64::from(profile.view.fov_y_deg));
-    let mut spare = LodFrame::new_boxed();
     let mut accs = vec![Acc::default(); EPSILONS.len() * LodMode::ALL.len()];
     for f in 0..u64::from(frames) {
         let camera = flight.camera(f);
@@ -178,24 +192,18 @@ pub(crate) fn measure_lod(
         for (ci, acc) in accs.iter_mut().enumerate() {
             let eps = EPSILONS[ci / LodMode::ALL.len()];
             let mode = LodMode::ALL[ci % LodMode::ALL.len()];
-            lod.set_epsilon_px(f64::from(eps));
-            let t = Instant::now();
-            if mode != LodMode::Distance {
-                lod.select(clipmap.frame(), &camera, mode, &mut spare)?;
-            }
-            let lod_us = t.elapsed().as_secs_f64() * 1e6;
+            let r = &mut renderers[ci % LodMode::ALL.len()];
+            debug_assert_eq!(r.lod_mode(), mode);
             let opts = FrameOptions {
-                lod: mode,
                 epsilon_px: Some(eps),
                 ..FrameOptions::default()
             };
-            if mode != LodMode::Distance && r.lod().is_none() {
-                r.set_lod(lod.clone());
-            }
             let t = Instant::now();
-            let frame = renderer::render_frame(&mut r, &clipmap, &camera, &opts)?;
+            let frame = render_frame(r, &clipmap, &camera, &opts)?;
             let render_ms = t.elapsed().as_secs_f64() * 1e3;
-            let err = measure::screen_error(&r, &clipmap, &camera, &lod);
+            #[expect(clippy::cast_precision_loss, reason = "plan times are far below 2^52 ns")]
+            let lod_us = frame.stats.plan_ns as f64 * 1e-3;
+            let err = measure::screen_error(r.plan(), r.size(), &clipmap, &camera, &lod);
             acc.frames += 1;
             acc.triangles += frame.stats.triangles as f64;
             acc.lod_us += lod_us;

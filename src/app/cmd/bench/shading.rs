@@ -5,7 +5,8 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use clap::Args;
-use clipsat::gpu::renderer::{self, FrameOptions, Renderer};
+use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen, OffscreenOptions};
+use clipsat::gpu::renderer::{SgShading, Shading};
 use clipsat::gpu::{Gpu, GpuMode};
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::source::{self, LoadOptions};
@@ -64,16 +65,16 @@ pub(crate) struct ShadingReport {
 
 /// Mean ms of `frames` renders (after one untimed warm-up: shader compilation).
 fn time_frames(
-    r: &mut Renderer<'_>,
+    r: &mut Offscreen<'_>,
     clipmap: &Clipmap,
     camera: &clipsat::Camera,
     frames: u32,
 ) -> Result<(f64, clipsat::gpu::readback::Image)> {
     let opts = FrameOptions::default();
-    let mut image = renderer::render_frame(r, clipmap, camera, &opts)?.image;
+    let mut image = render_frame(r, clipmap, camera, &opts)?.image;
     let t0 = Instant::now();
     for _ in 0..frames {
-        image = renderer::render_frame(r, clipmap, camera, &opts)?.image;
+        image = render_frame(r, clipmap, camera, &opts)?.image;
     }
     Ok((t0.elapsed().as_secs_f64() * 1e3 / f64::from(frames), image))
 }
@@ -200,8 +201,9 @@ pub(crate) fn measure_shading(
                 break;
             }
         }
-        let mut r = Renderer::new(gpu, &profile, &clipmap)?;
+        let mut r = Offscreen::new(gpu, &profile, &clipmap, OffscreenOptions::default())?;
         let (basic_ms, _) = time_frames(&mut r, &clipmap, &camera, frames)?;
+        drop(r);
         let bake_vis = ShadingBake::bake(
             hm,
             &Needs {
@@ -219,7 +221,20 @@ pub(crate) fn measure_shading(
             let reference = crate::app::cmd::sg::reference(hm, &camera, (w, h), &scene);
             for patches in Patches::ALL {
                 let bake = if vis { &bake_vis } else { &bake_plain };
-                r.set_sg_baked(hm, &scene, patches, bake)?;
+                let mut r = Offscreen::new(
+                    gpu,
+                    &profile,
+                    &clipmap,
+                    OffscreenOptions {
+                        shading: Shading::Sg(SgShading {
+                            terrain: hm,
+                            scene: &scene,
+                            patches,
+                            bake,
+                        }),
+                        ..OffscreenOptions::default()
+                    },
+                )?;
                 let (ms, image) = time_frames(&mut r, &clipmap, &camera, frames)?;
                 let e = reference.error(&image, crate::app::cmd::sg::sky_rgba8());
                 rows.push(ShadingRow {

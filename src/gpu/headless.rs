@@ -1,0 +1,499 @@
+//! Stage 3, the GPU: clipsat's headless path, one user of the embeddable [`Renderer`]: the strict EGL
+//! context ([`Gpu`]), offscreen colour and depth targets, a [`Planner`] and its preallocated
+//! [`FramePlan`], read-back and the image hash. What `clipsat render`, `fly`, `bench`, `view` and the tests
+//! draw with.
+//!
+//! Every wgpu call goes through [`Gpu`]'s accessors, which make its GL context current first (wgpu-hal's
+//! external GLES adapter needs it current), and inside its error scopes ([`Gpu::scoped`]).
+
+use crate::bake::horizon::DEFAULT_AZIMUTHS;
+use crate::gpu::readback::Image;
+use crate::gpu::renderer::{
+    Ledger, Ledgered, PrepareStats, Renderer, RendererOptions, Shading,
+};
+use crate::gpu::sat_textures::ShadingBake;
+use crate::gpu::Gpu;
+use crate::plan::clipmap::Clipmap;
+use crate::plan::cull::{self, DrawList, DrawStats};
+use crate::plan::frame_plan::{FramePlan, LodSetup, PlanParams, Planner};
+use crate::plan::lod::{Lod, LodFrame, LodMode};
+use crate::plan::uniforms::{DrawUniform, Globals};
+use crate::shading::basic::BasicShading;
+use crate::shading::debug_view::DebugView;
+use crate::shading::scene::Scene;
+use crate::{Camera, Heightmap, Profile, Result};
+
+const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
+const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+
+/// What is fixed for an [`Offscreen`]'s life: the LOD mode (with its tables), the shading variant and the
+/// debug view. Change them by building another `Offscreen`.
+#[derive(Clone, Debug, Default)]
+pub struct OffscreenOptions<'a> {
+    /// How blocks choose their level.
+    pub lod: LodSetup,
+    /// The shading variant.
+    pub shading: Shading<'a>,
+    /// A debug view replacing the shading.
+    pub debug: DebugView,
+}
+
+/// Per-frame switches: the plan's [`PlanParams`] and the clear colour.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrameOptions {
+    /// Clear colour (display-encoded RGBA).
+    pub clear: [f64; 4],
+    /// GC 6.2 transition morphing (off: every vertex takes its own level's z).
+    pub morph: bool,
+    /// Frustum culling of blocks (off: every block is drawn).
+    pub cull: bool,
+    /// Skirts on level boundaries (off only to show the cracks they close).
+    pub skirts: bool,
+    /// The SAT modes' screen-space error bound, pixels; None: the profile's `view.epsilon_px`.
+    pub epsilon_px: Option<f32>,
+}
+
+impl Default for FrameOptions {
+    fn default() -> Self {
+        let p = PlanParams::default();
+        Self {
+            clear: crate::shading::basic::SKY,
+            morph: p.morph,
+            cull: p.cull,
+            skirts: p.skirts,
+            epsilon_px: p.epsilon_px,
+        }
+    }
+}
+
+impl FrameOptions {
+    /// The plan's part.
+    pub fn plan_params(&self) -> PlanParams {
+        PlanParams {
+            morph: self.morph,
+            cull: self.cull,
+            skirts: self.skirts,
+            epsilon_px: self.epsilon_px,
+        }
+    }
+}
+
+/// What one frame did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct FrameStats {
+    /// Draw calls.
+    pub draws: u32,
+    /// Blocks drawn, culled, and skirts drawn.
+    pub cull: DrawStats,
+    /// Triangles submitted (the zero-area ones of clamped blocks included).
+    pub triangles: u64,
+    /// `write_texture` calls this frame.
+    pub uploads: u32,
+    /// Texels (samples) they copied.
+    pub upload_samples: u64,
+    /// Bytes they copied.
+    pub upload_bytes: u64,
+    /// Whether the whole texture was re-sent (a plan that did not follow the last one prepared).
+    pub full_upload: bool,
+    /// SAT modes: LOD blocks whose wanted level is finer than the held data (see
+    /// [`crate::plan::lod::LodFrame::blocks_clamped`]); 0 in distance mode.
+    pub blocks_clamped: u32,
+    /// Wall time of [`Planner::plan`] (LOD selection, culling, uniforms), nanoseconds.
+    pub plan_ns: u64,
+}
+
+/// The tables [`Shading::Sg`] needs for `scene` over `hm`, through the disk cache
+/// ([`ShadingBake::bake_cached`]), and the scene as drawn (`shadows: false` drops visibility even if the
+/// scene asks for it). Bakes only what the scene needs ([`Scene::needs`]).
+pub fn sg_bake(
+    max_side: u32,
+    hm: &Heightmap,
+    scene: &Scene,
+    shadows: bool,
+) -> Result<(Scene, ShadingBake)> {
+    let mut scene = scene.clone();
+    scene.effects.visibility &= shadows;
+    let (bake, _) = ShadingBake::bake_cached(
+        hm,
+        &scene.needs(),
+        DEFAULT_AZIMUTHS,
+        max_side,
+        &crate::bake::default_cache_dir(),
+    )?;
+    Ok((scene, bake))
+}
+
+/// The headless renderer; see the module doc. Borrows the [`Gpu`] it lives on.
+#[derive(Debug)]
+pub struct Offscreen<'g> {
+    gpu: &'g Gpu,
+    renderer: Renderer,
+    planner: Planner,
+    plan: FramePlan,
+    /// The renderer's objects, then the targets'.
+    ledger: Ledger,
+    color: wgpu::Texture,
+    color_view: wgpu::TextureView,
+    depth_view: wgpu::TextureView,
+    readback: wgpu::Buffer,
+    padded_row: u32,
+    width: u32,
+    height: u32,
+}
+
+impl<'g> Offscreen<'g> {
+    /// A renderer for `profile` (viewport `profile.view`) and `clipmap`'s terrain on `gpu`, with its
+    /// targets; everything is created here, nothing per frame.
+    pub fn new(
+        gpu: &'g Gpu,
+        profile: &Profile,
+        clipmap: &Clipmap,
+        options: OffscreenOptions<'_>,
+    ) -> Result<Self> {
+        let planner = Planner::new(profile, clipmap, options.lod)?;
+        let plan = planner.new_plan();
+        let (width, height) = (profile.view.width, profile.view.height);
+        let padded_row = (width * 4).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+        gpu.scoped("clipmap renderer set-up", || {
+            let renderer = Renderer::new(
+                gpu.device(),
+                gpu.queue(),
+                &RendererOptions {
+                    color_format: COLOR_FORMAT,
+                    depth_format: DEPTH_FORMAT,
+                    sample_count: 1,
+                    shading: options.shading,
+                    debug: options.debug,
+                },
+                profile,
+            )?;
+            let mut dev = Ledgered::new(gpu.device());
+            let target = |format, usage| wgpu::TextureDescriptor {
+                label: None,
+                size: wgpu::Extent3d {
+                    width,
+                    height,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage,
+                view_formats: &[],
+            };
+            let color = dev.texture(
+                "clipmap color",
+                &target(
+                    COLOR_FORMAT,
+                    wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+                ),
+            );
+            let depth = dev.texture(
+                "clipmap depth",
+                &target(DEPTH_FORMAT, wgpu::TextureUsages::RENDER_ATTACHMENT),
+            );
+            let color_view = dev.view("clipmap color view", &color, &Default::default());
+            let depth_view = dev.view("clipmap depth view", &depth, &Default::default());
+            let readback = dev.buffer(
+                "clipmap readback",
+                u64::from(padded_row) * u64::from(height),
+                wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            );
+            let mut ledger = renderer.ledger().clone();
+            ledger.extend(dev.ledger());
+            Ok(Self {
+                gpu,
+                renderer,
+                planner,
+                plan,
+                ledger,
+                color,
+                color_view,
+                depth_view,
+                readback,
+                padded_row,
+                width,
+                height,
+            })
+        })
+    }
+
+    /// [`Offscreen::new`] with SG shading of `scene` over `hm` (the clipmap's terrain), integrated over
+    /// `patches`, its tables baked first through the cache ([`sg_bake`]; `shadows: false` drops
+    /// visibility), distance LOD.
+    pub fn with_sg(
+        gpu: &'g Gpu,
+        profile: &Profile,
+        clipmap: &Clipmap,
+        hm: &Heightmap,
+        scene: &Scene,
+        patches: crate::shading::Patches,
+        shadows: bool,
+    ) -> Result<Self> {
+        let max_side = gpu.device().limits().max_texture_dimension_2d;
+        let (scene, bake) = sg_bake(max_side, hm, scene, shadows)?;
+        Self::new(
+            gpu,
+            profile,
+            clipmap,
+            OffscreenOptions {
+                shading: Shading::Sg(crate::gpu::renderer::SgShading {
+                    terrain: hm,
+                    scene: &scene,
+                    patches,
+                    bake: &bake,
+                }),
+                ..OffscreenOptions::default()
+            },
+        )
+    }
+
+    /// The GPU it draws on.
+    pub fn gpu(&self) -> &'g Gpu {
+        self.gpu
+    }
+
+    /// The embeddable renderer inside.
+    pub fn renderer(&self) -> &Renderer {
+        &self.renderer
+    }
+
+    /// The planner.
+    pub fn planner(&self) -> &Planner {
+        &self.planner
+    }
+
+    /// The last frame's plan.
+    pub fn plan(&self) -> &FramePlan {
+        &self.plan
+    }
+
+    /// Every object created: the renderer's, then the targets' and read-back buffer's.
+    pub fn ledger(&self) -> &Ledger {
+        &self.ledger
+    }
+
+    /// The LOD mode.
+    pub fn lod_mode(&self) -> LodMode {
+        self.planner.lod_mode()
+    }
+
+    /// The SAT LOD selector, in the SAT modes.
+    pub fn lod(&self) -> Option<&Lod> {
+        self.planner.lod()
+    }
+
+    /// The last SAT-mode frame's block levels (empty before one).
+    pub fn lod_frame(&self) -> &LodFrame {
+        self.plan.lod_frame()
+    }
+
+    /// The last frame's draw list.
+    pub fn draws(&self) -> &DrawList {
+        self.plan.draws()
+    }
+
+    /// The uniforms of the last frame's draw `i`.
+    pub fn draw_uniform(&self, i: usize) -> DrawUniform {
+        self.plan.draw_uniform(i)
+    }
+
+    /// The last frame's global uniforms.
+    pub fn globals(&self) -> &Globals {
+        self.plan.globals()
+    }
+
+    /// Triangles draw `d` submits (the zero-area ones of clamped blocks included).
+    pub fn draw_triangles(&self, d: &cull::Draw) -> u32 {
+        let r = self.planner.index_range(d);
+        (r.end - r.start) / 3
+    }
+
+    /// Image size, pixels.
+    pub fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+
+    /// The basic shading parameters (the brute-force reference of the same terrain uses the same).
+    pub fn shading(&self) -> BasicShading {
+        self.planner.shading()
+    }
+
+    /// The names of the textures the shading binds ([`Renderer::bound_textures`]).
+    pub fn bound_textures(&self) -> &[&'static str] {
+        self.renderer.bound_textures()
+    }
+
+    /// The maps baked for the shading ([`Renderer::baked`]).
+    pub fn baked(&self) -> &[&'static str] {
+        self.renderer.baked()
+    }
+
+    /// Plans `clipmap`'s last frame seen from `camera`, prepares it and draws it into the colour target
+    /// (cleared first); [`Offscreen::read_image`] reads it back, [`render_frame`] does both.
+    pub fn frame(
+        &mut self,
+        clipmap: &Clipmap,
+        camera: &Camera,
+        opts: &FrameOptions,
+    ) -> Result<FrameStats> {
+        let t = std::time::Instant::now();
+        self.planner
+            .plan(clipmap, camera, &opts.plan_params(), &mut self.plan)?;
+        let plan_ns = u64::try_from(t.elapsed().as_nanos()).unwrap_or(u64::MAX);
+        let gpu = self.gpu;
+        let up: PrepareStats = gpu.scoped("clipmap frame", || {
+            let up = self.renderer.prepare(gpu.queue(), clipmap, &self.plan)?;
+            let mut encoder =
+                gpu.device()
+                    .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                        label: Some("clipmap frame"),
+                    });
+            {
+                let mut pass = crate::gpu::clear_pass(
+                    &mut encoder,
+                    "clipmap",
+                    &self.color_view,
+                    &self.depth_view,
+                    opts.clear,
+                );
+                self.renderer.render(&mut pass);
+            }
+            gpu.queue().submit([encoder.finish()]);
+            Ok(up)
+        })?;
+        let p = self.plan.stats();
+        Ok(FrameStats {
+            draws: p.draws,
+            cull: p.cull,
+            triangles: p.triangles,
+            uploads: up.uploads,
+            upload_samples: up.upload_samples,
+            upload_bytes: up.upload_bytes,
+            full_upload: up.full_upload,
+            blocks_clamped: p.blocks_clamped,
+            plan_ns,
+        })
+    }
+
+    /// Reads the colour target back (into the preallocated buffer) as a tight RGBA8 image.
+    pub fn read_image(&self) -> Result<Image> {
+        let gpu = self.gpu;
+        gpu.scoped("clipmap readback", || {
+            let mut encoder =
+                gpu.device()
+                    .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                        label: Some("clipmap readback"),
+                    });
+            encoder.copy_texture_to_buffer(
+                self.color.as_image_copy(),
+                wgpu::TexelCopyBufferInfo {
+                    buffer: &self.readback,
+                    layout: wgpu::TexelCopyBufferLayout {
+                        offset: 0,
+                        bytes_per_row: Some(self.padded_row),
+                        rows_per_image: Some(self.height),
+                    },
+                },
+                self.color.size(),
+            );
+            gpu.queue().submit([encoder.finish()]);
+            Ok(())
+        })?;
+        let rows =
+            crate::gpu::readback::map_rows(gpu, &self.readback, self.padded_row, self.width * 4)?;
+        Ok(Image {
+            width: self.width,
+            height: self.height,
+            rgba: rows,
+        })
+    }
+
+    /// Diagnostic (allocates a buffer per level, outside the ledger; not for the frame loop): every layer
+    /// of the height texture read back, `size x size` (z, z_c) texels per level, row-major, as the GPU
+    /// holds them.
+    pub fn read_heights(&self) -> Result<Vec<Vec<[f32; 2]>>> {
+        let gpu = self.gpu;
+        let heights = self.renderer.heights();
+        let s = heights.width();
+        let padded = (s * 8).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+        let mut out = Vec::new();
+        for level in 0..self.renderer.levels() {
+            let buffer = gpu.scoped("height readback", || {
+                let mut dev = Ledgered::new(gpu.device());
+                let buffer = dev.buffer(
+                    "height readback",
+                    u64::from(padded) * u64::from(s),
+                    wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+                );
+                let mut encoder = gpu.device().create_command_encoder(&Default::default());
+                encoder.copy_texture_to_buffer(
+                    wgpu::TexelCopyTextureInfo {
+                        texture: heights,
+                        mip_level: 0,
+                        origin: wgpu::Origin3d {
+                            x: 0,
+                            y: 0,
+                            z: level,
+                        },
+                        aspect: wgpu::TextureAspect::All,
+                    },
+                    wgpu::TexelCopyBufferInfo {
+                        buffer: &buffer,
+                        layout: wgpu::TexelCopyBufferLayout {
+                            offset: 0,
+                            bytes_per_row: Some(padded),
+                            rows_per_image: Some(s),
+                        },
+                    },
+                    wgpu::Extent3d {
+                        width: s,
+                        height: s,
+                        depth_or_array_layers: 1,
+                    },
+                );
+                gpu.queue().submit([encoder.finish()]);
+                Ok(buffer)
+            })?;
+            let bytes = crate::gpu::readback::map_rows(gpu, &buffer, padded, s * 8)?;
+            out.push(bytemuck::pod_collect_to_vec(&bytes));
+        }
+        Ok(out)
+    }
+}
+
+impl Drop for Offscreen<'_> {
+    fn drop(&mut self) {
+        // Its objects are GL objects of this Gpu's context: make it current before they go.
+        self.gpu.bind();
+    }
+}
+
+/// One rendered frame.
+#[derive(Clone, Debug)]
+pub struct RenderedFrame {
+    /// The read-back image.
+    pub image: Image,
+    /// [`Image::hash`] of it.
+    pub image_hash: u64,
+    /// What the frame did.
+    pub stats: FrameStats,
+}
+
+/// Plan, upload, draw and read back the clipmap's last frame: what `clipsat render` and `clipsat fly
+/// --render` call once per [`Clipmap::update`].
+pub fn render_frame(
+    offscreen: &mut Offscreen<'_>,
+    clipmap: &Clipmap,
+    camera: &Camera,
+    opts: &FrameOptions,
+) -> Result<RenderedFrame> {
+    let stats = offscreen.frame(clipmap, camera, opts)?;
+    let image = offscreen.read_image()?;
+    Ok(RenderedFrame {
+        image_hash: image.hash(),
+        image,
+        stats,
+    })
+}

@@ -1,0 +1,467 @@
+//! Stage 2, the per-frame plan as a value: [`Planner::plan`] turns (clipmap frame, camera, per-frame
+//! [`PlanParams`]) into a [`FramePlan`]: the texture rectangles to upload, the SAT LOD level of every block,
+//! the draw list with each draw's index range, the packed uniforms (`Globals` and one `DrawUniform` slot per
+//! draw), and a 64-bit hash of all of it.
+//!
+//! Pure and allocation-free: a `FramePlan` is allocated once ([`Planner::new_plan`], capacity from the
+//! profile) and refilled each frame; overflow is [`Error::Capacity`]. The LOD mode is fixed when the
+//! planner is built ([`LodSetup`]), so a SAT mode without its tables is a construction error. The GPU
+//! stage ([`crate::gpu::renderer::Renderer`]) only uploads and draws what the plan says.
+
+use std::ops::Range;
+
+use bytemuck::Zeroable;
+
+use crate::hash::Hash64;
+use crate::plan::clipmap::Clipmap;
+use crate::plan::cull::{self, DrawKind, DrawList, DrawParams, DrawStats, MAX_DRAWS};
+use crate::plan::lod::{Lod, LodFrame, LodMode};
+use crate::plan::mesh;
+use crate::plan::uniforms::{
+    data_extent_rel, draw_uniform, lod_draw_uniform, to_f32x4, DrawUniform, Globals,
+};
+use crate::plan::uploads::UploadList;
+use crate::profile::DRAW_SLOT_BYTES;
+use crate::shading::basic::BasicShading;
+use crate::{Camera, Error, Profile, Result};
+
+/// [`DRAW_SLOT_BYTES`] as a slice stride.
+#[expect(clippy::cast_possible_truncation, reason = "256 fits every usize")]
+pub const SLOT: usize = DRAW_SLOT_BYTES as usize;
+
+/// Width of the vertex-probe target, pixels (`Globals::params` z).
+pub const PROBE_WIDTH: u32 = 64;
+
+/// Per-frame switches (vello's `RenderParams`; the fixed choices are in [`LodSetup`] and the renderer's
+/// options).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlanParams {
+    /// GC 6.2 transition morphing (off: every vertex takes its own level's z). SAT modes never morph.
+    pub morph: bool,
+    /// Frustum culling of blocks (off: every block is drawn).
+    pub cull: bool,
+    /// Skirts on level boundaries (off only to show the cracks they close).
+    pub skirts: bool,
+    /// The SAT modes' screen-space error bound, pixels; None: the profile's `view.epsilon_px`.
+    pub epsilon_px: Option<f32>,
+}
+
+impl Default for PlanParams {
+    fn default() -> Self {
+        Self {
+            morph: true,
+            cull: true,
+            skirts: true,
+            epsilon_px: None,
+        }
+    }
+}
+
+/// How blocks choose their level, fixed for a planner's life.
+#[derive(Clone, Debug, Default)]
+pub enum LodSetup {
+    /// Each ring at its own level (the plain geometry clipmap).
+    #[default]
+    Distance,
+    /// A SAT LOD mode with the selector holding its tables ([`Lod::for_clipmap`]).
+    Sat(LodMode, Lod),
+}
+
+impl LodSetup {
+    /// `mode`, with `lod` the tables a SAT mode needs; a SAT mode without them is an error.
+    pub fn new(mode: LodMode, lod: Option<Lod>) -> Result<Self> {
+        match (mode, lod) {
+            (LodMode::Distance, _) => Ok(Self::Distance),
+            (mode, Some(lod)) => Ok(Self::Sat(mode, lod)),
+            (mode, None) => Err(Error::Invalid {
+                what: "LOD mode".into(),
+                reason: format!("`{mode}` needs the SAT LOD tables (Lod::for_clipmap)"),
+            }),
+        }
+    }
+
+    /// The mode.
+    pub fn mode(&self) -> LodMode {
+        match self {
+            Self::Distance => LodMode::Distance,
+            Self::Sat(mode, _) => *mode,
+        }
+    }
+}
+
+/// One draw of a plan: which mesh and which part of its index buffer.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct PlannedDraw {
+    /// The mesh.
+    pub kind: DrawKind,
+    /// Indices drawn.
+    pub indices: Range<u32>,
+}
+
+/// What a plan holds, in numbers.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct PlanStats {
+    /// Draw calls.
+    pub draws: u32,
+    /// Blocks drawn, culled, and skirts drawn.
+    pub cull: DrawStats,
+    /// Triangles submitted (the zero-area ones of clamped blocks included).
+    pub triangles: u64,
+    /// Upload rectangles.
+    pub uploads: u32,
+    /// Texels (samples) they cover.
+    pub upload_samples: u64,
+    /// SAT modes: blocks whose wanted level is finer than the held data; 0 in distance mode.
+    pub blocks_clamped: u32,
+}
+
+/// One frame's plan; see the module doc. Allocated once by [`Planner::new_plan`], refilled per frame.
+#[derive(Clone, Debug)]
+pub struct FramePlan {
+    frame_index: Option<u64>,
+    since: Option<u64>,
+    uploads: UploadList,
+    lod: Box<LodFrame>,
+    draws: Box<DrawList>,
+    ranges: Box<heapless::Vec<PlannedDraw, MAX_DRAWS>>,
+    slots: Vec<u8>,
+    globals: Globals,
+    stats: PlanStats,
+    hash: u64,
+}
+
+impl FramePlan {
+    /// The clipmap frame planned (None before the first plan).
+    pub fn frame_index(&self) -> Option<u64> {
+        self.frame_index
+    }
+
+    /// The frame whose plan the previous one was (None: the uploads cover everything ever written).
+    pub fn since(&self) -> Option<u64> {
+        self.since
+    }
+
+    /// The texture rectangles written since the previous plan: the union of the frames in between.
+    pub fn uploads(&self) -> &[crate::plan::frame::Upload] {
+        &self.uploads
+    }
+
+    /// The SAT LOD level of every block (empty in distance mode).
+    pub fn lod_frame(&self) -> &LodFrame {
+        &self.lod
+    }
+
+    /// The draw list, finest level first.
+    pub fn draws(&self) -> &DrawList {
+        &self.draws
+    }
+
+    /// Each draw's mesh and index range.
+    pub fn planned(&self) -> &[PlannedDraw] {
+        &self.ranges
+    }
+
+    /// The uniforms of draw `i`.
+    pub fn draw_uniform(&self, i: usize) -> DrawUniform {
+        let at = i * SLOT;
+        bytemuck::pod_read_unaligned(&self.slots[at..at + std::mem::size_of::<DrawUniform>()])
+    }
+
+    /// The draw slots' bytes: one [`DRAW_SLOT_BYTES`] slot per draw.
+    pub fn slot_bytes(&self) -> &[u8] {
+        &self.slots[..self.draws.len() * SLOT]
+    }
+
+    /// The global uniforms.
+    pub fn globals(&self) -> &Globals {
+        &self.globals
+    }
+
+    /// The numbers.
+    pub fn stats(&self) -> PlanStats {
+        self.stats
+    }
+
+    /// Hash of the whole plan: frame, uploads, LOD levels, draws, uniform bytes.
+    pub fn hash(&self) -> u64 {
+        self.hash
+    }
+
+    fn compute_hash(&self) -> u64 {
+        let mut h = Hash64::new();
+        h.write_u64(self.frame_index.map_or(u64::MAX, |i| i));
+        h.write_u64(self.since.map_or(u64::MAX, |i| i));
+        h.write_u64(self.uploads.len() as u64);
+        for u in &self.uploads {
+            for v in [u.level, u.tex_x, u.tex_y, u.w, u.h] {
+                h.write_u32(v);
+            }
+        }
+        self.lod.hash_into(&mut h);
+        h.write_u64(self.ranges.len() as u64);
+        for d in self.ranges.iter() {
+            h.write_u32(d.kind as u32);
+            h.write_u32(d.indices.start);
+            h.write_u32(d.indices.end);
+        }
+        h.write_bytes(self.slot_bytes());
+        h.write_bytes(bytemuck::bytes_of(&self.globals));
+        h.finish()
+    }
+}
+
+/// Builds [`FramePlan`]s for one clipmap and profile; holds the LOD selector and the sizes the plan needs.
+#[derive(Clone, Debug)]
+pub struct Planner {
+    lod: LodSetup,
+    default_epsilon: f64,
+    n: u32,
+    size: u32,
+    block_quads: u32,
+    skirt_indices: u32,
+    max_draws: u32,
+    max_triangles: u32,
+    aspect: f64,
+    skirt_floor: f32,
+    /// The data's last sample in level-0 lattice units (east, south).
+    data_lattice: (f64, f64),
+    shading: BasicShading,
+    probe_size: [u32; 2],
+    /// The clipmap frame of the last plan.
+    last: Option<u64>,
+}
+
+impl Planner {
+    /// A planner for `clipmap` (built from `profile`) drawn into a `profile.view` viewport.
+    pub fn new(profile: &Profile, clipmap: &Clipmap, lod: LodSetup) -> Result<Self> {
+        let c = &profile.clipmap;
+        if clipmap.n() != c.n
+            || clipmap.levels() != c.levels
+            || clipmap.ring(0).size() != profile.clip_size()
+        {
+            return Err(Error::config(
+                &profile.name,
+                "clipmap",
+                "the clipmap was built from a different profile",
+            ));
+        }
+        if profile.budget.max_draws as usize > MAX_DRAWS {
+            return Err(Error::config(
+                &profile.name,
+                "budget.max_draws",
+                format!(
+                    "{} exceeds the renderer's fixed capacity {MAX_DRAWS}",
+                    profile.budget.max_draws
+                ),
+            ));
+        }
+        let block_quads = profile.block_m();
+        let skirt_indices = 4 * (c.n + 1) * 6;
+        let block_vertices = (block_quads + 1) * (block_quads + 1);
+        let skirt_vertices = 2 * (4 * (c.n + 1) + 1);
+        let probe_rows = block_vertices.max(skirt_vertices).div_ceil(PROBE_WIDTH);
+
+        // Shading and skirt floor from the data (pyramid level 0 is the terrain itself).
+        let data = clipmap.pyramid().level(0);
+        let (lo, hi) = data
+            .heights()
+            .iter()
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &z| {
+                (a.min(z), b.max(z))
+            });
+        let synth = f64::from(1u32 << clipmap.synth_levels());
+        let spacing = clipmap.g0() * synth;
+        let data_lattice = (
+            f64::from(data.width() - 1) * synth,
+            f64::from(data.height() - 1) * synth,
+        );
+        let diagonal = f64::from(data.width()).hypot(f64::from(data.height())) * spacing;
+        #[expect(
+            clippy::cast_possible_truncation,
+            reason = "the level-0 spacing as an f32 metre offset"
+        )]
+        let skirt_floor = lo - (0.5 * (hi - lo)).max(10.0 * clipmap.g0() as f32);
+        let default_epsilon = match &lod {
+            LodSetup::Sat(_, l) => l.epsilon_px(),
+            LodSetup::Distance => f64::from(profile.view.epsilon_px),
+        };
+        Ok(Self {
+            lod,
+            default_epsilon,
+            n: c.n,
+            size: profile.clip_size(),
+            block_quads,
+            skirt_indices,
+            max_draws: profile.budget.max_draws,
+            max_triangles: profile.budget.max_triangles,
+            aspect: f64::from(profile.view.width) / f64::from(profile.view.height),
+            skirt_floor,
+            data_lattice,
+            shading: BasicShading::for_terrain((lo, hi), diagonal),
+            probe_size: [PROBE_WIDTH, probe_rows],
+            last: None,
+        })
+    }
+
+    /// An empty plan with this planner's capacity (the only allocation; reuse it every frame).
+    pub fn new_plan(&self) -> FramePlan {
+        let mut draws: Box<DrawList> = Box::default();
+        draws.clear();
+        FramePlan {
+            frame_index: None,
+            since: None,
+            uploads: UploadList::new(),
+            lod: LodFrame::new_boxed(),
+            draws,
+            ranges: Box::default(),
+            slots: vec![0; self.max_draws as usize * SLOT],
+            globals: Globals::zeroed(),
+            stats: PlanStats::default(),
+            hash: 0,
+        }
+    }
+
+    /// The LOD mode, fixed at construction.
+    pub fn lod_mode(&self) -> LodMode {
+        self.lod.mode()
+    }
+
+    /// The SAT LOD selector, in the SAT modes.
+    pub fn lod(&self) -> Option<&Lod> {
+        match &self.lod {
+            LodSetup::Sat(_, l) => Some(l),
+            LodSetup::Distance => None,
+        }
+    }
+
+    /// The basic shading parameters (the brute-force reference of the same terrain uses the same).
+    pub fn shading(&self) -> BasicShading {
+        self.shading
+    }
+
+    /// Size of the vertex-probe target, pixels (`Globals::params` zw).
+    pub fn probe_size(&self) -> [u32; 2] {
+        self.probe_size
+    }
+
+    /// Forgets the previous plan: the next one uploads everything ever written (a new renderer).
+    pub fn restart(&mut self) {
+        self.last = None;
+    }
+
+    /// The part of its mesh's index buffer draw `d` draws.
+    pub fn index_range(&self, d: &cull::Draw) -> Range<u32> {
+        match d.kind {
+            DrawKind::Block => 0..mesh::block_prefix(d.quads.min(self.block_quads)),
+            DrawKind::Skirt => 0..self.skirt_indices,
+            DrawKind::TileSkirt => mesh::skirt_loop_range(self.block_quads, d.quads),
+        }
+    }
+
+    /// Plans `clipmap`'s last frame seen from `camera` into `out` (refilled; allocation-free). The
+    /// uploads are every rectangle written since the frame of this planner's previous plan.
+    pub fn plan(
+        &mut self,
+        clipmap: &Clipmap,
+        camera: &Camera,
+        params: &PlanParams,
+        out: &mut FramePlan,
+    ) -> Result<()> {
+        let frame = clipmap.frame();
+        out.frame_index = Some(frame.index);
+        if self.last == Some(frame.index) {
+            // The same clipmap frame again: the GPU already holds its rectangles.
+            out.uploads.clear();
+            out.since = self.last;
+        } else {
+            clipmap
+                .upload_stamps()
+                .since(self.last, &mut out.uploads)?;
+            out.since = self.last;
+        }
+        let extent = data_extent_rel(clipmap, camera, self.data_lattice);
+        let dp = DrawParams {
+            block_quads: self.block_quads,
+            max_draws: self.max_draws,
+            cull: params.cull,
+            skirts: params.skirts,
+            aspect: self.aspect,
+            extent,
+        };
+        let mut blocks_clamped = 0;
+        out.lod.blocks.clear();
+        let sat = match &mut self.lod {
+            LodSetup::Sat(mode, lod) => {
+                lod.set_epsilon_px(params.epsilon_px.map_or(self.default_epsilon, f64::from));
+                lod.select(frame, camera, *mode, &mut out.lod)?;
+                blocks_clamped = out.lod.blocks_clamped;
+                true
+            }
+            LodSetup::Distance => false,
+        };
+        let cull = if sat {
+            cull::build_lod_draws(clipmap, camera, &dp, &out.lod, &mut out.draws)?
+        } else {
+            cull::build_draws(clipmap, camera, &dp, &mut out.draws)?
+        };
+        out.ranges.clear();
+        let mut triangles = 0u64;
+        for (k, d) in out.draws.iter().enumerate() {
+            let u = if sat {
+                lod_draw_uniform(clipmap, camera, d, self.n, self.size)
+            } else {
+                draw_uniform(clipmap, camera, d, self.n, self.size)
+            };
+            let at = k * SLOT;
+            out.slots[at..at + std::mem::size_of::<DrawUniform>()]
+                .copy_from_slice(bytemuck::bytes_of(&u));
+            let indices = self.index_range(d);
+            triangles += u64::from((indices.end - indices.start) / 3);
+            out.ranges
+                .push(PlannedDraw {
+                    kind: d.kind,
+                    indices,
+                })
+                .map_err(|_| Error::Capacity {
+                    what: "draws per frame",
+                    capacity: MAX_DRAWS,
+                })?;
+        }
+        if triangles > u64::from(self.max_triangles) {
+            return Err(Error::Capacity {
+                what: "triangles per frame (budget.max_triangles)",
+                capacity: self.max_triangles as usize,
+            });
+        }
+        #[expect(clippy::cast_precision_loss, reason = "probe sizes are small")]
+        let probe = [self.probe_size[0] as f32, self.probe_size[1] as f32];
+        out.globals = Globals {
+            view_proj: camera.view_proj_relative(self.aspect).to_cols_array(),
+            shading: self.shading,
+            params: [
+                // SAT modes draw each block's own level unmorphed (skirts close the level changes), so the
+                // surface is the PL(H_L) the error bound is about.
+                if params.morph && !sat { 1.0 } else { 0.0 },
+                self.skirt_floor,
+                probe[0],
+                probe[1],
+            ],
+            extent: to_f32x4(extent),
+        };
+        out.stats = PlanStats {
+            draws: u32::try_from(out.draws.len()).expect("draws <= MAX_DRAWS"),
+            cull,
+            triangles,
+            uploads: u32::try_from(out.uploads.len()).expect("uploads <= MAX_PLAN_UPLOADS"),
+            upload_samples: out
+                .uploads
+                .iter()
+                .map(|u| u64::from(u.w) * u64::from(u.h))
+                .sum(),
+            blocks_clamped,
+        };
+        out.hash = out.compute_hash();
+        self.last = Some(frame.index);
+        Ok(())
+    }
+}
