@@ -41,7 +41,11 @@ fn embed_example_hashes_are_deterministic_and_match_the_library() {
             .expect("render")
             .image_hash;
         let plan = renderer.plan().hash();
-        assert_eq!((clip, plan, image), want, "frame {f} differs from the example's");
+        assert_eq!(
+            (clip, plan, image),
+            want,
+            "frame {f} differs from the example's"
+        );
     }
     assert!(
         first.windows(2).all(|w| w[0] != w[1]),

@@ -4,8 +4,8 @@
 
 mod render_support;
 
-use clipsat::gpu::readback::Image;
 use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen};
+use clipsat::gpu::readback::Image;
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::plan::flight::{Flight, Path};
 use glam::DVec3;

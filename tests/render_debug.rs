@@ -6,8 +6,8 @@ mod render_support;
 
 use std::collections::BTreeMap;
 
-use clipsat::gpu::readback::Image;
 use clipsat::gpu::headless::{render_frame, FrameOptions};
+use clipsat::gpu::readback::Image;
 use clipsat::plan::lod::LodMode;
 use clipsat::shading::debug_view::{level_of_pixel, DebugView};
 use clipsat::Camera;

@@ -15,8 +15,8 @@ mod render_support;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use clipsat::gpu::readback::Image;
 use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen};
+use clipsat::gpu::readback::Image;
 use clipsat::source::procedural::{self, ProceduralParams};
 use clipsat::{hash, Camera, Heightmap};
 use glam::DVec3;

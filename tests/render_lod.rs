@@ -7,11 +7,11 @@ mod render_support;
 
 use clipsat::gpu::headless::{render_frame, FrameOptions};
 use clipsat::gpu::Gpu;
-use clipsat::plan::lod::Lod;
-use clipsat::shading::debug_view::DebugView;
 use clipsat::measure::{crack_pixels, screen_error, CRACK_CLEAR, CRACK_CLEAR_RGBA8};
 use clipsat::plan::clipmap::Clipmap;
+use clipsat::plan::lod::Lod;
 use clipsat::plan::lod::LodMode;
+use clipsat::shading::debug_view::DebugView;
 use clipsat::{Camera, Heightmap, Profile};
 use glam::DVec3;
 use render_support::{camera, clipmap, flight, lod, profile, puget, renderer_in, strict};

@@ -173,7 +173,8 @@ fn renderer_bakes_and_binds_only_what_the_scene_needs() {
     let profile = render_support::profile("gles3-low", 96, 64, None);
     let mut clipmap = render_support::clipmap(&hm, &profile);
     let camera = clipsat::Camera::default_for(&hm).expect("camera");
-    let mut renderer = Offscreen::new(&gpu, &profile, &clipmap, Default::default()).expect("renderer");
+    let mut renderer =
+        Offscreen::new(&gpu, &profile, &clipmap, Default::default()).expect("renderer");
     assert_eq!(renderer.bound_textures(), ["heights"]);
     assert!(renderer.baked().is_empty());
     clipmap.update(camera.eye).expect("update");
@@ -181,8 +182,9 @@ fn renderer_bakes_and_binds_only_what_the_scene_needs() {
     let basic = render_frame(&mut renderer, &clipmap, &camera, &opts).expect("basic frame");
 
     let noon = Scene::load("noon").expect("noon");
-    let mut renderer = Offscreen::with_sg(&gpu, &profile, &clipmap, &hm, &noon, Patches::P4x8, true)
-        .expect("sg noon");
+    let mut renderer =
+        Offscreen::with_sg(&gpu, &profile, &clipmap, &hm, &noon, Patches::P4x8, true)
+            .expect("sg noon");
     assert_eq!(renderer.bound_textures(), ["heights", "sat_normal"]);
     assert_eq!(renderer.baked(), ["normal_sat"]);
     assert_eq!(renderer.renderer().sg_layout_entries(), Some(2));
@@ -202,8 +204,16 @@ fn renderer_bakes_and_binds_only_what_the_scene_needs() {
     assert!(lit > 96 * 64 / 4, "{lit} terrain pixels");
 
     let evening = Scene::load("evening").expect("evening");
-    let renderer = Offscreen::with_sg(&gpu, &profile, &clipmap, &hm, &evening, Patches::P2x4, false)
-        .expect("sg evening, no shadows");
+    let renderer = Offscreen::with_sg(
+        &gpu,
+        &profile,
+        &clipmap,
+        &hm,
+        &evening,
+        Patches::P2x4,
+        false,
+    )
+    .expect("sg evening, no shadows");
     assert_eq!(renderer.bound_textures(), ["heights", "sat_normal"]);
     assert_eq!(renderer.baked(), ["normal_sat"]);
     assert!(renderer

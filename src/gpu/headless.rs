@@ -8,9 +8,7 @@
 
 use crate::bake::horizon::DEFAULT_AZIMUTHS;
 use crate::gpu::readback::Image;
-use crate::gpu::renderer::{
-    Ledger, Ledgered, PrepareStats, Renderer, RendererOptions, Shading,
-};
+use crate::gpu::renderer::{Ledger, Ledgered, PrepareStats, Renderer, RendererOptions, Shading};
 use crate::gpu::sat_textures::ShadingBake;
 use crate::gpu::Gpu;
 use crate::plan::clipmap::Clipmap;

@@ -58,7 +58,9 @@ impl Image {
 
 /// Copies an `Rgba8Unorm` texture (usage `COPY_SRC`) to the CPU, dropping wgpu's 256-byte row padding.
 pub fn read_rgba8(gpu: &Gpu, texture: &wgpu::Texture) -> Result<Image> {
-    gpu.scoped("readback", || read_rgba8_on(gpu.device(), gpu.queue(), texture))
+    gpu.scoped("readback", || {
+        read_rgba8_on(gpu.device(), gpu.queue(), texture)
+    })
 }
 
 /// [`read_rgba8`] on any device and queue (a caller's own; errors surface through its error scopes).
@@ -102,7 +104,12 @@ pub fn read_rgba8_on(
         queue.submit([encoder.finish()]);
         buffer
     };
-    let rgba = map_rows_on(device, &buffer, padded, u32::try_from(tight).unwrap_or(padded))?;
+    let rgba = map_rows_on(
+        device,
+        &buffer,
+        padded,
+        u32::try_from(tight).unwrap_or(padded),
+    )?;
     Ok(Image {
         width,
         height,

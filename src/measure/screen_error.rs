@@ -1,9 +1,9 @@
 //! Measurements: the screen-space error of a drawn frame against the data (design.md "SAT LOD" 1). Not
 //! the frame path.
 
-use crate::plan::frame_plan::FramePlan;
 use crate::plan::clipmap::Clipmap;
 use crate::plan::cull::{self, DrawKind};
+use crate::plan::frame_plan::FramePlan;
 use crate::plan::lod::Lod;
 use crate::Camera;
 

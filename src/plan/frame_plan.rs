@@ -374,9 +374,7 @@ impl Planner {
             out.uploads.clear();
             out.since = self.last;
         } else {
-            clipmap
-                .upload_stamps()
-                .since(self.last, &mut out.uploads)?;
+            clipmap.upload_stamps().since(self.last, &mut out.uploads)?;
             out.since = self.last;
         }
         let extent = data_extent_rel(clipmap, camera, self.data_lattice);

@@ -135,12 +135,7 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
 
     let lod = match lod_mode {
         LodMode::Distance => None,
-        _ => Some(super::render::lod_for(
-            &hm,
-            &profile,
-            &clipmap,
-            !args.json,
-        )?),
+        _ => Some(super::render::lod_for(&hm, &profile, &clipmap, !args.json)?),
     };
     // Every frame is planned (the SAT modes' block levels go into the frame hash); the plan is allocated
     // here, once.

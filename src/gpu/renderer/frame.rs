@@ -95,12 +95,10 @@ impl Renderer {
         }
         self.prepared.clear();
         for d in plan.planned() {
-            self.prepared
-                .push(d.clone())
-                .map_err(|_| Error::Capacity {
-                    what: "draws per frame",
-                    capacity: self.prepared.capacity(),
-                })?;
+            self.prepared.push(d.clone()).map_err(|_| Error::Capacity {
+                what: "draws per frame",
+                capacity: self.prepared.capacity(),
+            })?;
         }
         Ok(stats)
     }

@@ -214,10 +214,7 @@ impl Renderer {
         };
         let block = upload_mesh("clipmap block mesh", &mesh::block(block_quads));
         let skirt = upload_mesh("clipmap skirt mesh", &mesh::skirt(c.n + 1));
-        let tile_skirt = upload_mesh(
-            "clipmap tile skirt mesh",
-            &mesh::skirt_loops(block_quads),
-        );
+        let tile_skirt = upload_mesh("clipmap tile skirt mesh", &mesh::skirt_loops(block_quads));
 
         let group0_layout = dev.bind_group_layout(
             "clipmap globals layout",
@@ -301,8 +298,10 @@ impl Renderer {
                 &targets,
             )
         } else {
-            let debug_module =
-                dev.shader_module("clipmap.wgsl (debug view)", shaders::clipmap_view(options.debug));
+            let debug_module = dev.shader_module(
+                "clipmap.wgsl (debug view)",
+                shaders::clipmap_view(options.debug),
+            );
             terrain_pipeline(
                 &mut dev,
                 "clipmap debug view pipeline",

@@ -26,54 +26,60 @@ impl VertexProbe {
         let size = offscreen.planner().probe_size();
         gpu.scoped("vertex probe set-up", || {
             let mut dev = Ledgered::new(gpu.device());
-            let target = dev.texture("vertex probe", &wgpu::TextureDescriptor {
-                label: None,
-                size: wgpu::Extent3d {
-                    width: size[0],
-                    height: size[1],
-                    depth_or_array_layers: 1,
+            let target = dev.texture(
+                "vertex probe",
+                &wgpu::TextureDescriptor {
+                    label: None,
+                    size: wgpu::Extent3d {
+                        width: size[0],
+                        height: size[1],
+                        depth_or_array_layers: 1,
+                    },
+                    mip_level_count: 1,
+                    sample_count: 1,
+                    dimension: wgpu::TextureDimension::D2,
+                    format: wgpu::TextureFormat::Rgba32Uint,
+                    usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+                    view_formats: &[],
                 },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format: wgpu::TextureFormat::Rgba32Uint,
-                usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
-                view_formats: &[],
-            });
+            );
             let view = dev.view("vertex probe view", &target, &Default::default());
             let buffer = dev.buffer(
                 "vertex probe readback",
                 u64::from(size[0]) * 16 * u64::from(size[1]),
                 wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
             );
-            let pipeline = dev.render_pipeline("vertex probe", &wgpu::RenderPipelineDescriptor {
-                label: None,
-                layout: Some(&renderer.pipeline_layout),
-                vertex: wgpu::VertexState {
-                    module: &renderer.module,
-                    entry_point: Some("vs_capture"),
-                    compilation_options: Default::default(),
-                    buffers: &[Some(vertex_layout())],
+            let pipeline = dev.render_pipeline(
+                "vertex probe",
+                &wgpu::RenderPipelineDescriptor {
+                    label: None,
+                    layout: Some(&renderer.pipeline_layout),
+                    vertex: wgpu::VertexState {
+                        module: &renderer.module,
+                        entry_point: Some("vs_capture"),
+                        compilation_options: Default::default(),
+                        buffers: &[Some(vertex_layout())],
+                    },
+                    primitive: wgpu::PrimitiveState {
+                        topology: wgpu::PrimitiveTopology::PointList,
+                        ..Default::default()
+                    },
+                    depth_stencil: None,
+                    multisample: Default::default(),
+                    fragment: Some(wgpu::FragmentState {
+                        module: &renderer.module,
+                        entry_point: Some("fs_capture"),
+                        compilation_options: Default::default(),
+                        targets: &[Some(wgpu::ColorTargetState {
+                            format: wgpu::TextureFormat::Rgba32Uint,
+                            blend: None,
+                            write_mask: wgpu::ColorWrites::ALL,
+                        })],
+                    }),
+                    multiview_mask: None,
+                    cache: None,
                 },
-                primitive: wgpu::PrimitiveState {
-                    topology: wgpu::PrimitiveTopology::PointList,
-                    ..Default::default()
-                },
-                depth_stencil: None,
-                multisample: Default::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module: &renderer.module,
-                    entry_point: Some("fs_capture"),
-                    compilation_options: Default::default(),
-                    targets: &[Some(wgpu::ColorTargetState {
-                        format: wgpu::TextureFormat::Rgba32Uint,
-                        blend: None,
-                        write_mask: wgpu::ColorWrites::ALL,
-                    })],
-                }),
-                multiview_mask: None,
-                cache: None,
-            });
+            );
             Ok(Self {
                 pipeline,
                 target,

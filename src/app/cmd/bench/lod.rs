@@ -8,11 +8,11 @@ use std::time::Instant;
 use clap::Args;
 use clipsat::gpu::brute::BruteForce;
 use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen, OffscreenOptions};
-use clipsat::plan::frame_plan::LodSetup;
 use clipsat::gpu::{Gpu, GpuMode};
 use clipsat::measure;
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::plan::flight::{Flight, Path};
+use clipsat::plan::frame_plan::LodSetup;
 use clipsat::plan::lod::LodMode;
 use clipsat::source::{self, LoadOptions};
 use clipsat::{Error, Heightmap, Profile, Result};
@@ -201,7 +201,10 @@ pub(crate) fn measure_lod(
             let t = Instant::now();
             let frame = render_frame(r, &clipmap, &camera, &opts)?;
             let render_ms = t.elapsed().as_secs_f64() * 1e3;
-            #[expect(clippy::cast_precision_loss, reason = "plan times are far below 2^52 ns")]
+            #[expect(
+                clippy::cast_precision_loss,
+                reason = "plan times are far below 2^52 ns"
+            )]
             let lod_us = frame.stats.plan_ns as f64 * 1e-3;
             let err = measure::screen_error(r.plan(), r.size(), &clipmap, &camera, &lod);
             acc.frames += 1;
