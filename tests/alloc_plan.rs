@@ -1,45 +1,19 @@
-//! Proves the whole frame-planning path allocates nothing: `Clipmap::update`, SAT LOD selection and
-//! `cull::build_draws` / `build_lod_draws` under a counting global allocator, on every shipped profile and
-//! every camera path. Its own test binary (the global allocator is per binary); counting is per thread, so
+//! Proves the whole frame-planning path allocates nothing: `Clipmap::update` and `Planner::plan` (the
+//! upload rectangles, SAT LOD selection, the draw list, the packed uniforms and the plan hash) under a
+//! counting global allocator, on every shipped profile and every camera path. Its own test binary (the global allocator is per binary); counting is per thread, so
 //! the tests may run in parallel.
 
 use clipsat::bake::lod_tables::P;
 use clipsat::bake::{bake_lod, BakeParams};
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
-use clipsat::plan::cull::{build_draws, build_lod_draws, DrawList, DrawParams};
 use clipsat::plan::flight::{Flight, Path};
-use clipsat::plan::lod::{Lod, LodFrame, LodMode};
+use clipsat::plan::frame_plan::{LodSetup, PlanParams, Planner};
+use clipsat::plan::lod::{Lod, LodMode};
 use clipsat::source::procedural::{generate, ProceduralParams};
 use clipsat::Profile;
 
 mod counting_alloc;
 use counting_alloc::count;
-
-/// The renderer's draw parameters for `cam`: culling and skirts on, the data's extent (last sample at
-/// `data_lattice` data cells, `k` level-0 cells each) relative to the eye.
-fn draw_params(
-    cm: &Clipmap,
-    cam: &clipsat::Camera,
-    prof: &Profile,
-    data_lattice: (f64, f64),
-    k: f64,
-) -> DrawParams {
-    let p = cm.eye_lattice(cam.eye);
-    let g0 = cm.g0();
-    DrawParams {
-        block_quads: (prof.clipmap.n + 1) / 4,
-        max_draws: prof.budget.max_draws,
-        cull: true,
-        skirts: true,
-        aspect: f64::from(prof.view.width) / f64::from(prof.view.height),
-        extent: [
-            -p.0 * g0,
-            -(data_lattice.1 * k - p.1) * g0,
-            (data_lattice.0 * k - p.0) * g0,
-            p.1 * g0,
-        ],
-    }
-}
 
 #[test]
 fn update_and_draw_list_allocate_nothing() {
@@ -50,14 +24,13 @@ fn update_and_draw_list_allocate_nothing() {
         spacing: 30.0,
     })
     .expect("procedural");
-    let data_lattice = (f64::from(hm.width() - 1), f64::from(hm.height() - 1));
     for name in ["gles3-low", "gles3-mid", "desktop"] {
         let prof = Profile::load(name).expect("shipped profile");
         for synth_levels in [0, 1] {
             let mut cm =
                 Clipmap::new(&hm, &prof, ClipmapOptions { synth_levels }).expect("clipmap");
-            let k = f64::from(1u32 << synth_levels);
-            let mut draws = DrawList::new();
+            let mut planner = Planner::new(&prof, &cm, LodSetup::Distance).expect("planner");
+            let mut plan = planner.new_plan();
             for path in [
                 Path::Straight,
                 Path::Circle,
@@ -77,8 +50,12 @@ fn update_and_draw_list_allocate_nothing() {
                     for f in 5..50 {
                         let cam = flight.camera(f);
                         cm.update(cam.eye).expect("update");
-                        let params = draw_params(&cm, &cam, &prof, data_lattice, k);
-                        build_draws(&cm, &cam, &params, &mut draws).expect("draws");
+                        // Every other frame skipped, so the uploads are a union over two frames.
+                        if f % 2 == 0 {
+                            planner
+                                .plan(&cm, &cam, &PlanParams::default(), &mut plan)
+                                .expect("plan");
+                        }
                         frames += 1;
                     }
                 });
@@ -86,13 +63,13 @@ fn update_and_draw_list_allocate_nothing() {
                     n, 0,
                     "{name} synth {synth_levels} {path}: {n} allocations in {frames} planned frames"
                 );
-                assert!(!draws.is_empty(), "{name} {path}: nothing drawn");
+                assert!(!plan.draws().is_empty(), "{name} {path}: nothing drawn");
             }
         }
     }
 }
 
-/// The SAT LOD half of the planning path: `Lod::select` and `build_lod_draws` in each SAT estimator.
+/// The SAT LOD half of the planning path: `Planner::plan` in each SAT estimator.
 #[test]
 fn lod_selection_allocates_nothing() {
     let hm = generate(&ProceduralParams {
@@ -112,24 +89,26 @@ fn lod_selection_allocates_nothing() {
     let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("alloc-lod-cache");
     let (tables, _) = bake_lod(&hm, cm.pyramid(), &params, &dir, false).expect("LOD tables");
     let lod = Lod::for_clipmap(tables, &prof, &cm, &hm);
-    let mut lod_frame = LodFrame::new_boxed();
-    let mut draws = DrawList::new();
-    let data_lattice = (f64::from(hm.width() - 1), f64::from(hm.height() - 1));
     let flight = Flight::new(Path::Figure8, 120.0, &hm).expect("flight");
     for f in 0..5 {
         cm.update(flight.camera(f).eye).expect("update");
     }
     for mode in [LodMode::Sat, LodMode::SatConservative, LodMode::Exact] {
+        let setup = LodSetup::new(mode, Some(lod.clone())).expect("tables");
+        let mut planner = Planner::new(&prof, &cm, setup).expect("planner");
+        let mut plan = planner.new_plan();
+        let params = PlanParams {
+            epsilon_px: Some(2.0),
+            ..PlanParams::default()
+        };
         let n = count(|| {
             for f in 5..40 {
                 let cam = flight.camera(f);
                 cm.update(cam.eye).expect("update");
-                lod.select(cm.frame(), &cam, mode, &mut lod_frame)
-                    .expect("select");
-                let params = draw_params(&cm, &cam, &prof, data_lattice, 1.0);
-                build_lod_draws(&cm, &cam, &params, &lod_frame, &mut draws).expect("draws");
+                planner.plan(&cm, &cam, &params, &mut plan).expect("plan");
             }
         });
+        assert!(!plan.lod_frame().blocks.is_empty(), "{mode:?}: no blocks");
         assert_eq!(n, 0, "{mode:?}: {n} allocations in 35 planned frames");
     }
 }

@@ -219,3 +219,41 @@ fn fly_render_writes_frames_and_image_hashes() {
         "image hashes differ between two runs"
     );
 }
+
+/// Issue 17 item 5: rendering every K-th frame uploads the union of the skipped frames' rectangles, never
+/// a whole-texture refill after the first frame, so a rendered frame uploads at most K x the update
+/// budget (before: every level in full, about 256k samples on gles3-mid against a 32,640 budget).
+#[test]
+fn fly_render_every_k_uploads_at_most_k_budgets() {
+    let dir = scratch("render_every");
+    let d = dir.to_str().expect("utf-8 temp path");
+    let k = 4u64;
+    let ks = k.to_string();
+    let args = [
+        "fly",
+        "--profile",
+        "gles3-mid",
+        "--frames",
+        "41",
+        "--speed",
+        "400",
+        "--render",
+        d,
+        "--render-every",
+        &ks,
+        "--size",
+        "64x36",
+        "--json",
+    ];
+    let v = json_of(&clipsat(&args));
+    let budget = v["budget"].as_u64().expect("budget");
+    let max = v["upload_samples_max"]
+        .as_u64()
+        .expect("upload_samples_max");
+    assert!(max > 0, "nothing uploaded: {v}");
+    assert!(
+        max <= k * budget,
+        "a rendered frame uploaded {max} samples, more than {k} x {budget}"
+    );
+    assert_eq!(v["full_uploads_after_first"], 0, "{v}");
+}

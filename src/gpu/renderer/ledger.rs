@@ -272,3 +272,39 @@ impl<'d> Ledgered<'d> {
         self.ledger.note(label, kind, bytes);
     }
 }
+
+#[cfg(test)]
+mod tests {
+    /// The renderer's files (and the headless path and SAT textures it builds on) create GPU objects only
+    /// through [`super::Ledgered`]: no `create_*` call other than a frame's command encoder. A new
+    /// creation elsewhere fails here instead of escaping the ledger.
+    #[test]
+    fn no_object_is_created_outside_the_ledger() {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("src/gpu");
+        let mut files: Vec<_> = std::fs::read_dir(root.join("renderer"))
+            .expect("src/gpu/renderer")
+            .map(|e| e.expect("dir entry").path())
+            .filter(|p| p.file_name().is_some_and(|n| n != "ledger.rs"))
+            .collect();
+        files.push(root.join("headless.rs"));
+        files.push(root.join("sat_textures.rs"));
+        assert!(files.len() >= 6, "{files:?}");
+        let mut found = Vec::new();
+        for f in &files {
+            let text = std::fs::read_to_string(f).expect("source file");
+            for (i, line) in text.lines().enumerate() {
+                let code = line.split("//").next().unwrap_or("");
+                for (at, _) in code.match_indices(".create_") {
+                    if !code[at..].starts_with(".create_command_encoder") {
+                        found.push(format!("{}:{}: {}", f.display(), i + 1, line.trim()));
+                    }
+                }
+            }
+        }
+        assert!(
+            found.is_empty(),
+            "GPU objects created outside Ledgered:\n{}",
+            found.join("\n")
+        );
+    }
+}
