@@ -363,10 +363,117 @@ fn png_scales_and_offsets() {
     img8.save(&p8).unwrap();
     assert_eq!(load(&p8).unwrap().at(7, 0), 7.0);
 
-    let rgb = image::RgbImage::new(8, 8);
+    // Unequal channels without an encoding: refused, naming the option that would read it.
+    let mut rgb = image::RgbImage::new(8, 8);
+    rgb.put_pixel(3, 2, image::Rgb([10, 11, 10]));
     let prgb = dir.join("rgb.png");
     rgb.save(&prgb).unwrap();
-    assert_format(load(&prgb), "greyscale");
+    assert_format(load(&prgb), "--png-encoding");
+    assert_format(load(&prgb), "column 3, row 2");
+}
+
+/// RGB and RGBA files whose channels are equal (as many tools export 8-bit height maps) read as grey, at 8
+/// and 16 bits, with the grey scales (1 m and 0.1 m per unit); alpha is ignored.
+#[test]
+fn png_rgb_with_equal_channels_reads_as_grey() {
+    let dir = temp_dir("png_rgb_grey");
+    let grey = |x: u32, y: u32| u8::try_from((x * 37 + y * 11) % 256).unwrap();
+    let rgb = image::RgbImage::from_fn(9, 5, |x, y| image::Rgb([grey(x, y); 3]));
+    let rgba = image::RgbaImage::from_fn(9, 5, |x, y| {
+        let v = grey(x, y);
+        image::Rgba([v, v, v, u8::try_from(x * 20).unwrap()])
+    });
+    let rgb16 = image::ImageBuffer::<image::Rgb<u16>, _>::from_fn(9, 5, |x, y| {
+        image::Rgb([u16::from(grey(x, y)) * 257; 3])
+    });
+    let (p1, p2, p3) = (
+        dir.join("rgb.png"),
+        dir.join("rgba.png"),
+        dir.join("rgb16.png"),
+    );
+    rgb.save(&p1).unwrap();
+    rgba.save(&p2).unwrap();
+    rgb16.save(&p3).unwrap();
+    for (p, scale) in [(&p1, 1.0f64), (&p2, 1.0), (&p3, 25.7)] {
+        let hm = load(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+        assert_eq!((hm.width(), hm.height()), (9, 5));
+        for y in 0..5 {
+            for x in 0..9 {
+                let want = (f64::from(grey(x, y)) * scale) as f32;
+                assert_eq!(hm.at(x, y), want, "{} ({x}, {y})", p.display());
+            }
+        }
+    }
+}
+
+/// The web-map encodings decode exactly: hand-made 8-bit RGB(A) files with known pixels.
+#[test]
+fn png_web_map_encodings_decode_exactly() {
+    use clipsat::source::PngEncoding;
+    let dir = temp_dir("png_encodings");
+    let with = |e: PngEncoding| LoadOptions {
+        png_encoding: e,
+        ..LoadOptions::default()
+    };
+    // Mapbox Terrain-RGB: h = -10000 + (R 65536 + G 256 + B) 0.1.
+    let terrain_rgb: [([u8; 3], f32); 6] = [
+        ([1, 134, 160], 0.0),   // 100000 -> 0 m
+        ([0, 0, 0], -10000.0),  // the lowest
+        ([1, 134, 161], 0.1),   // one step up
+        ([1, 154, 40], 500.0),  // 105000
+        ([2, 12, 178], 3432.2), // 134322
+        ([255, 255, 255], 1_667_721.5),
+    ];
+    // Terrarium: h = R 256 + G + B / 256 - 32768.
+    let terrarium: [([u8; 3], f32); 5] = [
+        ([128, 0, 0], 0.0),
+        ([128, 100, 128], 100.5),
+        ([127, 255, 192], -0.25),
+        ([0, 0, 0], -32768.0),
+        ([141, 104, 64], 3432.25), // 36200.25 - 32768
+    ];
+    for (encoding, table) in [
+        (PngEncoding::TerrainRgb, &terrain_rgb[..]),
+        (PngEncoding::Terrarium, &terrarium[..]),
+    ] {
+        let w = u32::try_from(table.len()).unwrap();
+        let rgb = image::RgbImage::from_fn(w, 2, |x, _| image::Rgb(table[x as usize].0));
+        let rgba = image::RgbaImage::from_fn(w, 2, |x, _| {
+            let [r, g, b] = table[x as usize].0;
+            image::Rgba([r, g, b, 255])
+        });
+        let (p, pa) = (
+            dir.join(format!("{encoding}.png")),
+            dir.join(format!("{encoding}-a.png")),
+        );
+        rgb.save(&p).unwrap();
+        rgba.save(&pa).unwrap();
+        for file in [&p, &pa] {
+            let hm = source::load(file, &with(encoding))
+                .unwrap_or_else(|e| panic!("{}: {e}", file.display()));
+            for (x, (px, want)) in table.iter().enumerate() {
+                let x = u32::try_from(x).unwrap();
+                assert_eq!(hm.at(x, 0), *want, "{encoding} {px:?}");
+                assert_eq!(hm.at(x, 1), *want, "{encoding} {px:?}");
+            }
+        }
+        // The same pixels as grey: unequal channels, refused.
+        assert_format(load(&p), "png_encoding");
+        // A height scale makes no sense for an encoding that gives metres.
+        let scaled = LoadOptions {
+            height_scale: Some(2.0),
+            ..with(encoding)
+        };
+        assert_format(source::load(&p, &scaled), "height scale");
+    }
+    // An encoding on a grey file: refused, naming the option.
+    let grey = image::GrayImage::new(4, 4);
+    let pg = dir.join("grey.png");
+    grey.save(&pg).unwrap();
+    assert_format(
+        source::load(&pg, &with(PngEncoding::Terrarium)),
+        "needs 8-bit RGB",
+    );
 }
 
 #[test]

@@ -3,6 +3,7 @@
 //! Every loader checks sizes against [`LoadOptions::max_samples`] before it allocates, and names the file
 //! and the problem in its error; none panics on any input.
 
+use std::fmt;
 use std::path::{Path, PathBuf};
 
 use crate::{Error, Result};
@@ -12,7 +13,7 @@ use crate::{Error, Result};
 pub struct LoadOptions {
     /// Sample spacing in metres, overriding (or supplying) what the file says.
     pub spacing: Option<f32>,
-    /// Metres per stored unit for PNG and raw u16 (default: 0.1 for 16-bit, 1.0 for 8-bit).
+    /// Metres per stored unit for grey PNG and raw u16 (default: 0.1 for 16-bit, 1.0 for 8-bit).
     pub height_scale: Option<f32>,
     /// Metres added after scaling.
     pub height_offset: f32,
@@ -20,6 +21,49 @@ pub struct LoadOptions {
     pub raw: Option<RawLayout>,
     /// Most samples a file may declare; checked before allocating.
     pub max_samples: u64,
+    /// How a PNG's pixels hold heights (grey values, or a web-map RGB encoding).
+    pub png_encoding: PngEncoding,
+}
+
+/// How a PNG's pixels hold heights.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum PngEncoding {
+    /// Grey values times the height scale: single-channel files, and RGB(A) or palette files whose
+    /// channels are all equal. RGB with unequal channels is refused.
+    #[default]
+    Grey,
+    /// Mapbox Terrain-RGB (8-bit RGB): h = -10000 + (R 65536 + G 256 + B) 0.1 metres.
+    TerrainRgb,
+    /// Terrarium (8-bit RGB): h = R 256 + G + B / 256 - 32768 metres.
+    Terrarium,
+}
+
+impl PngEncoding {
+    /// Every encoding, in the order of [`PngEncoding::NAMES`].
+    pub const ALL: [PngEncoding; 3] = [Self::Grey, Self::TerrainRgb, Self::Terrarium];
+    /// The names [`fmt::Display`] prints.
+    pub const NAMES: [&'static str; 3] = ["grey", "terrain-rgb", "terrarium"];
+
+    /// The height in metres of an RGB pixel (8-bit channels) under this encoding; [`PngEncoding::Grey`]
+    /// reads R as metres.
+    pub fn decode(self, r: u16, g: u16, b: u16) -> f64 {
+        let (r, g, b) = (f64::from(r), f64::from(g), f64::from(b));
+        match self {
+            Self::Grey => r,
+            // (v - 100000) / 10 is -10000 + v 0.1 with one rounding (the division), so a decimetre step
+            // lands on the f64 nearest the true decimal.
+            Self::TerrainRgb => ((r * 65536.0 + g * 256.0 + b) - 100_000.0) / 10.0,
+            // Exact in f64: B / 256 is a power-of-two fraction.
+            Self::Terrarium => r * 256.0 + g + b / 256.0 - 32768.0,
+        }
+    }
+}
+
+impl fmt::Display for PngEncoding {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let i = Self::ALL.iter().position(|e| e == self).unwrap_or(0);
+        f.write_str(Self::NAMES[i])
+    }
 }
 
 /// Default [`LoadOptions::max_samples`]: 2^30 samples, 4 GiB of f32 heights.
@@ -33,6 +77,7 @@ impl Default for LoadOptions {
             height_offset: 0.0,
             raw: None,
             max_samples: DEFAULT_MAX_SAMPLES,
+            png_encoding: PngEncoding::Grey,
         }
     }
 }

@@ -1,4 +1,6 @@
-//! Stage 0, the source: 8- and 16-bit greyscale PNG height maps (height = value * scale + offset).
+//! Stage 0, the source: PNG height maps. Greyscale (8 or 16 bit; RGB/RGBA/palette files whose channels are
+//! all equal count as grey, as many tools export them): height = value * scale + offset. RGB(A) files in
+//! the web-map encodings (Mapbox Terrain-RGB, Terrarium) when [`LoadOptions::png_encoding`] says so.
 
 use std::io::{BufReader, Read};
 use std::path::Path;
@@ -6,15 +8,18 @@ use std::path::Path;
 use image::codecs::png::PngDecoder;
 use image::{ColorType, ImageDecoder, Limits};
 
-use super::{check_size, to_f32, LoadOptions, DEFAULT_SPACING_M};
+use super::{check_size, to_f32, LoadOptions, PngEncoding, DEFAULT_SPACING_M};
 use crate::{Error, Heightmap, Result};
 
 /// The PNG signature.
 pub(super) const MAGIC: [u8; 8] = [0x89, b'P', b'N', b'G', b'\r', b'\n', 0x1A, b'\n'];
 
-/// Loads a greyscale PNG. PNG carries no spacing: [`LoadOptions::spacing`], else
-/// [`DEFAULT_SPACING_M`]. The default height scale is 0.1 m per unit for 16-bit files (the Puget Sound
-/// convention) and 1 m for 8-bit ones.
+/// How the option is named in errors: the library field and the command-line flag.
+const OPTION: &str = "PNG encoding (png_encoding / --png-encoding)";
+
+/// Loads a PNG height map. PNG carries no spacing: [`LoadOptions::spacing`], else [`DEFAULT_SPACING_M`].
+/// For grey files the default height scale is 0.1 m per unit for 16-bit files (the Puget Sound
+/// convention) and 1 m for 8-bit ones; the web-map encodings give metres themselves.
 pub(super) fn load(path: &Path, opts: &LoadOptions, magic: &[u8]) -> Result<Heightmap> {
     if !magic.starts_with(&MAGIC) {
         return Err(Error::format(
@@ -34,20 +39,15 @@ pub(super) fn load(path: &Path, opts: &LoadOptions, magic: &[u8]) -> Result<Heig
     }
     let width = u32::from_be_bytes([head[16], head[17], head[18], head[19]]);
     let height = u32::from_be_bytes([head[20], head[21], head[22], head[23]]);
-    let (bit_depth, colour) = (head[24], head[25]);
+    let bit_depth = head[24];
     let samples = check_size(path, width.into(), height.into(), opts)?;
-    let kind = match colour {
-        0 => "",
-        2 => "RGB colour",
-        3 => "palette colour",
-        4 => "greyscale with alpha",
-        6 => "RGBA colour",
-        _ => "an unknown colour type",
-    };
-    if !kind.is_empty() {
+    if opts.png_encoding != PngEncoding::Grey && opts.height_scale.is_some() {
         return Err(Error::format(
             path,
-            format!("PNG is {kind}; height maps must be single-channel greyscale (8 or 16 bit)"),
+            format!(
+                "a height scale does not apply to {}: the encoding gives metres (only the offset is added)",
+                opts.png_encoding
+            ),
         ));
     }
 
@@ -55,38 +55,98 @@ pub(super) fn load(path: &Path, opts: &LoadOptions, magic: &[u8]) -> Result<Heig
     let mut limits = Limits::default();
     limits.max_image_width = Some(width);
     limits.max_image_height = Some(height);
-    // Output (2 bytes a sample at most) plus the decoder's own buffers.
-    limits.max_alloc = Some(samples as u64 * 2 + (64 << 20));
+    // Output (8 bytes a pixel at most, RGBA16) plus the decoder's own buffers.
+    limits.max_alloc = Some((samples as u64).saturating_mul(8) + (64 << 20));
     let decoder =
         PngDecoder::with_limits(BufReader::new(file), limits).map_err(|e| corrupt(path, &e))?;
-    let (scale, bytes_per_sample) = match decoder.color_type() {
-        ColorType::L8 => (opts.height_scale.map_or(1.0, f64::from), 1),
-        ColorType::L16 => (opts.height_scale.map_or(0.1, f64::from), 2),
+    let colour = decoder.color_type();
+    let (channels, wide) = match colour {
+        ColorType::L8 => (1, false),
+        ColorType::La8 => (2, false),
+        ColorType::Rgb8 => (3, false),
+        ColorType::Rgba8 => (4, false),
+        ColorType::L16 => (1, true),
+        ColorType::La16 => (2, true),
+        ColorType::Rgb16 => (3, true),
+        ColorType::Rgba16 => (4, true),
         other => {
             return Err(Error::format(
                 path,
-                format!(
-                    "PNG decodes as {other:?} (bit depth {bit_depth}, perhaps a tRNS chunk); height maps \
-                     must be single-channel greyscale (8 or 16 bit) without transparency"
-                ),
+                format!("PNG decodes as {other:?} (bit depth {bit_depth}): not a height map"),
             ))
         }
     };
-    let mut bytes = vec![0u8; samples * bytes_per_sample];
+    let total = usize::try_from(decoder.total_bytes()).map_err(|_| Error::TooLarge {
+        path: path.into(),
+        width: width.into(),
+        height: height.into(),
+        samples: samples as u64,
+        limit: opts.max_samples,
+    })?;
+    let mut bytes = vec![0u8; total];
     decoder
         .read_image(&mut bytes)
         .map_err(|e| corrupt(path, &e))?;
-    // In f64, so that 0.1 m units land on the nearest f32 (whole metres exactly, as a TIFF holds them).
+    // Every sample as u16 (the decoder hands 16-bit samples over in native byte order); `channels` a pixel.
+    let value = |i: usize| -> u16 {
+        if wide {
+            u16::from_ne_bytes([bytes[2 * i], bytes[2 * i + 1]])
+        } else {
+            bytes[i].into()
+        }
+    };
+    let pixel = |p: usize| -> [u16; 3] {
+        let base = p * channels;
+        match channels {
+            1 | 2 => [value(base); 3],
+            _ => [value(base), value(base + 1), value(base + 2)],
+        }
+    };
     let offset = f64::from(opts.height_offset);
-    let to_m = |v: u16| to_f32(f64::from(v) * scale + offset);
-    let heights: Vec<f32> = if bytes_per_sample == 1 {
-        bytes.iter().map(|&v| to_m(v.into())).collect()
-    } else {
-        // The decoder hands 16-bit samples over in native byte order.
-        bytes
-            .chunks_exact(2)
-            .map(|c| to_m(u16::from_ne_bytes([c[0], c[1]])))
-            .collect()
+    let heights: Vec<f32> = match opts.png_encoding {
+        PngEncoding::Grey => {
+            if channels >= 3 {
+                if let Some(p) = (0..samples).find(|&p| {
+                    let [r, g, b] = pixel(p);
+                    r != g || g != b
+                }) {
+                    let [r, g, b] = pixel(p);
+                    return Err(Error::format(
+                        path,
+                        format!(
+                            "PNG is {colour:?} with unequal channels (R, G, B = {r}, {g}, {b} at column {}, \
+                             row {}), so it is not a grey height map; if it is a web-map elevation tile, set \
+                             the {OPTION} to terrain-rgb or terrarium",
+                            p % width as usize,
+                            p / width as usize
+                        ),
+                    ));
+                }
+            }
+            let default_scale = if wide { 0.1 } else { 1.0 };
+            let scale = opts.height_scale.map_or(default_scale, f64::from);
+            // In f64, so that 0.1 m units land on the nearest f32 (whole metres exactly, as a TIFF holds them).
+            (0..samples)
+                .map(|p| to_f32(f64::from(pixel(p)[0]) * scale + offset))
+                .collect()
+        }
+        encoding => {
+            if channels < 3 || wide {
+                return Err(Error::format(
+                    path,
+                    format!(
+                        "PNG is {colour:?}, but the {OPTION} {encoding} needs 8-bit RGB or RGBA; \
+                         for a grey height map use grey"
+                    ),
+                ));
+            }
+            (0..samples)
+                .map(|p| {
+                    let [r, g, b] = pixel(p);
+                    to_f32(encoding.decode(r, g, b) + offset)
+                })
+                .collect()
+        }
     };
     drop(bytes);
     Heightmap::new(

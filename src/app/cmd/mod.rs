@@ -54,6 +54,32 @@ pub(crate) struct TerrainArgs {
     /// Refuse files declaring more samples than this (checked before allocating).
     #[arg(long, value_name = "N", default_value_t = source::DEFAULT_MAX_SAMPLES)]
     pub(crate) max_samples: u64,
+    /// How a PNG holds heights: grey (also RGB/RGBA with equal channels), terrain-rgb (Mapbox:
+    /// -10000 + (R 65536 + G 256 + B) 0.1 m) or terrarium (R 256 + G + B / 256 - 32768 m).
+    #[arg(long, value_name = "ENCODING", value_enum, default_value_t = PngEncodingArg::Grey)]
+    pub(crate) png_encoding: PngEncodingArg,
+}
+
+/// `--png-encoding`, the command line's name for [`source::PngEncoding`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum PngEncodingArg {
+    /// Grey values (RGB/RGBA with equal channels count as grey).
+    #[default]
+    Grey,
+    /// Mapbox Terrain-RGB.
+    TerrainRgb,
+    /// Terrarium.
+    Terrarium,
+}
+
+impl From<PngEncodingArg> for source::PngEncoding {
+    fn from(a: PngEncodingArg) -> Self {
+        match a {
+            PngEncodingArg::Grey => Self::Grey,
+            PngEncodingArg::TerrainRgb => Self::TerrainRgb,
+            PngEncodingArg::Terrarium => Self::Terrarium,
+        }
+    }
 }
 
 impl TerrainArgs {
@@ -112,6 +138,7 @@ impl TerrainArgs {
             height_offset: self.height_offset,
             raw,
             max_samples: self.max_samples,
+            png_encoding: self.png_encoding.into(),
         };
         match spec {
             TerrainSpec::Procedural(p) => {
