@@ -120,9 +120,12 @@ pub struct Footprint {
 }
 
 impl Footprint {
-    /// Sum of the parts.
+    /// Sum of the parts (saturating: a footprint of an unvalidated profile may be absurd, never wrapped).
     pub fn total(&self) -> u64 {
-        self.heights + self.meshes + self.targets + self.uniforms
+        self.heights
+            .saturating_add(self.meshes)
+            .saturating_add(self.targets)
+            .saturating_add(self.uniforms)
     }
 }
 
@@ -137,6 +140,11 @@ pub const MAX_TEXTURE_SIDE: u32 = 2048;
 pub const MAX_TEXTURE_LAYERS: u32 = 256;
 /// Most rings a profile may ask for (g_L = g_0 2^L must stay exact in f32).
 pub const MAX_LEVELS: u32 = 16;
+/// Largest `clipmap.n`: the block mesh ((n + 1) / 4 + 1)^2 vertices must fit u16 indices (`mesh::block`);
+/// the next 2^k - 1, 1023, needs 257^2 = 66049.
+pub const MAX_N: u32 = 511;
+const _: () = assert!(((MAX_N + 1) / 4 + 1) * ((MAX_N + 1) / 4 + 1) <= 1 << 16);
+const _: () = assert!(((2 * MAX_N + 2) / 4 + 1) * ((2 * MAX_N + 2) / 4 + 1) > 1 << 16);
 
 /// The TOML text of a shipped `what` (profile, scene) by name, or of a file by path; `arg` names the option
 /// in the error when it is neither.
@@ -179,14 +187,19 @@ impl Profile {
     }
 
     /// Checks every constraint the later stages rely on; the error names the field.
+    ///
+    /// Every field is range-checked with checked (u64) arithmetic, so a profile that validates can neither
+    /// panic nor wrap in any later stage: n up to [`MAX_N`] (u16 mesh indices), the clip texture within
+    /// [`MAX_TEXTURE_SIDE`], draws within the renderer's fixed capacity, lights within the shaders'.
     pub fn validate(&self, source_name: &str) -> Result<()> {
         let bad = |field: &str, reason: String| Err(Error::config(source_name, field, reason));
         let c = &self.clipmap;
-        if c.n < 15 || !(c.n + 1).is_power_of_two() {
+        if c.n < 15 || c.n > MAX_N || !c.n.wrapping_add(1).is_power_of_two() {
             return bad(
                 "clipmap.n",
                 format!(
-                    "{} is not 2^k - 1 with k >= 4 (15, 31, 63, 127, 255, ...)",
+                    "{} is not 2^k - 1 in 15..={MAX_N} (15, 31, 63, 127, 255, 511; larger blocks \
+                     overflow the meshes' 16-bit indices)",
                     c.n
                 ),
             );
@@ -197,12 +210,13 @@ impl Profile {
                 format!("{} is not in 1..={MAX_LEVELS}", c.levels),
             );
         }
-        if self.clip_size() > MAX_TEXTURE_SIDE {
+        // n + 1 + 2 margin in u64: a margin near 2^31 must not wrap to a small side.
+        let side = u64::from(c.n) + 1 + 2 * u64::from(c.clip_margin);
+        if side > u64::from(MAX_TEXTURE_SIDE) {
             return bad(
                 "clipmap.clip_margin",
                 format!(
-                    "n + 1 + 2 * margin = {} exceeds the GLES 3.0 texture side {MAX_TEXTURE_SIDE}",
-                    self.clip_size()
+                    "n + 1 + 2 * margin = {side} exceeds the GLES 3.0 texture side {MAX_TEXTURE_SIDE}"
                 ),
             );
         }
@@ -213,8 +227,15 @@ impl Profile {
                 "must be positive: a zero budget never fills a ring".into(),
             );
         }
-        if b.max_draws == 0 {
-            return bad("budget.max_draws", "must be positive".into());
+        if b.max_draws == 0 || b.max_draws as usize > crate::plan::cull::MAX_DRAWS {
+            return bad(
+                "budget.max_draws",
+                format!(
+                    "{} is not in 1..={} (the renderer's fixed draw capacity)",
+                    b.max_draws,
+                    crate::plan::cull::MAX_DRAWS
+                ),
+            );
         }
         if b.max_triangles == 0 {
             return bad("budget.max_triangles", "must be positive".into());
@@ -246,6 +267,17 @@ impl Profile {
                 "list at least one feature (\"basic\")".into(),
             );
         }
+        let max_lights = crate::gpu::shaders::MAX_SG_LIGHTS;
+        if self.shading.max_sg_lights as usize > max_lights {
+            return bad(
+                "shading.max_sg_lights",
+                format!(
+                    "{} exceeds the {max_lights} light lobes a shader variant holds",
+                    self.shading.max_sg_lights
+                ),
+            );
+        }
+        // Every part is bounded by the checks above (at most a few GiB), so the u64 sums cannot wrap.
         let need = self.footprint().total();
         if b.gpu_memory_bytes == 0 || need > b.gpu_memory_bytes {
             return bad(
@@ -260,13 +292,15 @@ impl Profile {
     }
 
     /// Side of the toroidal clip texture: n + 1 (GC's n plus the wrap row) plus the margin on each side.
+    /// Saturates at `u32::MAX` for a profile that has not been validated (never wraps).
     pub fn clip_size(&self) -> u32 {
-        self.clipmap.n + 1 + 2 * self.clipmap.clip_margin
+        let side = u64::from(self.clipmap.n) + 1 + 2 * u64::from(self.clipmap.clip_margin);
+        u32::try_from(side).unwrap_or(u32::MAX)
     }
 
     /// Block side m = (n + 1) / 4 vertices (GPU Gems 2, ch. 2).
     pub fn block_m(&self) -> u32 {
-        (self.clipmap.n + 1) / 4
+        u32::try_from((u64::from(self.clipmap.n) + 1) / 4).unwrap_or(u32::MAX)
     }
 
     /// Whether the profile allows `feature`.
@@ -280,25 +314,33 @@ impl Profile {
     pub fn height_layers(&self) -> u32 {
         let l = self.clipmap.levels;
         if l == 1 || l.is_multiple_of(6) {
-            l + 1
+            l.saturating_add(1)
         } else {
             l
         }
     }
 
     /// The GPU memory this profile needs; see [`Footprint`] for what each part holds.
+    ///
+    /// Exact for a validated profile; saturating (never wrapping) for any other.
     pub fn footprint(&self) -> Footprint {
         let s = u64::from(self.clip_size());
         let meshes = crate::plan::mesh::block_bytes(self.block_m())
-            + crate::plan::mesh::skirt_bytes(self.clipmap.n + 1)
-            + crate::plan::mesh::skirt_loops_bytes(self.block_m());
+            .saturating_add(crate::plan::mesh::skirt_bytes(self.clipmap.n.saturating_add(1)))
+            .saturating_add(crate::plan::mesh::skirt_loops_bytes(self.block_m()));
+        // Each factor is below 2^32, so the products of two cannot wrap.
         let (w, h) = (u64::from(self.view.width), u64::from(self.view.height));
         let padded_row = (w * 4).div_ceil(256) * 256;
         Footprint {
-            heights: s * s * u64::from(self.height_layers()) * 8,
+            heights: (s * s)
+                .saturating_mul(u64::from(self.height_layers()))
+                .saturating_mul(8),
             meshes,
-            targets: w * h * 4 + w * h * 4 + padded_row * h,
-            uniforms: GLOBALS_BYTES + u64::from(self.budget.max_draws) * DRAW_SLOT_BYTES,
+            targets: (w * h)
+                .saturating_mul(8)
+                .saturating_add(padded_row.saturating_mul(h)),
+            uniforms: GLOBALS_BYTES
+                .saturating_add(u64::from(self.budget.max_draws) * DRAW_SLOT_BYTES),
         }
     }
 }

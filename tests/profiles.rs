@@ -99,6 +99,16 @@ fn bad_values_name_their_field() {
         ("height", "4096", "view.height"),
         ("fov_y_deg", "180.0", "view.fov_y_deg"),
         ("features", "[]", "shading.features"),
+        // Issue 17 item 3: these validated, then panicked (n = 1023 in mesh::block's u16 indices), wrapped
+        // (2 * clip_margin in u32: 0 triangles, no error) or overflowed (n + 1).
+        ("n", "1023", "clipmap.n"),
+        ("n", "4294967295", "clipmap.n"),
+        ("clip_margin", "2147483648", "clipmap.clip_margin"),
+        ("clip_margin", "4294967295", "clipmap.clip_margin"),
+        ("max_draws", "2049", "budget.max_draws"),
+        ("max_draws", "4294967295", "budget.max_draws"),
+        ("max_sg_lights", "9", "shading.max_sg_lights"),
+        ("width", "4294967295", "view.width"),
     ];
     for (key, value, field) in cases {
         let (got, reason) = field_of(&with(key, value));

@@ -42,10 +42,13 @@ impl Mesh {
     }
 }
 
-/// Bytes of [`block`]`(quads)`'s buffers, without building it (for the profile's footprint).
+/// Bytes of [`block`]`(quads)`'s buffers, without building it (for the profile's footprint); saturates
+/// rather than wraps for sizes no valid profile has.
 pub fn block_bytes(quads: u32) -> u64 {
     let q = u64::from(quads);
-    (q + 1) * (q + 1) * 8 + q * q * 6 * 2
+    ((q + 1) * (q + 1))
+        .saturating_mul(8)
+        .saturating_add((q * q).saturating_mul(12))
 }
 
 /// Bytes of [`skirt`]`(side)`'s buffers, without building it.
@@ -124,10 +127,11 @@ pub fn skirt_loops(max_side: u32) -> Mesh {
 
 /// Bytes of [`skirt_loops`]`(max_side)`'s buffers, without building it.
 pub fn skirt_loops_bytes(max_side: u32) -> u64 {
-    let mut side = 1;
-    let mut bytes = 0;
-    while side <= max_side {
-        bytes += skirt_bytes(side);
+    // u64 sides: doubling past 2^31 must end the loop, not wrap.
+    let mut side = 1u64;
+    let mut bytes = 0u64;
+    while side <= u64::from(max_side) {
+        bytes = bytes.saturating_add(skirt_bytes(u32::try_from(side).unwrap_or(u32::MAX)));
         side *= 2;
     }
     bytes
