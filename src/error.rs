@@ -92,6 +92,10 @@ pub enum Error {
         /// Why.
         reason: String,
     },
+    /// The terrain's heights are finite but too extreme for a stage's arithmetic (its f32 values
+    /// overflow): refused with the stage and the place, never a panic or a silent infinity.
+    #[error("terrain: {0}")]
+    Terrain(String),
     /// A camera is unusable (NaN, zero look direction, ...).
     #[error("camera: {0}")]
     Camera(String),

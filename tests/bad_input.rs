@@ -329,3 +329,97 @@ fn bad_terrain_files_exit_2_naming_the_file() {
         "missing file",
     );
 }
+
+/// Heights near `f32::MAX` (finite, so the loader accepts them) in the SAT LOD modes: their range and
+/// the error maps overflow to infinity, which is a one-line error naming the cause, never a panic or a
+/// silent render. Two terrains: a +-3e38 checkerboard (the range overflows) and a -f32::MAX | +f32::MAX
+/// step (the range and the errors beside the step overflow).
+#[test]
+fn extreme_heights_in_sat_lod_are_a_clear_error() {
+    let dir = scratch("extreme_heights");
+    let n = 65usize;
+    let checker = |i: usize| {
+        if (i % n + i / n) % 2 == 0 {
+            3.0e38f32
+        } else {
+            -3.0e38
+        }
+    };
+    let step = |i: usize| if i % n < n / 2 { -f32::MAX } else { f32::MAX };
+    let out = dir.join("x.png");
+    let o = out.to_string_lossy();
+    let mut files = Vec::new();
+    for (name, f) in [
+        ("checker", &checker as &dyn Fn(usize) -> f32),
+        ("step", &step),
+    ] {
+        let bytes: Vec<u8> = (0..n * n).flat_map(|i| f(i).to_le_bytes()).collect();
+        let p = dir.join(format!("{name}.f32"));
+        std::fs::write(&p, bytes).expect("write fixture");
+        files.push(p);
+    }
+    for (p, mode) in files
+        .iter()
+        .flat_map(|p| ["sat", "sat-conservative", "exact"].map(|m| (p, m)))
+    {
+        let t = p.to_string_lossy();
+        let args = [
+            "render",
+            "--profile",
+            "gles3-low",
+            "--terrain",
+            &t,
+            "--raw-size",
+            "65x65",
+            "--raw-format",
+            "f32",
+            "--size",
+            "64x36",
+            "--out",
+            &o,
+            "--lod",
+            mode,
+            "--camera",
+            "-100,-100,1000",
+            "--look-at",
+            "900,900,0",
+        ];
+        assert_refused(&clipsat(&args), "too large for f32", &format!("{t} {mode}"));
+    }
+    let p = &files[1];
+    // The library says the same, before any GPU work.
+    let hm = clipsat::source::load(
+        &p,
+        &clipsat::source::LoadOptions {
+            raw: Some(clipsat::source::RawLayout {
+                width: 65,
+                height: 65,
+                format: clipsat::source::RawFormat::F32,
+            }),
+            ..Default::default()
+        },
+    )
+    .expect("finite heights load");
+    let pyramid = clipsat::pyramid::Pyramid::build(&hm);
+    let params = clipsat::bake::BakeParams {
+        p: clipsat::lod::P,
+        levels: 8,
+        synth_levels: 0,
+        g0: 30.0,
+    };
+    match clipsat::bake::bake_uncached(&pyramid, &params, false).map(|_| ()) {
+        Err(Error::Terrain(reason)) => assert!(reason.contains("too large for f32"), "{reason}"),
+        other => panic!("expected Error::Terrain, got {other:?}"),
+    }
+    // An error map that overflowed (or a NaN) is refused per level too, naming the sample; before, E_L
+    // folded past the NaN and the SAT quantiser met inf x 0.
+    for bad in [f32::INFINITY, f32::NAN, -1.0] {
+        let errors = vec![0.0, 1.0, bad, 2.0];
+        match clipsat::lod::LevelTables::build(2, 2, errors, clipsat::lod::P).map(|_| ()) {
+            Err(Error::Terrain(reason)) => {
+                assert!(reason.contains("column 0, row 1"), "{reason}")
+            }
+            other => panic!("{bad}: expected Error::Terrain, got {other:?}"),
+        }
+    }
+}

@@ -270,7 +270,21 @@ pub struct LevelTables {
 
 impl LevelTables {
     /// Builds the SAT of (e/E)^p (quantum 2^-[`Sat::max_frac_bits`]) and the max pyramid of `errors`.
+    ///
+    /// An error that is not a finite non-negative number (heights near `f32::MAX` overflow the error map
+    /// to infinity) is an [`Error::Terrain`] naming the sample: E_L and every (e/E)^p would be meaningless.
     pub fn build(width: u32, height: u32, errors: Vec<f32>, p: u32) -> Result<Self> {
+        if let Some(i) = errors.iter().position(|e| !(e.is_finite() && *e >= 0.0)) {
+            let w = width.max(1) as usize;
+            return Err(Error::Terrain(format!(
+                "the SAT LOD error at column {}, row {} is {}: the heights are too large for f32 \
+                 arithmetic (their differences overflow); scale them down, or use distance LOD",
+                i % w,
+                i / w,
+                errors[i]
+            )));
+        }
+        // Every error is finite, so the fold is the true maximum (f32::max would skip a NaN).
         let e_max = errors.iter().copied().fold(0.0f32, f32::max);
         if e_max <= 0.0 {
             return Ok(Self {
@@ -347,6 +361,26 @@ impl LevelTables {
     }
 }
 
+/// Refuses, with [`Error::Terrain`], heights whose range does not fit an f32 (highest minus lowest
+/// overflows, as with heights near `f32::MAX` of both signs): every LOD error and bound would be infinite.
+pub fn check_height_range(pyramid: &Pyramid) -> Result<()> {
+    let (lo, hi) = pyramid
+        .level(0)
+        .heights()
+        .iter()
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &z| {
+            (a.min(z), b.max(z))
+        });
+    if (hi - lo).is_finite() {
+        Ok(())
+    } else {
+        Err(Error::Terrain(format!(
+            "heights span {lo:e} .. {hi:e} m, a range too large for f32 arithmetic (it overflows); \
+             scale them down, or use distance LOD"
+        )))
+    }
+}
+
 /// Every level's tables over one terrain: index k is data level k (clipmap level k + synth_levels).
 #[derive(Clone, Debug, PartialEq)]
 pub struct LodTables {
@@ -363,6 +397,8 @@ pub struct LodTables {
 impl LodTables {
     /// Builds every data level's tables from scratch (no cache; [`crate::bake`] caches), calling
     /// `progress(k)` as level k starts.
+    ///
+    /// Heights whose range does not fit an f32 are an [`Error::Terrain`] ([`check_height_range`]).
     pub fn build(
         pyramid: &Pyramid,
         data_levels: u32,
@@ -371,6 +407,7 @@ impl LodTables {
     ) -> Result<Self> {
         let l0 = pyramid.level(0);
         let (w, h) = (l0.width(), l0.height());
+        check_height_range(pyramid)?;
         let mut levels = Vec::with_capacity(data_levels as usize);
         for k in 0..data_levels {
             progress(k);

@@ -392,18 +392,20 @@ fn run_brute(
 
 /// The camera the options ask for; missing parts come from [`Camera::default_for`].
 fn camera(args: &RenderArgs, hm: &Heightmap, profile_fov: f64) -> Result<Camera> {
-    let default = Camera::default_for(hm)?;
     let fov = args.fov.unwrap_or(profile_fov);
     if args.camera.is_none() && args.look_at.is_none() {
+        let default = Camera::default_for(hm)?;
         return Camera::new(default.eye, default.target, fov)?.with_clip(default.near, default.far);
     }
+    // The default view only where a point is left out (it can fail on extreme terrains that an explicit
+    // camera still shows).
     let eye = match &args.camera {
         Some(t) => parse_vec3("--camera", t)?,
-        None => default.eye,
+        None => Camera::default_for(hm)?.eye,
     };
     let target = match &args.look_at {
         Some(t) => parse_vec3("--look-at", t)?,
-        None => default.target,
+        None => Camera::default_for(hm)?.target,
     };
     let camera = Camera::new(eye, target, fov)?;
     // Fit the clip planes to the terrain's bounding box as seen from this eye.
