@@ -1,0 +1,158 @@
+//! The fuzz targets' bodies, shared by the cargo-fuzz binaries beside this file and the in-test fuzzer
+//! (`tests/fuzz_parsers.rs`, which runs in `cargo test`). Each takes arbitrary bytes and returns a short
+//! outcome: "ok ..." or the error's text with its digits dropped (the in-test fuzzer keeps an input that
+//! gives an outcome it has not seen, so later mutations start from deeper in the parser). Any `Err` is
+//! fine; a panic, an abort or a hang is a finding.
+
+use std::path::PathBuf;
+
+use clipsat::source::{self, LoadOptions, PngEncoding, RawFormat, RawLayout};
+
+/// Every target, by name, with its body. Names match the cargo-fuzz binaries and the corpus folders.
+pub(crate) const TARGETS: [(&str, fn(&[u8]) -> String); 7] = [
+    ("load_png", load_png),
+    ("load_tiff", load_tiff),
+    ("load_hgt", load_hgt),
+    ("load_hgt_full", load_hgt_full),
+    ("load_raw", load_raw),
+    ("parse_profile", parse_profile),
+    ("parse_scene", parse_scene),
+];
+
+/// The outcome of a result: "ok" plus `ok`'s text, or the error's kind: its first few plain words, with
+/// quoted text, numbers and bytes dropped (they echo the input and would make every input look new).
+fn outcome<T>(r: clipsat::Result<T>, ok: impl FnOnce(&T) -> String) -> String {
+    match r {
+        Ok(v) => format!("ok {}", ok(&v)),
+        Err(e) => {
+            let text = e.to_string();
+            let mut plain = String::new();
+            let mut quote = None;
+            for c in text.chars() {
+                match (quote, c) {
+                    (None, '`' | '"' | '\'' | '[' | '(') => {
+                        quote = Some(match c {
+                            '[' => ']',
+                            '(' => ')',
+                            q => q,
+                        })
+                    }
+                    (Some(q), _) if c == q => quote = None,
+                    (None, _) => plain.push(c),
+                    _ => {}
+                }
+            }
+            plain
+                .split(|c: char| !c.is_ascii_alphabetic())
+                .filter(|w| w.len() >= 3 && !w.bytes().all(|b| b.is_ascii_hexdigit()))
+                .take(6)
+                .collect::<Vec<_>>()
+                .join(" ")
+        }
+    }
+}
+
+/// Loads `data` as a file called `name` (in a folder per process and thread, so parallel tests do not
+/// share it).
+fn load_as(name: &str, data: &[u8], opts: &LoadOptions) -> String {
+    let dir = std::env::temp_dir().join(format!(
+        "clipsat-fuzz-{}-{:?}",
+        std::process::id(),
+        std::thread::current().id()
+    ));
+    let _ = std::fs::create_dir_all(&dir);
+    let path: PathBuf = dir.join(name);
+    if std::fs::write(&path, data).is_err() {
+        return "cannot write".into();
+    }
+    let r = source::load(&path, opts);
+    let _ = std::fs::remove_file(&path);
+    outcome(r, |hm| format!("{}x{}", hm.width() > 2, hm.height() > 2))
+}
+
+/// A sample limit small enough that huge declared sizes are refused, not allocated; a spacing, so files
+/// without one are decoded all the way instead of refused early.
+fn small() -> LoadOptions {
+    LoadOptions {
+        max_samples: 1 << 21,
+        spacing: Some(30.0),
+        ..LoadOptions::default()
+    }
+}
+
+/// A PNG file, read with the encoding its length picks (grey, Terrain-RGB, Terrarium).
+pub(crate) fn load_png(data: &[u8]) -> String {
+    let opts = LoadOptions {
+        png_encoding: PngEncoding::ALL[data.len() % 3],
+        ..small()
+    };
+    load_as("x.png", data, &opts)
+}
+
+/// A TIFF / GeoTIFF file.
+pub(crate) fn load_tiff(data: &[u8]) -> String {
+    load_as("x.tif", data, &small())
+}
+
+/// An SRTM `.hgt` file (any length: most are refused by size).
+pub(crate) fn load_hgt(data: &[u8]) -> String {
+    load_as("N45E006.hgt", data, &small())
+}
+
+/// Bytes of a 1201 x 1201 HGT tile.
+const TILE: usize = 1201 * 1201 * 2;
+
+/// The HGT loader past its size check: the input repeated to a whole 3 arc-second tile, so the decoder
+/// and the void filling see fuzzed samples.
+pub(crate) fn load_hgt_full(data: &[u8]) -> String {
+    if data.is_empty() {
+        return "empty".into();
+    }
+    let tile: Vec<u8> = data.iter().copied().cycle().take(TILE).collect();
+    load_as("N45E006.hgt", &tile, &small())
+}
+
+/// A raw file: the first 5 bytes pick the layout (u16 width, u16 height, u16 or f32), the rest is the file.
+pub(crate) fn load_raw(data: &[u8]) -> String {
+    let Some((head, body)) = data.split_first_chunk::<5>() else {
+        return "short".into();
+    };
+    let opts = LoadOptions {
+        raw: Some(RawLayout {
+            width: u32::from(u16::from_le_bytes([head[0], head[1]])),
+            height: u32::from(u16::from_le_bytes([head[2], head[3]])),
+            format: if head[4] & 1 == 0 {
+                RawFormat::U16
+            } else {
+                RawFormat::F32
+            },
+        }),
+        ..small()
+    };
+    load_as("x.raw", body, &opts)
+}
+
+/// A budget profile's TOML text; what validates must build its meshes and footprint without overflow.
+pub(crate) fn parse_profile(data: &[u8]) -> String {
+    let Ok(text) = std::str::from_utf8(data) else {
+        return "not utf-8".into();
+    };
+    outcome(clipsat::Profile::parse("fuzz", text), |p| {
+        let _ = p.footprint().total();
+        let _ = clipsat::plan::mesh::block(p.block_m());
+        let _ = clipsat::plan::mesh::skirt(p.clipmap.n + 1);
+        let _ = clipsat::plan::mesh::skirt_loops(p.block_m());
+        p.height_layers().to_string()
+    })
+}
+
+/// A scene's TOML text; an accepted scene must answer `needs()` and `features()`.
+pub(crate) fn parse_scene(data: &[u8]) -> String {
+    let Ok(text) = std::str::from_utf8(data) else {
+        return "not utf-8".into();
+    };
+    outcome(clipsat::shading::scene::Scene::parse("fuzz", text), |s| {
+        let _ = s.needs();
+        format!("{:?}", s.features().len())
+    })
+}
