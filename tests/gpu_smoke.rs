@@ -58,9 +58,16 @@ fn sky(img: &clipsat::gpu::readback::Image) -> [u8; 4] {
 fn adapter_is_opengl_es_3_0() {
     let gpu = strict();
     let r = gpu.report();
-    assert!(
-        r.gl_version.contains("OpenGL ES"),
-        "strict mode must be a GLES context, got {r:?}"
+    // GL_VERSION of an ES context is "OpenGL ES N.M <vendor text>" (GLES 3.0 spec, section 6.1.5): the
+    // context must be exactly 3.0, not merely some GLES (a driver may hand out 3.2 for a 3.0 request).
+    let version = r
+        .gl_version
+        .strip_prefix("OpenGL ES ")
+        .and_then(|v| v.split_whitespace().next());
+    assert_eq!(
+        version,
+        Some("3.0"),
+        "strict mode must be an OpenGL ES 3.0 context, got {r:?}"
     );
     assert_eq!(r.backend, "Gl");
     assert_eq!(r.mode, "strict");
