@@ -326,7 +326,9 @@ impl Profile {
     pub fn footprint(&self) -> Footprint {
         let s = u64::from(self.clip_size());
         let meshes = crate::plan::mesh::block_bytes(self.block_m())
-            .saturating_add(crate::plan::mesh::skirt_bytes(self.clipmap.n.saturating_add(1)))
+            .saturating_add(crate::plan::mesh::skirt_bytes(
+                self.clipmap.n.saturating_add(1),
+            ))
             .saturating_add(crate::plan::mesh::skirt_loops_bytes(self.block_m()));
         // Each factor is below 2^32, so the products of two cannot wrap.
         let (w, h) = (u64::from(self.view.width), u64::from(self.view.height));

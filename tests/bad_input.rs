@@ -339,7 +339,7 @@ fn extreme_heights_in_sat_lod_are_a_clear_error() {
     let dir = scratch("extreme_heights");
     let n = 65usize;
     let checker = |i: usize| {
-        if (i % n + i / n) % 2 == 0 {
+        if (i % n + i / n).is_multiple_of(2) {
             3.0e38f32
         } else {
             -3.0e38
@@ -389,7 +389,7 @@ fn extreme_heights_in_sat_lod_are_a_clear_error() {
     let p = &files[1];
     // The library says the same, before any GPU work.
     let hm = clipsat::source::load(
-        &p,
+        p,
         &clipsat::source::LoadOptions {
             raw: Some(clipsat::source::RawLayout {
                 width: 65,
@@ -400,9 +400,9 @@ fn extreme_heights_in_sat_lod_are_a_clear_error() {
         },
     )
     .expect("finite heights load");
-    let pyramid = clipsat::pyramid::Pyramid::build(&hm);
+    let pyramid = clipsat::bake::pyramid::Pyramid::build(&hm);
     let params = clipsat::bake::BakeParams {
-        p: clipsat::lod::P,
+        p: clipsat::bake::lod_tables::P,
         levels: 8,
         synth_levels: 0,
         g0: 30.0,
@@ -415,7 +415,14 @@ fn extreme_heights_in_sat_lod_are_a_clear_error() {
     // folded past the NaN and the SAT quantiser met inf x 0.
     for bad in [f32::INFINITY, f32::NAN, -1.0] {
         let errors = vec![0.0, 1.0, bad, 2.0];
-        match clipsat::lod::LevelTables::build(2, 2, errors, clipsat::lod::P).map(|_| ()) {
+        match clipsat::bake::lod_tables::LevelTables::build(
+            2,
+            2,
+            errors,
+            clipsat::bake::lod_tables::P,
+        )
+        .map(|_| ())
+        {
             Err(Error::Terrain(reason)) => {
                 assert!(reason.contains("column 0, row 1"), "{reason}")
             }

@@ -33,7 +33,7 @@ fn seed(target: &str) -> u64 {
     clipsat::hash::hash_bytes(target.as_bytes()) ^ base
 }
 
-fn body(name: &str) -> fn(&[u8]) -> String {
+fn body(name: &str) -> targets::Target {
     targets::TARGETS
         .iter()
         .find(|(n, _)| *n == name)

@@ -9,10 +9,11 @@ use std::cell::Cell;
 use std::path::Path;
 use std::sync::OnceLock;
 
-use clipsat::clipmap::{Clipmap, ClipmapOptions};
-use clipsat::cull::{build_draws, DrawList, DrawParams};
+use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
+use clipsat::plan::cull::{build_draws, DrawList, DrawParams};
+use clipsat::plan::mesh;
 use clipsat::profile::{Profile, MAX_N};
-use clipsat::{mesh, Camera, Error, Heightmap};
+use clipsat::{Camera, Error, Heightmap};
 use glam::DVec3;
 use proptest::prelude::*;
 use proptest::test_runner::{Config, TestRunner};
@@ -211,7 +212,7 @@ fn check(text: &str, gpu: Option<&clipsat::gpu::Gpu>) -> Reached {
         Err(other) => panic!("draws: {other} for:\n{text}"),
     }
     if let Some(gpu) = gpu {
-        clipsat::renderer::Renderer::new(gpu, &p, &cm)
+        clipsat::gpu::renderer::Renderer::new(gpu, &p, &cm)
             .unwrap_or_else(|e| panic!("renderer: {e} for:\n{text}"));
         return Reached::Rendered;
     }

@@ -111,7 +111,7 @@ pub fn bake_lod(
     progress: bool,
 ) -> Result<(LodTables, CacheOutcome)> {
     // Before the cache: a table cached by an older build must not let an unusable terrain through.
-    crate::lod::check_height_range(pyramid)?;
+    crate::bake::lod_tables::check_height_range(pyramid)?;
     let key = cache_key(terrain, params);
     let path = cache_path(dir, key);
     let refused = match std::fs::read(&path) {

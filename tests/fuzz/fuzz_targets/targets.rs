@@ -8,8 +8,11 @@ use std::path::PathBuf;
 
 use clipsat::source::{self, LoadOptions, PngEncoding, RawFormat, RawLayout};
 
+/// A target's body: bytes in, outcome out.
+pub(crate) type Target = fn(&[u8]) -> String;
+
 /// Every target, by name, with its body. Names match the cargo-fuzz binaries and the corpus folders.
-pub(crate) const TARGETS: [(&str, fn(&[u8]) -> String); 7] = [
+pub(crate) const TARGETS: [(&str, Target); 7] = [
     ("load_png", load_png),
     ("load_tiff", load_tiff),
     ("load_hgt", load_hgt),
