@@ -212,7 +212,7 @@ fn check(text: &str, gpu: Option<&clipsat::gpu::Gpu>) -> Reached {
         Err(other) => panic!("draws: {other} for:\n{text}"),
     }
     if let Some(gpu) = gpu {
-        clipsat::gpu::renderer::Renderer::new(gpu, &p, &cm)
+        clipsat::gpu::headless::Offscreen::new(gpu, &p, &cm, Default::default())
             .unwrap_or_else(|e| panic!("renderer: {e} for:\n{text}"));
         return Reached::Rendered;
     }
