@@ -22,6 +22,8 @@
 //! ```text
 //! source/   files (PNG, GeoTIFF, SRTM .hgt, raw) or procedural     -> Heightmap
 //!   -> bake/    height pyramid, SATs, LOD tables, horizons (cached)
+//!   -> package/ the pyramid as GC section 7 residuals in compressed, checksummed tiles (`clipsat bake`),
+//!               read through a memory map into a fixed tile cache sized by `budget.cpu_memory_bytes`
 //!   -> plan/    per frame, CPU, pure, allocation-free: camera path -> budgeted clipmap update
 //!               -> per-block LOD -> frustum cull -> draw list, packed uniforms -> frame hash
 //!   -> gpu/     wgpu on the GLES 3.0 floor (the only module that touches wgpu): upload, draw, shade,
@@ -98,6 +100,7 @@ mod error;
 pub mod gpu;
 pub mod hash;
 pub mod measure;
+pub mod package;
 pub mod plan;
 pub mod profile;
 pub mod shading;

@@ -18,6 +18,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Bake a terrain into a package: the compressed, tiled residual pyramid streamed at runtime.
+    Bake(cmd::bake::BakeArgs),
     /// Benchmarks: `bench lod` compares the LOD estimators across error bounds on the shared terrains; `bench
     /// all` writes one report of every measurement.
     Bench(cmd::bench::BenchArgs),
@@ -37,6 +39,7 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
+        Command::Bake(args) => cmd::bake::run(&args),
         Command::Bench(args) => cmd::bench::run(&args),
         Command::Fly(args) => cmd::fly::run(&args),
         Command::Info(args) => cmd::info::run(&args),

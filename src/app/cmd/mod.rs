@@ -8,6 +8,7 @@ macro_rules! outln {
     }};
 }
 
+pub(crate) mod bake;
 pub(crate) mod bench;
 pub(crate) mod fly;
 pub(crate) mod hashes;

@@ -1,0 +1,415 @@
+//! Stage 1b, the package: the on-disk layout of a `.clipsat` file, its header and tile table.
+//!
+//! All fields are little-endian. The header (magic to header checksum) is followed by the tiles' payloads:
+//!
+//! ```text
+//! magic "CLIPSAT\0" | version u32 | header_len u32
+//! width u32 | height u32 | spacing f32 | origin_x f64 | origin_y f64
+//! quantum f64 | max_error f64 | codec u32 | tile u32 | levels u32
+//! per level:  width u32 | height u32
+//! per tile (levels fine to coarse, tiles row-major):  offset u64 | len u32 | crc32 u32
+//! header crc32 u32 (over every byte before it)
+//! ```
+//!
+//! A tile payload is one byte (the count of byte planes, 1..=4) then the codec's stream of the planes.
+//! Everything read back is validated before use: a damaged file is an [`Error::Format`] naming the field or
+//! the tile, never a panic.
+
+use std::path::Path;
+
+use crate::{Error, Result};
+
+/// The first 8 bytes of every package.
+pub const MAGIC: [u8; 8] = *b"CLIPSAT\0";
+
+/// The format version this build reads and writes.
+pub const VERSION: u32 = 1;
+
+/// Bytes of one tile-table entry (offset u64, len u32, crc32 u32).
+const TILE_ENTRY: usize = 16;
+
+/// Bytes before the per-level table.
+const FIXED: usize = 8 + 4 + 4 + 4 + 4 + 4 + 8 + 8 + 8 + 8 + 4 + 4 + 4;
+
+/// The codec a package's tiles are compressed with.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum CodecKind {
+    /// LZ4 block format (lz4_flex), over zigzag byte planes.
+    Lz4,
+    /// Zstandard (zstd), over zigzag byte planes.
+    Zstd,
+}
+
+impl CodecKind {
+    /// Every codec, for comparisons.
+    pub const ALL: [CodecKind; 2] = [CodecKind::Lz4, CodecKind::Zstd];
+
+    /// The header's code.
+    pub fn code(self) -> u32 {
+        match self {
+            CodecKind::Lz4 => 1,
+            CodecKind::Zstd => 2,
+        }
+    }
+
+    /// The codec of a header code.
+    pub fn from_code(code: u32) -> Option<Self> {
+        match code {
+            1 => Some(CodecKind::Lz4),
+            2 => Some(CodecKind::Zstd),
+            _ => None,
+        }
+    }
+
+    /// The name used on the command line and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            CodecKind::Lz4 => "lz4",
+            CodecKind::Zstd => "zstd",
+        }
+    }
+
+    /// Parses a command-line name.
+    pub fn parse(text: &str) -> Result<Self> {
+        Self::ALL
+            .into_iter()
+            .find(|c| c.name() == text)
+            .ok_or_else(|| Error::Arg {
+                arg: "--codec".into(),
+                reason: format!("`{text}` is not lz4 or zstd"),
+            })
+    }
+}
+
+/// Dimensions of one pyramid level and its tile grid.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LevelDims {
+    /// Samples per row.
+    pub width: u32,
+    /// Rows.
+    pub height: u32,
+    /// Tiles per row, ceil(width / tile).
+    pub tiles_x: u32,
+    /// Tile rows, ceil(height / tile).
+    pub tiles_y: u32,
+    /// Index of this level's first tile in the tile table.
+    pub first_tile: usize,
+}
+
+/// Where one tile's payload lies and its checksum.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TileEntry {
+    /// Byte offset of the payload in the file.
+    pub offset: u64,
+    /// Payload length in bytes.
+    pub len: u32,
+    /// CRC-32 (IEEE) of the payload.
+    pub crc: u32,
+}
+
+/// A package's header: the terrain's geometry, the quantisation, the codec and the tile table.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Header {
+    /// Level-0 samples per row.
+    pub width: u32,
+    /// Level-0 rows.
+    pub height: u32,
+    /// Level-0 sample spacing, metres.
+    pub spacing: f32,
+    /// World position of the south-west sample, metres ([`crate::Heightmap::origin`]).
+    pub origin: (f64, f64),
+    /// The one quantisation step of every level, metres (GC section 7); heights are `quantum * k`.
+    pub quantum: f64,
+    /// The error bound the bake was asked for, metres (quantum / 2).
+    pub max_error: f64,
+    /// Tile codec.
+    pub codec: CodecKind,
+    /// Tile side, samples (every level uses the same).
+    pub tile: u32,
+    /// Levels, finest first.
+    pub levels: Vec<LevelDims>,
+    /// Every tile, levels finest first, row-major within a level.
+    pub tiles: Vec<TileEntry>,
+}
+
+/// The pyramid's level sizes for a `width x height` terrain: halving (w - 1)/2 + 1 until both sides are at
+/// most 4, as [`crate::bake::pyramid::Pyramid::build`] does.
+pub fn level_sizes(width: u32, height: u32) -> Vec<(u32, u32)> {
+    let mut sizes = vec![(width, height)];
+    let (mut w, mut h) = (width, height);
+    while w > 4 || h > 4 {
+        w = (w - 1).div_ceil(2) + 1;
+        h = (h - 1).div_ceil(2) + 1;
+        sizes.push((w, h));
+    }
+    sizes
+}
+
+impl Header {
+    /// A header for the given geometry with an empty tile table (offsets filled in by the writer).
+    pub fn new(
+        width: u32,
+        height: u32,
+        spacing: f32,
+        origin: (f64, f64),
+        quantum: f64,
+        codec: CodecKind,
+        tile: u32,
+    ) -> Self {
+        let mut levels = Vec::new();
+        let mut first = 0usize;
+        for (w, h) in level_sizes(width, height) {
+            let (tx, ty) = (w.div_ceil(tile), h.div_ceil(tile));
+            levels.push(LevelDims {
+                width: w,
+                height: h,
+                tiles_x: tx,
+                tiles_y: ty,
+                first_tile: first,
+            });
+            first += tx as usize * ty as usize;
+        }
+        Self {
+            width,
+            height,
+            spacing,
+            origin,
+            quantum,
+            max_error: quantum * 0.5,
+            codec,
+            tile,
+            levels,
+            tiles: vec![
+                TileEntry {
+                    offset: 0,
+                    len: 0,
+                    crc: 0
+                };
+                first
+            ],
+        }
+    }
+
+    /// Bytes the header takes in the file, including its checksum.
+    pub fn byte_len(&self) -> usize {
+        FIXED + 8 * self.levels.len() + TILE_ENTRY * self.tiles.len() + 4
+    }
+
+    /// Level-0 samples.
+    pub fn samples(&self) -> u64 {
+        u64::from(self.width) * u64::from(self.height)
+    }
+
+    /// The header as bytes, checksum last.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut b = Vec::with_capacity(self.byte_len());
+        b.extend_from_slice(&MAGIC);
+        b.extend_from_slice(&VERSION.to_le_bytes());
+        let len = u32::try_from(self.byte_len()).expect("a header over 4 GiB is refused at bake");
+        b.extend_from_slice(&len.to_le_bytes());
+        b.extend_from_slice(&self.width.to_le_bytes());
+        b.extend_from_slice(&self.height.to_le_bytes());
+        b.extend_from_slice(&self.spacing.to_le_bytes());
+        b.extend_from_slice(&self.origin.0.to_le_bytes());
+        b.extend_from_slice(&self.origin.1.to_le_bytes());
+        b.extend_from_slice(&self.quantum.to_le_bytes());
+        b.extend_from_slice(&self.max_error.to_le_bytes());
+        b.extend_from_slice(&self.codec.code().to_le_bytes());
+        b.extend_from_slice(&self.tile.to_le_bytes());
+        let nl =
+            u32::try_from(self.levels.len()).expect("a u32 side halves to 4 in under 32 levels");
+        b.extend_from_slice(&nl.to_le_bytes());
+        for l in &self.levels {
+            b.extend_from_slice(&l.width.to_le_bytes());
+            b.extend_from_slice(&l.height.to_le_bytes());
+        }
+        for t in &self.tiles {
+            b.extend_from_slice(&t.offset.to_le_bytes());
+            b.extend_from_slice(&t.len.to_le_bytes());
+            b.extend_from_slice(&t.crc.to_le_bytes());
+        }
+        let crc = crc32fast::hash(&b);
+        b.extend_from_slice(&crc.to_le_bytes());
+        b
+    }
+
+    /// Parses and validates a header from the start of a file of `file_len` bytes.
+    ///
+    /// Checks the magic, version, header checksum, every dimension against the pyramid they imply, and that
+    /// every tile lies after the header and inside the file.
+    pub fn parse(path: &Path, bytes: &[u8], file_len: u64) -> Result<Self> {
+        let bad = |reason: String| Error::format(path, format!("package header: {reason}"));
+        let mut r = Reader { bytes, at: 0 };
+        let magic = r
+            .take(8)
+            .ok_or_else(|| bad("file shorter than the magic".into()))?;
+        if magic != MAGIC {
+            return Err(bad("not a clipsat package (bad magic)".into()));
+        }
+        let version = r.u32().ok_or_else(|| bad("truncated".into()))?;
+        if version != VERSION {
+            return Err(bad(format!(
+                "version {version}, this build reads version {VERSION}"
+            )));
+        }
+        let len = r.u32().ok_or_else(|| bad("truncated".into()))? as usize;
+        if len > bytes.len() || len < FIXED + 4 {
+            return Err(bad(format!(
+                "header length {len} does not fit the file's {} bytes",
+                bytes.len()
+            )));
+        }
+        let stored = u32::from_le_bytes(
+            bytes[len - 4..len]
+                .try_into()
+                .expect("a 4-byte slice converts"),
+        );
+        if crc32fast::hash(&bytes[..len - 4]) != stored {
+            return Err(bad("header checksum mismatch (damaged header)".into()));
+        }
+        let trunc = || bad("truncated".into());
+        let width = r.u32().ok_or_else(trunc)?;
+        let height = r.u32().ok_or_else(trunc)?;
+        let spacing = r.f32().ok_or_else(trunc)?;
+        let origin = (r.f64().ok_or_else(trunc)?, r.f64().ok_or_else(trunc)?);
+        let quantum = r.f64().ok_or_else(trunc)?;
+        let max_error = r.f64().ok_or_else(trunc)?;
+        let code = r.u32().ok_or_else(trunc)?;
+        let tile = r.u32().ok_or_else(trunc)?;
+        let nl = r.u32().ok_or_else(trunc)?;
+        if width < 2 || height < 2 {
+            return Err(bad(format!(
+                "{width} x {height} samples: need at least 2 x 2"
+            )));
+        }
+        if !(spacing.is_finite() && spacing > 0.0) {
+            return Err(bad(format!("spacing {spacing} is not finite and positive")));
+        }
+        if !(origin.0.is_finite() && origin.1.is_finite()) {
+            return Err(bad("origin is not finite".into()));
+        }
+        if !(quantum.is_finite() && quantum > 0.0) {
+            return Err(bad(format!("quantum {quantum} is not finite and positive")));
+        }
+        let codec =
+            CodecKind::from_code(code).ok_or_else(|| bad(format!("unknown codec {code}")))?;
+        if !(4..=4096).contains(&tile) || !tile.is_multiple_of(2) {
+            return Err(bad(format!(
+                "tile side {tile} is not an even size in 4..=4096"
+            )));
+        }
+        // The tile table's size follows from the dimensions; check it against the stored length before
+        // allocating anything of that size (a damaged width cannot ask for gigabytes).
+        let sizes = level_sizes(width, height);
+        let count: u64 = sizes
+            .iter()
+            .map(|&(w, hh)| u64::from(w.div_ceil(tile)) * u64::from(hh.div_ceil(tile)))
+            .sum();
+        let need = (FIXED + 8 * sizes.len() + 4) as u64 + TILE_ENTRY as u64 * count;
+        if need != len as u64 {
+            return Err(bad(format!(
+                "header length {len}, a {width} x {height} package in {tile}-sample tiles needs {need}"
+            )));
+        }
+        let mut h = Self::new(width, height, spacing, origin, quantum, codec, tile);
+        h.max_error = max_error;
+        if nl as usize != h.levels.len() {
+            return Err(bad(format!(
+                "{nl} levels, a {width} x {height} pyramid has {}",
+                h.levels.len()
+            )));
+        }
+        for (k, l) in h.levels.iter().enumerate() {
+            let (w, hh) = (r.u32().ok_or_else(trunc)?, r.u32().ok_or_else(trunc)?);
+            if (w, hh) != (l.width, l.height) {
+                return Err(bad(format!(
+                    "level {k} is {w} x {hh}, expected {} x {}",
+                    l.width, l.height
+                )));
+            }
+        }
+        for t in h.tiles.iter_mut() {
+            let offset = r.u64().ok_or_else(trunc)?;
+            let tlen = r.u32().ok_or_else(trunc)?;
+            let crc = r.u32().ok_or_else(trunc)?;
+            *t = TileEntry {
+                offset,
+                len: tlen,
+                crc,
+            };
+        }
+        for (k, l) in h.levels.iter().enumerate() {
+            for ty in 0..l.tiles_y {
+                for tx in 0..l.tiles_x {
+                    let t = h.tiles[l.first_tile + (ty * l.tiles_x + tx) as usize];
+                    let end = t.offset.checked_add(u64::from(t.len));
+                    if t.offset < len as u64 || t.len < 2 || end.is_none_or(|e| e > file_len) {
+                        return Err(Error::format(
+                            path,
+                            format!(
+                                "level {k} tile ({tx}, {ty}): bytes {}..+{} lie outside the file's \
+                                 {file_len} bytes of tile data (truncated file?)",
+                                t.offset, t.len
+                            ),
+                        ));
+                    }
+                }
+            }
+        }
+        Ok(h)
+    }
+
+    /// The header's length as stored in its first 16 bytes, for reading the rest; `None` if not a package.
+    pub fn peek_len(bytes: &[u8]) -> Option<usize> {
+        if bytes.len() < 16 || bytes[..8] != MAGIC {
+            return None;
+        }
+        Some(u32::from_le_bytes(bytes[12..16].try_into().ok()?) as usize)
+    }
+
+    /// Tile (tx, ty) of level `level`: its entry, or `None` outside the level's tile grid.
+    pub fn tile(&self, level: usize, tx: u32, ty: u32) -> Option<TileEntry> {
+        let l = self.levels.get(level)?;
+        (tx < l.tiles_x && ty < l.tiles_y)
+            .then(|| self.tiles[l.first_tile + (ty * l.tiles_x + tx) as usize])
+    }
+
+    /// The sample rectangle (x0, y0, w, h) of tile (tx, ty) of `level`: edge tiles are cropped to the level.
+    pub fn tile_rect(&self, level: usize, tx: u32, ty: u32) -> (u32, u32, u32, u32) {
+        let l = &self.levels[level];
+        let (x0, y0) = (tx * self.tile, ty * self.tile);
+        (
+            x0,
+            y0,
+            self.tile.min(l.width - x0),
+            self.tile.min(l.height - y0),
+        )
+    }
+}
+
+/// A cursor over little-endian fields.
+struct Reader<'a> {
+    bytes: &'a [u8],
+    at: usize,
+}
+
+impl<'a> Reader<'a> {
+    fn take(&mut self, n: usize) -> Option<&'a [u8]> {
+        let s = self.bytes.get(self.at..self.at.checked_add(n)?)?;
+        self.at += n;
+        Some(s)
+    }
+    fn u32(&mut self) -> Option<u32> {
+        Some(u32::from_le_bytes(self.take(4)?.try_into().ok()?))
+    }
+    fn u64(&mut self) -> Option<u64> {
+        Some(u64::from_le_bytes(self.take(8)?.try_into().ok()?))
+    }
+    fn f32(&mut self) -> Option<f32> {
+        Some(f32::from_le_bytes(self.take(4)?.try_into().ok()?))
+    }
+    fn f64(&mut self) -> Option<f64> {
+        Some(f64::from_le_bytes(self.take(8)?.try_into().ok()?))
+    }
+}

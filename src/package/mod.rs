@@ -1,0 +1,19 @@
+//! Stage 1b, the package: a single-file, compressed, tiled terrain (GC section 7) and its fixed tile cache.
+//!
+//! - [`format`]: the header (magic, version, dimensions, spacing, origin, quantum, codec, tile table with
+//!   per-tile offsets and CRC-32s).
+//! - [`codec`]: the integer 4-point prediction U and the tile codec (zigzag byte planes under zstd or lz4).
+//! - [`write`]: `clipsat bake`, heightmap -> residual pyramid quantised with one absolute step.
+//! - [`read`]: validated reading through a memory map; damaged files are errors naming the tile.
+//! - [`cache`]: the tile cache allocated once from `budget.cpu_memory_bytes`, decoding under a sample budget.
+
+pub mod cache;
+pub mod codec;
+pub mod format;
+pub mod read;
+pub mod write;
+
+pub use cache::{CacheSplit, CacheStats, TileCache};
+pub use format::{CodecKind, Header};
+pub use read::{is_package, Package, TileDecoder};
+pub use write::{bake, default_max_error, BakeOptions, BakeReport};

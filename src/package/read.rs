@@ -1,0 +1,218 @@
+//! Stage 1b, the package: validated reading of a `.clipsat` file through a memory map.
+//!
+//! [`Package::open`] checks the header (magic, version, checksum, dimensions, tile table inside the file);
+//! [`Package::decode_tile`] checks a tile's CRC-32 before decoding it and its decoded length after. Any
+//! mismatch is an [`Error::Format`] naming the file, the level and the tile.
+
+use std::path::{Path, PathBuf};
+
+use super::codec::{Decoder, Predictor};
+use super::format::Header;
+use crate::{Error, Heightmap, Result};
+
+/// An open package: the validated header and a read-only map of the file.
+pub struct Package {
+    path: PathBuf,
+    header: Header,
+    map: memmap2::Mmap,
+}
+
+impl std::fmt::Debug for Package {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Package")
+            .field("path", &self.path)
+            .field("header", &self.header)
+            .finish_non_exhaustive()
+    }
+}
+
+/// Scratch for decoding tiles of one package without allocating: the codec state, residuals, prediction.
+pub struct TileDecoder {
+    decoder: Decoder,
+    predictor: Predictor,
+    pred: Vec<i64>,
+}
+
+impl TileDecoder {
+    /// The byte size of this scratch for a package with tile side `tile` (for memory budgets).
+    pub fn bytes(tile: u32) -> u64 {
+        let t = u64::from(tile);
+        let p = t / 2 + 4;
+        // Planes (4 B/sample), prediction (8 B/sample), gathered and row scratch (8 B each).
+        4 * t * t + 8 * t * t + 8 * p * p + 8 * p * t
+    }
+}
+
+/// True when `path` starts with the package magic (so any extension works, `.clipsat` by convention).
+pub fn is_package(path: &Path) -> bool {
+    use std::io::Read;
+    let mut magic = [0u8; 8];
+    std::fs::File::open(path)
+        .and_then(|mut f| f.read_exact(&mut magic))
+        .is_ok_and(|()| magic == super::format::MAGIC)
+}
+
+impl Package {
+    /// Maps and validates the package at `path`.
+    pub fn open(path: &Path) -> Result<Self> {
+        let file = std::fs::File::open(path).map_err(|e| Error::io(path, "cannot open", e))?;
+        let len = file
+            .metadata()
+            .map_err(|e| Error::io(path, "cannot read", e))?
+            .len();
+        // SAFETY: the map is read-only and private to this process; a file truncated underneath it by
+        // another process is outside what any reader can defend against (the same holds for read(2)).
+        let map =
+            unsafe { memmap2::Mmap::map(&file) }.map_err(|e| Error::io(path, "cannot map", e))?;
+        if Header::peek_len(&map).is_none() {
+            return Err(Error::format(
+                path,
+                "not a clipsat package (bad magic or shorter than its header)",
+            ));
+        }
+        let header = Header::parse(path, &map, len)?;
+        Ok(Self {
+            path: path.to_path_buf(),
+            header,
+            map,
+        })
+    }
+
+    /// The validated header.
+    pub fn header(&self) -> &Header {
+        &self.header
+    }
+
+    /// The file.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Bytes of the file.
+    pub fn file_bytes(&self) -> u64 {
+        self.map.len() as u64
+    }
+
+    /// Decoding scratch for this package's tiles (allocates once).
+    pub fn tile_decoder(&self) -> Result<TileDecoder> {
+        let t = self.header.tile as usize;
+        Ok(TileDecoder {
+            decoder: Decoder::new(self.header.codec, t * t)
+                .map_err(|e| Error::io(&self.path, "cannot start the tile decoder", e))?,
+            predictor: Predictor::new(self.header.tile),
+            pred: vec![0; t * t],
+        })
+    }
+
+    /// Decodes tile (tx, ty) of `level` into `out` (tw * th heights in quantum units, row-major), with the
+    /// coarser level's reconstructed heights from `coarse` (clamped to that level by the caller; never
+    /// called for the coarsest level). Allocation-free.
+    pub fn decode_tile(
+        &self,
+        scratch: &mut TileDecoder,
+        level: usize,
+        (tx, ty): (u32, u32),
+        coarse: impl Fn(i64, i64) -> i64,
+        out: &mut [i32],
+    ) -> Result<()> {
+        let bad = |reason: &str| {
+            Error::format(
+                &self.path,
+                format!("level {level} tile ({tx}, {ty}): {reason}"),
+            )
+        };
+        let entry = self
+            .header
+            .tile(level, tx, ty)
+            .ok_or_else(|| bad("no such tile"))?;
+        let (x0, y0, tw, th) = self.header.tile_rect(level, tx, ty);
+        let n = tw as usize * th as usize;
+        let out = out
+            .get_mut(..n)
+            .ok_or_else(|| bad("output smaller than the tile"))?;
+        // The header validated offset + len against the file length.
+        let start = usize::try_from(entry.offset).map_err(|_| bad("offset beyond memory"))?;
+        let payload = &self.map[start..start + entry.len as usize];
+        if crc32fast::hash(payload) != entry.crc {
+            return Err(bad("checksum mismatch (damaged tile)"));
+        }
+        scratch.decoder.decode(payload, out).map_err(bad)?;
+        if level + 1 == self.header.levels.len() {
+            return Ok(());
+        }
+        let pred = &mut scratch.pred[..n];
+        scratch.predictor.predict(
+            coarse,
+            (i64::from(x0), i64::from(y0)),
+            (tw as usize, th as usize),
+            pred,
+        );
+        for (o, &p) in out.iter_mut().zip(pred.iter()) {
+            *o = i64::from(*o)
+                .checked_add(p)
+                .and_then(|v| i32::try_from(v).ok())
+                .ok_or_else(|| bad("reconstructed height out of range"))?;
+        }
+        Ok(())
+    }
+
+    /// Decodes the whole pyramid, coarse to fine, and returns level 0 in quantum units (allocates the
+    /// terrain: for tools and tests, not for streaming).
+    pub fn decode_level0(&self) -> Result<Vec<i32>> {
+        let mut scratch = self.tile_decoder()?;
+        let levels = &self.header.levels;
+        let mut coarse: Vec<i32> = Vec::new();
+        let (mut cw, mut ch) = (0i64, 0i64);
+        let mut tile = vec![0i32; self.header.tile as usize * self.header.tile as usize];
+        for lk in (0..levels.len()).rev() {
+            let d = levels[lk];
+            let mut level = vec![0i32; d.width as usize * d.height as usize];
+            for ty in 0..d.tiles_y {
+                for tx in 0..d.tiles_x {
+                    let c = |a: i64, b: i64| -> i64 {
+                        if cw == 0 {
+                            return 0;
+                        }
+                        #[expect(
+                            clippy::cast_possible_truncation,
+                            reason = "clamped into the level"
+                        )]
+                        let idx = (b.clamp(0, ch - 1) * cw + a.clamp(0, cw - 1)) as usize;
+                        i64::from(coarse[idx])
+                    };
+                    self.decode_tile(&mut scratch, lk, (tx, ty), c, &mut tile)?;
+                    let (x0, y0, tw, th) = self.header.tile_rect(lk, tx, ty);
+                    for (r, row) in tile[..(tw * th) as usize]
+                        .chunks_exact(tw as usize)
+                        .enumerate()
+                    {
+                        let at = (y0 as usize + r) * d.width as usize + x0 as usize;
+                        level[at..at + tw as usize].copy_from_slice(row);
+                    }
+                }
+            }
+            coarse = level;
+            (cw, ch) = (i64::from(d.width), i64::from(d.height));
+        }
+        Ok(coarse)
+    }
+
+    /// Height in metres of `k` quantum units, as every reader converts it.
+    #[inline]
+    pub fn metres(&self, k: i32) -> f32 {
+        #[expect(clippy::cast_possible_truncation, reason = "heights are f32")]
+        let h = (f64::from(k) * self.header.quantum) as f32;
+        h
+    }
+
+    /// The decoded level 0 as a [`Heightmap`] (allocates the whole terrain; the non-streaming path).
+    pub fn to_heightmap(&self) -> Result<Heightmap> {
+        let k = self.decode_level0()?;
+        let heights = k.into_iter().map(|v| self.metres(v)).collect();
+        let h = &self.header;
+        Ok(
+            Heightmap::new(&self.path, h.width, h.height, h.spacing, heights)?
+                .with_origin(h.origin.0, h.origin.1),
+        )
+    }
+}

@@ -1,0 +1,302 @@
+//! Stage 1b, the package: the bake, heightmap -> quantised residual pyramid in compressed tiles (GC section 7).
+//!
+//! The pyramid is the project's own (binomial filter D, [`crate::bake::pyramid::Pyramid`]). Every level is
+//! quantised with one absolute step q (GC section 7: one step for all levels, so the error of the rendered
+//! surface is bounded by q/2 whichever level a ring shows). Coarse to fine, level l is stored as
+//! r_l = k_l - U(k~_{l+1}): since the prediction uses the reconstructed coarser level and the arithmetic is
+//! exact, the decoder rebuilds k~_l = k_l exactly and every level's error stays within q/2.
+
+use std::io::Write;
+use std::path::Path;
+
+use super::codec::{Encoder, Predictor};
+use super::format::{CodecKind, Header, TileEntry};
+use crate::bake::pyramid::Pyramid;
+use crate::{Error, Heightmap, Result};
+
+/// Default tile side, samples: 64 x 64 = 4096 samples fits the smallest profile's per-frame update budget
+/// (gles3-low, 8192 samples), so a tile can always be decoded inside one frame.
+pub const DEFAULT_TILE: u32 = 64;
+
+/// Default zstd level: 19 is 3-10% smaller than level 3 on the shared terrains (Puget Sound 1k 1.62 vs
+/// 1.70 B/sample, Kossou 0.56 vs 0.62; `clipsat bake --zstd-level`); the bake time is paid once and zstd
+/// decodes at the same speed whatever the level.
+pub const DEFAULT_ZSTD_LEVEL: i32 = 19;
+
+/// The default error bound for a float source whose samples sit on no decimal lattice, metres: a 1 cm
+/// quantum. It is below the vertical accuracy of any DEM (airborne lidar is ~5-10 cm RMSE), ten times finer
+/// than the decimetre PNGs, and f32 itself only resolves ~0.25 mm at 4000 m.
+pub const FLOAT_MAX_ERROR: f64 = 0.005;
+
+/// Largest |k| stored: heights / q must fit well inside i32 so the prediction sums cannot overflow.
+const MAX_UNITS: f64 = (1u64 << 30) as f64;
+
+/// How to bake.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BakeOptions {
+    /// The absolute error bound, metres (the quantum is twice it); `None`: [`default_max_error`].
+    pub max_error: Option<f64>,
+    /// Tile codec.
+    pub codec: CodecKind,
+    /// Tile side, samples (even, 4..=4096).
+    pub tile: u32,
+    /// zstd compression level (1..=22).
+    pub zstd_level: i32,
+}
+
+impl Default for BakeOptions {
+    fn default() -> Self {
+        Self {
+            max_error: None,
+            codec: CodecKind::Zstd,
+            tile: DEFAULT_TILE,
+            zstd_level: DEFAULT_ZSTD_LEVEL,
+        }
+    }
+}
+
+/// What a bake wrote and how close it is to the source.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct BakeReport {
+    /// Bytes of the whole file.
+    pub bytes: u64,
+    /// Bytes of the tile payloads alone (the pyramid).
+    pub tile_bytes: u64,
+    /// Level-0 samples.
+    pub samples: u64,
+    /// bytes / samples.
+    pub bytes_per_sample: f64,
+    /// The quantum q, metres.
+    pub quantum: f64,
+    /// The bound asked for, q/2, metres.
+    pub max_error_bound: f64,
+    /// RMS of (decoded level 0 - source), metres.
+    pub rms_error: f64,
+    /// Largest |decoded level 0 - source|, metres.
+    pub max_error: f64,
+    /// Levels stored.
+    pub levels: usize,
+    /// Tiles stored.
+    pub tiles: usize,
+    /// Codec.
+    pub codec: CodecKind,
+    /// Tile side.
+    pub tile: u32,
+}
+
+/// The source's own quantum, if its samples sit on one: 1 m (integer metres: .hgt, int16 GeoTIFF) or 0.1 m
+/// (decimetre u16 PNGs); `None` for float data.
+pub fn source_quantum(terrain: &Heightmap) -> Option<f64> {
+    [1.0, 0.1].into_iter().find(|&q| {
+        terrain.heights().iter().all(|&h| {
+            let k = (f64::from(h) / q).round();
+            #[expect(
+                clippy::cast_possible_truncation,
+                reason = "compared in f32, as stored"
+            )]
+            let back = (k * q) as f32;
+            (back - h).abs() <= 2.0 * f32::EPSILON * h.abs().max(1.0)
+        })
+    })
+}
+
+/// The default `--max-error`: half the source's own quantum (lossless in effect), or [`FLOAT_MAX_ERROR`].
+pub fn default_max_error(terrain: &Heightmap) -> f64 {
+    source_quantum(terrain).map_or(FLOAT_MAX_ERROR, |q| q * 0.5)
+}
+
+/// Bakes `terrain` into the package file `out`, advancing `bar` by samples coded.
+pub fn bake(
+    terrain: &Heightmap,
+    out: &Path,
+    opts: &BakeOptions,
+    bar: &indicatif::ProgressBar,
+) -> Result<BakeReport> {
+    let max_error = opts.max_error.unwrap_or_else(|| default_max_error(terrain));
+    if !(max_error.is_finite() && max_error > 0.0) {
+        return Err(Error::Arg {
+            arg: "--max-error".into(),
+            reason: format!("{max_error} m must be finite and positive"),
+        });
+    }
+    if !(4..=4096).contains(&opts.tile) || !opts.tile.is_multiple_of(2) {
+        return Err(Error::Arg {
+            arg: "--tile".into(),
+            reason: format!("{} is not an even size in 4..=4096", opts.tile),
+        });
+    }
+    let q = 2.0 * max_error;
+    let (lo, hi) = terrain.range();
+    let units = f64::from(lo.abs().max(hi.abs())) / q;
+    if units >= MAX_UNITS {
+        return Err(Error::Arg {
+            arg: "--max-error".into(),
+            reason: format!(
+                "{max_error} m is too fine for heights up to {} m (at most 2^30 steps)",
+                lo.abs().max(hi.abs())
+            ),
+        });
+    }
+    let mut header = Header::new(
+        terrain.width(),
+        terrain.height(),
+        terrain.spacing(),
+        terrain.origin(),
+        q,
+        opts.codec,
+        opts.tile,
+    );
+    header.max_error = max_error;
+    let mut encoder = Encoder::new(opts.codec, opts.zstd_level)
+        .map_err(|e| Error::io(out, "cannot start the tile encoder", e))?;
+    let file = std::fs::File::create(out).map_err(|e| Error::io(out, "cannot create", e))?;
+    let mut file = std::io::BufWriter::new(file);
+    // Reserve the header; the tile table is written over it at the end.
+    let head_len = header.byte_len();
+    file.write_all(&vec![0u8; head_len])
+        .map_err(|e| Error::io(out, "cannot write", e))?;
+    let mut offset = head_len as u64;
+    let total: u64 = header
+        .levels
+        .iter()
+        .map(|l| u64::from(l.width) * u64::from(l.height))
+        .sum();
+    bar.set_length(total);
+    let mut table = header.tiles.clone();
+    let (sq, worst) = residual_tiles(terrain, &header, |lk, (tx, ty), residuals| {
+        let dims = header.levels[lk];
+        let payload = encoder
+            .encode(residuals)
+            .map_err(|e| Error::io(out, "cannot compress a tile", e))?;
+        file.write_all(&payload)
+            .map_err(|e| Error::io(out, "cannot write", e))?;
+        let len = u32::try_from(payload.len()).expect("a tile payload is under 4 GiB");
+        table[dims.first_tile + (ty * dims.tiles_x + tx) as usize] = TileEntry {
+            offset,
+            len,
+            crc: crc32fast::hash(&payload),
+        };
+        offset += u64::from(len);
+        bar.inc(residuals.len() as u64);
+        Ok(())
+    })?;
+    header.tiles = table;
+    let bytes = header.to_bytes();
+    let mut file = file
+        .into_inner()
+        .map_err(|e| Error::io(out, "cannot write", e.into_error()))?;
+    use std::io::Seek;
+    file.seek(std::io::SeekFrom::Start(0))
+        .and_then(|_| file.write_all(&bytes))
+        .and_then(|()| file.sync_all())
+        .map_err(|e| Error::io(out, "cannot write", e))?;
+    bar.finish_and_clear();
+    let samples = header.samples();
+    #[expect(clippy::cast_precision_loss, reason = "a ratio for reports")]
+    Ok(BakeReport {
+        bytes: offset,
+        tile_bytes: offset - head_len as u64,
+        samples,
+        bytes_per_sample: offset as f64 / samples as f64,
+        quantum: q,
+        max_error_bound: max_error,
+        rms_error: (sq / samples as f64).sqrt(),
+        max_error: worst,
+        levels: header.levels.len(),
+        tiles: header.tiles.len(),
+        codec: opts.codec,
+        tile: opts.tile,
+    })
+}
+
+/// The residual tiles of the package `header` describes for `terrain`, coarse to fine, each handed to `f`
+/// as (level, (tx, ty), residuals row-major); returns (sum of squared, largest) level-0 errors in metres.
+///
+/// Closed loop (GC section 7): the prediction reads the coarser level's quantised samples, which is
+/// exactly what the decoder reconstructs.
+pub fn residual_tiles(
+    terrain: &Heightmap,
+    header: &Header,
+    mut f: impl FnMut(usize, (u32, u32), &[i32]) -> Result<()>,
+) -> Result<(f64, f64)> {
+    let q = header.quantum;
+    let pyramid = Pyramid::build(terrain);
+    assert_eq!(
+        pyramid.len(),
+        header.levels.len(),
+        "the header's level sizes follow Pyramid::build"
+    );
+    let quantise = |h: f32| -> i64 {
+        #[expect(
+            clippy::cast_possible_truncation,
+            reason = "|h / q| < 2^30, checked by bake"
+        )]
+        let k = (f64::from(h) / q).round() as i64;
+        k
+    };
+    let (mut sq, mut worst) = (0.0f64, 0.0f64);
+    let mut residuals = Vec::new();
+    let mut predictor = Predictor::new(header.tile);
+    let mut pred = vec![0i64; header.tile as usize * header.tile as usize];
+    // Coarse to fine: k~ of the coarser level is its quantised samples (exact reconstruction).
+    let mut coarse_k: Vec<i64> = Vec::new();
+    let (mut coarse_w, mut coarse_h) = (0usize, 0usize);
+    for lk in (0..header.levels.len()).rev() {
+        let dims = header.levels[lk];
+        let w = dims.width as usize;
+        let k: Vec<i64> = pyramid
+            .level(lk)
+            .heights()
+            .iter()
+            .map(|&v| quantise(v))
+            .collect();
+        let coarse = |a: i64, b: i64| -> i64 {
+            if coarse_w == 0 {
+                return 0;
+            }
+            #[expect(clippy::cast_possible_truncation, reason = "clamped into the level")]
+            let (x, y) = (
+                a.clamp(0, coarse_w as i64 - 1) as usize,
+                b.clamp(0, coarse_h as i64 - 1) as usize,
+            );
+            coarse_k[y * coarse_w + x]
+        };
+        for ty in 0..dims.tiles_y {
+            for tx in 0..dims.tiles_x {
+                let (x0, y0, tw, th) = header.tile_rect(lk, tx, ty);
+                let n = tw as usize * th as usize;
+                predictor.predict(
+                    coarse,
+                    (i64::from(x0), i64::from(y0)),
+                    (tw as usize, th as usize),
+                    &mut pred[..n],
+                );
+                residuals.clear();
+                for (jj, prow) in pred[..n].chunks_exact(tw as usize).enumerate() {
+                    let start = (y0 as usize + jj) * w + x0 as usize;
+                    for (&kk, &p) in k[start..start + tw as usize].iter().zip(prow) {
+                        let r = i32::try_from(kk - p).map_err(|_| Error::Arg {
+                            arg: "--max-error".into(),
+                            reason: format!("{} m gives residuals beyond i32", header.max_error),
+                        })?;
+                        residuals.push(r);
+                    }
+                }
+                f(lk, (tx, ty), &residuals)?;
+            }
+        }
+        if lk == 0 {
+            for (&kk, &src) in k.iter().zip(terrain.heights()) {
+                #[expect(clippy::cast_precision_loss, reason = "|k| < 2^30")]
+                #[expect(clippy::cast_possible_truncation, reason = "heights are f32")]
+                let decoded = (kk as f64 * q) as f32;
+                let e = f64::from(decoded) - f64::from(src);
+                sq += e * e;
+                worst = worst.max(e.abs());
+            }
+        }
+        coarse_k = k;
+        (coarse_w, coarse_h) = (w, dims.height as usize);
+    }
+    Ok((sq, worst))
+}

@@ -1,0 +1,265 @@
+//! Stage 1b, the package: round trips within `--max-error` on every shared terrain, damaged packages as
+//! errors naming the tile, and the tile cache under a sample budget.
+
+#![expect(
+    clippy::cast_possible_truncation,
+    reason = "test offsets and indices of small packages fit usize"
+)]
+
+use std::path::{Path, PathBuf};
+
+use clipsat::package::{self, BakeOptions, CodecKind, Package, TileCache};
+use clipsat::source::{self, LoadOptions};
+use clipsat::{Error, Heightmap};
+
+/// Every shared terrain, with the spacing a PNG needs and the default bound the bake must pick.
+const SHARED: [(&str, Option<f32>, f64); 8] = [
+    ("ps_height_1k.png", Some(160.0), 0.05),
+    ("srtm_bigtujunga30m_utm11.tif", None, 0.5),
+    ("srtm_bigtujunga30m_utm11_u16dm.png", Some(30.0), 0.5),
+    ("n07_w006_3arc_v2.tif", None, 0.5),
+    ("n07_w006_3arc_v2_u16dm.png", Some(92.0), 0.5),
+    ("N57E011.hgt", None, 0.5),
+    (
+        "lidar_pkg_dem_1m_400x400.tif",
+        None,
+        package::write::FLOAT_MAX_ERROR,
+    ),
+    ("aletsch_200m.tif", None, package::write::FLOAT_MAX_ERROR),
+];
+
+/// A shared terrain, or `None` (with a printed reason) when the data is missing outside CI.
+fn shared(name: &str, spacing: Option<f32>) -> Option<Heightmap> {
+    let path = clipsat::data_dir().join(name);
+    if !path.is_file() {
+        let msg = format!("shared data file {} is missing", path.display());
+        assert!(
+            std::env::var("CI").as_deref() != Ok("true"),
+            "{msg} (CI=true requires it; set CLIPSAT_DATA)"
+        );
+        eprintln!("skipping: {msg}");
+        return None;
+    }
+    let opts = LoadOptions {
+        spacing,
+        ..LoadOptions::default()
+    };
+    Some(source::load(&path, &opts).unwrap_or_else(|e| panic!("{name}: {e}")))
+}
+
+fn temp(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("clipsat-package-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    dir.join(name)
+}
+
+fn bake(hm: &Heightmap, out: &Path, opts: &BakeOptions) -> package::BakeReport {
+    package::bake(hm, out, opts, &indicatif::ProgressBar::hidden()).expect("bake")
+}
+
+/// Decodes the package and checks every level-0 sample within the bound (plus one f32 rounding).
+fn assert_round_trip(name: &str, hm: &Heightmap, path: &Path, bound: f64) {
+    let back = Package::open(path)
+        .and_then(|p| p.to_heightmap())
+        .unwrap_or_else(|e| panic!("{name}: {e}"));
+    assert_eq!((back.width(), back.height()), (hm.width(), hm.height()));
+    assert_eq!(back.spacing(), hm.spacing());
+    assert_eq!(back.origin(), hm.origin());
+    for (k, (&a, &b)) in back.heights().iter().zip(hm.heights()).enumerate() {
+        let slack = f64::from(f32::EPSILON * b.abs().max(1.0));
+        let e = (f64::from(a) - f64::from(b)).abs();
+        assert!(
+            e <= bound + slack,
+            "{name}: sample {k} decoded {a}, source {b}: error {e} over {bound}"
+        );
+    }
+}
+
+#[test]
+fn shared_terrains_round_trip_within_the_default_bound() {
+    for (name, spacing, bound) in SHARED {
+        let Some(hm) = shared(name, spacing) else {
+            continue;
+        };
+        assert_eq!(package::default_max_error(&hm), bound, "{name}");
+        let out = temp(&format!("{name}.clipsat"));
+        let r = bake(&hm, &out, &BakeOptions::default());
+        // The bound is exact in metres; the decoded f32 adds at most half an ulp of the height.
+        let (lo, hi) = hm.range();
+        let slack = f64::from(f32::EPSILON * lo.abs().max(hi.abs()));
+        assert!(r.max_error <= bound + slack, "{name}: {r:?}");
+        assert_round_trip(name, &hm, &out, bound);
+        let _ = std::fs::remove_file(&out);
+    }
+}
+
+#[test]
+fn lossy_bounds_hold_for_both_codecs() {
+    let hm = synthetic(200, 131);
+    for codec in CodecKind::ALL {
+        for max_error in [0.01, 0.5, 2.0] {
+            let out = temp(&format!("lossy-{}-{max_error}.clipsat", codec.name()));
+            let opts = BakeOptions {
+                max_error: Some(max_error),
+                codec,
+                tile: 32,
+                zstd_level: 3,
+            };
+            let r = bake(&hm, &out, &opts);
+            assert!(
+                r.max_error <= max_error + 1e-4,
+                "{codec:?} {max_error}: {r:?}"
+            );
+            assert_round_trip("procedural", &hm, &out, max_error);
+            let _ = std::fs::remove_file(&out);
+        }
+    }
+}
+
+/// A non-square, non-2^k+1 float terrain with relief at several scales.
+fn synthetic(w: u32, h: u32) -> Heightmap {
+    let heights = (0..w * h)
+        .map(|k| {
+            let (x, y) = (f64::from(k % w), f64::from(k / w));
+            let z =
+                900.0 + 300.0 * (x / 23.0).sin() * (y / 17.0).cos() + 7.3 * ((x * y) / 5.0).sin();
+            #[expect(clippy::cast_possible_truncation, reason = "heights are f32")]
+            let z = z as f32;
+            z
+        })
+        .collect();
+    Heightmap::new(Path::new("<synthetic>"), w, h, 25.0, heights)
+        .expect("terrain")
+        .with_origin(1000.0, -500.0)
+}
+
+/// A small package and its bytes, for damaging.
+fn small_package(name: &str, (w, h): (u32, u32)) -> (PathBuf, Vec<u8>, Heightmap) {
+    let hm = synthetic(w, h);
+    let out = temp(name);
+    let opts = BakeOptions {
+        tile: 16,
+        zstd_level: 3,
+        ..BakeOptions::default()
+    };
+    bake(&hm, &out, &opts);
+    let bytes = std::fs::read(&out).expect("read back");
+    (out, bytes, hm)
+}
+
+fn format_reason(r: clipsat::Result<impl std::fmt::Debug>) -> String {
+    match r {
+        Err(Error::Format { reason, .. }) => reason,
+        other => panic!("expected a format error, got {other:?}"),
+    }
+}
+
+#[test]
+fn damaged_packages_are_errors_naming_the_tile() {
+    let (path, good, _) = small_package("damaged.clipsat", (97, 75));
+    let header = Package::open(&path).expect("good package").header().clone();
+    let write = |bytes: &[u8]| std::fs::write(&path, bytes).expect("write");
+
+    // Truncated: the tile table points past the end; named by tile.
+    for cut in [good.len() - 1, good.len() / 2] {
+        write(&good[..cut]);
+        let reason = format_reason(Package::open(&path));
+        assert!(reason.contains("tile ("), "{reason}");
+    }
+    // Truncated inside the header, empty, or not a package.
+    for bytes in [&good[..40], &good[..0], b"GIF89a not a terrain".as_slice()] {
+        write(bytes);
+        assert!(Package::open(&path).is_err());
+    }
+    // A flipped byte in the header: its checksum.
+    let mut bad = good.clone();
+    bad[20] ^= 0x10;
+    write(&bad);
+    assert!(format_reason(Package::open(&path)).contains("checksum"));
+    // A wrong version.
+    let mut bad = good.clone();
+    bad[8] = 9;
+    write(&bad);
+    assert!(format_reason(Package::open(&path)).contains("version"));
+
+    // A flipped byte in each of a few tiles: the file opens, decoding names the tile.
+    for (level, t) in [(0usize, (0u32, 0u32)), (0, (3, 2)), (2, (1, 0))] {
+        let e = header.tile(level, t.0, t.1).expect("tile exists");
+        for at in [0u64, u64::from(e.len) / 2, u64::from(e.len) - 1] {
+            let mut bad = good.clone();
+            bad[(e.offset + at) as usize] ^= 0x04;
+            write(&bad);
+            let p = Package::open(&path).expect("the header is intact");
+            let reason = format_reason(p.to_heightmap());
+            let name = format!("level {level} tile ({}, {})", t.0, t.1);
+            assert!(reason.contains(&name), "{reason} should name {name}");
+        }
+    }
+    write(&good);
+    assert!(Package::open(&path).and_then(|p| p.to_heightmap()).is_ok());
+    let _ = std::fs::remove_file(&path);
+}
+
+#[test]
+fn cache_decodes_under_a_budget_and_matches_the_full_decode() {
+    let (path, _, _) = small_package("cache.clipsat", (300, 211));
+    let pkg = Package::open(&path).expect("open");
+    let full = pkg.decode_level0().expect("full decode");
+    let (w, h) = (pkg.header().width, pkg.header().height);
+    // 9 slots per level and a few more: far smaller than the terrain.
+    let levels = pkg.header().levels.len() as u64;
+    let split = package::CacheSplit::plan(pkg.header(), u64::MAX);
+    let budget_bytes =
+        split.header + split.map + split.decoder + (9 * levels + 4) * (16 * 16 * 4 + 64);
+    let mut cache = TileCache::new(pkg, budget_bytes, "test").expect("cache");
+    // One tile per frame at most (16 x 16 = 256 samples): fetches are refused, never half-done.
+    let mut frames = 0;
+    loop {
+        cache.begin_frame();
+        let mut budget = 256u64;
+        frames += 1;
+        if cache
+            .ensure_rect(0, (40, 40, 56, 56), &mut budget)
+            .expect("decode")
+        {
+            break;
+        }
+        assert!(frames < 100, "never became resident");
+    }
+    assert!(
+        frames > 1,
+        "a budget of one tile cannot fetch a tile and its parents in one frame"
+    );
+    for j in 40..56i64 {
+        for i in 40..56i64 {
+            let k = cache.units(0, i, j).expect("resident");
+            assert_eq!(k, full[(j * i64::from(w) + i) as usize], "({i}, {j})");
+        }
+    }
+    // Everything, frame by frame through a cache smaller than the terrain: every sample equals the full
+    // decode while resident.
+    for ty in 0..h.div_ceil(16) {
+        for tx in 0..w.div_ceil(16) {
+            cache.begin_frame();
+            let mut budget = u64::MAX;
+            assert!(cache.fetch(0, tx, ty, &mut budget).expect("fetch"));
+            let tile = cache.tile(0, tx, ty).expect("resident");
+            let tw = 16.min(w - tx * 16) as usize;
+            for (k, &v) in tile.iter().enumerate() {
+                let (i, j) = (tx as usize * 16 + k % tw, ty as usize * 16 + k / tw);
+                assert_eq!(v, full[j * w as usize + i]);
+            }
+        }
+    }
+    assert!(
+        cache.stats().evictions > 0,
+        "the cache is smaller than the terrain"
+    );
+    // Too small a budget is a config error naming the field.
+    let pkg = Package::open(&path).expect("open");
+    match TileCache::new(pkg, 1000, "tiny") {
+        Err(Error::Config { field, .. }) => assert_eq!(field, "budget.cpu_memory_bytes"),
+        other => panic!("expected a config error, got {other:?}"),
+    }
+    let _ = std::fs::remove_file(&path);
+}
