@@ -1,9 +1,9 @@
 //! Stage 1b, the package: a single-file, compressed, tiled terrain (GC section 7) and its fixed tile cache.
 //!
-//! - [`format`]: the header (magic, version, dimensions, spacing, origin, quantum, codec, tile table with
-//!   per-tile offsets and CRC-32s).
+//! - [`format`](mod@format): the header (magic, version, dimensions, spacing, origin, quantum, codec,
+//!   tile table with per-tile offsets and CRC-32s).
 //! - [`codec`]: the integer 4-point prediction U and the tile codec (zigzag byte planes under zstd or lz4).
-//! - [`write`]: `clipsat bake`, heightmap -> residual pyramid quantised with one absolute step.
+//! - [`write`](mod@write): `clipsat bake`, heightmap -> residual pyramid quantised with one absolute step.
 //! - [`read`]: validated reading through a memory map; damaged files are errors naming the tile.
 //! - [`cache`]: the tile cache allocated once from `budget.cpu_memory_bytes`, decoding under a sample budget.
 
