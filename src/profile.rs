@@ -59,7 +59,22 @@ pub struct FrameBudget {
     pub max_triangles: u32,
     /// Bytes of GPU memory everything created at start-up may take.
     pub gpu_memory_bytes: u64,
+    /// Bytes of CPU memory the terrain may take at runtime, whatever its size: the CPU copy of the rings
+    /// plus the package tile cache, which gets the rest ([`Profile::cpu_split`]).
+    pub cpu_memory_bytes: u64,
 }
+
+/// How a profile's `budget.cpu_memory_bytes` is split.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct CpuSplit {
+    /// The CPU copy of the rings: `clip_size^2 x levels` (z, z_c) f32 pairs.
+    pub rings: u64,
+    /// What is left for the package tile cache (header, tile map, decoder scratch and tile slots).
+    pub tile_cache: u64,
+}
+
+/// The smallest tile cache a profile may leave: 1 MiB (about 60 tiles of 64^2 samples).
+pub const MIN_TILE_CACHE_BYTES: u64 = 1 << 20;
 
 /// Viewport and accuracy target.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -277,6 +292,22 @@ impl Profile {
                 ),
             );
         }
+        let rings = u64::from(self.clip_size())
+            .checked_mul(u64::from(self.clip_size()))
+            .and_then(|t| t.checked_mul(u64::from(c.levels)))
+            .and_then(|t| t.checked_mul(8));
+        match rings.and_then(|r| r.checked_add(MIN_TILE_CACHE_BYTES)) {
+            Some(need) if need <= b.cpu_memory_bytes => {}
+            _ => return bad(
+                "budget.cpu_memory_bytes",
+                format!(
+                    "{} bytes do not hold the rings' CPU copy ({} bytes) plus a tile cache of at \
+                         least {MIN_TILE_CACHE_BYTES} bytes",
+                    b.cpu_memory_bytes,
+                    rings.map_or_else(|| "overflowing".to_owned(), |r| r.to_string())
+                ),
+            ),
+        }
         // Every part is bounded by the checks above (at most a few GiB), so the u64 sums cannot wrap.
         let need = self.footprint().total();
         if b.gpu_memory_bytes == 0 || need > b.gpu_memory_bytes {
@@ -289,6 +320,20 @@ impl Profile {
             );
         }
         Ok(())
+    }
+
+    /// How `budget.cpu_memory_bytes` is split between the rings' CPU copy and the tile cache (a validated
+    /// profile never saturates).
+    pub fn cpu_split(&self) -> CpuSplit {
+        let s = u64::from(self.clip_size());
+        let rings = s
+            .saturating_mul(s)
+            .saturating_mul(u64::from(self.clipmap.levels))
+            .saturating_mul(8);
+        CpuSplit {
+            rings,
+            tile_cache: self.budget.cpu_memory_bytes.saturating_sub(rings),
+        }
     }
 
     /// Side of the toroidal clip texture: n + 1 (GC's n plus the wrap row) plus the margin on each side.

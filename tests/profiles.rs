@@ -93,6 +93,8 @@ fn bad_values_name_their_field() {
         ("max_draws", "0", "budget.max_draws"),
         ("max_triangles", "0", "budget.max_triangles"),
         ("gpu_memory_bytes", "1000", "budget.gpu_memory_bytes"),
+        ("cpu_memory_bytes", "1000", "budget.cpu_memory_bytes"),
+        ("cpu_memory_bytes", "0", "budget.cpu_memory_bytes"),
         ("epsilon_px", "0.0", "view.epsilon_px"),
         ("epsilon_px", "nan", "view.epsilon_px"),
         ("width", "0", "view.width"),

@@ -159,12 +159,17 @@ impl Package {
     /// Decodes the whole pyramid, coarse to fine, and returns level 0 in quantum units (allocates the
     /// terrain: for tools and tests, not for streaming).
     pub fn decode_level0(&self) -> Result<Vec<i32>> {
+        self.decode_level(0)
+    }
+
+    /// Decodes levels coarse to fine down to `stop` and returns that level in quantum units (allocates it).
+    pub fn decode_level(&self, stop: usize) -> Result<Vec<i32>> {
         let mut scratch = self.tile_decoder()?;
         let levels = &self.header.levels;
         let mut coarse: Vec<i32> = Vec::new();
         let (mut cw, mut ch) = (0i64, 0i64);
         let mut tile = vec![0i32; self.header.tile as usize * self.header.tile as usize];
-        for lk in (0..levels.len()).rev() {
+        for lk in (stop.min(levels.len() - 1)..levels.len()).rev() {
             let d = levels[lk];
             let mut level = vec![0i32; d.width as usize * d.height as usize];
             for ty in 0..d.tiles_y {
@@ -203,6 +208,32 @@ impl Package {
         #[expect(clippy::cast_possible_truncation, reason = "heights are f32")]
         let h = (f64::from(k) * self.header.quantum) as f32;
         h
+    }
+
+    /// The finest level with at most `max_samples` samples as a [`Heightmap`] covering the same ground
+    /// (spacing 2^k times the data's, its south-west corner placed so the rows line up with the data's):
+    /// a bounded stand-in for the terrain where only its rough shape is needed (a camera path's clearance).
+    pub fn coarse_heightmap(&self, max_samples: u64) -> Result<Heightmap> {
+        let h = &self.header;
+        let k = h
+            .levels
+            .iter()
+            .position(|l| u64::from(l.width) * u64::from(l.height) <= max_samples)
+            .unwrap_or(h.levels.len() - 1);
+        let d = h.levels[k];
+        let heights = self
+            .decode_level(k)?
+            .into_iter()
+            .map(|v| self.metres(v))
+            .collect();
+        let scale = f64::from(1u32 << k);
+        let spacing = f64::from(h.spacing) * scale;
+        // Level row (height - 1) sits on data row (height - 1) 2^k, at or past the data's south edge.
+        let south =
+            (f64::from(d.height - 1) * scale - f64::from(h.height - 1)) * f64::from(h.spacing);
+        #[expect(clippy::cast_possible_truncation, reason = "a spacing in metres")]
+        let hm = Heightmap::new(&self.path, d.width, d.height, spacing as f32, heights)?;
+        Ok(hm.with_origin(h.origin.0, h.origin.1 - south))
     }
 
     /// The decoded level 0 as a [`Heightmap`] (allocates the whole terrain; the non-streaming path).

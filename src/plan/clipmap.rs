@@ -11,9 +11,13 @@
 use glam::DVec3;
 
 use crate::bake::pyramid::Pyramid;
+use crate::package::{Package, TileCache};
+use crate::plan::stream::HeightSource;
+
 use crate::hash::Hash64;
 use crate::plan::budget::{needed_samples, plan_level};
 use crate::plan::frame::{Frame, LevelFrame, LevelState, Rect, MAX_LEVELS};
+pub use crate::plan::morph::morph_alpha;
 use crate::plan::synthesis::{extrapolate_sigmas, synthesize, NoiseTable};
 use crate::plan::uploads::UploadStamps;
 use crate::{Error, Heightmap, Profile, Result};
@@ -138,9 +142,11 @@ pub enum ConstraintViolation {
 }
 
 /// The geometry clipmap: pyramid, rings, clip regions and the last frame's record.
-#[derive(Clone, Debug)]
+#[derive(Debug)]
 pub struct Clipmap {
-    pyramid: Pyramid,
+    source: HeightSource,
+    /// Samples decoded from the package in the last frame (0 for a resident pyramid).
+    decoded: u32,
     noise: NoiseTable,
     /// Noise amplitude per synthesised ring (index l < synth_levels); 0 elsewhere.
     sigmas: [f32; MAX_LEVELS],
@@ -167,6 +173,67 @@ pub struct Clipmap {
 impl Clipmap {
     /// Bakes the pyramid and allocates every ring from the profile; the only place that allocates.
     pub fn new(terrain: &Heightmap, profile: &Profile, opts: ClipmapOptions) -> Result<Self> {
+        let pyramid = Pyramid::build(terrain);
+        let mut sigmas = [0.0f32; MAX_LEVELS];
+        if opts.synth_levels > 0 {
+            let stds = [pyramid.residual_std(0), pyramid.residual_std(1)];
+            for (o, s) in sigmas
+                .iter_mut()
+                .zip(extrapolate_sigmas(&stds, opts.synth_levels))
+            {
+                *o = s;
+            }
+        }
+        let geometry = (terrain.spacing(), terrain.height(), terrain.origin());
+        Self::with_source(
+            HeightSource::Resident(pyramid),
+            geometry,
+            sigmas,
+            profile,
+            opts,
+        )
+    }
+
+    /// A clipmap streamed from a package: a tile cache allocated once from the profile's
+    /// `budget.cpu_memory_bytes` (less the rings), decoding under the per-frame sample budget. No
+    /// terrain-sized memory is allocated. Synthesised rings need the residual statistics of a resident
+    /// pyramid and are refused.
+    pub fn streamed(package: Package, profile: &Profile, opts: ClipmapOptions) -> Result<Self> {
+        profile.validate(&profile.name)?;
+        if opts.synth_levels > 0 {
+            return Err(Error::Arg {
+                arg: "--synth-levels".into(),
+                reason: "synthesised rings are not available on a streamed package".into(),
+            });
+        }
+        let h = package.header();
+        let tile = u64::from(h.tile) * u64::from(h.tile);
+        if u64::from(profile.budget.update_samples_per_frame) < tile {
+            return Err(Error::config(
+                &profile.name,
+                "budget.update_samples_per_frame",
+                format!(
+                    "{} samples cannot decode one {}-sample tile of {} in a frame",
+                    profile.budget.update_samples_per_frame,
+                    tile,
+                    package.path().display()
+                ),
+            ));
+        }
+        let geometry = (h.spacing, h.height, h.origin);
+        let cache = TileCache::new(package, profile.cpu_split().tile_cache, &profile.name)?;
+        let source = HeightSource::Streamed(Box::new(cache));
+        Self::with_source(source, geometry, [0.0; MAX_LEVELS], profile, opts)
+    }
+
+    /// The shared part of [`Clipmap::new`] and [`Clipmap::streamed`]: validation and the rings.
+    fn with_source(
+        source: HeightSource,
+        (spacing, rows, origin): (f32, u32, (f64, f64)),
+        sigmas: [f32; MAX_LEVELS],
+        profile: &Profile,
+        opts: ClipmapOptions,
+    ) -> Result<Self> {
         profile.validate(&profile.name)?;
         let levels = profile.clipmap.levels;
         let size = profile.clip_size();
@@ -189,17 +256,6 @@ impl Clipmap {
                 ),
             ));
         }
-        let pyramid = Pyramid::build(terrain);
-        let mut sigmas = [0.0f32; MAX_LEVELS];
-        if opts.synth_levels > 0 {
-            let stds = [pyramid.residual_std(0), pyramid.residual_std(1)];
-            for (o, s) in sigmas
-                .iter_mut()
-                .zip(extrapolate_sigmas(&stds, opts.synth_levels))
-            {
-                *o = s;
-            }
-        }
         let texels = size as usize * size as usize;
         let rings = (0..levels)
             .map(|_| Ring {
@@ -207,9 +263,10 @@ impl Clipmap {
                 texels: vec![[0.0; 2]; texels],
             })
             .collect();
-        let data_spacing = f64::from(terrain.spacing());
+        let data_spacing = f64::from(spacing);
         Ok(Self {
-            pyramid,
+            source,
+            decoded: 0,
             noise: NoiseTable::default(),
             sigmas,
             rings,
@@ -222,8 +279,8 @@ impl Clipmap {
             budget: profile.budget.update_samples_per_frame,
             g0: data_spacing / f64::from(1u32 << opts.synth_levels),
             data_spacing,
-            data_rows: terrain.height(),
-            origin: terrain.origin(),
+            data_rows: rows,
+            origin,
             frame: Frame::default(),
             next_index: 0,
             stamps: UploadStamps::new(levels, size),
@@ -255,9 +312,26 @@ impl Clipmap {
         self.synth
     }
 
-    /// The pyramid the rings are filled from.
+    /// The pyramid the rings are filled from. Panics for a streamed clipmap, which holds no pyramid (a
+    /// caller bug: check [`Clipmap::tile_cache`]).
     pub fn pyramid(&self) -> &Pyramid {
-        &self.pyramid
+        match &self.source {
+            HeightSource::Resident(p) => p,
+            HeightSource::Streamed(_) => panic!("a streamed clipmap holds no resident pyramid"),
+        }
+    }
+
+    /// The package tile cache of a streamed clipmap.
+    pub fn tile_cache(&self) -> Option<&TileCache> {
+        match &self.source {
+            HeightSource::Streamed(c) => Some(c),
+            HeightSource::Resident(_) => None,
+        }
+    }
+
+    /// Samples decoded from the package in the last frame, inside its update budget (0 if resident).
+    pub fn decoded_samples(&self) -> u32 {
+        self.decoded
     }
 
     /// Which frame last wrote each texel column and row of every ring: the rectangles a plan uploads
@@ -327,7 +401,7 @@ impl Clipmap {
 
     fn direct_z(&self, level: u32, i: i64, j: i64) -> f32 {
         if level >= self.synth {
-            self.pyramid.at(level - self.synth, i, j)
+            self.source.at(level - self.synth, i, j)
         } else {
             let coarse = |a: i64, b: i64| self.direct_z(level + 1, a, b);
             synthesize(
@@ -345,7 +419,7 @@ impl Clipmap {
     #[inline]
     fn texel(&self, level: u32, i: i64, j: i64, coarse: &impl Fn(i64, i64) -> f32) -> [f32; 2] {
         let z = if level >= self.synth {
-            self.pyramid.at(level - self.synth, i, j)
+            self.source.at(level - self.synth, i, j)
         } else {
             synthesize(
                 coarse,
@@ -380,18 +454,7 @@ impl Clipmap {
     /// The eye's height above the terrain (bilinear in the data, clamped at its edges), metres, >= 0.
     pub fn height_above_terrain(&self, eye: DVec3) -> f64 {
         let (u, v) = self.eye_grid(eye);
-        let (u0, v0) = (u.floor(), v.floor());
-        let (fu, fv) = (u - u0, v - v0);
-        #[expect(
-            clippy::cast_possible_truncation,
-            reason = "floor of a finite coordinate; clamped on lookup"
-        )]
-        let (iu, iv) = (u0 as i64, v0 as i64);
-        let l0 = self.pyramid.level(0);
-        let at = |a: i64, b: i64| f64::from(l0.at_clamped(a, b));
-        let a = at(iu, iv) * (1.0 - fu) + at(iu + 1, iv) * fu;
-        let b = at(iu, iv + 1) * (1.0 - fu) + at(iu + 1, iv + 1) * fu;
-        (eye.z - (a * (1.0 - fv) + b * fv)).max(0.0)
+        (eye.z - self.source.ground(u, v)).max(0.0)
     }
 
     /// Height (m) of the surface the last frame draws under the eye's xy: the finest enabled level whose
@@ -475,6 +538,8 @@ impl Clipmap {
         // level is never stale while a finer one is updated.
         let mut left = self.budget;
         let mut stopped = false;
+        self.source.begin_frame();
+        self.decoded = 0;
         for l in (0..self.levels).rev() {
             let li = l as usize;
             desired[li] = self.desired_active(l, p);
@@ -486,7 +551,25 @@ impl Clipmap {
                 complete[li] = self.valid[li] == d;
                 continue;
             }
-            let plan = plan_level(l, &self.valid[li], &d, self.size, left);
+            let mut plan = plan_level(l, &self.valid[li], &d, self.size, left);
+            // Streamed: first decode what the bands read, charged to the same budget; a level not resident
+            // yet is stale like an overrun (GC sections 5 and 7). The fill is then planned in what is left.
+            let mut spare = u64::from(left);
+            let k = l.saturating_sub(self.synth);
+            let mut ready = self.source.ensure_bands(k, &plan.bands, &mut spare)?;
+            let spent = left - u32::try_from(spare).expect("at most the budget left");
+            if spent > 0 && ready {
+                plan = plan_level(l, &self.valid[li], &d, self.size, left - spent);
+                // The smaller plan's bands lie inside the first one's: all hits, nothing charged.
+                ready = self.source.ensure_bands(k, &plan.bands, &mut spare)?;
+            }
+            self.decoded += spent;
+            left -= spent;
+            if !ready {
+                complete[li] = self.valid[li] == d;
+                stopped = true;
+                continue;
+            }
             for band in &plan.bands {
                 self.fill(l, band, &mut zsum);
             }
@@ -600,7 +683,7 @@ impl Clipmap {
             let coarser = this.rings.get(li + 1);
             let coarse = |a: i64, b: i64| -> f32 {
                 if pyramid_coarse {
-                    this.pyramid.at(level + 1 - this.synth, a, b)
+                    this.source.at(level + 1 - this.synth, a, b)
                 } else {
                     coarser
                         .expect("a synthesised ring has a coarser ring")
@@ -705,61 +788,9 @@ fn snap_even(r: &Rect) -> Rect {
     Rect::from_bounds(x0, y0, xl + 1, yl + 1)
 }
 
-/// The morph weight alpha of GC section 6.2 for a vertex of one level.
-///
-/// All quantities are in that level's lattice units: `(x, y)` the vertex, `viewer` the eye's (x, y)
-/// projected into the level, `active` the level's active region (x_min = active.x0, x_max = active.x1() - 1),
-/// `n` the ring size. With w = n / 10:
-///
-/// ```text
-/// alpha_x = clamp((|x - v_x| - ((x_max - x_min) / 2 - w - 1)) / w, 0, 1)
-/// alpha   = max(alpha_x, alpha_y)
-/// ```
-///
-/// so alpha is 0 in the interior and reaches 1 over the last w samples before the outer boundary, where the
-/// vertex takes the coarser level's surface z_c: z' = (1 - alpha) z + alpha z_c. The vertex shader mirrors
-/// this expression in f32 operation for operation.
-pub fn morph_alpha(x: f32, y: f32, viewer: [f32; 2], active: &Rect, n: u32) -> f32 {
-    #[expect(
-        clippy::cast_precision_loss,
-        reason = "active widths are at most 2048, exact in f32"
-    )]
-    let (half_x, half_y) = ((active.w as f32 - 1.0) * 0.5, (active.h as f32 - 1.0) * 0.5);
-    #[expect(clippy::cast_precision_loss, reason = "n < 2048, exact in f32")]
-    let w = n as f32 / 10.0;
-    let ax = (((x - viewer[0]).abs() - (half_x - w - 1.0)) / w).clamp(0.0, 1.0);
-    let ay = (((y - viewer[1]).abs() - (half_y - w - 1.0)) / w).clamp(0.0, 1.0);
-    ax.max(ay)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn morph_alpha_interior_boundary_continuous() {
-        let n = 63;
-        let a = Rect {
-            x0: 0,
-            y0: 0,
-            w: n,
-            h: n,
-        };
-        let v = [31.0, 31.0];
-        assert_eq!(morph_alpha(31.0, 31.0, v, &a, n), 0.0);
-        assert_eq!(morph_alpha(20.0, 40.0, v, &a, n), 0.0);
-        assert_eq!(morph_alpha(0.0, 31.0, v, &a, n), 1.0);
-        assert_eq!(morph_alpha(31.0, 62.0, v, &a, n), 1.0);
-        // Continuous: Lipschitz 1/w along a line from the centre to the edge.
-        let mut prev = 0.0;
-        for k in 0..=620 {
-            let x = 31.0 + k as f32 * 0.05;
-            let al = morph_alpha(x, 31.0, v, &a, n);
-            assert!((al - prev).abs() <= 0.05 / 6.3 + 1e-5, "jump at x = {x}");
-            assert!(al >= prev);
-            prev = al;
-        }
-    }
 
     #[test]
     fn snapping_and_nesting() {

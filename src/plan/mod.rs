@@ -22,6 +22,8 @@ pub mod frame;
 pub mod frame_plan;
 pub mod lod;
 pub mod mesh;
+pub mod morph;
+pub mod stream;
 pub mod synthesis;
 pub mod uniforms;
 pub mod uploads;

@@ -23,6 +23,9 @@ use serde_json::json;
 use super::hashes::{self, HashFile};
 use super::{ProfileArgs, TerrainArgs};
 
+/// Most samples of the package level a streamed flight's camera path follows (1 Mi: 4 MiB of f32).
+const FLIGHT_SAMPLES: u64 = 1 << 20;
+
 /// The path flown when none is named.
 const DEFAULT_PATH: &str = "figure8";
 
@@ -122,16 +125,29 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
             reason: "sg shading needs --render DIR (fly simulates without a GPU otherwise)".into(),
         });
     }
-    let (terrain_name, hm) = args.terrain.load()?;
+    let opts = ClipmapOptions {
+        synth_levels: args.synth_levels,
+    };
+    // A package flown on the CPU alone (distance LOD, no rendering) streams through the profile's tile
+    // cache; the camera path follows a coarse level of it. Otherwise it is decoded whole.
+    let package = match args.terrain.package()? {
+        Some(p) if lod_mode == LodMode::Distance && args.render.is_none() => Some(p),
+        _ => None,
+    };
+    let (terrain_name, hm, mut clipmap) = match package {
+        Some(p) => {
+            let name = p.path().display().to_string();
+            let hm = p.coarse_heightmap(FLIGHT_SAMPLES)?;
+            (name, hm, Clipmap::streamed(p, &profile, opts)?)
+        }
+        None => {
+            let (name, hm) = args.terrain.load()?;
+            let clipmap = Clipmap::new(&hm, &profile, opts)?;
+            (name, hm, clipmap)
+        }
+    };
     let flight =
         Flight::new(path, args.speed, &hm)?.with_fov_y_deg(f64::from(profile.view.fov_y_deg));
-    let mut clipmap = Clipmap::new(
-        &hm,
-        &profile,
-        ClipmapOptions {
-            synth_levels: args.synth_levels,
-        },
-    )?;
 
     let lod = match lod_mode {
         LodMode::Distance => None,
@@ -270,6 +286,8 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
     let mut run_hash = Hash64::new();
     let mut violations = 0u64;
     let mut final_hash = 0;
+    // Largest fill + package decode of one frame, in samples (the decode is 0 for a resident pyramid).
+    let mut max_work = 0u32;
     for f in 0..frames {
         let camera = flight.camera(f);
         clipmap.update(camera.eye)?;
@@ -306,6 +324,8 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
         if let Some((p, w)) = &mut csv {
             write_row(w, frame).map_err(|e| Error::io(*p, "cannot write", e))?;
         }
+        let updated = rows.last().map_or(0, |r| r.samples_updated);
+        max_work = max_work.max(updated + clipmap.decoded_samples());
         if let Err(v) = clipmap.check_constraints() {
             if violations == 0 {
                 eprintln!("frame {f}: {v}");
@@ -370,7 +390,12 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
         plot(&rows, budget, &profile.name, path, p)?;
     }
     if args.json {
+        let stream = json!({
+            "max_fill_plus_decode_samples": max_work,
+            "tile_cache": clipmap.tile_cache().map(|c| json!({ "split": c.split(), "stats": c.stats() })),
+        });
         super::print_json(&json!({
+            "stream": stream,
             "terrain": terrain_name,
             "profile": profile.name,
             "path": path.to_string(),
@@ -429,6 +454,21 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
             "flight       {path} at {} m/frame, {frames} frames",
             args.speed
         );
+        if let Some(c) = clipmap.tile_cache() {
+            let (sp, st) = (c.split(), c.stats());
+            outln!(
+                "streamed     {} tile slots ({:.1} MiB of {:.1}); {} tiles decoded ({} samples), {} hits, \
+                 {} evictions, {} refused; fill + decode max {max_work} samples/frame",
+                sp.slot_count,
+                sp.slots as f64 / 1048576.0,
+                sp.budget as f64 / 1048576.0,
+                st.decoded,
+                st.decoded_samples,
+                st.hits,
+                st.evictions,
+                st.refused
+            );
+        }
         outln!("                        p50        p99        max");
         let [a, b, c] = stats.samples;
         outln!("samples      {a:>14} {b:>10} {c:>10}");

@@ -28,7 +28,8 @@ use clipsat::{Error, Heightmap, Profile, Result};
 /// Options that choose and read a terrain.
 #[derive(Args, Clone, Debug, Default)]
 pub(crate) struct TerrainArgs {
-    /// Terrain file (.png, .tif, .hgt, .raw/.r16/.f32) or `procedural[:seed=S,size=N,spacing=M]`.
+    /// Terrain file (.png, .tif, .hgt, .raw/.r16/.f32, a `.clipsat` package) or
+    /// `procedural[:seed=S,size=N,spacing=M]`.
     /// Default: the built-in procedural terrain.
     #[arg(long, value_name = "T")]
     pub(crate) terrain: Option<String>,
@@ -89,8 +90,21 @@ impl TerrainArgs {
         TerrainSpec::parse(self.terrain.as_deref().unwrap_or("procedural"))
     }
 
-    /// Loads the terrain these options name.
+    /// The package `--terrain` names, opened and validated, or `None` for any other source.
+    pub(crate) fn package(&self) -> Result<Option<clipsat::package::Package>> {
+        match self.spec()? {
+            TerrainSpec::File(path) if clipsat::package::is_package(&path) => {
+                Ok(Some(clipsat::package::Package::open(&path)?))
+            }
+            _ => Ok(None),
+        }
+    }
+
+    /// Loads the terrain these options name; a package is decoded whole (the resident path).
     pub(crate) fn load(&self) -> Result<(String, Heightmap)> {
+        if let Some(p) = self.package()? {
+            return Ok((p.path().display().to_string(), p.to_heightmap()?));
+        }
         let spec = self.spec()?;
         let raw = match (&self.raw_size, &self.raw_format) {
             (None, None) => None,

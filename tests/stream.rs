@@ -1,0 +1,150 @@
+//! Stage 2 over stage 1b: a long flight streamed from a package through a tile cache far smaller than the
+//! terrain. Every frame's fill plus decode stays within the sample budget, the GC section 5 constraints
+//! hold, nothing is allocated per frame (cache misses and evictions included), the hashes repeat run to
+//! run, and every ring texel equals the package's own decode.
+//!
+//! The 16385^2 flight with its RSS bound is a command, not a test (it needs a release build and minutes):
+//! `clipsat bake procedural:size=16385 --out big.clipsat && /usr/bin/time -v clipsat fly --terrain
+//! big.clipsat --profile gles3-mid --frames 2000 --speed 2000`.
+
+#![expect(
+    clippy::cast_possible_truncation,
+    reason = "the test terrain is an f64 formula stored as f32 heights; small test indices fit usize"
+)]
+
+use std::path::Path;
+
+use clipsat::package::{self, BakeOptions, Package};
+use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
+use clipsat::profile::ClipmapBudget;
+use clipsat::{Heightmap, Profile};
+use glam::DVec3;
+
+mod counting_alloc;
+use counting_alloc::count;
+
+const SIZE: u32 = 1025;
+const SPACING: f32 = 30.0;
+
+fn terrain() -> Heightmap {
+    let h = (0..SIZE * SIZE)
+        .map(|k| {
+            let (x, y) = (f64::from(k % SIZE), f64::from(k / SIZE));
+            (400.0 + 250.0 * (x / 41.0).sin() * (y / 29.0).cos() + 20.0 * (x * y / 900.0).sin())
+                as f32
+        })
+        .collect();
+    Heightmap::new(Path::new("<stream>"), SIZE, SIZE, SPACING, h).expect("terrain")
+}
+
+fn profile() -> Profile {
+    let mut p = Profile::load("gles3-low").expect("profile");
+    p.clipmap = ClipmapBudget {
+        n: 31,
+        levels: 6,
+        clip_margin: 4,
+    };
+    p.budget.update_samples_per_frame = 2048;
+    // The rings' CPU copy plus the smallest tile cache: about 1 MiB, a quarter of the decoded level 0.
+    p.budget.cpu_memory_bytes = p.cpu_split().rings + clipsat::profile::MIN_TILE_CACHE_BYTES;
+    p.validate("stream test").expect("valid profile");
+    p
+}
+
+/// A fast, wide path: circles over the whole terrain with a few jumps.
+fn eye(t: u32) -> DVec3 {
+    let extent = f64::from(SIZE - 1) * f64::from(SPACING);
+    let c = extent * 0.5;
+    let a = f64::from(t) * 0.013;
+    let r = extent * (0.15 + 0.3 * (f64::from(t) * 0.002).sin().abs());
+    let jump = if (t / 300) % 2 == 1 {
+        extent * 0.2
+    } else {
+        0.0
+    };
+    DVec3::new(c + r * a.cos() + jump, c + r * a.sin(), 900.0)
+}
+
+/// Flies `frames` frames, checking the budget and constraints; returns every frame hash.
+fn fly(cm: &mut Clipmap, frames: u32, budget: u32, hashes: &mut Vec<u64>) {
+    fly_from(cm, 0..frames, budget, hashes);
+}
+
+#[test]
+fn long_flight_streams_within_budget_without_allocating() {
+    let dir = std::env::temp_dir().join(format!("clipsat-stream-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let path = dir.join("stream.clipsat");
+    let opts = BakeOptions {
+        max_error: Some(0.05),
+        tile: 32,
+        zstd_level: 3,
+        ..BakeOptions::default()
+    };
+    package::bake(&terrain(), &path, &opts, &indicatif::ProgressBar::hidden()).expect("bake");
+    let p = profile();
+    let budget = p.budget.update_samples_per_frame;
+    let open = || Package::open(&path).expect("open");
+    let decoded_l0 = u64::from(SIZE) * u64::from(SIZE) * 4;
+    let opts = ClipmapOptions::default();
+
+    let mut a = Clipmap::streamed(open(), &p, opts).expect("streamed clipmap");
+    let split = a.tile_cache().expect("streamed").split();
+    assert!(
+        split.budget * 3 < decoded_l0,
+        "the cache ({} bytes) must be far smaller than the decoded terrain ({decoded_l0})",
+        split.budget
+    );
+    let frames = 1500;
+    let mut first = Vec::with_capacity(frames as usize);
+    let mut second = Vec::with_capacity(frames as usize);
+    // Warm-up outside the count, then the rest counted: misses, evictions and refusals included.
+    fly(&mut a, 100, budget, &mut first);
+    let before = a.tile_cache().expect("streamed").stats();
+    let allocations = count(|| fly_from(&mut a, 100..frames, budget, &mut first));
+    let after = a.tile_cache().expect("streamed").stats();
+    assert_eq!(allocations, 0, "allocations while streaming");
+    assert!(
+        after.decoded > before.decoded && after.evictions > before.evictions,
+        "the counted frames must miss and evict: {before:?} -> {after:?}"
+    );
+
+    // Every held texel equals the package's own decode of its level.
+    let pkg = open();
+    for l in 0..a.levels() {
+        let lf = a.frame().levels[l as usize];
+        let d = pkg.header().levels[l as usize];
+        let full = pkg.decode_level(l as usize).expect("decode");
+        let clip = lf.clip;
+        for j in clip.y0..clip.y1() {
+            for i in clip.x0..clip.x1() {
+                let (x, y) = (
+                    i.clamp(0, i64::from(d.width) - 1) as usize,
+                    j.clamp(0, i64::from(d.height) - 1) as usize,
+                );
+                let want = pkg.metres(full[y * d.width as usize + x]);
+                assert_eq!(a.ring(l).get(i, j)[0], want, "level {l} ({i}, {j})");
+            }
+        }
+    }
+
+    // Run to run: a fresh cache gives the same hashes.
+    let mut b = Clipmap::streamed(open(), &p, opts).expect("streamed clipmap");
+    fly(&mut b, frames, budget, &mut second);
+    assert_eq!(first, second, "frame hashes differ between runs");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// [`fly`] over frames `range`.
+fn fly_from(cm: &mut Clipmap, range: std::ops::Range<u32>, budget: u32, hashes: &mut Vec<u64>) {
+    for t in range {
+        let f = cm.update(eye(t)).expect("update");
+        let (updated, hash) = (f.samples_updated, f.hash);
+        let work = updated + cm.decoded_samples();
+        assert!(work <= budget, "frame {t}: fill + decode {work} > {budget}");
+        if let Err(v) = cm.check_constraints() {
+            panic!("frame {t}: {v}");
+        }
+        hashes.push(hash);
+    }
+}
