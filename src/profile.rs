@@ -298,15 +298,17 @@ impl Profile {
             .and_then(|t| t.checked_mul(8));
         match rings.and_then(|r| r.checked_add(MIN_TILE_CACHE_BYTES)) {
             Some(need) if need <= b.cpu_memory_bytes => {}
-            _ => return bad(
-                "budget.cpu_memory_bytes",
-                format!(
+            _ => {
+                return bad(
+                    "budget.cpu_memory_bytes",
+                    format!(
                     "{} bytes do not hold the rings' CPU copy ({} bytes) plus a tile cache of at \
                          least {MIN_TILE_CACHE_BYTES} bytes",
                     b.cpu_memory_bytes,
                     rings.map_or_else(|| "overflowing".to_owned(), |r| r.to_string())
                 ),
-            ),
+                )
+            }
         }
         // Every part is bounded by the checks above (at most a few GiB), so the u64 sums cannot wrap.
         let need = self.footprint().total();

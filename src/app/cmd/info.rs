@@ -24,6 +24,9 @@ pub(crate) fn run(args: &InfoArgs) -> Result<()> {
     if let Some(t) = &args.terrain_pos {
         targs.terrain = Some(t.clone());
     }
+    if let Some(pkg) = targs.package()? {
+        return package_info(&pkg, args.json);
+    }
     let (name, hm) = targs.load()?;
     let (lo, hi) = hm.range();
     let (ex, ey) = hm.extent_m();
@@ -37,6 +40,8 @@ pub(crate) fn run(args: &InfoArgs) -> Result<()> {
             * f64::from(1u32 << (p.clipmap.levels - 1));
         profiles.push(json!({
             "profile": pname,
+            "cpu_budget_bytes": p.budget.cpu_memory_bytes,
+            "cpu_split": p.cpu_split(),
             "gpu_bytes": f.total(),
             "gpu_budget_bytes": p.budget.gpu_memory_bytes,
             "parts": f,
@@ -68,14 +73,91 @@ pub(crate) fn run(args: &InfoArgs) -> Result<()> {
     );
     outln!("heights   {lo:.1} .. {hi:.1} m");
     outln!("voids     {} filled", hm.voids_filled());
-    outln!("profile     GPU memory needed / budget    coarsest ring span");
+    outln!("profile     GPU memory needed / budget    coarsest ring span   CPU budget: rings + tile cache");
     for p in &profiles {
+        let mib = |v: &serde_json::Value| v.as_f64().unwrap_or(0.0) / 1048576.0;
         outln!(
-            "{:<11} {:>9.2} MiB / {:>7.1} MiB    {:>8.1} km",
+            "{:<11} {:>9.2} MiB / {:>7.1} MiB    {:>8.1} km          {:>6.1} MiB: {:.2} + {:.2} MiB",
             p["profile"].as_str().unwrap_or("?"),
-            p["gpu_bytes"].as_f64().unwrap_or(0.0) / 1048576.0,
-            p["gpu_budget_bytes"].as_f64().unwrap_or(0.0) / 1048576.0,
+            mib(&p["gpu_bytes"]),
+            mib(&p["gpu_budget_bytes"]),
             p["coarsest_ring_span_m"].as_f64().unwrap_or(0.0) / 1e3,
+            mib(&p["cpu_budget_bytes"]),
+            mib(&p["cpu_split"]["rings"]),
+            mib(&p["cpu_split"]["tile_cache"]),
+        );
+    }
+    Ok(())
+}
+
+/// `clipsat info` on a package: its header, read without decoding, and how each shipped profile's
+/// `budget.cpu_memory_bytes` splits into the rings, the cache's fixed parts and its tile slots.
+fn package_info(pkg: &clipsat::package::Package, as_json: bool) -> Result<()> {
+    let h = pkg.header();
+    let bytes = pkg.file_bytes();
+    #[expect(clippy::cast_precision_loss, reason = "a ratio for display")]
+    let per_sample = bytes as f64 / h.samples() as f64;
+    let mut profiles = Vec::new();
+    for (pname, _) in SHIPPED {
+        let p = Profile::load(pname)?;
+        let cpu = p.cpu_split();
+        let cache = clipsat::package::CacheSplit::plan(h, cpu.tile_cache);
+        profiles.push(json!({
+            "profile": pname,
+            "cpu_budget_bytes": p.budget.cpu_memory_bytes,
+            "rings_bytes": cpu.rings,
+            "tile_cache": cache,
+        }));
+    }
+    if as_json {
+        super::print_json(&json!({
+            "package": pkg.path().display().to_string(),
+            "width": h.width,
+            "height": h.height,
+            "spacing_m": h.spacing,
+            "origin_m": [h.origin.0, h.origin.1],
+            "quantum_m": h.quantum,
+            "max_error_m": h.max_error,
+            "codec": h.codec,
+            "tile": h.tile,
+            "levels": h.levels.len(),
+            "tiles": h.tiles.len(),
+            "bytes": bytes,
+            "bytes_per_sample": per_sample,
+            "profiles": profiles,
+        }));
+        return Ok(());
+    }
+    outln!("package   {}", pkg.path().display());
+    outln!(
+        "samples   {} x {} at {} m, {} levels, {} tiles of {}^2 ({})",
+        h.width,
+        h.height,
+        h.spacing,
+        h.levels.len(),
+        h.tiles.len(),
+        h.tile,
+        h.codec.name()
+    );
+    outln!(
+        "size      {bytes} bytes, {per_sample:.4} bytes/sample; quantum {} m (max error {} m)",
+        h.quantum,
+        h.max_error
+    );
+    outln!("profile     CPU budget = rings + cache (header + tile map + decoder + slots)");
+    for p in &profiles {
+        let mib = |v: &serde_json::Value| v.as_f64().unwrap_or(0.0) / 1048576.0;
+        let c = &p["tile_cache"];
+        outln!(
+            "{:<11} {:>6.1} MiB = {:.2} + ({:.2} + {:.2} + {:.2} + {:.2} MiB: {} slots)",
+            p["profile"].as_str().unwrap_or("?"),
+            mib(&p["cpu_budget_bytes"]),
+            mib(&p["rings_bytes"]),
+            mib(&c["header"]),
+            mib(&c["map"]),
+            mib(&c["decoder"]),
+            mib(&c["slots"]),
+            c["slot_count"]
         );
     }
     Ok(())
