@@ -1,0 +1,132 @@
+//! `clipsat render --json` never fails for a measurement nobody asked for: on a terrain past the
+//! brute-force reference's GLES 3.0 buffer limit (3400 x 3400 samples: its index buffer would need 277 MB
+//! against 256 MiB) the summary is written, with `rmse_vs_ground_truth` null. `--ground-truth` asks for
+//! the comparison: a number on a small terrain, a clear error naming the limit on the big one.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn clipsat(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_clipsat"))
+        .args(args)
+        .output()
+        .expect("run the clipsat binary")
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join("cli_render_json")
+        .join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("create scratch folder");
+    dir
+}
+
+fn json(out: &Output, what: &str) -> serde_json::Value {
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{what}: {err}");
+    assert!(!err.contains("panicked"), "{what}: {err}");
+    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| panic!("{what}: not JSON: {e}"))
+}
+
+/// Side of the big terrain: (side - 1)^2 cells x 6 indices x 4 bytes = 277 MB > 256 MiB.
+const SIDE: u32 = 3400;
+
+#[test]
+fn render_json_past_the_brute_force_limit() {
+    let dir = scratch("big");
+    // A ramp with ripples as raw u16 (23 MB); a one-level profile keeps the LOD bake behind the measured
+    // screen error to the data level, so the test stays a few seconds.
+    let raw: Vec<u8> = (0..SIDE * SIDE)
+        .flat_map(|i| {
+            let (x, y) = (i % SIDE, i / SIDE);
+            let v = u16::try_from((x / 2 + y / 3 + (x * 7 + y * 13) % 50) % 60_000).unwrap_or(0);
+            v.to_le_bytes()
+        })
+        .collect();
+    let terrain = dir.join("big.r16");
+    std::fs::write(&terrain, raw).expect("write terrain");
+    let low = clipsat::profile::SHIPPED
+        .iter()
+        .find(|(n, _)| *n == "gles3-low")
+        .map(|(_, t)| *t)
+        .expect("gles3-low");
+    let profile: String = low
+        .lines()
+        .map(|l| {
+            if l.starts_with("levels") {
+                "levels = 1".to_owned()
+            } else {
+                l.to_owned()
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    let profile_path = dir.join("one-level.toml");
+    std::fs::write(&profile_path, profile).expect("write profile");
+    let (t, p) = (terrain.to_string_lossy(), profile_path.to_string_lossy());
+    let out = dir.join("x.png");
+    let o = out.to_string_lossy();
+    let size = format!("{SIDE}x{SIDE}");
+    let base = [
+        "render",
+        "--terrain",
+        &t,
+        "--raw-size",
+        &size,
+        "--profile",
+        &p,
+        "--size",
+        "64x36",
+        "--out",
+        &o,
+        "--json",
+    ];
+    let j = json(&clipsat(&base), "render --json on the big terrain");
+    assert!(j["image_hash"].is_string(), "{j}");
+    assert!(j["rmse_vs_ground_truth"].is_null(), "{j}");
+
+    // Asked for, the ground truth on this terrain is a clear one-line error naming the limit.
+    let mut asked = base.to_vec();
+    asked.push("--ground-truth");
+    let r = clipsat(&asked);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(2), "{err}");
+    assert!(
+        !err.contains("panicked") && err.contains("brute-force") && err.contains("index buffer"),
+        "{err}"
+    );
+}
+
+#[test]
+fn render_ground_truth_on_request() {
+    let dir = scratch("small");
+    let out = dir.join("x.png");
+    let o = out.to_string_lossy();
+    let base = [
+        "render",
+        "--terrain",
+        "procedural:size=129",
+        "--profile",
+        "gles3-low",
+        "--size",
+        "64x36",
+        "--out",
+        &o,
+        "--json",
+    ];
+    let j = json(&clipsat(&base), "render --json");
+    assert!(j["rmse_vs_ground_truth"].is_null(), "{j}");
+    let mut asked = base.to_vec();
+    asked.push("--ground-truth");
+    let j = json(&clipsat(&asked), "render --json --ground-truth");
+    let rmse = j["rmse_vs_ground_truth"].as_f64().unwrap_or(f64::NAN);
+    // RMSE in 8-bit levels: the clipmap against the full-resolution grid (16.8 measured here).
+    assert!((0.0..64.0).contains(&rmse), "{j}");
+    // Not with --brute, which draws the ground truth itself.
+    let mut brute = asked.clone();
+    brute.push("--brute");
+    let r = clipsat(&brute);
+    assert_eq!(r.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&r.stderr).contains("--ground-truth"));
+}
