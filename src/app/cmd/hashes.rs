@@ -42,7 +42,12 @@ pub(crate) fn write(path: &Path, params: &[(&str, String)], hashes: &[u64]) -> R
 /// and as many frames as the header's `frames` says.
 pub(crate) fn read(path: &Path) -> Result<HashFile> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, "cannot read", e))?;
-    let text = std::str::from_utf8(&bytes)
+    parse(path, &bytes)
+}
+
+/// [`read`] on bytes already read; `path` names the file in errors.
+pub(crate) fn parse(path: &Path, bytes: &[u8]) -> Result<HashFile> {
+    let text = std::str::from_utf8(bytes)
         .map_err(|_| Error::format(path, "not a frame-hash file (not UTF-8 text)"))?;
     let mut lines = text.lines().enumerate();
     match lines.next() {
@@ -165,4 +170,57 @@ pub(crate) fn terrain_hash(hm: &clipsat::Heightmap) -> String {
         h.write_f32(z);
     }
     hex(h.finish())
+}
+
+/// The frame-hash file parser under the in-test fuzzer (`tests/fuzz/harness.rs`, as in
+/// `tests/fuzz_parsers.rs`): it lives in the binary, so its fuzz target runs among the binary's tests.
+#[cfg(test)]
+#[path = "../../../tests/fuzz/harness.rs"]
+mod fuzz_harness;
+
+#[cfg(test)]
+mod fuzz {
+    use super::fuzz_harness as harness;
+
+    /// The target: any bytes, an `Err` or a file whose frame count matches its header; never a panic.
+    fn parse_hash_file(data: &[u8]) -> String {
+        match super::parse(std::path::Path::new("fuzz.txt"), data) {
+            Ok(f) => {
+                assert_eq!(
+                    f.param("frames").and_then(|n| n.parse().ok()),
+                    Some(f.hashes.len())
+                );
+                "ok".into()
+            }
+            Err(e) => e
+                .to_string()
+                .split(|c: char| !c.is_ascii_alphabetic())
+                .filter(|w| w.len() >= 3)
+                .take(6)
+                .collect::<Vec<_>>()
+                .join(" "),
+        }
+    }
+
+    /// 5 s by default; `CLIPSAT_FUZZ_SECS=600 cargo test --release --bin clipsat parse_hash_file_fuzz --
+    /// --nocapture` for a long run.
+    #[test]
+    fn parse_hash_file_fuzz() {
+        let secs = std::env::var("CLIPSAT_FUZZ_SECS")
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(5.0);
+        let r = harness::fuzz(
+            "parse_hash_file",
+            parse_hash_file,
+            std::time::Duration::from_secs_f64(secs),
+            clipsat::hash::hash_bytes(b"parse_hash_file") ^ 17,
+            8192,
+        );
+        eprintln!(
+            "fuzz parse_hash_file: {} executions, {} crashes, corpus {} + {} new, {} outcomes",
+            r.execs, r.crashes, r.corpus, r.added, r.outcomes
+        );
+        assert_eq!(r.crashes, 0, "crashing inputs saved as {:?}", r.artifacts);
+    }
 }
