@@ -71,9 +71,7 @@ fn the_image_is_the_same_far_from_the_origin() {
     let gpu = render_support::strict();
     let base = render_support::relief();
     let prof = render_support::profile("gles3-low", 160, 90, None);
-    let mut exact = 0;
     let mut frames = 0;
-    let mut worst = (0u8, 0.0f64);
     for (ox, oy) in OFFSETS {
         let far = base.clone().with_origin(ox, oy);
         let offset = DVec3::new(ox, oy, 0.0);
@@ -90,20 +88,18 @@ fn the_image_is_the_same_far_from_the_origin() {
             b.update(cam_far.eye).expect("update");
             let ia = render_frame(&mut ra, &a, &cam, &FrameOptions::default()).expect("frame");
             let ib = render_frame(&mut rb, &b, &cam_far, &FrameOptions::default()).expect("frame");
+            // Bit-identical, as the README says (24 of 24 frames on llvmpipe); the difference is printed
+            // only to say how far off a failing frame is.
             let (max, mean) = diff(&ia.image, &ib.image);
             assert!(
-                max <= 2 && mean < 0.05,
-                "offset ({ox}, {oy}) frame {i}: images differ, max {max} levels, mean {mean:.4}"
+                ia.image_hash == ib.image_hash && ia.image == ib.image,
+                "offset ({ox}, {oy}) frame {i}: images are not bit-identical, max {max} levels, \
+                 mean {mean:.4}"
             );
-            exact += u32::from(ia.image_hash == ib.image_hash);
             frames += 1;
-            worst = (worst.0.max(max), worst.1.max(mean));
         }
     }
-    eprintln!(
-        "{frames} frames: {exact} bit-identical; worst max diff {} levels, worst mean {:.5}",
-        worst.0, worst.1
-    );
+    eprintln!("{frames} frames bit-identical");
 }
 
 /// SAT LOD selection measures block distances from the eye in world metres, so the terrain's origin must

@@ -255,6 +255,37 @@ fn png_header_only(w: u32, h: u32) -> Vec<u8> {
     out
 }
 
+/// An 8-bit palette PNG of `w` x `h` pixels with palette `rgb` and one index per pixel, its image data in
+/// one stored (uncompressed) zlib block.
+fn palette_png(w: u32, h: u32, rgb: &[[u8; 3]], index: impl Fn(u32, u32) -> u8) -> Vec<u8> {
+    let mut out = vec![0x89, b'P', b'N', b'G', b'\r', b'\n', 0x1A, b'\n'];
+    let mut ihdr = Vec::new();
+    ihdr.extend_from_slice(&w.to_be_bytes());
+    ihdr.extend_from_slice(&h.to_be_bytes());
+    ihdr.extend_from_slice(&[8, 3, 0, 0, 0]);
+    png_chunk(&mut out, b"IHDR", &ihdr);
+    png_chunk(&mut out, b"PLTE", &rgb.concat());
+    let mut raw = Vec::new();
+    for y in 0..h {
+        raw.push(0); // filter: none
+        raw.extend((0..w).map(|x| index(x, y)));
+    }
+    let len = u16::try_from(raw.len()).unwrap();
+    let mut zlib = vec![0x78, 0x01, 0x01];
+    zlib.extend_from_slice(&len.to_le_bytes());
+    zlib.extend_from_slice(&(!len).to_le_bytes());
+    zlib.extend_from_slice(&raw);
+    let (mut a, mut b) = (1u32, 0u32);
+    for &v in &raw {
+        a = (a + u32::from(v)) % 65521;
+        b = (b + a) % 65521;
+    }
+    zlib.extend_from_slice(&((b << 16) | a).to_be_bytes());
+    png_chunk(&mut out, b"IDAT", &zlib);
+    png_chunk(&mut out, b"IEND", &[]);
+    out
+}
+
 /// A small real 16-bit grey PNG, values 0..4095.
 fn small_png16(dir: &Path) -> PathBuf {
     let img = image::ImageBuffer::<image::Luma<u16>, _>::from_fn(64, 48, |x, y| {
@@ -380,8 +411,8 @@ fn to_f32(v: f64) -> f32 {
     v as f32
 }
 
-/// RGB and RGBA files whose channels are equal (as many tools export 8-bit height maps) read as grey, at 8
-/// and 16 bits, with the grey scales (1 m and 0.1 m per unit); alpha is ignored.
+/// RGB, RGBA and palette files whose channels are equal (as many tools export 8-bit height maps) read as
+/// grey, at 8 and 16 bits, with the grey scales (1 m and 0.1 m per unit); alpha is ignored.
 #[test]
 fn png_rgb_with_equal_channels_reads_as_grey() {
     let dir = temp_dir("png_rgb_grey");
@@ -402,7 +433,22 @@ fn png_rgb_with_equal_channels_reads_as_grey() {
     rgb.save(&p1).unwrap();
     rgba.save(&p2).unwrap();
     rgb16.save(&p3).unwrap();
-    for (p, scale) in [(&p1, 1.0f64), (&p2, 1.0), (&p3, 25.7)] {
+    // A palette of greys, as some tools write 8-bit height maps; a coloured palette is refused.
+    let greys: Vec<[u8; 3]> = (0..=255u8).map(|v| [v; 3]).collect();
+    let p4 = write(
+        &dir,
+        "palette.png",
+        &palette_png(9, 5, &greys, |x, y| grey(x, y)),
+    );
+    let mut coloured = greys.clone();
+    coloured[7] = [7, 8, 7];
+    let p5 = write(
+        &dir,
+        "palette-colour.png",
+        &palette_png(9, 5, &coloured, |_, _| 7),
+    );
+    assert_format(load(&p5), "png_encoding");
+    for (p, scale) in [(&p1, 1.0f64), (&p2, 1.0), (&p3, 25.7), (&p4, 1.0)] {
         let hm = load(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
         assert_eq!((hm.width(), hm.height()), (9, 5));
         for y in 0..5 {
