@@ -435,7 +435,7 @@ fn png_rgb_with_equal_channels_reads_as_grey() {
     rgb16.save(&p3).unwrap();
     // A palette of greys, as some tools write 8-bit height maps; a coloured palette is refused.
     let greys: Vec<[u8; 3]> = (0..=255u8).map(|v| [v; 3]).collect();
-    let p4 = write(&dir, "palette.png", &palette_png(9, 5, &greys, &grey));
+    let p4 = write(&dir, "palette.png", &palette_png(9, 5, &greys, grey));
     let mut coloured = greys.clone();
     coloured[7] = [7, 8, 7];
     let p5 = write(
