@@ -77,8 +77,8 @@ impl FromStr for LodMode {
             "sat" => Ok(Self::Sat),
             "sat-conservative" => Ok(Self::SatConservative),
             "exact" => Ok(Self::Exact),
-            _ => Err(Error::Arg {
-                arg: "--lod".into(),
+            _ => Err(Error::Invalid {
+                what: "LOD mode".into(),
                 reason: format!("`{text}` is not one of {}", Self::NAMES.join(", ")),
             }),
         }

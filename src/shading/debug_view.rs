@@ -60,8 +60,8 @@ impl FromStr for DebugView {
             "normal" | "none" => Ok(DebugView::Normal),
             "levels" => Ok(DebugView::Levels),
             "wireframe" => Ok(DebugView::Wireframe),
-            other => Err(Error::Arg {
-                arg: "--debug".into(),
+            other => Err(Error::Invalid {
+                what: "debug view".into(),
                 reason: format!("`{other}` is not normal, levels or wireframe"),
             }),
         }

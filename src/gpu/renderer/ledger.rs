@@ -123,11 +123,24 @@ impl<'d> Ledgered<'d> {
         desc: &wgpu::TextureDescriptor<'_>,
     ) -> wgpu::Texture {
         self.note(label, ObjectKind::Texture, texture_bytes(desc));
+        self.note_clear_views(desc);
         let desc = wgpu::TextureDescriptor {
             label: Some(label),
             ..desc.clone()
         };
         self.device.create_texture(&desc)
+    }
+
+    /// wgpu itself makes one view per mip level and layer of a 2D render-attachment texture, to clear it
+    /// with a render pass; the ledger counts them too, so it equals what the device holds.
+    fn note_clear_views(&mut self, desc: &wgpu::TextureDescriptor<'_>) {
+        if desc.usage.contains(wgpu::TextureUsages::RENDER_ATTACHMENT)
+            && desc.dimension == wgpu::TextureDimension::D2
+        {
+            for _ in 0..desc.mip_level_count * desc.size.depth_or_array_layers {
+                self.note("(wgpu internal) clear view", ObjectKind::TextureView, 0);
+            }
+        }
     }
 
     /// A view of `texture`.
@@ -188,6 +201,7 @@ impl<'d> Ledgered<'d> {
     ) -> wgpu::Texture {
         use wgpu::util::DeviceExt;
         self.note(label, ObjectKind::Texture, texture_bytes(desc));
+        self.note_clear_views(desc);
         let desc = wgpu::TextureDescriptor {
             label: Some(label),
             ..desc.clone()
