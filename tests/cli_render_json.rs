@@ -96,6 +96,7 @@ fn render_json_past_the_brute_force_limit() {
         !err.contains("panicked") && err.contains("brute-force") && err.contains("index buffer"),
         "{err}"
     );
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]

@@ -1,6 +1,6 @@
-//! Fuzzing in `cargo test`: every parser (PNG, GeoTIFF, .hgt, raw, profile TOML, scene TOML) runs its
-//! committed corpus, then random mutations of it for [`DEFAULT_SECS`] seconds per target (about 20 s of
-//! wall time for the file on 2 cores). No input may panic; a crash writes its input to
+//! Fuzzing in `cargo test`: every parser (PNG, GeoTIFF, .hgt, raw, profile TOML, scene TOML, terrain
+//! package) runs its committed corpus, then random mutations of it for [`DEFAULT_SECS`] seconds per target
+//! (about 20 s of wall time for the file on 2 cores). No input may panic; a crash writes its input to
 //! `tests/fuzz/artifacts/TARGET/` and fails. The targets are the cargo-fuzz targets' bodies
 //! (`tests/fuzz/fuzz_targets/targets.rs`); the driver is `tests/fuzz/harness.rs`.
 //!
@@ -88,7 +88,8 @@ fuzz_tests!(
     load_hgt_full,
     load_raw,
     parse_profile,
-    parse_scene
+    parse_scene,
+    load_package
 );
 
 /// Every target has a corpus folder and a test above (a new target cannot be left out of the run).

@@ -51,6 +51,16 @@ fn float(typical: std::ops::Range<f32>) -> BoxedStrategy<String> {
     .boxed()
 }
 
+/// A byte budget: mostly 16 MiB .. 512 GiB, sometimes 0, the top of u64 or anything.
+fn memory() -> impl Strategy<Value = u64> {
+    prop_oneof![
+        1 => Just(0u64),
+        1 => Just(u64::MAX),
+        8 => (24u32..40).prop_map(|k| 1u64 << k),
+        1 => any::<u64>()
+    ]
+}
+
 /// A whole profile text: every field drawn, features a random non-empty or empty subset.
 fn profile_text() -> impl Strategy<Value = String> {
     let clipmap = (
@@ -64,12 +74,8 @@ fn profile_text() -> impl Strategy<Value = String> {
         field(1u32..300_000),
         field(prop_oneof![1u32..2049, 0u32..5000]),
         field(1u32..2_000_000),
-        prop_oneof![
-            1 => Just(0u64),
-            1 => Just(u64::MAX),
-            8 => (24u32..40).prop_map(|k| 1u64 << k),
-            1 => any::<u64>()
-        ],
+        memory(),
+        memory(),
     );
     let view = (
         float(0.1..20.0),
@@ -84,12 +90,12 @@ fn profile_text() -> impl Strategy<Value = String> {
         ),
         field(0u32..10),
     );
-    (clipmap, budget, view, shading).prop_map(|((n, l, m), (u, d, t, g), (e, w, h, f), (fs, s))| {
+    (clipmap, budget, view, shading).prop_map(|((n, l, m), (u, d, t, g, c), (e, w, h, f), (fs, s))| {
         let fs: Vec<String> = fs.iter().map(|f| format!("\"{f}\"")).collect();
         format!(
             "name = \"prop\"\n[clipmap]\nn = {n}\nlevels = {l}\nclip_margin = {m}\n\
              [budget]\nupdate_samples_per_frame = {u}\nmax_draws = {d}\nmax_triangles = {t}\n\
-             gpu_memory_bytes = {g}\n[view]\nepsilon_px = {e}\nwidth = {w}\nheight = {h}\n\
+             gpu_memory_bytes = {g}\ncpu_memory_bytes = {c}\n[view]\nepsilon_px = {e}\nwidth = {w}\nheight = {h}\n\
              fov_y_deg = {f}\n[shading]\nfeatures = [{}]\nmax_sg_lights = {s}\n",
             fs.join(", ")
         )

@@ -12,7 +12,7 @@ use clipsat::source::{self, LoadOptions, PngEncoding, RawFormat, RawLayout};
 pub(crate) type Target = fn(&[u8]) -> String;
 
 /// Every target, by name, with its body. Names match the cargo-fuzz binaries and the corpus folders.
-pub(crate) const TARGETS: [(&str, Target); 7] = [
+pub(crate) const TARGETS: [(&str, Target); 8] = [
     ("load_png", load_png),
     ("load_tiff", load_tiff),
     ("load_hgt", load_hgt),
@@ -20,6 +20,7 @@ pub(crate) const TARGETS: [(&str, Target); 7] = [
     ("load_raw", load_raw),
     ("parse_profile", parse_profile),
     ("parse_scene", parse_scene),
+    ("load_package", load_package),
 ];
 
 /// The outcome of a result: "ok" plus `ok`'s text, or the error's kind: its first few plain words, with
@@ -70,6 +71,7 @@ fn load_as(name: &str, data: &[u8], opts: &LoadOptions) -> String {
     }
     let r = source::load(&path, opts);
     let _ = std::fs::remove_file(&path);
+    let _ = std::fs::remove_dir(&dir);
     outcome(r, |hm| format!("{}x{}", hm.width() > 2, hm.height() > 2))
 }
 
@@ -201,4 +203,30 @@ pub(crate) fn parse_scene(data: &[u8]) -> String {
         let _ = s.needs();
         format!("{:?}", s.features().len())
     })
+}
+
+/// A terrain package (`clipsat bake`): the header validated on open, then every level decoded when the
+/// declared size is small (a bounded coarse level otherwise), as the loader and the tile cache do.
+pub(crate) fn load_package(data: &[u8]) -> String {
+    let dir = std::env::temp_dir().join(format!(
+        "clipsat-fuzz-{}-{:?}",
+        std::process::id(),
+        std::thread::current().id()
+    ));
+    let _ = std::fs::create_dir_all(&dir);
+    let path = dir.join("x.clipsat");
+    if std::fs::write(&path, data).is_err() {
+        return "cannot write".into();
+    }
+    let r = clipsat::package::Package::open(&path).and_then(|p| {
+        let h = p.header();
+        if u64::from(h.width) * u64::from(h.height) <= 1 << 21 {
+            p.to_heightmap().map(|hm| hm.width())
+        } else {
+            p.coarse_heightmap(1 << 16).map(|hm| hm.width())
+        }
+    });
+    let _ = std::fs::remove_file(&path);
+    let _ = std::fs::remove_dir(&dir);
+    outcome(r, |w| format!("{}", *w > 2))
 }
