@@ -9,7 +9,8 @@
 
 // Mirrors `clipsat::gpu::shaders::BasicShading` (all vec4, so the uniform layout has no padding rules).
 struct BasicShading {
-    // x: height (m) where the land ramp starts, y: where it ends (snow), z: fog density (1/m), w: unused
+    // x: height (m) where the land ramp starts, y: where it ends (snow), z: fog density (1/m),
+    // w: the hill shading's z-factor (vertical exaggeration of the normals, >= 1)
     ramp_fog: vec4<f32>,
     // xyz: unit vector toward the sun (x east, y north, z up), w: unused
     sun_dir: vec4<f32>,
@@ -60,10 +61,14 @@ fn basic_albedo(h: f32, s: BasicShading) -> vec3<f32> {
 fn basic_shade(h: f32, n: vec3<f32>, dist: f32, s: BasicShading) -> vec3<f32> {
     let gamma = vec3<f32>(2.2);
     let albedo = pow(basic_albedo(h, s), gamma);
-    let nn = normalize(n);
+    // The z-factor steepens a gentle terrain's normals (hill shading's vertical exaggeration).
+    let nn = normalize(vec3<f32>(n.xy * (s.ramp_fog.w / max(n.z, 1.0e-6)), 1.0));
+    // Hill shading: a strong Lambert sun over a weak sky whose light falls off on steep faces (a
+    // hemisphere's share of the sky seen by a tilted plane, (1 + n.z) / 2), so slopes away from the sun
+    // read dark and relief shows even where the height ramp is flat.
     let sun = max(dot(nn, s.sun_dir.xyz), 0.0);
-    let sky = 0.6 + 0.4 * nn.z;
-    let light = vec3<f32>(1.00, 0.95, 0.86) * (1.15 * sun) + vec3<f32>(0.50, 0.62, 0.80) * (0.40 * sky);
+    let sky = 0.5 + 0.5 * nn.z;
+    let light = vec3<f32>(1.00, 0.95, 0.86) * (1.45 * sun) + vec3<f32>(0.50, 0.62, 0.80) * (0.30 * sky);
     let fog = 1.0 - exp(-dist * s.ramp_fog.z);
     let lit = mix(albedo * light, pow(s.fog_colour.rgb, gamma), fog);
     return pow(clamp(lit, vec3<f32>(0.0), vec3<f32>(1.0)), vec3<f32>(1.0 / 2.2));

@@ -17,6 +17,19 @@ struct Globals {
     params: vec4<f32>,
     // The data's horizontal extent relative to the eye (m): x min, y min, x max, y max.
     extent: vec4<f32>,
+    // Where each ring holds data (its clip region), finest first; see `data_surface`.
+    levels: array<ShadeLevel, 16>,
+    // x: levels in use; y: ring size S; zw: unused.
+    level_info: vec4<i32>,
+}
+
+// Mirrors `clipsat::uniforms::ShadeLevel`.
+struct ShadeLevel {
+    // xy: world position of the clip region's first sample minus the eye (m); z: minus the eye's height;
+    // w: the level's spacing (m).
+    rel: vec4<f32>,
+    // xy: texel of the clip region's first sample; zw: the clip region's width and height (0: empty).
+    tex: vec4<i32>,
 }
 
 // Mirrors `clipsat::renderer::DrawUniform`; one 256-byte slot per draw, bound with a dynamic offset.
@@ -165,11 +178,91 @@ fn snapped_vertex(v: vec4<u32>, q: vec2<i32>, pf: vec2<i32>) -> TerrainVertex {
     return out;
 }
 
+// The data under a pixel: height and geometric normal (not unit) from the finest ring holding it.
+struct DataSurface {
+    found: bool,
+    height: f32,
+    normal: vec3<f32>,
+}
+
+// Height z of level l at clip-relative lattice point p (p >= 0 inside the clip region).
+fn level_fetch(l: i32, p: vec2<i32>) -> f32 {
+    let t = (globals.levels[l].tex.xy + p) % vec2<i32>(globals.level_info.y);
+    return textureLoad(heights, t, l, 0).x;
+}
+
+// GC section 6's normal maps, computed on the fly: the surface under eye-relative point rel from the finest
+// ring whose clip region holds it with a one-sample margin, whatever level the mesh there was drawn at, so
+// a block drawn coarse keeps the data's relief shading. Height and the central-difference gradient at the
+// cell's 4 corners (12 fetches), bilinearly blended. `clipsat::twin::shading::data_surface` is the CPU twin.
+fn data_surface(rel: vec2<f32>) -> DataSurface {
+    var out: DataSurface;
+    out.found = false;
+    for (var l = 0; l < globals.level_info.x; l = l + 1) {
+        let lv = globals.levels[l];
+        let g = lv.rel.w;
+        // Lattice x grows east, y south.
+        let u = vec2<f32>(rel.x - lv.rel.x, lv.rel.y - rel.y) / g;
+        let i = vec2<i32>(floor(u));
+        if (any(i < vec2<i32>(1)) || any(i > lv.tex.zw - vec2<i32>(3))) {
+            continue;
+        }
+        let f = u - vec2<f32>(i);
+        let z00 = level_fetch(l, i);
+        let z10 = level_fetch(l, i + vec2<i32>(1, 0));
+        let z01 = level_fetch(l, i + vec2<i32>(0, 1));
+        let z11 = level_fetch(l, i + vec2<i32>(1, 1));
+        let zw0 = level_fetch(l, i + vec2<i32>(-1, 0));
+        let zw1 = level_fetch(l, i + vec2<i32>(-1, 1));
+        let ze0 = level_fetch(l, i + vec2<i32>(2, 0));
+        let ze1 = level_fetch(l, i + vec2<i32>(2, 1));
+        let zn0 = level_fetch(l, i + vec2<i32>(0, -1));
+        let zn1 = level_fetch(l, i + vec2<i32>(1, -1));
+        let zs0 = level_fetch(l, i + vec2<i32>(0, 2));
+        let zs1 = level_fetch(l, i + vec2<i32>(1, 2));
+        // East gradient at the 4 corners (x2 g), then north (rows run south: north minus south).
+        let gx = mix(mix(z10 - zw0, ze0 - z00, f.x), mix(z11 - zw1, ze1 - z01, f.x), f.y);
+        let gy = mix(mix(zn0 - z01, zn1 - z11, f.x), mix(z00 - zs0, z10 - zs1, f.x), f.y);
+        out.found = true;
+        out.height = mix(mix(z00, z10, f.x), mix(z01, z11, f.x), f.y);
+        out.normal = vec3<f32>(-gx / (2.0 * g), -gy / (2.0 * g), 1.0);
+        return out;
+    }
+    return out;
+}
+
+// A skirt fragment seen through the data's side: the ray from the eye enters the data's vertical prism
+// below the data there, where a solid terrain would hide it. Such fragments are discarded, so no curtain
+// shows from outside the terrain; skirts that close cracks are seen from above and stay.
+fn through_side(rel: vec3<f32>) -> bool {
+    let e = globals.extent;
+    // Slab entry of the segment eye -> rel into the extent rectangle (eye at the origin).
+    var t0 = 0.0;
+    for (var a = 0; a < 2; a = a + 1) {
+        let d = rel[a];
+        let lo = e[a];
+        let hi = e[a + 2];
+        if (abs(d) > 1.0e-9) {
+            t0 = max(t0, min(lo / d, hi / d));
+        }
+    }
+    if (t0 <= 0.0 || t0 >= 1.0) {
+        return false;
+    }
+    // Just inside the border, where the rings hold data.
+    let p = rel * min(t0 + 1.0e-4, 1.0);
+    let s = data_surface(p.xy);
+    // Ring heights are absolute: the eye is at -levels[0].rel.z.
+    return s.found && p.z < s.height + globals.levels[0].rel.z;
+}
+
 struct VsOut {
     @builtin(position) clip: vec4<f32>,
     @location(0) rel: vec3<f32>,
     @location(1) normal: vec3<f32>,
     @location(2) height: f32,
+    // 1 at a skirt's lower edge, 0 on the surface.
+    @location(3) skirt: f32,
 }
 
 @vertex
@@ -180,15 +273,24 @@ fn vs_main(@location(0) v: vec4<u32>) -> VsOut {
     out.rel = t.rel;
     out.normal = t.normal;
     out.height = t.height;
+    out.skirt = f32(v.z);
     return out;
 }
 
 @fragment
 fn fs_main(v: VsOut) -> @location(0) vec4<f32> {
-    if (outside_data(v.rel.xy)) {
+    if (outside_data(v.rel.xy) || (v.skirt > 0.0 && through_side(v.rel))) {
         discard;
     }
-    let shaded = basic_shade(v.height, v.normal, length(v.rel), globals.shading);
+    // Shade from the data under the pixel; the drawn vertex's values only where no ring holds it.
+    var h = v.height;
+    var n = v.normal;
+    let d = data_surface(v.rel.xy);
+    if (d.found) {
+        h = d.height;
+        n = d.normal;
+    }
+    let shaded = basic_shade(h, n, length(v.rel), globals.shading);
     // debug_view.wgsl: the level-colour and wireframe views (the normal view returns `shaded`).
     return vec4<f32>(debug_view(shaded, v.rel, v.normal), 1.0);
 }

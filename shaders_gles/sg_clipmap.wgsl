@@ -30,7 +30,7 @@ fn fs_sg(v: VsOut) -> @location(0) vec4<f32> {
         (ext.w - v.rel.y) / (ext.w - ext.y) * g.y,
     ) / g.z;
     let half = 0.5 * max(abs(dpdx(c)), abs(dpdy(c)));
-    if (outside_data(v.rel.xy)) {
+    if (outside_data(v.rel.xy) || (v.skirt > 0.0 && through_side(v.rel))) {
         discard;
     }
     let last = vec2<i32>(textureDimensions(sat_normal)) - vec2<i32>(2);

@@ -120,7 +120,12 @@ impl<'g> BruteForce<'g> {
         let vertex_data = vertex_data(hm);
         let index_data = index_data(columns, rows);
         let (ex, ey) = hm.extent_m();
-        let shading = BasicShading::for_terrain(hm.range(), ex.hypot(ey));
+        let slope = crate::shading::basic::mean_slope(
+            hm.heights(),
+            hm.width() as usize,
+            f64::from(hm.spacing()),
+        );
+        let shading = BasicShading::for_terrain(hm.range(), ex.hypot(ey), slope);
 
         gpu.scoped("brute-force set-up", || {
             let device = gpu.device();

@@ -7,6 +7,9 @@ use glam::{DMat4, DVec3, Mat4};
 
 use crate::{Error, Result};
 
+/// The default camera's distance to its target, in units of the terrain's larger extent.
+pub const DEFAULT_VIEW_DISTANCE: f64 = 0.45;
+
 /// A perspective camera.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Camera {
@@ -58,20 +61,35 @@ impl Camera {
         })
     }
 
-    /// A camera that shows all of `hm` with its relief: outside the south-west corner, above the highest
-    /// sample, looking north-east across the centre; 60 degree field of view, clip planes fitted to the
-    /// terrain so depth precision is spent on it.
+    /// The default view of `hm`: an oblique look north across the terrain from above its southern part,
+    /// close enough that its relief reads, derived from its extent and height range only (so it frames
+    /// a flat, a tiny, a huge or a non-square terrain alike).
+    ///
+    /// The target is the centre, a tenth of the north-south extent ahead, at a third of the relief. The eye
+    /// looks down at 28 degrees from [`DEFAULT_VIEW_DISTANCE`] times the larger extent, a little west of
+    /// south so that north-south ridges do not line up with the view; it stays above the highest sample
+    /// by a twentieth of the extent. A 60 degree vertical field of view then spans the whole width at the
+    /// centre on a 16:9 frame; the clip planes are fitted to the terrain.
     pub fn default_for(hm: &crate::Heightmap) -> Result<Self> {
         let (ex, ey) = hm.extent_m();
         let (lo, hi) = hm.range();
         let (lo, hi) = (f64::from(lo), f64::from(hi));
-        let size = ex.max(ey);
+        let size = ex.max(ey).max(1e-3);
         let (ox, oy) = hm.origin();
         let o = DVec3::new(ox, oy, 0.0);
-        let eye = o + DVec3::new(-0.1 * ex, -0.1 * ey, hi + 0.3 * size);
-        let target = o + DVec3::new(0.5 * ex, 0.5 * ey, lo);
-        let far = (o + DVec3::new(ex, ey, lo) - eye).length() * 1.5;
-        Self::new(eye, target, 60.0)?.with_clip((far * 1e-5).max(0.1), far)
+        let target = o + DVec3::new(0.5 * ex, 0.6 * ey, lo + (hi - lo) / 3.0);
+        let (dep, az) = (28f64.to_radians(), 12f64.to_radians());
+        let dist = DEFAULT_VIEW_DISTANCE * size;
+        let back = DVec3::new(-az.sin(), -az.cos(), 0.0) * (dist * dep.cos());
+        let mut eye = target + back + DVec3::new(0.0, 0.0, dist * dep.sin());
+        eye.z = eye.z.max(hi + 0.05 * size);
+        let corners = [(0.0, 0.0), (ex, 0.0), (0.0, ey), (ex, ey)];
+        let far = corners
+            .iter()
+            .map(|&(x, y)| (o + DVec3::new(x, y, lo) - eye).length())
+            .fold(0.0, f64::max)
+            * 1.5;
+        Self::new(eye, target, 60.0)?.with_clip((far * 1e-5).max(1e-3), far)
     }
 
     /// Sets the clip planes (metres); `near` must be positive and below `far`.

@@ -18,7 +18,7 @@ use crate::plan::cull::{self, DrawKind, DrawList, DrawParams, DrawStats, MAX_DRA
 use crate::plan::lod::{Lod, LodFrame, LodMode};
 use crate::plan::mesh;
 use crate::plan::uniforms::{
-    data_extent_rel, draw_uniform, lod_draw_uniform, to_f32x4, DrawUniform, Globals,
+    data_extent_rel, draw_uniform, lod_draw_uniform, shading_levels, to_f32x4, DrawUniform, Globals,
 };
 use crate::plan::uploads::UploadList;
 use crate::profile::DRAW_SLOT_BYTES;
@@ -297,7 +297,11 @@ impl Planner {
             aspect: f64::from(profile.view.width) / f64::from(profile.view.height),
             skirt_floor,
             data_lattice,
-            shading: BasicShading::for_terrain((lo, hi), diagonal),
+            shading: BasicShading::for_terrain(
+                (lo, hi),
+                diagonal,
+                crate::shading::basic::mean_slope(data.heights(), data.width() as usize, spacing),
+            ),
             probe_size: [PROBE_WIDTH, probe_rows],
             last: None,
         })
@@ -433,6 +437,7 @@ impl Planner {
         }
         #[expect(clippy::cast_precision_loss, reason = "probe sizes are small")]
         let probe = [self.probe_size[0] as f32, self.probe_size[1] as f32];
+        let (levels, level_info) = shading_levels(clipmap, camera, self.size);
         out.globals = Globals {
             view_proj: camera.view_proj_relative(self.aspect).to_cols_array(),
             shading: self.shading,
@@ -445,6 +450,8 @@ impl Planner {
                 probe[1],
             ],
             extent: to_f32x4(extent),
+            levels,
+            level_info,
         };
         out.stats = PlanStats {
             draws: u32::try_from(out.draws.len()).expect("draws <= MAX_DRAWS"),

@@ -7,7 +7,7 @@ use bytemuck::{Pod, Zeroable};
 
 use crate::plan::clipmap::Clipmap;
 use crate::plan::cull;
-use crate::profile::GLOBALS_BYTES;
+use crate::profile::{GLOBALS_BYTES, MAX_LEVELS};
 use crate::shading::basic::BasicShading;
 use crate::Camera;
 
@@ -24,8 +24,78 @@ pub struct Globals {
     /// The data's horizontal extent relative to the eye (m): x min, y min, x max, y max. Fragments
     /// outside it are discarded.
     pub extent: [f32; 4],
+    /// Where each ring holds data, for shading from the finest resident data (GC section 6's normal
+    /// maps, [`shading_levels`]); levels past `level_info[0]` are unused.
+    pub levels: [ShadeLevel; MAX_LEVELS as usize],
+    /// x: levels in use; y: ring size S; zw: unused.
+    pub level_info: [i32; 4],
 }
 const _: () = assert!(std::mem::size_of::<Globals>() as u64 == GLOBALS_BYTES);
+
+/// One ring's held data for the fragment shader's data lookup; mirrors `ShadeLevel` in
+/// `shaders_gles/clipmap.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct ShadeLevel {
+    /// xy: world position of the clip region's first sample minus the eye (m); z: minus the eye's
+    /// height (m); w: the level's spacing (m).
+    pub rel: [f32; 4],
+    /// xy: texel of the clip region's first sample (mod S); z, w: the clip region's width and height
+    /// (0 when the ring holds nothing).
+    pub tex: [i32; 4],
+}
+const _: () = assert!(std::mem::size_of::<ShadeLevel>() == 32);
+
+/// Where each ring of the clipmap's last frame holds valid data (its clip region), relative to the eye:
+/// the fragment shader shades from the finest ring that holds the pixel's position, whatever level the
+/// mesh under the pixel was drawn at (GC section 6: normal maps from the clipmap's data). Returns the
+/// levels and `level_info`.
+#[expect(
+    clippy::cast_possible_truncation,
+    clippy::cast_possible_wrap,
+    reason = "clip sizes and texels are below the ring size; f64 -> f32 after subtracting the eye is the \
+              intended GPU precision"
+)]
+pub fn shading_levels(
+    clipmap: &Clipmap,
+    camera: &Camera,
+    size: u32,
+) -> ([ShadeLevel; MAX_LEVELS as usize], [i32; 4]) {
+    let mut out = [ShadeLevel::default(); MAX_LEVELS as usize];
+    let p = clipmap.eye_lattice(camera.eye);
+    let g0 = clipmap.g0();
+    let s = i64::from(size);
+    let levels = clipmap.frame().levels.iter().take(MAX_LEVELS as usize);
+    let mut used = 0;
+    for (l, (slot, lf)) in out.iter_mut().zip(levels).enumerate() {
+        used = l + 1;
+        let c = lf.clip;
+        if c.is_empty() {
+            continue;
+        }
+        let k = f64::from(1u32 << l);
+        #[expect(
+            clippy::cast_precision_loss,
+            reason = "lattice coordinates are below 2^48"
+        )]
+        let (fx, fy) = (c.x0 as f64, c.y0 as f64);
+        *slot = ShadeLevel {
+            rel: [
+                ((fx * k - p.0) * g0) as f32,
+                (-(fy * k - p.1) * g0) as f32,
+                (-camera.eye.z) as f32,
+                (g0 * k) as f32,
+            ],
+            tex: [
+                c.x0.rem_euclid(s) as i32,
+                c.y0.rem_euclid(s) as i32,
+                c.w as i32,
+                c.h as i32,
+            ],
+        };
+    }
+    (out, [used as i32, size as i32, 0, 0])
+}
 
 /// One draw's uniforms; mirrors `DrawUniform` in `shaders_gles/clipmap.wgsl`. Lattice values are relative
 /// to the level's anchor, the first vertex of its active region.

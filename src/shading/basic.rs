@@ -8,7 +8,8 @@ use glam::Vec3;
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct BasicShading {
-    /// x: height (m) where the land ramp starts, y: where it ends, z: fog density (1/m), w: unused.
+    /// x: height (m) where the land ramp starts, y: where it ends, z: fog density (1/m), w: the hill
+    /// shading's z-factor ([`z_factor`]).
     pub ramp_fog: [f32; 4],
     /// xyz: unit vector toward the sun (x east, y north, z up), w: unused.
     pub sun_dir: [f32; 4],
@@ -16,6 +17,11 @@ pub struct BasicShading {
     pub fog_colour: [f32; 4],
 }
 const _: () = assert!(std::mem::size_of::<BasicShading>() == 48);
+
+/// The basic sun's azimuth, degrees clockwise from north.
+pub const SUN_AZIMUTH_DEG: f32 = 290.0;
+/// The basic sun's elevation, degrees.
+pub const SUN_ELEVATION_DEG: f32 = 30.0;
 
 /// The sky behind the terrain (display-encoded RGBA), the clear colour of every render.
 pub const SKY: [f64; 4] = [0.63, 0.76, 0.90, 1.0];
@@ -27,23 +33,73 @@ impl BasicShading {
     /// Shading for a terrain whose heights span `range` (m) over a horizontal `diagonal` (m).
     ///
     /// The land ramp runs from max(lowest, 0) to the highest sample, so every terrain uses the whole
-    /// ramp; water is anything at or below 0 m. Fog halves the colour at 1.5 diagonals. The sun sits
-    /// in the north-west, 40 degrees up, as in cartographic hill shading.
+    /// ramp; water is anything at or below 0 m. Fog halves the colour at 3 diagonals (a third at the far corner of the default view). The sun sits
+    /// low in the west-north-west ([`SUN_AZIMUTH_DEG`], [`SUN_ELEVATION_DEG`]): from the default camera
+    /// (looking north) it lights slopes from the side, so hills show their shape. `mean_slope` (rise over
+    /// run, [`mean_slope`]) sets the hill shading's z-factor.
     #[expect(
         clippy::cast_possible_truncation,
         reason = "fog density is a small positive number, f32 is its GPU precision"
     )]
-    pub fn for_terrain(range: (f32, f32), diagonal: f64) -> Self {
+    pub fn for_terrain(range: (f32, f32), diagonal: f64, mean_slope: f64) -> Self {
         let lo = range.0.max(0.0);
         let hi = range.1.max(lo + 1.0);
-        let fog_density = std::f64::consts::LN_2 / (1.5 * diagonal.max(1.0));
-        let (az, el) = (315f32.to_radians(), 40f32.to_radians());
+        let fog_density = std::f64::consts::LN_2 / (3.0 * diagonal.max(1.0));
+        let (az, el) = (SUN_AZIMUTH_DEG.to_radians(), SUN_ELEVATION_DEG.to_radians());
         // Azimuth clockwise from north: east = sin, north = cos.
         let sun = Vec3::new(az.sin() * el.cos(), az.cos() * el.cos(), el.sin()).normalize();
         Self {
-            ramp_fog: [lo, hi, fog_density as f32, 0.0],
+            ramp_fog: [lo, hi, fog_density as f32, z_factor(mean_slope) as f32],
             sun_dir: [sun.x, sun.y, sun.z, 0.0],
             fog_colour: FOG,
         }
     }
+}
+
+/// The mean slope the hill shading aims for: a gentle terrain's normals are steepened towards it.
+pub const SHADED_MEAN_SLOPE_DEG: f64 = 10.0;
+/// The largest z-factor (vertical exaggeration of the shading normals).
+pub const MAX_Z_FACTOR: f64 = 6.0;
+
+/// The hill shading's z-factor for a terrain of mean slope `mean_slope` (rise over run): the gradient
+/// under the sun is scaled so the mean slope shades like [`SHADED_MEAN_SLOPE_DEG`], between 1 (a steep
+/// terrain is shaded as it is) and [`MAX_Z_FACTOR`]. Cartographic hill shading does the same, so a 2
+/// degree plain shows its relief as an alpine range does; only the shading sees it, not the geometry.
+pub fn z_factor(mean_slope: f64) -> f64 {
+    let target = SHADED_MEAN_SLOPE_DEG.to_radians().tan();
+    if mean_slope.is_finite() && mean_slope > 0.0 {
+        (target / mean_slope).clamp(1.0, MAX_Z_FACTOR)
+    } else {
+        MAX_Z_FACTOR
+    }
+}
+
+/// Mean slope (rise over run) of a `width`-wide grid of `heights` at `spacing` metres: the mean of
+/// |forward-difference gradient| over at most about a million samples (a strided subset of a larger
+/// grid).
+#[expect(
+    clippy::cast_precision_loss,
+    reason = "sample counts and strides are far below 2^52"
+)]
+pub fn mean_slope(heights: &[f32], width: usize, spacing: f64) -> f64 {
+    if width < 2 || heights.len() < 2 * width || spacing <= 0.0 {
+        return 0.0;
+    }
+    let rows = heights.len() / width;
+    // The smallest stride s with (width / s) (rows / s) <= 1e6.
+    let mut stride = 1;
+    while (width / stride) * (rows / stride) > 1_000_000 {
+        stride += 1;
+    }
+    let (mut sum, mut count) = (0.0f64, 0u64);
+    for v in (0..rows - 1).step_by(stride) {
+        for u in (0..width - 1).step_by(stride) {
+            let z = f64::from(heights[v * width + u]);
+            let dx = f64::from(heights[v * width + u + 1]) - z;
+            let dy = f64::from(heights[(v + 1) * width + u]) - z;
+            sum += dx.hypot(dy) / spacing;
+            count += 1;
+        }
+    }
+    sum / count.max(1) as f64
 }

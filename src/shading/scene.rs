@@ -142,6 +142,27 @@ pub struct Scene {
     pub fog: Option<Fog>,
 }
 
+impl Scene {
+    /// Fits the scene's fog to a terrain whose horizontal diagonal is `diagonal_m` metres: the density is
+    /// clamped so that fog never hides more than the far third, i.e. at two thirds of the diagonal at
+    /// most half the colour is fog ([`MAX_FOG_AT_TWO_THIRDS`]). A scene's `density_per_km` is authored for
+    /// some terrain size; without the clamp 0.08/km turns a 111 km tile into one beige polygon.
+    pub fn fit_fog(&mut self, diagonal_m: f64) {
+        if let Some(f) = &mut self.fog {
+            let max = -(1.0 - MAX_FOG_AT_TWO_THIRDS).ln() / (2.0 / 3.0 * diagonal_m.max(1.0)) * 1e3;
+            #[expect(
+                clippy::cast_possible_truncation,
+                reason = "a small positive density, f32 as the shader holds it"
+            )]
+            let max = max as f32;
+            f.density_per_km = f.density_per_km.min(max);
+        }
+    }
+}
+
+/// Most of the colour that fog may take at two thirds of the terrain's diagonal ([`Scene::fit_fog`]).
+pub const MAX_FOG_AT_TWO_THIRDS: f64 = 0.5;
+
 /// What the renderer must prepare for a scene: it bakes, binds and compiles exactly these.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
 pub struct Needs {

@@ -2,7 +2,9 @@
 //! compare what the GPU computes against them.
 //!
 //! - [`clipmap`]: `shaders_gles/clipmap.wgsl` (vertex placement, morph, snapped tiles).
+//! - [`shading`]: `data_surface` of `shaders_gles/clipmap.wgsl` (the data under a pixel, GC section 6).
 //! - The SG integration of `shaders_gles/sg_shading.wgsl` has its twin in [`crate::shading::shade`]
 //!   (with its f64 reference, [`crate::shading::reference()`]), beside the SG maths it shares.
 
 pub mod clipmap;
+pub mod shading;

@@ -185,6 +185,11 @@ pub(crate) fn reference(
     size: (u32, u32),
     scene: &Scene,
 ) -> Reference {
+    // The fog as the renderer binds it (Renderer::set_sg_baked).
+    let mut fitted = scene.clone();
+    let (ex, ey) = hm.extent_m();
+    fitted.fit_fog(ex.hypot(ey));
+    let scene = &fitted;
     let mut pixels = Vec::new();
     let grid = RefGrid {
         theta: 96,

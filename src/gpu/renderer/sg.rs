@@ -52,6 +52,8 @@ impl SgState {
         let (hm, bake) = (s.terrain, s.bake);
         let mut scene = s.scene.clone();
         scene.effects.visibility &= bake.azimuths() > 0;
+        let (ex, ey) = hm.extent_m();
+        scene.fit_fog(ex.hypot(ey));
         let needs = scene.needs();
         let variant = SgVariant {
             patches: s.patches,
