@@ -172,6 +172,27 @@ fn fog_blends_toward_its_colour() {
     assert_eq!(scene::apply_fog(c, 1e6, None), c);
 }
 
+/// Scene fog is fitted to the terrain (issue 16): on a 111 km tile `evening`'s 0.08/km is clamped so that
+/// at two thirds of the diagonal at most half the colour is fog; on a 5 km terrain it is left as written.
+#[test]
+fn fog_never_hides_more_than_the_far_third() {
+    let evening = Scene::load("evening").unwrap_or_else(|e| panic!("{e}"));
+    let c = Vec3::new(0.1, 0.2, 0.3);
+    let diagonal = 111_000f64 * 2f64.sqrt();
+    let mut fitted = evening.clone();
+    fitted.fit_fog(diagonal);
+    #[expect(clippy::cast_possible_truncation, reason = "metres as f32")]
+    let two_thirds = (2.0 / 3.0 * diagonal) as f32;
+    let seen = scene::apply_fog(c, two_thirds, fitted.fog.as_ref());
+    let fog = evening.fog.as_ref().map(|f| f.rgb).unwrap_or_default();
+    // The fraction of fog in the colour, per channel.
+    let share = (seen - c).x / (fog - c).x;
+    assert!(share <= 0.5 + 1e-4, "{share} of the colour is fog at 2/3 of the diagonal");
+    let mut small = evening.clone();
+    small.fit_fog(5_000.0);
+    assert_eq!(small.fog, evening.fog);
+}
+
 #[test]
 fn missing_and_mistyped_fields_are_refused() {
     // (edit, what the error must mention); each is refused with a config error, never a panic.
