@@ -161,9 +161,11 @@ fn morphing_prevents_popping() {
         stats.push((median, max));
     }
     // Camera motion at a constant speed changes the image at a nearly constant rate (the median); a pop
-    // adds to it. Measured on llvmpipe: with morphing max/median = 1.19, without 1.46 (max 0.204 vs 0.273
-    // levels). Bounds: with morphing no frame exceeds the median by more than 35%; without, the spikes are
-    // clearly larger (max/median at least 15% higher and the largest change at least 20% larger).
+    // adds to it. Shading comes from the finest ring's data (GC section 6), which does not pop, so only the
+    // geometry's silhouettes and positions do. Measured on llvmpipe: with morphing max/median = 1.28,
+    // without 1.40 (max 0.419 vs 0.457 levels; before the data shading 1.19 and 1.46). Bounds: with
+    // morphing no frame exceeds the median by more than 35%; without, the spikes are larger (max/median
+    // at least 5% higher and the largest change at least 5% larger).
     let ((on_med, on_max), (off_med, off_max)) = (stats[0], stats[1]);
     assert!(
         on_max / on_med < 1.35,
@@ -171,7 +173,7 @@ fn morphing_prevents_popping() {
         on_max / on_med
     );
     assert!(
-        (off_max / off_med) > 1.15 * (on_max / on_med) && off_max > 1.2 * on_max,
+        (off_max / off_med) > 1.05 * (on_max / on_med) && off_max > 1.05 * on_max,
         "no morphing should pop: {stats:?}"
     );
 }

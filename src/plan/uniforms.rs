@@ -38,7 +38,7 @@ const _: () = assert!(std::mem::size_of::<Globals>() as u64 == GLOBALS_BYTES);
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct ShadeLevel {
     /// xy: world position of the clip region's first sample minus the eye (m); z: minus the eye's
-    /// height (m); w: the level's spacing (m).
+    /// height (m), in every slot; w: the level's spacing (m).
     pub rel: [f32; 4],
     /// xy: texel of the clip region's first sample (mod S); z, w: the clip region's width and height
     /// (0 when the ring holds nothing).
@@ -69,6 +69,8 @@ pub fn shading_levels(
     let mut used = 0;
     for (l, (slot, lf)) in out.iter_mut().zip(levels).enumerate() {
         used = l + 1;
+        // The eye's height goes in every slot, held data or not (the shader reads it from level 0).
+        slot.rel[2] = (-camera.eye.z) as f32;
         let c = lf.clip;
         if c.is_empty() {
             continue;
