@@ -187,7 +187,10 @@ fn fog_never_hides_more_than_the_far_third() {
     let fog = evening.fog.as_ref().map(|f| f.rgb).unwrap_or_default();
     // The fraction of fog in the colour, per channel.
     let share = (seen - c).x / (fog - c).x;
-    assert!(share <= 0.5 + 1e-4, "{share} of the colour is fog at 2/3 of the diagonal");
+    assert!(
+        share <= 0.5 + 1e-4,
+        "{share} of the colour is fog at 2/3 of the diagonal"
+    );
     let mut small = evening.clone();
     small.fit_fog(5_000.0);
     assert_eq!(small.fog, evening.fog);

@@ -9,15 +9,16 @@ use std::path::Path;
 
 use bytemuck::Zeroable;
 use clipsat::gpu::brute::BruteForce;
-use clipsat::gpu::renderer::{render_frame, FrameOptions, Renderer};
+use clipsat::gpu::headless::{render_frame, FrameOptions};
 use clipsat::measure::image_rmse;
 use clipsat::plan::clipmap::Clipmap;
 use clipsat::plan::lod::LodMode;
 use clipsat::plan::uniforms::{shading_levels, Globals};
+use clipsat::shading::debug_view::DebugView;
 use clipsat::twin::shading::data_surface;
 use clipsat::{Camera, Heightmap, Profile};
 use glam::{DVec3, DVec4};
-use render_support::{clipmap, lod, profile, relief, strict};
+use render_support::{clipmap, lod, profile, relief, renderer_in, strict};
 
 fn filled(hm: &Heightmap, p: &Profile, eye: DVec3) -> Clipmap {
     let mut cm = clipmap(hm, p);
@@ -62,7 +63,10 @@ fn default_camera_frames_any_terrain() {
         let size = ex.max(ey);
         let dist = cam.eye.distance(cam.target);
         let reach = 0.8 * size + f64::from(hi - lo);
-        assert!(dist < reach, "{name}: {dist} m away from a {size} m terrain");
+        assert!(
+            dist < reach,
+            "{name}: {dist} m away from a {size} m terrain"
+        );
         let vp = cam.view_proj_relative(16.0 / 9.0).as_dmat4();
         let mid = f64::from(lo) + 0.5 * f64::from(hi - lo);
         for (fx, fy) in [(0.5, 0.5), (0.5, 0.9), (0.3, 0.6), (0.7, 0.6)] {
@@ -120,7 +124,11 @@ fn data_surface_twin_reads_the_finest_ring() {
                 );
             } else {
                 // A coarser ring is the filtered data: within the terrain's relief of it.
-                assert!((d.height - z).abs() < 400.0, "level {} at ({u}, {v})", d.level);
+                assert!(
+                    (d.height - z).abs() < 400.0,
+                    "level {} at ({u}, {v})",
+                    d.level
+                );
             }
         }
     }
@@ -142,12 +150,11 @@ fn sat_lod_keeps_the_shading() {
     let cm = filled(&hm, &p, cam.eye);
     let mut brute = BruteForce::new(&gpu, &hm).expect("brute force");
     let truth = brute.render(&cam, 320, 180).expect("brute frame").image;
-    let mut r = Renderer::new(&gpu, &p, &cm).expect("renderer");
-    r.set_lod(lod(&hm, &p, &cm));
+    let tables = lod(&hm, &p, &cm);
     let mut rmse = Vec::new();
     for mode in [LodMode::Distance, LodMode::Sat] {
+        let mut r = renderer_in(&gpu, &p, &cm, mode, Some(&tables), DebugView::Normal);
         let opts = FrameOptions {
-            lod: mode,
             epsilon_px: Some(2.0),
             ..FrameOptions::default()
         };
@@ -187,12 +194,11 @@ fn no_curtains_below_the_data_border() {
     let cm = filled(&hm, &p, cam.eye);
     let mut brute = BruteForce::new(&gpu, &hm).expect("brute force");
     let truth = brute.render(&cam, w, h).expect("brute frame").image;
-    let mut r = Renderer::new(&gpu, &p, &cm).expect("renderer");
-    r.set_lod(lod(&hm, &p, &cm));
+    let tables = lod(&hm, &p, &cm);
     let sky = truth.rgba[..4].to_vec();
     for mode in [LodMode::Distance, LodMode::Sat] {
+        let mut r = renderer_in(&gpu, &p, &cm, mode, Some(&tables), DebugView::Normal);
         let opts = FrameOptions {
-            lod: mode,
             epsilon_px: Some(2.0),
             ..FrameOptions::default()
         };
