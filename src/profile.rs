@@ -161,11 +161,10 @@ pub const MAX_N: u32 = 511;
 const _: () = assert!(((MAX_N + 1) / 4 + 1) * ((MAX_N + 1) / 4 + 1) <= 1 << 16);
 const _: () = assert!(((2 * MAX_N + 2) / 4 + 1) * ((2 * MAX_N + 2) / 4 + 1) > 1 << 16);
 
-/// The TOML text of a shipped `what` (profile, scene) by name, or of a file by path; `arg` names the option
-/// in the error when it is neither.
+/// The TOML text of a shipped `what` (profile, scene) by name, or of a file by path; the error names
+/// `what` when it is neither.
 pub(crate) fn shipped_or_file(
     shipped: &[(&str, &'static str)],
-    arg: &str,
     what: &str,
     name_or_path: &str,
 ) -> Result<std::borrow::Cow<'static, str>> {
@@ -175,8 +174,8 @@ pub(crate) fn shipped_or_file(
     let path = Path::new(name_or_path);
     if !path.exists() {
         let names: Vec<&str> = shipped.iter().map(|(n, _)| *n).collect();
-        return Err(Error::Arg {
-            arg: arg.into(),
+        return Err(Error::Invalid {
+            what: what.into(),
             reason: format!(
                 "`{name_or_path}` is neither a shipped {what} ({}) nor a file",
                 names.join(", ")
@@ -190,7 +189,7 @@ pub(crate) fn shipped_or_file(
 impl Profile {
     /// A shipped profile by name, or a profile file by path.
     pub fn load(name_or_path: &str) -> Result<Self> {
-        let text = shipped_or_file(&SHIPPED, "--profile", "profile", name_or_path)?;
+        let text = shipped_or_file(&SHIPPED, "profile", name_or_path)?;
         Self::parse(name_or_path, &text)
     }
 

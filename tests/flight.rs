@@ -71,8 +71,8 @@ fn every_path_name_parses() {
         "circle:3",
     ] {
         match bad.parse::<Path>() {
-            Err(Error::Arg { arg, reason }) => {
-                assert_eq!(arg, "--path");
+            Err(Error::Invalid { what: arg, reason }) => {
+                assert_eq!(arg, "flight path");
                 assert!(!reason.is_empty());
             }
             other => panic!("`{bad}` should be refused, got {other:?}"),
@@ -85,7 +85,7 @@ fn refuses_bad_speed() {
     let hm = flat(0.0);
     for speed in [0.0, -1.0, -0.0, f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
         match Flight::new(Path::Circle, speed, &hm) {
-            Err(Error::Arg { arg, .. }) => assert_eq!(arg, "--speed"),
+            Err(Error::Invalid { what: arg, .. }) => assert_eq!(arg, "flight speed"),
             other => panic!("speed {speed} should be refused, got {other:?}"),
         }
     }

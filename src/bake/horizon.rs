@@ -105,14 +105,14 @@ impl Horizons {
 /// (single-threaded, fixed order); a progress bar goes to stderr for bakes over 2^20 texels.
 pub fn bake(hm: &Heightmap, azimuths: u32, max_samples: f64) -> Result<Horizons> {
     if azimuths == 0 || azimuths > MAX_AZIMUTHS {
-        return Err(Error::Arg {
-            arg: "azimuths".into(),
+        return Err(Error::Invalid {
+            what: "azimuths".into(),
             reason: format!("{azimuths} is not in 1..={MAX_AZIMUTHS}"),
         });
     }
     if !(max_samples.is_finite() && max_samples >= 1.0) {
-        return Err(Error::Arg {
-            arg: "max_samples".into(),
+        return Err(Error::Invalid {
+            what: "max_samples".into(),
             reason: format!("{max_samples} must be at least 1 sample"),
         });
     }

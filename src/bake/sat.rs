@@ -107,14 +107,14 @@ impl Sat {
     ) -> Result<Self> {
         let n = u64::from(width) * u64::from(height);
         if n == 0 || cell == 0 {
-            return Err(Error::Arg {
-                arg: "sat size".into(),
+            return Err(Error::Invalid {
+                what: "sat size".into(),
                 reason: format!("{width} x {height} samples in cells of {cell}: nothing to sum"),
             });
         }
         if frac_bits > Self::max_frac_bits(n) {
-            return Err(Error::Arg {
-                arg: "sat frac_bits".into(),
+            return Err(Error::Invalid {
+                what: "sat frac_bits".into(),
                 reason: format!(
                     "2^-{frac_bits} is too fine for {n} samples: sums could reach 2^64 (at most {} bits)",
                     Self::max_frac_bits(n)
@@ -172,15 +172,15 @@ impl Sat {
     ) -> Result<Self> {
         let n = u64::from(width) * u64::from(height);
         if n == 0 || cell == 0 || frac_bits > Self::max_frac_bits(n) {
-            return Err(Error::Arg {
-                arg: "sat parts".into(),
+            return Err(Error::Invalid {
+                what: "sat parts".into(),
                 reason: format!("{width} x {height}, cell {cell}, 2^-{frac_bits}: invalid"),
             });
         }
         let (cols, rows) = (width.div_ceil(cell), height.div_ceil(cell));
         if table.len() as u64 != u64::from(cols) * u64::from(rows) {
-            return Err(Error::Arg {
-                arg: "sat parts".into(),
+            return Err(Error::Invalid {
+                what: "sat parts".into(),
                 reason: format!("{} entries for {cols} x {rows} cells", table.len()),
             });
         }

@@ -92,8 +92,8 @@ impl ShadingBake {
     /// `needs.bake_horizons`.
     pub fn bake(hm: &Heightmap, needs: &Needs, azimuths: u32, max_side: u32) -> Result<Self> {
         if azimuths == 0 || azimuths > MAX_AZIMUTHS {
-            return Err(Error::Arg {
-                arg: "azimuths".into(),
+            return Err(Error::Invalid {
+                what: "azimuths".into(),
                 reason: format!("{azimuths} is not in 1..={MAX_AZIMUTHS}"),
             });
         }

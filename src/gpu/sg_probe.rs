@@ -35,15 +35,15 @@ pub fn shade_gpu(
     cases: &[ProbeCase],
 ) -> Result<Vec<Vec3>> {
     if cases.is_empty() || cases.len() > MAX_CASES {
-        return Err(Error::Arg {
-            arg: "probe cases".into(),
+        return Err(Error::Invalid {
+            what: "probe cases".into(),
             reason: format!("{} cases, need 1..={MAX_CASES}", cases.len()),
         });
     }
     let d = cases[0].horizon.len();
     if cases.iter().any(|c| c.horizon.len() != d) || d > MAX_AZIMUTHS as usize {
-        return Err(Error::Arg {
-            arg: "probe cases".into(),
+        return Err(Error::Invalid {
+            what: "probe cases".into(),
             reason: "every case needs the same number of horizon angles, at most 16".into(),
         });
     }

@@ -128,8 +128,8 @@ impl Camera {
 /// Parses `X,Y,Z` (metres) from the command line.
 pub fn parse_vec3(arg: &str, text: &str) -> Result<DVec3> {
     let parts: Vec<&str> = text.split(',').map(str::trim).collect();
-    let bad = |reason: String| Error::Arg {
-        arg: arg.into(),
+    let bad = |reason: String| Error::Invalid {
+        what: arg.into(),
         reason,
     };
     if parts.len() != 3 {

@@ -238,8 +238,8 @@ impl Clipmap {
         let levels = profile.clipmap.levels;
         let size = profile.clip_size();
         if opts.synth_levels >= levels {
-            return Err(Error::Arg {
-                arg: "synth_levels".into(),
+            return Err(Error::Invalid {
+                what: "synth_levels".into(),
                 reason: format!(
                     "{} synthesised rings leave no data ring among the profile's {levels}",
                     opts.synth_levels

@@ -60,8 +60,8 @@ impl FromStr for Path {
     type Err = Error;
 
     fn from_str(text: &str) -> Result<Self> {
-        let bad = |reason: String| Error::Arg {
-            arg: "--path".into(),
+        let bad = |reason: String| Error::Invalid {
+            what: "flight path".into(),
             reason,
         };
         let (head, arg) = match text.split_once(':') {
@@ -153,17 +153,17 @@ struct TrackPoint {
 impl<'a> Flight<'a> {
     /// A flight along `path` at `speed` metres per frame over `terrain`.
     ///
-    /// Refuses a speed that is not finite and positive ([`Error::Arg`] naming `--speed`).
+    /// Refuses a speed that is not finite and positive ([`Error::Invalid`] naming the flight speed).
     pub fn new(path: Path, speed: f64, terrain: &'a Heightmap) -> Result<Self> {
         if !(speed.is_finite() && speed > 0.0) {
-            return Err(Error::Arg {
-                arg: "--speed".into(),
+            return Err(Error::Invalid {
+                what: "flight speed".into(),
                 reason: format!("{speed} m/frame: must be a finite number above 0"),
             });
         }
         if let Path::Teleport { every: 0 } = path {
-            return Err(Error::Arg {
-                arg: "--path".into(),
+            return Err(Error::Invalid {
+                what: "flight path".into(),
                 reason: "teleport:0: jumps need at least 1 frame between them".into(),
             });
         }

@@ -188,7 +188,7 @@ pub fn direction(azimuth_deg: f32, elevation_deg: f32) -> Vec3 {
 impl Scene {
     /// A shipped scene by name, or a scene file by path.
     pub fn load(name_or_path: &str) -> Result<Self> {
-        let text = crate::profile::shipped_or_file(&SHIPPED, "--scene", "scene", name_or_path)?;
+        let text = crate::profile::shipped_or_file(&SHIPPED, "scene", name_or_path)?;
         Self::parse(name_or_path, &text)
     }
 

@@ -129,8 +129,8 @@ impl TerrainSpec {
         }
         let mut p = procedural::ProceduralParams::default();
         for kv in params.split(',').map(str::trim).filter(|s| !s.is_empty()) {
-            let bad = |reason: String| Error::Arg {
-                arg: "--terrain".into(),
+            let bad = |reason: String| Error::Invalid {
+                what: "terrain".into(),
                 reason,
             };
             let (k, v) = kv

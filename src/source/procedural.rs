@@ -44,14 +44,14 @@ const BASE_FREQUENCY: f64 = 3.0;
 pub fn generate(params: &ProceduralParams) -> Result<Heightmap> {
     let n = params.size;
     if !(3..=16385).contains(&n) || !(n - 1).is_power_of_two() {
-        return Err(Error::Arg {
-            arg: "--terrain procedural size".into(),
+        return Err(Error::Invalid {
+            what: "procedural size".into(),
             reason: format!("{n} is not 2^k + 1 between 3 and 16385 (e.g. 257, 1025, 4097)"),
         });
     }
     if !(params.spacing.is_finite() && params.spacing > 0.0) {
-        return Err(Error::Arg {
-            arg: "--terrain procedural spacing".into(),
+        return Err(Error::Invalid {
+            what: "procedural spacing".into(),
             reason: format!("{} m: must be finite and positive", params.spacing),
         });
     }
@@ -241,7 +241,7 @@ mod tests {
                 ..ProceduralParams::default()
             };
             assert!(
-                matches!(generate(&p), Err(Error::Arg { .. })),
+                matches!(generate(&p), Err(Error::Invalid { .. })),
                 "size {size}"
             );
         }

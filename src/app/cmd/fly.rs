@@ -9,7 +9,7 @@ use crate::app::plot::{LinePlot, Series};
 use clap::Args;
 use clipsat::gpu::headless::{self, render_frame, FrameOptions, Offscreen, OffscreenOptions};
 use clipsat::gpu::renderer::{SgShading, Shading};
-use clipsat::gpu::{Gpu, GpuMode};
+use clipsat::gpu::Gpu;
 use clipsat::hash::{hex, Hash64};
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::plan::flight::{Flight, Path};
@@ -20,6 +20,7 @@ use clipsat::{Error, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 
+use super::args::{flag, pixel_size, GpuArgs, LodArgs, Size};
 use super::hashes::{self, HashFile};
 use super::{ProfileArgs, TerrainArgs};
 
@@ -76,11 +77,11 @@ pub(crate) struct FlyArgs {
     #[arg(long, value_name = "K", default_value_t = 10)]
     render_every: u64,
     /// With --render: image size, WxH pixels. Default: the profile's viewport.
-    #[arg(long, value_name = "WxH")]
-    size: Option<String>,
-    /// With --render: GL context, strict (a real OpenGL ES 3.0 context), gl or auto.
-    #[arg(long, value_name = "auto|strict|gl", default_value = "auto")]
-    gpu: String,
+    #[arg(long, value_name = "WxH", value_parser = pixel_size)]
+    size: Option<Size>,
+    /// With --render: the GL context.
+    #[command(flatten)]
+    gpu: GpuArgs,
     /// Write every frame's hash here, one `frame<TAB>hash` line each, under a header naming the run.
     #[arg(long, value_name = "FILE")]
     hash_out: Option<PathBuf>,
@@ -88,13 +89,8 @@ pub(crate) struct FlyArgs {
     /// at the first frame that differs.
     #[arg(long, value_name = "FILE")]
     check: Option<PathBuf>,
-    /// Block level selection: distance (each ring at its own level), sat, sat-conservative or exact. The
-    /// SAT modes select every frame's block levels (SAT paper algorithm 1) and hash them into the frame hash.
-    #[arg(long, value_name = "MODE", default_value = "distance")]
-    lod: String,
-    /// SAT LOD screen-space error bound, pixels. Default: the profile's view.epsilon_px.
-    #[arg(long, value_name = "PX")]
-    epsilon: Option<f32>,
+    #[command(flatten)]
+    lod: LodArgs,
 }
 
 /// What the statistics keep of one frame.
@@ -107,7 +103,7 @@ struct Row {
 }
 
 pub(crate) fn run(args: &FlyArgs) -> Result<()> {
-    let path: Path = args.path.parse()?;
+    let path: Path = args.path.parse().map_err(flag("--path"))?;
     let frames = u64::try_from(args.frames)
         .ok()
         .filter(|&f| f > 0)
@@ -115,8 +111,8 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
             arg: "--frames".into(),
             reason: format!("{}: fly at least 1 frame", args.frames),
         })?;
-    let lod_mode: LodMode = args.lod.parse()?;
-    let epsilon = super::render::parse_epsilon(args.epsilon)?;
+    let lod_mode = args.lod.mode();
+    let epsilon = args.lod.epsilon;
     let profile = args.profile.load()?;
     let sg = args.shading.choice(&profile)?;
     if sg.is_some() && args.render.is_none() {
@@ -146,8 +142,12 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
             (name, hm, clipmap)
         }
     };
-    let flight =
-        Flight::new(path, args.speed, &hm)?.with_fov_y_deg(f64::from(profile.view.fov_y_deg));
+    let flight = Flight::new(path, args.speed, &hm)
+        .map_err(|e| match &e {
+            Error::Invalid { what, .. } if what == "flight speed" => flag("--speed")(e),
+            _ => flag("--path")(e),
+        })?
+        .with_fov_y_deg(f64::from(profile.view.fov_y_deg));
 
     let lod = match lod_mode {
         LodMode::Distance => None,
@@ -197,13 +197,13 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
                 });
             }
             std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, "cannot create folder", e))?;
-            Some(Gpu::new(args.gpu.parse::<GpuMode>()?)?)
+            Some(Gpu::new(args.gpu.mode())?)
         }
         None => None,
     };
     let mut render_profile = profile.clone();
-    if let Some(size) = &args.size {
-        (render_profile.view.width, render_profile.view.height) = super::render::parse_size(size)?;
+    if let Some(size) = args.size {
+        (render_profile.view.width, render_profile.view.height) = size.pair();
     }
     let baked = match (&gpu, &sg) {
         (Some(gpu), Some(sg)) => Some(headless::sg_bake(
@@ -257,10 +257,11 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
         ("speed", args.speed.to_string()),
         ("frames", frames.to_string()),
         ("synth_levels", args.synth_levels.to_string()),
-        ("lod", args.lod.clone()),
+        ("lod", lod_mode.to_string()),
         (
             "epsilon",
-            args.epsilon
+            args.lod
+                .epsilon
                 .map_or_else(|| "profile".to_string(), |e| e.to_string()),
         ),
     ];

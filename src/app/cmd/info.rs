@@ -32,7 +32,7 @@ pub(crate) fn run(args: &InfoArgs) -> Result<()> {
     let (ex, ey) = hm.extent_m();
     let mut profiles = Vec::new();
     for (pname, _) in SHIPPED {
-        let p = Profile::load(pname)?;
+        let p = Profile::load(pname).map_err(super::args::flag("--profile"))?;
         let f = p.footprint();
         // Finest ring spacing that still shows the whole terrain in the coarsest ring.
         let coarsest_span_m = f64::from(p.clipmap.n - 1)

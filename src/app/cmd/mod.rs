@@ -8,6 +8,7 @@ macro_rules! outln {
     }};
 }
 
+pub(crate) mod args;
 pub(crate) mod bake;
 pub(crate) mod bench;
 pub(crate) mod fly;
@@ -19,7 +20,8 @@ pub(crate) mod tune_p;
 #[cfg(feature = "view")]
 pub(crate) mod view;
 
-use clap::Args;
+use args::Size;
+use clap::{Args, ValueEnum};
 use clipsat::source::{
     self, procedural::ProceduralParams, LoadOptions, RawFormat, RawLayout, TerrainSpec,
 };
@@ -49,10 +51,10 @@ pub(crate) struct TerrainArgs {
     pub(crate) height_offset: f32,
     /// Raw file dimensions, WxH samples.
     #[arg(long, value_name = "WxH")]
-    pub(crate) raw_size: Option<String>,
-    /// Raw file sample type: u16 or f32 (little-endian).
-    #[arg(long, value_name = "u16|f32")]
-    pub(crate) raw_format: Option<String>,
+    pub(crate) raw_size: Option<Size>,
+    /// Raw file sample type, little-endian. Default: u16.
+    #[arg(long, value_enum)]
+    pub(crate) raw_format: Option<RawFormatArg>,
     /// Refuse files declaring more samples than this (checked before allocating).
     #[arg(long, value_name = "N", default_value_t = source::DEFAULT_MAX_SAMPLES)]
     pub(crate) max_samples: u64,
@@ -88,6 +90,7 @@ impl TerrainArgs {
     /// What `--terrain` names.
     pub(crate) fn spec(&self) -> Result<TerrainSpec> {
         TerrainSpec::parse(self.terrain.as_deref().unwrap_or("procedural"))
+            .map_err(args::flag("--terrain"))
     }
 
     /// The package `--terrain` names, opened and validated, or `None` for any other source.
@@ -108,38 +111,14 @@ impl TerrainArgs {
         let spec = self.spec()?;
         let raw = match (&self.raw_size, &self.raw_format) {
             (None, None) => None,
-            (Some(size), format) => {
-                let bad = |reason: String| Error::Arg {
-                    arg: "--raw-size".into(),
-                    reason,
-                };
-                let (w, h) = size
-                    .split_once(['x', 'X'])
-                    .ok_or_else(|| bad(format!("`{size}` is not WxH")))?;
-                let width = w
-                    .trim()
-                    .parse()
-                    .map_err(|_| bad(format!("width `{w}` is not a number")))?;
-                let height = h
-                    .trim()
-                    .parse()
-                    .map_err(|_| bad(format!("height `{h}` is not a number")))?;
-                let format = match format.as_deref().unwrap_or("u16") {
-                    "u16" => RawFormat::U16,
-                    "f32" => RawFormat::F32,
-                    other => {
-                        return Err(Error::Arg {
-                            arg: "--raw-format".into(),
-                            reason: format!("`{other}` is not u16 or f32"),
-                        })
-                    }
-                };
-                Some(RawLayout {
-                    width,
-                    height,
-                    format,
-                })
-            }
+            (Some(size), format) => Some(RawLayout {
+                width: size.width,
+                height: size.height,
+                format: match format.unwrap_or(RawFormatArg::U16) {
+                    RawFormatArg::U16 => RawFormat::U16,
+                    RawFormatArg::F32 => RawFormat::F32,
+                },
+            }),
             (None, Some(_)) => {
                 return Err(Error::Arg {
                     arg: "--raw-format".into(),
@@ -163,7 +142,7 @@ impl TerrainArgs {
                 };
                 Ok((
                     format!("procedural(seed={}, size={})", p.seed, p.size),
-                    source::procedural::generate(&p)?,
+                    source::procedural::generate(&p).map_err(args::flag("--terrain"))?,
                 ))
             }
             TerrainSpec::File(path) => {
@@ -171,6 +150,15 @@ impl TerrainArgs {
             }
         }
     }
+}
+
+/// `--raw-format`: the raw file's sample type.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub(crate) enum RawFormatArg {
+    /// Unsigned 16-bit.
+    U16,
+    /// 32-bit float.
+    F32,
 }
 
 /// The `--profile` option.
@@ -183,7 +171,7 @@ pub(crate) struct ProfileArgs {
 
 impl ProfileArgs {
     pub(crate) fn load(&self) -> Result<Profile> {
-        Profile::load(&self.profile)
+        Profile::load(&self.profile).map_err(args::flag("--profile"))
     }
 }
 

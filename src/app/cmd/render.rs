@@ -11,7 +11,7 @@ use clipsat::bake::{self, BakeParams};
 use clipsat::gpu::brute::BruteForce;
 use clipsat::gpu::headless::{self, render_frame, FrameOptions, Offscreen, OffscreenOptions};
 use clipsat::gpu::renderer::{SgShading, Shading};
-use clipsat::gpu::{Gpu, GpuMode};
+use clipsat::gpu::Gpu;
 use clipsat::measure;
 use clipsat::plan::camera::parse_vec3;
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
@@ -22,6 +22,7 @@ use clipsat::{hash, Camera, Error, Heightmap, Profile, Result};
 use glam::DVec3;
 use serde_json::json;
 
+use super::args::{pixel_size, DebugArg, GpuArgs, LodArgs, Size};
 use super::sg::ShadingArgs;
 use super::{ensure_parent, print_json, ProfileArgs, TerrainArgs};
 
@@ -44,14 +45,13 @@ pub(crate) struct RenderArgs {
     #[arg(long, value_name = "DEG")]
     fov: Option<f64>,
     /// Image size, WxH pixels (each side at most 2048, the GLES 3.0 floor). Default: the profile's viewport.
-    #[arg(long, value_name = "WxH")]
-    size: Option<String>,
+    #[arg(long, value_name = "WxH", value_parser = pixel_size)]
+    size: Option<Size>,
     /// Output PNG.
     #[arg(long, value_name = "FILE.png", default_value = "out/frame.png")]
     out: std::path::PathBuf,
-    /// GL context: strict (a real OpenGL ES 3.0 context), gl (wgpu's own GL backend) or auto.
-    #[arg(long, value_name = "auto|strict|gl", default_value = "auto")]
-    gpu: String,
+    #[command(flatten)]
+    gpu: GpuArgs,
     /// Print a machine-readable summary on stdout.
     #[arg(long)]
     json: bool,
@@ -69,17 +69,11 @@ pub(crate) struct RenderArgs {
     /// Clipmap only: disable frustum culling.
     #[arg(long)]
     no_cull: bool,
-    /// Clipmap only: block level selection, distance (each ring at its own level), sat (SFAMF estimate),
-    /// sat-conservative (never below the true max) or exact (max pyramid).
-    #[arg(long, value_name = "MODE", default_value = "distance")]
-    lod: String,
-    /// SAT LOD screen-space error bound, pixels. Default: the profile's view.epsilon_px.
-    #[arg(long, value_name = "PX")]
-    epsilon: Option<f32>,
-    /// Clipmap only: a debug view, levels (blocks coloured by their drawn level, as in the SAT paper's
-    /// figure 3) or wireframe (the lattice lines in the level colours).
-    #[arg(long, value_name = "normal|levels|wireframe", default_value = "normal")]
-    debug: String,
+    #[command(flatten)]
+    lod: LodArgs,
+    /// Clipmap only: a debug view.
+    #[arg(long, value_enum, value_name = "VIEW", default_value_t = DebugArg::Normal)]
+    debug: DebugArg,
 }
 
 /// The SAT LOD selector for `clipmap`'s terrain: tables from the bake cache ([`bake::default_cache_dir`]),
@@ -106,28 +100,17 @@ pub(crate) fn lod_for(
     Ok(Lod::for_clipmap(tables, profile, clipmap, hm))
 }
 
-/// Parses `--epsilon`: a positive, finite number of pixels.
-pub(crate) fn parse_epsilon(epsilon: Option<f32>) -> Result<Option<f32>> {
-    match epsilon {
-        Some(e) if !(e.is_finite() && e > 0.0) => Err(Error::Arg {
-            arg: "--epsilon".into(),
-            reason: format!("{e}: a positive number of pixels"),
-        }),
-        e => Ok(e),
-    }
-}
-
 /// Most clipmap updates `render` runs to let the budget fill every level at the camera.
 const MAX_FILL_FRAMES: u32 = 10_000;
 
 pub(crate) fn run(args: &RenderArgs) -> Result<()> {
-    let mode: GpuMode = args.gpu.parse()?;
-    let lod_mode: LodMode = args.lod.parse()?;
-    let debug: DebugView = args.debug.parse()?;
-    let epsilon = parse_epsilon(args.epsilon)?;
+    let mode = args.gpu.mode();
+    let lod_mode = args.lod.mode();
+    let debug = DebugView::from(args.debug);
+    let epsilon = args.lod.epsilon;
     let profile = args.profile.load()?;
-    let (size_w, size_h) = match &args.size {
-        Some(s) => parse_size(s)?,
+    let (size_w, size_h) = match args.size {
+        Some(s) => s.pair(),
         None => (profile.view.width, profile.view.height),
     };
     let (terrain_name, hm) = args.terrain.load()?;
@@ -441,31 +424,6 @@ fn camera(args: &RenderArgs, hm: &Heightmap, profile_fov: f64) -> Result<Camera>
         * 1.1;
     let far = far.max(10.0);
     camera.with_clip((far * 1e-5).max(0.05), far)
-}
-
-/// The largest render target side on the GLES 3.0 floor (`Limits::downlevel_webgl2_defaults`).
-const MAX_SIDE: u32 = 2048;
-
-pub(crate) fn parse_size(text: &str) -> Result<(u32, u32)> {
-    let bad = |reason: String| Error::Arg {
-        arg: "--size".into(),
-        reason,
-    };
-    let (w, h) = text
-        .split_once(['x', 'X'])
-        .ok_or_else(|| bad(format!("`{text}` is not WxH")))?;
-    let parse = |s: &str| {
-        s.trim()
-            .parse::<u32>()
-            .ok()
-            .filter(|&v| (1..=MAX_SIDE).contains(&v))
-            .ok_or_else(|| {
-                bad(format!(
-                    "`{s}` is not a whole number of pixels in 1..={MAX_SIDE} (the GLES 3.0 floor)"
-                ))
-            })
-    };
-    Ok((parse(w)?, parse(h)?))
 }
 
 fn round2(v: f64) -> f64 {

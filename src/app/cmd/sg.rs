@@ -7,6 +7,7 @@
 //! horizon is ray-marched at 64 azimuths, and `shading::reference` integrates it; fog and display encoding
 //! follow as in the shader. Pixels whose ray leaves the data, or that show sky on the GPU, are skipped.
 
+use super::args::{PatchesArg, ShadingArg};
 use clap::Args;
 use clipsat::bake::horizon;
 use clipsat::gpu::readback::Image;
@@ -18,15 +19,15 @@ use glam::{DVec3, Vec4};
 /// The shading options shared by `render` and `fly`.
 #[derive(Args, Debug, Clone)]
 pub(crate) struct ShadingArgs {
-    /// Shading: basic (height ramp + Lambert, the default) or sg (reduced spherical Gaussians).
-    #[arg(long, value_name = "basic|sg", default_value = "basic")]
-    pub(crate) shading: String,
+    /// Shading.
+    #[arg(long, value_enum, default_value_t = ShadingArg::Basic)]
+    pub(crate) shading: ShadingArg,
     /// SG scene: a shipped name (noon, evening, overcast) or a TOML file. Default with --shading sg: noon.
     #[arg(long, value_name = "FILE|NAME")]
     pub(crate) scene: Option<String>,
-    /// SG patches per lobe, MxN: 2x4, 4x8 or 8x16.
-    #[arg(long, value_name = "MxN", default_value = "4x8")]
-    pub(crate) patches: String,
+    /// SG patches per lobe, MxN.
+    #[arg(long, value_enum, value_name = "MxN", default_value_t = PatchesArg::P4x8)]
+    pub(crate) patches: PatchesArg,
     /// SG: drop visibility (no horizon bake, no visibility texture) even if the scene asks for it.
     #[arg(long)]
     pub(crate) no_shadows: bool,
@@ -52,23 +53,12 @@ impl SgChoice {
     }
 }
 
-/// Parses `--patches`.
-pub(crate) fn parse_patches(text: &str) -> Result<Patches> {
-    Patches::ALL
-        .into_iter()
-        .find(|p| p.label() == text)
-        .ok_or_else(|| Error::Arg {
-            arg: "--patches".into(),
-            reason: format!("`{text}` is not one of 2x4, 4x8, 8x16"),
-        })
-}
-
 impl ShadingArgs {
     /// None for basic shading; the scene (checked against the profile), patches and shadows for sg.
     pub(crate) fn choice(&self, profile: &Profile) -> Result<Option<SgChoice>> {
-        let patches = parse_patches(&self.patches)?;
-        match self.shading.as_str() {
-            "basic" => {
+        let patches = Patches::from(self.patches);
+        match self.shading {
+            ShadingArg::Basic => {
                 let sg_only = [
                     (self.scene.is_some(), "--scene"),
                     (self.no_shadows, "--no-shadows"),
@@ -83,9 +73,9 @@ impl ShadingArgs {
                     None => Ok(None),
                 }
             }
-            "sg" => {
+            ShadingArg::Sg => {
                 let name = self.scene.as_deref().unwrap_or("noon");
-                let scene = Scene::load(name)?;
+                let scene = Scene::load(name).map_err(super::args::flag("--scene"))?;
                 scene.check_profile(name, profile)?;
                 Ok(Some(SgChoice {
                     scene,
@@ -93,10 +83,6 @@ impl ShadingArgs {
                     shadows: !self.no_shadows,
                 }))
             }
-            other => Err(Error::Arg {
-                arg: "--shading".into(),
-                reason: format!("`{other}` is not basic or sg"),
-            }),
         }
     }
 }

@@ -18,7 +18,7 @@ use clipsat::gpu::headless::{render_frame, Offscreen, OffscreenOptions};
 use clipsat::gpu::readback::Image;
 use clipsat::gpu::renderer::{self as gpu_renderer, SgShading};
 use clipsat::gpu::sat_textures::ShadingBake;
-use clipsat::gpu::{Gpu, GpuMode};
+use clipsat::gpu::Gpu;
 use clipsat::plan::camera::parse_vec3;
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::plan::frame_plan::LodSetup;
@@ -35,7 +35,8 @@ use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop};
 use winit::keyboard::{KeyCode, PhysicalKey};
 use winit::window::{Window, WindowId};
 
-use super::render::{lod_for, parse_epsilon, parse_size};
+use super::args::{pixel_size, DebugArg, GpuArgs, LodArgs, Size};
+use super::render::lod_for;
 use super::sg::ShadingArgs;
 use super::{ProfileArgs, TerrainArgs};
 
@@ -51,23 +52,18 @@ pub(crate) struct ViewArgs {
     #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
     camera: Option<String>,
     /// Rendered image size, WxH pixels (the window scales it). Default: the profile's viewport.
-    #[arg(long, value_name = "WxH")]
-    size: Option<String>,
-    /// GL context: strict (a real OpenGL ES 3.0 context), gl (wgpu's own GL backend) or auto.
-    #[arg(long, value_name = "auto|strict|gl", default_value = "auto")]
-    gpu: String,
+    #[arg(long, value_name = "WxH", value_parser = pixel_size)]
+    size: Option<Size>,
+    #[command(flatten)]
+    gpu: GpuArgs,
     /// Flight speed, m/s (shift: 5x). Default: a twentieth of the terrain's size per second.
     #[arg(long, value_name = "M/S")]
     speed: Option<f64>,
-    /// Initial LOD mode: distance, sat, sat-conservative or exact (key L cycles).
-    #[arg(long, value_name = "MODE", default_value = "distance")]
-    lod: String,
-    /// Initial SAT LOD error bound, pixels (keys [ and ]). Default: the profile's view.epsilon_px.
-    #[arg(long, value_name = "PX")]
-    epsilon: Option<f32>,
-    /// Initial view: normal, levels or wireframe (key V cycles).
-    #[arg(long, value_name = "VIEW", default_value = "normal")]
-    debug: String,
+    #[command(flatten)]
+    lod: LodArgs,
+    /// Initial view (key V cycles).
+    #[arg(long, value_enum, value_name = "VIEW", default_value_t = DebugArg::Normal)]
+    debug: DebugArg,
     /// Close the window after this many seconds (scripted runs and tests).
     #[arg(long, value_name = "SECS")]
     exit_after: Option<f64>,
@@ -82,13 +78,13 @@ L lod mode, [ ] epsilon, M morph, K cull, V view (normal/levels/wireframe), \
 1 basic/SG shading, 2 visibility, 3 specular, 4 fog, Esc quit";
 
 pub(crate) fn run(args: &ViewArgs) -> Result<()> {
-    let mode: GpuMode = args.gpu.parse()?;
-    let lod: LodMode = args.lod.parse()?;
-    let debug: DebugView = args.debug.parse()?;
-    let epsilon = parse_epsilon(args.epsilon)?;
+    let mode = args.gpu.mode();
+    let lod = args.lod.mode();
+    let debug = DebugView::from(args.debug);
+    let epsilon = args.lod.epsilon;
     let mut profile = args.profile.load()?;
-    if let Some(s) = &args.size {
-        (profile.view.width, profile.view.height) = parse_size(s)?;
+    if let Some(s) = args.size {
+        (profile.view.width, profile.view.height) = s.pair();
     }
     let (terrain_name, hm) = args.terrain.load()?;
     let mut camera = Camera::default_for(&hm)?;

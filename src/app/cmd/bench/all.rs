@@ -9,7 +9,7 @@ use std::time::Instant;
 use crate::app::plot::{LinePlot, Series};
 use clap::Args;
 use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen, OffscreenOptions};
-use clipsat::gpu::{Gpu, GpuMode};
+use clipsat::gpu::Gpu;
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::plan::flight::{Flight, Path};
 use clipsat::plan::lod::LodMode;
@@ -19,6 +19,7 @@ use clipsat::{Error, Heightmap, Profile, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::{lod, shading};
+use crate::app::cmd::args::GpuArgs;
 use crate::app::cmd::ProfileArgs;
 use lod::LodResult;
 
@@ -32,9 +33,8 @@ pub(crate) struct BenchAllArgs {
     /// A small run for tests: the procedural terrain only (257 x 257), few frames, small images.
     #[arg(long)]
     quick: bool,
-    /// GL context: strict, gl or auto.
-    #[arg(long, value_name = "auto|strict|gl", default_value = "auto")]
-    gpu: String,
+    #[command(flatten)]
+    gpu: GpuArgs,
 }
 
 /// The shared terrains `bench all` measures when present: file, spacing and height scale overrides (PNG
@@ -168,7 +168,7 @@ struct MemoryRow {
 
 pub(crate) fn run(args: &BenchAllArgs) -> Result<()> {
     let plan = Plan::new(args.quick);
-    let mode: GpuMode = args.gpu.parse()?;
+    let mode = args.gpu.mode();
     let profile = args.profile.load()?;
     std::fs::create_dir_all(&args.out)
         .map_err(|e| Error::io(&args.out, "cannot create the output folder", e))?;

@@ -8,7 +8,7 @@ use std::time::Instant;
 use clap::Args;
 use clipsat::gpu::brute::BruteForce;
 use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen, OffscreenOptions};
-use clipsat::gpu::{Gpu, GpuMode};
+use clipsat::gpu::Gpu;
 use clipsat::measure;
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::plan::flight::{Flight, Path};
@@ -18,7 +18,8 @@ use clipsat::source::{self, LoadOptions};
 use clipsat::{Error, Heightmap, Profile, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 
-use super::common::{parse_size, TERRAINS};
+use super::common::TERRAINS;
+use crate::app::cmd::args::{pixel_size, GpuArgs, Size};
 use crate::app::cmd::ProfileArgs;
 use crate::app::plot::{LinePlot, Series};
 
@@ -33,11 +34,10 @@ pub(super) struct BenchLodArgs {
     #[arg(long, value_name = "N", default_value_t = 12)]
     pub(crate) frames: u32,
     /// Image size, WxH pixels.
-    #[arg(long, value_name = "WxH")]
-    size: Option<String>,
-    /// GL context: strict, gl or auto.
-    #[arg(long, value_name = "auto|strict|gl", default_value = "auto")]
-    gpu: String,
+    #[arg(long, value_name = "WxH", value_parser = pixel_size)]
+    size: Option<Size>,
+    #[command(flatten)]
+    gpu: GpuArgs,
 }
 
 pub(crate) const EPSILONS: [f32; 5] = [0.5, 1.0, 2.0, 4.0, 8.0];
@@ -67,7 +67,7 @@ pub(crate) struct Acc {
 }
 
 pub(super) fn run_lod(args: &BenchLodArgs) -> Result<()> {
-    let mode: GpuMode = args.gpu.parse()?;
+    let mode = args.gpu.mode();
     if args.frames == 0 {
         return Err(Error::Arg {
             arg: "--frames".into(),
@@ -75,8 +75,8 @@ pub(super) fn run_lod(args: &BenchLodArgs) -> Result<()> {
         });
     }
     let profile = args.profile.load()?;
-    let (w, h) = match &args.size {
-        Some(text) => parse_size(text)?,
+    let (w, h) = match args.size {
+        Some(size) => size.pair(),
         None => (profile.view.width, profile.view.height),
     };
     let profile = lod_profile(profile, w, h);

@@ -7,13 +7,14 @@ use std::time::Instant;
 use clap::Args;
 use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen, OffscreenOptions};
 use clipsat::gpu::renderer::{SgShading, Shading};
-use clipsat::gpu::{Gpu, GpuMode};
+use clipsat::gpu::Gpu;
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::source::{self, LoadOptions};
 use clipsat::{Error, Heightmap, Profile, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 
-use super::common::{parse_size, TERRAINS};
+use super::common::TERRAINS;
+use crate::app::cmd::args::{pixel_size, GpuArgs, Size};
 use crate::app::cmd::ProfileArgs;
 use crate::app::plot::{LinePlot, Series};
 
@@ -28,11 +29,10 @@ pub(crate) struct BenchShadingArgs {
     #[arg(long, value_name = "N", default_value_t = 3)]
     frames: u32,
     /// Image size, WxH pixels.
-    #[arg(long, value_name = "WxH", default_value = "320x180")]
-    size: String,
-    /// GL context: strict, gl or auto.
-    #[arg(long, value_name = "auto|strict|gl", default_value = "auto")]
-    gpu: String,
+    #[arg(long, value_name = "WxH", value_parser = pixel_size, default_value = "320x180")]
+    size: Size,
+    #[command(flatten)]
+    gpu: GpuArgs,
 }
 
 /// The effect sets of `bench shading`, cumulative: (label, visibility, specular).
@@ -83,8 +83,8 @@ fn time_frames(
 /// with a printed reason; under CI=true it is an error), one view each (the default camera), the evening
 /// scene without fog. Writes DIR/shading.md and DIR/shading.png and returns the report.
 pub(crate) fn run_shading(args: &BenchShadingArgs) -> Result<ShadingReport> {
-    let mode: GpuMode = args.gpu.parse()?;
-    let size = parse_size(&args.size)?;
+    let mode = args.gpu.mode();
+    let size = args.size.pair();
     if args.frames == 0 {
         return Err(Error::Arg {
             arg: "--frames".into(),
