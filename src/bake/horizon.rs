@@ -230,7 +230,7 @@ pub fn box_average(
 /// corner fetches. The CPU twin of the GPU tables; [`box_average`] is its brute-force reference.
 ///
 /// GPU format: R32UI wrapping fixed point, Q = 20 fractional bits (a 64^2 footprint box of ones stays below
-/// 2^32, so the wrapping corner difference is exact). Measured by `tests/shading.rs gpu_sat_format_error`
+/// 2^32, so the wrapping corner difference is exact). Measured by `tests/cpu/shading.rs gpu_sat_format_error`
 /// on a 1024^2 grid, boxes of 1 to 64^2 samples: max error of a box mean 4.4e-7 (the rounding, <= 2^-21),
 /// against 1.7e-4 for RGBA32F with the global mean subtracted and 4.5e-3 for plain RGBA32F. Boxes over
 /// 4096 samples must be split (or clamped to a 64^2 footprint) or they wrap.

@@ -33,7 +33,7 @@
 //!
 //! The u64 fixed point has a position-independent error, exact integer differences, and a guaranteed
 //! direction of rounding; its price is the quantum: with [`Sat::max_frac_bits`], Q = 63 - floor(log2 N), so
-//! 2^-43 for a 1025^2 grid and 2^-35 for 16385^2. `tests/sat.rs` measures the error against f64 and exact
+//! 2^-43 for a 1025^2 grid and 2^-35 for 16385^2. `tests/cpu/sat.rs` measures the error against f64 and exact
 //! integer brute-force sums.
 //!
 //! # Memory

@@ -3,7 +3,7 @@
 //!
 //! Format: wrapping u32 fixed point with Q = [`SAT_FRAC_BITS`] = 20 fractional bits, four channels per
 //! RGBA32UI texel (integer textures, read with `textureLoad`: GLES 3.0 filters neither integer nor float
-//! textures). Measured by `tests/shading.rs gpu_sat_format_error` on a 1024^2 grid, boxes of 1 to 64^2
+//! textures). Measured by `tests/cpu/shading.rs gpu_sat_format_error` on a 1024^2 grid, boxes of 1 to 64^2
 //! samples: max error of a box mean 4.4e-7, against 1.7e-4 for RGBA32F with the global mean subtracted and
 //! 4.5e-3 for plain RGBA32F. Sums wrap mod 2^32, and a corner difference is exact as long as the box's
 //! sum stays below 2^32: values are <= 1, so a box of at most [`MAX_BOX_SIDE`]^2 = 63^2 samples

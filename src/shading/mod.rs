@@ -7,7 +7,7 @@
 //! densely in f64 with the true clamped cosine (averaged over the vMF normal distribution) and ray-marched
 //! visibility, so every approximation of [`shade`] shows up in its error.
 //!
-//! The approximations of [`shade`], each measured by `tests/shading.rs`:
+//! The approximations of [`shade`], each measured by `tests/cpu/shading.rs`:
 //! - the clamped cosine is one SG (lambda 2.133, mu 1.17; [`crate::shading::sg::COSINE_LAMBDA`]), widened by the vMF
 //!   with [`sg::Sg::convolve_vmf`], and cut at the mean normal's tangent plane lowered by the vMF's angular
 //!   spread ([`plane_drop`]);

@@ -25,7 +25,7 @@ pub const SHIPPED: [(&str, &str); 3] = [
     ),
 ];
 
-/// Sharpest light lobe a scene may declare: the numerics are tested up to here (`tests/sg_numerics.rs`).
+/// Sharpest light lobe a scene may declare: the numerics are tested up to here (`tests/cpu/sg_numerics.rs`).
 pub const MAX_SHARPNESS: f32 = 1e4;
 
 /// A scene file as written.

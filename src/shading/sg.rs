@@ -169,7 +169,7 @@ impl Vmf {
 
 /// kappa = (3 |r| - |r|^3) / (1 - |r|^2), Banerjee et al. 2005 ("Clustering on the unit hypersphere using
 /// von Mises-Fisher distributions", JMLR 6, the approximation for dimension p = 3), the approximate inverse of the mean
-/// resultant length A3(kappa) = coth(kappa) - 1/kappa. `tests/sg_numerics.rs` measures it against the
+/// resultant length A3(kappa) = coth(kappa) - 1/kappa. `tests/cpu/sg_numerics.rs` measures it against the
 /// (1 - |r|^3)-denominator variant of the seed text. Callers clamp |r| into [R_MIN, R_MAX].
 pub fn kappa_from_mean_length(r_len: f32) -> f32 {
     let r = r_len.clamp(R_MIN, R_MAX);

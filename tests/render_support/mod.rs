@@ -1,9 +1,8 @@
-//! Shared pieces of the clipmap renderer tests: a GPU, terrains, profiles and camera paths.
+//! Shared pieces of the GPU test binary (`tests/gpu`): a GPU, terrains, profiles and camera paths.
 
 #![expect(
-    dead_code,
     unreachable_pub,
-    reason = "each test binary uses a different part of this module"
+    reason = "test support: `pub` items of a private module"
 )]
 
 use std::path::Path;

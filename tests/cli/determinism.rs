@@ -2,8 +2,8 @@
 //! other load on the machine, or on the run. The binary runs as a subprocess so each run gets its own
 //! environment and its own GL context.
 //!
-//! Debug against release is pinned elsewhere: `frame_hash_sequence_is_pinned` in tests/fly_paths.rs holds a
-//! golden frame-hash sequence that `cargo test --release --test fly_paths` must reproduce.
+//! Debug against release is pinned elsewhere: `frame_hash_sequence_is_pinned` in tests/cpu/fly_paths.rs holds a
+//! golden frame-hash sequence that `cargo test --release --test cpu fly_paths::` must reproduce.
 
 use std::process::{Command, Output};
 use std::sync::atomic::{AtomicBool, Ordering};

@@ -2,7 +2,7 @@
 //! same terrain at the origin, because the offset is subtracted in f64 before any lattice maths
 //! (`Clipmap::eye_lattice`) and the GPU only sees eye-relative positions (`Camera::view_proj_relative`).
 
-mod render_support;
+use crate::render_support;
 
 use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen};
 use clipsat::gpu::readback::Image;

@@ -10,17 +10,15 @@
 //! Puget Sound comes from the shared data: without it the `puget-*` views are skipped (a failure under
 //! `CI=true`).
 
-mod render_support;
-
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+use crate::render_support::*;
 use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen};
 use clipsat::gpu::readback::Image;
 use clipsat::source::procedural::{self, ProceduralParams};
 use clipsat::{hash, Camera, Heightmap};
 use glam::DVec3;
-use render_support::*;
 
 const W: u32 = 160;
 const H: u32 = 90;
@@ -93,7 +91,7 @@ fn read_hashes(path: &Path) -> BTreeMap<(String, String), String> {
 
 fn write_hashes(path: &Path, hashes: &BTreeMap<(String, String), String>) {
     let mut text = String::from(
-        "# Exact clipmap image hashes per driver: adapter|driver<TAB>view<TAB>hash (tests/render_goldens.rs).\n",
+        "# Exact clipmap image hashes per driver: adapter|driver<TAB>view<TAB>hash (tests/gpu/render_goldens.rs).\n",
     );
     for ((k, v), h) in hashes {
         text.push_str(&format!("{k}\t{v}\t{h}\n"));

@@ -12,7 +12,7 @@ use clipsat::Profile;
     dead_code,
     reason = "the example's main is not called here, only its three_frames"
 )]
-#[path = "../examples/embed.rs"]
+#[path = "../../examples/embed.rs"]
 mod embed;
 
 #[test]

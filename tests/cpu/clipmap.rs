@@ -178,7 +178,7 @@ fn constraints_hold_with_synthesis() {
     run_motions(2000, &profile(15, 6, 2, 100), 2);
 }
 
-/// The long variant: `cargo test --release --test clipmap -- --ignored long_runs`.
+/// The long variant: `cargo test --release --test cpu clipmap::long_runs -- --ignored`.
 #[test]
 #[ignore]
 fn constraints_hold_on_long_runs_long() {
@@ -473,7 +473,7 @@ fn puget_sound_fly_through() {
 
 /// Fill throughput at n = 255 (desktop profile): every frame teleports, so every level refills all
 /// clip_size^2 samples. Prints samples/s; wall-clock time is only printed, never asserted.
-/// `cargo test --release --test clipmap -- --ignored --nocapture throughput`.
+/// `cargo test --release --test cpu clipmap::throughput -- --ignored --nocapture`.
 #[test]
 #[ignore]
 fn throughput() {

@@ -3,7 +3,7 @@
 //! positions against the CPU twin, memory against the profile's footprint, culling against no culling, and
 //! morphing against popping.
 
-mod render_support;
+use crate::render_support::{self, *};
 
 use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen};
 use clipsat::gpu::renderer::{ObjectKind, VertexProbe};
@@ -11,7 +11,6 @@ use clipsat::measure::{crack_pixels, CRACK_CLEAR, CRACK_CLEAR_RGBA8};
 use clipsat::plan::frame::LevelState;
 use clipsat::plan::mesh;
 use clipsat::twin::clipmap::cpu_vertex;
-use render_support::*;
 
 const W: u32 = 160;
 const H: u32 = 90;
@@ -408,9 +407,9 @@ fn too_many_draws_is_a_capacity_error() {
 /// draws and ms per frame against the brute-force full grid of the same view, what culling saves, and
 /// the upload time per frame of a fast fly-through. Also writes both renders as PNGs to the target tmpdir.
 ///
-/// `cargo test --release --test render_clipmap -- --ignored --nocapture bench`
+/// `cargo test --release --test gpu render_clipmap::bench -- --ignored --nocapture`
 #[test]
-#[ignore = "timing run: cargo test --release --test render_clipmap -- --ignored --nocapture bench"]
+#[ignore = "timing run: cargo test --release --test gpu render_clipmap::bench -- --ignored --nocapture"]
 fn bench_clipmap_vs_brute_force() {
     use std::time::Instant;
     let gpu = strict();

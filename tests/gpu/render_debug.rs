@@ -2,16 +2,14 @@
 //! colour, in distance and SAT LOD modes alike, the wireframe view draws lattice lines, and the normal view
 //! is the default rendering. Headless strict GLES 3.0 on llvmpipe.
 
-mod render_support;
-
 use std::collections::BTreeMap;
 
+use crate::render_support::{clipmap, lod, profile, relief, renderer_in, strict};
 use clipsat::gpu::headless::{render_frame, FrameOptions};
 use clipsat::gpu::readback::Image;
 use clipsat::plan::lod::LodMode;
 use clipsat::shading::debug_view::{level_of_pixel, DebugView};
 use clipsat::Camera;
-use render_support::{clipmap, lod, profile, relief, renderer_in, strict};
 
 /// Pixels per level colour found in `image`.
 fn level_pixels(image: &Image) -> BTreeMap<u32, u64> {

@@ -397,9 +397,9 @@ fn lod_mode_parses() {
 /// errors, a 2.1 GB SAT, a 1.4 GB max pyramid), then blocks of every size up to the whole extent keep
 /// estimate <= exact <= conservative and their SAT sums match a compensated f64 sum within
 /// 1e-12 relative + n quanta. Heavy, so ignored by default:
-/// `cargo test --release --test lod -- --ignored extent_16385`.
+/// `cargo test --release --test cpu lod::extent_16385 -- --ignored`.
 #[test]
-#[ignore = "5 GB and about a minute in release: cargo test --release --test lod -- --ignored extent_16385"]
+#[ignore = "5 GB and about a minute in release: cargo test --release --test cpu lod::extent_16385 -- --ignored"]
 fn extent_16385_full_resolution_tables() {
     let side = 16385u32;
     let needle = (9_999u32, 4_321u32);

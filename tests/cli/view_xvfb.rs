@@ -5,7 +5,7 @@
 //! view-xvfb-sg.png (SG shading).
 //!
 //! Ignored by default (needs Xvfb, xdotool and xwd, and takes about a minute on llvmpipe):
-//! `bash .ci/view-xvfb`, or `cargo test --test view_xvfb -- --ignored --nocapture`.
+//! `bash .ci/view-xvfb`, or `cargo test --test cli view_xvfb -- --ignored --nocapture`.
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};

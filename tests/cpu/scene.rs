@@ -6,7 +6,7 @@ use clipsat::shading::{self, Inputs, Patches};
 use clipsat::{Error, Profile};
 use glam::Vec3;
 
-const NOON: &str = include_str!("../profiles/scenes/noon.toml");
+const NOON: &str = include_str!("../../profiles/scenes/noon.toml");
 
 fn field_of(err: Error) -> String {
     match err {

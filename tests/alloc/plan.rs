@@ -12,8 +12,7 @@ use clipsat::plan::lod::{Lod, LodMode};
 use clipsat::source::procedural::{generate, ProceduralParams};
 use clipsat::Profile;
 
-mod counting_alloc;
-use counting_alloc::count;
+use crate::counting_alloc::count;
 
 #[test]
 fn update_and_draw_list_allocate_nothing() {

@@ -2,7 +2,7 @@
 //! frame, on the procedural terrain and on Puget Sound, and the frame-hash sequence is pinned so that a debug
 //! and a release build can be checked against the same number.
 //!
-//! Release check of the same goldens: `cargo test --release --test fly_paths`.
+//! Release check of the same goldens: `cargo test --release --test cpu fly_paths::`.
 
 use clipsat::hash::{hex, Hash64};
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};

@@ -3,10 +3,10 @@
 //! frame; a short rendered fly-through per profile keeps draws and triangles within `budget.max_draws` and
 //! `budget.max_triangles` on every frame, with a constant GPU object ledger.
 //!
-//! Zero allocations in the frame-planning path (update + draw list) are in tests/alloc_plan.rs.
-//! Longer variant: `cargo test --release --test budget -- --ignored`.
+//! Zero allocations in the frame-planning path (update + draw list) are in tests/alloc/plan.rs.
+//! Longer variant: `cargo test --release --test gpu budget:: -- --ignored`.
 
-mod render_support;
+use crate::render_support;
 
 use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen};
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
@@ -114,7 +114,7 @@ fn update_budget_and_constraints_on_every_profile_terrain_and_path() {
     fly_all(300);
 }
 
-/// `cargo test --release --test budget -- --ignored`
+/// `cargo test --release --test gpu budget:: -- --ignored`
 #[test]
 #[ignore = "long: 2000 frames per flight; run in release"]
 fn update_budget_and_constraints_long() {

@@ -367,7 +367,7 @@ fn patch_counts_error_and_cost_small() {
     }
 }
 
-/// The full table: `cargo test --release --test shading patch_counts_error_and_cost_full -- --ignored --nocapture`.
+/// The full table: `cargo test --release --test cpu shading::patch_counts_error_and_cost_full -- --ignored --nocapture`.
 #[test]
 #[ignore = "dense: about a minute in a debug build"]
 fn patch_counts_error_and_cost_full() {

@@ -3,8 +3,7 @@
 //! measured screen error, and on gentle terrain the SAT estimate draws fewer triangles than distance LOD.
 //! Headless strict GLES 3.0 on llvmpipe.
 
-mod render_support;
-
+use crate::render_support::{camera, clipmap, flight, lod, profile, puget, renderer_in, strict};
 use clipsat::gpu::headless::{render_frame, FrameOptions};
 use clipsat::gpu::Gpu;
 use clipsat::measure::{crack_pixels, screen_error, CRACK_CLEAR, CRACK_CLEAR_RGBA8};
@@ -14,7 +13,6 @@ use clipsat::plan::lod::LodMode;
 use clipsat::shading::debug_view::DebugView;
 use clipsat::{Camera, Heightmap, Profile};
 use glam::DVec3;
-use render_support::{camera, clipmap, flight, lod, profile, puget, renderer_in, strict};
 
 fn loud() -> FrameOptions {
     FrameOptions {

@@ -1,6 +1,5 @@
 //! Proves `Clipmap::update` allocates nothing: a counting global allocator around steady motion, a teleport
-//! refill and synthesised rings. One test in this binary, so no other test allocates meanwhile; only the
-//! test's own thread is counted.
+//! refill and synthesised rings. Only the test's own thread is counted, so other tests may run meanwhile.
 
 #![expect(
     clippy::cast_possible_truncation,
@@ -12,8 +11,7 @@ use clipsat::profile::ClipmapBudget;
 use clipsat::{Heightmap, Profile};
 use glam::DVec3;
 
-mod counting_alloc;
-use counting_alloc::count;
+use crate::counting_alloc::count;
 
 fn terrain(size: u32) -> Heightmap {
     let h = (0..size * size)

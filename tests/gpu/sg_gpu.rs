@@ -2,7 +2,7 @@
 //! the SAT texture lookup against brute-force box means, and the per-scene variants (what is baked, bound
 //! and compiled).
 
-mod render_support;
+use crate::render_support;
 
 use clipsat::bake::horizon;
 use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen};
@@ -289,7 +289,7 @@ fn cli_render_reports_bound_textures_and_baked() {
 }
 
 /// `--reference` against the CPU reference on a small view: the RMSE stays small. Slow in a debug build
-/// (dense f64 quadrature per reference pixel): `cargo test --test sg_gpu -- --ignored`.
+/// (dense f64 quadrature per reference pixel): `cargo test --test gpu sg_gpu:: -- --ignored`.
 #[test]
 #[ignore]
 fn cli_render_reference_error_is_small() {
@@ -326,7 +326,7 @@ fn cli_render_reference_error_is_small() {
 /// Golden SG frame: procedural 257^2 terrain, evening scene (visibility, specular, fog), 4x8, 160 x 90 on
 /// gles3-low's clipmap. `tests/goldens/sg_hashes.txt` holds the exact hash per driver
 /// (`adapter|driver<TAB>view<TAB>hash`); `tests/goldens/sg-procedural-evening.png` is compared with the
-/// same tolerance as tests/render_goldens.rs (mean 3, max 160 levels per channel) on other drivers.
+/// same tolerance as tests/gpu/render_goldens.rs (mean 3, max 160 levels per channel) on other drivers.
 /// `CLIPSAT_BLESS=1` rewrites both.
 #[test]
 fn golden_sg_frame() {
@@ -368,7 +368,7 @@ fn golden_sg_frame() {
         lines.push(line);
         lines.sort();
         let text = format!(
-            "# Exact SG golden hashes per driver (tests/sg_gpu.rs golden_sg_frame).\n{}\n",
+            "# Exact SG golden hashes per driver (tests/gpu/sg_gpu.rs golden_sg_frame).\n{}\n",
             lines.join("\n")
         );
         std::fs::write(&hashes, text).expect("write hashes");

@@ -9,8 +9,8 @@
 //!   counts as height 0 (every level enabled); a very high eye keeps only the coarsest level.
 //! - `clipsat render --camera/--look-at` refuses NaN, infinite and coincident points with exit 2.
 //!
-//! Profile fields are covered by tests/profiles.rs, scene fields by tests/scene.rs, loaders by
-//! tests/sources.rs; here the same file problems go through the binary.
+//! Profile fields are covered by tests/cpu/profiles.rs, scene fields by tests/cpu/scene.rs, loaders by
+//! tests/cpu/sources.rs; here the same file problems go through the binary.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};

@@ -1,0 +1,15 @@
+//! The CPU test binary: every stage that needs no GPU adapter (source, bake, plan, shading maths, shader
+//! translation). One binary instead of one per file, so `cargo test` links wgpu once for all of them (the
+//! layout of wgpu's own test suite). Run one module with `cargo test --test cpu clipmap::`.
+
+mod clipmap;
+mod flight;
+mod fly_paths;
+mod lod;
+mod profiles;
+mod sat;
+mod scene;
+mod sg_numerics;
+mod shaders_glsl;
+mod shading;
+mod sources;
