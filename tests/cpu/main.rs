@@ -5,6 +5,7 @@
 mod clipmap;
 mod flight;
 mod fly_paths;
+mod fuzz_parsers;
 mod lod;
 mod profiles;
 mod sat;

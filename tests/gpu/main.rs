@@ -9,6 +9,7 @@ mod budget;
 mod example_embed;
 mod far_origin;
 mod gpu_smoke;
+mod profile_props;
 mod render_clipmap;
 mod render_debug;
 mod render_goldens;

@@ -26,7 +26,7 @@ const H: u32 = 90;
 /// mean absolute difference per RGB channel, in 8-bit levels, and the share of pixels (per mille) whose
 /// largest channel difference exceeds [`PIXEL_TOL`]. Rasterisation rules and float rounding move
 /// silhouettes by a pixel or so, which changes few pixels by a lot (sky against terrain); a wrong colour
-/// changes many. Measured on llvmpipe (`cargo test --test render_goldens -- --nocapture`): every golden
+/// changes many. Measured on llvmpipe (`cargo test --test gpu render_goldens:: -- --nocapture`): every golden
 /// view differs from its PNG by 0; the procedural views turned by half a pixel differ by a mean of at most
 /// 0.96 levels, a max of 171 (so the old max-160 rule failed a half-pixel turn) and at most 117 of 14,400
 /// pixels (8 per mille) over 24 levels. The limits leave about twice that; a wrong colour (a band of 8 %

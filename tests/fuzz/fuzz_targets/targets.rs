@@ -1,5 +1,5 @@
 //! The fuzz targets' bodies, shared by the cargo-fuzz binaries beside this file and the in-test fuzzer
-//! (`tests/fuzz_parsers.rs`, which runs in `cargo test`). Each takes arbitrary bytes and returns a short
+//! (`tests/cpu/fuzz_parsers.rs`, which runs in `cargo test`). Each takes arbitrary bytes and returns a short
 //! outcome: "ok ..." or the error's text with its digits dropped (the in-test fuzzer keeps an input that
 //! gives an outcome it has not seen, so later mutations start from deeper in the parser). Any `Err` is
 //! fine; a panic, an abort or a hang is a finding.

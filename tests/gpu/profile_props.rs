@@ -3,7 +3,7 @@
 //! the meshes, the footprint within the budget, a clipmap, one planned frame and its draw list, and (for
 //! the first few small ones) a GPU renderer. About 300 cases, a few seconds.
 
-mod render_support;
+use crate::render_support;
 
 use std::cell::Cell;
 use std::path::Path;

@@ -5,11 +5,11 @@
 //! (`tests/fuzz/fuzz_targets/targets.rs`); the driver is `tests/fuzz/harness.rs`.
 //!
 //! A longer run, every target for `CLIPSAT_FUZZ_SECS` seconds (default 120) with seed `CLIPSAT_FUZZ_SEED`:
-//! `CLIPSAT_FUZZ_SECS=600 cargo test --release --test fuzz_parsers -- --ignored --nocapture`.
+//! `CLIPSAT_FUZZ_SECS=600 cargo test --release --test cpu fuzz_parsers:: -- --ignored --nocapture`.
 
-#[path = "fuzz/harness.rs"]
+#[path = "../fuzz/harness.rs"]
 mod harness;
-#[path = "fuzz/fuzz_targets/targets.rs"]
+#[path = "../fuzz/fuzz_targets/targets.rs"]
 mod targets;
 
 use std::time::Duration;
@@ -105,7 +105,7 @@ fn every_target_has_a_corpus() {
 
 /// The long run: every target for `CLIPSAT_FUZZ_SECS` seconds, two at a time; prints a table.
 #[test]
-#[ignore = "minutes: CLIPSAT_FUZZ_SECS=600 cargo test --release --test fuzz_parsers -- --ignored --nocapture"]
+#[ignore = "minutes: CLIPSAT_FUZZ_SECS=600 cargo test --release --test cpu fuzz_parsers:: -- --ignored --nocapture"]
 fn fuzz_every_parser_long() {
     let secs: f64 = std::env::var("CLIPSAT_FUZZ_SECS")
         .ok()
