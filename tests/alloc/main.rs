@@ -5,4 +5,5 @@
 mod counting_alloc;
 
 mod plan;
+mod stream;
 mod update;

@@ -7,4 +7,5 @@ mod bench_all;
 mod determinism;
 mod fly;
 mod hash;
+mod render_json;
 mod view_xvfb;

@@ -7,6 +7,7 @@ mod flight;
 mod fly_paths;
 mod fuzz_parsers;
 mod lod;
+mod package;
 mod profiles;
 mod sat;
 mod scene;

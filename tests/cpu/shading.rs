@@ -96,7 +96,7 @@ const FLAT: [f32; 8] = [0.0; 8];
 /// fit (lambda 2.133, mu 1.17), not from the integration: ABS from its tail, 1.17 e^-2.133 = 0.138 at
 /// grazing incidence where the true cosine is 0; REL from its peak, 17 % high at normal incidence, which
 /// exceeds ABS there by 0.03 of the reference. Measured over every case of this file (80 pairs, `cargo
-/// test --test shading -- --nocapture`): the largest |shade - reference| is 0.170 x irradiance / pi (the
+/// test --test cpu shading:: -- --nocapture`): the largest |shade - reference| is 0.170 x irradiance / pi (the
 /// peak, lambda 1e4 at 90 degrees: 0.37227 against 0.31828), the worst case uses 89 % of this tolerance;
 /// with ABS = 0.14 the cases need REL >= 0.030. (It was REL 0.25, which let a shade 25 % too bright pass:
 /// `tolerance_rejects_a_wrong_shade`.)

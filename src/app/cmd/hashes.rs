@@ -173,7 +173,7 @@ pub(crate) fn terrain_hash(hm: &clipsat::Heightmap) -> String {
 }
 
 /// The frame-hash file parser under the in-test fuzzer (`tests/fuzz/harness.rs`, as in
-/// `tests/fuzz_parsers.rs`): it lives in the binary, so its fuzz target runs among the binary's tests.
+/// `tests/cpu/fuzz_parsers.rs`): it lives in the binary, so its fuzz target runs among the binary's tests.
 #[cfg(test)]
 #[path = "../../../tests/fuzz/harness.rs"]
 mod fuzz_harness;

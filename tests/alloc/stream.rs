@@ -20,8 +20,7 @@ use clipsat::profile::ClipmapBudget;
 use clipsat::{Heightmap, Profile};
 use glam::DVec3;
 
-mod counting_alloc;
-use counting_alloc::count;
+use crate::counting_alloc::count;
 
 const SIZE: u32 = 1025;
 const SPACING: f32 = 30.0;
