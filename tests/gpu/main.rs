@@ -15,3 +15,4 @@ mod render_debug;
 mod render_goldens;
 mod render_lod;
 mod sg_gpu;
+mod shading_data;

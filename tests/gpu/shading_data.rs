@@ -3,10 +3,9 @@
 //! renderer: SAT LOD's image error against the brute-force render stays near distance LOD's), and scene fog
 //! is fitted to the terrain. Headless strict GLES 3.0 on llvmpipe for the GPU test.
 
-mod render_support;
-
 use std::path::Path;
 
+use crate::render_support::{clipmap, lod, profile, relief, renderer_in, strict};
 use bytemuck::Zeroable;
 use clipsat::gpu::brute::BruteForce;
 use clipsat::gpu::headless::{render_frame, FrameOptions};
@@ -18,7 +17,6 @@ use clipsat::shading::debug_view::DebugView;
 use clipsat::twin::shading::data_surface;
 use clipsat::{Camera, Heightmap, Profile};
 use glam::{DVec3, DVec4};
-use render_support::{clipmap, lod, profile, relief, renderer_in, strict};
 
 fn filled(hm: &Heightmap, p: &Profile, eye: DVec3) -> Clipmap {
     let mut cm = clipmap(hm, p);
