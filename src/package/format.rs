@@ -5,7 +5,7 @@
 //! ```text
 //! magic "CLIPSAT\0" | version u32 | header_len u32
 //! width u32 | height u32 | spacing f32 | origin_x f64 | origin_y f64
-//! quantum f64 | max_error f64 | codec u32 | tile u32 | levels u32
+//! quantum f64 | max_error f64 | lowest f32 | highest f32 | codec u32 | tile u32 | levels u32
 //! per level:  width u32 | height u32
 //! per tile (levels fine to coarse, tiles row-major):  offset u64 | len u32 | crc32 u32
 //! header crc32 u32 (over every byte before it)
@@ -29,7 +29,7 @@ pub const VERSION: u32 = 1;
 const TILE_ENTRY: usize = 16;
 
 /// Bytes before the per-level table.
-const FIXED: usize = 8 + 4 + 4 + 4 + 4 + 4 + 8 + 8 + 8 + 8 + 4 + 4 + 4;
+const FIXED: usize = 8 + 4 + 4 + 4 + 4 + 4 + 8 + 8 + 8 + 8 + 4 + 4 + 4 + 4 + 4;
 
 /// The codec a package's tiles are compressed with.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
@@ -123,6 +123,8 @@ pub struct Header {
     pub quantum: f64,
     /// The error bound the bake was asked for, metres (quantum / 2).
     pub max_error: f64,
+    /// Lowest and highest decoded level-0 height, metres (for shading ramps without decoding the data).
+    pub range: (f32, f32),
     /// Tile codec.
     pub codec: CodecKind,
     /// Tile side, samples (every level uses the same).
@@ -177,6 +179,7 @@ impl Header {
             origin,
             quantum,
             max_error: quantum * 0.5,
+            range: (0.0, 0.0),
             codec,
             tile,
             levels,
@@ -215,6 +218,8 @@ impl Header {
         b.extend_from_slice(&self.origin.1.to_le_bytes());
         b.extend_from_slice(&self.quantum.to_le_bytes());
         b.extend_from_slice(&self.max_error.to_le_bytes());
+        b.extend_from_slice(&self.range.0.to_le_bytes());
+        b.extend_from_slice(&self.range.1.to_le_bytes());
         b.extend_from_slice(&self.codec.code().to_le_bytes());
         b.extend_from_slice(&self.tile.to_le_bytes());
         let nl =
@@ -275,6 +280,7 @@ impl Header {
         let origin = (r.f64().ok_or_else(trunc)?, r.f64().ok_or_else(trunc)?);
         let quantum = r.f64().ok_or_else(trunc)?;
         let max_error = r.f64().ok_or_else(trunc)?;
+        let range = (r.f32().ok_or_else(trunc)?, r.f32().ok_or_else(trunc)?);
         let code = r.u32().ok_or_else(trunc)?;
         let tile = r.u32().ok_or_else(trunc)?;
         let nl = r.u32().ok_or_else(trunc)?;
@@ -291,6 +297,11 @@ impl Header {
         }
         if !(quantum.is_finite() && quantum > 0.0) {
             return Err(bad(format!("quantum {quantum} is not finite and positive")));
+        }
+        if !(range.0.is_finite() && range.1.is_finite() && range.0 <= range.1) {
+            return Err(bad(format!(
+                "height range {range:?} is not finite and ordered"
+            )));
         }
         let codec =
             CodecKind::from_code(code).ok_or_else(|| bad(format!("unknown codec {code}")))?;
@@ -314,6 +325,7 @@ impl Header {
         }
         let mut h = Self::new(width, height, spacing, origin, quantum, codec, tile);
         h.max_error = max_error;
+        h.range = range;
         if nl as usize != h.levels.len() {
             return Err(bad(format!(
                 "{nl} levels, a {width} x {height} pyramid has {}",

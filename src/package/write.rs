@@ -163,6 +163,18 @@ pub fn bake(
         .sum();
     bar.set_length(total);
     let mut table = header.tiles.clone();
+    // The decoded level 0's range: the extremes quantised as every sample is.
+    header.range = {
+        let decoded = |h: f32| -> f32 {
+            #[expect(
+                clippy::cast_possible_truncation,
+                reason = "heights are f32, |h / q| < 2^30"
+            )]
+            let v = ((f64::from(h) / q).round() * q) as f32;
+            v
+        };
+        (decoded(lo), decoded(hi))
+    };
     let (sq, worst) = residual_tiles(terrain, &header, |lk, (tx, ty), residuals| {
         let dims = header.levels[lk];
         let payload = encoder

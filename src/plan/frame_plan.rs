@@ -262,20 +262,12 @@ impl Planner {
         let probe_rows = block_vertices.max(skirt_vertices).div_ceil(PROBE_WIDTH);
 
         // Shading and skirt floor from the data (pyramid level 0 is the terrain itself).
-        let data = clipmap.pyramid().level(0);
-        let (lo, hi) = data
-            .heights()
-            .iter()
-            .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &z| {
-                (a.min(z), b.max(z))
-            });
+        let (lo, hi) = clipmap.data_range();
+        let (width, height) = clipmap.data_size();
         let synth = f64::from(1u32 << clipmap.synth_levels());
         let spacing = clipmap.g0() * synth;
-        let data_lattice = (
-            f64::from(data.width() - 1) * synth,
-            f64::from(data.height() - 1) * synth,
-        );
-        let diagonal = f64::from(data.width()).hypot(f64::from(data.height())) * spacing;
+        let data_lattice = (f64::from(width - 1) * synth, f64::from(height - 1) * synth);
+        let diagonal = f64::from(width).hypot(f64::from(height)) * spacing;
         #[expect(
             clippy::cast_possible_truncation,
             reason = "the level-0 spacing as an f32 metre offset"

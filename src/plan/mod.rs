@@ -16,6 +16,7 @@
 pub mod budget;
 pub mod camera;
 pub mod clipmap;
+pub mod constraints;
 pub mod cull;
 pub mod flight;
 pub mod frame;

@@ -263,3 +263,84 @@ fn cache_decodes_under_a_budget_and_matches_the_full_decode() {
     }
     let _ = std::fs::remove_file(&path);
 }
+
+#[test]
+fn cli_bakes_a_package_and_flies_it_streamed() {
+    let exe = env!("CARGO_BIN_EXE_clipsat");
+    let out = temp("cli.clipsat");
+    let run = |args: &[&str]| {
+        let o = std::process::Command::new(exe)
+            .args(args)
+            .output()
+            .expect("run clipsat");
+        assert!(
+            o.status.success(),
+            "clipsat {args:?}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        serde_json::from_slice::<serde_json::Value>(&o.stdout).expect("json")
+    };
+    let path = out.to_str().expect("utf-8 temp path");
+    let bake = run(&["bake", "procedural:size=257", "--out", path, "--json"]);
+    assert!(
+        bake["max_error"].as_f64().expect("max_error")
+            <= bake["max_error_bound"].as_f64().expect("bound") + 1e-3
+    );
+    let info = run(&["info", path, "--json"]);
+    assert_eq!(info["width"], 257);
+    assert!(
+        info["profiles"][0]["tile_cache"]["slot_count"]
+            .as_u64()
+            .expect("slots")
+            > 0
+    );
+    let fly = run(&[
+        "fly",
+        "--terrain",
+        path,
+        "--profile",
+        "gles3-low",
+        "--frames",
+        "200",
+        "--speed",
+        "300",
+        "--json",
+    ]);
+    assert_eq!(fly["frames_over_budget"], 0);
+    assert_eq!(fly["constraint_violations"], 0);
+    let budget = fly["budget"].as_u64().expect("budget");
+    assert!(
+        fly["stream"]["max_fill_plus_decode_samples"]
+            .as_u64()
+            .expect("max")
+            <= budget
+    );
+    assert!(
+        fly["stream"]["tile_cache"]["stats"]["decoded"]
+            .as_u64()
+            .expect("decoded")
+            > 0
+    );
+    // A damaged package fails the command with the tile named, exit status 2.
+    let mut bytes = std::fs::read(&out).expect("read");
+    let last = bytes.len() - 5;
+    bytes[last] ^= 0x20;
+    std::fs::write(&out, &bytes).expect("write");
+    let o = std::process::Command::new(exe)
+        .args([
+            "fly",
+            "--terrain",
+            path,
+            "--profile",
+            "gles3-low",
+            "--frames",
+            "50",
+            "--json",
+        ])
+        .output()
+        .expect("run clipsat");
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("tile (") && err.contains("checksum"), "{err}");
+    let _ = std::fs::remove_file(&out);
+}
