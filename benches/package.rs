@@ -127,5 +127,45 @@ fn full_level(c: &mut Criterion) {
     let _ = std::fs::remove_file(&path);
 }
 
-criterion_group!(benches, decode, full_level);
+/// Decode plus fill, one core: a desktop clipmap (n = 255, 11 levels) streamed through a cache that holds
+/// only one place's tiles, the eye jumping between two places so every frame decodes and refills every
+/// level (GC table 1: 8 ms to decompress a full level). Per level: the time over 11.
+fn refill(c: &mut Criterion) {
+    use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
+    use clipsat::Profile;
+    let hm = hills();
+    let path = baked("refill", &hm, CodecKind::Zstd);
+    let mut profile = Profile::load("desktop").expect("profile");
+    profile.budget.update_samples_per_frame = u32::MAX;
+    profile.budget.cpu_memory_bytes = profile.cpu_split().rings + (5 << 20);
+    let pkg = Package::open(&path).expect("open");
+    let mut clipmap =
+        Clipmap::streamed(pkg, &profile, ClipmapOptions::default()).expect("streamed clipmap");
+    let z = 400.0 + 300.0 + 50.0;
+    let eyes = [
+        glam::DVec3::new(6e3, 6e3, z),
+        glam::DVec3::new(24e3, 24e3, z),
+    ];
+    let s = u64::from(profile.clip_size());
+    let levels = u64::from(profile.clipmap.levels);
+    let mut group = c.benchmark_group(format!("stream_refill_desktop_{levels}x{s}x{s}"));
+    group
+        .sample_size(10)
+        .warm_up_time(Duration::from_secs(1))
+        .measurement_time(Duration::from_secs(4))
+        .throughput(Throughput::Elements(s * s * levels));
+    let mut k = 0usize;
+    group.bench_function("decode_and_fill", |b| {
+        b.iter(|| {
+            k += 1;
+            let f = clipmap.update(eyes[k % 2]).expect("update");
+            black_box(f.hash);
+            black_box(clipmap.decoded_samples())
+        });
+    });
+    group.finish();
+    let _ = std::fs::remove_file(&path);
+}
+
+criterion_group!(benches, decode, full_level, refill);
 criterion_main!(benches);
