@@ -88,6 +88,8 @@ pub struct Clipmap {
     source: HeightSource,
     /// Samples decoded from the package in the last frame (0 for a resident pyramid).
     decoded: u32,
+    /// A streamed package's mean slope, from its coarse level at construction (unused when resident).
+    streamed_slope: f64,
     noise: NoiseTable,
     /// Noise amplitude per synthesised ring (index l < synth_levels); 0 elsewhere.
     sigmas: [f32; MAX_LEVELS],
@@ -162,9 +164,17 @@ impl Clipmap {
             ));
         }
         let geometry = (h.spacing, h.height, h.origin);
+        let coarse = package.coarse_heightmap(1 << 20)?;
+        let slope = crate::shading::basic::mean_slope(
+            coarse.heights(),
+            coarse.width() as usize,
+            f64::from(coarse.spacing()),
+        );
         let cache = TileCache::new(package, profile.cpu_split().tile_cache, &profile.name)?;
         let source = HeightSource::Streamed(Box::new(cache));
-        Self::with_source(source, geometry, [0.0; MAX_LEVELS], profile, opts)
+        let mut clipmap = Self::with_source(source, geometry, [0.0; MAX_LEVELS], profile, opts)?;
+        clipmap.streamed_slope = slope;
+        Ok(clipmap)
     }
 
     /// The shared part of [`Clipmap::new`] and [`Clipmap::streamed`]: validation and the rings.
@@ -208,6 +218,7 @@ impl Clipmap {
         Ok(Self {
             source,
             decoded: 0,
+            streamed_slope: 0.0,
             noise: NoiseTable::default(),
             sigmas,
             rings,
@@ -281,6 +292,22 @@ impl Clipmap {
                     (a.min(z), b.max(z))
                 }),
             HeightSource::Streamed(c) => c.package().header().range,
+        }
+    }
+
+    /// Mean slope (rise over run) of the data, as [`crate::shading::basic::mean_slope`] of level 0; a
+    /// streamed package's is that of its finest level of at most 1 Mi samples.
+    pub fn data_mean_slope(&self) -> f64 {
+        match &self.source {
+            HeightSource::Resident(p) => {
+                let l0 = p.level(0);
+                crate::shading::basic::mean_slope(
+                    l0.heights(),
+                    l0.width() as usize,
+                    self.data_spacing,
+                )
+            }
+            HeightSource::Streamed(_) => self.streamed_slope,
         }
     }
 

@@ -289,11 +289,7 @@ impl Planner {
             aspect: f64::from(profile.view.width) / f64::from(profile.view.height),
             skirt_floor,
             data_lattice,
-            shading: BasicShading::for_terrain(
-                (lo, hi),
-                diagonal,
-                crate::shading::basic::mean_slope(data.heights(), data.width() as usize, spacing),
-            ),
+            shading: BasicShading::for_terrain((lo, hi), diagonal, clipmap.data_mean_slope()),
             probe_size: [PROBE_WIDTH, probe_rows],
             last: None,
         })
