@@ -183,6 +183,7 @@ struct DataSurface {
     found: bool,
     height: f32,
     normal: vec3<f32>,
+    weight: f32,
 }
 
 // Height z of level l at clip-relative lattice point p (p >= 0 inside the clip region).
@@ -191,41 +192,73 @@ fn level_fetch(l: i32, p: vec2<i32>) -> f32 {
     return textureLoad(heights, t, l, 0).x;
 }
 
+// The data of level l at eye-relative rel: bilinear height and the central-difference gradient at the
+// cell's 4 corners (12 fetches), bilinearly blended; `found` is false unless the level's clip region holds
+// rel with a one-sample margin. `weight` is 1 inside and falls to 0 over the last DATA_BLEND cells before
+// the margin, where the caller blends in the next coarser level (GC 6.2's transition, for the shading).
+fn level_surface(l: i32, rel: vec2<f32>) -> DataSurface {
+    var out: DataSurface;
+    out.found = false;
+    let lv = globals.levels[l];
+    let g = lv.rel.w;
+    // Lattice x grows east, y south.
+    let u = vec2<f32>(rel.x - lv.rel.x, lv.rel.y - rel.y) / g;
+    let i = vec2<i32>(floor(u));
+    if (any(i < vec2<i32>(1)) || any(i > lv.tex.zw - vec2<i32>(3))) {
+        return out;
+    }
+    let f = u - vec2<f32>(i);
+    let z00 = level_fetch(l, i);
+    let z10 = level_fetch(l, i + vec2<i32>(1, 0));
+    let z01 = level_fetch(l, i + vec2<i32>(0, 1));
+    let z11 = level_fetch(l, i + vec2<i32>(1, 1));
+    let zw0 = level_fetch(l, i + vec2<i32>(-1, 0));
+    let zw1 = level_fetch(l, i + vec2<i32>(-1, 1));
+    let ze0 = level_fetch(l, i + vec2<i32>(2, 0));
+    let ze1 = level_fetch(l, i + vec2<i32>(2, 1));
+    let zn0 = level_fetch(l, i + vec2<i32>(0, -1));
+    let zn1 = level_fetch(l, i + vec2<i32>(1, -1));
+    let zs0 = level_fetch(l, i + vec2<i32>(0, 2));
+    let zs1 = level_fetch(l, i + vec2<i32>(1, 2));
+    // East gradient at the 4 corners (x2 g), then north (rows run south: north minus south).
+    let gx = mix(mix(z10 - zw0, ze0 - z00, f.x), mix(z11 - zw1, ze1 - z01, f.x), f.y);
+    let gy = mix(mix(zn0 - z01, zn1 - z11, f.x), mix(z00 - zs0, z10 - zs1, f.x), f.y);
+    out.found = true;
+    out.height = mix(mix(z00, z10, f.x), mix(z01, z11, f.x), f.y);
+    out.normal = vec3<f32>(-gx / (2.0 * g), -gy / (2.0 * g), 1.0);
+    // Cells to the margin, on the nearer side of either axis.
+    let room = min(u - vec2<f32>(1.0), vec2<f32>(lv.tex.zw) - vec2<f32>(2.0) - u);
+    out.weight = clamp(min(room.x, room.y) / DATA_BLEND, 0.0, 1.0);
+    return out;
+}
+
+// Cells over which the shading blends from a level to the next coarser one at its clip region's edge.
+const DATA_BLEND: f32 = 8.0;
+
 // GC section 6's normal maps, computed on the fly: the surface under eye-relative point rel from the finest
-// ring whose clip region holds it with a one-sample margin, whatever level the mesh there was drawn at, so
-// a block drawn coarse keeps the data's relief shading. Height and the central-difference gradient at the
-// cell's 4 corners (12 fetches), bilinearly blended. `clipsat::twin::shading::data_surface` is the CPU twin.
+// ring whose clip region holds it, whatever level the mesh there was drawn at, so a block drawn coarse keeps
+// the data's relief shading; near that ring's edge it blends into the next coarser ring, so level changes
+// leave no seam. `clipsat::twin::shading::data_surface` is the CPU twin.
 fn data_surface(rel: vec2<f32>) -> DataSurface {
     var out: DataSurface;
     out.found = false;
     for (var l = 0; l < globals.level_info.x; l = l + 1) {
-        let lv = globals.levels[l];
-        let g = lv.rel.w;
-        // Lattice x grows east, y south.
-        let u = vec2<f32>(rel.x - lv.rel.x, lv.rel.y - rel.y) / g;
-        let i = vec2<i32>(floor(u));
-        if (any(i < vec2<i32>(1)) || any(i > lv.tex.zw - vec2<i32>(3))) {
+        let fine = level_surface(l, rel);
+        if (!fine.found) {
             continue;
         }
-        let f = u - vec2<f32>(i);
-        let z00 = level_fetch(l, i);
-        let z10 = level_fetch(l, i + vec2<i32>(1, 0));
-        let z01 = level_fetch(l, i + vec2<i32>(0, 1));
-        let z11 = level_fetch(l, i + vec2<i32>(1, 1));
-        let zw0 = level_fetch(l, i + vec2<i32>(-1, 0));
-        let zw1 = level_fetch(l, i + vec2<i32>(-1, 1));
-        let ze0 = level_fetch(l, i + vec2<i32>(2, 0));
-        let ze1 = level_fetch(l, i + vec2<i32>(2, 1));
-        let zn0 = level_fetch(l, i + vec2<i32>(0, -1));
-        let zn1 = level_fetch(l, i + vec2<i32>(1, -1));
-        let zs0 = level_fetch(l, i + vec2<i32>(0, 2));
-        let zs1 = level_fetch(l, i + vec2<i32>(1, 2));
-        // East gradient at the 4 corners (x2 g), then north (rows run south: north minus south).
-        let gx = mix(mix(z10 - zw0, ze0 - z00, f.x), mix(z11 - zw1, ze1 - z01, f.x), f.y);
-        let gy = mix(mix(zn0 - z01, zn1 - z11, f.x), mix(z00 - zs0, z10 - zs1, f.x), f.y);
-        out.found = true;
-        out.height = mix(mix(z00, z10, f.x), mix(z01, z11, f.x), f.y);
-        out.normal = vec3<f32>(-gx / (2.0 * g), -gy / (2.0 * g), 1.0);
+        out = fine;
+        if (fine.weight < 1.0) {
+            for (var c = l + 1; c < globals.level_info.x; c = c + 1) {
+                let coarse = level_surface(c, rel);
+                if (coarse.found) {
+                    out.height = mix(coarse.height, fine.height, fine.weight);
+                    out.normal = mix(coarse.normal, fine.normal, fine.weight);
+                    break;
+                }
+            }
+        }
+        out.weight = 1.0;
         return out;
     }
     return out;

@@ -5,62 +5,102 @@
 
 use crate::plan::clipmap::Clipmap;
 use crate::plan::uniforms::Globals;
+use crate::profile::MAX_LEVELS;
 
 /// The data under an eye-relative point: the level read, its height (m) and geometric normal (not unit).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DataSurface {
-    /// The ring read (the finest whose clip region holds the point with a one-sample margin).
+    /// The finest ring whose clip region holds the point with a one-sample margin.
     pub level: u32,
     /// Bilinear height (m).
     pub height: f32,
     /// (-dz/dx, -dz/dy, 1): central differences at the cell's corners, bilinearly blended.
     pub normal: [f32; 3],
+    /// The finest ring's share (1 away from its edge; below 1 the next coarser ring is blended in).
+    pub weight: f32,
 }
+
+/// Cells over which the shading blends from a level to the next coarser one; mirrors `DATA_BLEND`.
+pub const DATA_BLEND: f32 = 8.0;
 
 /// The CPU twin of `data_surface`: `globals` as the renderer wrote them for the clipmap's last frame,
 /// `rel` a position relative to the eye (m). `None` where no ring holds it (the shader then uses the
-/// drawn vertex's values).
+/// drawn vertex's values). Within [`DATA_BLEND`] cells of the finest ring's edge the next coarser ring
+/// is blended in; `level` is the finest.
+pub fn data_surface(globals: &Globals, clipmap: &Clipmap, rel: [f32; 2]) -> Option<DataSurface> {
+    let count = globals.level_info[0].clamp(0, MAX_LEVELS as i32);
+    for l in 0..count {
+        let Some((mut out, weight)) = level_surface(globals, clipmap, l, rel) else {
+            continue;
+        };
+        out.weight = weight;
+        if weight < 1.0 {
+            if let Some((coarse, _)) =
+                (l + 1..count).find_map(|c| level_surface(globals, clipmap, c, rel))
+            {
+                let mix = |a: f32, b: f32| a * (1.0 - weight) + b * weight;
+                out.height = mix(coarse.height, out.height);
+                for k in 0..3 {
+                    out.normal[k] = mix(coarse.normal[k], out.normal[k]);
+                }
+            }
+        }
+        return Some(out);
+    }
+    None
+}
+
+/// `level_surface`: level `l`'s data at `rel` and its blend weight, or `None` outside its clip region's
+/// one-sample margin.
 #[expect(
     clippy::cast_possible_truncation,
     clippy::cast_sign_loss,
     clippy::cast_precision_loss,
     reason = "lattice coordinates inside a ring, as the shader's i32/f32"
 )]
-pub fn data_surface(globals: &Globals, clipmap: &Clipmap, rel: [f32; 2]) -> Option<DataSurface> {
-    let count = globals.level_info[0].clamp(0, globals.levels.len() as i32);
+fn level_surface(
+    globals: &Globals,
+    clipmap: &Clipmap,
+    l: i32,
+    rel: [f32; 2],
+) -> Option<(DataSurface, f32)> {
     let s = globals.level_info[1];
-    for l in 0..count {
-        let lv = &globals.levels[l as usize];
-        let g = lv.rel[3];
-        let u = [(rel[0] - lv.rel[0]) / g, (lv.rel[1] - rel[1]) / g];
-        let i = [u[0].floor() as i32, u[1].floor() as i32];
-        if i[0] < 1 || i[1] < 1 || i[0] > lv.tex[2] - 3 || i[1] > lv.tex[3] - 3 {
-            continue;
-        }
-        let f = [u[0] - i[0] as f32, u[1] - i[1] as f32];
-        let ring = clipmap.ring(l as u32).texels();
-        let z = |dx: i32, dy: i32| {
-            let tx = (lv.tex[0] + i[0] + dx) % s;
-            let ty = (lv.tex[1] + i[1] + dy) % s;
-            ring[(ty * s + tx) as usize][0]
-        };
-        let mix = |a: f32, b: f32, t: f32| a * (1.0 - t) + b * t;
-        let (z00, z10, z01, z11) = (z(0, 0), z(1, 0), z(0, 1), z(1, 1));
-        let gx = mix(
-            mix(z10 - z(-1, 0), z(2, 0) - z00, f[0]),
-            mix(z11 - z(-1, 1), z(2, 1) - z01, f[0]),
-            f[1],
-        );
-        let gy = mix(
-            mix(z(0, -1) - z01, z(1, -1) - z11, f[0]),
-            mix(z00 - z(0, 2), z10 - z(1, 2), f[0]),
-            f[1],
-        );
-        return Some(DataSurface {
+    let lv = &globals.levels[l as usize];
+    let g = lv.rel[3];
+    let u = [(rel[0] - lv.rel[0]) / g, (lv.rel[1] - rel[1]) / g];
+    let i = [u[0].floor() as i32, u[1].floor() as i32];
+    if i[0] < 1 || i[1] < 1 || i[0] > lv.tex[2] - 3 || i[1] > lv.tex[3] - 3 {
+        return None;
+    }
+    let f = [u[0] - i[0] as f32, u[1] - i[1] as f32];
+    let ring = clipmap.ring(l as u32).texels();
+    let z = |dx: i32, dy: i32| {
+        let tx = (lv.tex[0] + i[0] + dx) % s;
+        let ty = (lv.tex[1] + i[1] + dy) % s;
+        ring[(ty * s + tx) as usize][0]
+    };
+    let mix = |a: f32, b: f32, t: f32| a * (1.0 - t) + b * t;
+    let (z00, z10, z01, z11) = (z(0, 0), z(1, 0), z(0, 1), z(1, 1));
+    let gx = mix(
+        mix(z10 - z(-1, 0), z(2, 0) - z00, f[0]),
+        mix(z11 - z(-1, 1), z(2, 1) - z01, f[0]),
+        f[1],
+    );
+    let gy = mix(
+        mix(z(0, -1) - z01, z(1, -1) - z11, f[0]),
+        mix(z00 - z(0, 2), z10 - z(1, 2), f[0]),
+        f[1],
+    );
+    let room_x = (u[0] - 1.0).min(lv.tex[2] as f32 - 2.0 - u[0]);
+    let room_y = (u[1] - 1.0).min(lv.tex[3] as f32 - 2.0 - u[1]);
+    let weight = (room_x.min(room_y) / DATA_BLEND).clamp(0.0, 1.0);
+    Some((
+        DataSurface {
             level: l as u32,
             height: mix(mix(z00, z10, f[0]), mix(z01, z11, f[0]), f[1]),
             normal: [-gx / (2.0 * g), -gy / (2.0 * g), 1.0],
-        });
-    }
-    None
+            weight,
+        },
+        weight,
+    ))
 }
