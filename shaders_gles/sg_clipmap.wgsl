@@ -1,5 +1,5 @@
 // Stage 3, the GPU: the clipmap renderer's SG fragment shader. Appended after basic_shading.wgsl,
-// clipmap.wgsl, sg_shading.wgsl, one specular file and one visibility file (src/gpu/shaders.rs).
+// clipmap.wgsl, sg_shading.wgsl, one specular file, one visibility file and one fog file (src/gpu/shaders.rs).
 //
 // SAT paper algorithm 2: the pixel's footprint box on the shading grid from dpdx/dpdy of its grid
 // coordinates, then a 4-corner textureLoad of each SAT (integer textures are not filterable on GLES 3.0).
@@ -42,11 +42,7 @@ fn fs_sg(v: VsOut) -> @location(0) vec4<f32> {
     let q = 1.0 / (count * 1048576.0);
     let r = vec3<f32>(sg_normal_sum(lo, hi).xyz) * q * 2.0 - vec3<f32>(1.0);
     sg_fetch_horizon(lo, hi, q);
-    var colour = sg_shade(r, normalize(-v.rel), sg_scene);
-    let fog = sg_scene.material.w;
-    if (fog > 0.0) {
-        let keep = exp(-fog * length(v.rel));
-        colour = colour * keep + sg_scene.fog.rgb * (1.0 - keep);
-    }
+    // sg_fog.wgsl, or the pass-through of sg_no_fog.wgsl in variants without fog.
+    let colour = sg_fog(sg_shade(r, normalize(-v.rel), sg_scene), length(v.rel));
     return vec4<f32>(pow(clamp(colour, vec3<f32>(0.0), vec3<f32>(1.0)), vec3<f32>(1.0 / 2.2)), 1.0);
 }

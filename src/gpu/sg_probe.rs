@@ -52,6 +52,8 @@ pub fn shade_gpu(
         patches,
         visibility: scene.effects.visibility && d > 0,
         specular: scene.effects.specular,
+        // The probe returns the unfogged shade.
+        fog: false,
     };
     let uniform = SgSceneUniform::new(scene, u32::try_from(d).expect("<= 16"))?;
     // Rows: r, view, then 4 rows of 4 horizon angles.

@@ -18,6 +18,8 @@ const SG_SPECULAR_WGSL: &str = include_str!("../../shaders_gles/sg_specular.wgsl
 const SG_NO_SPECULAR_WGSL: &str = include_str!("../../shaders_gles/sg_no_specular.wgsl");
 const SG_VISIBILITY_WGSL: &str = include_str!("../../shaders_gles/sg_visibility.wgsl");
 const SG_NO_VISIBILITY_WGSL: &str = include_str!("../../shaders_gles/sg_no_visibility.wgsl");
+const SG_FOG_WGSL: &str = include_str!("../../shaders_gles/sg_fog.wgsl");
+const SG_NO_FOG_WGSL: &str = include_str!("../../shaders_gles/sg_no_fog.wgsl");
 const SG_CLIPMAP_WGSL: &str = include_str!("../../shaders_gles/sg_clipmap.wgsl");
 const SG_PROBE_WGSL: &str = include_str!("../../shaders_gles/sg_probe.wgsl");
 const DEBUG_VIEW_WGSL: &str = include_str!("../../shaders_gles/debug_view.wgsl");
@@ -59,6 +61,14 @@ pub fn sources() -> Vec<(&'static str, String)> {
             sg_library(SgVariant::default(), SG_NO_SPECULAR_WGSL),
         ),
         ("sg_visibility.wgsl", sg_clipmap(SgVariant::ALL_ON)),
+        ("sg_fog.wgsl", sg_clipmap(SgVariant::ALL_ON)),
+        (
+            "sg_no_fog.wgsl",
+            sg_clipmap(SgVariant {
+                fog: false,
+                ..SgVariant::ALL_ON
+            }),
+        ),
         ("sg_no_visibility.wgsl", sg_clipmap(SgVariant::default())),
         ("sg_clipmap.wgsl", sg_clipmap(SgVariant::ALL_ON)),
         ("sg_probe.wgsl", sg_probe(SgVariant::ALL_ON)),
@@ -76,6 +86,8 @@ pub struct SgVariant {
     pub visibility: bool,
     /// The specular term is compiled (`sg_specular.wgsl`), else the zero stub `sg_no_specular.wgsl`.
     pub specular: bool,
+    /// Scene fog is compiled (`sg_fog.wgsl`), else the pass-through `sg_no_fog.wgsl`.
+    pub fog: bool,
 }
 
 impl SgVariant {
@@ -84,19 +96,23 @@ impl SgVariant {
         patches: Patches::P4x8,
         visibility: true,
         specular: true,
+        fog: true,
     };
 
-    /// Every variant: 3 patch counts x visibility x specular.
+    /// Every variant: 3 patch counts x visibility x specular x fog.
     pub fn all() -> Vec<Self> {
         let mut out = Vec::new();
         for patches in Patches::ALL {
             for visibility in [false, true] {
                 for specular in [false, true] {
-                    out.push(Self {
-                        patches,
-                        visibility,
-                        specular,
-                    });
+                    for fog in [false, true] {
+                        out.push(Self {
+                            patches,
+                            visibility,
+                            specular,
+                            fog,
+                        });
+                    }
                 }
             }
         }
@@ -111,6 +127,9 @@ impl SgVariant {
         }
         if self.specular {
             s.push_str("+spec");
+        }
+        if self.fog {
+            s.push_str("+fog");
         }
         s
     }
@@ -134,17 +153,19 @@ fn sg_specular_text(v: SgVariant) -> &'static str {
 }
 
 /// The clipmap renderer's SG program for variant `v`: [`clipmap`] + `sg_shading.wgsl`
-/// + the variant's specular and visibility files + `sg_clipmap.wgsl` (entry points `vs_main`, `fs_sg`).
+/// + the variant's specular, visibility and fog files + `sg_clipmap.wgsl` (entry points `vs_main`, `fs_sg`).
 pub fn sg_clipmap(v: SgVariant) -> String {
     let visibility = if v.visibility {
         SG_VISIBILITY_WGSL
     } else {
         SG_NO_VISIBILITY_WGSL
     };
+    let fog = if v.fog { SG_FOG_WGSL } else { SG_NO_FOG_WGSL };
     [
         clipmap().as_str(),
         &sg_library(v, sg_specular_text(v)),
         visibility,
+        fog,
         SG_CLIPMAP_WGSL,
     ]
     .concat()

@@ -160,6 +160,9 @@ fn variants_compile_only_what_the_scene_declares() {
             v.label()
         );
         assert_eq!(text.contains("sat_horizon"), v.visibility, "{}", v.label());
+        // Fog (issue 16): no fog code in a variant whose scene has none.
+        assert_eq!(text.contains("sg_scene.fog"), v.fog, "{}", v.label());
+        assert_eq!(text.contains("material.w"), v.fog, "{}", v.label());
         assert!(text.contains(&format!("const SG_BANDS: u32 = {}u;", v.patches.bands())));
     }
 }

@@ -59,6 +59,7 @@ impl SgState {
             patches: s.patches,
             visibility: needs.bind_visibility,
             specular: needs.specular_code,
+            fog: needs.fog,
         };
         let textures = SatTextures::upload(dev, queue, bake);
         let mut u = SgSceneUniform::new(&scene, bake.azimuths())?;
