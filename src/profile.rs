@@ -155,6 +155,12 @@ pub const MAX_TEXTURE_SIDE: u32 = 2048;
 pub const MAX_TEXTURE_LAYERS: u32 = 256;
 /// Most rings a profile may ask for (g_L = g_0 2^L must stay exact in f32).
 pub const MAX_LEVELS: u32 = 16;
+/// Most draws any profile may ask for (`budget.max_draws` is checked against it at start-up; the plan's
+/// draw list and the renderer's uniform slots are this long at most).
+pub const MAX_DRAWS: usize = 2048;
+/// Most SG light lobes a shader variant holds: the largest `shading.max_sg_lights` of the shipped
+/// profiles (desktop); mirrors `SG_MAX_LIGHTS` in `shaders_gles/sg_shading.wgsl`.
+pub const MAX_SG_LIGHTS: usize = 8;
 /// Largest `clipmap.n`: the block mesh ((n + 1) / 4 + 1)^2 vertices must fit u16 indices (`mesh::block`);
 /// the next 2^k - 1, 1023, needs 257^2 = 66049.
 pub const MAX_N: u32 = 511;
@@ -241,13 +247,12 @@ impl Profile {
                 "must be positive: a zero budget never fills a ring".into(),
             );
         }
-        if b.max_draws == 0 || b.max_draws as usize > crate::plan::cull::MAX_DRAWS {
+        if b.max_draws == 0 || b.max_draws as usize > MAX_DRAWS {
             return bad(
                 "budget.max_draws",
                 format!(
                     "{} is not in 1..={} (the renderer's fixed draw capacity)",
-                    b.max_draws,
-                    crate::plan::cull::MAX_DRAWS
+                    b.max_draws, MAX_DRAWS
                 ),
             );
         }
@@ -281,7 +286,7 @@ impl Profile {
                 "list at least one feature (\"basic\")".into(),
             );
         }
-        let max_lights = crate::gpu::shaders::MAX_SG_LIGHTS;
+        let max_lights = MAX_SG_LIGHTS;
         if self.shading.max_sg_lights as usize > max_lights {
             return bad(
                 "shading.max_sg_lights",

@@ -187,9 +187,8 @@ pub fn sg_variants() -> Vec<(String, String)> {
     out
 }
 
-/// Most SG light lobes a shader variant holds: the largest `shading.max_sg_lights` of the shipped
-/// profiles (desktop); mirrors `SG_MAX_LIGHTS` in `shaders_gles/sg_shading.wgsl`.
-pub const MAX_SG_LIGHTS: usize = 8;
+// The limit lives with the budget it bounds, so that the profile depends on no stage.
+pub use crate::profile::MAX_SG_LIGHTS;
 
 /// One SG light; mirrors `SgLight` in `shaders_gles/sg_shading.wgsl`.
 #[repr(C)]

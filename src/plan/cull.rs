@@ -9,8 +9,8 @@ use crate::plan::clipmap::Clipmap;
 use crate::plan::frame::Rect;
 use crate::{Camera, Error, Result};
 
-/// Most draws any profile may ask for (`budget.max_draws` is checked against it at start-up).
-pub const MAX_DRAWS: usize = 2048;
+// The limit lives with the budget it bounds, so that the profile depends on no stage.
+pub use crate::profile::MAX_DRAWS;
 
 /// What one draw renders.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
