@@ -12,8 +12,10 @@
 //! Profile fields are covered by tests/cpu/profiles.rs, scene fields by tests/cpu/scene.rs, loaders by
 //! tests/cpu/sources.rs; here the same file problems go through the binary.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::path::PathBuf;
+use std::process::Output;
+
+use super::clipsat;
 
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::plan::flight::{Flight, Path as FlightPath};
@@ -154,13 +156,6 @@ fn far_low_and_high_eyes_are_clamped_not_panics() {
 
 // ---- through the binary ---------------------------------------------------------------------------
 
-fn clipsat(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_clipsat"))
-        .args(args)
-        .output()
-        .expect("run the clipsat binary")
-}
-
 fn stderr(out: &Output) -> String {
     String::from_utf8_lossy(&out.stderr).into_owned()
 }
@@ -181,12 +176,7 @@ fn assert_refused(out: &Output, needle: &str, what: &str) {
 }
 
 fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
-        .join("bad_input")
-        .join(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("create scratch folder");
-    dir
+    super::scratch_in("bad_input", name)
 }
 
 #[test]

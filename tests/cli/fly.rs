@@ -1,23 +1,13 @@
 //! `clipsat fly` end to end: the built binary, its JSON, CSV and plot outputs, determinism, and clean refusals.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::path::PathBuf;
+use std::process::Output;
 
-fn clipsat(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_clipsat"))
-        .args(args)
-        .output()
-        .expect("run the clipsat binary")
-}
+use super::clipsat;
 
 /// A fresh folder for one test's outputs.
 fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
-        .join("cli_fly")
-        .join(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("create scratch folder");
-    dir
+    super::scratch_in("cli_fly", name)
 }
 
 fn json_of(out: &Output) -> serde_json::Value {

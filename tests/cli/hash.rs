@@ -3,22 +3,12 @@
 //! missing or garbage file is refused with exit 2 and a clear error, never a panic.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
-fn clipsat(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_clipsat"))
-        .args(args)
-        .output()
-        .expect("run the clipsat binary")
-}
+use super::clipsat;
 
 fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
-        .join("cli_hash")
-        .join(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("create scratch folder");
-    dir
+    super::scratch_in("cli_hash", name)
 }
 
 /// The run every test writes and checks.

@@ -3,23 +3,13 @@
 //! against 256 MiB) the summary is written, with `rmse_vs_ground_truth` null. `--ground-truth` asks for
 //! the comparison: a number on a small terrain, a clear error naming the limit on the big one.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::path::PathBuf;
+use std::process::Output;
 
-fn clipsat(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_clipsat"))
-        .args(args)
-        .output()
-        .expect("run the clipsat binary")
-}
+use super::clipsat;
 
 fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
-        .join("cli_render_json")
-        .join(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("create scratch folder");
-    dir
+    super::scratch_in("cli_render_json", name)
 }
 
 fn json(out: &Output, what: &str) -> serde_json::Value {
