@@ -7,8 +7,7 @@ use std::path::{Path as FsPath, PathBuf};
 
 use crate::app::plot::{LinePlot, Series};
 use clap::Args;
-use clipsat::gpu::headless::{self, render_frame, FrameOptions, Offscreen, OffscreenOptions};
-use clipsat::gpu::renderer::{SgShading, Shading};
+use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen, OffscreenOptions};
 use clipsat::gpu::Gpu;
 use clipsat::hash::{hex, Hash64};
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
@@ -206,23 +205,10 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
         (render_profile.view.width, render_profile.view.height) = size.pair();
     }
     let baked = match (&gpu, &sg) {
-        (Some(gpu), Some(sg)) => Some(headless::sg_bake(
-            gpu.device().limits().max_texture_dimension_2d,
-            &hm,
-            &sg.scene,
-            sg.shadows,
-        )?),
+        (Some(gpu), Some(sg)) => Some(sg.bake(gpu, &hm)?),
         _ => None,
     };
-    let shading = match (&sg, &baked) {
-        (Some(sg), Some((scene, bake))) => Shading::Sg(SgShading {
-            terrain: &hm,
-            scene,
-            patches: sg.patches,
-            bake,
-        }),
-        _ => Shading::Basic,
-    };
+    let shading = super::sg::shading(&hm, sg.as_ref(), baked.as_ref());
     // The rendered frames draw the plain geometry clipmap (distance LOD) at the render size.
     let mut renderer = match &gpu {
         Some(gpu) => Some(Offscreen::new(

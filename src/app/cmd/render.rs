@@ -9,8 +9,7 @@ use std::time::Instant;
 use clap::Args;
 use clipsat::bake::{self, BakeParams};
 use clipsat::gpu::brute::BruteForce;
-use clipsat::gpu::headless::{self, render_frame, FrameOptions, Offscreen, OffscreenOptions};
-use clipsat::gpu::renderer::{SgShading, Shading};
+use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen, OffscreenOptions};
 use clipsat::gpu::Gpu;
 use clipsat::measure;
 use clipsat::plan::camera::parse_vec3;
@@ -164,24 +163,8 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
     } else {
         None
     };
-    let baked = match &sg {
-        Some(sg) => Some(headless::sg_bake(
-            gpu.device().limits().max_texture_dimension_2d,
-            &hm,
-            &sg.scene,
-            sg.shadows,
-        )?),
-        None => None,
-    };
-    let shading = match (&sg, &baked) {
-        (Some(sg), Some((scene, bake))) => Shading::Sg(SgShading {
-            terrain: &hm,
-            scene,
-            patches: sg.patches,
-            bake,
-        }),
-        _ => Shading::Basic,
-    };
+    let baked = sg.as_ref().map(|sg| sg.bake(&gpu, &hm)).transpose()?;
+    let shading = super::sg::shading(&hm, sg.as_ref(), baked.as_ref());
     let mut r = Offscreen::new(
         &gpu,
         &profile,

@@ -10,7 +10,11 @@
 use super::args::{PatchesArg, ShadingArg};
 use clap::Args;
 use clipsat::bake::horizon;
+use clipsat::gpu::headless;
 use clipsat::gpu::readback::Image;
+use clipsat::gpu::renderer::{SgShading, Shading};
+use clipsat::gpu::sat_textures::ShadingBake;
+use clipsat::gpu::Gpu;
 use clipsat::shading::scene::{self, Scene};
 use clipsat::shading::{self, HorizonTable, Patches, RefCosine, RefGrid, RefInputs};
 use clipsat::{Camera, Error, Heightmap, Profile, Result};
@@ -45,11 +49,36 @@ pub(crate) struct SgChoice {
 }
 
 impl SgChoice {
+    /// Bakes (or reads from the disk cache) the tables this choice's scene needs on `gpu`; the scene
+    /// returned is the one drawn. [`shading`] turns the pair into the renderer's shading.
+    pub(crate) fn bake(&self, gpu: &Gpu, hm: &Heightmap) -> Result<(Scene, ShadingBake)> {
+        let max_side = gpu.device().limits().max_texture_dimension_2d;
+        headless::sg_bake(max_side, hm, &self.scene, self.shadows)
+    }
+
     /// The scene as rendered: visibility off under `--no-shadows`.
     pub(crate) fn effective_scene(&self) -> Scene {
         let mut s = self.scene.clone();
         s.effects.visibility &= self.shadows;
         s
+    }
+}
+
+/// The renderer's shading: SG over `baked` (from [`SgChoice::bake`]) when `--shading sg` chose it, else
+/// basic.
+pub(crate) fn shading<'a>(
+    hm: &'a Heightmap,
+    sg: Option<&SgChoice>,
+    baked: Option<&'a (Scene, ShadingBake)>,
+) -> Shading<'a> {
+    match (sg, baked) {
+        (Some(sg), Some((scene, bake))) => Shading::Sg(SgShading {
+            terrain: hm,
+            scene,
+            patches: sg.patches,
+            bake,
+        }),
+        _ => Shading::Basic,
     }
 }
 
