@@ -28,8 +28,9 @@ pub enum Error {
     /// A terrain declares more samples than the memory limit allows; refused before allocating.
     #[error(
         "{}: declared size {width} x {height} = {samples} samples is over the limit of {limit} samples \
-         (raise it with --max-samples if this is intended)",
-        path.display()
+         (raise `{}` if this is intended)",
+        path.display(),
+        Param::MaxSamples
     )]
     TooLarge {
         /// The file.
@@ -75,11 +76,12 @@ pub enum Error {
         /// Why it is refused.
         reason: String,
     },
-    /// A command-line argument is invalid.
-    #[error("argument `{arg}`: {reason}")]
-    Arg {
-        /// The argument.
-        arg: String,
+    /// A library option is out of range or unusable; names the option as a [`Param`] (the binary maps it
+    /// to its flag when it prints).
+    #[error("`{param}`: {reason}")]
+    Param {
+        /// The option at fault.
+        param: Param,
         /// Why it is refused.
         reason: String,
     },
@@ -115,6 +117,63 @@ pub enum Error {
     Gpu(String),
 }
 
+/// An option of the library's API that an error can name, in the library's words (`struct::field`). The
+/// library keeps no command-line words: the `clipsat` binary maps each to its flag when it prints.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum Param {
+    /// [`BakeOptions::max_error`](crate::package::BakeOptions::max_error).
+    MaxError,
+    /// [`BakeOptions::tile`](crate::package::BakeOptions::tile).
+    Tile,
+    /// [`BakeOptions::codec`](crate::package::BakeOptions::codec).
+    Codec,
+    /// [`ClipmapOptions::synth_levels`](crate::plan::clipmap::ClipmapOptions::synth_levels).
+    SynthLevels,
+    /// [`LoadOptions::spacing`](crate::source::LoadOptions::spacing).
+    Spacing,
+    /// [`LoadOptions::raw`](crate::source::LoadOptions::raw).
+    RawLayout,
+    /// [`LoadOptions::png_encoding`](crate::source::LoadOptions::png_encoding).
+    PngEncoding,
+    /// [`LoadOptions::max_samples`](crate::source::LoadOptions::max_samples).
+    MaxSamples,
+}
+
+impl Param {
+    /// Every parameter, so a caller that maps them (the binary to its flags) can check it maps all.
+    pub const ALL: [Param; 8] = [
+        Self::MaxError,
+        Self::Tile,
+        Self::Codec,
+        Self::SynthLevels,
+        Self::Spacing,
+        Self::RawLayout,
+        Self::PngEncoding,
+        Self::MaxSamples,
+    ];
+
+    /// The option's name in the library, `Struct::field`; messages quote it in backticks.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::MaxError => "BakeOptions::max_error",
+            Self::Tile => "BakeOptions::tile",
+            Self::Codec => "BakeOptions::codec",
+            Self::SynthLevels => "ClipmapOptions::synth_levels",
+            Self::Spacing => "LoadOptions::spacing",
+            Self::RawLayout => "LoadOptions::raw",
+            Self::PngEncoding => "LoadOptions::png_encoding",
+            Self::MaxSamples => "LoadOptions::max_samples",
+        }
+    }
+}
+
+impl std::fmt::Display for Param {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 /// Result with [`Error`].
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 
@@ -136,6 +195,14 @@ impl Error {
         }
     }
 
+    /// An [`Error::Param`] for `param`.
+    pub fn param(param: Param, reason: impl Into<String>) -> Self {
+        Self::Param {
+            param,
+            reason: reason.into(),
+        }
+    }
+
     /// An [`Error::Config`].
     pub fn config(
         source_name: impl Into<String>,
@@ -147,5 +214,78 @@ impl Error {
             field: field.into(),
             reason: reason.into(),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The library keeps no command-line words: no string in `src/` outside the binary's `src/app` names a
+    /// flag (`"--x"` or `--x` inside a literal). Errors name a [`Param`]; the binary maps it to its flag.
+    #[test]
+    fn library_names_no_flags() {
+        let src = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+        let mut stack = vec![src.clone()];
+        let mut hits = Vec::new();
+        let mut files = 0;
+        while let Some(dir) = stack.pop() {
+            let entries =
+                std::fs::read_dir(&dir).unwrap_or_else(|e| panic!("{}: {e}", dir.display()));
+            for entry in entries.flatten() {
+                let path = entry.path();
+                if path == src.join("app") || path == src.join("main.rs") {
+                    continue;
+                }
+                if path.is_dir() {
+                    stack.push(path);
+                } else if path.extension().is_some_and(|e| e == "rs") {
+                    files += 1;
+                    let text = std::fs::read_to_string(&path)
+                        .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+                    for (i, line) in text.lines().enumerate() {
+                        if flag_in_code(line) {
+                            hits.push(format!("{}:{}: {}", path.display(), i + 1, line.trim()));
+                        }
+                    }
+                }
+            }
+        }
+        assert!(
+            files > 20,
+            "scanned only {files} files under {}",
+            src.display()
+        );
+        assert!(
+            hits.is_empty(),
+            "library code names CLI flags:\n{}",
+            hits.join("\n")
+        );
+    }
+
+    /// Two dashes, spelled so that this file does not match its own scan.
+    const DASHES: &str = concat!("-", "-");
+
+    /// Whether the code part of `line` (before a `//` comment) holds `"--` or `--` before a letter.
+    fn flag_in_code(line: &str) -> bool {
+        let code = line.split("//").next().unwrap_or(line);
+        code.contains(&format!("\"{DASHES}"))
+            || code
+                .match_indices(DASHES)
+                .any(|(i, _)| code[i + 2..].starts_with(|c: char| c.is_ascii_lowercase()))
+    }
+
+    #[test]
+    fn flag_scan_sees_flags() {
+        assert!(flag_in_code(&format!(
+            "    arg: \"{DASHES}max-error\".into(),"
+        )));
+        assert!(flag_in_code(&format!(
+            "    \"give one with {DASHES}spacing M\","
+        )));
+        assert!(!flag_in_code("    // the `--spacing` flag"));
+        assert!(!flag_in_code("    let x = a - -b; // ----"));
+        let names: std::collections::HashSet<_> = Param::ALL.iter().map(|p| p.name()).collect();
+        assert_eq!(names.len(), Param::ALL.len(), "parameter names are unique");
     }
 }

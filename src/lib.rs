@@ -107,7 +107,7 @@ pub mod shading;
 pub mod source;
 pub mod twin;
 
-pub use error::{Error, Result};
+pub use error::{Error, Param, Result};
 pub use plan::camera::Camera;
 pub use profile::Profile;
 pub use source::Heightmap;

@@ -51,7 +51,7 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            let top = e.to_string();
+            let top = cmd::args::cli_message(&e);
             eprintln!("error: {top}");
             let mut source = std::error::Error::source(&e);
             while let Some(s) = source {

@@ -17,7 +17,7 @@
 
 use std::path::Path;
 
-use crate::{Error, Result};
+use crate::{Error, Param, Result};
 
 /// The first 8 bytes of every package.
 pub const MAGIC: [u8; 8] = *b"CLIPSAT\0";
@@ -70,15 +70,12 @@ impl CodecKind {
         }
     }
 
-    /// Parses a command-line name.
+    /// Parses a name ([`CodecKind::name`]).
     pub fn parse(text: &str) -> Result<Self> {
         Self::ALL
             .into_iter()
             .find(|c| c.name() == text)
-            .ok_or_else(|| Error::Arg {
-                arg: "--codec".into(),
-                reason: format!("`{text}` is not lz4 or zstd"),
-            })
+            .ok_or_else(|| Error::param(Param::Codec, format!("`{text}` is not lz4 or zstd")))
     }
 }
 

@@ -12,7 +12,7 @@ use std::path::Path;
 use super::codec::{Encoder, Predictor};
 use super::format::{CodecKind, Header, TileEntry};
 use crate::bake::pyramid::Pyramid;
-use crate::{Error, Heightmap, Result};
+use crate::{Error, Heightmap, Param, Result};
 
 /// Default tile side, samples: 64 x 64 = 4096 samples fits the smallest profile's per-frame update budget
 /// (gles3-low, 8192 samples), so a tile can always be decoded inside one frame.
@@ -100,7 +100,7 @@ pub fn source_quantum(terrain: &Heightmap) -> Option<f64> {
     })
 }
 
-/// The default `--max-error`: half the source's own quantum (lossless in effect), or [`FLOAT_MAX_ERROR`].
+/// The default [`BakeOptions::max_error`]: half the source's own quantum (lossless in effect), or [`FLOAT_MAX_ERROR`].
 pub fn default_max_error(terrain: &Heightmap) -> f64 {
     source_quantum(terrain).map_or(FLOAT_MAX_ERROR, |q| q * 0.5)
 }
@@ -114,28 +114,28 @@ pub fn bake(
 ) -> Result<BakeReport> {
     let max_error = opts.max_error.unwrap_or_else(|| default_max_error(terrain));
     if !(max_error.is_finite() && max_error > 0.0) {
-        return Err(Error::Arg {
-            arg: "--max-error".into(),
-            reason: format!("{max_error} m must be finite and positive"),
-        });
+        return Err(Error::param(
+            Param::MaxError,
+            format!("{max_error} m must be finite and positive"),
+        ));
     }
     if !(4..=4096).contains(&opts.tile) || !opts.tile.is_multiple_of(2) {
-        return Err(Error::Arg {
-            arg: "--tile".into(),
-            reason: format!("{} is not an even size in 4..=4096", opts.tile),
-        });
+        return Err(Error::param(
+            Param::Tile,
+            format!("{} is not an even size in 4..=4096", opts.tile),
+        ));
     }
     let q = 2.0 * max_error;
     let (lo, hi) = terrain.range();
     let units = f64::from(lo.abs().max(hi.abs())) / q;
     if units >= MAX_UNITS {
-        return Err(Error::Arg {
-            arg: "--max-error".into(),
-            reason: format!(
+        return Err(Error::param(
+            Param::MaxError,
+            format!(
                 "{max_error} m is too fine for heights up to {} m (at most 2^30 steps)",
                 lo.abs().max(hi.abs())
             ),
-        });
+        ));
     }
     let mut header = Header::new(
         terrain.width(),
@@ -287,9 +287,11 @@ pub fn residual_tiles(
                 for (jj, prow) in pred[..n].chunks_exact(tw as usize).enumerate() {
                     let start = (y0 as usize + jj) * w + x0 as usize;
                     for (&kk, &p) in k[start..start + tw as usize].iter().zip(prow) {
-                        let r = i32::try_from(kk - p).map_err(|_| Error::Arg {
-                            arg: "--max-error".into(),
-                            reason: format!("{} m gives residuals beyond i32", header.max_error),
+                        let r = i32::try_from(kk - p).map_err(|_| {
+                            Error::param(
+                                Param::MaxError,
+                                format!("{} m gives residuals beyond i32", header.max_error),
+                            )
                         })?;
                         residuals.push(r);
                     }

@@ -125,11 +125,11 @@ impl Camera {
     }
 }
 
-/// Parses `X,Y,Z` (metres) from the command line.
-pub fn parse_vec3(arg: &str, text: &str) -> Result<DVec3> {
+/// Parses `X,Y,Z` (metres); errors name the value `what` is.
+pub fn parse_vec3(what: &str, text: &str) -> Result<DVec3> {
     let parts: Vec<&str> = text.split(',').map(str::trim).collect();
     let bad = |reason: String| Error::Invalid {
-        what: arg.into(),
+        what: what.into(),
         reason,
     };
     if parts.len() != 3 {
@@ -157,10 +157,10 @@ mod tests {
         assert!(Camera::new(z, DVec3::Z, 60.0).is_err());
         assert!(Camera::new(z, DVec3::X, 0.0).is_err());
         assert!(Camera::new(z, DVec3::X, 60.0).is_ok());
-        assert!(parse_vec3("--camera", "1,2").is_err());
-        assert!(parse_vec3("--camera", "1,x,2").is_err());
+        assert!(parse_vec3("eye", "1,2").is_err());
+        assert!(parse_vec3("eye", "1,x,2").is_err());
         assert_eq!(
-            parse_vec3("--camera", "1, 2,3").ok(),
+            parse_vec3("eye", "1, 2,3").ok(),
             Some(DVec3::new(1.0, 2.0, 3.0))
         );
     }

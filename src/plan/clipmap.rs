@@ -21,7 +21,7 @@ use crate::plan::frame::{Frame, LevelFrame, LevelState, Rect, MAX_LEVELS};
 pub use crate::plan::morph::morph_alpha;
 use crate::plan::synthesis::{extrapolate_sigmas, synthesize, NoiseTable};
 use crate::plan::uploads::UploadStamps;
-use crate::{Error, Heightmap, Profile, Result};
+use crate::{Error, Heightmap, Param, Profile, Result};
 
 /// Options beyond the profile.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -144,10 +144,10 @@ impl Clipmap {
     pub fn streamed(package: Package, profile: &Profile, opts: ClipmapOptions) -> Result<Self> {
         profile.validate(&profile.name)?;
         if opts.synth_levels > 0 {
-            return Err(Error::Arg {
-                arg: "--synth-levels".into(),
-                reason: "synthesised rings are not available on a streamed package".into(),
-            });
+            return Err(Error::param(
+                Param::SynthLevels,
+                "synthesised rings are not available on a streamed package",
+            ));
         }
         let h = package.header();
         let tile = u64::from(h.tile) * u64::from(h.tile);

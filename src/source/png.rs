@@ -14,8 +14,8 @@ use crate::{Error, Heightmap, Result};
 /// The PNG signature.
 pub(super) const MAGIC: [u8; 8] = [0x89, b'P', b'N', b'G', b'\r', b'\n', 0x1A, b'\n'];
 
-/// How the option is named in errors: the library field and the command-line flag.
-const OPTION: &str = "PNG encoding (png_encoding / --png-encoding)";
+/// How the option is named in errors (the binary maps the field to its flag).
+const OPTION: &str = "PNG encoding (`LoadOptions::png_encoding`)";
 
 /// Loads a PNG height map. PNG carries no spacing: [`LoadOptions::spacing`], else [`DEFAULT_SPACING_M`].
 /// For grey files the default height scale is 0.1 m per unit for 16-bit files (the Puget Sound

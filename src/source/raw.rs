@@ -3,7 +3,7 @@
 use std::path::Path;
 
 use super::{check_size, to_f32, LoadOptions, RawFormat, DEFAULT_SPACING_M};
-use crate::{Error, Heightmap, Result};
+use crate::{Error, Heightmap, Param, Result};
 
 /// Loads a raw file laid out as [`LoadOptions::raw`] says; its length must match exactly.
 ///
@@ -14,7 +14,10 @@ pub(super) fn load(path: &Path, len: u64, opts: &LoadOptions) -> Result<Heightma
     let Some(layout) = opts.raw else {
         return Err(Error::format(
             path,
-            "a raw file has no header: give its dimensions with --raw-size WxH (and --raw-format u16|f32)",
+            format!(
+                "a raw file has no header: give its dimensions and sample format with `{}`",
+                Param::RawLayout
+            ),
         ));
     };
     let samples = check_size(path, layout.width.into(), layout.height.into(), opts)?;

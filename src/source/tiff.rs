@@ -9,7 +9,7 @@ use tiff::tags::Tag;
 use tiff::ColorType;
 
 use super::{check_size, fill_voids, metres_per_degree_latitude, to_f32, LoadOptions};
-use crate::{Error, Heightmap, Result};
+use crate::{Error, Heightmap, Param, Result};
 
 /// Whether `magic` starts like a TIFF or BigTIFF file (`II*\0`, `MM\0*`, and the BigTIFF 43 forms).
 pub(super) fn has_magic(magic: &[u8]) -> bool {
@@ -237,8 +237,11 @@ impl GeoTags {
         let Some((size, lat)) = found.filter(|(s, _)| s.is_finite() && *s > 0.0) else {
             return Err(Error::format(
                 path,
-                "no sample spacing: the TIFF has no ModelPixelScale tag and no .tfw world file beside \
-                 it; give one with --spacing M",
+                format!(
+                    "no sample spacing: the TIFF has no ModelPixelScale tag and no .tfw world file \
+                     beside it; give one in metres with `{}`",
+                    Param::Spacing
+                ),
             ));
         };
         let metres = if self.geographic {

@@ -420,3 +420,51 @@ fn extreme_heights_in_sat_lod_are_a_clear_error() {
         }
     }
 }
+
+/// The library names its options (`LoadOptions::raw`, `BakeOptions::max_error`); the binary prints the
+/// flags that set them, so a CLI user never sees a library field.
+#[test]
+fn errors_name_flags_not_library_fields() {
+    let dir = scratch("flag_words");
+    let raw = dir.join("x.raw");
+    std::fs::write(&raw, [0u8; 64]).expect("write fixture");
+    let huge = dir.join("huge.png");
+    std::fs::write(&huge, png_header(200_000, 200_000)).expect("write fixture");
+    let pkg = dir.join("x.pkg");
+    let (raw, huge, pkg) = (
+        raw.to_string_lossy(),
+        huge.to_string_lossy(),
+        pkg.to_string_lossy(),
+    );
+    let cases: [(Vec<&str>, &str); 4] = [
+        (
+            vec!["info", "--terrain", &raw],
+            "`--raw-size WxH` (and `--raw-format u16|f32`)",
+        ),
+        (vec!["info", "--terrain", &huge], "raise `--max-samples`"),
+        (
+            vec![
+                "bake",
+                "procedural:size=65",
+                "--max-error",
+                "0",
+                "--out",
+                &pkg,
+            ],
+            "argument `--max-error`",
+        ),
+        (
+            vec!["bake", "procedural:size=65", "--tile", "5", "--out", &pkg],
+            "argument `--tile`",
+        ),
+    ];
+    for (args, needle) in &cases {
+        let out = clipsat(args);
+        assert_refused(&out, needle, &args.join(" "));
+        let err = stderr(&out);
+        assert!(
+            !err.contains("Options::"),
+            "{args:?}: names a library field: {err}"
+        );
+    }
+}

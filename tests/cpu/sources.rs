@@ -399,7 +399,7 @@ fn png_scales_and_offsets() {
     rgb.put_pixel(3, 2, image::Rgb([10, 11, 10]));
     let prgb = dir.join("rgb.png");
     rgb.save(&prgb).unwrap();
-    assert_format(load(&prgb), "--png-encoding");
+    assert_format(load(&prgb), "LoadOptions::png_encoding");
     assert_format(load(&prgb), "column 3, row 2");
 }
 
@@ -540,7 +540,7 @@ fn tiff_nodata_filled_and_geographic_spacing() {
     assert!((hm.spacing() - 92.16).abs() < 0.05, "{}", hm.spacing());
 
     let p = f32_tiff(&dir, "nospacing.tif", 4, 4, &data, false);
-    assert_format(load(&p), "--spacing");
+    assert_format(load(&p), "LoadOptions::spacing");
     let opts = LoadOptions {
         spacing: Some(5.0),
         ..LoadOptions::default()
@@ -708,7 +708,7 @@ fn non_finite_samples_refused() {
 fn raw_size_problems() {
     let dir = temp_dir("raw_bad");
     let p = write(&dir, "t.raw", &[0u8; 24]);
-    assert_format(load(&p), "--raw-size");
+    assert_format(load(&p), "LoadOptions::raw");
     let layout = |w, h| LoadOptions {
         raw: Some(RawLayout {
             width: w,

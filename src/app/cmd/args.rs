@@ -10,7 +10,7 @@ use clipsat::gpu::GpuMode;
 use clipsat::plan::lod::LodMode;
 use clipsat::shading::debug_view::DebugView;
 use clipsat::shading::Patches;
-use clipsat::Error;
+use clipsat::{Error, Param};
 
 /// `--gpu`: which GL context renders.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, ValueEnum)]
@@ -216,21 +216,75 @@ pub(crate) fn pixel_size(text: &str) -> Result<Size, String> {
     Ok(size)
 }
 
+/// An error about a command-line argument, printed as "argument `--frames`: reason". The library has no
+/// such variant (it keeps no CLI words): [`Error::Invalid`] carries the flag.
+pub(crate) fn arg_error(flag: &str, reason: impl Into<String>) -> Error {
+    Error::Invalid {
+        what: format!("argument `{flag}`"),
+        reason: reason.into(),
+    }
+}
+
 /// Names the flag in a library argument error: the library says what was wrong ("flight path"), the binary
 /// says which flag carried it.
 pub(crate) fn flag(name: &'static str) -> impl Fn(Error) -> Error {
     move |e| match e {
-        Error::Invalid { reason, .. } | Error::Arg { reason, .. } => Error::Arg {
-            arg: name.into(),
-            reason,
-        },
+        Error::Invalid { reason, .. } | Error::Param { reason, .. } => arg_error(name, reason),
         other => other,
     }
+}
+
+/// The flag (quoted) that sets each library [`Param`]; `None` for one the binary does not expose.
+pub(crate) fn flag_of(param: Param) -> Option<&'static str> {
+    Some(match param {
+        Param::MaxError => "`--max-error`",
+        Param::Tile => "`--tile`",
+        Param::Codec => "`--codec`",
+        Param::SynthLevels => "`--synth-levels`",
+        Param::Spacing => "`--spacing M`",
+        Param::RawLayout => "`--raw-size WxH` (and `--raw-format u16|f32`)",
+        Param::PngEncoding => "`--png-encoding`",
+        Param::MaxSamples => "`--max-samples`",
+        _ => return None,
+    })
+}
+
+/// An error as the command line prints it: the library names its options ([`Param`], `Struct::field`), the
+/// user sees the flags that set them.
+pub(crate) fn cli_message(e: &Error) -> String {
+    let mut text = match e {
+        Error::Param { param, reason } => format!("argument `{param}`: {reason}"),
+        other => other.to_string(),
+    };
+    for param in Param::ALL {
+        if let Some(words) = flag_of(param) {
+            text = text.replace(&format!("`{param}`"), words);
+        }
+    }
+    text
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn every_param_has_a_flag() {
+        for param in Param::ALL {
+            assert!(flag_of(param).is_some(), "{param} has no flag");
+        }
+        let e = Error::param(Param::MaxError, "0 m must be finite and positive");
+        assert_eq!(
+            cli_message(&e),
+            "argument `--max-error`: 0 m must be finite and positive"
+        );
+        let e = Error::format("a.raw", format!("give `{}`", Param::RawLayout));
+        assert!(
+            cli_message(&e).contains("`--raw-size WxH`"),
+            "{}",
+            cli_message(&e)
+        );
+    }
 
     #[test]
     fn sizes_parse_and_refuse() {

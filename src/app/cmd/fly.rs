@@ -19,7 +19,7 @@ use clipsat::{Error, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 
-use super::args::{flag, pixel_size, GpuArgs, LodArgs, Size};
+use super::args::{arg_error, flag, pixel_size, GpuArgs, LodArgs, Size};
 use super::hashes::{self, HashFile};
 use super::{ProfileArgs, TerrainArgs};
 
@@ -106,19 +106,16 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
     let frames = u64::try_from(args.frames)
         .ok()
         .filter(|&f| f > 0)
-        .ok_or_else(|| Error::Arg {
-            arg: "--frames".into(),
-            reason: format!("{}: fly at least 1 frame", args.frames),
-        })?;
+        .ok_or_else(|| arg_error("--frames", format!("{}: fly at least 1 frame", args.frames)))?;
     let lod_mode = args.lod.mode();
     let epsilon = args.lod.epsilon;
     let profile = args.profile.load()?;
     let sg = args.shading.choice(&profile)?;
     if sg.is_some() && args.render.is_none() {
-        return Err(Error::Arg {
-            arg: "--shading".into(),
-            reason: "sg shading needs --render DIR (fly simulates without a GPU otherwise)".into(),
-        });
+        return Err(arg_error(
+            "--shading",
+            "sg shading needs --render DIR (fly simulates without a GPU otherwise)",
+        ));
     }
     let opts = ClipmapOptions {
         synth_levels: args.synth_levels,
@@ -165,9 +162,11 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
     // Every buffer the loop writes to is sized here; the loop itself allocates nothing.
     let mut rows: Vec<Row> = Vec::new();
     let cap = usize::try_from(frames).unwrap_or(usize::MAX);
-    rows.try_reserve_exact(cap).map_err(|_| Error::Arg {
-        arg: "--frames".into(),
-        reason: format!("{frames}: too many frames to keep statistics for"),
+    rows.try_reserve_exact(cap).map_err(|_| {
+        arg_error(
+            "--frames",
+            format!("{frames}: too many frames to keep statistics for"),
+        )
     })?;
     let mut csv = match &args.csv {
         Some(p) => Some((p, open_csv(p, clipmap.levels())?)),
@@ -190,10 +189,7 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
     let gpu = match &args.render {
         Some(dir) => {
             if args.render_every == 0 {
-                return Err(Error::Arg {
-                    arg: "--render-every".into(),
-                    reason: "must be at least 1".into(),
-                });
+                return Err(arg_error("--render-every", "must be at least 1"));
             }
             std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, "cannot create folder", e))?;
             Some(Gpu::new(args.gpu.mode())?)
@@ -261,12 +257,12 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
     };
     let mut frame_hashes: Vec<u64> = Vec::new();
     if args.hash_out.is_some() {
-        frame_hashes
-            .try_reserve_exact(cap)
-            .map_err(|_| Error::Arg {
-                arg: "--frames".into(),
-                reason: format!("{frames}: too many frames to keep hashes for"),
-            })?;
+        frame_hashes.try_reserve_exact(cap).map_err(|_| {
+            arg_error(
+                "--frames",
+                format!("{frames}: too many frames to keep hashes for"),
+            )
+        })?;
     }
     let mut mismatch = None;
 

@@ -20,7 +20,7 @@ pub(crate) mod tune_p;
 #[cfg(feature = "view")]
 pub(crate) mod view;
 
-use args::Size;
+use args::{arg_error, Size};
 use clap::{Args, ValueEnum};
 use clipsat::source::{
     self, procedural::ProceduralParams, LoadOptions, RawFormat, RawLayout, TerrainSpec,
@@ -119,12 +119,7 @@ impl TerrainArgs {
                     RawFormatArg::F32 => RawFormat::F32,
                 },
             }),
-            (None, Some(_)) => {
-                return Err(Error::Arg {
-                    arg: "--raw-format".into(),
-                    reason: "needs --raw-size WxH too".into(),
-                })
-            }
+            (None, Some(_)) => return Err(arg_error("--raw-format", "needs --raw-size WxH too")),
         };
         let opts = LoadOptions {
             spacing: self.spacing,

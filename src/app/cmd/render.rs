@@ -17,11 +17,11 @@ use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::plan::frame_plan::LodSetup;
 use clipsat::plan::lod::{Lod, LodMode};
 use clipsat::shading::debug_view::DebugView;
-use clipsat::{hash, Camera, Error, Heightmap, Profile, Result};
+use clipsat::{hash, Camera, Heightmap, Profile, Result};
 use glam::DVec3;
 use serde_json::json;
 
-use super::args::{pixel_size, DebugArg, GpuArgs, LodArgs, Size};
+use super::args::{arg_error, pixel_size, DebugArg, GpuArgs, LodArgs, Size};
 use super::sg::ShadingArgs;
 use super::{ensure_parent, print_json, ProfileArgs, TerrainArgs};
 
@@ -119,18 +119,16 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
     let gpu = Gpu::new(mode)?;
     if args.brute {
         if args.ground_truth {
-            return Err(Error::Arg {
-                arg: "--ground-truth".into(),
-                reason:
-                    "compares the clipmap with the brute-force render; --brute draws the latter"
-                        .into(),
-            });
+            return Err(arg_error(
+                "--ground-truth",
+                "compares the clipmap with the brute-force render; --brute draws the latter",
+            ));
         }
         if sg.is_some() {
-            return Err(Error::Arg {
-                arg: "--shading".into(),
-                reason: "sg shades the clipmap renderer; --brute has basic shading only".into(),
-            });
+            return Err(arg_error(
+                "--shading",
+                "sg shades the clipmap renderer; --brute has basic shading only",
+            ));
         }
         return run_brute(
             args,

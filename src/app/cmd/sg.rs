@@ -7,7 +7,7 @@
 //! horizon is ray-marched at 64 azimuths, and `shading::reference` integrates it; fog and display encoding
 //! follow as in the shader. Pixels whose ray leaves the data, or that show sky on the GPU, are skipped.
 
-use super::args::{PatchesArg, ShadingArg};
+use super::args::{arg_error, PatchesArg, ShadingArg};
 use clap::Args;
 use clipsat::bake::horizon;
 use clipsat::gpu::headless;
@@ -17,7 +17,7 @@ use clipsat::gpu::sat_textures::ShadingBake;
 use clipsat::gpu::Gpu;
 use clipsat::shading::scene::{self, Scene};
 use clipsat::shading::{self, HorizonTable, Patches, RefCosine, RefGrid, RefInputs};
-use clipsat::{Camera, Error, Heightmap, Profile, Result};
+use clipsat::{Camera, Heightmap, Profile, Result};
 use glam::{DVec3, Vec4};
 
 /// The shading options shared by `render` and `fly`.
@@ -95,10 +95,9 @@ impl ShadingArgs {
                     (patches != Patches::default(), "--patches"),
                 ];
                 match sg_only.iter().find(|(on, _)| *on) {
-                    Some((_, arg)) => Err(Error::Arg {
-                        arg: (*arg).into(),
-                        reason: "applies to SG shading: add --shading sg".into(),
-                    }),
+                    Some((_, arg)) => {
+                        Err(arg_error(arg, "applies to SG shading: add --shading sg"))
+                    }
                     None => Ok(None),
                 }
             }

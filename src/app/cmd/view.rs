@@ -10,6 +10,7 @@ use std::num::NonZeroU32;
 use std::rc::Rc;
 use std::time::{Duration, Instant};
 
+use crate::app::cmd::args::arg_error;
 use crate::app::plot::{stamp_text, stamp_width};
 use crate::app::view_keys::{Action, Move, Shading, ShadingSwitches, ViewState};
 use clap::Args;
@@ -100,10 +101,10 @@ pub(crate) fn run(args: &ViewArgs) -> Result<()> {
     state.lod = lod;
     state.debug = debug;
     if args.shading.reference {
-        return Err(Error::Arg {
-            arg: "--reference".into(),
-            reason: "applies to render and fly, not view".into(),
-        });
+        return Err(arg_error(
+            "--reference",
+            "applies to render and fly, not view",
+        ));
     }
     // Key 1 switches SG on and off, so the scene is loaded either way (checked against the profile when
     // SG is first switched on).

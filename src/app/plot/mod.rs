@@ -4,6 +4,7 @@ mod font;
 
 use std::path::Path;
 
+use crate::app::cmd::args::arg_error;
 use clipsat::{Error, Result};
 
 use font::glyph;
@@ -55,10 +56,10 @@ impl LinePlot {
     /// Renders the plot into an RGB8 canvas.
     fn render(&self, width: u32, height: u32) -> Result<Canvas> {
         if !(160..=16384).contains(&width) || !(120..=16384).contains(&height) {
-            return Err(Error::Arg {
-                arg: "plot size".into(),
-                reason: format!("{width} x {height} pixels: need 160..=16384 x 120..=16384"),
-            });
+            return Err(arg_error(
+                "plot size",
+                format!("{width} x {height} pixels: need 160..=16384 x 120..=16384"),
+            ));
         }
         let mut c = Canvas::new(width, height);
         // Font pixel size: 5x7 glyphs, doubled from about 360 px up.
@@ -95,10 +96,10 @@ impl LinePlot {
             y1: h - bottom,
         };
         if plot.x1 - plot.x0 < 40 || plot.y1 - plot.y0 < 40 {
-            return Err(Error::Arg {
-                arg: "plot size".into(),
-                reason: format!("{width} x {height} pixels leave no room for the axes"),
-            });
+            return Err(arg_error(
+                "plot size",
+                format!("{width} x {height} pixels leave no room for the axes"),
+            ));
         }
 
         let grid = [232, 232, 232];
@@ -670,7 +671,7 @@ mod tests {
             ..LinePlot::default()
         };
         assert!(odd.render(300, 200).is_ok());
-        assert!(matches!(odd.render(10, 10), Err(Error::Arg { .. })));
+        assert!(matches!(odd.render(10, 10), Err(Error::Invalid { .. })));
     }
 
     #[test]

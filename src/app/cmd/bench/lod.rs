@@ -19,7 +19,7 @@ use clipsat::{Error, Heightmap, Profile, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::common::TERRAINS;
-use crate::app::cmd::args::{pixel_size, GpuArgs, Size};
+use crate::app::cmd::args::{arg_error, pixel_size, GpuArgs, Size};
 use crate::app::cmd::ProfileArgs;
 use crate::app::plot::{LinePlot, Series};
 
@@ -69,10 +69,7 @@ pub(crate) struct Acc {
 pub(super) fn run_lod(args: &BenchLodArgs) -> Result<()> {
     let mode = args.gpu.mode();
     if args.frames == 0 {
-        return Err(Error::Arg {
-            arg: "--frames".into(),
-            reason: "0: bench at least 1 frame".into(),
-        });
+        return Err(arg_error("--frames", "0: bench at least 1 frame"));
     }
     let profile = args.profile.load()?;
     let (w, h) = match args.size {

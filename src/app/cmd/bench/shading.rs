@@ -14,7 +14,7 @@ use clipsat::{Error, Heightmap, Profile, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::common::TERRAINS;
-use crate::app::cmd::args::{pixel_size, GpuArgs, Size};
+use crate::app::cmd::args::{arg_error, pixel_size, GpuArgs, Size};
 use crate::app::cmd::ProfileArgs;
 use crate::app::plot::{LinePlot, Series};
 
@@ -86,10 +86,7 @@ pub(crate) fn run_shading(args: &BenchShadingArgs) -> Result<ShadingReport> {
     let mode = args.gpu.mode();
     let size = args.size.pair();
     if args.frames == 0 {
-        return Err(Error::Arg {
-            arg: "--frames".into(),
-            reason: "0: bench at least 1 frame".into(),
-        });
+        return Err(arg_error("--frames", "0: bench at least 1 frame"));
     }
     let profile = args.profile.load()?;
     std::fs::create_dir_all(&args.out)
@@ -138,10 +135,10 @@ pub(crate) fn shading_terrains(shared: bool) -> Result<NamedTerrains> {
         let path = clipsat::data_dir().join(name);
         if !path.exists() {
             if ci {
-                return Err(Error::Arg {
-                    arg: "bench shading".into(),
-                    reason: format!("{} is missing (CI=true)", path.display()),
-                });
+                return Err(arg_error(
+                    "bench shading",
+                    format!("{} is missing (CI=true)", path.display()),
+                ));
             }
             eprintln!(
                 "bench shading: skipping {name}: {} is missing",
