@@ -16,4 +16,4 @@ pub mod write;
 pub use cache::{CacheSplit, CacheStats, TileCache};
 pub use format::{CodecKind, Header};
 pub use read::{is_package, Package, TileDecoder};
-pub use write::{bake, default_max_error, BakeOptions, BakeReport};
+pub use write::{bake, cached, default_max_error, BakeOptions, BakeReport};

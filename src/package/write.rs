@@ -314,3 +314,31 @@ pub fn residual_tiles(
     }
     Ok((sq, worst))
 }
+
+/// The package of a plain source in the cache folder `dir`, baked with the default options on first use:
+/// `terrain-<key>.clipsat`, `key` naming the source (the caller hashes what identifies it: its path,
+/// size, modification time and load options, or a procedural terrain's parameters) so that a later run
+/// finds it without loading the source. `load` runs only on a miss. A file that does not open as a valid
+/// package is baked again; the bake goes to a temporary name renamed into place, so a killed bake leaves
+/// no half file. Returns the path and whether it was baked now.
+pub fn cached(
+    dir: &Path,
+    key: u64,
+    load: impl FnOnce() -> Result<Heightmap>,
+    bar: &indicatif::ProgressBar,
+) -> Result<(std::path::PathBuf, bool)> {
+    let path = dir.join(format!(
+        "terrain-{}-v{}.clipsat",
+        crate::hash::hex(key),
+        super::format::VERSION
+    ));
+    if super::read::Package::open(&path).is_ok() {
+        return Ok((path, false));
+    }
+    let terrain = load()?;
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, "cannot create folder", e))?;
+    let tmp = path.with_extension(format!("tmp{}", std::process::id()));
+    bake(&terrain, &tmp, &BakeOptions::default(), bar)?;
+    std::fs::rename(&tmp, &path).map_err(|e| Error::io(&path, "cannot rename into place", e))?;
+    Ok((path, true))
+}

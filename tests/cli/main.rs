@@ -8,6 +8,7 @@ mod determinism;
 mod fly;
 mod hash;
 mod render_json;
+mod stream_rss;
 mod view_xvfb;
 
 use std::path::{Path, PathBuf};

@@ -121,3 +121,39 @@ fn render_ground_truth_on_request() {
     assert_eq!(r.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&r.stderr).contains("--ground-truth"));
 }
+
+/// A package rendered with distance LOD and basic shading streams through the profile's tile cache:
+/// `streamed` in the summary, every level filled, no measured error (it needs the whole pyramid); with
+/// `--lod sat` the package is decoded whole as before.
+#[test]
+fn render_streams_a_package() {
+    let dir = scratch("stream");
+    let pkg = dir.join("t.clipsat");
+    let png = dir.join("t.png");
+    let (p, o) = (pkg.to_string_lossy(), png.to_string_lossy());
+    json(
+        &clipsat(&["bake", "procedural:size=257", "--out", &p, "--json"]),
+        "bake",
+    );
+    let base = [
+        "render",
+        "--terrain",
+        &p,
+        "--profile",
+        "gles3-low",
+        "--size",
+        "64x36",
+        "--out",
+        &o,
+        "--json",
+    ];
+    let j = json(&clipsat(&base), "render a package");
+    assert_eq!(j["streamed"], true, "{j}");
+    assert_eq!(j["stale_levels"], 0, "{j}");
+    assert!(j["triangles"].as_u64().unwrap_or(0) > 0, "{j}");
+    assert!(j["max_screen_error_px"].is_null(), "{j}");
+    let mut sat = base.to_vec();
+    sat.extend(["--lod", "sat"]);
+    let j = json(&clipsat(&sat), "render a package --lod sat");
+    assert_eq!(j["streamed"], false, "{j}");
+}

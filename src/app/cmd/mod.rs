@@ -103,6 +103,46 @@ impl TerrainArgs {
         }
     }
 
+    /// The package to stream: the one `--terrain` names, or a plain source's, baked with the default
+    /// options into the cache folder ([`clipsat::bake::default_cache_dir`]) on first use and found there
+    /// later without loading the source (keyed by these options and the file's size and modification
+    /// time). A progress bar on stderr while baking when `progress`.
+    pub(crate) fn stream_package(&self, progress: bool) -> Result<clipsat::package::Package> {
+        if let Some(p) = self.package()? {
+            return Ok(p);
+        }
+        let mut h = clipsat::hash::Hash64::new();
+        h.write_bytes(format!("{self:?}").as_bytes());
+        if let TerrainSpec::File(path) = self.spec()? {
+            let meta = std::fs::metadata(&path).map_err(|e| Error::io(&path, "cannot read", e))?;
+            h.write_u64(meta.len());
+            let mtime = meta
+                .modified()
+                .ok()
+                .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok());
+            h.write_u64(mtime.map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX)));
+        }
+        let bar = if progress {
+            let b = indicatif::ProgressBar::new(0);
+            if let Ok(style) = indicatif::ProgressStyle::with_template(
+                "baking the terrain package into the cache {bar:30} {pos}/{len} {elapsed}",
+            ) {
+                b.set_style(style);
+            }
+            b
+        } else {
+            indicatif::ProgressBar::hidden()
+        };
+        let (path, _) = clipsat::package::cached(
+            &clipsat::bake::default_cache_dir(),
+            h.finish(),
+            || self.load().map(|(_, hm)| hm),
+            &bar,
+        )?;
+        bar.finish_and_clear();
+        clipsat::package::Package::open(&path)
+    }
+
     /// Loads the terrain these options name; a package is decoded whole (the resident path).
     pub(crate) fn load(&self) -> Result<(String, Heightmap)> {
         if let Some(p) = self.package()? {

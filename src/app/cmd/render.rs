@@ -62,6 +62,10 @@ pub(crate) struct RenderArgs {
     /// a full SRTM tile exceeds, and a summary must not fail for a measurement nobody asked for.
     #[arg(long)]
     ground_truth: bool,
+    /// Clipmap only: stream a plain source like a package (baked into the cache folder on first use):
+    /// no whole heightmap resident. Distance LOD and basic shading only; a package streams without it.
+    #[arg(long)]
+    stream: bool,
     /// Clipmap only: disable the GC 6.2 transition morph.
     #[arg(long)]
     no_morph: bool,
@@ -99,6 +103,9 @@ pub(crate) fn lod_for(
     Ok(Lod::for_clipmap(tables, profile, clipmap, hm))
 }
 
+/// Most samples of the package level a streamed render fits its camera to (1 Mi: 4 MiB of f32).
+const STREAMED_CAMERA_SAMPLES: u64 = 1 << 20;
+
 /// Most clipmap updates `render` runs to let the budget fill every level at the camera.
 const MAX_FILL_FRAMES: u32 = 10_000;
 
@@ -112,10 +119,34 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
         Some(s) => s.pair(),
         None => (profile.view.width, profile.view.height),
     };
-    let (terrain_name, hm) = args.terrain.load()?;
+    let sg = args.shading.choice(&profile)?;
+    // A package drawn with distance LOD and basic shading streams through the profile's tile cache:
+    // nothing terrain-sized stays resident, and the camera fits a coarse level. The SAT modes, sg shading
+    // and the brute-force reference still decode it whole (their inputs are built from the heightmap).
+    // `--stream` does the same for a plain source, baked into the cache on first use.
+    let streamable =
+        lod_mode == LodMode::Distance && sg.is_none() && !args.brute && !args.ground_truth;
+    if args.stream && !streamable {
+        return Err(arg_error(
+            "--stream",
+            "streams distance LOD with basic shading only (not --lod sat, --shading sg, --brute or \
+             --ground-truth)",
+        ));
+    }
+    let package = match args.terrain.package()? {
+        Some(p) if streamable => Some(p),
+        None if args.stream => Some(args.terrain.stream_package(!args.json)?),
+        _ => None,
+    };
+    let (terrain_name, hm) = match &package {
+        Some(p) => (
+            p.path().display().to_string(),
+            p.coarse_heightmap(STREAMED_CAMERA_SAMPLES)?,
+        ),
+        None => args.terrain.load()?,
+    };
     let camera = camera(args, &hm, f64::from(profile.view.fov_y_deg))?;
 
-    let sg = args.shading.choice(&profile)?;
     let gpu = Gpu::new(mode)?;
     if args.brute {
         if args.ground_truth {
@@ -144,7 +175,11 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
     profile.view.width = size_w;
     profile.view.height = size_h;
     let t0 = Instant::now();
-    let mut clipmap = Clipmap::new(&hm, &profile, ClipmapOptions::default())?;
+    let streamed = package.is_some();
+    let mut clipmap = match package {
+        Some(p) => Clipmap::streamed(p, &profile, ClipmapOptions::default())?,
+        None => Clipmap::new(&hm, &profile, ClipmapOptions::default())?,
+    };
     // Update until no level is stale and nothing is pending at the eye (bounded).
     let mut fill_frames = 0;
     loop {
@@ -155,8 +190,9 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
             break;
         }
     }
-    // The error maps serve the SAT modes and the measured error of any mode.
-    let lod = if lod_mode != LodMode::Distance || args.json {
+    // The error maps serve the SAT modes and the measured error of any mode (not measured when streamed:
+    // the measurement needs the whole pyramid).
+    let lod = if lod_mode != LodMode::Distance || (args.json && !streamed) {
         Some(lod_for(&hm, &profile, &clipmap, !args.json)?)
     } else {
         None
@@ -250,6 +286,7 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
             "height": size_h,
             "camera": camera_json(&camera),
             "fill_frames": fill_frames,
+            "streamed": streamed,
             "stale_levels": cf.stale_levels,
             "disabled_levels": cf.disabled_levels,
             "levels": levels,

@@ -1,0 +1,77 @@
+//! The 16385 x 16385 flight with its RSS bound (issue 13): `fly` streams a `procedural:size=16385`
+//! package through gles3-mid's 64 MiB tile cache, and its peak RSS exceeds the same flight over a 257^2
+//! package by at most `budget.cpu_memory_bytes`. Heavy (the bake holds the 1 GiB source and writes a
+//! package of a few hundred MB; minutes in release), so ignored:
+//! `cargo test --release --test cli stream_rss -- --ignored --nocapture`. Needs `/usr/bin/time`.
+
+use std::path::Path;
+
+use super::clipsat;
+
+/// Peak RSS in bytes of `clipsat args` under `/usr/bin/time -v`, or None when it is not installed.
+fn peak_rss(args: &[&str]) -> Option<u64> {
+    if !Path::new("/usr/bin/time").is_file() {
+        eprintln!("skipping: /usr/bin/time is not installed");
+        return None;
+    }
+    let o = std::process::Command::new("/usr/bin/time")
+        .arg("-v")
+        .arg(env!("CARGO_BIN_EXE_clipsat"))
+        .args(args)
+        .output()
+        .expect("run /usr/bin/time");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "clipsat {args:?}: {err}");
+    let kib = err
+        .lines()
+        .find_map(|l| l.trim().strip_prefix("Maximum resident set size (kbytes):"))
+        .and_then(|v| v.trim().parse::<u64>().ok())
+        .expect("a peak RSS line");
+    Some(kib * 1024)
+}
+
+#[test]
+#[ignore = "minutes and a large scratch package: cargo test --release --test cli stream_rss -- --ignored"]
+fn fly_16385_streamed_within_the_cpu_budget() {
+    let dir = super::scratch_in("cli_stream_rss", "fly");
+    let mut peaks = Vec::new();
+    for size in [257u32, 16385] {
+        let pkg = dir.join(format!("p{size}.clipsat"));
+        let p = pkg.to_string_lossy();
+        let terrain = format!("procedural:size={size}");
+        let bake = clipsat(&["bake", &terrain, "--out", &p, "--json"]);
+        assert!(
+            bake.status.success(),
+            "bake {terrain}: {}",
+            String::from_utf8_lossy(&bake.stderr)
+        );
+        let fly = [
+            "fly",
+            "--terrain",
+            &p,
+            "--profile",
+            "gles3-mid",
+            "--frames",
+            "600",
+            "--speed",
+            "400",
+            "--json",
+        ];
+        let Some(peak) = peak_rss(&fly) else {
+            return;
+        };
+        eprintln!("fly over {terrain}: peak RSS {} MiB", peak >> 20);
+        peaks.push(peak);
+        let _ = std::fs::remove_file(&pkg);
+    }
+    let budget = clipsat::Profile::load("gles3-mid")
+        .expect("profile")
+        .budget
+        .cpu_memory_bytes;
+    assert!(
+        peaks[1].saturating_sub(peaks[0]) <= budget,
+        "16385^2 flight: {} MiB over the 257^2 one, budget {} MiB",
+        peaks[1].saturating_sub(peaks[0]) >> 20,
+        budget >> 20
+    );
+}
