@@ -527,51 +527,6 @@ impl Canvas {
     }
 }
 
-/// Stamps `text` in the plots' 5x7 font onto a tight RGBA8 image (`width` pixels per row), top-left
-/// corner at (x, y), each font pixel `scale` x `scale`, clipped to the image. `clipsat view` writes its
-/// stats line with it.
-#[cfg_attr(
-    not(feature = "view"),
-    expect(dead_code, reason = "only `clipsat view` stamps text")
-)]
-pub(crate) fn stamp_text(
-    rgba: &mut [u8],
-    width: u32,
-    (x, y): (i32, i32),
-    scale: i32,
-    text: &str,
-    colour: [u8; 4],
-) {
-    let w = to_i32(width as usize);
-    let h = to_i32(rgba.len() / 4 / (width.max(1) as usize));
-    for (i, ch) in text.chars().enumerate() {
-        let gx = x + to_i32(i) * 6 * scale;
-        for (ry, bits) in glyph(ch).iter().enumerate() {
-            for cx in 0..5 {
-                if bits & (0b10000 >> cx) == 0 {
-                    continue;
-                }
-                let (px, py) = (gx + cx * scale, y + to_i32(ry) * scale);
-                for yy in py.max(0)..(py + scale).min(h) {
-                    for xx in px.max(0)..(px + scale).min(w) {
-                        let at = (yy as usize * width as usize + xx as usize) * 4;
-                        rgba[at..at + 4].copy_from_slice(&colour);
-                    }
-                }
-            }
-        }
-    }
-}
-
-/// The width in pixels of `text` stamped at `scale` by [`stamp_text`].
-#[cfg_attr(
-    not(feature = "view"),
-    expect(dead_code, reason = "only `clipsat view` stamps text")
-)]
-pub(crate) fn stamp_width(text: &str, scale: i32) -> i32 {
-    text_width(text, scale)
-}
-
 /// Rounds a pixel coordinate to the nearest integer (saturating far off the canvas; NaN gives 0).
 #[expect(
     clippy::cast_possible_truncation,

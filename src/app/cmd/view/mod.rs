@@ -1,45 +1,49 @@
 //! `clipsat view`: an interactive fly-through window (winit), the front end of the whole pipeline.
 //!
-//! Each frame runs exactly what the frame hashes are made of: the clipmap update under the budget, then
-//! the strict GLES 3.0 `Offscreen` renderer and its readback; the stats line is stamped into that image
-//! on the CPU ([`crate::app::plot::stamp_text`]) and it is presented with softbuffer. No GPU surface is
-//! involved, so the window works wherever the offscreen renderer does (Xvfb + Mesa llvmpipe included).
+//! Each frame runs exactly what the frame hashes are made of: the clipmap update under the budget, the
+//! frame plan, then the embeddable [`clipsat::gpu::renderer::Renderer`] drawing into the render pass of
+//! the window's own wgpu surface ([`present`]). The view is a caller of the library like
+//! `examples/own_device.rs`: it makes its instance (wgpu's GL backend on the X11 display through EGL,
+//! OpenGL ES 3.0 where Mesa gives it), the surface, device and depth target itself, and nothing is read
+//! back. The context it got is printed on stdout and shown, with the stats line, in the window title.
+//! `--frames N` draws N frames without input and times them against the headless `render` path in the
+//! same run ([`measure`]).
 //! The input -> camera state machine is [`crate::app::view_keys::ViewState`]; this file only maps winit events.
 
-use std::num::NonZeroU32;
-use std::rc::Rc;
+mod measure;
+mod present;
+
 use std::time::{Duration, Instant};
 
 use crate::app::cmd::args::arg_error;
-use crate::app::plot::{stamp_text, stamp_width};
 use crate::app::view_keys::{Action, Move, Shading, ShadingSwitches, ViewState};
 use clap::Args;
 use clipsat::bake::horizon::DEFAULT_AZIMUTHS;
-use clipsat::gpu::headless::{render_frame, Offscreen, OffscreenOptions};
-use clipsat::gpu::readback::Image;
-use clipsat::gpu::renderer::{self as gpu_renderer, SgShading};
+use clipsat::gpu::renderer::{self as gpu_renderer, RendererOptions, SgShading};
 use clipsat::gpu::sat_textures::ShadingBake;
-use clipsat::gpu::Gpu;
+use clipsat::gpu::GpuMode;
 use clipsat::plan::camera::parse_vec3;
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
-use clipsat::plan::frame_plan::LodSetup;
+use clipsat::plan::frame_plan::{FramePlan, LodSetup, Planner};
 use clipsat::plan::lod::Lod;
 use clipsat::plan::lod::LodMode;
 use clipsat::shading::debug_view::DebugView;
 use clipsat::shading::scene::Scene;
 use clipsat::shading::Patches;
 use clipsat::{Camera, Error, Heightmap, Profile, Result};
+use serde_json::json;
 use winit::application::ApplicationHandler;
-use winit::dpi::PhysicalSize;
 use winit::event::{ElementState, MouseButton, WindowEvent};
 use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop};
 use winit::keyboard::{KeyCode, PhysicalKey};
-use winit::window::{Window, WindowId};
+use winit::window::WindowId;
 
 use super::args::{pixel_size, DebugArg, GpuArgs, LodArgs, Size};
 use super::render::lod_for;
 use super::sg::ShadingArgs;
 use super::{ProfileArgs, TerrainArgs};
+use measure::{round2, Times};
+use present::{window_error, Presented, Presenter};
 
 #[derive(Args, Debug)]
 pub(crate) struct ViewArgs {
@@ -68,6 +72,13 @@ pub(crate) struct ViewArgs {
     /// Close the window after this many seconds (scripted runs and tests).
     #[arg(long, value_name = "SECS")]
     exit_after: Option<f64>,
+    /// Measure: draw N frames from the start camera without input, close the window, then time N
+    /// frames of the headless `render` path (draw + read-back) at the same size in the same run.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(2..))]
+    frames: Option<u32>,
+    /// The closing summary (frame times, context, the headless comparison) as JSON on stdout.
+    #[arg(long)]
+    json: bool,
 }
 
 /// Frame times kept for the closing summary.
@@ -108,11 +119,12 @@ pub(crate) fn run(args: &ViewArgs) -> Result<()> {
     }
     // Key 1 switches SG on and off, so the scene is loaded either way (checked against the profile when
     // SG is first switched on).
-    let (scene, patches) = match args.shading.choice(&profile)? {
+    let sg = args.shading.choice(&profile)?;
+    let (scene, patches) = match &sg {
         Some(c) => {
             state.shading = ShadingSwitches::from_scene(&c.scene, true);
             state.shading.visibility &= c.shadows;
-            (c.scene, c.patches)
+            (c.scene.clone(), c.patches)
         }
         None => {
             let scene = Scene::load("noon")?;
@@ -121,46 +133,54 @@ pub(crate) fn run(args: &ViewArgs) -> Result<()> {
         }
     };
 
-    let gpu = Gpu::new(mode)?;
     let clipmap = Clipmap::new(&hm, &profile, ClipmapOptions::default())?;
-    let renderer = Offscreen::new(&gpu, &profile, &clipmap, OffscreenOptions::default())?;
-    let max_texture_side = gpu.device().limits().max_texture_dimension_2d;
+    let planner = Planner::new(&profile, &clipmap, LodSetup::Distance)?;
+    let plan = planner.new_plan();
     // The renderer starts with the basic shading.
     let applied = ShadingSwitches {
         sg: false,
         ..state.shading
     };
+    // Before the event loop, its threads and any GL context: Mesa reads these once.
+    present::ask_for_gles(mode);
     let event_loop = EventLoop::new().map_err(|e| window_error("cannot open the event loop", e))?;
     event_loop.set_control_flow(ControlFlow::Poll);
-    eprintln!(
-        "clipsat view: {terrain_name}, profile {}, {}",
-        profile.name,
-        gpu_name(&gpu)
-    );
-    eprintln!("{HELP}");
+    let instance = present::instance(mode, &event_loop);
+    eprintln!("clipsat view: {terrain_name}, profile {}", profile.name);
+    if args.frames.is_none() {
+        eprintln!("{HELP}");
+    }
     let mut app = App {
         hm: &hm,
-        profile: &profile,
-        gpu: &gpu,
+        profile: profile.clone(),
+        mode,
+        json: args.json,
+        instance,
         clipmap,
-        renderer,
+        planner,
+        plan,
         built: (LodMode::Distance, DebugView::Normal),
         lod: None,
         state,
         scene,
         patches,
-        max_texture_side,
         bake: None,
         applied,
         clearance: (2.0 * f64::from(hm.spacing())).max(30.0),
         window: None,
+        context: None,
         drag: None,
         last: None,
         started: None,
         exit_after: args.exit_after.map(Duration::from_secs_f64),
+        frames_left: args.frames,
         frame_ms: Vec::with_capacity(FRAME_LOG),
+        frame_cpu: Vec::with_capacity(args.frames.map_or(0, |n| n as usize)),
+        settled_at: None,
         frames: 0,
         last_ms: 0.0,
+        titled: None,
+        resized: false,
         error: None,
     };
     event_loop
@@ -169,49 +189,116 @@ pub(crate) fn run(args: &ViewArgs) -> Result<()> {
     if let Some(e) = app.error {
         return Err(e);
     }
-    if !app.frame_ms.is_empty() {
-        let (n, frames) = (app.frame_ms.len(), app.frames);
-        // The first frame fills every level and compiles the pipeline: report the rest.
-        let steady = if n > 1 {
-            &app.frame_ms[1..]
-        } else {
-            &app.frame_ms[..]
-        };
-        let mean = steady.iter().sum::<f64>() / steady.len() as f64;
-        let mut sorted = steady.to_vec();
-        sorted.sort_by(f64::total_cmp);
+    // The window's device and surface go before the headless context is made.
+    let (width, height) = app
+        .window
+        .take()
+        .map_or((0, 0), |p| (p.config.width, p.config.height));
+    let (context, gles30) = app.context.clone().unwrap_or_default();
+    // With --frames, time the frames from the first one that found the clipmap filled (the others paid
+    // the fill under the budget); interactively, every frame after the first.
+    let from = match args.frames {
+        Some(_) => app.settled_at.unwrap_or(app.frame_ms.len()).max(1),
+        None => 1,
+    };
+    let from = from.min(app.frame_ms.len());
+    // CPU time from the end of the frame before `from` to the end of the last.
+    let cpu = measure::per_frame(
+        app.frame_cpu.get(from.wrapping_sub(1)).copied().flatten(),
+        app.frame_cpu.last().copied().flatten(),
+        app.frame_cpu.len().saturating_sub(from),
+    );
+    let window = app
+        .frame_ms
+        .first()
+        .and_then(|&first| Times::of(first, &app.frame_ms[from..], cpu));
+    let headless = match args.frames {
+        Some(n) if width > 0 => {
+            profile.view.width = width;
+            profile.view.height = height;
+            let camera = app.state.camera()?;
+            let opts = app.state.frame_options();
+            eprintln!("clipsat view: timing {n} frames of the headless render path at {width}x{height}...");
+            let same = measure::Same {
+                hm: &hm,
+                profile: &profile,
+                camera: &camera,
+                opts: &opts,
+                lod: app.state.lod,
+                debug: app.state.debug,
+                sg: sg.as_ref().filter(|_| app.applied.sg),
+            };
+            Some(measure::headless(&same, mode, n)?)
+        }
+        _ => None,
+    };
+    let ratio = |f: fn(&Times) -> Option<f64>| match (&window, &headless) {
+        (Some(w), Some(h)) => f(&h.times)
+            .zip(f(w).filter(|&v| v > 0.0))
+            .map(|(h, w)| h / w),
+        _ => None,
+    };
+    let ratio_mean = ratio(|t| Some(t.mean));
+    let ratio_median = ratio(|t| Some(t.median));
+    let ratio_cpu = ratio(|t| t.cpu);
+    if args.json {
+        super::print_json(&json!({
+            "terrain": terrain_name,
+            "profile": profile.name,
+            "width": width,
+            "height": height,
+            "frames": app.frames,
+            "window": {
+                "context": context,
+                "gles30": gles30,
+                "path": "update + plan + prepare + draw into the surface's pass + present, no read-back",
+                "fill_frames": from,
+                "times": window.map(|t| t.json()),
+            },
+            "headless_render": headless.as_ref().map(|h| json!({
+                "context": h.context,
+                "path": "update + plan + draw offscreen + read-back + hash (clipsat render's frame)",
+                "times": h.times.json(),
+            })),
+            "headless_over_window_mean": ratio_mean.map(round2),
+            "headless_over_window_median": ratio_median.map(round2),
+            "headless_over_window_cpu": ratio_cpu.map(round2),
+        }));
+        return Ok(());
+    }
+    if let Some(t) = window {
         outln!(
-            "frames {frames}, ms/frame of the first {n} (update + render + readback + present) mean {mean:.1}, median {:.1}, first {:.1}",
-            sorted[sorted.len() / 2],
-            app.frame_ms[0]
+            "frames {}, {width}x{height} on {context}: ms/frame of {} (update + plan + prepare + render + present, no read-back) mean {:.1}, median {:.1}, first {:.1}{}",
+            app.frames, t.frames, t.mean, t.median, t.first, cpu_text(t.cpu)
+        );
+    }
+    if let (Some(h), Some(mean), Some(median)) = (&headless, ratio_mean, ratio_median) {
+        outln!(
+            "headless render at {width}x{height} on {}: ms/frame of {} (update + plan + draw + read-back + hash) mean {:.1}, median {:.1}{}; headless / window: {mean:.2} (mean), {median:.2} (median){}",
+            h.context, h.times.frames, h.times.mean, h.times.median, cpu_text(h.times.cpu),
+            ratio_cpu.map_or_else(String::new, |r| format!(", {r:.2} (CPU)"))
         );
     }
     Ok(())
 }
 
-fn gpu_name(gpu: &Gpu) -> String {
-    let r = gpu.report();
-    format!("{}, {}", r.name, r.gl_version)
+/// ", CPU N ms/frame" when the CPU time is known.
+fn cpu_text(cpu: Option<f64>) -> String {
+    cpu.map_or_else(String::new, |c| format!(", CPU {c:.1} ms/frame"))
 }
 
-fn window_error(what: &str, e: impl std::fmt::Display) -> Error {
-    Error::Gpu(format!("clipsat view: {what}: {e}"))
-}
-
-/// The window and its softbuffer surface.
-struct Presenter {
-    window: Rc<Window>,
-    surface: softbuffer::Surface<Rc<Window>, Rc<Window>>,
-    // Kept alive as long as the surface.
-    _context: softbuffer::Context<Rc<Window>>,
-}
-
-struct App<'a, 'g> {
+struct App<'a> {
     hm: &'a Heightmap,
-    profile: &'a Profile,
-    gpu: &'g Gpu,
+    /// The profile; its viewport follows the window's size.
+    profile: Profile,
+    mode: GpuMode,
+    /// `--json`: the summary is JSON.
+    json: bool,
+    instance: wgpu::Instance,
     clipmap: Clipmap,
-    renderer: Offscreen<'g>,
+    planner: Planner,
+    /// The frame plan, reused every frame.
+    plan: FramePlan,
     /// The LOD mode and debug view the renderer was built with.
     built: (LodMode, DebugView),
     /// The SAT LOD tables, loaded when a SAT mode is first chosen.
@@ -220,59 +307,88 @@ struct App<'a, 'g> {
     /// The SG scene the shading switches apply to, and its patch count.
     scene: Scene,
     patches: Patches,
-    max_texture_side: u32,
     /// The shading SATs, baked when SG is first switched on (again if visibility is switched on later).
     bake: Option<ShadingBake>,
     /// The switches the renderer is set up for.
     applied: ShadingSwitches,
     clearance: f64,
     window: Option<Presenter>,
+    /// The window's GL context (GL_VERSION, GL_RENDERER) and whether it is OpenGL ES 3.0.
+    context: Option<(String, bool)>,
     /// The cursor position while the left button is held (mouse-look).
     drag: Option<(f64, f64)>,
     last: Option<Instant>,
     started: Option<Instant>,
     exit_after: Option<Duration>,
+    /// `--frames`: frames still to draw.
+    frames_left: Option<u32>,
     /// The first [`FRAME_LOG`] frame times, ms (preallocated: a long session does not grow it).
     frame_ms: Vec<f64>,
+    /// With `--frames`: the process's CPU time at the end of each frame, ms ([`measure::cpu_ms`]).
+    frame_cpu: Vec<Option<f64>>,
+    /// The index in `frame_ms` of the first frame that updated no samples and left no level stale.
+    settled_at: Option<usize>,
     /// Frames shown.
     frames: u64,
     /// The last frame's time, ms.
     last_ms: f64,
+    /// When the title (the stats line) was last set: a few times a second, not every frame.
+    titled: Option<Instant>,
+    /// The window's size changed since the planner was built.
+    resized: bool,
     error: Option<Error>,
 }
 
-impl App<'_, '_> {
+impl App<'_> {
     fn fail(&mut self, event_loop: &ActiveEventLoop, e: Error) {
         self.error.get_or_insert(e);
         event_loop.exit();
     }
 
     fn open(&mut self, event_loop: &ActiveEventLoop) -> Result<()> {
-        let (w, h) = (self.profile.view.width, self.profile.view.height);
-        let attrs = Window::default_attributes()
-            .with_title("clipsat view")
-            .with_inner_size(PhysicalSize::new(w, h));
-        let window = Rc::new(
-            event_loop
-                .create_window(attrs)
-                .map_err(|e| window_error("cannot create the window", e))?,
+        let p = Presenter::open(&self.instance, event_loop, &self.profile, self.mode)?;
+        let kind = if p.gles30 {
+            "OpenGL ES 3.0"
+        } else {
+            "not OpenGL ES 3.0"
+        };
+        // On stdout unless the summary is JSON (stdout is then one JSON document).
+        if self.json {
+            eprintln!("clipsat view: context {} ({kind})", p.context);
+        } else {
+            outln!("clipsat view: context {} ({kind})", p.context);
+        }
+        eprintln!(
+            "clipsat view: presenting through a wgpu surface on {}",
+            p.context
         );
-        let context = softbuffer::Context::new(window.clone())
-            .map_err(|e| window_error("softbuffer context", e))?;
-        let surface = softbuffer::Surface::new(&context, window.clone())
-            .map_err(|e| window_error("softbuffer surface", e))?;
-        // Without a window manager (Xvfb) nothing else gives the window the keyboard.
-        window.focus_window();
-        self.window = Some(Presenter {
-            window,
-            surface,
-            _context: context,
-        });
+        let size = p.window.inner_size();
+        self.context = Some((p.context.clone(), p.gles30));
+        self.window = Some(p);
+        self.resize(size.width, size.height);
         Ok(())
     }
 
-    /// One frame: fly, update the clipmap, render, stamp the stats, present.
-    fn frame(&mut self) -> Result<()> {
+    /// The window's new size: the surface, the depth target and the planner's aspect follow.
+    fn resize(&mut self, width: u32, height: u32) {
+        let Some(p) = self.window.as_mut() else {
+            return;
+        };
+        if width == 0 || height == 0 {
+            return;
+        }
+        if (p.config.width, p.config.height) != (width, height) {
+            p.resize(width, height);
+        }
+        if (self.profile.view.width, self.profile.view.height) != (width, height) {
+            (self.profile.view.width, self.profile.view.height) = (width, height);
+            // The aspect is the planner's: build it again at the next frame.
+            self.resized = true;
+        }
+    }
+
+    /// One frame: fly, update the clipmap, plan, prepare, draw into the surface's pass, present.
+    fn frame(&mut self, event_loop: &ActiveEventLoop) -> Result<()> {
         let t0 = Instant::now();
         let dt = self.last.map_or(0.0, |t| (t0 - t).as_secs_f64().min(0.25));
         self.last = Some(t0);
@@ -289,32 +405,60 @@ impl App<'_, '_> {
         let (samples, stale) = (frame.samples_updated, frame.stale_levels);
         if self.state.lod != LodMode::Distance && self.lod.is_none() {
             eprintln!("clipsat view: loading the SAT LOD tables (baked once, then cached)...");
-            self.lod = Some(lod_for(self.hm, self.profile, &self.clipmap, true)?);
+            self.lod = Some(lod_for(self.hm, &self.profile, &self.clipmap, true)?);
         }
         self.sync_shading()?;
         let opts = self.state.frame_options();
-        let mut out = render_frame(&mut self.renderer, &self.clipmap, &camera, &opts)?;
+        self.planner
+            .plan(&self.clipmap, &camera, &opts.plan_params(), &mut self.plan)?;
+        let Some(p) = self.window.as_mut() else {
+            return Ok(());
+        };
+        if let Presented::Skipped = p.draw(&self.clipmap, &self.plan, opts.clear)? {
+            return Ok(());
+        }
         // The previous frame's whole time (this one's is not known until it is presented).
         let ms = if self.frames == 0 {
             t0.elapsed().as_secs_f64() * 1e3
         } else {
             self.last_ms
         };
-        let lines = [
-            format!(
-                "tri {}  samples {}  stale {}  {:.1} ms",
-                out.stats.triangles, samples, stale, ms
-            ),
-            self.state.describe(),
-            self.state.describe_shading(),
-        ];
-        overlay(&mut out.image, &lines);
-        self.present(&out.image)?;
-        if self.frame_ms.len() < FRAME_LOG {
-            self.frame_ms.push(t0.elapsed().as_secs_f64() * 1e3);
+        // The stats line, in the window title (no read-back, no text drawn into the frame).
+        if self
+            .titled
+            .is_none_or(|t| t.elapsed() >= Duration::from_millis(250))
+        {
+            let title = format!(
+                "clipsat view | tri {} samples {} stale {} {:.1} ms | {} | {} | {}",
+                self.plan.stats().triangles,
+                samples,
+                stale,
+                ms,
+                self.state.describe(),
+                self.state.describe_shading(),
+                p.context
+            );
+            p.window.set_title(&title);
+            self.titled = Some(Instant::now());
         }
-        self.last_ms = t0.elapsed().as_secs_f64() * 1e3;
+        let elapsed = t0.elapsed().as_secs_f64() * 1e3;
+        if self.frame_ms.len() < FRAME_LOG {
+            if samples == 0 && stale == 0 && self.settled_at.is_none() {
+                self.settled_at = Some(self.frame_ms.len());
+            }
+            self.frame_ms.push(elapsed);
+        }
+        if self.frames_left.is_some() && self.frame_cpu.len() < self.frame_cpu.capacity() {
+            self.frame_cpu.push(measure::cpu_ms());
+        }
+        self.last_ms = elapsed;
         self.frames += 1;
+        if let Some(left) = self.frames_left.as_mut() {
+            *left = left.saturating_sub(1);
+            if *left == 0 {
+                event_loop.exit();
+            }
+        }
         Ok(())
     }
 
@@ -324,14 +468,17 @@ impl App<'_, '_> {
     fn sync_shading(&mut self) -> Result<()> {
         let want = self.state.shading;
         let built = (self.state.lod, self.state.debug);
-        if want == self.applied && built == self.built {
+        if want == self.applied && built == self.built && !self.resized {
             return Ok(());
         }
+        let Some(max_texture_side) = self.window.as_ref().map(|p| p.max_texture_side) else {
+            return Ok(());
+        };
         let lod = LodSetup::new(self.state.lod, self.lod.clone())?;
         match want.apply(&self.scene) {
             None => self.rebuild(lod, gpu_renderer::Shading::Basic)?,
             Some(scene) => {
-                if let Err(e) = scene.check_profile(&scene.name, self.profile) {
+                if let Err(e) = scene.check_profile(&scene.name, &self.profile) {
                     // Refuse the key, keep what is drawn.
                     eprintln!("clipsat view: switch refused: {e}");
                     self.state.shading = self.applied;
@@ -351,7 +498,7 @@ impl App<'_, '_> {
                         self.hm,
                         &needs,
                         DEFAULT_AZIMUTHS,
-                        self.max_texture_side,
+                        max_texture_side,
                         &clipsat::bake::default_cache_dir(),
                     )?;
                     eprintln!("clipsat view: shading SATs {outcome:?}");
@@ -376,86 +523,26 @@ impl App<'_, '_> {
         }
         self.applied = want;
         self.built = (self.state.lod, self.state.debug);
+        self.resized = false;
         Ok(())
     }
 
-    /// Builds the renderer again for a new LOD mode, debug view or shading (they are fixed per renderer).
+    /// Builds the planner and renderer again for a new LOD mode, debug view, shading (they are fixed per
+    /// renderer) or window size (the planner's aspect).
     fn rebuild(&mut self, lod: LodSetup, shading: gpu_renderer::Shading<'_>) -> Result<()> {
-        self.renderer = Offscreen::new(
-            self.gpu,
-            self.profile,
-            &self.clipmap,
-            OffscreenOptions {
-                lod,
+        let Some(p) = self.window.as_mut() else {
+            return Ok(());
+        };
+        self.planner = Planner::new(&self.profile, &self.clipmap, lod)?;
+        self.plan = self.planner.new_plan();
+        p.rebuild(
+            RendererOptions {
                 shading,
                 debug: self.state.debug,
+                ..RendererOptions::default()
             },
-        )?;
-        Ok(())
-    }
-
-    fn present(&mut self, image: &Image) -> Result<()> {
-        let Some(w) = self.window.as_mut() else {
-            return Ok(());
-        };
-        let size = w.window.inner_size();
-        let (Some(ww), Some(wh)) = (NonZeroU32::new(size.width), NonZeroU32::new(size.height))
-        else {
-            return Ok(());
-        };
-        w.surface
-            .resize(ww, wh)
-            .map_err(|e| window_error("softbuffer resize", e))?;
-        let mut buf = w
-            .surface
-            .buffer_mut()
-            .map_err(|e| window_error("softbuffer buffer", e))?;
-        // Nearest-neighbour scale of the rendered image onto the window.
-        let (iw, ih) = (image.width as usize, image.height as usize);
-        let (ww, wh) = (size.width as usize, size.height as usize);
-        for y in 0..wh {
-            let sy = y * ih / wh;
-            let row = &image.rgba[sy * iw * 4..(sy + 1) * iw * 4];
-            for x in 0..ww {
-                let p = &row[x * iw / ww * 4..][..3];
-                buf[y * ww + x] = u32::from(p[0]) << 16 | u32::from(p[1]) << 8 | u32::from(p[2]);
-            }
-        }
-        buf.present()
-            .map_err(|e| window_error("softbuffer present", e))?;
-        Ok(())
-    }
-}
-
-/// Stamps `lines` at the top-left of `image` over a dark band.
-fn overlay(image: &mut Image, lines: &[String]) {
-    const SCALE: i32 = 2;
-    const LINE: i32 = 9 * SCALE;
-    let width = lines
-        .iter()
-        .map(|l| stamp_width(l, SCALE))
-        .max()
-        .unwrap_or(0)
-        + 8;
-    let height = LINE * i32::try_from(lines.len()).unwrap_or(0) + 6;
-    let (iw, ih) = (image.width as usize, image.height as usize);
-    for y in 0..usize::try_from(height).unwrap_or(0).min(ih) {
-        for x in 0..usize::try_from(width).unwrap_or(0).min(iw) {
-            let p = &mut image.rgba[(y * iw + x) * 4..][..3];
-            for c in p {
-                *c /= 3;
-            }
-        }
-    }
-    for (line, y) in lines.iter().zip((4..).step_by(LINE as usize)) {
-        stamp_text(
-            &mut image.rgba,
-            image.width,
-            (4, y),
-            SCALE,
-            line,
-            [255, 255, 255, 255],
-        );
+            &self.profile,
+        )
     }
 }
 
@@ -492,7 +579,7 @@ fn action_key(code: KeyCode) -> Option<Action> {
     })
 }
 
-impl ApplicationHandler for App<'_, '_> {
+impl ApplicationHandler for App<'_> {
     fn resumed(&mut self, event_loop: &ActiveEventLoop) {
         if self.window.is_none() {
             if let Err(e) = self.open(event_loop) {
@@ -505,6 +592,7 @@ impl ApplicationHandler for App<'_, '_> {
     fn window_event(&mut self, event_loop: &ActiveEventLoop, _id: WindowId, event: WindowEvent) {
         match event {
             WindowEvent::CloseRequested => event_loop.exit(),
+            WindowEvent::Resized(size) => self.resize(size.width, size.height),
             WindowEvent::Focused(false) => self.state.release_all(),
             WindowEvent::KeyboardInput { event, .. } => {
                 let PhysicalKey::Code(code) = event.physical_key else {
@@ -535,7 +623,7 @@ impl ApplicationHandler for App<'_, '_> {
                 }
             }
             WindowEvent::RedrawRequested => {
-                if let Err(e) = self.frame() {
+                if let Err(e) = self.frame(event_loop) {
                     self.fail(event_loop, e);
                 }
             }
