@@ -14,9 +14,10 @@ use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::plan::frame_plan::LodSetup;
 use clipsat::plan::lod::LodMode;
 use clipsat::shading::debug_view::DebugView;
-use clipsat::{Camera, Error, Heightmap, Profile, Result};
+use clipsat::{Camera, Heightmap, Profile, Result};
 use serde_json::json;
 
+use super::super::args::arg_error;
 use super::super::render::lod_for;
 use super::super::sg::{self, SgChoice};
 
@@ -136,10 +137,8 @@ pub(super) fn headless(same: &Same<'_>, mode: GpuMode, frames: u32) -> Result<He
         }
     }
     let cpu = per_frame(cpu_after_first, cpu_ms(), ms.len() - 1);
-    let times = Times::of(ms[0], &ms[1..], cpu).ok_or_else(|| Error::Arg {
-        arg: "--frames".into(),
-        reason: "needs at least 2 frames to time the headless render".into(),
-    })?;
+    let times = Times::of(ms[0], &ms[1..], cpu)
+        .ok_or_else(|| arg_error("--frames", "needs at least 2 frames to time"))?;
     let report = gpu.report();
     Ok(Headless {
         context: format!("{}, {}", report.gl_version, report.name),
