@@ -4,11 +4,15 @@
 //! what is drawn. The screenshots are saved as examples/pictures/view-xvfb.png (normal view) and
 //! view-xvfb-sg.png (SG shading).
 //!
+//! `view_frames_json_under_xvfb` runs the non-interactive measurement (`--frames 8 --json`) and checks the
+//! window got an OpenGL ES 3.0 context and that both paths were timed.
+//!
 //! Ignored by default (needs Xvfb, xdotool and xwd, and takes about a minute on llvmpipe):
 //! `bash .ci/view-xvfb`, or `cargo test --test cli view_xvfb -- --ignored --nocapture`.
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
+use std::sync::atomic::{AtomicU32, Ordering};
 use std::thread::sleep;
 use std::time::{Duration, Instant};
 
@@ -112,39 +116,49 @@ fn distinct_colours(rgb: &[u8]) -> usize {
     seen.len()
 }
 
+/// A display number no other X server here uses, and no other test of this process took (the tests run
+/// in parallel).
 fn free_display() -> u32 {
-    (90..200)
-        .find(|n| {
-            !Path::new(&format!("/tmp/.X11-unix/X{n}")).exists()
-                && !Path::new(&format!("/tmp/.X{n}-lock")).exists()
-        })
-        .expect("a free X display number in 90..200")
+    static NEXT: AtomicU32 = AtomicU32::new(90);
+    loop {
+        let n = NEXT.fetch_add(1, Ordering::Relaxed);
+        assert!(n < 200, "no free X display number in 90..200");
+        if !Path::new(&format!("/tmp/.X11-unix/X{n}")).exists()
+            && !Path::new(&format!("/tmp/.X{n}-lock")).exists()
+        {
+            return n;
+        }
+    }
 }
 
-#[test]
-#[ignore = "needs Xvfb, xdotool and xwd; run: bash .ci/view-xvfb"]
-fn view_flies_under_xvfb() {
+/// Whether the tools the tests need are installed (if not: skipped with the reason, a failure under CI=true).
+fn tools_present() -> bool {
     let missing: Vec<&str> = ["Xvfb", "xdotool", "xwd"]
         .into_iter()
         .filter(|t| !have(t))
         .collect();
-    if !missing.is_empty() {
-        let why = format!("missing {missing:?} (bash .ci/view-xvfb installs them)");
-        if std::env::var("CI").as_deref() == Ok("true") {
-            panic!("{why}");
-        }
-        eprintln!("skipped: {why}");
-        return;
+    if missing.is_empty() {
+        return true;
     }
+    let why = format!("missing {missing:?} (bash .ci/view-xvfb installs them)");
+    if std::env::var("CI").as_deref() == Ok("true") {
+        panic!("{why}");
+    }
+    eprintln!("skipped: {why}");
+    false
+}
+
+/// Starts a private Xvfb of `w` x `h`; returns it (killed on drop) and its display name.
+fn start_xvfb(w: u32, h: u32) -> (Reaped, String) {
     let n = free_display();
     let display = format!(":{n}");
-    let _xvfb = Reaped(
+    let xvfb = Reaped(
         Command::new("Xvfb")
             .args([
                 display.as_str(),
                 "-screen",
                 "0",
-                &format!("{W}x{H}x24"),
+                &format!("{w}x{h}x24"),
                 "-nolisten",
                 "tcp",
             ])
@@ -162,6 +176,64 @@ fn view_flies_under_xvfb() {
         );
         sleep(Duration::from_millis(100));
     }
+    (xvfb, display)
+}
+
+/// `--frames N --json`: the window draws in an OpenGL ES 3.0 context, times its frames, then times the
+/// headless `render` path at the same size in the same run.
+#[test]
+#[ignore = "needs Xvfb; run: bash .ci/view-xvfb"]
+fn view_frames_json_under_xvfb() {
+    if !tools_present() {
+        return;
+    }
+    let (_xvfb, display) = start_xvfb(W, H);
+    let out = Command::new(env!("CARGO_BIN_EXE_clipsat"))
+        .args([
+            "view",
+            "--size",
+            &format!("{W}x{H}"),
+            "--frames",
+            "8",
+            "--json",
+        ])
+        .env("DISPLAY", &display)
+        .output()
+        .expect("clipsat view");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "clipsat view --frames: {stderr}");
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout)
+        .unwrap_or_else(|e| panic!("stdout is not one JSON document: {e}\n{stderr}"));
+    eprintln!("{j:#}");
+    assert_eq!(
+        (j["width"].as_u64(), j["height"].as_u64()),
+        (Some(W.into()), Some(H.into()))
+    );
+    assert_eq!(j["frames"], 8);
+    let context = j["window"]["context"].as_str().unwrap_or_default();
+    assert!(
+        j["window"]["gles30"] == true && context.starts_with("OpenGL ES 3.0"),
+        "the window's context is not OpenGL ES 3.0: {context}"
+    );
+    for path in ["window", "headless_render"] {
+        let mean = j[path]["times"]["mean_ms"].as_f64();
+        assert!(
+            mean.is_some_and(|m| m > 0.0),
+            "{path}: no mean ms/frame in {j}"
+        );
+    }
+    assert!(j["headless_over_window_mean"]
+        .as_f64()
+        .is_some_and(|r| r > 0.0));
+}
+
+#[test]
+#[ignore = "needs Xvfb, xdotool and xwd; run: bash .ci/view-xvfb"]
+fn view_flies_under_xvfb() {
+    if !tools_present() {
+        return;
+    }
+    let (_xvfb, display) = start_xvfb(W, H);
 
     let mut view = Reaped(
         Command::new(env!("CARGO_BIN_EXE_clipsat"))
