@@ -50,6 +50,8 @@ struct Sg {
 struct SgVmf {
     axis: vec3<f32>,
     kappa: f32,
+    // |r| clamped into [R_MIN, R_MAX]: the vMF's mean resultant length.
+    r_len: f32,
 }
 
 var<private> sg_hz: array<f32, 16>;
@@ -112,7 +114,7 @@ fn sg_vmf(r: vec3<f32>) -> SgVmf {
         axis = r / len;
     }
     let rl = clamp(len, SG_R_MIN, SG_R_MAX);
-    return SgVmf(axis, rl * (3.0 - rl * rl) / ((1.0 - rl) * (1.0 + rl)));
+    return SgVmf(axis, rl * (3.0 - rl * rl) / ((1.0 - rl) * (1.0 + rl)), rl);
 }
 
 // Orthonormal (t, b) completing unit n (Duff et al. 2017, listing 3), as columns 0 and 1.
@@ -134,6 +136,48 @@ fn sg_plane_drop(kappa: f32) -> f32 {
     return min(sqrt(2.0 / max(kappa, 1.0e-12)), SG_HALF_PI);
 }
 
+// Lights at least this sharp are one direction (clipsat::shading::SHARP_LAMBDA).
+const SG_SHARP_LAMBDA: f32 = 64.0;
+
+// E[max(n' . i, 0)] over the vMF for a direction at cosine t from the mean normal, n' . i taken as
+// Gaussian with the vMF's first two moments (clipsat::shading::vmf_cosine, which cites the moments and
+// the erfc approximation).
+fn sg_vmf_cosine(t: f32, vmf: SgVmf) -> f32 {
+    let a = vmf.r_len;
+    let ak = a / vmf.kappa;
+    let m = a * t;
+    let t2 = t * t;
+    let v = max(t2 * ((1.0 - a) * (1.0 + a) - 2.0 * ak) + (1.0 - t2) * ak, 0.0);
+    if (v < 1.0e-14) {
+        return max(m, 0.0);
+    }
+    let s = sqrt(v);
+    let x = m / s;
+    let e = exp(-0.5 * x * x);
+    let z = abs(x) * 0.70710678;
+    let tau = 1.0 / (1.0 + 0.3275911 * z);
+    let poly = tau
+        * (0.2548296 + tau * (-0.28449674 + tau * (1.4214137 + tau * (-1.4531521 + tau * 1.0614054))));
+    let tail = 0.5 * poly * e;
+    var cdf = tail;
+    if (x >= 0.0) {
+        cdf = 1.0 - tail;
+    }
+    return max(m * cdf + s * e * 0.3989423, 0.0);
+}
+
+// The pixel's cut (clipsat::shading::Cut): the mean normal and cos, sin of the plane's drop; the horizon
+// is in sg_hz.
+struct SgCut {
+    n: vec3<f32>,
+    cos_drop: f32,
+    sin_drop: f32,
+}
+
+fn sg_cut(n: vec3<f32>, drop: f32) -> SgCut {
+    return SgCut(n, cos(drop), sin(drop));
+}
+
 // The horizon at world azimuth a, linear between the D baked azimuths (clipsat::horizon::interpolate).
 fn sg_horizon_at(a: f32) -> f32 {
     let d = sg_hz_count;
@@ -143,14 +187,42 @@ fn sg_horizon_at(a: f32) -> f32 {
     return sg_hz[k0] * (1.0 - f) + sg_hz[(k0 + 1u) % d] * f;
 }
 
-// TransferVis + PatchVis (SAT paper algorithm 3): the elevation below which direction at world azimuth a
-// is cut, the higher of the horizon and the mean normal's lowered tangent plane.
-fn sg_cut_elevation(n: vec3<f32>, drop: f32, a: f32) -> f32 {
-    let plane = atan2(-(n.x * cos(a) + n.y * sin(a)), n.z) - drop;
+// TransferVis + PatchVis (SAT paper algorithm 3): the sine of the elevation below which horizontal
+// direction (dx, dy) is cut, the higher of the horizon and the mean normal's lowered tangent plane, the
+// plane's without trigonometry (clipsat::shading::Cut::sin_at).
+fn sg_cut_sin(c: SgCut, dx: f32, dy: f32) -> f32 {
+    let inv_d = 1.0 / sqrt(max(dx * dx + dy * dy, 1.0e-30));
+    let ux = dx * inv_d;
+    let uy = dy * inv_d;
+    let p = -(c.n.x * ux + c.n.y * uy);
+    let q = c.n.z;
+    let inv = 1.0 / sqrt(max(p * p + q * q, 1.0e-30));
+    var plane = (p * c.cos_drop - q * c.sin_drop) * inv;
+    if ((q * c.cos_drop + p * c.sin_drop) * inv < 0.0) {
+        plane = -1.0;
+    }
     if (sg_hz_count == 0u) {
         return plane;
     }
-    return max(plane, sg_horizon_at(a));
+    return max(plane, sin(sg_horizon_at(atan2(uy, ux))));
+}
+
+// The fraction of a light about `axis` of radius sigma above the horizon alone
+// (clipsat::shading::Cut::horizon_visible).
+fn sg_horizon_visible(axis: vec3<f32>, sigma: f32) -> f32 {
+    if (sg_hz_count == 0u) {
+        return 1.0;
+    }
+    let h = sg_horizon_at(atan2(axis.y, axis.x));
+    let el = asin(clamp(axis.z, -1.0, 1.0));
+    return clamp((el + sigma - h) / (2.0 * sigma), 0.0, 1.0);
+}
+
+// The fraction of a lobe about `axis` of radius sigma above the cut (clipsat::shading::Cut::soft_visible).
+fn sg_soft_visible(c: SgCut, axis: vec3<f32>, sigma: f32) -> f32 {
+    let cut = asin(clamp(sg_cut_sin(c, axis.x, axis.y), -1.0, 1.0));
+    let el = asin(clamp(axis.z, -1.0, 1.0));
+    return clamp((el + sigma - cut) / (2.0 * sigma), 0.0, 1.0);
 }
 
 // Band edge holding energy fraction f, as u = 1 - cos theta (clipsat::shading::band_edge).
@@ -164,76 +236,104 @@ fn sg_band_edge(lambda: f32, f: f32) -> f32 {
     return -sg_ln_1p(f * sg_expm1(-2.0 * lambda)) / lambda;
 }
 
-fn sg_frame_dir(axis: vec3<f32>, tb: mat2x3<f32>, u: f32, phi: f32) -> vec3<f32> {
-    let sin_theta = sqrt(max(u * (2.0 - u), 0.0));
-    return axis * (1.0 - u) + (tb[0] * cos(phi) + tb[1] * sin(phi)) * sin_theta;
+fn sg_sin_theta(u: f32) -> f32 {
+    return sqrt(max(u * (2.0 - u), 0.0));
 }
 
 // SAT paper eq. 11 over M x N patches of the lobe's frame, each weighted by its visible energy
-// (clipsat::shading::integrate_patches, which derives the per-patch closed form).
-fn sg_integrate_patches(p: Sg, n: vec3<f32>, drop: f32) -> vec3<f32> {
+// (clipsat::shading::integrate_patches, which derives the per-patch closed form and says why the sector
+// directions come from a recurrence and no corner table is kept).
+fn sg_integrate_patches(p: Sg, c: SgCut) -> vec3<f32> {
     let bands = SG_BANDS;
     let sectors = 2u * SG_BANDS;
     let tb = sg_basis(p.axis);
+    let t = tb[0];
+    let b = tb[1];
     let dphi = SG_TAU / f32(sectors);
-    // Flat (MAX_BANDS + 1) x MAX_SECTORS: GLSL ES 3.00 has no arrays of arrays.
-    var edge_z: array<f32, 144>;
-    var edge_u: array<f32, 9>;
-    for (var i = 0u; i <= bands; i++) {
-        edge_u[i] = sg_band_edge(p.lambda, f32(i) / f32(bands));
-        for (var k = 0u; k < sectors; k++) {
-            edge_z[i * SG_MAX_SECTORS + k] = sg_frame_dir(p.axis, tb, edge_u[i], f32(k) * dphi).z;
-        }
-    }
+    let cos_step = cos(dphi);
+    let sin_step = sin(dphi);
+    let cos_half = cos(0.5 * dphi);
+    let sin_half = sin(0.5 * dphi);
     var total = 0.0;
+    var u1 = 0.0;
     for (var i = 0u; i < bands; i++) {
-        let u1 = edge_u[i];
-        let du = edge_u[i + 1u] - u1;
+        let u2 = sg_band_edge(p.lambda, f32(i + 1u) / f32(bands));
+        let du = u2 - u1;
         let whole = sg_one_minus_exp_over(p.lambda * du);
         let band = exp(-p.lambda * u1) * du * whole;
         let u_mid = sg_band_edge(p.lambda, (f32(i) + 0.5) / f32(bands));
+        let s1 = sg_sin_theta(u1);
+        let s2 = sg_sin_theta(u2);
+        let sm = sg_sin_theta(u_mid);
+        let z1 = p.axis.z * (1.0 - u1);
+        let z2 = p.axis.z * (1.0 - u2);
+        var cs = 1.0;
+        var sn = 0.0;
+        var w0 = t.z;
         for (var k = 0u; k < sectors; k++) {
-            let centre = sg_frame_dir(p.axis, tb, u_mid, (f32(k) + 0.5) * dphi);
-            let k2 = (k + 1u) % sectors;
-            let z00 = edge_z[i * SG_MAX_SECTORS + k];
-            let z01 = edge_z[i * SG_MAX_SECTORS + k2];
-            let z10 = edge_z[(i + 1u) * SG_MAX_SECTORS + k];
-            let z11 = edge_z[(i + 1u) * SG_MAX_SECTORS + k2];
-            let inner = z00 + z01;
-            let outer = z10 + z11;
+            let c2 = cs * cos_step - sn * sin_step;
+            let s2n = sn * cos_step + cs * sin_step;
+            let w1 = t.z * c2 + b.z * s2n;
+            let cm = cs * cos_half - sn * sin_half;
+            let smid = sn * cos_half + cs * sin_half;
+            let centre = p.axis * (1.0 - u_mid) + (t * cm + b * smid) * sm;
+            let z00 = z1 + s1 * w0;
+            let z01 = z1 + s1 * w1;
+            let z10 = z2 + s2 * w0;
+            let z11 = z2 + s2 * w1;
             let lo = min(min(centre.z, min(z00, z01)), min(z10, z11));
             let hi = max(max(centre.z, max(z00, z01)), max(z10, z11));
-            let cut = sin(max(sg_cut_elevation(n, drop, atan2(centre.y, centre.x)), -SG_HALF_PI));
-            var s = 0.0;
+            let cut_z = sg_cut_sin(c, centre.x, centre.y);
+            var vis = 0.0;
             if (hi - lo > 1.0e-7) {
-                s = clamp((hi - cut) / (hi - lo), 0.0, 1.0);
-            } else if (centre.z > cut) {
-                s = 1.0;
+                vis = clamp((hi - cut_z) / (hi - lo), 0.0, 1.0);
+            } else if (centre.z > cut_z) {
+                vis = 1.0;
             }
-            let part = s * sg_one_minus_exp_over(p.lambda * s * du) / whole;
+            let part = vis * sg_one_minus_exp_over(p.lambda * vis * du) / whole;
             var visible = part;
-            if (inner < outer) {
-                visible = exp(-p.lambda * (1.0 - s) * du) * part;
+            if (z00 + z01 < z10 + z11) {
+                visible = exp(-p.lambda * (1.0 - vis) * du) * part;
             }
             total += band * visible;
+            cs = c2;
+            sn = s2n;
+            w0 = w1;
         }
+        u1 = u2;
     }
     return p.mu * (total * dphi);
 }
 
 // Outgoing linear radiance toward `view` (unit, surface to eye) for mean normal r: the diffuse SG
-// integration of every light, plus the variant's specular term (clipsat::shading::shade).
+// integration of every light, plus the variant's specular term (clipsat::shading::shade). SG_OMIT (a
+// benchmark knob, `clipsat bench shading`'s breakdown; 0 in every rendering variant) drops one term:
+// 2 the vMF (a single normal), 3 the patches (every light as one direction).
 fn sg_shade(r: vec3<f32>, view: vec3<f32>, s: SgScene) -> vec3<f32> {
-    let vmf = sg_vmf(r);
-    let n = vmf.axis;
-    let drop = sg_plane_drop(vmf.kappa);
-    let cosine = sg_convolve_vmf(Sg(n, SG_COSINE_LAMBDA, vec3<f32>(SG_COSINE_MU)), vmf.kappa);
+    var vmf = sg_vmf(r);
+    var cosine = Sg(vmf.axis, SG_COSINE_LAMBDA, vec3<f32>(SG_COSINE_MU));
+    var cut = SgCut(vmf.axis, 1.0, 0.0);
+    if (SG_OMIT == 2u) {
+        vmf.kappa = 1.0e4;
+        vmf.r_len = SG_R_MAX;
+    } else {
+        cosine = sg_convolve_vmf(cosine, vmf.kappa);
+        cut = sg_cut(vmf.axis, sg_plane_drop(vmf.kappa));
+    }
     var diffuse = vec3<f32>(0.0);
     let count = min(u32(s.kd_count.w), SG_MAX_LIGHTS);
     for (var i = 0u; i < count; i++) {
         let l = s.lights[i];
         let light = Sg(l.axis_lambda.xyz, l.axis_lambda.w, l.mu.xyz);
-        diffuse += sg_integrate_patches(sg_product(light, cosine), n, drop);
+        if (SG_OMIT == 3u || light.lambda >= SG_SHARP_LAMBDA) {
+            // A sun: one direction (clipsat::shading::SHARP_LAMBDA).
+            let sigma = sqrt(2.0 / max(light.lambda, 1.0e-6));
+            let f = sg_vmf_cosine(dot(vmf.axis, light.axis), vmf)
+                * sg_horizon_visible(light.axis, sigma);
+            diffuse += light.mu * (sg_unit_integral(light.lambda) * f);
+        } else {
+            diffuse += sg_integrate_patches(sg_product(light, cosine), cut);
+        }
     }
-    return s.kd_count.rgb * diffuse / SG_PI + sg_specular(vmf, view, drop, s);
+    return s.kd_count.rgb * diffuse / SG_PI + sg_specular(vmf, view, cut, s);
 }

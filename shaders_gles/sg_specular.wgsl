@@ -22,7 +22,7 @@ fn sg_warped_ndf(vmf: SgVmf, roughness: f32, view: vec3<f32>) -> Sg {
 
 // k_s times the sum over lights of the product lobe's integral, D / 4 with the cosine at the lobe's axis,
 // times the fraction of its one-sigma cap above the cut elevation.
-fn sg_specular(vmf: SgVmf, view: vec3<f32>, drop: f32, s: SgScene) -> vec3<f32> {
+fn sg_specular(vmf: SgVmf, view: vec3<f32>, cut: SgCut, s: SgScene) -> vec3<f32> {
     let ks = s.material.x;
     if (ks <= 0.0) {
         return vec3<f32>(0.0);
@@ -36,10 +36,7 @@ fn sg_specular(vmf: SgVmf, view: vec3<f32>, drop: f32, s: SgScene) -> vec3<f32> 
         let q = sg_product(Sg(l.axis_lambda.xyz, l.axis_lambda.w, l.mu.xyz), lobe);
         let c = max(dot(n, q.axis), 0.0);
         let sigma = min(sqrt(2.0 / max(q.lambda, 1.0e-6)), SG_HALF_PI);
-        let cut = sg_cut_elevation(n, drop, atan2(q.axis.y, q.axis.x));
-        let el = asin(clamp(q.axis.z, -1.0, 1.0));
-        let visible = clamp((el + sigma - cut) / (2.0 * sigma), 0.0, 1.0);
-        spec += q.mu * sg_unit_integral(q.lambda) * (0.25 * c * visible);
+        spec += q.mu * sg_unit_integral(q.lambda) * (0.25 * c * sg_soft_visible(cut, q.axis, sigma));
     }
     return spec * ks;
 }

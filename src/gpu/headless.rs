@@ -241,6 +241,7 @@ impl<'g> Offscreen<'g> {
                     scene: &scene,
                     patches,
                     bake: &bake,
+                    omit: crate::gpu::shaders::SgOmit::None,
                 }),
                 ..OffscreenOptions::default()
             },

@@ -54,6 +54,7 @@ pub fn shade_gpu(
         specular: scene.effects.specular,
         // The probe returns the unfogged shade.
         fog: false,
+        omit: shaders::SgOmit::None,
     };
     let uniform = SgSceneUniform::new(scene, u32::try_from(d).expect("<= 16"))?;
     // Rows: r, view, then 4 rows of 4 horizon angles.

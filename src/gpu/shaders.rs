@@ -88,6 +88,49 @@ pub struct SgVariant {
     pub specular: bool,
     /// Scene fog is compiled (`sg_fog.wgsl`), else the pass-through `sg_no_fog.wgsl`.
     pub fog: bool,
+    /// A term left out, for `clipsat bench shading`'s per-term breakdown only ([`SgOmit::None`] in every
+    /// rendering variant).
+    pub omit: SgOmit,
+}
+
+/// One term of the SG fragment shading that a benchmark variant leaves out (the WGSL constant `SG_OMIT`),
+/// so that its cost is the time it saves. Visibility and specular are measured by their own variants.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum SgOmit {
+    /// Everything is computed.
+    #[default]
+    None,
+    /// No footprint SAT fetch of the normals: r is the drawn mesh's normal.
+    Footprint,
+    /// No vMF: a single normal (kappa 1e4, no convolution, no lowered plane).
+    Vmf,
+    /// No patches: every product lobe is one direction with a soft visibility fraction.
+    Patches,
+}
+
+impl SgOmit {
+    /// Every term, in the order of the breakdown.
+    pub const TERMS: [Self; 3] = [Self::Footprint, Self::Vmf, Self::Patches];
+
+    /// The `SG_OMIT` code.
+    pub fn code(self) -> u32 {
+        match self {
+            Self::None => 0,
+            Self::Footprint => 1,
+            Self::Vmf => 2,
+            Self::Patches => 3,
+        }
+    }
+
+    /// The term's name in the breakdown.
+    pub fn label(self) -> &'static str {
+        match self {
+            Self::None => "none",
+            Self::Footprint => "footprint SAT fetch",
+            Self::Vmf => "vMF",
+            Self::Patches => "per-patch closed form",
+        }
+    }
 }
 
 impl SgVariant {
@@ -97,6 +140,7 @@ impl SgVariant {
         visibility: true,
         specular: true,
         fog: true,
+        omit: SgOmit::None,
     };
 
     /// Every variant: 3 patch counts x visibility x specular x fog.
@@ -111,6 +155,7 @@ impl SgVariant {
                             visibility,
                             specular,
                             fog,
+                            omit: SgOmit::None,
                         });
                     }
                 }
@@ -131,15 +176,19 @@ impl SgVariant {
         if self.fog {
             s.push_str("+fog");
         }
+        if self.omit != SgOmit::None {
+            s.push_str(&format!("-omit{}", self.omit.code()));
+        }
         s
     }
 }
 
 fn sg_library(v: SgVariant, specular: &str) -> String {
     let bands = format!(
-        "// Variant {}: M theta bands.\nconst SG_BANDS: u32 = {}u;\n\n",
+        "// Variant {}: M theta bands; the term left out (0: none).\nconst SG_BANDS: u32 = {}u;\nconst SG_OMIT: u32 = {}u;\n\n",
         v.label(),
-        v.patches.bands()
+        v.patches.bands(),
+        v.omit.code()
     );
     [bands.as_str(), SG_SHADING_WGSL, specular].concat()
 }
@@ -177,12 +226,19 @@ pub fn sg_probe(v: SgVariant) -> String {
     [sg_library(v, sg_specular_text(v)).as_str(), SG_PROBE_WGSL].concat()
 }
 
-/// Every SG program variant, named `file[label]`, for validation.
+/// Every SG program variant, named `file[label]`, for validation; the benchmark's term omissions too.
 pub fn sg_variants() -> Vec<(String, String)> {
     let mut out = Vec::new();
     for v in SgVariant::all() {
         out.push((format!("sg_clipmap.wgsl[{}]", v.label()), sg_clipmap(v)));
         out.push((format!("sg_probe.wgsl[{}]", v.label()), sg_probe(v)));
+    }
+    for omit in SgOmit::TERMS {
+        let v = SgVariant {
+            omit,
+            ..SgVariant::ALL_ON
+        };
+        out.push((format!("sg_clipmap.wgsl[{}]", v.label()), sg_clipmap(v)));
     }
     out
 }

@@ -90,7 +90,8 @@ pub struct Clipmap {
     decoded: u32,
     /// A streamed package's mean slope, from its coarse level at construction (unused when resident).
     streamed_slope: f64,
-    noise: NoiseTable,
+    /// GC section 8's noise table, only when rings are synthesised (a scene without `synthesis` has none).
+    noise: Option<NoiseTable>,
     /// Noise amplitude per synthesised ring (index l < synth_levels); 0 elsewhere.
     sigmas: [f32; MAX_LEVELS],
     rings: Vec<Ring>,
@@ -219,7 +220,7 @@ impl Clipmap {
             source,
             decoded: 0,
             streamed_slope: 0.0,
-            noise: NoiseTable::default(),
+            noise: (opts.synth_levels > 0).then(NoiseTable::default),
             sigmas,
             rings,
             valid: [Rect::EMPTY; MAX_LEVELS],
@@ -262,6 +263,17 @@ impl Clipmap {
     /// Rings finer than the data.
     pub fn synth_levels(&self) -> u32 {
         self.synth
+    }
+
+    /// Whether synthesis exists at all: its noise table is made only for synthesised rings.
+    pub fn has_synthesis(&self) -> bool {
+        self.noise.is_some()
+    }
+
+    fn noise(&self) -> &NoiseTable {
+        self.noise
+            .as_ref()
+            .expect("a synthesised ring has its noise table (synth_levels > 0)")
     }
 
     /// The pyramid the rings are filled from. Panics for a streamed clipmap, which holds no pyramid (a
@@ -396,7 +408,7 @@ impl Clipmap {
             let coarse = |a: i64, b: i64| self.direct_z(level + 1, a, b);
             synthesize(
                 coarse,
-                &self.noise,
+                self.noise(),
                 self.sigmas[level as usize],
                 level,
                 i,
@@ -413,7 +425,7 @@ impl Clipmap {
         } else {
             synthesize(
                 coarse,
-                &self.noise,
+                self.noise(),
                 self.sigmas[level as usize],
                 level,
                 i,

@@ -76,16 +76,105 @@ pub fn plane_drop(kappa: f32) -> f32 {
     (2.0 / kappa.max(1e-12)).sqrt().min(FRAC_PI_2)
 }
 
-/// The elevation below which direction at world azimuth `a` is cut: the higher of the baked horizon (when
-/// given) and the mean normal's tangent plane lowered by `drop` (TransferVis + PatchVis, SAT paper
-/// algorithm 3).
-fn cut_elevation(n: Vec3, horizon: &[f32], drop: f32, a: f32) -> f32 {
-    let (s, c) = a.sin_cos();
-    let plane = (-(n.x * c + n.y * s)).atan2(n.z) - drop;
-    if horizon.is_empty() {
-        plane
-    } else {
-        plane.max(horizon::interpolate(horizon, a))
+/// Lights at least this sharp are one direction, not a product lobe over patches: at lambda = 64 the
+/// light's one-sigma radius sqrt(2 / lambda) is 10 degrees, so the cosine and the horizon barely change
+/// over it and the integral is the light's times the vMF-averaged clamped cosine at its axis
+/// ([`vmf_cosine`]) times the fraction of it above the horizon. A sun (lambda 2000) is such a light; a sky
+/// lobe (lambda near 1) is not. This also avoids the cosine SG's fit error (17 % high at the peak) for
+/// the light that carries most of the energy.
+pub const SHARP_LAMBDA: f32 = 64.0;
+
+/// E[max(n' . i, 0)] over the vMF of normals n' about `vmf.axis`, for a direction i at cosine `t` from the
+/// mean normal: n' . i taken as Gaussian with the vMF's exact first two moments, mean m = A t (A = |r|,
+/// the mean resultant length the vMF was fitted to) and E[(n' . i)^2] = t^2 (1 - 2 A / kappa)
+/// + (1 - t^2) A / kappa (Mardia & Jupp 2000, section 9.3), so E[max(X, 0)] = m Phi(m / s) + s phi(m / s).
+/// Phi uses Abramowitz & Stegun 7.1.26 (error 1.5e-7), sharing phi's exponential. Exact for a single
+/// normal (s = 0: max(t, 0)) and for the uniform distribution's mean; `tests/cpu/shading.rs` measures it
+/// against the reference's tabulated integral.
+pub fn vmf_cosine(t: f32, vmf: &Vmf) -> f32 {
+    let a = vmf.r_len;
+    let ak = a / vmf.kappa;
+    let m = a * t;
+    let t2 = t * t;
+    // t^2 (1 - 2 A / kappa - A^2) + (1 - t^2) A / kappa, with 1 - A^2 factored against cancellation.
+    let var = (t2 * ((1.0 - a) * (1.0 + a) - 2.0 * ak) + (1.0 - t2) * ak).max(0.0);
+    if var < 1e-14 {
+        return m.max(0.0);
+    }
+    let s = var.sqrt();
+    let x = m / s;
+    let e = (-0.5 * x * x).exp();
+    let z = x.abs() * std::f32::consts::FRAC_1_SQRT_2;
+    let tau = 1.0 / (1.0 + 0.327_591_1 * z);
+    let poly = tau
+        * (0.254_829_6
+            + tau
+                * (-0.284_496_74 + tau * (1.421_413_7 + tau * (-1.453_152_1 + tau * 1.061_405_4))));
+    // Phi(|x|) = 1 - erfc(z) / 2, erfc(z) = poly e^(-z^2), e^(-z^2) = e.
+    let tail = 0.5 * poly * e;
+    let phi_cdf = if x >= 0.0 { 1.0 - tail } else { tail };
+    (m * phi_cdf + s * e * 0.398_942_3).max(0.0)
+}
+
+/// The cut of one pixel (TransferVis + PatchVis, SAT paper algorithm 3): the higher of the baked horizon
+/// (when given) and the mean normal's tangent plane lowered by `drop`, as the sine of an elevation.
+/// cos and sin of `drop` are taken once, so a direction's plane cut needs no trigonometry: with
+/// p = -(n_xy . d), q = n_z the plane's elevation is e = atan2(p, q) and
+/// sin(e - drop) = (p cos drop - q sin drop) / |(p, q)|, clamped to -1 where e - drop < -pi/2
+/// (cos(e - drop) < 0; n_z >= 0 keeps e in [-pi/2, pi/2]).
+#[derive(Clone, Copy, Debug)]
+struct Cut<'a> {
+    n: Vec3,
+    horizon: &'a [f32],
+    cos_drop: f32,
+    sin_drop: f32,
+}
+
+impl<'a> Cut<'a> {
+    fn new(n: Vec3, horizon: &'a [f32], drop: f32) -> Self {
+        let (sin_drop, cos_drop) = drop.sin_cos();
+        Self {
+            n,
+            horizon,
+            cos_drop,
+            sin_drop,
+        }
+    }
+
+    /// The sine of the cut elevation toward horizontal direction (dx, dy) (unnormalised, not zero).
+    fn sin_at(&self, dx: f32, dy: f32) -> f32 {
+        let inv_d = 1.0 / (dx * dx + dy * dy).max(1e-30).sqrt();
+        let (ux, uy) = (dx * inv_d, dy * inv_d);
+        let p = -(self.n.x * ux + self.n.y * uy);
+        let q = self.n.z;
+        let inv = 1.0 / (p * p + q * q).max(1e-30).sqrt();
+        let plane = if (q * self.cos_drop + p * self.sin_drop) * inv < 0.0 {
+            -1.0
+        } else {
+            (p * self.cos_drop - q * self.sin_drop) * inv
+        };
+        if self.horizon.is_empty() {
+            plane
+        } else {
+            plane.max(horizon::interpolate(self.horizon, uy.atan2(ux)).sin())
+        }
+    }
+
+    /// The fraction of a light about unit `axis`, of angular radius `sigma`, above the horizon alone (1
+    /// without visibility): the clamped cosine already cuts at the normals' planes.
+    fn horizon_visible(&self, axis: Vec3, sigma: f32) -> f32 {
+        if self.horizon.is_empty() {
+            return 1.0;
+        }
+        let h = horizon::interpolate(self.horizon, axis.y.atan2(axis.x));
+        ((elevation(axis) + sigma - h) / (2.0 * sigma)).clamp(0.0, 1.0)
+    }
+
+    /// The fraction of a lobe about unit `axis`, of angular radius `sigma`, above the cut: linear in the
+    /// axis's elevation over +/- sigma.
+    fn soft_visible(&self, axis: Vec3, sigma: f32) -> f32 {
+        let cut = self.sin_at(axis.x, axis.y).clamp(-1.0, 1.0).asin();
+        ((elevation(axis) + sigma - cut) / (2.0 * sigma)).clamp(0.0, 1.0)
     }
 }
 
@@ -107,11 +196,9 @@ fn band_edge(lambda: f32, f: f32) -> f32 {
     }
 }
 
-/// The direction at (u = 1 - cos theta, phi) in the frame (t, b, axis).
-fn frame_dir(axis: Vec3, t: Vec3, b: Vec3, u: f32, phi: f32) -> Vec3 {
-    let sin_theta = (u * (2.0 - u)).max(0.0).sqrt();
-    let (s, c) = phi.sin_cos();
-    axis * (1.0 - u) + (t * c + b * s) * sin_theta
+/// sin(theta) at u = 1 - cos(theta).
+fn sin_theta(u: f32) -> f32 {
+    (u * (2.0 - u)).max(0.0).sqrt()
 }
 
 /// SAT paper eq. 11 over M x N patches of the lobe's own frame, each patch weighted by its visible
@@ -125,63 +212,57 @@ fn frame_dir(axis: Vec3, t: Vec3, b: Vec3, u: f32, phi: f32) -> Vec3 {
 /// fraction of the patch's u range on its higher side (inner or outer edge), and weighted by the lobe's
 /// energy over that sub-range in closed form. For a lobe about the zenith z = 1 - u, so this is exact on
 /// flat ground; a linear weight would miss that a band's energy sits at its inner edge.
-fn integrate_patches(p: &Sg, n: Vec3, horizon: &[f32], drop: f32, patches: Patches) -> Vec3 {
+///
+/// Cost (the fragment shader runs this per light): the sector directions (cos, sin of k dphi and of the
+/// sector centres) come from a rotation recurrence, not trigonometry; a corner's height is
+/// axis_z (1 - u) + sin(theta) (t_z cos phi + b_z sin phi), so no table of corners is kept (a dynamically
+/// indexed array is slow on SIMD rasterisers).
+fn integrate_patches(p: &Sg, cut: &Cut<'_>, patches: Patches) -> Vec3 {
     let (bands, sectors) = (patches.bands(), patches.sectors());
     let (t, b) = sg::basis(p.axis);
     let dphi = TAU / sectors as f32;
-    // Heights z at the band edges x sector edges, computed once and shared by neighbouring patches.
-    let mut edge_z = [[0.0f32; MAX_SECTORS]; MAX_BANDS + 1];
-    let mut edge_u = [0.0f32; MAX_BANDS + 1];
-    for (i, row) in edge_z.iter_mut().enumerate().take(bands + 1) {
-        edge_u[i] = band_edge(p.lambda, i as f32 / bands as f32);
-        for (k, z) in row.iter_mut().enumerate().take(sectors) {
-            *z = frame_dir(p.axis, t, b, edge_u[i], k as f32 * dphi).z;
-        }
-    }
+    let (sin_step, cos_step) = dphi.sin_cos();
+    let (sin_half, cos_half) = (0.5 * dphi).sin_cos();
     let mut total = 0.0f32;
+    let mut u1 = 0.0f32;
     for i in 0..bands {
-        let (u1, u2) = (edge_u[i], edge_u[i + 1]);
+        let u2 = band_edge(p.lambda, (i + 1) as f32 / bands as f32);
         let du = u2 - u1;
         let whole = sg::one_minus_exp_over(p.lambda * du);
         let band = (-p.lambda * u1).exp() * du * whole;
         let u_mid = band_edge(p.lambda, (i as f32 + 0.5) / bands as f32);
-        for k in 0..sectors {
-            let centre = frame_dir(p.axis, t, b, u_mid, (k as f32 + 0.5) * dphi);
-            let k2 = (k + 1) % sectors;
-            let (inner, outer) = (
-                edge_z[i][k] + edge_z[i][k2],
-                edge_z[i + 1][k] + edge_z[i + 1][k2],
-            );
-            let corners = [
-                edge_z[i][k],
-                edge_z[i][k2],
-                edge_z[i + 1][k],
-                edge_z[i + 1][k2],
-            ];
-            let (mut lo, mut hi) = (centre.z, centre.z);
-            for c in corners {
-                lo = lo.min(c);
-                hi = hi.max(c);
-            }
-            let cut = cut_elevation(n, horizon, drop, centre.y.atan2(centre.x))
-                .max(-FRAC_PI_2)
-                .sin();
-            let s = if hi - lo > 1e-7 {
-                ((hi - cut) / (hi - lo)).clamp(0.0, 1.0)
-            } else if centre.z > cut {
+        let (s1, s2, sm) = (sin_theta(u1), sin_theta(u2), sin_theta(u_mid));
+        let (z1, z2) = (p.axis.z * (1.0 - u1), p.axis.z * (1.0 - u2));
+        // (cos, sin) of the sector's first edge, and t_z cos + b_z sin there.
+        let (mut c, mut s) = (1.0f32, 0.0f32);
+        let mut w0 = t.z;
+        for _ in 0..sectors {
+            let (c2, s2n) = (c * cos_step - s * sin_step, s * cos_step + c * sin_step);
+            let w1 = t.z * c2 + b.z * s2n;
+            let (cm, sn) = (c * cos_half - s * sin_half, s * cos_half + c * sin_half);
+            let centre = p.axis * (1.0 - u_mid) + (t * cm + b * sn) * sm;
+            let (z00, z01, z10, z11) = (z1 + s1 * w0, z1 + s1 * w1, z2 + s2 * w0, z2 + s2 * w1);
+            let lo = centre.z.min(z00.min(z01)).min(z10.min(z11));
+            let hi = centre.z.max(z00.max(z01)).max(z10.max(z11));
+            let cut_z = cut.sin_at(centre.x, centre.y);
+            let vis = if hi - lo > 1e-7 {
+                ((hi - cut_z) / (hi - lo)).clamp(0.0, 1.0)
+            } else if centre.z > cut_z {
                 1.0
             } else {
                 0.0
             };
             // Energy of the visible sub-range over the band's, in expm1-safe form.
-            let part = s * sg::one_minus_exp_over(p.lambda * s * du) / whole;
-            let visible = if inner >= outer {
+            let part = vis * sg::one_minus_exp_over(p.lambda * vis * du) / whole;
+            let visible = if z00 + z01 >= z10 + z11 {
                 part
             } else {
-                (-p.lambda * (1.0 - s) * du).exp() * part
+                (-p.lambda * (1.0 - vis) * du).exp() * part
             };
             total += band * visible;
+            (c, s, w0) = (c2, s2n, w1);
         }
+        u1 = u2;
     }
     p.mu * (total * dphi)
 }
@@ -218,7 +299,7 @@ pub fn shade(inputs: &Inputs<'_>, scene: &Scene, patches: Patches) -> Vec3 {
     } else {
         &[]
     };
-    let drop = plane_drop(vmf.kappa);
+    let cut = Cut::new(n, horizon, plane_drop(vmf.kappa));
     let cosine = Sg {
         axis: n,
         lambda: sg::COSINE_LAMBDA,
@@ -227,7 +308,13 @@ pub fn shade(inputs: &Inputs<'_>, scene: &Scene, patches: Patches) -> Vec3 {
     .convolve_vmf(vmf.kappa);
     let mut diffuse = Vec3::ZERO;
     for light in &scene.lights {
-        diffuse += integrate_patches(&light.product(&cosine), n, horizon, drop, patches);
+        diffuse += if light.lambda >= SHARP_LAMBDA {
+            let sigma = (2.0 / light.lambda).sqrt();
+            light.integral()
+                * (vmf_cosine(n.dot(light.axis), &vmf) * cut.horizon_visible(light.axis, sigma))
+        } else {
+            integrate_patches(&light.product(&cosine), &cut, patches)
+        };
     }
     let m = &scene.material;
     let mut out = m.kd * diffuse / PI;
@@ -238,9 +325,7 @@ pub fn shade(inputs: &Inputs<'_>, scene: &Scene, patches: Patches) -> Vec3 {
             let q = light.product(&lobe);
             let cos = n.dot(q.axis).max(0.0);
             let sigma = (2.0 / q.lambda.max(1e-6)).sqrt().min(FRAC_PI_2);
-            let cut = cut_elevation(n, horizon, drop, q.axis.y.atan2(q.axis.x));
-            let visible = ((elevation(q.axis) + sigma - cut) / (2.0 * sigma)).clamp(0.0, 1.0);
-            spec += q.integral() * (0.25 * cos * visible);
+            spec += q.integral() * (0.25 * cos * cut.soft_visible(q.axis, sigma));
         }
         out += spec * m.ks;
     }

@@ -8,7 +8,10 @@
 //! visibility, so every approximation of [`shade`] shows up in its error.
 //!
 //! The approximations of [`shade`], each measured by `tests/cpu/shading.rs`:
-//! - the clamped cosine is one SG (lambda 2.133, mu 1.17; [`crate::shading::sg::COSINE_LAMBDA`]), widened by the vMF
+//! - a sharp light (a sun, lambda >= [`SHARP_LAMBDA`]) is one direction: its integral times the
+//!   vMF-averaged clamped cosine at its axis ([`vmf_cosine`], the vMF's moments with a Gaussian) times
+//!   its fraction above the horizon;
+//! - for the other lights the clamped cosine is one SG (lambda 2.133, mu 1.17; [`crate::shading::sg::COSINE_LAMBDA`]), widened by the vMF
 //!   with [`sg::Sg::convolve_vmf`], and cut at the mean normal's tangent plane lowered by the vMF's angular
 //!   spread ([`plane_drop`]);
 //! - each patch's visibility is the fraction of its elevation span (over its corners and centre) above the
@@ -28,5 +31,8 @@ mod reference;
 pub mod scene;
 pub mod sg;
 
-pub use integrate::{plane_drop, shade, warped_ndf, Inputs, Patches, MAX_BANDS, MAX_SECTORS};
+pub use integrate::{
+    plane_drop, shade, vmf_cosine, warped_ndf, Inputs, Patches, MAX_BANDS, MAX_SECTORS,
+    SHARP_LAMBDA,
+};
 pub use reference::{reference, HorizonTable, RefCosine, RefGrid, RefInputs};

@@ -126,7 +126,8 @@ fn bad_inputs_fail_with_a_clear_error() {
     std::fs::write(&blocker, b"not a folder").expect("write blocker");
     let csv_under_file = blocker.join("fly.csv");
     let csv_s = csv_under_file.to_string_lossy();
-    let cases: [(&[&str], &str); 7] = [
+    let render_s = dir.join("frames").to_string_lossy().into_owned();
+    let cases: [(&[&str], &str); 8] = [
         (&["--speed", "-1"], "--speed"),
         (&["--speed", "0"], "--speed"),
         (&["--path", "nope"], "--path"),
@@ -134,6 +135,20 @@ fn bad_inputs_fail_with_a_clear_error() {
         (&["--frames", "0"], "--frames"),
         (&["--profile", "missing.toml"], "missing.toml"),
         (&["--frames", "2", "--csv", &csv_s], "a-file"),
+        // Synthesis only when the scene declares it (issue 16).
+        (
+            &[
+                "--shading",
+                "sg",
+                "--scene",
+                "noon",
+                "--synth-levels",
+                "1",
+                "--render",
+                &render_s,
+            ],
+            "effects.synthesis",
+        ),
     ];
     for (extra, names) in cases {
         let mut args = vec!["fly"];

@@ -228,3 +228,32 @@ fn missing_and_mistyped_fields_are_refused() {
         );
     }
 }
+
+/// Synthesis exists only when asked for (issue 16): a clipmap without synthesised rings has no noise
+/// table (GC section 8), one with them has it; `fly` refuses synthesised rings under a scene that does
+/// not declare `effects.synthesis` (tests/cli/fly.rs `bad_inputs_fail_with_a_clear_error`), and no
+/// shipped scene declares it.
+#[test]
+fn synthesis_exists_only_when_asked_for() {
+    use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
+    use clipsat::source::procedural::{generate, ProceduralParams};
+    let hm = generate(&ProceduralParams {
+        size: 65,
+        ..ProceduralParams::default()
+    })
+    .expect("terrain");
+    let profile = Profile::load("gles3-low").expect("profile");
+    for (synth_levels, wanted) in [(0, false), (1, true)] {
+        let clipmap =
+            Clipmap::new(&hm, &profile, ClipmapOptions { synth_levels }).expect("clipmap");
+        assert_eq!(
+            clipmap.has_synthesis(),
+            wanted,
+            "synth_levels {synth_levels}"
+        );
+    }
+    for (name, _) in scene::SHIPPED {
+        let s = Scene::load(name).expect("shipped scene");
+        assert!(!s.effects.synthesis && !s.needs().synthesis, "{name}");
+    }
+}

@@ -491,3 +491,47 @@ fn gpu_sat_format_error() {
     );
     assert!(e_fixed < e_offset && e_offset < e_plain);
 }
+
+/// The sun's diffuse factor `vmf_cosine` (the vMF's two moments with a Gaussian) against E[max(n . i, 0)]
+/// integrated densely over the vMF (f64, 1024 x 128 midpoints uniform in the vMF's energy fraction and
+/// in phi). Measured: at most 0.013 absolute (moderate kappa, near the terminator, where the bounded
+/// n . i is least Gaussian), exact at one normal and at the uniform distribution.
+#[test]
+fn vmf_cosine_matches_dense_integration() {
+    use clipsat::shading::sg::{kappa_from_mean_length, Vmf};
+    let mut worst = 0.0f64;
+    for r_len in [0.9999f32, 0.999, 0.99, 0.95, 0.8, 0.5, 0.2, 1e-3] {
+        let kappa = kappa_from_mean_length(r_len);
+        let vmf = Vmf {
+            axis: Vec3::Z,
+            kappa,
+            r_len,
+        };
+        let k = f64::from(kappa);
+        for t32 in [-1.0f32, -0.6, -0.2, -0.05, 0.0, 0.05, 0.2, 0.5, 0.9, 1.0] {
+            let t = f64::from(t32);
+            let st = (1.0 - t * t).max(0.0).sqrt();
+            let (n_theta, n_phi) = (1024, 128);
+            let mut acc = 0.0;
+            for j in 0..n_theta {
+                // u = 1 - cos(theta) at energy fraction f of the vMF (its density is an SG of sharpness kappa).
+                let f = (f64::from(j) + 0.5) / f64::from(n_theta);
+                let u = -(f * (-2.0 * k).exp_m1()).ln_1p() / k;
+                let (ct, sn) = (1.0 - u, (u * (2.0 - u)).max(0.0).sqrt());
+                for p in 0..n_phi {
+                    let phi = std::f64::consts::TAU * (f64::from(p) + 0.5) / f64::from(n_phi);
+                    acc += (ct * t + sn * st * phi.cos()).max(0.0);
+                }
+            }
+            let dense = acc / f64::from(n_theta * n_phi);
+            let fast = f64::from(shading::vmf_cosine(t32, &vmf));
+            let err = (fast - dense).abs();
+            worst = worst.max(err);
+            assert!(
+                err < 0.02,
+                "|r| {r_len}, t {t}: vmf_cosine {fast} against {dense}"
+            );
+        }
+    }
+    println!("vmf_cosine max |error| {worst:.4}");
+}

@@ -164,6 +164,8 @@ fn variants_compile_only_what_the_scene_declares() {
         assert_eq!(text.contains("sg_scene.fog"), v.fog, "{}", v.label());
         assert_eq!(text.contains("material.w"), v.fog, "{}", v.label());
         assert!(text.contains(&format!("const SG_BANDS: u32 = {}u;", v.patches.bands())));
+        // Every rendering variant computes every term; only `bench shading`'s breakdown omits one.
+        assert!(text.contains("const SG_OMIT: u32 = 0u;"), "{}", v.label());
     }
 }
 

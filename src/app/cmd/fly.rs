@@ -117,6 +117,19 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
             "sg shading needs --render DIR (fly simulates without a GPU otherwise)",
         ));
     }
+    // Synthesis only when the scene asks for it (issue 16): an SG scene without `effects.synthesis`
+    // gets no synthesised rings, and so no noise table.
+    if let Some(choice) = sg.as_ref().filter(|c| !c.scene.effects.synthesis) {
+        if args.synth_levels > 0 {
+            return Err(arg_error(
+                "--synth-levels",
+                format!(
+                    "scene {} does not declare effects.synthesis",
+                    choice.scene.name
+                ),
+            ));
+        }
+    }
     let opts = ClipmapOptions {
         synth_levels: args.synth_levels,
     };

@@ -77,6 +77,7 @@ pub(crate) fn shading<'a>(
             scene,
             patches: sg.patches,
             bake,
+            omit: clipsat::gpu::shaders::SgOmit::None,
         }),
         _ => Shading::Basic,
     }

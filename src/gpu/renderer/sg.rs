@@ -3,7 +3,7 @@
 
 use super::{terrain_pipeline, Ledgered, Targets};
 use crate::gpu::sat_textures::{SatTextures, ShadingBake, MAX_BOX_SIDE};
-use crate::gpu::shaders::{self, SgSceneUniform, SgVariant};
+use crate::gpu::shaders::{self, SgOmit, SgSceneUniform, SgVariant};
 use crate::shading::scene::Scene;
 use crate::shading::Patches;
 use crate::{Heightmap, Result};
@@ -23,6 +23,8 @@ pub struct SgShading<'a> {
     pub patches: Patches,
     /// The baked tables.
     pub bake: &'a ShadingBake,
+    /// A term left out: [`SgOmit::None`] except in `clipsat bench shading`'s per-term breakdown.
+    pub omit: SgOmit,
 }
 
 /// The GPU objects of one SG shading variant (design.md "Only the effects a scene calls for"): only the
@@ -60,6 +62,7 @@ impl SgState {
             visibility: needs.bind_visibility,
             specular: needs.specular_code,
             fog: needs.fog,
+            omit: s.omit,
         };
         let textures = SatTextures::upload(dev, queue, bake);
         let mut u = SgSceneUniform::new(&scene, bake.azimuths())?;

@@ -18,6 +18,7 @@ use clipsat::source::{self, LoadOptions};
 use clipsat::{Error, Heightmap, Profile, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 
+use super::common::SHARED;
 use super::{lod, shading};
 use crate::app::cmd::args::GpuArgs;
 use crate::app::cmd::ProfileArgs;
@@ -36,17 +37,6 @@ pub(crate) struct BenchAllArgs {
     #[command(flatten)]
     gpu: GpuArgs,
 }
-
-/// The shared terrains `bench all` measures when present: file, spacing and height scale overrides (PNG
-/// needs both).
-const SHARED: [(&str, Option<f32>, Option<f32>); 6] = [
-    ("ps_height_1k.png", Some(160.0), Some(0.1)),
-    ("n07_w006_3arc_v2.tif", None, None),
-    ("srtm_bigtujunga30m_utm11.tif", None, None),
-    ("aletsch_200m.tif", None, None),
-    ("lidar_pkg_dem_1m_400x400.tif", None, None),
-    ("N57E011.hgt", None, None),
-];
 
 /// Flight speeds of the budget section, as multiples of the speed the update budget sustains.
 const SPEEDS_FULL: [f64; 7] = [0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0];

@@ -6,3 +6,14 @@ pub(crate) const TERRAINS: [(&str, Option<f32>, Option<f32>); 3] = [
     ("n07_w006_3arc_v2.tif", None, None),
     ("srtm_bigtujunga30m_utm11.tif", None, None),
 ];
+
+/// The shared terrains `bench all` measures when present: file, spacing and height scale overrides (PNG
+/// needs both).
+pub(crate) const SHARED: [(&str, Option<f32>, Option<f32>); 6] = [
+    ("ps_height_1k.png", Some(160.0), Some(0.1)),
+    ("n07_w006_3arc_v2.tif", None, None),
+    ("srtm_bigtujunga30m_utm11.tif", None, None),
+    ("aletsch_200m.tif", None, None),
+    ("lidar_pkg_dem_1m_400x400.tif", None, None),
+    ("N57E011.hgt", None, None),
+];

@@ -38,6 +38,10 @@ pub(crate) fn run(args: &BenchArgs) -> Result<()> {
         BenchWhat::All(a) => all::run(a),
         BenchWhat::Shading(a) => {
             let report = shading::run_shading(a)?;
+            if a.json {
+                crate::app::cmd::print_json(&shading::shading_json(&report));
+                return Ok(());
+            }
             outln!("{}", report.markdown);
             outln!(
                 "{} configurations measured, {} terrains skipped; wrote {}",

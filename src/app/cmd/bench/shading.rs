@@ -7,13 +7,17 @@ use std::time::Instant;
 use clap::Args;
 use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen, OffscreenOptions};
 use clipsat::gpu::renderer::{SgShading, Shading};
+use clipsat::gpu::sat_textures::ShadingBake;
+use clipsat::gpu::shaders::SgOmit;
 use clipsat::gpu::Gpu;
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
+use clipsat::shading::scene::{Needs, Scene};
+use clipsat::shading::Patches;
 use clipsat::source::{self, LoadOptions};
 use clipsat::{Error, Heightmap, Profile, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 
-use super::common::TERRAINS;
+use super::common::{SHARED, TERRAINS};
 use crate::app::cmd::args::{arg_error, pixel_size, GpuArgs, Size};
 use crate::app::cmd::ProfileArgs;
 use crate::app::plot::{LinePlot, Series};
@@ -31,6 +35,15 @@ pub(crate) struct BenchShadingArgs {
     /// Image size, WxH pixels.
     #[arg(long, value_name = "WxH", value_parser = pixel_size, default_value = "320x180")]
     size: Size,
+    /// Every shared terrain (as `bench all`), not only Puget Sound and Big Tujunga.
+    #[arg(long)]
+    all_terrains: bool,
+    /// Only the 4 x 8 breakdown and the scenes (noon, evening, overcast), not the patch-count table.
+    #[arg(long)]
+    breakdown_only: bool,
+    /// Print the report as JSON instead of Markdown.
+    #[arg(long)]
+    pub(super) json: bool,
     #[command(flatten)]
     gpu: GpuArgs,
 }
@@ -55,12 +68,58 @@ pub(crate) struct ShadingRow {
     pub(crate) pixels: usize,
 }
 
-/// What `bench shading` measured: the rows, the terrains skipped and the Markdown written.
+/// What `bench shading` measured: the rows, the per-term breakdown, the terrains skipped and the Markdown
+/// written.
 #[derive(Clone, Debug)]
 pub(crate) struct ShadingReport {
     pub(crate) rows: Vec<ShadingRow>,
+    pub(crate) breakdown: Vec<BreakdownRow>,
     pub(crate) skipped: Vec<String>,
     pub(crate) markdown: String,
+}
+
+/// One scene rendered at 4 x 8 as shipped (noon, evening with its fog, overcast): ms and error against the
+/// CPU reference.
+#[derive(Clone, Debug)]
+pub(crate) struct SceneRun {
+    pub(crate) scene: &'static str,
+    pub(crate) ms: f64,
+    pub(crate) rmse: f64,
+    pub(crate) max: f64,
+}
+
+/// Where the SG fragment time goes on one terrain, at 4 x 8, the evening scene without fog: the time of
+/// the full shading, of variants leaving out one term each ([`SgOmit`]), and of the effect sets; all in
+/// the same run as basic shading.
+#[derive(Clone, Debug)]
+pub(crate) struct BreakdownRow {
+    pub(crate) terrain: String,
+    pub(crate) basic_ms: f64,
+    /// Diffuse, +visibility, +specular (the full shading).
+    pub(crate) effects_ms: [f64; 3],
+    /// The full shading with one term left out, per [`SgOmit::TERMS`].
+    pub(crate) omitted_ms: [f64; 3],
+    pub(crate) scenes: Vec<SceneRun>,
+}
+
+impl BreakdownRow {
+    /// Each term's cost in ms: footprint fetch, vMF, per-patch closed form (full minus the variant without
+    /// it), visibility (+visibility minus diffuse), specular (+specular minus +visibility).
+    pub(crate) fn term_ms(&self) -> [(&'static str, f64); 5] {
+        let full = self.effects_ms[2];
+        [
+            (SgOmit::TERMS[0].label(), full - self.omitted_ms[0]),
+            (SgOmit::TERMS[1].label(), full - self.omitted_ms[1]),
+            (SgOmit::TERMS[2].label(), full - self.omitted_ms[2]),
+            ("visibility", self.effects_ms[1] - self.effects_ms[0]),
+            ("specular", self.effects_ms[2] - self.effects_ms[1]),
+        ]
+    }
+
+    /// A scene's time over basic shading's.
+    pub(crate) fn ratio(&self, ms: f64) -> f64 {
+        ms / self.basic_ms.max(1e-9)
+    }
 }
 
 /// Mean ms of `frames` renders (after one untimed warm-up: shader compilation).
@@ -92,21 +151,49 @@ pub(crate) fn run_shading(args: &BenchShadingArgs) -> Result<ShadingReport> {
     std::fs::create_dir_all(&args.out)
         .map_err(|e| Error::io(&args.out, "cannot create the output folder", e))?;
     let gpu = Gpu::new(mode)?;
-    let (terrains, skipped) = shading_terrains(true)?;
-    let bar = ProgressBar::new(shading_steps(terrains.len()));
+    let (terrains, skipped) = if args.all_terrains {
+        all_shared_terrains()?
+    } else {
+        shading_terrains(true)?
+    };
+    let matrix_steps = if args.breakdown_only {
+        0
+    } else {
+        shading_steps(terrains.len())
+    };
+    let bar = ProgressBar::new(matrix_steps + breakdown_steps(terrains.len()));
     if let Ok(style) =
         ProgressStyle::with_template("bench shading {bar:30} {pos}/{len} {msg} {elapsed}")
     {
         bar.set_style(style);
     }
-    let rows = measure_shading(&gpu, &profile, &terrains, size, args.frames, &bar)?;
+    let breakdown = measure_breakdown(&gpu, &profile, &terrains, size, args.frames, &bar)?;
+    let rows = if args.breakdown_only {
+        Vec::new()
+    } else {
+        measure_shading(&gpu, &profile, &terrains, size, args.frames, &bar)?
+    };
     bar.finish_and_clear();
-    let md = shading_markdown(&rows, &skipped, &gpu, &profile, size, args.frames);
+    let mut md = breakdown_markdown(&breakdown, &gpu, &profile, size, args.frames);
+    if !rows.is_empty() {
+        md.push('\n');
+        md.push_str(&shading_markdown(
+            &rows,
+            &skipped,
+            &gpu,
+            &profile,
+            size,
+            args.frames,
+        ));
+    }
     let md_path = args.out.join("shading.md");
     std::fs::write(&md_path, &md).map_err(|e| Error::io(&md_path, "cannot write", e))?;
-    shading_plot(&rows, &args.out.join("shading.png"))?;
+    if !rows.is_empty() {
+        shading_plot(&rows, &args.out.join("shading.png"))?;
+    }
     Ok(ShadingReport {
         rows,
+        breakdown,
         skipped,
         markdown: md,
     })
@@ -175,10 +262,6 @@ pub(crate) fn measure_shading(
     frames: u32,
     bar: &ProgressBar,
 ) -> Result<Vec<ShadingRow>> {
-    use clipsat::gpu::sat_textures::ShadingBake;
-    use clipsat::shading::scene::{Needs, Scene};
-    use clipsat::shading::Patches;
-
     let mut profile = profile.clone();
     profile.view.width = w;
     profile.view.height = h;
@@ -228,6 +311,7 @@ pub(crate) fn measure_shading(
                             scene: &scene,
                             patches,
                             bake,
+                            omit: SgOmit::None,
                         }),
                         ..OffscreenOptions::default()
                     },
@@ -249,6 +333,315 @@ pub(crate) fn measure_shading(
         }
     }
     Ok(rows)
+}
+
+/// The shared terrains of `bench all` (each present one; a missing one is skipped, or an error under
+/// CI=true), after the procedural terrain.
+fn all_shared_terrains() -> Result<NamedTerrains> {
+    let ci = std::env::var("CI").is_ok_and(|v| v == "true");
+    let (mut terrains, mut skipped) = shading_terrains(false)?;
+    for (name, spacing, scale) in SHARED {
+        let path = clipsat::data_dir().join(name);
+        if !path.exists() {
+            if ci {
+                return Err(arg_error(
+                    "bench shading",
+                    format!("{} is missing (CI=true)", path.display()),
+                ));
+            }
+            eprintln!(
+                "bench shading: skipping {name}: {} is missing",
+                path.display()
+            );
+            skipped.push(name.to_string());
+            continue;
+        }
+        let hm = source::load(
+            &path,
+            &LoadOptions {
+                spacing,
+                height_scale: scale,
+                ..Default::default()
+            },
+        )?;
+        terrains.push((name.to_string(), hm));
+    }
+    Ok((terrains, skipped))
+}
+
+/// The scenes of the breakdown, as shipped.
+const SCENES: [&str; 3] = ["noon", "evening", "overcast"];
+
+/// Progress steps of [`measure_breakdown`] over `terrains` terrains.
+pub(crate) fn breakdown_steps(terrains: usize) -> u64 {
+    (terrains * (1 + SHADING_EFFECTS.len() + SgOmit::TERMS.len() + SCENES.len())) as u64
+}
+
+/// Fills every level of a clipmap at the camera's eye.
+fn filled_clipmap(hm: &Heightmap, profile: &Profile, camera: &clipsat::Camera) -> Result<Clipmap> {
+    let mut clipmap = Clipmap::new(hm, profile, ClipmapOptions::default())?;
+    for _ in 0..10_000 {
+        let frame = clipmap.update(camera.eye)?;
+        if frame.stale_levels == 0 && clipmap.pending_samples(camera.eye) == 0 {
+            break;
+        }
+    }
+    Ok(clipmap)
+}
+
+/// One SG configuration's ms per frame and image.
+#[expect(clippy::too_many_arguments, reason = "one configuration of the bench")]
+fn time_sg(
+    gpu: &Gpu,
+    profile: &Profile,
+    clipmap: &Clipmap,
+    camera: &clipsat::Camera,
+    hm: &Heightmap,
+    scene: &Scene,
+    bake: &ShadingBake,
+    omit: SgOmit,
+    frames: u32,
+) -> Result<(f64, clipsat::gpu::readback::Image)> {
+    let mut r = Offscreen::new(
+        gpu,
+        profile,
+        clipmap,
+        OffscreenOptions {
+            shading: Shading::Sg(SgShading {
+                terrain: hm,
+                scene,
+                patches: Patches::P4x8,
+                bake,
+                omit,
+            }),
+            ..OffscreenOptions::default()
+        },
+    )?;
+    time_frames(&mut r, clipmap, camera, frames)
+}
+
+/// The per-term breakdown at 4 x 8 and the shipped scenes against basic shading, every terrain, in one
+/// run: see [`BreakdownRow`]. Errors are against the CPU reference of the same view.
+pub(crate) fn measure_breakdown(
+    gpu: &Gpu,
+    profile: &Profile,
+    terrains: &[(String, Heightmap)],
+    (w, h): (u32, u32),
+    frames: u32,
+    bar: &ProgressBar,
+) -> Result<Vec<BreakdownRow>> {
+    let mut profile = profile.clone();
+    profile.view.width = w;
+    profile.view.height = h;
+    let max_side = gpu.device().limits().max_texture_dimension_2d;
+    let mut out = Vec::new();
+    for (name, hm) in terrains {
+        bar.set_message(format!("breakdown {name}"));
+        let camera = clipsat::Camera::default_for(hm)?;
+        let clipmap = filled_clipmap(hm, &profile, &camera)?;
+        let mut r = Offscreen::new(gpu, &profile, &clipmap, OffscreenOptions::default())?;
+        let (basic_ms, _) = time_frames(&mut r, &clipmap, &camera, frames)?;
+        drop(r);
+        bar.inc(1);
+        let bake_vis = ShadingBake::bake(
+            hm,
+            &Needs {
+                bake_horizons: true,
+                ..Needs::default()
+            },
+            clipsat::bake::horizon::DEFAULT_AZIMUTHS,
+            max_side,
+        )?;
+        let bake_plain = ShadingBake::bake(hm, &Needs::default(), 8, max_side)?;
+        let mut evening = Scene::load("evening")?;
+        evening.effects.fog = false;
+        evening.fog = None;
+        let mut effects_ms = [0.0; 3];
+        for (k, (_, vis, spec)) in SHADING_EFFECTS.into_iter().enumerate() {
+            let mut scene = evening.clone();
+            scene.effects.visibility = vis;
+            scene.effects.specular = spec;
+            let bake = if vis { &bake_vis } else { &bake_plain };
+            let t = time_sg(
+                gpu,
+                &profile,
+                &clipmap,
+                &camera,
+                hm,
+                &scene,
+                bake,
+                SgOmit::None,
+                frames,
+            )?;
+            effects_ms[k] = t.0;
+            bar.inc(1);
+        }
+        let mut omitted_ms = [0.0; 3];
+        for (k, omit) in SgOmit::TERMS.into_iter().enumerate() {
+            let t = time_sg(
+                gpu, &profile, &clipmap, &camera, hm, &evening, &bake_vis, omit, frames,
+            )?;
+            omitted_ms[k] = t.0;
+            bar.inc(1);
+        }
+        let mut scenes = Vec::new();
+        for scene_name in SCENES {
+            let scene = Scene::load(scene_name)?;
+            let bake = if scene.effects.visibility {
+                &bake_vis
+            } else {
+                &bake_plain
+            };
+            let (ms, image) = time_sg(
+                gpu,
+                &profile,
+                &clipmap,
+                &camera,
+                hm,
+                &scene,
+                bake,
+                SgOmit::None,
+                frames,
+            )?;
+            let reference = crate::app::cmd::sg::reference(hm, &camera, (w, h), &scene);
+            let e = reference.error(&image, crate::app::cmd::sg::sky_rgba8());
+            scenes.push(SceneRun {
+                scene: scene_name,
+                ms,
+                rmse: e.rmse,
+                max: e.max,
+            });
+            bar.inc(1);
+        }
+        out.push(BreakdownRow {
+            terrain: name.clone(),
+            basic_ms,
+            effects_ms,
+            omitted_ms,
+            scenes,
+        });
+    }
+    Ok(out)
+}
+
+/// The Markdown of [`measure_breakdown`]: the scenes against basic shading and the reference, then the
+/// per-term costs.
+pub(crate) fn breakdown_markdown(
+    rows: &[BreakdownRow],
+    gpu: &Gpu,
+    profile: &Profile,
+    (w, h): (u32, u32),
+    frames: u32,
+) -> String {
+    let mut md = format!(
+        "# clipsat bench shading: cost and error at 4 x 8\n\nSG shading on {}, {w}x{h}, profile {}, \
+         default camera, 4 x 8 patches; ms per frame (upload + draw + readback, mean of {frames} after a \
+         warm-up), its ratio to basic shading in the same run, RMSE (display-encoded, 0..1) against the \
+         CPU reference on a {g} x {g} pixel grid.\n\n\
+         | terrain | basic ms | noon ms (x basic) | RMSE | evening ms (x basic) | RMSE | overcast ms (x basic) | RMSE |\n\
+         |---|---|---|---|---|---|---|---|\n",
+        gpu.report().name,
+        profile.name,
+        g = crate::app::cmd::sg::REF_GRID,
+    );
+    for row in rows {
+        md.push_str(&format!("| {} | {:.1} |", row.terrain, row.basic_ms));
+        for s in &row.scenes {
+            md.push_str(&format!(
+                " {:.1} ({:.2}x) | {:.4} |",
+                s.ms,
+                row.ratio(s.ms),
+                s.rmse
+            ));
+        }
+        md.push('\n');
+    }
+    md.push_str(
+        "\n**Per-term breakdown** (the evening scene without fog, visibility and specular on): the \
+         full shading's ms and ratio to basic, then each term's cost in ms, measured as the time it \
+         saves when left out (footprint: the normal SAT fetch, r from the mesh normal instead; vMF: a \
+         single normal; patches: each lobe as one direction; visibility: +visibility minus diffuse; \
+         specular: +specular minus +visibility). Negative values are timing noise.\n\n\
+         | terrain | full ms (x basic) | diffuse ms (x basic) |",
+    );
+    for (label, _) in rows.first().map(BreakdownRow::term_ms).unwrap_or_default() {
+        md.push_str(&format!(" {label} |"));
+    }
+    md.push_str("\n|---|---|---|---|---|---|---|---|\n");
+    for row in rows {
+        md.push_str(&format!(
+            "| {} | {:.1} ({:.2}x) | {:.1} ({:.2}x) |",
+            row.terrain,
+            row.effects_ms[2],
+            row.ratio(row.effects_ms[2]),
+            row.effects_ms[0],
+            row.ratio(row.effects_ms[0])
+        ));
+        for (_, ms) in row.term_ms() {
+            md.push_str(&format!(" {ms:.1} |"));
+        }
+        md.push('\n');
+    }
+    md
+}
+
+/// The report as JSON: the breakdown rows (with each term's cost) and the patch-count rows.
+pub(crate) fn shading_json(report: &ShadingReport) -> serde_json::Value {
+    let breakdown: Vec<serde_json::Value> = report
+        .breakdown
+        .iter()
+        .map(|b| {
+            let terms: serde_json::Map<String, serde_json::Value> = b
+                .term_ms()
+                .iter()
+                .map(|(k, v)| ((*k).to_string(), serde_json::json!(v)))
+                .collect();
+            let scenes: Vec<serde_json::Value> = b
+                .scenes
+                .iter()
+                .map(|s| {
+                    serde_json::json!({
+                        "scene": s.scene,
+                        "ms": s.ms,
+                        "x_basic": b.ratio(s.ms),
+                        "rmse_vs_reference": s.rmse,
+                        "max_error": s.max,
+                    })
+                })
+                .collect();
+            serde_json::json!({
+                "terrain": b.terrain,
+                "basic_ms": b.basic_ms,
+                "diffuse_ms": b.effects_ms[0],
+                "visibility_ms": b.effects_ms[1],
+                "full_ms": b.effects_ms[2],
+                "full_x_basic": b.ratio(b.effects_ms[2]),
+                "term_ms": terms,
+                "scenes": scenes,
+            })
+        })
+        .collect();
+    let rows: Vec<serde_json::Value> = report
+        .rows
+        .iter()
+        .map(|r| {
+            serde_json::json!({
+                "terrain": r.terrain,
+                "patches": r.patches.label(),
+                "effects": r.effects,
+                "ms": r.ms,
+                "basic_ms": r.basic_ms,
+                "rmse_vs_reference": r.rmse,
+                "max_error": r.max,
+                "pixels": r.pixels,
+            })
+        })
+        .collect();
+    serde_json::json!({
+        "breakdown": breakdown,
+        "rows": rows,
+        "skipped": report.skipped,
+    })
 }
 
 /// The Markdown table of [`measure_shading`]'s rows, with what was measured and how.

@@ -21,6 +21,7 @@ use clap::Args;
 use clipsat::bake::horizon::DEFAULT_AZIMUTHS;
 use clipsat::gpu::renderer::{self as gpu_renderer, RendererOptions, SgShading};
 use clipsat::gpu::sat_textures::ShadingBake;
+use clipsat::gpu::shaders::SgOmit;
 use clipsat::gpu::GpuMode;
 use clipsat::plan::camera::parse_vec3;
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
@@ -513,6 +514,7 @@ impl App<'_> {
                             scene: &scene,
                             patches: self.patches,
                             bake: b,
+                            omit: SgOmit::None,
                         }),
                     ),
                     None => Ok(()),
