@@ -85,12 +85,13 @@ pub fn plane_drop(kappa: f32) -> f32 {
 pub const SHARP_LAMBDA: f32 = 64.0;
 
 /// E[max(n' . i, 0)] over the vMF of normals n' about `vmf.axis`, for a direction i at cosine `t` from the
-/// mean normal: n' . i taken as Gaussian with the vMF's exact first two moments, mean m = A t (A = |r|,
-/// the mean resultant length the vMF was fitted to) and E[(n' . i)^2] = t^2 (1 - 2 A / kappa)
-/// + (1 - t^2) A / kappa (Mardia & Jupp 2000, section 9.3), so E[max(X, 0)] = m Phi(m / s) + s phi(m / s).
-/// Phi uses Abramowitz & Stegun 7.1.26 (error 1.5e-7), sharing phi's exponential. Exact for a single
-/// normal (s = 0: max(t, 0)) and for the uniform distribution's mean; `tests/cpu/shading.rs` measures it
-/// against the reference's tabulated integral.
+/// mean normal: n' . i taken as Gaussian with the vMF's first two moments, mean m = A t (A = |r|, the
+/// mean resultant length the vMF was fitted to) and second moment
+/// t^2 (1 - 2 A / kappa) + (1 - t^2) A / kappa (E[cos^2] = 1 - 2 A / kappa for the 3D vMF; Mardia & Jupp
+/// 2000, section 9.3), so E[max(X, 0)] = m Phi(m / s) + s phi(m / s). Phi uses Abramowitz & Stegun
+/// 7.1.26 (error 1.5e-7), sharing phi's exponential. Exact for a single normal (s = 0: max(t, 0)) and
+/// for the uniform distribution's mean; `tests/cpu/shading.rs` `vmf_cosine_matches_dense_integration`
+/// measures it against dense integration over the vMF (at most 0.025 absolute, at |r| = 0.5).
 pub fn vmf_cosine(t: f32, vmf: &Vmf) -> f32 {
     let a = vmf.r_len;
     let ak = a / vmf.kappa;

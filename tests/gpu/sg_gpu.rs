@@ -55,7 +55,7 @@ fn cases(d: usize) -> Vec<ProbeCase> {
 /// GPU vs CPU twin, every shipped scene x patch count, visibility with D = 8 where the scene has it.
 /// Tolerance: 5e-4 of the largest channel of the scene's results (llvmpipe's exp/log/atan2/sin differ
 /// from Rust's by a few ulps, and band edges amplify that near |r| -> 1 where kappa is 1e4). Measured
-/// on llvmpipe: at most 9.7e-5 (noon), 4.9e-5 (evening), 1.7e-6 (overcast).
+/// on llvmpipe: at most 1.7e-7 (noon), 1.1e-4 (evening), 1.7e-6 (overcast).
 #[test]
 fn gpu_shading_matches_cpu_twin() {
     let gpu = render_support::strict();
