@@ -1,13 +1,21 @@
-//! Pictures of measurements: small line plots written as PNG (fly-through statistics, accuracy against time).
-
-mod font;
+//! Application (plots): line plots of measurements written as PNG (fly-through statistics, accuracy against
+//! time), drawn with plotters. Text is Hack (a DejaVu-derived face) from `epaint_default_fonts` (egui's
+//! built-in fonts) through plotters' ab_glyph backend: no system font is needed and no font file lives in
+//! the repository. Hack rather than egui's Ubuntu Light: plotters 0.3.7's ab_glyph path drops each glyph's
+//! left side bearing, which crowds a proportional face (`l` into its neighbours) but barely shows on a
+//! monospaced one.
 
 use std::path::Path;
+use std::sync::OnceLock;
 
-use crate::app::cmd::args::arg_error;
 use clipsat::{Error, Result};
+use plotters::coord::ranged1d::{KeyPointHint, NoDefaultFormatting, ValueFormatter};
+use plotters::coord::types::RangedCoordf64;
+use plotters::prelude::*;
+use plotters::style::FontStyle;
 
-use font::glyph;
+/// The family name the embedded font is registered under.
+const FONT: &str = "clipsat-sans";
 
 /// One named series of (x, y) points, drawn as a polyline.
 #[derive(Clone, Debug)]
@@ -39,32 +47,123 @@ pub(crate) struct LinePlot {
     pub(crate) series: Vec<Series>,
 }
 
+/// Registers the embedded font with plotters once; every later call answers the first one's result.
+fn font() -> Result<()> {
+    static REGISTERED: OnceLock<bool> = OnceLock::new();
+    let ok = *REGISTERED.get_or_init(|| {
+        plotters::style::register_font(FONT, FontStyle::Normal, epaint_default_fonts::HACK_REGULAR)
+            .is_ok()
+    });
+    if ok {
+        Ok(())
+    } else {
+        Err(Error::Invalid {
+            what: "plot font".into(),
+            reason: "the embedded Hack font does not parse".into(),
+        })
+    }
+}
+
+/// A plotters drawing error as a clipsat error (only font trouble can cause one on an in-memory bitmap).
+fn drawing<E: std::error::Error + Send + Sync>(e: DrawingAreaErrorKind<E>) -> Error {
+    Error::Invalid {
+        what: "plot".into(),
+        reason: e.to_string(),
+    }
+}
+
+/// Text sizes in pixels for a picture: labels, axis titles and the title grow with the picture.
+struct Sizes {
+    label: f64,
+    desc: f64,
+    title: f64,
+}
+
+impl Sizes {
+    fn of(width: u32, height: u32) -> Self {
+        // Not below 15 px: smaller, the glyph placement of plotters' ab_glyph path gets uneven.
+        let label = (f64::from(width.min(height)) / 32.0).clamp(15.0, 48.0);
+        Self {
+            label,
+            desc: label * 1.05,
+            title: label * 1.3,
+        }
+    }
+}
+
 impl LinePlot {
     /// Renders the plot at `width` x `height` pixels and writes it as PNG to `path`.
     ///
     /// White background, grid, ticks with numeric labels, title, axis labels, legend (in the corner of
-    /// the axes that hides the fewest points), optional log X and a right-hand axis for series with `right_axis`. Non-finite points
-    /// (and X <= 0 on a log axis) are skipped. The picture depends only on the plot, not on the machine.
+    /// the axes that hides the fewest points), optional log X (decades, with 2..9 as light grid lines) and a
+    /// right-hand axis for series with `right_axis`. Non-finite points (and X <= 0 on a log axis) are
+    /// skipped and break the line. The picture depends only on the plot, not on the machine.
     pub(crate) fn write_png(&self, path: &Path, width: u32, height: u32) -> Result<()> {
-        let canvas = self.render(width, height)?;
-        let img = image::RgbImage::from_raw(width, height, canvas.pixels)
+        let pixels = self.render(width, height)?;
+        let img = image::RgbImage::from_raw(width, height, pixels)
             .ok_or_else(|| Error::format(path, "plot buffer has the wrong size"))?;
         img.save_with_format(path, image::ImageFormat::Png)
             .map_err(|e| Error::io(path, "cannot write plot", std::io::Error::other(e)))
     }
 
-    /// Renders the plot into an RGB8 canvas.
-    fn render(&self, width: u32, height: u32) -> Result<Canvas> {
+    /// Renders the plot into an RGB8 buffer, `width` x `height`.
+    fn render(&self, width: u32, height: u32) -> Result<Vec<u8>> {
         if !(160..=16384).contains(&width) || !(120..=16384).contains(&height) {
-            return Err(arg_error(
-                "plot size",
-                format!("{width} x {height} pixels: need 160..=16384 x 120..=16384"),
-            ));
+            return Err(Error::Invalid {
+                what: "plot size".into(),
+                reason: format!("{width} x {height} pixels: need 160..=16384 x 120..=16384"),
+            });
         }
-        let mut c = Canvas::new(width, height);
-        // Font pixel size: 5x7 glyphs, doubled from about 360 px up.
-        let s = ((width.min(height) + 100) / 230).clamp(1, 4) as i32;
-        let (cw, ch) = (6 * s, 9 * s);
+        font()?;
+        let sizes = Sizes::of(width, height);
+        // At most 16384^2 x 3 bytes: fits a usize on every 64-bit target.
+        let mut pixels = vec![255u8; width as usize * height as usize * 3];
+        // Drawn twice when there is a legend: first without, to learn where the axes fall and so which
+        // corner of them it would hide the least of, then with it there.
+        let layout = self.paint(&mut pixels, width, height, &sizes, None)?;
+        if let Some(corner) = layout.quietest_corner(self) {
+            pixels.fill(255);
+            self.paint(&mut pixels, width, height, &sizes, Some(corner))?;
+        }
+        Ok(pixels)
+    }
+
+    /// Paints the plot into `pixels` (RGB8, `width` x `height`), with the legend at `legend` if given.
+    fn paint(
+        &self,
+        pixels: &mut [u8],
+        width: u32,
+        height: u32,
+        sizes: &Sizes,
+        legend: Option<SeriesLabelPosition>,
+    ) -> Result<Layout> {
+        let backend = BitMapBackend::<plotters::backend::RGBPixel>::with_buffer_and_format(
+            pixels,
+            (width, height),
+        )
+        .map_err(|e| Error::Invalid {
+            what: "plot".into(),
+            reason: e.to_string(),
+        })?;
+        let root = backend.into_drawing_area();
+        let layout = self
+            .draw(&root, sizes, legend)
+            .and_then(|layout| root.present().map(|()| layout))
+            .map_err(drawing)?;
+        Ok(layout)
+    }
+
+    /// Draws the whole plot onto `root`, the legend at `legend` if given; returns where the axes and the
+    /// legend's box (if any series is named) fall.
+    fn draw<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, plotters::coord::Shift>,
+        sizes: &Sizes,
+        legend: Option<SeriesLabelPosition>,
+    ) -> Result<Layout, DrawingAreaErrorKind<DB::ErrorType>> {
+        let ink = RGBColor(40, 40, 40);
+        let label_style = TextStyle::from((FONT, sizes.label).into_font()).color(&ink);
+        let desc_style = TextStyle::from((FONT, sizes.desc).into_font()).color(&ink);
         let has_right = self.series.iter().any(|sr| sr.right_axis);
 
         let xr = Range::of(self.points(None).map(|p| p.0), self.x_log);
@@ -73,217 +172,152 @@ impl LinePlot {
         let xt = xr.ticks(self.x_log);
         let ylt = yl.ticks(false);
         let yrt = yr.ticks(false);
-        let label_w =
-            |ticks: &[(f64, String)]| ticks.iter().map(|t| text_width(&t.1, s)).max().unwrap_or(0);
+        let x_axis = Axis::new(&xr, &xt, self.x_log);
 
-        let left = ch + label_w(&ylt) + 3 * s + 2 * s + 2 * cw / 3;
-        let right = if has_right {
-            ch + label_w(&yrt) + 3 * s + 2 * s + 2 * cw / 3
-        } else {
-            3 * cw
+        // Label areas sized from the widest tick label: the axis title, a gap, the labels, the tick marks.
+        let widest = |ticks: &[(f64, String)]| {
+            ticks
+                .iter()
+                .filter_map(|(_, t)| root.estimate_text_size(t, &label_style).ok())
+                .map(|(w, _)| w)
+                .max()
+                .unwrap_or(0)
         };
-        let top = if self.title.is_empty() {
-            ch
-        } else {
-            3 * ch + ch / 2
-        };
-        let bottom = 2 * ch + ch / 2 + 3 * s;
-        let (w, h) = (width as i32, height as i32);
-        let plot = Rect {
-            x0: left,
-            y0: top,
-            x1: w - right,
-            y1: h - bottom,
-        };
-        if plot.x1 - plot.x0 < 40 || plot.y1 - plot.y0 < 40 {
-            return Err(arg_error(
-                "plot size",
-                format!("{width} x {height} pixels leave no room for the axes"),
-            ));
-        }
+        let pad = to_u32(sizes.label * 0.5);
+        let y_area = |ticks: &[(f64, String)]| widest(ticks) + to_u32(sizes.desc * 1.2) + 2 * pad;
+        let x_area = to_u32(sizes.label * 1.2 + sizes.desc * 1.2) + 2 * pad;
 
-        let grid = [232, 232, 232];
-        let axis = [40, 40, 40];
-        let px = |v: f64| plot.x0 as f64 + xr.frac(v, self.x_log) * (plot.x1 - plot.x0) as f64;
-        let py = |r: &Range, v: f64| plot.y1 as f64 - r.frac(v, false) * (plot.y1 - plot.y0) as f64;
-
-        // Grid and ticks.
-        for (v, label) in &xt {
-            let x = to_px(px(*v));
-            c.vline(x, plot.y0, plot.y1, grid);
-            c.vline(x, plot.y1, plot.y1 + 3 * s, axis);
-            let tw = text_width(label, s);
-            c.text(label, x - tw / 2, plot.y1 + 5 * s, s, axis);
-        }
-        if self.x_log {
-            for v in xr.minor_log_ticks() {
-                let x = to_px(px(v));
-                c.vline(x, plot.y1, plot.y1 + 2 * s, axis);
-            }
-        }
-        for (v, label) in &ylt {
-            let y = to_px(py(&yl, *v));
-            c.hline(plot.x0, plot.x1, y, grid);
-            c.hline(plot.x0 - 3 * s, plot.x0, y, axis);
-            let tw = text_width(label, s);
-            c.text(label, plot.x0 - 5 * s - tw, y - 7 * s / 2, s, axis);
-        }
-        if has_right {
-            for (v, label) in &yrt {
-                let y = to_px(py(&yr, *v));
-                c.hline(plot.x1, plot.x1 + 3 * s, y, axis);
-                c.text(label, plot.x1 + 5 * s, y - 7 * s / 2, s, axis);
-            }
-        }
-        // Frame.
-        c.hline(plot.x0, plot.x1, plot.y0, axis);
-        c.hline(plot.x0, plot.x1, plot.y1, axis);
-        c.vline(plot.x0, plot.y0, plot.y1, axis);
-        c.vline(plot.x1, plot.y0, plot.y1, axis);
-
-        // Series, clipped to the frame.
-        let thick = 0.75 + 0.5 * s as f64;
-        for sr in &self.series {
-            let yrange = if sr.right_axis { &yr } else { &yl };
-            let mut prev: Option<(f64, f64)> = None;
-            for &(x, y) in &sr.points {
-                if !usable(x, y, self.x_log) {
-                    prev = None;
-                    continue;
-                }
-                let p = (px(x), py(yrange, y));
-                match prev {
-                    Some(q) => c.line(q, p, thick, sr.color, &plot),
-                    // A lone point still shows.
-                    None => c.line(p, p, thick, sr.color, &plot),
-                }
-                prev = Some(p);
-            }
-        }
-
-        // Title, axis labels.
+        let mut builder = ChartBuilder::on(root);
+        builder
+            .margin_top(to_u32(sizes.label))
+            .margin_left(pad)
+            .margin_bottom(pad)
+            .margin_right(if has_right {
+                pad
+            } else {
+                to_u32(sizes.label * 2.0)
+            })
+            .x_label_area_size(x_area)
+            .y_label_area_size(y_area(&ylt))
+            .right_y_label_area_size(if has_right { y_area(&yrt) } else { 0 });
         if !self.title.is_empty() {
-            // One size up, smaller if that would not fit the width.
-            let ts = (1..=s + 1)
-                .rev()
-                .find(|&k| text_width(&self.title, k) <= w - 2 * cw)
-                .unwrap_or(1);
-            let tw = text_width(&self.title, ts);
-            c.text(&self.title, (w - tw) / 2, ch, ts, [0, 0, 0]);
+            builder.caption(
+                &self.title,
+                TextStyle::from((FONT, sizes.title).into_font()).color(&BLACK),
+            );
         }
-        let xw = text_width(&self.x_label, s);
-        c.text(
-            &self.x_label,
-            (plot.x0 + plot.x1 - xw) / 2,
-            h - ch - s,
-            s,
-            axis,
-        );
-        let mid = (plot.y0 + plot.y1) / 2;
-        let yw = text_width(&self.y_label, s);
-        c.text_up(&self.y_label, s, mid + yw / 2, s, axis);
+        let mut chart = builder
+            .build_cartesian_2d(x_axis.clone(), Axis::new(&yl, &ylt, false))?
+            .set_secondary_coord(x_axis, Axis::new(&yr, &yrt, false));
+
+        let grid = RGBColor(222, 222, 222);
+        let minor = RGBColor(240, 240, 240);
+        chart
+            .configure_mesh()
+            .x_desc(self.x_label.as_str())
+            .y_desc(self.y_label.as_str())
+            .label_style(label_style.clone())
+            .axis_desc_style(desc_style.clone())
+            .bold_line_style(grid)
+            .light_line_style(minor)
+            .axis_style(ink)
+            .set_all_tick_mark_size(to_u32(sizes.label * 0.3).max(3))
+            .draw()?;
         if has_right {
-            let y2w = text_width(&self.y2_label, s);
-            c.text_up(&self.y2_label, w - ch, mid + y2w / 2, s, axis);
+            chart
+                .configure_secondary_axes()
+                .y_desc(self.y2_label.as_str())
+                .label_style(label_style.clone())
+                .axis_desc_style(desc_style)
+                .axis_style(ink)
+                .draw()?;
         }
 
-        // Legend: a boxed list in the top-left corner of the axes.
-        let named: Vec<&Series> = self
+        // Each run of usable points is one polyline; a lone point is a dot.
+        // Not thinner than 3 px from 600 px up: plotters fills a thick line as a polygon, and a near-vertical
+        // one loses a pixel of its width.
+        let stroke = (sizes.label / 6.0).round().clamp(2.0, 8.0);
+        let stroke_px = to_u32(stroke);
+        for sr in &self.series {
+            let colour = RGBColor(sr.color[0], sr.color[1], sr.color[2]);
+            let style = colour.stroke_width(stroke_px);
+            let runs = self.runs(sr);
+            let mut labelled = sr.name.is_empty();
+            for run in runs {
+                let anno = match (run.len(), sr.right_axis) {
+                    (1, false) => chart.draw_series(dot(run[0], stroke_px, colour))?,
+                    (1, true) => chart.draw_secondary_series(dot(run[0], stroke_px, colour))?,
+                    (_, false) => chart.draw_series(LineSeries::new(run, style))?,
+                    (_, true) => chart.draw_secondary_series(LineSeries::new(run, style))?,
+                };
+                if !labelled {
+                    labelled = true;
+                    let tag = if sr.right_axis { " (right)" } else { "" };
+                    let swatch = to_i32(sizes.label * 1.6);
+                    anno.label(format!("{}{tag}", sr.name))
+                        .legend(move |(x, y)| {
+                            PathElement::new(vec![(x, y), (x + swatch, y)], style)
+                        });
+                }
+            }
+        }
+
+        // The legend's box, estimated as plotters lays it out: swatch area, then the widest name; one row
+        // of text and spacing per entry.
+        let names: Vec<String> = self
             .series
             .iter()
             .filter(|sr| !sr.name.is_empty())
+            .map(|sr| format!("{}{}", sr.name, if sr.right_axis { " (right)" } else { "" }))
             .collect();
-        if !named.is_empty() {
-            let tag = |sr: &Series| {
-                if sr.right_axis && has_right {
-                    " (right)"
-                } else {
-                    ""
-                }
-            };
-            // The legend's box at font size k: (width, height).
-            let boxed = |k: i32| {
-                let lw = named
-                    .iter()
-                    .map(|sr| text_width(&sr.name, k) + text_width(tag(sr), k))
-                    .max()
-                    .unwrap_or(0);
-                (
-                    4 * 6 * k + 2 * 6 * k + lw,
-                    to_i32(named.len()) * (11 * k) + 9 * k / 2,
-                )
-            };
-            // Full size unless the box would cover more than an eighth of the axes.
-            let (pw, ph) = (plot.x1 - plot.x0, plot.y1 - plot.y0);
-            let s = (1..=s)
-                .rev()
-                .find(|&k| {
-                    let (bw, bh) = boxed(k);
-                    bw * bh * 8 <= pw * ph && bw <= pw - 4 * cw
-                })
-                .unwrap_or(1);
-            let (cw, ch) = (6 * s, 9 * s);
-            let swatch = 4 * cw;
-            let row = ch + 2 * s;
-            let (bw, bh) = boxed(s);
-            // The corner of the axes that hides the fewest data points.
-            let corners = [
-                (plot.x0 + 2 * cw, plot.y0 + ch),
-                (plot.x1 - 2 * cw - bw, plot.y0 + ch),
-                (plot.x0 + 2 * cw, plot.y1 - ch - bh),
-                (plot.x1 - 2 * cw - bw, plot.y1 - ch - bh),
-            ];
-            let hidden = |&(bx, by): &(i32, i32)| {
-                let (bx, by) = (f64::from(bx), f64::from(by));
-                self.series
-                    .iter()
-                    .flat_map(|sr| {
-                        let yrange = if sr.right_axis { &yr } else { &yl };
-                        sr.points
-                            .iter()
-                            .filter(|&&(x, y)| usable(x, y, self.x_log))
-                            .map(move |&(x, y)| (px(x), py(yrange, y)))
-                    })
-                    .filter(|&(x, y)| {
-                        x >= bx - 4.0
-                            && x <= bx + f64::from(bw) + 4.0
-                            && y >= by - 4.0
-                            && y <= by + f64::from(bh) + 4.0
-                    })
-                    .count()
-            };
-            let (bx, by) = corners
-                .iter()
-                .min_by_key(|c| hidden(c))
-                .copied()
-                .unwrap_or(corners[0]);
-            c.fill(bx, by, bx + bw, by + bh, [255, 255, 255]);
-            c.hline(bx, bx + bw, by, [160, 160, 160]);
-            c.hline(bx, bx + bw, by + bh, [160, 160, 160]);
-            c.vline(bx, by, by + bh, [160, 160, 160]);
-            c.vline(bx + bw, by, by + bh, [160, 160, 160]);
-            for (i, sr) in named.iter().enumerate() {
-                let ty = by + ch / 2 + to_i32(i) * row;
-                let ly = f64::from(ty + 7 * s / 2);
-                let whole = Rect {
-                    x0: 0,
-                    y0: 0,
-                    x1: w,
-                    y1: h,
-                };
-                let sx = f64::from(bx + cw / 2);
-                c.line(
-                    (sx, ly),
-                    (sx + f64::from(swatch), ly),
-                    thick,
-                    sr.color,
-                    &whole,
-                );
-                let name = format!("{}{}", sr.name, tag(sr));
-                c.text(&name, bx + cw / 2 + swatch + cw / 2, ty, s, axis);
+        let margin = to_u32(sizes.label * 0.8);
+        let swatch_area = to_u32(sizes.label * 2.0);
+        let (text_w, text_h) = names
+            .iter()
+            .filter_map(|n| root.estimate_text_size(n, &label_style).ok())
+            .fold((0, 0), |(w, h), (tw, th)| (w.max(tw), h.max(th)));
+        let legend_box = (!names.is_empty()).then(|| {
+            let rows = u32::try_from(names.len()).unwrap_or(u32::MAX);
+            (
+                swatch_area + text_w + to_u32(sizes.label),
+                rows.saturating_mul(text_h + to_u32(sizes.label * 0.4)) + to_u32(sizes.label * 0.6),
+            )
+        });
+        if let Some(position) = legend {
+            chart
+                .configure_series_labels()
+                .position(position)
+                .margin(margin)
+                .legend_area_size(swatch_area)
+                .label_font(label_style)
+                .background_style(WHITE.mix(0.8))
+                .border_style(RGBColor(160, 160, 160))
+                .draw()?;
+        }
+        let (xs, ys) = chart.plotting_area().get_pixel_range();
+        Ok(Layout {
+            axes: (xs, ys),
+            units: [(xr.lo, xr.hi), (yl.lo, yl.hi), (yr.lo, yr.hi)],
+            legend: legend_box,
+            margin: to_i32(f64::from(margin)),
+        })
+    }
+
+    /// The usable points of `sr` in plot units, split into runs at unusable ones.
+    fn runs(&self, sr: &Series) -> Vec<Vec<(f64, f64)>> {
+        let mut runs = Vec::new();
+        let mut run = Vec::new();
+        for &(x, y) in &sr.points {
+            if usable(x, y, self.x_log) {
+                run.push((if self.x_log { x.log10() } else { x }, y));
+            } else if !run.is_empty() {
+                runs.push(std::mem::take(&mut run));
             }
         }
-        Ok(c)
+        if !run.is_empty() {
+            runs.push(run);
+        }
+        runs
     }
 
     /// The usable points of the series on one axis (`Some(true)` right, `Some(false)` left) or all.
@@ -293,6 +327,174 @@ impl LinePlot {
             .filter(move |sr| right.is_none_or(|r| sr.right_axis == r))
             .flat_map(|sr| sr.points.iter().copied())
             .filter(|&(x, y)| usable(x, y, self.x_log))
+    }
+}
+
+/// Where a drawn plot's axes and legend fall, in pixels.
+struct Layout {
+    /// The plotting area: x and y pixel ranges.
+    axes: (std::ops::Range<i32>, std::ops::Range<i32>),
+    /// The axes' ranges in plot units: x, left y, right y.
+    units: [(f64, f64); 3],
+    /// The legend box's size, if any series is named.
+    legend: Option<(u32, u32)>,
+    /// The legend's distance from the corner of the axes.
+    margin: i32,
+}
+
+impl Layout {
+    /// The corner of the axes where the legend box hides the least of `plot`'s lines: the fewest points
+    /// inside the box plus segments crossing it (the badness matplotlib's `loc="best"` counts). Ties go to
+    /// the first of upper left, upper right, lower left, lower right. `None` without a legend.
+    fn quietest_corner(&self, plot: &LinePlot) -> Option<SeriesLabelPosition> {
+        let (bw, bh) = self.legend?;
+        let (bw, bh) = (f64::from(bw), f64::from(bh));
+        let (xs, ys) = &self.axes;
+        let (x0, x1) = (f64::from(xs.start), f64::from(xs.end));
+        let (y0, y1) = (f64::from(ys.start), f64::from(ys.end));
+        let m = f64::from(self.margin);
+        let (left, right) = (x0 + m, x1 - m - bw);
+        let (top, bottom) = (y0 + m, y1 - m - bh);
+        let corners = [
+            (SeriesLabelPosition::UpperLeft, left, top),
+            (SeriesLabelPosition::UpperRight, right, top),
+            (SeriesLabelPosition::LowerLeft, left, bottom),
+            (SeriesLabelPosition::LowerRight, right, bottom),
+        ];
+        let along = |v: f64, (lo, hi): (f64, f64)| (v - lo) / (hi - lo);
+        // Every run of every series in pixels.
+        let runs: Vec<Vec<(f64, f64)>> = plot
+            .series
+            .iter()
+            .flat_map(|sr| {
+                let y_units = self.units[if sr.right_axis { 2 } else { 1 }];
+                plot.runs(sr).into_iter().map(move |run| {
+                    run.into_iter()
+                        .map(|(x, y)| {
+                            (
+                                x0 + along(x, self.units[0]) * (x1 - x0),
+                                y1 - along(y, y_units) * (y1 - y0),
+                            )
+                        })
+                        .collect()
+                })
+            })
+            .collect();
+        let badness = |&(_, bx, by): &(SeriesLabelPosition, f64, f64)| {
+            let rect = (bx, by, bx + bw, by + bh);
+            let inside =
+                |p: (f64, f64)| p.0 >= rect.0 && p.0 <= rect.2 && p.1 >= rect.1 && p.1 <= rect.3;
+            runs.iter()
+                .map(|run| {
+                    run.iter().filter(|&&p| inside(p)).count()
+                        + run
+                            .windows(2)
+                            .filter(|w| segment_hits(w[0], w[1], rect))
+                            .count()
+                })
+                .sum::<usize>()
+        };
+        let mut best: Option<(SeriesLabelPosition, usize)> = None;
+        for c in &corners {
+            let n = badness(c);
+            if best.as_ref().is_none_or(|&(_, fewest)| n < fewest) {
+                best = Some((c.0.clone(), n));
+            }
+        }
+        best.map(|(position, _)| position)
+    }
+}
+
+/// Whether the segment a-b meets the rectangle (x0, y0, x1, y1): Liang-Barsky clipping.
+fn segment_hits(a: (f64, f64), b: (f64, f64), (x0, y0, x1, y1): (f64, f64, f64, f64)) -> bool {
+    let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+    let (mut t0, mut t1) = (0.0f64, 1.0f64);
+    for (p, q) in [
+        (-dx, a.0 - x0),
+        (dx, x1 - a.0),
+        (-dy, a.1 - y0),
+        (dy, y1 - a.1),
+    ] {
+        if p == 0.0 {
+            if q < 0.0 {
+                return false;
+            }
+        } else {
+            let t = q / p;
+            if p < 0.0 {
+                t0 = t0.max(t);
+            } else {
+                t1 = t1.min(t);
+            }
+        }
+    }
+    t0 <= t1
+}
+
+/// A lone point: a filled dot a little wider than the lines.
+fn dot(p: (f64, f64), stroke: u32, colour: RGBColor) -> std::iter::Once<Circle<(f64, f64), u32>> {
+    std::iter::once(Circle::new(p, stroke + 1, colour.filled()))
+}
+
+/// One axis for plotters: a linear coordinate in plot units (log10 units on a log axis) whose key points
+/// are exactly our ticks, labelled with our labels, and on a log axis 2..9 x 10^k as light grid lines.
+#[derive(Clone)]
+struct Axis {
+    range: std::ops::Range<f64>,
+    /// (plot units, label).
+    ticks: Vec<(f64, String)>,
+    /// Light grid lines, plot units.
+    light: Vec<f64>,
+}
+
+impl Axis {
+    fn new(range: &Range, ticks: &[(f64, String)], log: bool) -> Self {
+        let at = |v: f64| if log { v.log10() } else { v };
+        Self {
+            range: range.lo..range.hi,
+            ticks: ticks.iter().map(|(v, l)| (at(*v), l.clone())).collect(),
+            light: if log {
+                range
+                    .minor_log_ticks()
+                    .into_iter()
+                    .map(f64::log10)
+                    .collect()
+            } else {
+                Vec::new()
+            },
+        }
+    }
+}
+
+impl Ranged for Axis {
+    type FormatOption = NoDefaultFormatting;
+    type ValueType = f64;
+
+    fn map(&self, value: &f64, limit: (i32, i32)) -> i32 {
+        RangedCoordf64::from(self.range.clone()).map(value, limit)
+    }
+
+    fn key_points<Hint: KeyPointHint>(&self, hint: Hint) -> Vec<f64> {
+        if hint.weight().allow_light_points() {
+            self.light.clone()
+        } else {
+            self.ticks.iter().map(|t| t.0).collect()
+        }
+    }
+
+    fn range(&self) -> std::ops::Range<f64> {
+        self.range.clone()
+    }
+}
+
+impl ValueFormatter<f64> for Axis {
+    /// The label of the tick nearest `value` (plotters asks with the key point's own value).
+    fn format_ext(&self, value: &f64) -> String {
+        self.ticks
+            .iter()
+            .min_by(|a, b| (a.0 - value).abs().total_cmp(&(b.0 - value).abs()))
+            .map(|(_, l)| l.clone())
+            .unwrap_or_default()
     }
 }
 
@@ -331,16 +533,11 @@ impl Range {
         }
     }
 
-    /// Position of `v` along the axis, 0 at `lo` and 1 at `hi`.
-    fn frac(&self, v: f64, log: bool) -> f64 {
-        let v = if log { v.log10() } else { v };
-        (v - self.lo) / (self.hi - self.lo)
-    }
-
     /// Tick values (in data units) and their labels: steps of 1, 2 or 5 x 10^k, about 5 to 10 ticks;
-    /// decades on a log axis that spans at least two.
+    /// decades on a log axis that spans at least 2.5; on a shorter log axis 1, 2, 5 x 10^k (or 1..8 x 10^k)
+    /// when that gives four or more.
     fn ticks(&self, log: bool) -> Vec<(f64, String)> {
-        if log && self.hi - self.lo >= 1.5 {
+        if log && self.hi - self.lo >= 2.5 {
             let step = ((self.hi - self.lo) / 8.0).ceil().max(1.0);
             let mut k = (self.lo / step).ceil() * step;
             let mut out = Vec::new();
@@ -356,6 +553,24 @@ impl Range {
         } else {
             (self.lo, self.hi)
         };
+        if log {
+            for mantissas in [&[1.0, 2.0, 5.0][..], &[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 8.0]] {
+                let mut out = Vec::new();
+                let mut k = self.lo.floor();
+                while k <= self.hi.ceil() && out.len() < 64 {
+                    for m in mantissas {
+                        let v = m * 10f64.powf(k);
+                        if (lo..=hi).contains(&v) {
+                            out.push((v, format_number(v, v)));
+                        }
+                    }
+                    k += 1.0;
+                }
+                if out.len() >= 4 {
+                    return out;
+                }
+            }
+        }
         let raw = (hi - lo) / 6.0;
         let mag = 10f64.powf(raw.log10().floor());
         let step = [1.0, 2.0, 5.0, 10.0]
@@ -410,148 +625,28 @@ fn format_number(v: f64, step: f64) -> String {
             _ => s,
         };
     }
-    let decimals = usize::try_from(to_px(-step.abs().log10().floor()).clamp(0, 6)).unwrap_or(0);
+    let decimals = usize::try_from(to_i32(-step.abs().log10().floor()).clamp(0, 6)).unwrap_or(0);
     format!("{v:.decimals$}")
 }
 
-#[derive(Clone, Copy)]
-struct Rect {
-    x0: i32,
-    y0: i32,
-    x1: i32,
-    y1: i32,
-}
-
-/// An RGB8 picture with the few drawing operations a plot needs.
-struct Canvas {
-    w: i32,
-    h: i32,
-    pixels: Vec<u8>,
-}
-
-impl Canvas {
-    fn new(width: u32, height: u32) -> Self {
-        Self {
-            w: width as i32,
-            h: height as i32,
-            pixels: vec![255; width as usize * height as usize * 3],
-        }
-    }
-
-    /// Blends `color` over pixel (x, y) with coverage `a` in [0, 1].
-    fn blend(&mut self, x: i32, y: i32, color: [u8; 3], a: f64) {
-        if x < 0 || y < 0 || x >= self.w || y >= self.h || a <= 0.0 {
-            return;
-        }
-        let i = (y as usize * self.w as usize + x as usize) * 3;
-        for (k, &c) in color.iter().enumerate() {
-            let old = f64::from(self.pixels[i + k]);
-            self.pixels[i + k] =
-                u8::try_from(to_px(old + (f64::from(c) - old) * a.min(1.0)).clamp(0, 255))
-                    .unwrap_or(255);
-        }
-    }
-
-    fn fill(&mut self, x0: i32, y0: i32, x1: i32, y1: i32, color: [u8; 3]) {
-        for y in y0..=y1 {
-            for x in x0..=x1 {
-                self.blend(x, y, color, 1.0);
-            }
-        }
-    }
-
-    fn hline(&mut self, x0: i32, x1: i32, y: i32, color: [u8; 3]) {
-        self.fill(x0.min(x1), y, x0.max(x1), y, color);
-    }
-
-    fn vline(&mut self, x: i32, y0: i32, y1: i32, color: [u8; 3]) {
-        self.fill(x, y0.min(y1), x, y0.max(y1), color);
-    }
-
-    /// An anti-aliased segment of width `thick` pixels, clipped to `clip`: coverage from the distance of
-    /// each pixel centre to the segment.
-    fn line(&mut self, a: (f64, f64), b: (f64, f64), thick: f64, color: [u8; 3], clip: &Rect) {
-        let r = thick / 2.0;
-        let x0 = to_px((a.0.min(b.0) - r - 1.0).floor().max(f64::from(clip.x0)));
-        let x1 = to_px((a.0.max(b.0) + r + 1.0).ceil().min(f64::from(clip.x1)));
-        let y0 = to_px((a.1.min(b.1) - r - 1.0).floor().max(f64::from(clip.y0)));
-        let y1 = to_px((a.1.max(b.1) + r + 1.0).ceil().min(f64::from(clip.y1)));
-        let (dx, dy) = (b.0 - a.0, b.1 - a.1);
-        let len2 = dx * dx + dy * dy;
-        for y in y0..=y1 {
-            for x in x0..=x1 {
-                let (fx, fy) = (f64::from(x), f64::from(y));
-                let t = if len2 > 0.0 {
-                    (((fx - a.0) * dx + (fy - a.1) * dy) / len2).clamp(0.0, 1.0)
-                } else {
-                    0.0
-                };
-                let (ex, ey) = (a.0 + t * dx - fx, a.1 + t * dy - fy);
-                let d = (ex * ex + ey * ey).sqrt();
-                self.blend(x, y, color, (r + 0.5 - d).clamp(0.0, 1.0));
-            }
-        }
-    }
-
-    /// Left-to-right text with its top-left corner at (x, y), each font pixel `s` x `s`.
-    fn text(&mut self, text: &str, x: i32, y: i32, s: i32, color: [u8; 3]) {
-        for (i, ch) in text.chars().enumerate() {
-            let rows = glyph(ch);
-            let gx = x + to_i32(i) * 6 * s;
-            for (ry, bits) in rows.iter().enumerate() {
-                for cx in 0..5 {
-                    if bits & (0b10000 >> cx) != 0 {
-                        let (px, py) = (gx + cx * s, y + to_i32(ry) * s);
-                        self.fill(px, py, px + s - 1, py + s - 1, color);
-                    }
-                }
-            }
-        }
-    }
-
-    /// Bottom-to-top text (rotated 90 degrees anticlockwise) starting at (x, y_bottom).
-    fn text_up(&mut self, text: &str, x: i32, y_bottom: i32, s: i32, color: [u8; 3]) {
-        for (i, ch) in text.chars().enumerate() {
-            let rows = glyph(ch);
-            let gy = y_bottom - to_i32(i) * 6 * s;
-            for (ry, bits) in rows.iter().enumerate() {
-                for cx in 0..5 {
-                    if bits & (0b10000 >> cx) != 0 {
-                        // Glyph column -> up the page, glyph row -> right.
-                        let (px, py) = (x + to_i32(ry) * s, gy - (cx + 1) * s);
-                        self.fill(px, py, px + s - 1, py + s - 1, color);
-                    }
-                }
-            }
-        }
-    }
-}
-
-/// Rounds a pixel coordinate to the nearest integer (saturating far off the canvas; NaN gives 0).
+/// Rounds a pixel measure to the nearest integer (saturating; NaN gives 0).
 #[expect(
     clippy::cast_possible_truncation,
-    reason = "pixel coordinates: `as` rounds toward zero after `round` and saturates, as wanted"
+    reason = "pixel measures: `as` saturates after `round`, as wanted"
 )]
-fn to_px(v: f64) -> i32 {
+fn to_i32(v: f64) -> i32 {
     v.round() as i32
 }
 
-fn to_i32(n: usize) -> i32 {
-    i32::try_from(n).unwrap_or(i32::MAX)
-}
-
-fn text_width(text: &str, s: i32) -> i32 {
-    let n = to_i32(text.chars().count());
-    if n == 0 {
-        0
-    } else {
-        n * 6 * s - s
-    }
+/// Rounds a non-negative pixel measure to the nearest integer (saturating; negative and NaN give 0).
+fn to_u32(v: f64) -> u32 {
+    u32::try_from(to_i32(v).max(0)).unwrap_or(0)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use plotters::coord::ranged1d::BoldPoints;
 
     fn sample() -> LinePlot {
         let xs: Vec<f64> = (0..50).map(|i| 10f64.powf(f64::from(i) / 10.0)).collect();
@@ -588,7 +683,7 @@ mod tests {
     }
 
     #[test]
-    fn writes_a_decodable_non_blank_png() {
+    fn writes_a_decodable_png_with_lines_and_text() {
         let dir = std::env::temp_dir().join(format!("clipsat-plot-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("plot.png");
@@ -602,12 +697,25 @@ mod tests {
         for c in [[31, 119, 180], [214, 39, 40], [44, 160, 44]] {
             assert!(img.pixels().any(|p| p.0 == c), "colour {c:?} missing");
         }
+        // The title is drawn: dark, anti-aliased text in the top band.
+        let (mut dark, mut grey) = (0, 0);
+        for y in 0..40 {
+            for x in 0..800 {
+                let v = img.get_pixel(x, y).0[0];
+                dark += usize::from(v < 80);
+                grey += usize::from((80..240).contains(&v));
+            }
+        }
+        assert!(
+            dark > 200 && grey > 100,
+            "title: {dark} dark, {grey} grey pixels"
+        );
     }
 
     #[test]
     fn deterministic_and_robust() {
-        let a = sample().render(640, 400).unwrap().pixels;
-        let b = sample().render(640, 400).unwrap().pixels;
+        let a = sample().render(640, 400).unwrap();
+        let b = sample().render(640, 400).unwrap();
         assert!(a == b);
         let empty = LinePlot::default();
         assert!(empty.render(300, 200).is_ok());
@@ -619,6 +727,8 @@ mod tests {
                     (1.0, f64::INFINITY),
                     (2.0, 2.0),
                     (2.0, 2.0),
+                    (f64::NAN, 0.0),
+                    (3.0, 1.0),
                 ],
                 color: [0, 0, 0],
                 right_axis: false,
@@ -639,11 +749,67 @@ mod tests {
         let t = r.ticks(false);
         assert_eq!(t.first().map(|t| t.1.as_str()), Some("0"));
         assert_eq!(t.last().map(|t| t.1.as_str()), Some("10"));
-        for c in "0123456789.-+e%/():,_x=".chars() {
-            assert!(
-                font::FONT.iter().any(|(g, _)| *g == c),
-                "glyph {c:?} missing"
-            );
-        }
+        let log = |lo: f64, hi: f64| {
+            Range {
+                lo: f64::log10(lo),
+                hi: f64::log10(hi),
+            }
+            .ticks(true)
+            .into_iter()
+            .map(|t| t.1)
+            .collect::<Vec<_>>()
+        };
+        assert_eq!(log(0.45, 9.0), ["0.5", "1", "2", "5"]);
+        assert_eq!(log(2.3, 10.5), ["3", "4", "5", "6", "8", "10"]);
+        assert_eq!(log(1.0, 1e4), ["1", "10", "100", "1000", "10000"]);
+        assert_eq!(log(0.3, 15.0), ["0.5", "1", "2", "5", "10"]);
+        let axis = Axis::new(&r, &t, false);
+        assert_eq!(axis.format_ext(&10.0), "10");
+        assert_eq!(axis.key_points(BoldPoints(8)).len(), t.len());
+    }
+
+    #[test]
+    fn segments_meet_rectangles() {
+        let r = (0.0, 0.0, 10.0, 10.0);
+        assert!(segment_hits((-5.0, 5.0), (15.0, 5.0), r));
+        assert!(segment_hits((2.0, 2.0), (3.0, 3.0), r));
+        assert!(!segment_hits((-5.0, -5.0), (-1.0, 20.0), r));
+        assert!(!segment_hits((11.0, 0.0), (20.0, 10.0), r));
+        assert!(segment_hits((-1.0, 5.0), (5.0, -1.0), r));
+    }
+
+    #[test]
+    fn legend_takes_the_quietest_corner() {
+        // Two nearly equal series along the top, one along the bottom (the shape of `bench shading`).
+        let line = |name: &str, y0: f64, color| Series {
+            name: name.into(),
+            points: (0..5)
+                .map(|i| (5.0 + 8.0 * f64::from(i), y0 + 0.001 * f64::from(i).sqrt()))
+                .collect(),
+            color,
+            right_axis: false,
+        };
+        let plot = LinePlot {
+            series: vec![
+                line("diffuse", 0.031, [31, 119, 180]),
+                line("+visibility", 0.053, [255, 127, 14]),
+                line("+specular", 0.0528, [44, 160, 44]),
+            ],
+            ..LinePlot::default()
+        };
+        font().unwrap();
+        let mut pixels = vec![255u8; 960 * 600 * 3];
+        let layout = plot
+            .paint(&mut pixels, 960, 600, &Sizes::of(960, 600), None)
+            .unwrap();
+        let corner = layout.quietest_corner(&plot);
+        assert!(
+            matches!(
+                corner,
+                Some(SeriesLabelPosition::LowerLeft | SeriesLabelPosition::LowerRight)
+            ),
+            "{:?}",
+            corner.map(|c| format!("{c:?}"))
+        );
     }
 }
