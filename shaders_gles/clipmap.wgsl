@@ -19,7 +19,7 @@ struct Globals {
     extent: vec4<f32>,
     // Where each ring holds data (its clip region), finest first; see `data_surface`.
     levels: array<ShadeLevel, 16>,
-    // x: levels in use; y: ring size S; zw: unused.
+    // x: levels in use; y: ring size S; z: n; w: unused.
     level_info: vec4<i32>,
 }
 
@@ -30,6 +30,9 @@ struct ShadeLevel {
     rel: vec4<f32>,
     // xy: texel of the clip region's first sample; zw: the clip region's width and height (0: empty).
     tex: vec4<i32>,
+    // GC 6.2's transition in this level's lattice units: xy the viewer relative to the clip region's
+    // first sample; zw (active width - 1) / 2, (active height - 1) / 2 (-1e9: the level draws nothing).
+    morph: vec4<f32>,
 }
 
 // Mirrors `clipsat::renderer::DrawUniform`; one 256-byte slot per draw, bound with a dynamic offset.
@@ -192,6 +195,39 @@ fn level_fetch(l: i32, p: vec2<i32>) -> f32 {
     return textureLoad(heights, t, l, 0).x;
 }
 
+// Level lv's lattice coordinates of eye-relative rel (lattice x grows east, y south).
+fn level_uv(lv: ShadeLevel, rel: vec2<f32>) -> vec2<f32> {
+    return vec2<f32>(rel.x - lv.rel.x, lv.rel.y - rel.y) / lv.rel.w;
+}
+
+// Whether cell i lies in the level's clip region with a one-sample margin (the central differences).
+fn level_holds(lv: ShadeLevel, i: vec2<i32>) -> bool {
+    return all(i >= vec2<i32>(1)) && all(i <= lv.tex.zw - vec2<i32>(3));
+}
+
+// GC 6.2's alpha of level l at eye-relative rel, as clip_morph_alpha for that level's active region:
+// 0 inside, 1 from its outer edge on (and everywhere for a level that draws nothing).
+fn shade_morph_alpha(l: i32, rel: vec2<f32>) -> f32 {
+    let lv = globals.levels[l];
+    let u = level_uv(lv, rel);
+    let w = f32(globals.level_info.z) / 10.0;
+    let ax = clamp((abs(u.x - lv.morph.x) - (lv.morph.z - w - 1.0)) / w, 0.0, 1.0);
+    let ay = clamp((abs(u.y - lv.morph.y) - (lv.morph.w - w - 1.0)) / w, 0.0, 1.0);
+    return max(ax, ay);
+}
+
+// The finest ring whose clip region holds rel (level_holds), or -1: no texture fetch, a few ALU
+// operations per level. `clipsat::twin::shading::finest_level` is the CPU twin.
+fn finest_level(rel: vec2<f32>) -> i32 {
+    for (var l = 0; l < globals.level_info.x; l = l + 1) {
+        let lv = globals.levels[l];
+        if (level_holds(lv, vec2<i32>(floor(level_uv(lv, rel))))) {
+            return l;
+        }
+    }
+    return -1;
+}
+
 // The data of level l at eye-relative rel: bilinear height and the central-difference gradient at the
 // cell's 4 corners (12 fetches), bilinearly blended; `found` is false unless the level's clip region holds
 // rel with a one-sample margin. `weight` is 1 inside and falls to 0 over the last DATA_BLEND cells before
@@ -201,10 +237,9 @@ fn level_surface(l: i32, rel: vec2<f32>) -> DataSurface {
     out.found = false;
     let lv = globals.levels[l];
     let g = lv.rel.w;
-    // Lattice x grows east, y south.
-    let u = vec2<f32>(rel.x - lv.rel.x, lv.rel.y - rel.y) / g;
+    let u = level_uv(lv, rel);
     let i = vec2<i32>(floor(u));
-    if (any(i < vec2<i32>(1)) || any(i > lv.tex.zw - vec2<i32>(3))) {
+    if (!level_holds(lv, i)) {
         return out;
     }
     let f = u - vec2<f32>(i);
@@ -242,7 +277,7 @@ const DATA_BLEND: f32 = 8.0;
 fn data_surface(rel: vec2<f32>) -> DataSurface {
     var out: DataSurface;
     out.found = false;
-    for (var l = 0; l < globals.level_info.x; l = l + 1) {
+    for (var l = finest_level(rel); l >= 0 && l < globals.level_info.x; l = l + 1) {
         let fine = level_surface(l, rel);
         if (!fine.found) {
             continue;
@@ -296,6 +331,8 @@ struct VsOut {
     @location(2) height: f32,
     // 1 at a skirt's lower edge, 0 on the surface.
     @location(3) skirt: f32,
+    // The level the block is drawn at.
+    @location(4) @interpolate(flat) level: i32,
 }
 
 @vertex
@@ -307,6 +344,7 @@ fn vs_main(@location(0) v: vec4<u32>) -> VsOut {
     out.normal = t.normal;
     out.height = t.height;
     out.skirt = f32(v.z);
+    out.level = draw.origin.z;
     return out;
 }
 
@@ -315,13 +353,23 @@ fn fs_main(v: VsOut) -> @location(0) vec4<f32> {
     if (outside_data(v.rel.xy) || (v.skirt > 0.0 && through_side(v.rel))) {
         discard;
     }
-    // Shade from the data under the pixel; the drawn vertex's values only where no ring holds it.
+    // Shade from the finest data under the pixel. Where the block is drawn at the finest ring holding it
+    // (every block under distance LOD with every level active), the vertex values are that data:
+    // central differences of the same ring, interpolated across the cell as level_surface blends them.
+    // Only a block drawn coarser (SAT LOD, or finer rings not drawn) reads the finest ring here, 12
+    // fetches a pixel, blended into the vertex values over that ring's last DATA_BLEND cells so nothing
+    // jumps where it ends, and faded out over GC 6.2's transition band of that ring's active region, as
+    // its geometry is, so the finer detail never shows past the ring's drawn edge, where it would pop as
+    // the ring moves. Reading the rings at every pixel cost 85 % of a frame on llvmpipe (378 against
+    // 56 CPU ms per frame, Puget Sound at 1280x800).
     var h = v.height;
     var n = v.normal;
-    let d = data_surface(v.rel.xy);
-    if (d.found) {
-        h = d.height;
-        n = d.normal;
+    let fine = finest_level(v.rel.xy);
+    if (fine >= 0 && fine < v.level) {
+        let d = level_surface(fine, v.rel.xy);
+        let w = d.weight * (1.0 - shade_morph_alpha(fine, v.rel.xy));
+        h = mix(h, d.height, w);
+        n = mix(n, d.normal, w);
     }
     let shaded = basic_shade(h, n, length(v.rel), globals.shading);
     // debug_view.wgsl: the level-colour and wireframe views (the normal view returns `shaded`).

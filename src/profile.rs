@@ -145,7 +145,7 @@ impl Footprint {
 }
 
 /// Bytes of the clipmap renderer's global uniform block (view-projection, shading, parameters).
-pub const GLOBALS_BYTES: u64 = 144 + 32 * MAX_LEVELS as u64 + 16;
+pub const GLOBALS_BYTES: u64 = 144 + 48 * MAX_LEVELS as u64 + 16;
 /// Bytes of one per-draw uniform slot: the GLES 3.0 floor's uniform offset alignment.
 pub const DRAW_SLOT_BYTES: u64 = 256;
 

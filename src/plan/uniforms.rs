@@ -27,7 +27,7 @@ pub struct Globals {
     /// Where each ring holds data, for shading from the finest resident data (GC section 6's normal
     /// maps, [`shading_levels`]); levels past `level_info[0]` are unused.
     pub levels: [ShadeLevel; MAX_LEVELS as usize],
-    /// x: levels in use; y: ring size S; zw: unused.
+    /// x: levels in use; y: ring size S; z: the ring's n (GC 6.2's transition width is n / 10); w: unused.
     pub level_info: [i32; 4],
 }
 const _: () = assert!(std::mem::size_of::<Globals>() as u64 == GLOBALS_BYTES);
@@ -43,8 +43,12 @@ pub struct ShadeLevel {
     /// xy: texel of the clip region's first sample (mod S); z, w: the clip region's width and height
     /// (0 when the ring holds nothing).
     pub tex: [i32; 4],
+    /// GC 6.2's transition for the shading, in this level's lattice units: xy the viewer relative to the
+    /// clip region's first sample, zw (active width - 1) / 2 and (active height - 1) / 2 (-1e9 when the
+    /// level draws nothing, so its alpha is 1 everywhere).
+    pub morph: [f32; 4],
 }
-const _: () = assert!(std::mem::size_of::<ShadeLevel>() == 32);
+const _: () = assert!(std::mem::size_of::<ShadeLevel>() == 48);
 
 /// Where each ring of the clipmap's last frame holds valid data (its clip region), relative to the eye:
 /// the fragment shader shades from the finest ring that holds the pixel's position, whatever level the
@@ -81,6 +85,16 @@ pub fn shading_levels(
             reason = "lattice coordinates are below 2^48"
         )]
         let (fx, fy) = (c.x0 as f64, c.y0 as f64);
+        let a = lf.active;
+        #[expect(
+            clippy::cast_precision_loss,
+            reason = "active widths are at most 2048, exact in f32"
+        )]
+        let half = if a.is_empty() {
+            [-1.0e9, -1.0e9]
+        } else {
+            [(a.w as f32 - 1.0) * 0.5, (a.h as f32 - 1.0) * 0.5]
+        };
         *slot = ShadeLevel {
             rel: [
                 ((fx * k - p.0) * g0) as f32,
@@ -94,9 +108,16 @@ pub fn shading_levels(
                 c.w as i32,
                 c.h as i32,
             ],
+            morph: [
+                (p.0 / k - fx) as f32,
+                (p.1 / k - fy) as f32,
+                half[0],
+                half[1],
+            ],
         };
     }
-    (out, [used as i32, size as i32, 0, 0])
+    let n = i32::try_from(clipmap.n()).expect("n <= 511 (profile check)");
+    (out, [used as i32, size as i32, n, 0])
 }
 
 /// One draw's uniforms; mirrors `DrawUniform` in `shaders_gles/clipmap.wgsl`. Lattice values are relative

@@ -1,7 +1,8 @@
 //! CPU twin of `data_surface` in `shaders_gles/clipmap.wgsl` (stage 3's fragment shader, on the CPU):
 //! the height and normal under a pixel from the finest ring that holds it (GC section 6's normal maps
 //! from the clipmap's data), in the shader's f32 arithmetic, so tests can check what any drawn level is
-//! shaded with.
+//! shaded with, and [`fragment_data`]: where and how much `fs_main` shades from the rings rather than from
+//! the drawn vertices.
 
 use crate::plan::clipmap::Clipmap;
 use crate::plan::uniforms::Globals;
@@ -48,6 +49,66 @@ pub fn data_surface(globals: &Globals, clipmap: &Clipmap, rel: [f32; 2]) -> Opti
         return Some(out);
     }
     None
+}
+
+/// The CPU twin of `finest_level`: the finest ring whose clip region holds `rel` with the one-sample margin
+/// of `level_surface`, or `None`. No ring data is read, as the shader fetches none.
+#[expect(
+    clippy::cast_possible_truncation,
+    reason = "lattice coordinates inside a ring, as the shader's i32"
+)]
+pub fn finest_level(globals: &Globals, rel: [f32; 2]) -> Option<u32> {
+    let count = globals.level_info[0].clamp(0, MAX_LEVELS as i32);
+    (0..count).find_map(|l| {
+        let lv = &globals.levels[l as usize];
+        let g = lv.rel[3];
+        let i = [
+            ((rel[0] - lv.rel[0]) / g).floor() as i32,
+            ((lv.rel[1] - rel[1]) / g).floor() as i32,
+        ];
+        let holds = i[0] >= 1 && i[1] >= 1 && i[0] <= lv.tex[2] - 3 && i[1] <= lv.tex[3] - 3;
+        holds.then_some(l.unsigned_abs())
+    })
+}
+
+/// The CPU twin of `shade_morph_alpha`: GC 6.2's alpha of level `l`'s active region at `rel` (0 inside, 1
+/// from its outer edge on, 1 everywhere for a level that draws nothing).
+#[expect(
+    clippy::cast_precision_loss,
+    reason = "n <= 511, exact in f32, as the shader's f32"
+)]
+pub fn shade_morph_alpha(globals: &Globals, l: u32, rel: [f32; 2]) -> f32 {
+    let lv = &globals.levels[l as usize];
+    let g = lv.rel[3];
+    let u = [(rel[0] - lv.rel[0]) / g, (lv.rel[1] - rel[1]) / g];
+    let w = globals.level_info[2] as f32 / 10.0;
+    let m = lv.morph;
+    let ax = (((u[0] - m[0]).abs() - (m[2] - w - 1.0)) / w).clamp(0.0, 1.0);
+    let ay = (((u[1] - m[1]).abs() - (m[3] - w - 1.0)) / w).clamp(0.0, 1.0);
+    ax.max(ay)
+}
+
+/// What `fs_main` shades a pixel of a block drawn at `draw_level` with: `None` where it keeps the drawn
+/// vertex's values (the block is drawn at the finest ring holding the pixel, as under distance LOD), else
+/// the finest ring's data at `rel` and its share `w`: the shader takes `mix(vertex, data, w)`, with `w` the
+/// ring's edge blend times (1 - its GC 6.2 alpha), so the finer detail fades out where that ring's drawn
+/// geometry does.
+pub fn fragment_data(
+    globals: &Globals,
+    clipmap: &Clipmap,
+    rel: [f32; 2],
+    draw_level: u32,
+) -> Option<(DataSurface, f32)> {
+    let fine = finest_level(globals, rel)?;
+    if fine >= draw_level {
+        return None;
+    }
+    #[expect(
+        clippy::cast_possible_wrap,
+        reason = "levels are below MAX_LEVELS = 16"
+    )]
+    let (d, weight) = level_surface(globals, clipmap, fine as i32, rel)?;
+    Some((d, weight * (1.0 - shade_morph_alpha(globals, fine, rel))))
 }
 
 /// `level_surface`: level `l`'s data at `rel` and its blend weight, or `None` outside its clip region's

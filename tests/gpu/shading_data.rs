@@ -216,3 +216,53 @@ fn no_curtains_below_the_data_border() {
         );
     }
 }
+
+/// `fs_main` reads the rings only for blocks drawn coarser than the finest ring under the pixel
+/// (`twin::shading::fragment_data`), and fades that data out over the ring's GC 6.2 transition band:
+/// `finest_level` picks the same ring as `data_surface`, inside the ring's active interior the data counts
+/// fully, and past its drawn edge not at all.
+#[test]
+#[expect(
+    clippy::cast_possible_truncation,
+    reason = "eye-relative metres as the shader's f32"
+)]
+fn fragment_reads_the_rings_only_under_coarser_blocks() {
+    use clipsat::twin::shading::{finest_level, fragment_data, shade_morph_alpha};
+    let hm = relief();
+    let p = profile("gles3-mid", 320, 180, None);
+    let eye = DVec3::new(7000.0, 6000.0, 1500.0);
+    let cm = filled(&hm, &p, eye);
+    let cam = Camera::new(eye, DVec3::new(9000.0, 9000.0, 0.0), 60.0).expect("camera");
+    let mut globals = Globals::zeroed();
+    (globals.levels, globals.level_info) = shading_levels(&cm, &cam, cm.ring(0).size());
+    let (mut full, mut faded) = (0, 0);
+    for v in (2..hm.height() - 2).step_by(5) {
+        for u in (2..hm.width() - 2).step_by(5) {
+            let (x, y) = hm.grid_to_world(f64::from(u), f64::from(v));
+            let rel = [(x - eye.x) as f32, (y - eye.y) as f32];
+            let d = data_surface(&globals, &cm, rel).expect("a ring holds every data sample");
+            let fine = finest_level(&globals, rel).expect("the same ring holds it");
+            assert_eq!(
+                fine, d.level,
+                "finest_level and data_surface disagree at ({u}, {v})"
+            );
+            assert_eq!(fragment_data(&globals, &cm, rel, fine), None);
+            let (data, w) =
+                fragment_data(&globals, &cm, rel, fine + 1).expect("a coarser block reads");
+            assert_eq!(data.level, fine);
+            assert!((0.0..=1.0).contains(&w), "share {w}");
+            let alpha = shade_morph_alpha(&globals, fine, rel);
+            if alpha == 0.0 && d.weight == 1.0 {
+                assert_eq!(w, 1.0);
+                full += 1;
+            } else if alpha == 1.0 {
+                assert_eq!(w, 0.0);
+                faded += 1;
+            }
+        }
+    }
+    assert!(
+        full > 0 && faded > 0,
+        "{full} points read fully, {faded} faded out"
+    );
+}
