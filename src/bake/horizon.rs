@@ -13,8 +13,12 @@ use glam::{DVec3, Vec3};
 use crate::bake::sat::Sat;
 use crate::{Error, Heightmap, Result};
 
-/// Default number of baked azimuths D.
-pub const DEFAULT_AZIMUTHS: u32 = 8;
+/// Default number of baked azimuths D: 16, the shader's most. The horizon between baked azimuths is
+/// linear, and a low sun's shadows follow the horizon at its exact azimuth: on Aletsch at 640 x 360
+/// (`clipsat render --profile desktop --terrain ../shared/data/aletsch_200m.tif --size 640x360
+/// --shading sg --scene evening --reference --json`) the RMSE against the CPU reference is 0.0208 with
+/// D = 8 and 0.0124 with D = 16 (0.0120 without visibility): D = 8 was most of the evening error.
+pub const DEFAULT_AZIMUTHS: u32 = 16;
 /// Most azimuths a bake may hold (the shader's fixed-size array).
 pub const MAX_AZIMUTHS: u32 = 16;
 /// Default march distance, in samples: far enough for the soft shadows of ridges a few hundred samples
