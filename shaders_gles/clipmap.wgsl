@@ -60,14 +60,23 @@ struct DrawUniform {
     fine_origin: vec4<i32>,
     // xyz: world position of the fine anchor at height 0 minus the eye (m); w: the fine spacing (m).
     fine_rel: vec4<f32>,
+    // Detail pool draws (`clipsat::detail`): x: slot + 1 (0: the ring); y: samples per tile side; zw:
+    // unused. A pool draw is anchored at its tile's first sample, so lattice points are the tile's texels.
+    pool: vec4<i32>,
 }
 
 @group(0) @binding(0) var<uniform> globals: Globals;
 @group(0) @binding(1) var heights: texture_2d_array<f32>;
+@group(0) @binding(2) var detail: texture_2d_array<f32>;
 @group(1) @binding(0) var<uniform> draw: DrawUniform;
 
-// (z, z_c) at anchor-relative lattice point p (p >= 0 inside the active region).
+// (z, z_c) at anchor-relative lattice point p (p >= 0 inside the active region); a pool draw's z from its
+// tile (pool draws never morph: z_c = z).
 fn clip_fetch(p: vec2<i32>) -> vec2<f32> {
+    if (draw.pool.x > 0) {
+        let z = textureLoad(detail, p, draw.pool.x - 1, 0).x;
+        return vec2<f32>(z, z);
+    }
     let t = (draw.tex.xy + p) % vec2<i32>(draw.origin.w);
     return textureLoad(heights, t, draw.origin.z, 0).xy;
 }

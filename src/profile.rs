@@ -62,6 +62,14 @@ pub struct FrameBudget {
     /// Bytes of CPU memory the terrain may take at runtime, whatever its size: the CPU copy of the rings
     /// plus the package tile cache, which gets the rest ([`Profile::cpu_split`]).
     pub cpu_memory_bytes: u64,
+    /// Height tiles in the detail pool (issue 15): finer data for the SAT LOD blocks whose wanted level
+    /// the rings do not hold there; 0: no pool. At most [`MAX_DETAIL_TILES`].
+    #[serde(default)]
+    pub detail_tiles: u32,
+    /// Quads per detail tile side: a power of two up to the block side m (0: m). A tile holds
+    /// quads + 1 samples per side plus a one-sample border (for normals): [`Profile::detail_side`].
+    #[serde(default)]
+    pub detail_tile_quads: u32,
 }
 
 /// How a profile's `budget.cpu_memory_bytes` is split.
@@ -132,6 +140,9 @@ pub struct Footprint {
     pub targets: u64,
     /// Uniform buffers: the globals plus one 256-byte slot per draw (`budget.max_draws`).
     pub uniforms: u64,
+    /// The detail pool: one R32F 2D array texture, [`Profile::detail_side`]^2 x
+    /// [`Profile::detail_layers`].
+    pub detail: u64,
 }
 
 impl Footprint {
@@ -141,6 +152,7 @@ impl Footprint {
             .saturating_add(self.meshes)
             .saturating_add(self.targets)
             .saturating_add(self.uniforms)
+            .saturating_add(self.detail)
     }
 }
 
@@ -153,6 +165,8 @@ pub const DRAW_SLOT_BYTES: u64 = 256;
 pub const MAX_TEXTURE_SIDE: u32 = 2048;
 /// Most array layers on the GLES 3.0 floor.
 pub const MAX_TEXTURE_LAYERS: u32 = 256;
+/// Most detail pool tiles a profile may ask for (one array layer each, plus the GL backend's spare layer).
+pub const MAX_DETAIL_TILES: u32 = MAX_TEXTURE_LAYERS - 1;
 /// Most rings a profile may ask for (g_L = g_0 2^L must stay exact in f32).
 pub const MAX_LEVELS: u32 = 16;
 /// Most draws any profile may ask for (`budget.max_draws` is checked against it at start-up; the plan's
@@ -258,6 +272,28 @@ impl Profile {
         }
         if b.max_triangles == 0 {
             return bad("budget.max_triangles", "must be positive".into());
+        }
+        if b.detail_tiles > MAX_DETAIL_TILES {
+            return bad(
+                "budget.detail_tiles",
+                format!(
+                    "{} is not in 0..={MAX_DETAIL_TILES} (one GLES 3.0 array layer per tile)",
+                    b.detail_tiles
+                ),
+            );
+        }
+        let m = self.block_m();
+        if b.detail_tile_quads != 0
+            && (!b.detail_tile_quads.is_power_of_two() || b.detail_tile_quads > m)
+        {
+            return bad(
+                "budget.detail_tile_quads",
+                format!(
+                    "{} is not 0 or a power of two up to the block side m = {m} (a tile is drawn with \
+                     the block mesh)",
+                    b.detail_tile_quads
+                ),
+            );
         }
         let v = &self.view;
         if !(v.epsilon_px.is_finite() && v.epsilon_px > 0.0) {
@@ -371,6 +407,30 @@ impl Profile {
         }
     }
 
+    /// Quads per detail tile side ([`FrameBudget::detail_tile_quads`], 0 meaning the block side m).
+    pub fn detail_quads(&self) -> u32 {
+        match self.budget.detail_tile_quads {
+            0 => self.block_m(),
+            q => q,
+        }
+    }
+
+    /// Samples per detail tile side: quads + 1 plus a one-sample border on each side.
+    pub fn detail_side(&self) -> u32 {
+        self.detail_quads().saturating_add(3)
+    }
+
+    /// Layers of the detail pool texture: the tile count (at least 1), with the same GL spare layer as
+    /// [`Profile::height_layers`].
+    pub fn detail_layers(&self) -> u32 {
+        let l = self.budget.detail_tiles.max(1);
+        if l == 1 || l.is_multiple_of(6) {
+            l.saturating_add(1)
+        } else {
+            l
+        }
+    }
+
     /// The GPU memory this profile needs; see [`Footprint`] for what each part holds.
     ///
     /// Exact for a validated profile; saturating (never wrapping) for any other.
@@ -394,6 +454,10 @@ impl Profile {
                 .saturating_add(padded_row.saturating_mul(h)),
             uniforms: GLOBALS_BYTES
                 .saturating_add(u64::from(self.budget.max_draws) * DRAW_SLOT_BYTES),
+            detail: u64::from(self.detail_side())
+                .saturating_mul(u64::from(self.detail_side()))
+                .saturating_mul(u64::from(self.detail_layers()))
+                .saturating_mul(4),
         }
     }
 }

@@ -98,6 +98,12 @@ pub struct FrameStats {
     pub blocks_clamped: u32,
     /// Wall time of [`Planner::plan`] (LOD selection, culling, uniforms), nanoseconds.
     pub plan_ns: u64,
+    /// SAT modes: blocks drawn from the detail pool.
+    pub blocks_from_pool: u32,
+    /// Detail pool slots holding a tile.
+    pub detail_tiles_resident: u32,
+    /// Detail pool samples the plan wrote (charged to the update budget after the rings).
+    pub detail_samples_updated: u64,
 }
 
 /// The tables [`Shading::Sg`] needs for `scene` over `hm`, through the disk cache
@@ -373,7 +379,27 @@ impl<'g> Offscreen<'g> {
             full_upload: up.full_upload,
             blocks_clamped: p.blocks_clamped,
             plan_ns,
+            blocks_from_pool: p.blocks_from_pool,
+            detail_tiles_resident: p.detail_tiles_resident,
+            detail_samples_updated: p.detail_samples_updated,
         })
+    }
+
+    /// Plans `clipmap`'s last frame and uploads it without drawing: what a caller runs to let the detail
+    /// pool fill (e.g. `clipsat render` at a still camera). Returns the plan's detail tiles written.
+    pub fn prepare_only(
+        &mut self,
+        clipmap: &Clipmap,
+        camera: &Camera,
+        opts: &FrameOptions,
+    ) -> Result<u32> {
+        self.planner
+            .plan(clipmap, camera, &opts.plan_params(), &mut self.plan)?;
+        let gpu = self.gpu;
+        gpu.scoped("clipmap prepare", || {
+            self.renderer.prepare(gpu.queue(), clipmap, &self.plan)
+        })?;
+        Ok(self.plan.stats().detail_uploads)
     }
 
     /// Reads the colour target back (into the preallocated buffer) as a tight RGBA8 image.

@@ -44,6 +44,8 @@ pub struct Draw {
     pub quads: u32,
     /// SAT LOD: the block's wanted level was finer than any held data covering it (the selection clamped).
     pub clamped: bool,
+    /// The detail pool slot the heights come from ([`crate::plan::detail`]); None: the level's ring.
+    pub pool: Option<u16>,
 }
 
 impl Draw {
@@ -316,6 +318,7 @@ pub fn build_draws(
                         fine: level,
                         quads: params.block_quads,
                         clamped: false,
+                        pool: None,
                     };
                     let visible = !params.cull || {
                         let c = d.covered(params.block_quads);
@@ -346,6 +349,7 @@ pub fn build_draws(
                     fine: level,
                     quads: 0,
                     clamped: false,
+                    pool: None,
                 },
             )?;
             stats.skirts += 1;
@@ -440,13 +444,15 @@ fn piece_level(frame: &crate::plan::frame::Frame, ring: u32, selected: u32, p: &
 /// like [`build_draws`]'s. Skirts (the smallest tile skirt loop that spans the tile, culled with it): around
 /// each tile of a block that is drawn at another level than its ring, is edge-adjacent to such a block of the
 /// same ring, or lies on its ring's outer or hole boundary, so every boundary between different levels has a
-/// skirt on both sides. More than
+/// skirt on both sides. Blocks listed in `skip` (drawn from the detail pool, [`crate::plan::detail`]) are
+/// left out but still count as drawn at their level for their neighbours' skirts. More than
 /// `params.max_draws` draws is an [`Error::Capacity`].
 pub fn build_lod_draws(
     clipmap: &Clipmap,
     camera: &Camera,
     params: &DrawParams,
     lod: &crate::plan::lod::LodFrame,
+    skip: &[(u16, u32)],
     out: &mut DrawList,
 ) -> Result<DrawStats> {
     out.clear();
@@ -468,7 +474,10 @@ pub fn build_lod_draws(
     // differs from its ring exactly when its level does.
     let differs = |b: &crate::plan::lod::BlockLod| b.level != b.ring;
     let blocks = &lod.blocks;
-    for b in blocks.iter() {
+    for (bi, b) in blocks.iter().enumerate() {
+        if skip.iter().any(|&(i, _)| usize::from(i) == bi) {
+            continue;
+        }
         let (cx, cy) = cell(&b.rect);
         // A block on its ring's outer boundary or on the hole borders another ring, drawn at another level.
         let a = frame.levels[b.ring as usize].active;
@@ -536,6 +545,7 @@ pub fn build_lod_draws(
                         fine,
                         quads: tile.w.max(tile.h) - 1,
                         clamped: b.wanted < b.level,
+                        pool: None,
                     };
                     let visible = !params.cull || {
                         // Every vertex is a point of the level's surface over the tile's cells.

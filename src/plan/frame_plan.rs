@@ -15,10 +15,11 @@ use bytemuck::Zeroable;
 use crate::hash::Hash64;
 use crate::plan::clipmap::Clipmap;
 use crate::plan::cull::{self, DrawKind, DrawList, DrawParams, DrawStats, MAX_DRAWS};
+use crate::plan::detail::{DetailBudget, DetailFrame, DetailPool, DetailView};
 use crate::plan::lod::{Lod, LodFrame, LodMode};
 use crate::plan::mesh;
 use crate::plan::uniforms::{
-    data_extent_rel, draw_uniform, lod_draw_uniform, shading_levels, to_f32x4, DrawUniform, Globals,
+    data_extent_rel, detail_draw_uniform, draw_uniform, lod_draw_uniform, shading_levels, to_f32x4, DrawUniform, Globals,
 };
 use crate::plan::uploads::UploadList;
 use crate::profile::DRAW_SLOT_BYTES;
@@ -111,8 +112,17 @@ pub struct PlanStats {
     pub uploads: u32,
     /// Texels (samples) they cover.
     pub upload_samples: u64,
-    /// SAT modes: blocks whose wanted level is finer than the held data; 0 in distance mode.
+    /// SAT modes: blocks whose wanted level is finer than the held data, rings and detail pool; 0 in
+    /// distance mode.
     pub blocks_clamped: u32,
+    /// SAT modes: blocks drawn from the detail pool at their wanted level.
+    pub blocks_from_pool: u32,
+    /// Detail pool slots holding a tile after this plan.
+    pub detail_tiles_resident: u32,
+    /// Detail tiles written this plan.
+    pub detail_uploads: u32,
+    /// Samples they hold (charged to the same per-frame budget as the rings, after them).
+    pub detail_samples_updated: u64,
 }
 
 /// One frame's plan; see the module doc. Allocated once by [`Planner::new_plan`], refilled per frame.
@@ -122,6 +132,7 @@ pub struct FramePlan {
     since: Option<u64>,
     uploads: UploadList,
     lod: Box<LodFrame>,
+    detail: Box<DetailFrame>,
     draws: Box<DrawList>,
     ranges: Box<heapless::Vec<PlannedDraw, MAX_DRAWS>>,
     slots: Vec<u8>,
@@ -149,6 +160,11 @@ impl FramePlan {
     /// The SAT LOD level of every block (empty in distance mode).
     pub fn lod_frame(&self) -> &LodFrame {
         &self.lod
+    }
+
+    /// The detail pool part: tiles to write, what every slot holds, the blocks it serves.
+    pub fn detail(&self) -> &DetailFrame {
+        &self.detail
     }
 
     /// The draw list, finest level first.
@@ -198,6 +214,7 @@ impl FramePlan {
             }
         }
         self.lod.hash_into(&mut h);
+        self.detail.hash_into(&mut h);
         h.write_u64(self.ranges.len() as u64);
         for d in self.ranges.iter() {
             h.write_u32(d.kind as u32);
@@ -229,6 +246,11 @@ pub struct Planner {
     probe_size: [u32; 2],
     /// The clipmap frame of the last plan.
     last: Option<u64>,
+    /// The detail pool's CPU state (SAT modes).
+    pool: DetailPool,
+    /// The terrain's height range (m).
+    z_range: (f32, f32),
+    update_budget: u32,
 }
 
 impl Planner {
@@ -292,6 +314,9 @@ impl Planner {
             shading: BasicShading::for_terrain((lo, hi), diagonal, clipmap.data_mean_slope()),
             probe_size: [PROBE_WIDTH, probe_rows],
             last: None,
+            pool: DetailPool::new(profile),
+            z_range: (lo, hi),
+            update_budget: profile.budget.update_samples_per_frame,
         })
     }
 
@@ -304,6 +329,7 @@ impl Planner {
             since: None,
             uploads: UploadList::new(),
             lod: LodFrame::new_boxed(),
+            detail: Box::default(),
             draws,
             ranges: Box::default(),
             slots: vec![0; self.max_draws as usize * SLOT],
@@ -339,6 +365,12 @@ impl Planner {
     /// Forgets the previous plan: the next one uploads everything ever written (a new renderer).
     pub fn restart(&mut self) {
         self.last = None;
+        self.pool.restart();
+    }
+
+    /// The detail pool's CPU state.
+    pub fn detail_pool(&self) -> &DetailPool {
+        &self.pool
     }
 
     /// The part of its mesh's index buffer draw `d` draws.
@@ -348,6 +380,135 @@ impl Planner {
             DrawKind::Skirt => 0..self.skirt_indices,
             DrawKind::TileSkirt => mesh::skirt_loop_range(self.block_quads, d.quads),
         }
+    }
+
+    /// Triangles of a draw list.
+    fn triangles(&self, draws: &DrawList) -> u64 {
+        draws
+            .iter()
+            .map(|d| {
+                let r = self.index_range(d);
+                u64::from((r.end - r.start) / 3)
+            })
+            .sum()
+    }
+
+    /// The detail pool's part of a SAT plan (issue 15), after the clamped draw list `out.draws` is built:
+    /// plans the pool under what the rings left of the sample budget and what the clamped list left of
+    /// the draw and triangle budgets, then rebuilds the draw list with the served blocks from the pool,
+    /// dropping the least-needed served block until it fits. None: nothing served, the list stands.
+    fn plan_detail(
+        &mut self,
+        clipmap: &Clipmap,
+        camera: &Camera,
+        dp: &DrawParams,
+        new_frame: bool,
+        out: &mut FramePlan,
+    ) -> Result<Option<DrawStats>> {
+        let frame = clipmap.frame();
+        let frustum = cull::Frustum::new(camera, self.aspect);
+        let view = DetailView {
+            frame,
+            frustum: &frustum,
+            eye_l: clipmap.eye_lattice(camera.eye),
+            eye_z: camera.eye.z,
+            g0: clipmap.g0(),
+            z_range: self.z_range,
+            data_lattice: self.data_lattice,
+        };
+        let base_draws = u32::try_from(out.draws.len()).expect("draws <= MAX_DRAWS");
+        let base_triangles = self.triangles(&out.draws);
+        let q = self.pool.quads();
+        let block = DrawKind::Block;
+        let tile = cull::Draw {
+            level: 0,
+            kind: block,
+            origin: [0, 0],
+            bounds: crate::plan::frame::Rect::EMPTY,
+            fine: 0,
+            quads: q,
+            clamped: false,
+            pool: None,
+        };
+        let skirt = cull::Draw {
+            kind: DrawKind::TileSkirt,
+            ..tile
+        };
+        let skirt_tris = self.triangles_of(&skirt);
+        let (tile_draws, tile_triangles) = if dp.skirts {
+            (2, self.triangles_of(&tile) + skirt_tris)
+        } else {
+            (1, self.triangles_of(&tile))
+        };
+        // The rings' fill (and a package's decoding) comes first: the pool gets what is left.
+        let spent = u64::from(frame.samples_updated) + u64::from(clipmap.decoded_samples());
+        let budget = DetailBudget {
+            samples: u64::from(self.update_budget).saturating_sub(spent),
+            draws: self.max_draws.saturating_sub(base_draws),
+            triangles: u64::from(self.max_triangles).saturating_sub(base_triangles),
+            tile_draws,
+            tile_triangles,
+            // A neighbour drawn at its ring gains up to one skirt per piece.
+            margin: (4, 4 * u64::from(self.triangles_of(&cull::Draw {
+                quads: self.block_quads,
+                ..skirt
+            }))),
+        };
+        let epsilon = self.lod().map_or(self.default_epsilon, crate::plan::lod::Lod::epsilon_px);
+        self.pool.plan(
+            clipmap,
+            &view,
+            &mut out.lod,
+            epsilon,
+            new_frame,
+            &budget,
+            &mut out.detail,
+        )?;
+        if out.detail.served.is_empty() {
+            return Ok(None);
+        }
+        let cap = (self.max_draws as usize).min(MAX_DRAWS);
+        loop {
+            let built = cull::build_lod_draws(
+                clipmap,
+                camera,
+                dp,
+                &out.lod,
+                &out.detail.served,
+                &mut out.draws,
+            )
+            .and_then(|mut stats| {
+                let pool = self.pool.push_draws(
+                    &view,
+                    &out.lod,
+                    &out.detail,
+                    dp.skirts,
+                    cap,
+                    &mut out.draws,
+                )?;
+                stats.blocks += pool;
+                stats.skirts += if dp.skirts { pool } else { 0 };
+                Ok(stats)
+            });
+            let fits = match &built {
+                Ok(_) => self.triangles(&out.draws) <= u64::from(self.max_triangles),
+                Err(Error::Capacity { .. }) => false,
+                Err(_) => true,
+            };
+            if fits {
+                return built.map(Some);
+            }
+            if !DetailPool::unserve_last(&mut out.lod, &mut out.detail) {
+                // Nothing left to drop: the clamped list alone (it fit before).
+                return cull::build_lod_draws(clipmap, camera, dp, &out.lod, &[], &mut out.draws)
+                    .map(Some);
+            }
+        }
+    }
+
+    fn triangles_of(&self, d: &cull::Draw) -> u64 {
+        let r = self.index_range(d);
+        u64::from((r.end - r.start) / 3)
     }
 
     /// Plans `clipmap`'s last frame seen from `camera` into `out` (refilled; allocation-free). The
@@ -361,12 +522,13 @@ impl Planner {
     ) -> Result<()> {
         let frame = clipmap.frame();
         out.frame_index = Some(frame.index);
-        if self.last == Some(frame.index) {
-            // The same clipmap frame again: the GPU already holds its rectangles.
-            out.uploads.clear();
+        let new_frame = self.last != Some(frame.index);
+        if new_frame {
+            clipmap.upload_stamps().since(self.last, &mut out.uploads)?;
             out.since = self.last;
         } else {
-            clipmap.upload_stamps().since(self.last, &mut out.uploads)?;
+            // The same clipmap frame again: the GPU already holds its rectangles.
+            out.uploads.clear();
             out.since = self.last;
         }
         let extent = data_extent_rel(clipmap, camera, self.data_lattice);
@@ -378,26 +540,38 @@ impl Planner {
             aspect: self.aspect,
             extent,
         };
-        let mut blocks_clamped = 0;
         out.lod.blocks.clear();
+        out.detail.served.clear();
         let sat = match &mut self.lod {
             LodSetup::Sat(mode, lod) => {
                 lod.set_epsilon_px(params.epsilon_px.map_or(self.default_epsilon, f64::from));
                 lod.select(frame, camera, *mode, &mut out.lod)?;
-                blocks_clamped = out.lod.blocks_clamped;
                 true
             }
             LodSetup::Distance => false,
         };
         let cull = if sat {
-            cull::build_lod_draws(clipmap, camera, &dp, &out.lod, &mut out.draws)?
+            let base = cull::build_lod_draws(clipmap, camera, &dp, &out.lod, &[], &mut out.draws)?;
+            self.plan_detail(clipmap, camera, &dp, new_frame, out)?
+                .unwrap_or(base)
         } else {
+            out.detail.uploads.clear();
+            out.detail.samples_updated = 0;
             cull::build_draws(clipmap, camera, &dp, &mut out.draws)?
         };
+        let blocks_clamped = if sat { out.lod.blocks_clamped } else { 0 };
         out.ranges.clear();
         let mut triangles = 0u64;
         for (k, d) in out.draws.iter().enumerate() {
-            let u = if sat {
+            let u = if let Some(slot) = d.pool {
+                let key = crate::plan::detail::TileKey {
+                    level: d.level,
+                    cx: d.origin[0] / i64::from(self.pool.quads()),
+                    cy: d.origin[1] / i64::from(self.pool.quads()),
+                };
+                let first = key.first_sample(self.pool.quads());
+                detail_draw_uniform(clipmap, camera, d, slot, first, self.pool.side(), self.n)
+            } else if sat {
                 lod_draw_uniform(clipmap, camera, d, self.n, self.size)
             } else {
                 draw_uniform(clipmap, camera, d, self.n, self.size)
@@ -452,6 +626,12 @@ impl Planner {
                 .map(|u| u64::from(u.w) * u64::from(u.h))
                 .sum(),
             blocks_clamped,
+            blocks_from_pool: u32::try_from(out.detail.served.len())
+                .expect("served <= MAX_LOD_BLOCKS"),
+            detail_tiles_resident: out.detail.tiles_resident(),
+            detail_uploads: u32::try_from(out.detail.uploads.len())
+                .expect("uploads <= DETAIL_CAPACITY"),
+            detail_samples_updated: out.detail.samples_updated,
         };
         out.hash = out.compute_hash();
         self.last = Some(frame.index);

@@ -7,6 +7,7 @@
 //!   (GC sections 3-5 and 8), recorded in a [`frame::Frame`] with its hash;
 //! - [`lod`]: SAT LOD block selection over the tables of [`crate::bake::lod_tables`];
 //! - [`cull`]: frustum culling into the fixed-capacity draw list;
+//! - [`detail`]: the detail pool, finer tiles for the blocks SAT LOD wants finer than the rings hold;
 //! - [`uniforms`]: the packed `#[repr(C)]` uniforms each draw needs;
 //! - [`uploads`]: which ring rectangles the GPU copy still lacks (the union over skipped frames);
 //! - [`frame_plan`]: all of the above for one frame as a value, the [`frame_plan::FramePlan`] the GPU
@@ -18,6 +19,7 @@ pub mod camera;
 pub mod clipmap;
 pub mod constraints;
 pub mod cull;
+pub mod detail;
 pub mod flight;
 pub mod frame;
 pub mod frame_plan;

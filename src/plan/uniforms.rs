@@ -148,8 +148,10 @@ pub struct DrawUniform {
     pub fine_origin: [i32; 4],
     /// xyz: world position of the fine anchor at height 0 minus the eye (m); w: fine spacing (m).
     pub fine_rel: [f32; 4],
+    /// x: detail pool slot + 1 (0: the heights come from the ring); y: samples per tile side; zw: unused.
+    pub pool: [i32; 4],
 }
-const _: () = assert!(std::mem::size_of::<DrawUniform>() == 176);
+const _: () = assert!(std::mem::size_of::<DrawUniform>() == 192);
 
 impl DrawUniform {
     /// Fills the fine fields for a draw that is not snapped: the fine level is the draw's own.
@@ -291,6 +293,59 @@ pub fn lod_draw_uniform(
         (g0 * kf) as f32,
     ];
     u
+}
+
+/// The uniforms of detail-pool draw `d` (issue 15; [`crate::plan::detail`]): anchored at the first held
+/// sample of its tile (`first`, level units), so lattice offsets are the tile's texels; the region for
+/// one-sided normals is the whole tile (its border included), no morph, no snapping.
+#[expect(
+    clippy::cast_possible_truncation,
+    clippy::cast_possible_wrap,
+    reason = "tile-relative lattice offsets are below the tile side; f64 -> f32 after subtracting the eye \
+              is the intended GPU precision"
+)]
+pub fn detail_draw_uniform(
+    clipmap: &Clipmap,
+    camera: &Camera,
+    d: &cull::Draw,
+    slot: u16,
+    first: (i64, i64),
+    side: u32,
+    n: u32,
+) -> DrawUniform {
+    let (ax, ay) = first;
+    let rel = |v: i64, o: i64| (v - o) as i32;
+    let k = f64::from(1u32 << d.level);
+    let p = clipmap.eye_lattice(camera.eye);
+    let g0 = clipmap.g0();
+    #[expect(
+        clippy::cast_precision_loss,
+        reason = "lattice coordinates are below 2^48"
+    )]
+    let (fx, fy) = (ax as f64, ay as f64);
+    let last = side as i32 - 1;
+    DrawUniform {
+        origin: [rel(d.origin[0], ax), rel(d.origin[1], ay), d.level as i32, 0],
+        bounds: [
+            rel(d.bounds.x0, ax),
+            rel(d.bounds.y0, ay),
+            rel(d.bounds.x1() - 1, ax),
+            rel(d.bounds.y1() - 1, ay),
+        ],
+        active: [0, 0, last, last],
+        anchor_rel: [
+            ((fx * k - p.0) * g0) as f32,
+            (-(fy * k - p.1) * g0) as f32,
+            (-camera.eye.z) as f32,
+            (g0 * k) as f32,
+        ],
+        // alpha = 0 everywhere: the transition band starts past any lattice point.
+        morph: [0.0, 0.0, 1.0e9, 1.0e9],
+        morph_w: [n as f32 / 10.0, n as f32, 0.0, 0.0],
+        pool: [i32::from(slot) + 1, side as i32, 0, 0],
+        ..DrawUniform::default()
+    }
+    .unsnapped()
 }
 
 /// The data's horizontal extent relative to the eye (m), for [`Globals::extent`]: lattice x grows east and

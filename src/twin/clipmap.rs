@@ -24,11 +24,39 @@ pub struct CpuVertex {
 
 /// The CPU twin of `clip_vertex` + `vs_main` in `shaders_gles/clipmap.wgsl`, in f32, with the CPU's
 /// [`morph_alpha`] evaluated in the same anchor-relative coordinates, `ring` the draw's level's ring.
+pub fn cpu_vertex(globals: &Globals, u: &DrawUniform, ring: &Ring, v: MeshVertex) -> CpuVertex {
+    let s = u.origin[3];
+    let fetch = |x: i32, y: i32| {
+        let tx = (u.tex[0] + x) % s;
+        let ty = (u.tex[1] + y) % s;
+        ring.texels()[(ty * s + tx) as usize]
+    };
+    vertex_with(globals, u, &fetch, v)
+}
+
+/// [`cpu_vertex`] for a detail pool draw (`u.pool[0] > 0`, issue 15): the heights come from its tile,
+/// `tile` its `side x side` samples as [`crate::plan::detail::fill_tile`] writes them, as `clip_fetch`
+/// reads the pool layer (z_c = z).
+pub fn cpu_detail_vertex(globals: &Globals, u: &DrawUniform, tile: &[f32], v: MeshVertex) -> CpuVertex {
+    let side = u.pool[1];
+    let fetch = |x: i32, y: i32| {
+        let z = tile[(y * side + x) as usize];
+        [z, z]
+    };
+    vertex_with(globals, u, &fetch, v)
+}
+
+/// `clip_vertex` + `vs_main` with heights from `fetch` (anchor-relative lattice point to (z, z_c)).
 #[expect(
     clippy::cast_precision_loss,
     reason = "anchor-relative lattice offsets are small integers, exact in f32"
 )]
-pub fn cpu_vertex(globals: &Globals, u: &DrawUniform, ring: &Ring, v: MeshVertex) -> CpuVertex {
+fn vertex_with(
+    globals: &Globals,
+    u: &DrawUniform,
+    fetch: &dyn Fn(i32, i32) -> [f32; 2],
+    v: MeshVertex,
+) -> CpuVertex {
     let sn = u.fine[1];
     let qx = (u.fine_origin[0] + (u.origin[0] + i32::from(v[0])) * sn)
         .clamp(u.fine_bounds[0], u.fine_bounds[2])
@@ -36,15 +64,9 @@ pub fn cpu_vertex(globals: &Globals, u: &DrawUniform, ring: &Ring, v: MeshVertex
     let qy = (u.fine_origin[1] + (u.origin[1] + i32::from(v[1])) * sn)
         .clamp(u.fine_bounds[1], u.fine_bounds[3])
         - u.fine_origin[1];
-    let s = u.origin[3];
-    let fetch = |x: i32, y: i32| {
-        let tx = (u.tex[0] + x) % s;
-        let ty = (u.tex[1] + y) % s;
-        ring.texels()[(ty * s + tx) as usize]
-    };
     if qx % sn != 0 || qy % sn != 0 {
         let pf = (qx + u.fine_origin[0], qy + u.fine_origin[1]);
-        return cpu_snapped_vertex(globals, u, &fetch, v, (qx, qy), pf);
+        return cpu_snapped_vertex(globals, u, fetch, v, (qx, qy), pf);
     }
     let (px, py) = (qx / sn, qy / sn);
     let [z, zc] = fetch(px, py);

@@ -111,3 +111,65 @@ fn lod_selection_allocates_nothing() {
         assert_eq!(n, 0, "{mode:?}: {n} allocations in 35 planned frames");
     }
 }
+
+/// The detail pool (issue 15) while it fills: at a tight epsilon on a flight, every frame keeps the ring
+/// fill plus the pool's tiles within the update budget, the draws and triangles within theirs, and
+/// allocates nothing; the pool does fill and serve blocks; a second run of the same flight gives the same
+/// plan hashes (deterministic).
+#[test]
+fn detail_pool_fills_within_budgets_without_allocating() {
+    let hm = generate(&ProceduralParams {
+        seed: 5,
+        size: 257,
+        spacing: 30.0,
+    })
+    .expect("procedural");
+    let prof = Profile::load("gles3-mid").expect("shipped profile");
+    let run = |counted: bool| -> (Vec<u64>, u32, u32) {
+        let mut cm = Clipmap::new(&hm, &prof, ClipmapOptions::default()).expect("clipmap");
+        let params = BakeParams {
+            p: P,
+            levels: prof.clipmap.levels,
+            synth_levels: 0,
+            g0: cm.g0(),
+        };
+        let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("alloc-lod-cache");
+        let (tables, _) = bake_lod(&hm, cm.pyramid(), &params, &dir, false).expect("LOD tables");
+        let lod = Lod::for_clipmap(tables, &prof, &cm, &hm);
+        let flight = Flight::new(Path::Figure8, 60.0, &hm).expect("flight");
+        let setup = LodSetup::new(LodMode::SatConservative, Some(lod)).expect("tables");
+        let mut planner = Planner::new(&prof, &cm, setup).expect("planner");
+        let mut plan = planner.new_plan();
+        let params = PlanParams {
+            epsilon_px: Some(0.25),
+            ..PlanParams::default()
+        };
+        let mut hashes = Vec::with_capacity(64);
+        let (mut most_tiles, mut most_served) = (0, 0);
+        let b = &prof.budget;
+        let n = count(|| {
+            for f in 0..48 {
+                let cam = flight.camera(f);
+                cm.update(cam.eye).expect("update");
+                planner.plan(&cm, &cam, &params, &mut plan).expect("plan");
+                let s = plan.stats();
+                let spent = u64::from(cm.frame().samples_updated) + s.detail_samples_updated;
+                assert!(spent <= u64::from(b.update_samples_per_frame), "frame {f}: {spent} samples");
+                assert!(s.draws <= b.max_draws, "frame {f}: {} draws", s.draws);
+                assert!(s.triangles <= u64::from(b.max_triangles), "frame {f}: {} triangles", s.triangles);
+                assert!(s.detail_tiles_resident <= b.detail_tiles);
+                most_tiles = most_tiles.max(s.detail_tiles_resident);
+                most_served = most_served.max(s.blocks_from_pool);
+                hashes.push(plan.hash());
+            }
+        });
+        if counted {
+            assert_eq!(n, 0, "{n} allocations in 48 planned frames with the detail pool");
+        }
+        (hashes, most_tiles, most_served)
+    };
+    let (first, tiles, served) = run(true);
+    assert!(tiles > 0 && served > 0, "the pool never filled ({tiles} tiles) or served ({served} blocks)");
+    let (second, _, _) = run(false);
+    assert_eq!(first, second, "the same flight gave other plan hashes");
+}

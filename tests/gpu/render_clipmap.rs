@@ -10,7 +10,9 @@ use clipsat::gpu::renderer::{ObjectKind, VertexProbe};
 use clipsat::measure::{crack_pixels, CRACK_CLEAR, CRACK_CLEAR_RGBA8};
 use clipsat::plan::frame::LevelState;
 use clipsat::plan::mesh;
-use clipsat::twin::clipmap::cpu_vertex;
+use clipsat::plan::detail::fill_tile;
+use clipsat::twin::clipmap::{cpu_detail_vertex, cpu_vertex};
+use Pick::Pool;
 
 const W: u32 = 160;
 const H: u32 = 90;
@@ -182,7 +184,29 @@ fn morphing_prevents_popping() {
 /// for blocks and skirts of several levels, including a frame far from the origin.
 #[test]
 fn vertex_positions_match_the_cpu_twin() {
-    twin_check(&FrameOptions::default(), false);
+    twin_check(&FrameOptions::default(), Pick::Sample);
+}
+
+/// The same for detail pool draws (issue 15): the pool fills over a few frames of a SAT LOD flight at a
+/// tight epsilon, then every draw reading a pool tile is checked against the twin over the tile's samples.
+#[test]
+fn pool_tile_vertices_match_the_cpu_twin() {
+    let opts = FrameOptions {
+        epsilon_px: Some(0.5),
+        ..FrameOptions::default()
+    };
+    twin_check(&opts, Pick::Pool);
+}
+
+/// Which draws [`twin_check`] compares.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Pick {
+    /// A sample of every kind, distance LOD.
+    Sample,
+    /// Every snapped SAT LOD tile.
+    Snapped,
+    /// Every detail pool draw (SAT LOD).
+    Pool,
 }
 
 /// The same for SAT LOD's snapped tiles (a mesh of a coarse level whose edge vertices clamp onto the
@@ -193,12 +217,13 @@ fn snapped_tile_vertices_match_the_cpu_twin() {
         epsilon_px: Some(8.0),
         ..FrameOptions::default()
     };
-    twin_check(&opts, true);
+    twin_check(&opts, Pick::Snapped);
 }
 
 /// Renders one frame of a flight with `opts` and compares the vertex probe with [`cpu_vertex`] for a
-/// sample of the draws (every snapped tile when `snapped`, drawn in SAT mode, which must then exist).
-fn twin_check(opts: &FrameOptions, snapped: bool) {
+/// sample of the draws, or every snapped tile or pool draw (drawn in SAT mode; some must then exist).
+fn twin_check(opts: &FrameOptions, pick: Pick) {
+    let snapped = pick != Pick::Sample;
     let gpu = strict();
     let hm = relief();
     let p = profile("gles3-low", W, H, None);
@@ -221,9 +246,18 @@ fn twin_check(opts: &FrameOptions, snapped: bool) {
         render_support::renderer(&gpu, &p, &cm)
     };
     let probe = VertexProbe::new(&r).expect("probe");
+    if pick == Pool {
+        // The pool fills from what the (settled) rings leave of each frame's budget.
+        for _ in 0..8 {
+            cm.update(cam.eye).expect("update");
+            r.frame(&cm, &cam, opts).expect("frame");
+        }
+    }
     render_frame(&mut r, &cm, &cam, opts).expect("frame");
     let draws = r.draws().len();
-    let picked: Vec<usize> = if snapped {
+    let picked: Vec<usize> = if pick == Pool {
+        (0..draws).filter(|&k| r.draws()[k].pool.is_some()).collect()
+    } else if snapped {
         (0..draws)
             .filter(|&k| r.draws()[k].fine != r.draws()[k].level)
             .collect()
@@ -233,7 +267,10 @@ fn twin_check(opts: &FrameOptions, snapped: bool) {
             .chain([draws - 1])
             .collect()
     };
-    assert!(!picked.is_empty(), "no snapped tiles in this frame");
+    assert!(!picked.is_empty(), "no snapped or pool tiles in this frame");
+    let quads = p.detail_quads();
+    let side = p.detail_side() as usize;
+    let mut tile = vec![0.0f32; side * side];
     let mut checked = 0;
     let mut worst_px = 0.0f64;
     for k in picked {
@@ -246,8 +283,16 @@ fn twin_check(opts: &FrameOptions, snapped: bool) {
             clipsat::plan::cull::DrawKind::TileSkirt => mesh::skirt_loops(p.block_m()),
         };
         assert_eq!(gpu_clip.len(), m.vertices.len());
+        if let Some(slot) = d.pool {
+            let key = r.plan().detail().resident[usize::from(slot)].expect("a drawn slot is resident");
+            fill_tile(&cm, &key, quads, &mut tile);
+        }
         for (v, g) in m.vertices.iter().zip(&gpu_clip) {
-            let c = cpu_vertex(r.globals(), &u, cm.ring(d.level), *v).clip;
+            let c = if d.pool.is_some() {
+                cpu_detail_vertex(r.globals(), &u, &tile, *v).clip
+            } else {
+                cpu_vertex(r.globals(), &u, cm.ring(d.level), *v).clip
+            };
             let w_rel = ((g[3] - c[3]) / c[3].abs().max(1.0)).abs();
             assert!(
                 w_rel < 1e-4,
@@ -265,7 +310,7 @@ fn twin_check(opts: &FrameOptions, snapped: bool) {
             checked += 1;
         }
     }
-    assert!(checked > 1000, "{checked}");
+    assert!(checked > 1000 || pick == Pool && checked > 100, "{checked}");
     assert!(worst_px < 0.01, "GPU and CPU twin differ by {worst_px} px");
 }
 

@@ -171,6 +171,9 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
         ..PlanParams::default()
     };
     let mut blocks_clamped_max = 0u32;
+    // The detail pool (SAT modes): samples written per frame (max), and the last frame's state.
+    let mut detail_samples_max = 0u64;
+    let mut detail_samples_total = 0u64;
 
     // Every buffer the loop writes to is sized here; the loop itself allocates nothing.
     let mut rows: Vec<Row> = Vec::new();
@@ -296,6 +299,7 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
                 let mut h = Hash64::new();
                 h.write_u64(frame.hash);
                 plan.lod_frame().hash_into(&mut h);
+                plan.detail().hash_into(&mut h);
                 h.finish()
             }
         };
@@ -321,7 +325,11 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
             write_row(w, frame).map_err(|e| Error::io(*p, "cannot write", e))?;
         }
         let updated = rows.last().map_or(0, |r| r.samples_updated);
-        max_work = max_work.max(updated + clipmap.decoded_samples());
+        let detail = u32::try_from(plan.stats().detail_samples_updated).unwrap_or(u32::MAX);
+        detail_samples_max = detail_samples_max.max(u64::from(detail));
+        detail_samples_total += u64::from(detail);
+        // The pool spends what the fill and decode left of the same budget.
+        max_work = max_work.max(updated + clipmap.decoded_samples() + detail);
         if let Err(v) = clipmap.check_constraints() {
             if violations == 0 {
                 eprintln!("frame {f}: {v}");
@@ -390,7 +398,15 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
             "max_fill_plus_decode_samples": max_work,
             "tile_cache": clipmap.tile_cache().map(|c| json!({ "split": c.split(), "stats": c.stats() })),
         });
-        super::print_json(&json!({
+        // The detail pool's fields (json! of the whole summary would pass the macro recursion limit).
+        let pool = json!({
+            "blocks_clamped": plan.stats().blocks_clamped,
+            "blocks_from_pool": plan.stats().blocks_from_pool,
+            "detail_tiles_resident": plan.stats().detail_tiles_resident,
+            "detail_samples_updated": detail_samples_total,
+            "detail_samples_updated_max": detail_samples_max,
+        });
+        let mut out = json!({
             "stream": stream,
             "terrain": terrain_name,
             "profile": profile.name,
@@ -436,7 +452,11 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
             "shading_max_error_vs_reference": (ref_acc.2 > 0).then_some(ref_acc.1),
             "hash_out": args.hash_out.as_ref().map(|p| p.display().to_string()),
             "checked_against": args.check.as_ref().map(|p| p.display().to_string()),
-        }));
+        });
+        if let (Some(o), serde_json::Value::Object(extra)) = (out.as_object_mut(), pool) {
+            o.extend(extra);
+        }
+        super::print_json(&out);
     } else {
         outln!("terrain      {terrain_name}");
         outln!(

@@ -46,6 +46,8 @@ pub(crate) fn run(args: &InfoArgs) -> Result<()> {
             "gpu_budget_bytes": p.budget.gpu_memory_bytes,
             "parts": f,
             "coarsest_ring_span_m": coarsest_span_m,
+            "detail_tiles": p.budget.detail_tiles,
+            "detail_tile_samples": p.detail_side(),
         }));
     }
     if args.json {
@@ -73,11 +75,15 @@ pub(crate) fn run(args: &InfoArgs) -> Result<()> {
     );
     outln!("heights   {lo:.1} .. {hi:.1} m");
     outln!("voids     {} filled", hm.voids_filled());
-    outln!("profile     GPU memory needed / budget    coarsest ring span   CPU budget: rings + tile cache");
+    outln!(
+        "profile     GPU memory needed / budget    coarsest ring span   CPU budget: rings + tile cache   \
+         detail pool"
+    );
     for p in &profiles {
         let mib = |v: &serde_json::Value| v.as_f64().unwrap_or(0.0) / 1048576.0;
         outln!(
-            "{:<11} {:>9.2} MiB / {:>7.1} MiB    {:>8.1} km          {:>6.1} MiB: {:.2} + {:.2} MiB",
+            "{:<11} {:>9.2} MiB / {:>7.1} MiB    {:>8.1} km          {:>6.1} MiB: {:.2} + {:.2} MiB   \
+             {} tiles of {}^2 ({:.2} MiB)",
             p["profile"].as_str().unwrap_or("?"),
             mib(&p["gpu_bytes"]),
             mib(&p["gpu_budget_bytes"]),
@@ -85,6 +91,9 @@ pub(crate) fn run(args: &InfoArgs) -> Result<()> {
             mib(&p["cpu_budget_bytes"]),
             mib(&p["cpu_split"]["rings"]),
             mib(&p["cpu_split"]["tile_cache"]),
+            p["detail_tiles"],
+            p["detail_tile_samples"],
+            mib(&p["parts"]["detail"]),
         );
     }
     Ok(())

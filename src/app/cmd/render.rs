@@ -109,6 +109,10 @@ const STREAMED_CAMERA_SAMPLES: u64 = 1 << 20;
 /// Most clipmap updates `render` runs to let the budget fill every level at the camera.
 const MAX_FILL_FRAMES: u32 = 10_000;
 
+/// Most frames `render` lets the detail pool fill at the still camera after the rings (a pool whose
+/// wanted tiles outnumber its slots stops writing once every slot is needed).
+const MAX_POOL_FRAMES: u32 = 256;
+
 pub(crate) fn run(args: &RenderArgs) -> Result<()> {
     let mode = args.gpu.mode();
     let lod_mode = args.lod.mode();
@@ -216,6 +220,18 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
         epsilon_px: epsilon,
         ..FrameOptions::default()
     };
+    // SAT modes: let the detail pool fill at the still camera, frame by frame under the update budget
+    // (the rings are settled, so the pool gets all of it), until a frame writes no tile (bounded).
+    let mut pool_frames = 0;
+    if lod_mode != LodMode::Distance {
+        while pool_frames < MAX_POOL_FRAMES {
+            pool_frames += 1;
+            if r.prepare_only(&clipmap, &camera, &opts)? == 0 {
+                break;
+            }
+            clipmap.update(camera.eye)?;
+        }
+    }
     let t1 = Instant::now();
     let frame = render_frame(&mut r, &clipmap, &camera, &opts)?;
     let ms = t1.elapsed().as_secs_f64() * 1e3;
@@ -295,6 +311,10 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
             "lod": lod_mode.to_string(),
             "epsilon_px": epsilon_used,
             "blocks_clamped": frame.stats.blocks_clamped,
+            "blocks_from_pool": frame.stats.blocks_from_pool,
+            "detail_tiles_resident": frame.stats.detail_tiles_resident,
+            "detail_samples_updated": frame.stats.detail_samples_updated,
+            "pool_fill_frames": pool_frames,
             "pieces_snapped": frame.stats.cull.pieces_snapped,
             "max_screen_error_px": measured.map(|m| m.max_px),
             "max_screen_error_unclamped_px": measured.map(|m| m.max_px_unclamped),

@@ -19,6 +19,8 @@ pub struct PrepareStats {
     /// Whether every level was re-sent in full (only for a plan that does not follow the last one
     /// prepared, e.g. one from another planner).
     pub full_upload: bool,
+    /// Detail pool tiles written (issue 15); their samples are in `upload_samples`.
+    pub detail_tiles: u32,
 }
 
 impl Renderer {
@@ -88,6 +90,7 @@ impl Renderer {
         }
         stats.upload_bytes = stats.upload_samples * 8;
         self.synced = Some(index);
+        self.prepare_detail(queue, clipmap, plan, &mut stats);
         queue.write_buffer(&self.globals, 0, bytemuck::bytes_of(plan.globals()));
         let slots = plan.slot_bytes();
         if !slots.is_empty() {
@@ -101,6 +104,62 @@ impl Renderer {
             })?;
         }
         Ok(stats)
+    }
+
+    /// Writes the plan's detail tiles, each filled from `clipmap`'s source into the staging buffer; a plan
+    /// that does not follow the last one prepared re-sends every resident tile.
+    fn prepare_detail(
+        &mut self,
+        queue: &wgpu::Queue,
+        clipmap: &Clipmap,
+        plan: &FramePlan,
+        stats: &mut PrepareStats,
+    ) {
+        let d = plan.detail();
+        if self.detail_synced == Some(d.seq) {
+            return;
+        }
+        let chained = d.prev.is_some() && d.prev == self.detail_synced;
+        let side = self.detail_side;
+        let mut write = |slot: u32, key: &crate::plan::detail::TileKey| {
+            crate::plan::detail::fill_tile(clipmap, key, self.detail_quads, &mut self.detail_staging);
+            queue.write_texture(
+                wgpu::TexelCopyTextureInfo {
+                    texture: &self.detail,
+                    mip_level: 0,
+                    origin: wgpu::Origin3d { x: 0, y: 0, z: slot },
+                    aspect: wgpu::TextureAspect::All,
+                },
+                bytemuck::cast_slice(&self.detail_staging),
+                wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(side * 4),
+                    rows_per_image: Some(side),
+                },
+                wgpu::Extent3d {
+                    width: side,
+                    height: side,
+                    depth_or_array_layers: 1,
+                },
+            );
+            let samples = u64::from(side) * u64::from(side);
+            stats.uploads += 1;
+            stats.upload_samples += samples;
+            stats.upload_bytes += samples * 4;
+            stats.detail_tiles += 1;
+        };
+        if chained {
+            for u in &d.uploads {
+                write(u.slot, &u.key);
+            }
+        } else {
+            for (slot, key) in d.resident.iter().enumerate() {
+                if let Some(key) = key {
+                    write(u32::try_from(slot).expect("slots <= DETAIL_CAPACITY"), key);
+                }
+            }
+        }
+        self.detail_synced = Some(d.seq);
     }
 
     /// Records the prepared plan's draws into `pass` (whose attachments have the formats and sample count
@@ -133,5 +192,6 @@ impl Renderer {
     /// Forgets which frame the height texture holds: the next plan's rectangles are written as if first.
     pub fn reset_sync(&mut self) {
         self.synced = None;
+        self.detail_synced = None;
     }
 }

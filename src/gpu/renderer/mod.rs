@@ -45,6 +45,8 @@ use crate::{Error, Profile, Result};
 use crate::plan::frame_plan::FramePlan;
 
 const HEIGHT_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rg32Float;
+/// The detail pool's format: z only (pool draws never morph), the same f32 heights as the rings.
+const DETAIL_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Float;
 /// Bytes per mesh vertex (Uint16x4).
 const VERTEX_BYTES: u64 = std::mem::size_of::<MeshVertex>() as u64;
 
@@ -99,6 +101,14 @@ struct GpuMesh {
 pub struct Renderer {
     ledger: Ledger,
     heights: wgpu::Texture,
+    /// The detail pool (issue 15): one tile per layer, `detail_side^2` R32F samples.
+    detail: wgpu::Texture,
+    detail_quads: u32,
+    detail_side: u32,
+    /// One tile's samples, filled from the clipmap's source before each tile upload (allocated once).
+    detail_staging: Vec<f32>,
+    /// The plan (`DetailFrame::seq`) whose pool the texture holds.
+    detail_synced: Option<u64>,
     block: GpuMesh,
     skirt: GpuMesh,
     tile_skirt: GpuMesh,
@@ -192,6 +202,32 @@ impl Renderer {
                 ..Default::default()
             },
         );
+        let detail_side = profile.detail_side();
+        let detail = dev.texture(
+            "detail pool",
+            &wgpu::TextureDescriptor {
+                label: None,
+                size: wgpu::Extent3d {
+                    width: detail_side,
+                    height: detail_side,
+                    depth_or_array_layers: profile.detail_layers(),
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: DETAIL_FORMAT,
+                usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+                view_formats: &[],
+            },
+        );
+        let detail_view = dev.view(
+            "detail pool view",
+            &detail,
+            &wgpu::TextureViewDescriptor {
+                dimension: Some(wgpu::TextureViewDimension::D2Array),
+                ..Default::default()
+            },
+        );
         let uniform = wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST;
         let globals = dev.buffer("clipmap globals", GLOBALS_BYTES, uniform);
         let draw_slots = dev.buffer(
@@ -240,6 +276,17 @@ impl Renderer {
                     },
                     count: None,
                 },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 2,
+                    // Pool draws read their heights (vertex) and shade from them (fragment).
+                    visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                        view_dimension: wgpu::TextureViewDimension::D2Array,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
             ],
         );
         let draw_size = std::mem::size_of::<DrawUniform>() as u64;
@@ -268,6 +315,10 @@ impl Renderer {
                 wgpu::BindGroupEntry {
                     binding: 1,
                     resource: wgpu::BindingResource::TextureView(&heights_view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: wgpu::BindingResource::TextureView(&detail_view),
                 },
             ],
         );
@@ -325,6 +376,11 @@ impl Renderer {
         Ok(Self {
             ledger: dev.finish(),
             heights,
+            detail,
+            detail_quads: profile.detail_quads(),
+            detail_side,
+            detail_staging: vec![0.0; detail_side as usize * detail_side as usize],
+            detail_synced: None,
             block,
             skirt,
             tile_skirt,

@@ -1,0 +1,524 @@
+//! Stage 2, the per-frame plan: the detail pool (issue 15; design.md "SAT LOD" 6). The rings hold data by
+//! distance, SAT LOD wants it by error: a block whose wanted level is finer than any ring holding it is
+//! clamped. The pool is a fixed set of height tiles (`budget.detail_tiles`, one GPU array layer each) at
+//! such wanted levels, one tile per cell of that level's fixed grid (`detail_tile_quads` quads a side,
+//! plus a one-sample border for normals). Each frame [`DetailPool::plan`] ranks the clamped blocks by how
+//! far their bound exceeds epsilon, fills their visible cells most-needed first with what is left of the
+//! per-frame sample budget after the rings (coarse-to-fine ring fill stays first), evicts the least
+//! recently needed tile, and serves a block from the pool once all its visible cells are resident and
+//! its draws fit the draw and triangle budgets. Pure, deterministic and allocation-free.
+//!
+//! Tiles come through [`DetailSource`]: the resident pyramid today (the same heights the ring fill
+//! writes, [`Clipmap::sample`]); a streamed package's tile cache can implement it later.
+
+use glam::DVec3;
+
+use crate::hash::Hash64;
+use crate::plan::clipmap::Clipmap;
+use crate::plan::cull::{self, Draw, DrawKind, DrawList, Frustum};
+use crate::plan::frame::{Frame, Rect};
+use crate::plan::lod::{BlockLod, LodFrame, MAX_LOD_BLOCKS};
+use crate::profile::MAX_DETAIL_TILES;
+use crate::{Error, Profile, Result};
+
+/// Capacity of the pool's fixed collections; the profile's `budget.detail_tiles` is the limit enforced.
+pub const DETAIL_CAPACITY: usize = MAX_DETAIL_TILES as usize;
+
+/// One pool tile: cell (cx, cy) of level `level`'s grid of `detail_tile_quads`-quad cells.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct TileKey {
+    /// The level (its lattice and spacing), at least the data level.
+    pub level: u32,
+    /// Cell column: vertices cx q ..= (cx + 1) q of the level's lattice.
+    pub cx: i64,
+    /// Cell row.
+    pub cy: i64,
+}
+
+impl TileKey {
+    /// The level lattice point of the tile's first held sample (the border's corner).
+    pub fn first_sample(&self, quads: u32) -> (i64, i64) {
+        let q = i64::from(quads);
+        (self.cx * q - 1, self.cy * q - 1)
+    }
+}
+
+/// A tile written into a pool slot this frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DetailUpload {
+    /// The slot (array layer).
+    pub slot: u32,
+    /// What it now holds.
+    pub key: TileKey,
+}
+
+/// Where pool tiles come from: the same heights the ring fill writes.
+pub trait DetailSource {
+    /// Whether the samples of `key` can be read now (a streamed source: its tiles are resident).
+    fn detail_ready(&self, key: &TileKey) -> bool;
+    /// The height of `level` at its lattice point (i, j), bit for bit what that ring would hold.
+    fn detail_height(&self, level: u32, i: i64, j: i64) -> f32;
+}
+
+impl DetailSource for Clipmap {
+    fn detail_ready(&self, _key: &TileKey) -> bool {
+        // The resident pyramid only, for now: a streamed package reads through its tile cache, which
+        // the ring fill drives (issue 13 can feed the pool from it).
+        self.tile_cache().is_none()
+    }
+
+    fn detail_height(&self, level: u32, i: i64, j: i64) -> f32 {
+        self.sample(level, i, j)[0]
+    }
+}
+
+/// Writes tile `key`'s `side x side` samples (side = quads + 3, row-major, border included) into `out`.
+pub fn fill_tile(src: &impl DetailSource, key: &TileKey, quads: u32, out: &mut [f32]) {
+    let side = quads as usize + 3;
+    assert!(out.len() >= side * side, "a tile buffer holds side^2 samples");
+    let (i0, j0) = key.first_sample(quads);
+    for (r, row) in out.chunks_exact_mut(side).take(side).enumerate() {
+        for (c, z) in row.iter_mut().enumerate() {
+            *z = src.detail_height(key.level, i0 + c as i64, j0 + r as i64);
+        }
+    }
+}
+
+/// The pool part of a [`crate::plan::frame_plan::FramePlan`].
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct DetailFrame {
+    /// Tiles to write this frame.
+    pub uploads: heapless::Vec<DetailUpload, DETAIL_CAPACITY>,
+    /// What every slot holds after this plan (a renderer that missed plans re-sends these).
+    pub resident: heapless::Vec<Option<TileKey>, DETAIL_CAPACITY>,
+    /// Blocks drawn from the pool: (index in the LOD frame, the level the selection had clamped it to).
+    pub served: heapless::Vec<(u16, u32), MAX_LOD_BLOCKS>,
+    /// Samples the uploads write.
+    pub samples_updated: u64,
+    /// This plan's number in its planner's chain.
+    pub seq: u64,
+    /// The previous plan's number (None: the first plan; the GPU holds nothing).
+    pub prev: Option<u64>,
+}
+
+impl DetailFrame {
+    /// Slots holding a tile.
+    pub fn tiles_resident(&self) -> u32 {
+        u32::try_from(self.resident.iter().filter(|k| k.is_some()).count())
+            .expect("slots <= DETAIL_CAPACITY")
+    }
+
+    /// The pool part of the frame hash.
+    pub fn hash_into(&self, h: &mut Hash64) {
+        h.write_u64(self.uploads.len() as u64);
+        for u in &self.uploads {
+            h.write_u32(u.slot);
+            write_key(h, &u.key);
+        }
+        h.write_u64(self.resident.len() as u64);
+        for k in &self.resident {
+            match k {
+                Some(k) => write_key(h, k),
+                None => h.write_u32(u32::MAX),
+            }
+        }
+        h.write_u64(self.served.len() as u64);
+        for &(i, l) in &self.served {
+            h.write_u32(u32::from(i));
+            h.write_u32(l);
+        }
+    }
+}
+
+fn write_key(h: &mut Hash64, k: &TileKey) {
+    h.write_u32(k.level);
+    h.write_i64(k.cx);
+    h.write_i64(k.cy);
+}
+
+/// What the pool may spend this frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DetailBudget {
+    /// Samples left of the per-frame update budget after the rings.
+    pub samples: u64,
+    /// Draws left of `budget.max_draws` after the clamped draw list.
+    pub draws: u32,
+    /// Triangles left of `budget.max_triangles` after it.
+    pub triangles: u64,
+    /// Draws per tile (its block, and its skirt when skirts are on).
+    pub tile_draws: u32,
+    /// Triangles per tile (block and skirt).
+    pub tile_triangles: u64,
+    /// Draws and triangles kept per served block for the skirts its neighbours then need.
+    pub margin: (u32, u64),
+}
+
+/// Where the frame's pool tiles are seen from: what decides which cells of a block are needed.
+#[derive(Clone, Copy, Debug)]
+pub struct DetailView<'a> {
+    /// The clipmap frame (active regions, for the blocks' pieces).
+    pub frame: &'a Frame,
+    /// The view frustum.
+    pub frustum: &'a Frustum,
+    /// The eye in level-0 lattice units.
+    pub eye_l: (f64, f64),
+    /// The eye's height (m).
+    pub eye_z: f64,
+    /// Level-0 spacing (m).
+    pub g0: f64,
+    /// The terrain's height range (m): every tile's vertical extent.
+    pub z_range: (f32, f32),
+    /// The data's last sample in level-0 lattice units (east, south).
+    pub data_lattice: (f64, f64),
+}
+
+impl DetailView<'_> {
+    /// Whether lattice rectangle `r` of `level` meets the data and the frustum (over the terrain's height
+    /// range, so a tile's test does not depend on its samples).
+    #[expect(
+        clippy::cast_precision_loss,
+        reason = "lattice coordinates are below 2^48"
+    )]
+    fn visible(&self, level: u32, r: &Rect) -> bool {
+        let k = f64::from(1u32 << level);
+        let (x0, x1) = (r.x0 as f64 * k, (r.x1() - 1) as f64 * k);
+        let (y0, y1) = (r.y0 as f64 * k, (r.y1() - 1) as f64 * k);
+        let (lx, ly) = self.data_lattice;
+        if x1 <= 0.0 || y1 <= 0.0 || x0 >= lx || y0 >= ly {
+            return false;
+        }
+        let (x0, x1, y0, y1) = (x0.max(0.0), x1.min(lx), y0.max(0.0), y1.min(ly));
+        let g = self.g0;
+        let lo = DVec3::new(
+            (x0 - self.eye_l.0) * g,
+            -(y1 - self.eye_l.1) * g,
+            f64::from(self.z_range.0) - self.eye_z - 0.01,
+        );
+        let hi = DVec3::new(
+            (x1 - self.eye_l.0) * g,
+            -(y0 - self.eye_l.1) * g,
+            f64::from(self.z_range.1) - self.eye_z + 0.01,
+        );
+        self.frustum.intersects(lo, hi)
+    }
+
+    /// Calls `f` with every visible cell of `b`'s wanted level over the block minus the finer ring's
+    /// active region, and the vertices of that level the cell draws there; stops when `f` says false.
+    fn cells(
+        &self,
+        b: &BlockLod,
+        quads: u32,
+        mut f: impl FnMut(TileKey, Rect) -> Result<bool>,
+    ) -> Result<()> {
+        let w = b.wanted;
+        let shift = b.ring - w;
+        let q = i64::from(quads);
+        let hole = match b.ring.checked_sub(1) {
+            Some(fl) => cull::hole(&self.frame.levels[fl as usize].active),
+            None => Rect::EMPTY,
+        };
+        for p in cull::block_pieces(&b.rect, &hole) {
+            // Exact: a finer level's lattice meets every vertex of the ring's.
+            let pw = Rect::from_bounds(
+                p.x0 << shift,
+                p.y0 << shift,
+                ((p.x1() - 1) << shift) + 1,
+                ((p.y1() - 1) << shift) + 1,
+            );
+            if !self.visible(w, &pw) {
+                continue;
+            }
+            for cy in pw.y0.div_euclid(q)..=(pw.y1() - 2).div_euclid(q) {
+                for cx in pw.x0.div_euclid(q)..=(pw.x1() - 2).div_euclid(q) {
+                    let cell = Rect::from_bounds(cx * q, cy * q, (cx + 1) * q + 1, (cy + 1) * q + 1);
+                    let bounds = cell.intersect(&pw);
+                    if bounds.w < 2 || bounds.h < 2 || !self.visible(w, &bounds) {
+                        continue;
+                    }
+                    if !f(TileKey { level: w, cx, cy }, bounds)? {
+                        return Ok(());
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+struct Slot {
+    key: Option<TileKey>,
+    /// The pool clock when a served or candidate block last needed it.
+    needed: u64,
+}
+
+/// The pool's CPU state: which tile each slot holds and when it was last needed. Built once from the
+/// profile; [`DetailPool::plan`] allocates nothing.
+#[derive(Clone, Debug)]
+pub struct DetailPool {
+    quads: u32,
+    side: u32,
+    slots: heapless::Vec<Slot, DETAIL_CAPACITY>,
+    /// Advances once per clipmap frame planned.
+    clock: u64,
+    /// Plans made (the renderer's sync chain).
+    seq: u64,
+    /// Scratch: the clamped blocks ranked, (excess, block index).
+    ranked: Box<heapless::Vec<(f32, u16), MAX_LOD_BLOCKS>>,
+}
+
+impl DetailPool {
+    /// An empty pool of `profile`'s size (a validated profile).
+    pub fn new(profile: &Profile) -> Self {
+        let mut slots = heapless::Vec::new();
+        for _ in 0..(profile.budget.detail_tiles as usize).min(DETAIL_CAPACITY) {
+            slots.push(Slot::default()).expect("tiles <= DETAIL_CAPACITY");
+        }
+        Self {
+            quads: profile.detail_quads(),
+            side: profile.detail_side(),
+            slots,
+            clock: 0,
+            seq: 0,
+            ranked: Box::default(),
+        }
+    }
+
+    /// Quads per tile side.
+    pub fn quads(&self) -> u32 {
+        self.quads
+    }
+
+    /// Samples per tile side (border included).
+    pub fn side(&self) -> u32 {
+        self.side
+    }
+
+    /// Slots (`budget.detail_tiles`).
+    pub fn capacity(&self) -> usize {
+        self.slots.len()
+    }
+
+    /// Forgets every tile (a new renderer holds none).
+    pub fn restart(&mut self) {
+        for s in &mut self.slots {
+            *s = Slot::default();
+        }
+        self.clock = 0;
+        self.seq = 0;
+    }
+
+    fn find(&self, key: &TileKey) -> Option<usize> {
+        self.slots.iter().position(|s| s.key.as_ref() == Some(key))
+    }
+
+    /// The slot to fill next: an empty one, else the least recently needed one not needed this frame
+    /// (lowest index on ties, so the choice is deterministic).
+    fn victim(&self) -> Option<usize> {
+        if let Some(i) = self.slots.iter().position(|s| s.key.is_none()) {
+            return Some(i);
+        }
+        self.slots
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| s.needed < self.clock)
+            .min_by_key(|(i, s)| (s.needed, *i))
+            .map(|(i, _)| i)
+    }
+
+    /// Plans the pool for one frame: ranks `lod`'s clamped blocks by bound / epsilon, fills their visible
+    /// cells most-needed first under `budget` (samples only when `new_frame`: a clipmap frame planned
+    /// again spends nothing), and serves each block whose cells are all resident and whose draws fit:
+    /// its level in `lod` becomes the wanted one and `lod.blocks_clamped` drops. Writes `out`.
+    pub fn plan(
+        &mut self,
+        src: &impl DetailSource,
+        view: &DetailView<'_>,
+        lod: &mut LodFrame,
+        epsilon_px: f64,
+        new_frame: bool,
+        budget: &DetailBudget,
+        out: &mut DetailFrame,
+    ) -> Result<()> {
+        out.uploads.clear();
+        out.served.clear();
+        out.samples_updated = 0;
+        out.prev = (self.seq > 0).then_some(self.seq);
+        self.seq += 1;
+        out.seq = self.seq;
+        if new_frame {
+            self.clock += 1;
+        }
+        let cap = self.slots.len();
+        if cap > 0 {
+            self.ranked.clear();
+            for (i, b) in lod.blocks.iter().enumerate() {
+                if b.wanted < b.level && b.wanted < b.ring {
+                    #[expect(clippy::cast_possible_truncation, reason = "a ranking key")]
+                    let excess = (f64::from(b.bound_px) / epsilon_px) as f32;
+                    let i = u16::try_from(i).expect("blocks <= MAX_LOD_BLOCKS");
+                    self.ranked
+                        .push((excess, i))
+                        .map_err(|_| Error::Capacity {
+                            what: "clamped blocks",
+                            capacity: MAX_LOD_BLOCKS,
+                        })?;
+                }
+            }
+            // Most-needed first; the block order breaks ties (deterministic).
+            self.ranked
+                .sort_unstable_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+            let tile_samples = u64::from(self.side) * u64::from(self.side);
+            let mut samples = if new_frame { budget.samples } else { 0 };
+            let (mut draws, mut triangles) = (budget.draws, budget.triangles);
+            for r in 0..self.ranked.len() {
+                let i = usize::from(self.ranked[r].1);
+                let b = lod.blocks[i];
+                let mut count = 0usize;
+                view.cells(&b, self.quads, |_, _| {
+                    count += 1;
+                    Ok(count <= cap)
+                })?;
+                if count == 0 || count > cap {
+                    continue;
+                }
+                let n = u32::try_from(count).expect("count <= capacity");
+                let cost_d = n
+                    .saturating_mul(budget.tile_draws)
+                    .saturating_add(budget.margin.0);
+                let cost_t = u64::from(n) * budget.tile_triangles + budget.margin.1;
+                if cost_d > draws || cost_t > triangles {
+                    continue;
+                }
+                let mut missing = 0u32;
+                let clock = self.clock;
+                view.cells(&b, self.quads, |key, _| {
+                    if let Some(s) = self.find(&key) {
+                        self.slots[s].needed = clock;
+                        return Ok(true);
+                    }
+                    let victim = (samples >= tile_samples && src.detail_ready(&key))
+                        .then(|| self.victim())
+                        .flatten();
+                    match victim {
+                        Some(s) => {
+                            self.slots[s] = Slot {
+                                key: Some(key),
+                                needed: clock,
+                            };
+                            samples -= tile_samples;
+                            out.samples_updated += tile_samples;
+                            let slot = u32::try_from(s).expect("slots <= DETAIL_CAPACITY");
+                            // One upload per slot: a slot refilled within the frame keeps its last tile.
+                            if let Some(u) = out.uploads.iter_mut().find(|u| u.slot == slot) {
+                                u.key = key;
+                            } else {
+                                out.uploads
+                                    .push(DetailUpload { slot, key })
+                                    .map_err(|_| Error::Capacity {
+                                        what: "detail uploads per frame",
+                                        capacity: DETAIL_CAPACITY,
+                                    })?;
+                            }
+                        }
+                        None => missing += 1,
+                    }
+                    Ok(true)
+                })?;
+                if missing == 0 {
+                    out.served
+                        .push((self.ranked[r].1, b.level))
+                        .map_err(|_| Error::Capacity {
+                            what: "blocks served by the detail pool",
+                            capacity: MAX_LOD_BLOCKS,
+                        })?;
+                    draws -= cost_d;
+                    triangles -= cost_t;
+                }
+            }
+        }
+        for &(i, _) in &out.served {
+            let b = &mut lod.blocks[usize::from(i)];
+            b.level = b.wanted;
+            lod.blocks_clamped -= 1;
+        }
+        out.resident.clear();
+        for s in &self.slots {
+            out.resident.push(s.key).expect("slots <= DETAIL_CAPACITY");
+        }
+        Ok(())
+    }
+
+    /// Stops serving the last block `out` serves (its draws did not fit): its level in `lod` goes back to
+    /// the clamped one. False when none is served.
+    pub fn unserve_last(lod: &mut LodFrame, out: &mut DetailFrame) -> bool {
+        match out.served.pop() {
+            Some((i, level)) => {
+                lod.blocks[usize::from(i)].level = level;
+                lod.blocks_clamped += 1;
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// Appends the draws of every block `frame` serves: per visible cell of the block's wanted level, the
+    /// block mesh (q x q quads) clamped to the block's piece, reading its pool slot, and its tile skirt when
+    /// `skirts` (a pool block is drawn at another level than its ring, so every neighbour has a skirt
+    /// too). More than `cap` draws is an [`Error::Capacity`].
+    pub fn push_draws(
+        &self,
+        view: &DetailView<'_>,
+        lod: &LodFrame,
+        frame: &DetailFrame,
+        skirts: bool,
+        cap: usize,
+        out: &mut DrawList,
+    ) -> Result<u32> {
+        let mut blocks = 0;
+        let push = |out: &mut DrawList, d: Draw| -> Result<()> {
+            if out.len() >= cap {
+                return Err(Error::Capacity {
+                    what: "draws per frame (budget.max_draws)",
+                    capacity: cap,
+                });
+            }
+            out.push(d).map_err(|_| Error::Capacity {
+                what: "draws per frame",
+                capacity: cull::MAX_DRAWS,
+            })
+        };
+        let q = i64::from(self.quads);
+        for &(i, _) in &frame.served {
+            let b = &lod.blocks[usize::from(i)];
+            view.cells(b, self.quads, |key, bounds| {
+                let slot = self
+                    .find(&key)
+                    .expect("a served block's cells are resident");
+                let d = Draw {
+                    level: key.level,
+                    kind: DrawKind::Block,
+                    origin: [key.cx * q, key.cy * q],
+                    bounds,
+                    fine: key.level,
+                    quads: self.quads,
+                    clamped: false,
+                    pool: Some(u16::try_from(slot).expect("slots <= DETAIL_CAPACITY")),
+                };
+                push(out, d)?;
+                blocks += 1;
+                if skirts {
+                    push(
+                        out,
+                        Draw {
+                            kind: DrawKind::TileSkirt,
+                            ..d
+                        },
+                    )?;
+                }
+                Ok(true)
+            })?;
+        }
+        Ok(blocks)
+    }
+}
