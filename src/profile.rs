@@ -66,7 +66,7 @@ pub struct FrameBudget {
     /// the rings do not hold there; 0: no pool. At most [`MAX_DETAIL_TILES`].
     #[serde(default)]
     pub detail_tiles: u32,
-    /// Quads per detail tile side: a power of two up to the block side m (0: m). A tile holds
+    /// Quads per detail tile side: a power of two (0, or more than the block side m, means m). A tile holds
     /// quads + 1 samples per side plus a one-sample border (for normals): [`Profile::detail_side`].
     #[serde(default)]
     pub detail_tile_quads: u32,
@@ -282,15 +282,11 @@ impl Profile {
                 ),
             );
         }
-        let m = self.block_m();
-        if b.detail_tile_quads != 0
-            && (!b.detail_tile_quads.is_power_of_two() || b.detail_tile_quads > m)
-        {
+        if b.detail_tile_quads != 0 && !b.detail_tile_quads.is_power_of_two() {
             return bad(
                 "budget.detail_tile_quads",
                 format!(
-                    "{} is not 0 or a power of two up to the block side m = {m} (a tile is drawn with \
-                     the block mesh)",
+                    "{} is not 0 or a power of two (a tile is drawn with the block mesh)",
                     b.detail_tile_quads
                 ),
             );
@@ -407,11 +403,12 @@ impl Profile {
         }
     }
 
-    /// Quads per detail tile side ([`FrameBudget::detail_tile_quads`], 0 meaning the block side m).
+    /// Quads per detail tile side ([`FrameBudget::detail_tile_quads`], 0 meaning the block side m, and
+    /// never more than m: a tile is drawn with the block mesh).
     pub fn detail_quads(&self) -> u32 {
         match self.budget.detail_tile_quads {
             0 => self.block_m(),
-            q => q,
+            q => q.min(self.block_m()),
         }
     }
 

@@ -75,7 +75,10 @@ impl DetailSource for Clipmap {
 /// Writes tile `key`'s `side x side` samples (side = quads + 3, row-major, border included) into `out`.
 pub fn fill_tile(src: &impl DetailSource, key: &TileKey, quads: u32, out: &mut [f32]) {
     let side = quads as usize + 3;
-    assert!(out.len() >= side * side, "a tile buffer holds side^2 samples");
+    assert!(
+        out.len() >= side * side,
+        "a tile buffer holds side^2 samples"
+    );
     let (i0, j0) = key.first_sample(quads);
     for (r, row) in out.chunks_exact_mut(side).take(side).enumerate() {
         for (c, z) in row.iter_mut().enumerate() {
@@ -139,6 +142,9 @@ fn write_key(h: &mut Hash64, k: &TileKey) {
 /// What the pool may spend this frame.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct DetailBudget {
+    /// A new clipmap frame: the pool clock advances and `samples` may be spent (a frame planned again
+    /// spends nothing).
+    pub new_frame: bool,
     /// Samples left of the per-frame update budget after the rings.
     pub samples: u64,
     /// Draws left of `budget.max_draws` after the clamped draw list.
@@ -170,6 +176,8 @@ pub struct DetailView<'a> {
     pub z_range: (f32, f32),
     /// The data's last sample in level-0 lattice units (east, south).
     pub data_lattice: (f64, f64),
+    /// The screen-space error bound, pixels (the ranking's unit).
+    pub epsilon_px: f64,
 }
 
 impl DetailView<'_> {
@@ -202,15 +210,16 @@ impl DetailView<'_> {
         self.frustum.intersects(lo, hi)
     }
 
-    /// Calls `f` with every visible cell of `b`'s wanted level over the block minus the finer ring's
-    /// active region, and the vertices of that level the cell draws there; stops when `f` says false.
+    /// Calls `f` with every visible cell of level `w` (finer than `b`'s ring) over the block minus the
+    /// finer ring's active region, and the vertices of that level the cell draws there; stops when `f`
+    /// says false.
     fn cells(
         &self,
         b: &BlockLod,
+        w: u32,
         quads: u32,
         mut f: impl FnMut(TileKey, Rect) -> Result<bool>,
     ) -> Result<()> {
-        let w = b.wanted;
         let shift = b.ring - w;
         let q = i64::from(quads);
         let hole = match b.ring.checked_sub(1) {
@@ -230,7 +239,8 @@ impl DetailView<'_> {
             }
             for cy in pw.y0.div_euclid(q)..=(pw.y1() - 2).div_euclid(q) {
                 for cx in pw.x0.div_euclid(q)..=(pw.x1() - 2).div_euclid(q) {
-                    let cell = Rect::from_bounds(cx * q, cy * q, (cx + 1) * q + 1, (cy + 1) * q + 1);
+                    let cell =
+                        Rect::from_bounds(cx * q, cy * q, (cx + 1) * q + 1, (cy + 1) * q + 1);
                     let bounds = cell.intersect(&pw);
                     if bounds.w < 2 || bounds.h < 2 || !self.visible(w, &bounds) {
                         continue;
@@ -263,8 +273,26 @@ pub struct DetailPool {
     clock: u64,
     /// Plans made (the renderer's sync chain).
     seq: u64,
-    /// Scratch: the clamped blocks ranked, (excess, block index).
-    ranked: Box<heapless::Vec<(f32, u16), MAX_LOD_BLOCKS>>,
+    /// Scratch: the clamped blocks and the levels the pool refines them to.
+    cands: Box<heapless::Vec<Cand, MAX_LOD_BLOCKS>>,
+}
+
+/// A clamped block while the pool plans it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Cand {
+    block: u16,
+    /// The level the selection clamped it to.
+    clamped: u32,
+    /// The level the pool refines it to (`clamped`: not refined).
+    level: u32,
+    /// Its screen-space bound there, pixels.
+    bound: f64,
+    /// How far its clamped bound exceeds epsilon (bound / epsilon): the fill order.
+    need: f64,
+    /// Visible cells of `level` (0: not refined).
+    cells: u32,
+    /// No finer level fits.
+    frozen: bool,
 }
 
 impl DetailPool {
@@ -272,7 +300,9 @@ impl DetailPool {
     pub fn new(profile: &Profile) -> Self {
         let mut slots = heapless::Vec::new();
         for _ in 0..(profile.budget.detail_tiles as usize).min(DETAIL_CAPACITY) {
-            slots.push(Slot::default()).expect("tiles <= DETAIL_CAPACITY");
+            slots
+                .push(Slot::default())
+                .expect("tiles <= DETAIL_CAPACITY");
         }
         Self {
             quads: profile.detail_quads(),
@@ -280,7 +310,7 @@ impl DetailPool {
             slots,
             clock: 0,
             seq: 0,
-            ranked: Box::default(),
+            cands: Box::default(),
         }
     }
 
@@ -326,17 +356,35 @@ impl DetailPool {
             .map(|(i, _)| i)
     }
 
-    /// Plans the pool for one frame: ranks `lod`'s clamped blocks by bound / epsilon, fills their visible
-    /// cells most-needed first under `budget` (samples only when `new_frame`: a clipmap frame planned
-    /// again spends nothing), and serves each block whose cells are all resident and whose draws fit:
-    /// its level in `lod` becomes the wanted one and `lod.blocks_clamped` drops. Writes `out`.
+    /// Visible cells of level `w` over block `b`, counted up to `cap + 1`.
+    fn count_cells(
+        &self,
+        view: &DetailView<'_>,
+        b: &BlockLod,
+        w: u32,
+        cap: usize,
+    ) -> Result<usize> {
+        let mut count = 0usize;
+        view.cells(b, w, self.quads, |_, _| {
+            count += 1;
+            Ok(count <= cap)
+        })?;
+        Ok(count)
+    }
+
+    /// Plans the pool for one frame (issue 15). The clamped blocks are refined minimax-first: the block
+    /// whose current bound is largest goes one level finer (`bound_at` gives a block's bound at a level)
+    /// while its visible cells fit the slots, draws and triangles left, until none can; a block stops at
+    /// its wanted level. Their cells are then filled most-needed first (by bound / epsilon at the clamped
+    /// level) under `budget.samples` (spent only when `budget.new_frame`: a clipmap frame planned again
+    /// spends nothing), and each block whose cells are all resident is served: its level in `lod` becomes
+    /// the refined one, and `lod.blocks_clamped` drops when that is its wanted level. Writes `out`.
     pub fn plan(
         &mut self,
         src: &impl DetailSource,
         view: &DetailView<'_>,
         lod: &mut LodFrame,
-        epsilon_px: f64,
-        new_frame: bool,
+        bound_at: &dyn Fn(&BlockLod, u32) -> f64,
         budget: &DetailBudget,
         out: &mut DetailFrame,
     ) -> Result<()> {
@@ -346,101 +394,133 @@ impl DetailPool {
         out.prev = (self.seq > 0).then_some(self.seq);
         self.seq += 1;
         out.seq = self.seq;
-        if new_frame {
+        if budget.new_frame {
             self.clock += 1;
         }
         let cap = self.slots.len();
+        self.cands.clear();
         if cap > 0 {
-            self.ranked.clear();
             for (i, b) in lod.blocks.iter().enumerate() {
                 if b.wanted < b.level && b.wanted < b.ring {
-                    #[expect(clippy::cast_possible_truncation, reason = "a ranking key")]
-                    let excess = (f64::from(b.bound_px) / epsilon_px) as f32;
-                    let i = u16::try_from(i).expect("blocks <= MAX_LOD_BLOCKS");
-                    self.ranked
-                        .push((excess, i))
+                    self.cands
+                        .push(Cand {
+                            block: u16::try_from(i).expect("blocks <= MAX_LOD_BLOCKS"),
+                            clamped: b.level,
+                            level: b.level,
+                            bound: f64::from(b.bound_px),
+                            need: f64::from(b.bound_px) / view.epsilon_px,
+                            cells: 0,
+                            frozen: false,
+                        })
                         .map_err(|_| Error::Capacity {
                             what: "clamped blocks",
                             capacity: MAX_LOD_BLOCKS,
                         })?;
                 }
             }
-            // Most-needed first; the block order breaks ties (deterministic).
-            self.ranked
-                .sort_unstable_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
-            let tile_samples = u64::from(self.side) * u64::from(self.side);
-            let mut samples = if new_frame { budget.samples } else { 0 };
-            let (mut draws, mut triangles) = (budget.draws, budget.triangles);
-            for r in 0..self.ranked.len() {
-                let i = usize::from(self.ranked[r].1);
-                let b = lod.blocks[i];
-                let mut count = 0usize;
-                view.cells(&b, self.quads, |_, _| {
-                    count += 1;
-                    Ok(count <= cap)
-                })?;
-                if count == 0 || count > cap {
-                    continue;
-                }
-                let n = u32::try_from(count).expect("count <= capacity");
-                let cost_d = n
-                    .saturating_mul(budget.tile_draws)
-                    .saturating_add(budget.margin.0);
-                let cost_t = u64::from(n) * budget.tile_triangles + budget.margin.1;
-                if cost_d > draws || cost_t > triangles {
-                    continue;
-                }
-                let mut missing = 0u32;
-                let clock = self.clock;
-                view.cells(&b, self.quads, |key, _| {
-                    if let Some(s) = self.find(&key) {
-                        self.slots[s].needed = clock;
-                        return Ok(true);
-                    }
-                    let victim = (samples >= tile_samples && src.detail_ready(&key))
-                        .then(|| self.victim())
-                        .flatten();
-                    match victim {
-                        Some(s) => {
-                            self.slots[s] = Slot {
-                                key: Some(key),
-                                needed: clock,
-                            };
-                            samples -= tile_samples;
-                            out.samples_updated += tile_samples;
-                            let slot = u32::try_from(s).expect("slots <= DETAIL_CAPACITY");
-                            // One upload per slot: a slot refilled within the frame keeps its last tile.
-                            if let Some(u) = out.uploads.iter_mut().find(|u| u.slot == slot) {
-                                u.key = key;
-                            } else {
-                                out.uploads
-                                    .push(DetailUpload { slot, key })
-                                    .map_err(|_| Error::Capacity {
-                                        what: "detail uploads per frame",
-                                        capacity: DETAIL_CAPACITY,
-                                    })?;
-                            }
-                        }
-                        None => missing += 1,
-                    }
-                    Ok(true)
-                })?;
-                if missing == 0 {
-                    out.served
-                        .push((self.ranked[r].1, b.level))
-                        .map_err(|_| Error::Capacity {
-                            what: "blocks served by the detail pool",
-                            capacity: MAX_LOD_BLOCKS,
-                        })?;
-                    draws -= cost_d;
-                    triangles -= cost_t;
+        }
+        // Minimax refinement under the slots, draws and triangles.
+        let (mut slots_left, mut draws, mut triangles) = (cap, budget.draws, budget.triangles);
+        loop {
+            // The unfrozen block with the largest bound (first on ties: deterministic).
+            let mut pick: Option<usize> = None;
+            for (k, c) in self.cands.iter().enumerate() {
+                let refinable = !c.frozen && c.level > lod.blocks[usize::from(c.block)].wanted;
+                if refinable && pick.is_none_or(|p| c.bound > self.cands[p].bound) {
+                    pick = Some(k);
                 }
             }
+            let Some(k) = pick else { break };
+            let c = self.cands[k];
+            let b = lod.blocks[usize::from(c.block)];
+            let next = c.level - 1;
+            let n = self.count_cells(view, &b, next, cap)?;
+            let (was_d, was_t) = if c.cells > 0 {
+                (
+                    c.cells * budget.tile_draws + budget.margin.0,
+                    u64::from(c.cells) * budget.tile_triangles + budget.margin.1,
+                )
+            } else {
+                (0, 0)
+            };
+            let nn = u32::try_from(n).expect("count <= capacity + 1");
+            let cost_d = nn * budget.tile_draws + budget.margin.0;
+            let cost_t = u64::from(nn) * budget.tile_triangles + budget.margin.1;
+            let fits = n > 0
+                && n <= slots_left + c.cells as usize
+                && cost_d <= draws + was_d
+                && cost_t <= triangles + was_t;
+            if !fits {
+                self.cands[k].frozen = true;
+                continue;
+            }
+            slots_left = slots_left + c.cells as usize - n;
+            draws = draws + was_d - cost_d;
+            triangles = triangles + was_t - cost_t;
+            let cm = &mut self.cands[k];
+            cm.level = next;
+            cm.cells = nn;
+            cm.bound = bound_at(&b, next);
         }
-        for &(i, _) in &out.served {
-            let b = &mut lod.blocks[usize::from(i)];
-            b.level = b.wanted;
-            lod.blocks_clamped -= 1;
+        // Fill most-needed first: by the clamped bound / epsilon, then block order.
+        self.cands
+            .sort_unstable_by(|a, b| b.need.total_cmp(&a.need).then(a.block.cmp(&b.block)));
+        let tile_samples = u64::from(self.side) * u64::from(self.side);
+        let mut samples = if budget.new_frame { budget.samples } else { 0 };
+        let clock = self.clock;
+        for r in 0..self.cands.len() {
+            let c = self.cands[r];
+            if c.cells == 0 {
+                continue;
+            }
+            let b = lod.blocks[usize::from(c.block)];
+            let mut missing = 0u32;
+            view.cells(&b, c.level, self.quads, |key, _| {
+                if let Some(s) = self.find(&key) {
+                    self.slots[s].needed = clock;
+                    return Ok(true);
+                }
+                let victim = (samples >= tile_samples && src.detail_ready(&key))
+                    .then(|| self.victim())
+                    .flatten();
+                match victim {
+                    Some(s) => {
+                        self.slots[s] = Slot {
+                            key: Some(key),
+                            needed: clock,
+                        };
+                        samples -= tile_samples;
+                        out.samples_updated += tile_samples;
+                        let slot = u32::try_from(s).expect("slots <= DETAIL_CAPACITY");
+                        // One upload per slot: a slot refilled within the frame keeps its last tile.
+                        if let Some(u) = out.uploads.iter_mut().find(|u| u.slot == slot) {
+                            u.key = key;
+                        } else {
+                            out.uploads.push(DetailUpload { slot, key }).map_err(|_| {
+                                Error::Capacity {
+                                    what: "detail uploads per frame",
+                                    capacity: DETAIL_CAPACITY,
+                                }
+                            })?;
+                        }
+                    }
+                    None => missing += 1,
+                }
+                Ok(true)
+            })?;
+            if missing == 0 {
+                out.served
+                    .push((c.block, c.clamped))
+                    .map_err(|_| Error::Capacity {
+                        what: "blocks served by the detail pool",
+                        capacity: MAX_LOD_BLOCKS,
+                    })?;
+                let b = &mut lod.blocks[usize::from(c.block)];
+                b.level = c.level;
+                if b.level == b.wanted {
+                    lod.blocks_clamped -= 1;
+                }
+            }
         }
         out.resident.clear();
         for s in &self.slots {
@@ -454,8 +534,11 @@ impl DetailPool {
     pub fn unserve_last(lod: &mut LodFrame, out: &mut DetailFrame) -> bool {
         match out.served.pop() {
             Some((i, level)) => {
-                lod.blocks[usize::from(i)].level = level;
-                lod.blocks_clamped += 1;
+                let b = &mut lod.blocks[usize::from(i)];
+                if b.level == b.wanted {
+                    lod.blocks_clamped += 1;
+                }
+                b.level = level;
                 true
             }
             None => false,
@@ -491,7 +574,7 @@ impl DetailPool {
         let q = i64::from(self.quads);
         for &(i, _) in &frame.served {
             let b = &lod.blocks[usize::from(i)];
-            view.cells(b, self.quads, |key, bounds| {
+            view.cells(b, b.level, self.quads, |key, bounds| {
                 let slot = self
                     .find(&key)
                     .expect("a served block's cells are resident");
@@ -502,7 +585,7 @@ impl DetailPool {
                     bounds,
                     fine: key.level,
                     quads: self.quads,
-                    clamped: false,
+                    clamped: b.level > b.wanted,
                     pool: Some(u16::try_from(slot).expect("slots <= DETAIL_CAPACITY")),
                 };
                 push(out, d)?;

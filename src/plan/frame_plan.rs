@@ -19,7 +19,8 @@ use crate::plan::detail::{DetailBudget, DetailFrame, DetailPool, DetailView};
 use crate::plan::lod::{Lod, LodFrame, LodMode};
 use crate::plan::mesh;
 use crate::plan::uniforms::{
-    data_extent_rel, detail_draw_uniform, draw_uniform, lod_draw_uniform, shading_levels, to_f32x4, DrawUniform, Globals,
+    data_extent_rel, detail_draw_uniform, draw_uniform, lod_draw_uniform, shading_levels, to_f32x4,
+    DrawUniform, Globals,
 };
 use crate::plan::uploads::UploadList;
 use crate::profile::DRAW_SLOT_BYTES;
@@ -415,6 +416,9 @@ impl Planner {
             g0: clipmap.g0(),
             z_range: self.z_range,
             data_lattice: self.data_lattice,
+            epsilon_px: self
+                .lod()
+                .map_or(self.default_epsilon, crate::plan::lod::Lod::epsilon_px),
         };
         let base_draws = u32::try_from(out.draws.len()).expect("draws <= MAX_DRAWS");
         let base_triangles = self.triangles(&out.draws);
@@ -443,24 +447,50 @@ impl Planner {
         // The rings' fill (and a package's decoding) comes first: the pool gets what is left.
         let spent = u64::from(frame.samples_updated) + u64::from(clipmap.decoded_samples());
         let budget = DetailBudget {
+            new_frame,
             samples: u64::from(self.update_budget).saturating_sub(spent),
             draws: self.max_draws.saturating_sub(base_draws),
             triangles: u64::from(self.max_triangles).saturating_sub(base_triangles),
             tile_draws,
             tile_triangles,
             // A neighbour drawn at its ring gains up to one skirt per piece.
-            margin: (4, 4 * u64::from(self.triangles_of(&cull::Draw {
-                quads: self.block_quads,
-                ..skirt
-            }))),
+            margin: (
+                4,
+                4 * self.triangles_of(&cull::Draw {
+                    quads: self.block_quads,
+                    ..skirt
+                }),
+            ),
         };
-        let epsilon = self.lod().map_or(self.default_epsilon, crate::plan::lod::Lod::epsilon_px);
+        // A block's bound at a finer level: the SAT estimate there (the selection's own), at the same
+        // closest distance, so bound / eta is the block's pixels per metre.
+        let bound_at = |b: &crate::plan::lod::BlockLod, level: u32| -> f64 {
+            let LodSetup::Sat(mode, lod) = &self.lod else {
+                return 0.0;
+            };
+            let t = lod.tables();
+            let (a, c, bb, d) = (
+                b.rect.x0 << b.ring,
+                b.rect.y0 << b.ring,
+                (b.rect.x1() - 1) << b.ring,
+                (b.rect.y1() - 1) << b.ring,
+            );
+            let (x0, y0, x1, y1) = t.data_box(lod.synth_levels(), a, c, bb, d);
+            let eta = level
+                .checked_sub(lod.synth_levels())
+                .and_then(|k| t.level(k))
+                .map_or(0.0, |lt| lt.eta(*mode, t.p, x0, y0, x1, y1));
+            if b.eta_m > 0.0 {
+                f64::from(b.bound_px) * eta / f64::from(b.eta_m)
+            } else {
+                0.0
+            }
+        };
         self.pool.plan(
             clipmap,
             &view,
             &mut out.lod,
-            epsilon,
-            new_frame,
+            &bound_at,
             &budget,
             &mut out.detail,
         )?;

@@ -325,7 +325,12 @@ pub fn detail_draw_uniform(
     let (fx, fy) = (ax as f64, ay as f64);
     let last = side as i32 - 1;
     DrawUniform {
-        origin: [rel(d.origin[0], ax), rel(d.origin[1], ay), d.level as i32, 0],
+        origin: [
+            rel(d.origin[0], ax),
+            rel(d.origin[1], ay),
+            d.level as i32,
+            0,
+        ],
         bounds: [
             rel(d.bounds.x0, ax),
             rel(d.bounds.y0, ay),

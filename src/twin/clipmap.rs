@@ -37,7 +37,12 @@ pub fn cpu_vertex(globals: &Globals, u: &DrawUniform, ring: &Ring, v: MeshVertex
 /// [`cpu_vertex`] for a detail pool draw (`u.pool[0] > 0`, issue 15): the heights come from its tile,
 /// `tile` its `side x side` samples as [`crate::plan::detail::fill_tile`] writes them, as `clip_fetch`
 /// reads the pool layer (z_c = z).
-pub fn cpu_detail_vertex(globals: &Globals, u: &DrawUniform, tile: &[f32], v: MeshVertex) -> CpuVertex {
+pub fn cpu_detail_vertex(
+    globals: &Globals,
+    u: &DrawUniform,
+    tile: &[f32],
+    v: MeshVertex,
+) -> CpuVertex {
     let side = u.pool[1];
     let fetch = |x: i32, y: i32| {
         let z = tile[(y * side + x) as usize];

@@ -154,9 +154,16 @@ fn detail_pool_fills_within_budgets_without_allocating() {
                 planner.plan(&cm, &cam, &params, &mut plan).expect("plan");
                 let s = plan.stats();
                 let spent = u64::from(cm.frame().samples_updated) + s.detail_samples_updated;
-                assert!(spent <= u64::from(b.update_samples_per_frame), "frame {f}: {spent} samples");
+                assert!(
+                    spent <= u64::from(b.update_samples_per_frame),
+                    "frame {f}: {spent} samples"
+                );
                 assert!(s.draws <= b.max_draws, "frame {f}: {} draws", s.draws);
-                assert!(s.triangles <= u64::from(b.max_triangles), "frame {f}: {} triangles", s.triangles);
+                assert!(
+                    s.triangles <= u64::from(b.max_triangles),
+                    "frame {f}: {} triangles",
+                    s.triangles
+                );
                 assert!(s.detail_tiles_resident <= b.detail_tiles);
                 most_tiles = most_tiles.max(s.detail_tiles_resident);
                 most_served = most_served.max(s.blocks_from_pool);
@@ -164,12 +171,18 @@ fn detail_pool_fills_within_budgets_without_allocating() {
             }
         });
         if counted {
-            assert_eq!(n, 0, "{n} allocations in 48 planned frames with the detail pool");
+            assert_eq!(
+                n, 0,
+                "{n} allocations in 48 planned frames with the detail pool"
+            );
         }
         (hashes, most_tiles, most_served)
     };
     let (first, tiles, served) = run(true);
-    assert!(tiles > 0 && served > 0, "the pool never filled ({tiles} tiles) or served ({served} blocks)");
+    assert!(
+        tiles > 0 && served > 0,
+        "the pool never filled ({tiles} tiles) or served ({served} blocks)"
+    );
     let (second, _, _) = run(false);
     assert_eq!(first, second, "the same flight gave other plan hashes");
 }

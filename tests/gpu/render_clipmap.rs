@@ -8,9 +8,9 @@ use crate::render_support::{self, *};
 use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen};
 use clipsat::gpu::renderer::{ObjectKind, VertexProbe};
 use clipsat::measure::{crack_pixels, CRACK_CLEAR, CRACK_CLEAR_RGBA8};
+use clipsat::plan::detail::fill_tile;
 use clipsat::plan::frame::LevelState;
 use clipsat::plan::mesh;
-use clipsat::plan::detail::fill_tile;
 use clipsat::twin::clipmap::{cpu_detail_vertex, cpu_vertex};
 use Pick::Pool;
 
@@ -256,7 +256,9 @@ fn twin_check(opts: &FrameOptions, pick: Pick) {
     render_frame(&mut r, &cm, &cam, opts).expect("frame");
     let draws = r.draws().len();
     let picked: Vec<usize> = if pick == Pool {
-        (0..draws).filter(|&k| r.draws()[k].pool.is_some()).collect()
+        (0..draws)
+            .filter(|&k| r.draws()[k].pool.is_some())
+            .collect()
     } else if snapped {
         (0..draws)
             .filter(|&k| r.draws()[k].fine != r.draws()[k].level)
@@ -284,7 +286,8 @@ fn twin_check(opts: &FrameOptions, pick: Pick) {
         };
         assert_eq!(gpu_clip.len(), m.vertices.len());
         if let Some(slot) = d.pool {
-            let key = r.plan().detail().resident[usize::from(slot)].expect("a drawn slot is resident");
+            let key =
+                r.plan().detail().resident[usize::from(slot)].expect("a drawn slot is resident");
             fill_tile(&cm, &key, quads, &mut tile);
         }
         for (v, g) in m.vertices.iter().zip(&gpu_clip) {

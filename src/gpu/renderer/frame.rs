@@ -122,12 +122,21 @@ impl Renderer {
         let chained = d.prev.is_some() && d.prev == self.detail_synced;
         let side = self.detail_side;
         let mut write = |slot: u32, key: &crate::plan::detail::TileKey| {
-            crate::plan::detail::fill_tile(clipmap, key, self.detail_quads, &mut self.detail_staging);
+            crate::plan::detail::fill_tile(
+                clipmap,
+                key,
+                self.detail_quads,
+                &mut self.detail_staging,
+            );
             queue.write_texture(
                 wgpu::TexelCopyTextureInfo {
                     texture: &self.detail,
                     mip_level: 0,
-                    origin: wgpu::Origin3d { x: 0, y: 0, z: slot },
+                    origin: wgpu::Origin3d {
+                        x: 0,
+                        y: 0,
+                        z: slot,
+                    },
                     aspect: wgpu::TextureAspect::All,
                 },
                 bytemuck::cast_slice(&self.detail_staging),
