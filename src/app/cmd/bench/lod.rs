@@ -64,6 +64,10 @@ pub(crate) struct Acc {
     pub(crate) frames_over: u32,
     pub(crate) rmse: f64,
     pub(crate) clamped: f64,
+    /// Blocks drawn from the detail pool (issue 15), summed over the frames.
+    pub(crate) from_pool: f64,
+    /// Detail pool tiles resident, summed over the frames.
+    pub(crate) pool_tiles: f64,
 }
 
 pub(super) fn run_lod(args: &BenchLodArgs) -> Result<()> {
@@ -134,6 +138,9 @@ pub(crate) const LOD_TABLE_NOTE: &str = "Means per frame, except max screen erro
     blocks drawn at the level they wanted, i.e. the estimator's own error without what the clip margin \
     cannot hold (for distance, every block). LOD time: the frame plan (`Planner::plan`: selection, culling, uniforms; \
     for distance, which selects nothing). Render time: upload, draw and readback on this machine's GL driver. \
+    Blocks from pool / pool tiles: SAT blocks drawn from the detail pool (at their wanted level or a finer \
+    one than the rings hold) and the pool's resident tiles (issue 15; blocks clamped counts those still \
+    short of their wanted level). \
     RMSE: RGB, 0..255, every pixel, against the brute-force render.";
 
 /// The profile the LOD measurements use: `w` x `h` pixels and every frame fully updated (the comparison is
@@ -213,6 +220,8 @@ pub(crate) fn measure_lod(
             acc.frames_over += u32::from(err.max_px > f64::from(eps));
             acc.rmse += measure::image_rmse(&frame.image, &truth.image).unwrap_or(f64::NAN);
             acc.clamped += f64::from(frame.stats.blocks_clamped);
+            acc.from_pool += f64::from(frame.stats.blocks_from_pool);
+            acc.pool_tiles += f64::from(frame.stats.detail_tiles_resident);
             bar.inc(1);
         }
     }
@@ -233,12 +242,12 @@ pub(crate) fn measure_lod(
 pub(crate) fn lod_table(results: &[LodResult], ratios: bool) -> String {
     let mut s = String::from(
         "| terrain | epsilon px | LOD | triangles | LOD us | render ms | max screen error px | unclamped max px | \
-         frames over eps | blocks clamped | RMSE |",
+         frames over eps | blocks clamped | blocks from pool | pool tiles | RMSE |",
     );
     if ratios {
-        s.push_str(" LOD time / exact | render time / distance |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+        s.push_str(" LOD time / exact | render time / distance |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     } else {
-        s.push_str("\n|---|---|---|---|---|---|---|---|---|---|---|\n");
+        s.push_str("\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     }
     let base = |r: &LodResult, mode: LodMode| {
         results
@@ -250,7 +259,7 @@ pub(crate) fn lod_table(results: &[LodResult], ratios: bool) -> String {
         let a = &r.acc;
         let n = f64::from(a.frames.max(1));
         s.push_str(&format!(
-            "| {} | {} | {} | {:.0} | {:.1} | {:.1} | {:.3} | {:.3} | {:.0} % | {:.1} | {:.2} |",
+            "| {} | {} | {} | {:.0} | {:.1} | {:.1} | {:.3} | {:.3} | {:.0} % | {:.1} | {:.1} | {:.0} | {:.2} |",
             r.terrain,
             r.epsilon,
             r.mode,
@@ -261,6 +270,8 @@ pub(crate) fn lod_table(results: &[LodResult], ratios: bool) -> String {
             a.max_error_unclamped_px,
             100.0 * f64::from(a.frames_over) / n,
             a.clamped / n,
+            a.from_pool / n,
+            a.pool_tiles / n,
             a.rmse / n,
         ));
         if ratios {
