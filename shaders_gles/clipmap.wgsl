@@ -366,17 +366,28 @@ fn fs_main(v: VsOut) -> @location(0) vec4<f32> {
     // (every block under distance LOD with every level active), the vertex values are that data:
     // central differences of the same ring, interpolated across the cell as level_surface blends them.
     // Only a block drawn coarser (SAT LOD, or finer rings not drawn) reads the finest ring here, 12
-    // fetches a pixel, blended into the vertex values over that ring's last DATA_BLEND cells so nothing
-    // jumps where it ends, and faded out over GC 6.2's transition band of that ring's active region, as
-    // its geometry is, so the finer detail never shows past the ring's drawn edge, where it would pop as
-    // the ring moves. Reading the rings at every pixel cost 85 % of a frame on llvmpipe (378 against
+    // fetches a pixel, blended over that ring's last DATA_BLEND cells into the next coarser ring's data
+    // (or the vertex values where that ring is the block's own) so nothing jumps where it ends. With morphing (distance LOD) it also fades out over GC 6.2's transition band
+    // of that ring's active region, as its geometry does, so the finer detail never shows past the ring's
+    // drawn edge, where it would pop as the ring moves; SAT LOD does not morph and keeps it. Reading the rings at every pixel cost 85 % of a frame on llvmpipe (378 against
     // 56 CPU ms per frame, Puget Sound at 1280x800).
     var h = v.height;
     var n = v.normal;
     let fine = finest_level(v.rel.xy);
     if (fine >= 0 && fine < v.level) {
         let d = level_surface(fine, v.rel.xy);
-        let w = d.weight * (1.0 - shade_morph_alpha(fine, v.rel.xy));
+        let w = d.weight * (1.0 - globals.params.x * shade_morph_alpha(fine, v.rel.xy));
+        if (w < 1.0) {
+            // The band blends into the next coarser ring's data while that is still finer than the block.
+            for (var c = fine + 1; c < v.level; c = c + 1) {
+                let coarse = level_surface(c, v.rel.xy);
+                if (coarse.found) {
+                    h = coarse.height;
+                    n = coarse.normal;
+                    break;
+                }
+            }
+        }
         h = mix(h, d.height, w);
         n = mix(n, d.normal, w);
     }

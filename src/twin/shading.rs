@@ -90,15 +90,15 @@ pub fn shade_morph_alpha(globals: &Globals, l: u32, rel: [f32; 2]) -> f32 {
 
 /// What `fs_main` shades a pixel of a block drawn at `draw_level` with: `None` where it keeps the drawn
 /// vertex's values (the block is drawn at the finest ring holding the pixel, as under distance LOD), else
-/// the finest ring's data at `rel` and its share `w`: the shader takes `mix(vertex, data, w)`, with `w` the
-/// ring's edge blend times (1 - its GC 6.2 alpha), so the finer detail fades out where that ring's drawn
-/// geometry does.
+/// the finest ring's data at `rel` and its share `w` ([`FragmentData`]), with `w` the
+/// ring's edge blend times (1 - morph x its GC 6.2 alpha), `morph` = `globals.params[0]` (1 under distance
+/// LOD, 0 under SAT LOD), so with morphing the finer detail fades out where that ring's drawn geometry does.
 pub fn fragment_data(
     globals: &Globals,
     clipmap: &Clipmap,
     rel: [f32; 2],
     draw_level: u32,
-) -> Option<(DataSurface, f32)> {
+) -> Option<FragmentData> {
     let fine = finest_level(globals, rel)?;
     if fine >= draw_level {
         return None;
@@ -108,7 +108,36 @@ pub fn fragment_data(
         reason = "levels are below MAX_LEVELS = 16"
     )]
     let (d, weight) = level_surface(globals, clipmap, fine as i32, rel)?;
-    Some((d, weight * (1.0 - shade_morph_alpha(globals, fine, rel))))
+    let morph = globals.params[0];
+    let share = weight * (1.0 - morph * shade_morph_alpha(globals, fine, rel));
+    #[expect(
+        clippy::cast_possible_wrap,
+        reason = "levels are below MAX_LEVELS = 16"
+    )]
+    let base = if share < 1.0 {
+        (fine as i32 + 1..draw_level as i32)
+            .find_map(|c| level_surface(globals, clipmap, c, rel))
+            .map(|(c, _)| c)
+    } else {
+        None
+    };
+    Some(FragmentData {
+        data: d,
+        share,
+        base,
+    })
+}
+
+/// [`fragment_data`]'s answer: the shader shades with `mix(base, data, share)`, `base` the vertex values
+/// when `None`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FragmentData {
+    /// The finest ring's data at the pixel.
+    pub data: DataSurface,
+    /// Its share: the ring's edge blend times (1 - morph x its GC 6.2 alpha).
+    pub share: f32,
+    /// The next coarser ring's data, when the share is below 1 and that ring is finer than the block.
+    pub base: Option<DataSurface>,
 }
 
 /// `level_surface`: level `l`'s data at `rel` and its blend weight, or `None` outside its clip region's

@@ -235,6 +235,8 @@ fn fragment_reads_the_rings_only_under_coarser_blocks() {
     let cam = Camera::new(eye, DVec3::new(9000.0, 9000.0, 0.0), 60.0).expect("camera");
     let mut globals = Globals::zeroed();
     (globals.levels, globals.level_info) = shading_levels(&cm, &cam, cm.ring(0).size());
+    // Distance LOD: morphing on, so the data fades with the ring's GC 6.2 alpha.
+    globals.params[0] = 1.0;
     let (mut full, mut faded) = (0, 0);
     for v in (2..hm.height() - 2).step_by(5) {
         for u in (2..hm.width() - 2).step_by(5) {
@@ -247,9 +249,11 @@ fn fragment_reads_the_rings_only_under_coarser_blocks() {
                 "finest_level and data_surface disagree at ({u}, {v})"
             );
             assert_eq!(fragment_data(&globals, &cm, rel, fine), None);
-            let (data, w) =
-                fragment_data(&globals, &cm, rel, fine + 1).expect("a coarser block reads");
+            let f = fragment_data(&globals, &cm, rel, fine + 1).expect("a coarser block reads");
+            let (data, w) = (f.data, f.share);
             assert_eq!(data.level, fine);
+            // One level coarser, the band blends into the block's own vertices.
+            assert_eq!(f.base, None);
             assert!((0.0..=1.0).contains(&w), "share {w}");
             let alpha = shade_morph_alpha(&globals, fine, rel);
             if alpha == 0.0 && d.weight == 1.0 {
