@@ -192,6 +192,32 @@ fn encode(linear: DVec3, distance: f64, scene: &Scene) -> [f64; 3] {
     [c.x, c.y, c.z].map(|v| v.clamp(0.0, 1.0).powf(1.0 / 2.2))
 }
 
+/// How finely the CPU reference samples: image pixels per side (at most) and hemisphere directions.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct RefQuality {
+    /// Reference pixels per image side, at most.
+    pub(crate) pixels: u32,
+    /// Hemisphere grid: polar and azimuthal steps.
+    pub(crate) theta: u32,
+    pub(crate) phi: u32,
+}
+
+impl RefQuality {
+    /// What `render`, `fly` and `bench shading` report: [`REF_GRID`]^2 pixels, 96 x 192 directions.
+    pub(crate) const FULL: Self = Self {
+        pixels: REF_GRID,
+        theta: 96,
+        phi: 192,
+    };
+    /// `bench all --quick` (a test of the report, not a measurement): 8^2 pixels, 32 x 64 directions,
+    /// 81x fewer direction evaluations.
+    pub(crate) const QUICK: Self = Self {
+        pixels: 8,
+        theta: 32,
+        phi: 64,
+    };
+}
+
 /// The CPU reference of `scene` (as rendered) seen from `camera` at image size `size`, on a grid of at
 /// most [`REF_GRID`]^2 pixels.
 pub(crate) fn reference(
@@ -200,6 +226,17 @@ pub(crate) fn reference(
     size: (u32, u32),
     scene: &Scene,
 ) -> Reference {
+    reference_at(hm, camera, size, scene, RefQuality::FULL)
+}
+
+/// [`reference`] at a chosen [`RefQuality`].
+pub(crate) fn reference_at(
+    hm: &Heightmap,
+    camera: &Camera,
+    size: (u32, u32),
+    scene: &Scene,
+    quality: RefQuality,
+) -> Reference {
     // The fog as the renderer binds it (Renderer::set_sg_baked).
     let mut fitted = scene.clone();
     let (ex, ey) = hm.extent_m();
@@ -207,14 +244,15 @@ pub(crate) fn reference(
     let scene = &fitted;
     let mut pixels = Vec::new();
     let grid = RefGrid {
-        theta: 96,
-        phi: 192,
+        theta: quality.theta,
+        phi: quality.phi,
         cosine: RefCosine::Exact,
     };
-    for gy in 0..REF_GRID.min(size.1) {
-        for gx in 0..REF_GRID.min(size.0) {
-            let px = (2 * gx + 1) * size.0 / (2 * REF_GRID.min(size.0));
-            let py = (2 * gy + 1) * size.1 / (2 * REF_GRID.min(size.1));
+    let side = quality.pixels.max(1);
+    for gy in 0..side.min(size.1) {
+        for gx in 0..side.min(size.0) {
+            let px = (2 * gx + 1) * size.0 / (2 * side.min(size.0));
+            let py = (2 * gy + 1) * size.1 / (2 * side.min(size.1));
             let dir = pixel_ray(camera, size, px, py);
             let Some((u, v, p)) = hit(hm, camera.eye, dir, camera.far) else {
                 continue;

@@ -6,6 +6,7 @@ use std::fmt::Write as _;
 use std::path::{Path as FsPath, PathBuf};
 use std::time::Instant;
 
+use crate::app::cmd::sg::RefQuality;
 use crate::app::plot::{LinePlot, Series};
 use clap::Args;
 use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen, OffscreenOptions};
@@ -31,7 +32,8 @@ pub(crate) struct BenchAllArgs {
     /// Output folder for report.md and its PNG plots.
     #[arg(long, value_name = "DIR")]
     out: PathBuf,
-    /// A small run for tests: the procedural terrain only (257 x 257), few frames, small images.
+    /// A small run for tests: the procedural terrain only (257 x 257), one LOD frame, small images, a coarse
+    /// shading reference (8^2 pixels, 32 x 64 directions).
     #[arg(long)]
     quick: bool,
     #[command(flatten)]
@@ -64,6 +66,8 @@ struct Plan {
     /// Image size and timed frames of the shading section.
     shading_size: (u32, u32),
     shading_frames: u32,
+    /// How finely the shading section's CPU reference samples.
+    shading_ref: RefQuality,
 }
 
 impl Plan {
@@ -75,12 +79,13 @@ impl Plan {
                     ..ProceduralParams::default()
                 },
                 shared: false,
-                lod_frames: 2,
+                lod_frames: 1,
                 size: (160, 90),
                 speeds: &SPEEDS_QUICK,
                 fly_frames: 24,
                 shading_size: (160, 90),
                 shading_frames: 1,
+                shading_ref: RefQuality::QUICK,
             }
         } else {
             Self {
@@ -92,6 +97,7 @@ impl Plan {
                 fly_frames: 300,
                 shading_size: (320, 180),
                 shading_frames: 3,
+                shading_ref: RefQuality::FULL,
             }
         }
     }
@@ -228,6 +234,7 @@ pub(crate) fn run(args: &BenchAllArgs) -> Result<()> {
         &shading_terrains,
         plan.shading_size,
         plan.shading_frames,
+        plan.shading_ref,
         &bar,
     )?;
 

@@ -171,7 +171,15 @@ pub(crate) fn run_shading(args: &BenchShadingArgs) -> Result<ShadingReport> {
     let rows = if args.breakdown_only {
         Vec::new()
     } else {
-        measure_shading(&gpu, &profile, &terrains, size, args.frames, &bar)?
+        measure_shading(
+            &gpu,
+            &profile,
+            &terrains,
+            size,
+            args.frames,
+            crate::app::cmd::sg::RefQuality::FULL,
+            &bar,
+        )?
     };
     bar.finish_and_clear();
     let mut md = breakdown_markdown(&breakdown, &gpu, &profile, size, args.frames);
@@ -260,6 +268,7 @@ pub(crate) fn measure_shading(
     terrains: &[(String, Heightmap)],
     (w, h): (u32, u32),
     frames: u32,
+    quality: crate::app::cmd::sg::RefQuality,
     bar: &ProgressBar,
 ) -> Result<Vec<ShadingRow>> {
     let mut profile = profile.clone();
@@ -298,7 +307,7 @@ pub(crate) fn measure_shading(
             let mut scene = base.clone();
             scene.effects.visibility = vis;
             scene.effects.specular = spec;
-            let reference = crate::app::cmd::sg::reference(hm, &camera, (w, h), &scene);
+            let reference = crate::app::cmd::sg::reference_at(hm, &camera, (w, h), &scene, quality);
             for patches in Patches::ALL {
                 let bake = if vis { &bake_vis } else { &bake_plain };
                 let mut r = Offscreen::new(
