@@ -19,6 +19,7 @@ use crate::plan::budget::{needed_samples, plan_level};
 pub use crate::plan::constraints::ConstraintViolation;
 use crate::plan::frame::{Frame, LevelFrame, LevelState, Rect, MAX_LEVELS};
 pub use crate::plan::morph::morph_alpha;
+pub use crate::plan::ring::Ring;
 use crate::plan::synthesis::{extrapolate_sigmas, synthesize, NoiseTable};
 use crate::plan::uploads::UploadStamps;
 use crate::{Error, Heightmap, Param, Profile, Result};
@@ -38,49 +39,6 @@ const MAX_LATTICE: f64 = (1u64 << 48) as f64;
 
 /// The viewer-height rule: level l is disabled above 0.4 n g_l over the terrain (design.md).
 pub const HEIGHT_FACTOR: f64 = 0.4;
-
-/// One ring's storage: `size x size` (z, z_c) pairs, texel (i mod size, j mod size) for lattice sample (i, j).
-///
-/// The layout is RG32F, row-major: the GPU uploads these bytes as they are.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Ring {
-    size: u32,
-    texels: Vec<[f32; 2]>,
-}
-
-impl Ring {
-    /// Side of the toroidal storage, `profile.clip_size()`.
-    pub fn size(&self) -> u32 {
-        self.size
-    }
-
-    /// All texels, row-major, (z, z_c) each.
-    pub fn texels(&self) -> &[[f32; 2]] {
-        &self.texels
-    }
-
-    /// The texels as bytes (RG32F), for `write_texture`.
-    pub fn bytes(&self) -> &[u8] {
-        bytemuck::cast_slice(&self.texels)
-    }
-
-    /// Texel index of lattice sample (i, j).
-    #[inline]
-    #[expect(
-        clippy::cast_possible_truncation,
-        reason = "rem_euclid by the ring size is in 0..size"
-    )]
-    pub fn index(&self, i: i64, j: i64) -> usize {
-        let s = i64::from(self.size);
-        (j.rem_euclid(s) * s + i.rem_euclid(s)) as usize
-    }
-
-    /// The stored (z, z_c) of lattice sample (i, j) (meaningful inside the level's clip region).
-    #[inline]
-    pub fn get(&self, i: i64, j: i64) -> [f32; 2] {
-        self.texels[self.index(i, j)]
-    }
-}
 
 /// The geometry clipmap: pyramid, rings, clip regions and the last frame's record.
 #[derive(Debug)]
@@ -209,12 +167,7 @@ impl Clipmap {
             ));
         }
         let texels = size as usize * size as usize;
-        let rings = (0..levels)
-            .map(|_| Ring {
-                size,
-                texels: vec![[0.0; 2]; texels],
-            })
-            .collect();
+        let rings = (0..levels).map(|_| Ring::new(size, texels)).collect();
         let data_spacing = f64::from(spacing);
         Ok(Self {
             source,
@@ -672,13 +625,7 @@ impl Clipmap {
     fn fill(&mut self, level: u32, band: &Rect, zsum: &mut Hash64) {
         let li = level as usize;
         // Take the ring out so the coarser ring (synthesis) and the pyramid can be read while writing it.
-        let mut ring = std::mem::replace(
-            &mut self.rings[li],
-            Ring {
-                size: 0,
-                texels: Vec::new(),
-            },
-        );
+        let mut ring = std::mem::replace(&mut self.rings[li], Ring::empty());
         {
             let this = &*self;
             let pyramid_coarse = level + 1 >= this.synth;
@@ -692,7 +639,7 @@ impl Clipmap {
                         .get(a, b)[0]
                 }
             };
-            let size = ring.size as usize;
+            let size = ring.size() as usize;
             let tx0 = ring.index(band.x0, 0);
             for j in band.y0..band.y1() {
                 // Toroidal addressing, stepped along the row instead of a division per texel.
@@ -700,7 +647,7 @@ impl Clipmap {
                 let mut tx = tx0;
                 for i in band.x0..band.x1() {
                     let t = this.texel(level, i, j, &coarse);
-                    ring.texels[row + tx] = t;
+                    ring.texels_mut()[row + tx] = t;
                     tx += 1;
                     if tx == size {
                         tx = 0;

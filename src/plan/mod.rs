@@ -3,7 +3,7 @@
 //! In data-flow order:
 //!
 //! - [`flight`] and [`camera`]: the camera of frame i, a pure function of the path and i (no clock);
-//! - [`budget`], [`clipmap`], [`synthesis`]: the budgeted coarse-to-fine toroidal update of every ring
+//! - [`budget`], [`clipmap`], [`ring`], [`synthesis`]: the budgeted coarse-to-fine toroidal update of every ring
 //!   (GC sections 3-5 and 8), recorded in a [`frame::Frame`] with its hash;
 //! - [`lod`]: SAT LOD block selection over the tables of [`crate::bake::lod_tables`];
 //! - [`cull`]: frustum culling into the fixed-capacity draw list;
@@ -26,6 +26,7 @@ pub mod frame_plan;
 pub mod lod;
 pub mod mesh;
 pub mod morph;
+pub mod ring;
 pub mod stream;
 pub mod synthesis;
 pub mod uniforms;
