@@ -7,6 +7,7 @@ use bytemuck::{Pod, Zeroable};
 
 use crate::plan::clipmap::Clipmap;
 use crate::plan::cull;
+use crate::plan::frame::Rect;
 use crate::profile::{GLOBALS_BYTES, MAX_LEVELS};
 use crate::shading::basic::BasicShading;
 use crate::Camera;
@@ -85,16 +86,6 @@ pub fn shading_levels(
             reason = "lattice coordinates are below 2^48"
         )]
         let (fx, fy) = (c.x0 as f64, c.y0 as f64);
-        let a = lf.active;
-        #[expect(
-            clippy::cast_precision_loss,
-            reason = "active widths are at most 2048, exact in f32"
-        )]
-        let half = if a.is_empty() {
-            [-1.0e9, -1.0e9]
-        } else {
-            [(a.w as f32 - 1.0) * 0.5, (a.h as f32 - 1.0) * 0.5]
-        };
         *slot = ShadeLevel {
             rel: [
                 ((fx * k - p.0) * g0) as f32,
@@ -108,16 +99,35 @@ pub fn shading_levels(
                 c.w as i32,
                 c.h as i32,
             ],
-            morph: [
-                (p.0 / k - fx) as f32,
-                (p.1 / k - fy) as f32,
-                half[0],
-                half[1],
-            ],
+            morph: morph_params(p, k, (fx, fy), &lf.active),
         };
     }
     let n = i32::try_from(clipmap.n()).expect("n <= 511 (profile check)");
     (out, [used as i32, size as i32, n, 0])
+}
+
+/// GC 6.2's transition parameters of a level with active region `active`, in its lattice units relative to
+/// `origin` (a lattice point of the level; `p` the eye in level-0 lattice units, `k` = 2^level): xy the
+/// viewer, zw (active width - 1) / 2 and (active height - 1) / 2, or -1e9 for an empty region (alpha 1
+/// everywhere).
+#[expect(
+    clippy::cast_possible_truncation,
+    clippy::cast_precision_loss,
+    reason = "anchor-relative lattice offsets are below the ring size; active widths are at most 2048, \
+              exact in f32"
+)]
+fn morph_params(p: (f64, f64), k: f64, origin: (f64, f64), active: &Rect) -> [f32; 4] {
+    let half = if active.is_empty() {
+        [-1.0e9, -1.0e9]
+    } else {
+        [(active.w as f32 - 1.0) * 0.5, (active.h as f32 - 1.0) * 0.5]
+    };
+    [
+        (p.0 / k - origin.0) as f32,
+        (p.1 / k - origin.1) as f32,
+        half[0],
+        half[1],
+    ]
 }
 
 /// One draw's uniforms; mirrors `DrawUniform` in `shaders_gles/clipmap.wgsl`. Lattice values are relative
@@ -211,12 +221,7 @@ pub fn draw_uniform(
             (-camera.eye.z) as f32,
             (g0 * k) as f32,
         ],
-        morph: [
-            (p.0 / k - fx) as f32,
-            (p.1 / k - fy) as f32,
-            (a.w as f32 - 1.0) * 0.5,
-            (a.h as f32 - 1.0) * 0.5,
-        ],
+        morph: morph_params(p, k, (fx, fy), &a),
         morph_w: [n as f32 / 10.0, n as f32, 0.0, 0.0],
         ..DrawUniform::default()
     }

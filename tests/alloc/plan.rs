@@ -10,9 +10,22 @@ use clipsat::plan::flight::{Flight, Path};
 use clipsat::plan::frame_plan::{LodSetup, PlanParams, Planner};
 use clipsat::plan::lod::{Lod, LodMode};
 use clipsat::source::procedural::{generate, ProceduralParams};
-use clipsat::Profile;
+use clipsat::{Heightmap, Profile};
 
 use crate::counting_alloc::count;
+
+/// The SAT LOD tables of `hm` for clipmap `cm` (baked once into the test cache folder).
+fn lod_tables(hm: &Heightmap, prof: &Profile, cm: &Clipmap) -> Lod {
+    let params = BakeParams {
+        p: P,
+        levels: prof.clipmap.levels,
+        synth_levels: 0,
+        g0: cm.g0(),
+    };
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("alloc-lod-cache");
+    let (tables, _) = bake_lod(hm, cm.pyramid(), &params, &dir, false).expect("LOD tables");
+    Lod::for_clipmap(tables, prof, cm, hm)
+}
 
 #[test]
 fn update_and_draw_list_allocate_nothing() {
@@ -79,15 +92,7 @@ fn lod_selection_allocates_nothing() {
     .expect("procedural");
     let prof = Profile::load("gles3-mid").expect("shipped profile");
     let mut cm = Clipmap::new(&hm, &prof, ClipmapOptions::default()).expect("clipmap");
-    let params = BakeParams {
-        p: P,
-        levels: prof.clipmap.levels,
-        synth_levels: 0,
-        g0: cm.g0(),
-    };
-    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("alloc-lod-cache");
-    let (tables, _) = bake_lod(&hm, cm.pyramid(), &params, &dir, false).expect("LOD tables");
-    let lod = Lod::for_clipmap(tables, &prof, &cm, &hm);
+    let lod = lod_tables(&hm, &prof, &cm);
     let flight = Flight::new(Path::Figure8, 120.0, &hm).expect("flight");
     for f in 0..5 {
         cm.update(flight.camera(f).eye).expect("update");
@@ -127,15 +132,7 @@ fn detail_pool_fills_within_budgets_without_allocating() {
     let prof = Profile::load("gles3-mid").expect("shipped profile");
     let run = |counted: bool| -> (Vec<u64>, u32, u32) {
         let mut cm = Clipmap::new(&hm, &prof, ClipmapOptions::default()).expect("clipmap");
-        let params = BakeParams {
-            p: P,
-            levels: prof.clipmap.levels,
-            synth_levels: 0,
-            g0: cm.g0(),
-        };
-        let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("alloc-lod-cache");
-        let (tables, _) = bake_lod(&hm, cm.pyramid(), &params, &dir, false).expect("LOD tables");
-        let lod = Lod::for_clipmap(tables, &prof, &cm, &hm);
+        let lod = lod_tables(&hm, &prof, &cm);
         let flight = Flight::new(Path::Figure8, 60.0, &hm).expect("flight");
         let setup = LodSetup::new(LodMode::SatConservative, Some(lod)).expect("tables");
         let mut planner = Planner::new(&prof, &cm, setup).expect("planner");

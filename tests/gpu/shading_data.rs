@@ -29,6 +29,19 @@ fn filled(hm: &Heightmap, p: &Profile, eye: DVec3) -> Clipmap {
     cm
 }
 
+/// The relief terrain, an eye above it, the clipmap filled there (gles3-mid) and the shading globals
+/// the renderer would write for that frame: what the twin tests read.
+fn twin_frame() -> (Heightmap, DVec3, Clipmap, Globals) {
+    let hm = relief();
+    let p = profile("gles3-mid", 320, 180, None);
+    let eye = DVec3::new(7000.0, 6000.0, 1500.0);
+    let cm = filled(&hm, &p, eye);
+    let cam = Camera::new(eye, DVec3::new(9000.0, 9000.0, 0.0), 60.0).expect("camera");
+    let mut globals = Globals::zeroed();
+    (globals.levels, globals.level_info) = shading_levels(&cm, &cam, cm.ring(0).size());
+    (hm, eye, cm, globals)
+}
+
 fn grid(name: &str, w: u32, h: u32, spacing: f32, f: impl Fn(f32, f32) -> f32) -> Heightmap {
     let heights = (0..w * h)
         .map(|i| f((i % w) as f32, (i / w) as f32))
@@ -88,13 +101,7 @@ fn default_camera_frames_any_terrain() {
     reason = "eye-relative metres as the shader's f32"
 )]
 fn data_surface_twin_reads_the_finest_ring() {
-    let hm = relief();
-    let p = profile("gles3-mid", 320, 180, None);
-    let eye = DVec3::new(7000.0, 6000.0, 1500.0);
-    let cm = filled(&hm, &p, eye);
-    let cam = Camera::new(eye, DVec3::new(9000.0, 9000.0, 0.0), 60.0).expect("camera");
-    let mut globals = Globals::zeroed();
-    (globals.levels, globals.level_info) = shading_levels(&cm, &cam, cm.ring(0).size());
+    let (hm, eye, cm, globals) = twin_frame();
     let s = hm.spacing();
     let mut levels_seen = std::collections::BTreeSet::new();
     for v in (2..hm.height() - 2).step_by(7) {
@@ -228,13 +235,7 @@ fn no_curtains_below_the_data_border() {
 )]
 fn fragment_reads_the_rings_only_under_coarser_blocks() {
     use clipsat::twin::shading::{finest_level, fragment_data, shade_morph_alpha};
-    let hm = relief();
-    let p = profile("gles3-mid", 320, 180, None);
-    let eye = DVec3::new(7000.0, 6000.0, 1500.0);
-    let cm = filled(&hm, &p, eye);
-    let cam = Camera::new(eye, DVec3::new(9000.0, 9000.0, 0.0), 60.0).expect("camera");
-    let mut globals = Globals::zeroed();
-    (globals.levels, globals.level_info) = shading_levels(&cm, &cam, cm.ring(0).size());
+    let (hm, eye, cm, mut globals) = twin_frame();
     // Distance LOD: morphing on, so the data fades with the ring's GC 6.2 alpha.
     globals.params[0] = 1.0;
     let (mut full, mut faded) = (0, 0);

@@ -214,19 +214,27 @@ pub(crate) type NamedTerrains = (Vec<(String, Heightmap)>, Vec<String>);
 /// Sound and Big Tujunga. A missing shared file is skipped with a printed reason, or an error under
 /// CI=true. Returns the terrains and the names skipped.
 pub(crate) fn shading_terrains(shared: bool) -> Result<NamedTerrains> {
-    let ci = std::env::var("CI").is_ok_and(|v| v == "true");
-    let mut terrains = vec![(
-        "procedural-257".to_string(),
-        source::procedural::generate(&source::procedural::ProceduralParams {
-            size: 257,
-            ..Default::default()
-        })?,
-    )];
-    let mut skipped = Vec::new();
-    if !shared {
-        return Ok((terrains, skipped));
+    let mut out = (
+        vec![(
+            "procedural-257".to_string(),
+            source::procedural::generate(&source::procedural::ProceduralParams {
+                size: 257,
+                ..Default::default()
+            })?,
+        )],
+        Vec::new(),
+    );
+    if shared {
+        add_shared(&[TERRAINS[0], TERRAINS[2]], &mut out)?;
     }
-    for (name, spacing, scale) in [TERRAINS[0], TERRAINS[2]] {
+    Ok(out)
+}
+
+/// Loads each of `list` (file, spacing and height scale overrides) from the shared data folder into `out`;
+/// a missing file is skipped with a printed reason, or an error under CI=true.
+fn add_shared(list: &[(&str, Option<f32>, Option<f32>)], out: &mut NamedTerrains) -> Result<()> {
+    let ci = std::env::var("CI").is_ok_and(|v| v == "true");
+    for &(name, spacing, scale) in list {
         let path = clipsat::data_dir().join(name);
         if !path.exists() {
             if ci {
@@ -239,7 +247,7 @@ pub(crate) fn shading_terrains(shared: bool) -> Result<NamedTerrains> {
                 "bench shading: skipping {name}: {} is missing",
                 path.display()
             );
-            skipped.push(name.to_string());
+            out.1.push(name.to_string());
             continue;
         }
         let hm = source::load(
@@ -250,9 +258,9 @@ pub(crate) fn shading_terrains(shared: bool) -> Result<NamedTerrains> {
                 ..Default::default()
             },
         )?;
-        terrains.push((name.to_string(), hm));
+        out.0.push((name.to_string(), hm));
     }
-    Ok((terrains, skipped))
+    Ok(())
 }
 
 /// Progress steps of [`measure_shading`] over `terrains` terrains.
@@ -347,35 +355,9 @@ pub(crate) fn measure_shading(
 /// The shared terrains of `bench all` (each present one; a missing one is skipped, or an error under
 /// CI=true), after the procedural terrain.
 fn all_shared_terrains() -> Result<NamedTerrains> {
-    let ci = std::env::var("CI").is_ok_and(|v| v == "true");
-    let (mut terrains, mut skipped) = shading_terrains(false)?;
-    for (name, spacing, scale) in SHARED {
-        let path = clipsat::data_dir().join(name);
-        if !path.exists() {
-            if ci {
-                return Err(arg_error(
-                    "bench shading",
-                    format!("{} is missing (CI=true)", path.display()),
-                ));
-            }
-            eprintln!(
-                "bench shading: skipping {name}: {} is missing",
-                path.display()
-            );
-            skipped.push(name.to_string());
-            continue;
-        }
-        let hm = source::load(
-            &path,
-            &LoadOptions {
-                spacing,
-                height_scale: scale,
-                ..Default::default()
-            },
-        )?;
-        terrains.push((name.to_string(), hm));
-    }
-    Ok((terrains, skipped))
+    let mut out = shading_terrains(false)?;
+    add_shared(&SHARED, &mut out)?;
+    Ok(out)
 }
 
 /// The scenes of the breakdown, as shipped.
