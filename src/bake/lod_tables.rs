@@ -127,13 +127,14 @@ pub fn error_map(pyramid: &Pyramid, k: u32) -> Vec<f32> {
     out
 }
 
-/// e at data sample (x, y) against data level k's piecewise-linear surface.
+/// e at data sample (x, y) against data level k's piecewise-linear surface (k <= 40; measurement code such
+/// as [`crate::measure::screen_error`] reads it per sample instead of keeping an error map).
 #[inline]
 #[expect(
     clippy::cast_possible_truncation,
     reason = "the error is stored as f32, rounded once"
 )]
-fn sample_error(pyramid: &Pyramid, k: u32, x: i64, y: i64) -> f32 {
+pub fn sample_error(pyramid: &Pyramid, k: u32, x: i64, y: i64) -> f32 {
     let step = 1i64 << k;
     let (i, j) = (x >> k, y >> k);
     let inv = 1.0 / step as f64;
@@ -206,6 +207,16 @@ impl RangeMax {
         &self.levels[0]
     }
 
+    /// The finest level's width and height.
+    pub fn size(&self) -> (u32, u32) {
+        self.dims[0]
+    }
+
+    /// Bytes the pyramid holds.
+    pub fn memory_bytes(&self) -> u64 {
+        self.levels.iter().map(|l| l.len() as u64 * 4).sum()
+    }
+
     /// Maximum over [x0, x1) x [y0, y1) (0 for an empty box); panics past the grid.
     pub fn max(&self, x0: u32, y0: u32, x1: u32, y1: u32) -> f32 {
         assert!(
@@ -262,35 +273,88 @@ pub struct BlockError {
 }
 
 /// The tables of one data level: E, the SAT of (e/E)^p and the max pyramid of e. None where E = 0.
+///
+/// # Resolution
+///
+/// Built by [`LevelTables::build_level`], data level k's tables live at level k's resolution (cell side
+/// 2^k data samples, `shift` = k), about 4^-k of a full-resolution table (design.md "SAT LOD": a block
+/// drawn at level k covers whole level-k cells, so its box is aligned to level k's lattice):
+///
+/// - the max pyramid holds the max of e over each **closed** cell [c 2^k, (c + 1) 2^k]^2 (both edges, as
+///   the triangles of level k cover them), so the max over a lattice-aligned inclusive box is exact;
+/// - the SAT sums the per-sample quantised (e/E)^p over each **half-open** cell [c 2^k, (c + 1) 2^k)^2, the
+///   same integers a full-resolution SAT holds ([`Sat`] with `cell` = 2^k), so a box sum over whole cells
+///   equals the full-resolution one bit for bit.
+///
+/// A query box [x0, x1) x [y0, y1) of data samples (inclusive last sample x1 - 1) is widened to the
+/// closed cells that cover it, the region level k's geometry draws over it: for a lattice-aligned box
+/// that is the box itself. Then `exact` is the exact max over the widened box; `estimate` uses the SAT
+/// over the half-open cells (a subset of the widened box, so a lower bound of its sum: still <= exact);
+/// `conservative` adds to that SAT sum the far edge column and row (which the half-open cells leave out),
+/// each sample bounded by (M/E)^p with M the edge's max from the max pyramid: still >= exact.
+/// [`LevelTables::build`] (`shift` = 0) keeps the full-resolution tables (one cell per sample) for tools
+/// and tests that compare against them.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LevelTables {
     e_max: f32,
+    shift: u32,
     tables: Option<(Sat, RangeMax)>,
 }
 
+/// The closed cells covering an inclusive sample box and what the query needs of them.
+struct Cells {
+    /// Closed cells [ca, cb] x [ra, rb] (inclusive).
+    ca: u32,
+    cb: u32,
+    ra: u32,
+    rb: u32,
+    /// The half-open SAT box [x0, x1) x [y0, y1) inside the widened box.
+    sat: (u32, u32, u32, u32),
+    /// Samples in the widened box.
+    n: f64,
+    /// Samples on the far edge column and row the SAT box leaves out (0 when at the grid's end).
+    edge_col: f64,
+    edge_row: f64,
+}
+
+/// Bounds the closed-cell indices covering inclusive samples [a, b] of an axis of `len` samples at shift
+/// `s`: cells [ca, cb] of `count`, the SAT end (half-open) and the inclusive last sample they cover.
+fn axis_cells(a: u32, b: u32, len: u32, s: u32, count: u32) -> (u32, u32, u32, u32) {
+    if s == 0 {
+        return (a, b, b + 1, b);
+    }
+    let ca = (a >> s).min(count - 1);
+    let cb = ((b >> s) + u32::from(b & ((1 << s) - 1) != 0))
+        .saturating_sub(1)
+        .clamp(ca, count - 1);
+    let end = (cb + 1) << s;
+    (ca, cb, end.min(len), end.min(len - 1))
+}
+
+/// Closed cells per axis of `len` samples at shift `s`: the last closed cell ends on the last sample.
+fn closed_count(len: u32, s: u32) -> u32 {
+    if s == 0 {
+        len
+    } else {
+        (len - 1).div_ceil(1 << s).max(1)
+    }
+}
+
 impl LevelTables {
-    /// Builds the SAT of (e/E)^p (quantum 2^-[`Sat::max_frac_bits`]) and the max pyramid of `errors`.
+    /// Builds the full-resolution tables (one cell per sample, `shift` 0): the SAT of (e/E)^p (quantum
+    /// 2^-[`Sat::max_frac_bits`]) and the max pyramid of `errors`.
     ///
     /// An error that is not a finite non-negative number (heights near `f32::MAX` overflow the error map
     /// to infinity) is an [`Error::Terrain`] naming the sample: E_L and every (e/E)^p would be meaningless.
     pub fn build(width: u32, height: u32, errors: Vec<f32>, p: u32) -> Result<Self> {
         if let Some(i) = errors.iter().position(|e| !(e.is_finite() && *e >= 0.0)) {
             let w = width.max(1) as usize;
-            return Err(Error::Terrain(format!(
-                "the SAT LOD error at column {}, row {} is {}: the heights are too large for f32 \
-                 arithmetic (their differences overflow); scale them down, or use distance LOD",
-                i % w,
-                i / w,
-                errors[i]
-            )));
+            return Err(bad_error(i % w, i / w, errors[i]));
         }
         // Every error is finite, so the fold is the true maximum (f32::max would skip a NaN).
         let e_max = errors.iter().copied().fold(0.0f32, f32::max);
         if e_max <= 0.0 {
-            return Ok(Self {
-                e_max: 0.0,
-                tables: None,
-            });
+            return Ok(Self::zero());
         }
         let q = Sat::max_frac_bits(u64::from(width) * u64::from(height));
         let inv = 1.0 / f64::from(e_max);
@@ -300,13 +364,95 @@ impl LevelTables {
         })?;
         Ok(Self {
             e_max,
+            shift: 0,
             tables: Some((sat, RangeMax::build(width, height, errors))),
         })
     }
 
-    /// Rebuilds from a cached SAT and error map (see [`crate::bake`]).
-    pub fn from_parts(e_max: f32, tables: Option<(Sat, RangeMax)>) -> Self {
-        Self { e_max, tables }
+    /// A level without error (the data level, or a flat terrain).
+    pub fn zero() -> Self {
+        Self {
+            e_max: 0.0,
+            shift: 0,
+            tables: None,
+        }
+    }
+
+    /// Builds data level `k`'s tables at level k's resolution (see the type's docs) straight from the
+    /// pyramid, without a full-resolution error map: one pass for the closed cells' maxima (and E), one
+    /// for the half-open cells' quantised sums, rows of cells in parallel. The sums are the integers
+    /// [`LevelTables::build`] would hold, so aligned boxes give the same answers.
+    ///
+    /// Errors as [`LevelTables::build`].
+    pub fn build_level(pyramid: &Pyramid, k: u32, p: u32) -> Result<Self> {
+        let l0 = pyramid.level(0);
+        let (w, h) = (l0.width(), l0.height());
+        let (s, ke) = (k.min(30), k.min(40));
+        if k == 0 {
+            return Ok(Self::zero());
+        }
+        let (cw, ch) = (closed_count(w, s), closed_count(h, s));
+        // Pass 1: the closed cells' maxima; a non-finite error is refused, naming its sample.
+        let mut maxima = vec![0.0f32; cw as usize * ch as usize];
+        let bad = par_cell_rows(&mut maxima, cw as usize, |cy, row| {
+            let y0 = cy << s;
+            for y in y0..=(y0 + (1 << s)).min(h - 1) {
+                for x in 0..w {
+                    let e = sample_error(pyramid, ke, i64::from(x), i64::from(y));
+                    if !(e.is_finite() && e >= 0.0) {
+                        return Some((x, y, e));
+                    }
+                    // Sample x lies in closed cell x >> s and, on a lattice line, in the one before.
+                    let c = (x >> s) as usize;
+                    if let Some(m) = row.get_mut(c) {
+                        *m = m.max(e);
+                    }
+                    if c > 0 && x & ((1 << s) - 1) == 0 {
+                        row[c - 1] = row[c - 1].max(e);
+                    }
+                }
+            }
+            None
+        });
+        if let Some((x, y, e)) = bad {
+            return Err(bad_error(x as usize, y as usize, e));
+        }
+        let e_max = maxima.iter().copied().fold(0.0f32, f32::max);
+        if e_max <= 0.0 {
+            return Ok(Self::zero());
+        }
+        // Pass 2: the half-open cells' sums of the quantised (e/E)^p (the same integers as a full table).
+        let q = Sat::max_frac_bits(u64::from(w) * u64::from(h));
+        let inv = 1.0 / f64::from(e_max);
+        let (sw, sh) = (w.div_ceil(1 << s), h.div_ceil(1 << s));
+        let mut sums = vec![0u64; sw as usize * sh as usize];
+        par_cell_rows(&mut sums, sw as usize, |cy, row| {
+            let y0 = cy << s;
+            for y in y0..(y0 + (1 << s)).min(h) {
+                for x in 0..w {
+                    let e = sample_error(pyramid, ke, i64::from(x), i64::from(y));
+                    let v = pow_unit(f64::from(e) * inv, p).min(1.0);
+                    let c = (x >> s) as usize;
+                    row[c] = row[c].wrapping_add(Sat::quantise_up(v, q, x, y));
+                }
+            }
+            None
+        });
+        let sat = Sat::from_cell_sums(w, h, 1 << s, q, sums)?;
+        Ok(Self {
+            e_max,
+            shift: s,
+            tables: Some((sat, RangeMax::build(cw, ch, maxima))),
+        })
+    }
+
+    /// Rebuilds from a cached SAT and closed-cell maxima (see [`crate::bake`]) at `shift`.
+    pub fn from_parts(e_max: f32, shift: u32, tables: Option<(Sat, RangeMax)>) -> Self {
+        Self {
+            e_max,
+            shift,
+            tables,
+        }
     }
 
     /// E_L, the level's largest error, metres.
@@ -314,9 +460,66 @@ impl LevelTables {
         self.e_max
     }
 
+    /// log2 of the cell side in data samples (data level k's tables: k; full resolution: 0).
+    pub fn shift(&self) -> u32 {
+        self.shift
+    }
+
+    /// Closed cells per row and rows at `shift` over a `width x height` grid: the max pyramid's size.
+    pub fn closed_cells(width: u32, height: u32, shift: u32) -> (u32, u32) {
+        (closed_count(width, shift), closed_count(height, shift))
+    }
+
     /// The SAT and max pyramid (None when the level has no error).
     pub fn tables(&self) -> Option<&(Sat, RangeMax)> {
         self.tables.as_ref()
+    }
+
+    /// Bytes the tables hold (SAT entries and the max pyramid).
+    pub fn memory_bytes(&self) -> u64 {
+        self.tables
+            .as_ref()
+            .map_or(0, |(sat, max)| sat.memory_bytes() + max.memory_bytes())
+    }
+
+    /// The closed cells covering data samples [x0, x1) x [y0, y1) (non-empty, inside the grid).
+    fn cells(&self, sat: &Sat, max: &RangeMax, x0: u32, y0: u32, x1: u32, y1: u32) -> Cells {
+        let s = self.shift;
+        let (cw, ch) = max.size();
+        let (w, h) = (sat.width(), sat.height());
+        let (ca, cb, xe, xl) = axis_cells(x0, x1 - 1, w, s, cw);
+        let (ra, rb, ye, yl) = axis_cells(y0, y1 - 1, h, s, ch);
+        let (sx, sy) = (
+            if s == 0 { x0 } else { ca << s },
+            if s == 0 { y0 } else { ra << s },
+        );
+        let (nx, ny) = (f64::from(xl - sx + 1), f64::from(yl - sy + 1));
+        Cells {
+            ca,
+            cb,
+            ra,
+            rb,
+            sat: (sx, sy, xe, ye),
+            n: nx * ny,
+            edge_col: if xe <= xl { ny } else { 0.0 },
+            edge_row: if ye <= yl { nx } else { 0.0 },
+        }
+    }
+
+    /// The upper end of the sum of (e/E)^p over the widened box: the SAT's, plus the far edges bounded by
+    /// their maxima.
+    fn sum_hi(&self, p: u32, sat: &Sat, max: &RangeMax, c: &Cells) -> (f64, f64) {
+        let (lo, mut hi) = sat.box_bounds(c.sat.0, c.sat.1, c.sat.2, c.sat.3);
+        let inv = 1.0 / f64::from(self.e_max);
+        // pow_unit is within p ulps of the power: 2^-40 more covers it and the sum's roundings.
+        let bound = |m: f32| pow_unit(f64::from(m) * inv, p).min(1.0) * EDGE_UP;
+        if c.edge_col > 0.0 {
+            hi += c.edge_col * bound(max.max(c.cb, c.ra, c.cb + 1, c.rb + 1));
+        }
+        if c.edge_row > 0.0 {
+            hi += c.edge_row * bound(max.max(c.ca, c.rb, c.cb + 1, c.rb + 1));
+        }
+        (lo, hi)
     }
 
     /// The error over data samples [x0, x1) x [y0, y1) (non-empty, inside the grid), with exponent `p`.
@@ -324,17 +527,15 @@ impl LevelTables {
         let Some((sat, max)) = &self.tables else {
             return BlockError::default();
         };
+        let c = self.cells(sat, max, x0, y0, x1, y1);
         let e = f64::from(self.e_max);
-        let n = f64::from(x1 - x0) * f64::from(y1 - y0);
-        let (lo, hi) = sat.box_bounds(x0, y0, x1, y1);
+        let (lo, hi) = self.sum_hi(p, sat, max, &c);
         let inv_p = 1.0 / f64::from(p);
         // SFAMF (SAT paper section 4): the p-mean never exceeds the max, the p-sum never falls below it.
-        let estimate = e * (lo / n).min(1.0).powf(inv_p) * DOWN;
-        let conservative = (e * hi.powf(inv_p) * UP).min(e);
         BlockError {
-            estimate,
-            exact: f64::from(max.max(x0, y0, x1, y1)),
-            conservative,
+            estimate: e * (lo / c.n).min(1.0).powf(inv_p) * DOWN,
+            exact: f64::from(max.max(c.ca, c.ra, c.cb + 1, c.rb + 1)),
+            conservative: (e * hi.powf(inv_p) * UP).min(e),
         }
     }
 
@@ -343,22 +544,68 @@ impl LevelTables {
         let Some((sat, max)) = &self.tables else {
             return 0.0;
         };
+        if mode == LodMode::Distance {
+            return 0.0;
+        }
+        let c = self.cells(sat, max, x0, y0, x1, y1);
         let e = f64::from(self.e_max);
         let inv_p = 1.0 / f64::from(p);
         match mode {
             LodMode::Distance => 0.0,
-            LodMode::Exact => f64::from(max.max(x0, y0, x1, y1)),
+            LodMode::Exact => f64::from(max.max(c.ca, c.ra, c.cb + 1, c.rb + 1)),
             LodMode::Sat => {
-                let n = f64::from(x1 - x0) * f64::from(y1 - y0);
-                let (lo, _) = sat.box_bounds(x0, y0, x1, y1);
-                e * (lo / n).min(1.0).powf(inv_p) * DOWN
+                let (lo, _) = sat.box_bounds(c.sat.0, c.sat.1, c.sat.2, c.sat.3);
+                e * (lo / c.n).min(1.0).powf(inv_p) * DOWN
             }
             LodMode::SatConservative => {
-                let (_, hi) = sat.box_bounds(x0, y0, x1, y1);
+                let (_, hi) = self.sum_hi(p, sat, max, &c);
                 (e * hi.powf(inv_p) * UP).min(e)
             }
         }
     }
+}
+
+/// Covers pow_unit's p ulps and the f64 roundings of the edge terms of [`LevelTables::block`].
+const EDGE_UP: f64 = 1.0 + 1.0 / (1u64 << 40) as f64;
+
+fn bad_error(x: usize, y: usize, e: f32) -> Error {
+    Error::Terrain(format!(
+        "the SAT LOD error at column {x}, row {y} is {e}: the heights are too large for f32 \
+         arithmetic (their differences overflow); scale them down, or use distance LOD"
+    ))
+}
+
+/// Runs `f(cell_row, row)` over the rows of a row-major grid `cols` wide, rows split across threads; the
+/// first `Some` any row returns (lowest row first) is the result. Each row is a pure function of its
+/// index, so the grid does not depend on the thread count.
+fn par_cell_rows<T: Send>(
+    grid: &mut [T],
+    cols: usize,
+    f: impl Fn(u32, &mut [T]) -> Option<(u32, u32, f32)> + Sync,
+) -> Option<(u32, u32, f32)> {
+    let rows = grid.len() / cols.max(1);
+    let threads = std::thread::available_parallelism()
+        .map_or(1, usize::from)
+        .clamp(1, 16);
+    let per = rows.div_ceil(threads).max(1);
+    let f = &f;
+    std::thread::scope(|s| {
+        let handles: Vec<_> = grid
+            .chunks_mut(per * cols)
+            .enumerate()
+            .map(|(ci, chunk)| {
+                s.spawn(move || {
+                    chunk.chunks_mut(cols).enumerate().find_map(|(r, row)| {
+                        f(u32::try_from(ci * per + r).expect("rows fit u32"), row)
+                    })
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .filter_map(|h| h.join().expect("a table row panicked"))
+            .next()
+    })
 }
 
 /// Refuses, with [`Error::Terrain`], heights whose range does not fit an f32 (highest minus lowest
@@ -411,8 +658,7 @@ impl LodTables {
         let mut levels = Vec::with_capacity(data_levels as usize);
         for k in 0..data_levels {
             progress(k);
-            let errors = error_map(pyramid, k);
-            levels.push(LevelTables::build(w, h, errors, p)?);
+            levels.push(LevelTables::build_level(pyramid, k, p)?);
         }
         Ok(Self {
             p,
@@ -420,6 +666,11 @@ impl LodTables {
             height: h,
             levels,
         })
+    }
+
+    /// Bytes every level's tables hold.
+    pub fn memory_bytes(&self) -> u64 {
+        self.levels.iter().map(LevelTables::memory_bytes).sum()
     }
 
     /// The tables of data level `k`, or None past the last baked level.

@@ -14,7 +14,8 @@
 //! parameters (format version, p, quantum bits, level count, synthesised rings, g_0).
 //!
 //! Layout, little-endian: magic `CSATLOD1`, version, key, p, width, height, levels, quantum bits; per level
-//! E_L (f32), a has-tables flag, then (if set) the error map (f32 per sample) and the SAT (u64 per entry);
+//! k E_L (f32), a has-tables flag, then (if set) the closed cells' maximum errors (f32 per cell) and the SAT
+//! (u64 per entry), both at level k's resolution ([`LevelTables`]: cells of 2^k samples);
 //! last, a [`Hash64`] of every byte before it. A file whose magic, version, key, sizes or trailing hash do
 //! not match is rebaked and overwritten, never trusted and never a panic. Files are written to a temporary
 //! name and renamed, so a killed bake leaves no half file under the real name.
@@ -36,7 +37,7 @@ use crate::{Error, Heightmap, Result};
 
 const MAGIC: &[u8; 8] = b"CSATLOD1";
 /// Bumped whenever the layout or the meaning of a baked number changes.
-pub const FORMAT_VERSION: u32 = 1;
+pub const FORMAT_VERSION: u32 = 2;
 
 /// The default cache folder: `$CLIPSAT_CACHE`, else `target/clipsat-cache`.
 pub fn default_cache_dir() -> PathBuf {
@@ -267,21 +268,26 @@ fn decode(bytes: &[u8], key: u64, params: &BakeParams) -> std::result::Result<Lo
     if p != params.p || levels != params.data_levels() || n == 0 || frac != Sat::max_frac_bits(n) {
         return Err("parameters in the header do not match".into());
     }
-    let n = usize::try_from(n).map_err(|_| "grid too large".to_string())?;
     let mut out = Vec::with_capacity(levels as usize);
-    for _ in 0..levels {
+    for k in 0..levels {
+        let shift = k.min(30);
+        let (cw, ch) = LevelTables::closed_cells(width, height, shift);
+        let cells = usize::try_from(u64::from(cw) * u64::from(ch)).map_err(|_| "grid too large")?;
+        let cell = 1u32 << shift;
+        let entries = u64::from(width.div_ceil(cell)) * u64::from(height.div_ceil(cell));
+        let entries = usize::try_from(entries).map_err(|_| "grid too large")?;
         let e_max = f32::from_bits(r.u32()?);
         let has = r.u32()?;
         let tables = match has {
             0 => None,
             1 => {
                 let errs: Vec<f32> = r
-                    .take(n.checked_mul(4).ok_or("size overflow")?)?
+                    .take(cells.checked_mul(4).ok_or("size overflow")?)?
                     .chunks_exact(4)
                     .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
                     .collect();
                 let sat: Vec<u64> = r
-                    .take(n.checked_mul(8).ok_or("size overflow")?)?
+                    .take(entries.checked_mul(8).ok_or("size overflow")?)?
                     .chunks_exact(8)
                     .map(|c| {
                         let mut w = [0u8; 8];
@@ -297,12 +303,13 @@ fn decode(bytes: &[u8], key: u64, params: &BakeParams) -> std::result::Result<Lo
                     return Err("error map values out of range".into());
                 }
                 let sat =
-                    Sat::from_parts(width, height, 1, frac, sat).map_err(|e| e.to_string())?;
-                Some((sat, RangeMax::build(width, height, errs)))
+                    Sat::from_parts(width, height, cell, frac, sat).map_err(|e| e.to_string())?;
+                Some((sat, RangeMax::build(cw, ch, errs)))
             }
             _ => return Err(format!("bad has-tables flag {has}")),
         };
-        out.push(LevelTables::from_parts(e_max, tables));
+        let shift = if tables.is_some() { shift } else { 0 };
+        out.push(LevelTables::from_parts(e_max, shift, tables));
     }
     if !r.done() {
         return Err("trailing bytes".into());

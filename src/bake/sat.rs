@@ -124,10 +124,8 @@ impl Sat {
         let cols = width.div_ceil(cell);
         let rows = height.div_ceil(cell);
         let scale = (2.0f64).powi(i32::try_from(frac_bits).expect("frac_bits <= 62"));
-        let mut table = vec![0u64; cols as usize * rows as usize];
-        let mut cell_row = vec![0u64; cols as usize];
-        for cy in 0..rows {
-            cell_row.fill(0);
+        let mut sums = vec![0u64; cols as usize * rows as usize];
+        for (cy, cell_row) in (0..rows).zip(sums.chunks_mut(cols as usize)) {
             for y in cy * cell..((cy + 1) * cell).min(height) {
                 for (cx, acc) in cell_row.iter_mut().enumerate() {
                     let cx = u32::try_from(cx).expect("cols fit u32");
@@ -137,28 +135,47 @@ impl Sat {
                     }
                 }
             }
-            // Inclusive prefix: row prefix plus the row above.
-            let base = cy as usize * cols as usize;
-            let mut run = 0u64;
-            for (cx, &c) in cell_row.iter().enumerate() {
-                run = run.wrapping_add(c);
-                let above = if cy > 0 {
-                    table[base - cols as usize + cx]
-                } else {
-                    0
-                };
-                table[base + cx] = run.wrapping_add(above);
-            }
         }
-        Ok(Self {
-            samples_w: width,
-            samples_h: height,
-            cell,
-            cols,
-            rows,
-            frac_bits,
-            table,
-        })
+        Self::from_cell_sums(width, height, cell, frac_bits, sums)
+    }
+
+    /// Builds the table from each cell's sum of quantised values (in quanta, as [`Sat::quantise_up`] gives
+    /// them), row-major over the `width.div_ceil(cell) x height.div_ceil(cell)` cells: the same table
+    /// [`Sat::build`] makes, for callers that sum the cells themselves (in parallel, or one tile at a time).
+    ///
+    /// Errors as [`Sat::from_parts`].
+    pub fn from_cell_sums(
+        width: u32,
+        height: u32,
+        cell: u32,
+        frac_bits: u32,
+        mut sums: Vec<u64>,
+    ) -> Result<Self> {
+        let cols = width.div_ceil(cell.max(1)) as usize;
+        // Inclusive prefix in place: row prefix plus the row above (wrapping: exact below 2^64).
+        for i in 0..sums.len() {
+            let (cx, cy) = (i % cols, i / cols);
+            let left = if cx > 0 { sums[i - 1] } else { 0 };
+            let above = if cy > 0 { sums[i - cols] } else { 0 };
+            let diag = if cx > 0 && cy > 0 {
+                sums[i - cols - 1]
+            } else {
+                0
+            };
+            sums[i] = sums[i]
+                .wrapping_add(left)
+                .wrapping_add(above)
+                .wrapping_sub(diag);
+        }
+        Self::from_parts(width, height, cell, frac_bits, sums)
+    }
+
+    /// ceil(v 2^`frac_bits`) for v in [0, 1]: one sample's quantised value, in quanta. Panics outside
+    /// [0, 1] or on NaN (a broken normalisation), naming the sample (x, y).
+    #[inline]
+    pub fn quantise_up(v: f64, frac_bits: u32, x: u32, y: u32) -> u64 {
+        let scale = (2.0f64).powi(i32::try_from(frac_bits.min(62)).expect("frac_bits <= 62"));
+        quantise(v, scale, x, y)
     }
 
     /// Rebuilds a table from its parts (as [`Sat::table`] and the accessors return them), e.g. from a

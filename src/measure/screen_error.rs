@@ -1,6 +1,7 @@
 //! Measurements: the screen-space error of a drawn frame against the data (design.md "SAT LOD" 1). Not
 //! the frame path.
 
+use crate::bake::lod_tables::sample_error;
 use crate::plan::clipmap::Clipmap;
 use crate::plan::cull::{self, DrawKind};
 use crate::plan::frame_plan::FramePlan;
@@ -77,12 +78,11 @@ pub fn screen_error(
     let (ox, oy) = clipmap.origin();
     let top = oy + f64::from(data.height() - 1) * spacing;
     for (l, clamped, (x0, y0, x1, y1)) in boxes() {
-        let errors = l
+        // The tables hold level-resolution maxima: the per-sample error comes from the pyramid.
+        let k = l
             .checked_sub(synth)
-            .and_then(|k| tables.level(k))
-            .and_then(|t| t.tables())
-            .map(|(_, max)| max.values());
-        let Some(errors) = errors else {
+            .filter(|&k| tables.level(k).is_some_and(|t| t.tables().is_some()));
+        let Some(k) = k else {
             // The data level or finer: no error against the data.
             continue;
         };
@@ -98,7 +98,12 @@ pub fn screen_error(
                 if !frustum.intersects(rel, rel) {
                     continue;
                 }
-                let e = f64::from(errors[y as usize * tables.width as usize + x as usize]);
+                let e = f64::from(sample_error(
+                    clipmap.pyramid(),
+                    k.min(40),
+                    i64::from(x),
+                    i64::from(y),
+                ));
                 out.samples += 1;
                 let px = e * camera.pixels_per_metre(rel.length(), h);
                 out.max_px = out.max_px.max(px);

@@ -467,3 +467,112 @@ fn extent_16385_full_resolution_tables() {
         );
     }
 }
+
+/// Level-resolution tables (cells of 2^k samples, what the bake builds) against the full-resolution ones
+/// on the shared terrains and a rough procedural one: over boxes on level k's lattice the exact max is the
+/// same number and the estimate and conservative bounds still enclose it; over boxes off the lattice the
+/// exact max is that of the covering cells (never below the box's own), and estimate <= exact <=
+/// conservative <= E throughout.
+#[test]
+fn level_resolution_tables_keep_the_full_resolution_guarantees() {
+    let mut terrains = vec![(
+        "procedural 193 x 161".to_string(),
+        terrain(193, 161, 30.0, |x, y| {
+            (300.0 * (f64::from(x) / 9.0).sin() * (f64::from(y) / 13.0).cos() + 80.0 * hash01(x, y))
+                as f32
+        }),
+    )];
+    for (name, spacing) in [
+        ("srtm_bigtujunga30m_utm11.tif", None),
+        ("N57E011.hgt", None),
+        ("aletsch_200m.tif", None),
+        ("lidar_pkg_dem_1m_400x400.tif", None),
+        ("ps_height_1k.png", Some(160.0f32)),
+    ] {
+        let path = clipsat::data_dir().join(name);
+        if !path.is_file() {
+            assert!(
+                std::env::var("CI").as_deref() != Ok("true"),
+                "{} is missing (CI=true)",
+                path.display()
+            );
+            eprintln!("skipping {}: missing", path.display());
+            continue;
+        }
+        let opts = clipsat::source::LoadOptions {
+            spacing,
+            ..Default::default()
+        };
+        let hm = clipsat::source::load(&path, &opts).unwrap_or_else(|e| panic!("{name}: {e}"));
+        terrains.push((name.to_string(), hm));
+    }
+    for (name, hm) in &terrains {
+        let pyr = Pyramid::build(hm);
+        let (w, h) = (hm.width(), hm.height());
+        for k in [1u32, 2, 4, 6] {
+            let errs = error_map(&pyr, k);
+            let old = LevelTables::build(w, h, errs.clone(), P).expect("full tables");
+            let new = LevelTables::build_level(&pyr, k, P).expect("level tables");
+            assert_eq!(new.e_max(), old.e_max(), "{name} level {k}");
+            assert_eq!(new.shift(), k);
+            let full = u64::from(w) * u64::from(h) * 12;
+            assert!(
+                new.memory_bytes() * (1 << (2 * k)) <= full * 2,
+                "{name} level {k}: {} bytes",
+                new.memory_bytes()
+            );
+            let e = f64::from(new.e_max());
+            let step = 1u32 << k;
+            let mut checked = 0;
+            // Lattice-aligned boxes: inclusive vertices [A 2^k, B 2^k], as the LOD's data boxes are.
+            for (bw, i) in [(1u32, 0u32), (2, 1), (5, 2), (32, 3), (3, 7), (64, 5)] {
+                let x0 = (i * 37 * step) % w;
+                let y0 = (i * 23 * step) % h;
+                let x0 = x0 - x0 % step;
+                let y0 = y0 - y0 % step;
+                let (x1, y1) = ((x0 + bw * step + 1).min(w), (y0 + bw * step + 1).min(h));
+                let (o, n) = (old.block(P, x0, y0, x1, y1), new.block(P, x0, y0, x1, y1));
+                let aligned = |a: u32, len: u32| (a - 1) % step == 0 || a == len;
+                if aligned(x1, w) && aligned(y1, h) {
+                    assert_eq!(
+                        n.exact, o.exact,
+                        "{name} level {k} box {x0},{y0}..{x1},{y1}"
+                    );
+                    checked += 1;
+                }
+                assert!(n.estimate <= o.exact, "{name} {k}: {n:?} {o:?}");
+                assert!(n.conservative >= o.exact, "{name} {k}: {n:?} {o:?}");
+                assert!(n.estimate <= n.exact && n.exact <= n.conservative && n.conservative <= e);
+            }
+            assert!(checked > 0, "{name} level {k}: no aligned box checked");
+            // Off-lattice boxes: the covering cells' max, never below the box's own.
+            for i in 0..24u32 {
+                let x0 = (i * 53 + 3) % (w - 1);
+                let y0 = (i * 31 + 5) % (h - 1);
+                let (x1, y1) = ((x0 + 1 + i * 7 % 90).min(w), (y0 + 2 + i * 11 % 70).min(h));
+                let (o, n) = (old.block(P, x0, y0, x1, y1), new.block(P, x0, y0, x1, y1));
+                // The closed cells [c 2^k, (c + 1) 2^k] covering inclusive samples [a, b].
+                let widen = |a: u32, b: u32, len: u32| {
+                    let cells = (len - 1).div_ceil(step).max(1);
+                    let ca = (a / step).min(cells - 1);
+                    let cb = b.div_ceil(step).saturating_sub(1).clamp(ca, cells - 1);
+                    (ca * step, ((cb + 1) * step).min(len - 1))
+                };
+                let ((cx0, cx1), (cy0, cy1)) = (widen(x0, x1 - 1, w), widen(y0, y1 - 1, h));
+                let mut m = 0.0f32;
+                for y in cy0..=cy1 {
+                    for x in cx0..=cx1 {
+                        m = m.max(errs[(y * w + x) as usize]);
+                    }
+                }
+                assert_eq!(
+                    n.exact,
+                    f64::from(m),
+                    "{name} level {k} box {x0},{y0}..{x1},{y1}"
+                );
+                assert!(n.exact >= o.exact && n.conservative >= o.exact);
+                assert!(n.estimate <= n.exact && n.exact <= n.conservative && n.conservative <= e);
+            }
+        }
+    }
+}
