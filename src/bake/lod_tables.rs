@@ -288,8 +288,8 @@ pub struct BlockError {
 ///
 /// A query box [x0, x1) x [y0, y1) of data samples (inclusive last sample x1 - 1) is widened to the
 /// closed cells that cover it, the region level k's geometry draws over it: for a lattice-aligned box
-/// that is the box itself. Then `exact` is the exact max over the widened box; `estimate` uses the SAT
-/// over the half-open cells (a subset of the widened box, so a lower bound of its sum: still <= exact);
+/// that is the box itself. Then `exact` is the exact max over the widened box; `estimate` is the p-mean over
+/// the half-open cells' samples (a subset of the widened box: still <= exact);
 /// `conservative` adds to that SAT sum the far edge column and row (which the half-open cells leave out),
 /// each sample bounded by (M/E)^p with M the edge's max from the max pyramid: still >= exact.
 /// [`LevelTables::build`] (`shift` = 0) keeps the full-resolution tables (one cell per sample) for tools
@@ -310,8 +310,9 @@ struct Cells {
     rb: u32,
     /// The half-open SAT box [x0, x1) x [y0, y1) inside the widened box.
     sat: (u32, u32, u32, u32),
-    /// Samples in the widened box.
-    n: f64,
+    /// Samples in the SAT box: the estimate's mean is over them (a subset of the widened box, so that
+    /// mean never exceeds the widened box's max).
+    n_sat: f64,
     /// Samples on the far edge column and row the SAT box leaves out (0 when at the grid's end).
     edge_col: f64,
     edge_row: f64,
@@ -500,7 +501,7 @@ impl LevelTables {
             ra,
             rb,
             sat: (sx, sy, xe, ye),
-            n: nx * ny,
+            n_sat: f64::from(xe - sx) * f64::from(ye - sy),
             edge_col: if xe <= xl { ny } else { 0.0 },
             edge_row: if ye <= yl { nx } else { 0.0 },
         }
@@ -533,7 +534,7 @@ impl LevelTables {
         let inv_p = 1.0 / f64::from(p);
         // SFAMF (SAT paper section 4): the p-mean never exceeds the max, the p-sum never falls below it.
         BlockError {
-            estimate: e * (lo / c.n).min(1.0).powf(inv_p) * DOWN,
+            estimate: e * (lo / c.n_sat).min(1.0).powf(inv_p) * DOWN,
             exact: f64::from(max.max(c.ca, c.ra, c.cb + 1, c.rb + 1)),
             conservative: (e * hi.powf(inv_p) * UP).min(e),
         }
@@ -555,7 +556,7 @@ impl LevelTables {
             LodMode::Exact => f64::from(max.max(c.ca, c.ra, c.cb + 1, c.rb + 1)),
             LodMode::Sat => {
                 let (lo, _) = sat.box_bounds(c.sat.0, c.sat.1, c.sat.2, c.sat.3);
-                e * (lo / c.n).min(1.0).powf(inv_p) * DOWN
+                e * (lo / c.n_sat).min(1.0).powf(inv_p) * DOWN
             }
             LodMode::SatConservative => {
                 let (_, hi) = self.sum_hi(p, sat, max, &c);

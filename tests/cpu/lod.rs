@@ -532,7 +532,7 @@ fn level_resolution_tables_keep_the_full_resolution_guarantees() {
                 let y0 = y0 - y0 % step;
                 let (x1, y1) = ((x0 + bw * step + 1).min(w), (y0 + bw * step + 1).min(h));
                 let (o, n) = (old.block(P, x0, y0, x1, y1), new.block(P, x0, y0, x1, y1));
-                let aligned = |a: u32, len: u32| (a - 1) % step == 0 || a == len;
+                let aligned = |a: u32, len: u32| (a - 1).is_multiple_of(step) || a == len;
                 if aligned(x1, w) && aligned(y1, h) {
                     assert_eq!(
                         n.exact, o.exact,
