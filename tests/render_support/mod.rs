@@ -167,3 +167,87 @@ pub fn renderer_in<'g>(
     )
     .expect("renderer")
 }
+
+/// The height of the surface `draws` draw at level-0 lattice point (u, v) (fractional), the highest where
+/// several blocks meet there (their skirts close the step between them); None where no block draws it.
+/// Each block is its level's piecewise-linear surface of the data pyramid, split along the project's
+/// (i, j)-(i+1, j+1) diagonal, as the clipmap shader draws it (SAT LOD draws do not morph).
+#[expect(
+    clippy::cast_possible_truncation,
+    reason = "lattice cells of points in the view, far below 2^53"
+)]
+fn drawn_height(
+    cm: &Clipmap,
+    draws: &clipsat::plan::cull::DrawList,
+    block_quads: u32,
+    u: f64,
+    v: f64,
+) -> Option<f64> {
+    use clipsat::plan::cull::DrawKind;
+    let synth = cm.synth_levels();
+    let mut best: Option<f64> = None;
+    for d in draws.iter().filter(|d| d.kind == DrawKind::Block) {
+        let c = d.covered(block_quads);
+        let f = f64::from(1u32 << d.fine);
+        let inside = u >= c.x0 as f64 * f
+            && u <= (c.x1() - 1) as f64 * f
+            && v >= c.y0 as f64 * f
+            && v <= (c.y1() - 1) as f64 * f;
+        let Some(k) = d.level.checked_sub(synth).filter(|_| inside) else {
+            continue;
+        };
+        let s = f64::from(1u32 << d.level);
+        let (x, y) = (u / s, v / s);
+        let (i, j) = (x.floor() as i64, y.floor() as i64);
+        let (fx, fy) = (x - i as f64, y - j as f64);
+        let z = |a: i64, b: i64| f64::from(cm.pyramid().at(k, a, b));
+        let h = if fx >= fy {
+            z(i, j) + fx * (z(i + 1, j) - z(i, j)) + fy * (z(i + 1, j + 1) - z(i + 1, j))
+        } else {
+            z(i, j) + fx * (z(i + 1, j + 1) - z(i, j + 1)) + fy * (z(i, j + 1) - z(i, j))
+        };
+        best = Some(best.map_or(h, |b: f64| b.max(h)));
+    }
+    best
+}
+
+/// Whether the view ray through pixel (x, y) of `r`'s last frame passes below the surface its blocks draw
+/// while inside the data (the fragment shader cuts everything beyond the data's border, inset as
+/// `outside_data` insets it): a clear pixel there is a hole in the drawn surface. A ray that leaves the
+/// data through its side above the surface sees past the terrain's edge: clear is right there, even with
+/// terrain above it in the same pixel column (a far, higher part of the border seen over a near, low one).
+#[expect(
+    clippy::cast_possible_truncation,
+    reason = "the step count is capped at 10^6"
+)]
+pub fn ray_below_drawn_surface(
+    r: &clipsat::gpu::headless::Offscreen<'_>,
+    cm: &Clipmap,
+    cam: &Camera,
+    block_quads: u32,
+    (x, y): (u32, u32),
+) -> bool {
+    let g = r.globals();
+    let (w, h) = r.size();
+    let inv = glam::Mat4::from_cols_array(&g.view_proj)
+        .as_dmat4()
+        .inverse();
+    let nx = (f64::from(x) + 0.5) / f64::from(w) * 2.0 - 1.0;
+    let ny = 1.0 - (f64::from(y) + 0.5) / f64::from(h) * 2.0;
+    let a = inv * glam::DVec4::new(nx, ny, 0.0, 1.0);
+    let b = inv * glam::DVec4::new(nx, ny, 1.0, 1.0);
+    let (a, b) = (a.truncate() / a.w, b.truncate() / b.w);
+    let e = g.extent.map(f64::from);
+    let tol = 0.02 + 4.0e-6 * e.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let (lo, hi) = ([e[0] + tol, e[1] + tol], [e[2] - tol, e[3] - tol]);
+    let (eu, ev) = cm.eye_lattice(cam.eye);
+    let g0 = cm.g0();
+    let steps = ((b - a).truncate().length() / (g0 / 8.0)).ceil().min(1.0e6) as u32;
+    (0..=steps).any(|i| {
+        let p = a + (b - a) * (f64::from(i) / f64::from(steps.max(1)));
+        let inside = (0..2).all(|k| p[k] >= lo[k] && p[k] <= hi[k]);
+        inside
+            && drawn_height(cm, r.draws(), block_quads, eu + p.x / g0, ev - p.y / g0)
+                .is_some_and(|z| cam.eye.z + p.z < z)
+    })
+}
