@@ -19,8 +19,8 @@ use clipsat::source::{self, LoadOptions};
 use clipsat::{Error, Heightmap, Profile, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 
-use super::common::SHARED;
-use super::{lod, shading};
+use super::common::{mib, SHARED};
+use super::{lod, memory, shading};
 use crate::app::cmd::args::GpuArgs;
 use crate::app::cmd::ProfileArgs;
 use lod::LodResult;
@@ -175,6 +175,17 @@ pub(crate) fn run(args: &BenchAllArgs) -> Result<()> {
         format!("procedural-{}", plan.procedural.size),
         procedural::generate(&plan.procedural)?,
     )];
+    // How a child `render` loads each terrain (the memory section's peak RSS).
+    let mut specs: Vec<memory::TerrainSpec> = vec![(
+        terrains[0].0.clone(),
+        vec![
+            "--terrain".into(),
+            format!(
+                "procedural:seed={},size={},spacing={}",
+                plan.procedural.seed, plan.procedural.size, plan.procedural.spacing
+            ),
+        ],
+    )];
     let mut skipped = Vec::new();
     if plan.shared {
         for (name, spacing, scale) in SHARED {
@@ -190,6 +201,10 @@ pub(crate) fn run(args: &BenchAllArgs) -> Result<()> {
                 ..Default::default()
             };
             terrains.push((name.to_string(), source::load(&path, &opts)?));
+            let mut args = vec!["--terrain".to_string(), path.display().to_string()];
+            args.extend(spacing.map(|s| format!("--spacing={s}")));
+            args.extend(scale.map(|s| format!("--height-scale={s}")));
+            specs.push((name.to_string(), args));
         }
     } else {
         outln!("skip the shared terrains: --quick measures the procedural terrain only");
@@ -201,7 +216,8 @@ pub(crate) fn run(args: &BenchAllArgs) -> Result<()> {
     let steps = shipped
         + shading::shading_steps(shading_terrains.len())
         + terrains.len() as u64
-            * (lod::lod_steps(plan.lod_frames) + plan.speeds.len() as u64 * plan.fly_frames);
+            * (lod::lod_steps(plan.lod_frames) + plan.speeds.len() as u64 * plan.fly_frames)
+        + memory::steps(terrains.len(), specs.len());
     let bar = ProgressBar::new(steps);
     if let Ok(style) =
         ProgressStyle::with_template("bench all {bar:30} {pos}/{len} {msg} {elapsed}")
@@ -243,6 +259,17 @@ pub(crate) fn run(args: &BenchAllArgs) -> Result<()> {
         bar.set_message(format!("budget {name}"));
         budget.extend(measure_budget(&profile, name, hm, &plan, &bar)?);
     }
+    let scratch = memory::scratch(&args.out)?;
+    let terrain_memory = memory::measure(
+        &terrains,
+        &specs,
+        &args.profile.profile,
+        plan.size,
+        if args.quick { 1 } else { 3 },
+        &scratch,
+        &bar,
+    )?;
+    let _ = std::fs::remove_dir_all(&scratch);
     bar.finish_and_clear();
     let wall_s = t0.elapsed().as_secs_f64();
 
@@ -279,6 +306,11 @@ pub(crate) fn run(args: &BenchAllArgs) -> Result<()> {
     )?);
     md.push_str(&budget_section(out, &budget, &plan, &machine, &profile)?);
     md.push_str(&memory_section(&memory, &machine));
+    md.push_str(&memory::section(
+        &terrain_memory,
+        &machine.line(),
+        profile.budget.cpu_memory_bytes,
+    ));
     let report = out.join("report.md");
     std::fs::write(&report, md).map_err(|e| Error::io(&report, "cannot write", e))?;
     outln!("{}", report.display());
@@ -728,8 +760,4 @@ fn peak_rss() -> Option<u64> {
     let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
     let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kb * 1024)
-}
-
-fn mib(bytes: u64) -> String {
-    format!("{:.2} MiB", bytes as f64 / (1024.0 * 1024.0))
 }

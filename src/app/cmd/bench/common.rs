@@ -17,3 +17,8 @@ pub(crate) const SHARED: [(&str, Option<f32>, Option<f32>); 6] = [
     ("lidar_pkg_dem_1m_400x400.tif", None, None),
     ("N57E011.hgt", None, None),
 ];
+
+/// Bytes as MiB with two decimals, for the reports.
+pub(crate) fn mib(bytes: u64) -> String {
+    format!("{:.2} MiB", bytes as f64 / (1024.0 * 1024.0))
+}

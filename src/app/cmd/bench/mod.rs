@@ -1,10 +1,12 @@
 //! `clipsat bench`: the measurement subcommands. `lod.rs` measures the LOD stage, `shading.rs` the SG
-//! shading, `all.rs` runs both and the budget and memory measurements into one report; `common.rs` holds
-//! what they share. Dependencies go one way: `all` uses `lod`, `shading` and `common`, never the reverse.
+//! shading, `memory.rs` the terrain package and resident set, `all.rs` runs them and the budget and GPU
+//! memory measurements into one report; `common.rs` holds what they share. Dependencies go one way: `all`
+//! uses `lod`, `shading`, `memory` and `common`, never the reverse.
 
 mod all;
 mod common;
 mod lod;
+mod memory;
 mod shading;
 
 use clap::{Args, Subcommand};
