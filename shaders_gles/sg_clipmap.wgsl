@@ -1,51 +1,82 @@
 // Stage 3, the GPU: the clipmap renderer's SG fragment shader. Appended after basic_shading.wgsl,
 // clipmap.wgsl, sg_shading.wgsl, one specular file, one visibility file and one fog file (src/gpu/shaders.rs).
 //
-// SAT paper algorithm 2: the pixel's footprint box on the shading grid from dpdx/dpdy of its grid
-// coordinates, then a 4-corner textureLoad of each SAT (integer textures are not filterable on GLES 3.0).
-// The SATs are R32UI-style wrapping fixed point with Q = 20 fractional bits (RGBA32UI, 4 channels per
-// texel): a box mean comes out with max error 4.4e-7, against 1.7e-4 for RGBA32F with the mean subtracted
-// and 4.5e-3 for plain RGBA32F (measured, tests/shading.rs gpu_sat_format_error). Each table is padded
-// with a zero row and column, entry (x, y) = sum over [0, x) x [0, y), so a box needs no branch at the
-// border; the corner difference wraps mod 2^32 and is exact while the box sum stays below 2^32, which
-// the box side cap (grid.w = 63 samples: 63^2 2^20 < 2^32) guarantees.
+// SAT paper algorithm 2, on per-level tables (issue 16, "Memory"; src/gpu/renderer/sg_tables.rs): the
+// pixel's footprint from dpdx/dpdy of its data coordinates picks the level k whose spacing 2^k data
+// samples matches it, as the SAT paper picks its box; the finest ring at or above that level holding the
+// pixel is read, 4 textureLoads (float textures are not filterable on GLES 3.0) blended bilinearly. Each
+// texel holds the box mean of the data's normals over 2^k + 1 samples centred on it, so the blend is a
+// tent filter about 2^(k+1) samples wide. `clipsat::twin::shading::sg_taps` is the CPU twin.
 
 @group(2) @binding(0) var<uniform> sg_scene: SgScene;
-@group(2) @binding(1) var sat_normal: texture_2d<u32>;
+@group(2) @binding(1) var level_normal: texture_2d_array<f32>;
 
-// Sum over the inclusive sample box [lo, hi] of the normal table, wrapping.
-fn sg_normal_sum(lo: vec2<i32>, hi: vec2<i32>) -> vec4<u32> {
-    return textureLoad(sat_normal, hi + 1, 0) - textureLoad(sat_normal, vec2<i32>(lo.x, hi.y + 1), 0)
-        - textureLoad(sat_normal, vec2<i32>(hi.x + 1, lo.y), 0) + textureLoad(sat_normal, lo, 0);
+// Where a pixel's shading inputs are read: ring `level`'s texels t00, t10, t01, t11 and the bilinear
+// weights f; level < 0: no ring holds the pixel.
+struct SgTaps {
+    level: i32,
+    t00: vec2<i32>,
+    t10: vec2<i32>,
+    t01: vec2<i32>,
+    t11: vec2<i32>,
+    f: vec2<f32>,
+}
+
+fn sg_bilinear(a: vec4<f32>, b: vec4<f32>, c: vec4<f32>, d: vec4<f32>, f: vec2<f32>) -> vec4<f32> {
+    return mix(mix(a, b, f.x), mix(c, d, f.x), f.y);
+}
+
+// The taps of eye-relative point rel for a footprint of `w` data samples (the larger side of the pixel's
+// box): level synth + round(log2 w), or the finest ring holding rel if that is coarser; then coarser
+// until one holds it (level_holds, clipmap.wgsl).
+fn sg_taps(rel: vec2<f32>, w: f32) -> SgTaps {
+    var t: SgTaps;
+    t.level = -1;
+    let n = globals.level_info.x;
+    // Rings finer than the data (synthesised) are never read: the data level is g_data / g_0 = 2^synth.
+    let synth = max(i32(round(log2(sg_scene.grid.x / globals.levels[0].rel.w))), 0);
+    let k = i32(round(log2(max(w, 1.0))));
+    for (var l = max(synth + k, finest_level(rel)); l < n; l = l + 1) {
+        let lv = globals.levels[l];
+        let u = level_uv(lv, rel);
+        let i = vec2<i32>(floor(u));
+        if (level_holds(lv, i)) {
+            let s = vec2<i32>(globals.level_info.y);
+            t.level = l;
+            t.t00 = (lv.tex.xy + i) % s;
+            t.t10 = (lv.tex.xy + i + vec2<i32>(1, 0)) % s;
+            t.t01 = (lv.tex.xy + i + vec2<i32>(0, 1)) % s;
+            t.t11 = (lv.tex.xy + i + vec2<i32>(1, 1)) % s;
+            t.f = u - vec2<f32>(i);
+            return t;
+        }
+    }
+    return t;
 }
 
 @fragment
 fn fs_sg(v: VsOut) -> @location(0) vec4<f32> {
-    // Shading-grid coordinates (column east, row south) from the data's extent around the eye; the
-    // derivatives come first, in uniform control flow.
-    let ext = globals.extent;
-    let g = sg_scene.grid;
-    let c = vec2<f32>(
-        (v.rel.x - ext.x) / (ext.z - ext.x) * g.x,
-        (ext.w - v.rel.y) / (ext.w - ext.y) * g.y,
-    ) / g.z;
-    let half = 0.5 * max(abs(dpdx(c)), abs(dpdy(c)));
+    // The footprint in data samples; the derivatives come first, in uniform control flow.
+    let c = v.rel.xy / sg_scene.grid.x;
+    let d = max(abs(dpdx(c)), abs(dpdy(c)));
+    let w = max(d.x, d.y);
     if (outside_data(v.rel.xy) || (v.skirt > 0.0 && through_side(v.rel))) {
         discard;
     }
-    let last = vec2<i32>(textureDimensions(sat_normal)) - vec2<i32>(2);
-    let lo = clamp(vec2<i32>(floor(c - half + 0.5)), vec2<i32>(0), last);
-    let side = i32(g.w) - 1;
-    let hi = clamp(vec2<i32>(floor(c + half + 0.5)), lo, min(last, lo + vec2<i32>(side)));
-    let count = f32((hi.x - lo.x + 1) * (hi.y - lo.y + 1));
-    // 2^-20 per unit, over the box.
-    let q = 1.0 / (count * 1048576.0);
-    // SG_OMIT 1 (`bench shading`'s breakdown only): no footprint fetch, the drawn mesh's normal.
+    let taps = sg_taps(v.rel.xy, w);
+    // SG_OMIT 1 (`bench shading`'s breakdown only): no footprint fetch, the drawn mesh's normal; so too
+    // where no ring holds the pixel.
     var r = normalize(v.normal) * 0.999;
-    if (SG_OMIT != 1u) {
-        r = vec3<f32>(sg_normal_sum(lo, hi).xyz) * q * 2.0 - vec3<f32>(1.0);
+    if (SG_OMIT != 1u && taps.level >= 0) {
+        r = sg_bilinear(
+            textureLoad(level_normal, taps.t00, taps.level, 0),
+            textureLoad(level_normal, taps.t10, taps.level, 0),
+            textureLoad(level_normal, taps.t01, taps.level, 0),
+            textureLoad(level_normal, taps.t11, taps.level, 0),
+            taps.f,
+        ).xyz;
     }
-    sg_fetch_horizon(lo, hi, q);
+    sg_fetch_horizon(taps);
     // sg_fog.wgsl, or the pass-through of sg_no_fog.wgsl in variants without fog.
     let colour = sg_fog(sg_shade(r, normalize(-v.rel), sg_scene), length(v.rel));
     return vec4<f32>(pow(clamp(colour, vec3<f32>(0.0), vec3<f32>(1.0)), vec3<f32>(1.0 / 2.2)), 1.0);

@@ -37,7 +37,7 @@ struct SgScene {
     material: vec4<f32>,
     // rgb: fog colour (linear), w: unused
     fog: vec4<f32>,
-    // x, y: shading grid samples (width, height); z: data samples per grid sample; w: max box side
+    // x: the data's spacing (m); y: horizon layers per ring (sg_visibility.wgsl); z, w: unused
     grid: vec4<f32>,
 }
 

@@ -1,18 +1,26 @@
-// Stage 3, the GPU: the visibility fetch for scenes with `effects.visibility`: the box means of the D
-// baked horizon angles from their SATs (4 azimuths per RGBA32UI layer, same wrapping fixed point as the
-// normal table; see sg_clipmap.wgsl), mapped back from (a + pi/2) / pi.
+// Stage 3, the GPU: the visibility fetch for scenes with `effects.visibility`: the D horizon angles
+// (radians) of the pixel's level, 4 azimuths per RGBA16F layer, ceil(D / 4) layers per ring, blended
+// bilinearly as the normals are (sg_clipmap.wgsl). No ring holding the pixel: no horizon (the lowered
+// tangent plane only).
 
-@group(2) @binding(2) var sat_horizon: texture_2d_array<u32>;
+@group(2) @binding(2) var level_horizon: texture_2d_array<f32>;
 
-fn sg_fetch_horizon(lo: vec2<i32>, hi: vec2<i32>, q: f32) {
+fn sg_fetch_horizon(t: SgTaps) {
     let d = u32(sg_scene.material.z);
+    if (t.level < 0) {
+        sg_hz_count = 0u;
+        return;
+    }
+    let per = i32(sg_scene.grid.y);
     for (var l = 0u; l < (d + 3u) / 4u; l++) {
-        let li = i32(l);
-        let s = textureLoad(sat_horizon, hi + 1, li, 0)
-            - textureLoad(sat_horizon, vec2<i32>(lo.x, hi.y + 1), li, 0)
-            - textureLoad(sat_horizon, vec2<i32>(hi.x + 1, lo.y), li, 0)
-            + textureLoad(sat_horizon, lo, li, 0);
-        let a = vec4<f32>(s) * q * SG_PI - vec4<f32>(SG_HALF_PI);
+        let layer = t.level * per + i32(l);
+        let a = sg_bilinear(
+            textureLoad(level_horizon, t.t00, layer, 0),
+            textureLoad(level_horizon, t.t10, layer, 0),
+            textureLoad(level_horizon, t.t01, layer, 0),
+            textureLoad(level_horizon, t.t11, layer, 0),
+            t.f,
+        );
         for (var c = 0u; c < 4u; c++) {
             if (4u * l + c < d) {
                 sg_hz[4u * l + c] = a[c];

@@ -403,6 +403,37 @@ impl Profile {
         }
     }
 
+    /// Layers of the SG normal table (issue 16, "Memory"): one per ring, with the same GL spare layer as
+    /// [`Profile::height_layers`].
+    pub fn sg_normal_layers(&self) -> u32 {
+        self.height_layers()
+    }
+
+    /// Layers of the SG horizon table for `azimuths` horizon angles (0: no visibility, no table): 4
+    /// azimuths a layer, `ceil(azimuths / 4)` layers per ring, with the GL spare layer.
+    pub fn sg_horizon_layers(&self, azimuths: u32) -> u32 {
+        if azimuths == 0 {
+            return 0;
+        }
+        let l = self.clipmap.levels.saturating_mul(azimuths.div_ceil(4));
+        if l == 1 || l.is_multiple_of(6) {
+            l.saturating_add(1)
+        } else {
+            l
+        }
+    }
+
+    /// GPU bytes of the SG shading tables (`gpu/renderer/sg_tables.rs`): the normal table (RGBA32F,
+    /// `clip_size^2 x` [`Profile::sg_normal_layers`]) and, for `azimuths > 0`, the horizon table
+    /// (RGBA16F, `clip_size^2 x` [`Profile::sg_horizon_layers`]). Fixed by the profile and the scene's
+    /// visibility, whatever the terrain's size; [`Profile::footprint`] holds the rest.
+    pub fn sg_table_bytes(&self, azimuths: u32) -> u64 {
+        let s = u64::from(self.clip_size());
+        (s * s)
+            .saturating_mul(16 * u64::from(self.sg_normal_layers()))
+            .saturating_add((s * s).saturating_mul(8 * u64::from(self.sg_horizon_layers(azimuths))))
+    }
+
     /// Quads per detail tile side ([`FrameBudget::detail_tile_quads`], 0 meaning the block side m, and
     /// never more than m: a tile is drawn with the block mesh).
     pub fn detail_quads(&self) -> u32 {

@@ -439,23 +439,53 @@ impl<'g> Offscreen<'g> {
     /// of the height texture read back, `size x size` (z, z_c) texels per level, row-major, as the GPU
     /// holds them.
     pub fn read_heights(&self) -> Result<Vec<Vec<[f32; 2]>>> {
+        let layers = self.read_layers(self.renderer.heights(), 8, self.renderer.levels())?;
+        Ok(layers
+            .iter()
+            .map(|b| bytemuck::pod_collect_to_vec(b))
+            .collect())
+    }
+
+    /// Diagnostic, as [`Offscreen::read_heights`]: every ring's layer of the SG normal table
+    /// (`size x size` RGBA32F texels: r, 0), under SG shading; an error otherwise.
+    pub fn read_sg_normals(&self) -> Result<Vec<Vec<[f32; 4]>>> {
+        let table = self
+            .renderer
+            .sg_normal_table()
+            .ok_or_else(|| crate::Error::Invalid {
+                what: "SG normal table".into(),
+                reason: "the renderer does not shade with SG".into(),
+            })?;
+        let layers = self.read_layers(table, 16, self.renderer.levels())?;
+        Ok(layers
+            .iter()
+            .map(|b| bytemuck::pod_collect_to_vec(b))
+            .collect())
+    }
+
+    /// The first `layers` layers of square 2D array texture `texture` (`texel` bytes a texel), row-major.
+    fn read_layers(
+        &self,
+        texture: &wgpu::Texture,
+        texel: u32,
+        layers: u32,
+    ) -> Result<Vec<Vec<u8>>> {
         let gpu = self.gpu;
-        let heights = self.renderer.heights();
-        let s = heights.width();
-        let padded = (s * 8).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+        let s = texture.width();
+        let padded = (s * texel).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
         let mut out = Vec::new();
-        for level in 0..self.renderer.levels() {
-            let buffer = gpu.scoped("height readback", || {
+        for level in 0..layers {
+            let buffer = gpu.scoped("layer readback", || {
                 let mut dev = Ledgered::new(gpu.device());
                 let buffer = dev.buffer(
-                    "height readback",
+                    "layer readback",
                     u64::from(padded) * u64::from(s),
                     wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
                 );
                 let mut encoder = gpu.device().create_command_encoder(&Default::default());
                 encoder.copy_texture_to_buffer(
                     wgpu::TexelCopyTextureInfo {
-                        texture: heights,
+                        texture,
                         mip_level: 0,
                         origin: wgpu::Origin3d {
                             x: 0,
@@ -481,8 +511,12 @@ impl<'g> Offscreen<'g> {
                 gpu.queue().submit([encoder.finish()]);
                 Ok(buffer)
             })?;
-            let bytes = crate::gpu::readback::map_rows(gpu, &buffer, padded, s * 8)?;
-            out.push(bytemuck::pod_collect_to_vec(&bytes));
+            out.push(crate::gpu::readback::map_rows(
+                gpu,
+                &buffer,
+                padded,
+                s * texel,
+            )?);
         }
         Ok(out)
     }

@@ -1,5 +1,7 @@
-//! Stage 1 and 3, bake and GPU: the shading SATs as GPU textures - the normal SAT and the horizon SATs
-//! (SAT paper section 5, algorithm 2), in the measured GPU format, and their CPU twin lookup.
+//! Stage 1, the bake: the shading SATs - the normal SAT and the horizon SATs (SAT paper section 5,
+//! algorithm 2) - kept in CPU memory only. The renderer never uploads them: it fills fixed per-level
+//! tables of the clipmap's ring size from them ([`ShadingBake::level_texel`], `gpu/renderer/sg_tables.rs`),
+//! so its GPU memory does not grow with the terrain (issue 16, "Memory").
 //!
 //! Format: wrapping u32 fixed point with Q = [`SAT_FRAC_BITS`] = 20 fractional bits, four channels per
 //! RGBA32UI texel (integer textures, read with `textureLoad`: GLES 3.0 filters neither integer nor float
@@ -7,18 +9,19 @@
 //! samples: max error of a box mean 4.4e-7, against 1.7e-4 for RGBA32F with the global mean subtracted and
 //! 4.5e-3 for plain RGBA32F. Sums wrap mod 2^32, and a corner difference is exact as long as the box's
 //! sum stays below 2^32: values are <= 1, so a box of at most [`MAX_BOX_SIDE`]^2 = 63^2 samples
-//! (63^2 2^20 < 2^32; 64^2 of ones would wrap to 0) is always exact; the shader caps the footprint there.
+//! (63^2 2^20 < 2^32; 64^2 of ones would wrap to 0) is always exact; [`ShadingBake::level_texel`] caps its boxes there.
 //!
 //! Each table is padded with a zero row and column: entry (x, y) = sum over samples [0, x) x [0, y), so a
 //! box at the border needs no branch. The tables are the low 32 bits of [`crate::bake::sat::Sat`]'s exact u64
 //! sums (the same quantisation up, to a multiple of 2^-20).
 //!
-//! Size: GLES 3.0 guarantees only 2048-texel sides (`max_texture_dimension_2d`). A terrain whose padded
-//! table would be larger is shaded from the first pyramid level ([`crate::bake::pyramid`]) that fits: level k's
-//! sample (i, j) sits on data sample (i 2^k, j 2^k), its normals and horizons are baked on that level, and
-//! [`ShadingBake::step`] = 2^k tells the shader to divide its data coordinates by it.
+//! Size: the grid's side is capped at `max_side` (callers pass the GLES 3.0 texture side, 2048, which
+//! bounds the bake's CPU memory and time). A terrain whose padded table would be larger is baked on the
+//! first pyramid level ([`crate::bake::pyramid`]) that fits: level k's sample (i, j) sits on data sample
+//! (i 2^k, j 2^k), and [`ShadingBake::step`] = 2^k maps data samples to it.
 
 use std::path::Path;
+use std::sync::Arc;
 
 use glam::Vec3;
 
@@ -26,7 +29,6 @@ use crate::bake::horizon::{self, MAX_AZIMUTHS};
 use crate::bake::pyramid::Pyramid;
 use crate::bake::sat::Sat;
 use crate::bake::{seal, unseal, write_atomic, CacheOutcome};
-use crate::gpu::renderer::Ledgered;
 use crate::hash::{hex, Hash64};
 use crate::shading::scene::Needs;
 use crate::{Error, Heightmap, Result};
@@ -63,10 +65,11 @@ pub struct ShadingBake {
     height: u32,
     step: u32,
     azimuths: u32,
-    /// (width + 1) x (height + 1) texels, 4 u32 each: (n + 1) / 2 per normal component, 0.
-    normal: Vec<u32>,
+    /// (width + 1) x (height + 1) texels, 4 u32 each: (n + 1) / 2 per normal component, 0. Shared: the
+    /// renderer keeps the bake to fill its per-level tables ([`ShadingBake::level_texel`]).
+    normal: Arc<[u32]>,
     /// Layers of (width + 1) x (height + 1) texels, 4 azimuths each: (a + pi/2) / pi.
-    horizon: Vec<u32>,
+    horizon: Arc<[u32]>,
     baked: Vec<&'static str>,
 }
 
@@ -161,8 +164,8 @@ impl ShadingBake {
             height: h,
             step,
             azimuths: d,
-            normal,
-            horizon,
+            normal: normal.into(),
+            horizon: horizon.into(),
             baked,
         })
     }
@@ -204,7 +207,7 @@ impl ShadingBake {
         for w in [self.width, self.height, self.step, self.azimuths] {
             out.extend_from_slice(&w.to_le_bytes());
         }
-        for v in self.normal.iter().chain(&self.horizon) {
+        for v in self.normal.iter().chain(self.horizon.iter()) {
             out.extend_from_slice(&v.to_le_bytes());
         }
         seal(&mut out);
@@ -251,8 +254,8 @@ impl ShadingBake {
             height,
             step,
             azimuths,
-            normal,
-            horizon,
+            normal: normal.into(),
+            horizon: horizon.into(),
             baked,
         })
     }
@@ -320,90 +323,42 @@ impl ShadingBake {
         }
         (r, hz)
     }
-}
 
-/// The shading SATs on the GPU: `sat_normal` (RGBA32UI 2D) and, with visibility, `sat_horizon` (RGBA32UI
-/// 2D array, D / 4 layers).
-#[derive(Debug)]
-pub struct SatTextures {
-    normal: wgpu::Texture,
-    normal_view: wgpu::TextureView,
-    horizon: Option<(wgpu::Texture, wgpu::TextureView)>,
-}
-
-impl SatTextures {
-    /// Creates (through the renderer's [`Ledgered`] device) and fills the textures of `bake`.
-    pub fn upload(dev: &mut Ledgered<'_>, queue: &wgpu::Queue, bake: &ShadingBake) -> Self {
-        let (pw, ph) = (bake.width + 1, bake.height + 1);
-        let mut make = |label: &'static str, layers: u32, data: &[u32]| {
-            let size = wgpu::Extent3d {
-                width: pw,
-                height: ph,
-                depth_or_array_layers: layers,
-            };
-            let t = dev.texture(
-                label,
-                &wgpu::TextureDescriptor {
-                    label: None,
-                    size,
-                    mip_level_count: 1,
-                    sample_count: 1,
-                    dimension: wgpu::TextureDimension::D2,
-                    format: wgpu::TextureFormat::Rgba32Uint,
-                    usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-                    view_formats: &[],
-                },
-            );
-            queue.write_texture(
-                t.as_image_copy(),
-                bytemuck::cast_slice(data),
-                wgpu::TexelCopyBufferLayout {
-                    offset: 0,
-                    bytes_per_row: Some(pw * 16),
-                    rows_per_image: Some(ph),
-                },
-                size,
-            );
-            t
+    /// The CPU twin of one texel of the renderer's per-level shading tables (`gpu/renderer/sg_tables.rs`):
+    /// the inputs of lattice sample (i, j) of a ring `data_level` levels coarser than the data (negative:
+    /// a synthesised ring finer than the data, which takes the nearest data sample's). A ring sample
+    /// (i, j) sits on data sample (i 2^k, j 2^k) (`bake::pyramid`), and holds the [`ShadingBake::box_mean`]
+    /// of the box of side 2^k + 1 data samples centred there: neighbouring texels' boxes share their
+    /// edges, so the bilinear interpolation between them is a tent filter of the data's normals about
+    /// 2^(k+1) samples wide, the SAT paper's footprint box for a pixel of that size. Boxes are capped at
+    /// [`MAX_BOX_SIDE`] samples, as the reference's footprint is; at the border they are clamped into
+    /// the grid.
+    pub fn level_texel(&self, data_level: i32, i: i64, j: i64) -> (Vec3, heapless::Vec<f32, 16>) {
+        let step = i64::from(self.step);
+        let (x, y, span) = if data_level >= 0 {
+            let k = data_level.unsigned_abs().min(40);
+            (
+                i.saturating_mul(1 << k),
+                j.saturating_mul(1 << k),
+                1i64 << k,
+            )
+        } else {
+            let k = data_level.unsigned_abs().min(40);
+            (i.div_euclid(1 << k), j.div_euclid(1 << k), 1)
         };
-        let normal = make("sat_normal", 1, &bake.normal);
-        let horizon = (bake.azimuths > 0)
-            .then(|| make("sat_horizon", bake.azimuths.div_ceil(4), &bake.horizon));
-        let normal_view = dev.view("sat_normal view", &normal, &Default::default());
-        let horizon = horizon.map(|t| {
-            let v = dev.view(
-                "sat_horizon view",
-                &t,
-                &wgpu::TextureViewDescriptor {
-                    dimension: Some(wgpu::TextureViewDimension::D2Array),
-                    ..Default::default()
-                },
-            );
-            (t, v)
-        });
-        Self {
-            normal,
-            normal_view,
-            horizon,
-        }
-    }
-
-    /// The normal SAT's view.
-    pub fn normal_view(&self) -> &wgpu::TextureView {
-        &self.normal_view
-    }
-
-    /// The horizon SATs' view, when baked.
-    pub fn horizon_view(&self) -> Option<&wgpu::TextureView> {
-        self.horizon.as_ref().map(|(_, v)| v)
-    }
-
-    /// GPU bytes held.
-    pub fn bytes(&self) -> u64 {
-        let b = |t: &wgpu::Texture| {
-            u64::from(t.width()) * u64::from(t.height()) * u64::from(t.depth_or_array_layers()) * 16
+        // Nearest shading-grid sample, and the box's half side in grid samples.
+        let (cx, cy) = (
+            (x + step / 2).div_euclid(step),
+            (y + step / 2).div_euclid(step),
+        );
+        let half = (span / step / 2).min(i64::from(MAX_BOX_SIDE - 1) / 2);
+        let clamp = |v: i64, n: u32| -> u32 {
+            u32::try_from(v.clamp(0, i64::from(n) - 1)).expect("clamped into the grid")
         };
-        b(&self.normal) + self.horizon.as_ref().map_or(0, |(t, _)| b(t))
+        self.box_mean(
+            (clamp(cx - half, self.width), clamp(cy - half, self.height)),
+            (clamp(cx + half, self.width), clamp(cy + half, self.height)),
+        )
     }
 }
 

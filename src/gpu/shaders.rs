@@ -82,7 +82,7 @@ pub fn sources() -> Vec<(&'static str, String)> {
 pub struct SgVariant {
     /// Theta bands x phi sectors of the patch integration (a WGSL constant).
     pub patches: Patches,
-    /// Horizon SATs are declared and fetched (`sg_visibility.wgsl`), else `sg_no_visibility.wgsl`.
+    /// Horizon tables are declared and fetched (`sg_visibility.wgsl`), else `sg_no_visibility.wgsl`.
     pub visibility: bool,
     /// The specular term is compiled (`sg_specular.wgsl`), else the zero stub `sg_no_specular.wgsl`.
     pub specular: bool,
@@ -269,8 +269,7 @@ pub struct SgSceneUniform {
     pub material: [f32; 4],
     /// rgb: fog colour (linear).
     pub fog: [f32; 4],
-    /// x, y: the data's span in samples (width - 1, height - 1); z: data samples per shading-grid sample;
-    /// w: largest footprint box side, samples.
+    /// x: the data's spacing (m); y: horizon layers per ring of the per-level tables; z, w: unused.
     pub grid: [f32; 4],
 }
 const _: () = assert!(std::mem::size_of::<SgSceneUniform>() == 320);

@@ -2,7 +2,8 @@
 //! the height and normal under a pixel from the finest ring that holds it (GC section 6's normal maps
 //! from the clipmap's data), in the shader's f32 arithmetic, so tests can check what any drawn level is
 //! shaded with, and [`fragment_data`]: where and how much `fs_main` shades from the rings rather than from
-//! the drawn vertices.
+//! the drawn vertices; and [`sg_taps`] / [`sg_inputs`], the twin of the SG shader's per-level table reads
+//! (`shaders_gles/sg_clipmap.wgsl`).
 
 use crate::plan::clipmap::Clipmap;
 use crate::plan::uniforms::Globals;
@@ -193,4 +194,82 @@ fn level_surface(
         },
         weight,
     ))
+}
+
+/// The CPU twin of `sg_taps` in `shaders_gles/sg_clipmap.wgsl`: the ring SG shading reads at `rel` for a
+/// pixel footprint of `w` data samples, on a terrain of `data_spacing` metres, and the bilinear weights.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SgTaps {
+    /// The ring read.
+    pub level: u32,
+    /// Clip-relative lattice point of the first tap (the other three are +x, +y, +xy).
+    pub cell: [i32; 2],
+    /// Bilinear weights.
+    pub f: [f32; 2],
+}
+
+/// The CPU twin of `sg_taps`: the ring at data level round(log2 w) (or the finest ring holding `rel`, if
+/// coarser), then coarser until one holds `rel` with `finest_level`'s margin; `None` if none does.
+#[expect(
+    clippy::cast_possible_truncation,
+    clippy::cast_sign_loss,
+    clippy::cast_precision_loss,
+    reason = "lattice coordinates and level indices, as the shader's i32/f32"
+)]
+pub fn sg_taps(globals: &Globals, data_spacing: f32, rel: [f32; 2], w: f32) -> Option<SgTaps> {
+    let count = globals.level_info[0].clamp(0, MAX_LEVELS as i32);
+    let synth = ((data_spacing / globals.levels[0].rel[3]).log2().round() as i32).max(0);
+    let k = w.max(1.0).log2().round() as i32;
+    let first = (synth + k).max(finest_level(globals, rel).map_or(-1, |l| l as i32));
+    (first..count).find_map(|l| {
+        let lv = &globals.levels[l as usize];
+        let g = lv.rel[3];
+        let u = [(rel[0] - lv.rel[0]) / g, (lv.rel[1] - rel[1]) / g];
+        let i = [u[0].floor() as i32, u[1].floor() as i32];
+        let holds = i[0] >= 1 && i[1] >= 1 && i[0] <= lv.tex[2] - 3 && i[1] <= lv.tex[3] - 3;
+        holds.then(|| SgTaps {
+            level: l as u32,
+            cell: i,
+            f: [u[0] - i[0] as f32, u[1] - i[1] as f32],
+        })
+    })
+}
+
+/// The SG inputs the shader blends from `taps`: r and the D horizon angles, bilinear between the four
+/// texels of the per-level tables, each [`crate::gpu::sat_textures::ShadingBake::level_texel`] of its
+/// lattice sample (the GPU table holds them, horizons rounded to f16).
+pub fn sg_inputs(
+    bake: &crate::gpu::sat_textures::ShadingBake,
+    clipmap: &Clipmap,
+    taps: &SgTaps,
+) -> (glam::Vec3, heapless::Vec<f32, 16>) {
+    let clip = clipmap.frame().levels[taps.level as usize].clip;
+    let data_level = i32::try_from(taps.level).unwrap_or(i32::MAX)
+        - i32::try_from(clipmap.synth_levels()).unwrap_or(0);
+    let at = |dx: i32, dy: i32| {
+        bake.level_texel(
+            data_level,
+            clip.x0 + i64::from(taps.cell[0] + dx),
+            clip.y0 + i64::from(taps.cell[1] + dy),
+        )
+    };
+    let (a, b, c, d) = (at(0, 0), at(1, 0), at(0, 1), at(1, 1));
+    let [fx, fy] = taps.f;
+    let mix = |p: f32, q: f32, t: f32| p * (1.0 - t) + q * t;
+    let bil = |p: f32, q: f32, r: f32, s: f32| mix(mix(p, q, fx), mix(r, s, fx), fy);
+    let v = |p: glam::Vec3, q: glam::Vec3, r: glam::Vec3, s: glam::Vec3| {
+        glam::Vec3::new(
+            bil(p.x, q.x, r.x, s.x),
+            bil(p.y, q.y, r.y, s.y),
+            bil(p.z, q.z, r.z, s.z),
+        )
+    };
+    let r = v(a.0, b.0, c.0, d.0);
+    let f16 = |x: f32| half::f16::from_f32(x).to_f32();
+    let mut hz = heapless::Vec::new();
+    for k in 0..a.1.len() {
+        // At most 16 angles, the capacity.
+        let _ = hz.push(bil(f16(a.1[k]), f16(b.1[k]), f16(c.1[k]), f16(d.1[k])));
+    }
+    (r, hz)
 }

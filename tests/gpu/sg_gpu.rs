@@ -159,7 +159,12 @@ fn variants_compile_only_what_the_scene_declares() {
             "{}",
             v.label()
         );
-        assert_eq!(text.contains("sat_horizon"), v.visibility, "{}", v.label());
+        assert_eq!(
+            text.contains("level_horizon"),
+            v.visibility,
+            "{}",
+            v.label()
+        );
         // Fog (issue 16): no fog code in a variant whose scene has none.
         assert_eq!(text.contains("sg_scene.fog"), v.fog, "{}", v.label());
         assert_eq!(text.contains("material.w"), v.fog, "{}", v.label());
@@ -190,7 +195,7 @@ fn renderer_bakes_and_binds_only_what_the_scene_needs() {
     let mut renderer =
         Offscreen::with_sg(&gpu, &profile, &clipmap, &hm, &noon, Patches::P4x8, true)
             .expect("sg noon");
-    assert_eq!(renderer.bound_textures(), ["heights", "sat_normal"]);
+    assert_eq!(renderer.bound_textures(), ["heights", "level_normal"]);
     assert_eq!(renderer.baked(), ["normal_sat"]);
     assert_eq!(renderer.renderer().sg_layout_entries(), Some(2));
     let sg = render_frame(&mut renderer, &clipmap, &camera, &opts).expect("sg frame");
@@ -219,7 +224,7 @@ fn renderer_bakes_and_binds_only_what_the_scene_needs() {
         false,
     )
     .expect("sg evening, no shadows");
-    assert_eq!(renderer.bound_textures(), ["heights", "sat_normal"]);
+    assert_eq!(renderer.bound_textures(), ["heights", "level_normal"]);
     assert_eq!(renderer.baked(), ["normal_sat"]);
     assert!(renderer
         .renderer()
@@ -230,7 +235,7 @@ fn renderer_bakes_and_binds_only_what_the_scene_needs() {
             .expect("sg evening");
     assert_eq!(
         renderer.bound_textures(),
-        ["heights", "sat_normal", "sat_horizon"]
+        ["heights", "level_normal", "level_horizon"]
     );
     assert_eq!(renderer.baked(), ["normal_sat", "horizons", "horizon_sat"]);
     assert_eq!(renderer.renderer().sg_layout_entries(), Some(3));
@@ -268,7 +273,7 @@ fn cli_render_reports_bound_textures_and_baked() {
     let v = json(&run(&["--shading", "sg", "--scene", "evening", "--json"]));
     assert_eq!(
         v["bound_textures"],
-        serde_json::json!(["heights", "sat_normal", "sat_horizon"])
+        serde_json::json!(["heights", "level_normal", "level_horizon"])
     );
     assert_eq!(
         v["baked"],
@@ -285,7 +290,7 @@ fn cli_render_reports_bound_textures_and_baked() {
     ]));
     assert_eq!(
         v["bound_textures"],
-        serde_json::json!(["heights", "sat_normal"])
+        serde_json::json!(["heights", "level_normal"])
     );
     assert_eq!(v["baked"], serde_json::json!(["normal_sat"]));
     let refused = run(&["--no-shadows"]);
@@ -394,4 +399,124 @@ fn golden_sg_frame() {
     }
     let mean = sum as f64 / img.rgba.len() as f64;
     assert!(mean <= 3.0 && max <= 160, "mean {mean:.3}, max {max}");
+}
+
+/// The per-level SG normal table (issue 16, "Memory") equals its CPU twin `ShadingBake::level_texel` at
+/// every texel of every ring's clip region, bit for bit, after a flight on a small budget (rings move
+/// toroidally and go stale, some frames are planned but never prepared, one teleport): the tables follow
+/// the plan's ring uploads exactly. The twin `sg_taps` picks a held ring for points inside the data.
+#[test]
+fn sg_tables_follow_the_rings() {
+    let gpu = render_support::strict();
+    let hm = render_support::relief();
+    let p = render_support::profile("gles3-low", 64, 48, Some(1600));
+    let mut cm = render_support::clipmap(&hm, &p);
+    let noon = Scene::load("noon").expect("noon");
+    let max_side = gpu.device().limits().max_texture_dimension_2d;
+    let (_, bake) = clipsat::gpu::headless::sg_bake(max_side, &hm, &noon, false).expect("bake");
+    let mut r = Offscreen::with_sg(&gpu, &p, &cm, &hm, &noon, Patches::P2x4, false).expect("sg");
+    for i in 0..60 {
+        let cam = render_support::flight(&hm, i, 120.0, 400.0, Some(40));
+        cm.update(cam.eye).expect("update");
+        if i % 3 != 1 {
+            render_frame(&mut r, &cm, &cam, &FrameOptions::default()).expect("frame");
+        }
+    }
+    let tables = r.read_sg_normals().expect("normal table readback");
+    let s = i64::from(p.clip_size());
+    let synth = i32::try_from(cm.synth_levels()).expect("levels");
+    let mut checked = 0;
+    for (l, layer) in tables.iter().enumerate() {
+        let clip = cm.frame().levels[l].clip;
+        let data_level = i32::try_from(l).expect("level") - synth;
+        for j in clip.y0..clip.y1() {
+            for i in clip.x0..clip.x1() {
+                let t = (j.rem_euclid(s) * s + i.rem_euclid(s)) as usize;
+                let (want, _) = bake.level_texel(data_level, i, j);
+                let got = layer[t];
+                assert_eq!(
+                    [got[0].to_bits(), got[1].to_bits(), got[2].to_bits()],
+                    [want.x.to_bits(), want.y.to_bits(), want.z.to_bits()],
+                    "level {l} sample ({i}, {j})"
+                );
+                checked += 1;
+            }
+        }
+    }
+    assert!(checked > 4 * 80 * 80, "{checked} texels checked");
+    // Inside the data, some ring holds every point the last camera sees near it.
+    let g = r.globals();
+    let eye = render_support::flight(&hm, 59, 120.0, 400.0, Some(40)).eye;
+    let (ox, oy) = cm.origin();
+    for (dx, dy) in [(100.0, 50.0), (-400.0, 300.0), (2000.0, 800.0)] {
+        let rel = [dx as f32, dy as f32];
+        let (x, y) = (eye.x + dx, eye.y + dy);
+        if x > ox && y > oy {
+            let taps = clipsat::twin::shading::sg_taps(g, hm.spacing(), rel, 2.0).expect("held");
+            let (r, _) = clipsat::twin::shading::sg_inputs(&bake, &cm, &taps);
+            assert!(r.length() > 0.5 && r.length() <= 1.0 && r.z > 0.0, "{r}");
+        }
+    }
+}
+
+/// Issue 16's memory goal: the SG objects' GPU bytes are fixed by the profile and the scene's visibility,
+/// whatever the terrain's size: the same on a 257^2 and a 4097^2 terrain, and equal to
+/// `Profile::sg_table_bytes` (the whole renderer: `Profile::footprint` plus that, plus the scene
+/// uniform). The bake (CPU memory) is capped at 129^2 here to keep the test fast; it does not change
+/// the GPU side.
+#[test]
+fn sg_gpu_bytes_do_not_depend_on_the_terrain_size() {
+    let gpu = render_support::strict();
+    let p = render_support::profile("gles3-low", 64, 48, None);
+    let evening = Scene::load("evening").expect("evening");
+    let sg_bytes = |size: u32| {
+        let hm =
+            clipsat::source::procedural::generate(&clipsat::source::procedural::ProceduralParams {
+                size,
+                ..Default::default()
+            })
+            .expect("procedural terrain");
+        let cm = render_support::clipmap(&hm, &p);
+        let bake = ShadingBake::bake(
+            &hm,
+            &evening.needs(),
+            clipsat::bake::horizon::DEFAULT_AZIMUTHS,
+            130,
+        )
+        .expect("bake");
+        let r = Offscreen::new(
+            &gpu,
+            &p,
+            &cm,
+            clipsat::gpu::headless::OffscreenOptions {
+                shading: clipsat::gpu::renderer::Shading::Sg(clipsat::gpu::renderer::SgShading {
+                    terrain: &hm,
+                    scene: &evening,
+                    patches: Patches::P4x8,
+                    bake: &bake,
+                    omit: shaders::SgOmit::None,
+                }),
+                ..Default::default()
+            },
+        )
+        .expect("sg renderer");
+        let sg: u64 = r
+            .renderer()
+            .ledger()
+            .entries()
+            .iter()
+            .filter(|e| e.label.starts_with("sg "))
+            .map(|e| e.bytes)
+            .sum();
+        (sg, r.renderer().ledger().bytes())
+    };
+    let (small, small_total) = sg_bytes(257);
+    let (large, large_total) = sg_bytes(4097);
+    assert_eq!(small, large);
+    assert_eq!(small_total, large_total);
+    let tables = p.sg_table_bytes(clipsat::bake::horizon::DEFAULT_AZIMUTHS);
+    let uniform = std::mem::size_of::<shaders::SgSceneUniform>() as u64;
+    assert_eq!(small, tables + uniform);
+    assert!(small_total <= p.budget.gpu_memory_bytes);
+    println!("SG GPU bytes on gles3-low, evening: {small} ({tables} in tables)");
 }

@@ -21,6 +21,9 @@ pub struct PrepareStats {
     pub full_upload: bool,
     /// Detail pool tiles written (issue 15); their samples are in `upload_samples`.
     pub detail_tiles: u32,
+    /// SG table texels written (`sg_tables.rs`): the same texels as the ring rectangles, so the same
+    /// per-frame sample budget; not in `upload_samples`.
+    pub sg_samples: u64,
 }
 
 impl Renderer {
@@ -76,17 +79,24 @@ impl Renderer {
             stats.uploads += 1;
             stats.upload_samples += u64::from(w) * u64::from(h);
         };
+        let mut sg_uploads = None;
         if self.synced != Some(index) {
             if plan.since().is_none() || plan.since() == self.synced {
                 for u in plan.uploads() {
                     write(u.level, u.tex_x, u.tex_y, u.w, u.h);
                 }
+                sg_uploads = Some(Some(plan.uploads()));
             } else {
                 stats.full_upload = true;
                 for level in 0..self.levels {
                     write(level, 0, 0, s, s);
                 }
+                sg_uploads = Some(None);
             }
+        }
+        // The SG tables follow the rings' texels (sg_tables.rs).
+        if let (Some(sg), Some(list)) = (self.sg.as_mut(), sg_uploads) {
+            sg.tables.upload(queue, clipmap, list, &mut stats);
         }
         stats.upload_bytes = stats.upload_samples * 8;
         self.synced = Some(index);

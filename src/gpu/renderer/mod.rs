@@ -19,12 +19,13 @@
 //! [`crate::twin::clipmap::cpu_vertex`] is its CPU twin.
 //!
 //! Files: this one holds the type and its set-up; `frame.rs` prepare and render; `sg.rs` the SG shading
-//! variant; `ledger.rs` the object ledger and [`Ledgered`]; `probe.rs` the vertex-probe test instrument.
+//! variant, `sg_tables.rs` its per-level tables; `ledger.rs` the object ledger and [`Ledgered`]; `probe.rs` the vertex-probe test instrument.
 
 mod frame;
 mod ledger;
 mod probe;
 mod sg;
+mod sg_tables;
 
 pub use frame::PrepareStats;
 pub use ledger::{texture_bytes, Ledger, LedgerEntry, Ledgered, ObjectKind};
@@ -137,10 +138,11 @@ pub struct Renderer {
 impl Renderer {
     /// Creates every buffer, texture and pipeline for `profile` on `device` (which must offer the GLES 3.0
     /// downlevel limits, [`wgpu::Limits::downlevel_webgl2_defaults`]); nothing else is created until the
-    /// renderer drops. GPU validation errors surface through the device's error scopes or handler.
+    /// renderer drops. GPU validation errors surface through the device's error scopes or handler. The
+    /// queue writes nothing yet: [`Renderer::prepare`] fills every texture, the SG tables included.
     pub fn new(
         device: &wgpu::Device,
-        queue: &wgpu::Queue,
+        _queue: &wgpu::Queue,
         options: &RendererOptions<'_>,
         profile: &Profile,
     ) -> Result<Self> {
@@ -367,7 +369,7 @@ impl Renderer {
             Shading::Basic => None,
             Shading::Sg(s) => Some(SgState::new(
                 &mut dev,
-                queue,
+                profile,
                 s,
                 [&group0_layout, &group1_layout],
                 &targets,
@@ -413,13 +415,19 @@ impl Renderer {
         &self.heights
     }
 
+    /// The SG per-level normal table (`clip_size^2 x` [`Profile::sg_normal_layers`], RGBA32F), under SG
+    /// shading.
+    pub fn sg_normal_table(&self) -> Option<&wgpu::Texture> {
+        self.sg.as_ref().map(|s| s.tables.normal())
+    }
+
     /// Rings (array layers) in use.
     pub fn levels(&self) -> u32 {
         self.levels
     }
 
-    /// The names of the textures the shading binds: `heights`, plus `sat_normal` and, with visibility,
-    /// `sat_horizon` under SG shading.
+    /// The names of the textures the shading binds: `heights`, plus `level_normal` and, with visibility,
+    /// `level_horizon` under SG shading.
     pub fn bound_textures(&self) -> &[&'static str] {
         match &self.sg {
             Some(sg) => &sg.bound,

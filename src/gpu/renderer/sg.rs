@@ -1,18 +1,20 @@
 //! Stage 3, the GPU: the renderer's SG shading variant (SAT paper section 5): bind and compile only what
 //! the scene needs.
 
+use super::sg_tables::SgTables;
 use super::{terrain_pipeline, Ledgered, Targets};
-use crate::gpu::sat_textures::{SatTextures, ShadingBake, MAX_BOX_SIDE};
+use crate::gpu::sat_textures::ShadingBake;
 use crate::gpu::shaders::{self, SgOmit, SgSceneUniform, SgVariant};
 use crate::shading::scene::Scene;
 use crate::shading::Patches;
-use crate::{Heightmap, Result};
+use crate::{Heightmap, Profile, Result};
 
 /// The SG shading variant of [`super::Shading::Sg`]: a scene over the terrain `terrain` (the one the
 /// clipmap was built from), integrated over `patches`, with tables already baked
-/// ([`ShadingBake::bake_cached`]). Only what the scene needs ([`Scene::needs`]) is bound and compiled: no
-/// horizon maps or visibility texture without visibility (used when the scene asks for it and `bake` holds
-/// horizons), no specular code without specular.
+/// ([`ShadingBake::bake_cached`]; they stay in CPU memory, and fill the renderer's fixed per-level tables).
+/// Only what the scene needs ([`Scene::needs`]) is bound and compiled: no horizon table without
+/// visibility (used when the scene asks for it and `bake` holds horizons), no specular code without
+/// specular.
 #[derive(Clone, Copy, Debug)]
 pub struct SgShading<'a> {
     /// The terrain.
@@ -35,7 +37,7 @@ pub(super) struct SgState {
     pub(super) baked: Vec<&'static str>,
     pub(super) bound: Vec<&'static str>,
     pub(super) layout_entries: usize,
-    _textures: SatTextures,
+    pub(super) tables: SgTables,
     _uniform: wgpu::Buffer,
     _layout: wgpu::BindGroupLayout,
     pub(super) group: wgpu::BindGroup,
@@ -43,10 +45,11 @@ pub(super) struct SgState {
 }
 
 impl SgState {
-    /// Bakes nothing: uploads `s.bake`'s tables and makes the group-2 layout, group and pipeline.
+    /// Bakes nothing: creates the per-level tables (filled by each prepare from `s.bake`) and makes the
+    /// group-2 layout, group and pipeline.
     pub(super) fn new(
         dev: &mut Ledgered<'_>,
-        queue: &wgpu::Queue,
+        profile: &Profile,
         s: &SgShading<'_>,
         layouts: [&wgpu::BindGroupLayout; 2],
         targets: &Targets,
@@ -64,15 +67,10 @@ impl SgState {
             fog: needs.fog,
             omit: s.omit,
         };
-        let textures = SatTextures::upload(dev, queue, bake);
+        let tables = SgTables::new(dev, profile, bake, variant.visibility)?;
         let mut u = SgSceneUniform::new(&scene, bake.azimuths())?;
-        #[expect(clippy::cast_precision_loss, reason = "grid sizes <= 16385")]
-        let grid = [
-            (hm.width() - 1) as f32,
-            (hm.height() - 1) as f32,
-            bake.step() as f32,
-            MAX_BOX_SIDE as f32,
-        ];
+        #[expect(clippy::cast_precision_loss, reason = "layer counts <= 4")]
+        let grid = [hm.spacing(), tables.horizon_layers() as f32, 0.0, 0.0];
         u.grid = grid;
         let uniform = dev.buffer_init(
             "sg scene",
@@ -83,7 +81,7 @@ impl SgState {
             binding,
             visibility: wgpu::ShaderStages::FRAGMENT,
             ty: wgpu::BindingType::Texture {
-                sample_type: wgpu::TextureSampleType::Uint,
+                sample_type: wgpu::TextureSampleType::Float { filterable: false },
                 view_dimension: dim,
                 multisampled: false,
             },
@@ -100,7 +98,7 @@ impl SgState {
                 },
                 count: None,
             },
-            texture(1, wgpu::TextureViewDimension::D2),
+            texture(1, wgpu::TextureViewDimension::D2Array),
         ];
         let mut resources = vec![
             wgpu::BindGroupEntry {
@@ -109,17 +107,17 @@ impl SgState {
             },
             wgpu::BindGroupEntry {
                 binding: 1,
-                resource: wgpu::BindingResource::TextureView(textures.normal_view()),
+                resource: wgpu::BindingResource::TextureView(&tables.normal_view),
             },
         ];
-        let mut bound = vec!["heights", "sat_normal"];
-        if let (true, Some(view)) = (variant.visibility, textures.horizon_view()) {
+        let mut bound = vec!["heights", "level_normal"];
+        if let (true, Some(view)) = (variant.visibility, tables.horizon_view.as_ref()) {
             entries.push(texture(2, wgpu::TextureViewDimension::D2Array));
             resources.push(wgpu::BindGroupEntry {
                 binding: 2,
                 resource: wgpu::BindingResource::TextureView(view),
             });
-            bound.push("sat_horizon");
+            bound.push("level_horizon");
         }
         let layout = dev.bind_group_layout("sg shading layout", &entries);
         let group = dev.bind_group("sg shading group", &layout, &resources);
@@ -141,7 +139,7 @@ impl SgState {
             baked: bake.baked().to_vec(),
             bound,
             layout_entries: entries.len(),
-            _textures: textures,
+            tables,
             _uniform: uniform,
             _layout: layout,
             group,
