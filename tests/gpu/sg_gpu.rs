@@ -431,7 +431,7 @@ fn sg_tables_follow_the_rings() {
         let data_level = i32::try_from(l).expect("level") - synth;
         for j in clip.y0..clip.y1() {
             for i in clip.x0..clip.x1() {
-                let t = (j.rem_euclid(s) * s + i.rem_euclid(s)) as usize;
+                let t = usize::try_from(j.rem_euclid(s) * s + i.rem_euclid(s)).expect("texel");
                 let (want, _) = bake.level_texel(data_level, i, j);
                 let got = layer[t];
                 assert_eq!(
@@ -448,9 +448,9 @@ fn sg_tables_follow_the_rings() {
     let g = r.globals();
     let eye = render_support::flight(&hm, 59, 120.0, 400.0, Some(40)).eye;
     let (ox, oy) = cm.origin();
-    for (dx, dy) in [(100.0, 50.0), (-400.0, 300.0), (2000.0, 800.0)] {
-        let rel = [dx as f32, dy as f32];
-        let (x, y) = (eye.x + dx, eye.y + dy);
+    for (dx, dy) in [(100.0f32, 50.0f32), (-400.0, 300.0), (2000.0, 800.0)] {
+        let rel = [dx, dy];
+        let (x, y) = (eye.x + f64::from(dx), eye.y + f64::from(dy));
         if x > ox && y > oy {
             let taps = clipsat::twin::shading::sg_taps(g, hm.spacing(), rel, 2.0).expect("held");
             let (r, _) = clipsat::twin::shading::sg_inputs(&bake, &cm, &taps);

@@ -48,6 +48,10 @@ pub(crate) fn run(args: &InfoArgs) -> Result<()> {
             "coarsest_ring_span_m": coarsest_span_m,
             "detail_tiles": p.budget.detail_tiles,
             "detail_tile_samples": p.detail_side(),
+            // SG shading's per-level tables, on top of `gpu_bytes` (fixed by the profile, whatever the
+            // terrain): normals only, and with visibility's horizon tables.
+            "sg_bytes": p.sg_table_bytes(0),
+            "sg_visibility_bytes": p.sg_table_bytes(clipsat::bake::horizon::DEFAULT_AZIMUTHS),
         }));
     }
     if args.json {
@@ -77,13 +81,13 @@ pub(crate) fn run(args: &InfoArgs) -> Result<()> {
     outln!("voids     {} filled", hm.voids_filled());
     outln!(
         "profile     GPU memory needed / budget    coarsest ring span   CPU budget: rings + tile cache   \
-         detail pool"
+         detail pool                 SG tables (+ visibility)"
     );
     for p in &profiles {
         let mib = |v: &serde_json::Value| v.as_f64().unwrap_or(0.0) / 1048576.0;
         outln!(
             "{:<11} {:>9.2} MiB / {:>7.1} MiB    {:>8.1} km          {:>6.1} MiB: {:.2} + {:.2} MiB   \
-             {} tiles of {}^2 ({:.2} MiB)",
+             {} tiles of {}^2 ({:.2} MiB)   {:.2} MiB ({:.2} MiB)",
             p["profile"].as_str().unwrap_or("?"),
             mib(&p["gpu_bytes"]),
             mib(&p["gpu_budget_bytes"]),
@@ -94,6 +98,8 @@ pub(crate) fn run(args: &InfoArgs) -> Result<()> {
             p["detail_tiles"],
             p["detail_tile_samples"],
             mib(&p["parts"]["detail"]),
+            mib(&p["sg_bytes"]),
+            mib(&p["sg_visibility_bytes"]),
         );
     }
     Ok(())
