@@ -357,20 +357,30 @@ fn vs_main(@location(0) v: vec4<u32>) -> VsOut {
     return out;
 }
 
+// Three fragment programs; the plan picks one per draw (`clipsat::plan::fragment`), the cheapest that
+// gives the same pixels, because llvmpipe runs both sides of a branch under an execution mask: the ring
+// reads and the skirt test below cost every pixel as much as a pixel that uses them.
+
+// Blocks that no finer ring's data reaches: the drawn vertices' values, which under distance LOD with every
+// level active are the finest data (central differences of the same ring, interpolated across the cell as
+// level_surface blends them).
 @fragment
-fn fs_main(v: VsOut) -> @location(0) vec4<f32> {
-    if (outside_data(v.rel.xy) || (v.skirt > 0.0 && through_side(v.rel))) {
+fn fs_plain(v: VsOut) -> @location(0) vec4<f32> {
+    if (outside_data(v.rel.xy)) {
         discard;
     }
-    // Shade from the finest data under the pixel. Where the block is drawn at the finest ring holding it
-    // (every block under distance LOD with every level active), the vertex values are that data:
-    // central differences of the same ring, interpolated across the cell as level_surface blends them.
-    // Only a block drawn coarser (SAT LOD, or finer rings not drawn) reads the finest ring here, 12
-    // fetches a pixel, blended over that ring's last DATA_BLEND cells into the next coarser ring's data
-    // (or the vertex values where that ring is the block's own) so nothing jumps where it ends. With morphing (distance LOD) it also fades out over GC 6.2's transition band
-    // of that ring's active region, as its geometry does, so the finer detail never shows past the ring's
-    // drawn edge, where it would pop as the ring moves; SAT LOD does not morph and keeps it. Reading the rings at every pixel cost 85 % of a frame on llvmpipe (378 against
-    // 56 CPU ms per frame, Puget Sound at 1280x800).
+    let shaded = basic_shade(v.height, v.normal, length(v.rel), globals.shading);
+    // debug_view.wgsl: the level-colour and wireframe views (the normal view returns `shaded`).
+    return vec4<f32>(debug_view(shaded, v.rel, v.normal), 1.0);
+}
+
+// Shade from the finest data under the pixel. Only a block drawn coarser than the finest ring holding the
+// pixel (SAT LOD, or finer rings not drawn) reads that ring here, 12 fetches a pixel, blended over its last
+// DATA_BLEND cells into the next coarser ring's data (or the vertex values where that ring is the block's
+// own) so nothing jumps where it ends. With morphing (distance LOD) it also fades out over GC 6.2's
+// transition band of that ring's active region, as its geometry does, so the finer detail never shows past
+// the ring's drawn edge, where it would pop as the ring moves; SAT LOD does not morph and keeps it.
+fn ring_data_colour(v: VsOut) -> vec4<f32> {
     var h = v.height;
     var n = v.normal;
     let fine = finest_level(v.rel.xy);
@@ -392,8 +402,25 @@ fn fs_main(v: VsOut) -> @location(0) vec4<f32> {
         n = mix(n, d.normal, w);
     }
     let shaded = basic_shade(h, n, length(v.rel), globals.shading);
-    // debug_view.wgsl: the level-colour and wireframe views (the normal view returns `shaded`).
     return vec4<f32>(debug_view(shaded, v.rel, v.normal), 1.0);
+}
+
+// Blocks some finer ring's data reaches.
+@fragment
+fn fs_ring_data(v: VsOut) -> @location(0) vec4<f32> {
+    if (outside_data(v.rel.xy)) {
+        discard;
+    }
+    return ring_data_colour(v);
+}
+
+// Skirts: also hidden where seen through the data's side.
+@fragment
+fn fs_skirt(v: VsOut) -> @location(0) vec4<f32> {
+    if (outside_data(v.rel.xy) || (v.skirt > 0.0 && through_side(v.rel))) {
+        discard;
+    }
+    return ring_data_colour(v);
 }
 
 // The vertex probe: draws the mesh as points, vertex k on pixel (k mod W, k / W) of a W x H Rgba32Uint

@@ -16,6 +16,7 @@ use crate::hash::Hash64;
 use crate::plan::clipmap::Clipmap;
 use crate::plan::cull::{self, DrawKind, DrawList, DrawParams, DrawStats, MAX_DRAWS};
 use crate::plan::detail::{DetailBudget, DetailFrame, DetailPool, DetailView};
+use crate::plan::fragment::{FragmentPath, FragmentPaths};
 use crate::plan::lod::{Lod, LodFrame, LodMode};
 use crate::plan::mesh;
 use crate::plan::uniforms::{
@@ -98,6 +99,8 @@ pub struct PlannedDraw {
     pub kind: DrawKind,
     /// Indices drawn.
     pub indices: Range<u32>,
+    /// The fragment program it is recorded with.
+    pub fragment: FragmentPath,
 }
 
 /// What a plan holds, in numbers.
@@ -221,6 +224,7 @@ impl FramePlan {
             h.write_u32(d.kind as u32);
             h.write_u32(d.indices.start);
             h.write_u32(d.indices.end);
+            h.write_u32(d.fragment as u32);
         }
         h.write_bytes(self.slot_bytes());
         h.write_bytes(bytemuck::bytes_of(&self.globals));
@@ -591,6 +595,13 @@ impl Planner {
         };
         let blocks_clamped = if sat { out.lod.blocks_clamped } else { 0 };
         out.ranges.clear();
+        let morph = params.morph && !sat;
+        let paths = FragmentPaths::new(
+            clipmap,
+            clipmap.eye_lattice(camera.eye),
+            morph,
+            self.block_quads,
+        );
         let mut triangles = 0u64;
         for (k, d) in out.draws.iter().enumerate() {
             let u = if let Some(slot) = d.pool {
@@ -615,6 +626,7 @@ impl Planner {
                 .push(PlannedDraw {
                     kind: d.kind,
                     indices,
+                    fragment: paths.path(d),
                 })
                 .map_err(|_| Error::Capacity {
                     what: "draws per frame",
@@ -636,7 +648,7 @@ impl Planner {
             params: [
                 // SAT modes draw each block's own level unmorphed (skirts close the level changes), so the
                 // surface is the PL(H_L) the error bound is about.
-                if params.morph && !sat { 1.0 } else { 0.0 },
+                if morph { 1.0 } else { 0.0 },
                 self.skirt_floor,
                 probe[0],
                 probe[1],

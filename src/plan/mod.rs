@@ -8,6 +8,7 @@
 //! - [`lod`]: SAT LOD block selection over the tables of [`crate::bake::lod_tables`];
 //! - [`cull`]: frustum culling into the fixed-capacity draw list;
 //! - [`detail`]: the detail pool, finer tiles for the blocks SAT LOD wants finer than the rings hold;
+//! - [`fragment`]: which fragment program each draw needs (the cheapest that gives the same pixels);
 //! - [`uniforms`]: the packed `#[repr(C)]` uniforms each draw needs;
 //! - [`uploads`]: which ring rectangles the GPU copy still lacks (the union over skipped frames);
 //! - [`frame_plan`]: all of the above for one frame as a value, the [`frame_plan::FramePlan`] the GPU
@@ -21,6 +22,7 @@ pub mod constraints;
 pub mod cull;
 pub mod detail;
 pub mod flight;
+pub mod fragment;
 pub mod frame;
 pub mod frame_plan;
 pub mod lod;

@@ -1,9 +1,9 @@
 //! CPU twin of `data_surface` in `shaders_gles/clipmap.wgsl` (stage 3's fragment shader, on the CPU):
 //! the height and normal under a pixel from the finest ring that holds it (GC section 6's normal maps
 //! from the clipmap's data), in the shader's f32 arithmetic, so tests can check what any drawn level is
-//! shaded with, and [`fragment_data`]: where and how much `fs_main` shades from the rings rather than from
-//! the drawn vertices; and [`sg_taps`] / [`sg_inputs`], the twin of the SG shader's per-level table reads
-//! (`shaders_gles/sg_clipmap.wgsl`).
+//! shaded with, and [`fragment_data`]: where and how much `fs_ring_data` (and `fs_skirt`) shade from the
+//! rings rather than from the drawn vertices; and [`sg_taps`] / [`sg_inputs`], the twin of the SG shader's
+//! per-level table reads (`shaders_gles/sg_clipmap.wgsl`).
 
 use crate::plan::clipmap::Clipmap;
 use crate::plan::uniforms::Globals;
@@ -89,7 +89,7 @@ pub fn shade_morph_alpha(globals: &Globals, l: u32, rel: [f32; 2]) -> f32 {
     ax.max(ay)
 }
 
-/// What `fs_main` shades a pixel of a block drawn at `draw_level` with: `None` where it keeps the drawn
+/// What `fs_ring_data` shades a pixel of a block drawn at `draw_level` with: `None` where it keeps the drawn
 /// vertex's values (the block is drawn at the finest ring holding the pixel, as under distance LOD), else
 /// the finest ring's data at `rel` and its share `w` ([`FragmentData`]), with `w` the
 /// ring's edge blend times (1 - morph x its GC 6.2 alpha), `morph` = `globals.params[0]` (1 under distance

@@ -5,6 +5,7 @@
 mod clipmap;
 mod flight;
 mod fly_paths;
+mod fragment;
 mod fuzz_parsers;
 mod lod;
 mod package;

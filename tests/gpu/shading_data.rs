@@ -224,7 +224,7 @@ fn no_curtains_below_the_data_border() {
     }
 }
 
-/// `fs_main` reads the rings only for blocks drawn coarser than the finest ring under the pixel
+/// `fs_ring_data` reads the rings only for blocks drawn coarser than the finest ring under the pixel
 /// (`twin::shading::fragment_data`), and fades that data out over the ring's GC 6.2 transition band:
 /// `finest_level` picks the same ring as `data_surface`, inside the ring's active interior the data counts
 /// fully, and past its drawn edge not at all.

@@ -184,22 +184,29 @@ impl Renderer {
     /// Records the prepared plan's draws into `pass` (whose attachments have the formats and sample count
     /// of [`super::RendererOptions`]). Sets its own pipeline, bind groups and buffers; creates nothing.
     pub fn render(&self, pass: &mut wgpu::RenderPass<'_>) {
-        // A debug view replaces the shading, SG included.
-        match (&self.sg, self.debug.code()) {
+        // A debug view replaces the shading, SG included. SG draws every block with one program; basic
+        // shading switches to each draw's own (`FragmentPath`) when it changes.
+        let sg = match (&self.sg, self.debug.code()) {
             (Some(sg), 0) => {
                 pass.set_pipeline(&sg.pipeline);
                 pass.set_bind_group(2, &sg.group, &[]);
+                true
             }
-            _ => pass.set_pipeline(&self.pipeline),
-        }
+            _ => false,
+        };
         pass.set_bind_group(0, &self.group0, &[]);
         let mut bound = None;
+        let mut program = None;
         for (k, d) in self.prepared.iter().enumerate() {
             let m = self.mesh(d.kind);
             if bound != Some(d.kind) {
                 pass.set_vertex_buffer(0, m.vertices.slice(..));
                 pass.set_index_buffer(m.indices.slice(..), wgpu::IndexFormat::Uint16);
                 bound = Some(d.kind);
+            }
+            if !sg && program != Some(d.fragment) {
+                pass.set_pipeline(&self.pipelines[d.fragment as usize]);
+                program = Some(d.fragment);
             }
             let offset =
                 u32::try_from(k as u64 * DRAW_SLOT_BYTES).expect("draw slots fit a u32 offset");

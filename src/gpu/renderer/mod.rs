@@ -122,8 +122,8 @@ pub struct Renderer {
     group1: wgpu::BindGroup,
     module: wgpu::ShaderModule,
     pipeline_layout: wgpu::PipelineLayout,
-    /// The pipeline drawn: basic shading, or the debug view's.
-    pipeline: wgpu::RenderPipeline,
+    /// The pipelines drawn, basic shading or the debug view's, indexed by [`crate::plan::fragment::FragmentPath`].
+    pipelines: [wgpu::RenderPipeline; 3],
     sg: Option<SgState>,
     debug: DebugView,
     size: u32,
@@ -342,29 +342,18 @@ impl Renderer {
             &[Some(&group0_layout), Some(&group1_layout)],
         );
         let targets = Targets::of(options);
-        let pipeline = if options.debug == DebugView::Normal {
-            terrain_pipeline(
-                &mut dev,
-                "clipmap pipeline",
-                &pipeline_layout,
-                &module,
-                "fs_main",
-                &targets,
-            )
-        } else {
-            let debug_module = dev.shader_module(
+        // One pipeline per fragment program (`FragmentPath`, the plan picks one per draw), from the
+        // normal module or the debug view's.
+        let debug_module = (options.debug != DebugView::Normal).then(|| {
+            dev.shader_module(
                 "clipmap.wgsl (debug view)",
                 shaders::clipmap_view(options.debug),
-            );
-            terrain_pipeline(
-                &mut dev,
-                "clipmap debug view pipeline",
-                &pipeline_layout,
-                &debug_module,
-                "fs_main",
-                &targets,
             )
-        };
+        });
+        let shaded = debug_module.as_ref().unwrap_or(&module);
+        let pipelines = FRAGMENT_ENTRIES.map(|(label, entry)| {
+            terrain_pipeline(&mut dev, label, &pipeline_layout, shaded, entry, &targets)
+        });
         let sg = match &options.shading {
             Shading::Basic => None,
             Shading::Sg(s) => Some(SgState::new(
@@ -394,7 +383,7 @@ impl Renderer {
             group1,
             module,
             pipeline_layout,
-            pipeline,
+            pipelines,
             sg,
             debug: options.debug,
             size,
@@ -479,6 +468,13 @@ impl Targets {
         }
     }
 }
+
+/// Each [`crate::plan::fragment::FragmentPath`]'s pipeline label and `clipmap.wgsl` entry point, in discriminant order.
+const FRAGMENT_ENTRIES: [(&str, &str); 3] = [
+    ("clipmap pipeline (plain)", "fs_plain"),
+    ("clipmap pipeline (ring data)", "fs_ring_data"),
+    ("clipmap pipeline (skirt)", "fs_skirt"),
+];
 
 fn terrain_pipeline(
     dev: &mut Ledgered<'_>,
