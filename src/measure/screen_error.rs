@@ -59,8 +59,9 @@ pub fn screen_error(
                 let c = d.covered(d.quads.max(1));
                 let (l, f) = (d.level, d.fine);
                 let (a, cc, b, dd) = (c.x0 << f, c.y0 << f, (c.x1() - 1) << f, (c.y1() - 1) << f);
-                // Geometry past the data collapses onto its border (not a surface to measure).
-                let inside = b >= 0 && dd >= 0 && a <= last.0 && cc <= last.1;
+                // Geometry past the data collapses onto its border (not a surface to measure): a block
+                // that meets the data only on its border line draws no area there.
+                let inside = b > 0 && dd > 0 && a < last.0 && cc < last.1;
                 inside.then(|| (l, d.clamped, tables.data_box(synth, a, cc, b, dd)))
             })
     };

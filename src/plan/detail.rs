@@ -18,6 +18,7 @@ use crate::plan::clipmap::Clipmap;
 use crate::plan::cull::{self, Draw, DrawKind, DrawList, Frustum};
 use crate::plan::frame::{Frame, Rect};
 use crate::plan::lod::{BlockLod, LodFrame, MAX_LOD_BLOCKS};
+use crate::plan::mesh;
 use crate::profile::MAX_DETAIL_TILES;
 use crate::{Error, Profile, Result};
 
@@ -96,6 +97,8 @@ pub struct DetailFrame {
     pub resident: heapless::Vec<Option<TileKey>, DETAIL_CAPACITY>,
     /// Blocks drawn from the pool: (index in the LOD frame, the level the selection had clamped it to).
     pub served: heapless::Vec<(u16, u32), MAX_LOD_BLOCKS>,
+    /// Per served block: every cell meets epsilon or its wanted level (it no longer counts as clamped).
+    pub served_met: heapless::Vec<bool, MAX_LOD_BLOCKS>,
     /// Samples the uploads write.
     pub samples_updated: u64,
     /// This plan's number in its planner's chain.
@@ -151,12 +154,32 @@ pub struct DetailBudget {
     pub draws: u32,
     /// Triangles left of `budget.max_triangles` after it.
     pub triangles: u64,
-    /// Draws per tile (its block, and its skirt when skirts are on).
+    /// Draws per cell (its block, and its skirt when skirts are on).
     pub tile_draws: u32,
-    /// Triangles per tile (block and skirt).
-    pub tile_triangles: u64,
+    /// The block side m: the widest skirt loop (`mesh::skirt_loop_range`).
+    pub block_quads: u32,
     /// Draws and triangles kept per served block for the skirts its neighbours then need.
     pub margin: (u32, u64),
+}
+
+impl DetailBudget {
+    /// Triangles of a cell drawn over `bounds` (its vertices): the top-left k x k quads of the block mesh
+    /// (k: the longer side, [`cell_quads`]) and, with skirts, the smallest skirt loop around them.
+    pub fn cell_triangles(&self, bounds: &Rect) -> u64 {
+        let k = cell_quads(bounds);
+        let mut t = u64::from(mesh::block_prefix(k) / 3);
+        if self.tile_draws > 1 {
+            let r = mesh::skirt_loop_range(self.block_quads, k);
+            t += u64::from((r.end - r.start) / 3);
+        }
+        t
+    }
+}
+
+/// Quads a cell over `bounds` is drawn with: a k x k square of the block mesh from the bounds' corner
+/// (k: the longer side), so a cell clipped to its block's piece draws no degenerate rows beyond it.
+pub fn cell_quads(bounds: &Rect) -> u32 {
+    bounds.w.max(bounds.h).saturating_sub(1)
 }
 
 /// Where the frame's pool tiles are seen from: what decides which cells of a block are needed.
@@ -262,6 +285,16 @@ struct Slot {
     needed: u64,
 }
 
+/// A cell's level-0 lattice box (inclusive vertices) from its vertices `r` in level `level`'s lattice.
+fn level0_box(level: u32, r: &Rect) -> (i64, i64, i64, i64) {
+    (
+        r.x0 << level,
+        r.y0 << level,
+        (r.x1() - 1) << level,
+        (r.y1() - 1) << level,
+    )
+}
+
 /// The pool's CPU state: which tile each slot holds and when it was last needed. Built once from the
 /// profile; [`DetailPool::plan`] allocates nothing.
 #[derive(Clone, Debug)]
@@ -273,8 +306,13 @@ pub struct DetailPool {
     clock: u64,
     /// Plans made (the renderer's sync chain).
     seq: u64,
-    /// Scratch: the clamped blocks and the levels the pool refines them to.
+    /// Scratch: the clamped blocks.
     cands: Box<heapless::Vec<Cand, MAX_LOD_BLOCKS>>,
+    /// The cells the refined blocks are drawn with (the quadtree's leaves), kept for
+    /// [`DetailPool::push_draws`].
+    leaves: Box<heapless::Vec<Leaf, DETAIL_CAPACITY>>,
+    /// The last plan's epsilon, pixels.
+    eps: f64,
 }
 
 /// A clamped block while the pool plans it.
@@ -283,16 +321,41 @@ struct Cand {
     block: u16,
     /// The level the selection clamped it to.
     clamped: u32,
-    /// The level the pool refines it to (`clamped`: not refined).
-    level: u32,
-    /// Its screen-space bound there, pixels.
+    /// The level its bound asked for (no cell of it is refined past it).
+    wanted: u32,
+    /// Its screen-space bound at `clamped`, pixels.
     bound: f64,
-    /// How far its clamped bound exceeds epsilon (bound / epsilon): the fill order.
+    /// How far that bound exceeds epsilon (bound / epsilon): the fill order.
     need: f64,
-    /// Visible cells of `level` (0: not refined).
-    cells: u32,
-    /// No finer level fits.
+    /// Drawn from pool cells (its leaves) instead of its ring.
+    refined: bool,
+    /// Its cells do not fit.
     frozen: bool,
+}
+
+/// One cell a refined block is drawn with: a tile of its level clipped to the block's piece.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Leaf {
+    /// The block (index in the LOD frame).
+    block: u16,
+    key: TileKey,
+    /// The cell's vertices in its level's lattice, clipped to the block's piece.
+    bounds: Rect,
+    /// Its screen-space bound, pixels.
+    bound: f64,
+    /// Its block's wanted level: no cell is split finer.
+    wanted: u32,
+    /// Its four quarters at the next finer level do not fit.
+    frozen: bool,
+}
+
+/// What the greedy refinement splits next.
+#[derive(Clone, Copy)]
+enum Unit {
+    /// A clamped block, into the visible cells of the level below its clamped one.
+    Block(usize),
+    /// A cell, into its visible quarters at the next finer level.
+    Leaf(usize),
 }
 
 impl DetailPool {
@@ -311,6 +374,8 @@ impl DetailPool {
             clock: 0,
             seq: 0,
             cands: Box::default(),
+            leaves: Box::default(),
+            eps: 0.0,
         }
     }
 
@@ -334,6 +399,7 @@ impl DetailPool {
         for s in &mut self.slots {
             *s = Slot::default();
         }
+        self.leaves.clear();
         self.clock = 0;
         self.seq = 0;
     }
@@ -356,40 +422,70 @@ impl DetailPool {
             .map(|(i, _)| i)
     }
 
-    /// Visible cells of level `w` over block `b`, counted up to `cap + 1`.
+    /// Visible cells of level `w` over block `b`, counted up to `cap + 1`, and their triangles.
     fn count_cells(
         &self,
         view: &DetailView<'_>,
         b: &BlockLod,
         w: u32,
         cap: usize,
-    ) -> Result<usize> {
-        let mut count = 0usize;
-        view.cells(b, w, self.quads, |_, _| {
+        budget: &DetailBudget,
+    ) -> Result<(usize, u64)> {
+        let (mut count, mut tris) = (0usize, 0u64);
+        view.cells(b, w, self.quads, |_, bounds| {
             count += 1;
+            tris += budget.cell_triangles(&bounds);
             Ok(count <= cap)
         })?;
-        Ok(count)
+        Ok((count, tris))
     }
 
-    /// Plans the pool for one frame (issue 15). The clamped blocks are refined minimax-first: the block
-    /// whose current bound is largest goes one level finer (`bound_at` gives a block's bound at a level)
-    /// while its visible cells fit the slots, draws and triangles left, until none can; a block stops at
-    /// its wanted level. Their cells are then filled most-needed first (by bound / epsilon at the clamped
-    /// level) under `budget.samples` (spent only when `budget.new_frame`: a clipmap frame planned again
-    /// spends nothing), and each block whose cells are all resident is served: its level in `lod` becomes
-    /// the refined one, and `lod.blocks_clamped` drops when that is its wanted level. Writes `out`.
+    /// Calls `f` with each visible quarter of `leaf` at the next finer level: its key and its vertices
+    /// (the quarter cell clipped to the leaf's piece).
+    fn quarters(&self, view: &DetailView<'_>, leaf: &Leaf, mut f: impl FnMut(TileKey, Rect)) {
+        let (k, q) = (leaf.key.level - 1, i64::from(self.quads));
+        let p = leaf.bounds;
+        // Exact: the finer lattice meets every vertex of the coarser one.
+        let pw = Rect::from_bounds(
+            p.x0 << 1,
+            p.y0 << 1,
+            ((p.x1() - 1) << 1) + 1,
+            ((p.y1() - 1) << 1) + 1,
+        );
+        for dy in 0..2 {
+            for dx in 0..2 {
+                let (cx, cy) = (2 * leaf.key.cx + dx, 2 * leaf.key.cy + dy);
+                let cell = Rect::from_bounds(cx * q, cy * q, (cx + 1) * q + 1, (cy + 1) * q + 1);
+                let bounds = cell.intersect(&pw);
+                if bounds.w >= 2 && bounds.h >= 2 && view.visible(k, &bounds) {
+                    f(TileKey { level: k, cx, cy }, bounds);
+                }
+            }
+        }
+    }
+
+    /// Plans the pool for one frame (issue 15). The clamped blocks are refined as quadtrees, minimax
+    /// first: the block or cell whose bound is largest is split (a block into the visible cells of the
+    /// level below its clamped one, a cell into its visible quarters one level finer) while the new cells
+    /// fit the slots, draws and triangles left, until none can; a cell whose bound (`bound_at`: a level
+    /// over a level-0 lattice box) meets epsilon, or that reached its block's wanted level, is not split.
+    /// So a block is drawn fine only where its error needs it, and each cell costs the same tile. The
+    /// cells are then filled most-needed first (by the block's bound / epsilon at the clamped level) under
+    /// `budget.samples` (spent only when `budget.new_frame`: a clipmap frame planned again spends
+    /// nothing), and each block whose cells are all resident is served: its level in `lod` becomes its
+    /// finest cell's, and `lod.blocks_clamped` drops when every cell meets epsilon. Writes `out`.
     pub fn plan(
         &mut self,
         src: &impl DetailSource,
         view: &DetailView<'_>,
         lod: &mut LodFrame,
-        bound_at: &dyn Fn(&BlockLod, u32) -> f64,
+        bound_at: &dyn Fn(u32, (i64, i64, i64, i64)) -> f64,
         budget: &DetailBudget,
         out: &mut DetailFrame,
     ) -> Result<()> {
         out.uploads.clear();
         out.served.clear();
+        out.served_met.clear();
         out.samples_updated = 0;
         out.prev = (self.seq > 0).then_some(self.seq);
         self.seq += 1;
@@ -398,7 +494,10 @@ impl DetailPool {
             self.clock += 1;
         }
         let cap = self.slots.len();
+        let eps = view.epsilon_px;
+        self.eps = eps;
         self.cands.clear();
+        self.leaves.clear();
         if cap > 0 {
             for (i, b) in lod.blocks.iter().enumerate() {
                 if b.wanted < b.level && b.wanted < b.ring {
@@ -406,10 +505,10 @@ impl DetailPool {
                         .push(Cand {
                             block: u16::try_from(i).expect("blocks <= MAX_LOD_BLOCKS"),
                             clamped: b.level,
-                            level: b.level,
+                            wanted: b.wanted,
                             bound: f64::from(b.bound_px),
-                            need: f64::from(b.bound_px) / view.epsilon_px,
-                            cells: 0,
+                            need: f64::from(b.bound_px) / eps,
+                            refined: false,
                             frozen: false,
                         })
                         .map_err(|_| Error::Capacity {
@@ -419,95 +518,156 @@ impl DetailPool {
                 }
             }
         }
-        // Minimax refinement under the slots, draws and triangles.
+        // Minimax quadtree refinement under the slots, draws and triangles (one slot per cell).
         let (mut slots_left, mut draws, mut triangles) = (cap, budget.draws, budget.triangles);
         loop {
-            // The unfrozen block with the largest bound (first on ties: deterministic).
-            let mut pick: Option<usize> = None;
+            // The largest bound still splittable (blocks first, then cells, first on ties: deterministic).
+            let mut pick: Option<(f64, Unit)> = None;
             for (k, c) in self.cands.iter().enumerate() {
-                let refinable = !c.frozen && c.level > lod.blocks[usize::from(c.block)].wanted;
-                if refinable && pick.is_none_or(|p| c.bound > self.cands[p].bound) {
-                    pick = Some(k);
+                if !c.refined && !c.frozen && pick.is_none_or(|(b, _)| c.bound > b) {
+                    pick = Some((c.bound, Unit::Block(k)));
                 }
             }
-            let Some(k) = pick else { break };
-            let c = self.cands[k];
-            let b = lod.blocks[usize::from(c.block)];
-            let next = c.level - 1;
-            let n = self.count_cells(view, &b, next, cap)?;
-            let (was_d, was_t) = if c.cells > 0 {
-                (
-                    c.cells * budget.tile_draws + budget.margin.0,
-                    u64::from(c.cells) * budget.tile_triangles + budget.margin.1,
-                )
-            } else {
-                (0, 0)
-            };
-            let nn = u32::try_from(n).expect("count <= capacity + 1");
-            let cost_d = nn * budget.tile_draws + budget.margin.0;
-            let cost_t = u64::from(nn) * budget.tile_triangles + budget.margin.1;
-            let fits = n > 0
-                && n <= slots_left + c.cells as usize
-                && cost_d <= draws + was_d
-                && cost_t <= triangles + was_t;
-            if !fits {
-                self.cands[k].frozen = true;
-                continue;
+            for (j, l) in self.leaves.iter().enumerate() {
+                let splittable = !l.frozen && l.bound > eps && l.key.level > l.wanted;
+                if splittable && pick.is_none_or(|(b, _)| l.bound > b) {
+                    pick = Some((l.bound, Unit::Leaf(j)));
+                }
             }
-            slots_left = slots_left + c.cells as usize - n;
-            draws = draws + was_d - cost_d;
-            triangles = triangles + was_t - cost_t;
-            let cm = &mut self.cands[k];
-            cm.level = next;
-            cm.cells = nn;
-            cm.bound = bound_at(&b, next);
+            let Some((_, unit)) = pick else { break };
+            match unit {
+                Unit::Block(k) => {
+                    let c = self.cands[k];
+                    let b = lod.blocks[usize::from(c.block)];
+                    let next = c.clamped - 1;
+                    let (n, tris) = self.count_cells(view, &b, next, slots_left, budget)?;
+                    let nn = u32::try_from(n).expect("count <= capacity + 1");
+                    let cost_d = nn * budget.tile_draws + budget.margin.0;
+                    let cost_t = tris + budget.margin.1;
+                    if n == 0 || n > slots_left || cost_d > draws || cost_t > triangles {
+                        self.cands[k].frozen = true;
+                        continue;
+                    }
+                    slots_left -= n;
+                    draws -= cost_d;
+                    triangles -= cost_t;
+                    self.cands[k].refined = true;
+                    let leaves = &mut self.leaves;
+                    view.cells(&b, next, self.quads, |key, bounds| {
+                        leaves
+                            .push(Leaf {
+                                block: c.block,
+                                key,
+                                bounds,
+                                bound: bound_at(next, level0_box(next, &bounds)),
+                                wanted: c.wanted,
+                                frozen: false,
+                            })
+                            .map_err(|_| Error::Capacity {
+                                what: "detail pool cells",
+                                capacity: DETAIL_CAPACITY,
+                            })?;
+                        Ok(true)
+                    })?;
+                }
+                Unit::Leaf(j) => {
+                    let l = self.leaves[j];
+                    let (mut n, mut tris) = (0usize, 0u64);
+                    self.quarters(view, &l, |_, bounds| {
+                        n += 1;
+                        tris += budget.cell_triangles(&bounds);
+                    });
+                    // The leaf's own slot, draws and triangles go to its quarters.
+                    let more = n.saturating_sub(1);
+                    let nn = u32::try_from(more).expect("at most 4 quarters");
+                    let cost_d = nn * budget.tile_draws;
+                    let cost_t = tris.saturating_sub(budget.cell_triangles(&l.bounds));
+                    if n == 0 || more > slots_left || cost_d > draws || cost_t > triangles {
+                        self.leaves[j].frozen = true;
+                        continue;
+                    }
+                    slots_left -= more;
+                    draws -= cost_d;
+                    triangles -= cost_t;
+                    let mut quarters: heapless::Vec<(TileKey, Rect), 4> = heapless::Vec::new();
+                    self.quarters(view, &l, |key, bounds| {
+                        quarters.push((key, bounds)).expect("at most 4 quarters");
+                    });
+                    for (i, &(key, bounds)) in quarters.iter().enumerate() {
+                        let leaf = Leaf {
+                            block: l.block,
+                            key,
+                            bounds,
+                            bound: bound_at(key.level, level0_box(key.level, &bounds)),
+                            wanted: l.wanted,
+                            frozen: false,
+                        };
+                        if i == 0 {
+                            self.leaves[j] = leaf;
+                        } else {
+                            self.leaves.push(leaf).map_err(|_| Error::Capacity {
+                                what: "detail pool cells",
+                                capacity: DETAIL_CAPACITY,
+                            })?;
+                        }
+                    }
+                }
+            }
+        }
+        // Every resident cell needed this frame is kept before any slot is refilled.
+        let clock = self.clock;
+        for l in self.leaves.iter() {
+            if let Some(s) = self.slots.iter().position(|s| s.key == Some(l.key)) {
+                self.slots[s].needed = clock;
+            }
         }
         // Fill most-needed first: by the clamped bound / epsilon, then block order.
         self.cands
             .sort_unstable_by(|a, b| b.need.total_cmp(&a.need).then(a.block.cmp(&b.block)));
         let tile_samples = u64::from(self.side) * u64::from(self.side);
         let mut samples = if budget.new_frame { budget.samples } else { 0 };
-        let clock = self.clock;
         for r in 0..self.cands.len() {
             let c = self.cands[r];
-            if c.cells == 0 {
+            if !c.refined {
                 continue;
             }
-            let b = lod.blocks[usize::from(c.block)];
-            let mut missing = 0u32;
-            view.cells(&b, c.level, self.quads, |key, _| {
-                if let Some(s) = self.find(&key) {
-                    self.slots[s].needed = clock;
-                    return Ok(true);
+            let (mut missing, mut met, mut finest) = (0u32, true, c.clamped);
+            for j in 0..self.leaves.len() {
+                let l = self.leaves[j];
+                if l.block != c.block {
+                    continue;
                 }
-                let victim = (samples >= tile_samples && src.detail_ready(&key))
+                met &= l.bound <= eps || l.key.level <= c.wanted;
+                finest = finest.min(l.key.level);
+                if self.find(&l.key).is_some() {
+                    continue;
+                }
+                let victim = (samples >= tile_samples && src.detail_ready(&l.key))
                     .then(|| self.victim())
                     .flatten();
-                match victim {
-                    Some(s) => {
-                        self.slots[s] = Slot {
-                            key: Some(key),
-                            needed: clock,
-                        };
-                        samples -= tile_samples;
-                        out.samples_updated += tile_samples;
-                        let slot = u32::try_from(s).expect("slots <= DETAIL_CAPACITY");
-                        // One upload per slot: a slot refilled within the frame keeps its last tile.
-                        if let Some(u) = out.uploads.iter_mut().find(|u| u.slot == slot) {
-                            u.key = key;
-                        } else {
-                            out.uploads.push(DetailUpload { slot, key }).map_err(|_| {
-                                Error::Capacity {
-                                    what: "detail uploads per frame",
-                                    capacity: DETAIL_CAPACITY,
-                                }
-                            })?;
-                        }
-                    }
-                    None => missing += 1,
+                let Some(s) = victim else {
+                    missing += 1;
+                    continue;
+                };
+                self.slots[s] = Slot {
+                    key: Some(l.key),
+                    needed: clock,
+                };
+                samples -= tile_samples;
+                out.samples_updated += tile_samples;
+                let slot = u32::try_from(s).expect("slots <= DETAIL_CAPACITY");
+                // One upload per slot: a slot refilled within the frame keeps its last tile.
+                if let Some(u) = out.uploads.iter_mut().find(|u| u.slot == slot) {
+                    u.key = l.key;
+                } else {
+                    out.uploads
+                        .push(DetailUpload { slot, key: l.key })
+                        .map_err(|_| Error::Capacity {
+                            what: "detail uploads per frame",
+                            capacity: DETAIL_CAPACITY,
+                        })?;
                 }
-                Ok(true)
-            })?;
+            }
             if missing == 0 {
                 out.served
                     .push((c.block, c.clamped))
@@ -515,9 +675,12 @@ impl DetailPool {
                         what: "blocks served by the detail pool",
                         capacity: MAX_LOD_BLOCKS,
                     })?;
-                let b = &mut lod.blocks[usize::from(c.block)];
-                b.level = c.level;
-                if b.level == b.wanted {
+                out.served_met.push(met).map_err(|_| Error::Capacity {
+                    what: "blocks served by the detail pool",
+                    capacity: MAX_LOD_BLOCKS,
+                })?;
+                lod.blocks[usize::from(c.block)].level = finest;
+                if met {
                     lod.blocks_clamped -= 1;
                 }
             }
@@ -534,25 +697,22 @@ impl DetailPool {
     pub fn unserve_last(lod: &mut LodFrame, out: &mut DetailFrame) -> bool {
         match out.served.pop() {
             Some((i, level)) => {
-                let b = &mut lod.blocks[usize::from(i)];
-                if b.level == b.wanted {
+                if out.served_met.pop().unwrap_or(false) {
                     lod.blocks_clamped += 1;
                 }
-                b.level = level;
+                lod.blocks[usize::from(i)].level = level;
                 true
             }
             None => false,
         }
     }
 
-    /// Appends the draws of every block `frame` serves: per visible cell of the block's wanted level, the
-    /// block mesh (q x q quads) clamped to the block's piece, reading its pool slot, and its tile skirt when
-    /// `skirts` (a pool block is drawn at another level than its ring, so every neighbour has a skirt
-    /// too). More than `cap` draws is an [`Error::Capacity`].
+    /// Appends the draws of every block `frame` serves: per cell of its quadtree (a tile of the cell's level,
+    /// q x q quads, clamped to the block's piece, reading its pool slot), and the cell's tile skirt when
+    /// `skirts` (cells meet their neighbours at other levels). More than `cap` draws is an
+    /// [`Error::Capacity`].
     pub fn push_draws(
         &self,
-        view: &DetailView<'_>,
-        lod: &LodFrame,
         frame: &DetailFrame,
         skirts: bool,
         cap: usize,
@@ -571,21 +731,19 @@ impl DetailPool {
                 capacity: cull::MAX_DRAWS,
             })
         };
-        let q = i64::from(self.quads);
         for &(i, _) in &frame.served {
-            let b = &lod.blocks[usize::from(i)];
-            view.cells(b, b.level, self.quads, |key, bounds| {
+            for l in self.leaves.iter().filter(|l| l.block == i) {
                 let slot = self
-                    .find(&key)
+                    .find(&l.key)
                     .expect("a served block's cells are resident");
                 let d = Draw {
-                    level: key.level,
+                    level: l.key.level,
                     kind: DrawKind::Block,
-                    origin: [key.cx * q, key.cy * q],
-                    bounds,
-                    fine: key.level,
-                    quads: self.quads,
-                    clamped: b.level > b.wanted,
+                    origin: [l.bounds.x0, l.bounds.y0],
+                    bounds: l.bounds,
+                    fine: l.key.level,
+                    quads: cell_quads(&l.bounds),
+                    clamped: l.bound > self.eps && l.key.level > l.wanted,
                     pool: Some(u16::try_from(slot).expect("slots <= DETAIL_CAPACITY")),
                 };
                 push(out, d)?;
@@ -599,8 +757,7 @@ impl DetailPool {
                         },
                     )?;
                 }
-                Ok(true)
-            })?;
+            }
         }
         Ok(blocks)
     }

@@ -426,27 +426,15 @@ impl Planner {
         };
         let base_draws = u32::try_from(out.draws.len()).expect("draws <= MAX_DRAWS");
         let base_triangles = self.triangles(&out.draws);
-        let q = self.pool.quads();
-        let block = DrawKind::Block;
-        let tile = cull::Draw {
+        let skirt = cull::Draw {
             level: 0,
-            kind: block,
+            kind: DrawKind::TileSkirt,
             origin: [0, 0],
             bounds: crate::plan::frame::Rect::EMPTY,
             fine: 0,
-            quads: q,
+            quads: self.block_quads,
             clamped: false,
             pool: None,
-        };
-        let skirt = cull::Draw {
-            kind: DrawKind::TileSkirt,
-            ..tile
-        };
-        let skirt_tris = self.triangles_of(&skirt);
-        let (tile_draws, tile_triangles) = if dp.skirts {
-            (2, self.triangles_of(&tile) + skirt_tris)
-        } else {
-            (1, self.triangles_of(&tile))
         };
         // The rings' fill (and a package's decoding) comes first: the pool gets what is left.
         let spent = u64::from(frame.samples_updated) + u64::from(clipmap.decoded_samples());
@@ -455,39 +443,16 @@ impl Planner {
             samples: u64::from(self.update_budget).saturating_sub(spent),
             draws: self.max_draws.saturating_sub(base_draws),
             triangles: u64::from(self.max_triangles).saturating_sub(base_triangles),
-            tile_draws,
-            tile_triangles,
+            tile_draws: if dp.skirts { 2 } else { 1 },
+            block_quads: self.block_quads,
             // A neighbour drawn at its ring gains up to one skirt per piece.
-            margin: (
-                4,
-                4 * self.triangles_of(&cull::Draw {
-                    quads: self.block_quads,
-                    ..skirt
-                }),
-            ),
+            margin: (4, 4 * self.triangles_of(&skirt)),
         };
-        // A block's bound at a finer level: the SAT estimate there (the selection's own), at the same
-        // closest distance, so bound / eta is the block's pixels per metre.
-        let bound_at = |b: &crate::plan::lod::BlockLod, level: u32| -> f64 {
-            let LodSetup::Sat(mode, lod) = &self.lod else {
-                return 0.0;
-            };
-            let t = lod.tables();
-            let (a, c, bb, d) = (
-                b.rect.x0 << b.ring,
-                b.rect.y0 << b.ring,
-                (b.rect.x1() - 1) << b.ring,
-                (b.rect.y1() - 1) << b.ring,
-            );
-            let (x0, y0, x1, y1) = t.data_box(lod.synth_levels(), a, c, bb, d);
-            let eta = level
-                .checked_sub(lod.synth_levels())
-                .and_then(|k| t.level(k))
-                .map_or(0.0, |lt| lt.eta(*mode, t.p, x0, y0, x1, y1));
-            if b.eta_m > 0.0 {
-                f64::from(b.bound_px) * eta / f64::from(b.eta_m)
-            } else {
-                0.0
+        // A cell's bound at its level: the selection's own test over the cell's box.
+        let bound_at = |level: u32, cell: (i64, i64, i64, i64)| -> f64 {
+            match &self.lod {
+                LodSetup::Sat(mode, lod) => lod.box_bound_px(camera, *mode, level, cell),
+                LodSetup::Distance => 0.0,
             }
         };
         self.pool.plan(
@@ -512,14 +477,9 @@ impl Planner {
                 &mut out.draws,
             )
             .and_then(|mut stats| {
-                let pool = self.pool.push_draws(
-                    &view,
-                    &out.lod,
-                    &out.detail,
-                    dp.skirts,
-                    cap,
-                    &mut out.draws,
-                )?;
+                let pool = self
+                    .pool
+                    .push_draws(&out.detail, dp.skirts, cap, &mut out.draws)?;
                 stats.blocks += pool;
                 stats.skirts += if dp.skirts { pool } else { 0 };
                 Ok(stats)
@@ -605,11 +565,8 @@ impl Planner {
         let mut triangles = 0u64;
         for (k, d) in out.draws.iter().enumerate() {
             let u = if let Some(slot) = d.pool {
-                let key = crate::plan::detail::TileKey {
-                    level: d.level,
-                    cx: d.origin[0] / i64::from(self.pool.quads()),
-                    cy: d.origin[1] / i64::from(self.pool.quads()),
-                };
+                let key =
+                    out.detail.resident[usize::from(slot)].expect("a pool draw's slot is resident");
                 let first = key.first_sample(self.pool.quads());
                 detail_draw_uniform(clipmap, camera, d, slot, first, self.pool.side(), self.n)
             } else if sat {

@@ -169,6 +169,27 @@ impl Lod {
         2.0 * eta * camera.pixels_per_metre(dist, self.view_height)
     }
 
+    /// The screen-space bound of `level` over the level-0 lattice box [a, b] x [c, d] (inclusive vertices)
+    /// seen from `camera` under `mode`: what [`Lod::select`] tests per block, asked by the detail pool of
+    /// its cells. Infinite for a level past the baked ones or finer than the data.
+    pub fn box_bound_px(
+        &self,
+        camera: &Camera,
+        mode: LodMode,
+        level: u32,
+        (a, c, b, d): (i64, i64, i64, i64),
+    ) -> f64 {
+        let (x0, y0, x1, y1) = self.tables.data_box(self.synth, a, c, b, d);
+        let eta = match level
+            .checked_sub(self.synth)
+            .and_then(|k| self.tables.level(k))
+        {
+            Some(t) => t.eta(mode, self.tables.p, x0, y0, x1, y1),
+            None => return f64::INFINITY,
+        };
+        self.bound_px(camera, eta, self.closest_distance(camera, a, c, b, d))
+    }
+
     /// The distance from the eye to the closest point of a level-0 lattice box [a, b] x [c, d] (inclusive
     /// vertices), its height spanning the terrain's range.
     fn closest_distance(&self, camera: &Camera, a: i64, c: i64, b: i64, d: i64) -> f64 {
