@@ -188,6 +188,24 @@ impl TileCache {
         Some(&self.slots[s as usize].data[..(tw * th) as usize])
     }
 
+    /// The resident part of row `y` of `level` in the tile holding sample (x, y) (both inside the level):
+    /// the tile's first column and that row's samples across the tile; `None` if the tile is not resident.
+    /// Sequential readers look a tile up once per tile row instead of once per sample
+    /// ([`crate::plan::stream::RowReader`]).
+    pub fn row_segment(&self, level: usize, x: u32, y: u32) -> Option<(u32, &[i32])> {
+        let h = self.package.header();
+        let l = &h.levels[level];
+        let (tx, ty) = (x / h.tile, y / h.tile);
+        let s = self.map[l.first_tile + (ty * l.tiles_x + tx) as usize];
+        if s == NONE {
+            return None;
+        }
+        let x0 = tx * h.tile;
+        let tw = h.tile.min(l.width - x0);
+        let at = ((y - ty * h.tile) * tw) as usize;
+        Some((x0, &self.slots[s as usize].data[at..at + tw as usize]))
+    }
+
     /// Sample (i, j) of `level` in quantum units, clamped to the level's edges; `None` if its tile is not
     /// resident.
     #[inline]

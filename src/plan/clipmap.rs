@@ -642,11 +642,34 @@ impl Clipmap {
             let size = ring.size() as usize;
             let tx0 = ring.index(band.x0, 0);
             for j in band.y0..band.y1() {
+                // A streamed data level reads its row and the two coarse rows of z_c through row readers
+                // (one tile lookup per tile, not per sample: the same heights as `texel`).
+                let mut rows = level
+                    .checked_sub(this.synth)
+                    .filter(|_| level + 1 < this.levels)
+                    .and_then(|k| {
+                        let cj = j >> 1;
+                        let src = &this.source;
+                        Some((src.row(k, j)?, src.row(k + 1, cj)?, src.row(k + 1, cj + 1)?))
+                    });
                 // Toroidal addressing, stepped along the row instead of a division per texel.
                 let row = ring.index(0, j);
                 let mut tx = tx0;
                 for i in band.x0..band.x1() {
-                    let t = this.texel(level, i, j, &coarse);
+                    let t = match &mut rows {
+                        Some((z, c0, c1)) => {
+                            let cj = j >> 1;
+                            [
+                                z.get(i),
+                                coarse_surface(
+                                    |a, b| if b == cj { c0.get(a) } else { c1.get(a) },
+                                    i,
+                                    j,
+                                ),
+                            ]
+                        }
+                        None => this.texel(level, i, j, &coarse),
+                    };
                     ring.texels_mut()[row + tx] = t;
                     tx += 1;
                     if tx == size {
@@ -701,7 +724,7 @@ impl Clipmap {
 /// Odd-odd: the mean of the two coarse samples on the quad's (i, j)-(i+1, j+1) diagonal, the project-wide
 /// triangulation (renderer and SAT error maps split every quad the same way).
 #[inline]
-fn coarse_surface(coarse: &impl Fn(i64, i64) -> f32, i: i64, j: i64) -> f32 {
+fn coarse_surface(mut coarse: impl FnMut(i64, i64) -> f32, i: i64, j: i64) -> f32 {
     let (ci, cj) = (i >> 1, j >> 1);
     match (i & 1, j & 1) {
         (0, 0) => coarse(ci, cj),

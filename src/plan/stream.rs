@@ -120,6 +120,77 @@ impl HeightSource {
     }
 }
 
+/// Reads one row of a streamed level left to right as [`HeightSource::at`] does (clamped to the level, in
+/// metres through [`crate::package::Package::metres`], so bit for bit the same heights): the tile row under
+/// the cursor is looked up once per tile instead of once per sample, the hot path of decode plus fill (a
+/// lookup per sample, with its two divisions by the tile side, was 41 % of a desktop refill).
+pub struct RowReader<'a> {
+    cache: &'a TileCache,
+    level: usize,
+    /// The row, clamped to the level.
+    y: u32,
+    /// The level's last column.
+    last: i64,
+    /// Columns [x0, x0 + seg.len()) of the row, resident under the cursor.
+    x0: i64,
+    seg: &'a [i32],
+}
+
+impl<'a> RowReader<'a> {
+    /// Height at column `i` of the row (clamped). Panics if its tile is not resident (the caller ran
+    /// [`HeightSource::ensure_bands`] first), as [`HeightSource::at`] does.
+    #[inline]
+    pub fn get(&mut self, i: i64) -> f32 {
+        let x = i.clamp(0, self.last);
+        let mut off = x - self.x0;
+        if off < 0 || off >= self.seg.len() as i64 {
+            #[expect(
+                clippy::cast_possible_truncation,
+                clippy::cast_sign_loss,
+                reason = "clamped into the level, whose width is a u32"
+            )]
+            let (x0, seg) = self
+                .cache
+                .row_segment(self.level, x as u32, self.y)
+                .expect("a streamed tile is made resident before its samples are read");
+            (self.x0, self.seg) = (i64::from(x0), seg);
+            off = x - self.x0;
+        }
+        #[expect(
+            clippy::cast_possible_truncation,
+            clippy::cast_sign_loss,
+            reason = "0 <= off < the segment's length"
+        )]
+        self.cache.package().metres(self.seg[off as usize])
+    }
+}
+
+impl HeightSource {
+    /// A [`RowReader`] over row `j` (clamped) of stored level `k` of a streamed source; None for a
+    /// resident pyramid or past the coarsest stored level (decimated), where [`HeightSource::at`] serves.
+    pub fn row(&self, k: u32, j: i64) -> Option<RowReader<'_>> {
+        let Self::Streamed(c) = self else {
+            return None;
+        };
+        let levels = &c.package().header().levels;
+        let l = levels.get(k as usize)?;
+        #[expect(
+            clippy::cast_possible_truncation,
+            clippy::cast_sign_loss,
+            reason = "clamped into the level, whose height is a u32"
+        )]
+        let y = j.clamp(0, i64::from(l.height) - 1) as u32;
+        Some(RowReader {
+            cache: c,
+            level: k as usize,
+            y,
+            last: i64::from(l.width) - 1,
+            x0: 0,
+            seg: &[],
+        })
+    }
+}
+
 /// Pyramid level `k` past the coarsest stored level reads the coarsest at (i 2^s, j 2^s), as [`Pyramid::at`].
 fn coarsest_decimated(c: &TileCache, k: u32, i: i64, j: i64) -> (usize, i64, i64) {
     let last = c.package().header().levels.len() - 1;
