@@ -327,12 +327,15 @@ impl ShadingBake {
     /// The CPU twin of one texel of the renderer's per-level shading tables (`gpu/renderer/sg_tables.rs`):
     /// the inputs of lattice sample (i, j) of a ring `data_level` levels coarser than the data (negative:
     /// a synthesised ring finer than the data, which takes the nearest data sample's). A ring sample
-    /// (i, j) sits on data sample (i 2^k, j 2^k) (`bake::pyramid`), and holds the [`ShadingBake::box_mean`]
+    /// (i, j) sits on data sample (i 2^k, j 2^k) (`bake::pyramid`). Its r is the [`ShadingBake::box_mean`]
     /// of the box of side 2^k + 1 data samples centred there: neighbouring texels' boxes share their
     /// edges, so the bilinear interpolation between them is a tent filter of the data's normals about
     /// 2^(k+1) samples wide, the SAT paper's footprint box for a pixel of that size. Boxes are capped at
     /// [`MAX_BOX_SIDE`] samples, as the reference's footprint is; at the border they are clamped into
-    /// the grid.
+    /// the grid. Its horizon angles are the sample's own, not a box mean: the shader interpolates them
+    /// between samples 2^k apart, and a box mean over 2^k + 1 samples lowered the horizons of rough
+    /// terrain further (measured: `render --reference` of Puget Sound, evening, desktop, 640x360: RMSE
+    /// 0.0381 with point horizons against 0.0436 with box means; 0.0322 for the old whole-terrain SATs).
     pub fn level_texel(&self, data_level: i32, i: i64, j: i64) -> (Vec3, heapless::Vec<f32, 16>) {
         let step = i64::from(self.step);
         let (x, y, span) = if data_level >= 0 {
@@ -355,10 +358,17 @@ impl ShadingBake {
         let clamp = |v: i64, n: u32| -> u32 {
             u32::try_from(v.clamp(0, i64::from(n) - 1)).expect("clamped into the grid")
         };
-        self.box_mean(
+        let (r, _) = self.box_mean(
             (clamp(cx - half, self.width), clamp(cy - half, self.height)),
             (clamp(cx + half, self.width), clamp(cy + half, self.height)),
-        )
+        );
+        let at = (clamp(cx, self.width), clamp(cy, self.height));
+        let (_, hz) = if self.azimuths > 0 {
+            self.box_mean(at, at)
+        } else {
+            (r, heapless::Vec::new())
+        };
+        (r, hz)
     }
 }
 

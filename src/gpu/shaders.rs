@@ -100,7 +100,7 @@ pub enum SgOmit {
     /// Everything is computed.
     #[default]
     None,
-    /// No footprint SAT fetch of the normals: r is the drawn mesh's normal.
+    /// No footprint fetch of the normals (the level tables): r is the drawn mesh's normal.
     Footprint,
     /// No vMF: a single normal (kappa 1e4, no convolution, no lowered plane).
     Vmf,
@@ -126,7 +126,7 @@ impl SgOmit {
     pub fn label(self) -> &'static str {
         match self {
             Self::None => "none",
-            Self::Footprint => "footprint SAT fetch",
+            Self::Footprint => "footprint fetch",
             Self::Vmf => "vMF",
             Self::Patches => "per-patch closed form",
         }

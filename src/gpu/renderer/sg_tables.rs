@@ -8,7 +8,7 @@
 //!   normals over the box of 2^k + 1 data samples centred on the sample of a ring k levels coarser than
 //!   the data ([`ShadingBake::level_texel`]);
 //! - `level_horizon` (RGBA16F, 4 azimuths a layer, [`Profile::sg_horizon_layers`]), only when the scene
-//!   has visibility: the box means of the D horizon angles (radians), over the same boxes.
+//!   has visibility: the sample's D horizon angles (radians).
 //!
 //! Why not a SAT per level: a SAT entry sums everything before it, so it cannot be toroidal, and a ring
 //! that moves by one column would have to rebuild its whole S^2 table (S^2 samples against the column's

@@ -550,7 +550,7 @@ pub(crate) fn breakdown_markdown(
     md.push_str(
         "\n**Per-term breakdown** (the evening scene without fog, visibility and specular on): the \
          full shading's ms and ratio to basic, then each term's cost in ms, measured as the time it \
-         saves when left out (footprint: the normal SAT fetch, r from the mesh normal instead; vMF: a \
+         saves when left out (footprint: the normal table fetch, r from the mesh normal instead; vMF: a \
          single normal; patches: each lobe as one direction; visibility: +visibility minus diffuse; \
          specular: +specular minus +visibility). Negative values are timing noise.\n\n\
          | terrain | full ms (x basic) | diffuse ms (x basic) |",
