@@ -104,6 +104,9 @@ pub struct FrameStats {
     pub detail_tiles_resident: u32,
     /// Detail pool samples the plan wrote (charged to the update budget after the rings).
     pub detail_samples_updated: u64,
+    /// SG table texels written (SG shading only): exactly the ring texels uploaded, so within the same
+    /// budget.
+    pub sg_samples: u64,
 }
 
 /// The tables [`Shading::Sg`] needs for `scene` over `hm`, through the disk cache
@@ -382,6 +385,7 @@ impl<'g> Offscreen<'g> {
             blocks_from_pool: p.blocks_from_pool,
             detail_tiles_resident: p.detail_tiles_resident,
             detail_samples_updated: p.detail_samples_updated,
+            sg_samples: up.sg_samples,
         })
     }
 

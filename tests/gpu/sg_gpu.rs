@@ -419,7 +419,12 @@ fn sg_tables_follow_the_rings() {
         let cam = render_support::flight(&hm, i, 120.0, 400.0, Some(40));
         cm.update(cam.eye).expect("update");
         if i % 3 != 1 {
-            render_frame(&mut r, &cm, &cam, &FrameOptions::default()).expect("frame");
+            let f = render_frame(&mut r, &cm, &cam, &FrameOptions::default()).expect("frame");
+            // The tables write exactly the ring texels uploaded (distance LOD: no detail tiles).
+            assert_eq!(f.stats.sg_samples, f.stats.upload_samples, "frame {i}");
+            if i > 0 && !f.stats.full_upload {
+                assert!(f.stats.sg_samples <= 3 * 1600, "frame {i}: {:?}", f.stats);
+            }
         }
     }
     let tables = r.read_sg_normals().expect("normal table readback");
