@@ -357,21 +357,32 @@ fn vs_main(@location(0) v: vec4<u32>) -> VsOut {
     return out;
 }
 
-// Three fragment programs; the plan picks one per draw (`clipsat::plan::fragment`), the cheapest that
+// Four fragment programs; the plan picks one per draw (`clipsat::plan::fragment`), the cheapest that
 // gives the same pixels, because llvmpipe runs both sides of a branch under an execution mask: the ring
 // reads and the skirt test below cost every pixel as much as a pixel that uses them.
 
 // Blocks that no finer ring's data reaches: the drawn vertices' values, which under distance LOD with every
 // level active are the finest data (central differences of the same ring, interpolated across the cell as
 // level_surface blends them).
+fn plain_colour(v: VsOut) -> vec4<f32> {
+    let shaded = basic_shade(v.height, v.normal, length(v.rel), globals.shading);
+    // debug_view.wgsl: the level-colour and wireframe views (the normal view returns `shaded`).
+    return vec4<f32>(debug_view(shaded, v.rel, v.normal), 1.0);
+}
+
+// Such blocks inside the data's border: no discard, so hidden fragments can be rejected before shading.
+@fragment
+fn fs_interior(v: VsOut) -> @location(0) vec4<f32> {
+    return plain_colour(v);
+}
+
+// Such blocks crossing the data's border.
 @fragment
 fn fs_plain(v: VsOut) -> @location(0) vec4<f32> {
     if (outside_data(v.rel.xy)) {
         discard;
     }
-    let shaded = basic_shade(v.height, v.normal, length(v.rel), globals.shading);
-    // debug_view.wgsl: the level-colour and wireframe views (the normal view returns `shaded`).
-    return vec4<f32>(debug_view(shaded, v.rel, v.normal), 1.0);
+    return plain_colour(v);
 }
 
 // Shade from the finest data under the pixel. Only a block drawn coarser than the finest ring holding the

@@ -1,4 +1,4 @@
-//! Stage 2, the per-frame plan: which of the clipmap renderer's three fragment programs each draw needs
+//! Stage 2, the per-frame plan: which of the clipmap renderer's four fragment programs each draw needs
 //! (pure CPU, allocation-free).
 //!
 //! `shaders_gles/clipmap.wgsl` shades a pixel from the finest ring holding it (GC section 6's normal maps,
@@ -9,7 +9,9 @@
 //! branch under an execution mask, so the unused paths cost as much as used ones (measured on Puget Sound at
 //! 1280x800: the ring reads and the skirt test took 3/4 of the frame). The plan therefore gives each draw
 //! the cheapest program that renders the same pixels: [`FragmentPath::Plain`] where this module proves that
-//! `fs_ring_data` would keep the vertex values at every pixel, bit for bit.
+//! `fs_ring_data` would keep the vertex values at every pixel, bit for bit, and [`FragmentPath::Interior`]
+//! where, besides, no pixel lies outside the data, so the program has no `discard` and the rasteriser can
+//! reject hidden fragments before shading them.
 
 use crate::plan::clipmap::Clipmap;
 use crate::plan::cull::{Draw, DrawKind};
@@ -19,14 +21,20 @@ use crate::plan::frame::Rect;
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 #[repr(u8)]
 pub enum FragmentPath {
-    /// `fs_plain`: the drawn vertices' height and normal only.
+    /// `fs_interior`: the drawn vertices' height and normal, for a block inside the data's border. With
+    /// no `discard` the rasteriser can test depth before shading (llvmpipe does so only then).
     #[default]
-    Plain = 0,
+    Interior = 0,
+    /// `fs_plain`: the same, cut at the data's border.
+    Plain = 1,
     /// `fs_ring_data`: the finer rings' data under blocks drawn coarser than the data held there.
-    RingData = 1,
+    RingData = 2,
     /// `fs_skirt`: the ring data and the test that hides skirts seen through the data's side.
-    Skirt = 2,
+    Skirt = 3,
 }
+
+/// How many fragment programs there are.
+pub const FRAGMENT_PATHS: usize = 4;
 
 /// One ring's regions in level-0 lattice units, as `fs_ring_data` tests them.
 #[derive(Clone, Copy, Debug)]
@@ -45,6 +53,8 @@ pub struct FragmentPaths {
     eye: (f64, f64),
     morph: bool,
     block_quads: u32,
+    /// Where `outside_data` is false at every pixel, level-0 lattice units: [lo, hi] per axis.
+    interior: ([f64; 2], [f64; 2]),
 }
 
 /// A fragment's lattice position is computed in f32 on the GPU; regions are widened by this many cells of
@@ -53,12 +63,28 @@ const SLACK_CELLS: f64 = 0.5;
 
 impl FragmentPaths {
     /// The rings of `clipmap`'s last frame seen from the eye at level-0 lattice point `eye`; `morph`: the
-    /// plan morphs (GC 6.2), so the finer data fades with each ring's alpha.
+    /// plan morphs (GC 6.2), so the finer data fades with each ring's alpha. The data spans level-0
+    /// lattice [0, `data_lattice`], `extent` metres around the eye (`Globals::extent`).
     #[expect(
         clippy::cast_precision_loss,
         reason = "lattice coordinates are below 2^48 and widths below 2^12, exact in f64"
     )]
-    pub fn new(clipmap: &Clipmap, eye: (f64, f64), morph: bool, block_quads: u32) -> Self {
+    pub fn new(
+        clipmap: &Clipmap,
+        eye: (f64, f64),
+        morph: bool,
+        block_quads: u32,
+        data_lattice: (f64, f64),
+        extent: [f64; 4],
+    ) -> Self {
+        // outside_data's inset (m) plus f32 rounding of eye-relative positions, generously, in lattice
+        // units.
+        let far = extent.iter().fold(0.0f64, |m, e| m.max(e.abs()));
+        let inset = (0.02 + 4.0e-6 * far + 1.0e-5 * far + 1.0e-3) / clipmap.g0() + 0.01;
+        let interior = (
+            [inset, data_lattice.0 - inset],
+            [inset, data_lattice.1 - inset],
+        );
         let mut levels = [HeldLevel {
             holds: None,
             reach: [0.0; 2],
@@ -96,6 +122,7 @@ impl FragmentPaths {
             eye,
             morph,
             block_quads,
+            interior,
         }
     }
 
@@ -115,11 +142,18 @@ impl FragmentPaths {
         }
         let r: Rect = d.covered(self.block_quads);
         if r.is_empty() {
-            return FragmentPath::Plain;
+            return FragmentPath::Interior;
         }
         let f = f64::from(1u32 << d.fine);
         let fx = [r.x0 as f64 * f, (r.x0 as f64 + f64::from(r.w) - 1.0) * f];
         let fy = [r.y0 as f64 * f, (r.y0 as f64 + f64::from(r.h) - 1.0) * f];
+        let (ix, iy) = self.interior;
+        let inside = |a: [f64; 2], b: [f64; 2]| a[0] > b[0] && a[1] < b[1];
+        let plain = if inside(fx, ix) && inside(fy, iy) {
+            FragmentPath::Interior
+        } else {
+            FragmentPath::Plain
+        };
         let meets = |a: [f64; 2], b: [f64; 2]| a[0] < b[1] && a[1] > b[0];
         let finer = (d.level as usize).min(self.count);
         for (k, lv) in self.levels[..finer].iter().enumerate() {
@@ -137,6 +171,6 @@ impl FragmentPaths {
                 return FragmentPath::RingData;
             }
         }
-        FragmentPath::Plain
+        plain
     }
 }

@@ -561,6 +561,8 @@ impl Planner {
             clipmap.eye_lattice(camera.eye),
             morph,
             self.block_quads,
+            self.data_lattice,
+            extent,
         );
         let mut triangles = 0u64;
         for (k, d) in out.draws.iter().enumerate() {

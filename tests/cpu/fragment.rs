@@ -1,6 +1,7 @@
 //! Stage 2's fragment-program choice (`clipsat::plan::fragment`) against the CPU twin of the fragment
-//! shader (`clipsat::twin::shading::fragment_data`): a block the plan draws with `fs_plain` must be one
-//! where `fs_ring_data` would keep the drawn vertices' values at every pixel.
+//! shader (`clipsat::twin::shading::fragment_data`): a block the plan draws with `fs_plain` or
+//! `fs_interior` must be one where `fs_ring_data` would keep the drawn vertices' values at every pixel, and
+//! one drawn with `fs_interior` must have no pixel that `outside_data` discards.
 
 use clipsat::bake::lod_tables::LodTables;
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
@@ -16,26 +17,37 @@ use glam::DVec3;
 /// Samples per footprint side, its edges included.
 const SAMPLES: u32 = 9;
 
-/// Checks every plain block of `plan` on a grid over its footprint; returns (plain, ring-data) blocks.
+/// `outside_data` of `clipmap.wgsl`, in its f32 arithmetic.
+fn outside_data(e: [f32; 4], rel: [f32; 2]) -> bool {
+    let tol = 0.02 + 4.0e-6 * e.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+    rel[0] < e[0] + tol || rel[1] < e[1] + tol || rel[0] > e[2] - tol || rel[1] > e[3] - tol
+}
+
+/// Checks every plain and interior block of `plan` on a grid over its footprint; returns the number of
+/// (interior, plain, ring-data) blocks.
 #[expect(
     clippy::cast_possible_truncation,
     clippy::cast_precision_loss,
     reason = "lattice coordinates are small here; eye-relative f32 is the shader's precision"
 )]
-fn check_plain_blocks(plan: &FramePlan, cm: &Clipmap, cam: &Camera, quads: u32) -> (u32, u32) {
+fn check_plain_blocks(plan: &FramePlan, cm: &Clipmap, cam: &Camera, quads: u32) -> [u32; 3] {
     let p = cm.eye_lattice(cam.eye);
     let g0 = cm.g0();
-    let (mut plain, mut data) = (0, 0);
+    let mut counts = [0; 3];
     for (d, planned) in plan.draws().iter().zip(plan.planned()) {
         if d.kind != DrawKind::Block {
             assert_eq!(planned.fragment, FragmentPath::Skirt);
             continue;
         }
-        if planned.fragment == FragmentPath::RingData {
-            data += 1;
-            continue;
+        let interior = planned.fragment == FragmentPath::Interior;
+        match planned.fragment {
+            FragmentPath::Interior => counts[0] += 1,
+            FragmentPath::Plain => counts[1] += 1,
+            _ => {
+                counts[2] += 1;
+                continue;
+            }
         }
-        plain += 1;
         let r = d.covered(quads);
         let f = f64::from(1u32 << d.fine);
         for j in 0..SAMPLES {
@@ -45,6 +57,11 @@ fn check_plain_blocks(plan: &FramePlan, cm: &Clipmap, cam: &Camera, quads: u32) 
                 let x = (r.x0 as f64 + t(i, r.w)) * f;
                 let y = (r.y0 as f64 + t(j, r.h)) * f;
                 let rel = [((x - p.0) * g0) as f32, (-(y - p.1) * g0) as f32];
+                assert!(
+                    !(interior && outside_data(plan.globals().extent, rel)),
+                    "an interior block at level {} reaches past the data at lattice ({x}, {y})",
+                    d.level
+                );
                 if let Some(fd) = fragment_data(plan.globals(), cm, rel, d.level) {
                     assert!(
                         fd.share == 0.0 && fd.base.is_none(),
@@ -59,11 +76,11 @@ fn check_plain_blocks(plan: &FramePlan, cm: &Clipmap, cam: &Camera, quads: u32) 
             }
         }
     }
-    (plain, data)
+    counts
 }
 
 /// A fast flight under a small update budget (stale, cropped rings), with morphing on and off, and SAT
-/// LOD: every plain block is plain at each sampled pixel, and both programs occur.
+/// LOD: every plain or interior block is so at each sampled pixel, and every program occurs.
 #[test]
 fn plain_blocks_never_need_ring_data() {
     let hm = generate(&ProceduralParams {
@@ -85,7 +102,7 @@ fn plain_blocks_never_need_ring_data() {
     .expect("planner");
     let mut plan = distance.new_plan();
     let quads = profile.block_m();
-    let (mut plain, mut data) = (0, 0);
+    let mut counts = [0; 3];
     let extent = f64::from(hm.width() - 1) * f64::from(hm.spacing());
     for frame in 0..24u32 {
         // Across the terrain at 1/12 of its width a frame, low and looking ahead.
@@ -105,10 +122,16 @@ fn plain_blocks_never_need_ring_data() {
                 ..PlanParams::default()
             };
             planner.plan(&cm, &cam, &params, &mut plan).expect("plan");
-            let (p, d) = check_plain_blocks(&plan, &cm, &cam, quads);
-            plain += p;
-            data += d;
+            for (c, n) in counts
+                .iter_mut()
+                .zip(check_plain_blocks(&plan, &cm, &cam, quads))
+            {
+                *c += n;
+            }
         }
     }
-    assert!(plain > 0 && data > 0, "plain {plain}, ring data {data}");
+    assert!(
+        counts.iter().all(|&c| c > 0),
+        "interior, plain, ring-data blocks: {counts:?}"
+    );
 }

@@ -35,6 +35,7 @@ use sg::SgState;
 
 use crate::gpu::shaders;
 use crate::plan::cull::{DrawKind, MAX_DRAWS};
+use crate::plan::fragment::FRAGMENT_PATHS;
 use crate::plan::frame_plan::PlannedDraw;
 use crate::plan::mesh::{self, Mesh, MeshVertex};
 use crate::plan::uniforms::DrawUniform;
@@ -123,7 +124,7 @@ pub struct Renderer {
     module: wgpu::ShaderModule,
     pipeline_layout: wgpu::PipelineLayout,
     /// The pipelines drawn, basic shading or the debug view's, indexed by [`crate::plan::fragment::FragmentPath`].
-    pipelines: [wgpu::RenderPipeline; 3],
+    pipelines: [wgpu::RenderPipeline; FRAGMENT_PATHS],
     sg: Option<SgState>,
     debug: DebugView,
     size: u32,
@@ -470,7 +471,8 @@ impl Targets {
 }
 
 /// Each [`crate::plan::fragment::FragmentPath`]'s pipeline label and `clipmap.wgsl` entry point, in discriminant order.
-const FRAGMENT_ENTRIES: [(&str, &str); 3] = [
+const FRAGMENT_ENTRIES: [(&str, &str); FRAGMENT_PATHS] = [
+    ("clipmap pipeline (interior)", "fs_interior"),
     ("clipmap pipeline (plain)", "fs_plain"),
     ("clipmap pipeline (ring data)", "fs_ring_data"),
     ("clipmap pipeline (skirt)", "fs_skirt"),
