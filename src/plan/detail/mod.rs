@@ -1,12 +1,12 @@
 //! Stage 2, the per-frame plan: the detail pool (issue 15; design.md "SAT LOD" 6). The rings hold data by
 //! distance, SAT LOD wants it by error: a block whose wanted level is finer than any ring holding it is
-//! clamped. The pool is a fixed set of height tiles (`budget.detail_tiles`, one GPU array layer each) at
-//! such wanted levels, one tile per cell of that level's fixed grid (`detail_tile_quads` quads a side,
-//! plus a one-sample border for normals). Each frame [`DetailPool::plan`] ranks the clamped blocks by how
-//! far their bound exceeds epsilon, fills their visible cells most-needed first with what is left of the
-//! per-frame sample budget after the rings (coarse-to-fine ring fill stays first), evicts the least
-//! recently needed tile, and serves a block from the pool once all its visible cells are resident and
-//! its draws fit the draw and triangle budgets. Pure, deterministic and allocation-free.
+//! clamped. The pool is a fixed set of height tiles (`budget.detail_tiles`, one GPU array layer each), one
+//! tile per cell of a level's fixed grid (`detail_tile_quads` quads a side, plus a one-sample border for
+//! normals). Each frame [`DetailPool::plan`] refines the clamped blocks as quadtrees of such cells and
+//! quarter cells, largest bound first, under the slots, draws and triangles (`refine.rs`); fills their
+//! tiles most-needed first with what is left of the per-frame sample budget after the rings (coarse-to-fine
+//! ring fill stays first), evicts the least recently needed tile, and serves a block from the pool once all
+//! its tiles are resident. Pure, deterministic and allocation-free.
 //!
 //! Tiles come through [`DetailSource`]: the resident pyramid today (the same heights the ring fill
 //! writes, [`Clipmap::sample`]); a streamed package's tile cache can implement it later.
@@ -19,8 +19,12 @@ use crate::plan::cull::{self, Draw, DrawKind, DrawList, Frustum};
 use crate::plan::frame::{Frame, Rect};
 use crate::plan::lod::{BlockLod, LodFrame, MAX_LOD_BLOCKS};
 use crate::plan::mesh;
+
+mod refine;
 use crate::profile::MAX_DETAIL_TILES;
 use crate::{Error, Profile, Result};
+use refine::Quadtree;
+pub use refine::MAX_DETAIL_CELLS;
 
 /// Capacity of the pool's fixed collections; the profile's `budget.detail_tiles` is the limit enforced.
 pub const DETAIL_CAPACITY: usize = MAX_DETAIL_TILES as usize;
@@ -285,16 +289,6 @@ struct Slot {
     needed: u64,
 }
 
-/// A cell's level-0 lattice box (inclusive vertices) from its vertices `r` in level `level`'s lattice.
-fn level0_box(level: u32, r: &Rect) -> (i64, i64, i64, i64) {
-    (
-        r.x0 << level,
-        r.y0 << level,
-        (r.x1() - 1) << level,
-        (r.y1() - 1) << level,
-    )
-}
-
 /// The pool's CPU state: which tile each slot holds and when it was last needed. Built once from the
 /// profile; [`DetailPool::plan`] allocates nothing.
 #[derive(Clone, Debug)]
@@ -306,56 +300,10 @@ pub struct DetailPool {
     clock: u64,
     /// Plans made (the renderer's sync chain).
     seq: u64,
-    /// Scratch: the clamped blocks.
-    cands: Box<heapless::Vec<Cand, MAX_LOD_BLOCKS>>,
-    /// The cells the refined blocks are drawn with (the quadtree's leaves), kept for
-    /// [`DetailPool::push_draws`].
-    leaves: Box<heapless::Vec<Leaf, DETAIL_CAPACITY>>,
+    /// The clamped blocks and the cells they are drawn with, kept for [`DetailPool::push_draws`].
+    tree: Quadtree,
     /// The last plan's epsilon, pixels.
     eps: f64,
-}
-
-/// A clamped block while the pool plans it.
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct Cand {
-    block: u16,
-    /// The level the selection clamped it to.
-    clamped: u32,
-    /// The level its bound asked for (no cell of it is refined past it).
-    wanted: u32,
-    /// Its screen-space bound at `clamped`, pixels.
-    bound: f64,
-    /// How far that bound exceeds epsilon (bound / epsilon): the fill order.
-    need: f64,
-    /// Drawn from pool cells (its leaves) instead of its ring.
-    refined: bool,
-    /// Its cells do not fit.
-    frozen: bool,
-}
-
-/// One cell a refined block is drawn with: a tile of its level clipped to the block's piece.
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct Leaf {
-    /// The block (index in the LOD frame).
-    block: u16,
-    key: TileKey,
-    /// The cell's vertices in its level's lattice, clipped to the block's piece.
-    bounds: Rect,
-    /// Its screen-space bound, pixels.
-    bound: f64,
-    /// Its block's wanted level: no cell is split finer.
-    wanted: u32,
-    /// Its four quarters at the next finer level do not fit.
-    frozen: bool,
-}
-
-/// What the greedy refinement splits next.
-#[derive(Clone, Copy)]
-enum Unit {
-    /// A clamped block, into the visible cells of the level below its clamped one.
-    Block(usize),
-    /// A cell, into its visible quarters at the next finer level.
-    Leaf(usize),
 }
 
 impl DetailPool {
@@ -373,8 +321,7 @@ impl DetailPool {
             slots,
             clock: 0,
             seq: 0,
-            cands: Box::default(),
-            leaves: Box::default(),
+            tree: Quadtree::default(),
             eps: 0.0,
         }
     }
@@ -399,7 +346,7 @@ impl DetailPool {
         for s in &mut self.slots {
             *s = Slot::default();
         }
-        self.leaves.clear();
+        self.tree = Quadtree::default();
         self.clock = 0;
         self.seq = 0;
     }
@@ -422,57 +369,12 @@ impl DetailPool {
             .map(|(i, _)| i)
     }
 
-    /// Visible cells of level `w` over block `b`, counted up to `cap + 1`, and their triangles.
-    fn count_cells(
-        &self,
-        view: &DetailView<'_>,
-        b: &BlockLod,
-        w: u32,
-        cap: usize,
-        budget: &DetailBudget,
-    ) -> Result<(usize, u64)> {
-        let (mut count, mut tris) = (0usize, 0u64);
-        view.cells(b, w, self.quads, |_, bounds| {
-            count += 1;
-            tris += budget.cell_triangles(&bounds);
-            Ok(count <= cap)
-        })?;
-        Ok((count, tris))
-    }
-
-    /// Calls `f` with each visible quarter of `leaf` at the next finer level: its key and its vertices
-    /// (the quarter cell clipped to the leaf's piece).
-    fn quarters(&self, view: &DetailView<'_>, leaf: &Leaf, mut f: impl FnMut(TileKey, Rect)) {
-        let (k, q) = (leaf.key.level - 1, i64::from(self.quads));
-        let p = leaf.bounds;
-        // Exact: the finer lattice meets every vertex of the coarser one.
-        let pw = Rect::from_bounds(
-            p.x0 << 1,
-            p.y0 << 1,
-            ((p.x1() - 1) << 1) + 1,
-            ((p.y1() - 1) << 1) + 1,
-        );
-        for dy in 0..2 {
-            for dx in 0..2 {
-                let (cx, cy) = (2 * leaf.key.cx + dx, 2 * leaf.key.cy + dy);
-                let cell = Rect::from_bounds(cx * q, cy * q, (cx + 1) * q + 1, (cy + 1) * q + 1);
-                let bounds = cell.intersect(&pw);
-                if bounds.w >= 2 && bounds.h >= 2 && view.visible(k, &bounds) {
-                    f(TileKey { level: k, cx, cy }, bounds);
-                }
-            }
-        }
-    }
-
-    /// Plans the pool for one frame (issue 15). The clamped blocks are refined as quadtrees, minimax
-    /// first: the block or cell whose bound is largest is split (a block into the visible cells of the
-    /// level below its clamped one, a cell into its visible quarters one level finer) while the new cells
-    /// fit the slots, draws and triangles left, until none can; a cell whose bound (`bound_at`: a level
-    /// over a level-0 lattice box) meets epsilon, or that reached its block's wanted level, is not split.
-    /// So a block is drawn fine only where its error needs it, and each cell costs the same tile. The
-    /// cells are then filled most-needed first (by the block's bound / epsilon at the clamped level) under
+    /// Plans the pool for one frame (issue 15). The clamped blocks are refined as quadtrees over space and
+    /// level (`refine.rs`: the largest bound is split first while its cells fit the slots, draws and
+    /// triangles left; `bound_at` gives a level's bound over a level-0 lattice box). The tiles their cells
+    /// read are then filled most-needed first (by the block's bound / epsilon at the clamped level) under
     /// `budget.samples` (spent only when `budget.new_frame`: a clipmap frame planned again spends
-    /// nothing), and each block whose cells are all resident is served: its level in `lod` becomes its
+    /// nothing), and each block whose tiles are all resident is served: its level in `lod` becomes its
     /// finest cell's, and `lod.blocks_clamped` drops when every cell meets epsilon. Writes `out`.
     pub fn plan(
         &mut self,
@@ -496,148 +398,34 @@ impl DetailPool {
         let cap = self.slots.len();
         let eps = view.epsilon_px;
         self.eps = eps;
-        self.cands.clear();
-        self.leaves.clear();
-        if cap > 0 {
-            for (i, b) in lod.blocks.iter().enumerate() {
-                if b.wanted < b.level && b.wanted < b.ring {
-                    self.cands
-                        .push(Cand {
-                            block: u16::try_from(i).expect("blocks <= MAX_LOD_BLOCKS"),
-                            clamped: b.level,
-                            wanted: b.wanted,
-                            bound: f64::from(b.bound_px),
-                            need: f64::from(b.bound_px) / eps,
-                            refined: false,
-                            frozen: false,
-                        })
-                        .map_err(|_| Error::Capacity {
-                            what: "clamped blocks",
-                            capacity: MAX_LOD_BLOCKS,
-                        })?;
-                }
-            }
-        }
-        // Minimax quadtree refinement under the slots, draws and triangles (one slot per cell).
-        let (mut slots_left, mut draws, mut triangles) = (cap, budget.draws, budget.triangles);
-        loop {
-            // The largest bound still splittable (blocks first, then cells, first on ties: deterministic).
-            let mut pick: Option<(f64, Unit)> = None;
-            for (k, c) in self.cands.iter().enumerate() {
-                if !c.refined && !c.frozen && pick.is_none_or(|(b, _)| c.bound > b) {
-                    pick = Some((c.bound, Unit::Block(k)));
-                }
-            }
-            for (j, l) in self.leaves.iter().enumerate() {
-                let splittable = !l.frozen && l.bound > eps && l.key.level > l.wanted;
-                if splittable && pick.is_none_or(|(b, _)| l.bound > b) {
-                    pick = Some((l.bound, Unit::Leaf(j)));
-                }
-            }
-            let Some((_, unit)) = pick else { break };
-            match unit {
-                Unit::Block(k) => {
-                    let c = self.cands[k];
-                    let b = lod.blocks[usize::from(c.block)];
-                    let next = c.clamped - 1;
-                    let (n, tris) = self.count_cells(view, &b, next, slots_left, budget)?;
-                    let nn = u32::try_from(n).expect("count <= capacity + 1");
-                    let cost_d = nn * budget.tile_draws + budget.margin.0;
-                    let cost_t = tris + budget.margin.1;
-                    if n == 0 || n > slots_left || cost_d > draws || cost_t > triangles {
-                        self.cands[k].frozen = true;
-                        continue;
-                    }
-                    slots_left -= n;
-                    draws -= cost_d;
-                    triangles -= cost_t;
-                    self.cands[k].refined = true;
-                    let leaves = &mut self.leaves;
-                    view.cells(&b, next, self.quads, |key, bounds| {
-                        leaves
-                            .push(Leaf {
-                                block: c.block,
-                                key,
-                                bounds,
-                                bound: bound_at(next, level0_box(next, &bounds)),
-                                wanted: c.wanted,
-                                frozen: false,
-                            })
-                            .map_err(|_| Error::Capacity {
-                                what: "detail pool cells",
-                                capacity: DETAIL_CAPACITY,
-                            })?;
-                        Ok(true)
-                    })?;
-                }
-                Unit::Leaf(j) => {
-                    let l = self.leaves[j];
-                    let (mut n, mut tris) = (0usize, 0u64);
-                    self.quarters(view, &l, |_, bounds| {
-                        n += 1;
-                        tris += budget.cell_triangles(&bounds);
-                    });
-                    // The leaf's own slot, draws and triangles go to its quarters.
-                    let more = n.saturating_sub(1);
-                    let nn = u32::try_from(more).expect("at most 4 quarters");
-                    let cost_d = nn * budget.tile_draws;
-                    let cost_t = tris.saturating_sub(budget.cell_triangles(&l.bounds));
-                    if n == 0 || more > slots_left || cost_d > draws || cost_t > triangles {
-                        self.leaves[j].frozen = true;
-                        continue;
-                    }
-                    slots_left -= more;
-                    draws -= cost_d;
-                    triangles -= cost_t;
-                    let mut quarters: heapless::Vec<(TileKey, Rect), 4> = heapless::Vec::new();
-                    self.quarters(view, &l, |key, bounds| {
-                        quarters.push((key, bounds)).expect("at most 4 quarters");
-                    });
-                    for (i, &(key, bounds)) in quarters.iter().enumerate() {
-                        let leaf = Leaf {
-                            block: l.block,
-                            key,
-                            bounds,
-                            bound: bound_at(key.level, level0_box(key.level, &bounds)),
-                            wanted: l.wanted,
-                            frozen: false,
-                        };
-                        if i == 0 {
-                            self.leaves[j] = leaf;
-                        } else {
-                            self.leaves.push(leaf).map_err(|_| Error::Capacity {
-                                what: "detail pool cells",
-                                capacity: DETAIL_CAPACITY,
-                            })?;
-                        }
-                    }
-                }
-            }
-        }
-        // Every resident cell needed this frame is kept before any slot is refilled.
+        self.tree.start(lod, eps, cap)?;
+        self.tree
+            .refine(view, lod, bound_at, budget, self.quads, cap)?;
+        // Every resident tile needed this frame is kept before any slot is refilled.
         let clock = self.clock;
-        for l in self.leaves.iter() {
-            if let Some(s) = self.slots.iter().position(|s| s.key == Some(l.key)) {
+        for (key, _) in self.tree.keys.iter() {
+            if let Some(s) = self.slots.iter().position(|s| s.key == Some(*key)) {
                 self.slots[s].needed = clock;
             }
         }
         // Fill most-needed first: by the clamped bound / epsilon, then block order.
-        self.cands
+        self.tree
+            .cands
             .sort_unstable_by(|a, b| b.need.total_cmp(&a.need).then(a.block.cmp(&b.block)));
         let tile_samples = u64::from(self.side) * u64::from(self.side);
         let mut samples = if budget.new_frame { budget.samples } else { 0 };
-        for r in 0..self.cands.len() {
-            let c = self.cands[r];
+        for r in 0..self.tree.cands.len() {
+            let c = self.tree.cands[r];
             if !c.refined {
                 continue;
             }
             let (mut missing, mut met, mut finest) = (0u32, true, c.clamped);
-            for j in 0..self.leaves.len() {
-                let l = self.leaves[j];
+            for j in 0..self.tree.cells.len() {
+                let l = self.tree.cells[j];
                 if l.block != c.block {
                     continue;
                 }
-                met &= l.bound <= eps || l.key.level <= c.wanted;
+                met &= l.met(eps);
                 finest = finest.min(l.key.level);
                 if self.find(&l.key).is_some() {
                     continue;
@@ -732,7 +520,7 @@ impl DetailPool {
             })
         };
         for &(i, _) in &frame.served {
-            for l in self.leaves.iter().filter(|l| l.block == i) {
+            for l in self.tree.cells.iter().filter(|l| l.block == i) {
                 let slot = self
                     .find(&l.key)
                     .expect("a served block's cells are resident");
@@ -743,7 +531,7 @@ impl DetailPool {
                     bounds: l.bounds,
                     fine: l.key.level,
                     quads: cell_quads(&l.bounds),
-                    clamped: l.bound > self.eps && l.key.level > l.wanted,
+                    clamped: !l.met(self.eps),
                     pool: Some(u16::try_from(slot).expect("slots <= DETAIL_CAPACITY")),
                 };
                 push(out, d)?;

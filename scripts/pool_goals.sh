@@ -1,0 +1,62 @@
+#!/usr/bin/env bash
+# Issue 15's goals, measured from the default camera after the fill (`clipsat render --json`, which fills the
+# rings and then the detail pool at the still camera) on every shared terrain, gles3-mid at its 1920x1080:
+#  1. the whole-frame bound: sat-conservative and exact at epsilon 1, 2, 4 (met: max error <= 1.05 epsilon);
+#  2. equal error: distance LOD's whole-frame error D; the largest epsilon of a ladder at which
+#     sat-conservative's whole-frame error is <= D; the triangles there against distance LOD's.
+# Usage: scripts/pool_goals.sh [CLIPSAT_BINARY] [PROFILE]   (run from the repository root; needs jq)
+# Writes Markdown tables on stdout; the per-run JSON goes to out/pool_goals/.
+set -euo pipefail
+BIN=${1:-target/release/clipsat}
+PROFILE=${2:-gles3-mid}
+OUT=out/pool_goals
+mkdir -p "$OUT"
+LADDER="1 1.5 2 3 4 6 8 12 16 24 32 48 64"
+TERRAINS=("ps_height_1k.png --spacing 160" "n07_w006_3arc_v2.tif" "srtm_bigtujunga30m_utm11.tif"
+  "aletsch_200m.tif" "lidar_pkg_dem_1m_400x400.tif" "N57E011.hgt")
+run() { # name mode eps args...
+  local name=$1 mode=$2 eps=$3; shift 3
+  local f="$OUT/$name.$mode.$eps.json"
+  "$BIN" render --terrain "../shared/data/$name" "$@" --profile "$PROFILE" --lod "$mode" \
+    ${eps:+--epsilon "$eps"} --json --out "$OUT/frame.png" > "$f"
+  echo "$f"
+}
+bound=""; equal=""
+for t in "${TERRAINS[@]}"; do
+  read -r -a a <<< "$t"; name=${a[0]}; args=("${a[@]:1}")
+  if [ ! -f "../shared/data/$name" ]; then echo "skipped $name (missing)" >&2; continue; fi
+  for mode in sat-conservative exact; do
+    row="| $name | $mode |"
+    for e in 1 2 4; do
+      f=$(run "$name" "$mode" "$e" "${args[@]}")
+      row="$row $(jq -r --argjson e "$e" '"\(.max_screen_error_px*100|round/100) px, \(.triangles) tri, \(.blocks_clamped) clamped, cracks \(.crack_pixels) \(if .max_screen_error_px <= 1.05*$e then "(met)" else "(NOT met)" end)"' "$f") |"
+    done
+    bound="$bound$row"$'\n'
+  done
+  f=$(run "$name" distance "" "${args[@]}")
+  d=$(jq .max_screen_error_px "$f"); dt=$(jq .triangles "$f")
+  best=""; bt=""; be=""
+  for e in $LADDER; do
+    f=$(run "$name" sat-conservative "$e" "${args[@]}")
+    err=$(jq .max_screen_error_px "$f")
+    if jq -e --argjson d "$d" '.max_screen_error_px <= $d' "$f" > /dev/null; then
+      best=$e; bt=$(jq .triangles "$f"); be=$err
+    fi
+  done
+  if [ -n "$best" ]; then
+    equal="$equal| $name | $(printf %.2f "$d") | $dt | $best | $(printf %.2f "$be") | $bt | $(echo "scale=2; $bt/$dt" | bc) |"$'\n'
+  else
+    equal="$equal| $name | $(printf %.2f "$d") | $dt | none of: $LADDER | | | |"$'\n'
+  fi
+done
+echo "Whole-frame bound ($PROFILE, default camera after the fill): max error, triangles, blocks clamped, crack pixels"
+echo
+echo "| terrain | mode | epsilon 1 | epsilon 2 | epsilon 4 |"
+echo "|---|---|---|---|---|"
+printf %s "$bound"
+echo
+echo "Equal error: the largest epsilon of {$LADDER} at which sat-conservative's whole-frame error is <= distance LOD's"
+echo
+echo "| terrain | distance: error px | distance: triangles | epsilon | sat-conservative: error px | triangles | triangles / distance's |"
+echo "|---|---|---|---|---|---|---|"
+printf %s "$equal"
