@@ -8,7 +8,8 @@
 //!
 //! 1. [`Renderer::prepare`]: the plan's upload rectangles ([`FramePlan::uploads`]) go straight from
 //!    [`Ring::bytes`](crate::plan::clipmap::Ring::bytes) into one RG32F 2D array texture (S x S x L,
-//!    toroidal) with `write_texture`; the plan's uniforms go into the globals and draw-slot buffers.
+//!    toroidal) with `write_texture`, and under SG shading the same texels of the per-level shading
+//!    tables (`sg_tables.rs`); the plan's uniforms go into the globals and draw-slot buffers.
 //! 2. [`Renderer::render`]: the plan's draws recorded into the caller's `wgpu::RenderPass`.
 //!
 //! The plan itself is CPU work ([`crate::plan::frame_plan::Planner`]). [`crate::gpu::headless::Offscreen`]
