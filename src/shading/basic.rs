@@ -13,7 +13,8 @@ pub struct BasicShading {
     pub ramp_fog: [f32; 4],
     /// xyz: unit vector toward the sun (x east, y north, z up), w: unused.
     pub sun_dir: [f32; 4],
-    /// rgb: fog colour (display-encoded), a: unused.
+    /// rgb: fog colour (linear light: the display-encoded colour ^ 2.2, decoded once here rather than per
+    /// pixel), a: unused.
     pub fog_colour: [f32; 4],
 }
 const _: () = assert!(std::mem::size_of::<BasicShading>() == 48);
@@ -51,7 +52,7 @@ impl BasicShading {
         Self {
             ramp_fog: [lo, hi, fog_density as f32, z_factor(mean_slope) as f32],
             sun_dir: [sun.x, sun.y, sun.z, 0.0],
-            fog_colour: FOG,
+            fog_colour: [FOG[0].powf(2.2), FOG[1].powf(2.2), FOG[2].powf(2.2), FOG[3]],
         }
     }
 }
