@@ -54,15 +54,16 @@ fn sg_taps(rel: vec2<f32>, w: f32) -> SgTaps {
     return t;
 }
 
-@fragment
-fn fs_sg(v: VsOut) -> @location(0) vec4<f32> {
-    // The footprint in data samples; the derivatives come first, in uniform control flow.
+// The footprint's side in data samples, from the derivatives, so it must be called in uniform control
+// flow (before any discard).
+fn sg_footprint(v: VsOut) -> f32 {
     let c = v.rel.xy / sg_scene.grid.x;
     let d = max(abs(dpdx(c)), abs(dpdy(c)));
-    let w = max(d.x, d.y);
-    if (outside_data(v.rel.xy) || (v.skirt > 0.0 && through_side(v.rel))) {
-        discard;
-    }
+    return max(d.x, d.y);
+}
+
+// The SG colour of a kept fragment of footprint w (sg_footprint).
+fn sg_colour(v: VsOut, w: f32) -> vec4<f32> {
     let taps = sg_taps(v.rel.xy, w);
     // SG_OMIT 1 (`bench shading`'s breakdown only): no footprint fetch, the drawn mesh's normal; so too
     // where no ring holds the pixel.
@@ -80,4 +81,25 @@ fn fs_sg(v: VsOut) -> @location(0) vec4<f32> {
     // sg_fog.wgsl, or the pass-through of sg_no_fog.wgsl in variants without fog.
     let colour = sg_fog(sg_shade(r, normalize(-v.rel), sg_scene), length(v.rel));
     return vec4<f32>(pow(clamp(colour, vec3<f32>(0.0), vec3<f32>(1.0)), vec3<f32>(1.0 / 2.2)), 1.0);
+}
+
+// Blocks. The skirt test (through_side, which walks the rings) is a separate program for skirt draws,
+// as in clipmap.wgsl: llvmpipe would run it under a mask at every pixel.
+@fragment
+fn fs_sg(v: VsOut) -> @location(0) vec4<f32> {
+    let w = sg_footprint(v);
+    if (outside_data(v.rel.xy)) {
+        discard;
+    }
+    return sg_colour(v, w);
+}
+
+// Skirts: also hidden where seen through the data's side.
+@fragment
+fn fs_sg_skirt(v: VsOut) -> @location(0) vec4<f32> {
+    let w = sg_footprint(v);
+    if (outside_data(v.rel.xy) || (v.skirt > 0.0 && through_side(v.rel))) {
+        discard;
+    }
+    return sg_colour(v, w);
 }

@@ -3,6 +3,7 @@
 
 use super::Renderer;
 use crate::plan::clipmap::Clipmap;
+use crate::plan::fragment::FragmentPath;
 use crate::plan::frame_plan::FramePlan;
 use crate::profile::DRAW_SLOT_BYTES;
 use crate::{Error, Result};
@@ -184,15 +185,14 @@ impl Renderer {
     /// Records the prepared plan's draws into `pass` (whose attachments have the formats and sample count
     /// of [`super::RendererOptions`]). Sets its own pipeline, bind groups and buffers; creates nothing.
     pub fn render(&self, pass: &mut wgpu::RenderPass<'_>) {
-        // A debug view replaces the shading, SG included. SG draws every block with one program; basic
-        // shading switches to each draw's own (`FragmentPath`) when it changes.
+        // A debug view replaces the shading, SG included. Each draw is recorded with its own program,
+        // set when it changes: basic shading's `FragmentPath`, SG's block or skirt program.
         let sg = match (&self.sg, self.debug.code()) {
             (Some(sg), 0) => {
-                pass.set_pipeline(&sg.pipeline);
                 pass.set_bind_group(2, &sg.group, &[]);
-                true
+                Some(sg)
             }
-            _ => false,
+            _ => None,
         };
         pass.set_bind_group(0, &self.group0, &[]);
         let mut bound = None;
@@ -204,9 +204,14 @@ impl Renderer {
                 pass.set_index_buffer(m.indices.slice(..), wgpu::IndexFormat::Uint16);
                 bound = Some(d.kind);
             }
-            if !sg && program != Some(d.fragment) {
-                pass.set_pipeline(&self.pipelines[d.fragment as usize]);
-                program = Some(d.fragment);
+            let pipeline = match sg {
+                Some(sg) if d.fragment == FragmentPath::Skirt => &sg.skirt_pipeline,
+                Some(sg) => &sg.pipeline,
+                None => &self.pipelines[d.fragment as usize],
+            };
+            if !program.is_some_and(|p| std::ptr::eq(p, pipeline)) {
+                pass.set_pipeline(pipeline);
+                program = Some(pipeline);
             }
             let offset =
                 u32::try_from(k as u64 * DRAW_SLOT_BYTES).expect("draw slots fit a u32 offset");

@@ -41,12 +41,15 @@ pub(super) struct SgState {
     _uniform: wgpu::Buffer,
     _layout: wgpu::BindGroupLayout,
     pub(super) group: wgpu::BindGroup,
+    /// Block draws (`fs_sg`).
     pub(super) pipeline: wgpu::RenderPipeline,
+    /// Skirt draws (`fs_sg_skirt`: also the see-through-the-side test).
+    pub(super) skirt_pipeline: wgpu::RenderPipeline,
 }
 
 impl SgState {
     /// Bakes nothing: creates the per-level tables (filled by each prepare from `s.bake`) and makes the
-    /// group-2 layout, group and pipeline.
+    /// group-2 layout, group and pipelines.
     pub(super) fn new(
         dev: &mut Ledgered<'_>,
         profile: &Profile,
@@ -134,6 +137,14 @@ impl SgState {
             "fs_sg",
             targets,
         );
+        let skirt_pipeline = terrain_pipeline(
+            dev,
+            "clipmap sg skirt pipeline",
+            &pipeline_layout,
+            &module,
+            "fs_sg_skirt",
+            targets,
+        );
         Ok(SgState {
             variant,
             baked: bake.baked().to_vec(),
@@ -144,6 +155,7 @@ impl SgState {
             _layout: layout,
             group,
             pipeline,
+            skirt_pipeline,
         })
     }
 }
