@@ -37,7 +37,8 @@ struct SgScene {
     material: vec4<f32>,
     // rgb: fog colour (linear), w: unused
     fog: vec4<f32>,
-    // x: the data's spacing (m); y: horizon layers per ring (sg_visibility.wgsl); z, w: unused
+    // x: the data's spacing (m); y: horizon layers per ring (sg_visibility.wgsl); z: the number of sharp
+    // lights (suns), which come first in `lights`; w: unused
     grid: vec4<f32>,
 }
 
@@ -135,9 +136,6 @@ fn sg_basis(n: vec3<f32>) -> mat2x3<f32> {
 fn sg_plane_drop(kappa: f32) -> f32 {
     return min(sqrt(2.0 / max(kappa, 1.0e-12)), SG_HALF_PI);
 }
-
-// Lights at least this sharp are one direction (clipsat::shading::SHARP_LAMBDA).
-const SG_SHARP_LAMBDA: f32 = 64.0;
 
 // E[max(n' . i, 0)] over the vMF for a direction at cosine t from the mean normal, n' . i taken as
 // Gaussian with the vMF's first two moments (clipsat::shading::vmf_cosine, which cites the moments and
@@ -322,18 +320,24 @@ fn sg_shade(r: vec3<f32>, view: vec3<f32>, s: SgScene) -> vec3<f32> {
     }
     var diffuse = vec3<f32>(0.0);
     let count = min(u32(s.kd_count.w), SG_MAX_LIGHTS);
-    for (var i = 0u; i < count; i++) {
+    // Suns come first (SgSceneUniform::new): one loop per kind rather than a branch per light, which
+    // llvmpipe would run both ways. SG_OMIT 3 (`bench shading`'s breakdown): every lobe as one direction.
+    var suns = min(u32(s.grid.z), count);
+    if (SG_OMIT == 3u) {
+        suns = count;
+    }
+    for (var i = 0u; i < suns; i++) {
+        // A sun: one direction (clipsat::shading::SHARP_LAMBDA).
         let l = s.lights[i];
         let light = Sg(l.axis_lambda.xyz, l.axis_lambda.w, l.mu.xyz);
-        if (SG_OMIT == 3u || light.lambda >= SG_SHARP_LAMBDA) {
-            // A sun: one direction (clipsat::shading::SHARP_LAMBDA).
-            let sigma = sqrt(2.0 / max(light.lambda, 1.0e-6));
-            let f = sg_vmf_cosine(dot(vmf.axis, light.axis), vmf)
-                * sg_horizon_visible(light.axis, sigma);
-            diffuse += light.mu * (sg_unit_integral(light.lambda) * f);
-        } else {
-            diffuse += sg_integrate_patches(sg_product(light, cosine), cut);
-        }
+        let sigma = sqrt(2.0 / max(light.lambda, 1.0e-6));
+        let f = sg_vmf_cosine(dot(vmf.axis, light.axis), vmf) * sg_horizon_visible(light.axis, sigma);
+        diffuse += light.mu * (sg_unit_integral(light.lambda) * f);
+    }
+    for (var i = suns; i < count; i++) {
+        let l = s.lights[i];
+        let light = Sg(l.axis_lambda.xyz, l.axis_lambda.w, l.mu.xyz);
+        diffuse += sg_integrate_patches(sg_product(light, cosine), cut);
     }
     return s.kd_count.rgb * diffuse / SG_PI + sg_specular(vmf, view, cut, s);
 }

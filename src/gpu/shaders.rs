@@ -269,14 +269,15 @@ pub struct SgSceneUniform {
     pub material: [f32; 4],
     /// rgb: fog colour (linear).
     pub fog: [f32; 4],
-    /// x: the data's spacing (m); y: horizon layers per ring of the per-level tables; z, w: unused.
+    /// x: the data's spacing (m); y: horizon layers per ring of the per-level tables; z: the number of
+    /// sharp lights (suns, `lambda >= SHARP_LAMBDA`), which come first in `lights`; w: unused.
     pub grid: [f32; 4],
 }
 const _: () = assert!(std::mem::size_of::<SgSceneUniform>() == 320);
 
 impl SgSceneUniform {
-    /// The uniform for `scene`: lights, material, fog; `azimuths` is D when visibility is bound (else 0).
-    /// `grid` is left zero (the renderer fills it).
+    /// The uniform for `scene`: lights (suns first), material, fog; `azimuths` is D when visibility is
+    /// bound (else 0). `grid` holds only the sun count (the renderer fills x and y).
     pub fn new(scene: &Scene, azimuths: u32) -> Result<Self> {
         if scene.lights.len() > MAX_SG_LIGHTS {
             return Err(Error::Capacity {
@@ -285,12 +286,20 @@ impl SgSceneUniform {
             });
         }
         let mut u = Self::default();
-        for (slot, l) in u.lights.iter_mut().zip(&scene.lights) {
+        // Suns first, then the lobes integrated over patches: the shader runs one loop over each, so no
+        // pixel pays for the other kind's path (llvmpipe runs both sides of a branch under a mask).
+        let sharp = |l: &&crate::shading::sg::Sg| l.lambda >= crate::shading::SHARP_LAMBDA;
+        let suns = scene.lights.iter().filter(sharp);
+        let lobes = scene.lights.iter().filter(|l| !sharp(l));
+        for (slot, l) in u.lights.iter_mut().zip(suns.chain(lobes)) {
             *slot = SgLightUniform {
                 axis_lambda: [l.axis.x, l.axis.y, l.axis.z, l.lambda],
                 mu: [l.mu.x, l.mu.y, l.mu.z, 0.0],
             };
         }
+        #[expect(clippy::cast_precision_loss, reason = "at most MAX_SG_LIGHTS")]
+        let suns = scene.lights.iter().filter(sharp).count() as f32;
+        u.grid[2] = suns;
         let m = &scene.material;
         #[expect(clippy::cast_precision_loss, reason = "at most MAX_SG_LIGHTS")]
         let count = scene.lights.len() as f32;

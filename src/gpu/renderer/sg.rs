@@ -73,8 +73,10 @@ impl SgState {
         let tables = SgTables::new(dev, profile, bake, variant.visibility)?;
         let mut u = SgSceneUniform::new(&scene, bake.azimuths())?;
         #[expect(clippy::cast_precision_loss, reason = "layer counts <= 4")]
-        let grid = [hm.spacing(), tables.horizon_layers() as f32, 0.0, 0.0];
-        u.grid = grid;
+        let layers = tables.horizon_layers() as f32;
+        // The sun count in z is the scene's (SgSceneUniform::new).
+        u.grid[0] = hm.spacing();
+        u.grid[1] = layers;
         let uniform = dev.buffer_init(
             "sg scene",
             bytemuck::bytes_of(&u),
