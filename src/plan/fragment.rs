@@ -18,12 +18,12 @@ use crate::plan::cull::{Draw, DrawKind};
 use crate::plan::frame::Rect;
 
 /// The fragment program a draw is recorded with; each is an entry point of `clipmap.wgsl`.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[repr(u8)]
 pub enum FragmentPath {
     /// `fs_interior`: the drawn vertices' height and normal, for a block inside the data's border. With
-    /// no `discard` the rasteriser can test depth before shading (llvmpipe does so only then).
-    #[default]
+    /// no `discard` a GPU can test depth before shading (it turns early depth off for programs that can
+    /// discard); on llvmpipe this measured no faster than [`FragmentPath::Plain`].
     Interior = 0,
     /// `fs_plain`: the same, cut at the data's border.
     Plain = 1,
@@ -89,10 +89,9 @@ impl FragmentPaths {
             holds: None,
             reach: [0.0; 2],
         }; crate::profile::MAX_LEVELS as usize];
-        let mut count = 0;
-        for (slot, lf) in levels.iter_mut().zip(&clipmap.frame().levels) {
-            count += 1;
-            let k = f64::from(1u32 << (count - 1));
+        let count = clipmap.frame().levels.len().min(levels.len());
+        for (l, (slot, lf)) in levels.iter_mut().zip(&clipmap.frame().levels).enumerate() {
+            let k = f64::from(1u32 << l);
             let c = lf.clip;
             // level_holds: cell i in [1, width - 3], so the lattice coordinate u in [1, width - 2).
             if !c.is_empty() && c.w >= 4 && c.h >= 4 {

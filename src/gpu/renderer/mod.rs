@@ -181,22 +181,7 @@ impl Renderer {
         let mut dev = Ledgered::new(device);
         let heights = dev.texture(
             "clipmap heights",
-            &wgpu::TextureDescriptor {
-                label: None,
-                size: wgpu::Extent3d {
-                    width: size,
-                    height: size,
-                    depth_or_array_layers: layers,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format: HEIGHT_FORMAT,
-                usage: wgpu::TextureUsages::TEXTURE_BINDING
-                    | wgpu::TextureUsages::COPY_DST
-                    | wgpu::TextureUsages::COPY_SRC,
-                view_formats: &[],
-            },
+            &array_texture(size, layers, HEIGHT_FORMAT, READ_BACK),
         );
         let heights_view = dev.view(
             "clipmap heights view",
@@ -209,20 +194,12 @@ impl Renderer {
         let detail_side = profile.detail_side();
         let detail = dev.texture(
             "detail pool",
-            &wgpu::TextureDescriptor {
-                label: None,
-                size: wgpu::Extent3d {
-                    width: detail_side,
-                    height: detail_side,
-                    depth_or_array_layers: profile.detail_layers(),
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format: DETAIL_FORMAT,
-                usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-                view_formats: &[],
-            },
+            &array_texture(
+                detail_side,
+                profile.detail_layers(),
+                DETAIL_FORMAT,
+                wgpu::TextureUsages::empty(),
+            ),
         );
         let detail_view = dev.view(
             "detail pool view",
@@ -269,28 +246,10 @@ impl Renderer {
                     },
                     count: None,
                 },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 1,
-                    // The fragment stage shades from the finest ring holding the pixel (GC 6).
-                    visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                        view_dimension: wgpu::TextureViewDimension::D2Array,
-                        multisampled: false,
-                    },
-                    count: None,
-                },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 2,
-                    // Pool draws read their heights (vertex) and shade from them (fragment).
-                    visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                        view_dimension: wgpu::TextureViewDimension::D2Array,
-                        multisampled: false,
-                    },
-                    count: None,
-                },
+                // The fragment stage shades from the finest ring holding the pixel (GC 6).
+                array_entry(1, wgpu::ShaderStages::VERTEX_FRAGMENT),
+                // Pool draws read their heights (vertex) and shade from them (fragment).
+                array_entry(2, wgpu::ShaderStages::VERTEX_FRAGMENT),
             ],
         );
         let draw_size = std::mem::size_of::<DrawUniform>() as u64;
@@ -478,6 +437,48 @@ const FRAGMENT_ENTRIES: [(&str, &str); FRAGMENT_PATHS] = [
     ("clipmap pipeline (ring data)", "fs_ring_data"),
     ("clipmap pipeline (skirt)", "fs_skirt"),
 ];
+
+/// `usage` of every texture the tests read back (the heights, the SG tables), besides sampling and writing.
+const READ_BACK: wgpu::TextureUsages = wgpu::TextureUsages::COPY_SRC;
+
+/// A `side` x `side` 2D array texture of `layers` layers that the renderer writes (`COPY_DST`) and the
+/// shaders read (`TEXTURE_BINDING`), plus `usage`: the rings, the detail pool and the SG tables.
+fn array_texture(
+    side: u32,
+    layers: u32,
+    format: wgpu::TextureFormat,
+    usage: wgpu::TextureUsages,
+) -> wgpu::TextureDescriptor<'static> {
+    wgpu::TextureDescriptor {
+        label: None,
+        size: wgpu::Extent3d {
+            width: side,
+            height: side,
+            depth_or_array_layers: layers,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST | usage,
+        view_formats: &[],
+    }
+}
+
+/// The layout entry of one such texture: float and unfilterable (GLES 3.0 filters no 32-bit float
+/// format), read with `textureLoad`.
+fn array_entry(binding: u32, visibility: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility,
+        ty: wgpu::BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Float { filterable: false },
+            view_dimension: wgpu::TextureViewDimension::D2Array,
+            multisampled: false,
+        },
+        count: None,
+    }
+}
 
 fn terrain_pipeline(
     dev: &mut Ledgered<'_>,

@@ -2,7 +2,7 @@
 //! the scene needs.
 
 use super::sg_tables::SgTables;
-use super::{terrain_pipeline, Ledgered, Targets};
+use super::{array_entry, terrain_pipeline, Ledgered, Targets};
 use crate::gpu::sat_textures::ShadingBake;
 use crate::gpu::shaders::{self, SgOmit, SgSceneUniform, SgVariant};
 use crate::shading::scene::Scene;
@@ -82,16 +82,6 @@ impl SgState {
             bytemuck::bytes_of(&u),
             wgpu::BufferUsages::UNIFORM,
         );
-        let texture = |binding, dim| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::FRAGMENT,
-            ty: wgpu::BindingType::Texture {
-                sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                view_dimension: dim,
-                multisampled: false,
-            },
-            count: None,
-        };
         let mut entries = vec![
             wgpu::BindGroupLayoutEntry {
                 binding: 0,
@@ -103,7 +93,7 @@ impl SgState {
                 },
                 count: None,
             },
-            texture(1, wgpu::TextureViewDimension::D2Array),
+            array_entry(1, wgpu::ShaderStages::FRAGMENT),
         ];
         let mut resources = vec![
             wgpu::BindGroupEntry {
@@ -117,7 +107,7 @@ impl SgState {
         ];
         let mut bound = vec!["heights", "level_normal"];
         if let (true, Some(view)) = (variant.visibility, tables.horizon_view.as_ref()) {
-            entries.push(texture(2, wgpu::TextureViewDimension::D2Array));
+            entries.push(array_entry(2, wgpu::ShaderStages::FRAGMENT));
             resources.push(wgpu::BindGroupEntry {
                 binding: 2,
                 resource: wgpu::BindingResource::TextureView(view),

@@ -20,7 +20,7 @@
 //! Created once from the profile and the scene's effects through [`Ledgered`], checked against
 //! `budget.gpu_memory_bytes`; their bytes are [`Profile::sg_table_bytes`] for any terrain.
 
-use super::{Ledgered, PrepareStats};
+use super::{array_texture, Ledgered, PrepareStats, READ_BACK};
 use crate::gpu::sat_textures::ShadingBake;
 use crate::plan::clipmap::Clipmap;
 use crate::plan::frame::Upload;
@@ -74,25 +74,7 @@ impl SgTables {
         }
         let size = profile.clip_size();
         let mut make = |label: &'static str, layers: u32, format| {
-            dev.texture(
-                label,
-                &wgpu::TextureDescriptor {
-                    label: None,
-                    size: wgpu::Extent3d {
-                        width: size,
-                        height: size,
-                        depth_or_array_layers: layers,
-                    },
-                    mip_level_count: 1,
-                    sample_count: 1,
-                    dimension: wgpu::TextureDimension::D2,
-                    format,
-                    usage: wgpu::TextureUsages::TEXTURE_BINDING
-                        | wgpu::TextureUsages::COPY_DST
-                        | wgpu::TextureUsages::COPY_SRC,
-                    view_formats: &[],
-                },
-            )
+            dev.texture(label, &array_texture(size, layers, format, READ_BACK))
         };
         let normal = make("sg level_normal", profile.sg_normal_layers(), NORMAL_FORMAT);
         let horizon = (d > 0).then(|| {
