@@ -2,7 +2,9 @@
 //! cracks in the silhouette and the RMSE between two images. CPU only.
 
 mod image;
+mod oracle;
 mod screen_error;
 
 pub use image::{crack_pixels, image_rmse, CRACK_CLEAR, CRACK_CLEAR_RGBA8};
-pub use screen_error::{screen_error, ScreenError, SCREEN_ERROR_SAMPLES};
+pub use oracle::{oracle, Oracle};
+pub use screen_error::{screen_error, MaxAt, ScreenError, SCREEN_ERROR_SAMPLES};

@@ -20,6 +20,24 @@ pub struct ScreenError {
     pub samples: u64,
     /// Every `stride`-th sample in x and y was measured (1: all).
     pub stride: u32,
+    /// Where `max_px` is: the data sample (column, row), the clipmap level drawn there, and whether that
+    /// draw was clamped and whether it came from the detail pool.
+    pub max_at: Option<MaxAt>,
+}
+
+/// The sample of a frame's largest measured error ([`ScreenError::max_at`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct MaxAt {
+    /// Data column.
+    pub x: u32,
+    /// Data row.
+    pub y: u32,
+    /// The clipmap level drawn there.
+    pub level: u32,
+    /// The draw's level was clamped to the held data.
+    pub clamped: bool,
+    /// The draw read a detail pool tile.
+    pub pool: bool,
 }
 
 /// Most data samples [`screen_error`] visits; past it, it subsamples with a uniform stride.
@@ -62,7 +80,13 @@ pub fn screen_error(
                 // Geometry past the data collapses onto its border (not a surface to measure): a block
                 // that meets the data only on its border line draws no area there.
                 let inside = b > 0 && dd > 0 && a < last.0 && cc < last.1;
-                inside.then(|| (l, d.clamped, tables.data_box(synth, a, cc, b, dd)))
+                inside.then(|| {
+                    (
+                        l,
+                        (d.clamped, d.pool.is_some()),
+                        tables.data_box(synth, a, cc, b, dd),
+                    )
+                })
             })
     };
     let total: u64 = boxes()
@@ -78,7 +102,7 @@ pub fn screen_error(
     };
     let (ox, oy) = clipmap.origin();
     let top = oy + f64::from(data.height() - 1) * spacing;
-    for (l, clamped, (x0, y0, x1, y1)) in boxes() {
+    for (l, (clamped, pool), (x0, y0, x1, y1)) in boxes() {
         // The tables hold level-resolution maxima: the per-sample error comes from the pyramid.
         let k = l
             .checked_sub(synth)
@@ -107,7 +131,16 @@ pub fn screen_error(
                 ));
                 out.samples += 1;
                 let px = e * camera.pixels_per_metre(rel.length(), h);
-                out.max_px = out.max_px.max(px);
+                if px > out.max_px {
+                    out.max_px = px;
+                    out.max_at = Some(MaxAt {
+                        x,
+                        y,
+                        level: l,
+                        clamped,
+                        pool,
+                    });
+                }
                 if !clamped {
                     out.max_px_unclamped = out.max_px_unclamped.max(px);
                 }

@@ -62,6 +62,11 @@ pub(crate) struct RenderArgs {
     /// a full SRTM tile exceeds, and a summary must not fail for a measurement nobody asked for.
     #[arg(long)]
     ground_truth: bool,
+    /// With --json: also report `oracle`, the fewest pyramid-quad triangles (and pool tiles beside the
+    /// filled rings) any refinement of this frame needs to meet each of these epsilons in the measured
+    /// metric (`clipsat::measure::oracle`: a lower bound; reads the whole pyramid once per level).
+    #[arg(long, value_delimiter = ',')]
+    oracle: Vec<f64>,
     /// Clipmap only: stream a plain source like a package (baked into the cache folder on first use):
     /// no whole heightmap resident. Distance LOD and basic shading only; a package streams without it.
     #[arg(long)]
@@ -250,6 +255,16 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
     let lod_used = r.lod().or(lod.as_ref());
     let measured =
         lod_used.map(|l| measure::screen_error(r.plan(), r.size(), &clipmap, &camera, l));
+    let oracle = (!args.oracle.is_empty() && !streamed).then(|| {
+        measure::oracle(
+            &clipmap,
+            &camera,
+            r.size(),
+            profile.clipmap.levels,
+            profile.detail_quads(),
+            &args.oracle,
+        )
+    });
     ensure_parent(&args.out)?;
     frame.image.save_png(&args.out)?;
     let reference = match (&sg, args.shading.reference) {
@@ -320,7 +335,18 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
             "max_screen_error_unclamped_px": measured.map(|m| m.max_px_unclamped),
             "screen_error_samples": measured.map(|m| m.samples),
             "screen_error_stride": measured.map(|m| m.stride),
+            "max_screen_error_at": measured.and_then(|m| m.max_at).map(|a| json!({
+                "x": a.x, "y": a.y, "level": a.level, "clamped": a.clamped, "pool": a.pool,
+            })),
             "rmse_vs_ground_truth": rmse,
+            "oracle": oracle.map(|os| os.iter().map(|o| json!({
+                "epsilon_px": o.epsilon_px,
+                "triangles": o.triangles,
+                "quads_per_level": o.quads_per_level,
+                "quads_outside_rings": o.quads_outside_rings,
+                "pool_tiles": o.pool_tiles,
+                "pool_tiles_min": o.pool_tiles_min,
+            })).collect::<Vec<_>>()),
             "blocks": frame.stats.cull.blocks,
             "blocks_culled": frame.stats.cull.culled,
             "skirts": frame.stats.cull.skirts,

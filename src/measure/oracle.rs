@@ -1,0 +1,252 @@
+//! Measurements: a lower bound on what any refinement of a frame needs to meet the screen-space error bound
+//! in the measured metric of [`crate::measure::screen_error`] (issue 15's whole-frame goal). Not the frame
+//! path: it reads the whole pyramid.
+//!
+//! The oracle draws the terrain with pyramid quads only: a quad of data level k covers the closed samples
+//! [i 2^k, (i + 1) 2^k] x [j 2^k, (j + 1) 2^k], and its two triangles are level k's piecewise-linear surface
+//! there (design.md "SAT LOD" 1), so its error at each sample is e_k exactly, whatever its neighbours are.
+//! From the coarsest baked level down, a quad is kept when its largest measured error over its in-frustum
+//! samples, e_k * [`Camera::pixels_per_metre`] at the sample's own distance, is <= epsilon, and split into
+//! its four children otherwise. Splitting never makes fewer triangles, so the kept quads are the fewest
+//! triangles any triangulation made of pyramid quads can have. The renderer draws m x m quads of one level
+//! per block or pool cell, plus skirts, so it needs at least this many. Quads outside the frustum cost
+//! nothing here.
+//!
+//! Kept quads at a level whose ring does not hold them (outside that ring's clip region) need pool tiles:
+//! their distinct tile cells (`detail_tile_quads` quads a side) are a lower bound on the pool's tiles for
+//! a pool whose tiles are those cells.
+
+use crate::bake::lod_tables::sample_error;
+use crate::plan::clipmap::Clipmap;
+use crate::plan::cull;
+use crate::plan::frame::Rect;
+use crate::Camera;
+
+/// What the oracle needs to meet epsilon ([`oracle`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Oracle {
+    /// The bound, pixels.
+    pub epsilon_px: f64,
+    /// Triangles of the kept quads (two each).
+    pub triangles: u64,
+    /// Kept quads per clipmap level (finest first).
+    pub quads_per_level: Vec<u64>,
+    /// Kept quads outside their level's ring clip region (the pool must hold them).
+    pub quads_outside_rings: u64,
+    /// Distinct pool tile cells those quads lie in (each drawn at its own level).
+    pub pool_tiles: u64,
+    /// The fewest pool tiles that hold those quads when any of them may also be drawn finer (at any level
+    /// down to the data) or in pieces from several tiles ([`min_tiles`]): a lower bound on the slots of any
+    /// pool of `detail_tile_quads`-quad cells that draws no place coarser than its oracle level.
+    pub pool_tiles_min: u64,
+}
+
+/// Per data level: the largest measured error over each closed quad's in-frustum samples (negative: no
+/// sample of the quad is in the frustum).
+struct LevelErrors {
+    cols: usize,
+    rows: usize,
+    max_px: Vec<f32>,
+}
+
+/// The fewest pyramid quads that meet each of `epsilons` over the frustum of `camera` in a viewport
+/// `view` (width, height), and the pool tiles they need beside `clipmap`'s current rings (`tile_quads`:
+/// the profile's `detail_tile_quads`). `levels`: the clipmap's levels (the coarsest quad is one of the
+/// last one's). Visits every data sample once per data level.
+pub fn oracle(
+    clipmap: &Clipmap,
+    camera: &Camera,
+    view: (u32, u32),
+    levels: u32,
+    tile_quads: u32,
+    epsilons: &[f64],
+) -> Vec<Oracle> {
+    let pyr = clipmap.pyramid();
+    let data = pyr.level(0);
+    let (w, h) = (data.width(), data.height());
+    let synth = clipmap.synth_levels();
+    let spacing = clipmap.g0() * f64::from(1u32 << synth);
+    let frustum = cull::Frustum::new(camera, f64::from(view.0) / f64::from(view.1));
+    let (ox, oy) = clipmap.origin();
+    let top = oy + f64::from(h - 1) * spacing;
+    let data_levels = levels.saturating_sub(synth).clamp(1, 31);
+    // Per sample: its measured scale (pixels per metre), or negative outside the frustum.
+    let mut ppm = vec![0.0f32; w as usize * h as usize];
+    for y in 0..h {
+        for x in 0..w {
+            let z = f64::from(data.at_clamped(i64::from(x), i64::from(y)));
+            let rel = glam::DVec3::new(
+                ox + f64::from(x) * spacing - camera.eye.x,
+                top - f64::from(y) * spacing - camera.eye.y,
+                z - camera.eye.z,
+            );
+            #[expect(clippy::cast_possible_truncation, reason = "a scale, f32 is plenty")]
+            let s = if frustum.intersects(rel, rel) {
+                camera.pixels_per_metre(rel.length(), view.1) as f32
+            } else {
+                -1.0
+            };
+            ppm[(y * w + x) as usize] = s;
+        }
+    }
+    let errs: Vec<LevelErrors> = (0..data_levels)
+        .map(|k| {
+            let side = 1u32 << k;
+            let cols = (w - 1).div_ceil(side).max(1) as usize;
+            let rows = (h - 1).div_ceil(side).max(1) as usize;
+            let mut max_px = vec![-1.0f32; cols * rows];
+            for y in 0..h {
+                for x in 0..w {
+                    let s = ppm[(y * w + x) as usize];
+                    if s < 0.0 {
+                        continue;
+                    }
+                    let e = if k == 0 {
+                        0.0
+                    } else {
+                        sample_error(pyr, k, i64::from(x), i64::from(y)) * s
+                    };
+                    // A sample on a lattice line lies in the quads on both sides of it.
+                    let (ci, ri) = ((x >> k) as usize, (y >> k) as usize);
+                    let on_x = x & (side - 1) == 0 && ci > 0;
+                    let on_y = y & (side - 1) == 0 && ri > 0;
+                    for (c, r) in [
+                        (Some(ci), Some(ri)),
+                        (on_x.then(|| ci - 1), Some(ri)),
+                        (Some(ci), on_y.then(|| ri - 1)),
+                        (on_x.then(|| ci - 1), on_y.then(|| ri - 1)),
+                    ] {
+                        if let (Some(c), Some(r)) = (c, r) {
+                            if c < cols && r < rows {
+                                let m = &mut max_px[r * cols + c];
+                                *m = m.max(e);
+                            }
+                        }
+                    }
+                }
+            }
+            LevelErrors { cols, rows, max_px }
+        })
+        .collect();
+    let frame = clipmap.frame();
+    epsilons
+        .iter()
+        .map(|&eps| {
+            let mut o = Oracle {
+                epsilon_px: eps,
+                quads_per_level: vec![0; levels as usize],
+                ..Oracle::default()
+            };
+            let mut tiles: Vec<(u32, i64, i64)> = Vec::new();
+            // Pool-held quads as (level, level-0 lattice box).
+            let mut needs: Vec<(u32, [i64; 4])> = Vec::new();
+            let top_k = data_levels - 1;
+            let t = &errs[top_k as usize];
+            let mut stack: Vec<(u32, usize, usize)> = (0..t.rows)
+                .flat_map(|r| (0..t.cols).map(move |c| (top_k, c, r)))
+                .collect();
+            while let Some((k, c, r)) = stack.pop() {
+                let le = &errs[k as usize];
+                let m = le.max_px[r * le.cols + c];
+                if m < 0.0 {
+                    continue;
+                }
+                if k == 0 || f64::from(m) <= eps {
+                    let l = k + synth;
+                    o.triangles += 2;
+                    o.quads_per_level[l as usize] += 1;
+                    let (i, j) = (c as i64, r as i64);
+                    let clip = frame.levels.get(l as usize).map(|lf| lf.clip);
+                    let held = clip.is_some_and(|cl| {
+                        !cl.is_empty() && cl.contains(&Rect::from_bounds(i, j, i + 2, j + 2))
+                    });
+                    if !held {
+                        o.quads_outside_rings += 1;
+                        let q = i64::from(tile_quads.max(1));
+                        tiles.push((l, i.div_euclid(q), j.div_euclid(q)));
+                        let s0 = 1i64 << l;
+                        needs.push((l, [i * s0, j * s0, (i + 1) * s0, (j + 1) * s0]));
+                    }
+                    continue;
+                }
+                let fine = &errs[k as usize - 1];
+                for (dc, dr) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                    let (fc, fr) = (2 * c + dc, 2 * r + dr);
+                    if fc < fine.cols && fr < fine.rows {
+                        stack.push((k - 1, fc, fr));
+                    }
+                }
+            }
+            tiles.sort_unstable();
+            tiles.dedup();
+            o.pool_tiles = tiles.len() as u64;
+            o.pool_tiles_min = min_tiles(&needs, levels.saturating_sub(1), tile_quads.max(1));
+            o
+        })
+        .collect()
+}
+
+/// The fewest tile cells (`q` quads a side, quadtree-aligned, any level <= `top`) that hold every need
+/// (level, level-0 lattice box) at a level at most its own, tiles of different levels free to overlap and
+/// a need free to be drawn in pieces from several tiles: a quadtree search with, per cell, the choice of
+/// holding it as one tile (serving every need there at its level or coarser) or not, memoised on (cell,
+/// the coarsest need level still unserved).
+fn min_tiles(needs: &[(u32, [i64; 4])], top: u32, q: u32) -> u64 {
+    type Memo = std::collections::HashMap<(u32, i64, i64, u32), u64>;
+    fn cost(needs: &[&(u32, [i64; 4])], t: u32, r: [i64; 4], tau: u32, memo: &mut Memo) -> u64 {
+        // The needs in this cell still unserved (level below tau).
+        let open: Vec<&(u32, [i64; 4])> = needs
+            .iter()
+            .copied()
+            .filter(|(l, b)| *l < tau && b[0] < r[2] && b[2] > r[0] && b[1] < r[3] && b[3] > r[1])
+            .collect();
+        if open.is_empty() {
+            return 0;
+        }
+        if t == 0 {
+            return 1;
+        }
+        if let Some(&c) = memo.get(&(t, r[0], r[1], tau)) {
+            return c;
+        }
+        let (mx, my) = ((r[0] + r[2]) / 2, (r[1] + r[3]) / 2);
+        let kids = [
+            [r[0], r[1], mx, my],
+            [mx, r[1], r[2], my],
+            [r[0], my, mx, r[3]],
+            [mx, my, r[2], r[3]],
+        ];
+        let skip: u64 = kids.iter().map(|&c| cost(&open, t - 1, c, tau, memo)).sum();
+        let best = if tau > t {
+            let hold = 1 + kids
+                .iter()
+                .map(|&c| cost(&open, t - 1, c, t, memo))
+                .sum::<u64>();
+            skip.min(hold)
+        } else {
+            skip
+        };
+        memo.insert((t, r[0], r[1], tau), best);
+        best
+    }
+    let side = i64::from(q) << top;
+    let mut roots: Vec<(i64, i64)> = needs
+        .iter()
+        .flat_map(|(_, b)| {
+            let (c0, c1) = (b[0].div_euclid(side), (b[2] - 1).div_euclid(side));
+            let (r0, r1) = (b[1].div_euclid(side), (b[3] - 1).div_euclid(side));
+            (r0..=r1).flat_map(move |r| (c0..=c1).map(move |c| (c, r)))
+        })
+        .collect();
+    roots.sort_unstable();
+    roots.dedup();
+    let all: Vec<&(u32, [i64; 4])> = needs.iter().collect();
+    let mut memo = Memo::new();
+    roots
+        .into_iter()
+        .map(|(c, r)| {
+            let cell = [c * side, r * side, (c + 1) * side, (r + 1) * side];
+            cost(&all, top, cell, u32::MAX, &mut memo)
+        })
+        .sum()
+}
