@@ -172,6 +172,13 @@ impl Lod {
     /// The screen-space bound of `level` over the level-0 lattice box [a, b] x [c, d] (inclusive vertices)
     /// seen from `camera` under `mode`: what [`Lod::select`] tests per block, asked by the detail pool of
     /// its cells. Infinite for a level past the baked ones or finer than the data.
+    ///
+    /// SAT paper eq. 6 over the whole box (the object error at the box's closest point), tightened by
+    /// splitting: the box is cut on `level`'s lattice into up to [`SPLIT`] x [`SPLIT`] sub-boxes, and the
+    /// largest of their own bounds is taken when smaller. Every sample lies in some sub-box, whose error
+    /// bounds its error and whose closest point is no farther than it, so the split is still an upper
+    /// bound of every sample's projected error, and under `sat-conservative` the p-sum of a sub-box
+    /// counts fewer samples (its N^(1/p) slack shrinks) and its distance is larger.
     pub fn box_bound_px(
         &self,
         camera: &Camera,
@@ -179,15 +186,39 @@ impl Lod {
         level: u32,
         (a, c, b, d): (i64, i64, i64, i64),
     ) -> f64 {
-        let (x0, y0, x1, y1) = self.tables.data_box(self.synth, a, c, b, d);
-        let eta = match level
+        let Some(t) = level
             .checked_sub(self.synth)
             .and_then(|k| self.tables.level(k))
-        {
-            Some(t) => t.eta(mode, self.tables.p, x0, y0, x1, y1),
-            None => return f64::INFINITY,
+        else {
+            return f64::INFINITY;
         };
-        self.bound_px(camera, eta, self.closest_distance(camera, a, c, b, d))
+        let p = self.tables.p;
+        let bound = |a: i64, c: i64, b: i64, d: i64| -> f64 {
+            let (x0, y0, x1, y1) = self.tables.data_box(self.synth, a, c, b, d);
+            let eta = t.eta(mode, p, x0, y0, x1, y1);
+            if eta == 0.0 {
+                return 0.0;
+            }
+            self.bound_px(camera, eta, self.closest_distance(camera, a, c, b, d))
+        };
+        let whole = bound(a, c, b, d);
+        if whole == 0.0 || mode == LodMode::Distance {
+            return whole;
+        }
+        let (xs, ys) = (split_points(a, b, level), split_points(c, d, level));
+        if xs.len() <= 2 && ys.len() <= 2 {
+            return whole;
+        }
+        let mut worst = 0.0f64;
+        for y in ys.windows(2) {
+            for x in xs.windows(2) {
+                worst = worst.max(bound(x[0], y[0], x[1], y[1]));
+                if worst >= whole {
+                    return whole;
+                }
+            }
+        }
+        worst
     }
 
     /// The distance from the eye to the closest point of a level-0 lattice box [a, b] x [c, d] (inclusive
@@ -297,7 +328,6 @@ impl Lod {
             (r.x1() - 1) << ring,
             (r.y1() - 1) << ring,
         );
-        let dist = self.closest_distance(camera, a, c, b, d);
         let (x0, y0, x1, y1) = self.tables.data_box(self.synth, a, c, b, d);
         let eta_of = |level: u32| -> f64 {
             match level
@@ -309,12 +339,13 @@ impl Lod {
                 None => f64::INFINITY,
             }
         };
+        let bound_of = |level: u32| self.box_bound_px(camera, mode, level, (a, c, b, d));
         let levels = u32::try_from(frame.levels.len()).expect("levels < MAX_LEVELS");
         let mut wanted = ring;
         if mode != LodMode::Distance {
             wanted = self.synth;
             for level in (self.synth..levels).rev() {
-                if self.bound_px(camera, eta_of(level), dist) <= self.epsilon_px {
+                if bound_of(level) <= self.epsilon_px {
                     wanted = level;
                     break;
                 }
@@ -338,10 +369,10 @@ impl Lod {
                 .or_else(|| (0..wanted).rev().find(|&l| covers(l)))
                 .unwrap_or(ring)
         };
-        let eta = if mode == LodMode::Distance {
-            0.0
+        let (eta, bound) = if mode == LodMode::Distance {
+            (0.0, 0.0)
         } else {
-            eta_of(level)
+            (eta_of(level), bound_of(level))
         };
         #[expect(clippy::cast_possible_truncation, reason = "reported in f32")]
         BlockLod {
@@ -350,9 +381,29 @@ impl Lod {
             level,
             wanted,
             eta_m: eta as f32,
-            bound_px: self.bound_px(camera, eta, dist) as f32,
+            bound_px: bound as f32,
         }
     }
+}
+
+/// Sub-boxes per side [`Lod::box_bound_px`] splits a box into (on the tested level's lattice).
+pub const SPLIT: usize = 4;
+
+/// Up to [`SPLIT`] + 1 cut points from `lo` to `hi` (level-0 lattice), the inner ones on `level`'s lattice
+/// (multiples of 2^level), strictly increasing; just [lo, hi] when the span holds no inner lattice line.
+fn split_points(lo: i64, hi: i64, level: u32) -> heapless::Vec<i64, { SPLIT + 1 }> {
+    let mut out = heapless::Vec::new();
+    let step = 1i64 << level.min(62);
+    out.push(lo).expect("SPLIT + 1 points");
+    let n = i64::try_from(SPLIT).expect("SPLIT is small");
+    for i in 1..n {
+        let t = (lo + (hi - lo) * i / n).div_euclid(step) * step;
+        if t > *out.last().unwrap_or(&lo) && t < hi {
+            out.push(t).expect("SPLIT + 1 points");
+        }
+    }
+    out.push(hi).expect("SPLIT + 1 points");
+    out
 }
 
 /// The most blocks one frame of `profile` can have: at most 6 x 6 cells meet a ring's active region.

@@ -8,7 +8,7 @@
 
 use std::path::Path;
 
-use clipsat::bake::lod_tables::{error_map, LevelTables, LodTables, P};
+use clipsat::bake::lod_tables::{error_map, sample_error, LevelTables, LodTables, P};
 use clipsat::bake::pyramid::Pyramid;
 use clipsat::bake::sat::pow_unit;
 use clipsat::bake::{bake_lod, cache_key, cache_path, BakeParams, CacheOutcome};
@@ -317,6 +317,71 @@ fn selection_orders_the_modes() {
             "a rough terrain should need more than one level: {levels:?}"
         );
     }
+}
+
+/// The split bound of `Lod::box_bound_px` stays an upper bound of what is measured: for boxes of every
+/// size and alignment and every level, under `exact` and `sat-conservative`, it is at least the largest
+/// e_L * pixels-per-metre over the box's data samples at each sample's own distance (what
+/// `measure::screen_error` reports), and `exact`'s is never above `sat-conservative`'s.
+#[test]
+fn split_bound_covers_every_sample() {
+    let hm = terrain(129, 97, 30.0, |x, y| {
+        (200.0 * (f64::from(x) / 7.0).sin() * (f64::from(y) / 11.0).cos() + 60.0 * hash01(x, y))
+            as f32
+    });
+    let profile = Profile::load("gles3-low").expect("profile");
+    let clip = Clipmap::new(&hm, &profile, ClipmapOptions::default()).expect("clipmap");
+    let tables =
+        LodTables::build(clip.pyramid(), profile.clipmap.levels, P, |_| {}).expect("tables");
+    let lod = Lod::for_clipmap(tables, &profile, &clip, &hm);
+    let synth = clip.synth_levels();
+    let spacing = clip.g0() * f64::from(1u32 << synth);
+    let (ox, oy) = clip.origin();
+    let top = oy + 96.0 * spacing;
+    let data = clip.pyramid().level(0);
+    let cam = Camera::new(
+        DVec3::new(ox + 40.0 * spacing, top - 30.0 * spacing, 900.0),
+        DVec3::new(ox + 100.0 * spacing, top - 80.0 * spacing, 0.0),
+        60.0,
+    )
+    .expect("camera");
+    let mut checked = 0;
+    for level in synth..synth + 4 {
+        let k = level - synth;
+        for i in 0..40u32 {
+            // Level-0 lattice boxes, some on the level's lattice and some not.
+            let r = |n: u32| (hash01(i * 7 + n, level) * 128.0) as i64;
+            let (a, b) = (r(1).min(r(2)), r(1).max(r(2)).max(r(1).min(r(2)) + 1));
+            let (c, d) = (r(3).min(r(4)) * 3 / 4, r(3).max(r(4)) * 3 / 4 + 1);
+            let bx = (a << synth, c << synth, b << synth, d << synth);
+            let mut measured = 0.0f64;
+            for y in c..=d.min(96) {
+                for x in a..=b.min(128) {
+                    let z = f64::from(data.at_clamped(x, y));
+                    let rel = DVec3::new(
+                        ox + x as f64 * spacing - cam.eye.x,
+                        top - y as f64 * spacing - cam.eye.y,
+                        z - cam.eye.z,
+                    );
+                    let e = f64::from(sample_error(clip.pyramid(), k, x, y));
+                    measured =
+                        measured.max(e * cam.pixels_per_metre(rel.length(), profile.view.height));
+                }
+            }
+            let exact = lod.box_bound_px(&cam, LodMode::Exact, level, bx);
+            let cons = lod.box_bound_px(&cam, LodMode::SatConservative, level, bx);
+            assert!(
+                exact >= measured,
+                "level {level} {bx:?}: exact {exact} < measured {measured}"
+            );
+            assert!(
+                cons >= exact,
+                "level {level} {bx:?}: conservative {cons} < exact {exact}"
+            );
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, 160);
 }
 
 /// The bake cache: miss, hit (identical tables), and every damaged file refused and rebaked.
