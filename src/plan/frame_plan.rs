@@ -116,8 +116,8 @@ pub struct PlanStats {
     pub uploads: u32,
     /// Texels (samples) they cover.
     pub upload_samples: u64,
-    /// SAT modes: blocks whose wanted level is finer than the held data, rings and detail pool; 0 in
-    /// distance mode.
+    /// SAT modes: blocks in the view frustum whose wanted level is finer than the held data, rings and
+    /// detail pool; 0 in distance mode.
     pub blocks_clamped: u32,
     /// SAT modes: blocks drawn from the detail pool at their wanted level.
     pub blocks_from_pool: u32,
@@ -500,6 +500,37 @@ impl Planner {
         }
     }
 
+    /// The clamped blocks that meet the view frustum (the ones whose error shows): [`LodFrame`]'s
+    /// `blocks_clamped` less those outside it, which the pool never refines. A block the pool serves
+    /// counts when one of its cells misses epsilon.
+    ///
+    /// [`LodFrame`]: crate::plan::lod::LodFrame
+    fn visible_clamped(&self, clipmap: &Clipmap, camera: &Camera, out: &FramePlan) -> u32 {
+        let frustum = cull::Frustum::new(camera, self.aspect);
+        let view = DetailView {
+            frame: clipmap.frame(),
+            frustum: &frustum,
+            eye_l: clipmap.eye_lattice(camera.eye),
+            eye_z: camera.eye.z,
+            g0: clipmap.g0(),
+            z_range: self.z_range,
+            data_lattice: self.data_lattice,
+            epsilon_px: 0.0,
+        };
+        let d = &out.detail;
+        let mut n = 0u32;
+        for (i, b) in out.lod.blocks.iter().enumerate() {
+            let clamped = match d.served.iter().position(|&(j, _)| usize::from(j) == i) {
+                Some(k) => !d.served_met.get(k).copied().unwrap_or(false),
+                None => b.wanted < b.level,
+            };
+            if clamped && view.visible(b.ring, &b.rect) {
+                n += 1;
+            }
+        }
+        n
+    }
+
     fn triangles_of(&self, d: &cull::Draw) -> u64 {
         let r = self.index_range(d);
         u64::from((r.end - r.start) / 3)
@@ -553,7 +584,11 @@ impl Planner {
             out.detail.samples_updated = 0;
             cull::build_draws(clipmap, camera, &dp, &mut out.draws)?
         };
-        let blocks_clamped = if sat { out.lod.blocks_clamped } else { 0 };
+        let blocks_clamped = if sat {
+            self.visible_clamped(clipmap, camera, out)
+        } else {
+            0
+        };
         out.ranges.clear();
         let morph = params.morph && !sat;
         let paths = FragmentPaths::new(

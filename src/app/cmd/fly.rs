@@ -295,7 +295,7 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
         let frame_hash = match lod_mode {
             LodMode::Distance => frame.hash,
             _ => {
-                blocks_clamped_max = blocks_clamped_max.max(plan.lod_frame().blocks_clamped);
+                blocks_clamped_max = blocks_clamped_max.max(plan.stats().blocks_clamped);
                 let mut h = Hash64::new();
                 h.write_u64(frame.hash);
                 plan.lod_frame().hash_into(&mut h);

@@ -214,7 +214,7 @@ impl DetailView<'_> {
         clippy::cast_precision_loss,
         reason = "lattice coordinates are below 2^48"
     )]
-    fn visible(&self, level: u32, r: &Rect) -> bool {
+    pub(crate) fn visible(&self, level: u32, r: &Rect) -> bool {
         let k = f64::from(1u32 << level);
         let (x0, x1) = (r.x0 as f64 * k, (r.x1() - 1) as f64 * k);
         let (y0, y1) = (r.y0 as f64 * k, (r.y1() - 1) as f64 * k);
