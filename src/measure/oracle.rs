@@ -36,7 +36,7 @@ pub struct Oracle {
     /// Distinct pool tile cells those quads lie in (each drawn at its own level).
     pub pool_tiles: u64,
     /// The fewest pool tiles that hold those quads when any of them may also be drawn finer (at any level
-    /// down to the data) or in pieces from several tiles ([`min_tiles`]): a lower bound on the slots of any
+    /// down to the data) or in pieces from several tiles: a lower bound on the slots of any
     /// pool of `detail_tile_quads`-quad cells that draws no place coarser than its oracle level.
     pub pool_tiles_min: u64,
 }
