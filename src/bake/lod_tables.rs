@@ -16,6 +16,7 @@
 use std::fmt;
 use std::str::FromStr;
 
+use crate::bake::mapped::{Grid, Mapping};
 use crate::bake::pyramid::Pyramid;
 use crate::bake::sat::{pow_unit, Sat};
 use crate::{Error, Result};
@@ -168,7 +169,7 @@ pub fn sample_error(pyramid: &Pyramid, k: u32, x: i64, y: i64) -> f32 {
 #[derive(Clone, Debug, PartialEq)]
 pub struct RangeMax {
     dims: Vec<(u32, u32)>,
-    levels: Vec<Vec<f32>>,
+    levels: Vec<Grid<f32>>,
 }
 
 impl RangeMax {
@@ -179,12 +180,9 @@ impl RangeMax {
             u64::from(width) * u64::from(height),
             "range-max grid size"
         );
-        let mut dims = vec![(width, height)];
+        let dims = Self::dims(width, height);
         let mut levels = vec![values];
-        while let Some(&(w, h)) = dims.last() {
-            if w <= 1 && h <= 1 {
-                break;
-            }
+        for &(w, h) in &dims[..dims.len() - 1] {
             let (nw, nh) = (w.div_ceil(2), h.div_ceil(2));
             let prev = levels.last().expect("a level");
             let mut next = vec![0.0f32; nw as usize * nh as usize];
@@ -200,10 +198,46 @@ impl RangeMax {
                     next[y * nw as usize + x] = m;
                 }
             }
-            dims.push((nw, nh));
             levels.push(next);
         }
-        Self { dims, levels }
+        Self {
+            dims,
+            levels: levels.into_iter().map(Grid::owned).collect(),
+        }
+    }
+
+    /// Each level's (width, height), finest first: halving (rounded up) down to 1 x 1.
+    pub fn dims(width: u32, height: u32) -> Vec<(u32, u32)> {
+        let mut dims = vec![(width, height)];
+        while let Some(&(w, h)) = dims.last() {
+            if w <= 1 && h <= 1 {
+                break;
+            }
+            dims.push((w.div_ceil(2), h.div_ceil(2)));
+        }
+        dims
+    }
+
+    /// A pyramid from its levels as [`RangeMax::levels`] returns them (e.g. borrowed from a mapped
+    /// cache file); None if their number or sizes do not follow [`RangeMax::dims`] of the first.
+    pub fn from_levels(width: u32, height: u32, levels: Vec<Grid<f32>>) -> Option<Self> {
+        let dims = Self::dims(width, height);
+        let fits = dims.len() == levels.len()
+            && dims
+                .iter()
+                .zip(&levels)
+                .all(|(&(w, h), l)| l.len() as u64 == u64::from(w) * u64::from(h));
+        fits.then_some(Self { dims, levels })
+    }
+
+    /// Every level, finest first (for caching).
+    pub fn levels(&self) -> &[Grid<f32>] {
+        &self.levels
+    }
+
+    /// Bytes of the levels held in owned memory (0 for mapped ones).
+    pub fn owned_bytes(&self) -> u64 {
+        self.levels.iter().map(Grid::owned_bytes).sum()
     }
 
     /// The finest level: the values themselves.
@@ -254,6 +288,7 @@ impl RangeMax {
         let (mut x0, mut y0, mut x1, mut y1) = (x0, y0, x1, y1);
         let mut m = 0.0f32;
         for (k, vals) in self.levels.iter().enumerate() {
+            let vals: &[f32] = vals;
             if x0 >= x1 || y0 >= y1 {
                 break;
             }
@@ -511,6 +546,13 @@ impl LevelTables {
             .map_or(0, |(sat, max)| sat.memory_bytes() + max.memory_bytes())
     }
 
+    /// Bytes the tables hold in owned memory (0 when they borrow a mapped cache file).
+    pub fn owned_bytes(&self) -> u64 {
+        self.tables
+            .as_ref()
+            .map_or(0, |(sat, max)| sat.owned_bytes() + max.owned_bytes())
+    }
+
     /// The closed cells covering data samples [x0, x1) x [y0, y1) (non-empty, inside the grid).
     fn cells(&self, sat: &Sat, max: &RangeMax, x0: u32, y0: u32, x1: u32, y1: u32) -> Cells {
         let s = self.shift;
@@ -662,7 +704,7 @@ pub fn check_height_range(pyramid: &Pyramid) -> Result<()> {
 }
 
 /// Every level's tables over one terrain: index k is data level k (clipmap level k + synth_levels).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug)]
 pub struct LodTables {
     /// The exponent the SATs were built with.
     pub p: u32,
@@ -672,6 +714,16 @@ pub struct LodTables {
     pub height: u32,
     /// Per data level, finest (the data, no error) first.
     pub levels: Vec<LevelTables>,
+    /// The cache file the tables borrow from, if read through a map ([`crate::bake`]).
+    pub mapping: Option<Mapping>,
+}
+
+/// Equal tables answer every query alike, wherever they live.
+impl PartialEq for LodTables {
+    fn eq(&self, other: &Self) -> bool {
+        (self.p, self.width, self.height) == (other.p, other.width, other.height)
+            && self.levels == other.levels
+    }
 }
 
 impl LodTables {
@@ -698,12 +750,32 @@ impl LodTables {
             width: w,
             height: h,
             levels,
+            mapping: None,
         })
     }
 
     /// Bytes every level's tables hold.
     pub fn memory_bytes(&self) -> u64 {
         self.levels.iter().map(LevelTables::memory_bytes).sum()
+    }
+
+    /// Bytes of the tables held in owned memory: 0 for tables read through a map, whose pages are faulted
+    /// in by the queries and dropped by [`LodTables::trim`].
+    pub fn owned_bytes(&self) -> u64 {
+        self.levels.iter().map(LevelTables::owned_bytes).sum()
+    }
+
+    /// Whether the tables borrow a mapped cache file.
+    pub fn is_mapped(&self) -> bool {
+        self.mapping.is_some()
+    }
+
+    /// Drops the table pages the queries so far touched from the resident set (mapped tables; nothing
+    /// otherwise). The per-frame selector calls it once per frame, so at most one frame's pages are held.
+    pub fn trim(&self) {
+        if let Some(m) = &self.mapping {
+            m.trim();
+        }
     }
 
     /// The tables of data level `k`, or None past the last baked level.

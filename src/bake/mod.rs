@@ -14,14 +14,22 @@
 //! parameters (format version, p, quantum bits, level count, synthesised rings, g_0).
 //!
 //! Layout, little-endian: magic `CSATLOD1`, version, key, p, width, height, levels, quantum bits; per level
-//! k E_L (f32), a has-tables flag, then (if set) the closed cells' maximum errors (f32 per cell) and the SAT
-//! (u64 per entry), both at level k's resolution ([`LevelTables`]: cells of 2^k samples);
-//! last, a [`Hash64`] of every byte before it. A file whose magic, version, key, sizes or trailing hash do
-//! not match is rebaked and overwritten, never trusted and never a panic. Files are written to a temporary
-//! name and renamed, so a killed bake leaves no half file under the real name.
+//! k E_L (f32), a has-tables flag, then (if set) zero padding to a multiple of 8 bytes, the SAT (u64 per
+//! entry) and every level of the max pyramid over the closed cells' maximum errors (f32 per cell, finest
+//! first), at level k's resolution ([`LevelTables`]: cells of 2^k samples); zero padding to a multiple of
+//! 8; last, the CRC-32 of every byte before it (as a u64). A file whose magic, version, key, sizes or
+//! checksum do not match is rebaked and overwritten, never trusted and never a panic. Files are written to
+//! a temporary name and renamed, so a killed bake leaves no half file under the real name, and a file
+//! another process has mapped is never rewritten in place.
+//!
+//! A valid file is read through a read-only memory map ([`mapped`]): the tables borrow their ranges of it,
+//! so a large terrain's tables (4 B per sample at 4097^2) are never copied into memory, and the selector
+//! trims the pages it touched once per frame ([`LodTables::trim`]). Tables baked in this process stay in
+//! memory; [`bake_lod_mapped`] re-reads them from the file it wrote.
 
 pub mod horizon;
 pub mod lod_tables;
+pub mod mapped;
 pub mod pyramid;
 pub mod sat;
 
@@ -30,6 +38,7 @@ use std::path::{Path, PathBuf};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::bake::lod_tables::{LevelTables, LodTables, RangeMax};
+use crate::bake::mapped::{Grid, Mapping};
 use crate::bake::pyramid::Pyramid;
 use crate::bake::sat::Sat;
 use crate::hash::{hex, Hash64};
@@ -37,7 +46,7 @@ use crate::{Error, Heightmap, Result};
 
 const MAGIC: &[u8; 8] = b"CSATLOD1";
 /// Bumped whenever the layout or the meaning of a baked number changes.
-pub const FORMAT_VERSION: u32 = 2;
+pub const FORMAT_VERSION: u32 = 3;
 
 /// The default cache folder: `$CLIPSAT_CACHE`, else `target/clipsat-cache`.
 pub fn default_cache_dir() -> PathBuf {
@@ -114,15 +123,75 @@ pub fn bake_lod(
     // Before the cache: a table cached by an older build must not let an unusable terrain through.
     crate::bake::lod_tables::check_height_range(pyramid)?;
     let key = cache_key(terrain, params);
+    bake_lod_keyed(key, || Ok(std::borrow::Cow::Borrowed(pyramid)), params, dir, progress)
+}
+
+/// The cache key of a package's tables: its header (dimensions, spacing, quantum, and every tile's
+/// offset and CRC-32, so any change to its heights) and the parameters.
+pub fn package_cache_key(package: &crate::package::Package, params: &BakeParams) -> u64 {
+    let mut h = Hash64::new();
+    h.write_u32(FORMAT_VERSION);
+    h.write_bytes(b"package");
+    h.write_bytes(&package.header().to_bytes());
+    h.write_u32(params.p);
+    let h0 = package.header();
+    h.write_u32(Sat::max_frac_bits(u64::from(h0.width) * u64::from(h0.height)));
+    h.write_u32(params.levels);
+    h.write_u32(params.synth_levels);
+    h.write_u64(params.g0.to_bits());
+    h.finish()
+}
+
+/// The LOD tables of a streamed package, read through the cache file's map ([`bake_lod_mapped`]). On a
+/// miss the package is decoded whole (every level, as the streamed rings read them) for the bake: a
+/// bake-time cost; a hit decodes nothing and copies no table into memory.
+pub fn bake_lod_package(
+    package: &crate::package::Package,
+    params: &BakeParams,
+    dir: &Path,
+    progress: bool,
+) -> Result<(LodTables, CacheOutcome)> {
+    let (lo, hi) = package.header().range;
+    if !(hi - lo).is_finite() {
+        return Err(Error::Terrain(format!(
+            "heights span {lo:e} .. {hi:e} m, a range too large for f32 arithmetic (it overflows); \
+             scale them down, or use distance LOD"
+        )));
+    }
+    let key = package_cache_key(package, params);
+    let pyramid = || package.to_pyramid().map(std::borrow::Cow::Owned);
+    let (tables, outcome) = bake_lod_keyed(key, pyramid, params, dir, progress)?;
+    if tables.is_mapped() || matches!(outcome, CacheOutcome::NotCached(_)) {
+        return Ok((tables, outcome));
+    }
+    drop(tables);
+    let (again, _) = bake_lod_keyed(key, pyramid, params, dir, false)?;
+    Ok((again, outcome))
+}
+
+/// The cache lookup and bake under `key`; `pyramid` is asked for only on a miss.
+fn bake_lod_keyed<'a>(
+    key: u64,
+    pyramid: impl FnOnce() -> Result<std::borrow::Cow<'a, Pyramid>>,
+    params: &BakeParams,
+    dir: &Path,
+    progress: bool,
+) -> Result<(LodTables, CacheOutcome)> {
     let path = cache_path(dir, key);
-    let refused = match std::fs::read(&path) {
-        Ok(bytes) => match decode(&bytes, key, params) {
+    let refused = match std::fs::File::open(&path) {
+        Ok(file) => match Mapping::new(&file)
+            .map_err(|e| e.to_string())
+            .and_then(|map| decode(&map, key, params))
+        {
             Ok(t) => return Ok((t, CacheOutcome::Hit)),
             Err(reason) => Some(reason),
         },
         Err(_) => None,
     };
-    let tables = bake_uncached(pyramid, params, progress)?;
+    let pyramid = pyramid()?;
+    crate::bake::lod_tables::check_height_range(&pyramid)?;
+    let tables = bake_uncached(&pyramid, params, progress)?;
+    drop(pyramid);
     let outcome = match write_atomic(&path, &encode(&tables, key)) {
         Err(e) => CacheOutcome::NotCached(e.to_string()),
         Ok(()) => match refused {
@@ -131,6 +200,25 @@ pub fn bake_lod(
         },
     };
     Ok((tables, outcome))
+}
+
+/// [`bake_lod`], then on a bake the tables are dropped and read back through the file's map, so that only
+/// the pages a query touches stay resident (nothing terrain-sized in memory after the bake). Falls back to
+/// the baked tables when the file cannot be written.
+pub fn bake_lod_mapped(
+    terrain: &Heightmap,
+    pyramid: &Pyramid,
+    params: &BakeParams,
+    dir: &Path,
+    progress: bool,
+) -> Result<(LodTables, CacheOutcome)> {
+    let (tables, outcome) = bake_lod(terrain, pyramid, params, dir, progress)?;
+    if tables.is_mapped() || matches!(outcome, CacheOutcome::NotCached(_)) {
+        return Ok((tables, outcome));
+    }
+    drop(tables);
+    let (again, _) = bake_lod(terrain, pyramid, params, dir, false)?;
+    Ok((again, outcome))
 }
 
 /// Bakes without the cache, with an optional progress bar (one step per level).
@@ -177,19 +265,32 @@ fn encode(t: &LodTables, key: u64) -> Vec<u8> {
             None => out.extend_from_slice(&0u32.to_le_bytes()),
             Some((sat, max)) => {
                 out.extend_from_slice(&1u32.to_le_bytes());
-                out.reserve(max.values().len() * 4 + sat.table().len() * 8);
-                for v in max.values() {
-                    out.extend_from_slice(&v.to_le_bytes());
-                }
+                pad8(&mut out);
+                out.reserve(sat.table().len() * 8 + max.levels().iter().map(|g| g.len() * 4).sum::<usize>());
                 for v in sat.table() {
                     out.extend_from_slice(&v.to_le_bytes());
+                }
+                for g in max.levels() {
+                    for v in g.iter() {
+                        out.extend_from_slice(&v.to_le_bytes());
+                    }
                 }
             }
         }
     }
-    seal(&mut out);
+    pad8(&mut out);
+    let crc = crc32fast::hash(&out);
+    out.extend_from_slice(&u64::from(crc).to_le_bytes());
     out
 }
+
+/// Zero bytes up to the next multiple of 8 (the SAT's u64 entries are read in place from the map).
+fn pad8(out: &mut Vec<u8>) {
+    out.resize(out.len().next_multiple_of(8), 0);
+}
+
+/// Bytes checked (and then trimmed from the resident set) at a time when a mapped cache file is verified.
+const VERIFY_CHUNK: usize = 4 << 20;
 
 /// A little-endian reader that refuses to run past the end.
 pub(crate) struct Reader<'a> {
@@ -251,8 +352,30 @@ pub(crate) fn unseal<'a>(
     Ok(Reader { bytes: body, at: 8 })
 }
 
-fn decode(bytes: &[u8], key: u64, params: &BakeParams) -> std::result::Result<LodTables, String> {
-    let mut r = unseal(bytes, MAGIC, "LOD")?;
+/// Reads a cache file through a read-only map: the CRC-32 trailer is checked over the whole body in
+/// chunks whose pages are dropped from the resident set as soon as they are checked, then the tables
+/// borrow their ranges of the map ([`mapped::Grid`]), so nothing terrain-sized is copied into memory.
+fn decode(map: &Mapping, key: u64, params: &BakeParams) -> std::result::Result<LodTables, String> {
+    let bytes = map.bytes();
+    if bytes.len() < 16 || &bytes[..8] != MAGIC || bytes.len() % 8 != 0 {
+        return Err("not a clipsat LOD cache file (bad magic or length)".into());
+    }
+    let body_len = bytes.len() - 8;
+    let mut crc = crc32fast::Hasher::new();
+    for at in (0..body_len).step_by(VERIFY_CHUNK) {
+        let end = (at + VERIFY_CHUNK).min(body_len);
+        crc.update(&bytes[at..end]);
+        map.trim_range(at, end - at);
+    }
+    let mut t = [0u8; 8];
+    t.copy_from_slice(&bytes[body_len..]);
+    if u64::from(crc.finalize()) != u64::from_le_bytes(t) {
+        return Err("content checksum mismatch (corrupted file)".into());
+    }
+    let mut r = Reader {
+        bytes: &bytes[..body_len],
+        at: 8,
+    };
     let version = r.u32()?;
     if version != FORMAT_VERSION {
         return Err(format!(
@@ -272,7 +395,6 @@ fn decode(bytes: &[u8], key: u64, params: &BakeParams) -> std::result::Result<Lo
     for k in 0..levels {
         let shift = k.min(30);
         let (cw, ch) = LevelTables::closed_cells(width, height, shift);
-        let cells = usize::try_from(u64::from(cw) * u64::from(ch)).map_err(|_| "grid too large")?;
         let cell = 1u32 << shift;
         let entries = u64::from(width.div_ceil(cell)) * u64::from(height.div_ceil(cell));
         let entries = usize::try_from(entries).map_err(|_| "grid too large")?;
@@ -281,36 +403,32 @@ fn decode(bytes: &[u8], key: u64, params: &BakeParams) -> std::result::Result<Lo
         let tables = match has {
             0 => None,
             1 => {
-                let errs: Vec<f32> = r
-                    .take(cells.checked_mul(4).ok_or("size overflow")?)?
-                    .chunks_exact(4)
-                    .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-                    .collect();
-                let sat: Vec<u64> = r
-                    .take(entries.checked_mul(8).ok_or("size overflow")?)?
-                    .chunks_exact(8)
-                    .map(|c| {
-                        let mut w = [0u8; 8];
-                        w.copy_from_slice(c);
-                        u64::from_le_bytes(w)
-                    })
-                    .collect();
-                if !(e_max.is_finite() && e_max > 0.0)
-                    || errs
-                        .iter()
-                        .any(|e| !(e.is_finite() && *e >= 0.0 && *e <= e_max))
-                {
+                r.take(r.at.next_multiple_of(8) - r.at)?;
+                let sat = grid::<u64>(map, &mut r, entries)?;
+                let mut maxima = Vec::new();
+                for (w, h) in RangeMax::dims(cw, ch) {
+                    let cells = usize::try_from(u64::from(w) * u64::from(h))
+                        .map_err(|_| "grid too large")?;
+                    maxima.push(grid::<f32>(map, &mut r, cells)?);
+                }
+                if !(e_max.is_finite() && e_max > 0.0) {
                     return Err("error map values out of range".into());
                 }
-                let sat =
-                    Sat::from_parts(width, height, cell, frac, sat).map_err(|e| e.to_string())?;
-                Some((sat, RangeMax::build(cw, ch, errs)))
+                // The finest maxima bound every query's exact answer: check them (a pass over a quarter
+                // of the level's cells or fewer), trimming as the checksum pass did.
+                if !in_range(map, &maxima[0], e_max) {
+                    return Err("error map values out of range".into());
+                }
+                let sat = Sat::from_grid(width, height, cell, frac, sat).map_err(|e| e.to_string())?;
+                let max = RangeMax::from_levels(cw, ch, maxima).ok_or("bad max pyramid sizes")?;
+                Some((sat, max))
             }
             _ => return Err(format!("bad has-tables flag {has}")),
         };
         let shift = if tables.is_some() { shift } else { 0 };
         out.push(LevelTables::from_parts(e_max, shift, tables));
     }
+    r.take(r.at.next_multiple_of(8) - r.at)?;
     if !r.done() {
         return Err("trailing bytes".into());
     }
@@ -319,5 +437,38 @@ fn decode(bytes: &[u8], key: u64, params: &BakeParams) -> std::result::Result<Lo
         width,
         height,
         levels: out,
+        mapping: Some(map.clone()),
+    })
+}
+
+/// `len` values of `T` at the reader's position, borrowed from the map (read into memory on a platform
+/// where they cannot be borrowed).
+fn grid<T: bytemuck::Pod>(
+    map: &Mapping,
+    r: &mut Reader<'_>,
+    len: usize,
+) -> std::result::Result<Grid<T>, String> {
+    let at = r.at;
+    let bytes = r.take(len.checked_mul(std::mem::size_of::<T>()).ok_or("size overflow")?)?;
+    Ok(Grid::mapped(map, at, len).unwrap_or_else(|| {
+        Grid::owned(
+            bytes
+                .chunks_exact(std::mem::size_of::<T>())
+                .map(bytemuck::pod_read_unaligned)
+                .collect(),
+        )
+    }))
+}
+
+/// Whether every value of `g` is a finite error in [0, e_max]; mapped pages are trimmed as they are read.
+fn in_range(map: &Mapping, g: &Grid<f32>, e_max: f32) -> bool {
+    let base = g.as_ptr() as usize;
+    let start = base.wrapping_sub(map.bytes().as_ptr() as usize);
+    g.chunks(VERIFY_CHUNK / 4).enumerate().all(|(i, c)| {
+        let ok = c.iter().all(|e| e.is_finite() && *e >= 0.0 && *e <= e_max);
+        if g.is_mapped() {
+            map.trim_range(start + i * VERIFY_CHUNK, c.len() * 4);
+        }
+        ok
     })
 }

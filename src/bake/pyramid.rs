@@ -75,6 +75,29 @@ impl Pyramid {
         Self { levels }
     }
 
+    /// A pyramid from levels decoded elsewhere (a package's, [`crate::package::Package::to_pyramid`]),
+    /// each `(width, height, heights)` row-major, finest first; panics if a level's samples do not match
+    /// its size or there is none (a caller bug).
+    pub fn from_levels(levels: Vec<(u32, u32, Vec<f32>)>) -> Self {
+        assert!(!levels.is_empty(), "a pyramid has a level");
+        let levels = levels
+            .into_iter()
+            .map(|(width, height, heights)| {
+                assert_eq!(
+                    heights.len() as u64,
+                    u64::from(width) * u64::from(height),
+                    "pyramid level size"
+                );
+                PyramidLevel {
+                    width,
+                    height,
+                    heights,
+                }
+            })
+            .collect();
+        Self { levels }
+    }
+
     /// Number of levels.
     pub fn len(&self) -> usize {
         self.levels.len()

@@ -43,6 +43,7 @@
 //! only cell-aligned boxes, in 8 / c^2 bytes per sample (16385^2 with c = 16: 8.4 MB); the quantisation is
 //! still per sample, so the error bound above is unchanged.
 
+use crate::bake::mapped::Grid;
 use crate::{Error, Result};
 
 /// A summed-area table of values in [0, 1], in exact u64 fixed point (see the module docs).
@@ -58,7 +59,7 @@ pub struct Sat {
     rows: u32,
     frac_bits: u32,
     /// Inclusive prefix sums over cells, row-major, wrapping.
-    table: Vec<u64>,
+    table: Grid<u64>,
 }
 
 /// x^p for x in [0, 1], by repeated squaring in f64: no libm call (bit-identical everywhere), no trap.
@@ -187,6 +188,18 @@ impl Sat {
         frac_bits: u32,
         table: Vec<u64>,
     ) -> Result<Self> {
+        Self::from_grid(width, height, cell, frac_bits, Grid::owned(table))
+    }
+
+    /// [`Sat::from_parts`] over a table that may live in a memory-mapped cache file
+    /// ([`crate::bake::mapped`]).
+    pub fn from_grid(
+        width: u32,
+        height: u32,
+        cell: u32,
+        frac_bits: u32,
+        table: Grid<u64>,
+    ) -> Result<Self> {
         let n = u64::from(width) * u64::from(height);
         if n == 0 || cell == 0 || frac_bits > Self::max_frac_bits(n) {
             return Err(Error::Invalid {
@@ -245,6 +258,11 @@ impl Sat {
     /// Bytes the table takes.
     pub fn memory_bytes(&self) -> u64 {
         self.table.len() as u64 * 8
+    }
+
+    /// Bytes of the table held in owned memory (0 when it borrows a mapped cache file).
+    pub fn owned_bytes(&self) -> u64 {
+        self.table.owned_bytes()
     }
 
     #[inline]

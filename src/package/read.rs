@@ -162,8 +162,26 @@ impl Package {
         self.decode_level(0)
     }
 
+    /// Every level decoded, in metres, as the streamed rings read them (allocates the whole pyramid: a
+    /// bake-time step, for the SAT LOD tables of a package).
+    pub fn to_pyramid(&self) -> Result<crate::bake::pyramid::Pyramid> {
+        let mut levels = Vec::with_capacity(self.header.levels.len());
+        self.decode_levels(0, |lk, units| {
+            let d = self.header.levels[lk];
+            let m = units.iter().map(|&v| self.metres(v)).collect();
+            levels.push((d.width, d.height, m));
+        })?;
+        levels.reverse();
+        Ok(crate::bake::pyramid::Pyramid::from_levels(levels))
+    }
+
     /// Decodes levels coarse to fine down to `stop` and returns that level in quantum units (allocates it).
     pub fn decode_level(&self, stop: usize) -> Result<Vec<i32>> {
+        self.decode_levels(stop, |_, _| ())
+    }
+
+    /// [`Package::decode_level`], handing each level (coarse to fine) to `each` as it is decoded.
+    fn decode_levels(&self, stop: usize, mut each: impl FnMut(usize, &[i32])) -> Result<Vec<i32>> {
         let mut scratch = self.tile_decoder()?;
         let levels = &self.header.levels;
         let mut coarse: Vec<i32> = Vec::new();
@@ -196,6 +214,7 @@ impl Package {
                     }
                 }
             }
+            each(lk, &level);
             coarse = level;
             (cw, ch) = (i64::from(d.width), i64::from(d.height));
         }

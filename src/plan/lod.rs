@@ -122,14 +122,17 @@ impl Lod {
         }
     }
 
-    /// A selector for `clipmap`'s geometry (its level-0 spacing, synthesised rings and terrain placement).
+    /// A selector for `clipmap`'s geometry (its level-0 spacing, synthesised rings and terrain placement;
+    /// `terrain` places the grid and may be a streamed package's coarse stand-in, whose rows line up with
+    /// the data's; the height range is the clipmap's data range).
     pub fn for_clipmap(
         tables: LodTables,
         profile: &crate::Profile,
         clipmap: &crate::plan::clipmap::Clipmap,
         terrain: &crate::Heightmap,
     ) -> Self {
-        let (lo, hi) = terrain.range();
+        // The data's range (a streamed package's header has it; `terrain` may be a coarse stand-in).
+        let (lo, hi) = clipmap.data_range();
         // Heightmap::grid_to_world: sample (0, 0) sits at origin + (0, (rows - 1) s).
         let (ox, oy) = terrain.origin();
         let y_top = oy + f64::from(terrain.height() - 1) * f64::from(terrain.spacing());
@@ -253,6 +256,8 @@ impl Lod {
         mode: LodMode,
         out: &mut LodFrame,
     ) -> Result<()> {
+        // Mapped tables: last frame's pages leave the resident set (issue 13; at most a frame's are held).
+        self.tables.trim();
         out.blocks.clear();
         out.blocks_clamped = 0;
         out.blocks_coarser = 0;

@@ -147,3 +147,90 @@ fn fly_from(cm: &mut Clipmap, range: std::ops::Range<u32>, budget: u32, hashes: 
         hashes.push(hash);
     }
 }
+
+/// SAT LOD over a streamed package (issue 13): the tables are read through a map of their cache file
+/// (nothing owned), every frame's block levels equal those chosen from the same tables baked in memory
+/// from the package's decoded pyramid, and planning allocates nothing while the map is trimmed each frame.
+#[test]
+fn sat_lod_streams_from_mapped_tables_without_allocating() {
+    use clipsat::bake::lod_tables::{LodTables, P};
+    use clipsat::bake::{bake_lod_package, BakeParams, CacheOutcome};
+    use clipsat::plan::frame_plan::{LodSetup, PlanParams, Planner};
+    use clipsat::plan::lod::{Lod, LodFrame, LodMode};
+
+    let dir = std::env::temp_dir().join(format!("clipsat-stream-sat-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let path = dir.join("sat.clipsat");
+    let opts = BakeOptions {
+        max_error: Some(0.05),
+        tile: 32,
+        zstd_level: 3,
+        ..BakeOptions::default()
+    };
+    package::bake(&terrain(), &path, &opts, &indicatif::ProgressBar::hidden()).expect("bake");
+    let p = profile();
+    let open = || Package::open(&path).expect("open");
+    let mut cm = Clipmap::streamed(open(), &p, ClipmapOptions::default()).expect("streamed");
+    let params = BakeParams {
+        p: P,
+        levels: p.clipmap.levels,
+        synth_levels: 0,
+        g0: cm.g0(),
+    };
+    let cache = dir.join("lod-cache");
+    let pkg = open();
+    let coarse = pkg.coarse_heightmap(1 << 16).expect("coarse");
+    let (tables, o) = bake_lod_package(&pkg, &params, &cache, false).expect("tables");
+    assert_eq!(o, CacheOutcome::Baked);
+    assert!(tables.is_mapped() && tables.owned_bytes() == 0, "mapped");
+    let (hit, o) = bake_lod_package(&pkg, &params, &cache, false).expect("hit");
+    assert_eq!(o, CacheOutcome::Hit);
+    assert!(hit.is_mapped());
+    // The same tables baked in memory from the decoded pyramid.
+    let owned = clipsat::bake::bake_uncached(
+        &pkg.to_pyramid().expect("pyramid"),
+        &params,
+        false,
+    )
+    .expect("owned");
+    assert!(!owned.is_mapped() && owned.owned_bytes() > 0);
+    assert_eq!(tables, owned, "mapped and in-memory tables differ");
+    let mapped_lod = Lod::for_clipmap(tables, &p, &cm, &coarse);
+    let owned_lod = Lod::for_clipmap(owned, &p, &cm, &coarse);
+    let _: &LodTables = owned_lod.tables();
+    let mut planner = Planner::new(
+        &p,
+        &cm,
+        LodSetup::new(LodMode::SatConservative, Some(mapped_lod.clone())).expect("setup"),
+    )
+    .expect("planner");
+    let mut plan = planner.new_plan();
+    let mut want = LodFrame::new_boxed();
+    let pp = PlanParams {
+        epsilon_px: Some(2.0),
+        ..PlanParams::default()
+    };
+    for t in 0..40 {
+        cm.update(eye(t)).expect("update");
+    }
+    let mut frames = 0;
+    for t in 40..400 {
+        let e = eye(t);
+        let cam = clipsat::Camera::new(e, e + DVec3::new(300.0, 200.0, -400.0), 60.0).expect("cam");
+        cm.update(e).expect("update");
+        let n = count(|| planner.plan(&cm, &cam, &pp, &mut plan).expect("plan"));
+        assert_eq!(n, 0, "frame {t}: {n} allocations");
+        for mode in [LodMode::Sat, LodMode::SatConservative, LodMode::Exact] {
+            let mut a = LodFrame::new_boxed();
+            let (mut l1, mut l2) = (mapped_lod.clone(), owned_lod.clone());
+            l1.set_epsilon_px(2.0);
+            l2.set_epsilon_px(2.0);
+            l1.select(cm.frame(), &cam, mode, &mut a).expect("select");
+            l2.select(cm.frame(), &cam, mode, &mut want).expect("select");
+            assert_eq!(a, want, "frame {t} {mode:?}: levels differ");
+        }
+        frames += 1;
+    }
+    assert!(frames > 0 && !plan.lod_frame().blocks.is_empty());
+    let _ = std::fs::remove_dir_all(&dir);
+}

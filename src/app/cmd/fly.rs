@@ -133,10 +133,10 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
     let opts = ClipmapOptions {
         synth_levels: args.synth_levels,
     };
-    // A package flown on the CPU alone (distance LOD, no rendering) streams through the profile's tile
+    // A package flown on the CPU alone (no rendering) streams through the profile's tile
     // cache; the camera path follows a coarse level of it. Otherwise it is decoded whole.
     let package = match args.terrain.package()? {
-        Some(p) if lod_mode == LodMode::Distance && args.render.is_none() => Some(p),
+        Some(p) if args.render.is_none() => Some(p),
         _ => None,
     };
     let (terrain_name, hm, mut clipmap) = match package {
@@ -158,9 +158,17 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
         })?
         .with_fov_y_deg(f64::from(profile.view.fov_y_deg));
 
-    let lod = match lod_mode {
-        LodMode::Distance => None,
-        _ => Some(super::render::lod_for(&hm, &profile, &clipmap, !args.json)?),
+    let lod = match (lod_mode, clipmap.tile_cache()) {
+        (LodMode::Distance, _) => None,
+        // Streamed: the tables are read through a map of their cache file (issue 13).
+        (_, Some(cache)) => Some(super::render::lod_for_package(
+            cache.package(),
+            &hm,
+            &profile,
+            &clipmap,
+            !args.json,
+        )?),
+        (_, None) => Some(super::render::lod_for(&hm, &profile, &clipmap, !args.json)?),
     };
     // Every frame is planned (the SAT modes' block levels go into the frame hash); the plan is allocated
     // here, once.

@@ -68,7 +68,8 @@ pub(crate) struct RenderArgs {
     #[arg(long, value_delimiter = ',')]
     oracle: Vec<f64>,
     /// Clipmap only: stream a plain source like a package (baked into the cache folder on first use):
-    /// no whole heightmap resident. Distance LOD and basic shading only; a package streams without it.
+    /// no whole heightmap resident, the SAT LOD tables read through a map of their cache file. Basic
+    /// shading only; a package streams without it.
     #[arg(long)]
     stream: bool,
     /// Clipmap only: disable the GC 6.2 transition morph.
@@ -108,6 +109,26 @@ pub(crate) fn lod_for(
     Ok(Lod::for_clipmap(tables, profile, clipmap, hm))
 }
 
+/// The SAT LOD selector for a streamed `clipmap` (`coarse`: the package's coarse stand-in heightmap): the
+/// tables are read through a map of their cache file, baked from the decoded package on a miss.
+pub(crate) fn lod_for_package(
+    package: &clipsat::package::Package,
+    coarse: &Heightmap,
+    profile: &Profile,
+    clipmap: &Clipmap,
+    progress: bool,
+) -> Result<Lod> {
+    let params = BakeParams {
+        p: clipsat::bake::lod_tables::P,
+        levels: profile.clipmap.levels,
+        synth_levels: clipmap.synth_levels(),
+        g0: clipmap.g0(),
+    };
+    let (tables, _) =
+        bake::bake_lod_package(package, &params, &bake::default_cache_dir(), progress)?;
+    Ok(Lod::for_clipmap(tables, profile, clipmap, coarse))
+}
+
 /// Most samples of the package level a streamed render fits its camera to (1 Mi: 4 MiB of f32).
 const STREAMED_CAMERA_SAMPLES: u64 = 1 << 20;
 
@@ -133,13 +154,11 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
     // nothing terrain-sized stays resident, and the camera fits a coarse level. The SAT modes, sg shading
     // and the brute-force reference still decode it whole (their inputs are built from the heightmap).
     // `--stream` does the same for a plain source, baked into the cache on first use.
-    let streamable =
-        lod_mode == LodMode::Distance && sg.is_none() && !args.brute && !args.ground_truth;
+    let streamable = sg.is_none() && !args.brute && !args.ground_truth;
     if args.stream && !streamable {
         return Err(arg_error(
             "--stream",
-            "streams distance LOD with basic shading only (not --lod sat, --shading sg, --brute or \
-             --ground-truth)",
+            "streams with basic shading only (not --shading sg, --brute or --ground-truth)",
         ));
     }
     let package = match args.terrain.package()? {
@@ -201,10 +220,19 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
     }
     // The error maps serve the SAT modes and the measured error of any mode (not measured when streamed:
     // the measurement needs the whole pyramid).
-    let lod = if lod_mode != LodMode::Distance || (args.json && !streamed) {
-        Some(lod_for(&hm, &profile, &clipmap, !args.json)?)
-    } else {
-        None
+    let lod = match clipmap.tile_cache() {
+        Some(cache) if lod_mode != LodMode::Distance => Some(lod_for_package(
+            cache.package(),
+            &hm,
+            &profile,
+            &clipmap,
+            !args.json,
+        )?),
+        Some(_) => None,
+        None if lod_mode != LodMode::Distance || args.json => {
+            Some(lod_for(&hm, &profile, &clipmap, !args.json)?)
+        }
+        None => None,
     };
     let baked = sg.as_ref().map(|sg| sg.bake(&gpu, &hm)).transpose()?;
     let shading = super::sg::shading(&hm, sg.as_ref(), baked.as_ref());
@@ -253,8 +281,9 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
     // The measured error of what was drawn (the draw list is the same for both renders above).
     // The SAT modes measure with the epsilon they drew at (the planner's selector).
     let lod_used = r.lod().or(lod.as_ref());
-    let measured =
-        lod_used.map(|l| measure::screen_error(r.plan(), r.size(), &clipmap, &camera, l));
+    let measured = lod_used
+        .filter(|_| !streamed)
+        .map(|l| measure::screen_error(r.plan(), r.size(), &clipmap, &camera, l));
     let oracle = (!args.oracle.is_empty() && !streamed).then(|| {
         measure::oracle(
             &clipmap,
@@ -326,6 +355,8 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
             "lod": lod_mode.to_string(),
             "epsilon_px": epsilon_used,
             "blocks_clamped": frame.stats.blocks_clamped,
+            "lod_tables_owned_bytes": lod_used.map(|l| l.tables().owned_bytes()),
+            "lod_tables_mapped": lod_used.map(|l| l.tables().is_mapped()),
             "blocks_from_pool": frame.stats.blocks_from_pool,
             "detail_tiles_resident": frame.stats.detail_tiles_resident,
             "detail_samples_updated": frame.stats.detail_samples_updated,

@@ -30,10 +30,12 @@ pub(super) struct PackageRow {
     memcpy_s: f64,
 }
 
-/// Peak RSS of one terrain's two render commands (None: not measured).
+/// Peak RSS of one terrain's render commands (None: not measured).
 pub(super) struct RssRow {
     name: String,
     sat: Option<u64>,
+    /// `--lod sat --stream`: the package streamed, the LOD tables read through a map (full runs only).
+    sat_stream: Option<u64>,
     sg: Option<u64>,
 }
 
@@ -149,6 +151,12 @@ pub(super) fn measure(
         rss.push(RssRow {
             name: name.clone(),
             sat: run(&["--profile", profile, "--lod", "sat"]),
+            // A quick run skips it: its first run bakes a package (seconds even for small terrains).
+            sat_stream: if reps > 1 {
+                run(&["--profile", profile, "--lod", "sat", "--stream"])
+            } else {
+                None
+            },
             sg: run(&["--profile", "desktop", "--shading", "sg"]),
         });
         bar.inc(1);
@@ -284,7 +292,9 @@ pub(super) fn section(m: &TerrainMemory, machine: &str, cpu_budget: u64) -> Stri
     let _ = writeln!(
         s,
         "\nPeak RSS (`/usr/bin/time -v`; a full run reports the second run, as the first bakes the LOD \
-         tables and shading inputs into the cache) of `clipsat render --terrain T --size {}x{}` with `--profile {} --lod sat` and with \
+         tables and shading inputs into the cache) of `clipsat render --terrain T --size {}x{}` with `--profile {} --lod sat`, \
+         the same with `--stream` (the terrain baked into a package and streamed through the tile cache, the \
+         LOD tables read through a map of their cache file; full runs only), and with \
          `--profile desktop --shading sg`; terrain-dependent: minus the same command on the first terrain. \
          The budget: `budget.cpu_memory_bytes` of the SAT run's profile ({}); the desktop profile has 256 \
          MiB.{}\n",
@@ -297,21 +307,27 @@ pub(super) fn section(m: &TerrainMemory, machine: &str, cpu_budget: u64) -> Stri
             .map_or_else(String::new, |n| format!(" Not measured: {n}."))
     );
     s.push_str(
-        "| terrain | render --lod sat | terrain-dependent | within budget | render --shading sg (desktop) | \
-         terrain-dependent |\n|---|---|---|---|---|---|\n",
+        "| terrain | render --lod sat | terrain-dependent | within budget | --lod sat --stream | \
+         terrain-dependent | within budget | render --shading sg (desktop) | terrain-dependent |\n\
+         |---|---|---|---|---|---|---|---|---|\n",
     );
     let base = m.rss.first();
     let cell = |v: Option<u64>| v.map_or_else(|| "-".to_string(), mib);
     let extra = |v: Option<u64>, b: Option<u64>| -> Option<u64> { Some(v?.saturating_sub(b?)) };
     for r in &m.rss {
         let sat_extra = extra(r.sat, base.and_then(|b| b.sat));
+        let stream_extra = extra(r.sat_stream, base.and_then(|b| b.sat_stream));
+        let within = |e: Option<u64>| e.map_or("-", |e| if e <= cpu_budget { "yes" } else { "no" });
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             r.name,
             cell(r.sat),
             cell(sat_extra),
-            sat_extra.map_or("-", |e| if e <= cpu_budget { "yes" } else { "no" }),
+            within(sat_extra),
+            cell(r.sat_stream),
+            cell(stream_extra),
+            within(stream_extra),
             cell(r.sg),
             cell(extra(r.sg, base.and_then(|b| b.sg))),
         );

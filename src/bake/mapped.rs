@@ -1,0 +1,186 @@
+//! Stage 1, bake: read-only grids of baked numbers, held in memory or read through a memory-mapped cache
+//! file (issue 13: the SAT LOD tables of a large terrain are not kept resident).
+//!
+//! A [`Grid`] is a slice of plain numbers. Baked in this process it owns a `Vec`; read back from the LOD
+//! cache ([`crate::bake`]) it borrows a range of the file's read-only map, so only the pages a query
+//! touches are ever in memory. [`Mapping::trim`] hands the touched pages back to the kernel (they stay in
+//! its page cache, outside the process's resident set): a caller that trims once per frame holds at most
+//! one frame's worth of table pages, whatever the terrain's size. The answers are the same bytes either
+//! way, so every bound and every frame hash is unchanged by where a grid lives.
+
+use std::ops::Deref;
+use std::sync::Arc;
+
+/// A read-only memory map shared by the grids that borrow it.
+#[derive(Clone)]
+pub struct Mapping(Arc<memmap2::Mmap>);
+
+impl std::fmt::Debug for Mapping {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "Mapping({} bytes)", self.0.len())
+    }
+}
+
+impl Mapping {
+    /// Maps `file` read-only.
+    ///
+    /// The caller must not let the file change while mapped: the cache writes a new file under a
+    /// temporary name and renames it, so a mapped file is never rewritten in place.
+    pub fn new(file: &std::fs::File) -> std::io::Result<Self> {
+        // SAFETY: read-only and private; the cache replaces files by rename, never in place (see above),
+        // and a file truncated underneath by another process is outside what any reader can defend against.
+        let map = unsafe { memmap2::Mmap::map(file) }?;
+        Ok(Self(Arc::new(map)))
+    }
+
+    /// The mapped bytes.
+    pub fn bytes(&self) -> &[u8] {
+        &self.0
+    }
+
+    /// Drops the pages of `offset .. offset + len` from this process's resident set (the next read faults
+    /// them back in from the kernel's page cache; the contents are unchanged). Best effort: a platform
+    /// without the advice keeps the pages.
+    pub fn trim_range(&self, offset: usize, len: usize) {
+        #[cfg(unix)]
+        {
+            let end = offset.saturating_add(len).min(self.0.len());
+            if end > offset {
+                // SAFETY: MADV_DONTNEED on a read-only, file-backed private map only discards clean pages,
+                // which are re-read from the file: no byte a slice of the map shows can change.
+                let _ = unsafe {
+                    self.0.unchecked_advise_range(
+                        memmap2::UncheckedAdvice::DontNeed,
+                        offset,
+                        end - offset,
+                    )
+                };
+            }
+        }
+        #[cfg(not(unix))]
+        let _ = (offset, len);
+    }
+
+    /// Drops every page of the map from the resident set ([`Mapping::trim_range`]).
+    pub fn trim(&self) {
+        self.trim_range(0, self.0.len());
+    }
+}
+
+#[derive(Clone)]
+enum Store<T> {
+    Owned(Vec<T>),
+    /// `len` values from byte `offset` of the map (aligned for `T`; checked when made).
+    Mapped {
+        map: Mapping,
+        offset: usize,
+        len: usize,
+    },
+}
+
+/// A read-only slice of plain numbers, owned or borrowed from a [`Mapping`].
+#[derive(Clone)]
+pub struct Grid<T: bytemuck::Pod> {
+    store: Store<T>,
+}
+
+impl<T: bytemuck::Pod> Grid<T> {
+    /// A grid that owns its values.
+    pub fn owned(values: Vec<T>) -> Self {
+        Self {
+            store: Store::Owned(values),
+        }
+    }
+
+    /// `len` values of `T` stored little-endian at byte `offset` of `map`; None if the range is past the
+    /// map or misaligned for `T` (then the caller reads the values into an owned grid instead), or on a
+    /// big-endian target (the bytes are little-endian).
+    pub fn mapped(map: &Mapping, offset: usize, len: usize) -> Option<Self> {
+        if cfg!(target_endian = "big") {
+            return None;
+        }
+        let end = len
+            .checked_mul(std::mem::size_of::<T>())
+            .and_then(|b| b.checked_add(offset))?;
+        let bytes = map.bytes().get(offset..end)?;
+        bytemuck::try_cast_slice::<u8, T>(bytes).ok()?;
+        Some(Self {
+            store: Store::Mapped {
+                map: map.clone(),
+                offset,
+                len,
+            },
+        })
+    }
+
+    /// Whether the values live in a map rather than in memory this grid owns.
+    pub fn is_mapped(&self) -> bool {
+        matches!(self.store, Store::Mapped { .. })
+    }
+
+    /// Bytes this grid holds in owned memory (0 when mapped: its pages are the kernel's, faulted in on
+    /// use and trimmed by the map's owner).
+    pub fn owned_bytes(&self) -> u64 {
+        match &self.store {
+            Store::Owned(v) => (v.len() * std::mem::size_of::<T>()) as u64,
+            Store::Mapped { .. } => 0,
+        }
+    }
+}
+
+impl<T: bytemuck::Pod> Deref for Grid<T> {
+    type Target = [T];
+
+    #[inline]
+    fn deref(&self) -> &[T] {
+        match &self.store {
+            Store::Owned(v) => v,
+            Store::Mapped { map, offset, len } => bytemuck::cast_slice(
+                &map.bytes()[*offset..*offset + *len * std::mem::size_of::<T>()],
+            ),
+        }
+    }
+}
+
+impl<T: bytemuck::Pod + PartialEq> PartialEq for Grid<T> {
+    fn eq(&self, other: &Self) -> bool {
+        **self == **other
+    }
+}
+
+impl<T: bytemuck::Pod + Eq> Eq for Grid<T> {}
+
+impl<T: bytemuck::Pod> std::fmt::Debug for Grid<T> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let kind = if self.is_mapped() { "mapped" } else { "owned" };
+        write!(f, "Grid({} values, {kind})", self.len())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn mapped_grid_reads_the_file_and_refuses_bad_ranges() {
+        let dir = std::env::temp_dir().join(format!("clipsat-mapped-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("grid.bin");
+        let values: Vec<u64> = (0..100).map(|i| i * 7 + 1).collect();
+        let mut bytes = vec![0u8; 8];
+        bytes.extend(values.iter().flat_map(|v| v.to_le_bytes()));
+        std::fs::write(&path, &bytes).unwrap();
+        let map = Mapping::new(&std::fs::File::open(&path).unwrap()).unwrap();
+        let g = Grid::<u64>::mapped(&map, 8, 100).unwrap();
+        assert!(g.is_mapped());
+        assert_eq!(&*g, &values[..]);
+        assert_eq!(g, Grid::owned(values.clone()));
+        assert_eq!(g.owned_bytes(), 0);
+        map.trim();
+        assert_eq!(&*g, &values[..], "trimming never changes the bytes");
+        assert!(Grid::<u64>::mapped(&map, 4, 10).is_none(), "misaligned");
+        assert!(Grid::<u64>::mapped(&map, 8, 101).is_none(), "past the end");
+        drop(g);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
