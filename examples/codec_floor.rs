@@ -10,9 +10,9 @@ use std::collections::HashMap;
 use std::path::Path;
 
 use clipsat::package::codec::{zigzag, Encoder};
-use clipsat::package::CodecKind;
 use clipsat::package::format::Header;
 use clipsat::package::write::residual_tiles;
+use clipsat::package::CodecKind;
 
 fn entropy(counts: &HashMap<i32, u64>) -> (f64, u64) {
     let n: u64 = counts.values().sum();
@@ -33,7 +33,15 @@ fn main() {
     let hm = clipsat::source::load(path, &clipsat::source::LoadOptions::default()).unwrap();
     let n0 = u64::from(hm.width()) * u64::from(hm.height());
     let tile = 64;
-    let header = Header::new(hm.width(), hm.height(), hm.spacing(), hm.origin(), 2.0 * max_error, CodecKind::Zstd, tile);
+    let header = Header::new(
+        hm.width(),
+        hm.height(),
+        hm.spacing(),
+        hm.origin(),
+        2.0 * max_error,
+        CodecKind::Zstd,
+        tile,
+    );
     // Per level: value counts, context counts (context = left neighbour's |r| bucket in the tile).
     let mut per_level: Vec<HashMap<i32, u64>> = vec![HashMap::new(); header.levels.len()];
     let mut ctx_level: Vec<HashMap<(u8, i32), u64>> = vec![HashMap::new(); header.levels.len()];
@@ -44,7 +52,11 @@ fn main() {
             *per_level[lk].entry(v).or_default() += 1;
             let x = i as u32 % tw;
             let left = if x > 0 { r[i - 1].unsigned_abs() } else { 0 };
-            let up = if i >= tw as usize { r[i - tw as usize].unsigned_abs() } else { 0 };
+            let up = if i >= tw as usize {
+                r[i - tw as usize].unsigned_abs()
+            } else {
+                0
+            };
             let b = |a: u32| -> u8 { a.min(3) as u8 };
             let parity = ((i as u32 / tw) & 1) * 2 + (x & 1);
             let c = b(left) * 16 + b(up) * 4 + parity as u8;
@@ -54,7 +66,14 @@ fn main() {
         Ok(())
     })
     .unwrap();
-    println!("{}: {} x {}, {} levels, max_error {max_error} (q {})", path.display(), hm.width(), hm.height(), header.levels.len(), 2.0 * max_error);
+    println!(
+        "{}: {} x {}, {} levels, max_error {max_error} (q {})",
+        path.display(),
+        hm.width(),
+        hm.height(),
+        header.levels.len(),
+        2.0 * max_error
+    );
     let mut h0_bits = 0.0;
     let mut hc_bits = 0.0;
     for (k, counts) in per_level.iter().enumerate().rev() {
@@ -75,17 +94,29 @@ fn main() {
         h0_bits += h * n as f64;
         hc_bits += hc * n as f64;
     }
-    println!("  floor order-0: {:.4} B/sample (of level 0); context: {:.4}", h0_bits / 8.0 / n0 as f64, hc_bits / 8.0 / n0 as f64);
+    println!(
+        "  floor order-0: {:.4} B/sample (of level 0); context: {:.4}",
+        h0_bits / 8.0 / n0 as f64,
+        hc_bits / 8.0 / n0 as f64
+    );
     // Codings.
     let total = |f: &mut dyn FnMut(&[i32], u32) -> usize| -> f64 {
         let s: usize = tiles.iter().map(|(_, r, tw)| f(r, *tw)).sum();
         s as f64 / n0 as f64
     };
-    for (name, codec, lvl) in [("zstd-19 planes (shipped)", CodecKind::Zstd, 19), ("zstd-3 planes", CodecKind::Zstd, 3), ("zstd-22 planes", CodecKind::Zstd, 22), ("lz4 planes", CodecKind::Lz4, 0)] {
+    for (name, codec, lvl) in [
+        ("zstd-19 planes (shipped)", CodecKind::Zstd, 19),
+        ("zstd-3 planes", CodecKind::Zstd, 3),
+        ("zstd-22 planes", CodecKind::Zstd, 22),
+        ("lz4 planes", CodecKind::Lz4, 0),
+    ] {
         let mut e = Encoder::new(codec, lvl).unwrap();
         let t0 = std::time::Instant::now();
         let b = total(&mut |r, _| e.encode(r).unwrap().len());
-        println!("  {name:28} {b:.4} B/sample ({:.2} s)", t0.elapsed().as_secs_f64());
+        println!(
+            "  {name:28} {b:.4} B/sample ({:.2} s)",
+            t0.elapsed().as_secs_f64()
+        );
     }
     let mut z = zstd::bulk::Compressor::new(19).unwrap();
     let b = total(&mut |r, _| {
@@ -98,7 +129,10 @@ fn main() {
         for &v in r {
             let mut u = zigzag(v);
             loop {
-                if u < 128 { bytes.push(u as u8); break; }
+                if u < 128 {
+                    bytes.push(u as u8);
+                    break;
+                }
                 bytes.push((u as u8 & 127) | 128);
                 u >>= 7;
             }
@@ -112,5 +146,9 @@ fn main() {
         by_level[*lk].extend(r.iter().map(|&v| zigzag(v).min(255) as u8));
     }
     let b: usize = by_level.iter().map(|v| z.compress(v).unwrap().len()).sum();
-    println!("  {:28} {:.4} B/sample", "zstd-19 whole levels, 1 plane", b as f64 / n0 as f64);
+    println!(
+        "  {:28} {:.4} B/sample",
+        "zstd-19 whole levels, 1 plane",
+        b as f64 / n0 as f64
+    );
 }

@@ -123,7 +123,13 @@ pub fn bake_lod(
     // Before the cache: a table cached by an older build must not let an unusable terrain through.
     crate::bake::lod_tables::check_height_range(pyramid)?;
     let key = cache_key(terrain, params);
-    bake_lod_keyed(key, || Ok(std::borrow::Cow::Borrowed(pyramid)), params, dir, progress)
+    bake_lod_keyed(
+        key,
+        || Ok(std::borrow::Cow::Borrowed(pyramid)),
+        params,
+        dir,
+        progress,
+    )
 }
 
 /// The cache key of a package's tables: its header (dimensions, spacing, quantum, and every tile's
@@ -135,7 +141,9 @@ pub fn package_cache_key(package: &crate::package::Package, params: &BakeParams)
     h.write_bytes(&package.header().to_bytes());
     h.write_u32(params.p);
     let h0 = package.header();
-    h.write_u32(Sat::max_frac_bits(u64::from(h0.width) * u64::from(h0.height)));
+    h.write_u32(Sat::max_frac_bits(
+        u64::from(h0.width) * u64::from(h0.height),
+    ));
     h.write_u32(params.levels);
     h.write_u32(params.synth_levels);
     h.write_u64(params.g0.to_bits());
@@ -266,7 +274,9 @@ fn encode(t: &LodTables, key: u64) -> Vec<u8> {
             Some((sat, max)) => {
                 out.extend_from_slice(&1u32.to_le_bytes());
                 pad8(&mut out);
-                out.reserve(sat.table().len() * 8 + max.levels().iter().map(|g| g.len() * 4).sum::<usize>());
+                out.reserve(
+                    sat.table().len() * 8 + max.levels().iter().map(|g| g.len() * 4).sum::<usize>(),
+                );
                 for v in sat.table() {
                     out.extend_from_slice(&v.to_le_bytes());
                 }
@@ -419,7 +429,8 @@ fn decode(map: &Mapping, key: u64, params: &BakeParams) -> std::result::Result<L
                 if !in_range(map, &maxima[0], e_max) {
                     return Err("error map values out of range".into());
                 }
-                let sat = Sat::from_grid(width, height, cell, frac, sat).map_err(|e| e.to_string())?;
+                let sat =
+                    Sat::from_grid(width, height, cell, frac, sat).map_err(|e| e.to_string())?;
                 let max = RangeMax::from_levels(cw, ch, maxima).ok_or("bad max pyramid sizes")?;
                 Some((sat, max))
             }
@@ -449,7 +460,10 @@ fn grid<T: bytemuck::Pod>(
     len: usize,
 ) -> std::result::Result<Grid<T>, String> {
     let at = r.at;
-    let bytes = r.take(len.checked_mul(std::mem::size_of::<T>()).ok_or("size overflow")?)?;
+    let bytes = r.take(
+        len.checked_mul(std::mem::size_of::<T>())
+            .ok_or("size overflow")?,
+    )?;
     Ok(Grid::mapped(map, at, len).unwrap_or_else(|| {
         Grid::owned(
             bytes

@@ -187,12 +187,8 @@ fn sat_lod_streams_from_mapped_tables_without_allocating() {
     assert_eq!(o, CacheOutcome::Hit);
     assert!(hit.is_mapped());
     // The same tables baked in memory from the decoded pyramid.
-    let owned = clipsat::bake::bake_uncached(
-        &pkg.to_pyramid().expect("pyramid"),
-        &params,
-        false,
-    )
-    .expect("owned");
+    let owned = clipsat::bake::bake_uncached(&pkg.to_pyramid().expect("pyramid"), &params, false)
+        .expect("owned");
     assert!(!owned.is_mapped() && owned.owned_bytes() > 0);
     assert_eq!(tables, owned, "mapped and in-memory tables differ");
     let mapped_lod = Lod::for_clipmap(tables, &p, &cm, &coarse);
@@ -226,7 +222,8 @@ fn sat_lod_streams_from_mapped_tables_without_allocating() {
             l1.set_epsilon_px(2.0);
             l2.set_epsilon_px(2.0);
             l1.select(cm.frame(), &cam, mode, &mut a).expect("select");
-            l2.select(cm.frame(), &cam, mode, &mut want).expect("select");
+            l2.select(cm.frame(), &cam, mode, &mut want)
+                .expect("select");
             assert_eq!(a, want, "frame {t} {mode:?}: levels differ");
         }
         frames += 1;

@@ -122,9 +122,9 @@ fn render_ground_truth_on_request() {
     assert!(String::from_utf8_lossy(&r.stderr).contains("--ground-truth"));
 }
 
-/// A package rendered with distance LOD and basic shading streams through the profile's tile cache:
-/// `streamed` in the summary, every level filled, no measured error (it needs the whole pyramid); with
-/// `--lod sat` the package is decoded whole as before.
+/// A package rendered with basic shading streams through the profile's tile cache: `streamed` in the
+/// summary, every level filled, no measured error (it needs the whole pyramid); with `--lod sat` too, its
+/// LOD tables read through a map of their cache file (none held in owned memory).
 #[test]
 fn render_streams_a_package() {
     let dir = scratch("stream");
@@ -155,5 +155,10 @@ fn render_streams_a_package() {
     let mut sat = base.to_vec();
     sat.extend(["--lod", "sat"]);
     let j = json(&clipsat(&sat), "render a package --lod sat");
-    assert_eq!(j["streamed"], false, "{j}");
+    assert_eq!(j["streamed"], true, "{j}");
+    assert_eq!(j["stale_levels"], 0, "{j}");
+    assert_eq!(j["lod_tables_mapped"], true, "{j}");
+    assert_eq!(j["lod_tables_owned_bytes"], 0, "{j}");
+    assert!(j["max_screen_error_px"].is_null(), "{j}");
+    assert!(j["triangles"].as_u64().unwrap_or(0) > 0, "{j}");
 }

@@ -86,7 +86,7 @@ pub(crate) struct RenderArgs {
 }
 
 /// The SAT LOD selector for `clipmap`'s terrain: tables from the bake cache ([`bake::default_cache_dir`]),
-/// baked (progress bar on stderr when `progress`) on a miss.
+/// baked (progress bar on stderr when `progress`) on a miss, and read through a map of the cache file.
 pub(crate) fn lod_for(
     hm: &Heightmap,
     profile: &Profile,
@@ -99,7 +99,7 @@ pub(crate) fn lod_for(
         synth_levels: clipmap.synth_levels(),
         g0: clipmap.g0(),
     };
-    let (tables, _) = bake::bake_lod(
+    let (tables, _) = bake::bake_lod_mapped(
         hm,
         clipmap.pyramid(),
         &params,
