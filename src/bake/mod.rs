@@ -367,7 +367,7 @@ pub(crate) fn unseal<'a>(
 /// borrow their ranges of the map ([`mapped::Grid`]), so nothing terrain-sized is copied into memory.
 fn decode(map: &Mapping, key: u64, params: &BakeParams) -> std::result::Result<LodTables, String> {
     let bytes = map.bytes();
-    if bytes.len() < 16 || &bytes[..8] != MAGIC || bytes.len() % 8 != 0 {
+    if bytes.len() < 16 || &bytes[..8] != MAGIC || !bytes.len().is_multiple_of(8) {
         return Err("not a clipsat LOD cache file (bad magic or length)".into());
     }
     let body_len = bytes.len() - 8;
