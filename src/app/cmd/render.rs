@@ -355,8 +355,6 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
             "lod": lod_mode.to_string(),
             "epsilon_px": epsilon_used,
             "blocks_clamped": frame.stats.blocks_clamped,
-            "lod_tables_owned_bytes": lod_used.map(|l| l.tables().owned_bytes()),
-            "lod_tables_mapped": lod_used.map(|l| l.tables().is_mapped()),
             "blocks_from_pool": frame.stats.blocks_from_pool,
             "detail_tiles_resident": frame.stats.detail_tiles_resident,
             "detail_samples_updated": frame.stats.detail_samples_updated,
@@ -394,6 +392,15 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
         });
         if let (Some(o), serde_json::Value::Object(extra)) = (out.as_object_mut(), shading) {
             o.extend(extra);
+            // The SAT LOD tables: bytes held in owned memory, and whether they are read through a map.
+            o.insert(
+                "lod_tables_owned_bytes".into(),
+                json!(lod_used.map(|l| l.tables().owned_bytes())),
+            );
+            o.insert(
+                "lod_tables_mapped".into(),
+                json!(lod_used.map(|l| l.tables().is_mapped())),
+            );
         }
         print_json(&out);
     } else {
