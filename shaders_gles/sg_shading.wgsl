@@ -1,8 +1,9 @@
 // Stage 3, the GPU: reduced spherical-Gaussian shading (Li et al. 2021, the SAT paper, section 5,
 // algorithms 2 and 3), the WGSL port of `clipsat::shading::shade`, line for line; `clipsat::sg` holds the
-// same maths on the CPU. A library: no entry points, no bindings. src/gpu/shaders.rs prepends
-// `const SG_BANDS: u32` (M theta bands; N = 2 M phi sectors) and appends one specular file
-// (sg_specular.wgsl or sg_no_specular.wgsl) and a program, so each effect set is its own text.
+// same maths on the CPU. A library: no entry points. src/gpu/shaders.rs prepends `const SG_BANDS: u32`
+// (M theta bands), the sky table's constants and its binding `sky_table` (the program's group), and
+// appends one specular file (sg_specular.wgsl or sg_no_specular.wgsl) and a program, so each effect set
+// is its own text.
 //
 // The horizon of the pixel (box-averaged angles, radians, D of them) is handed over in the private
 // `sg_hz`, `sg_hz_count` (0: no visibility), which the program fills before calling `sg_shade`.
@@ -12,13 +13,16 @@ const SG_TAU: f32 = 6.28318530717959;
 const SG_HALF_PI: f32 = 1.57079632679490;
 // Mirrors clipsat::gpu::shaders::MAX_SG_LIGHTS (the desktop profile's max_sg_lights).
 const SG_MAX_LIGHTS: u32 = 8u;
-// Mirrors clipsat::shading::MAX_SECTORS: the row stride of the edge table.
-const SG_MAX_SECTORS: u32 = 16u;
 // clipsat::sg::COSINE_LAMBDA, COSINE_MU, R_MIN, R_MAX.
 const SG_COSINE_LAMBDA: f32 = 2.133;
 const SG_COSINE_MU: f32 = 1.170;
 const SG_R_MIN: f32 = 1.0e-3;
 const SG_R_MAX: f32 = 0.9999;
+// clipsat::shading::sky_table::S_MIN, S_MAX.
+const SG_SKY_S_MIN: f32 = 0.01;
+const SG_SKY_S_MAX: f32 = 1.0;
+// 1 / sqrt(3), the 2-point Gauss-Legendre node.
+const SG_GAUSS_2: f32 = 0.5773503;
 
 // One light lobe; mirrors clipsat::gpu::shaders::SgLightUniform.
 struct SgLight {
@@ -66,14 +70,6 @@ fn sg_expm1(x: f32) -> f32 {
     return exp(x) - 1.0;
 }
 
-// ln(1 + x) without cancellation near 0 (clipsat::sg::ln_1p).
-fn sg_ln_1p(x: f32) -> f32 {
-    if (abs(x) < 1.0e-2) {
-        return x * (1.0 - x * (0.5 - x * (1.0 / 3.0 - x * 0.25)));
-    }
-    return log(1.0 + x);
-}
-
 // (1 - e^-x) / x, exact as x -> 0 (clipsat::sg::one_minus_exp_over).
 fn sg_one_minus_exp_over(x: f32) -> f32 {
     if (x < 1.0e-6) {
@@ -116,20 +112,6 @@ fn sg_vmf(r: vec3<f32>) -> SgVmf {
     }
     let rl = clamp(len, SG_R_MIN, SG_R_MAX);
     return SgVmf(axis, rl * (3.0 - rl * rl) / ((1.0 - rl) * (1.0 + rl)), rl);
-}
-
-// Orthonormal (t, b) completing unit n (Duff et al. 2017, listing 3), as columns 0 and 1.
-fn sg_basis(n: vec3<f32>) -> mat2x3<f32> {
-    var sign = 1.0;
-    if (n.z < 0.0) {
-        sign = -1.0;
-    }
-    let a = -1.0 / (sign + n.z);
-    let b = n.x * n.y * a;
-    return mat2x3<f32>(
-        vec3<f32>(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
-        vec3<f32>(b, sign + n.y * n.y * a, -n.y),
-    );
 }
 
 // How far the cosine's cut-off plane drops for the vMF's spread (clipsat::shading::plane_drop).
@@ -185,6 +167,19 @@ fn sg_horizon_at(a: f32) -> f32 {
     return sg_hz[k0] * (1.0 - f) + sg_hz[(k0 + 1u) % d] * f;
 }
 
+// The sine of the lowered plane's elevation toward unit horizontal direction (ux, uy)
+// (clipsat::shading::Cut::plane_sin, which says why n_z is floored).
+fn sg_plane_sin(c: SgCut, ux: f32, uy: f32) -> f32 {
+    let p = -(c.n.x * ux + c.n.y * uy);
+    let q = max(c.n.z, 1.0e-4);
+    let inv = 1.0 / sqrt(max(p * p + q * q, 1.0e-30));
+    var plane = (p * c.cos_drop - q * c.sin_drop) * inv;
+    if ((q * c.cos_drop + p * c.sin_drop) * inv < 0.0) {
+        plane = -1.0;
+    }
+    return plane;
+}
+
 // TransferVis + PatchVis (SAT paper algorithm 3): the sine of the elevation below which horizontal
 // direction (dx, dy) is cut, the higher of the horizon and the mean normal's lowered tangent plane, the
 // plane's without trigonometry (clipsat::shading::Cut::sin_at).
@@ -192,13 +187,7 @@ fn sg_cut_sin(c: SgCut, dx: f32, dy: f32) -> f32 {
     let inv_d = 1.0 / sqrt(max(dx * dx + dy * dy, 1.0e-30));
     let ux = dx * inv_d;
     let uy = dy * inv_d;
-    let p = -(c.n.x * ux + c.n.y * uy);
-    let q = c.n.z;
-    let inv = 1.0 / sqrt(max(p * p + q * q, 1.0e-30));
-    var plane = (p * c.cos_drop - q * c.sin_drop) * inv;
-    if ((q * c.cos_drop + p * c.sin_drop) * inv < 0.0) {
-        plane = -1.0;
-    }
+    let plane = sg_plane_sin(c, ux, uy);
     if (sg_hz_count == 0u) {
         return plane;
     }
@@ -223,90 +212,79 @@ fn sg_soft_visible(c: SgCut, axis: vec3<f32>, sigma: f32) -> f32 {
     return clamp((el + sigma - cut) / (2.0 * sigma), 0.0, 1.0);
 }
 
-// Band edge holding energy fraction f, as u = 1 - cos theta (clipsat::shading::band_edge).
-fn sg_band_edge(lambda: f32, f: f32) -> f32 {
-    if (f >= 1.0) {
-        return 2.0;
-    }
-    if (lambda < 1.0e-6) {
-        return 2.0 * f;
-    }
-    return -sg_ln_1p(f * sg_expm1(-2.0 * lambda)) / lambda;
+fn sg_sky_texel(l: i32, i: i32, j: i32) -> vec3<f32> {
+    return textureLoad(sky_table, vec2<i32>(l * SG_SKY_SIDE + i, j), 0).xyz;
 }
 
-fn sg_sin_theta(u: f32) -> f32 {
-    return sqrt(max(u * (2.0 - u), 0.0));
+// The sky table (clipsat::shading::SkyTable::lookup, which gives the parametrisation): the broad lights'
+// unshadowed diffuse integral at unit n and mean resultant length r_len, bilinear in the two nearest
+// layers and linear between them (8 textureLoads: RGBA32F is not filterable on GLES 3.0).
+fn sg_sky(n: vec3<f32>, r_len: f32) -> vec3<f32> {
+    let inv = 1.0 / max(abs(n.x) + abs(n.y) + max(n.z, 0.0), 1.0e-30);
+    let px = n.x * inv;
+    let py = n.y * inv;
+    let half = 0.5 * f32(SG_SKY_SIDE - 1);
+    let top = f32(SG_SKY_SIDE - 1);
+    let x = clamp((px + py) * half + half, 0.0, top);
+    let y = clamp((px - py) * half + half, 0.0, top);
+    let s = sqrt(1.0 - clamp(r_len, SG_R_MIN, SG_R_MAX));
+    let lt = f32(SG_SKY_LAYERS - 1);
+    let l = clamp((s - SG_SKY_S_MIN) * (lt / (SG_SKY_S_MAX - SG_SKY_S_MIN)), 0.0, lt);
+    let i = min(i32(floor(x)), SG_SKY_SIDE - 2);
+    let j = min(i32(floor(y)), SG_SKY_SIDE - 2);
+    let k = min(i32(floor(l)), SG_SKY_LAYERS - 2);
+    let fx = x - f32(i);
+    let fy = y - f32(j);
+    let fl = l - f32(k);
+    let a = mix(
+        mix(sg_sky_texel(k, i, j), sg_sky_texel(k, i + 1, j), fx),
+        mix(sg_sky_texel(k, i, j + 1), sg_sky_texel(k, i + 1, j + 1), fx),
+        fy,
+    );
+    let b = mix(
+        mix(sg_sky_texel(k + 1, i, j), sg_sky_texel(k + 1, i + 1, j), fx),
+        mix(sg_sky_texel(k + 1, i, j + 1), sg_sky_texel(k + 1, i + 1, j + 1), fx),
+        fy,
+    );
+    return mix(a, b, fl);
 }
 
-// SAT paper eq. 11 over M x N patches of the lobe's frame, each weighted by its visible energy
-// (clipsat::shading::integrate_patches, which derives the per-patch closed form and says why the sector
-// directions come from a recurrence and no corner table is kept).
-fn sg_integrate_patches(p: Sg, c: SgCut) -> vec3<f32> {
-    let bands = SG_BANDS;
-    let sectors = 2u * SG_BANDS;
-    let tb = sg_basis(p.axis);
-    let t = tb[0];
-    let b = tb[1];
-    let dphi = SG_TAU / f32(sectors);
+// What the horizon hides of product lobe p above the lowered plane: per baked azimuth, the wedge between
+// the plane's and the horizon's sines, 2-point Gauss-Legendre over z = sin(elevation)
+// (clipsat::shading::occluded, which says why).
+fn sg_occluded(p: Sg, c: SgCut) -> vec3<f32> {
+    let d = sg_hz_count;
+    let dphi = SG_TAU / f32(d);
     let cos_step = cos(dphi);
     let sin_step = sin(dphi);
-    let cos_half = cos(0.5 * dphi);
-    let sin_half = sin(0.5 * dphi);
-    var total = 0.0;
-    var u1 = 0.0;
-    for (var i = 0u; i < bands; i++) {
-        let u2 = sg_band_edge(p.lambda, f32(i + 1u) / f32(bands));
-        let du = u2 - u1;
-        let whole = sg_one_minus_exp_over(p.lambda * du);
-        let band = exp(-p.lambda * u1) * du * whole;
-        let u_mid = sg_band_edge(p.lambda, (f32(i) + 0.5) / f32(bands));
-        let s1 = sg_sin_theta(u1);
-        let s2 = sg_sin_theta(u2);
-        let sm = sg_sin_theta(u_mid);
-        let z1 = p.axis.z * (1.0 - u1);
-        let z2 = p.axis.z * (1.0 - u2);
-        var cs = 1.0;
-        var sn = 0.0;
-        var w0 = t.z;
-        for (var k = 0u; k < sectors; k++) {
-            let c2 = cs * cos_step - sn * sin_step;
-            let s2n = sn * cos_step + cs * sin_step;
-            let w1 = t.z * c2 + b.z * s2n;
-            let cm = cs * cos_half - sn * sin_half;
-            let smid = sn * cos_half + cs * sin_half;
-            let centre = p.axis * (1.0 - u_mid) + (t * cm + b * smid) * sm;
-            let z00 = z1 + s1 * w0;
-            let z01 = z1 + s1 * w1;
-            let z10 = z2 + s2 * w0;
-            let z11 = z2 + s2 * w1;
-            let lo = min(min(centre.z, min(z00, z01)), min(z10, z11));
-            let hi = max(max(centre.z, max(z00, z01)), max(z10, z11));
-            let cut_z = sg_cut_sin(c, centre.x, centre.y);
-            var vis = 0.0;
-            if (hi - lo > 1.0e-7) {
-                vis = clamp((hi - cut_z) / (hi - lo), 0.0, 1.0);
-            } else if (centre.z > cut_z) {
-                vis = 1.0;
-            }
-            let part = vis * sg_one_minus_exp_over(p.lambda * vis * du) / whole;
-            var visible = part;
-            if (z00 + z01 < z10 + z11) {
-                visible = exp(-p.lambda * (1.0 - vis) * du) * part;
-            }
-            total += band * visible;
-            cs = c2;
-            sn = s2n;
-            w0 = w1;
-        }
-        u1 = u2;
+    var ca = 1.0;
+    var sa = 0.0;
+    var sum = 0.0;
+    for (var k = 0u; k < d; k++) {
+        let lo = sg_plane_sin(c, ca, sa);
+        let hi = sin(sg_hz[k]);
+        let half = 0.5 * max(hi - lo, 0.0);
+        let mid = 0.5 * (hi + lo);
+        let horizontal = p.axis.x * ca + p.axis.y * sa;
+        let z0 = mid - SG_GAUSS_2 * half;
+        let z1 = mid + SG_GAUSS_2 * half;
+        let rho0 = sqrt(max(1.0 - z0 * z0, 0.0));
+        let rho1 = sqrt(max(1.0 - z1 * z1, 0.0));
+        let w0 = exp(p.lambda * (horizontal * rho0 + p.axis.z * z0 - 1.0));
+        let w1 = exp(p.lambda * (horizontal * rho1 + p.axis.z * z1 - 1.0));
+        sum += (w0 + w1) * half;
+        let c2 = ca * cos_step - sa * sin_step;
+        sa = sa * cos_step + ca * sin_step;
+        ca = c2;
     }
-    return p.mu * (total * dphi);
+    return p.mu * (sum * dphi);
 }
 
-// Outgoing linear radiance toward `view` (unit, surface to eye) for mean normal r: the diffuse SG
-// integration of every light, plus the variant's specular term (clipsat::shading::shade). SG_OMIT (a
-// benchmark knob, `clipsat bench shading`'s breakdown; 0 in every rendering variant) drops one term:
-// 2 the vMF (a single normal), 3 the patches (every light as one direction).
+// Outgoing linear radiance toward `view` (unit, surface to eye) for mean normal r: the suns one direction
+// each, the broad lights from the sky table less what the horizon hides, plus the variant's specular term
+// (clipsat::shading::shade). SG_OMIT (a benchmark knob, `clipsat bench shading`'s breakdown; 0 in every
+// rendering variant) drops one term: 2 the vMF (a single normal), 3 the sky table and its horizon wedges
+// (every lobe as one direction).
 fn sg_shade(r: vec3<f32>, view: vec3<f32>, s: SgScene) -> vec3<f32> {
     var vmf = sg_vmf(r);
     var cosine = Sg(vmf.axis, SG_COSINE_LAMBDA, vec3<f32>(SG_COSINE_MU));
@@ -334,10 +312,17 @@ fn sg_shade(r: vec3<f32>, view: vec3<f32>, s: SgScene) -> vec3<f32> {
         let f = sg_vmf_cosine(dot(vmf.axis, light.axis), vmf) * sg_horizon_visible(light.axis, sigma);
         diffuse += light.mu * (sg_unit_integral(light.lambda) * f);
     }
-    for (var i = suns; i < count; i++) {
-        let l = s.lights[i];
-        let light = Sg(l.axis_lambda.xyz, l.axis_lambda.w, l.mu.xyz);
-        diffuse += sg_integrate_patches(sg_product(light, cosine), cut);
+    // Uniform: the scene's light counts.
+    if (suns < count) {
+        var hidden = vec3<f32>(0.0);
+        if (sg_hz_count > 0u) {
+            for (var i = suns; i < count; i++) {
+                let l = s.lights[i];
+                let light = Sg(l.axis_lambda.xyz, l.axis_lambda.w, l.mu.xyz);
+                hidden += sg_occluded(sg_product(light, cosine), cut);
+            }
+        }
+        diffuse += max(sg_sky(vmf.axis, vmf.r_len) - hidden, vec3<f32>(0.0));
     }
     return s.kd_count.rgb * diffuse / SG_PI + sg_specular(vmf, view, cut, s);
 }

@@ -175,6 +175,14 @@ pub const MAX_DRAWS: usize = 2048;
 /// Most SG light lobes a shader variant holds: the largest `shading.max_sg_lights` of the shipped
 /// profiles (desktop); mirrors `SG_MAX_LIGHTS` in `shaders_gles/sg_shading.wgsl`.
 pub const MAX_SG_LIGHTS: usize = 8;
+
+/// The SG sky table's side: mean-normal directions, hemi-octahedral (`shading/sky_table.rs`).
+pub const SG_SKY_SIDE: u32 = 32;
+/// The SG sky table's layers: vMF spreads, uniform in sqrt(1 - |r|).
+pub const SG_SKY_LAYERS: u32 = 16;
+/// GPU bytes of the SG sky table: RGBA32F, `SG_SKY_SIDE^2 x SG_SKY_LAYERS`, fixed whatever the profile.
+pub const SG_SKY_TABLE_BYTES: u64 =
+    16 * (SG_SKY_SIDE as u64) * (SG_SKY_SIDE as u64) * (SG_SKY_LAYERS as u64);
 /// Largest `clipmap.n`: the block mesh ((n + 1) / 4 + 1)^2 vertices must fit u16 indices (`mesh::block`);
 /// the next 2^k - 1, 1023, needs 257^2 = 66049.
 pub const MAX_N: u32 = 511;
@@ -426,12 +434,14 @@ impl Profile {
     /// GPU bytes of the SG shading tables (`gpu/renderer/sg_tables.rs`): the normal table (RGBA32F,
     /// `clip_size^2 x` [`Profile::sg_normal_layers`]) and, for `azimuths > 0`, the horizon table
     /// (RGBA16F, `clip_size^2 x` [`Profile::sg_horizon_layers`]). Fixed by the profile and the scene's
-    /// visibility, whatever the terrain's size; [`Profile::footprint`] holds the rest.
+    /// visibility, whatever the terrain's size, plus the scene's sky table ([`SG_SKY_TABLE_BYTES`]);
+    /// [`Profile::footprint`] holds the rest.
     pub fn sg_table_bytes(&self, azimuths: u32) -> u64 {
         let s = u64::from(self.clip_size());
         (s * s)
             .saturating_mul(16 * u64::from(self.sg_normal_layers()))
             .saturating_add((s * s).saturating_mul(8 * u64::from(self.sg_horizon_layers(azimuths))))
+            .saturating_add(SG_SKY_TABLE_BYTES)
     }
 
     /// Quads per detail tile side ([`FrameBudget::detail_tile_quads`], 0 meaning the block side m, and

@@ -267,6 +267,11 @@ impl<'g> Offscreen<'g> {
         &self.renderer
     }
 
+    /// The embeddable renderer inside, to switch what it draws ([`Renderer::set_sg_enabled`]).
+    pub fn renderer_mut(&mut self) -> &mut Renderer {
+        &mut self.renderer
+    }
+
     /// The planner.
     pub fn planner(&self) -> &Planner {
         &self.planner

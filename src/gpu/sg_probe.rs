@@ -1,6 +1,7 @@
 //! Stage 3, the GPU: test instrument for the SG fragment shading. Runs the WGSL `sg_shade`
 //! (`shaders_gles/sg_probe.wgsl`) on known inputs, one per pixel of a W x 1 Rgba32Uint target, and reads
-//! back the exact bits of each result, for comparison with the CPU twin [`crate::shading::shade`].
+//! back the exact bits of each result, for comparison with the CPU twin [`crate::shading::shade`] (the
+//! scene's sky table bound as the renderer binds it).
 
 use glam::Vec3;
 use wgpu::util::DeviceExt;
@@ -8,8 +9,9 @@ use wgpu::util::DeviceExt;
 use crate::bake::horizon::MAX_AZIMUTHS;
 use crate::gpu::shaders::{self, SgSceneUniform, SgVariant};
 use crate::gpu::Gpu;
+use crate::profile::{SG_SKY_LAYERS, SG_SKY_SIDE};
 use crate::shading::scene::Scene;
-use crate::shading::Patches;
+use crate::shading::{Patches, SkyTable};
 use crate::{Error, Result};
 
 /// One probe input: what the fragment shader knows after its SAT fetches.
@@ -87,6 +89,26 @@ pub fn shade_gpu(
             wgpu::util::TextureDataOrder::LayerMajor,
             bytemuck::cast_slice(&texels),
         );
+        let sky_table = SkyTable::new(scene, patches);
+        let sky = device.create_texture_with_data(
+            gpu.queue(),
+            &wgpu::TextureDescriptor {
+                label: Some("sg probe sky_table"),
+                size: wgpu::Extent3d {
+                    width: SG_SKY_SIDE * SG_SKY_LAYERS,
+                    height: SG_SKY_SIDE,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: wgpu::TextureFormat::Rgba32Float,
+                usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+                view_formats: &[],
+            },
+            wgpu::util::TextureDataOrder::LayerMajor,
+            bytemuck::cast_slice(sky_table.texels()),
+        );
         let buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("sg probe scene"),
             contents: bytemuck::bytes_of(&uniform),
@@ -147,6 +169,12 @@ pub fn shade_gpu(
                     binding: 1,
                     resource: wgpu::BindingResource::TextureView(
                         &inputs.create_view(&Default::default()),
+                    ),
+                },
+                wgpu::BindGroupEntry {
+                    binding: shaders::SKY_TABLE_PROBE.1,
+                    resource: wgpu::BindingResource::TextureView(
+                        &sky.create_view(&Default::default()),
                     ),
                 },
             ],

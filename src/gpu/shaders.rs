@@ -50,15 +50,15 @@ pub fn sources() -> Vec<(&'static str, String)> {
         ("clipmap.wgsl", clipmap()),
         (
             "sg_shading.wgsl",
-            sg_library(SgVariant::default(), SG_NO_SPECULAR_WGSL),
+            sg_library(SgVariant::default(), SG_NO_SPECULAR_WGSL, SKY_TABLE_CLIPMAP),
         ),
         (
             "sg_specular.wgsl",
-            sg_library(SgVariant::default(), SG_SPECULAR_WGSL),
+            sg_library(SgVariant::default(), SG_SPECULAR_WGSL, SKY_TABLE_CLIPMAP),
         ),
         (
             "sg_no_specular.wgsl",
-            sg_library(SgVariant::default(), SG_NO_SPECULAR_WGSL),
+            sg_library(SgVariant::default(), SG_NO_SPECULAR_WGSL, SKY_TABLE_CLIPMAP),
         ),
         ("sg_visibility.wgsl", sg_clipmap(SgVariant::ALL_ON)),
         ("sg_fog.wgsl", sg_clipmap(SgVariant::ALL_ON)),
@@ -104,13 +104,13 @@ pub enum SgOmit {
     Footprint,
     /// No vMF: a single normal (kappa 1e4, no convolution, no lowered plane).
     Vmf,
-    /// No patches: every product lobe is one direction with a soft visibility fraction.
-    Patches,
+    /// No sky table and no horizon wedges: every broad lobe is one direction, as a sun.
+    Sky,
 }
 
 impl SgOmit {
     /// Every term, in the order of the breakdown.
-    pub const TERMS: [Self; 3] = [Self::Footprint, Self::Vmf, Self::Patches];
+    pub const TERMS: [Self; 3] = [Self::Footprint, Self::Vmf, Self::Sky];
 
     /// The `SG_OMIT` code.
     pub fn code(self) -> u32 {
@@ -118,7 +118,7 @@ impl SgOmit {
             Self::None => 0,
             Self::Footprint => 1,
             Self::Vmf => 2,
-            Self::Patches => 3,
+            Self::Sky => 3,
         }
     }
 
@@ -128,7 +128,7 @@ impl SgOmit {
             Self::None => "none",
             Self::Footprint => "footprint fetch",
             Self::Vmf => "vMF",
-            Self::Patches => "per-patch closed form",
+            Self::Sky => "sky table + horizon wedges",
         }
     }
 }
@@ -183,14 +183,26 @@ impl SgVariant {
     }
 }
 
-fn sg_library(v: SgVariant, specular: &str) -> String {
-    let bands = format!(
-        "// Variant {}: M theta bands; the term left out (0: none).\nconst SG_BANDS: u32 = {}u;\nconst SG_OMIT: u32 = {}u;\n\n",
+/// Where the renderer's SG programs bind the sky table (group 2 of `sg_clipmap.wgsl`).
+pub const SKY_TABLE_CLIPMAP: (u32, u32) = (2, 3);
+/// Where the probe binds it (group 0 of `sg_probe.wgsl`).
+pub const SKY_TABLE_PROBE: (u32, u32) = (0, 2);
+
+/// `sg_shading.wgsl` with its constants and the sky table's binding `(group, binding)` prepended and the
+/// specular file appended.
+fn sg_library(v: SgVariant, specular: &str, (group, binding): (u32, u32)) -> String {
+    let head = format!(
+        "// Variant {}: M theta bands; the term left out (0: none); the sky table \
+         (clipsat::shading::sky_table).\nconst SG_BANDS: u32 = {}u;\nconst SG_OMIT: u32 = {}u;\n\
+         const SG_SKY_SIDE: i32 = {};\nconst SG_SKY_LAYERS: i32 = {};\n\
+         @group({group}) @binding({binding}) var sky_table: texture_2d<f32>;\n\n",
         v.label(),
         v.patches.bands(),
-        v.omit.code()
+        v.omit.code(),
+        crate::profile::SG_SKY_SIDE,
+        crate::profile::SG_SKY_LAYERS,
     );
-    [bands.as_str(), SG_SHADING_WGSL, specular].concat()
+    [head.as_str(), SG_SHADING_WGSL, specular].concat()
 }
 
 fn sg_specular_text(v: SgVariant) -> &'static str {
@@ -212,7 +224,7 @@ pub fn sg_clipmap(v: SgVariant) -> String {
     let fog = if v.fog { SG_FOG_WGSL } else { SG_NO_FOG_WGSL };
     [
         clipmap().as_str(),
-        &sg_library(v, sg_specular_text(v)),
+        &sg_library(v, sg_specular_text(v), SKY_TABLE_CLIPMAP),
         visibility,
         fog,
         SG_CLIPMAP_WGSL,
@@ -223,7 +235,11 @@ pub fn sg_clipmap(v: SgVariant) -> String {
 /// The SG probe program for variant `v` (its visibility flag only says whether the scene's D is used):
 /// `sg_shading.wgsl` + specular file + `sg_probe.wgsl`.
 pub fn sg_probe(v: SgVariant) -> String {
-    [sg_library(v, sg_specular_text(v)).as_str(), SG_PROBE_WGSL].concat()
+    [
+        sg_library(v, sg_specular_text(v), SKY_TABLE_PROBE).as_str(),
+        SG_PROBE_WGSL,
+    ]
+    .concat()
 }
 
 /// Every SG program variant, named `file[label]`, for validation; the benchmark's term omissions too.

@@ -8,6 +8,7 @@ use glam::Vec3;
 use crate::bake::horizon;
 use crate::shading::scene::Scene;
 use crate::shading::sg::{self, Sg, Vmf};
+use crate::shading::sky_table::SkyTable;
 
 /// How finely [`shade`] splits each product lobe: M theta bands x N phi sectors of its local frame.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -142,18 +143,25 @@ impl<'a> Cut<'a> {
         }
     }
 
+    /// The sine of the lowered plane's elevation toward unit horizontal direction (ux, uy). n_z is
+    /// floored at 1e-4: for a horizontal mean normal (a cliff) the plane is vertical and its elevation
+    /// along the face would flip between +-90 degrees with the sign of a rounding error in p.
+    fn plane_sin(&self, ux: f32, uy: f32) -> f32 {
+        let p = -(self.n.x * ux + self.n.y * uy);
+        let q = self.n.z.max(1e-4);
+        let inv = 1.0 / (p * p + q * q).max(1e-30).sqrt();
+        if (q * self.cos_drop + p * self.sin_drop) * inv < 0.0 {
+            -1.0
+        } else {
+            (p * self.cos_drop - q * self.sin_drop) * inv
+        }
+    }
+
     /// The sine of the cut elevation toward horizontal direction (dx, dy) (unnormalised, not zero).
     fn sin_at(&self, dx: f32, dy: f32) -> f32 {
         let inv_d = 1.0 / (dx * dx + dy * dy).max(1e-30).sqrt();
         let (ux, uy) = (dx * inv_d, dy * inv_d);
-        let p = -(self.n.x * ux + self.n.y * uy);
-        let q = self.n.z;
-        let inv = 1.0 / (p * p + q * q).max(1e-30).sqrt();
-        let plane = if (q * self.cos_drop + p * self.sin_drop) * inv < 0.0 {
-            -1.0
-        } else {
-            (p * self.cos_drop - q * self.sin_drop) * inv
-        };
+        let plane = self.plane_sin(ux, uy);
         if self.horizon.is_empty() {
             plane
         } else {
@@ -268,6 +276,56 @@ fn integrate_patches(p: &Sg, cut: &Cut<'_>, patches: Patches) -> Vec3 {
     p.mu * (total * dphi)
 }
 
+/// The unshadowed diffuse integral of broad `light` for the vMF `vmf` (before k_d / pi): the light times
+/// the vMF-widened cosine SG over `patches`, cut at the lowered tangent plane only. What the sky table
+/// ([`super::sky_table::SkyTable`]) holds, summed over the broad lights, per texel.
+pub(super) fn unshadowed(light: &Sg, vmf: &Vmf, patches: Patches) -> Vec3 {
+    let cut = Cut::new(vmf.axis, &[], plane_drop(vmf.kappa));
+    integrate_patches(&light.product(&cosine_lobe(vmf)), &cut, patches)
+}
+
+/// The clamped cosine about the vMF's axis as one SG, widened by the vMF.
+fn cosine_lobe(vmf: &Vmf) -> Sg {
+    Sg {
+        axis: vmf.axis,
+        lambda: sg::COSINE_LAMBDA,
+        mu: Vec3::splat(sg::COSINE_MU),
+    }
+    .convolve_vmf(vmf.kappa)
+}
+
+/// The part of product lobe `p`'s integral that the horizon hides above the lowered plane: per baked
+/// azimuth k, the wedge of width 2 pi / D about it between the plane's sine z_lo and the horizon's z_hi
+/// (when higher), integrated over z = sin(elevation) (dOmega = dz dphi) by 2-point Gauss-Legendre at the
+/// wedge's centre azimuth. The sky table holds the integral above the plane, so the visible part is the
+/// table's minus this. The wedges' directions come from a rotation recurrence (no trigonometry per wedge).
+#[expect(clippy::cast_precision_loss, reason = "D <= 16")]
+fn occluded(p: &Sg, cut: &Cut<'_>) -> Vec3 {
+    let d = cut.horizon.len();
+    let dphi = TAU / d as f32;
+    let (sin_step, cos_step) = dphi.sin_cos();
+    let (mut ca, mut sa) = (1.0f32, 0.0f32);
+    let mut sum = 0.0f32;
+    for &h in cut.horizon {
+        let lo = cut.plane_sin(ca, sa);
+        let hi = h.sin();
+        let half = 0.5 * (hi - lo).max(0.0);
+        let mid = 0.5 * (hi + lo);
+        let horizontal = p.axis.x * ca + p.axis.y * sa;
+        let mut wedge = 0.0f32;
+        for z in [mid - GAUSS_2 * half, mid + GAUSS_2 * half] {
+            let rho = (1.0 - z * z).max(0.0).sqrt();
+            wedge += (p.lambda * (horizontal * rho + p.axis.z * z - 1.0)).exp();
+        }
+        sum += wedge * half;
+        (ca, sa) = (ca * cos_step - sa * sin_step, sa * cos_step + ca * sin_step);
+    }
+    p.mu * (sum * dphi)
+}
+
+/// The 2-point Gauss-Legendre node, 1 / sqrt(3).
+const GAUSS_2: f32 = 0.577_350_3;
+
 /// The specular lobe for the mean normal: the NDF as an SG (Beckmann-like, lambda = 2 / alpha^2,
 /// mu = 1 / (pi alpha^2), alpha = roughness^2; Wang et al. 2009 section 4), convolved with the vMF, then
 /// spherically warped from half-vector to light-direction space about the mirror direction with
@@ -290,9 +348,11 @@ pub fn warped_ndf(vmf: &Vmf, roughness: f32, view: Vec3) -> Sg {
 }
 
 /// The CPU twin of the fragment shader: outgoing radiance (RGB, linear) toward `inputs.view` for the
-/// scene's lights and material, integrating each light x cosine product over `patches`. Visibility is used
-/// when the scene enables it and `inputs.horizon` is not empty; specular only when the scene enables it.
-pub fn shade(inputs: &Inputs<'_>, scene: &Scene, patches: Patches) -> Vec3 {
+/// scene's lights and material. Suns are one direction each; the broad lights' unshadowed integral is read
+/// from `sky` (the scene's [`SkyTable`], built with [`SkyTable::new`] from this scene), less what the
+/// horizon hides (`occluded`: per baked azimuth, a wedge). Visibility is used when the scene enables it and `inputs.horizon` is not
+/// empty; specular only when the scene enables it.
+pub fn shade(inputs: &Inputs<'_>, scene: &Scene, sky: &SkyTable) -> Vec3 {
     let vmf = Vmf::from_mean_normal(inputs.r);
     let n = vmf.axis;
     let horizon: &[f32] = if scene.effects.visibility {
@@ -301,21 +361,21 @@ pub fn shade(inputs: &Inputs<'_>, scene: &Scene, patches: Patches) -> Vec3 {
         &[]
     };
     let cut = Cut::new(n, horizon, plane_drop(vmf.kappa));
-    let cosine = Sg {
-        axis: n,
-        lambda: sg::COSINE_LAMBDA,
-        mu: Vec3::splat(sg::COSINE_MU),
-    }
-    .convolve_vmf(vmf.kappa);
+    let cosine = cosine_lobe(&vmf);
     let mut diffuse = Vec3::ZERO;
-    for light in &scene.lights {
-        diffuse += if light.lambda >= SHARP_LAMBDA {
-            let sigma = (2.0 / light.lambda).sqrt();
-            light.integral()
-                * (vmf_cosine(n.dot(light.axis), &vmf) * cut.horizon_visible(light.axis, sigma))
-        } else {
-            integrate_patches(&light.product(&cosine), &cut, patches)
-        };
+    for light in scene.lights.iter().filter(|l| l.lambda >= SHARP_LAMBDA) {
+        let sigma = (2.0 / light.lambda).sqrt();
+        diffuse += light.integral()
+            * (vmf_cosine(n.dot(light.axis), &vmf) * cut.horizon_visible(light.axis, sigma));
+    }
+    if scene.lights.iter().any(|l| l.lambda < SHARP_LAMBDA) {
+        let mut hidden = Vec3::ZERO;
+        if !horizon.is_empty() {
+            for light in scene.lights.iter().filter(|l| l.lambda < SHARP_LAMBDA) {
+                hidden += occluded(&light.product(&cosine), &cut);
+            }
+        }
+        diffuse += (sky.lookup(n, vmf.r_len) - hidden).max(Vec3::ZERO);
     }
     let m = &scene.material;
     let mut out = m.kd * diffuse / PI;

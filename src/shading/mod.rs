@@ -14,13 +14,15 @@
 //! - for the other lights the clamped cosine is one SG (lambda 2.133, mu 1.17; [`crate::shading::sg::COSINE_LAMBDA`]), widened by the vMF
 //!   with [`sg::Sg::convolve_vmf`], and cut at the mean normal's tangent plane lowered by the vMF's angular
 //!   spread ([`plane_drop`]);
-//! - each patch's visibility is the fraction of its elevation span (over its corners and centre) above the
-//!   horizon at the azimuth of its centre, the horizon interpolated between the D baked azimuths;
+//! - the broad lights' integral above the lowered plane is tabulated per scene over the mean normal's
+//!   direction and |r| ([`SkyTable`], 32^2 x 16 texels, read bilinearly in two layers);
+//! - what the horizon hides of it is subtracted per baked azimuth: the wedge between the lowered plane
+//!   and the horizon, integrated over sin(elevation) by 2-point Gauss-Legendre;
 //! - specular: Fresnel = 1 (folded into k_s), the implicit geometry term G = (n.i)(n.o), so the BRDF is
 //!   D(h) / 4; the cosine is taken at the product lobe's axis and visibility as the fraction of the lobe's
 //!   one-sigma cap above the horizon.
 //!
-//! Files: `basic.rs` (the basic shading's parameters), `scene.rs` (lights, material, effects), `sg.rs` (spherical Gaussians and the vMF), `integrate.rs`
+//! Files: `basic.rs` (the basic shading's parameters), `scene.rs` (lights, material, effects), `sg.rs` (spherical Gaussians and the vMF), `sky_table.rs` (the per-scene sky table), `integrate.rs`
 //! ([`shade`], the CPU twin of `shaders_gles/sg_shading.wgsl`), `reference.rs` ([`reference()`], the f64
 //! reference) and `debug_view.rs` (the debug views' CPU side).
 
@@ -30,9 +32,11 @@ mod integrate;
 mod reference;
 pub mod scene;
 pub mod sg;
+pub mod sky_table;
 
 pub use integrate::{
     plane_drop, shade, vmf_cosine, warped_ndf, Inputs, Patches, MAX_BANDS, MAX_SECTORS,
     SHARP_LAMBDA,
 };
 pub use reference::{reference, HorizonTable, RefCosine, RefGrid, RefInputs};
+pub use sky_table::SkyTable;

@@ -4,7 +4,8 @@
 //! - [`clipmap`]: `shaders_gles/clipmap.wgsl` (vertex placement, morph, snapped tiles).
 //! - [`shading`]: `data_surface` of `shaders_gles/clipmap.wgsl` (the data under a pixel, GC section 6).
 //! - The SG integration of `shaders_gles/sg_shading.wgsl` has its twin in [`crate::shading::shade`]
-//!   (with its f64 reference, [`crate::shading::reference()`]), beside the SG maths it shares.
+//!   (with its f64 reference, [`crate::shading::reference()`]), beside the SG maths it shares; the sky
+//!   table that both read is built once on the CPU by [`crate::shading::SkyTable::new`].
 
 pub mod clipmap;
 pub mod shading;

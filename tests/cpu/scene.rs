@@ -27,7 +27,7 @@ fn shipped_scenes_load_and_shade() {
                 view: Vec3::new(0.0, -0.6, 0.8),
             },
             &s,
-            Patches::default(),
+            &shading::SkyTable::new(&s, Patches::default()),
         );
         assert!(c.is_finite() && c.min_element() > 0.0, "{name}: {c}");
     }
@@ -47,8 +47,9 @@ fn needs_follow_the_declared_effects() {
         horizon: h,
         view: Vec3::Z,
     };
-    let open = shading::shade(&inputs(&[0.0; 8]), &noon, Patches::P4x8);
-    let walled = shading::shade(&inputs(&[1.5; 8]), &noon, Patches::P4x8);
+    let sky = shading::SkyTable::new(&noon, Patches::P4x8);
+    let open = shading::shade(&inputs(&[0.0; 8]), &noon, &sky);
+    let walled = shading::shade(&inputs(&[1.5; 8]), &noon, &sky);
     assert_eq!(open, walled);
 }
 

@@ -51,7 +51,7 @@ fn compare(
             view,
         },
         sc,
-        p,
+        &shading::SkyTable::new(sc, p),
     );
     assert!(
         s.is_finite() && s.min_element() >= 0.0,
@@ -306,15 +306,19 @@ fn patch_table(step: u32) -> Vec<Row> {
     };
     let mut rows = Vec::new();
     for patches in Patches::ALL {
+        let skies: Vec<shading::SkyTable> = setups
+            .iter()
+            .map(|sc| shading::SkyTable::new(sc, patches))
+            .collect();
         let mut shaded = Vec::new();
-        for sc in &setups {
+        for (sc, sky) in setups.iter().zip(&skies) {
             for p in &pts {
                 let inputs = Inputs {
                     r: p.r,
                     horizon: &p.baked,
                     view: Vec3::Z,
                 };
-                shaded.push(f64::from(shading::shade(&inputs, sc, patches).x));
+                shaded.push(f64::from(shading::shade(&inputs, sc, sky).x));
             }
         }
         let (rmse, max) = stats(&shaded, &refs);
@@ -323,14 +327,14 @@ fn patch_table(step: u32) -> Vec<Row> {
         let reps = 20;
         let start = Instant::now();
         for _ in 0..reps {
-            for sc in &setups {
+            for (sc, sky) in setups.iter().zip(&skies) {
                 for p in &pts {
                     let inputs = Inputs {
                         r: std::hint::black_box(p.r),
                         horizon: &p.baked,
                         view: Vec3::Z,
                     };
-                    std::hint::black_box(shading::shade(&inputs, sc, patches));
+                    std::hint::black_box(shading::shade(&inputs, sc, sky));
                 }
             }
         }

@@ -66,6 +66,7 @@ fn gpu_shading_matches_cpu_twin() {
         let cases = cases(d);
         for patches in Patches::ALL {
             let gpu_out = shade_gpu(&gpu, &scene, patches, &cases).expect("probe");
+            let sky = shading::SkyTable::new(&scene, patches);
             let cpu: Vec<Vec3> = cases
                 .iter()
                 .map(|c| {
@@ -76,7 +77,7 @@ fn gpu_shading_matches_cpu_twin() {
                             view: c.view,
                         },
                         &scene,
-                        patches,
+                        &sky,
                     )
                 })
                 .collect();
@@ -195,11 +196,25 @@ fn renderer_bakes_and_binds_only_what_the_scene_needs() {
     let mut renderer =
         Offscreen::with_sg(&gpu, &profile, &clipmap, &hm, &noon, Patches::P4x8, true)
             .expect("sg noon");
-    assert_eq!(renderer.bound_textures(), ["heights", "level_normal"]);
+    assert_eq!(
+        renderer.bound_textures(),
+        ["heights", "level_normal", "sky_table"]
+    );
     assert_eq!(renderer.baked(), ["normal_sat"]);
-    assert_eq!(renderer.renderer().sg_layout_entries(), Some(2));
+    assert_eq!(renderer.renderer().sg_layout_entries(), Some(3));
     let sg = render_frame(&mut renderer, &clipmap, &camera, &opts).expect("sg frame");
     assert_ne!(sg.image.hash(), basic.image.hash());
+    // Switching SG off and on again draws basic and SG frames and creates nothing (issue 16: the tables
+    // are never re-created on a toggle).
+    let objects = renderer.renderer().ledger().count();
+    renderer.renderer_mut().set_sg_enabled(false);
+    assert!(!renderer.renderer().sg_enabled());
+    let off = render_frame(&mut renderer, &clipmap, &camera, &opts).expect("sg off frame");
+    assert_eq!(off.image.hash(), basic.image.hash());
+    renderer.renderer_mut().set_sg_enabled(true);
+    let on = render_frame(&mut renderer, &clipmap, &camera, &opts).expect("sg on frame");
+    assert_eq!(on.image.hash(), sg.image.hash());
+    assert_eq!(renderer.renderer().ledger().count(), objects);
     #[expect(
         clippy::cast_possible_truncation,
         reason = "colours in [0, 1] as bytes"
@@ -224,7 +239,10 @@ fn renderer_bakes_and_binds_only_what_the_scene_needs() {
         false,
     )
     .expect("sg evening, no shadows");
-    assert_eq!(renderer.bound_textures(), ["heights", "level_normal"]);
+    assert_eq!(
+        renderer.bound_textures(),
+        ["heights", "level_normal", "sky_table"]
+    );
     assert_eq!(renderer.baked(), ["normal_sat"]);
     assert!(renderer
         .renderer()
@@ -235,10 +253,10 @@ fn renderer_bakes_and_binds_only_what_the_scene_needs() {
             .expect("sg evening");
     assert_eq!(
         renderer.bound_textures(),
-        ["heights", "level_normal", "level_horizon"]
+        ["heights", "level_normal", "sky_table", "level_horizon"]
     );
     assert_eq!(renderer.baked(), ["normal_sat", "horizons", "horizon_sat"]);
-    assert_eq!(renderer.renderer().sg_layout_entries(), Some(3));
+    assert_eq!(renderer.renderer().sg_layout_entries(), Some(4));
     render_frame(&mut renderer, &clipmap, &camera, &opts).expect("sg evening frame");
 }
 
@@ -273,7 +291,7 @@ fn cli_render_reports_bound_textures_and_baked() {
     let v = json(&run(&["--shading", "sg", "--scene", "evening", "--json"]));
     assert_eq!(
         v["bound_textures"],
-        serde_json::json!(["heights", "level_normal", "level_horizon"])
+        serde_json::json!(["heights", "level_normal", "sky_table", "level_horizon"])
     );
     assert_eq!(
         v["baked"],
@@ -290,7 +308,7 @@ fn cli_render_reports_bound_textures_and_baked() {
     ]));
     assert_eq!(
         v["bound_textures"],
-        serde_json::json!(["heights", "level_normal"])
+        serde_json::json!(["heights", "level_normal", "sky_table"])
     );
     assert_eq!(v["baked"], serde_json::json!(["normal_sat"]));
     let refused = run(&["--no-shadows"]);

@@ -188,7 +188,7 @@ impl Renderer {
         // A debug view replaces the shading, SG included. Each draw is recorded with its own program,
         // set when it changes: basic shading's `FragmentPath`, SG's block or skirt program.
         let sg = match (&self.sg, self.debug.code()) {
-            (Some(sg), 0) => {
+            (Some(sg), 0) if self.sg_enabled => {
                 pass.set_bind_group(2, &sg.group, &[]);
                 Some(sg)
             }

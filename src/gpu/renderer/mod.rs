@@ -127,6 +127,9 @@ pub struct Renderer {
     /// The pipelines drawn, basic shading or the debug view's, indexed by [`crate::plan::fragment::FragmentPath`].
     pipelines: [wgpu::RenderPipeline; FRAGMENT_PATHS],
     sg: Option<SgState>,
+    /// Whether frames draw with the SG programs ([`Renderer::set_sg_enabled`]); the SG state is kept
+    /// (and its level tables updated) either way.
+    sg_enabled: bool,
     debug: DebugView,
     size: u32,
     levels: u32,
@@ -141,10 +144,11 @@ impl Renderer {
     /// Creates every buffer, texture and pipeline for `profile` on `device` (which must offer the GLES 3.0
     /// downlevel limits, [`wgpu::Limits::downlevel_webgl2_defaults`]); nothing else is created until the
     /// renderer drops. GPU validation errors surface through the device's error scopes or handler. The
-    /// queue writes nothing yet: [`Renderer::prepare`] fills every texture, the SG tables included.
+    /// queue writes only the SG sky table (per scene, once); [`Renderer::prepare`] fills every other
+    /// texture, the SG level tables included.
     pub fn new(
         device: &wgpu::Device,
-        _queue: &wgpu::Queue,
+        queue: &wgpu::Queue,
         options: &RendererOptions<'_>,
         profile: &Profile,
     ) -> Result<Self> {
@@ -319,6 +323,7 @@ impl Renderer {
             Shading::Basic => None,
             Shading::Sg(s) => Some(SgState::new(
                 &mut dev,
+                queue,
                 profile,
                 s,
                 [&group0_layout, &group1_layout],
@@ -346,6 +351,7 @@ impl Renderer {
             pipeline_layout,
             pipelines,
             sg,
+            sg_enabled: true,
             debug: options.debug,
             size,
             levels: c.levels,
@@ -376,8 +382,21 @@ impl Renderer {
         self.levels
     }
 
-    /// The names of the textures the shading binds: `heights`, plus `level_normal` and, with visibility,
-    /// `level_horizon` under SG shading.
+    /// Draws with SG shading (`true`, the default) or basic shading (`false`) from the next
+    /// [`Renderer::render`], without creating or re-creating anything: a renderer made with
+    /// [`Shading::Sg`] keeps its SG tables (still written by each prepare, so they are current when SG is
+    /// switched back on) and its pipelines. No effect on a renderer made with basic shading.
+    pub fn set_sg_enabled(&mut self, on: bool) {
+        self.sg_enabled = on;
+    }
+
+    /// Whether frames draw with SG shading: made with it and not switched off.
+    pub fn sg_enabled(&self) -> bool {
+        self.sg.is_some() && self.sg_enabled
+    }
+
+    /// The names of the textures the shading binds: `heights`, plus `level_normal`, `sky_table` and, with
+    /// visibility, `level_horizon` under SG shading.
     pub fn bound_textures(&self) -> &[&'static str] {
         match &self.sg {
             Some(sg) => &sg.bound,
@@ -398,7 +417,7 @@ impl Renderer {
         self.sg.as_ref().map(|s| s.variant)
     }
 
-    /// Entries of the SG bind group layout (group 2), under SG shading: 2 without visibility, 3 with.
+    /// Entries of the SG bind group layout (group 2), under SG shading: 3 without visibility, 4 with.
     pub fn sg_layout_entries(&self) -> Option<usize> {
         self.sg.as_ref().map(|s| s.layout_entries)
     }

@@ -5,8 +5,9 @@ use super::sg_tables::SgTables;
 use super::{array_entry, terrain_pipeline, Ledgered, Targets};
 use crate::gpu::sat_textures::ShadingBake;
 use crate::gpu::shaders::{self, SgOmit, SgSceneUniform, SgVariant};
+use crate::profile::{SG_SKY_LAYERS, SG_SKY_SIDE};
 use crate::shading::scene::Scene;
-use crate::shading::Patches;
+use crate::shading::{Patches, SkyTable};
 use crate::{Heightmap, Profile, Result};
 
 /// The SG shading variant of [`super::Shading::Sg`]: a scene over the terrain `terrain` (the one the
@@ -38,6 +39,8 @@ pub(super) struct SgState {
     pub(super) bound: Vec<&'static str>,
     pub(super) layout_entries: usize,
     pub(super) tables: SgTables,
+    /// The scene's sky table (`shading/sky_table.rs`), written once.
+    _sky: wgpu::Texture,
     _uniform: wgpu::Buffer,
     _layout: wgpu::BindGroupLayout,
     pub(super) group: wgpu::BindGroup,
@@ -48,10 +51,12 @@ pub(super) struct SgState {
 }
 
 impl SgState {
-    /// Bakes nothing: creates the per-level tables (filled by each prepare from `s.bake`) and makes the
-    /// group-2 layout, group and pipelines.
+    /// Bakes nothing of the terrain: creates the per-level tables (filled by each prepare from `s.bake`)
+    /// and the scene's sky table (integrated here, once), and makes the group-2 layout, group and
+    /// pipelines.
     pub(super) fn new(
         dev: &mut Ledgered<'_>,
+        queue: &wgpu::Queue,
         profile: &Profile,
         s: &SgShading<'_>,
         layouts: [&wgpu::BindGroupLayout; 2],
@@ -82,6 +87,27 @@ impl SgState {
             bytemuck::bytes_of(&u),
             wgpu::BufferUsages::UNIFORM,
         );
+        let sky_table = SkyTable::new(&scene, s.patches);
+        let sky = dev.texture_with_data(
+            queue,
+            "sg sky_table",
+            &wgpu::TextureDescriptor {
+                label: None,
+                size: wgpu::Extent3d {
+                    width: SG_SKY_SIDE * SG_SKY_LAYERS,
+                    height: SG_SKY_SIDE,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: wgpu::TextureFormat::Rgba32Float,
+                usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+                view_formats: &[],
+            },
+            bytemuck::cast_slice(sky_table.texels()),
+        );
+        let sky_view = dev.view("sg sky_table view", &sky, &Default::default());
         let mut entries = vec![
             wgpu::BindGroupLayoutEntry {
                 binding: 0,
@@ -105,7 +131,22 @@ impl SgState {
                 resource: wgpu::BindingResource::TextureView(&tables.normal_view),
             },
         ];
-        let mut bound = vec!["heights", "level_normal"];
+        let (_, sky_binding) = shaders::SKY_TABLE_CLIPMAP;
+        entries.push(wgpu::BindGroupLayoutEntry {
+            binding: sky_binding,
+            visibility: wgpu::ShaderStages::FRAGMENT,
+            ty: wgpu::BindingType::Texture {
+                sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                view_dimension: wgpu::TextureViewDimension::D2,
+                multisampled: false,
+            },
+            count: None,
+        });
+        resources.push(wgpu::BindGroupEntry {
+            binding: sky_binding,
+            resource: wgpu::BindingResource::TextureView(&sky_view),
+        });
+        let mut bound = vec!["heights", "level_normal", "sky_table"];
         if let (true, Some(view)) = (variant.visibility, tables.horizon_view.as_ref()) {
             entries.push(array_entry(2, wgpu::ShaderStages::FRAGMENT));
             resources.push(wgpu::BindGroupEntry {
@@ -143,6 +184,7 @@ impl SgState {
             bound,
             layout_entries: entries.len(),
             tables,
+            _sky: sky,
             _uniform: uniform,
             _layout: layout,
             group,

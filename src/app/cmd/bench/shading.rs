@@ -103,7 +103,7 @@ pub(crate) struct BreakdownRow {
 }
 
 impl BreakdownRow {
-    /// Each term's cost in ms: footprint fetch, vMF, per-patch closed form (full minus the variant without
+    /// Each term's cost in ms: footprint fetch, vMF, sky table + horizon wedges (full minus the variant without
     /// it), visibility (+visibility minus diffuse), specular (+specular minus +visibility).
     pub(crate) fn term_ms(&self) -> [(&'static str, f64); 5] {
         let full = self.effects_ms[2];
