@@ -30,6 +30,10 @@ impl Mapping {
         // SAFETY: read-only and private; the cache replaces files by rename, never in place (see above),
         // and a file truncated underneath by another process is outside what any reader can defend against.
         let map = unsafe { memmap2::Mmap::map(file) }?;
+        // Queries read a few scattered entries: no readahead or fault-around of neighbouring pages, which
+        // would multiply the pages a frame holds. Advice only; ignored where unsupported.
+        #[cfg(unix)]
+        let _ = map.advise(memmap2::Advice::Random);
         Ok(Self(Arc::new(map)))
     }
 
