@@ -196,32 +196,41 @@ impl Lod {
             return f64::INFINITY;
         };
         let p = self.tables.p;
-        let bound = |a: i64, c: i64, b: i64, d: i64| -> f64 {
+        let eta_of = |a: i64, c: i64, b: i64, d: i64| -> f64 {
             let (x0, y0, x1, y1) = self.tables.data_box(self.synth, a, c, b, d);
-            let eta = t.eta(mode, p, x0, y0, x1, y1);
-            if eta == 0.0 {
-                return 0.0;
-            }
-            self.bound_px(camera, eta, self.closest_distance(camera, a, c, b, d))
+            t.eta(mode, p, x0, y0, x1, y1)
         };
-        let whole = bound(a, c, b, d);
-        if whole == 0.0 || mode == LodMode::Distance {
-            return whole;
+        let eta = eta_of(a, c, b, d);
+        if eta == 0.0 || mode == LodMode::Distance {
+            return 0.0;
         }
+        let whole = self.bound_px(camera, eta, self.closest_distance(camera, a, c, b, d));
         let (xs, ys) = (split_points(a, b, level), split_points(c, d, level));
         if xs.len() <= 2 && ys.len() <= 2 {
             return whole;
         }
-        let mut worst = 0.0f64;
+        // Sub-boxes nearest first: a sub-box's bound is at most the whole box's error at its own closest
+        // point (the whole box's error bounds its samples too), so once that is below the largest bound so
+        // far its own error need not be read.
+        let mut subs: heapless::Vec<(f64, f64, [i64; 4]), { SPLIT * SPLIT }> = heapless::Vec::new();
         for y in ys.windows(2) {
             for x in xs.windows(2) {
-                worst = worst.max(bound(x[0], y[0], x[1], y[1]));
-                if worst >= whole {
-                    return whole;
-                }
+                let dist = self.closest_distance(camera, x[0], y[0], x[1], y[1]);
+                let cap = self.bound_px(camera, eta, dist);
+                subs.push((cap, dist, [x[0], y[0], x[1], y[1]]))
+                    .expect("SPLIT x SPLIT sub-boxes");
             }
         }
-        worst
+        subs.sort_unstable_by(|u, v| v.0.total_cmp(&u.0));
+        let mut worst = 0.0f64;
+        for &(cap, dist, [a, c, b, d]) in &subs {
+            if cap <= worst {
+                break;
+            }
+            let sub = eta_of(a, c, b, d).min(eta);
+            worst = worst.max(self.bound_px(camera, sub, dist));
+        }
+        worst.min(whole)
     }
 
     /// The distance from the eye to the closest point of a level-0 lattice box [a, b] x [c, d] (inclusive
