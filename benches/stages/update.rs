@@ -1,6 +1,6 @@
 //! Per-frame plan benchmarks: clipmap update throughput against memcpy, and fly wall time per frame.
 //!
-//! Run with `cargo bench --bench update`. Work is counted in samples (design.md); these timings only show
+//! Run with `cargo bench --bench stages -- "refill|fly_puget"`. Work is counted in samples (design.md); these timings only show
 //! what a sample costs on this machine.
 
 use std::hint::black_box;
@@ -12,7 +12,7 @@ use clipsat::plan::flight::{Flight, Path};
 use clipsat::profile::SHIPPED;
 use clipsat::source::{self, LoadOptions};
 use clipsat::{Heightmap, Profile};
-use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use criterion::{criterion_group, Criterion, Throughput};
 use glam::DVec3;
 
 /// Rolling synthetic terrain, 1025 x 1025 at 30 m: the refill bench needs no data files.
@@ -117,4 +117,3 @@ fn fly_puget(c: &mut Criterion) {
 }
 
 criterion_group!(benches, full_refill, fly_puget);
-criterion_main!(benches);

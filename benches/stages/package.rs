@@ -1,7 +1,7 @@
 //! Package decode benchmarks (stage 1b): whole-pyramid decode per codec against a memcpy of the decoded
 //! bytes, and one full 256 x 256 level through the tile cache.
 //!
-//! Run with `cargo bench --bench package`. Uses `../shared/data/ps_height_1k.png` (skipped with a reason
+//! Run with `cargo bench --bench stages -- "decode_|cache_|stream_fill"`. Uses `../shared/data/ps_height_1k.png` (skipped with a reason
 //! when missing) and a synthetic 1025^2 terrain.
 
 use std::hint::black_box;
@@ -11,7 +11,7 @@ use std::time::Duration;
 use clipsat::package::{self, BakeOptions, CodecKind, Package, TileCache};
 use clipsat::source::{self, LoadOptions};
 use clipsat::Heightmap;
-use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use criterion::{criterion_group, Criterion, Throughput};
 
 fn hills() -> Heightmap {
     let size = 1025u32;
@@ -173,4 +173,3 @@ fn refill(c: &mut Criterion) {
 }
 
 criterion_group!(benches, decode, full_level, refill);
-criterion_main!(benches);

@@ -1,7 +1,7 @@
 //! SAT LOD benchmarks: per-frame CPU block selection (each mode) for a gles3-mid clipmap on the procedural
 //! terrain, and SAT build time per level.
 //!
-//! Run with `cargo bench --bench lod`.
+//! Run with `cargo bench --bench stages -- lod_`.
 
 use std::hint::black_box;
 use std::time::Duration;
@@ -12,7 +12,7 @@ use clipsat::plan::flight::{Flight, Path};
 use clipsat::plan::lod::{Lod, LodFrame, LodMode};
 use clipsat::source::procedural::{generate, ProceduralParams};
 use clipsat::Profile;
-use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use criterion::{criterion_group, Criterion, Throughput};
 
 /// (a) `Lod::select` per frame along a figure-8 at 50 m/frame, gles3-mid, procedural 1025^2 at 30 m.
 fn select_per_frame(c: &mut Criterion) {
@@ -85,4 +85,3 @@ fn sat_build_per_level(c: &mut Criterion) {
 }
 
 criterion_group!(benches, select_per_frame, sat_build_per_level);
-criterion_main!(benches);
