@@ -14,6 +14,7 @@ use clipsat::gpu::Gpu;
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::plan::flight::{Flight, Path};
 use clipsat::plan::lod::LodMode;
+use clipsat::shading::Patches;
 use clipsat::source::procedural::{self, ProceduralParams};
 use clipsat::source::{self, LoadOptions};
 use clipsat::{Error, Heightmap, Profile, Result};
@@ -68,6 +69,8 @@ struct Plan {
     shading_frames: u32,
     /// How finely the shading section's CPU reference samples.
     shading_ref: RefQuality,
+    /// The patch counts the shading section compares (every one builds its own SG renderer).
+    shading_patches: &'static [Patches],
 }
 
 impl Plan {
@@ -86,6 +89,7 @@ impl Plan {
                 shading_size: (160, 90),
                 shading_frames: 1,
                 shading_ref: RefQuality::QUICK,
+                shading_patches: &[Patches::P4x8],
             }
         } else {
             Self {
@@ -98,6 +102,7 @@ impl Plan {
                 shading_size: (320, 180),
                 shading_frames: 3,
                 shading_ref: RefQuality::FULL,
+                shading_patches: &Patches::ALL,
             }
         }
     }
@@ -214,7 +219,7 @@ pub(crate) fn run(args: &BenchAllArgs) -> Result<()> {
     let (shading_terrains, shading_skipped) = shading::shading_terrains(plan.shared)?;
     let shipped = clipsat::profile::SHIPPED.len() as u64;
     let steps = shipped
-        + shading::shading_steps(shading_terrains.len())
+        + shading::shading_steps(shading_terrains.len(), plan.shading_patches.len())
         + terrains.len() as u64
             * (lod::lod_steps(plan.lod_frames) + plan.speeds.len() as u64 * plan.fly_frames)
         + memory::steps(terrains.len(), specs.len());
@@ -229,6 +234,7 @@ pub(crate) fn run(args: &BenchAllArgs) -> Result<()> {
     // Memory first: the process peak RSS then grows by one profile at a time.
     bar.set_message("memory");
     let memory = measure_memory(&gpu, &terrains[0].1, plan.size, &bar)?;
+    let mut sections = vec![("memory", t0.elapsed().as_secs_f64())];
 
     let lod_profile = lod::lod_profile(profile.clone(), plan.size.0, plan.size.1);
     let mut lod: Vec<LodResult> = Vec::new();
@@ -244,21 +250,27 @@ pub(crate) fn run(args: &BenchAllArgs) -> Result<()> {
         )?);
     }
 
+    sections.push(("lod", t0.elapsed().as_secs_f64()));
     let shading = shading::measure_shading(
         &gpu,
         &profile,
         &shading_terrains,
-        plan.shading_size,
-        plan.shading_frames,
-        plan.shading_ref,
+        &shading::ShadingRun {
+            size: plan.shading_size,
+            frames: plan.shading_frames,
+            quality: plan.shading_ref,
+            patches: plan.shading_patches,
+        },
         &bar,
     )?;
 
+    sections.push(("shading", t0.elapsed().as_secs_f64()));
     let mut budget = Vec::new();
     for (name, hm) in &terrains {
         bar.set_message(format!("budget {name}"));
         budget.extend(measure_budget(&profile, name, hm, &plan, &bar)?);
     }
+    sections.push(("budget", t0.elapsed().as_secs_f64()));
     let scratch = memory::scratch(&args.out)?;
     let terrain_memory = memory::measure(
         &terrains,
@@ -272,6 +284,7 @@ pub(crate) fn run(args: &BenchAllArgs) -> Result<()> {
     let _ = std::fs::remove_dir_all(&scratch);
     bar.finish_and_clear();
     let wall_s = t0.elapsed().as_secs_f64();
+    sections.push(("terrain memory", wall_s));
 
     let out = &args.out;
     let mut md = String::new();
@@ -295,6 +308,17 @@ pub(crate) fn run(args: &BenchAllArgs) -> Result<()> {
             format!(" Skipped: {}.", skipped.join(", "))
         },
     );
+    // Where the run's time went, section by section (the cumulative marks above, differenced).
+    let mut prev = 0.0;
+    let spent: Vec<String> = sections
+        .iter()
+        .map(|&(name, at)| {
+            let d = at - prev;
+            prev = at;
+            format!("{name} {d:.1} s")
+        })
+        .collect();
+    let _ = writeln!(md, "Time per section: {}.\n", spent.join(", "));
     md.push_str(&headline(&lod, &shading, &budget, &memory, &profile));
     md.push_str(&lod_section(out, &lod, &plan, &machine, &profile)?);
     md.push_str(&shading_section(

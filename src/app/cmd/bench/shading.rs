@@ -159,7 +159,7 @@ pub(crate) fn run_shading(args: &BenchShadingArgs) -> Result<ShadingReport> {
     let matrix_steps = if args.breakdown_only {
         0
     } else {
-        shading_steps(terrains.len())
+        shading_steps(terrains.len(), Patches::ALL.len())
     };
     let bar = ProgressBar::new(matrix_steps + breakdown_steps(terrains.len()));
     if let Ok(style) =
@@ -175,9 +175,12 @@ pub(crate) fn run_shading(args: &BenchShadingArgs) -> Result<ShadingReport> {
             &gpu,
             &profile,
             &terrains,
-            size,
-            args.frames,
-            crate::app::cmd::sg::RefQuality::FULL,
+            &ShadingRun {
+                size,
+                frames: args.frames,
+                quality: crate::app::cmd::sg::RefQuality::FULL,
+                patches: &Patches::ALL,
+            },
             &bar,
         )?
     };
@@ -264,8 +267,17 @@ fn add_shared(list: &[(&str, Option<f32>, Option<f32>)], out: &mut NamedTerrains
 }
 
 /// Progress steps of [`measure_shading`] over `terrains` terrains.
-pub(crate) fn shading_steps(terrains: usize) -> u64 {
-    (terrains * SHADING_EFFECTS.len() * clipsat::shading::Patches::ALL.len()) as u64
+pub(crate) fn shading_steps(terrains: usize, patches: usize) -> u64 {
+    (terrains * SHADING_EFFECTS.len() * patches) as u64
+}
+
+/// What one shading measurement covers: image size, timed frames per configuration, the CPU
+/// reference's sampling, and the patch counts compared (each builds its own SG renderer).
+pub(crate) struct ShadingRun<'a> {
+    pub(crate) size: (u32, u32),
+    pub(crate) frames: u32,
+    pub(crate) quality: crate::app::cmd::sg::RefQuality,
+    pub(crate) patches: &'a [Patches],
 }
 
 /// Measures every (terrain, effects, patches) at `size`: ms per frame against basic shading in the same
@@ -274,11 +286,11 @@ pub(crate) fn measure_shading(
     gpu: &Gpu,
     profile: &Profile,
     terrains: &[(String, Heightmap)],
-    (w, h): (u32, u32),
-    frames: u32,
-    quality: crate::app::cmd::sg::RefQuality,
+    run: &ShadingRun<'_>,
     bar: &ProgressBar,
 ) -> Result<Vec<ShadingRow>> {
+    let (w, h) = run.size;
+    let (frames, quality) = (run.frames, run.quality);
     let mut profile = profile.clone();
     profile.view.width = w;
     profile.view.height = h;
@@ -316,7 +328,7 @@ pub(crate) fn measure_shading(
             scene.effects.visibility = vis;
             scene.effects.specular = spec;
             let reference = crate::app::cmd::sg::reference_at(hm, &camera, (w, h), &scene, quality);
-            for patches in Patches::ALL {
+            for &patches in run.patches {
                 let bake = if vis { &bake_vis } else { &bake_plain };
                 let mut r = Offscreen::new(
                     gpu,
