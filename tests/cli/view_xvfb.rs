@@ -305,6 +305,13 @@ fn view_flies_under_xvfb() {
     xdotool(&display, &["key", "2"]);
     sleep(Duration::from_secs(2));
     let (_, _, sg) = screenshot(&display);
+    // 1 twice: SG off and on again, each a switch of the renderer built above (issue 16: the SG tables
+    // are never re-created on a toggle), back to the same SG frame.
+    xdotool(&display, &["key", "1"]);
+    sleep(Duration::from_secs(2));
+    xdotool(&display, &["key", "1"]);
+    sleep(Duration::from_secs(3));
+    let (_, _, sg_again) = screenshot(&display);
     xdotool(&display, &["key", "Escape"]);
 
     let t0 = Instant::now();
@@ -363,6 +370,27 @@ fn view_flies_under_xvfb() {
     assert!(
         stderr.contains("baking the shading SATs"),
         "key 1 baked nothing: {stderr}"
+    );
+    assert_eq!(
+        stderr.matches("baking the shading SATs").count(),
+        1,
+        "SG off and on again baked again: {stderr}"
+    );
+    for state in ["off", "on"] {
+        assert!(
+            stderr.contains(&format!("SG shading {state} (switched")),
+            "SG {state} was not a switch of the built renderer: {stderr}"
+        );
+    }
+    // The same SG frame again, but for the stats text.
+    let differing = sg
+        .chunks(3)
+        .zip(sg_again.chunks(3))
+        .filter(|(a, b)| a != b)
+        .count();
+    assert!(
+        differing * 50 < sg.len() / 3,
+        "SG off and on again: {differing} pixels differ from the first SG frame"
     );
     assert!(
         stderr.contains("switch refused"),

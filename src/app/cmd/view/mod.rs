@@ -167,6 +167,7 @@ pub(crate) fn run(args: &ViewArgs) -> Result<()> {
         patches,
         bake: None,
         applied,
+        sg_built: None,
         clearance: (2.0 * f64::from(hm.spacing())).max(30.0),
         window: None,
         context: None,
@@ -312,6 +313,9 @@ struct App<'a> {
     bake: Option<ShadingBake>,
     /// The switches the renderer is set up for.
     applied: ShadingSwitches,
+    /// The effects (with `sg` on) of the SG variant the renderer was built with, if it has one: the
+    /// basic/SG key then only switches it (`Renderer::set_sg_enabled`), creating nothing.
+    sg_built: Option<ShadingSwitches>,
     clearance: f64,
     window: Option<Presenter>,
     /// The window's GL context (GL_VERSION, GL_RENDERER) and whether it is OpenGL ES 3.0.
@@ -475,9 +479,26 @@ impl App<'_> {
         let Some(max_texture_side) = self.window.as_ref().map(|p| p.max_texture_side) else {
             return Ok(());
         };
+        // SG on or off with the effects the renderer's SG variant already has: a switch, not a rebuild
+        // (issue 16: the SG tables are created once, never again on a toggle).
+        let same_effects = ShadingSwitches { sg: true, ..want };
+        if built == self.built && !self.resized && self.sg_built == Some(same_effects) {
+            if let Some(p) = self.window.as_mut() {
+                p.renderer.set_sg_enabled(want.sg);
+            }
+            eprintln!(
+                "clipsat view: SG shading {} (switched: nothing baked or created)",
+                if want.sg { "on" } else { "off" }
+            );
+            self.applied = want;
+            return Ok(());
+        }
         let lod = LodSetup::new(self.state.lod, self.lod.clone())?;
         match want.apply(&self.scene) {
-            None => self.rebuild(lod, gpu_renderer::Shading::Basic)?,
+            None => {
+                self.rebuild(lod, gpu_renderer::Shading::Basic)?;
+                self.sg_built = None;
+            }
             Some(scene) => {
                 if let Err(e) = scene.check_profile(&scene.name, &self.profile) {
                     // Refuse the key, keep what is drawn.
@@ -521,6 +542,7 @@ impl App<'_> {
                 };
                 self.bake = bake;
                 built?;
+                self.sg_built = Some(want);
             }
         }
         self.applied = want;
