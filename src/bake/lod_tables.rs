@@ -16,10 +16,12 @@
 use std::fmt;
 use std::str::FromStr;
 
-use crate::bake::mapped::{Grid, Mapping};
+use crate::bake::mapped::Mapping;
 use crate::bake::pyramid::Pyramid;
 use crate::bake::sat::{pow_unit, Sat};
 use crate::{Error, Result};
+
+pub use crate::bake::range_max::RangeMax;
 
 /// The exponent p of the SFAMF estimate (design.md "SAT LOD" 3-4), fixed from `clipsat tune-p`.
 ///
@@ -159,169 +161,6 @@ pub fn sample_error(pyramid: &Pyramid, k: u32, x: i64, y: i64) -> f32 {
     };
     let h0 = f64::from(pyramid.level(0).at_clamped(x, y));
     (h0 - pl).abs() as f32
-}
-
-/// Range maximum over a grid of non-negative f32: a max pyramid (level k+1 = max of 2 x 2 of level k).
-///
-/// A query peels odd border rows and columns at each level and halves, so it reads O(w + h) cells in the
-/// worst case and O(1) levels' worth for boxes aligned to large powers of two. Memory: 4/3 x 4 bytes per
-/// sample.
-#[derive(Clone, Debug, PartialEq)]
-pub struct RangeMax {
-    dims: Vec<(u32, u32)>,
-    levels: Vec<Grid<f32>>,
-}
-
-impl RangeMax {
-    /// Builds the pyramid over `values` (`width x height`, row-major); panics on a size mismatch.
-    pub fn build(width: u32, height: u32, values: Vec<f32>) -> Self {
-        assert_eq!(
-            values.len() as u64,
-            u64::from(width) * u64::from(height),
-            "range-max grid size"
-        );
-        let dims = Self::dims(width, height);
-        let mut levels = vec![values];
-        for &(w, h) in &dims[..dims.len() - 1] {
-            let (nw, nh) = (w.div_ceil(2), h.div_ceil(2));
-            let prev = levels.last().expect("a level");
-            let mut next = vec![0.0f32; nw as usize * nh as usize];
-            for y in 0..nh as usize {
-                for x in 0..nw as usize {
-                    let mut m = 0.0f32;
-                    for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
-                        let (sx, sy) = (2 * x + dx, 2 * y + dy);
-                        if sx < w as usize && sy < h as usize {
-                            m = m.max(prev[sy * w as usize + sx]);
-                        }
-                    }
-                    next[y * nw as usize + x] = m;
-                }
-            }
-            levels.push(next);
-        }
-        Self {
-            dims,
-            levels: levels.into_iter().map(Grid::owned).collect(),
-        }
-    }
-
-    /// Each level's (width, height), finest first: halving (rounded up) down to 1 x 1.
-    pub fn dims(width: u32, height: u32) -> Vec<(u32, u32)> {
-        let mut dims = vec![(width, height)];
-        while let Some(&(w, h)) = dims.last() {
-            if w <= 1 && h <= 1 {
-                break;
-            }
-            dims.push((w.div_ceil(2), h.div_ceil(2)));
-        }
-        dims
-    }
-
-    /// A pyramid from its levels as [`RangeMax::levels`] returns them (e.g. borrowed from a mapped
-    /// cache file); None if their number or sizes do not follow [`RangeMax::dims`] of the first.
-    pub fn from_levels(width: u32, height: u32, levels: Vec<Grid<f32>>) -> Option<Self> {
-        let dims = Self::dims(width, height);
-        let fits = dims.len() == levels.len()
-            && dims
-                .iter()
-                .zip(&levels)
-                .all(|(&(w, h), l)| l.len() as u64 == u64::from(w) * u64::from(h));
-        fits.then_some(Self { dims, levels })
-    }
-
-    /// Every level, finest first (for caching).
-    pub fn levels(&self) -> &[Grid<f32>] {
-        &self.levels
-    }
-
-    /// Bytes of the levels held in owned memory (0 for mapped ones).
-    pub fn owned_bytes(&self) -> u64 {
-        self.levels.iter().map(Grid::owned_bytes).sum()
-    }
-
-    /// The finest level: the values themselves.
-    pub fn values(&self) -> &[f32] {
-        &self.levels[0]
-    }
-
-    /// The finest level's width and height.
-    pub fn size(&self) -> (u32, u32) {
-        self.dims[0]
-    }
-
-    /// Bytes the pyramid holds.
-    pub fn memory_bytes(&self) -> u64 {
-        self.levels.iter().map(|l| l.len() as u64 * 4).sum()
-    }
-
-    /// An upper bound of the maximum over [x0, x1) x [y0, y1) (0 for an empty box) read in O(1): the
-    /// maximum of the at most 2 x 2 cells of the first pyramid level whose cells cover the box that many
-    /// to a side (each cell's value is the maximum over its samples, so over a superset of the box).
-    pub fn max_coarse(&self, x0: u32, y0: u32, x1: u32, y1: u32) -> f32 {
-        if x0 >= x1 || y0 >= y1 {
-            return 0.0;
-        }
-        let mut j = 0;
-        while j + 1 < self.levels.len()
-            && (((x1 - 1) >> j) - (x0 >> j) > 1 || ((y1 - 1) >> j) - (y0 >> j) > 1)
-        {
-            j += 1;
-        }
-        let (w, h) = self.dims[j];
-        let vals = &self.levels[j];
-        let mut m = 0.0f32;
-        for y in (y0 >> j)..=((y1 - 1) >> j).min(h - 1) {
-            for x in (x0 >> j)..=((x1 - 1) >> j).min(w - 1) {
-                m = m.max(vals[y as usize * w as usize + x as usize]);
-            }
-        }
-        m
-    }
-
-    /// Maximum over [x0, x1) x [y0, y1) (0 for an empty box); panics past the grid.
-    pub fn max(&self, x0: u32, y0: u32, x1: u32, y1: u32) -> f32 {
-        assert!(
-            x1 <= self.dims[0].0 && y1 <= self.dims[0].1,
-            "range-max box past the grid"
-        );
-        let (mut x0, mut y0, mut x1, mut y1) = (x0, y0, x1, y1);
-        let mut m = 0.0f32;
-        for (k, vals) in self.levels.iter().enumerate() {
-            let vals: &[f32] = vals;
-            if x0 >= x1 || y0 >= y1 {
-                break;
-            }
-            let w = self.dims[k].0 as usize;
-            let at = |x: u32, y: u32| vals[y as usize * w + x as usize];
-            if k + 1 == self.levels.len() {
-                for y in y0..y1 {
-                    for x in x0..x1 {
-                        m = m.max(at(x, y));
-                    }
-                }
-                break;
-            }
-            if x0 & 1 == 1 {
-                (y0..y1).for_each(|y| m = m.max(at(x0, y)));
-                x0 += 1;
-            }
-            if x1 & 1 == 1 && x1 > x0 {
-                (y0..y1).for_each(|y| m = m.max(at(x1 - 1, y)));
-                x1 -= 1;
-            }
-            if y0 & 1 == 1 {
-                (x0..x1).for_each(|x| m = m.max(at(x, y0)));
-                y0 += 1;
-            }
-            if y1 & 1 == 1 && y1 > y0 {
-                (x0..x1).for_each(|x| m = m.max(at(x, y1 - 1)));
-                y1 -= 1;
-            }
-            (x0, y0, x1, y1) = (x0 / 2, y0 / 2, x1 / 2, y1 / 2);
-        }
-        m
-    }
 }
 
 /// One block's object-space error at one level, metres: estimate <= exact <= conservative.

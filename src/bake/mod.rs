@@ -31,6 +31,7 @@ pub mod horizon;
 pub mod lod_tables;
 pub mod mapped;
 pub mod pyramid;
+pub mod range_max;
 pub mod sat;
 
 use std::path::{Path, PathBuf};
