@@ -169,12 +169,25 @@ pub fn bake_lod_package(
     }
     let key = package_cache_key(package, params);
     let pyramid = || package.to_pyramid().map(std::borrow::Cow::Owned);
-    let (tables, outcome) = bake_lod_keyed(key, pyramid, params, dir, progress)?;
+    mapped(
+        |progress| bake_lod_keyed(key, pyramid, params, dir, progress),
+        progress,
+    )
+}
+
+/// Runs `bake` (a cached bake); when it baked and wrote the file, drops the tables it holds in memory and
+/// runs it again without progress, which then reads them through the file's map. The outcome is the first
+/// run's.
+fn mapped(
+    bake: impl Fn(bool) -> Result<(LodTables, CacheOutcome)>,
+    progress: bool,
+) -> Result<(LodTables, CacheOutcome)> {
+    let (tables, outcome) = bake(progress)?;
     if tables.is_mapped() || matches!(outcome, CacheOutcome::NotCached(_)) {
         return Ok((tables, outcome));
     }
     drop(tables);
-    let (again, _) = bake_lod_keyed(key, pyramid, params, dir, false)?;
+    let (again, _) = bake(false)?;
     Ok((again, outcome))
 }
 
@@ -221,13 +234,10 @@ pub fn bake_lod_mapped(
     dir: &Path,
     progress: bool,
 ) -> Result<(LodTables, CacheOutcome)> {
-    let (tables, outcome) = bake_lod(terrain, pyramid, params, dir, progress)?;
-    if tables.is_mapped() || matches!(outcome, CacheOutcome::NotCached(_)) {
-        return Ok((tables, outcome));
-    }
-    drop(tables);
-    let (again, _) = bake_lod(terrain, pyramid, params, dir, false)?;
-    Ok((again, outcome))
+    mapped(
+        |progress| bake_lod(terrain, pyramid, params, dir, progress),
+        progress,
+    )
 }
 
 /// Bakes without the cache, with an optional progress bar (one step per level).

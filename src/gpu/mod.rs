@@ -297,6 +297,31 @@ impl Drop for Gpu {
     }
 }
 
+/// A sampled 2D (array) texture, written by copies, one mip level: the shape of every table clipsat
+/// binds (rings, detail pool, SG tables, sky table, probe inputs); `usage` adds to the two it always has.
+pub(crate) fn texture_2d(
+    width: u32,
+    height: u32,
+    layers: u32,
+    format: wgpu::TextureFormat,
+    usage: wgpu::TextureUsages,
+) -> wgpu::TextureDescriptor<'static> {
+    wgpu::TextureDescriptor {
+        label: None,
+        size: wgpu::Extent3d {
+            width,
+            height,
+            depth_or_array_layers: layers,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST | usage,
+        view_formats: &[],
+    }
+}
+
 /// wgpu's GL instance, one per process and never dropped.
 ///
 /// EGL hands out one display per platform, shared by every context in the process. Dropping a wgpu GL

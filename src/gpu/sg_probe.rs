@@ -74,17 +74,13 @@ pub fn shade_gpu(
             gpu.queue(),
             &wgpu::TextureDescriptor {
                 label: Some("sg probe inputs"),
-                size: wgpu::Extent3d {
+                ..crate::gpu::texture_2d(
                     width,
-                    height: 6,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format: wgpu::TextureFormat::Rgba32Float,
-                usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-                view_formats: &[],
+                    6,
+                    1,
+                    wgpu::TextureFormat::Rgba32Float,
+                    wgpu::TextureUsages::empty(),
+                )
             },
             wgpu::util::TextureDataOrder::LayerMajor,
             bytemuck::cast_slice(&texels),
@@ -94,17 +90,13 @@ pub fn shade_gpu(
             gpu.queue(),
             &wgpu::TextureDescriptor {
                 label: Some("sg probe sky_table"),
-                size: wgpu::Extent3d {
-                    width: SG_SKY_SIDE * SG_SKY_LAYERS,
-                    height: SG_SKY_SIDE,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format: wgpu::TextureFormat::Rgba32Float,
-                usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-                view_formats: &[],
+                ..crate::gpu::texture_2d(
+                    SG_SKY_SIDE * SG_SKY_LAYERS,
+                    SG_SKY_SIDE,
+                    1,
+                    wgpu::TextureFormat::Rgba32Float,
+                    wgpu::TextureUsages::empty(),
+                )
             },
             wgpu::util::TextureDataOrder::LayerMajor,
             bytemuck::cast_slice(sky_table.texels()),

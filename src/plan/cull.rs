@@ -257,7 +257,7 @@ fn height_range(clipmap: &Clipmap, level: u32, r: &Rect) -> (f32, f32) {
 
 /// Appends `d` unless the list already holds `cap` draws (the profile's `max_draws`, at most
 /// [`MAX_DRAWS`]): overflow is an [`Error::Capacity`], never a silent drop.
-fn push_capped(out: &mut DrawList, d: Draw, cap: usize) -> Result<()> {
+pub(crate) fn push_capped(out: &mut DrawList, d: Draw, cap: usize) -> Result<()> {
     if out.len() >= cap {
         return Err(Error::Capacity {
             what: "draws per frame (budget.max_draws)",

@@ -412,18 +412,10 @@ impl Planner {
     ) -> Result<Option<DrawStats>> {
         let frame = clipmap.frame();
         let frustum = cull::Frustum::new(camera, self.aspect);
-        let view = DetailView {
-            frame,
-            frustum: &frustum,
-            eye_l: clipmap.eye_lattice(camera.eye),
-            eye_z: camera.eye.z,
-            g0: clipmap.g0(),
-            z_range: self.z_range,
-            data_lattice: self.data_lattice,
-            epsilon_px: self
-                .lod()
-                .map_or(self.default_epsilon, crate::plan::lod::Lod::epsilon_px),
-        };
+        let epsilon_px = self
+            .lod()
+            .map_or(self.default_epsilon, crate::plan::lod::Lod::epsilon_px);
+        let view = self.detail_view(clipmap, camera, &frustum, epsilon_px);
         let base_draws = u32::try_from(out.draws.len()).expect("draws <= MAX_DRAWS");
         let base_triangles = self.triangles(&out.draws);
         let skirt = cull::Draw {
@@ -500,6 +492,26 @@ impl Planner {
         }
     }
 
+    /// What the detail pool sees of this frame from `camera` through `frustum`, at `epsilon_px`.
+    fn detail_view<'a>(
+        &self,
+        clipmap: &'a Clipmap,
+        camera: &Camera,
+        frustum: &'a cull::Frustum,
+        epsilon_px: f64,
+    ) -> DetailView<'a> {
+        DetailView {
+            frame: clipmap.frame(),
+            frustum,
+            eye_l: clipmap.eye_lattice(camera.eye),
+            eye_z: camera.eye.z,
+            g0: clipmap.g0(),
+            z_range: self.z_range,
+            data_lattice: self.data_lattice,
+            epsilon_px,
+        }
+    }
+
     /// The clamped blocks that meet the view frustum (the ones whose error shows): [`LodFrame`]'s
     /// `blocks_clamped` less those outside it, which the pool never refines. A block the pool serves
     /// counts when one of its cells misses epsilon.
@@ -507,16 +519,7 @@ impl Planner {
     /// [`LodFrame`]: crate::plan::lod::LodFrame
     fn visible_clamped(&self, clipmap: &Clipmap, camera: &Camera, out: &FramePlan) -> u32 {
         let frustum = cull::Frustum::new(camera, self.aspect);
-        let view = DetailView {
-            frame: clipmap.frame(),
-            frustum: &frustum,
-            eye_l: clipmap.eye_lattice(camera.eye),
-            eye_z: camera.eye.z,
-            g0: clipmap.g0(),
-            z_range: self.z_range,
-            data_lattice: self.data_lattice,
-            epsilon_px: 0.0,
-        };
+        let view = self.detail_view(clipmap, camera, &frustum, 0.0);
         let d = &out.detail;
         let mut n = 0u32;
         for (i, b) in out.lod.blocks.iter().enumerate() {

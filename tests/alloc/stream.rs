@@ -69,11 +69,11 @@ fn fly(cm: &mut Clipmap, frames: u32, budget: u32, hashes: &mut Vec<u64>) {
     fly_from(cm, 0..frames, budget, hashes);
 }
 
-#[test]
-fn long_flight_streams_within_budget_without_allocating() {
-    let dir = std::env::temp_dir().join(format!("clipsat-stream-{}", std::process::id()));
+/// The test terrain baked into `NAME` in a fresh temporary folder `DIR-PID`: (that folder, the package).
+fn baked(dir: &str, name: &str) -> (std::path::PathBuf, std::path::PathBuf) {
+    let dir = std::env::temp_dir().join(format!("{dir}-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("temp dir");
-    let path = dir.join("stream.clipsat");
+    let path = dir.join(name);
     let opts = BakeOptions {
         max_error: Some(0.05),
         tile: 32,
@@ -81,6 +81,12 @@ fn long_flight_streams_within_budget_without_allocating() {
         ..BakeOptions::default()
     };
     package::bake(&terrain(), &path, &opts, &indicatif::ProgressBar::hidden()).expect("bake");
+    (dir, path)
+}
+
+#[test]
+fn long_flight_streams_within_budget_without_allocating() {
+    let (dir, path) = baked("clipsat-stream", "stream.clipsat");
     let p = profile();
     let budget = p.budget.update_samples_per_frame;
     let open = || Package::open(&path).expect("open");
@@ -158,16 +164,7 @@ fn sat_lod_streams_from_mapped_tables_without_allocating() {
     use clipsat::plan::frame_plan::{LodSetup, PlanParams, Planner};
     use clipsat::plan::lod::{Lod, LodFrame, LodMode};
 
-    let dir = std::env::temp_dir().join(format!("clipsat-stream-sat-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("temp dir");
-    let path = dir.join("sat.clipsat");
-    let opts = BakeOptions {
-        max_error: Some(0.05),
-        tile: 32,
-        zstd_level: 3,
-        ..BakeOptions::default()
-    };
-    package::bake(&terrain(), &path, &opts, &indicatif::ProgressBar::hidden()).expect("bake");
+    let (dir, path) = baked("clipsat-stream-sat", "sat.clipsat");
     let p = profile();
     let open = || Package::open(&path).expect("open");
     let mut cm = Clipmap::streamed(open(), &p, ClipmapOptions::default()).expect("streamed");

@@ -158,17 +158,10 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
         })?
         .with_fov_y_deg(f64::from(profile.view.fov_y_deg));
 
-    let lod = match (lod_mode, clipmap.tile_cache()) {
-        (LodMode::Distance, _) => None,
-        // Streamed: the tables are read through a map of their cache file (issue 13).
-        (_, Some(cache)) => Some(super::render::lod_for_package(
-            cache.package(),
-            &hm,
-            &profile,
-            &clipmap,
-            !args.json,
-        )?),
-        (_, None) => Some(super::render::lod_for(&hm, &profile, &clipmap, !args.json)?),
+    // A streamed clipmap's tables are baked from its package and read through a map (issue 13).
+    let lod = match lod_mode {
+        LodMode::Distance => None,
+        _ => Some(super::render::lod_for(&hm, &profile, &clipmap, !args.json)?),
     };
     // Every frame is planned (the SAT modes' block levels go into the frame hash); the plan is allocated
     // here, once.

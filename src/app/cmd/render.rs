@@ -86,7 +86,9 @@ pub(crate) struct RenderArgs {
 }
 
 /// The SAT LOD selector for `clipmap`'s terrain: tables from the bake cache ([`bake::default_cache_dir`]),
-/// baked (progress bar on stderr when `progress`) on a miss, and read through a map of the cache file.
+/// baked (progress bar on stderr when `progress`) on a miss, and read through a map of the cache file. A
+/// streamed clipmap's tables are baked from its decoded package, and `hm` is then the package's coarse
+/// stand-in heightmap.
 pub(crate) fn lod_for(
     hm: &Heightmap,
     profile: &Profile,
@@ -99,34 +101,12 @@ pub(crate) fn lod_for(
         synth_levels: clipmap.synth_levels(),
         g0: clipmap.g0(),
     };
-    let (tables, _) = bake::bake_lod_mapped(
-        hm,
-        clipmap.pyramid(),
-        &params,
-        &bake::default_cache_dir(),
-        progress,
-    )?;
-    Ok(Lod::for_clipmap(tables, profile, clipmap, hm))
-}
-
-/// The SAT LOD selector for a streamed `clipmap` (`coarse`: the package's coarse stand-in heightmap): the
-/// tables are read through a map of their cache file, baked from the decoded package on a miss.
-pub(crate) fn lod_for_package(
-    package: &clipsat::package::Package,
-    coarse: &Heightmap,
-    profile: &Profile,
-    clipmap: &Clipmap,
-    progress: bool,
-) -> Result<Lod> {
-    let params = BakeParams {
-        p: clipsat::bake::lod_tables::P,
-        levels: profile.clipmap.levels,
-        synth_levels: clipmap.synth_levels(),
-        g0: clipmap.g0(),
+    let dir = bake::default_cache_dir();
+    let (tables, _) = match clipmap.tile_cache() {
+        Some(cache) => bake::bake_lod_package(cache.package(), &params, &dir, progress)?,
+        None => bake::bake_lod_mapped(hm, clipmap.pyramid(), &params, &dir, progress)?,
     };
-    let (tables, _) =
-        bake::bake_lod_package(package, &params, &bake::default_cache_dir(), progress)?;
-    Ok(Lod::for_clipmap(tables, profile, clipmap, coarse))
+    Ok(Lod::for_clipmap(tables, profile, clipmap, hm))
 }
 
 /// Most samples of the package level a streamed render fits its camera to (1 Mi: 4 MiB of f32).
@@ -220,19 +200,10 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
     }
     // The error maps serve the SAT modes and the measured error of any mode (not measured when streamed:
     // the measurement needs the whole pyramid).
-    let lod = match clipmap.tile_cache() {
-        Some(cache) if lod_mode != LodMode::Distance => Some(lod_for_package(
-            cache.package(),
-            &hm,
-            &profile,
-            &clipmap,
-            !args.json,
-        )?),
-        Some(_) => None,
-        None if lod_mode != LodMode::Distance || args.json => {
-            Some(lod_for(&hm, &profile, &clipmap, !args.json)?)
-        }
-        None => None,
+    let lod = if lod_mode != LodMode::Distance || (args.json && !streamed) {
+        Some(lod_for(&hm, &profile, &clipmap, !args.json)?)
+    } else {
+        None
     };
     let baked = sg.as_ref().map(|sg| sg.bake(&gpu, &hm)).transpose()?;
     let shading = super::sg::shading(&hm, sg.as_ref(), baked.as_ref());

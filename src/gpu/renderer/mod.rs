@@ -468,20 +468,7 @@ fn array_texture(
     format: wgpu::TextureFormat,
     usage: wgpu::TextureUsages,
 ) -> wgpu::TextureDescriptor<'static> {
-    wgpu::TextureDescriptor {
-        label: None,
-        size: wgpu::Extent3d {
-            width: side,
-            height: side,
-            depth_or_array_layers: layers,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format,
-        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST | usage,
-        view_formats: &[],
-    }
+    crate::gpu::texture_2d(side, side, layers, format, usage)
 }
 
 /// The layout entry of one such texture: float and unfilterable (GLES 3.0 filters no 32-bit float

@@ -91,20 +91,13 @@ impl SgState {
         let sky = dev.texture_with_data(
             queue,
             "sg sky_table",
-            &wgpu::TextureDescriptor {
-                label: None,
-                size: wgpu::Extent3d {
-                    width: SG_SKY_SIDE * SG_SKY_LAYERS,
-                    height: SG_SKY_SIDE,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format: wgpu::TextureFormat::Rgba32Float,
-                usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-                view_formats: &[],
-            },
+            &crate::gpu::texture_2d(
+                SG_SKY_SIDE * SG_SKY_LAYERS,
+                SG_SKY_SIDE,
+                1,
+                wgpu::TextureFormat::Rgba32Float,
+                wgpu::TextureUsages::empty(),
+            ),
             bytemuck::cast_slice(sky_table.texels()),
         );
         let sky_view = dev.view("sg sky_table view", &sky, &Default::default());

@@ -507,18 +507,7 @@ impl DetailPool {
         out: &mut DrawList,
     ) -> Result<u32> {
         let mut blocks = 0;
-        let push = |out: &mut DrawList, d: Draw| -> Result<()> {
-            if out.len() >= cap {
-                return Err(Error::Capacity {
-                    what: "draws per frame (budget.max_draws)",
-                    capacity: cap,
-                });
-            }
-            out.push(d).map_err(|_| Error::Capacity {
-                what: "draws per frame",
-                capacity: cull::MAX_DRAWS,
-            })
-        };
+        let push = |out: &mut DrawList, d: Draw| cull::push_capped(out, d, cap);
         for &(i, _) in &frame.served {
             for l in self.tree.cells.iter().filter(|l| l.block == i) {
                 let slot = self
