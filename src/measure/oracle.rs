@@ -6,7 +6,7 @@
 //! [i 2^k, (i + 1) 2^k] x [j 2^k, (j + 1) 2^k], and its two triangles are level k's piecewise-linear surface
 //! there (design.md "SAT LOD" 1), so its error at each sample is e_k exactly, whatever its neighbours are.
 //! From the coarsest baked level down, a quad is kept when its largest measured error over its in-frustum
-//! samples, e_k * [`Camera::pixels_per_metre`] at the sample's own distance, is <= epsilon, and split into
+//! samples, [`crate::plan::camera::VerticalScale::px`] of e_k at the sample, is <= epsilon, and split into
 //! its four children otherwise. Splitting never makes fewer triangles, so the kept quads are the fewest
 //! triangles any triangulation made of pyramid quads can have. The renderer draws m x m quads of one level
 //! per block or pool cell, plus skirts, so it needs at least this many. Quads outside the frustum cost
@@ -17,6 +17,7 @@
 //! a pool whose tiles are those cells.
 
 use crate::bake::lod_tables::sample_error;
+use crate::plan::camera::px_of_parts;
 use crate::plan::clipmap::Clipmap;
 use crate::plan::cull;
 use crate::plan::frame::Rect;
@@ -67,11 +68,12 @@ pub fn oracle(
     let synth = clipmap.synth_levels();
     let spacing = clipmap.g0() * f64::from(1u32 << synth);
     let frustum = cull::Frustum::new(camera, f64::from(view.0) / f64::from(view.1));
+    let scale = camera.vertical_scale(view);
     let (ox, oy) = clipmap.origin();
     let top = oy + f64::from(h - 1) * spacing;
     let data_levels = levels.saturating_sub(synth).clamp(1, 31);
-    // Per sample: its measured scale (pixels per metre), or negative outside the frustum.
-    let mut ppm = vec![0.0f32; w as usize * h as usize];
+    // Per sample: its measured scale (VerticalScale::parts), or negative outside the frustum.
+    let mut ppm = vec![(0.0f32, 0.0f32); w as usize * h as usize];
     for y in 0..h {
         for x in 0..w {
             let z = f64::from(data.at_clamped(i64::from(x), i64::from(y)));
@@ -82,9 +84,10 @@ pub fn oracle(
             );
             #[expect(clippy::cast_possible_truncation, reason = "a scale, f32 is plenty")]
             let s = if frustum.intersects(rel, rel) {
-                camera.pixels_per_metre(rel.length(), view.1) as f32
+                let (s, c) = scale.parts(rel);
+                (s as f32, c as f32)
             } else {
-                -1.0
+                (-1.0, 0.0)
             };
             ppm[(y * w + x) as usize] = s;
         }
@@ -97,14 +100,16 @@ pub fn oracle(
             let mut max_px = vec![-1.0f32; cols * rows];
             for y in 0..h {
                 for x in 0..w {
-                    let s = ppm[(y * w + x) as usize];
+                    let (s, c) = ppm[(y * w + x) as usize];
                     if s < 0.0 {
                         continue;
                     }
+                    #[expect(clippy::cast_possible_truncation, reason = "pixels, f32 is plenty")]
                     let e = if k == 0 {
                         0.0
                     } else {
-                        sample_error(pyr, k, i64::from(x), i64::from(y)) * s
+                        let e = sample_error(pyr, k, i64::from(x), i64::from(y));
+                        px_of_parts(f64::from(s), f64::from(c), f64::from(e)) as f32
                     };
                     // A sample on a lattice line lies in the quads on both sides of it.
                     let (ci, ri) = ((x >> k) as usize, (y >> k) as usize);

@@ -46,8 +46,9 @@ pub const SCREEN_ERROR_SAMPLES: u64 = 1 << 22;
 /// Measures a planned frame's screen-space error in a `view` (width, height) viewport (a measurement, not
 /// the frame path): for each data sample
 /// under a drawn block of level L, the error map value e_L = |H_0 - PL(H_L)| (design.md "SAT LOD" 1, from
-/// `lod`'s tables) projected at that sample's distance, e * [`Camera::pixels_per_metre`], for samples inside
-/// the view frustum. The GC 6.2 morph of distance mode is not modelled (its vertices lie between levels L
+/// `lod`'s tables) projected on the screen at that sample, [`crate::plan::camera::VerticalScale::px`]
+/// (the true projection of a vertical segment of length e there, in the longer direction), for samples
+/// inside the view frustum. The GC 6.2 morph of distance mode is not modelled (its vertices lie between levels L
 /// and L + 1). Visits at most [`SCREEN_ERROR_SAMPLES`] samples (a uniform stride past it).
 pub fn screen_error(
     plan: &FramePlan,
@@ -62,6 +63,7 @@ pub fn screen_error(
     let spacing = clipmap.g0() * f64::from(1u32 << clipmap.synth_levels());
     let (w, h) = view;
     let frustum = cull::Frustum::new(camera, f64::from(w) / f64::from(h));
+    let scale = camera.vertical_scale(view);
     // The data's last sample in level-0 lattice units.
     let last = (
         i64::from(data.width() - 1) << clipmap.synth_levels(),
@@ -130,7 +132,7 @@ pub fn screen_error(
                     i64::from(y),
                 ));
                 out.samples += 1;
-                let px = e * camera.pixels_per_metre(rel.length(), h);
+                let px = scale.px(rel, e);
                 if px > out.max_px {
                     out.max_px = px;
                     out.max_at = Some(MaxAt {

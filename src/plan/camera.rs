@@ -118,10 +118,150 @@ impl Camera {
         (proj * view).as_mat4()
     }
 
-    /// Pixels per metre of a vertical segment at distance `dist` on a viewport `height_px` tall.
+    /// Pixels per metre of a segment seen face-on at distance `dist` on the screen's axis, viewport
+    /// `height_px` tall (the focal length over the distance). Off the axis a vertical segment can project
+    /// longer than this (by up to 1 / cos^2 of the angle off the axis): [`VerticalScale`] is the true one.
     pub fn pixels_per_metre(&self, dist: f64, height_px: u32) -> f64 {
         f64::from(height_px)
             / (2.0 * dist.max(self.near) * (self.fov_y_deg.to_radians() * 0.5).tan())
+    }
+
+    /// How this camera projects vertical segments on a `view` (width, height) viewport
+    /// (design.md "SAT LOD" 5).
+    pub fn vertical_scale(&self, view: (u32, u32)) -> VerticalScale {
+        let fwd = self.forward();
+        // look_to_rh with up +Z: the camera's right is horizontal, its up is right x forward.
+        let right = fwd.cross(DVec3::Z).normalize();
+        let up = right.cross(fwd);
+        let ty = (self.fov_y_deg.to_radians() * 0.5).tan();
+        let tx = ty * f64::from(view.0) / f64::from(view.1.max(1));
+        // |D_xy| over the image plane D = fwd + s right + t up is convex in (s, t): largest at a corner.
+        let max_slope = [(-tx, -ty), (tx, -ty), (-tx, ty), (tx, ty)]
+            .iter()
+            .map(|&(s, t)| (fwd + s * right + t * up).truncate().length())
+            .fold(0.0, f64::max);
+        VerticalScale {
+            focal_px: f64::from(view.1) / (2.0 * ty),
+            right,
+            up,
+            fwd,
+            max_slope,
+            min_cos: 1.0 / (1.0 + tx * tx + ty * ty).sqrt(),
+            near: self.near,
+        }
+    }
+}
+
+/// The true projection of a vertical segment (design.md "SAT LOD" 5): how many pixels a point moves on
+/// the screen when its height is off by e.
+///
+/// A point q (camera space: x right, y up, z depth) and q + t v, v the world's up (v = (0, v_y, v_z):
+/// the camera has no roll), project f q_xy / q_z apart by f t (q_z v_xy - q_xy v_z) / (q_z (q_z + t v_z)),
+/// f the focal length in pixels. The numerator n has |n|^2 = q_x^2 v_z^2 + (q_z v_y - q_y v_z)^2 <=
+/// |q x v|^2 = d_h^2, d_h the point's horizontal distance from the eye. The longer of the two directions
+/// (t = +e or -e) is f e |n| / (q_z (q_z - e |v_z|)) <= f e (d_h / q_z) / (q_z - e |v_z|). On the
+/// screen's axis of a camera pitched by phi this is about f e cos(phi) / q_z; off the axis it exceeds
+/// [`Camera::pixels_per_metre`] at the point's distance (by up to 1 / cos^2 of the angle).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct VerticalScale {
+    focal_px: f64,
+    right: DVec3,
+    up: DVec3,
+    fwd: DVec3,
+    /// The largest d_h / q_z over the frustum's rays (at one of its four corner rays).
+    max_slope: f64,
+    /// The smallest cosine between a frustum ray and the axis (at the corners): q_z >= |q| min_cos there.
+    min_cos: f64,
+    near: f64,
+}
+
+/// [`VerticalScale::box_max`]: a bound of the projected length of any vertical error in a box.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BoxScale {
+    /// f max(d_h / q_z), pixels.
+    focal_slope: f64,
+    /// The least depth q_z of a visible point, metres.
+    depth: f64,
+    /// |v_z|: how much a vertical segment changes the depth, per metre.
+    vz: f64,
+}
+
+impl BoxScale {
+    /// The most pixels a vertical error of at most `eta` metres moves a visible point of the box:
+    /// f eta max(d_h / q_z) / (min q_z - eta |v_z|) (infinite when the error can reach the eye's depth).
+    pub fn px(&self, eta: f64) -> f64 {
+        let den = self.depth - eta * self.vz;
+        if eta == 0.0 {
+            0.0
+        } else if den > 0.0 {
+            self.focal_slope * eta / den
+        } else {
+            f64::INFINITY
+        }
+    }
+}
+
+impl VerticalScale {
+    /// The pixels the point `rel` (relative to the eye) moves when its height is off by `e` metres, in the
+    /// longer of the two directions (the measured error keeps no sign); the depth is taken at least the
+    /// near plane (nearer points are clipped). [`VerticalScale::parts`] gives the same as two factors.
+    pub fn px(&self, rel: DVec3, e: f64) -> f64 {
+        let (s, c) = self.parts(rel);
+        px_of_parts(s, c, e)
+    }
+
+    /// The point `rel`'s factors (s, c): the projected length of an error e there is e s / (1 - e c)
+    /// ([`px_of_parts`]): s = f |n| / q_z^2 pixels per metre to first order, c = |v_z| / q_z per metre.
+    pub fn parts(&self, rel: DVec3) -> (f64, f64) {
+        let qz = self.fwd.dot(rel).max(self.near);
+        let (qx, qy) = (self.right.dot(rel), self.up.dot(rel));
+        let (vy, vz) = (self.up.z, self.fwd.z);
+        let n = (qx * qx * vz * vz + (qz * vy - qy * vz).powi(2)).sqrt();
+        (self.focal_px * n / (qz * qz), vz.abs() / qz)
+    }
+
+    /// A bound of [`VerticalScale::px`] over the points of the box [lo, hi] (relative to the eye) that
+    /// lie in the view frustum, for every error up to some eta ([`BoxScale::px`]).
+    ///
+    /// - d_h / q_z has convex sublevel sets where q_z > 0 (the cone |P_h q| <= c q_z), so over a box in
+    ///   front of the eye its largest value is at a corner; a visible point's is also at most the
+    ///   frustum's largest.
+    /// - q_z is linear: its least value is at a corner; a visible point also has q_z >= near and
+    ///   q_z >= |q| min_cos >= min_cos times the box's distance from the eye.
+    pub fn box_max(&self, lo: DVec3, hi: DVec3) -> BoxScale {
+        let mut qz_min = f64::INFINITY;
+        let mut slope = 0.0f64;
+        for &(x, y) in &[(lo.x, lo.y), (hi.x, lo.y), (lo.x, hi.y), (hi.x, hi.y)] {
+            let dh = x.hypot(y);
+            for z in [lo.z, hi.z] {
+                let qz = self.fwd.dot(DVec3::new(x, y, z));
+                qz_min = qz_min.min(qz);
+                slope = slope.max(dh / qz);
+            }
+        }
+        let slope = if qz_min > 0.0 {
+            slope.min(self.max_slope)
+        } else {
+            self.max_slope
+        };
+        let dist = DVec3::ZERO.clamp(lo, hi).length();
+        BoxScale {
+            focal_slope: self.focal_px * slope,
+            depth: qz_min.max(dist * self.min_cos).max(self.near),
+            vz: self.fwd.z.abs(),
+        }
+    }
+}
+
+/// e s / (1 - e c) for [`VerticalScale::parts`] (s, c): infinite when the error reaches the eye's depth.
+pub fn px_of_parts(s: f64, c: f64, e: f64) -> f64 {
+    let den = 1.0 - e * c;
+    if e == 0.0 {
+        0.0
+    } else if den > 0.0 {
+        e * s / den
+    } else {
+        f64::INFINITY
     }
 }
 

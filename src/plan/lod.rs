@@ -14,9 +14,10 @@
 /// Defined beside the tables whose estimators it chooses.
 pub use crate::bake::lod_tables::LodMode;
 use crate::bake::lod_tables::{ceil_shr, LodTables};
-use crate::plan::camera::Camera;
+use crate::plan::camera::{BoxScale, Camera, VerticalScale};
 use crate::plan::frame::{Frame, Rect, MAX_LEVELS};
 use crate::{Error, Result};
+use glam::DVec3;
 
 /// Capacity of a frame's block list; the profile's `max_draws` is the limit actually enforced.
 pub const MAX_LOD_BLOCKS: usize = 4096;
@@ -88,7 +89,8 @@ pub struct Lod {
     y_top: f64,
     z_range: (f64, f64),
     epsilon_px: f64,
-    view_height: u32,
+    /// The viewport (width, height), pixels.
+    view: (u32, u32),
     max_blocks: usize,
 }
 
@@ -117,7 +119,7 @@ impl Lod {
             y_top,
             z_range,
             epsilon_px: f64::from(profile.view.epsilon_px),
-            view_height: profile.view.height,
+            view: (profile.view.width, profile.view.height),
             max_blocks: (profile.budget.max_draws as usize).min(MAX_LOD_BLOCKS),
         }
     }
@@ -166,22 +168,50 @@ impl Lod {
         &self.tables
     }
 
-    /// The screen-space bound of an object-space error `eta` at distance `dist`, pixels (SAT paper eq. 6): a
-    /// vertical segment of +/- eta at the block's closest point, projected on the viewport.
-    pub fn bound_px(&self, camera: &Camera, eta: f64, dist: f64) -> f64 {
-        2.0 * eta * camera.pixels_per_metre(dist, self.view_height)
+    /// How far a vertical error moves any visible point of the level-0 lattice box
+    /// [a, b] x [c, d] (inclusive vertices, heights spanning the terrain's range): an upper bound of the
+    /// true projection ([`crate::plan::camera::VerticalScale::box_max`]).
+    fn box_scale(
+        &self,
+        eye: DVec3,
+        scale: &VerticalScale,
+        (a, c, b, d): (i64, i64, i64, i64),
+    ) -> BoxScale {
+        let g = self.g0;
+        #[expect(
+            clippy::cast_precision_loss,
+            reason = "lattice coordinates below 2^48 are exact in f64"
+        )]
+        let (x0, x1, yn, ys) = (
+            self.x_left + a as f64 * g,
+            self.x_left + b as f64 * g,
+            self.y_top - c as f64 * g,
+            self.y_top - d as f64 * g,
+        );
+        scale.box_max(
+            DVec3::new(x0, ys, self.z_range.0) - eye,
+            DVec3::new(x1, yn, self.z_range.1) - eye,
+        )
     }
 
     /// The screen-space bound of `level` over the level-0 lattice box [a, b] x [c, d] (inclusive vertices)
     /// seen from `camera` under `mode`: what [`Lod::select`] tests per block, asked by the detail pool of
     /// its cells. Infinite for a level past the baked ones or finer than the data.
     ///
-    /// SAT paper eq. 6 over the whole box (the object error at the box's closest point), tightened by
+    /// SAT paper eq. 6 over the whole box: the object error eta times the largest pixels per metre of a
+    /// vertical segment at any visible point of the box ([`VerticalScale::box_max`]), tightened by
     /// splitting: the box is cut on `level`'s lattice into up to [`SPLIT`] x [`SPLIT`] sub-boxes, and the
     /// largest of their own bounds is taken when smaller. Every sample lies in some sub-box, whose error
-    /// bounds its error and whose closest point is no farther than it, so the split is still an upper
-    /// bound of every sample's projected error, and under `sat-conservative` the p-sum of a sub-box
-    /// counts fewer samples (its N^(1/p) slack shrinks) and its distance is larger.
+    /// bounds its error and whose scale bounds its scale, so the split is still an upper bound of every
+    /// visible sample's projected error, and under `sat-conservative` the p-sum of a sub-box counts fewer
+    /// samples (its N^(1/p) slack shrinks) and its scale is smaller.
+    ///
+    /// Design deviation (design.md "SAT LOD" 5 projects a segment of +/- eta, length 2 eta, at the closest
+    /// point with the on-axis scale): a sample whose drawn height is off by e <= eta moves on the screen
+    /// by the projection of one segment of length e (from its true height to its drawn one), so the
+    /// bound is one-sided; and the scale is the true projection's, which off the screen's axis exceeds
+    /// the on-axis focal length over distance (by up to 1 / cos^2 of the angle), so the design's factor
+    /// 2 was not a bound at the screen's corners while it doubled the error everywhere else.
     pub fn box_bound_px(
         &self,
         camera: &Camera,
@@ -204,54 +234,35 @@ impl Lod {
         if eta == 0.0 || mode == LodMode::Distance {
             return 0.0;
         }
-        let whole = self.bound_px(camera, eta, self.closest_distance(camera, a, c, b, d));
+        let scale = camera.vertical_scale(self.view);
+        let whole = self.box_scale(camera.eye, &scale, (a, c, b, d)).px(eta);
         let (xs, ys) = (split_points(a, b, level), split_points(c, d, level));
         if xs.len() <= 2 && ys.len() <= 2 {
             return whole;
         }
-        // Sub-boxes nearest first: a sub-box's bound is at most the whole box's error at its own closest
-        // point (the whole box's error bounds its samples too), so once that is below the largest bound so
-        // far its own error need not be read.
-        let mut subs: heapless::Vec<(f64, f64, [i64; 4]), { SPLIT * SPLIT }> = heapless::Vec::new();
+        // Sub-boxes by their cap first: a sub-box's bound is at most its bound for the whole box's error
+        // (which bounds its samples too; the bound grows with the error), so once that is below the
+        // largest bound so far its own error need not be read.
+        let mut subs: heapless::Vec<(f64, BoxScale, [i64; 4]), { SPLIT * SPLIT }> =
+            heapless::Vec::new();
         for y in ys.windows(2) {
             for x in xs.windows(2) {
-                let dist = self.closest_distance(camera, x[0], y[0], x[1], y[1]);
-                let cap = self.bound_px(camera, eta, dist);
-                subs.push((cap, dist, [x[0], y[0], x[1], y[1]]))
+                let sub = (x[0], y[0], x[1], y[1]);
+                let bs = self.box_scale(camera.eye, &scale, sub);
+                subs.push((bs.px(eta), bs, [x[0], y[0], x[1], y[1]]))
                     .expect("SPLIT x SPLIT sub-boxes");
             }
         }
         subs.sort_unstable_by(|u, v| v.0.total_cmp(&u.0));
         let mut worst = 0.0f64;
-        for &(cap, dist, [a, c, b, d]) in &subs {
+        for &(cap, bs, [a, c, b, d]) in &subs {
             if cap <= worst {
                 break;
             }
             let sub = eta_of(a, c, b, d).min(eta);
-            worst = worst.max(self.bound_px(camera, sub, dist));
+            worst = worst.max(bs.px(sub));
         }
         worst.min(whole)
-    }
-
-    /// The distance from the eye to the closest point of a level-0 lattice box [a, b] x [c, d] (inclusive
-    /// vertices), its height spanning the terrain's range.
-    fn closest_distance(&self, camera: &Camera, a: i64, c: i64, b: i64, d: i64) -> f64 {
-        let g = self.g0;
-        #[expect(
-            clippy::cast_precision_loss,
-            reason = "lattice coordinates below 2^48 are exact in f64"
-        )]
-        let (x0, x1, yn, ys) = (
-            self.x_left + a as f64 * g,
-            self.x_left + b as f64 * g,
-            self.y_top - c as f64 * g,
-            self.y_top - d as f64 * g,
-        );
-        let e = camera.eye;
-        let px = e.x.clamp(x0, x1);
-        let py = e.y.clamp(ys, yn);
-        let pz = e.z.clamp(self.z_range.0, self.z_range.1);
-        ((px - e.x).powi(2) + (py - e.y).powi(2) + (pz - e.z).powi(2)).sqrt()
     }
 
     /// Chooses every block's level for `frame` seen from `camera` (SAT paper algorithm 1): from the coarsest

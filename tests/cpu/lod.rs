@@ -15,7 +15,7 @@ use clipsat::bake::{bake_lod, cache_key, cache_path, BakeParams, CacheOutcome};
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::plan::lod::{Lod, LodFrame, LodMode};
 use clipsat::{Camera, Heightmap, Profile};
-use glam::DVec3;
+use glam::{DVec2, DVec3};
 
 fn terrain(w: u32, h: u32, spacing: f32, f: impl Fn(u32, u32) -> f32) -> Heightmap {
     let heights = (0..h)
@@ -320,9 +320,12 @@ fn selection_orders_the_modes() {
 }
 
 /// The split bound of `Lod::box_bound_px` stays an upper bound of what is measured: for boxes of every
-/// size and alignment and every level, under `exact` and `sat-conservative`, it is at least the largest
-/// e_L * pixels-per-metre over the box's data samples at each sample's own distance (what
-/// `measure::screen_error` reports), and `exact`'s is never above `sat-conservative`'s.
+/// size and alignment and every level, from two cameras (one looking across the terrain, one low and
+/// steep, so that boxes sit far off the screen's axis), under `exact` and `sat-conservative`, it is at
+/// least the largest `VerticalScale::px` of e_L over the box's data samples in the frustum (what
+/// `measure::screen_error` reports), which is the pixel distance between the sample and the sample moved
+/// up or down by e_L (the longer) through the camera's own view-projection matrix; and `exact`'s bound is
+/// never above `sat-conservative`'s (the matrix is f32: to 1e-6).
 #[test]
 fn split_bound_covers_every_sample() {
     let hm = terrain(129, 97, 30.0, |x, y| {
@@ -339,49 +342,81 @@ fn split_bound_covers_every_sample() {
     let (ox, oy) = clip.origin();
     let top = oy + 96.0 * spacing;
     let data = clip.pyramid().level(0);
-    let cam = Camera::new(
-        DVec3::new(ox + 40.0 * spacing, top - 30.0 * spacing, 900.0),
-        DVec3::new(ox + 100.0 * spacing, top - 80.0 * spacing, 0.0),
-        60.0,
-    )
-    .expect("camera");
+    let cams = [
+        Camera::new(
+            DVec3::new(ox + 40.0 * spacing, top - 30.0 * spacing, 900.0),
+            DVec3::new(ox + 100.0 * spacing, top - 80.0 * spacing, 0.0),
+            60.0,
+        ),
+        Camera::new(
+            DVec3::new(ox + 64.0 * spacing, top - 48.0 * spacing, 600.0),
+            DVec3::new(ox + 70.0 * spacing, top - 52.0 * spacing, -400.0),
+            75.0,
+        ),
+    ];
+    let view = (profile.view.width, profile.view.height);
+    let aspect = f64::from(view.0) / f64::from(view.1);
     let mut checked = 0;
-    for level in synth..synth + 4 {
-        let k = level - synth;
-        for i in 0..40u32 {
-            // Level-0 lattice boxes, some on the level's lattice and some not.
-            let r = |n: u32| (hash01(i * 7 + n, level) * 128.0) as i64;
-            let (a, b) = (r(1).min(r(2)), r(1).max(r(2)).max(r(1).min(r(2)) + 1));
-            let (c, d) = (r(3).min(r(4)) * 3 / 4, r(3).max(r(4)) * 3 / 4 + 1);
-            let bx = (a << synth, c << synth, b << synth, d << synth);
-            let mut measured = 0.0f64;
-            for y in c..=d.min(96) {
-                for x in a..=b.min(128) {
-                    let z = f64::from(data.at_clamped(x, y));
-                    let rel = DVec3::new(
-                        ox + x as f64 * spacing - cam.eye.x,
-                        top - y as f64 * spacing - cam.eye.y,
-                        z - cam.eye.z,
-                    );
-                    let e = f64::from(sample_error(clip.pyramid(), k, x, y));
-                    measured =
-                        measured.max(e * cam.pixels_per_metre(rel.length(), profile.view.height));
+    let mut visible = 0;
+    for cam in cams {
+        let cam = cam.expect("camera");
+        let frustum = clipsat::plan::cull::Frustum::new(&cam, aspect);
+        let scale = cam.vertical_scale(view);
+        let vp = cam.view_proj_relative(aspect).as_dmat4();
+        let pixel = |q: DVec3| {
+            let c = vp * q.extend(1.0);
+            DVec2::new(c.x / c.w * f64::from(view.0), c.y / c.w * f64::from(view.1)) * 0.5
+        };
+        for level in synth..synth + 4 {
+            let k = level - synth;
+            for i in 0..40u32 {
+                // Level-0 lattice boxes, some on the level's lattice and some not.
+                let r = |n: u32| (hash01(i * 7 + n, level) * 128.0) as i64;
+                let (a, b) = (r(1).min(r(2)), r(1).max(r(2)).max(r(1).min(r(2)) + 1));
+                let (c, d) = (r(3).min(r(4)) * 3 / 4, r(3).max(r(4)) * 3 / 4 + 1);
+                let bx = (a << synth, c << synth, b << synth, d << synth);
+                let mut measured = 0.0f64;
+                for y in c..=d.min(96) {
+                    for x in a..=b.min(128) {
+                        let z = f64::from(data.at_clamped(x, y));
+                        let rel = DVec3::new(
+                            ox + x as f64 * spacing - cam.eye.x,
+                            top - y as f64 * spacing - cam.eye.y,
+                            z - cam.eye.z,
+                        );
+                        if !frustum.intersects(rel, rel) {
+                            continue;
+                        }
+                        let e = f64::from(sample_error(clip.pyramid(), k, x, y));
+                        let px = scale.px(rel, e);
+                        let true_px = [-e, e]
+                            .map(|s| (pixel(rel + DVec3::Z * s) - pixel(rel)).length())
+                            .into_iter()
+                            .fold(0.0, f64::max);
+                        assert!(
+                            (px - true_px).abs() <= 1e-6 * true_px.max(1.0),
+                            "{rel}: {px} px, projected {true_px} px"
+                        );
+                        measured = measured.max(px);
+                        visible += 1;
+                    }
                 }
+                let exact = lod.box_bound_px(&cam, LodMode::Exact, level, bx);
+                let cons = lod.box_bound_px(&cam, LodMode::SatConservative, level, bx);
+                assert!(
+                    exact >= measured,
+                    "level {level} {bx:?}: exact {exact} < measured {measured}"
+                );
+                assert!(
+                    cons >= exact,
+                    "level {level} {bx:?}: conservative {cons} < exact {exact}"
+                );
+                checked += 1;
             }
-            let exact = lod.box_bound_px(&cam, LodMode::Exact, level, bx);
-            let cons = lod.box_bound_px(&cam, LodMode::SatConservative, level, bx);
-            assert!(
-                exact >= measured,
-                "level {level} {bx:?}: exact {exact} < measured {measured}"
-            );
-            assert!(
-                cons >= exact,
-                "level {level} {bx:?}: conservative {cons} < exact {exact}"
-            );
-            checked += 1;
         }
     }
-    assert_eq!(checked, 160);
+    assert_eq!(checked, 320);
+    assert!(visible > 10_000, "{visible} visible samples");
 }
 
 /// The bake cache: miss, hit (identical tables), and every damaged file refused and rebaked.
