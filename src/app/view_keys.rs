@@ -101,6 +101,36 @@ impl ShadingSwitches {
         }
     }
 
+    /// Whether every effect switched on here is on in `built` too (SG itself aside).
+    pub(crate) fn within(&self, built: &Self) -> bool {
+        (!self.visibility || built.visibility)
+            && (!self.specular || built.specular)
+            && (!self.fog || built.fog)
+    }
+
+    /// These switches with every effect of `other` on as well (SG as here).
+    pub(crate) fn union(&self, other: &Self) -> Self {
+        Self {
+            sg: self.sg,
+            visibility: self.visibility || other.visibility,
+            specular: self.specular || other.specular,
+            fog: self.fog || other.fog,
+        }
+    }
+
+    /// One line for the log: `basic`, or `sg` and each effect on or off.
+    pub(crate) fn label(&self) -> String {
+        if !self.sg {
+            return "off".to_string();
+        }
+        format!(
+            "on (vis {}, spec {}, fog {})",
+            on_off(self.visibility),
+            on_off(self.specular),
+            on_off(self.fog)
+        )
+    }
+
     /// `scene` with its effects set to these switches, or None for basic shading. Fog stays off in a
     /// scene that gives no fog parameters.
     pub(crate) fn apply(&self, scene: &Scene) -> Option<Scene> {

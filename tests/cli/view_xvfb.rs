@@ -312,6 +312,10 @@ fn view_flies_under_xvfb() {
     xdotool(&display, &["key", "1"]);
     sleep(Duration::from_secs(3));
     let (_, _, sg_again) = screenshot(&display);
+    // 4: fog, which noon gives no parameters for, so no effect: a switch too, nothing built. (The effect
+    // switches within a built renderer are `tests/gpu/sg_gpu.rs`'s; gles3-mid allows no other effect.)
+    xdotool(&display, &["key", "4"]);
+    sleep(Duration::from_secs(2));
     xdotool(&display, &["key", "Escape"]);
 
     let t0 = Instant::now();
@@ -376,12 +380,20 @@ fn view_flies_under_xvfb() {
         1,
         "SG off and on again baked again: {stderr}"
     );
-    for state in ["off", "on"] {
+    for state in ["off", "on (vis off, spec off, fog off)"] {
         assert!(
             stderr.contains(&format!("SG shading {state} (switched")),
             "SG {state} was not a switch of the built renderer: {stderr}"
         );
     }
+    // SG on again, and fog on (no effect here): both switches.
+    assert_eq!(
+        stderr
+            .matches("SG shading on (vis off, spec off, fog off) (switched")
+            .count(),
+        2,
+        "fog on was not a switch of the built renderer: {stderr}"
+    );
     // The same SG frame again, but for the stats text.
     let differing = sg
         .chunks(3)

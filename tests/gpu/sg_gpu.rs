@@ -257,7 +257,50 @@ fn renderer_bakes_and_binds_only_what_the_scene_needs() {
     );
     assert_eq!(renderer.baked(), ["normal_sat", "horizons", "horizon_sat"]);
     assert_eq!(renderer.renderer().sg_layout_entries(), Some(4));
-    render_frame(&mut renderer, &clipmap, &camera, &opts).expect("sg evening frame");
+    let full = render_frame(&mut renderer, &clipmap, &camera, &opts).expect("sg evening frame");
+
+    // The effect keys (issue 16): visibility and specular off and on again switch the renderer's
+    // programs; the tables, bindings and bytes stay. Off draws what a renderer built without them draws.
+    let (bytes, objects) = (
+        renderer.renderer().ledger().bytes(),
+        renderer.renderer().ledger().count(),
+    );
+    let mut plain = evening.clone();
+    (plain.effects.visibility, plain.effects.specular) = (false, false);
+    let dev = gpu.device();
+    renderer
+        .renderer_mut()
+        .set_sg_effects(dev, plain.effects)
+        .expect("effects off");
+    let off = render_frame(&mut renderer, &clipmap, &camera, &opts).expect("effects off frame");
+    let fresh = Offscreen::with_sg(&gpu, &profile, &clipmap, &hm, &plain, Patches::P2x4, true)
+        .expect("sg evening without visibility and specular");
+    let mut fresh = fresh;
+    let want = render_frame(&mut fresh, &clipmap, &camera, &opts).expect("fresh frame");
+    assert_eq!(off.image.hash(), want.image.hash());
+    assert_ne!(off.image.hash(), full.image.hash());
+    // The first switch to a set of effects compiles its module and two programs, at zero bytes.
+    assert_eq!(renderer.renderer().ledger().count(), objects + 3);
+    renderer
+        .renderer_mut()
+        .set_sg_effects(dev, evening.effects)
+        .expect("effects on");
+    let on = render_frame(&mut renderer, &clipmap, &camera, &opts).expect("effects on frame");
+    assert_eq!(on.image.hash(), full.image.hash());
+    renderer
+        .renderer_mut()
+        .set_sg_effects(dev, plain.effects)
+        .expect("effects off again");
+    assert_eq!(renderer.renderer().ledger().count(), objects + 3);
+    assert_eq!(renderer.renderer().ledger().bytes(), bytes);
+    // What the scene left out has no table to switch on: refused, and what is drawn stays.
+    let err = fresh
+        .renderer_mut()
+        .set_sg_effects(dev, evening.effects)
+        .expect_err("visibility was not built");
+    assert!(err.to_string().contains("visibility"), "{err}");
+    let again = render_frame(&mut fresh, &clipmap, &camera, &opts).expect("fresh frame again");
+    assert_eq!(again.image.hash(), want.image.hash());
 }
 
 /// `render --shading sg --json` reports what was bound and baked; `--no-shadows` drops the horizons;

@@ -205,8 +205,8 @@ impl Renderer {
                 bound = Some(d.kind);
             }
             let pipeline = match sg {
-                Some(sg) if d.fragment == FragmentPath::Skirt => &sg.skirt_pipeline,
-                Some(sg) => &sg.pipeline,
+                Some(sg) if d.fragment == FragmentPath::Skirt => &sg.programs().skirt,
+                Some(sg) => &sg.programs().block,
                 None => &self.pipelines[d.fragment as usize],
             };
             if !program.is_some_and(|p| std::ptr::eq(p, pipeline)) {

@@ -390,6 +390,24 @@ impl Renderer {
         self.sg_enabled = on;
     }
 
+    /// Draws the SG shading with `effects` (visibility, specular, fog) from the next
+    /// [`Renderer::render`]: each must be one the scene it was built with asks for (else
+    /// [`Error::Invalid`], and nothing changes). No table, buffer or binding is created or re-created:
+    /// the level tables (the horizons included) are written by every prepare whatever is drawn, so an
+    /// effect switched back on is current. A set of effects drawn for the first time compiles its two
+    /// programs (a pipeline each, in the ledger at zero bytes); switching back to it creates nothing. No
+    /// effect on a renderer made with basic shading.
+    pub fn set_sg_effects(
+        &mut self,
+        device: &wgpu::Device,
+        effects: crate::shading::scene::Effects,
+    ) -> Result<()> {
+        match self.sg.as_mut() {
+            Some(sg) => sg.set_effects(device, &mut self.ledger, effects),
+            None => Ok(()),
+        }
+    }
+
     /// Whether frames draw with SG shading: made with it and not switched off.
     pub fn sg_enabled(&self) -> bool {
         self.sg.is_some() && self.sg_enabled
@@ -412,7 +430,7 @@ impl Renderer {
         }
     }
 
-    /// The SG shader variant in use, if any.
+    /// The SG shader variant drawn, if any ([`Renderer::set_sg_effects`] switches it).
     pub fn sg_variant(&self) -> Option<shaders::SgVariant> {
         self.sg.as_ref().map(|s| s.variant)
     }

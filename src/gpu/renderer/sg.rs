@@ -2,13 +2,13 @@
 //! the scene needs.
 
 use super::sg_tables::SgTables;
-use super::{array_entry, terrain_pipeline, Ledgered, Targets};
+use super::{array_entry, terrain_pipeline, Ledger, Ledgered, Targets};
 use crate::gpu::sat_textures::ShadingBake;
 use crate::gpu::shaders::{self, SgOmit, SgSceneUniform, SgVariant};
 use crate::profile::{SG_SKY_LAYERS, SG_SKY_SIDE};
-use crate::shading::scene::Scene;
+use crate::shading::scene::{Effects, Scene};
 use crate::shading::{Patches, SkyTable};
-use crate::{Heightmap, Profile, Result};
+use crate::{Error, Heightmap, Profile, Result};
 
 /// The SG shading variant of [`super::Shading::Sg`]: a scene over the terrain `terrain` (the one the
 /// clipmap was built from), integrated over `patches`, with tables already baked
@@ -30,11 +30,28 @@ pub struct SgShading<'a> {
     pub omit: SgOmit,
 }
 
-/// The GPU objects of one SG shading variant (design.md "Only the effects a scene calls for"): only the
-/// tables the scene needs are baked and bound, only its effects compiled.
+/// The two programs of one SG variant.
+#[derive(Debug)]
+pub(super) struct SgPrograms {
+    /// Block draws (`fs_sg`).
+    pub(super) block: wgpu::RenderPipeline,
+    /// Skirt draws (`fs_sg_skirt`: also the see-through-the-side test).
+    pub(super) skirt: wgpu::RenderPipeline,
+}
+
+/// The variants a renderer can switch between: one slot per subset of (visibility, specular, fog).
+const SUBSETS: usize = 8;
+
+/// The GPU objects of the SG shading of one scene (design.md "Only the effects a scene calls for"): only
+/// the tables the scene needs are baked and bound, only its effects compiled. The effects can be switched
+/// off and on again within that set ([`SgState::set_effects`]): the tables stay, and each subset's programs
+/// are compiled the first time it is drawn and kept.
 #[derive(Debug)]
 pub(super) struct SgState {
+    /// The variant drawn.
     pub(super) variant: SgVariant,
+    /// The variant built: the scene's effects, the most any switch can turn on.
+    built: SgVariant,
     pub(super) baked: Vec<&'static str>,
     pub(super) bound: Vec<&'static str>,
     pub(super) layout_entries: usize,
@@ -44,10 +61,43 @@ pub(super) struct SgState {
     _uniform: wgpu::Buffer,
     _layout: wgpu::BindGroupLayout,
     pub(super) group: wgpu::BindGroup,
-    /// Block draws (`fs_sg`).
-    pub(super) pipeline: wgpu::RenderPipeline,
-    /// Skirt draws (`fs_sg_skirt`: also the see-through-the-side test).
-    pub(super) skirt_pipeline: wgpu::RenderPipeline,
+    pipeline_layout: wgpu::PipelineLayout,
+    targets: Targets,
+    /// The programs of each subset of the built effects compiled so far ([`subset_index`]).
+    programs: [Option<SgPrograms>; SUBSETS],
+}
+
+/// The slot of `v`'s effects in [`SgState`]'s programs.
+fn subset_index(v: SgVariant) -> usize {
+    usize::from(v.visibility) | usize::from(v.specular) << 1 | usize::from(v.fog) << 2
+}
+
+/// Compiles variant `v`'s module and its two programs.
+fn compile(
+    dev: &mut Ledgered<'_>,
+    v: SgVariant,
+    layout: &wgpu::PipelineLayout,
+    targets: &Targets,
+) -> SgPrograms {
+    let module = dev.shader_module("sg_clipmap.wgsl", shaders::sg_clipmap(v));
+    SgPrograms {
+        block: terrain_pipeline(
+            dev,
+            "clipmap sg pipeline",
+            layout,
+            &module,
+            "fs_sg",
+            targets,
+        ),
+        skirt: terrain_pipeline(
+            dev,
+            "clipmap sg skirt pipeline",
+            layout,
+            &module,
+            "fs_sg_skirt",
+            targets,
+        ),
+    }
 }
 
 impl SgState {
@@ -150,29 +200,15 @@ impl SgState {
         }
         let layout = dev.bind_group_layout("sg shading layout", &entries);
         let group = dev.bind_group("sg shading group", &layout, &resources);
-        let module = dev.shader_module("sg_clipmap.wgsl", shaders::sg_clipmap(variant));
         let pipeline_layout = dev.pipeline_layout(
             "clipmap sg pipeline layout",
             &[Some(layouts[0]), Some(layouts[1]), Some(&layout)],
         );
-        let pipeline = terrain_pipeline(
-            dev,
-            "clipmap sg pipeline",
-            &pipeline_layout,
-            &module,
-            "fs_sg",
-            targets,
-        );
-        let skirt_pipeline = terrain_pipeline(
-            dev,
-            "clipmap sg skirt pipeline",
-            &pipeline_layout,
-            &module,
-            "fs_sg_skirt",
-            targets,
-        );
+        let mut programs: [Option<SgPrograms>; SUBSETS] = Default::default();
+        programs[subset_index(variant)] = Some(compile(dev, variant, &pipeline_layout, targets));
         Ok(SgState {
             variant,
+            built: variant,
             baked: bake.baked().to_vec(),
             bound,
             layout_entries: entries.len(),
@@ -181,8 +217,58 @@ impl SgState {
             _uniform: uniform,
             _layout: layout,
             group,
-            pipeline,
-            skirt_pipeline,
+            pipeline_layout,
+            targets: *targets,
+            programs,
         })
+    }
+
+    /// The programs of the variant drawn.
+    pub(super) fn programs(&self) -> &SgPrograms {
+        self.programs[subset_index(self.variant)]
+            .as_ref()
+            .expect("the drawn variant's programs are compiled when it is set")
+    }
+
+    /// Draws with `effects` (visibility, specular and fog; synthesis is not a shading effect) from now on.
+    /// Each must be one the renderer was built with: what the scene left out has no table, binding or
+    /// code to switch on, and asking for it is refused. The tables, the bind group and the sky table stay
+    /// as they are; a subset drawn for the first time compiles its module and programs here (recorded in
+    /// `ledger`, zero bytes), and later switches to it create nothing.
+    pub(super) fn set_effects(
+        &mut self,
+        device: &wgpu::Device,
+        ledger: &mut Ledger,
+        effects: Effects,
+    ) -> Result<()> {
+        let b = self.built;
+        let asked = [
+            ("visibility", effects.visibility, b.visibility),
+            ("specular", effects.specular, b.specular),
+            ("fog", effects.fog, b.fog),
+        ];
+        if let Some((name, ..)) = asked.iter().find(|(_, want, have)| *want && !*have) {
+            return Err(Error::Invalid {
+                what: format!("SG effect `{name}`"),
+                reason: format!(
+                    "the renderer was built for `{}`, without it: build it with a scene that asks for it",
+                    b.label()
+                ),
+            });
+        }
+        let v = SgVariant {
+            visibility: effects.visibility,
+            specular: effects.specular,
+            fog: effects.fog,
+            ..b
+        };
+        let slot = &mut self.programs[subset_index(v)];
+        if slot.is_none() {
+            let mut dev = Ledgered::new(device);
+            *slot = Some(compile(&mut dev, v, &self.pipeline_layout, &self.targets));
+            ledger.extend(&dev.finish());
+        }
+        self.variant = v;
+        Ok(())
     }
 }

@@ -313,8 +313,9 @@ struct App<'a> {
     bake: Option<ShadingBake>,
     /// The switches the renderer is set up for.
     applied: ShadingSwitches,
-    /// The effects (with `sg` on) of the SG variant the renderer was built with, if it has one: the
-    /// basic/SG key then only switches it (`Renderer::set_sg_enabled`), creating nothing.
+    /// The effects (with `sg` on) the renderer's SG tables were built for, if it has them: the basic/SG
+    /// key and the effect keys within these then only switch it (`Renderer::set_sg_enabled`,
+    /// `Renderer::set_sg_effects`), creating no table.
     sg_built: Option<ShadingSwitches>,
     clearance: f64,
     window: Option<Presenter>,
@@ -479,16 +480,26 @@ impl App<'_> {
         let Some(max_texture_side) = self.window.as_ref().map(|p| p.max_texture_side) else {
             return Ok(());
         };
-        // SG on or off with the effects the renderer's SG variant already has: a switch, not a rebuild
-        // (issue 16: the SG tables are created once, never again on a toggle).
-        let same_effects = ShadingSwitches { sg: true, ..want };
-        if built == self.built && !self.resized && self.sg_built == Some(same_effects) {
+        // SG on or off, and effects within those the renderer's SG tables were built for: a switch, not a
+        // rebuild (issue 16: the SG tables are created once, never again on a toggle).
+        // Fog without the scene's parameters is no effect (`ShadingSwitches::apply`).
+        let effective = ShadingSwitches {
+            fog: want.fog && self.scene.fog.is_some(),
+            ..want
+        };
+        if built == self.built
+            && !self.resized
+            && self.sg_built.is_some_and(|b| effective.within(&b))
+        {
             if let Some(p) = self.window.as_mut() {
+                if let Some(scene) = want.apply(&self.scene) {
+                    p.set_sg_effects(scene.effects)?;
+                }
                 p.renderer.set_sg_enabled(want.sg);
             }
             eprintln!(
-                "clipsat view: SG shading {} (switched: nothing baked or created)",
-                if want.sg { "on" } else { "off" }
+                "clipsat view: SG shading {} (switched: nothing baked, no table created)",
+                effective.label()
             );
             self.applied = want;
             return Ok(());
@@ -499,13 +510,20 @@ impl App<'_> {
                 self.rebuild(lod, gpu_renderer::Shading::Basic)?;
                 self.sg_built = None;
             }
-            Some(scene) => {
-                if let Err(e) = scene.check_profile(&scene.name, &self.profile) {
+            Some(wanted) => {
+                if let Err(e) = wanted.check_profile(&wanted.name, &self.profile) {
                     // Refuse the key, keep what is drawn.
                     eprintln!("clipsat view: switch refused: {e}");
                     self.state.shading = self.applied;
                     return Ok(());
                 }
+                // Built for the scene's own effects too (as far as the profile allows), so that the
+                // effect keys switch within them afterwards instead of building again.
+                let union = want.union(&ShadingSwitches::from_scene(&self.scene, true));
+                let scene = union
+                    .apply(&self.scene)
+                    .filter(|s| s.check_profile(&s.name, &self.profile).is_ok())
+                    .unwrap_or_else(|| wanted.clone());
                 let needs = scene.needs();
                 let stale = self
                     .bake
@@ -542,7 +560,10 @@ impl App<'_> {
                 };
                 self.bake = bake;
                 built?;
-                self.sg_built = Some(want);
+                if let Some(p) = self.window.as_mut() {
+                    p.set_sg_effects(wanted.effects)?;
+                }
+                self.sg_built = Some(ShadingSwitches::from_scene(&scene, true));
             }
         }
         self.applied = want;

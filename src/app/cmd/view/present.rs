@@ -224,6 +224,14 @@ impl Presenter {
         Ok(())
     }
 
+    /// Switches the renderer's SG effects within those it was built for (`Renderer::set_sg_effects`).
+    pub(super) fn set_sg_effects(
+        &mut self,
+        effects: clipsat::shading::scene::Effects,
+    ) -> Result<()> {
+        self.renderer.set_sg_effects(&self.device, effects)
+    }
+
     /// Uploads `plan`, clears the surface's next frame to `clear`, draws the terrain into that pass and
     /// presents it.
     pub(super) fn draw(
