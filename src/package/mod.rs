@@ -3,7 +3,8 @@
 //! - [`format`](mod@format): the header (magic, version, dimensions, spacing, origin, quantum, codec,
 //!   tile table with per-tile offsets and CRC-32s).
 //! - [`codec`]: the integer 4-point prediction U and the tile codec (zigzag byte planes under zstd or lz4).
-//! - [`write`](mod@write): `clipsat bake`, heightmap -> residual pyramid quantised with one absolute step.
+//! - [`write`](mod@write): `clipsat bake`, source rows -> residual pyramid quantised with one absolute step,
+//!   out of core (the levels spilled to temporary files by `spill`).
 //! - [`read`]: validated reading through a memory map; damaged files are errors naming the tile.
 //! - [`cache`]: the tile cache allocated once from `budget.cpu_memory_bytes`, decoding under a sample budget.
 
@@ -11,9 +12,10 @@ pub mod cache;
 pub mod codec;
 pub mod format;
 pub mod read;
+mod spill;
 pub mod write;
 
 pub use cache::{CacheSplit, CacheStats, TileCache};
 pub use format::{CodecKind, Header};
 pub use read::{is_package, Package, TileDecoder};
-pub use write::{bake, cached, default_max_error, BakeOptions, BakeReport};
+pub use write::{bake, bake_source, cached, default_max_error, BakeOptions, BakeReport};

@@ -11,7 +11,8 @@ use std::path::Path;
 
 use super::codec::{Encoder, Predictor};
 use super::format::{CodecKind, Header, TileEntry};
-use crate::bake::pyramid::Pyramid;
+use super::spill::{on_lattice, Spilled};
+use crate::source::RowSource;
 use crate::{Error, Heightmap, Param, Result};
 
 /// Default tile side, samples: 64 x 64 = 4096 samples fits the smallest profile's per-frame update budget
@@ -87,17 +88,9 @@ pub struct BakeReport {
 /// The source's own quantum, if its samples sit on one: 1 m (integer metres: .hgt, int16 GeoTIFF) or 0.1 m
 /// (decimetre u16 PNGs); `None` for float data.
 pub fn source_quantum(terrain: &Heightmap) -> Option<f64> {
-    [1.0, 0.1].into_iter().find(|&q| {
-        terrain.heights().iter().all(|&h| {
-            let k = (f64::from(h) / q).round();
-            #[expect(
-                clippy::cast_possible_truncation,
-                reason = "compared in f32, as stored"
-            )]
-            let back = (k * q) as f32;
-            (back - h).abs() <= 2.0 * f32::EPSILON * h.abs().max(1.0)
-        })
-    })
+    [1.0, 0.1]
+        .into_iter()
+        .find(|&q| terrain.heights().iter().all(|&h| on_lattice(h, q)))
 }
 
 /// The default [`BakeOptions::max_error`]: half the source's own quantum (lossless in effect), or [`FLOAT_MAX_ERROR`].
@@ -105,19 +98,29 @@ pub fn default_max_error(terrain: &Heightmap) -> f64 {
     source_quantum(terrain).map_or(FLOAT_MAX_ERROR, |q| q * 0.5)
 }
 
-/// Bakes `terrain` into the package file `out`, advancing `bar` by samples coded.
+/// Bakes `terrain` into the package file `out` ([`bake_source`] over the heightmap's rows).
 pub fn bake(
     terrain: &Heightmap,
     out: &Path,
     opts: &BakeOptions,
     bar: &indicatif::ProgressBar,
 ) -> Result<BakeReport> {
-    let max_error = opts.max_error.unwrap_or_else(|| default_max_error(terrain));
-    if !(max_error.is_finite() && max_error > 0.0) {
-        return Err(Error::param(
-            Param::MaxError,
-            format!("{max_error} m must be finite and positive"),
-        ));
+    let mut src = terrain;
+    bake_source(&mut src, out, opts, bar)
+}
+
+/// Bakes a source read in bands of rows into the package file `out`, out of core: the pyramid is built
+/// band by band and spilled to temporary files beside `out` ([`super::spill`], removed afterwards), then
+/// coded coarse to fine one tile row at a time. The working set is a few rows per level and one tile row
+/// of the finest level, whatever the number of rows. `bar` counts source rows, then tiles.
+pub fn bake_source(
+    src: &mut (impl RowSource + ?Sized),
+    out: &Path,
+    opts: &BakeOptions,
+    bar: &indicatif::ProgressBar,
+) -> Result<BakeReport> {
+    if let Some(m) = opts.max_error {
+        check_max_error(m)?;
     }
     if !(4..=4096).contains(&opts.tile) || !opts.tile.is_multiple_of(2) {
         return Err(Error::param(
@@ -125,8 +128,23 @@ pub fn bake(
             format!("{} is not an even size in 4..=4096", opts.tile),
         ));
     }
+    let mut encoders = (0..threads())
+        .map(|_| Encoder::new(opts.codec, opts.zstd_level))
+        .collect::<std::io::Result<Vec<_>>>()
+        .map_err(|e| Error::io(out, "cannot start the tile encoder", e))?;
+    let file = std::fs::File::create(out).map_err(|e| Error::io(out, "cannot create", e))?;
+    bar.set_message("reading the source, rows");
+    let mut spilled = Spilled::build(src, out, bar)?;
+    let max_error = opts.max_error.unwrap_or_else(|| {
+        [1.0, 0.1]
+            .into_iter()
+            .zip(spilled.on_lattice)
+            .find(|&(_, ok)| ok)
+            .map_or(FLOAT_MAX_ERROR, |(q, _)| q * 0.5)
+    });
+    check_max_error(max_error)?;
     let q = 2.0 * max_error;
-    let (lo, hi) = terrain.range();
+    let (lo, hi) = spilled.range;
     let units = f64::from(lo.abs().max(hi.abs())) / q;
     if units >= MAX_UNITS {
         return Err(Error::param(
@@ -138,60 +156,46 @@ pub fn bake(
         ));
     }
     let mut header = Header::new(
-        terrain.width(),
-        terrain.height(),
-        terrain.spacing(),
-        terrain.origin(),
+        src.width(),
+        src.height(),
+        src.spacing(),
+        src.origin(),
         q,
         opts.codec,
         opts.tile,
     );
     header.max_error = max_error;
-    let mut encoder = Encoder::new(opts.codec, opts.zstd_level)
-        .map_err(|e| Error::io(out, "cannot start the tile encoder", e))?;
-    let file = std::fs::File::create(out).map_err(|e| Error::io(out, "cannot create", e))?;
+    // The decoded level 0's range: the extremes quantised as every sample is.
+    header.range = (decoded(lo, q), decoded(hi, q));
     let mut file = std::io::BufWriter::new(file);
     // Reserve the header; the tile table is written over it at the end.
     let head_len = header.byte_len();
     file.write_all(&vec![0u8; head_len])
         .map_err(|e| Error::io(out, "cannot write", e))?;
     let mut offset = head_len as u64;
-    let total: u64 = header
-        .levels
-        .iter()
-        .map(|l| u64::from(l.width) * u64::from(l.height))
-        .sum();
-    bar.set_length(total);
     let mut table = header.tiles.clone();
-    // The decoded level 0's range: the extremes quantised as every sample is.
-    header.range = {
-        let decoded = |h: f32| -> f32 {
-            #[expect(
-                clippy::cast_possible_truncation,
-                reason = "heights are f32, |h / q| < 2^30"
-            )]
-            let v = ((f64::from(h) / q).round() * q) as f32;
-            v
-        };
-        (decoded(lo), decoded(hi))
-    };
-    let (sq, worst) = residual_tiles(terrain, &header, |lk, (tx, ty), residuals| {
+    bar.set_message("coding tiles");
+    bar.set_position(0);
+    bar.set_length(table.len() as u64);
+    let (sq, worst) = residual_rows(&mut spilled, &header, |lk, ty, tiles| {
         let dims = header.levels[lk];
-        let payload = encoder
-            .encode(residuals)
+        let payloads = encode_all(&mut encoders, tiles)
             .map_err(|e| Error::io(out, "cannot compress a tile", e))?;
-        file.write_all(&payload)
-            .map_err(|e| Error::io(out, "cannot write", e))?;
-        let len = u32::try_from(payload.len()).expect("a tile payload is under 4 GiB");
-        table[dims.first_tile + (ty * dims.tiles_x + tx) as usize] = TileEntry {
-            offset,
-            len,
-            crc: crc32fast::hash(&payload),
-        };
-        offset += u64::from(len);
-        bar.inc(residuals.len() as u64);
+        for (tx, payload) in payloads.iter().enumerate() {
+            file.write_all(payload)
+                .map_err(|e| Error::io(out, "cannot write", e))?;
+            let len = u32::try_from(payload.len()).expect("a tile payload is under 4 GiB");
+            table[dims.first_tile + (ty * dims.tiles_x) as usize + tx] = TileEntry {
+                offset,
+                len,
+                crc: crc32fast::hash(payload),
+            };
+            offset += u64::from(len);
+        }
+        bar.inc(tiles.len() as u64);
         Ok(())
     })?;
+    drop(spilled);
     header.tiles = table;
     let bytes = header.to_bytes();
     let mut file = file
@@ -221,22 +225,96 @@ pub fn bake(
     })
 }
 
+/// Refuses a bound that is not finite and positive.
+fn check_max_error(max_error: f64) -> Result<()> {
+    if max_error.is_finite() && max_error > 0.0 {
+        Ok(())
+    } else {
+        Err(Error::param(
+            Param::MaxError,
+            format!("{max_error} m must be finite and positive"),
+        ))
+    }
+}
+
+/// Threads that compress tiles: a tile's payload does not depend on which encoder made it.
+fn threads() -> usize {
+    std::thread::available_parallelism()
+        .map_or(1, usize::from)
+        .min(8)
+}
+
+/// The payloads of `tiles`, in order, compressed in parallel (one encoder per thread).
+fn encode_all(encoders: &mut [Encoder], tiles: &[Vec<i32>]) -> std::io::Result<Vec<Vec<u8>>> {
+    let per = tiles.len().div_ceil(encoders.len()).max(1);
+    std::thread::scope(|s| {
+        let handles: Vec<_> = tiles
+            .chunks(per)
+            .zip(encoders.iter_mut())
+            .map(|(chunk, enc)| {
+                s.spawn(move || {
+                    chunk
+                        .iter()
+                        .map(|t| enc.encode(t))
+                        .collect::<std::io::Result<Vec<_>>>()
+                })
+            })
+            .collect();
+        let mut all = Vec::with_capacity(tiles.len());
+        for h in handles {
+            all.extend(h.join().expect("a tile encoder thread panicked")?);
+        }
+        Ok(all)
+    })
+}
+
+/// `h` quantised with step `q` and decoded, as the package stores it.
+fn decoded(h: f32, q: f64) -> f32 {
+    #[expect(
+        clippy::cast_possible_truncation,
+        reason = "heights are f32, |h / q| < 2^30"
+    )]
+    let v = ((f64::from(h) / q).round() * q) as f32;
+    v
+}
+
 /// The residual tiles of the package `header` describes for `terrain`, coarse to fine, each handed to `f`
 /// as (level, (tx, ty), residuals row-major); returns (sum of squared, largest) level-0 errors in metres.
-///
-/// Closed loop (GC section 7): the prediction reads the coarser level's quantised samples, which is
-/// exactly what the decoder reconstructs.
+/// The pyramid is spilled to temporary files in the system's temporary folder (a measurement aid's entry;
+/// [`bake_source`] is the bake).
 pub fn residual_tiles(
     terrain: &Heightmap,
     header: &Header,
     mut f: impl FnMut(usize, (u32, u32), &[i32]) -> Result<()>,
 ) -> Result<(f64, f64)> {
+    let near = std::env::temp_dir().join(format!("clipsat-residuals-{}", std::process::id()));
+    let mut src = terrain;
+    let mut spilled = Spilled::build(&mut src, &near, &indicatif::ProgressBar::hidden())?;
+    residual_rows(&mut spilled, header, |lk, ty, tiles| {
+        for (tx, t) in (0..).zip(tiles) {
+            f(lk, (tx, ty), t)?;
+        }
+        Ok(())
+    })
+}
+
+/// The residual tiles of the package `header` describes, from the spilled pyramid, coarse to fine and one
+/// tile row at a time: `f` gets (level, ty, the row's tiles left to right, each row-major). Returns (sum
+/// of squared, largest) level-0 errors in metres.
+///
+/// Closed loop (GC section 7): the prediction reads the coarser level's quantised samples, which is
+/// exactly what the decoder reconstructs. A tile row of level l needs its own rows and the coarser rows
+/// under its 4-point stencils, so only those are read back.
+fn residual_rows(
+    spilled: &mut Spilled,
+    header: &Header,
+    mut f: impl FnMut(usize, u32, &[Vec<i32>]) -> Result<()>,
+) -> Result<(f64, f64)> {
     let q = header.quantum;
-    let pyramid = Pyramid::build(terrain);
     assert_eq!(
-        pyramid.len(),
+        spilled.len(),
         header.levels.len(),
-        "the header's level sizes follow Pyramid::build"
+        "the header's level sizes follow the spilled pyramid"
     );
     let quantise = |h: f32| -> i64 {
         #[expect(
@@ -246,36 +324,55 @@ pub fn residual_tiles(
         let k = (f64::from(h) / q).round() as i64;
         k
     };
+    let t = header.tile as usize;
     let (mut sq, mut worst) = (0.0f64, 0.0f64);
-    let mut residuals = Vec::new();
     let mut predictor = Predictor::new(header.tile);
-    let mut pred = vec![0i64; header.tile as usize * header.tile as usize];
-    // Coarse to fine: k~ of the coarser level is its quantised samples (exact reconstruction).
-    let mut coarse_k: Vec<i64> = Vec::new();
-    let (mut coarse_w, mut coarse_h) = (0usize, 0usize);
+    let mut pred = vec![0i64; t * t];
+    let (mut band, mut k, mut coarse_band, mut coarse_k) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let mut tiles: Vec<Vec<i32>> = Vec::new();
     for lk in (0..header.levels.len()).rev() {
         let dims = header.levels[lk];
         let w = dims.width as usize;
-        let k: Vec<i64> = pyramid
-            .level(lk)
-            .heights()
-            .iter()
-            .map(|&v| quantise(v))
-            .collect();
-        let coarse = |a: i64, b: i64| -> i64 {
-            if coarse_w == 0 {
-                return 0;
-            }
-            #[expect(clippy::cast_possible_truncation, reason = "clamped into the level")]
-            let (x, y) = (
-                a.clamp(0, coarse_w as i64 - 1) as usize,
-                b.clamp(0, coarse_h as i64 - 1) as usize,
-            );
-            coarse_k[y * coarse_w + x]
-        };
+        let coarser = header.levels.get(lk + 1).copied();
         for ty in 0..dims.tiles_y {
-            for tx in 0..dims.tiles_x {
-                let (x0, y0, tw, th) = header.tile_rect(lk, tx, ty);
+            let (_, y0, _, th) = header.tile_rect(lk, 0, ty);
+            band.resize(th as usize * w, 0.0f32);
+            spilled.read_rows(lk, y0, &mut band)?;
+            k.clear();
+            k.extend(band.iter().map(|&v| quantise(v)));
+            // The coarser rows under this tile row's stencils: cy0 ..= cy0 + th/2 + 3, clamped.
+            let (cw, ca) = match coarser {
+                Some(c) => {
+                    let cy0 = i64::from(y0 >> 1) - 1;
+                    let last = i64::from(c.height) - 1;
+                    let ca = cy0.clamp(0, last);
+                    let cb = (cy0 + i64::from(th / 2) + 3).clamp(0, last);
+                    #[expect(clippy::cast_possible_truncation, reason = "clamped into the level")]
+                    let (ca32, rows) = (ca as u32, (cb - ca + 1) as usize);
+                    coarse_band.resize(rows * c.width as usize, 0.0f32);
+                    spilled.read_rows(lk + 1, ca32, &mut coarse_band)?;
+                    coarse_k.clear();
+                    coarse_k.extend(coarse_band.iter().map(|&v| quantise(v)));
+                    (c.width as usize, ca)
+                }
+                None => (0, 0),
+            };
+            let ch = coarser.map_or(0, |c| i64::from(c.height));
+            let coarse = |a: i64, b: i64| -> i64 {
+                if cw == 0 {
+                    return 0;
+                }
+                #[expect(clippy::cast_possible_truncation, reason = "clamped into the band")]
+                let (x, y) = (
+                    a.clamp(0, cw as i64 - 1) as usize,
+                    (b.clamp(0, ch - 1) - ca) as usize,
+                );
+                coarse_k[y * cw + x]
+            };
+            tiles.resize_with(dims.tiles_x as usize, Vec::new);
+            for (tx, residuals) in (0..dims.tiles_x).zip(tiles.iter_mut()) {
+                let (x0, _, tw, _) = header.tile_rect(lk, tx, ty);
                 let n = tw as usize * th as usize;
                 predictor.predict(
                     coarse,
@@ -285,7 +382,7 @@ pub fn residual_tiles(
                 );
                 residuals.clear();
                 for (jj, prow) in pred[..n].chunks_exact(tw as usize).enumerate() {
-                    let start = (y0 as usize + jj) * w + x0 as usize;
+                    let start = jj * w + x0 as usize;
                     for (&kk, &p) in k[start..start + tw as usize].iter().zip(prow) {
                         let r = i32::try_from(kk - p).map_err(|_| {
                             Error::param(
@@ -296,21 +393,20 @@ pub fn residual_tiles(
                         residuals.push(r);
                     }
                 }
-                f(lk, (tx, ty), &residuals)?;
+            }
+            f(lk, ty, &tiles)?;
+            if lk == 0 {
+                // Row-major over the level, as the bands come top to bottom.
+                for (&kk, &src) in k.iter().zip(band.iter()) {
+                    #[expect(clippy::cast_precision_loss, reason = "|k| < 2^30")]
+                    #[expect(clippy::cast_possible_truncation, reason = "heights are f32")]
+                    let dec = (kk as f64 * q) as f32;
+                    let e = f64::from(dec) - f64::from(src);
+                    sq += e * e;
+                    worst = worst.max(e.abs());
+                }
             }
         }
-        if lk == 0 {
-            for (&kk, &src) in k.iter().zip(terrain.heights()) {
-                #[expect(clippy::cast_precision_loss, reason = "|k| < 2^30")]
-                #[expect(clippy::cast_possible_truncation, reason = "heights are f32")]
-                let decoded = (kk as f64 * q) as f32;
-                let e = f64::from(decoded) - f64::from(src);
-                sq += e * e;
-                worst = worst.max(e.abs());
-            }
-        }
-        coarse_k = k;
-        (coarse_w, coarse_h) = (w, dims.height as usize);
     }
     Ok((sq, worst))
 }
@@ -321,10 +417,10 @@ pub fn residual_tiles(
 /// finds it without loading the source. `load` runs only on a miss. A file that does not open as a valid
 /// package is baked again; the bake goes to a temporary name renamed into place, so a killed bake leaves
 /// no half file. Returns the path and whether it was baked now.
-pub fn cached(
+pub fn cached<S: RowSource + ?Sized>(
     dir: &Path,
     key: u64,
-    load: impl FnOnce() -> Result<Heightmap>,
+    load: impl FnOnce() -> Result<Box<S>>,
     bar: &indicatif::ProgressBar,
 ) -> Result<(std::path::PathBuf, bool)> {
     let path = dir.join(format!(
@@ -335,10 +431,10 @@ pub fn cached(
     if super::read::Package::open(&path).is_ok() {
         return Ok((path, false));
     }
-    let terrain = load()?;
+    let mut terrain = load()?;
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, "cannot create folder", e))?;
     let tmp = path.with_extension(format!("tmp{}", std::process::id()));
-    bake(&terrain, &tmp, &BakeOptions::default(), bar)?;
+    bake_source(&mut *terrain, &tmp, &BakeOptions::default(), bar)?;
     std::fs::rename(&tmp, &path).map_err(|e| Error::io(&path, "cannot rename into place", e))?;
     Ok((path, true))
 }

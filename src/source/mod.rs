@@ -116,9 +116,12 @@ mod hgt;
 mod png;
 pub mod procedural;
 mod raw;
+mod rows;
 mod tiff;
 
 pub use heightmap::Heightmap;
+pub(crate) use rows::check_band;
+pub use rows::RowSource;
 
 impl TerrainSpec {
     /// Parses `--terrain`: `procedural[:seed=S,size=N,spacing=M]` (also `builtin`), else a file path.

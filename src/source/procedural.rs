@@ -42,40 +42,99 @@ const BASE_FREQUENCY: f64 = 3.0;
 /// count grows with the size until the finest octave reaches about two samples. Rows are generated in
 /// parallel; each sample is a pure function of its position, so the result does not depend on threads.
 pub fn generate(params: &ProceduralParams) -> Result<Heightmap> {
-    let n = params.size;
-    if !(3..=16385).contains(&n) || !(n - 1).is_power_of_two() {
-        return Err(Error::Invalid {
-            what: "procedural size".into(),
-            reason: format!("{n} is not 2^k + 1 between 3 and 16385 (e.g. 257, 1025, 4097)"),
-        });
-    }
-    if !(params.spacing.is_finite() && params.spacing > 0.0) {
-        return Err(Error::Invalid {
-            what: "procedural spacing".into(),
-            reason: format!("{} m: must be finite and positive", params.spacing),
-        });
-    }
-    let side = n as usize;
+    let rows = Rows::new(params)?;
+    let side = params.size as usize;
     let mut heights = vec![0.0f32; side * side];
-    let field = Field::new(params.seed, n);
-    let threads = std::thread::available_parallelism()
-        .map_or(1, usize::from)
-        .min(16);
-    let rows_per = side.div_ceil(threads);
-    std::thread::scope(|s| {
-        for (chunk_i, chunk) in heights.chunks_mut(rows_per * side).enumerate() {
-            let field = &field;
-            s.spawn(move || {
-                for (r, row) in chunk.chunks_mut(side).enumerate() {
-                    let y = chunk_i * rows_per + r;
-                    for (x, h) in row.iter_mut().enumerate() {
-                        *h = crate::source::to_f32(field.height(x, y));
-                    }
-                }
+    rows.fill(0, &mut heights);
+    Heightmap::new(
+        Path::new("<procedural>"),
+        rows.size,
+        rows.size,
+        params.spacing,
+        heights,
+    )
+}
+
+/// The procedural terrain read a band of rows at a time (the out-of-core bake's source): each sample is
+/// the same pure function of its position as in [`generate`], so the rows are the same bits.
+pub struct Rows {
+    field: Field,
+    size: u32,
+    spacing: f32,
+}
+
+impl Rows {
+    /// A row reader; refuses what [`generate`] refuses.
+    pub fn new(params: &ProceduralParams) -> Result<Self> {
+        let n = params.size;
+        if !(3..=16385).contains(&n) || !(n - 1).is_power_of_two() {
+            return Err(Error::Invalid {
+                what: "procedural size".into(),
+                reason: format!("{n} is not 2^k + 1 between 3 and 16385 (e.g. 257, 1025, 4097)"),
             });
         }
-    });
-    Heightmap::new(Path::new("<procedural>"), n, n, params.spacing, heights)
+        if !(params.spacing.is_finite() && params.spacing > 0.0) {
+            return Err(Error::Invalid {
+                what: "procedural spacing".into(),
+                reason: format!("{} m: must be finite and positive", params.spacing),
+            });
+        }
+        Ok(Self {
+            field: Field::new(params.seed, n),
+            size: n,
+            spacing: params.spacing,
+        })
+    }
+
+    /// Rows y0.. into `out` (whole rows), in parallel; the result does not depend on the threads.
+    fn fill(&self, y0: usize, out: &mut [f32]) {
+        let side = self.size as usize;
+        let threads = std::thread::available_parallelism()
+            .map_or(1, usize::from)
+            .min(16);
+        let rows_per = (out.len() / side).div_ceil(threads).max(1);
+        std::thread::scope(|s| {
+            for (chunk_i, chunk) in out.chunks_mut(rows_per * side).enumerate() {
+                let field = &self.field;
+                s.spawn(move || {
+                    for (r, row) in chunk.chunks_mut(side).enumerate() {
+                        let y = y0 + chunk_i * rows_per + r;
+                        for (x, h) in row.iter_mut().enumerate() {
+                            *h = crate::source::to_f32(field.height(x, y));
+                        }
+                    }
+                });
+            }
+        });
+    }
+}
+
+impl crate::source::RowSource for Rows {
+    fn width(&self) -> u32 {
+        self.size
+    }
+
+    fn height(&self) -> u32 {
+        self.size
+    }
+
+    fn spacing(&self) -> f32 {
+        self.spacing
+    }
+
+    fn origin(&self) -> (f64, f64) {
+        (0.0, 0.0)
+    }
+
+    fn path(&self) -> &Path {
+        Path::new("<procedural>")
+    }
+
+    fn read_rows(&mut self, y0: u32, out: &mut [f32]) -> Result<()> {
+        crate::source::check_band(self, y0, out)?;
+        self.fill(y0 as usize, out);
+        Ok(())
+    }
 }
 
 /// The terrain as a function of grid position.

@@ -344,3 +344,109 @@ fn cli_bakes_a_package_and_flies_it_streamed() {
     assert!(err.contains("tile (") && err.contains("checksum"), "{err}");
     let _ = std::fs::remove_file(&out);
 }
+
+/// The out-of-core bake writes the same bytes as the resident bake it replaced: CRC-32 and length of each
+/// package as `clipsat bake` wrote it at e896be5 (whole pyramid in memory), for the shared terrains and
+/// procedural terrains under several options (odd tile sides, lz4, lossy bounds).
+#[test]
+fn out_of_core_bake_is_byte_identical_to_the_resident_bake() {
+    let check = |name: &str, out: &Path, (crc, len): (u32, usize)| {
+        let bytes = std::fs::read(out).expect("read back");
+        assert_eq!(
+            (crc32fast::hash(&bytes), bytes.len()),
+            (crc, len),
+            "{name}: package bytes differ from the resident bake's"
+        );
+        let _ = std::fs::remove_file(out);
+    };
+    let shared_pins: [(&str, Option<f32>, (u32, usize)); 8] = [
+        ("ps_height_1k.png", Some(160.0), (0x8a4d_9094, 1_702_991)),
+        ("srtm_bigtujunga30m_utm11.tif", None, (0x9537_cf7f, 546_818)),
+        (
+            "srtm_bigtujunga30m_utm11_u16dm.png",
+            Some(30.0),
+            (0x9537_cf7f, 546_818),
+        ),
+        ("n07_w006_3arc_v2.tif", None, (0xf080_a551, 806_514)),
+        (
+            "n07_w006_3arc_v2_u16dm.png",
+            Some(92.0),
+            (0xf080_a551, 806_514),
+        ),
+        ("N57E011.hgt", None, (0x97d3_838c, 163_990)),
+        ("lidar_pkg_dem_1m_400x400.tif", None, (0x9634_648a, 112_349)),
+        ("aletsch_200m.tif", None, (0x3342_9ce2, 283_958)),
+    ];
+    for (name, spacing, pin) in shared_pins {
+        let Some(hm) = shared(name, spacing) else {
+            continue;
+        };
+        let out = temp(&format!("pin-{name}.clipsat"));
+        bake(&hm, &out, &BakeOptions::default());
+        check(name, &out, pin);
+    }
+    let procedural = |size: u32, seed: u64| {
+        source::procedural::Rows::new(&source::procedural::ProceduralParams {
+            seed,
+            size,
+            spacing: 30.0,
+        })
+        .expect("procedural")
+    };
+    let opts = |codec: CodecKind, tile: u32, zstd_level: i32, max_error: Option<f64>| BakeOptions {
+        max_error,
+        codec,
+        tile,
+        zstd_level,
+    };
+    let zstd19 = package::write::DEFAULT_ZSTD_LEVEL;
+    let cases = [
+        (
+            "257",
+            257,
+            1,
+            opts(CodecKind::Zstd, 64, zstd19, None),
+            (0x5daa_e861, 136_282),
+        ),
+        (
+            "1025 lz4",
+            1025,
+            7,
+            opts(CodecKind::Lz4, 64, zstd19, Some(0.5)),
+            (0xf98b_ff72, 843_784),
+        ),
+        (
+            "257 tile 16",
+            257,
+            1,
+            opts(CodecKind::Zstd, 16, 3, Some(2.0)),
+            (0x5e0a_0cb8, 56_393),
+        ),
+        (
+            "513 tile 6",
+            513,
+            1,
+            opts(CodecKind::Zstd, 6, zstd19, Some(0.01)),
+            (0xe51c_789f, 763_786),
+        ),
+    ];
+    for (name, size, seed, o, pin) in cases {
+        let out = temp(&format!("pin-{size}-{}.clipsat", o.tile));
+        package::bake_source(
+            &mut procedural(size, seed),
+            &out,
+            &o,
+            &indicatif::ProgressBar::hidden(),
+        )
+        .expect("bake");
+        check(name, &out, pin);
+    }
+    // The spilled levels are temporary files beside the package, gone after the bake.
+    let dir = temp("x").parent().expect("temp dir").to_path_buf();
+    let left: Vec<_> = std::fs::read_dir(&dir)
+        .expect("temp dir")
+        .filter_map(|e| e.ok().map(|e| e.file_name().to_string_lossy().into_owned()))
+        .filter(|n| n.starts_with("pin-") && n.contains(".level"))
+        .collect();
+    assert!(left.is_empty(), "temporary level files left: {left:?}");
+}

@@ -44,7 +44,7 @@ pub(crate) fn run(args: &BakeArgs) -> Result<()> {
     if let Some(t) = &args.terrain_pos {
         targs.terrain = Some(t.clone());
     }
-    let (name, hm) = targs.load()?;
+    let (name, mut rows) = targs.rows()?;
     let opts = BakeOptions {
         max_error: args.max_error,
         codec: CodecKind::parse(&args.codec)?,
@@ -57,14 +57,14 @@ pub(crate) fn run(args: &BakeArgs) -> Result<()> {
     } else {
         let bar = ProgressBar::new(0);
         if let Ok(style) = ProgressStyle::with_template(
-            "baking {bar:40} {percent}% {human_pos}/{human_len} samples",
+            "baking: {msg} {bar:40} {percent}% {human_pos}/{human_len} {elapsed}",
         ) {
             bar.set_style(style);
         }
         bar
     };
     let start = Instant::now();
-    let report = package::bake(&hm, &args.out, &opts, &bar)?;
+    let report = package::bake_source(&mut *rows, &args.out, &opts, &bar)?;
     let seconds = start.elapsed().as_secs_f64();
     if args.json {
         let mut v = serde_json::to_value(&report).unwrap_or_default();

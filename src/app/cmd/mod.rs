@@ -125,7 +125,7 @@ impl TerrainArgs {
         let bar = if progress {
             let b = indicatif::ProgressBar::new(0);
             if let Ok(style) = indicatif::ProgressStyle::with_template(
-                "baking the terrain package into the cache {bar:30} {pos}/{len} {elapsed}",
+                "baking the terrain package into the cache: {msg} {bar:30} {pos}/{len} {elapsed}",
             ) {
                 b.set_style(style);
             }
@@ -136,11 +136,30 @@ impl TerrainArgs {
         let (path, _) = clipsat::package::cached(
             &clipsat::bake::default_cache_dir(),
             h.finish(),
-            || self.load().map(|(_, hm)| hm),
+            || self.rows().map(|(_, rows)| rows),
             &bar,
         )?;
         bar.finish_and_clear();
         clipsat::package::Package::open(&path)
+    }
+
+    /// The terrain these options name as rows for the out-of-core bake: the procedural terrain is
+    /// generated a band at a time; files and packages are loaded whole and read from memory.
+    pub(crate) fn rows(&self) -> Result<(String, Box<dyn source::RowSource>)> {
+        if self.package()?.is_none() {
+            if let TerrainSpec::Procedural(p) = self.spec()? {
+                let p = ProceduralParams {
+                    spacing: self.spacing.unwrap_or(p.spacing),
+                    ..p
+                };
+                return Ok((
+                    format!("procedural(seed={}, size={})", p.seed, p.size),
+                    Box::new(source::procedural::Rows::new(&p).map_err(args::flag("--terrain"))?),
+                ));
+            }
+        }
+        let (name, hm) = self.load()?;
+        Ok((name, Box::new(hm)))
     }
 
     /// Loads the terrain these options name; a package is decoded whole (the resident path).

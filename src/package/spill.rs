@@ -1,0 +1,278 @@
+//! Stage 1b, the package: the out-of-core bake's first pass. The source is read in bands of rows and every
+//! pyramid level (D, the binomial filter of [`crate::bake::pyramid`], GC section 4) is built row by row and
+//! spilled to a temporary file, so the working set is a band plus five filtered rows per level.
+//!
+//! Bit-identical to [`crate::bake::pyramid::Pyramid::build`]: level k+1's row y is the same f64 sums, in the
+//! same order, of the same five horizontally filtered rows 2y-2 ..= 2y+2 (clamped) of level k.
+
+use std::fs::File;
+use std::io::{Read, Seek, SeekFrom, Write};
+use std::path::{Path, PathBuf};
+
+use super::format::level_sizes;
+use crate::source::RowSource;
+use crate::{Error, Result};
+
+/// Rows read from the source at a time.
+const BAND_ROWS: u32 = 64;
+
+/// The binomial weights of D ([1, 4, 6, 4, 1] / 16), as `bake::pyramid` applies them.
+const D_WEIGHTS: [f64; 5] = [1.0 / 16.0, 4.0 / 16.0, 6.0 / 16.0, 4.0 / 16.0, 1.0 / 16.0];
+
+/// A temporary file, removed when dropped (and at once where the OS lets an open file be unlinked).
+struct TempFile {
+    file: File,
+    path: PathBuf,
+}
+
+impl TempFile {
+    fn create(path: PathBuf) -> Result<Self> {
+        let file = std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(true)
+            .open(&path)
+            .map_err(|e| Error::io(&path, "cannot create a temporary level file", e))?;
+        Ok(Self { file, path })
+    }
+}
+
+impl Drop for TempFile {
+    fn drop(&mut self) {
+        // Best effort: a leftover temporary file is harmless, and drop cannot report.
+        let _ = std::fs::remove_file(&self.path);
+    }
+}
+
+/// One level in progress: its file, and D's state (the five latest horizontally filtered finer rows).
+struct Level {
+    width: u32,
+    height: u32,
+    out: std::io::BufWriter<File>,
+    tmp: TempFile,
+    /// Ring of 5 rows of `width` f64: finer row r at slot r % 5 (unused at level 0).
+    ring: Vec<f64>,
+    /// The next row of this level to produce.
+    next: u32,
+    /// Scratch for the row being produced.
+    row: Vec<f32>,
+}
+
+/// Every pyramid level of a source, spilled to temporary files next to the package (removed on drop),
+/// with what the bake needs to know about the source.
+pub(super) struct Spilled {
+    levels: Vec<(u32, u32, TempFile)>,
+    /// Lowest and highest source sample, metres.
+    pub(super) range: (f32, f32),
+    /// Whether every source sample sits on the 1 m / 0.1 m lattice ([`super::write::source_quantum`]).
+    pub(super) on_lattice: [bool; 2],
+}
+
+/// Whether `h` sits on the lattice of step `q` (the test of [`super::write::source_quantum`]).
+pub(super) fn on_lattice(h: f32, q: f64) -> bool {
+    let k = (f64::from(h) / q).round();
+    #[expect(
+        clippy::cast_possible_truncation,
+        reason = "compared in f32, as stored"
+    )]
+    let back = (k * q) as f32;
+    (back - h).abs() <= 2.0 * f32::EPSILON * h.abs().max(1.0)
+}
+
+impl Spilled {
+    /// Reads `src` top to bottom and spills every level, advancing `bar` by source rows.
+    pub(super) fn build(
+        src: &mut (impl RowSource + ?Sized),
+        near: &Path,
+        bar: &indicatif::ProgressBar,
+    ) -> Result<Self> {
+        let (w, h) = (src.width(), src.height());
+        if w < 2 || h < 2 {
+            return Err(Error::format(
+                src.path(),
+                format!("{w} x {h} samples: need at least 2 x 2"),
+            ));
+        }
+        let mut levels = Vec::new();
+        for (l, (lw, lh)) in level_sizes(w, h).into_iter().enumerate() {
+            let tmp = TempFile::create(
+                near.with_extension(format!("level{l}.tmp{}", std::process::id())),
+            )?;
+            let file = tmp
+                .file
+                .try_clone()
+                .map_err(|e| Error::io(&tmp.path, "cannot open", e))?;
+            levels.push(Level {
+                width: lw,
+                height: lh,
+                out: std::io::BufWriter::with_capacity(1 << 16, file),
+                tmp,
+                ring: if l == 0 {
+                    Vec::new()
+                } else {
+                    vec![0.0; 5 * lw as usize]
+                },
+                next: 0,
+                row: vec![0.0; lw as usize],
+            });
+        }
+        let mut range = (f32::INFINITY, f32::NEG_INFINITY);
+        let mut lattice = [true; 2];
+        let mut band = vec![0.0f32; w as usize * BAND_ROWS.min(h) as usize];
+        bar.set_length(u64::from(h));
+        let mut y0 = 0;
+        while y0 < h {
+            let rows = BAND_ROWS.min(h - y0);
+            let band = &mut band[..rows as usize * w as usize];
+            src.read_rows(y0, band)?;
+            for (r, row) in band.chunks_exact(w as usize).enumerate() {
+                let y = y0 + u32::try_from(r).expect("a band has at most BAND_ROWS rows");
+                for (x, &v) in row.iter().enumerate() {
+                    if !v.is_finite() {
+                        return Err(Error::NonFinite {
+                            path: src.path().into(),
+                            x: u32::try_from(x).unwrap_or(u32::MAX),
+                            y,
+                            value: v,
+                        });
+                    }
+                    range = (range.0.min(v), range.1.max(v));
+                    for (ok, q) in lattice.iter_mut().zip([1.0, 0.1]) {
+                        *ok = *ok && on_lattice(v, q);
+                    }
+                }
+                feed(&mut levels, 0, y, row)?;
+            }
+            y0 += rows;
+            bar.inc(u64::from(rows));
+        }
+        let mut done = Vec::with_capacity(levels.len());
+        for l in levels {
+            assert_eq!(l.next, l.height, "every row of every level was produced");
+            l.out
+                .into_inner()
+                .map_err(|e| Error::io(&l.tmp.path, "cannot write", e.into_error()))?;
+            done.push((l.width, l.height, l.tmp));
+        }
+        Ok(Self {
+            levels: done,
+            range,
+            on_lattice: lattice,
+        })
+    }
+
+    /// Number of levels.
+    pub(super) fn len(&self) -> usize {
+        self.levels.len()
+    }
+
+    /// Rows `y0..` of level `l` into `out` (whole rows).
+    pub(super) fn read_rows(&mut self, l: usize, y0: u32, out: &mut [f32]) -> Result<()> {
+        let (w, _, tmp) = &mut self.levels[l];
+        let at = u64::from(y0) * u64::from(*w) * 4;
+        tmp.file
+            .seek(SeekFrom::Start(at))
+            .and_then(|_| tmp.file.read_exact(bytemuck::cast_slice_mut(out)))
+            .map_err(|e| Error::io(&tmp.path, "cannot read a temporary level file", e))
+    }
+}
+
+/// Row `y` of level `l` is done: write it, and hand it to D for level l + 1 (recursively down the pyramid).
+fn feed(levels: &mut [Level], l: usize, y: u32, row: &[f32]) -> Result<()> {
+    {
+        let lv = &mut levels[l];
+        lv.out
+            .write_all(bytemuck::cast_slice(row))
+            .map_err(|e| Error::io(&lv.tmp.path, "cannot write", e))?;
+        if l == 0 {
+            lv.next = y + 1;
+        }
+    }
+    let Some(coarse) = levels.get_mut(l + 1) else {
+        return Ok(());
+    };
+    // Horizontal pass of D into the ring (the f64 sums of `bake::pyramid::downsample`).
+    let cw = coarse.width as usize;
+    let fw = i64::try_from(row.len()).expect("a row fits i64");
+    let slot = (y % 5) as usize;
+    for (x, s) in coarse.ring[slot * cw..(slot + 1) * cw]
+        .iter_mut()
+        .enumerate()
+    {
+        let mut sum = 0.0;
+        for (t, wt) in D_WEIGHTS.iter().enumerate() {
+            let xx = (2 * x as i64 + t as i64 - 2).clamp(0, fw - 1) as usize;
+            sum += wt * f64::from(row[xx]);
+        }
+        *s = sum;
+    }
+    // Vertical pass: coarse row cy needs finer rows up to 2 cy + 2 (clamped to the last one).
+    let fh = i64::from(levels[l].height);
+    loop {
+        let coarse = &mut levels[l + 1];
+        let cy = coarse.next;
+        if cy >= coarse.height || (2 * i64::from(cy) + 2).min(fh - 1) > i64::from(y) {
+            return Ok(());
+        }
+        let mut out = std::mem::take(&mut coarse.row);
+        for (x, o) in out.iter_mut().enumerate() {
+            let mut sum = 0.0;
+            for (t, wt) in D_WEIGHTS.iter().enumerate() {
+                let yy = (2 * i64::from(cy) + t as i64 - 2).clamp(0, fh - 1);
+                sum += wt * coarse.ring[(yy % 5) as usize * cw + x];
+            }
+            #[expect(
+                clippy::cast_possible_truncation,
+                reason = "heights are stored as f32; the f64 sum is rounded once"
+            )]
+            let v = sum as f32;
+            *o = v;
+        }
+        coarse.next = cy + 1;
+        let r = feed(levels, l + 1, cy, &out);
+        levels[l + 1].row = out;
+        r?;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bake::pyramid::Pyramid;
+    use crate::Heightmap;
+
+    #[test]
+    fn spilled_levels_are_the_pyramid_bit_for_bit() {
+        for (w, h) in [(2, 2), (5, 3), (67, 130), (129, 129), (200, 77)] {
+            let heights: Vec<f32> = (0..w * h)
+                .map(|i| {
+                    let (x, y) = (f64::from(i % w), f64::from(i / w));
+                    #[expect(clippy::cast_possible_truncation, reason = "test data")]
+                    let v =
+                        ((x * 0.37).sin() * 40.0 + (y * 0.21).cos() * 25.0 + x * y * 0.01) as f32;
+                    v
+                })
+                .collect();
+            let hm = Heightmap::new(Path::new("t"), w, h, 1.0, heights).unwrap();
+            let dir =
+                std::env::temp_dir().join(format!("clipsat-spill-{}-{w}x{h}", std::process::id()));
+            let mut src = &hm;
+            let mut s = Spilled::build(&mut src, &dir, &indicatif::ProgressBar::hidden()).unwrap();
+            let p = Pyramid::build(&hm);
+            assert_eq!(s.len(), p.len());
+            for l in 0..p.len() {
+                let lv = p.level(l);
+                let mut got = vec![0.0f32; lv.heights().len()];
+                s.read_rows(l, 0, &mut got).unwrap();
+                assert!(
+                    got.iter()
+                        .zip(lv.heights())
+                        .all(|(a, b)| a.to_bits() == b.to_bits()),
+                    "{w} x {h} level {l}"
+                );
+            }
+            assert_eq!(s.range, hm.range());
+        }
+    }
+}
