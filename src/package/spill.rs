@@ -179,6 +179,10 @@ impl Spilled {
 }
 
 /// Row `y` of level `l` is done: write it, and hand it to D for level l + 1 (recursively down the pyramid).
+#[expect(
+    clippy::cast_possible_truncation,
+    reason = "coordinates clamped into a row or a level, whose sizes are usize and u32"
+)]
 fn feed(levels: &mut [Level], l: usize, y: u32, row: &[f32]) -> Result<()> {
     {
         let lv = &mut levels[l];

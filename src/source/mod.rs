@@ -192,6 +192,29 @@ pub fn load(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
     }
 }
 
+/// Opens a terrain file to be read a band of rows at a time (the out-of-core bake's source): a raw file
+/// is read by positioned reads, a band at a time; the other formats are decoded whole by [`load`] (an
+/// SRTM tile is at most 3601^2 samples, and PNG and GeoTIFF voids are filled over the whole grid) and
+/// read from memory.
+pub fn open_rows(path: &Path, opts: &LoadOptions) -> Result<Box<dyn RowSource>> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .unwrap_or_default();
+    if matches!(ext.as_str(), "raw" | "r16" | "f32") {
+        let meta = std::fs::metadata(path).map_err(|e| Error::io(path, "cannot read", e))?;
+        if !meta.is_file() {
+            return Err(Error::format(path, "not a regular file"));
+        }
+        if meta.len() == 0 {
+            return Err(Error::format(path, "file is empty"));
+        }
+        return Ok(Box::new(raw::Rows::open(path, meta.len(), opts)?));
+    }
+    Ok(Box::new(load(path, opts)?))
+}
+
 /// Spacing assumed for PNG and raw files when [`LoadOptions::spacing`] is not given, metres.
 pub const DEFAULT_SPACING_M: f32 = 30.0;
 

@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use super::{check_size, to_f32, LoadOptions, RawFormat, DEFAULT_SPACING_M};
+use super::{check_size, to_f32, LoadOptions, RawFormat, RowSource, DEFAULT_SPACING_M};
 use crate::{Error, Heightmap, Param, Result};
 
 /// Loads a raw file laid out as [`LoadOptions::raw`] says; its length must match exactly.
@@ -11,61 +11,121 @@ use crate::{Error, Heightmap, Param, Result};
 /// samples are metres. Both get [`LoadOptions::height_offset`]. Spacing: [`LoadOptions::spacing`], else
 /// [`DEFAULT_SPACING_M`].
 pub(super) fn load(path: &Path, len: u64, opts: &LoadOptions) -> Result<Heightmap> {
-    let Some(layout) = opts.raw else {
-        return Err(Error::format(
-            path,
-            format!(
-                "a raw file has no header: give its dimensions and sample format with `{}`",
-                Param::RawLayout
-            ),
-        ));
-    };
-    let samples = check_size(path, layout.width.into(), layout.height.into(), opts)?;
-    let (bytes_per, name) = match layout.format {
-        RawFormat::U16 => (2u64, "u16"),
-        RawFormat::F32 => (4u64, "f32"),
-    };
-    let expected = samples as u64 * bytes_per;
-    if len != expected {
-        return Err(Error::SizeMismatch {
-            path: path.into(),
-            actual: len,
-            expected: format!(
-                "{expected} bytes ({} x {} {name})",
-                layout.width, layout.height
-            ),
-        });
-    }
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, "cannot read", e))?;
-    if bytes.len() as u64 != expected {
-        return Err(Error::SizeMismatch {
-            path: path.into(),
-            actual: bytes.len() as u64,
-            expected: format!("{expected} bytes (the length when first checked)"),
-        });
-    }
-    let offset = opts.height_offset;
-    let heights: Vec<f32> = match layout.format {
-        RawFormat::U16 => {
-            let scale = opts.height_scale.map_or(0.1, f64::from);
-            let off = f64::from(offset);
-            bytes
-                .chunks_exact(2)
-                .map(|c| to_f32(f64::from(u16::from_le_bytes([c[0], c[1]])) * scale + off))
-                .collect()
+    let mut rows = Rows::open(path, len, opts)?;
+    let (w, h) = (rows.layout.width, rows.layout.height);
+    let mut heights = vec![0.0f32; w as usize * h as usize];
+    rows.read_rows(0, &mut heights)?;
+    Heightmap::new(path, w, h, rows.spacing, heights)
+}
+
+/// A raw file read a band of rows at a time by positioned reads (the out-of-core bake's source); the
+/// samples are the ones [`load`] gives.
+pub(super) struct Rows {
+    file: std::fs::File,
+    path: std::path::PathBuf,
+    layout: super::RawLayout,
+    bytes_per: u64,
+    scale: f64,
+    offset: f32,
+    spacing: f32,
+    bytes: Vec<u8>,
+}
+
+impl Rows {
+    /// Opens a raw file of `len` bytes laid out as [`LoadOptions::raw`] says; its length must match.
+    pub(super) fn open(path: &Path, len: u64, opts: &LoadOptions) -> Result<Self> {
+        let Some(layout) = opts.raw else {
+            return Err(Error::format(
+                path,
+                format!(
+                    "a raw file has no header: give its dimensions and sample format with `{}`",
+                    Param::RawLayout
+                ),
+            ));
+        };
+        let samples = check_size(path, layout.width.into(), layout.height.into(), opts)?;
+        let (bytes_per, name) = match layout.format {
+            RawFormat::U16 => (2u64, "u16"),
+            RawFormat::F32 => (4u64, "f32"),
+        };
+        let expected = samples as u64 * bytes_per;
+        if len != expected {
+            return Err(Error::SizeMismatch {
+                path: path.into(),
+                actual: len,
+                expected: format!(
+                    "{expected} bytes ({} x {} {name})",
+                    layout.width, layout.height
+                ),
+            });
         }
-        // Non-finite samples stay so, and `Heightmap::new` refuses them with their position.
-        RawFormat::F32 => bytes
-            .chunks_exact(4)
-            .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]) + offset)
-            .collect(),
-    };
-    drop(bytes);
-    Heightmap::new(
-        path,
-        layout.width,
-        layout.height,
-        opts.spacing.unwrap_or(DEFAULT_SPACING_M),
-        heights,
-    )
+        let file = std::fs::File::open(path).map_err(|e| Error::io(path, "cannot open", e))?;
+        Ok(Self {
+            file,
+            path: path.into(),
+            layout,
+            bytes_per,
+            scale: opts.height_scale.map_or(0.1, f64::from),
+            offset: opts.height_offset,
+            spacing: opts.spacing.unwrap_or(DEFAULT_SPACING_M),
+            bytes: Vec::new(),
+        })
+    }
+}
+
+impl super::RowSource for Rows {
+    fn width(&self) -> u32 {
+        self.layout.width
+    }
+
+    fn height(&self) -> u32 {
+        self.layout.height
+    }
+
+    fn spacing(&self) -> f32 {
+        self.spacing
+    }
+
+    fn origin(&self) -> (f64, f64) {
+        (0.0, 0.0)
+    }
+
+    fn path(&self) -> &Path {
+        &self.path
+    }
+
+    fn read_rows(&mut self, y0: u32, out: &mut [f32]) -> Result<()> {
+        use std::io::{Read, Seek, SeekFrom};
+        super::check_band(self, y0, out)?;
+        let at = u64::from(y0) * u64::from(self.layout.width) * self.bytes_per;
+        let per = if self.bytes_per == 2 { 2 } else { 4 };
+        self.bytes.resize(out.len() * per, 0);
+        self.file
+            .seek(SeekFrom::Start(at))
+            .and_then(|_| self.file.read_exact(&mut self.bytes))
+            .map_err(|e| match e.kind() {
+                std::io::ErrorKind::UnexpectedEof => Error::SizeMismatch {
+                    path: self.path.clone(),
+                    actual: at,
+                    expected: "the length when first checked".into(),
+                },
+                _ => Error::io(&self.path, "cannot read", e),
+            })?;
+        match self.layout.format {
+            RawFormat::U16 => {
+                let off = f64::from(self.offset);
+                for (o, c) in out.iter_mut().zip(self.bytes.chunks_exact(2)) {
+                    *o = to_f32(f64::from(u16::from_le_bytes([c[0], c[1]])) * self.scale + off);
+                }
+            }
+            // Non-finite samples stay so, and the bake (or `Heightmap::new`) refuses them with their
+            // position.
+            RawFormat::F32 => {
+                for (o, c) in out.iter_mut().zip(self.bytes.chunks_exact(4)) {
+                    *o = f32::from_le_bytes([c[0], c[1], c[2], c[3]]) + self.offset;
+                }
+            }
+        }
+        Ok(())
+    }
 }

@@ -450,3 +450,52 @@ fn out_of_core_bake_is_byte_identical_to_the_resident_bake() {
         .collect();
     assert!(left.is_empty(), "temporary level files left: {left:?}");
 }
+
+/// A raw file baked a band at a time (positioned reads) gives the package of the same file loaded whole.
+#[test]
+fn raw_files_bake_streamed_as_loaded() {
+    let hm = synthetic(203, 131);
+    for format in [source::RawFormat::F32, source::RawFormat::U16] {
+        let (ext, bytes): (&str, Vec<u8>) = match format {
+            source::RawFormat::F32 => (
+                "f32",
+                hm.heights().iter().flat_map(|h| h.to_le_bytes()).collect(),
+            ),
+            source::RawFormat::U16 => (
+                "r16",
+                hm.heights()
+                    .iter()
+                    .flat_map(|&h| ((h * 10.0) as u16).to_le_bytes())
+                    .collect(),
+            ),
+        };
+        let raw = temp(&format!("stream.{ext}"));
+        std::fs::write(&raw, bytes).expect("write raw");
+        let opts = LoadOptions {
+            raw: Some(source::RawLayout {
+                width: hm.width(),
+                height: hm.height(),
+                format,
+            }),
+            ..LoadOptions::default()
+        };
+        let (a, b) = (
+            temp(&format!("stream-{ext}.clipsat")),
+            temp(&format!("whole-{ext}.clipsat")),
+        );
+        let mut rows = source::open_rows(&raw, &opts).expect("open rows");
+        let bar = indicatif::ProgressBar::hidden();
+        let ra = package::bake_source(&mut *rows, &a, &BakeOptions::default(), &bar).expect("bake");
+        let whole = source::load(&raw, &opts).expect("load");
+        let rb = bake(&whole, &b, &BakeOptions::default());
+        assert_eq!(ra, rb, "{ext}");
+        assert_eq!(
+            std::fs::read(&a).expect("a"),
+            std::fs::read(&b).expect("b"),
+            "{ext}"
+        );
+        for p in [raw, a, b] {
+            let _ = std::fs::remove_file(p);
+        }
+    }
+}

@@ -144,18 +144,27 @@ impl TerrainArgs {
     }
 
     /// The terrain these options name as rows for the out-of-core bake: the procedural terrain is
-    /// generated a band at a time; files and packages are loaded whole and read from memory.
+    /// generated a band at a time, files are opened by [`source::open_rows`] (raw files read a band at a
+    /// time), and a package is decoded whole.
     pub(crate) fn rows(&self) -> Result<(String, Box<dyn source::RowSource>)> {
         if self.package()?.is_none() {
-            if let TerrainSpec::Procedural(p) = self.spec()? {
-                let p = ProceduralParams {
-                    spacing: self.spacing.unwrap_or(p.spacing),
-                    ..p
-                };
-                return Ok((
-                    format!("procedural(seed={}, size={})", p.seed, p.size),
-                    Box::new(source::procedural::Rows::new(&p).map_err(args::flag("--terrain"))?),
-                ));
+            match self.spec()? {
+                TerrainSpec::Procedural(p) => {
+                    let p = ProceduralParams {
+                        spacing: self.spacing.unwrap_or(p.spacing),
+                        ..p
+                    };
+                    return Ok((
+                        format!("procedural(seed={}, size={})", p.seed, p.size),
+                        Box::new(
+                            source::procedural::Rows::new(&p).map_err(args::flag("--terrain"))?,
+                        ),
+                    ));
+                }
+                TerrainSpec::File(path) => {
+                    let rows = source::open_rows(&path, &self.load_options()?)?;
+                    return Ok((path.display().to_string(), rows));
+                }
             }
         }
         let (name, hm) = self.load()?;
@@ -168,6 +177,26 @@ impl TerrainArgs {
             return Ok((p.path().display().to_string(), p.to_heightmap()?));
         }
         let spec = self.spec()?;
+        let opts = self.load_options()?;
+        match spec {
+            TerrainSpec::Procedural(p) => {
+                let p = ProceduralParams {
+                    spacing: self.spacing.unwrap_or(p.spacing),
+                    ..p
+                };
+                Ok((
+                    format!("procedural(seed={}, size={})", p.seed, p.size),
+                    source::procedural::generate(&p).map_err(args::flag("--terrain"))?,
+                ))
+            }
+            TerrainSpec::File(path) => {
+                Ok((path.display().to_string(), source::load(&path, &opts)?))
+            }
+        }
+    }
+
+    /// How to read a terrain file, from these options.
+    fn load_options(&self) -> Result<LoadOptions> {
         let raw = match (&self.raw_size, &self.raw_format) {
             (None, None) => None,
             (Some(size), format) => Some(RawLayout {
@@ -188,21 +217,7 @@ impl TerrainArgs {
             max_samples: self.max_samples,
             png_encoding: self.png_encoding.into(),
         };
-        match spec {
-            TerrainSpec::Procedural(p) => {
-                let p = ProceduralParams {
-                    spacing: self.spacing.unwrap_or(p.spacing),
-                    ..p
-                };
-                Ok((
-                    format!("procedural(seed={}, size={})", p.seed, p.size),
-                    source::procedural::generate(&p).map_err(args::flag("--terrain"))?,
-                ))
-            }
-            TerrainSpec::File(path) => {
-                Ok((path.display().to_string(), source::load(&path, &opts)?))
-            }
-        }
+        Ok(opts)
     }
 }
 
