@@ -110,7 +110,7 @@ pub fn bake(
 }
 
 /// Bakes a source read in bands of rows into the package file `out`, out of core: the pyramid is built
-/// band by band and spilled to temporary files beside `out` ([`super::spill`], removed afterwards), then
+/// band by band and spilled to temporary files beside `out` (`package::spill`, removed afterwards), then
 /// coded coarse to fine one tile row at a time. The working set is a few rows per level and one tile row
 /// of the finest level, whatever the number of rows. `bar` counts source rows, then tiles.
 pub fn bake_source(
