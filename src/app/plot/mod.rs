@@ -248,8 +248,14 @@ impl LinePlot {
                 let anno = match (run.len(), sr.right_axis) {
                     (1, false) => chart.draw_series(dot(run[0], stroke_px, colour))?,
                     (1, true) => chart.draw_secondary_series(dot(run[0], stroke_px, colour))?,
-                    (_, false) => chart.draw_series(LineSeries::new(run, style))?,
-                    (_, true) => chart.draw_secondary_series(LineSeries::new(run, style))?,
+                    (_, false) => {
+                        chart.draw_series(joints(&run, stroke_px, colour))?;
+                        chart.draw_series(segments(&run, style))?
+                    }
+                    (_, true) => {
+                        chart.draw_secondary_series(joints(&run, stroke_px, colour))?;
+                        chart.draw_secondary_series(segments(&run, style))?
+                    }
                 };
                 if !labelled {
                     labelled = true;
@@ -432,6 +438,29 @@ fn segment_hits(a: (f64, f64), b: (f64, f64), (x0, y0, x1, y1): (f64, f64, f64, 
     t0 <= t1
 }
 
+/// A polyline as separate two-point paths. plotters mitres the joins of a thick `LineSeries`, and a line
+/// that turns back on itself (a patch-count series whose time is not monotone) shoots a mitre spike far
+/// past its points, out of the axes; [`joints`] rounds the joins instead.
+fn segments(
+    run: &[(f64, f64)],
+    style: ShapeStyle,
+) -> impl Iterator<Item = PathElement<(f64, f64)>> + '_ {
+    run.windows(2)
+        .map(move |w| PathElement::new(vec![w[0], w[1]], style))
+}
+
+/// Round joins for [`segments`]: a filled dot of the line's width at each inner point.
+fn joints(
+    run: &[(f64, f64)],
+    stroke: u32,
+    colour: RGBColor,
+) -> impl Iterator<Item = Circle<(f64, f64), u32>> + '_ {
+    let inner = &run[1..run.len().saturating_sub(1).max(1)];
+    inner
+        .iter()
+        .map(move |&p| Circle::new(p, stroke.div_ceil(2), colour.filled()))
+}
+
 /// A lone point: a filled dot a little wider than the lines.
 fn dot(p: (f64, f64), stroke: u32, colour: RGBColor) -> std::iter::Once<Circle<(f64, f64), u32>> {
     std::iter::once(Circle::new(p, stroke + 1, colour.filled()))
@@ -520,6 +549,42 @@ mod tests {
             dark > 200 && grey > 100,
             "title: {dark} dark, {grey} grey pixels"
         );
+    }
+
+    /// A line that turns back on itself (as a patch-count series whose time is not monotone) stays within
+    /// its points: no mitre spike out of the axes.
+    #[test]
+    fn a_line_that_turns_back_stays_within_its_points() {
+        let red = [214, 39, 40];
+        let plot = LinePlot {
+            series: vec![
+                Series {
+                    name: "back".into(),
+                    points: vec![(5.05, 0.0503), (4.44, 0.0504), (4.88, 0.0504)],
+                    color: red,
+                    right_axis: false,
+                },
+                Series {
+                    name: "other".into(),
+                    points: vec![(1.15, 0.0265), (1.47, 0.0265)],
+                    color: [31, 119, 180],
+                    right_axis: false,
+                },
+            ],
+            ..LinePlot::default()
+        };
+        let (w, h) = (960, 600);
+        font().expect("font");
+        let sizes = Sizes::of(w, h);
+        let mut pixels = vec![255u8; w as usize * h as usize * 3];
+        let layout = plot.paint(&mut pixels, w, h, &sizes, None).expect("paint");
+        let right = usize::try_from(layout.axes.0.end).expect("axes inside the image");
+        let outside = pixels
+            .chunks_exact(3)
+            .enumerate()
+            .filter(|(i, p)| i % w as usize > right && *p == red)
+            .count();
+        assert_eq!(outside, 0, "{outside} line pixels right of the axes");
     }
 
     #[test]
