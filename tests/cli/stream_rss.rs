@@ -1,7 +1,8 @@
 //! The 16385 x 16385 flight with its RSS bound (issue 13): `fly` streams a `procedural:size=16385`
 //! package through gles3-mid's 64 MiB tile cache, and its peak RSS exceeds the same flight over a 257^2
-//! package by at most `budget.cpu_memory_bytes`. Heavy (the bake holds the 1 GiB source and writes a
-//! package of a few hundred MB; minutes in release), so ignored:
+//! package by at most `budget.cpu_memory_bytes`; the out-of-core bake of 4097^2 .. 16385^2 terrains stays
+//! within a fixed working set. Heavy (packages of a few hundred MB and 1.4 GB of temporary level files;
+//! minutes in release), so ignored:
 //! `cargo test --release --test cli stream_rss -- --ignored --nocapture`. Needs `/usr/bin/time`.
 
 use std::path::Path;
@@ -74,4 +75,36 @@ fn fly_16385_streamed_within_the_cpu_budget() {
         peaks[1].saturating_sub(peaks[0]) >> 20,
         budget >> 20
     );
+}
+
+/// The bake's working set: a few bands of rows and one tile row, a few MB per 1000 samples of width (the
+/// resident bake it replaced peaked at 337 MB for 4097^2 and 1.29 GB for 8193^2).
+const BAKE_RSS_BOUND: u64 = 64 << 20;
+
+#[test]
+#[ignore = "minutes and large scratch files: cargo test --release --test cli stream_rss -- --ignored"]
+fn bake_out_of_core_within_a_fixed_working_set() {
+    let dir = super::scratch_in("cli_stream_rss", "bake");
+    for size in [4097u32, 8193, 16385] {
+        let pkg = dir.join(format!("p{size}.clipsat"));
+        let p = pkg.to_string_lossy();
+        let terrain = format!("procedural:size={size}");
+        let Some(peak) = peak_rss(&["bake", &terrain, "--out", &p, "--json"]) else {
+            return;
+        };
+        eprintln!("bake {terrain}: peak RSS {} MiB", peak >> 20);
+        let _ = std::fs::remove_file(&pkg);
+        assert!(
+            peak <= BAKE_RSS_BOUND,
+            "bake {terrain}: peak RSS {} MiB over {} MiB",
+            peak >> 20,
+            BAKE_RSS_BOUND >> 20
+        );
+        let left: Vec<_> = std::fs::read_dir(&dir)
+            .expect("scratch")
+            .filter_map(|e| e.ok().map(|e| e.file_name().to_string_lossy().into_owned()))
+            .filter(|n| n.contains(".level"))
+            .collect();
+        assert!(left.is_empty(), "temporary level files left: {left:?}");
+    }
 }
