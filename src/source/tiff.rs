@@ -31,45 +31,19 @@ const MODEL_TYPE_GEOGRAPHIC: u16 = 2;
 /// (from the tie point). Cells are taken as square with the N-S spacing. With none of these the load fails
 /// and asks for `--spacing`. GDAL_NODATA samples are voids: filled from their neighbours and counted.
 pub(super) fn load(path: &Path, opts: &LoadOptions, magic: &[u8]) -> Result<Heightmap> {
-    if !has_magic(magic) {
-        return Err(Error::format(
-            path,
-            format!(
-                "wrong magic number for TIFF: starts with {magic:02x?}, expected `II*\\0` or `MM\\0*`"
-            ),
-        ));
-    }
-    let file = std::fs::File::open(path).map_err(|e| Error::io(path, "cannot open", e))?;
-    let mut dec = Decoder::new(BufReader::new(file)).map_err(|e| corrupt(path, &e))?;
-    let (width, height) = dec.dimensions().map_err(|e| corrupt(path, &e))?;
-    let samples = check_size(path, width.into(), height.into(), opts)?;
-    let mut limits = Limits::default();
-    // Room for the whole image at 8 bytes a sample; `check_size` already bounded it.
-    limits.decoding_buffer_size = samples.saturating_mul(8).saturating_add(1 << 20);
-    limits.intermediate_buffer_size = limits.decoding_buffer_size;
-    let mut dec = dec.with_limits(limits);
-    match dec.colortype().map_err(|e| corrupt(path, &e))? {
-        ColorType::Gray(_) => {}
-        other => {
-            return Err(Error::format(
-                path,
-                format!("TIFF is {other:?}; height maps must have a single grey band"),
-            ))
-        }
-    }
-    let nodata = tag_ascii(&mut dec, Tag::GdalNodata)
-        .and_then(|s| s.trim().trim_end_matches('\0').trim().parse::<f64>().ok());
-    let geo = GeoTags::read(&mut dec);
+    let Opened {
+        mut dec,
+        width,
+        height,
+        samples,
+        nodata,
+        geo,
+    } = open(path, opts, magic)?;
     let image = dec.read_image().map_err(|e| corrupt(path, &e))?;
 
     let scale = opts.height_scale.map_or(1.0, f64::from);
     let offset = f64::from(opts.height_offset);
-    let is_void = |v: f64| match nodata {
-        None => false,
-        Some(nd) if nd.is_nan() => v.is_nan(),
-        // Relative tolerance: GDAL prints float nodata such as -3.4028e38 in decimal, not bit-exact.
-        Some(nd) => v == nd || (v - nd).abs() <= 1e-6 * nd.abs(),
-    };
+    let is_void = |v: f64| is_void(nodata, v);
     let w = width as usize;
     let mut heights: Vec<f32> = match image {
         DecodingResult::I16(v) => convert(path, w, &v, f64::from, is_void, scale, offset)?,
@@ -105,6 +79,58 @@ pub(super) fn load(path: &Path, opts: &LoadOptions, magic: &[u8]) -> Result<Heig
     Ok(Heightmap::new(path, width, height, spacing, heights)?.with_voids_filled(voids))
 }
 
+/// A TIFF opened and checked, its tags read, no sample decoded yet.
+struct Opened {
+    dec: Decoder<BufReader<std::fs::File>>,
+    width: u32,
+    height: u32,
+    samples: usize,
+    nodata: Option<f64>,
+    geo: GeoTags,
+}
+
+/// Opens a single-band TIFF: magic, dimensions (within [`LoadOptions::max_samples`]), colour type, nodata
+/// and the georeferencing tags.
+fn open(path: &Path, opts: &LoadOptions, magic: &[u8]) -> Result<Opened> {
+    if !has_magic(magic) {
+        return Err(Error::format(
+            path,
+            format!(
+                "wrong magic number for TIFF: starts with {magic:02x?}, expected `II*\\0` or `MM\\0*`"
+            ),
+        ));
+    }
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, "cannot open", e))?;
+    let mut dec = Decoder::new(BufReader::new(file)).map_err(|e| corrupt(path, &e))?;
+    let (width, height) = dec.dimensions().map_err(|e| corrupt(path, &e))?;
+    let samples = check_size(path, width.into(), height.into(), opts)?;
+    let mut limits = Limits::default();
+    // Room for the whole image at 8 bytes a sample; `check_size` already bounded it.
+    limits.decoding_buffer_size = samples.saturating_mul(8).saturating_add(1 << 20);
+    limits.intermediate_buffer_size = limits.decoding_buffer_size;
+    let mut dec = dec.with_limits(limits);
+    match dec.colortype().map_err(|e| corrupt(path, &e))? {
+        ColorType::Gray(_) => {}
+        other => {
+            return Err(Error::format(
+                path,
+                format!("TIFF is {other:?}; height maps must have a single grey band"),
+            ))
+        }
+    }
+    let nodata = tag_ascii(&mut dec, Tag::GdalNodata)
+        .and_then(|s| s.trim().trim_end_matches('\0').trim().parse::<f64>().ok());
+    let geo = GeoTags::read(&mut dec);
+    Ok(Opened {
+        dec,
+        width,
+        height,
+        samples,
+        nodata,
+        geo,
+    })
+}
+
 /// Converts samples to metres, voids to NaN (for [`fill_voids`]); a non-finite sample that is not a
 /// void is refused here, since filling would otherwise spread it.
 fn convert<T: Copy>(
@@ -135,6 +161,220 @@ fn convert<T: Copy>(
         out.push(h);
     }
     Ok(out)
+}
+
+/// Whether `v` is a GDAL_NODATA void.
+fn is_void(nodata: Option<f64>, v: f64) -> bool {
+    match nodata {
+        None => false,
+        Some(nd) if nd.is_nan() => v.is_nan(),
+        // Relative tolerance: GDAL prints float nodata such as -3.4028e38 in decimal, not bit-exact.
+        Some(nd) => v == nd || (v - nd).abs() <= 1e-6 * nd.abs(),
+    }
+}
+
+/// Opens a TIFF to be read a band of rows at a time: one row of strips or tiles is decoded at a time
+/// (`Decoder::read_chunk`). A file with voids is loaded whole instead, since they are filled from
+/// neighbours over the whole grid; finding out costs one extra pass over the chunks when the file
+/// declares a nodata value.
+pub(super) fn open_rows(
+    path: &Path,
+    opts: &LoadOptions,
+    magic: &[u8],
+) -> Result<Box<dyn super::RowSource>> {
+    // A layout the chunk reader does not take (a strip taller than 2^32 rows minus the image, say) is
+    // read whole, as `load` reads it.
+    let Ok(mut rows) = Rows::open(path, opts, magic) else {
+        return Ok(Box::new(load(path, opts, magic)?));
+    };
+    if rows.nodata.is_some() {
+        for cr in 0..rows.chunk_rows {
+            if rows.load_chunk_row(cr)? {
+                return Ok(Box::new(load(path, opts, magic)?));
+            }
+        }
+    }
+    Ok(Box::new(rows))
+}
+
+/// A TIFF read one row of chunks (strips or tiles) at a time; the samples are the ones [`load`] gives.
+struct Rows {
+    dec: Decoder<BufReader<std::fs::File>>,
+    path: PathBuf,
+    width: u32,
+    height: u32,
+    spacing: f32,
+    nodata: Option<f64>,
+    scale: f64,
+    offset: f64,
+    /// Chunk size (a strip is the image's width), chunks per row of chunks, rows of chunks.
+    chunk: (u32, u32),
+    chunks_across: u32,
+    chunk_rows: u32,
+    /// The decoded row of chunks `band_row`: `chunk.1` rows of `width` samples (voids NaN).
+    band: Vec<f32>,
+    band_row: Option<u32>,
+}
+
+impl Rows {
+    fn open(path: &Path, opts: &LoadOptions, magic: &[u8]) -> Result<Self> {
+        let Opened {
+            dec,
+            width,
+            height,
+            nodata,
+            geo,
+            ..
+        } = open(path, opts, magic)?;
+        let spacing = match opts.spacing {
+            Some(s) => s,
+            None => geo.spacing(path, height)?,
+        };
+        let chunk = dec.chunk_dimensions();
+        let mut dec = dec;
+        let count = match dec.get_chunk_type() {
+            tiff::decoder::ChunkType::Strip => dec.strip_count(),
+            tiff::decoder::ChunkType::Tile => dec.tile_count(),
+        }
+        .map_err(|e| corrupt(path, &e))?;
+        if chunk.0 == 0 || chunk.1 == 0 {
+            return Err(Error::format(path, "TIFF chunks of zero size"));
+        }
+        let (across, down) = (width.div_ceil(chunk.0), height.div_ceil(chunk.1));
+        if u64::from(count) != u64::from(across) * u64::from(down) {
+            return Err(Error::format(
+                path,
+                format!(
+                    "TIFF has {count} chunks of {} x {} for {width} x {height} samples",
+                    chunk.0, chunk.1
+                ),
+            ));
+        }
+        Ok(Self {
+            dec,
+            path: path.into(),
+            width,
+            height,
+            spacing,
+            nodata,
+            scale: opts.height_scale.map_or(1.0, f64::from),
+            offset: f64::from(opts.height_offset),
+            chunk,
+            chunks_across: across,
+            chunk_rows: down,
+            band: vec![0.0; width as usize * chunk.1.min(height) as usize],
+            band_row: None,
+        })
+    }
+
+    /// Decodes row `cr` of chunks into `band`; returns whether it holds a void.
+    fn load_chunk_row(&mut self, cr: u32) -> Result<bool> {
+        let mut voids = false;
+        let w = self.width as usize;
+        for cx in 0..self.chunks_across {
+            let index = cr * self.chunks_across + cx;
+            let (dw, dh) = (
+                self.chunk.0.min(self.width - cx * self.chunk.0) as usize,
+                self.chunk.1.min(self.height - cr * self.chunk.1) as usize,
+            );
+            let chunk = self
+                .dec
+                .read_chunk(index)
+                .map_err(|e| corrupt(&self.path, &e))?;
+            let (x0, y0) = ((cx * self.chunk.0) as usize, (cr * self.chunk.1) as usize);
+            let (nodata, scale, offset) = (self.nodata, self.scale, self.offset);
+            let mut put = |len: usize, at: &dyn Fn(usize) -> f64| -> Result<()> {
+                // Tiles at the right and bottom edges may come padded to the full tile.
+                let stride = len.checked_div(dh).unwrap_or(0);
+                if stride < dw || len < stride * dh {
+                    return Err(Error::format(
+                        &self.path,
+                        format!("TIFF chunk {index} decoded to {len} samples for {dw} x {dh}"),
+                    ));
+                }
+                for r in 0..dh {
+                    for c in 0..dw {
+                        let v = at(r * stride + c);
+                        let h = if is_void(nodata, v) {
+                            voids = true;
+                            f32::NAN
+                        } else {
+                            let h = to_f32(v * scale + offset);
+                            if !h.is_finite() {
+                                return Err(Error::NonFinite {
+                                    path: self.path.clone(),
+                                    x: u32::try_from(x0 + c).unwrap_or(u32::MAX),
+                                    y: u32::try_from(y0 + r).unwrap_or(u32::MAX),
+                                    value: h,
+                                });
+                            }
+                            h
+                        };
+                        self.band[r * w + x0 + c] = h;
+                    }
+                }
+                Ok(())
+            };
+            match &chunk {
+                DecodingResult::I16(v) => put(v.len(), &|i| f64::from(v[i]))?,
+                DecodingResult::U16(v) => put(v.len(), &|i| f64::from(v[i]))?,
+                DecodingResult::I32(v) => put(v.len(), &|i| f64::from(v[i]))?,
+                DecodingResult::U8(v) => put(v.len(), &|i| f64::from(v[i]))?,
+                DecodingResult::F32(v) => put(v.len(), &|i| f64::from(v[i]))?,
+                DecodingResult::F64(v) => put(v.len(), &|i| v[i])?,
+                other => {
+                    return Err(Error::format(
+                        &self.path,
+                        format!(
+                            "unsupported TIFF sample type {}: use int16, uint16, int32, float32 or float64",
+                            sample_name(other)
+                        ),
+                    ))
+                }
+            }
+        }
+        self.band_row = Some(cr);
+        Ok(voids)
+    }
+}
+
+impl super::RowSource for Rows {
+    fn width(&self) -> u32 {
+        self.width
+    }
+
+    fn height(&self) -> u32 {
+        self.height
+    }
+
+    fn spacing(&self) -> f32 {
+        self.spacing
+    }
+
+    fn origin(&self) -> (f64, f64) {
+        (0.0, 0.0)
+    }
+
+    fn path(&self) -> &Path {
+        &self.path
+    }
+
+    fn read_rows(&mut self, y0: u32, out: &mut [f32]) -> Result<()> {
+        super::check_band(self, y0, out)?;
+        let w = self.width as usize;
+        for (y, row) in (y0..).zip(out.chunks_exact_mut(w)) {
+            let cr = y / self.chunk.1;
+            if self.band_row != Some(cr) && self.load_chunk_row(cr)? {
+                return Err(Error::format(
+                    &self.path,
+                    format!("void samples in row {y} (a file with voids is loaded whole)"),
+                ));
+            }
+            let r = (y - cr * self.chunk.1) as usize;
+            row.copy_from_slice(&self.band[r * w..(r + 1) * w]);
+        }
+        Ok(())
+    }
 }
 
 fn sample_name(r: &DecodingResult) -> &'static str {

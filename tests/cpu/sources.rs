@@ -548,6 +548,43 @@ fn tiff_nodata_filled_and_geographic_spacing() {
     assert_eq!(source::load(&p, &opts).unwrap().spacing(), 5.0);
 }
 
+/// Every row of `path` through the bake's reader ([`source::open_rows`]).
+fn rows_of(path: &Path) -> (u32, u32, f32, Vec<f32>) {
+    let mut rows = source::open_rows(path, &LoadOptions::default()).expect("open rows");
+    let (w, h) = (rows.width(), rows.height());
+    let mut all = vec![0.0f32; w as usize * h as usize];
+    // In uneven bands, to cross strip boundaries.
+    let mut y = 0;
+    for band in [1u32, 7, 64].into_iter().cycle() {
+        if y >= h {
+            break;
+        }
+        let n = band.min(h - y);
+        let at = y as usize * w as usize;
+        rows.read_rows(y, &mut all[at..at + n as usize * w as usize])
+            .expect("read rows");
+        y += n;
+    }
+    (w, h, rows.spacing(), all)
+}
+
+#[test]
+fn tiff_rows_read_by_chunks_match_the_whole_load() {
+    let dir = temp_dir("tiff_rows");
+    // Voids: the rows come from the whole load, voids filled.
+    let mut data: Vec<f32> = (0..16).map(|i| i as f32).collect();
+    data[5] = -9999.0;
+    let p = f32_tiff(&dir, "voids.tif", 4, 4, &data, true);
+    let hm = load(&p).unwrap();
+    assert_eq!(rows_of(&p), (4, 4, hm.spacing(), hm.heights().to_vec()));
+    // No voids, several strips: read a row of strips at a time.
+    let (w, h) = (300u32, 101u32);
+    let data: Vec<f32> = (0..w * h).map(|i| (i % 977) as f32 * 0.25).collect();
+    let p = f32_tiff(&dir, "strips.tif", w, h, &data, true);
+    let hm = load(&p).unwrap();
+    assert_eq!(rows_of(&p), (w, h, hm.spacing(), hm.heights().to_vec()));
+}
+
 #[test]
 fn raw_u16_and_f32() {
     let dir = temp_dir("raw_ok");
