@@ -194,8 +194,8 @@ pub fn load(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
 
 /// Opens a terrain file to be read a band of rows at a time (the out-of-core bake's source): a raw file
 /// is read by positioned reads, a GeoTIFF one row of strips or tiles at a time (one with voids is loaded
-/// whole: they are filled over the whole grid); the other formats are decoded whole by [`load`] (an SRTM
-/// tile is at most 3601^2 samples) and read from memory.
+/// whole: they are filled over the whole grid), a non-interlaced PNG row by row; the other files are
+/// decoded whole by [`load`] (an SRTM tile is at most 3601^2 samples) and read from memory.
 pub fn open_rows(path: &Path, opts: &LoadOptions) -> Result<Box<dyn RowSource>> {
     let ext = path
         .extension()
@@ -214,6 +214,9 @@ pub fn open_rows(path: &Path, opts: &LoadOptions) -> Result<Box<dyn RowSource>> 
     }
     if matches!(ext.as_str(), "tif" | "tiff") {
         return tiff::open_rows(path, opts, &read_magic(path)?);
+    }
+    if ext == "png" {
+        return png::open_rows(path, opts, &read_magic(path)?);
     }
     Ok(Box::new(load(path, opts)?))
 }

@@ -161,3 +161,170 @@ pub(super) fn load(path: &Path, opts: &LoadOptions, magic: &[u8]) -> Result<Heig
 fn corrupt(path: &Path, e: &image::ImageError) -> Error {
     Error::format(path, format!("corrupt or truncated PNG: {e}"))
 }
+
+/// Opens a PNG to be read a band of rows at a time with the png crate's row reader (the same decoding as
+/// [`load`]: `Transformations::EXPAND`, 16-bit samples big-endian in the file). Interlaced files, and any
+/// file whose form [`load`] refuses or treats specially, are loaded whole instead, so the samples and
+/// errors are [`load`]'s.
+pub(super) fn open_rows(
+    path: &Path,
+    opts: &LoadOptions,
+    magic: &[u8],
+) -> Result<Box<dyn super::RowSource>> {
+    match Rows::open(path, opts, magic) {
+        Some(rows) => Ok(Box::new(rows)),
+        None => Ok(Box::new(load(path, opts, magic)?)),
+    }
+}
+
+/// A non-interlaced PNG read row by row; the samples are the ones [`load`] gives.
+struct Rows {
+    reader: png::Reader<BufReader<std::fs::File>>,
+    path: std::path::PathBuf,
+    width: u32,
+    height: u32,
+    spacing: f32,
+    channels: usize,
+    wide: bool,
+    encoding: PngEncoding,
+    scale: f64,
+    offset: f64,
+    /// The next row the reader gives.
+    next: u32,
+}
+
+impl Rows {
+    /// The row reader, or `None` where [`load`] should read the file.
+    fn open(path: &Path, opts: &LoadOptions, magic: &[u8]) -> Option<Self> {
+        if !magic.starts_with(&MAGIC)
+            || (opts.png_encoding != PngEncoding::Grey && opts.height_scale.is_some())
+        {
+            return None;
+        }
+        let file = std::fs::File::open(path).ok()?;
+        let mut decoder = png::Decoder::new(BufReader::new(file));
+        decoder.set_transformations(png::Transformations::EXPAND);
+        let reader = decoder.read_info().ok()?;
+        let info = reader.info();
+        let (width, height) = (info.width, info.height);
+        if info.interlaced || check_size(path, width.into(), height.into(), opts).is_err() {
+            return None;
+        }
+        let (colour, depth) = reader.output_color_type();
+        let channels = match colour {
+            png::ColorType::Grayscale => 1,
+            png::ColorType::GrayscaleAlpha => 2,
+            png::ColorType::Rgb => 3,
+            png::ColorType::Rgba => 4,
+            png::ColorType::Indexed => return None,
+        };
+        let wide = match depth {
+            png::BitDepth::Eight => false,
+            png::BitDepth::Sixteen => true,
+            _ => return None,
+        };
+        if opts.png_encoding != PngEncoding::Grey && (channels < 3 || wide) {
+            return None;
+        }
+        let default_scale = if wide { 0.1 } else { 1.0 };
+        Some(Self {
+            reader,
+            path: path.into(),
+            width,
+            height,
+            spacing: opts.spacing.unwrap_or(DEFAULT_SPACING_M),
+            channels,
+            wide,
+            encoding: opts.png_encoding,
+            scale: opts.height_scale.map_or(default_scale, f64::from),
+            offset: f64::from(opts.height_offset),
+            next: 0,
+        })
+    }
+}
+
+impl super::RowSource for Rows {
+    fn width(&self) -> u32 {
+        self.width
+    }
+
+    fn height(&self) -> u32 {
+        self.height
+    }
+
+    fn spacing(&self) -> f32 {
+        self.spacing
+    }
+
+    fn origin(&self) -> (f64, f64) {
+        (0.0, 0.0)
+    }
+
+    fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Rows come in order: the reader cannot seek back, so `y0` must be the next row.
+    fn read_rows(&mut self, y0: u32, out: &mut [f32]) -> Result<()> {
+        super::check_band(self, y0, out)?;
+        if y0 != self.next {
+            return Err(Error::format(
+                &self.path,
+                format!(
+                    "PNG rows are read in order: row {y0} asked, {} next",
+                    self.next
+                ),
+            ));
+        }
+        let w = self.width as usize;
+        let (channels, wide) = (self.channels, self.wide);
+        for (y, orow) in (y0..).zip(out.chunks_exact_mut(w)) {
+            let row = self
+                .reader
+                .next_row()
+                .map_err(|e| Error::format(&self.path, format!("corrupt or truncated PNG: {e}")))?
+                .ok_or_else(|| Error::format(&self.path, "truncated PNG: rows missing"))?;
+            let data = row.data();
+            if data.len() < w * channels * if wide { 2 } else { 1 } {
+                return Err(Error::format(&self.path, "corrupt PNG: a short row"));
+            }
+            let value = |i: usize| -> u16 {
+                if wide {
+                    u16::from_be_bytes([data[2 * i], data[2 * i + 1]])
+                } else {
+                    data[i].into()
+                }
+            };
+            let pixel = |p: usize| -> [u16; 3] {
+                let base = p * channels;
+                match channels {
+                    1 | 2 => [value(base); 3],
+                    _ => [value(base), value(base + 1), value(base + 2)],
+                }
+            };
+            for (x, o) in orow.iter_mut().enumerate() {
+                let [r, g, b] = pixel(x);
+                *o = match self.encoding {
+                    PngEncoding::Grey => {
+                        if r != g || g != b {
+                            return Err(Error::format(
+                                &self.path,
+                                format!(
+                                    "PNG is {}{} with unequal channels (R, G, B = {r}, {g}, {b} at column \
+                                     {x}, row {y}), so it is not a grey height map; if it is a web-map \
+                                     elevation tile, set the {OPTION} to terrain-rgb or terrarium",
+                                    if channels == 4 { "Rgba" } else { "Rgb" },
+                                    if wide { 16 } else { 8 }
+                                ),
+                            ));
+                        }
+                        to_f32(f64::from(r) * self.scale + self.offset)
+                    }
+                    encoding => to_f32(encoding.decode(r, g, b) + self.offset),
+                };
+            }
+            self.next = y + 1;
+        }
+        Ok(())
+    }
+}

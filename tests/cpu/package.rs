@@ -382,8 +382,8 @@ fn out_of_core_bake_is_byte_identical_to_the_resident_bake() {
             continue;
         };
         let out = temp(&format!("pin-{name}.clipsat"));
-        if name.ends_with(".tif") {
-            // Through the bake's own reader: a row of strips or tiles at a time.
+        if name.ends_with(".tif") || name.ends_with(".png") {
+            // Through the bake's own readers: a row of strips or tiles, or a PNG row, at a time.
             let opts = LoadOptions {
                 spacing,
                 ..LoadOptions::default()

@@ -444,6 +444,16 @@ fn png_rgb_with_equal_channels_reads_as_grey() {
         &palette_png(9, 5, &coloured, |_, _| 7),
     );
     assert_format(load(&p5), "png_encoding");
+    // The bake's row reader gives the same samples, and the same refusal.
+    for p in [&p1, &p2, &p3, &p4, &small_png16(&dir)] {
+        assert_eq!(rows_of(p).3, load(p).unwrap().heights(), "{}", p.display());
+    }
+    let mut rows = source::open_rows(&p5, &LoadOptions::default()).expect("open rows");
+    let mut all = vec![0.0f32; 45];
+    match rows.read_rows(0, &mut all) {
+        Err(Error::Format { reason, .. }) => assert!(reason.contains("png_encoding"), "{reason}"),
+        other => panic!("expected a refusal, got {other:?}"),
+    }
     for (p, scale) in [(&p1, 1.0f64), (&p2, 1.0), (&p3, 25.7), (&p4, 1.0)] {
         let hm = load(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
         assert_eq!((hm.width(), hm.height()), (9, 5));
