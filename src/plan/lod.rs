@@ -217,7 +217,22 @@ impl Lod {
         camera: &Camera,
         mode: LodMode,
         level: u32,
+        bx: (i64, i64, i64, i64),
+    ) -> f64 {
+        self.box_bound_past(camera, mode, level, bx, f64::INFINITY)
+    }
+
+    /// [`Lod::box_bound_px`] when `limit` is infinite; otherwise a value that is at most `limit` exactly
+    /// when the bound is: the whole box's bound once it meets `limit` (no sub-box read), or the largest
+    /// sub-box bound so far once that exceeds it. All the selection needs of a level it tests against
+    /// epsilon.
+    fn box_bound_past(
+        &self,
+        camera: &Camera,
+        mode: LodMode,
+        level: u32,
         (a, c, b, d): (i64, i64, i64, i64),
+        limit: f64,
     ) -> f64 {
         let Some(t) = level
             .checked_sub(self.synth)
@@ -237,7 +252,7 @@ impl Lod {
         let scale = camera.vertical_scale(self.view);
         let whole = self.box_scale(camera.eye, &scale, (a, c, b, d)).px(eta);
         let (xs, ys) = (split_points(a, b, level), split_points(c, d, level));
-        if xs.len() <= 2 && ys.len() <= 2 {
+        if (xs.len() <= 2 && ys.len() <= 2) || (limit.is_finite() && whole <= limit) {
             return whole;
         }
         // Sub-boxes by their cap first: a sub-box's bound is at most its bound for the whole box's error
@@ -256,7 +271,7 @@ impl Lod {
         subs.sort_unstable_by(|u, v| v.0.total_cmp(&u.0));
         let mut worst = 0.0f64;
         for &(cap, bs, [a, c, b, d]) in &subs {
-            if cap <= worst {
+            if cap <= worst || worst > limit {
                 break;
             }
             let sub = eta_of(a, c, b, d).min(eta);
@@ -370,7 +385,8 @@ impl Lod {
         if mode != LodMode::Distance {
             wanted = self.synth;
             for level in (self.synth..levels).rev() {
-                if bound_of(level) <= self.epsilon_px {
+                let eps = self.epsilon_px;
+                if self.box_bound_past(camera, mode, level, (a, c, b, d), eps) <= eps {
                     wanted = level;
                     break;
                 }
