@@ -3,7 +3,8 @@
 # rings and then the detail pool at the still camera) on every shared terrain, gles3-mid at its 1920x1080:
 #  1. the whole-frame bound: sat-conservative and exact at epsilon 1, 2, 4 (met: max error <= 1.05 epsilon);
 #  2. equal error: distance LOD's whole-frame error D; the largest epsilon of a ladder at which
-#     sat-conservative's whole-frame error is <= D; the triangles there against distance LOD's.
+#     sat-conservative's whole-frame error is <= D; the triangles there against distance LOD's;
+#  3. the image: RMSE against the brute-force render (`--ground-truth`) at epsilon 1 and distance LOD's.
 # Usage: scripts/pool_goals.sh [CLIPSAT_BINARY] [PROFILE]   (run from the repository root; needs jq)
 # Writes Markdown tables on stdout; the per-run JSON goes to out/pool_goals/.
 set -euo pipefail
@@ -21,20 +22,27 @@ run() { # name mode eps args...
     ${eps:+--epsilon "$eps"} --json --out "$OUT/frame.png" > "$f"
   echo "$f"
 }
-bound=""; equal=""
+bound=""; equal=""; image=""
 for t in "${TERRAINS[@]}"; do
   read -r -a a <<< "$t"; name=${a[0]}; args=("${a[@]:1}")
   if [ ! -f "../shared/data/$name" ]; then echo "skipped $name (missing)" >&2; continue; fi
+  irow="| $name |"
   for mode in sat-conservative exact; do
     row="| $name | $mode |"
     for e in 1 2 4; do
-      f=$(run "$name" "$mode" "$e" "${args[@]}")
-      row="$row $(jq -r --argjson e "$e" '"\(.max_screen_error_px*100|round/100) px, \(.triangles) tri, \(.blocks_clamped) clamped, cracks \(.crack_pixels) \(if .max_screen_error_px <= 1.05*$e then "(met)" else "(NOT met)" end)"' "$f") |"
+      if [ "$e" = 1 ]; then
+        f=$(run "$name" "$mode" "$e" "${args[@]}" --ground-truth)
+        irow="$irow $(jq -r '.rmse_vs_ground_truth*1000|round/1000' "$f") |"
+      else
+        f=$(run "$name" "$mode" "$e" "${args[@]}")
+      fi
+      row="$row $(jq -r --argjson e "$e" '"\(.max_screen_error_px*100|round/100) px, \(.triangles) tri, \(.detail_tiles_resident) tiles, \(.blocks_clamped) clamped, cracks \(.crack_pixels) \(if .max_screen_error_px <= 1.05*$e then "(met)" else "(NOT met)" end)"' "$f") |"
     done
     bound="$bound$row"$'\n'
   done
-  f=$(run "$name" distance "" "${args[@]}")
+  f=$(run "$name" distance "" "${args[@]}" --ground-truth)
   d=$(jq .max_screen_error_px "$f"); dt=$(jq .triangles "$f")
+  image="$image$irow $(jq -r '.rmse_vs_ground_truth*1000|round/1000' "$f") | $(printf %.2f "$d") px, $dt tri |"$'\n'
   best=""; bt=""; be=""
   for e in $LADDER; do
     f=$(run "$name" sat-conservative "$e" "${args[@]}")
@@ -49,7 +57,7 @@ for t in "${TERRAINS[@]}"; do
     equal="$equal| $name | $(printf %.2f "$d") | $dt | none of: $LADDER | | | |"$'\n'
   fi
 done
-echo "Whole-frame bound ($PROFILE, default camera after the fill): max error, triangles, blocks clamped, crack pixels"
+echo "Whole-frame bound ($PROFILE, default camera after the fill): max error, triangles, pool tiles resident, blocks clamped, crack pixels"
 echo
 echo "| terrain | mode | epsilon 1 | epsilon 2 | epsilon 4 |"
 echo "|---|---|---|---|---|"
@@ -60,3 +68,9 @@ echo
 echo "| terrain | distance: error px | distance: triangles | epsilon | sat-conservative: error px | triangles | triangles / distance's |"
 echo "|---|---|---|---|---|---|---|"
 printf %s "$equal"
+echo
+echo "Image at epsilon 1: RMSE against the brute-force render (8-bit units)"
+echo
+echo "| terrain | sat-conservative | exact | distance | distance: error, triangles |"
+echo "|---|---|---|---|---|"
+printf %s "$image"

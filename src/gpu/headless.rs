@@ -102,6 +102,8 @@ pub struct FrameStats {
     pub blocks_from_pool: u32,
     /// Detail pool slots holding a tile.
     pub detail_tiles_resident: u32,
+    /// Distinct detail tiles the plan's pool cells read.
+    pub detail_tiles_needed: u32,
     /// Detail pool samples the plan wrote (charged to the update budget after the rings).
     pub detail_samples_updated: u64,
     /// SG table texels written (SG shading only): exactly the ring texels uploaded, so within the same
@@ -389,6 +391,7 @@ impl<'g> Offscreen<'g> {
             plan_ns,
             blocks_from_pool: p.blocks_from_pool,
             detail_tiles_resident: p.detail_tiles_resident,
+            detail_tiles_needed: p.detail_tiles_needed,
             detail_samples_updated: p.detail_samples_updated,
             sg_samples: up.sg_samples,
         })

@@ -123,6 +123,8 @@ pub struct PlanStats {
     pub blocks_from_pool: u32,
     /// Detail pool slots holding a tile after this plan.
     pub detail_tiles_resident: u32,
+    /// Distinct detail tiles this plan's pool cells read.
+    pub detail_tiles_needed: u32,
     /// Detail tiles written this plan.
     pub detail_uploads: u32,
     /// Samples they hold (charged to the same per-frame budget as the rings, after them).
@@ -668,6 +670,7 @@ impl Planner {
             blocks_from_pool: u32::try_from(out.detail.served.len())
                 .expect("served <= MAX_LOD_BLOCKS"),
             detail_tiles_resident: out.detail.tiles_resident(),
+            detail_tiles_needed: out.detail.tiles_needed,
             detail_uploads: u32::try_from(out.detail.uploads.len())
                 .expect("uploads <= DETAIL_CAPACITY"),
             detail_samples_updated: out.detail.samples_updated,

@@ -404,6 +404,7 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
             "blocks_clamped": plan.stats().blocks_clamped,
             "blocks_from_pool": plan.stats().blocks_from_pool,
             "detail_tiles_resident": plan.stats().detail_tiles_resident,
+            "detail_tiles_needed": plan.stats().detail_tiles_needed,
             "detail_samples_updated": detail_samples_total,
             "detail_samples_updated_max": detail_samples_max,
         });

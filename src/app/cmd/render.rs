@@ -372,6 +372,10 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
                 "lod_tables_mapped".into(),
                 json!(lod_used.map(|l| l.tables().is_mapped())),
             );
+            o.insert(
+                "detail_tiles_needed".into(),
+                json!(frame.stats.detail_tiles_needed),
+            );
         }
         print_json(&out);
     } else {

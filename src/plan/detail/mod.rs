@@ -105,6 +105,9 @@ pub struct DetailFrame {
     pub served_met: heapless::Vec<bool, MAX_LOD_BLOCKS>,
     /// Samples the uploads write.
     pub samples_updated: u64,
+    /// Distinct tiles this plan's pool cells read (what the frame needs; resident slots may also hold
+    /// tiles no longer needed).
+    pub tiles_needed: u32,
     /// This plan's number in its planner's chain.
     pub seq: u64,
     /// The previous plan's number (None: the first plan; the GPU holds nothing).
@@ -389,6 +392,7 @@ impl DetailPool {
         out.served.clear();
         out.served_met.clear();
         out.samples_updated = 0;
+        out.tiles_needed = 0;
         out.prev = (self.seq > 0).then_some(self.seq);
         self.seq += 1;
         out.seq = self.seq;
@@ -401,6 +405,7 @@ impl DetailPool {
         self.tree.start(lod, eps, cap)?;
         self.tree
             .refine(view, lod, bound_at, budget, self.quads, cap)?;
+        out.tiles_needed = u32::try_from(self.tree.keys.len()).expect("keys <= DETAIL_CAPACITY");
         // Every resident tile needed this frame is kept before any slot is refilled.
         let clock = self.clock;
         for (key, _) in self.tree.keys.iter() {
