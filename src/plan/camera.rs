@@ -135,10 +135,10 @@ impl Camera {
         let up = right.cross(fwd);
         let ty = (self.fov_y_deg.to_radians() * 0.5).tan();
         let tx = ty * f64::from(view.0) / f64::from(view.1.max(1));
-        // |D_xy| over the image plane D = fwd + s right + t up is convex in (s, t): largest at a corner.
+        // |n| / q_z = g(s, t) at image point (s, t) = (q_x, q_y) / q_z is convex: largest at a corner.
         let max_slope = [(-tx, -ty), (tx, -ty), (-tx, ty), (tx, ty)]
             .iter()
-            .map(|&(s, t)| (fwd + s * right + t * up).truncate().length())
+            .map(|&(s, t)| slope_at(up.z, fwd.z, s, t))
             .fold(0.0, f64::max);
         VerticalScale {
             focal_px: f64::from(view.1) / (2.0 * ty),
@@ -157,9 +157,9 @@ impl Camera {
 ///
 /// A point q (camera space: x right, y up, z depth) and q + t v, v the world's up (v = (0, v_y, v_z):
 /// the camera has no roll), project f q_xy / q_z apart by f t (q_z v_xy - q_xy v_z) / (q_z (q_z + t v_z)),
-/// f the focal length in pixels. The numerator n has |n|^2 = q_x^2 v_z^2 + (q_z v_y - q_y v_z)^2 <=
-/// |q x v|^2 = d_h^2, d_h the point's horizontal distance from the eye. The longer of the two directions
-/// (t = +e or -e) is f e |n| / (q_z (q_z - e |v_z|)) <= f e (d_h / q_z) / (q_z - e |v_z|). On the
+/// f the focal length in pixels. The numerator n has |n| / q_z = g(s, t) = |(s v_z, v_y - t v_z)| at the
+/// point's image-plane position (s, t) = (q_x, q_y) / q_z, a convex function of it. The longer of the two
+/// directions (t = +e or -e) is f e |n| / (q_z (q_z - e |v_z|)) = f e g(s, t) / (q_z - e |v_z|). On the
 /// screen's axis of a camera pitched by phi this is about f e cos(phi) / q_z; off the axis it exceeds
 /// [`Camera::pixels_per_metre`] at the point's distance (by up to 1 / cos^2 of the angle).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -168,17 +168,24 @@ pub struct VerticalScale {
     right: DVec3,
     up: DVec3,
     fwd: DVec3,
-    /// The largest d_h / q_z over the frustum's rays (at one of its four corner rays).
+    /// The largest |n| / q_z over the frustum's rays (at one of its four corner rays).
     max_slope: f64,
     /// The smallest cosine between a frustum ray and the axis (at the corners): q_z >= |q| min_cos there.
     min_cos: f64,
     near: f64,
 }
 
+/// One corner of a box for [`VerticalScale::box_of`]: its depth and |n| / q_z there.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Corner {
+    qz: f64,
+    slope: f64,
+}
+
 /// [`VerticalScale::box_max`]: a bound of the projected length of any vertical error in a box.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BoxScale {
-    /// f max(d_h / q_z), pixels.
+    /// f max(|n| / q_z), pixels.
     focal_slope: f64,
     /// The least depth q_z of a visible point, metres.
     depth: f64,
@@ -188,7 +195,7 @@ pub struct BoxScale {
 
 impl BoxScale {
     /// The most pixels a vertical error of at most `eta` metres moves a visible point of the box:
-    /// f eta max(d_h / q_z) / (min q_z - eta |v_z|) (infinite when the error can reach the eye's depth).
+    /// f eta max(|n| / q_z) / (min q_z - eta |v_z|) (infinite when the error can reach the eye's depth).
     pub fn px(&self, eta: f64) -> f64 {
         let den = self.depth - eta * self.vz;
         if eta == 0.0 {
@@ -223,35 +230,66 @@ impl VerticalScale {
     /// A bound of [`VerticalScale::px`] over the points of the box [lo, hi] (relative to the eye) that
     /// lie in the view frustum, for every error up to some eta ([`BoxScale::px`]).
     ///
-    /// - d_h / q_z has convex sublevel sets where q_z > 0 (the cone |P_h q| <= c q_z), so over a box in
-    ///   front of the eye its largest value is at a corner; a visible point's is also at most the
-    ///   frustum's largest.
+    /// - |n| / q_z is a convex function g of the image-plane position; a box wholly in front of the eye
+    ///   projects onto the convex hull of its corners' images, so its largest value there is at a
+    ///   corner; a visible point's is also at most the screen's largest (at a screen corner).
     /// - q_z is linear: its least value is at a corner; a visible point also has q_z >= near and
     ///   q_z >= |q| min_cos >= min_cos times the box's distance from the eye.
     pub fn box_max(&self, lo: DVec3, hi: DVec3) -> BoxScale {
+        let mut corners = [Corner::default(); 8];
+        for (i, c) in corners.iter_mut().enumerate() {
+            let pick = |bit: usize, l: f64, h: f64| if i & bit == 0 { l } else { h };
+            *c = self.corner(DVec3::new(
+                pick(1, lo.x, hi.x),
+                pick(2, lo.y, hi.y),
+                pick(4, lo.z, hi.z),
+            ));
+        }
+        self.box_of(&corners, DVec3::ZERO.clamp(lo, hi).length())
+    }
+
+    /// What [`VerticalScale::box_of`] needs of one corner `q` (relative to the eye) of a box.
+    pub fn corner(&self, q: DVec3) -> Corner {
+        let qz = self.fwd.dot(q);
+        let inv = 1.0 / qz;
+        Corner {
+            qz,
+            slope: slope_at(
+                self.up.z,
+                self.fwd.z,
+                self.right.dot(q) * inv,
+                self.up.dot(q) * inv,
+            ),
+        }
+    }
+
+    /// [`VerticalScale::box_max`] from the box's eight corners ([`VerticalScale::corner`]) and its
+    /// distance from the eye `dist` (boxes that share corners compute them once).
+    pub fn box_of(&self, corners: &[Corner; 8], dist: f64) -> BoxScale {
         let mut qz_min = f64::INFINITY;
         let mut slope = 0.0f64;
-        // Per (x, y) corner the lower depth of the two heights gives both the least q_z and the larger
-        // d_h / q_z (when positive).
-        let z = if self.fwd.z > 0.0 { lo.z } else { hi.z };
-        for &(x, y) in &[(lo.x, lo.y), (hi.x, lo.y), (lo.x, hi.y), (hi.x, hi.y)] {
-            let qz = self.fwd.x * x + self.fwd.y * y + self.fwd.z * z;
-            qz_min = qz_min.min(qz);
-            // Not hypot: metres, far from overflow, and libm's hypot was a seventh of the plan's time.
-            slope = slope.max((x * x + y * y).sqrt() / qz);
+        for c in corners {
+            qz_min = qz_min.min(c.qz);
+            slope = slope.max(c.slope);
         }
         let slope = if qz_min > 0.0 {
             slope.min(self.max_slope)
         } else {
             self.max_slope
         };
-        let dist = DVec3::ZERO.clamp(lo, hi).length();
         BoxScale {
             focal_slope: self.focal_px * slope,
             depth: qz_min.max(dist * self.min_cos).max(self.near),
             vz: self.fwd.z.abs(),
         }
     }
+}
+
+/// |n| / q_z = |(s v_z, v_y - t v_z)| at image-plane position (s, t) ([`VerticalScale`]).
+fn slope_at(vy: f64, vz: f64, s: f64, t: f64) -> f64 {
+    // Not hypot: bounded terms, and libm's hypot was a seventh of a SAT LOD flight's plan time.
+    let (a, b) = (s * vz, vy - t * vz);
+    (a * a + b * b).sqrt()
 }
 
 /// e s / (1 - e c) for [`VerticalScale::parts`] (s, c): infinite when the error reaches the eye's depth.

@@ -14,7 +14,7 @@
 /// Defined beside the tables whose estimators it chooses.
 pub use crate::bake::lod_tables::LodMode;
 use crate::bake::lod_tables::{ceil_shr, LodTables};
-use crate::plan::camera::{BoxScale, Camera, VerticalScale};
+use crate::plan::camera::{BoxScale, Camera, Corner};
 use crate::plan::frame::{Frame, Rect, MAX_LEVELS};
 use crate::{Error, Result};
 use glam::DVec3;
@@ -168,39 +168,33 @@ impl Lod {
         &self.tables
     }
 
-    /// How far a vertical error moves any visible point of the level-0 lattice box
-    /// [a, b] x [c, d] (inclusive vertices, heights spanning the terrain's range): an upper bound of the
-    /// true projection ([`crate::plan::camera::VerticalScale::box_max`]).
-    fn box_scale(
-        &self,
-        eye: DVec3,
-        scale: &VerticalScale,
-        (a, c, b, d): (i64, i64, i64, i64),
-    ) -> BoxScale {
-        let g = self.g0;
+    /// World x of level-0 lattice column `a`, metres.
+    fn world_x(&self, a: i64) -> f64 {
         #[expect(
             clippy::cast_precision_loss,
             reason = "lattice coordinates below 2^48 are exact in f64"
         )]
-        let (x0, x1, yn, ys) = (
-            self.x_left + a as f64 * g,
-            self.x_left + b as f64 * g,
-            self.y_top - c as f64 * g,
-            self.y_top - d as f64 * g,
-        );
-        scale.box_max(
-            DVec3::new(x0, ys, self.z_range.0) - eye,
-            DVec3::new(x1, yn, self.z_range.1) - eye,
-        )
+        let a = a as f64;
+        self.x_left + a * self.g0
+    }
+
+    /// World y of level-0 lattice row `c`, metres.
+    fn world_y(&self, c: i64) -> f64 {
+        #[expect(
+            clippy::cast_precision_loss,
+            reason = "lattice coordinates below 2^48 are exact in f64"
+        )]
+        let c = c as f64;
+        self.y_top - c * self.g0
     }
 
     /// The screen-space bound of `level` over the level-0 lattice box [a, b] x [c, d] (inclusive vertices)
     /// seen from `camera` under `mode`: what [`Lod::select`] tests per block, asked by the detail pool of
     /// its cells. Infinite for a level past the baked ones or finer than the data.
     ///
-    /// SAT paper eq. 6 over the whole box: the object error eta times the largest pixels per metre of a
-    /// vertical segment at any visible point of the box ([`VerticalScale::box_max`]), tightened by
-    /// splitting: the box is cut on `level`'s lattice into up to [`SPLIT`] x [`SPLIT`] sub-boxes, and the
+    /// SAT paper eq. 6 over the whole box: how far the object error eta moves any visible point of the
+    /// box ([`crate::plan::camera::VerticalScale::box_max`]), tightened by splitting: the box is cut
+    /// on `level`'s lattice into up to [`SPLIT`] x [`SPLIT`] sub-boxes, and the
     /// largest of their own bounds is taken when smaller. Every sample lies in some sub-box, whose error
     /// bounds its error and whose scale bounds its scale, so the split is still an upper bound of every
     /// visible sample's projected error, and under `sat-conservative` the p-sum of a sub-box counts fewer
@@ -250,9 +244,31 @@ impl Lod {
             return 0.0;
         }
         let scale = camera.vertical_scale(self.view);
-        let whole = self.box_scale(camera.eye, &scale, (a, c, b, d)).px(eta);
         let (xs, ys) = (split_points(a, b, level), split_points(c, d, level));
-        if (xs.len() <= 2 && ys.len() <= 2) || (limit.is_finite() && whole <= limit) {
+        // The corners of the split grid, each computed once (sub-boxes share them): [row][column][z].
+        let e = camera.eye;
+        let mut grid = [[[Corner::default(); 2]; SPLIT + 1]; SPLIT + 1];
+        for (row, &y) in grid.iter_mut().zip(&ys) {
+            for (cell, &x) in row.iter_mut().zip(&xs) {
+                for (k, z) in [self.z_range.0, self.z_range.1].into_iter().enumerate() {
+                    cell[k] = scale.corner(DVec3::new(self.world_x(x), self.world_y(y), z) - e);
+                }
+            }
+        }
+        // Sub-box (i..=i2, j..=j2) of the grid: its scale from its eight corners.
+        let scale_of = |i: usize, j: usize, i2: usize, j2: usize| -> BoxScale {
+            let (g00, g10, g01, g11) = (grid[j][i], grid[j][i2], grid[j2][i], grid[j2][i2]);
+            let corners = [
+                g00[0], g10[0], g01[0], g11[0], g00[1], g10[1], g01[1], g11[1],
+            ];
+            // World y falls as the lattice row grows: row j2 is the box's south edge.
+            let lo = DVec3::new(self.world_x(xs[i]), self.world_y(ys[j2]), self.z_range.0) - e;
+            let hi = DVec3::new(self.world_x(xs[i2]), self.world_y(ys[j]), self.z_range.1) - e;
+            scale.box_of(&corners, DVec3::ZERO.clamp(lo, hi).length())
+        };
+        let (nx, ny) = (xs.len() - 1, ys.len() - 1);
+        let whole = scale_of(0, 0, nx, ny).px(eta);
+        if (nx <= 1 && ny <= 1) || (limit.is_finite() && whole <= limit) {
             return whole;
         }
         // Sub-boxes by their cap first: a sub-box's bound is at most its bound for the whole box's error
@@ -260,11 +276,10 @@ impl Lod {
         // largest bound so far its own error need not be read.
         let mut subs: heapless::Vec<(f64, BoxScale, [i64; 4]), { SPLIT * SPLIT }> =
             heapless::Vec::new();
-        for y in ys.windows(2) {
-            for x in xs.windows(2) {
-                let sub = (x[0], y[0], x[1], y[1]);
-                let bs = self.box_scale(camera.eye, &scale, sub);
-                subs.push((bs.px(eta), bs, [x[0], y[0], x[1], y[1]]))
+        for j in 0..ny {
+            for i in 0..nx {
+                let bs = scale_of(i, j, i + 1, j + 1);
+                subs.push((bs.px(eta), bs, [xs[i], ys[j], xs[i + 1], ys[j + 1]]))
                     .expect("SPLIT x SPLIT sub-boxes");
             }
         }
