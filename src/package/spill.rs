@@ -261,8 +261,12 @@ mod tests {
             let hm = Heightmap::new(Path::new("t"), w, h, 1.0, heights).unwrap();
             let dir =
                 std::env::temp_dir().join(format!("clipsat-spill-{}-{w}x{h}", std::process::id()));
-            let mut src = &hm;
-            let mut s = Spilled::build(&mut src, &dir, &indicatif::ProgressBar::hidden()).unwrap();
+            let mut s = Spilled::build(
+                &mut crate::source::Resident::new(&hm),
+                &dir,
+                &indicatif::ProgressBar::hidden(),
+            )
+            .unwrap();
             let p = Pyramid::build(&hm);
             assert_eq!(s.len(), p.len());
             for l in 0..p.len() {

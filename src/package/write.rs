@@ -12,7 +12,7 @@ use std::path::Path;
 use super::codec::{Encoder, Predictor};
 use super::format::{CodecKind, Header, TileEntry};
 use super::spill::{on_lattice, Spilled};
-use crate::source::RowSource;
+use crate::source::{Resident, RowSource};
 use crate::{Error, Heightmap, Param, Result};
 
 /// Default tile side, samples: 64 x 64 = 4096 samples fits the smallest profile's per-frame update budget
@@ -105,8 +105,7 @@ pub fn bake(
     opts: &BakeOptions,
     bar: &indicatif::ProgressBar,
 ) -> Result<BakeReport> {
-    let mut src = terrain;
-    bake_source(&mut src, out, opts, bar)
+    bake_source(&mut Resident::new(terrain), out, opts, bar)
 }
 
 /// Bakes a source read in bands of rows into the package file `out`, out of core: the pyramid is built
@@ -288,8 +287,11 @@ pub fn residual_tiles(
     mut f: impl FnMut(usize, (u32, u32), &[i32]) -> Result<()>,
 ) -> Result<(f64, f64)> {
     let near = std::env::temp_dir().join(format!("clipsat-residuals-{}", std::process::id()));
-    let mut src = terrain;
-    let mut spilled = Spilled::build(&mut src, &near, &indicatif::ProgressBar::hidden())?;
+    let mut spilled = Spilled::build(
+        &mut Resident::new(terrain),
+        &near,
+        &indicatif::ProgressBar::hidden(),
+    )?;
     residual_rows(&mut spilled, header, |lk, ty, tiles| {
         for (tx, t) in (0..).zip(tiles) {
             f(lk, (tx, ty), t)?;

@@ -121,7 +121,7 @@ mod tiff;
 
 pub use heightmap::Heightmap;
 pub(crate) use rows::check_band;
-pub use rows::RowSource;
+pub use rows::{Resident, RowGrid, RowSource};
 
 impl TerrainSpec {
     /// Parses `--terrain`: `procedural[:seed=S,size=N,spacing=M]` (also `builtin`), else a file path.
@@ -218,7 +218,7 @@ pub fn open_rows(path: &Path, opts: &LoadOptions) -> Result<Box<dyn RowSource>> 
     if ext == "png" {
         return png::open_rows(path, opts, &read_magic(path)?);
     }
-    Ok(Box::new(load(path, opts)?))
+    Ok(Box::new(Resident::new(load(path, opts)?)))
 }
 
 /// Spacing assumed for PNG and raw files when [`LoadOptions::spacing`] is not given, metres.

@@ -173,17 +173,14 @@ pub(super) fn open_rows(
 ) -> Result<Box<dyn super::RowSource>> {
     match Rows::open(path, opts, magic) {
         Some(rows) => Ok(Box::new(rows)),
-        None => Ok(Box::new(load(path, opts, magic)?)),
+        None => Ok(Box::new(super::Resident::new(load(path, opts, magic)?))),
     }
 }
 
 /// A non-interlaced PNG read row by row; the samples are the ones [`load`] gives.
 struct Rows {
     reader: png::Reader<BufReader<std::fs::File>>,
-    path: std::path::PathBuf,
-    width: u32,
-    height: u32,
-    spacing: f32,
+    grid: super::RowGrid,
     channels: usize,
     wide: bool,
     encoding: PngEncoding,
@@ -229,10 +226,13 @@ impl Rows {
         let default_scale = if wide { 0.1 } else { 1.0 };
         Some(Self {
             reader,
-            path: path.into(),
-            width,
-            height,
-            spacing: opts.spacing.unwrap_or(DEFAULT_SPACING_M),
+            grid: super::RowGrid {
+                width,
+                height,
+                spacing: opts.spacing.unwrap_or(DEFAULT_SPACING_M),
+                origin: (0.0, 0.0),
+                path: path.into(),
+            },
             channels,
             wide,
             encoding: opts.png_encoding,
@@ -244,49 +244,34 @@ impl Rows {
 }
 
 impl super::RowSource for Rows {
-    fn width(&self) -> u32 {
-        self.width
+    fn grid(&self) -> &super::RowGrid {
+        &self.grid
     }
 
-    fn height(&self) -> u32 {
-        self.height
-    }
-
-    fn spacing(&self) -> f32 {
-        self.spacing
-    }
-
-    fn origin(&self) -> (f64, f64) {
-        (0.0, 0.0)
-    }
-
-    fn path(&self) -> &Path {
-        &self.path
-    }
-
-    /// Rows come in order: the reader cannot seek back, so `y0` must be the next row.
     fn read_rows(&mut self, y0: u32, out: &mut [f32]) -> Result<()> {
         super::check_band(self, y0, out)?;
         if y0 != self.next {
             return Err(Error::format(
-                &self.path,
+                &self.grid.path,
                 format!(
                     "PNG rows are read in order: row {y0} asked, {} next",
                     self.next
                 ),
             ));
         }
-        let w = self.width as usize;
+        let w = self.grid.width as usize;
         let (channels, wide) = (self.channels, self.wide);
         for (y, orow) in (y0..).zip(out.chunks_exact_mut(w)) {
             let row = self
                 .reader
                 .next_row()
-                .map_err(|e| Error::format(&self.path, format!("corrupt or truncated PNG: {e}")))?
-                .ok_or_else(|| Error::format(&self.path, "truncated PNG: rows missing"))?;
+                .map_err(|e| {
+                    Error::format(&self.grid.path, format!("corrupt or truncated PNG: {e}"))
+                })?
+                .ok_or_else(|| Error::format(&self.grid.path, "truncated PNG: rows missing"))?;
             let data = row.data();
             if data.len() < w * channels * if wide { 2 } else { 1 } {
-                return Err(Error::format(&self.path, "corrupt PNG: a short row"));
+                return Err(Error::format(&self.grid.path, "corrupt PNG: a short row"));
             }
             let value = |i: usize| -> u16 {
                 if wide {
@@ -308,7 +293,7 @@ impl super::RowSource for Rows {
                     PngEncoding::Grey => {
                         if r != g || g != b {
                             return Err(Error::format(
-                                &self.path,
+                                &self.grid.path,
                                 format!(
                                     "PNG is {}{} with unequal channels (R, G, B = {r}, {g}, {b} at column \
                                      {x}, row {y}), so it is not a grey height map; if it is a web-map \

@@ -48,8 +48,8 @@ pub fn generate(params: &ProceduralParams) -> Result<Heightmap> {
     rows.fill(0, &mut heights);
     Heightmap::new(
         Path::new("<procedural>"),
-        rows.size,
-        rows.size,
+        rows.grid.width,
+        rows.grid.height,
         params.spacing,
         heights,
     )
@@ -59,8 +59,7 @@ pub fn generate(params: &ProceduralParams) -> Result<Heightmap> {
 /// the same pure function of its position as in [`generate`], so the rows are the same bits.
 pub struct Rows {
     field: Field,
-    size: u32,
-    spacing: f32,
+    grid: crate::source::RowGrid,
 }
 
 impl Rows {
@@ -81,14 +80,19 @@ impl Rows {
         }
         Ok(Self {
             field: Field::new(params.seed, n),
-            size: n,
-            spacing: params.spacing,
+            grid: crate::source::RowGrid {
+                width: n,
+                height: n,
+                spacing: params.spacing,
+                origin: (0.0, 0.0),
+                path: "<procedural>".into(),
+            },
         })
     }
 
     /// Rows y0.. into `out` (whole rows), in parallel; the result does not depend on the threads.
     fn fill(&self, y0: usize, out: &mut [f32]) {
-        let side = self.size as usize;
+        let side = self.grid.width as usize;
         let threads = std::thread::available_parallelism()
             .map_or(1, usize::from)
             .min(16);
@@ -110,24 +114,8 @@ impl Rows {
 }
 
 impl crate::source::RowSource for Rows {
-    fn width(&self) -> u32 {
-        self.size
-    }
-
-    fn height(&self) -> u32 {
-        self.size
-    }
-
-    fn spacing(&self) -> f32 {
-        self.spacing
-    }
-
-    fn origin(&self) -> (f64, f64) {
-        (0.0, 0.0)
-    }
-
-    fn path(&self) -> &Path {
-        Path::new("<procedural>")
+    fn grid(&self) -> &crate::source::RowGrid {
+        &self.grid
     }
 
     fn read_rows(&mut self, y0: u32, out: &mut [f32]) -> Result<()> {

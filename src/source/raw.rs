@@ -15,19 +15,18 @@ pub(super) fn load(path: &Path, len: u64, opts: &LoadOptions) -> Result<Heightma
     let (w, h) = (rows.layout.width, rows.layout.height);
     let mut heights = vec![0.0f32; w as usize * h as usize];
     rows.read_rows(0, &mut heights)?;
-    Heightmap::new(path, w, h, rows.spacing, heights)
+    Heightmap::new(path, w, h, rows.grid.spacing, heights)
 }
 
 /// A raw file read a band of rows at a time by positioned reads (the out-of-core bake's source); the
 /// samples are the ones [`load`] gives.
 pub(super) struct Rows {
     file: std::fs::File,
-    path: std::path::PathBuf,
+    grid: super::RowGrid,
     layout: super::RawLayout,
     bytes_per: u64,
     scale: f64,
     offset: f32,
-    spacing: f32,
     bytes: Vec<u8>,
 }
 
@@ -62,36 +61,25 @@ impl Rows {
         let file = std::fs::File::open(path).map_err(|e| Error::io(path, "cannot open", e))?;
         Ok(Self {
             file,
-            path: path.into(),
+            grid: super::RowGrid {
+                width: layout.width,
+                height: layout.height,
+                spacing: opts.spacing.unwrap_or(DEFAULT_SPACING_M),
+                origin: (0.0, 0.0),
+                path: path.into(),
+            },
             layout,
             bytes_per,
             scale: opts.height_scale.map_or(0.1, f64::from),
             offset: opts.height_offset,
-            spacing: opts.spacing.unwrap_or(DEFAULT_SPACING_M),
             bytes: Vec::new(),
         })
     }
 }
 
 impl super::RowSource for Rows {
-    fn width(&self) -> u32 {
-        self.layout.width
-    }
-
-    fn height(&self) -> u32 {
-        self.layout.height
-    }
-
-    fn spacing(&self) -> f32 {
-        self.spacing
-    }
-
-    fn origin(&self) -> (f64, f64) {
-        (0.0, 0.0)
-    }
-
-    fn path(&self) -> &Path {
-        &self.path
+    fn grid(&self) -> &super::RowGrid {
+        &self.grid
     }
 
     fn read_rows(&mut self, y0: u32, out: &mut [f32]) -> Result<()> {
@@ -105,11 +93,11 @@ impl super::RowSource for Rows {
             .and_then(|_| self.file.read_exact(&mut self.bytes))
             .map_err(|e| match e.kind() {
                 std::io::ErrorKind::UnexpectedEof => Error::SizeMismatch {
-                    path: self.path.clone(),
+                    path: self.grid.path.clone(),
                     actual: at,
                     expected: "the length when first checked".into(),
                 },
-                _ => Error::io(&self.path, "cannot read", e),
+                _ => Error::io(&self.grid.path, "cannot read", e),
             })?;
         match self.layout.format {
             RawFormat::U16 => {

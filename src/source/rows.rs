@@ -1,25 +1,54 @@
 //! Stage 0, the source read a band of rows at a time: what the out-of-core bake (stage 1b) streams from,
 //! so that no terrain-sized buffer is needed to bake a package.
 
-use std::path::Path;
+use std::borrow::Borrow;
+use std::path::{Path, PathBuf};
 
 use crate::{Error, Heightmap, Result};
 
+/// What a [`RowSource`] says of itself.
+#[derive(Clone, Debug)]
+pub struct RowGrid {
+    /// Samples per row.
+    pub width: u32,
+    /// Rows.
+    pub height: u32,
+    /// Sample spacing, metres.
+    pub spacing: f32,
+    /// World position of the south-west sample, metres ([`Heightmap::origin`]).
+    pub origin: (f64, f64),
+    /// What errors name: the file, or a description.
+    pub path: PathBuf,
+}
+
 /// A terrain read top to bottom in bands of whole rows (row 0 north, like [`Heightmap`]).
 pub trait RowSource {
-    /// Samples per row.
-    fn width(&self) -> u32;
-    /// Rows.
-    fn height(&self) -> u32;
-    /// Sample spacing, metres.
-    fn spacing(&self) -> f32;
-    /// World position of the south-west sample, metres ([`Heightmap::origin`]).
-    fn origin(&self) -> (f64, f64);
-    /// What errors name: the file, or a description.
-    fn path(&self) -> &Path;
+    /// Its size, spacing, origin and name.
+    fn grid(&self) -> &RowGrid;
     /// Fills `out`, a whole number of rows, with the rows from `y0` on; an error if they run past the
     /// last row or `out` is not whole rows.
     fn read_rows(&mut self, y0: u32, out: &mut [f32]) -> Result<()>;
+
+    /// Samples per row.
+    fn width(&self) -> u32 {
+        self.grid().width
+    }
+    /// Rows.
+    fn height(&self) -> u32 {
+        self.grid().height
+    }
+    /// Sample spacing, metres.
+    fn spacing(&self) -> f32 {
+        self.grid().spacing
+    }
+    /// World position of the south-west sample, metres ([`Heightmap::origin`]).
+    fn origin(&self) -> (f64, f64) {
+        self.grid().origin
+    }
+    /// What errors name: the file, or a description.
+    fn path(&self) -> &Path {
+        &self.grid().path
+    }
 }
 
 /// Checks that `out` is whole rows of `src` starting at `y0`, inside the terrain (a caller bug otherwise,
@@ -41,85 +70,45 @@ pub(crate) fn check_band(src: &(impl RowSource + ?Sized), y0: u32, out: &[f32]) 
     Ok(())
 }
 
-/// A terrain already in memory, read in bands (loaders that decode whole files, and tests).
-impl RowSource for Heightmap {
-    fn width(&self) -> u32 {
-        Heightmap::width(self)
-    }
+/// A terrain already in memory, owned or borrowed, read in bands (loaders that decode whole files, and
+/// tests).
+#[derive(Debug)]
+pub struct Resident<H> {
+    hm: H,
+    grid: RowGrid,
+}
 
-    fn height(&self) -> u32 {
-        Heightmap::height(self)
-    }
-
-    fn spacing(&self) -> f32 {
-        Heightmap::spacing(self)
-    }
-
-    fn origin(&self) -> (f64, f64) {
-        Heightmap::origin(self)
-    }
-
-    fn path(&self) -> &Path {
-        Path::new("<heightmap>")
-    }
-
-    fn read_rows(&mut self, y0: u32, out: &mut [f32]) -> Result<()> {
-        check_band(self, y0, out)?;
-        let start = y0 as usize * Heightmap::width(self) as usize;
-        out.copy_from_slice(&self.heights()[start..start + out.len()]);
-        Ok(())
+impl<H: Borrow<Heightmap>> Resident<H> {
+    /// The rows of `hm`.
+    pub fn new(hm: H) -> Self {
+        let h = hm.borrow();
+        let grid = RowGrid {
+            width: h.width(),
+            height: h.height(),
+            spacing: h.spacing(),
+            origin: h.origin(),
+            path: PathBuf::from("<heightmap>"),
+        };
+        Self { hm, grid }
     }
 }
 
-/// A borrowed terrain in memory.
-impl RowSource for &Heightmap {
-    fn width(&self) -> u32 {
-        Heightmap::width(self)
-    }
-
-    fn height(&self) -> u32 {
-        Heightmap::height(self)
-    }
-
-    fn spacing(&self) -> f32 {
-        Heightmap::spacing(self)
-    }
-
-    fn origin(&self) -> (f64, f64) {
-        Heightmap::origin(self)
-    }
-
-    fn path(&self) -> &Path {
-        Path::new("<heightmap>")
+impl<H: Borrow<Heightmap>> RowSource for Resident<H> {
+    fn grid(&self) -> &RowGrid {
+        &self.grid
     }
 
     fn read_rows(&mut self, y0: u32, out: &mut [f32]) -> Result<()> {
         check_band(self, y0, out)?;
-        let start = y0 as usize * Heightmap::width(self) as usize;
-        out.copy_from_slice(&self.heights()[start..start + out.len()]);
+        let start = y0 as usize * self.grid.width as usize;
+        out.copy_from_slice(&self.hm.borrow().heights()[start..start + out.len()]);
         Ok(())
     }
 }
 
 impl<T: RowSource + ?Sized> RowSource for Box<T> {
-    fn width(&self) -> u32 {
-        (**self).width()
-    }
-
-    fn height(&self) -> u32 {
-        (**self).height()
-    }
-
-    fn spacing(&self) -> f32 {
-        (**self).spacing()
-    }
-
-    fn origin(&self) -> (f64, f64) {
-        (**self).origin()
-    }
-
-    fn path(&self) -> &Path {
-        (**self).path()
+    fn grid(&self) -> &RowGrid {
+        (**self).grid()
     }
 
     fn read_rows(&mut self, y0: u32, out: &mut [f32]) -> Result<()> {

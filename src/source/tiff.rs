@@ -185,12 +185,12 @@ pub(super) fn open_rows(
     // A layout the chunk reader does not take (a strip taller than 2^32 rows minus the image, say) is
     // read whole, as `load` reads it.
     let Ok(mut rows) = Rows::open(path, opts, magic) else {
-        return Ok(Box::new(load(path, opts, magic)?));
+        return Ok(Box::new(super::Resident::new(load(path, opts, magic)?)));
     };
     if rows.nodata.is_some() {
         for cr in 0..rows.chunk_rows {
             if rows.load_chunk_row(cr)? {
-                return Ok(Box::new(load(path, opts, magic)?));
+                return Ok(Box::new(super::Resident::new(load(path, opts, magic)?)));
             }
         }
     }
@@ -200,10 +200,7 @@ pub(super) fn open_rows(
 /// A TIFF read one row of chunks (strips or tiles) at a time; the samples are the ones [`load`] gives.
 struct Rows {
     dec: Decoder<BufReader<std::fs::File>>,
-    path: PathBuf,
-    width: u32,
-    height: u32,
-    spacing: f32,
+    grid: super::RowGrid,
     nodata: Option<f64>,
     scale: f64,
     offset: f64,
@@ -252,10 +249,13 @@ impl Rows {
         }
         Ok(Self {
             dec,
-            path: path.into(),
-            width,
-            height,
-            spacing,
+            grid: super::RowGrid {
+                width,
+                height,
+                spacing,
+                origin: (0.0, 0.0),
+                path: path.into(),
+            },
             nodata,
             scale: opts.height_scale.map_or(1.0, f64::from),
             offset: f64::from(opts.height_offset),
@@ -270,17 +270,17 @@ impl Rows {
     /// Decodes row `cr` of chunks into `band`; returns whether it holds a void.
     fn load_chunk_row(&mut self, cr: u32) -> Result<bool> {
         let mut voids = false;
-        let w = self.width as usize;
+        let w = self.grid.width as usize;
         for cx in 0..self.chunks_across {
             let index = cr * self.chunks_across + cx;
             let (dw, dh) = (
-                self.chunk.0.min(self.width - cx * self.chunk.0) as usize,
-                self.chunk.1.min(self.height - cr * self.chunk.1) as usize,
+                self.chunk.0.min(self.grid.width - cx * self.chunk.0) as usize,
+                self.chunk.1.min(self.grid.height - cr * self.chunk.1) as usize,
             );
             let chunk = self
                 .dec
                 .read_chunk(index)
-                .map_err(|e| corrupt(&self.path, &e))?;
+                .map_err(|e| corrupt(&self.grid.path, &e))?;
             let (x0, y0) = ((cx * self.chunk.0) as usize, (cr * self.chunk.1) as usize);
             let (nodata, scale, offset) = (self.nodata, self.scale, self.offset);
             let mut put = |len: usize, at: &dyn Fn(usize) -> f64| -> Result<()> {
@@ -288,7 +288,7 @@ impl Rows {
                 let stride = len.checked_div(dh).unwrap_or(0);
                 if stride < dw || len < stride * dh {
                     return Err(Error::format(
-                        &self.path,
+                        &self.grid.path,
                         format!("TIFF chunk {index} decoded to {len} samples for {dw} x {dh}"),
                     ));
                 }
@@ -302,7 +302,7 @@ impl Rows {
                             let h = to_f32(v * scale + offset);
                             if !h.is_finite() {
                                 return Err(Error::NonFinite {
-                                    path: self.path.clone(),
+                                    path: self.grid.path.clone(),
                                     x: u32::try_from(x0 + c).unwrap_or(u32::MAX),
                                     y: u32::try_from(y0 + r).unwrap_or(u32::MAX),
                                     value: h,
@@ -324,7 +324,7 @@ impl Rows {
                 DecodingResult::F64(v) => put(v.len(), &|i| v[i])?,
                 other => {
                     return Err(Error::format(
-                        &self.path,
+                        &self.grid.path,
                         format!(
                             "unsupported TIFF sample type {}: use int16, uint16, int32, float32 or float64",
                             sample_name(other)
@@ -339,34 +339,18 @@ impl Rows {
 }
 
 impl super::RowSource for Rows {
-    fn width(&self) -> u32 {
-        self.width
-    }
-
-    fn height(&self) -> u32 {
-        self.height
-    }
-
-    fn spacing(&self) -> f32 {
-        self.spacing
-    }
-
-    fn origin(&self) -> (f64, f64) {
-        (0.0, 0.0)
-    }
-
-    fn path(&self) -> &Path {
-        &self.path
+    fn grid(&self) -> &super::RowGrid {
+        &self.grid
     }
 
     fn read_rows(&mut self, y0: u32, out: &mut [f32]) -> Result<()> {
         super::check_band(self, y0, out)?;
-        let w = self.width as usize;
+        let w = self.grid.width as usize;
         for (y, row) in (y0..).zip(out.chunks_exact_mut(w)) {
             let cr = y / self.chunk.1;
             if self.band_row != Some(cr) && self.load_chunk_row(cr)? {
                 return Err(Error::format(
-                    &self.path,
+                    &self.grid.path,
                     format!("void samples in row {y} (a file with voids is loaded whole)"),
                 ));
             }

@@ -168,7 +168,7 @@ impl TerrainArgs {
             }
         }
         let (name, hm) = self.load()?;
-        Ok((name, Box::new(hm)))
+        Ok((name, Box::new(source::Resident::new(hm))))
     }
 
     /// Loads the terrain these options name; a package is decoded whole (the resident path).
