@@ -38,6 +38,10 @@ pub(crate) struct BenchShadingArgs {
     /// Every shared terrain (as `bench all`), not only Puget Sound and Big Tujunga.
     #[arg(long)]
     all_terrains: bool,
+    /// Only the terrains whose name contains this (repeatable; e.g. `--terrain N57E011 --terrain ps_`):
+    /// for iterating on one terrain.
+    #[arg(long = "terrain", value_name = "NAME")]
+    only: Vec<String>,
     /// Only the 4 x 8 breakdown and the scenes (noon, evening, overcast), not the patch-count table.
     #[arg(long)]
     breakdown_only: bool,
@@ -156,6 +160,17 @@ pub(crate) fn run_shading(args: &BenchShadingArgs) -> Result<ShadingReport> {
     } else {
         shading_terrains(true)?
     };
+    let terrains: Vec<(String, Heightmap)> = if args.only.is_empty() {
+        terrains
+    } else {
+        terrains
+            .into_iter()
+            .filter(|(name, _)| args.only.iter().any(|o| name.contains(o.as_str())))
+            .collect()
+    };
+    if terrains.is_empty() {
+        return Err(arg_error("--terrain", "no terrain of this run matches"));
+    }
     let matrix_steps = if args.breakdown_only {
         0
     } else {
