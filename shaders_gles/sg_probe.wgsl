@@ -3,7 +3,8 @@
 // twin clipsat::shading::shade (tests/sg_gpu.rs). Appended after sg_shading.wgsl and a specular file.
 
 @group(0) @binding(0) var<uniform> sg_scene: SgScene;
-// RGBA32F, column = case. Row 0: r (xyz); row 1: view (xyz); rows 2..5: horizon angles, 4 per row.
+// RGBA32F, column = case. Row 0: r (xyz); row 1: view (xyz); rows 2..5: horizon angles, 4 per row
+// (unused ones 0).
 @group(0) @binding(1) var probe_inputs: texture_2d<f32>;
 
 @vertex
@@ -19,8 +20,9 @@ fn fs_probe(@builtin(position) p: vec4<f32>) -> @location(0) vec4<u32> {
     let r = textureLoad(probe_inputs, vec2<i32>(x, 0), 0).xyz;
     let view = textureLoad(probe_inputs, vec2<i32>(x, 1), 0).xyz;
     let d = u32(sg_scene.material.z);
-    for (var k = 0u; k < d; k++) {
-        sg_hz[k] = textureLoad(probe_inputs, vec2<i32>(x, 2 + i32(k / 4u)), 0)[k % 4u];
+    // The shader's horizon is the angles' sines (what the level tables hold).
+    for (var l = 0u; l < 4u; l++) {
+        sg_hz[l] = sin(textureLoad(probe_inputs, vec2<i32>(x, 2 + i32(l)), 0));
     }
     sg_hz_count = d;
     return bitcast<vec4<u32>>(vec4<f32>(sg_shade(r, view, sg_scene), 1.0));

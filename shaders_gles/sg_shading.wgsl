@@ -5,8 +5,11 @@
 // appends one specular file (sg_specular.wgsl or sg_no_specular.wgsl) and a program, so each effect set
 // is its own text.
 //
-// The horizon of the pixel (box-averaged angles, radians, D of them) is handed over in the private
-// `sg_hz`, `sg_hz_count` (0: no visibility), which the program fills before calling `sg_shade`.
+// The horizon of the pixel (the sines of its D elevation angles, 4 to a vec4) is handed over in the
+// private `sg_hz`, `sg_hz_count` (0: no visibility), which the program fills before calling `sg_shade`.
+// Every loop over it has a constant bound and constant indices (llvmpipe keeps a dynamically indexed
+// private array in memory and runs each access per lane); a D below 16 skips the rest under uniform
+// branches.
 
 const SG_PI: f32 = 3.14159265358979;
 const SG_TAU: f32 = 6.28318530717959;
@@ -59,7 +62,7 @@ struct SgVmf {
     r_len: f32,
 }
 
-var<private> sg_hz: array<f32, 16>;
+var<private> sg_hz: array<vec4<f32>, 4>;
 var<private> sg_hz_count: u32;
 
 // e^x - 1 without cancellation near 0 (clipsat::sg::expm1).
@@ -158,13 +161,25 @@ fn sg_cut(n: vec3<f32>, drop: f32) -> SgCut {
     return SgCut(n, cos(drop), sin(drop));
 }
 
-// The horizon at world azimuth a, linear between the D baked azimuths (clipsat::horizon::interpolate).
-fn sg_horizon_at(a: f32) -> f32 {
+// The sine of the horizon at world azimuth a, linear between the D baked azimuths
+// (clipsat::shading::Cut::horizon_sin_at): the two neighbours picked by selects over the four vec4s, not by
+// a dynamic index.
+fn sg_horizon_sin_at(a: f32) -> f32 {
     let d = sg_hz_count;
     let t = fract(a / SG_TAU) * f32(d);
     let k0 = min(u32(floor(t)), d - 1u);
     let f = t - f32(k0);
-    return sg_hz[k0] * (1.0 - f) + sg_hz[(k0 + 1u) % d] * f;
+    let k1 = (k0 + 1u) % d;
+    let w0 = vec4<f32>(1.0 - f);
+    let w1 = vec4<f32>(f);
+    let zero = vec4<f32>(0.0);
+    var h = 0.0;
+    for (var j = 0u; j < 4u; j++) {
+        let idx = vec4<u32>(4u * j) + vec4<u32>(0u, 1u, 2u, 3u);
+        let w = select(zero, w0, idx == vec4<u32>(k0)) + select(zero, w1, idx == vec4<u32>(k1));
+        h += dot(sg_hz[j], w);
+    }
+    return h;
 }
 
 // The sine of the lowered plane's elevation toward unit horizontal direction (ux, uy)
@@ -191,7 +206,7 @@ fn sg_cut_sin(c: SgCut, dx: f32, dy: f32) -> f32 {
     if (sg_hz_count == 0u) {
         return plane;
     }
-    return max(plane, sin(sg_horizon_at(atan2(uy, ux))));
+    return max(plane, sg_horizon_sin_at(atan2(uy, ux)));
 }
 
 // The fraction of a light about `axis` of radius sigma above the horizon alone
@@ -200,7 +215,7 @@ fn sg_horizon_visible(axis: vec3<f32>, sigma: f32) -> f32 {
     if (sg_hz_count == 0u) {
         return 1.0;
     }
-    let h = sg_horizon_at(atan2(axis.y, axis.x));
+    let h = asin(clamp(sg_horizon_sin_at(atan2(axis.y, axis.x)), -1.0, 1.0));
     let el = asin(clamp(axis.z, -1.0, 1.0));
     return clamp((el + sigma - h) / (2.0 * sigma), 0.0, 1.0);
 }
@@ -249,33 +264,50 @@ fn sg_sky(n: vec3<f32>, r_len: f32) -> vec3<f32> {
     return mix(a, b, fl);
 }
 
+// One wedge of `sg_occluded`: direction (ca, sa), horizon sine hi; the lobe's energy between the plane's
+// and the horizon's sines times the half span (2-point Gauss-Legendre over z = sin(elevation)).
+fn sg_wedge(p: Sg, c: SgCut, ca: f32, sa: f32, hi: f32) -> f32 {
+    let lo = sg_plane_sin(c, ca, sa);
+    let half = 0.5 * max(hi - lo, 0.0);
+    let mid = 0.5 * (hi + lo);
+    let horizontal = p.axis.x * ca + p.axis.y * sa;
+    let z0 = mid - SG_GAUSS_2 * half;
+    let z1 = mid + SG_GAUSS_2 * half;
+    let rho0 = sqrt(max(1.0 - z0 * z0, 0.0));
+    let rho1 = sqrt(max(1.0 - z1 * z1, 0.0));
+    let w0 = exp(p.lambda * (horizontal * rho0 + p.axis.z * z0 - 1.0));
+    let w1 = exp(p.lambda * (horizontal * rho1 + p.axis.z * z1 - 1.0));
+    return (w0 + w1) * half;
+}
+
+// Four wedges from direction `rot` (cos, sin), stepping it by (cos_step, sin_step) each.
+fn sg_wedges4(p: Sg, c: SgCut, h: vec4<f32>, rot: ptr<function, vec2<f32>>, step: vec2<f32>) -> f32 {
+    var sum = 0.0;
+    for (var i = 0u; i < 4u; i++) {
+        let r = *rot;
+        sum += sg_wedge(p, c, r.x, r.y, h[i]);
+        *rot = vec2<f32>(r.x * step.x - r.y * step.y, r.y * step.x + r.x * step.y);
+    }
+    return sum;
+}
+
 // What the horizon hides of product lobe p above the lowered plane: per baked azimuth, the wedge between
 // the plane's and the horizon's sines, 2-point Gauss-Legendre over z = sin(elevation)
-// (clipsat::shading::occluded, which says why).
+// (clipsat::shading::occluded, which says why). Four wedges a vec4, each group under a uniform branch.
 fn sg_occluded(p: Sg, c: SgCut) -> vec3<f32> {
     let d = sg_hz_count;
     let dphi = SG_TAU / f32(d);
-    let cos_step = cos(dphi);
-    let sin_step = sin(dphi);
-    var ca = 1.0;
-    var sa = 0.0;
-    var sum = 0.0;
-    for (var k = 0u; k < d; k++) {
-        let lo = sg_plane_sin(c, ca, sa);
-        let hi = sin(sg_hz[k]);
-        let half = 0.5 * max(hi - lo, 0.0);
-        let mid = 0.5 * (hi + lo);
-        let horizontal = p.axis.x * ca + p.axis.y * sa;
-        let z0 = mid - SG_GAUSS_2 * half;
-        let z1 = mid + SG_GAUSS_2 * half;
-        let rho0 = sqrt(max(1.0 - z0 * z0, 0.0));
-        let rho1 = sqrt(max(1.0 - z1 * z1, 0.0));
-        let w0 = exp(p.lambda * (horizontal * rho0 + p.axis.z * z0 - 1.0));
-        let w1 = exp(p.lambda * (horizontal * rho1 + p.axis.z * z1 - 1.0));
-        sum += (w0 + w1) * half;
-        let c2 = ca * cos_step - sa * sin_step;
-        sa = sa * cos_step + ca * sin_step;
-        ca = c2;
+    let step = vec2<f32>(cos(dphi), sin(dphi));
+    var rot = vec2<f32>(1.0, 0.0);
+    var sum = sg_wedges4(p, c, sg_hz[0], &rot, step);
+    if (d > 4u) {
+        sum += sg_wedges4(p, c, sg_hz[1], &rot, step);
+    }
+    if (d > 8u) {
+        sum += sg_wedges4(p, c, sg_hz[2], &rot, step);
+    }
+    if (d > 12u) {
+        sum += sg_wedges4(p, c, sg_hz[3], &rot, step);
     }
     return p.mu * (sum * dphi);
 }

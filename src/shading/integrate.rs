@@ -124,23 +124,32 @@ pub fn vmf_cosine(t: f32, vmf: &Vmf) -> f32 {
 /// p = -(n_xy . d), q = n_z the plane's elevation is e = atan2(p, q) and
 /// sin(e - drop) = (p cos drop - q sin drop) / |(p, q)|, clamped to -1 where e - drop < -pi/2
 /// (cos(e - drop) < 0; n_z >= 0 keeps e in [-pi/2, pi/2]).
-#[derive(Clone, Copy, Debug)]
-struct Cut<'a> {
+#[derive(Clone, Debug)]
+struct Cut {
     n: Vec3,
-    horizon: &'a [f32],
+    /// The sines of the horizon angles (empty: no visibility): the shader's table holds sines, so
+    /// nothing per azimuth needs trigonometry, and interpolates them linearly between azimuths.
+    horizon: heapless::Vec<f32, 16>,
     cos_drop: f32,
     sin_drop: f32,
 }
 
-impl<'a> Cut<'a> {
-    fn new(n: Vec3, horizon: &'a [f32], drop: f32) -> Self {
+impl Cut {
+    fn new(n: Vec3, horizon: &[f32], drop: f32) -> Self {
         let (sin_drop, cos_drop) = drop.sin_cos();
+        // At most 16 angles (bake::horizon::MAX_AZIMUTHS), the capacity.
+        let horizon = horizon.iter().take(16).map(|a| a.sin()).collect();
         Self {
             n,
             horizon,
             cos_drop,
             sin_drop,
         }
+    }
+
+    /// The sine of the horizon toward world azimuth `a`, linear between the baked azimuths' sines.
+    fn horizon_sin_at(&self, a: f32) -> f32 {
+        horizon::interpolate(&self.horizon, a)
     }
 
     /// The sine of the lowered plane's elevation toward unit horizontal direction (ux, uy). n_z is
@@ -165,7 +174,7 @@ impl<'a> Cut<'a> {
         if self.horizon.is_empty() {
             plane
         } else {
-            plane.max(horizon::interpolate(self.horizon, uy.atan2(ux)).sin())
+            plane.max(self.horizon_sin_at(uy.atan2(ux)))
         }
     }
 
@@ -175,7 +184,7 @@ impl<'a> Cut<'a> {
         if self.horizon.is_empty() {
             return 1.0;
         }
-        let h = horizon::interpolate(self.horizon, axis.y.atan2(axis.x));
+        let h = self.horizon_sin_at(axis.y.atan2(axis.x)).clamp(-1.0, 1.0).asin();
         ((elevation(axis) + sigma - h) / (2.0 * sigma)).clamp(0.0, 1.0)
     }
 
@@ -226,7 +235,7 @@ fn sin_theta(u: f32) -> f32 {
 /// sector centres) come from a rotation recurrence, not trigonometry; a corner's height is
 /// axis_z (1 - u) + sin(theta) (t_z cos phi + b_z sin phi), so no table of corners is kept (a dynamically
 /// indexed array is slow on SIMD rasterisers).
-fn integrate_patches(p: &Sg, cut: &Cut<'_>, patches: Patches) -> Vec3 {
+fn integrate_patches(p: &Sg, cut: &Cut, patches: Patches) -> Vec3 {
     let (bands, sectors) = (patches.bands(), patches.sectors());
     let (t, b) = sg::basis(p.axis);
     let dphi = TAU / sectors as f32;
@@ -300,15 +309,14 @@ fn cosine_lobe(vmf: &Vmf) -> Sg {
 /// wedge's centre azimuth. The sky table holds the integral above the plane, so the visible part is the
 /// table's minus this. The wedges' directions come from a rotation recurrence (no trigonometry per wedge).
 #[expect(clippy::cast_precision_loss, reason = "D <= 16")]
-fn occluded(p: &Sg, cut: &Cut<'_>) -> Vec3 {
+fn occluded(p: &Sg, cut: &Cut) -> Vec3 {
     let d = cut.horizon.len();
     let dphi = TAU / d as f32;
     let (sin_step, cos_step) = dphi.sin_cos();
     let (mut ca, mut sa) = (1.0f32, 0.0f32);
     let mut sum = 0.0f32;
-    for &h in cut.horizon {
+    for &hi in &cut.horizon {
         let lo = cut.plane_sin(ca, sa);
-        let hi = h.sin();
         let half = 0.5 * (hi - lo).max(0.0);
         let mid = 0.5 * (hi + lo);
         let horizontal = p.axis.x * ca + p.axis.y * sa;

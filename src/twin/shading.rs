@@ -237,7 +237,8 @@ pub fn sg_taps(globals: &Globals, data_spacing: f32, rel: [f32; 2], w: f32) -> O
 
 /// The SG inputs the shader blends from `taps`: r and the D horizon angles, bilinear between the four
 /// texels of the per-level tables, each [`crate::gpu::sat_textures::ShadingBake::level_texel`] of its
-/// lattice sample (the GPU table holds them, horizons rounded to f16).
+/// lattice sample (the GPU table holds them, horizons as their sines rounded to f16: the angles returned
+/// are the arcsines of the blended sines).
 pub fn sg_inputs(
     bake: &crate::gpu::sat_textures::ShadingBake,
     clipmap: &Clipmap,
@@ -267,9 +268,12 @@ pub fn sg_inputs(
     let r = v(a.0, b.0, c.0, d.0);
     let f16 = |x: f32| half::f16::from_f32(x).to_f32();
     let mut hz = heapless::Vec::new();
+    // The table holds the angles' sines; the shader blends those. Handed back as angles again.
+    let sf = |x: f32| f16(x.sin());
     for k in 0..a.1.len() {
         // At most 16 angles, the capacity.
-        let _ = hz.push(bil(f16(a.1[k]), f16(b.1[k]), f16(c.1[k]), f16(d.1[k])));
+        let blended = bil(sf(a.1[k]), sf(b.1[k]), sf(c.1[k]), sf(d.1[k]));
+        let _ = hz.push(blended.clamp(-1.0, 1.0).asin());
     }
     (r, hz)
 }

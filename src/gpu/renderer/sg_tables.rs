@@ -8,7 +8,7 @@
 //!   normals over the box of 2^k + 1 data samples centred on the sample of a ring k levels coarser than
 //!   the data ([`ShadingBake::level_texel`]);
 //! - `level_horizon` (RGBA16F, 4 azimuths a layer, [`Profile::sg_horizon_layers`]), only when the scene
-//!   has visibility: the sample's D horizon angles (radians).
+//!   has visibility: the sines of the sample's D horizon angles (the shader needs no trigonometry per azimuth).
 //!
 //! Why not a SAT per level: a SAT entry sums everything before it, so it cannot be toroidal, and a ring
 //! that moves by one column would have to rebuild its whole S^2 table (S^2 samples against the column's
@@ -28,7 +28,7 @@ use crate::{Error, Profile, Result};
 
 /// The normal table's format: f32 r, so |r| near 1 (kappa up to 1e4) keeps its precision.
 const NORMAL_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
-/// The horizon table's format: f16 angles, an error below 1e-3 rad.
+/// The horizon table's format: f16 sines, an error below 5e-4.
 const HORIZON_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
 
 /// The per-level tables, their views, the CPU bake they are filled from and the staging they are filled
@@ -175,7 +175,7 @@ impl SgTables {
                 for layer in 0..hl {
                     let mut px = [0u16; 4];
                     for (c, v) in px.iter_mut().enumerate() {
-                        *v = half::f16::from_f32(hz.get(4 * layer + c).copied().unwrap_or(0.0))
+                        *v = half::f16::from_f32(hz.get(4 * layer + c).map_or(0.0, |a| a.sin()))
                             .to_bits();
                     }
                     self.staging_horizon[layer * texels + at] = px;
