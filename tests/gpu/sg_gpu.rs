@@ -391,6 +391,11 @@ fn cli_render_reference_error_is_small() {
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
     let e = v["shading_rmse_vs_reference"].as_f64().expect("rmse");
     assert!(e < 0.05 && v["reference_pixels"].as_u64() > Some(50), "{v}");
+    // The shading model's own part (the CPU twin on the reference's inputs): issue 16's 0.02.
+    let model = v["shading_model_rmse_vs_reference"]
+        .as_f64()
+        .expect("model rmse");
+    assert!(model <= 0.02, "{v}");
     let _ = std::fs::remove_file(&out);
 }
 

@@ -305,6 +305,7 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
             "bound_textures": r.bound_textures(),
             "baked": r.baked(),
             "shading_rmse_vs_reference": reference.map(|e| e.rmse),
+            "shading_model_rmse_vs_reference": reference.map(|e| e.model_rmse),
             "shading_max_error_vs_reference": reference.map(|e| e.max),
             "reference_pixels": reference.map(|e| e.pixels),
         });
@@ -393,8 +394,8 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
         );
         if let Some(e) = reference {
             println!(
-                "shading vs CPU reference ({} pixels): rmse {:.4}, max {:.4}",
-                e.pixels, e.rmse, e.max
+                "shading vs CPU reference ({} pixels): rmse {:.4}, max {:.4} (shading model: rmse {:.4})",
+                e.pixels, e.rmse, e.max, e.model_rmse
             );
         }
         if let Some(rmse) = rmse {

@@ -116,10 +116,13 @@ impl ShadingArgs {
     }
 }
 
-/// The reference colours (display-encoded, [0, 1]) at a fixed grid of pixels.
+/// The reference colours (display-encoded, [0, 1]) at a fixed grid of pixels, and beside each the CPU twin
+/// of the shader (`shading::shade`, 4 x 8) given the reference's own inputs: r over the pixel's footprint
+/// in the full-resolution data and the marched horizon at the baked azimuths.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct Reference {
     pixels: Vec<((u32, u32), [f64; 3])>,
+    model: Vec<[f64; 3]>,
 }
 
 /// Error of an image against a [`Reference`], display-encoded units in [0, 1].
@@ -128,6 +131,11 @@ pub(crate) struct RefError {
     pub(crate) rmse: f64,
     pub(crate) max: f64,
     pub(crate) pixels: usize,
+    /// The shading model's part of the error: the RMSE of the CPU twin against the reference on the
+    /// same pixels and the same inputs. The rest of `rmse` is the inputs: the renderer reads the
+    /// normals and horizons of the finest ring holding the pixel, which far away is coarser than the
+    /// pixel's footprint in the data (the clipmap's resolution, fixed by the profile's ring size).
+    pub(crate) model_rmse: f64,
 }
 
 /// Reference pixels per image side, at most (a `REF_GRID` x `REF_GRID` grid).
@@ -249,6 +257,8 @@ pub(crate) fn reference_at(
         cosine: RefCosine::Exact,
     };
     let side = quality.pixels.max(1);
+    let sky = shading::SkyTable::new(scene, Patches::P4x8);
+    let mut model = Vec::new();
     for gy in 0..side.min(size.1) {
         for gx in 0..side.min(size.0) {
             let px = (2 * gx + 1) * size.0 / (2 * side.min(size.0));
@@ -297,9 +307,30 @@ pub(crate) fn reference_at(
                 grid,
             );
             pixels.push(((px, py), encode(c, p.distance(camera.eye), scene)));
+            // The shader's D baked azimuths (every 4th of the 64 marched ones).
+            #[expect(clippy::cast_possible_truncation, reason = "angles in radians")]
+            let hz: Vec<f32> = table.as_ref().map_or_else(Vec::new, |t| {
+                (0..horizon::DEFAULT_AZIMUTHS)
+                    .map(|k| {
+                        let a = std::f64::consts::TAU * f64::from(k)
+                            / f64::from(horizon::DEFAULT_AZIMUTHS);
+                        t.at(a) as f32
+                    })
+                    .collect()
+            });
+            let twin = shading::shade(
+                &shading::Inputs {
+                    r: r.as_vec3(),
+                    horizon: &hz,
+                    view: (-dir).as_vec3(),
+                },
+                scene,
+                &sky,
+            );
+            model.push(encode(twin.as_dvec3(), p.distance(camera.eye), scene));
         }
     }
-    Reference { pixels }
+    Reference { pixels, model }
 }
 
 fn crate_box_side() -> u32 {
@@ -309,8 +340,8 @@ fn crate_box_side() -> u32 {
 impl Reference {
     /// RMSE and max error of `image` at the reference pixels it shows terrain at (not `sky`).
     pub(crate) fn error(&self, image: &Image, sky: [u8; 4]) -> RefError {
-        let (mut sum, mut max, mut n) = (0.0f64, 0.0f64, 0usize);
-        for ((x, y), c) in &self.pixels {
+        let (mut sum, mut max, mut n, mut model) = (0.0f64, 0.0f64, 0usize, 0.0f64);
+        for (((x, y), c), m) in self.pixels.iter().zip(&self.model) {
             let p = image.pixel(*x, *y);
             if p == sky {
                 continue;
@@ -319,19 +350,17 @@ impl Reference {
                 let e = (f64::from(p[k]) / 255.0 - c[k]).abs();
                 sum += e * e;
                 max = max.max(e);
+                model += (m[k] - c[k]).powi(2);
             }
             n += 1;
         }
         #[expect(clippy::cast_precision_loss, reason = "pixel counts")]
-        let rmse = if n > 0 {
-            (sum / (3 * n) as f64).sqrt()
-        } else {
-            0.0
-        };
+        let per = |s: f64| if n > 0 { (s / (3 * n) as f64).sqrt() } else { 0.0 };
         RefError {
-            rmse,
+            rmse: per(sum),
             max,
             pixels: n,
+            model_rmse: per(model),
         }
     }
 }

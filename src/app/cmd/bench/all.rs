@@ -393,10 +393,11 @@ fn headline(
         .filter(|r| r.patches == clipsat::shading::Patches::P4x8 && r.effects == "+specular")
         .map(|r| {
             format!(
-                "{} {:.1}x basic, RMSE {:.4}",
+                "{} {:.1}x basic, RMSE {:.4} (model {:.4})",
                 r.terrain,
                 r.ms / r.basic_ms.max(1e-9),
-                r.rmse
+                r.rmse,
+                r.model_rmse
             )
         })
         .collect();

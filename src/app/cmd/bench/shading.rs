@@ -70,6 +70,8 @@ pub(crate) struct ShadingRow {
     pub(crate) rmse: f64,
     pub(crate) max: f64,
     pub(crate) pixels: usize,
+    /// The shading model's part of `rmse` (`sg::RefError::model_rmse`).
+    pub(crate) model_rmse: f64,
 }
 
 /// What `bench shading` measured: the rows, the per-term breakdown, the terrains skipped and the Markdown
@@ -90,6 +92,8 @@ pub(crate) struct SceneRun {
     pub(crate) ms: f64,
     pub(crate) rmse: f64,
     pub(crate) max: f64,
+    /// The shading model's part of `rmse` (`sg::RefError::model_rmse`).
+    pub(crate) model_rmse: f64,
 }
 
 /// Where the SG fragment time goes on one terrain, at 4 x 8, the evening scene without fog: the time of
@@ -371,6 +375,7 @@ pub(crate) fn measure_shading(
                     rmse: e.rmse,
                     max: e.max,
                     pixels: e.pixels,
+                    model_rmse: e.model_rmse,
                 });
                 bar.inc(1);
             }
@@ -528,6 +533,7 @@ pub(crate) fn measure_breakdown(
                 ms,
                 rmse: e.rmse,
                 max: e.max,
+                model_rmse: e.model_rmse,
             });
             bar.inc(1);
         }
@@ -555,8 +561,10 @@ pub(crate) fn breakdown_markdown(
         "# clipsat bench shading: cost and error at 4 x 8\n\nSG shading on {}, {w}x{h}, profile {}, \
          default camera, 4 x 8 patches; ms per frame (upload + draw + readback, mean of {frames} after a \
          warm-up), its ratio to basic shading in the same run, RMSE (display-encoded, 0..1) against the \
-         CPU reference on a {g} x {g} pixel grid.\n\n\
-         | terrain | basic ms | noon ms (x basic) | RMSE | evening ms (x basic) | RMSE | overcast ms (x basic) | RMSE |\n\
+         CPU reference on a {g} x {g} pixel grid, and in brackets the shading model's part of it (the \
+         CPU twin of the shader given the reference's own inputs; the rest is the clipmap's resolution: \
+         far pixels read rings coarser than their footprint).\n\n\
+         | terrain | basic ms | noon ms (x basic) | RMSE (model) | evening ms (x basic) | RMSE (model) | overcast ms (x basic) | RMSE (model) |\n\
          |---|---|---|---|---|---|---|---|\n",
         gpu.report().name,
         profile.name,
@@ -566,10 +574,11 @@ pub(crate) fn breakdown_markdown(
         md.push_str(&format!("| {} | {:.1} |", row.terrain, row.basic_ms));
         for s in &row.scenes {
             md.push_str(&format!(
-                " {:.1} ({:.2}x) | {:.4} |",
+                " {:.1} ({:.2}x) | {:.4} ({:.4}) |",
                 s.ms,
                 row.ratio(s.ms),
-                s.rmse
+                s.rmse,
+                s.model_rmse
             ));
         }
         md.push('\n');
@@ -623,6 +632,7 @@ pub(crate) fn shading_json(report: &ShadingReport) -> serde_json::Value {
                         "ms": s.ms,
                         "x_basic": b.ratio(s.ms),
                         "rmse_vs_reference": s.rmse,
+                        "model_rmse_vs_reference": s.model_rmse,
                         "max_error": s.max,
                     })
                 })
@@ -650,6 +660,7 @@ pub(crate) fn shading_json(report: &ShadingReport) -> serde_json::Value {
                 "ms": r.ms,
                 "basic_ms": r.basic_ms,
                 "rmse_vs_reference": r.rmse,
+                "model_rmse_vs_reference": r.model_rmse,
                 "max_error": r.max,
                 "pixels": r.pixels,
             })
@@ -676,16 +687,18 @@ pub(crate) fn shading_markdown(
          without fog, default camera; ms per frame (upload + draw + readback, mean of {frames} after a \
          warm-up) and its ratio to basic shading in the same run; RMSE and max error (display-encoded, \
          0..1) against the CPU reference (`shading::reference`: ray-cast hit, exact footprint normals, \
-         horizons marched at 64 azimuths, 96 x 192 quadrature) on a {g} x {g} pixel grid.\n\n\
-         | terrain | patches | effects | ms | x basic | RMSE | max error | pixels |\n\
-         |---|---|---|---|---|---|---|---|\n",
+         horizons marched at 64 azimuths, 96 x 192 quadrature) on a {g} x {g} pixel grid; model RMSE: \
+         the CPU twin of the shader (4 x 8) given the reference's own inputs against the reference, the \
+         shading model's part of the error.\n\n\
+         | terrain | patches | effects | ms | x basic | RMSE | max error | pixels | model RMSE |\n\
+         |---|---|---|---|---|---|---|---|---|\n",
         gpu.report().name,
         profile.name,
         g = crate::app::cmd::sg::REF_GRID,
     );
     for row in rows {
         md.push_str(&format!(
-            "| {} | {} | {} | {:.1} | {:.2} | {:.4} | {:.4} | {} |\n",
+            "| {} | {} | {} | {:.1} | {:.2} | {:.4} | {:.4} | {} | {:.4} |\n",
             row.terrain,
             row.patches.label(),
             row.effects,
@@ -693,7 +706,8 @@ pub(crate) fn shading_markdown(
             row.ms / row.basic_ms.max(1e-9),
             row.rmse,
             row.max,
-            row.pixels
+            row.pixels,
+            row.model_rmse
         ));
     }
     if !skipped.is_empty() {
