@@ -280,25 +280,24 @@ fn sg_wedge(p: Sg, c: SgCut, ca: f32, sa: f32, hi: f32) -> f32 {
     return (w0 + w1) * half;
 }
 
-// Four wedges from direction `rot` (cos, sin), stepping it by (cos_step, sin_step) each.
+// Two wedges, each over a pair of baked azimuths (h.xy, h.zw): at the pair's middle direction `rot`
+// (cos, sin), the horizon there (the pair's mean sine), width 2 dphi; `rot` steps by two azimuths.
 fn sg_wedges4(p: Sg, c: SgCut, h: vec4<f32>, rot: ptr<function, vec2<f32>>, step: vec2<f32>) -> f32 {
-    var sum = 0.0;
-    for (var i = 0u; i < 4u; i++) {
-        let r = *rot;
-        sum += sg_wedge(p, c, r.x, r.y, h[i]);
-        *rot = vec2<f32>(r.x * step.x - r.y * step.y, r.y * step.x + r.x * step.y);
-    }
-    return sum;
+    let r0 = *rot;
+    let r1 = vec2<f32>(r0.x * step.x - r0.y * step.y, r0.y * step.x + r0.x * step.y);
+    *rot = vec2<f32>(r1.x * step.x - r1.y * step.y, r1.y * step.x + r1.x * step.y);
+    return sg_wedge(p, c, r0.x, r0.y, 0.5 * (h.x + h.y)) + sg_wedge(p, c, r1.x, r1.y, 0.5 * (h.z + h.w));
 }
 
-// What the horizon hides of product lobe p above the lowered plane: per baked azimuth, the wedge between
-// the plane's and the horizon's sines, 2-point Gauss-Legendre over z = sin(elevation)
-// (clipsat::shading::occluded, which says why). Four wedges a vec4, each group under a uniform branch.
+// What the horizon hides of product lobe p above the lowered plane: per pair of baked azimuths, the wedge
+// between the plane's and the horizon's sines, 2-point Gauss-Legendre over z = sin(elevation)
+// (clipsat::shading::occluded, which says why). Two wedges a vec4, each group under a uniform branch.
 fn sg_occluded(p: Sg, c: SgCut) -> vec3<f32> {
     let d = sg_hz_count;
     let dphi = SG_TAU / f32(d);
-    let step = vec2<f32>(cos(dphi), sin(dphi));
-    var rot = vec2<f32>(1.0, 0.0);
+    // Pair middles: from half an azimuth, two azimuths apart.
+    let step = vec2<f32>(cos(2.0 * dphi), sin(2.0 * dphi));
+    var rot = vec2<f32>(cos(0.5 * dphi), sin(0.5 * dphi));
     var sum = sg_wedges4(p, c, sg_hz[0], &rot, step);
     if (d > 4u) {
         sum += sg_wedges4(p, c, sg_hz[1], &rot, step);
@@ -309,7 +308,7 @@ fn sg_occluded(p: Sg, c: SgCut) -> vec3<f32> {
     if (d > 12u) {
         sum += sg_wedges4(p, c, sg_hz[3], &rot, step);
     }
-    return p.mu * (sum * dphi);
+    return p.mu * (sum * 2.0 * dphi);
 }
 
 // Outgoing linear radiance toward `view` (unit, surface to eye) for mean normal r: the suns one direction

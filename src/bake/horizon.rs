@@ -108,10 +108,11 @@ impl Horizons {
 /// Bakes D horizon angles for every texel of `hm`, marching out to `max_samples` samples. Deterministic
 /// (single-threaded, fixed order); a progress bar goes to stderr for bakes over 2^20 texels.
 pub fn bake(hm: &Heightmap, azimuths: u32, max_samples: f64) -> Result<Horizons> {
-    if azimuths == 0 || azimuths > MAX_AZIMUTHS {
+    // Multiples of 4: the shader reads them four to a texel and integrates the sky's wedges over pairs.
+    if azimuths == 0 || azimuths > MAX_AZIMUTHS || !azimuths.is_multiple_of(4) {
         return Err(Error::Invalid {
             what: "azimuths".into(),
-            reason: format!("{azimuths} is not in 1..={MAX_AZIMUTHS}"),
+            reason: format!("{azimuths} is not a multiple of 4 in 4..={MAX_AZIMUTHS}"),
         });
     }
     if !(max_samples.is_finite() && max_samples >= 1.0) {

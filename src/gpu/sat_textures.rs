@@ -94,10 +94,10 @@ impl ShadingBake {
     /// always the normal SAT; the horizons ([`horizon::bake`], `azimuths` of them) and their SATs only when
     /// `needs.bake_horizons`.
     pub fn bake(hm: &Heightmap, needs: &Needs, azimuths: u32, max_side: u32) -> Result<Self> {
-        if azimuths == 0 || azimuths > MAX_AZIMUTHS {
+        if azimuths == 0 || azimuths > MAX_AZIMUTHS || !azimuths.is_multiple_of(4) {
             return Err(Error::Invalid {
                 what: "azimuths".into(),
-                reason: format!("{azimuths} is not in 1..={MAX_AZIMUTHS}"),
+                reason: format!("{azimuths} is not a multiple of 4 in 4..={MAX_AZIMUTHS}"),
             });
         }
         let mut level = None;

@@ -43,10 +43,11 @@ pub fn shade_gpu(
         });
     }
     let d = cases[0].horizon.len();
-    if cases.iter().any(|c| c.horizon.len() != d) || d > MAX_AZIMUTHS as usize {
+    if cases.iter().any(|c| c.horizon.len() != d) || d > MAX_AZIMUTHS as usize || d % 4 != 0 {
         return Err(Error::Invalid {
             what: "probe cases".into(),
-            reason: "every case needs the same number of horizon angles, at most 16".into(),
+            reason: "every case needs the same number of horizon angles, a multiple of 4 up to 16"
+                .into(),
         });
     }
     let width = u32::try_from(cases.len()).expect("<= MAX_CASES");

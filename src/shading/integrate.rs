@@ -184,7 +184,10 @@ impl Cut {
         if self.horizon.is_empty() {
             return 1.0;
         }
-        let h = self.horizon_sin_at(axis.y.atan2(axis.x)).clamp(-1.0, 1.0).asin();
+        let h = self
+            .horizon_sin_at(axis.y.atan2(axis.x))
+            .clamp(-1.0, 1.0)
+            .asin();
         ((elevation(axis) + sigma - h) / (2.0 * sigma)).clamp(0.0, 1.0)
     }
 
@@ -303,20 +306,25 @@ fn cosine_lobe(vmf: &Vmf) -> Sg {
     .convolve_vmf(vmf.kappa)
 }
 
-/// The part of product lobe `p`'s integral that the horizon hides above the lowered plane: per baked
-/// azimuth k, the wedge of width 2 pi / D about it between the plane's sine z_lo and the horizon's z_hi
-/// (when higher), integrated over z = sin(elevation) (dOmega = dz dphi) by 2-point Gauss-Legendre at the
-/// wedge's centre azimuth. The sky table holds the integral above the plane, so the visible part is the
-/// table's minus this. The wedges' directions come from a rotation recurrence (no trigonometry per wedge).
+/// The part of product lobe `p`'s integral that the horizon hides above the lowered plane: per pair of
+/// baked azimuths (2j, 2j + 1), the wedge of width 4 pi / D about the pair's middle azimuth between the
+/// plane's sine z_lo there and the horizon's z_hi (the pair's mean sine, the linear horizon at the middle)
+/// when higher, integrated over z = sin(elevation) (dOmega = dz dphi) by 2-point Gauss-Legendre. The
+/// sky table holds the integral above the plane, so the visible part is the table's minus this. Pairs
+/// rather than single azimuths: the broad lobes vary slowly in azimuth, and half the wedges halve the
+/// shader's largest visibility cost; the suns and specular still read the horizon at their own azimuth.
+/// D is a multiple of 4 ([`horizon::bake`]). The wedges' directions come from a rotation recurrence
+/// (no trigonometry per wedge).
 #[expect(clippy::cast_precision_loss, reason = "D <= 16")]
 fn occluded(p: &Sg, cut: &Cut) -> Vec3 {
     let d = cut.horizon.len();
     let dphi = TAU / d as f32;
-    let (sin_step, cos_step) = dphi.sin_cos();
-    let (mut ca, mut sa) = (1.0f32, 0.0f32);
+    let (sin_step, cos_step) = (2.0 * dphi).sin_cos();
+    let (mut sa, mut ca) = (0.5 * dphi).sin_cos();
     let mut sum = 0.0f32;
-    for &hi in &cut.horizon {
+    for pair in cut.horizon.chunks_exact(2) {
         let lo = cut.plane_sin(ca, sa);
+        let hi = 0.5 * (pair[0] + pair[1]);
         let half = 0.5 * (hi - lo).max(0.0);
         let mid = 0.5 * (hi + lo);
         let horizontal = p.axis.x * ca + p.axis.y * sa;
@@ -328,7 +336,7 @@ fn occluded(p: &Sg, cut: &Cut) -> Vec3 {
         sum += wedge * half;
         (ca, sa) = (ca * cos_step - sa * sin_step, sa * cos_step + ca * sin_step);
     }
-    p.mu * (sum * dphi)
+    p.mu * (sum * 2.0 * dphi)
 }
 
 /// The 2-point Gauss-Legendre node, 1 / sqrt(3).

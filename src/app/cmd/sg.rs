@@ -355,7 +355,13 @@ impl Reference {
             n += 1;
         }
         #[expect(clippy::cast_precision_loss, reason = "pixel counts")]
-        let per = |s: f64| if n > 0 { (s / (3 * n) as f64).sqrt() } else { 0.0 };
+        let per = |s: f64| {
+            if n > 0 {
+                (s / (3 * n) as f64).sqrt()
+            } else {
+                0.0
+            }
+        };
         RefError {
             rmse: per(sum),
             max,
