@@ -43,7 +43,10 @@ pub fn shade_gpu(
         });
     }
     let d = cases[0].horizon.len();
-    if cases.iter().any(|c| c.horizon.len() != d) || d > MAX_AZIMUTHS as usize || d % 4 != 0 {
+    if cases.iter().any(|c| c.horizon.len() != d)
+        || d > MAX_AZIMUTHS as usize
+        || !d.is_multiple_of(4)
+    {
         return Err(Error::Invalid {
             what: "probe cases".into(),
             reason: "every case needs the same number of horizon angles, a multiple of 4 up to 16"
