@@ -12,7 +12,7 @@ BIN=${1:-target/release/clipsat}
 PROFILE=${2:-gles3-mid}
 OUT=out/pool_goals
 mkdir -p "$OUT"
-LADDER="1 2 3 4 6 8 10 12 14 16 20 24 28 30 32 36 40 48 56 64"
+LADDER="1 1.25 1.5 1.75 2 2.5 3 3.5 4 4.5 5 5.5 6 7 8 9 10 11 12 12.5 13 14 16 20 24 28 32 40 48 64"
 TERRAINS=("ps_height_1k.png --spacing 160" "n07_w006_3arc_v2.tif" "srtm_bigtujunga30m_utm11.tif"
   "aletsch_200m.tif" "lidar_pkg_dem_1m_400x400.tif" "N57E011.hgt")
 run() { # name mode eps args...

@@ -245,13 +245,22 @@ impl Lod {
         }
         let scale = camera.vertical_scale(self.view);
         let (xs, ys) = (split_points(a, b, level), split_points(c, d, level));
-        // The corners of the split grid, each computed once (sub-boxes share them): [row][column][z].
         let e = camera.eye;
+        // World y falls as the lattice row grows: row d is the box's south edge.
+        let world = |x: i64, y: i64, z: f64| DVec3::new(self.world_x(x), self.world_y(y), z) - e;
+        let whole = scale
+            .box_max(world(a, d, self.z_range.0), world(b, c, self.z_range.1))
+            .px(eta);
+        let (nx, ny) = (xs.len() - 1, ys.len() - 1);
+        if (nx <= 1 && ny <= 1) || (limit.is_finite() && whole <= limit) {
+            return whole;
+        }
+        // The corners of the split grid, each computed once (sub-boxes share them): [row][column][z].
         let mut grid = [[[Corner::default(); 2]; SPLIT + 1]; SPLIT + 1];
         for (row, &y) in grid.iter_mut().zip(&ys) {
             for (cell, &x) in row.iter_mut().zip(&xs) {
                 for (k, z) in [self.z_range.0, self.z_range.1].into_iter().enumerate() {
-                    cell[k] = scale.corner(DVec3::new(self.world_x(x), self.world_y(y), z) - e);
+                    cell[k] = scale.corner(world(x, y, z));
                 }
             }
         }
@@ -261,16 +270,10 @@ impl Lod {
             let corners = [
                 g00[0], g10[0], g01[0], g11[0], g00[1], g10[1], g01[1], g11[1],
             ];
-            // World y falls as the lattice row grows: row j2 is the box's south edge.
-            let lo = DVec3::new(self.world_x(xs[i]), self.world_y(ys[j2]), self.z_range.0) - e;
-            let hi = DVec3::new(self.world_x(xs[i2]), self.world_y(ys[j]), self.z_range.1) - e;
+            let lo = world(xs[i], ys[j2], self.z_range.0);
+            let hi = world(xs[i2], ys[j], self.z_range.1);
             scale.box_of(&corners, DVec3::ZERO.clamp(lo, hi).length())
         };
-        let (nx, ny) = (xs.len() - 1, ys.len() - 1);
-        let whole = scale_of(0, 0, nx, ny).px(eta);
-        if (nx <= 1 && ny <= 1) || (limit.is_finite() && whole <= limit) {
-            return whole;
-        }
         // Sub-boxes by their cap first: a sub-box's bound is at most its bound for the whole box's error
         // (which bounds its samples too; the bound grows with the error), so once that is below the
         // largest bound so far its own error need not be read.
