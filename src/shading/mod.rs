@@ -16,8 +16,9 @@
 //!   spread ([`plane_drop`]);
 //! - the broad lights' integral above the lowered plane is tabulated per scene over the mean normal's
 //!   direction and |r| ([`SkyTable`], 32^2 x 16 texels, read bilinearly in two layers);
-//! - what the horizon hides of it is subtracted per baked azimuth: the wedge between the lowered plane
-//!   and the horizon, integrated over sin(elevation) by 2-point Gauss-Legendre;
+//! - what the horizon hides of it is subtracted per pair of baked azimuths: the wedge between the
+//!   lowered plane and the horizon (the pair's mean sine), integrated over sin(elevation) by 2-point
+//!   Gauss-Legendre; the horizon is held and interpolated as sines;
 //! - specular: Fresnel = 1 (folded into k_s), the implicit geometry term G = (n.i)(n.o), so the BRDF is
 //!   D(h) / 4; the cosine is taken at the product lobe's axis and visibility as the fraction of the lobe's
 //!   one-sigma cap above the horizon.
