@@ -195,34 +195,37 @@ fn sg_plane_sin(c: SgCut, ux: f32, uy: f32) -> f32 {
     return plane;
 }
 
-// TransferVis + PatchVis (SAT paper algorithm 3): the sine of the elevation below which horizontal
-// direction (dx, dy) is cut, the higher of the horizon and the mean normal's lowered tangent plane, the
-// plane's without trigonometry (clipsat::shading::Cut::sin_at).
-fn sg_cut_sin(c: SgCut, dx: f32, dy: f32) -> f32 {
-    let inv_d = 1.0 / sqrt(max(dx * dx + dy * dy, 1.0e-30));
-    let ux = dx * inv_d;
-    let uy = dy * inv_d;
-    let plane = sg_plane_sin(c, ux, uy);
+// The sine of the horizon toward horizontal direction (dx, dy), or -2 (below any cut) without visibility.
+fn sg_horizon_sin_toward(dx: f32, dy: f32) -> f32 {
     if (sg_hz_count == 0u) {
-        return plane;
+        return -2.0;
     }
-    return max(plane, sg_horizon_sin_at(atan2(uy, ux)));
+    return sg_horizon_sin_at(atan2(dy, dx));
 }
 
-// The fraction of a light about `axis` of radius sigma above the horizon alone
-// (clipsat::shading::Cut::horizon_visible).
-fn sg_horizon_visible(axis: vec3<f32>, sigma: f32) -> f32 {
+// TransferVis + PatchVis (SAT paper algorithm 3): the sine of the elevation below which horizontal
+// direction (dx, dy) is cut, the higher of the horizon's sine `hs` there and the mean normal's lowered
+// tangent plane, the plane's without trigonometry (clipsat::shading::Cut::sin_at).
+fn sg_cut_sin(c: SgCut, dx: f32, dy: f32, hs: f32) -> f32 {
+    let inv_d = 1.0 / sqrt(max(dx * dx + dy * dy, 1.0e-30));
+    return max(sg_plane_sin(c, dx * inv_d, dy * inv_d), hs);
+}
+
+// The fraction of a light about `axis` of radius sigma above the horizon alone, `hs` the horizon's sine
+// toward it (clipsat::shading::Cut::horizon_visible).
+fn sg_horizon_visible(axis: vec3<f32>, sigma: f32, hs: f32) -> f32 {
     if (sg_hz_count == 0u) {
         return 1.0;
     }
-    let h = asin(clamp(sg_horizon_sin_at(atan2(axis.y, axis.x)), -1.0, 1.0));
+    let h = asin(clamp(hs, -1.0, 1.0));
     let el = asin(clamp(axis.z, -1.0, 1.0));
     return clamp((el + sigma - h) / (2.0 * sigma), 0.0, 1.0);
 }
 
-// The fraction of a lobe about `axis` of radius sigma above the cut (clipsat::shading::Cut::soft_visible).
-fn sg_soft_visible(c: SgCut, axis: vec3<f32>, sigma: f32) -> f32 {
-    let cut = asin(clamp(sg_cut_sin(c, axis.x, axis.y), -1.0, 1.0));
+// The fraction of a lobe about `axis` of radius sigma above the cut, `hs` the horizon's sine toward it
+// (clipsat::shading::Cut::soft_visible).
+fn sg_soft_visible(c: SgCut, axis: vec3<f32>, sigma: f32, hs: f32) -> f32 {
+    let cut = asin(clamp(sg_cut_sin(c, axis.x, axis.y, hs), -1.0, 1.0));
     let el = asin(clamp(axis.z, -1.0, 1.0));
     return clamp((el + sigma - cut) / (2.0 * sigma), 0.0, 1.0);
 }
@@ -335,13 +338,19 @@ fn sg_shade(r: vec3<f32>, view: vec3<f32>, s: SgScene) -> vec3<f32> {
     if (SG_OMIT == 3u) {
         suns = count;
     }
+    // The variant's specular lobe (sg_specular.wgsl; a stub without specular).
+    let lobe = sg_specular_lobe(vmf, view, s);
+    var spec = vec3<f32>(0.0);
     for (var i = 0u; i < suns; i++) {
-        // A sun: one direction (clipsat::shading::SHARP_LAMBDA).
+        // A sun: one direction (clipsat::shading::SHARP_LAMBDA). Its horizon is looked up once, for its
+        // diffuse and its specular term.
         let l = s.lights[i];
         let light = Sg(l.axis_lambda.xyz, l.axis_lambda.w, l.mu.xyz);
         let sigma = sqrt(2.0 / max(light.lambda, 1.0e-6));
-        let f = sg_vmf_cosine(dot(vmf.axis, light.axis), vmf) * sg_horizon_visible(light.axis, sigma);
+        let hs = sg_horizon_sin_toward(light.axis.x, light.axis.y);
+        let f = sg_vmf_cosine(dot(vmf.axis, light.axis), vmf) * sg_horizon_visible(light.axis, sigma, hs);
         diffuse += light.mu * (sg_unit_integral(light.lambda) * f);
+        spec += sg_sun_specular(lobe, vmf.axis, cut, light, hs, s);
     }
     // Uniform: the scene's light counts.
     if (suns < count) {
@@ -355,5 +364,6 @@ fn sg_shade(r: vec3<f32>, view: vec3<f32>, s: SgScene) -> vec3<f32> {
         }
         diffuse += max(sg_sky(vmf.axis, vmf.r_len) - hidden, vec3<f32>(0.0));
     }
-    return s.kd_count.rgb * diffuse / SG_PI + sg_specular(vmf, view, cut, s);
+    spec += sg_broad_specular(lobe, vmf.axis, cut, suns, count, s);
+    return s.kd_count.rgb * diffuse / SG_PI + spec;
 }

@@ -1,4 +1,4 @@
-// Stage 3, the GPU: the SG specular term (clipsat::shading::warped_ndf and the specular loop of
+// Stage 3, the GPU: the SG specular term (clipsat::shading::warped_ndf and the specular terms of
 // clipsat::shading::shade), appended after sg_shading.wgsl only for scenes with `effects.specular`.
 
 // The NDF as an SG (lambda = 2 / alpha^2, mu = 1 / (pi alpha^2), alpha = roughness^2), widened by the vMF,
@@ -20,23 +20,40 @@ fn sg_warped_ndf(vmf: SgVmf, roughness: f32, view: vec3<f32>) -> Sg {
     return Sg(mirror, ndf.lambda / (4.0 * n_o), ndf.mu);
 }
 
-// k_s times the sum over lights of the product lobe's integral, D / 4 with the cosine at the lobe's axis,
-// times the fraction of its one-sigma cap above the cut elevation.
-fn sg_specular(vmf: SgVmf, view: vec3<f32>, cut: SgCut, s: SgScene) -> vec3<f32> {
-    let ks = s.material.x;
-    if (ks <= 0.0) {
+// The specular lobe of the pixel (the warped NDF) for the scene's roughness.
+fn sg_specular_lobe(vmf: SgVmf, view: vec3<f32>, s: SgScene) -> Sg {
+    return sg_warped_ndf(vmf, s.material.y, view);
+}
+
+// k_s times product lobe q's integral, D / 4 with the cosine at the lobe's axis, times the fraction of
+// its one-sigma cap above the cut, `hs` the horizon's sine there.
+fn sg_lobe_specular(q: Sg, n: vec3<f32>, cut: SgCut, hs: f32, s: SgScene) -> vec3<f32> {
+    let c = max(dot(n, q.axis), 0.0);
+    let sigma = min(sqrt(2.0 / max(q.lambda, 1.0e-6)), SG_HALF_PI);
+    return q.mu * (sg_unit_integral(q.lambda) * 0.25 * c * sg_soft_visible(cut, q.axis, sigma, hs) * s.material.x);
+}
+
+// A sun's specular term, cut at the sun's own horizon `hs` (its product lobe's axis is within a few
+// degrees of the sun: lambda 2000 against the lobe's tens).
+fn sg_sun_specular(lobe: Sg, n: vec3<f32>, cut: SgCut, light: Sg, hs: f32, s: SgScene) -> vec3<f32> {
+    // Uniform: the scene's k_s.
+    if (s.material.x <= 0.0) {
         return vec3<f32>(0.0);
     }
-    let n = vmf.axis;
-    let lobe = sg_warped_ndf(vmf, s.material.y, view);
+    return sg_lobe_specular(sg_product(light, lobe), n, cut, hs, s);
+}
+
+// The broad lights' (lights first..count) specular terms, each cut at the horizon toward its product
+// lobe's axis.
+fn sg_broad_specular(lobe: Sg, n: vec3<f32>, cut: SgCut, first: u32, count: u32, s: SgScene) -> vec3<f32> {
     var spec = vec3<f32>(0.0);
-    let count = min(u32(s.kd_count.w), SG_MAX_LIGHTS);
-    for (var i = 0u; i < count; i++) {
+    if (s.material.x <= 0.0) {
+        return spec;
+    }
+    for (var i = first; i < count; i++) {
         let l = s.lights[i];
         let q = sg_product(Sg(l.axis_lambda.xyz, l.axis_lambda.w, l.mu.xyz), lobe);
-        let c = max(dot(n, q.axis), 0.0);
-        let sigma = min(sqrt(2.0 / max(q.lambda, 1.0e-6)), SG_HALF_PI);
-        spec += q.mu * sg_unit_integral(q.lambda) * (0.25 * c * sg_soft_visible(cut, q.axis, sigma));
+        spec += sg_lobe_specular(q, n, cut, sg_horizon_sin_toward(q.axis.x, q.axis.y), s);
     }
-    return spec * ks;
+    return spec;
 }

@@ -178,23 +178,34 @@ impl Cut {
         }
     }
 
+    /// The sine of the horizon toward horizontal direction (dx, dy) (unnormalised), or -2 (below any
+    /// cut) without visibility. The shader looks it up once per sun, for its diffuse and specular terms.
+    fn horizon_sin_toward(&self, dx: f32, dy: f32) -> f32 {
+        if self.horizon.is_empty() {
+            -2.0
+        } else {
+            self.horizon_sin_at(dy.atan2(dx))
+        }
+    }
+
     /// The fraction of a light about unit `axis`, of angular radius `sigma`, above the horizon alone (1
-    /// without visibility): the clamped cosine already cuts at the normals' planes.
-    fn horizon_visible(&self, axis: Vec3, sigma: f32) -> f32 {
+    /// without visibility), `hs` the horizon's sine toward it: the clamped cosine already cuts at the
+    /// normals' planes.
+    fn horizon_visible(&self, axis: Vec3, sigma: f32, hs: f32) -> f32 {
         if self.horizon.is_empty() {
             return 1.0;
         }
-        let h = self
-            .horizon_sin_at(axis.y.atan2(axis.x))
-            .clamp(-1.0, 1.0)
-            .asin();
+        let h = hs.clamp(-1.0, 1.0).asin();
         ((elevation(axis) + sigma - h) / (2.0 * sigma)).clamp(0.0, 1.0)
     }
 
-    /// The fraction of a lobe about unit `axis`, of angular radius `sigma`, above the cut: linear in the
-    /// axis's elevation over +/- sigma.
-    fn soft_visible(&self, axis: Vec3, sigma: f32) -> f32 {
-        let cut = self.sin_at(axis.x, axis.y).clamp(-1.0, 1.0).asin();
+    /// The fraction of a lobe about unit `axis`, of angular radius `sigma`, above the cut (the higher of
+    /// the lowered plane and `hs`, the horizon's sine toward it): linear in the axis's elevation over
+    /// +/- sigma.
+    fn soft_visible(&self, axis: Vec3, sigma: f32, hs: f32) -> f32 {
+        let inv_d = 1.0 / (axis.x * axis.x + axis.y * axis.y).max(1e-30).sqrt();
+        let plane = self.plane_sin(axis.x * inv_d, axis.y * inv_d);
+        let cut = plane.max(hs).clamp(-1.0, 1.0).asin();
         ((elevation(axis) + sigma - cut) / (2.0 * sigma)).clamp(0.0, 1.0)
     }
 }
@@ -378,11 +389,21 @@ pub fn shade(inputs: &Inputs<'_>, scene: &Scene, sky: &SkyTable) -> Vec3 {
     };
     let cut = Cut::new(n, horizon, plane_drop(vmf.kappa));
     let cosine = cosine_lobe(&vmf);
+    let m = &scene.material;
+    let lobe =
+        (scene.effects.specular && m.ks > 0.0).then(|| warped_ndf(&vmf, m.roughness, inputs.view));
     let mut diffuse = Vec3::ZERO;
+    let mut spec = Vec3::ZERO;
     for light in scene.lights.iter().filter(|l| l.lambda >= SHARP_LAMBDA) {
         let sigma = (2.0 / light.lambda).sqrt();
+        // Looked up once, for the sun's diffuse and specular terms (its product lobe's axis is within a
+        // few degrees of the sun's: lambda 2000 against the lobe's tens).
+        let hs = cut.horizon_sin_toward(light.axis.x, light.axis.y);
         diffuse += light.integral()
-            * (vmf_cosine(n.dot(light.axis), &vmf) * cut.horizon_visible(light.axis, sigma));
+            * (vmf_cosine(n.dot(light.axis), &vmf) * cut.horizon_visible(light.axis, sigma, hs));
+        if let Some(lobe) = &lobe {
+            spec += lobe_specular(&light.product(lobe), n, &cut, hs, m.ks);
+        }
     }
     if scene.lights.iter().any(|l| l.lambda < SHARP_LAMBDA) {
         let mut hidden = Vec3::ZERO;
@@ -393,18 +414,20 @@ pub fn shade(inputs: &Inputs<'_>, scene: &Scene, sky: &SkyTable) -> Vec3 {
         }
         diffuse += (sky.lookup(n, vmf.r_len) - hidden).max(Vec3::ZERO);
     }
-    let m = &scene.material;
-    let mut out = m.kd * diffuse / PI;
-    if scene.effects.specular && m.ks > 0.0 {
-        let lobe = warped_ndf(&vmf, m.roughness, inputs.view);
-        let mut spec = Vec3::ZERO;
-        for light in &scene.lights {
-            let q = light.product(&lobe);
-            let cos = n.dot(q.axis).max(0.0);
-            let sigma = (2.0 / q.lambda.max(1e-6)).sqrt().min(FRAC_PI_2);
-            spec += q.integral() * (0.25 * cos * cut.soft_visible(q.axis, sigma));
+    if let Some(lobe) = &lobe {
+        for light in scene.lights.iter().filter(|l| l.lambda < SHARP_LAMBDA) {
+            let q = light.product(lobe);
+            let hs = cut.horizon_sin_toward(q.axis.x, q.axis.y);
+            spec += lobe_specular(&q, n, &cut, hs, m.ks);
         }
-        out += spec * m.ks;
     }
-    out
+    m.kd * diffuse / PI + spec
+}
+
+/// k_s times product lobe `q`'s integral, D / 4 with the cosine at the lobe's axis, times the fraction of
+/// its one-sigma cap above the cut (`hs`: the horizon's sine toward it).
+fn lobe_specular(q: &Sg, n: Vec3, cut: &Cut, hs: f32, ks: f32) -> Vec3 {
+    let cos = n.dot(q.axis).max(0.0);
+    let sigma = (2.0 / q.lambda.max(1e-6)).sqrt().min(FRAC_PI_2);
+    q.mu * (sg::unit_integral(q.lambda) * 0.25 * cos * cut.soft_visible(q.axis, sigma, hs) * ks)
 }
