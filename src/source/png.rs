@@ -87,21 +87,8 @@ pub(super) fn load(path: &Path, opts: &LoadOptions, magic: &[u8]) -> Result<Heig
     decoder
         .read_image(&mut bytes)
         .map_err(|e| corrupt(path, &e))?;
-    // Every sample as u16 (the decoder hands 16-bit samples over in native byte order); `channels` a pixel.
-    let value = |i: usize| -> u16 {
-        if wide {
-            u16::from_ne_bytes([bytes[2 * i], bytes[2 * i + 1]])
-        } else {
-            bytes[i].into()
-        }
-    };
-    let pixel = |p: usize| -> [u16; 3] {
-        let base = p * channels;
-        match channels {
-            1 | 2 => [value(base); 3],
-            _ => [value(base), value(base + 1), value(base + 2)],
-        }
-    };
+    // The decoder hands 16-bit samples over in native byte order.
+    let pixel = |p: usize| rgb(&bytes, p, channels, wide.then_some(u16::from_ne_bytes));
     let offset = f64::from(opts.height_offset);
     let heights: Vec<f32> = match opts.png_encoding {
         PngEncoding::Grey => {
@@ -110,16 +97,11 @@ pub(super) fn load(path: &Path, opts: &LoadOptions, magic: &[u8]) -> Result<Heig
                     let [r, g, b] = pixel(p);
                     r != g || g != b
                 }) {
-                    let [r, g, b] = pixel(p);
-                    return Err(Error::format(
+                    return Err(unequal_channels(
                         path,
-                        format!(
-                            "PNG is {colour:?} with unequal channels (R, G, B = {r}, {g}, {b} at column {}, \
-                             row {}), so it is not a grey height map; if it is a web-map elevation tile, set \
-                             the {OPTION} to terrain-rgb or terrarium",
-                            p % width as usize,
-                            p / width as usize
-                        ),
+                        &format!("{colour:?}"),
+                        pixel(p),
+                        (p % width as usize, p / width as usize),
                     ));
                 }
             }
@@ -155,6 +137,39 @@ pub(super) fn load(path: &Path, opts: &LoadOptions, magic: &[u8]) -> Result<Heig
         height,
         opts.spacing.unwrap_or(DEFAULT_SPACING_M),
         heights,
+    )
+}
+
+/// Pixel `p`'s R, G, B (grey repeated) from samples of `channels` a pixel: bytes, or with `wide` the
+/// 16-bit samples in the byte order it decodes.
+fn rgb(bytes: &[u8], p: usize, channels: usize, wide: Option<fn([u8; 2]) -> u16>) -> [u16; 3] {
+    let value = |i: usize| -> u16 {
+        match wide {
+            Some(decode) => decode([bytes[2 * i], bytes[2 * i + 1]]),
+            None => bytes[i].into(),
+        }
+    };
+    let base = p * channels;
+    match channels {
+        1 | 2 => [value(base); 3],
+        _ => [value(base), value(base + 1), value(base + 2)],
+    }
+}
+
+/// The refusal of a grey PNG whose channels differ at `(column, row)`: `colour` is the file's colour type.
+fn unequal_channels(
+    path: &Path,
+    colour: &str,
+    [r, g, b]: [u16; 3],
+    (x, y): (usize, usize),
+) -> Error {
+    Error::format(
+        path,
+        format!(
+            "PNG is {colour} with unequal channels (R, G, B = {r}, {g}, {b} at column {x}, row {y}), so it \
+             is not a grey height map; if it is a web-map elevation tile, set the {OPTION} to terrain-rgb \
+             or terrarium"
+        ),
     )
 }
 
@@ -273,34 +288,22 @@ impl super::RowSource for Rows {
             if data.len() < w * channels * if wide { 2 } else { 1 } {
                 return Err(Error::format(&self.grid.path, "corrupt PNG: a short row"));
             }
-            let value = |i: usize| -> u16 {
-                if wide {
-                    u16::from_be_bytes([data[2 * i], data[2 * i + 1]])
-                } else {
-                    data[i].into()
-                }
-            };
-            let pixel = |p: usize| -> [u16; 3] {
-                let base = p * channels;
-                match channels {
-                    1 | 2 => [value(base); 3],
-                    _ => [value(base), value(base + 1), value(base + 2)],
-                }
-            };
             for (x, o) in orow.iter_mut().enumerate() {
-                let [r, g, b] = pixel(x);
+                // The row reader hands 16-bit samples over as the file stores them, big-endian.
+                let [r, g, b] = rgb(data, x, channels, wide.then_some(u16::from_be_bytes));
                 *o = match self.encoding {
                     PngEncoding::Grey => {
                         if r != g || g != b {
-                            return Err(Error::format(
+                            let colour = format!(
+                                "{}{}",
+                                if channels == 4 { "Rgba" } else { "Rgb" },
+                                if wide { 16 } else { 8 }
+                            );
+                            return Err(unequal_channels(
                                 &self.grid.path,
-                                format!(
-                                    "PNG is {}{} with unequal channels (R, G, B = {r}, {g}, {b} at column \
-                                     {x}, row {y}), so it is not a grey height map; if it is a web-map \
-                                     elevation tile, set the {OPTION} to terrain-rgb or terrarium",
-                                    if channels == 4 { "Rgba" } else { "Rgb" },
-                                    if wide { 16 } else { 8 }
-                                ),
+                                &colour,
+                                [r, g, b],
+                                (x, y as usize),
                             ));
                         }
                         to_f32(f64::from(r) * self.scale + self.offset)

@@ -52,15 +52,7 @@ pub(super) fn load(path: &Path, opts: &LoadOptions, magic: &[u8]) -> Result<Heig
         DecodingResult::U8(v) => convert(path, w, &v, f64::from, is_void, scale, offset)?,
         DecodingResult::F32(v) => convert(path, w, &v, f64::from, is_void, scale, offset)?,
         DecodingResult::F64(v) => convert(path, w, &v, |s| s, is_void, scale, offset)?,
-        other => {
-            return Err(Error::format(
-                path,
-                format!(
-                    "unsupported TIFF sample type {}: use int16, uint16, int32, float32 or float64",
-                    sample_name(&other)
-                ),
-            ))
-        }
+        other => return Err(unsupported(path, &other)),
     };
     if heights.len() != samples {
         return Err(Error::format(
@@ -142,25 +134,49 @@ fn convert<T: Copy>(
     scale: f64,
     offset: f64,
 ) -> Result<Vec<f32>> {
-    let mut out = Vec::with_capacity(src.len());
-    for (i, &s) in src.iter().enumerate() {
-        let v = to_f64(s);
-        if is_void(v) {
-            out.push(f32::NAN);
-            continue;
-        }
-        let h = to_f32(v * scale + offset);
-        if !h.is_finite() {
-            return Err(Error::NonFinite {
-                path: path.into(),
-                x: u32::try_from(i % width).unwrap_or(u32::MAX),
-                y: u32::try_from(i / width).unwrap_or(u32::MAX),
-                value: h,
-            });
-        }
-        out.push(h);
+    src.iter()
+        .enumerate()
+        .map(|(i, &s)| {
+            let v = to_f64(s);
+            height(path, v, is_void(v), scale, offset, (i % width, i / width))
+        })
+        .collect()
+}
+
+/// Sample `v` at `(column, row)` in metres: NaN for a void (for [`fill_voids`]), and a non-finite height
+/// that is not a void refused, since filling would otherwise spread it.
+fn height(
+    path: &Path,
+    v: f64,
+    void: bool,
+    scale: f64,
+    offset: f64,
+    (x, y): (usize, usize),
+) -> Result<f32> {
+    if void {
+        return Ok(f32::NAN);
     }
-    Ok(out)
+    let h = to_f32(v * scale + offset);
+    if !h.is_finite() {
+        return Err(Error::NonFinite {
+            path: path.into(),
+            x: u32::try_from(x).unwrap_or(u32::MAX),
+            y: u32::try_from(y).unwrap_or(u32::MAX),
+            value: h,
+        });
+    }
+    Ok(h)
+}
+
+/// The refusal of a sample type no elevation data uses.
+fn unsupported(path: &Path, other: &DecodingResult) -> Error {
+    Error::format(
+        path,
+        format!(
+            "unsupported TIFF sample type {}: use int16, uint16, int32, float32 or float64",
+            sample_name(other)
+        ),
+    )
 }
 
 /// Whether `v` is a GDAL_NODATA void.
@@ -295,22 +311,10 @@ impl Rows {
                 for r in 0..dh {
                     for c in 0..dw {
                         let v = at(r * stride + c);
-                        let h = if is_void(nodata, v) {
-                            voids = true;
-                            f32::NAN
-                        } else {
-                            let h = to_f32(v * scale + offset);
-                            if !h.is_finite() {
-                                return Err(Error::NonFinite {
-                                    path: self.grid.path.clone(),
-                                    x: u32::try_from(x0 + c).unwrap_or(u32::MAX),
-                                    y: u32::try_from(y0 + r).unwrap_or(u32::MAX),
-                                    value: h,
-                                });
-                            }
-                            h
-                        };
-                        self.band[r * w + x0 + c] = h;
+                        let void = is_void(nodata, v);
+                        voids |= void;
+                        self.band[r * w + x0 + c] =
+                            height(&self.grid.path, v, void, scale, offset, (x0 + c, y0 + r))?;
                     }
                 }
                 Ok(())
@@ -322,15 +326,7 @@ impl Rows {
                 DecodingResult::U8(v) => put(v.len(), &|i| f64::from(v[i]))?,
                 DecodingResult::F32(v) => put(v.len(), &|i| f64::from(v[i]))?,
                 DecodingResult::F64(v) => put(v.len(), &|i| v[i])?,
-                other => {
-                    return Err(Error::format(
-                        &self.grid.path,
-                        format!(
-                            "unsupported TIFF sample type {}: use int16, uint16, int32, float32 or float64",
-                            sample_name(other)
-                        ),
-                    ))
-                }
+                other => return Err(unsupported(&self.grid.path, other)),
             }
         }
         self.band_row = Some(cr);
