@@ -137,17 +137,26 @@ pub fn error_map(pyramid: &Pyramid, k: u32) -> Vec<f32> {
 /// e at data sample (x, y) against data level k's piecewise-linear surface (k <= 40; measurement code such
 /// as [`crate::measure::screen_error`] reads it per sample instead of keeping an error map).
 #[inline]
+pub fn sample_error(pyramid: &Pyramid, k: u32, x: i64, y: i64) -> f32 {
+    let z = |a: i64, b: i64| f64::from(pyramid.at(k, a, b));
+    let h0 = f64::from(pyramid.level(0).at_clamped(x, y));
+    error_from(z, h0, k, x, y)
+}
+
+/// [`sample_error`] from level k's heights `z(i, j)` (metres, clamped as [`Pyramid::at`] clamps) and
+/// the data height `h0` at (x, y): the one formula, so a streamed bake ([`crate::bake::lod_stream`])
+/// computes the same f32 bits as one over a resident pyramid.
+#[inline]
 #[expect(
     clippy::cast_possible_truncation,
     reason = "the error is stored as f32, rounded once"
 )]
-pub fn sample_error(pyramid: &Pyramid, k: u32, x: i64, y: i64) -> f32 {
+pub(crate) fn error_from(z: impl Fn(i64, i64) -> f64, h0: f64, k: u32, x: i64, y: i64) -> f32 {
     let step = 1i64 << k;
     let (i, j) = (x >> k, y >> k);
     let inv = 1.0 / step as f64;
     let fx = (x & (step - 1)) as f64 * inv;
     let fy = (y & (step - 1)) as f64 * inv;
-    let z = |a: i64, b: i64| f64::from(pyramid.at(k, a, b));
     let z00 = z(i, j);
     // The (i, j)-(i+1, j+1) diagonal: fx >= fy is the triangle (i,j),(i+1,j),(i+1,j+1).
     let pl = if fx == 0.0 && fy == 0.0 {
@@ -159,7 +168,6 @@ pub fn sample_error(pyramid: &Pyramid, k: u32, x: i64, y: i64) -> f32 {
         let (z01, z11) = (z(i, j + 1), z(i + 1, j + 1));
         z00 + fy * (z01 - z00) + fx * (z11 - z01)
     };
-    let h0 = f64::from(pyramid.level(0).at_clamped(x, y));
     (h0 - pl).abs() as f32
 }
 
@@ -235,7 +243,7 @@ fn axis_cells(a: u32, b: u32, len: u32, s: u32, count: u32) -> (u32, u32, u32, u
 }
 
 /// Closed cells per axis of `len` samples at shift `s`: the last closed cell ends on the last sample.
-fn closed_count(len: u32, s: u32) -> u32 {
+pub(crate) fn closed_count(len: u32, s: u32) -> u32 {
     if s == 0 {
         len
     } else {
@@ -482,7 +490,7 @@ impl LevelTables {
 /// Covers pow_unit's p ulps and the f64 roundings of the edge terms of [`LevelTables::block`].
 const EDGE_UP: f64 = 1.0 + 1.0 / (1u64 << 40) as f64;
 
-fn bad_error(x: usize, y: usize, e: f32) -> Error {
+pub(crate) fn bad_error(x: usize, y: usize, e: f32) -> Error {
     Error::Terrain(format!(
         "the SAT LOD error at column {x}, row {y} is {e}: the heights are too large for f32 \
          arithmetic (their differences overflow); scale them down, or use distance LOD"

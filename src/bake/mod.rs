@@ -3,6 +3,7 @@
 //! - [`pyramid`]: the height pyramid (GC section 4);
 //! - [`sat`]: summed-area tables in exact fixed point;
 //! - [`lod_tables`]: the SAT LOD error maps, their SATs and max pyramids (design.md "SAT LOD");
+//! - [`lod_stream`]: the same tables of a package baked out of core, straight into the cache file;
 //! - [`horizon`]: horizon angles for SG visibility (SAT paper section 5);
 //! - this file: the LOD tables' disk cache, keyed by a content hash.
 //!
@@ -28,6 +29,7 @@
 //! memory; [`bake_lod_mapped`] re-reads them from the file it wrote.
 
 pub mod horizon;
+pub mod lod_stream;
 pub mod lod_tables;
 pub mod mapped;
 pub mod pyramid;
@@ -45,7 +47,7 @@ use crate::bake::sat::Sat;
 use crate::hash::{hex, Hash64};
 use crate::{Error, Heightmap, Result};
 
-const MAGIC: &[u8; 8] = b"CSATLOD1";
+pub(crate) const MAGIC: &[u8; 8] = b"CSATLOD1";
 /// Bumped whenever the layout or the meaning of a baked number changes.
 pub const FORMAT_VERSION: u32 = 3;
 
@@ -151,9 +153,11 @@ pub fn package_cache_key(package: &crate::package::Package, params: &BakeParams)
     h.finish()
 }
 
-/// The LOD tables of a streamed package, read through the cache file's map ([`bake_lod_mapped`]). On a
-/// miss the package is decoded whole (every level, as the streamed rings read them) for the bake: a
-/// bake-time cost; a hit decodes nothing and copies no table into memory.
+/// The LOD tables of a streamed package, read through the cache file's map. On a miss they are baked out
+/// of core ([`lod_stream`]: the package read a band of tiles at a time, the file written row by row, the
+/// same bytes as a bake from the decoded pyramid), then mapped; a hit decodes nothing and copies no table
+/// into memory. When the cache file cannot be written, the tables are baked in memory from the decoded
+/// package instead (outcome [`CacheOutcome::NotCached`]).
 pub fn bake_lod_package(
     package: &crate::package::Package,
     params: &BakeParams,
@@ -168,10 +172,48 @@ pub fn bake_lod_package(
         )));
     }
     let key = package_cache_key(package, params);
-    let pyramid = || package.to_pyramid().map(std::borrow::Cow::Owned);
-    mapped(
-        |progress| bake_lod_keyed(key, pyramid, params, dir, progress),
-        progress,
+    let path = cache_path(dir, key);
+    let refused = match read_cached(&path, key, params) {
+        Some(Ok(t)) => return Ok((t, CacheOutcome::Hit)),
+        Some(Err(reason)) => Some(reason),
+        None => None,
+    };
+    match lod_stream::bake_to_file(package, params, key, &path, progress) {
+        Ok(()) => {}
+        // The cache file could not be written (not the package read): bake in memory.
+        Err(e @ Error::Io { .. }) if !matches!(&e, Error::Io { path: p, .. } if p == package.path()) =>
+        {
+            let pyramid = package.to_pyramid()?;
+            crate::bake::lod_tables::check_height_range(&pyramid)?;
+            let tables = bake_uncached(&pyramid, params, progress)?;
+            return Ok((tables, CacheOutcome::NotCached(e.to_string())));
+        }
+        Err(e) => return Err(e),
+    }
+    let tables = match read_cached(&path, key, params) {
+        Some(Ok(t)) => t,
+        Some(Err(reason)) => return Err(Error::format(&path, reason)),
+        None => return Err(Error::format(&path, "the LOD tables just written are gone")),
+    };
+    let outcome = match refused {
+        Some(r) => CacheOutcome::Rebaked(r),
+        None => CacheOutcome::Baked,
+    };
+    Ok((tables, outcome))
+}
+
+/// The tables of the cache file at `path` read through a map: None when there is no file, the reason
+/// when it is refused.
+fn read_cached(
+    path: &Path,
+    key: u64,
+    params: &BakeParams,
+) -> Option<std::result::Result<LodTables, String>> {
+    let file = std::fs::File::open(path).ok()?;
+    Some(
+        Mapping::new(&file)
+            .map_err(|e| e.to_string())
+            .and_then(|map| decode(&map, key, params)),
     )
 }
 

@@ -57,6 +57,15 @@ pub struct CacheSplit {
 }
 
 impl CacheSplit {
+    /// The budget that leaves `slots` tile slots for a package with this header ([`CacheSplit::plan`]
+    /// inverted): for a caller that sizes its cache by what it reads, such as the LOD tables' bake.
+    pub fn budget_for_slots(header: &super::format::Header, slots: u64) -> u64 {
+        let t = u64::from(header.tile);
+        let head = header.byte_len() as u64 + 16 * header.tiles.len() as u64;
+        let fixed = head + 4 * header.tiles.len() as u64 + TileDecoder::bytes(header.tile);
+        fixed + slots * (4 * t * t + std::mem::size_of::<Slot>() as u64)
+    }
+
     /// The split of `budget` bytes for a package with this header: fixed parts first, the rest in slots.
     pub fn plan(header: &super::format::Header, budget: u64) -> Self {
         let t = u64::from(header.tile);

@@ -93,6 +93,21 @@ impl Package {
         self.map.len() as u64
     }
 
+    /// Drops the package's mapped pages from this process's resident set (they stay in the kernel's page
+    /// cache; the next read faults them back in, unchanged): a reader that sweeps the whole file, such as
+    /// the LOD tables' bake, calls it as it goes so the file's pages do not add up. Best effort.
+    pub fn trim(&self) {
+        #[cfg(unix)]
+        {
+            // SAFETY: MADV_DONTNEED on a read-only, file-backed private map only discards clean pages,
+            // which are re-read from the file: no byte a slice of the map shows can change.
+            let _ = unsafe {
+                self.map
+                    .unchecked_advise(memmap2::UncheckedAdvice::DontNeed)
+            };
+        }
+    }
+
     /// Decoding scratch for this package's tiles (allocates once).
     pub fn tile_decoder(&self) -> Result<TileDecoder> {
         let t = self.header.tile as usize;

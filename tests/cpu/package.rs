@@ -512,3 +512,68 @@ fn raw_files_bake_streamed_as_loaded() {
         }
     }
 }
+
+/// The SAT LOD tables of a package baked out of core (`bake::lod_stream`: bands of tiles, rows written in
+/// place) are the bytes of the cache file baked from the decoded pyramid in memory, but for the key (a
+/// package's tables are keyed by its header, a terrain's by its heights) and so the trailing checksum:
+/// odd sizes, several bands, more data levels than the package has, and a flat terrain (no tables).
+#[test]
+fn lod_tables_baked_out_of_core_match_the_resident_bake() {
+    use clipsat::bake::{self, BakeParams, CacheOutcome};
+    let flat =
+        Heightmap::new(Path::new("<flat>"), 40, 23, 10.0, vec![12.5; 40 * 23]).expect("flat");
+    let cases = [
+        ("lod-a.clipsat", synthetic(70, 45), 16, 6),
+        ("lod-b.clipsat", synthetic(33, 97), 16, 9),
+        ("lod-c.clipsat", synthetic(129, 129), 32, 5),
+        ("lod-d.clipsat", flat, 16, 4),
+    ];
+    for (name, hm, tile, levels) in cases {
+        let out = temp(name);
+        let opts = BakeOptions {
+            tile,
+            zstd_level: 3,
+            ..BakeOptions::default()
+        };
+        bake(&hm, &out, &opts);
+        let pkg = Package::open(&out).expect("open");
+        let params = BakeParams {
+            p: bake::lod_tables::P,
+            levels,
+            synth_levels: 0,
+            g0: 25.0,
+        };
+        let dir = out.with_extension("lod");
+        let _ = std::fs::remove_dir_all(&dir);
+        let (streamed, o) = bake::bake_lod_package(&pkg, &params, &dir, false).expect("streamed");
+        assert_eq!(o, CacheOutcome::Baked, "{name}");
+        assert!(streamed.is_mapped(), "{name}: read back through the map");
+        let file = bake::cache_path(&dir, bake::package_cache_key(&pkg, &params));
+        let a = std::fs::read(&file).expect("streamed file");
+        // In memory from the decoded package, written by the resident path.
+        let (terrain, pyramid) = (
+            pkg.to_heightmap().expect("decode"),
+            pkg.to_pyramid().expect("pyr"),
+        );
+        let dir_b = out.with_extension("lodb");
+        let _ = std::fs::remove_dir_all(&dir_b);
+        let (resident, _) =
+            bake::bake_lod(&terrain, &pyramid, &params, &dir_b, false).expect("resident");
+        assert_eq!(streamed, resident, "{name}: tables differ");
+        let b = std::fs::read(bake::cache_path(&dir_b, bake::cache_key(&terrain, &params)))
+            .expect("resident file");
+        assert_eq!(a.len(), b.len(), "{name}: lengths");
+        assert_eq!(a[..12], b[..12], "{name}: magic and version");
+        assert!(
+            a[20..a.len() - 8] == b[20..b.len() - 8],
+            "{name}: body bytes differ"
+        );
+        let (hit, o) = bake::bake_lod_package(&pkg, &params, &dir, false).expect("hit");
+        assert_eq!(o, CacheOutcome::Hit, "{name}");
+        assert_eq!(hit, resident, "{name}");
+        for d in [&dir, &dir_b] {
+            let _ = std::fs::remove_dir_all(d);
+        }
+        let _ = std::fs::remove_file(&out);
+    }
+}

@@ -1,0 +1,584 @@
+//! Stage 1, bake: a package's SAT LOD tables baked out of core (issue 13), straight into the LOD cache
+//! file ([`crate::bake`], format 3), without decoding the whole pyramid.
+//!
+//! The tables are those of [`crate::bake::lod_tables::LevelTables::build_level`] (data level k at level k's resolution: the closed
+//! cells' maximum error, its max pyramid, and the SAT of the half-open cells' quantised (e/E)^p), and the
+//! file is byte for byte the one [`crate::bake`] writes from a resident pyramid, so every answer and every
+//! frame hash is unchanged. What changes is how they are computed:
+//!
+//! - the package is read one band of level-0 tile rows at a time through a [`TileCache`] sized by the
+//!   terrain's width (the band's tiles, the coarser tiles their prediction reads, and the level-k rows
+//!   the band's errors read), and its mapped pages are dropped after each band;
+//! - two sweeps over the bands: the first finds every level's E (and refuses a non-finite error, naming
+//!   its sample); the second computes each sample's error once more for every level, folds it into the
+//!   closed cells' maxima and the half-open cells' sums of the current cell row, and writes each finished
+//!   row where it lies in the file (the layout is known once every E is): a SAT row is the previous SAT
+//!   row plus the row's running sum, and each max-pyramid row is written as soon as its two finer rows are;
+//! - levels are shared among the cores within a band (each level's state is its own);
+//! - last, the CRC-32 trailer over the file read back in chunks, and the rename into place.
+//!
+//! Memory: O(width) per level (a few rows), plus the tile cache and one band of level-0 heights; nothing
+//! grows with the terrain's height, and nothing terrain-sized is held.
+
+use std::fs::File;
+use std::path::Path;
+
+use indicatif::{ProgressBar, ProgressStyle};
+
+use crate::bake::lod_tables::{bad_error, closed_count, error_from, RangeMax};
+use crate::bake::sat::{pow_unit, Sat};
+use crate::bake::{BakeParams, FORMAT_VERSION, MAGIC};
+use crate::package::{CacheSplit, Package, TileCache};
+use crate::{Error, Result};
+
+/// Bytes read at a time for the trailing checksum.
+const CRC_CHUNK: usize = 4 << 20;
+
+/// One data level's streaming state (k >= 1).
+struct Level {
+    /// Data level and its shifts: `s` for cells (k capped at 30), `ke` for the error (k capped at 40).
+    k: u32,
+    s: u32,
+    ke: u32,
+    /// Values per level-k row buffer: level-k samples 0 ..= ((width - 1) >> ke) + 1.
+    row_len: usize,
+    /// The band's level-k rows `j0 ..` (row_len values each, metres as f64, clamped as `Pyramid::at`).
+    band: Vec<f64>,
+    j0: i64,
+    /// E, and the first non-finite error met (sweep 1).
+    e_max: f32,
+    bad: Option<(u32, u32, f32)>,
+    /// Sweep 2 only (tables present): closed cells per row and rows, half-open cells per row.
+    cw: u32,
+    ch: u32,
+    sw: u32,
+    /// The errors of the current row, and its closed cells' maxima.
+    errs: Vec<f32>,
+    rowmax: Vec<f32>,
+    /// The current closed cell row and its maxima so far.
+    cur: u32,
+    acc: Vec<f32>,
+    /// The current half-open cell row's sums, and the last SAT row written.
+    sums: Vec<u64>,
+    sat_row: Vec<u64>,
+    /// Max pyramid: level sizes, byte offsets, and each coarser level's pending row.
+    dims: Vec<(u32, u32)>,
+    max_off: Vec<u64>,
+    pend: Vec<Vec<f32>>,
+    sat_off: u64,
+    /// The SFAMF exponent, quantum bits and 1 / E.
+    p: u32,
+    q: u32,
+    inv: f64,
+    /// Little-endian bytes of a row being written.
+    bytes: Vec<u8>,
+}
+
+impl Level {
+    fn new(k: u32, width: u32, p: u32) -> Self {
+        let ke = k.min(40);
+        Self {
+            k,
+            s: k.min(30),
+            ke,
+            row_len: ((width - 1) >> ke) as usize + 2,
+            band: Vec::new(),
+            j0: 0,
+            e_max: 0.0,
+            bad: None,
+            cw: 0,
+            ch: 0,
+            sw: 0,
+            errs: Vec::new(),
+            rowmax: Vec::new(),
+            cur: 0,
+            acc: Vec::new(),
+            sums: Vec::new(),
+            sat_row: Vec::new(),
+            dims: Vec::new(),
+            max_off: Vec::new(),
+            pend: Vec::new(),
+            sat_off: 0,
+            p,
+            q: 0,
+            inv: 0.0,
+            bytes: Vec::new(),
+        }
+    }
+
+    /// Whether sweep 2 builds tables for this level (E > 0).
+    fn has_tables(&self) -> bool {
+        self.e_max > 0.0
+    }
+
+    /// Sizes the sweep-2 state once E is known, with the level's offsets in the file from `at` (the
+    /// byte just past its has-tables flag); returns the byte past its tables.
+    fn lay_out(&mut self, width: u32, height: u32, at: u64) -> u64 {
+        let s = self.s;
+        (self.cw, self.ch) = (closed_count(width, s), closed_count(height, s));
+        self.sw = width.div_ceil(1 << s);
+        let sh = height.div_ceil(1 << s);
+        self.q = Sat::max_frac_bits(u64::from(width) * u64::from(height));
+        self.inv = 1.0 / f64::from(self.e_max);
+        self.errs = vec![0.0; width as usize];
+        self.rowmax = vec![0.0; self.cw as usize];
+        self.acc = vec![0.0; self.cw as usize];
+        self.sums = vec![0; self.sw as usize];
+        self.sat_row = vec![0; self.sw as usize];
+        let mut at = at.next_multiple_of(8);
+        self.sat_off = at;
+        at += u64::from(self.sw) * u64::from(sh) * 8;
+        self.dims = RangeMax::dims(self.cw, self.ch);
+        for &(w, h) in &self.dims {
+            self.max_off.push(at);
+            at += u64::from(w) * u64::from(h) * 4;
+            self.pend.push(vec![0.0; w as usize]);
+        }
+        at
+    }
+
+    /// Level k's height at (a, b) as [`crate::bake::pyramid::Pyramid::at`] reads it, from the cache.
+    fn height(cache: &TileCache, last: u32, k: u32, a: i64, b: i64) -> f64 {
+        let (level, a, b) = if k <= last {
+            (k, a, b)
+        } else {
+            let s = (k - last).min(40);
+            (last, a.saturating_mul(1 << s), b.saturating_mul(1 << s))
+        };
+        let h = cache
+            .height(level as usize, a, b)
+            .expect("the band's tiles were made resident before reading them");
+        f64::from(h)
+    }
+
+    /// Copies the level-k rows band rows `y0 .. y1` read (j = y >> ke and j + 1) out of the cache.
+    fn load_band(&mut self, cache: &TileCache, last: u32, y0: u32, y1: u32) {
+        let (j0, j1) = (i64::from(y0 >> self.ke), i64::from((y1 - 1) >> self.ke) + 1);
+        self.j0 = j0;
+        self.band.clear();
+        for b in j0..=j1 {
+            for a in 0..self.row_len as i64 {
+                self.band.push(Self::height(cache, last, self.k, a, b));
+            }
+        }
+    }
+
+    /// Sample errors of data row `y` (level-0 heights `h0`) into `out`, or the first non-finite one.
+    fn row_errors(&self, h0: &[f32], y: u32, out: &mut [f32]) -> Option<(u32, u32, f32)> {
+        let j = i64::from(y >> self.ke);
+        let base = usize::try_from(j - self.j0).expect("the band holds row j") * self.row_len;
+        let (r0, r1) = self.band[base..base + 2 * self.row_len].split_at(self.row_len);
+        let z = |a: i64, b: i64| {
+            let a = usize::try_from(a).expect("a level-k column, 0 or more");
+            if b == j {
+                r0[a]
+            } else {
+                r1[a]
+            }
+        };
+        for (x, (o, &h)) in (0u32..).zip(out.iter_mut().zip(h0)) {
+            let e = error_from(z, f64::from(h), self.ke, i64::from(x), i64::from(y));
+            if !(e.is_finite() && e >= 0.0) {
+                return Some((x, y, e));
+            }
+            *o = e;
+        }
+        None
+    }
+
+    /// Sweep 1 over one data row: E and the first bad error.
+    fn sweep_max(&mut self, h0: &[f32], y: u32, scratch: &mut Vec<f32>) {
+        if self.bad.is_some() {
+            return;
+        }
+        scratch.resize(h0.len(), 0.0);
+        if let Some(b) = self.row_errors(h0, y, scratch) {
+            self.bad = Some(b);
+            return;
+        }
+        self.e_max = scratch.iter().copied().fold(self.e_max, f32::max);
+    }
+
+    /// Sweep 2 over one data row (`height` rows in all): cell maxima and sums, finished rows written.
+    fn sweep_tables(
+        &mut self,
+        file: &File,
+        h0: &[f32],
+        y: u32,
+        height: u32,
+    ) -> std::io::Result<()> {
+        let mut errs = std::mem::take(&mut self.errs);
+        let bad = self.row_errors(h0, y, &mut errs);
+        assert!(bad.is_none(), "sweep 1 refused every bad error");
+        let (s, mask) = (self.s, (1u32 << self.s) - 1);
+        // The closed cells' maxima of this row: sample x lies in cell x >> s and, on a lattice line, in
+        // the one before (as LevelTables::build_level).
+        self.rowmax.fill(0.0);
+        for (x, &e) in (0u32..).zip(errs.iter()) {
+            let c = (x >> s) as usize;
+            if let Some(m) = self.rowmax.get_mut(c) {
+                *m = m.max(e);
+            }
+            if c > 0 && x & mask == 0 {
+                self.rowmax[c - 1] = self.rowmax[c - 1].max(e);
+            }
+            let v = pow_unit(f64::from(e) * self.inv, self.p).min(1.0);
+            self.sums[c] = self.sums[c].wrapping_add(Sat::quantise_up(v, self.q, x, y));
+        }
+        self.errs = errs;
+        // Closed cell row `cur` covers rows cur 2^s ..= (cur + 1) 2^s: a row on the lattice ends it.
+        if y >> s == self.cur + 1 {
+            fold_max(&mut self.acc, &self.rowmax);
+            self.emit_max(file)?;
+            self.cur += 1;
+            self.acc.copy_from_slice(&self.rowmax);
+        } else if y == 0 {
+            self.acc.copy_from_slice(&self.rowmax);
+        } else {
+            fold_max(&mut self.acc, &self.rowmax);
+        }
+        if y + 1 == height && self.cur < self.ch {
+            self.emit_max(file)?;
+        }
+        // Half-open cell row y >> s ends on its last row or the grid's.
+        if (y + 1) & mask == 0 || y + 1 == height {
+            let mut run = 0u64;
+            for (sat, sum) in self.sat_row.iter_mut().zip(&mut self.sums) {
+                run = run.wrapping_add(*sum);
+                *sat = sat.wrapping_add(run);
+                *sum = 0;
+            }
+            let off = self.sat_off + u64::from(y >> s) * u64::from(self.sw) * 8;
+            self.bytes.clear();
+            self.bytes
+                .extend(self.sat_row.iter().flat_map(|v| v.to_le_bytes()));
+            write_at(file, off, &self.bytes)?;
+        }
+        Ok(())
+    }
+
+    /// Writes closed cell row `cur` (in `acc`) as max-pyramid level 0's row, and every coarser row it
+    /// finishes (level j + 1's row r / 2 is the 2 x 2 maxima of level j's rows r - 1 and r, in
+    /// [`RangeMax::build`]'s order).
+    fn emit_max(&mut self, file: &File) -> std::io::Result<()> {
+        let mut row = std::mem::take(&mut self.acc);
+        let (mut j, mut r) = (0usize, self.cur);
+        let result = loop {
+            let (w, h) = self.dims[j];
+            self.bytes.clear();
+            self.bytes.extend(row.iter().flat_map(|v| v.to_le_bytes()));
+            let off = self.max_off[j] + u64::from(r) * u64::from(w) * 4;
+            if let Err(e) = write_at(file, off, &self.bytes) {
+                break Err(e);
+            }
+            if j + 1 == self.dims.len() {
+                break Ok(());
+            }
+            let pend = &mut self.pend[j + 1];
+            for (x, p) in pend.iter_mut().enumerate() {
+                let mut m = if r % 2 == 0 { 0.0f32 } else { *p };
+                m = m.max(row[2 * x]);
+                if let Some(&v) = row.get(2 * x + 1) {
+                    m = m.max(v);
+                }
+                *p = m;
+            }
+            if r % 2 == 0 && r + 1 < h {
+                break Ok(());
+            }
+            // Level j + 1's row r / 2 is done: write it next (its buffer swapped in, level j's kept).
+            let done = std::mem::take(&mut self.pend[j + 1]);
+            if j == 0 {
+                self.acc = row;
+            } else {
+                self.pend[j] = row;
+            }
+            row = done;
+            j += 1;
+            r /= 2;
+        };
+        // Put the last buffer written back where it belongs.
+        if j == 0 {
+            self.acc = row;
+        } else {
+            self.pend[j] = row;
+        }
+        result
+    }
+}
+
+fn fold_max(acc: &mut [f32], row: &[f32]) {
+    for (a, &v) in acc.iter_mut().zip(row) {
+        *a = a.max(v);
+    }
+}
+
+/// Writes `bytes` at byte `offset` of `file` (positioned: the levels' rows land in any order).
+fn write_at(file: &File, offset: u64, bytes: &[u8]) -> std::io::Result<()> {
+    #[cfg(unix)]
+    {
+        std::os::unix::fs::FileExt::write_all_at(file, bytes, offset)
+    }
+    #[cfg(windows)]
+    {
+        let mut done = 0usize;
+        while done < bytes.len() {
+            let n = std::os::windows::fs::FileExt::seek_write(
+                file,
+                &bytes[done..],
+                offset + done as u64,
+            )?;
+            if n == 0 {
+                return Err(std::io::ErrorKind::WriteZero.into());
+            }
+            done += n;
+        }
+        Ok(())
+    }
+}
+
+/// Bakes `package`'s LOD tables for `params` into the cache file `path` under `key` (written to a
+/// temporary name and renamed, as every cache file), with a progress bar on stderr when `progress`.
+///
+/// Errors: the package's I/O and damaged tiles (naming the tile), a non-finite error (naming its sample,
+/// as [`LevelTables::build_level`]), and the file's writes.
+///
+/// [`LevelTables::build_level`]: crate::bake::lod_tables::LevelTables::build_level
+pub(crate) fn bake_to_file(
+    package: &Package,
+    params: &BakeParams,
+    key: u64,
+    path: &Path,
+    progress: bool,
+) -> Result<()> {
+    let header = package.header().clone();
+    let (width, height) = (header.width, header.height);
+    let last = u32::try_from(header.levels.len() - 1).expect("levels fit u32");
+    // A cache of its own over the same file: every tile a band reads, pinned for the band.
+    let reopened = Package::open(package.path())?;
+    if reopened.header() != &header {
+        return Err(Error::format(
+            package.path(),
+            "the package changed while its LOD tables were baked",
+        ));
+    }
+    let per_row: u64 = header.levels.iter().map(|l| u64::from(l.tiles_x)).sum();
+    let slots = 4 * per_row + crate::package::cache::MIN_SLOTS * u64::from(last + 1);
+    let mut cache = TileCache::new(
+        reopened,
+        CacheSplit::budget_for_slots(&header, slots),
+        "the LOD tables' bake",
+    )?;
+    let n = params.data_levels();
+    let mut levels: Vec<Level> = (1..n).map(|k| Level::new(k, width, params.p)).collect();
+    let bands = height.div_ceil(header.tile);
+    let bar = progress_bar(progress, 2 * u64::from(bands));
+    let mut h0 = Vec::new();
+
+    // Sweep 1: every level's E, and the first non-finite error.
+    for band in 0..bands {
+        let (y0, y1) = load_band(&mut cache, &mut levels, &mut h0, band, last)?;
+        let mut all: Vec<&mut Level> = levels.iter_mut().collect();
+        par_levels(&mut all, |lv| {
+            let mut scratch = Vec::new();
+            for y in y0..y1 {
+                lv.sweep_max(band_row(&h0, width, y - y0), y, &mut scratch);
+            }
+            Ok(())
+        })
+        .map_err(|e| Error::io(path, "cannot bake", e))?;
+        bar.inc(1);
+    }
+    if let Some((x, y, e)) = levels.iter().find_map(|l| l.bad) {
+        return Err(bad_error(x as usize, y as usize, e));
+    }
+
+    // The layout, now that every E (so every level's has-tables flag) is known.
+    let mut head = Vec::new();
+    head.extend_from_slice(MAGIC);
+    head.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
+    head.extend_from_slice(&key.to_le_bytes());
+    let frac = Sat::max_frac_bits(u64::from(width) * u64::from(height));
+    for w in [params.p, width, height, n, frac] {
+        head.extend_from_slice(&w.to_le_bytes());
+    }
+    // Data level 0 has no error.
+    head.extend_from_slice(&0f32.to_le_bytes());
+    head.extend_from_slice(&0u32.to_le_bytes());
+    let mut at = head.len() as u64;
+    let mut flags = Vec::new();
+    for lv in &mut levels {
+        let mut b = lv.e_max.to_le_bytes().to_vec();
+        b.extend_from_slice(&u32::from(lv.has_tables()).to_le_bytes());
+        flags.push((at, b));
+        at += 8;
+        if lv.has_tables() {
+            at = lv.lay_out(width, height, at);
+        }
+    }
+    let body = at.next_multiple_of(8);
+
+    let tmp = path.with_extension(format!("tmp{}", std::process::id()));
+    let written = write_tables(&tmp, &head, &flags, body, |file| {
+        // Sweep 2: the tables, each finished row written in place.
+        for band in 0..bands {
+            let (y0, y1) = load_band(&mut cache, &mut levels, &mut h0, band, last)?;
+            let mut with: Vec<&mut Level> = levels.iter_mut().filter(|l| l.has_tables()).collect();
+            par_levels(&mut with, |lv| {
+                for y in y0..y1 {
+                    lv.sweep_tables(file, band_row(&h0, width, y - y0), y, height)?;
+                }
+                Ok(())
+            })
+            .map_err(|e| Error::io(&tmp, "cannot write", e))?;
+            bar.inc(1);
+        }
+        Ok(())
+    });
+    bar.finish_and_clear();
+    if let Err(e) = written {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(e);
+    }
+    std::fs::rename(&tmp, path).map_err(|e| Error::io(path, "cannot rename into place", e))
+}
+
+/// Creates `tmp` `body` + 8 bytes long (zeros: every padding), writes the header and the levels' flags,
+/// runs `tables`, then appends the CRC-32 of the body read back in chunks.
+fn write_tables(
+    tmp: &Path,
+    head: &[u8],
+    flags: &[(u64, Vec<u8>)],
+    body: u64,
+    tables: impl FnOnce(&File) -> Result<()>,
+) -> Result<()> {
+    use std::io::Read;
+    if let Some(dir) = tmp.parent() {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, "cannot create folder", e))?;
+    }
+    let io = |e| Error::io(tmp, "cannot write", e);
+    let file = std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .create(true)
+        .truncate(true)
+        .open(tmp)
+        .map_err(io)?;
+    file.set_len(body + 8).map_err(io)?;
+    write_at(&file, 0, head).map_err(io)?;
+    for (at, b) in flags {
+        write_at(&file, *at, b).map_err(io)?;
+    }
+    tables(&file)?;
+    let mut crc = crc32fast::Hasher::new();
+    let mut buf = vec![0u8; CRC_CHUNK];
+    let mut reader = std::io::BufReader::new(&file).take(body);
+    loop {
+        let got = reader.read(&mut buf).map_err(io)?;
+        if got == 0 {
+            break;
+        }
+        crc.update(&buf[..got]);
+    }
+    write_at(&file, body, &u64::from(crc.finalize()).to_le_bytes()).map_err(io)
+}
+
+/// Row `r` of a band of level-0 heights `width` wide.
+fn band_row(h0: &[f32], width: u32, r: u32) -> &[f32] {
+    let w = width as usize;
+    &h0[r as usize * w..(r as usize + 1) * w]
+}
+
+/// Makes band `band`'s tiles resident (level-0 tile row `band`, and each level's rows its errors read),
+/// copies its level-0 heights into `h0` and each level's rows into its state, and drops the package's
+/// mapped pages; returns the band's data rows.
+fn load_band(
+    cache: &mut TileCache,
+    levels: &mut [Level],
+    h0: &mut Vec<f32>,
+    band: u32,
+    last: u32,
+) -> Result<(u32, u32)> {
+    let header = cache.package().header().clone();
+    let (width, t) = (header.width, header.tile);
+    let y0 = band * t;
+    let y1 = (y0 + t).min(header.height);
+    cache.begin_frame();
+    let mut budget = u64::MAX;
+    let mut all = cache.ensure_rect(
+        0,
+        (0, i64::from(y0), i64::from(width), i64::from(y1)),
+        &mut budget,
+    )?;
+    for lv in levels.iter() {
+        let (level, rect) = if lv.k <= last {
+            let d = header.levels[lv.k as usize];
+            let j0 = i64::from(y0 >> lv.ke);
+            let j1 = i64::from((y1 - 1) >> lv.ke) + 2;
+            (lv.k, (0, j0, i64::from(d.width), j1))
+        } else {
+            let d = header.levels[last as usize];
+            (last, (0, 0, i64::from(d.width), i64::from(d.height)))
+        };
+        all &= cache.ensure_rect(level as usize, rect, &mut budget)?;
+    }
+    assert!(
+        all,
+        "the bake's tile cache holds a band's tiles (sized from the widths)"
+    );
+    h0.clear();
+    for y in y0..y1 {
+        let mut x = 0;
+        while x < width {
+            let (x0, seg) = cache
+                .row_segment(0, x, y)
+                .expect("the band's level-0 tiles are resident");
+            debug_assert_eq!(x0, x);
+            h0.extend(seg.iter().map(|&v| cache.package().metres(v)));
+            x += u32::try_from(seg.len()).expect("a tile row fits u32");
+        }
+    }
+    for lv in levels.iter_mut() {
+        lv.load_band(cache, last, y0, y1);
+    }
+    cache.package().trim();
+    Ok((y0, y1))
+}
+
+/// Runs `f` over every level, the levels shared among the cores (each level's state is its own, so the
+/// result does not depend on the thread count).
+fn par_levels(
+    levels: &mut [&mut Level],
+    f: impl Fn(&mut Level) -> std::io::Result<()> + Sync,
+) -> std::io::Result<()> {
+    let threads = std::thread::available_parallelism()
+        .map_or(1, usize::from)
+        .clamp(1, 16);
+    if threads == 1 || levels.len() <= 1 {
+        return levels.iter_mut().try_for_each(|l| f(l));
+    }
+    let per = levels.len().div_ceil(threads);
+    let f = &f;
+    std::thread::scope(|s| {
+        let handles: Vec<_> = levels
+            .chunks_mut(per)
+            .map(|chunk| s.spawn(move || chunk.iter_mut().try_for_each(|l| f(l))))
+            .collect();
+        handles
+            .into_iter()
+            .try_for_each(|h| h.join().expect("a LOD table level panicked"))
+    })
+}
+
+fn progress_bar(progress: bool, len: u64) -> ProgressBar {
+    if !progress {
+        return ProgressBar::hidden();
+    }
+    let b = ProgressBar::new(len);
+    if let Ok(style) =
+        ProgressStyle::with_template("baking LOD tables {bar:30} band {pos}/{len} {elapsed}")
+    {
+        b.set_style(style);
+    }
+    b
+}
