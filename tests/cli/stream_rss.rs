@@ -1,7 +1,8 @@
 //! The 16385 x 16385 flight with its RSS bound (issue 13): `fly` streams a `procedural:size=16385`
 //! package through gles3-mid's 64 MiB tile cache, and its peak RSS exceeds the same flight over a 257^2
 //! package by at most `budget.cpu_memory_bytes`; the out-of-core bake of 4097^2 .. 16385^2 terrains stays
-//! within a fixed working set. Heavy (packages of a few hundred MB and 1.4 GB of temporary level files;
+//! within a fixed working set; `render --lod sat` over the 16385^2 package, its SAT LOD tables baked out of
+//! core on the first run, stays within the same bound of the 257^2 run. Heavy (packages of a few hundred MB and 1.4 GB of temporary level files;
 //! minutes in release), so ignored:
 //! `cargo test --release --test cli stream_rss -- --ignored --nocapture`. Needs `/usr/bin/time`.
 
@@ -11,16 +12,21 @@ use super::clipsat;
 
 /// Peak RSS in bytes of `clipsat args` under `/usr/bin/time -v`, or None when it is not installed.
 fn peak_rss(args: &[&str]) -> Option<u64> {
+    peak_rss_in(args, None)
+}
+
+/// [`peak_rss`] with `CLIPSAT_CACHE` set to `cache` when given.
+fn peak_rss_in(args: &[&str], cache: Option<&Path>) -> Option<u64> {
     if !Path::new("/usr/bin/time").is_file() {
         eprintln!("skipping: /usr/bin/time is not installed");
         return None;
     }
-    let o = std::process::Command::new("/usr/bin/time")
-        .arg("-v")
-        .arg(env!("CARGO_BIN_EXE_clipsat"))
-        .args(args)
-        .output()
-        .expect("run /usr/bin/time");
+    let mut cmd = std::process::Command::new("/usr/bin/time");
+    cmd.arg("-v").arg(env!("CARGO_BIN_EXE_clipsat")).args(args);
+    if let Some(c) = cache {
+        cmd.env("CLIPSAT_CACHE", c);
+    }
+    let o = cmd.output().expect("run /usr/bin/time");
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "clipsat {args:?}: {err}");
     let kib = err
@@ -106,5 +112,67 @@ fn bake_out_of_core_within_a_fixed_working_set() {
             .filter(|n| n.contains(".level"))
             .collect();
         assert!(left.is_empty(), "temporary level files left: {left:?}");
+    }
+}
+
+/// `render --lod sat` on gles3-mid over a `procedural:size=16385` package (issue 13's example): the first
+/// run bakes the SAT LOD tables out of core (`bake::lod_stream`, a 1.1 GB cache file), the second reads
+/// them through the file's map; each run's peak RSS exceeds the same run over a 257^2 package by at most
+/// `budget.cpu_memory_bytes`. The resident bake it replaced peaked at 849 MB for 8193^2.
+#[test]
+#[ignore = "minutes and large scratch files: cargo test --release --test cli stream_rss -- --ignored"]
+fn render_sat_16385_within_the_cpu_budget() {
+    let dir = super::scratch_in("cli_stream_rss", "render_sat");
+    let cache = dir.join("cache");
+    let mut peaks = Vec::new();
+    for size in [257u32, 16385] {
+        let pkg = dir.join(format!("p{size}.clipsat"));
+        let p = pkg.to_string_lossy();
+        let terrain = format!("procedural:size={size}");
+        let bake = clipsat(&["bake", &terrain, "--out", &p, "--json"]);
+        assert!(
+            bake.status.success(),
+            "bake {terrain}: {}",
+            String::from_utf8_lossy(&bake.stderr)
+        );
+        let render = [
+            "render",
+            "--terrain",
+            &p,
+            "--size",
+            "320x180",
+            "--profile",
+            "gles3-mid",
+            "--lod",
+            "sat",
+            "--json",
+        ];
+        let mut runs = Vec::new();
+        for run in ["baking the tables", "tables mapped"] {
+            let Some(peak) = peak_rss_in(&render, Some(&cache)) else {
+                return;
+            };
+            eprintln!(
+                "render --lod sat over {terrain} ({run}): peak RSS {} MiB",
+                peak >> 20
+            );
+            runs.push(peak);
+        }
+        peaks.push(runs);
+        let _ = std::fs::remove_file(&pkg);
+    }
+    let _ = std::fs::remove_dir_all(&cache);
+    let budget = clipsat::Profile::load("gles3-mid")
+        .expect("profile")
+        .budget
+        .cpu_memory_bytes;
+    for (run, (small, large)) in peaks[0].iter().zip(&peaks[1]).enumerate() {
+        let over = large.saturating_sub(*small);
+        assert!(
+            over <= budget,
+            "16385^2 render --lod sat (run {run}): {} MiB over the 257^2 one, budget {} MiB",
+            over >> 20,
+            budget >> 20
+        );
     }
 }
