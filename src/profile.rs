@@ -59,8 +59,9 @@ pub struct FrameBudget {
     pub max_triangles: u32,
     /// Bytes of GPU memory everything created at start-up may take.
     pub gpu_memory_bytes: u64,
-    /// Bytes of CPU memory the terrain may take at runtime, whatever its size: the CPU copy of the rings
-    /// plus the package tile cache, which gets the rest ([`Profile::cpu_split`]).
+    /// Bytes of CPU memory the terrain may take at runtime, whatever its size: the CPU copy of the rings,
+    /// the SAT LOD tables' resident pages, and the package tile cache, which gets the rest
+    /// ([`Profile::cpu_split`]).
     pub cpu_memory_bytes: u64,
     /// Height tiles in the detail pool (issue 15): finer data for the SAT LOD blocks whose wanted level
     /// the rings do not hold there; 0: no pool. At most [`MAX_DETAIL_TILES`].
@@ -79,7 +80,15 @@ pub struct CpuSplit {
     pub rings: u64,
     /// What is left for the package tile cache (header, tile map, decoder scratch and tile slots).
     pub tile_cache: u64,
+    /// The most of the SAT LOD tables' mapped pages held resident ([`LOD_TABLES_SHARE`] of what the
+    /// rings leave; `bake::mapped`): the tables' queries trim their map once their pages would pass it.
+    pub lod_tables: u64,
 }
+
+/// The part of `budget.cpu_memory_bytes` left after the rings that the SAT LOD tables' pages may hold
+/// (1/8: 7.8 MiB on gles3-mid; less where that would leave the tile cache under
+/// [`MIN_TILE_CACHE_BYTES`]); the tile cache gets the rest.
+pub const LOD_TABLES_SHARE: u64 = 8;
 
 /// The smallest tile cache a profile may leave: 1 MiB (about 60 tiles of 64^2 samples).
 pub const MIN_TILE_CACHE_BYTES: u64 = 1 << 20;
@@ -368,17 +377,21 @@ impl Profile {
         Ok(())
     }
 
-    /// How `budget.cpu_memory_bytes` is split between the rings' CPU copy and the tile cache (a validated
-    /// profile never saturates).
+    /// How `budget.cpu_memory_bytes` is split between the rings' CPU copy, the LOD tables' pages and the
+    /// tile cache (a validated profile never saturates).
     pub fn cpu_split(&self) -> CpuSplit {
         let s = u64::from(self.clip_size());
         let rings = s
             .saturating_mul(s)
             .saturating_mul(u64::from(self.clipmap.levels))
             .saturating_mul(8);
+        let rest = self.budget.cpu_memory_bytes.saturating_sub(rings);
+        // Never taking the tile cache under its minimum (validation guarantees rest >= the minimum).
+        let lod_tables = (rest / LOD_TABLES_SHARE).min(rest.saturating_sub(MIN_TILE_CACHE_BYTES));
         CpuSplit {
             rings,
-            tile_cache: self.budget.cpu_memory_bytes.saturating_sub(rings),
+            tile_cache: rest - lod_tables,
+            lod_tables,
         }
     }
 

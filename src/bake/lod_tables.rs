@@ -625,6 +625,20 @@ impl LodTables {
         }
     }
 
+    /// Holds at most `bytes` of the mapped tables' pages resident ([`Mapping::limit_resident`]: the
+    /// queries trim the map as they go once their pages would pass it, on top of the selector's trim once
+    /// per frame); nothing for tables in memory. The budget is [`crate::profile::CpuSplit::lod_tables`].
+    pub fn limit_resident(&self, bytes: u64) {
+        if let Some(m) = &self.mapping {
+            m.limit_resident(bytes);
+        }
+    }
+
+    /// The resident limit and the trims it forced (None for tables in memory).
+    pub fn resident_stats(&self) -> Option<crate::bake::mapped::ResidentStats> {
+        self.mapping.as_ref().map(Mapping::resident_stats)
+    }
+
     /// The tables of data level `k`, or None past the last baked level.
     pub fn level(&self, k: u32) -> Option<&LevelTables> {
         self.levels.get(k as usize)

@@ -9,16 +9,44 @@
 //! way, so every bound and every frame hash is unchanged by where a grid lives.
 
 use std::ops::Deref;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
-/// A read-only memory map shared by the grids that borrow it.
+/// Most pages a reader charges at once (a long column of a grid is charged in chunks of this many).
+pub const CHARGE_CHUNK: u32 = 256;
+
+/// The page size the resident limit counts in (4 KiB: x86-64 and most ARM; a system with larger pages
+/// holds proportionally more per counted page).
+pub const PAGE_BYTES: u64 = 4096;
+
+/// A read-only memory map shared by the grids that borrow it, with an optional limit on the pages its
+/// readers may hold resident ([`Mapping::limit_resident`]).
 #[derive(Clone)]
-pub struct Mapping(Arc<memmap2::Mmap>);
+pub struct Mapping(Arc<Shared>);
+
+struct Shared {
+    map: memmap2::Mmap,
+    /// Most pages held between trims (0: no limit).
+    limit: AtomicU64,
+    /// Pages charged since the last trim: an upper bound of those touched.
+    charged: AtomicU64,
+    /// Trims forced by the limit (not counting the callers' own [`Mapping::trim`]s).
+    forced: AtomicU64,
+}
 
 impl std::fmt::Debug for Mapping {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "Mapping({} bytes)", self.0.len())
+        write!(f, "Mapping({} bytes)", self.0.map.len())
     }
+}
+
+/// What a [`Mapping`]'s resident limit did (for reports).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct ResidentStats {
+    /// The limit, bytes (0: none).
+    pub limit_bytes: u64,
+    /// Trims the limit forced between the callers' own.
+    pub forced_trims: u64,
 }
 
 impl Mapping {
@@ -34,12 +62,52 @@ impl Mapping {
         // would multiply the pages a frame holds. Advice only; ignored where unsupported.
         #[cfg(unix)]
         let _ = map.advise(memmap2::Advice::Random);
-        Ok(Self(Arc::new(map)))
+        Ok(Self(Arc::new(Shared {
+            map,
+            limit: AtomicU64::new(0),
+            charged: AtomicU64::new(0),
+            forced: AtomicU64::new(0),
+        })))
     }
 
     /// The mapped bytes.
     pub fn bytes(&self) -> &[u8] {
-        &self.0
+        &self.0.map
+    }
+
+    /// Holds at most `bytes` of this map's pages resident (rounded down to whole pages, at least one; a
+    /// new map has no limit): the readers [`Mapping::charge`] each page they may touch before reading it, and
+    /// once the pages charged since the last trim would pass the limit, the map is trimmed first. A
+    /// budget carved from `budget.cpu_memory_bytes` ([`crate::profile::CpuSplit::lod_tables`]).
+    pub fn limit_resident(&self, bytes: u64) {
+        self.0
+            .limit
+            .store((bytes / PAGE_BYTES).max(1), Ordering::Relaxed);
+    }
+
+    /// The limit and what it did.
+    pub fn resident_stats(&self) -> ResidentStats {
+        ResidentStats {
+            limit_bytes: self.0.limit.load(Ordering::Relaxed) * PAGE_BYTES,
+            forced_trims: self.0.forced.load(Ordering::Relaxed),
+        }
+    }
+
+    /// Counts `pages` a reader is about to touch against the limit, trimming every page first when they
+    /// would pass it. Readers charge at most [`CHARGE_CHUNK`] pages at a time, so the pages held stay within
+    /// the limit plus one chunk.
+    #[inline]
+    pub fn charge(&self, pages: u64) {
+        let limit = self.0.limit.load(Ordering::Relaxed);
+        if limit == 0 {
+            return;
+        }
+        let now = self.0.charged.fetch_add(pages, Ordering::Relaxed) + pages;
+        if now > limit {
+            self.trim();
+            self.0.charged.store(pages, Ordering::Relaxed);
+            self.0.forced.fetch_add(1, Ordering::Relaxed);
+        }
     }
 
     /// Drops the pages of `offset .. offset + len` from this process's resident set (the next read faults
@@ -48,12 +116,12 @@ impl Mapping {
     pub fn trim_range(&self, offset: usize, len: usize) {
         #[cfg(unix)]
         {
-            let end = offset.saturating_add(len).min(self.0.len());
+            let end = offset.saturating_add(len).min(self.0.map.len());
             if end > offset {
                 // SAFETY: MADV_DONTNEED on a read-only, file-backed private map only discards clean pages,
                 // which are re-read from the file: no byte a slice of the map shows can change.
                 let _ = unsafe {
-                    self.0.unchecked_advise_range(
+                    self.0.map.unchecked_advise_range(
                         memmap2::UncheckedAdvice::DontNeed,
                         offset,
                         end - offset,
@@ -65,9 +133,11 @@ impl Mapping {
         let _ = (offset, len);
     }
 
-    /// Drops every page of the map from the resident set ([`Mapping::trim_range`]).
+    /// Drops every page of the map from the resident set ([`Mapping::trim_range`]); the pages charged
+    /// against the limit start again from 0.
     pub fn trim(&self) {
-        self.trim_range(0, self.0.len());
+        self.trim_range(0, self.0.map.len());
+        self.0.charged.store(0, Ordering::Relaxed);
     }
 }
 
@@ -115,6 +185,24 @@ impl<T: bytemuck::Pod> Grid<T> {
                 len,
             },
         })
+    }
+
+    /// Charges the pages a read of `cells` values (not necessarily contiguous) may touch against the map's
+    /// resident limit ([`Mapping::charge`]); free for an owned grid.
+    #[inline]
+    pub fn charge(&self, cells: u64) {
+        if let Store::Mapped { map, .. } = &self.store {
+            map.charge(cells);
+        }
+    }
+
+    /// [`Grid::charge`] for a contiguous run of `len` values: the pages it spans.
+    #[inline]
+    pub fn charge_run(&self, len: u64) {
+        if let Store::Mapped { map, .. } = &self.store {
+            let bytes = len * std::mem::size_of::<T>() as u64;
+            map.charge(bytes.div_ceil(PAGE_BYTES) + 1);
+        }
     }
 
     /// Whether the values live in a map rather than in memory this grid owns.
@@ -182,6 +270,23 @@ mod tests {
         assert_eq!(g.owned_bytes(), 0);
         map.trim();
         assert_eq!(&*g, &values[..], "trimming never changes the bytes");
+        // The resident limit: charges past it trim (and count), the bytes never change.
+        map.limit_resident(2 * PAGE_BYTES);
+        assert_eq!(map.resident_stats().limit_bytes, 2 * PAGE_BYTES);
+        g.charge(2);
+        assert_eq!(map.resident_stats().forced_trims, 0);
+        g.charge_run(100);
+        assert_eq!(map.resident_stats().forced_trims, 1, "2 + 2 pages pass 2");
+        map.trim();
+        g.charge(2);
+        assert_eq!(
+            map.resident_stats().forced_trims,
+            1,
+            "a trim starts the count again"
+        );
+        assert_eq!(&*g, &values[..]);
+        let owned = Grid::owned(values.clone());
+        owned.charge(1 << 40);
         assert!(Grid::<u64>::mapped(&map, 4, 10).is_none(), "misaligned");
         assert!(Grid::<u64>::mapped(&map, 8, 101).is_none(), "past the end");
         drop(g);

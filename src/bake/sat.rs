@@ -301,6 +301,8 @@ impl Sat {
             self.edge(y1, self.samples_h, "y"),
         );
         debug_assert!(b <= self.cols && d <= self.rows);
+        // Four entries, each on its own page at worst (mapped tables count them; bake::mapped).
+        self.table.charge(4);
         // Modular arithmetic: exact because the true sum is below 2^64 (checked in `build`).
         self.prefix(b, d)
             .wrapping_sub(self.prefix(a, d))

@@ -163,6 +163,8 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
         LodMode::Distance => None,
         _ => Some(super::render::lod_for(&hm, &profile, &clipmap, !args.json)?),
     };
+    // The mapped tables' resident limit, for the report.
+    let table_map = lod.as_ref().and_then(|l| l.tables().mapping.clone());
     // Every frame is planned (the SAT modes' block levels go into the frame hash); the plan is allocated
     // here, once.
     let mut planner = Planner::new(&profile, &clipmap, LodSetup::new(lod_mode, lod)?)?;
@@ -398,6 +400,7 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
         let stream = json!({
             "max_fill_plus_decode_samples": max_work,
             "tile_cache": clipmap.tile_cache().map(|c| json!({ "split": c.split(), "stats": c.stats() })),
+            "lod_tables": table_map.as_ref().map(clipsat::bake::mapped::Mapping::resident_stats),
         });
         // The detail pool's fields (json! of the whole summary would pass the macro recursion limit).
         let pool = json!({
@@ -485,6 +488,14 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
                 st.hits,
                 st.evictions,
                 st.refused
+            );
+        }
+        if let Some(m) = &table_map {
+            let r = m.resident_stats();
+            outln!(
+                "LOD tables   mapped, at most {:.1} MiB of their pages resident ({} trims forced)",
+                r.limit_bytes as f64 / 1048576.0,
+                r.forced_trims
             );
         }
         outln!("                        p50        p99        max");

@@ -80,13 +80,13 @@ pub(crate) fn run(args: &InfoArgs) -> Result<()> {
     outln!("heights   {lo:.1} .. {hi:.1} m");
     outln!("voids     {} filled", hm.voids_filled());
     outln!(
-        "profile     GPU memory needed / budget    coarsest ring span   CPU budget: rings + tile cache   \
+        "profile     GPU memory needed / budget    coarsest ring span   CPU budget: rings + tile cache + LOD tables   \
          detail pool                 SG tables (+ visibility)"
     );
     for p in &profiles {
         let mib = |v: &serde_json::Value| v.as_f64().unwrap_or(0.0) / 1048576.0;
         outln!(
-            "{:<11} {:>9.2} MiB / {:>7.1} MiB    {:>8.1} km          {:>6.1} MiB: {:.2} + {:.2} MiB   \
+            "{:<11} {:>9.2} MiB / {:>7.1} MiB    {:>8.1} km          {:>6.1} MiB: {:.2} + {:.2} + {:.2} MiB   \
              {} tiles of {}^2 ({:.2} MiB)   {:.2} MiB ({:.2} MiB)",
             p["profile"].as_str().unwrap_or("?"),
             mib(&p["gpu_bytes"]),
@@ -95,6 +95,7 @@ pub(crate) fn run(args: &InfoArgs) -> Result<()> {
             mib(&p["cpu_budget_bytes"]),
             mib(&p["cpu_split"]["rings"]),
             mib(&p["cpu_split"]["tile_cache"]),
+            mib(&p["cpu_split"]["lod_tables"]),
             p["detail_tiles"],
             p["detail_tile_samples"],
             mib(&p["parts"]["detail"]),
@@ -122,6 +123,7 @@ fn package_info(pkg: &clipsat::package::Package, as_json: bool) -> Result<()> {
             "cpu_budget_bytes": p.budget.cpu_memory_bytes,
             "rings_bytes": cpu.rings,
             "tile_cache": cache,
+            "lod_tables_bytes": cpu.lod_tables,
         }));
     }
     if as_json {
@@ -159,12 +161,14 @@ fn package_info(pkg: &clipsat::package::Package, as_json: bool) -> Result<()> {
         h.quantum,
         h.max_error
     );
-    outln!("profile     CPU budget = rings + cache (header + tile map + decoder + slots)");
+    outln!(
+        "profile     CPU budget = rings + cache (header + tile map + decoder + slots) + LOD table pages"
+    );
     for p in &profiles {
         let mib = |v: &serde_json::Value| v.as_f64().unwrap_or(0.0) / 1048576.0;
         let c = &p["tile_cache"];
         outln!(
-            "{:<11} {:>6.1} MiB = {:.2} + ({:.2} + {:.2} + {:.2} + {:.2} MiB: {} slots)",
+            "{:<11} {:>6.1} MiB = {:.2} + ({:.2} + {:.2} + {:.2} + {:.2} MiB: {} slots) + {:.2} MiB",
             p["profile"].as_str().unwrap_or("?"),
             mib(&p["cpu_budget_bytes"]),
             mib(&p["rings_bytes"]),
@@ -172,7 +176,8 @@ fn package_info(pkg: &clipsat::package::Package, as_json: bool) -> Result<()> {
             mib(&c["map"]),
             mib(&c["decoder"]),
             mib(&c["slots"]),
-            c["slot_count"]
+            c["slot_count"],
+            mib(&p["lod_tables_bytes"])
         );
     }
     Ok(())

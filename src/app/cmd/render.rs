@@ -106,6 +106,8 @@ pub(crate) fn lod_for(
         Some(cache) => bake::bake_lod_package(cache.package(), &params, &dir, progress)?,
         None => bake::bake_lod_mapped(hm, clipmap.pyramid(), &params, &dir, progress)?,
     };
+    // The mapped tables' pages held resident: their share of budget.cpu_memory_bytes.
+    tables.limit_resident(profile.cpu_split().lod_tables);
     Ok(Lod::for_clipmap(tables, profile, clipmap, hm))
 }
 
