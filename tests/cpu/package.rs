@@ -571,6 +571,23 @@ fn lod_tables_baked_out_of_core_match_the_resident_bake() {
         let (hit, o) = bake::bake_lod_package(&pkg, &params, &dir, false).expect("hit");
         assert_eq!(o, CacheOutcome::Hit, "{name}");
         assert_eq!(hit, resident, "{name}");
+        drop(hit);
+        // A damaged file is refused with its reason and baked again, never trusted.
+        let mut bad = a.clone();
+        let mid = bad.len() / 2;
+        bad[mid] ^= 0x40;
+        std::fs::write(&file, &bad).expect("damage");
+        let (again, o) = bake::bake_lod_package(&pkg, &params, &dir, false).expect("rebake");
+        assert!(
+            matches!(&o, CacheOutcome::Rebaked(r) if r.contains("checksum")),
+            "{name}: {o:?}"
+        );
+        assert_eq!(again, resident, "{name}");
+        assert_eq!(
+            std::fs::read(&file).expect("rebaked"),
+            a,
+            "{name}: rebaked bytes"
+        );
         for d in [&dir, &dir_b] {
             let _ = std::fs::remove_dir_all(d);
         }
