@@ -445,7 +445,9 @@ impl Planner {
         // A cell's bound at its level: the selection's own test over the cell's box.
         let bound_at = |level: u32, cell: (i64, i64, i64, i64)| -> f64 {
             match &self.lod {
-                LodSetup::Sat(mode, lod) => lod.box_bound_px(camera, *mode, level, cell),
+                LodSetup::Sat(mode, lod) => {
+                    lod.box_bound_at_eps(camera, *mode, level, cell, epsilon_px)
+                }
                 LodSetup::Distance => 0.0,
             }
         };

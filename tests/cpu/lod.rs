@@ -325,7 +325,8 @@ fn selection_orders_the_modes() {
 /// least the largest `VerticalScale::px` of e_L over the box's data samples in the frustum (what
 /// `measure::screen_error` reports), which is the pixel distance between the sample and the sample moved
 /// up or down by e_L (the longer) through the camera's own view-projection matrix; and `exact`'s bound is
-/// never above `sat-conservative`'s (the matrix is f32: to 1e-6).
+/// never above `sat-conservative`'s (the matrix is f32: to 1e-6). `Lod::box_bound_at_eps`, whose threshold
+/// test cuts sub-boxes over epsilon again, is a bound too, never above the split bound.
 #[test]
 fn split_bound_covers_every_sample() {
     let hm = terrain(129, 97, 30.0, |x, y| {
@@ -358,6 +359,7 @@ fn split_bound_covers_every_sample() {
     let aspect = f64::from(view.0) / f64::from(view.1);
     let mut checked = 0;
     let mut visible = 0;
+    let mut tightened = 0usize;
     for cam in cams {
         let cam = cam.expect("camera");
         let frustum = clipsat::plan::cull::Frustum::new(&cam, aspect);
@@ -411,12 +413,28 @@ fn split_bound_covers_every_sample() {
                     cons >= exact,
                     "level {level} {bx:?}: conservative {cons} < exact {exact}"
                 );
+                // The deeper cut of the threshold test (what the detail pool decides with) is still a
+                // bound: at thresholds around the split bound, where it cuts sub-boxes again.
+                for f in [0.7, 0.8, 0.9, 1.0] {
+                    for (mode, whole) in [(LodMode::Exact, exact), (LodMode::SatConservative, cons)]
+                    {
+                        let eps = whole * f;
+                        let deep = lod.box_bound_at_eps(&cam, mode, level, bx, eps);
+                        assert!(
+                            deep >= measured && deep <= whole,
+                            "level {level} {bx:?} {mode:?} at {eps}: deep {deep}, split {whole}, \
+                             measured {measured}"
+                        );
+                        tightened += usize::from(deep < whole);
+                    }
+                }
                 checked += 1;
             }
         }
     }
     assert_eq!(checked, 320);
     assert!(visible > 10_000, "{visible} visible samples");
+    assert!(tightened > 0, "the deeper cut never tightened a bound");
 }
 
 /// The bake cache: miss, hit (identical tables), and every damaged file refused and rebaked.
