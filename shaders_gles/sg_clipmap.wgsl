@@ -6,7 +6,9 @@
 // samples matches it, as the SAT paper picks its box; the finest ring at or above that level holding the
 // pixel is read, 4 textureLoads (float textures are not filterable on GLES 3.0) blended bilinearly. Each
 // texel holds the box mean of the data's normals over 2^k + 1 samples centred on it, so the blend is a
-// tent filter about 2^(k+1) samples wide. `clipsat::twin::shading::sg_taps` is the CPU twin.
+// tent filter about 2^(k+1) samples wide (its w: the horizon's sine toward the first sun). With visibility
+// the light table is read at the same taps (sg_visibility.wgsl). `clipsat::twin::shading::sg_taps` and
+// `sg_texel` are the CPU twins.
 
 @group(2) @binding(0) var<uniform> sg_scene: SgScene;
 @group(2) @binding(1) var level_normal: texture_2d_array<f32>;
@@ -28,7 +30,10 @@ fn sg_bilinear(a: vec4<f32>, b: vec4<f32>, c: vec4<f32>, d: vec4<f32>, f: vec2<f
 
 // The taps of eye-relative point rel for a footprint of `w` data samples (the larger side of the pixel's
 // box): level synth + round(log2 w), or the finest ring holding rel if that is coarser; then coarser
-// until one holds it (level_holds, clipmap.wgsl).
+// until one holds it (level_holds, clipmap.wgsl). Where none does (a pixel at the data's border, or a
+// footprint coarser than every ring), the coarsest ring of 4 x 4 samples or more (level_info.w), its cell
+// clamped into the held ones: every pixel reads a table, with no branch to a second shading path (which
+// llvmpipe would run at every pixel). level < 0 only for a clipmap without such a ring.
 fn sg_taps(rel: vec2<f32>, w: f32) -> SgTaps {
     var t: SgTaps;
     t.level = -1;
@@ -36,21 +41,27 @@ fn sg_taps(rel: vec2<f32>, w: f32) -> SgTaps {
     // Rings finer than the data (synthesised) are never read: the data level is g_data / g_0 = 2^synth.
     let synth = max(i32(round(log2(sg_scene.grid.x / globals.levels[0].rel.w))), 0);
     let k = i32(round(log2(max(w, 1.0))));
+    var pick = globals.level_info.w;
     for (var l = max(synth + k, finest_level(rel)); l < n; l = l + 1) {
         let lv = globals.levels[l];
-        let u = level_uv(lv, rel);
-        let i = vec2<i32>(floor(u));
-        if (level_holds(lv, i)) {
-            let s = vec2<i32>(globals.level_info.y);
-            t.level = l;
-            t.t00 = (lv.tex.xy + i) % s;
-            t.t10 = (lv.tex.xy + i + vec2<i32>(1, 0)) % s;
-            t.t01 = (lv.tex.xy + i + vec2<i32>(0, 1)) % s;
-            t.t11 = (lv.tex.xy + i + vec2<i32>(1, 1)) % s;
-            t.f = u - vec2<f32>(i);
-            return t;
+        if (level_holds(lv, vec2<i32>(floor(level_uv(lv, rel))))) {
+            pick = l;
+            break;
         }
     }
+    if (pick < 0) {
+        return t;
+    }
+    let lv = globals.levels[pick];
+    let u = level_uv(lv, rel);
+    let i = clamp(vec2<i32>(floor(u)), vec2<i32>(1), lv.tex.zw - vec2<i32>(3));
+    let s = vec2<i32>(globals.level_info.y);
+    t.level = pick;
+    t.t00 = (lv.tex.xy + i) % s;
+    t.t10 = (lv.tex.xy + i + vec2<i32>(1, 0)) % s;
+    t.t01 = (lv.tex.xy + i + vec2<i32>(0, 1)) % s;
+    t.t11 = (lv.tex.xy + i + vec2<i32>(1, 1)) % s;
+    t.f = clamp(u - vec2<f32>(i), vec2<f32>(0.0), vec2<f32>(1.0));
     return t;
 }
 
@@ -66,8 +77,8 @@ fn sg_footprint(v: VsOut) -> f32 {
 fn sg_colour(v: VsOut, w: f32) -> vec4<f32> {
     let taps = sg_taps(v.rel.xy, w);
     // SG_OMIT 1 (`bench shading`'s breakdown only): no footprint fetch, the drawn mesh's normal; so too
-    // where no ring holds the pixel.
-    var r = normalize(v.normal) * 0.999;
+    // where no ring holds the pixel. w: the horizon's sine toward the first sun (visibility only).
+    var r = vec4<f32>(normalize(v.normal) * 0.999, -2.0);
     if (SG_OMIT != 1u && taps.level >= 0) {
         r = sg_bilinear(
             textureLoad(level_normal, taps.t00, taps.level, 0),
@@ -75,11 +86,14 @@ fn sg_colour(v: VsOut, w: f32) -> vec4<f32> {
             textureLoad(level_normal, taps.t01, taps.level, 0),
             textureLoad(level_normal, taps.t11, taps.level, 0),
             taps.f,
-        ).xyz;
+        );
     }
-    sg_fetch_horizon(taps);
+    // sg_visibility.wgsl, or the stub of sg_no_visibility.wgsl. SG_OMIT 3 does not read the table.
+    if (SG_OMIT != 3u) {
+        sg_fetch_light(taps, r.w);
+    }
     // sg_fog.wgsl, or the pass-through of sg_no_fog.wgsl in variants without fog.
-    let colour = sg_fog(sg_shade(r, normalize(-v.rel), sg_scene), length(v.rel));
+    let colour = sg_fog(sg_shade(r.xyz, normalize(-v.rel), sg_scene), length(v.rel));
     return vec4<f32>(pow(clamp(colour, vec3<f32>(0.0), vec3<f32>(1.0)), vec3<f32>(1.0 / 2.2)), 1.0);
 }
 

@@ -3,8 +3,9 @@
 // twin clipsat::shading::shade (tests/sg_gpu.rs). Appended after sg_shading.wgsl and a specular file.
 
 @group(0) @binding(0) var<uniform> sg_scene: SgScene;
-// RGBA32F, column = case. Row 0: r (xyz); row 1: view (xyz); rows 2..5: horizon angles, 4 per row
-// (unused ones 0).
+// RGBA32F, column = case. Row 0: r (xyz), w the horizon's sine toward the first sun; row 1: view (xyz);
+// row 2: the light texel (rgb diffuse, a the horizon's mean sine), as the light table holds it (w and a
+// -2 without visibility).
 @group(0) @binding(1) var probe_inputs: texture_2d<f32>;
 
 @vertex
@@ -17,13 +18,9 @@ fn vs_probe(@builtin(vertex_index) k: u32) -> @builtin(position) vec4<f32> {
 @fragment
 fn fs_probe(@builtin(position) p: vec4<f32>) -> @location(0) vec4<u32> {
     let x = i32(p.x);
-    let r = textureLoad(probe_inputs, vec2<i32>(x, 0), 0).xyz;
+    let r = textureLoad(probe_inputs, vec2<i32>(x, 0), 0);
     let view = textureLoad(probe_inputs, vec2<i32>(x, 1), 0).xyz;
-    let d = u32(sg_scene.material.z);
-    // The shader's horizon is the angles' sines (what the level tables hold).
-    for (var l = 0u; l < 4u; l++) {
-        sg_hz[l] = sin(textureLoad(probe_inputs, vec2<i32>(x, 2 + i32(l)), 0));
-    }
-    sg_hz_count = d;
-    return bitcast<vec4<u32>>(vec4<f32>(sg_shade(r, view, sg_scene), 1.0));
+    sg_texel = textureLoad(probe_inputs, vec2<i32>(x, 2), 0);
+    sg_sun_sin = r.w;
+    return bitcast<vec4<u32>>(vec4<f32>(sg_shade(r.xyz, view, sg_scene), 1.0));
 }

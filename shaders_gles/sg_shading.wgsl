@@ -1,31 +1,28 @@
 // Stage 3, the GPU: reduced spherical-Gaussian shading (Li et al. 2021, the SAT paper, section 5,
-// algorithms 2 and 3), the WGSL port of `clipsat::shading::shade`, line for line; `clipsat::sg` holds the
-// same maths on the CPU. A library: no entry points. src/gpu/shaders.rs prepends `const SG_BANDS: u32`
-// (M theta bands), the sky table's constants and its binding `sky_table` (the program's group), and
-// appends one specular file (sg_specular.wgsl or sg_no_specular.wgsl) and a program, so each effect set
-// is its own text.
+// algorithms 2 and 3), the WGSL port of `clipsat::shading::shade_pixel`, line for line; `clipsat::sg` holds
+// the same maths on the CPU. A library: no entry points. src/gpu/shaders.rs prepends `const SG_BANDS: u32`
+// (M theta bands), `const SG_VISIBILITY: bool`, the sky table's constants and its binding `sky_table` (the
+// program's group), and appends one specular file (sg_specular.wgsl or sg_no_specular.wgsl) and a
+// program, so each effect set is its own text.
 //
-// The horizon of the pixel (the sines of its D elevation angles, 4 to a vec4) is handed over in the
-// private `sg_hz`, `sg_hz_count` (0: no visibility), which the program fills before calling `sg_shade`.
-// Every loop over it has a constant bound and constant indices (llvmpipe keeps a dynamically indexed
-// private array in memory and runs each access per lane); a D below 16 skips the rest under uniform
-// branches.
+// With visibility the view-independent part of the shading (every light's diffuse term with the horizon
+// applied: SAT paper algorithm 3) is computed on the CPU per texel of the per-level light table when the
+// texel is written (`clipsat::shading::texel_light`); the program blends 4 texels into the private
+// `sg_texel` (rgb: the diffuse radiance, a: the horizon's mean sine) and `sg_sun_sin` (the horizon's sine
+// toward the first sun) before calling `sg_shade`, which adds the view-dependent specular term. Without
+// visibility `sg_shade` integrates the diffuse term itself: the suns one direction each, the broad lights
+// from the sky table.
 
 const SG_PI: f32 = 3.14159265358979;
-const SG_TAU: f32 = 6.28318530717959;
 const SG_HALF_PI: f32 = 1.57079632679490;
 // Mirrors clipsat::gpu::shaders::MAX_SG_LIGHTS (the desktop profile's max_sg_lights).
 const SG_MAX_LIGHTS: u32 = 8u;
-// clipsat::sg::COSINE_LAMBDA, COSINE_MU, R_MIN, R_MAX.
-const SG_COSINE_LAMBDA: f32 = 2.133;
-const SG_COSINE_MU: f32 = 1.170;
+// clipsat::sg::R_MIN, R_MAX.
 const SG_R_MIN: f32 = 1.0e-3;
 const SG_R_MAX: f32 = 0.9999;
 // clipsat::shading::sky_table::S_MIN, S_MAX.
 const SG_SKY_S_MIN: f32 = 0.01;
 const SG_SKY_S_MAX: f32 = 1.0;
-// 1 / sqrt(3), the 2-point Gauss-Legendre node.
-const SG_GAUSS_2: f32 = 0.5773503;
 
 // One light lobe; mirrors clipsat::gpu::shaders::SgLightUniform.
 struct SgLight {
@@ -40,12 +37,13 @@ struct SgScene {
     lights: array<SgLight, 8>,
     // rgb: diffuse albedo k_d (linear), w: number of lights
     kd_count: vec4<f32>,
-    // x: k_s, y: roughness, z: azimuths D (0: visibility off), w: fog extinction (1/m, 0: off)
+    // x: k_s, y: roughness, z: azimuths D of the light table (0: visibility off; informative), w: fog
+    // extinction (1/m, 0: off)
     material: vec4<f32>,
     // rgb: fog colour (linear), w: unused
     fog: vec4<f32>,
-    // x: the data's spacing (m); y: horizon layers per ring (sg_visibility.wgsl); z: the number of sharp
-    // lights (suns), which come first in `lights`; w: unused
+    // x: the data's spacing (m); y: unused; z: the number of sharp lights (suns), which come first in
+    // `lights`; w: unused
     grid: vec4<f32>,
 }
 
@@ -62,8 +60,12 @@ struct SgVmf {
     r_len: f32,
 }
 
-var<private> sg_hz: array<vec4<f32>, 4>;
-var<private> sg_hz_count: u32;
+// The pixel's light-table texel: with visibility, the blend of the light table (sg_visibility.wgsl, or the
+// probe's input): rgb the diffuse radiance (k_d / pi applied), a the mean of the horizon's sines; without,
+// a = -2 (below any cut) and rgb unused. sg_sun_sin: the horizon's sine toward the first sun (the normal
+// table's w), -2 without visibility.
+var<private> sg_texel: vec4<f32>;
+var<private> sg_sun_sin: f32;
 
 // e^x - 1 without cancellation near 0 (clipsat::sg::expm1).
 fn sg_expm1(x: f32) -> f32 {
@@ -136,7 +138,7 @@ fn sg_vmf_cosine(t: f32, vmf: SgVmf) -> f32 {
     }
     let s = sqrt(v);
     let x = m / s;
-    let e = exp(-0.5 * x * x);
+    let e = exp(max(-0.5 * x * x, -80.0));
     let z = abs(x) * 0.70710678;
     let tau = 1.0 / (1.0 + 0.3275911 * z);
     let poly = tau
@@ -149,8 +151,7 @@ fn sg_vmf_cosine(t: f32, vmf: SgVmf) -> f32 {
     return max(m * cdf + s * e * 0.3989423, 0.0);
 }
 
-// The pixel's cut (clipsat::shading::Cut): the mean normal and cos, sin of the plane's drop; the horizon
-// is in sg_hz.
+// The pixel's cut (clipsat::shading::Cut): the mean normal and cos, sin of the plane's drop.
 struct SgCut {
     n: vec3<f32>,
     cos_drop: f32,
@@ -159,27 +160,6 @@ struct SgCut {
 
 fn sg_cut(n: vec3<f32>, drop: f32) -> SgCut {
     return SgCut(n, cos(drop), sin(drop));
-}
-
-// The sine of the horizon at world azimuth a, linear between the D baked azimuths
-// (clipsat::shading::Cut::horizon_sin_at): the two neighbours picked by selects over the four vec4s, not by
-// a dynamic index.
-fn sg_horizon_sin_at(a: f32) -> f32 {
-    let d = sg_hz_count;
-    let t = fract(a / SG_TAU) * f32(d);
-    let k0 = min(u32(floor(t)), d - 1u);
-    let f = t - f32(k0);
-    let k1 = (k0 + 1u) % d;
-    let w0 = vec4<f32>(1.0 - f);
-    let w1 = vec4<f32>(f);
-    let zero = vec4<f32>(0.0);
-    var h = 0.0;
-    for (var j = 0u; j < 4u; j++) {
-        let idx = vec4<u32>(4u * j) + vec4<u32>(0u, 1u, 2u, 3u);
-        let w = select(zero, w0, idx == vec4<u32>(k0)) + select(zero, w1, idx == vec4<u32>(k1));
-        h += dot(sg_hz[j], w);
-    }
-    return h;
 }
 
 // The sine of the lowered plane's elevation toward unit horizontal direction (ux, uy)
@@ -195,37 +175,13 @@ fn sg_plane_sin(c: SgCut, ux: f32, uy: f32) -> f32 {
     return plane;
 }
 
-// The sine of the horizon toward horizontal direction (dx, dy), or -2 (below any cut) without visibility.
-fn sg_horizon_sin_toward(dx: f32, dy: f32) -> f32 {
-    if (sg_hz_count == 0u) {
-        return -2.0;
-    }
-    return sg_horizon_sin_at(atan2(dy, dx));
-}
-
-// TransferVis + PatchVis (SAT paper algorithm 3): the sine of the elevation below which horizontal
-// direction (dx, dy) is cut, the higher of the horizon's sine `hs` there and the mean normal's lowered
-// tangent plane, the plane's without trigonometry (clipsat::shading::Cut::sin_at).
-fn sg_cut_sin(c: SgCut, dx: f32, dy: f32, hs: f32) -> f32 {
-    let inv_d = 1.0 / sqrt(max(dx * dx + dy * dy, 1.0e-30));
-    return max(sg_plane_sin(c, dx * inv_d, dy * inv_d), hs);
-}
-
-// The fraction of a light about `axis` of radius sigma above the horizon alone, `hs` the horizon's sine
-// toward it (clipsat::shading::Cut::horizon_visible).
-fn sg_horizon_visible(axis: vec3<f32>, sigma: f32, hs: f32) -> f32 {
-    if (sg_hz_count == 0u) {
-        return 1.0;
-    }
-    let h = asin(clamp(hs, -1.0, 1.0));
-    let el = asin(clamp(axis.z, -1.0, 1.0));
-    return clamp((el + sigma - h) / (2.0 * sigma), 0.0, 1.0);
-}
-
-// The fraction of a lobe about `axis` of radius sigma above the cut, `hs` the horizon's sine toward it
-// (clipsat::shading::Cut::soft_visible).
+// The fraction of a lobe about `axis` of radius sigma above the cut: the higher of the lowered plane and
+// `hs`, the horizon's sine toward it (TransferVis + PatchVis, SAT paper algorithm 3;
+// clipsat::shading::Cut::soft_visible).
 fn sg_soft_visible(c: SgCut, axis: vec3<f32>, sigma: f32, hs: f32) -> f32 {
-    let cut = asin(clamp(sg_cut_sin(c, axis.x, axis.y, hs), -1.0, 1.0));
+    let inv_d = 1.0 / sqrt(max(axis.x * axis.x + axis.y * axis.y, 1.0e-30));
+    let plane = sg_plane_sin(c, axis.x * inv_d, axis.y * inv_d);
+    let cut = asin(clamp(max(plane, hs), -1.0, 1.0));
     let el = asin(clamp(axis.z, -1.0, 1.0));
     return clamp((el + sigma - cut) / (2.0 * sigma), 0.0, 1.0);
 }
@@ -267,103 +223,43 @@ fn sg_sky(n: vec3<f32>, r_len: f32) -> vec3<f32> {
     return mix(a, b, fl);
 }
 
-// One wedge of `sg_occluded`: direction (ca, sa), horizon sine hi; the lobe's energy between the plane's
-// and the horizon's sines times the half span (2-point Gauss-Legendre over z = sin(elevation)).
-fn sg_wedge(p: Sg, c: SgCut, ca: f32, sa: f32, hi: f32) -> f32 {
-    let lo = sg_plane_sin(c, ca, sa);
-    let half = 0.5 * max(hi - lo, 0.0);
-    let mid = 0.5 * (hi + lo);
-    let horizontal = p.axis.x * ca + p.axis.y * sa;
-    let z0 = mid - SG_GAUSS_2 * half;
-    let z1 = mid + SG_GAUSS_2 * half;
-    let rho0 = sqrt(max(1.0 - z0 * z0, 0.0));
-    let rho1 = sqrt(max(1.0 - z1 * z1, 0.0));
-    let w0 = exp(p.lambda * (horizontal * rho0 + p.axis.z * z0 - 1.0));
-    let w1 = exp(p.lambda * (horizontal * rho1 + p.axis.z * z1 - 1.0));
-    return (w0 + w1) * half;
-}
-
-// Two wedges, each over a pair of baked azimuths (h.xy, h.zw): at the pair's middle direction `rot`
-// (cos, sin), the horizon there (the pair's mean sine), width 2 dphi; `rot` steps by two azimuths.
-fn sg_wedges4(p: Sg, c: SgCut, h: vec4<f32>, rot: ptr<function, vec2<f32>>, step: vec2<f32>) -> f32 {
-    let r0 = *rot;
-    let r1 = vec2<f32>(r0.x * step.x - r0.y * step.y, r0.y * step.x + r0.x * step.y);
-    *rot = vec2<f32>(r1.x * step.x - r1.y * step.y, r1.y * step.x + r1.x * step.y);
-    return sg_wedge(p, c, r0.x, r0.y, 0.5 * (h.x + h.y)) + sg_wedge(p, c, r1.x, r1.y, 0.5 * (h.z + h.w));
-}
-
-// What the horizon hides of product lobe p above the lowered plane: per pair of baked azimuths, the wedge
-// between the plane's and the horizon's sines, 2-point Gauss-Legendre over z = sin(elevation)
-// (clipsat::shading::occluded, which says why). Two wedges a vec4, each group under a uniform branch.
-fn sg_occluded(p: Sg, c: SgCut) -> vec3<f32> {
-    let d = sg_hz_count;
-    let dphi = SG_TAU / f32(d);
-    // Pair middles: from half an azimuth, two azimuths apart.
-    let step = vec2<f32>(cos(2.0 * dphi), sin(2.0 * dphi));
-    var rot = vec2<f32>(cos(0.5 * dphi), sin(0.5 * dphi));
-    var sum = sg_wedges4(p, c, sg_hz[0], &rot, step);
-    if (d > 4u) {
-        sum += sg_wedges4(p, c, sg_hz[1], &rot, step);
-    }
-    if (d > 8u) {
-        sum += sg_wedges4(p, c, sg_hz[2], &rot, step);
-    }
-    if (d > 12u) {
-        sum += sg_wedges4(p, c, sg_hz[3], &rot, step);
-    }
-    return p.mu * (sum * 2.0 * dphi);
-}
-
-// Outgoing linear radiance toward `view` (unit, surface to eye) for mean normal r: the suns one direction
-// each, the broad lights from the sky table less what the horizon hides, plus the variant's specular term
-// (clipsat::shading::shade). SG_OMIT (a benchmark knob, `clipsat bench shading`'s breakdown; 0 in every
-// rendering variant) drops one term: 2 the vMF (a single normal), 3 the sky table and its horizon wedges
-// (every lobe as one direction).
+// Outgoing linear radiance toward `view` (unit, surface to eye) for mean normal r: the diffuse term from
+// `sg_texel` with visibility, else the suns one direction each and the broad lights from the sky table;
+// plus the variant's specular term (clipsat::shading::shade_pixel). SG_OMIT (a benchmark knob, `clipsat
+// bench shading`'s breakdown; 0 in every rendering variant) drops one term: 2 the vMF (a single normal),
+// 3 the light table and the sky table (every lobe as one direction, unshadowed).
 fn sg_shade(r: vec3<f32>, view: vec3<f32>, s: SgScene) -> vec3<f32> {
     var vmf = sg_vmf(r);
-    var cosine = Sg(vmf.axis, SG_COSINE_LAMBDA, vec3<f32>(SG_COSINE_MU));
     var cut = SgCut(vmf.axis, 1.0, 0.0);
     if (SG_OMIT == 2u) {
         vmf.kappa = 1.0e4;
         vmf.r_len = SG_R_MAX;
     } else {
-        cosine = sg_convolve_vmf(cosine, vmf.kappa);
         cut = sg_cut(vmf.axis, sg_plane_drop(vmf.kappa));
     }
-    var diffuse = vec3<f32>(0.0);
     let count = min(u32(s.kd_count.w), SG_MAX_LIGHTS);
-    // Suns come first (SgSceneUniform::new): one loop per kind rather than a branch per light, which
-    // llvmpipe would run both ways. SG_OMIT 3 (`bench shading`'s breakdown): every lobe as one direction.
-    var suns = min(u32(s.grid.z), count);
-    if (SG_OMIT == 3u) {
-        suns = count;
-    }
-    // The variant's specular lobe (sg_specular.wgsl; a stub without specular).
-    let lobe = sg_specular_lobe(vmf, view, s);
-    var spec = vec3<f32>(0.0);
-    for (var i = 0u; i < suns; i++) {
-        // A sun: one direction (clipsat::shading::SHARP_LAMBDA). Its horizon is looked up once, for its
-        // diffuse and its specular term.
-        let l = s.lights[i];
-        let light = Sg(l.axis_lambda.xyz, l.axis_lambda.w, l.mu.xyz);
-        let sigma = sqrt(2.0 / max(light.lambda, 1.0e-6));
-        let hs = sg_horizon_sin_toward(light.axis.x, light.axis.y);
-        let f = sg_vmf_cosine(dot(vmf.axis, light.axis), vmf) * sg_horizon_visible(light.axis, sigma, hs);
-        diffuse += light.mu * (sg_unit_integral(light.lambda) * f);
-        spec += sg_sun_specular(lobe, vmf.axis, cut, light, hs, s);
-    }
-    // Uniform: the scene's light counts.
-    if (suns < count) {
-        var hidden = vec3<f32>(0.0);
-        if (sg_hz_count > 0u) {
-            for (var i = suns; i < count; i++) {
-                let l = s.lights[i];
-                let light = Sg(l.axis_lambda.xyz, l.axis_lambda.w, l.mu.xyz);
-                hidden += sg_occluded(sg_product(light, cosine), cut);
-            }
+    // Suns come first (SgSceneUniform::new).
+    let suns = min(u32(s.grid.z), count);
+    var diffuse = sg_texel.rgb;
+    // Constant per variant: the other side is not compiled.
+    if (!SG_VISIBILITY || SG_OMIT == 3u) {
+        // One loop per kind rather than a branch per light, which llvmpipe would run both ways.
+        var direct = suns;
+        if (SG_OMIT == 3u) {
+            direct = count;
         }
-        diffuse += max(sg_sky(vmf.axis, vmf.r_len) - hidden, vec3<f32>(0.0));
+        var d = vec3<f32>(0.0);
+        for (var i = 0u; i < direct; i++) {
+            // A sun: one direction (clipsat::shading::SHARP_LAMBDA).
+            let l = s.lights[i];
+            let t = dot(vmf.axis, l.axis_lambda.xyz);
+            d += l.mu.xyz * (sg_unit_integral(l.axis_lambda.w) * sg_vmf_cosine(t, vmf));
+        }
+        // Uniform: the scene's light counts.
+        if (direct < count) {
+            d += sg_sky(vmf.axis, vmf.r_len);
+        }
+        diffuse = s.kd_count.rgb * d / SG_PI;
     }
-    spec += sg_broad_specular(lobe, vmf.axis, cut, suns, count, s);
-    return s.kd_count.rgb * diffuse / SG_PI + spec;
+    return diffuse + sg_specular(vmf, view, cut, suns, count, s);
 }

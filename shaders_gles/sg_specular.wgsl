@@ -1,5 +1,5 @@
 // Stage 3, the GPU: the SG specular term (clipsat::shading::warped_ndf and the specular terms of
-// clipsat::shading::shade), appended after sg_shading.wgsl only for scenes with `effects.specular`.
+// clipsat::shading::shade_pixel), appended after sg_shading.wgsl only for scenes with `effects.specular`.
 
 // The NDF as an SG (lambda = 2 / alpha^2, mu = 1 / (pi alpha^2), alpha = roughness^2), widened by the vMF,
 // warped to light-direction space about the mirror direction, lambda_w = lambda / (4 |n.o|)
@@ -20,11 +20,6 @@ fn sg_warped_ndf(vmf: SgVmf, roughness: f32, view: vec3<f32>) -> Sg {
     return Sg(mirror, ndf.lambda / (4.0 * n_o), ndf.mu);
 }
 
-// The specular lobe of the pixel (the warped NDF) for the scene's roughness.
-fn sg_specular_lobe(vmf: SgVmf, view: vec3<f32>, s: SgScene) -> Sg {
-    return sg_warped_ndf(vmf, s.material.y, view);
-}
-
 // k_s times product lobe q's integral, D / 4 with the cosine at the lobe's axis, times the fraction of
 // its one-sigma cap above the cut, `hs` the horizon's sine there.
 fn sg_lobe_specular(q: Sg, n: vec3<f32>, cut: SgCut, hs: f32, s: SgScene) -> vec3<f32> {
@@ -33,27 +28,22 @@ fn sg_lobe_specular(q: Sg, n: vec3<f32>, cut: SgCut, hs: f32, s: SgScene) -> vec
     return q.mu * (sg_unit_integral(q.lambda) * 0.25 * c * sg_soft_visible(cut, q.axis, sigma, hs) * s.material.x);
 }
 
-// A sun's specular term, cut at the sun's own horizon `hs` (its product lobe's axis is within a few
-// degrees of the sun: lambda 2000 against the lobe's tens).
-fn sg_sun_specular(lobe: Sg, n: vec3<f32>, cut: SgCut, light: Sg, hs: f32, s: SgScene) -> vec3<f32> {
-    // Uniform: the scene's k_s.
-    if (s.material.x <= 0.0) {
-        return vec3<f32>(0.0);
-    }
-    return sg_lobe_specular(sg_product(light, lobe), n, cut, hs, s);
-}
-
-// The broad lights' (lights first..count) specular terms, each cut at the horizon toward its product
-// lobe's axis.
-fn sg_broad_specular(lobe: Sg, n: vec3<f32>, cut: SgCut, first: u32, count: u32, s: SgScene) -> vec3<f32> {
+// Every light's specular term: the product of the light and the pixel's warped NDF, cut at the higher
+// of the lowered plane and the horizon: the first sun's at its own azimuth (`sg_sun_sin`: its product
+// lobe's axis is within a few degrees of the sun, lambda 2000 against the lobe's tens), every other
+// lobe's at the horizon's mean (`sg_texel.a`; -2, no horizon, without visibility).
+fn sg_specular(vmf: SgVmf, view: vec3<f32>, cut: SgCut, suns: u32, count: u32, s: SgScene) -> vec3<f32> {
     var spec = vec3<f32>(0.0);
+    // Uniform: the scene's k_s.
     if (s.material.x <= 0.0) {
         return spec;
     }
-    for (var i = first; i < count; i++) {
+    let lobe = sg_warped_ndf(vmf, s.material.y, view);
+    for (var i = 0u; i < count; i++) {
         let l = s.lights[i];
         let q = sg_product(Sg(l.axis_lambda.xyz, l.axis_lambda.w, l.mu.xyz), lobe);
-        spec += sg_lobe_specular(q, n, cut, sg_horizon_sin_toward(q.axis.x, q.axis.y), s);
+        let hs = select(sg_texel.a, sg_sun_sin, i == 0u && suns > 0u);
+        spec += sg_lobe_specular(q, vmf.axis, cut, hs, s);
     }
     return spec;
 }

@@ -430,13 +430,13 @@ impl Profile {
         self.height_layers()
     }
 
-    /// Layers of the SG horizon table for `azimuths` horizon angles (0: no visibility, no table): 4
-    /// azimuths a layer, `ceil(azimuths / 4)` layers per ring, with the GL spare layer.
-    pub fn sg_horizon_layers(&self, azimuths: u32) -> u32 {
-        if azimuths == 0 {
+    /// Layers of the SG light table (`visibility`: the scene has horizon visibility; else no table): one
+    /// per ring, with the GL spare layer.
+    pub fn sg_light_layers(&self, visibility: bool) -> u32 {
+        if !visibility {
             return 0;
         }
-        let l = self.clipmap.levels.saturating_mul(azimuths.div_ceil(4));
+        let l = self.clipmap.levels;
         if l == 1 || l.is_multiple_of(6) {
             l.saturating_add(1)
         } else {
@@ -445,15 +445,17 @@ impl Profile {
     }
 
     /// GPU bytes of the SG shading tables (`gpu/renderer/sg_tables.rs`): the normal table (RGBA32F,
-    /// `clip_size^2 x` [`Profile::sg_normal_layers`]) and, for `azimuths > 0`, the horizon table
-    /// (RGBA16F, `clip_size^2 x` [`Profile::sg_horizon_layers`]). Fixed by the profile and the scene's
-    /// visibility, whatever the terrain's size, plus the scene's sky table ([`SG_SKY_TABLE_BYTES`]);
-    /// [`Profile::footprint`] holds the rest.
+    /// `clip_size^2 x` [`Profile::sg_normal_layers`]) and, for `azimuths > 0` (visibility), the light table
+    /// (RGBA16F, `clip_size^2 x` [`Profile::sg_light_layers`], whatever D). Fixed by the profile and the
+    /// scene's visibility, whatever the terrain's size, plus the scene's sky table
+    /// ([`SG_SKY_TABLE_BYTES`]); [`Profile::footprint`] holds the rest.
     pub fn sg_table_bytes(&self, azimuths: u32) -> u64 {
         let s = u64::from(self.clip_size());
         (s * s)
             .saturating_mul(16 * u64::from(self.sg_normal_layers()))
-            .saturating_add((s * s).saturating_mul(8 * u64::from(self.sg_horizon_layers(azimuths))))
+            .saturating_add(
+                (s * s).saturating_mul(8 * u64::from(self.sg_light_layers(azimuths > 0))),
+            )
             .saturating_add(SG_SKY_TABLE_BYTES)
     }
 

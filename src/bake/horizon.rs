@@ -108,7 +108,8 @@ impl Horizons {
 /// Bakes D horizon angles for every texel of `hm`, marching out to `max_samples` samples. Deterministic
 /// (single-threaded, fixed order); a progress bar goes to stderr for bakes over 2^20 texels.
 pub fn bake(hm: &Heightmap, azimuths: u32, max_samples: f64) -> Result<Horizons> {
-    // Multiples of 4: the shader reads them four to a texel and integrates the sky's wedges over pairs.
+    // Multiples of 4: the light table's writer (shading::texel_light) integrates the sky's wedges over
+    // pairs, and the shader's probe reads them four to a texel.
     if azimuths == 0 || azimuths > MAX_AZIMUTHS || !azimuths.is_multiple_of(4) {
         return Err(Error::Invalid {
             what: "azimuths".into(),

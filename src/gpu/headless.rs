@@ -459,7 +459,8 @@ impl<'g> Offscreen<'g> {
     }
 
     /// Diagnostic, as [`Offscreen::read_heights`]: every ring's layer of the SG normal table
-    /// (`size x size` RGBA32F texels: r, 0), under SG shading; an error otherwise.
+    /// (`size x size` RGBA32F texels: r, and with visibility the horizon's sine toward the first sun),
+    /// under SG shading; an error otherwise.
     pub fn read_sg_normals(&self) -> Result<Vec<Vec<[f32; 4]>>> {
         let table = self
             .renderer
@@ -469,6 +470,23 @@ impl<'g> Offscreen<'g> {
                 reason: "the renderer does not shade with SG".into(),
             })?;
         let layers = self.read_layers(table, 16, self.renderer.levels())?;
+        Ok(layers
+            .iter()
+            .map(|b| bytemuck::pod_collect_to_vec(b))
+            .collect())
+    }
+
+    /// The SG light table's layers in use (one per ring), each `clip_size^2` texels of RGBA16F bits,
+    /// row-major: what `fs_sg` blends with visibility (`gpu/renderer/sg_tables.rs`).
+    pub fn read_sg_light(&self) -> Result<Vec<Vec<[u16; 4]>>> {
+        let table = self
+            .renderer
+            .sg_light_table()
+            .ok_or_else(|| crate::Error::Invalid {
+                what: "SG light table".into(),
+                reason: "the renderer does not shade with SG visibility".into(),
+            })?;
+        let layers = self.read_layers(table, 8, self.renderer.levels())?;
         Ok(layers
             .iter()
             .map(|b| bytemuck::pod_collect_to_vec(b))

@@ -288,40 +288,56 @@ impl ShadingBake {
     /// The CPU twin of the shader's footprint fetch: mean normal r and the D mean horizon angles over the
     /// inclusive box [lo, hi] (clamped to the grid, side capped at [`MAX_BOX_SIDE`]), in the shader's f32
     /// operations.
-    #[expect(clippy::cast_precision_loss, reason = "as the shader: f32(u32)")]
     pub fn box_mean(&self, lo: (u32, u32), hi: (u32, u32)) -> (Vec3, heapless::Vec<f32, 16>) {
+        let b = self.clamp_box(lo, hi);
+        (self.normal_mean(b), self.horizon_mean(b))
+    }
+
+    /// [`ShadingBake::box_mean`]'s box: clamped to the grid, the side capped at [`MAX_BOX_SIDE`].
+    fn clamp_box(&self, lo: (u32, u32), hi: (u32, u32)) -> ((u32, u32), (u32, u32)) {
         let lo = (lo.0.min(self.width - 1), lo.1.min(self.height - 1));
         let hi = (
             hi.0.clamp(lo.0, (lo.0 + MAX_BOX_SIDE - 1).min(self.width - 1)),
             hi.1.clamp(lo.1, (lo.1 + MAX_BOX_SIDE - 1).min(self.height - 1)),
         );
+        (lo, hi)
+    }
+
+    /// The wrapping sum of channel `c` of padded table `table` over clamped box `b`, and 1 / (its
+    /// texel count x 2^20).
+    #[expect(clippy::cast_precision_loss, reason = "as the shader: f32(u32)")]
+    fn box_sum(&self, table: &[u32], c: usize, (lo, hi): ((u32, u32), (u32, u32))) -> (u32, f32) {
         let pw = self.width as usize + 1;
-        let texels = pw * (self.height as usize + 1);
-        let sum = |table: &[u32], c: usize| {
-            let e = |x: u32, y: u32| table[(y as usize * pw + x as usize) * 4 + c];
-            e(hi.0 + 1, hi.1 + 1)
-                .wrapping_sub(e(lo.0, hi.1 + 1))
-                .wrapping_sub(e(hi.0 + 1, lo.1))
-                .wrapping_add(e(lo.0, lo.1))
-        };
+        let e = |x: u32, y: u32| table[(y as usize * pw + x as usize) * 4 + c];
+        let sum = e(hi.0 + 1, hi.1 + 1)
+            .wrapping_sub(e(lo.0, hi.1 + 1))
+            .wrapping_sub(e(hi.0 + 1, lo.1))
+            .wrapping_add(e(lo.0, lo.1));
         let count = ((hi.0 - lo.0 + 1) * (hi.1 - lo.1 + 1)) as f32;
-        let q = 1.0 / (count * 1_048_576.0);
-        let r = Vec3::new(
-            sum(&self.normal, 0) as f32,
-            sum(&self.normal, 1) as f32,
-            sum(&self.normal, 2) as f32,
-        ) * q
-            * 2.0
-            - Vec3::ONE;
+        (sum, 1.0 / (count * 1_048_576.0))
+    }
+
+    /// The mean normal r over clamped box `b`.
+    #[expect(clippy::cast_precision_loss, reason = "as the shader: f32(u32)")]
+    fn normal_mean(&self, b: ((u32, u32), (u32, u32))) -> Vec3 {
+        let c = |k| self.box_sum(&self.normal, k, b);
+        let ((x, q), (y, _), (z, _)) = (c(0), c(1), c(2));
+        Vec3::new(x as f32, y as f32, z as f32) * q * 2.0 - Vec3::ONE
+    }
+
+    /// The D mean horizon angles over clamped box `b` (empty without horizons).
+    #[expect(clippy::cast_precision_loss, reason = "as the shader: f32(u32)")]
+    fn horizon_mean(&self, b: ((u32, u32), (u32, u32))) -> heapless::Vec<f32, 16> {
+        let texels = (self.width as usize + 1) * (self.height as usize + 1);
         let mut hz = heapless::Vec::new();
         for k in 0..self.azimuths as usize {
             let layer = &self.horizon[(k / 4) * texels * 4..(k / 4 + 1) * texels * 4];
-            let a =
-                sum(layer, k % 4) as f32 * q * std::f32::consts::PI - std::f32::consts::FRAC_PI_2;
+            let (sum, q) = self.box_sum(layer, k % 4, b);
+            let a = sum as f32 * q * std::f32::consts::PI - std::f32::consts::FRAC_PI_2;
             // D <= MAX_AZIMUTHS = 16, the capacity.
             let _ = hz.push(a);
         }
-        (r, hz)
+        hz
     }
 
     /// The CPU twin of one texel of the renderer's per-level shading tables (`gpu/renderer/sg_tables.rs`):
@@ -358,17 +374,12 @@ impl ShadingBake {
         let clamp = |v: i64, n: u32| -> u32 {
             u32::try_from(v.clamp(0, i64::from(n) - 1)).expect("clamped into the grid")
         };
-        let (r, _) = self.box_mean(
+        let r = self.normal_mean(self.clamp_box(
             (clamp(cx - half, self.width), clamp(cy - half, self.height)),
             (clamp(cx + half, self.width), clamp(cy + half, self.height)),
-        );
+        ));
         let at = (clamp(cx, self.width), clamp(cy, self.height));
-        let (_, hz) = if self.azimuths > 0 {
-            self.box_mean(at, at)
-        } else {
-            (r, heapless::Vec::new())
-        };
-        (r, hz)
+        (r, self.horizon_mean(self.clamp_box(at, at)))
     }
 }
 

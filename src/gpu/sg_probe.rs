@@ -1,7 +1,8 @@
 //! Stage 3, the GPU: test instrument for the SG fragment shading. Runs the WGSL `sg_shade`
 //! (`shaders_gles/sg_probe.wgsl`) on known inputs, one per pixel of a W x 1 Rgba32Uint target, and reads
 //! back the exact bits of each result, for comparison with the CPU twin [`crate::shading::shade`] (the
-//! scene's sky table bound as the renderer binds it).
+//! scene's sky table bound as the renderer binds it; with visibility the light table's texel of each case
+//! computed on the CPU, [`crate::shading::texel_light`], as the renderer writes it).
 
 use glam::Vec3;
 use wgpu::util::DeviceExt;
@@ -11,7 +12,7 @@ use crate::gpu::shaders::{self, SgSceneUniform, SgVariant};
 use crate::gpu::Gpu;
 use crate::profile::{SG_SKY_LAYERS, SG_SKY_SIDE};
 use crate::shading::scene::Scene;
-use crate::shading::{Patches, SkyTable};
+use crate::shading::{texel_light, Patches, SkyTable};
 use crate::{Error, Result};
 
 /// One probe input: what the fragment shader knows after its SAT fetches.
@@ -21,7 +22,8 @@ pub struct ProbeCase {
     pub r: Vec3,
     /// Unit direction to the eye.
     pub view: Vec3,
-    /// Box-averaged horizon angles (D of them, D <= 16); empty: visibility off.
+    /// Box-averaged horizon angles (D of them, D <= 16); empty: visibility off. With visibility the probe
+    /// hands the GPU [`crate::shading::texel_light`] of them.
     pub horizon: heapless::Vec<f32, 16>,
 }
 
@@ -63,14 +65,26 @@ pub fn shade_gpu(
         omit: shaders::SgOmit::None,
     };
     let uniform = SgSceneUniform::new(scene, u32::try_from(d).expect("<= 16"))?;
-    // Rows: r, view, then 4 rows of 4 horizon angles.
-    let mut texels = vec![[0.0f32; 4]; cases.len() * 6];
+    // The view-independent part with visibility: what the light table would hold for the case
+    // (`shading::texel_light`, on the CPU as the renderer computes it).
+    let sky_table = SkyTable::new(scene, patches);
+    // Rows: r (w: the horizon's sine toward the first sun), view, the light texel (rgb: diffuse, a: the
+    // horizon's mean sine); without visibility w and a are -2.
+    let mut texels = vec![[0.0f32; 4]; cases.len() * 3];
     for (i, c) in cases.iter().enumerate() {
-        texels[i] = [c.r.x, c.r.y, c.r.z, 0.0];
+        let light = variant.visibility.then(|| {
+            let sines: heapless::Vec<f32, 16> = c.horizon.iter().map(|a| a.sin()).collect();
+            texel_light(c.r, &sines, scene, &sky_table)
+        });
+        let (sun_sin, texel) = light.map_or((-2.0, [0.0, 0.0, 0.0, -2.0]), |t| {
+            (
+                t.sun_sin,
+                [t.diffuse.x, t.diffuse.y, t.diffuse.z, t.mean_sin],
+            )
+        });
+        texels[i] = [c.r.x, c.r.y, c.r.z, sun_sin];
         texels[cases.len() + i] = [c.view.x, c.view.y, c.view.z, 0.0];
-        for (k, a) in c.horizon.iter().enumerate() {
-            texels[(2 + k / 4) * cases.len() + i][k % 4] = *a;
-        }
+        texels[2 * cases.len() + i] = texel;
     }
     let device = gpu.device();
     let bytes = gpu.scoped("sg probe", || {
@@ -80,7 +94,7 @@ pub fn shade_gpu(
                 label: Some("sg probe inputs"),
                 ..crate::gpu::texture_2d(
                     width,
-                    6,
+                    3,
                     1,
                     wgpu::TextureFormat::Rgba32Float,
                     wgpu::TextureUsages::empty(),
@@ -89,7 +103,6 @@ pub fn shade_gpu(
             wgpu::util::TextureDataOrder::LayerMajor,
             bytemuck::cast_slice(&texels),
         );
-        let sky_table = SkyTable::new(scene, patches);
         let sky = device.create_texture_with_data(
             gpu.queue(),
             &wgpu::TextureDescriptor {

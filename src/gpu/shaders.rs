@@ -104,7 +104,8 @@ pub enum SgOmit {
     Footprint,
     /// No vMF: a single normal (kappa 1e4, no convolution, no lowered plane).
     Vmf,
-    /// No sky table and no horizon wedges: every broad lobe is one direction, as a sun.
+    /// No light table (with visibility) and no sky table: every lobe is one direction, as a sun,
+    /// unshadowed.
     Sky,
 }
 
@@ -128,7 +129,7 @@ impl SgOmit {
             Self::None => "none",
             Self::Footprint => "footprint fetch",
             Self::Vmf => "vMF",
-            Self::Sky => "sky table + horizon wedges",
+            Self::Sky => "light + sky tables",
         }
     }
 }
@@ -192,13 +193,15 @@ pub const SKY_TABLE_PROBE: (u32, u32) = (0, 2);
 /// specular file appended.
 fn sg_library(v: SgVariant, specular: &str, (group, binding): (u32, u32)) -> String {
     let head = format!(
-        "// Variant {}: M theta bands; the term left out (0: none); the sky table \
-         (clipsat::shading::sky_table).\nconst SG_BANDS: u32 = {}u;\nconst SG_OMIT: u32 = {}u;\n\
+        "// Variant {}: M theta bands; the term left out (0: none); whether the diffuse term comes from \
+         the light table; the sky table (clipsat::shading::sky_table).\nconst SG_BANDS: u32 = {}u;\n\
+         const SG_OMIT: u32 = {}u;\nconst SG_VISIBILITY: bool = {};\n\
          const SG_SKY_SIDE: i32 = {};\nconst SG_SKY_LAYERS: i32 = {};\n\
          @group({group}) @binding({binding}) var sky_table: texture_2d<f32>;\n\n",
         v.label(),
         v.patches.bands(),
         v.omit.code(),
+        v.visibility,
         crate::profile::SG_SKY_SIDE,
         crate::profile::SG_SKY_LAYERS,
     );
@@ -232,8 +235,8 @@ pub fn sg_clipmap(v: SgVariant) -> String {
     .concat()
 }
 
-/// The SG probe program for variant `v` (its visibility flag only says whether the scene's D is used):
-/// `sg_shading.wgsl` + specular file + `sg_probe.wgsl`.
+/// The SG probe program for variant `v` (with visibility the diffuse term is the probe's light-table
+/// input): `sg_shading.wgsl` + specular file + `sg_probe.wgsl`.
 pub fn sg_probe(v: SgVariant) -> String {
     [
         sg_library(v, sg_specular_text(v), SKY_TABLE_PROBE).as_str(),
@@ -281,19 +284,20 @@ pub struct SgSceneUniform {
     pub lights: [SgLightUniform; MAX_SG_LIGHTS],
     /// rgb: k_d, w: number of lights.
     pub kd_count: [f32; 4],
-    /// x: k_s, y: roughness, z: azimuths D (0: visibility off), w: fog extinction (1/m, 0: off).
+    /// x: k_s, y: roughness, z: azimuths D of the light table (0: visibility off; informative, the
+    /// shader reads the light table whatever D), w: fog extinction (1/m, 0: off).
     pub material: [f32; 4],
     /// rgb: fog colour (linear).
     pub fog: [f32; 4],
-    /// x: the data's spacing (m); y: horizon layers per ring of the per-level tables; z: the number of
-    /// sharp lights (suns, `lambda >= SHARP_LAMBDA`), which come first in `lights`; w: unused.
+    /// x: the data's spacing (m); y: unused; z: the number of sharp lights (suns, `lambda >=
+    /// SHARP_LAMBDA`), which come first in `lights`; w: unused.
     pub grid: [f32; 4],
 }
 const _: () = assert!(std::mem::size_of::<SgSceneUniform>() == 320);
 
 impl SgSceneUniform {
     /// The uniform for `scene`: lights (suns first), material, fog; `azimuths` is D when visibility is
-    /// bound (else 0). `grid` holds only the sun count (the renderer fills x and y).
+    /// bound (else 0). `grid` holds only the sun count (the renderer fills x).
     pub fn new(scene: &Scene, azimuths: u32) -> Result<Self> {
         if scene.lights.len() > MAX_SG_LIGHTS {
             return Err(Error::Capacity {

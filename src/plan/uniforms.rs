@@ -28,7 +28,9 @@ pub struct Globals {
     /// Where each ring holds data, for shading from the finest resident data (GC section 6's normal
     /// maps, [`shading_levels`]); levels past `level_info[0]` are unused.
     pub levels: [ShadeLevel; MAX_LEVELS as usize],
-    /// x: levels in use; y: ring size S; z: the ring's n (GC 6.2's transition width is n / 10); w: unused.
+    /// x: levels in use; y: ring size S; z: the ring's n (GC 6.2's transition width is n / 10); w: the
+    /// coarsest level whose clip region is 4 x 4 samples or more (-1: none), where SG shading reads a
+    /// pixel that no ring holds (`sg_taps` in `shaders_gles/sg_clipmap.wgsl`).
     pub level_info: [i32; 4],
 }
 const _: () = assert!(std::mem::size_of::<Globals>() as u64 == GLOBALS_BYTES);
@@ -72,6 +74,7 @@ pub fn shading_levels(
     let s = i64::from(size);
     let levels = clipmap.frame().levels.iter().take(MAX_LEVELS as usize);
     let mut used = 0;
+    let mut fallback = -1;
     for (l, (slot, lf)) in out.iter_mut().zip(levels).enumerate() {
         used = l + 1;
         // The eye's height goes in every slot, held data or not (the shader reads it from level 0).
@@ -79,6 +82,9 @@ pub fn shading_levels(
         let c = lf.clip;
         if c.is_empty() {
             continue;
+        }
+        if c.w >= 4 && c.h >= 4 {
+            fallback = l as i32;
         }
         let k = f64::from(1u32 << l);
         #[expect(
@@ -103,7 +109,7 @@ pub fn shading_levels(
         };
     }
     let n = i32::try_from(clipmap.n()).expect("n <= 511 (profile check)");
-    (out, [used as i32, size as i32, n, 0])
+    (out, [used as i32, size as i32, n, fallback])
 }
 
 /// GC 6.2's transition parameters of a level with active region `active`, in its lattice units relative to

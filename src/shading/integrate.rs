@@ -105,7 +105,9 @@ pub fn vmf_cosine(t: f32, vmf: &Vmf) -> f32 {
     }
     let s = var.sqrt();
     let x = m / s;
-    let e = (-0.5 * x * x).exp();
+    // Floored where e^-80 is already 0 to f32 sums: exp's slow underflow path costs the light table's
+    // writer (texel_light) more than the rest of the function.
+    let e = (-0.5 * x * x).max(-80.0).exp();
     let z = x.abs() * std::f32::consts::FRAC_1_SQRT_2;
     let tau = 1.0 / (1.0 + 0.327_591_1 * z);
     let poly = tau
@@ -135,10 +137,11 @@ struct Cut {
 }
 
 impl Cut {
-    fn new(n: Vec3, horizon: &[f32], drop: f32) -> Self {
+    /// The cut of mean normal `n`, the plane lowered by `drop`, with the horizon's sines `sines` (at
+    /// most 16 are kept, bake::horizon::MAX_AZIMUTHS; empty: the plane only).
+    fn new(n: Vec3, sines: &[f32], drop: f32) -> Self {
         let (sin_drop, cos_drop) = drop.sin_cos();
-        // At most 16 angles (bake::horizon::MAX_AZIMUTHS), the capacity.
-        let horizon = horizon.iter().take(16).map(|a| a.sin()).collect();
+        let horizon = sines.iter().take(16).copied().collect();
         Self {
             n,
             horizon,
@@ -176,27 +179,6 @@ impl Cut {
         } else {
             plane.max(self.horizon_sin_at(uy.atan2(ux)))
         }
-    }
-
-    /// The sine of the horizon toward horizontal direction (dx, dy) (unnormalised), or -2 (below any
-    /// cut) without visibility. The shader looks it up once per sun, for its diffuse and specular terms.
-    fn horizon_sin_toward(&self, dx: f32, dy: f32) -> f32 {
-        if self.horizon.is_empty() {
-            -2.0
-        } else {
-            self.horizon_sin_at(dy.atan2(dx))
-        }
-    }
-
-    /// The fraction of a light about unit `axis`, of angular radius `sigma`, above the horizon alone (1
-    /// without visibility), `hs` the horizon's sine toward it: the clamped cosine already cuts at the
-    /// normals' planes.
-    fn horizon_visible(&self, axis: Vec3, sigma: f32, hs: f32) -> f32 {
-        if self.horizon.is_empty() {
-            return 1.0;
-        }
-        let h = hs.clamp(-1.0, 1.0).asin();
-        ((elevation(axis) + sigma - h) / (2.0 * sigma)).clamp(0.0, 1.0)
     }
 
     /// The fraction of a lobe about unit `axis`, of angular radius `sigma`, above the cut (the higher of
@@ -323,7 +305,7 @@ fn cosine_lobe(vmf: &Vmf) -> Sg {
 /// when higher, integrated over z = sin(elevation) (dOmega = dz dphi) by 2-point Gauss-Legendre. The
 /// sky table holds the integral above the plane, so the visible part is the table's minus this. Pairs
 /// rather than single azimuths: the broad lobes vary slowly in azimuth, and half the wedges halve the
-/// shader's largest visibility cost; the suns and specular still read the horizon at their own azimuth.
+/// cost of writing a light-table texel ([`texel_light`]); the suns read the horizon at their own azimuth.
 /// D is a multiple of 4 ([`horizon::bake`]). The wedges' directions come from a rotation recurrence
 /// (no trigonometry per wedge).
 #[expect(clippy::cast_precision_loss, reason = "D <= 16")]
@@ -336,15 +318,19 @@ fn occluded(p: &Sg, cut: &Cut) -> Vec3 {
     for pair in cut.horizon.chunks_exact(2) {
         let lo = cut.plane_sin(ca, sa);
         let hi = 0.5 * (pair[0] + pair[1]);
-        let half = 0.5 * (hi - lo).max(0.0);
-        let mid = 0.5 * (hi + lo);
-        let horizontal = p.axis.x * ca + p.axis.y * sa;
-        let mut wedge = 0.0f32;
-        for z in [mid - GAUSS_2 * half, mid + GAUSS_2 * half] {
-            let rho = (1.0 - z * z).max(0.0).sqrt();
-            wedge += (p.lambda * (horizontal * rho + p.axis.z * z - 1.0)).exp();
+        // A horizon below the plane hides nothing there (most wedges of gentle terrain): on the CPU the
+        // branch saves the exponentials.
+        if hi > lo {
+            let half = 0.5 * (hi - lo);
+            let mid = 0.5 * (hi + lo);
+            let horizontal = p.axis.x * ca + p.axis.y * sa;
+            let mut wedge = 0.0f32;
+            for z in [mid - GAUSS_2 * half, mid + GAUSS_2 * half] {
+                let rho = (1.0 - z * z).max(0.0).sqrt();
+                wedge += (p.lambda * (horizontal * rho + p.axis.z * z - 1.0)).exp();
+            }
+            sum += wedge * half;
         }
-        sum += wedge * half;
         (ca, sa) = (ca * cos_step - sa * sin_step, sa * cos_step + ca * sin_step);
     }
     p.mu * (sum * 2.0 * dphi)
@@ -374,54 +360,183 @@ pub fn warped_ndf(vmf: &Vmf, roughness: f32, view: Vec3) -> Sg {
     }
 }
 
-/// The CPU twin of the fragment shader: outgoing radiance (RGB, linear) toward `inputs.view` for the
-/// scene's lights and material. Suns are one direction each; the broad lights' unshadowed integral is read
-/// from `sky` (the scene's [`SkyTable`], built with [`SkyTable::new`] from this scene), less what the
-/// horizon hides (`occluded`: per baked azimuth, a wedge). Visibility is used when the scene enables it and `inputs.horizon` is not
-/// empty; specular only when the scene enables it.
-pub fn shade(inputs: &Inputs<'_>, scene: &Scene, sky: &SkyTable) -> Vec3 {
-    let vmf = Vmf::from_mean_normal(inputs.r);
-    let n = vmf.axis;
-    let horizon: &[f32] = if scene.effects.visibility {
-        inputs.horizon
-    } else {
-        &[]
-    };
-    let cut = Cut::new(n, horizon, plane_drop(vmf.kappa));
-    let cosine = cosine_lobe(&vmf);
-    let m = &scene.material;
-    let lobe =
-        (scene.effects.specular && m.ks > 0.0).then(|| warped_ndf(&vmf, m.roughness, inputs.view));
-    let mut diffuse = Vec3::ZERO;
-    let mut spec = Vec3::ZERO;
-    for light in scene.lights.iter().filter(|l| l.lambda >= SHARP_LAMBDA) {
-        let sigma = (2.0 / light.lambda).sqrt();
-        // Looked up once, for the sun's diffuse and specular terms (its product lobe's axis is within a
-        // few degrees of the sun's: lambda 2000 against the lobe's tens).
-        let hs = cut.horizon_sin_toward(light.axis.x, light.axis.y);
-        diffuse += light.integral()
-            * (vmf_cosine(n.dot(light.axis), &vmf) * cut.horizon_visible(light.axis, sigma, hs));
-        if let Some(lobe) = &lobe {
-            spec += lobe_specular(&light.product(lobe), n, &cut, hs, m.ks);
-        }
-    }
-    if scene.lights.iter().any(|l| l.lambda < SHARP_LAMBDA) {
-        let mut hidden = Vec3::ZERO;
-        if !horizon.is_empty() {
-            for light in scene.lights.iter().filter(|l| l.lambda < SHARP_LAMBDA) {
-                hidden += occluded(&light.product(&cosine), &cut);
+/// What the per-level light table holds for one texel (`gpu/renderer/sg_tables.rs`), computed on the CPU
+/// when the texel is written: everything of the shading that does not depend on the view. The fragment
+/// shader of a scene with visibility blends 4 of them instead of integrating the horizon per pixel.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TexelLight {
+    /// k_d / pi times the diffuse integral of every light with the horizon applied (linear RGB): the
+    /// suns each one direction, the broad lights from the sky table less what the horizon hides.
+    pub diffuse: Vec3,
+    /// The mean of the horizon's sines over the baked azimuths: the horizon the specular terms of the broad
+    /// lights and of every sun but the first are cut at (their lobes' azimuths depend on the view).
+    pub mean_sin: f32,
+    /// The horizon's sine toward the scene's first sun, for its specular term (-2, below any cut, when the
+    /// scene has no sun).
+    pub sun_sin: f32,
+}
+
+/// The view-independent part of [`shade`] at one texel ([`TexelLight`]): mean normal `r` and the sines of
+/// its horizon angles at the D baked azimuths (`sines`, D a multiple of 4 up to 16; empty: no horizon)
+/// for the scene's lights and k_d; `sky` is the scene's [`SkyTable`]. Suns: the vMF-averaged cosine at
+/// the sun ([`vmf_cosine`]) times the sun's fraction above the horizon at its own azimuth; broad lights:
+/// the sky table less [`occluded`] (SAT paper algorithm 3, TransferVis + PatchVis). [`TexelLighting`]
+/// holds the scene's part, for writing many texels.
+pub fn texel_light(r: Vec3, sines: &[f32], scene: &Scene, sky: &SkyTable) -> TexelLight {
+    TexelLighting::new(scene).texel(r, sines, sky)
+}
+
+/// What [`texel_light`] needs of a scene, computed once: the lights by kind, each sun's integral,
+/// one-sigma radius, elevation and azimuth, and k_d / pi.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TexelLighting {
+    /// Per sun: the light, its integral, sigma, elevation and azimuth (radians).
+    suns: heapless::Vec<(Sg, Vec3, f32, f32, f32), { crate::profile::MAX_SG_LIGHTS }>,
+    broad: heapless::Vec<Sg, { crate::profile::MAX_SG_LIGHTS }>,
+    kd_over_pi: Vec3,
+    /// The cosine SG's own unit integral (its vMF convolution divides by the widened one's).
+    cosine_integral: f32,
+}
+
+impl TexelLighting {
+    /// The scene's part; lights past [`crate::profile::MAX_SG_LIGHTS`] (which no renderer accepts) are
+    /// left out.
+    pub fn new(scene: &Scene) -> Self {
+        let mut suns = heapless::Vec::new();
+        let mut broad = heapless::Vec::new();
+        for l in &scene.lights {
+            if l.lambda >= SHARP_LAMBDA {
+                let sigma = (2.0 / l.lambda).sqrt();
+                let azimuth = l.axis.y.atan2(l.axis.x);
+                let _ = suns.push((*l, l.integral(), sigma, elevation(l.axis), azimuth));
+            } else {
+                let _ = broad.push(*l);
             }
         }
-        diffuse += (sky.lookup(n, vmf.r_len) - hidden).max(Vec3::ZERO);
-    }
-    if let Some(lobe) = &lobe {
-        for light in scene.lights.iter().filter(|l| l.lambda < SHARP_LAMBDA) {
-            let q = light.product(lobe);
-            let hs = cut.horizon_sin_toward(q.axis.x, q.axis.y);
-            spec += lobe_specular(&q, n, &cut, hs, m.ks);
+        Self {
+            suns,
+            broad,
+            kd_over_pi: scene.material.kd / PI,
+            cosine_integral: sg::unit_integral(sg::COSINE_LAMBDA),
         }
     }
-    m.kd * diffuse / PI + spec
+
+    /// [`texel_light`] of `r` and `sines` with this scene's sky table `sky`.
+    pub fn texel(&self, r: Vec3, sines: &[f32], sky: &SkyTable) -> TexelLight {
+        let vmf = Vmf::from_mean_normal(r);
+        let n = vmf.axis;
+        let cut = Cut::new(n, sines, plane_drop(vmf.kappa));
+        let mut diffuse = Vec3::ZERO;
+        let mut sun_sin = -2.0;
+        for (i, (light, integral, sigma, el, azimuth)) in self.suns.iter().enumerate() {
+            let hs = if cut.horizon.is_empty() {
+                -2.0
+            } else {
+                cut.horizon_sin_at(*azimuth)
+            };
+            if i == 0 {
+                sun_sin = hs;
+            }
+            let visible = if cut.horizon.is_empty() {
+                1.0
+            } else {
+                ((el + sigma - hs.clamp(-1.0, 1.0).asin()) / (2.0 * sigma)).clamp(0.0, 1.0)
+            };
+            if visible > 0.0 {
+                diffuse += *integral * (vmf_cosine(n.dot(light.axis), &vmf) * visible);
+            }
+        }
+        if !self.broad.is_empty() {
+            // The cosine lobe widened by the vMF (sg::Sg::convolve_vmf, its constant part hoisted).
+            let c = sg::COSINE_LAMBDA;
+            let lambda = c * vmf.kappa / (c + vmf.kappa).max(1e-30);
+            let cosine = Sg {
+                axis: n,
+                lambda,
+                mu: Vec3::splat(sg::COSINE_MU * (self.cosine_integral / sg::unit_integral(lambda))),
+            };
+            let mut hidden = Vec3::ZERO;
+            if !cut.horizon.is_empty() {
+                for light in &self.broad {
+                    hidden += occluded(&light.product(&cosine), &cut);
+                }
+            }
+            diffuse += (sky.lookup(n, vmf.r_len) - hidden).max(Vec3::ZERO);
+        }
+        #[expect(clippy::cast_precision_loss, reason = "D <= 16")]
+        let mean_sin = if cut.horizon.is_empty() {
+            -2.0
+        } else {
+            cut.horizon.iter().sum::<f32>() / cut.horizon.len() as f32
+        };
+        TexelLight {
+            diffuse: self.kd_over_pi * diffuse,
+            mean_sin,
+            sun_sin,
+        }
+    }
+}
+
+/// The CPU twin of the fragment shader: outgoing radiance (RGB, linear) toward `inputs.view` for the
+/// scene's lights and material. With visibility (the scene enables it and `inputs.horizon` is not empty)
+/// the view-independent part is [`texel_light`] of the inputs (the horizon angles' sines) and the rest
+/// [`shade_pixel`]; without, [`shade_pixel`] alone.
+pub fn shade(inputs: &Inputs<'_>, scene: &Scene, sky: &SkyTable) -> Vec3 {
+    let sines: heapless::Vec<f32, 16> = if scene.effects.visibility {
+        inputs.horizon.iter().take(16).map(|a| a.sin()).collect()
+    } else {
+        heapless::Vec::new()
+    };
+    let texel = (!sines.is_empty()).then(|| texel_light(inputs.r, &sines, scene, sky));
+    shade_pixel(inputs.r, inputs.view, texel.as_ref(), scene, sky)
+}
+
+/// The fragment shader's own part (`sg_shade` in `shaders_gles/sg_shading.wgsl`): the diffuse term from
+/// `texel` (the light table's blend, with visibility) or, without, from the suns (one direction each,
+/// unshadowed) and the sky table; plus the specular term when the scene enables it, each lobe cut at
+/// the higher of the mean normal's lowered plane and the horizon: the first sun's at its own azimuth,
+/// every other lobe's at the horizon's mean ([`TexelLight`]); the plane only without `texel`.
+pub fn shade_pixel(
+    r: Vec3,
+    view: Vec3,
+    texel: Option<&TexelLight>,
+    scene: &Scene,
+    sky: &SkyTable,
+) -> Vec3 {
+    let vmf = Vmf::from_mean_normal(r);
+    let n = vmf.axis;
+    let cut = Cut::new(n, &[], plane_drop(vmf.kappa));
+    let m = &scene.material;
+    let diffuse = match texel {
+        Some(t) => t.diffuse,
+        None => {
+            let mut d = Vec3::ZERO;
+            for light in scene.lights.iter().filter(|l| l.lambda >= SHARP_LAMBDA) {
+                d += light.integral() * vmf_cosine(n.dot(light.axis), &vmf);
+            }
+            if scene.lights.iter().any(|l| l.lambda < SHARP_LAMBDA) {
+                d += sky.lookup(n, vmf.r_len);
+            }
+            m.kd * d / PI
+        }
+    };
+    let mut spec = Vec3::ZERO;
+    if scene.effects.specular && m.ks > 0.0 {
+        let lobe = warped_ndf(&vmf, m.roughness, view);
+        let (mean_sin, sun_sin) = texel.map_or((-2.0, -2.0), |t| (t.mean_sin, t.sun_sin));
+        // Suns first, as the shader's uniform orders them; the first sun is cut at its own horizon.
+        let suns = scene.lights.iter().filter(|l| l.lambda >= SHARP_LAMBDA);
+        let broad = scene.lights.iter().filter(|l| l.lambda < SHARP_LAMBDA);
+        for (i, light) in suns.chain(broad).enumerate() {
+            let hs = if i == 0 && light.lambda >= SHARP_LAMBDA {
+                sun_sin
+            } else {
+                mean_sin
+            };
+            spec += lobe_specular(&light.product(&lobe), n, &cut, hs, m.ks);
+        }
+    }
+    diffuse + spec
 }
 
 /// k_s times product lobe `q`'s integral, D / 4 with the cosine at the lobe's axis, times the fraction of

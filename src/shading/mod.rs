@@ -21,7 +21,13 @@
 //!   Gauss-Legendre; the horizon is held and interpolated as sines;
 //! - specular: Fresnel = 1 (folded into k_s), the implicit geometry term G = (n.i)(n.o), so the BRDF is
 //!   D(h) / 4; the cosine is taken at the product lobe's axis and visibility as the fraction of the lobe's
-//!   one-sigma cap above the horizon.
+//!   one-sigma cap above the horizon: the first sun's at the sun's azimuth, every other lobe's (whose
+//!   axis moves with the view) at the horizon's mean over the azimuths;
+//! - with visibility, everything that does not depend on the view (the diffuse term of every light with
+//!   the horizon applied, the horizon's mean, the sun's horizon) is [`texel_light`], computed per texel of
+//!   the renderer's per-level tables when the texel is written; the shader blends 4 texels of it
+//!   bilinearly rather than blending the inputs (r, horizons) and integrating per pixel. [`shade`] is
+//!   [`texel_light`] then [`shade_pixel`] of one set of inputs.
 //!
 //! Files: `basic.rs` (the basic shading's parameters), `scene.rs` (lights, material, effects), `sg.rs` (spherical Gaussians and the vMF), `sky_table.rs` (the per-scene sky table), `integrate.rs`
 //! ([`shade`], the CPU twin of `shaders_gles/sg_shading.wgsl`), `reference.rs` ([`reference()`], the f64
@@ -36,8 +42,8 @@ pub mod sg;
 pub mod sky_table;
 
 pub use integrate::{
-    plane_drop, shade, vmf_cosine, warped_ndf, Inputs, Patches, MAX_BANDS, MAX_SECTORS,
-    SHARP_LAMBDA,
+    plane_drop, shade, shade_pixel, texel_light, vmf_cosine, warped_ndf, Inputs, Patches,
+    TexelLight, TexelLighting, MAX_BANDS, MAX_SECTORS, SHARP_LAMBDA,
 };
 pub use reference::{reference, HorizonTable, RefCosine, RefGrid, RefInputs};
 pub use sky_table::SkyTable;

@@ -209,7 +209,9 @@ pub struct SgTaps {
 }
 
 /// The CPU twin of `sg_taps`: the ring at data level round(log2 w) (or the finest ring holding `rel`, if
-/// coarser), then coarser until one holds `rel` with `finest_level`'s margin; `None` if none does.
+/// coarser), then coarser until one holds `rel` with `finest_level`'s margin; where none does, the
+/// coarsest ring of 4 x 4 samples or more (`globals.level_info[3]`) with the cell clamped into its held
+/// ones. `None` only without such a ring.
 #[expect(
     clippy::cast_possible_truncation,
     clippy::cast_sign_loss,
@@ -221,17 +223,35 @@ pub fn sg_taps(globals: &Globals, data_spacing: f32, rel: [f32; 2], w: f32) -> O
     let synth = ((data_spacing / globals.levels[0].rel[3]).log2().round() as i32).max(0);
     let k = w.max(1.0).log2().round() as i32;
     let first = (synth + k).max(finest_level(globals, rel).map_or(-1, |l| l as i32));
-    (first..count).find_map(|l| {
+    let uv = |l: i32| {
         let lv = &globals.levels[l as usize];
         let g = lv.rel[3];
-        let u = [(rel[0] - lv.rel[0]) / g, (lv.rel[1] - rel[1]) / g];
-        let i = [u[0].floor() as i32, u[1].floor() as i32];
-        let holds = i[0] >= 1 && i[1] >= 1 && i[0] <= lv.tex[2] - 3 && i[1] <= lv.tex[3] - 3;
-        holds.then(|| SgTaps {
-            level: l as u32,
-            cell: i,
-            f: [u[0] - i[0] as f32, u[1] - i[1] as f32],
+        [(rel[0] - lv.rel[0]) / g, (lv.rel[1] - rel[1]) / g]
+    };
+    let pick = (first.max(0)..count)
+        .find(|&l| {
+            let lv = &globals.levels[l as usize];
+            let u = uv(l);
+            let i = [u[0].floor() as i32, u[1].floor() as i32];
+            i[0] >= 1 && i[1] >= 1 && i[0] <= lv.tex[2] - 3 && i[1] <= lv.tex[3] - 3
         })
+        .unwrap_or(globals.level_info[3]);
+    if !(0..count).contains(&pick) {
+        return None;
+    }
+    let lv = &globals.levels[pick as usize];
+    let u = uv(pick);
+    let i = [
+        (u[0].floor() as i32).clamp(1, lv.tex[2] - 3),
+        (u[1].floor() as i32).clamp(1, lv.tex[3] - 3),
+    ];
+    Some(SgTaps {
+        level: pick as u32,
+        cell: i,
+        f: [
+            (u[0] - i[0] as f32).clamp(0.0, 1.0),
+            (u[1] - i[1] as f32).clamp(0.0, 1.0),
+        ],
     })
 }
 

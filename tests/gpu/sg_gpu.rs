@@ -160,12 +160,7 @@ fn variants_compile_only_what_the_scene_declares() {
             "{}",
             v.label()
         );
-        assert_eq!(
-            text.contains("level_horizon"),
-            v.visibility,
-            "{}",
-            v.label()
-        );
+        assert_eq!(text.contains("level_light"), v.visibility, "{}", v.label());
         // Fog (issue 16): no fog code in a variant whose scene has none.
         assert_eq!(text.contains("sg_scene.fog"), v.fog, "{}", v.label());
         assert_eq!(text.contains("material.w"), v.fog, "{}", v.label());
@@ -253,7 +248,7 @@ fn renderer_bakes_and_binds_only_what_the_scene_needs() {
             .expect("sg evening");
     assert_eq!(
         renderer.bound_textures(),
-        ["heights", "level_normal", "sky_table", "level_horizon"]
+        ["heights", "level_normal", "sky_table", "level_light"]
     );
     assert_eq!(renderer.baked(), ["normal_sat", "horizons", "horizon_sat"]);
     assert_eq!(renderer.renderer().sg_layout_entries(), Some(4));
@@ -334,7 +329,7 @@ fn cli_render_reports_bound_textures_and_baked() {
     let v = json(&run(&["--shading", "sg", "--scene", "evening", "--json"]));
     assert_eq!(
         v["bound_textures"],
-        serde_json::json!(["heights", "level_normal", "sky_table", "level_horizon"])
+        serde_json::json!(["heights", "level_normal", "sky_table", "level_light"])
     );
     assert_eq!(
         v["baked"],
@@ -528,6 +523,63 @@ fn sg_tables_follow_the_rings() {
             assert!(r.length() > 0.5 && r.length() <= 1.0 && r.z > 0.0, "{r}");
         }
     }
+}
+
+/// With visibility, the light table (issue 16, "Cost": the view-independent shading per texel) equals
+/// its CPU twin at every texel of every ring's clip region after a flight on a small budget:
+/// `shading::texel_light` of `ShadingBake::level_texel`'s r and horizon sines, rounded to f16, and the
+/// normal table's w the horizon's sine toward the sun, bit for bit.
+#[test]
+fn sg_light_table_follows_the_rings() {
+    let gpu = render_support::strict();
+    let hm = render_support::relief();
+    let p = render_support::profile("gles3-low", 64, 48, Some(1600));
+    let mut cm = render_support::clipmap(&hm, &p);
+    let evening = Scene::load("evening").expect("evening");
+    let max_side = gpu.device().limits().max_texture_dimension_2d;
+    let (scene, bake) =
+        clipsat::gpu::headless::sg_bake(max_side, &hm, &evening, true).expect("bake");
+    let mut r = Offscreen::with_sg(&gpu, &p, &cm, &hm, &evening, Patches::P2x4, true).expect("sg");
+    for i in 0..40 {
+        let cam = render_support::flight(&hm, i, 120.0, 400.0, Some(40));
+        cm.update(cam.eye).expect("update");
+        if i % 3 != 1 {
+            render_frame(&mut r, &cm, &cam, &FrameOptions::default()).expect("frame");
+        }
+    }
+    let sky = shading::SkyTable::new(&scene, Patches::P2x4);
+    let normals = r.read_sg_normals().expect("normal table readback");
+    let lights = r.read_sg_light().expect("light table readback");
+    let s = i64::from(p.clip_size());
+    let synth = i32::try_from(cm.synth_levels()).expect("levels");
+    let f16 = |x: f32| half::f16::from_f32(x).to_bits();
+    let mut checked = 0;
+    for (l, (normal, light)) in normals.iter().zip(&lights).enumerate() {
+        let clip = cm.frame().levels[l].clip;
+        let data_level = i32::try_from(l).expect("level") - synth;
+        // Every 3rd row and column: the twin's integration is the test's cost.
+        for j in (clip.y0..clip.y1()).step_by(3) {
+            for i in (clip.x0..clip.x1()).step_by(3) {
+                let t = usize::try_from(j.rem_euclid(s) * s + i.rem_euclid(s)).expect("texel");
+                let (rn, hz) = bake.level_texel(data_level, i, j);
+                let sines: heapless::Vec<f32, 16> = hz.iter().map(|a| a.sin()).collect();
+                let want = shading::texel_light(rn, &sines, &scene, &sky);
+                let d = want.diffuse;
+                assert_eq!(
+                    light[t],
+                    [f16(d.x), f16(d.y), f16(d.z), f16(want.mean_sin)],
+                    "level {l} sample ({i}, {j})"
+                );
+                assert_eq!(
+                    normal[t][3].to_bits(),
+                    want.sun_sin.to_bits(),
+                    "level {l} ({i}, {j})"
+                );
+                checked += 1;
+            }
+        }
+    }
+    assert!(checked > 4 * 25 * 25, "{checked} texels checked");
 }
 
 /// Issue 16's memory goal: the SG objects' GPU bytes are fixed by the profile and the scene's visibility,

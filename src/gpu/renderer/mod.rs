@@ -377,6 +377,12 @@ impl Renderer {
         self.sg.as_ref().map(|s| s.tables.normal())
     }
 
+    /// The SG per-level light table (`clip_size^2 x` [`Profile::sg_light_layers`], RGBA16F), under SG
+    /// shading with visibility.
+    pub fn sg_light_table(&self) -> Option<&wgpu::Texture> {
+        self.sg.as_ref().and_then(|s| s.tables.light())
+    }
+
     /// Rings (array layers) in use.
     pub fn levels(&self) -> u32 {
         self.levels
@@ -414,7 +420,7 @@ impl Renderer {
     }
 
     /// The names of the textures the shading binds: `heights`, plus `level_normal`, `sky_table` and, with
-    /// visibility, `level_horizon` under SG shading.
+    /// visibility, `level_light` under SG shading.
     pub fn bound_textures(&self) -> &[&'static str] {
         match &self.sg {
             Some(sg) => &sg.bound,

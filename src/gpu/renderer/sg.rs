@@ -13,7 +13,7 @@ use crate::{Error, Heightmap, Profile, Result};
 /// The SG shading variant of [`super::Shading::Sg`]: a scene over the terrain `terrain` (the one the
 /// clipmap was built from), integrated over `patches`, with tables already baked
 /// ([`ShadingBake::bake_cached`]; they stay in CPU memory, and fill the renderer's fixed per-level tables).
-/// Only what the scene needs ([`Scene::needs`]) is bound and compiled: no horizon table without
+/// Only what the scene needs ([`Scene::needs`]) is bound and compiled: no light table without
 /// visibility (used when the scene asks for it and `bake` holds horizons), no specular code without
 /// specular.
 #[derive(Clone, Copy, Debug)]
@@ -125,19 +125,16 @@ impl SgState {
             fog: needs.fog,
             omit: s.omit,
         };
-        let tables = SgTables::new(dev, profile, bake, variant.visibility)?;
+        let sky_table = SkyTable::new(&scene, s.patches);
+        let tables = SgTables::new(dev, profile, bake, variant.visibility, &scene, &sky_table)?;
         let mut u = SgSceneUniform::new(&scene, bake.azimuths())?;
-        #[expect(clippy::cast_precision_loss, reason = "layer counts <= 4")]
-        let layers = tables.horizon_layers() as f32;
         // The sun count in z is the scene's (SgSceneUniform::new).
         u.grid[0] = hm.spacing();
-        u.grid[1] = layers;
         let uniform = dev.buffer_init(
             "sg scene",
             bytemuck::bytes_of(&u),
             wgpu::BufferUsages::UNIFORM,
         );
-        let sky_table = SkyTable::new(&scene, s.patches);
         let sky = dev.texture_with_data(
             queue,
             "sg sky_table",
@@ -190,13 +187,13 @@ impl SgState {
             resource: wgpu::BindingResource::TextureView(&sky_view),
         });
         let mut bound = vec!["heights", "level_normal", "sky_table"];
-        if let (true, Some(view)) = (variant.visibility, tables.horizon_view.as_ref()) {
+        if let (true, Some(view)) = (variant.visibility, tables.light_view.as_ref()) {
             entries.push(array_entry(2, wgpu::ShaderStages::FRAGMENT));
             resources.push(wgpu::BindGroupEntry {
                 binding: 2,
                 resource: wgpu::BindingResource::TextureView(view),
             });
-            bound.push("level_horizon");
+            bound.push("level_light");
         }
         let layout = dev.bind_group_layout("sg shading layout", &entries);
         let group = dev.bind_group("sg shading group", &layout, &resources);

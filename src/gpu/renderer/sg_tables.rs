@@ -6,9 +6,16 @@
 //!
 //! - `level_normal` (RGBA32F, [`Profile::sg_normal_layers`]): the vMF input r, the mean of the data's unit
 //!   normals over the box of 2^k + 1 data samples centred on the sample of a ring k levels coarser than
-//!   the data ([`ShadingBake::level_texel`]);
-//! - `level_horizon` (RGBA16F, 4 azimuths a layer, [`Profile::sg_horizon_layers`]), only when the scene
-//!   has visibility: the sines of the sample's D horizon angles (the shader needs no trigonometry per azimuth).
+//!   the data ([`ShadingBake::level_texel`]); with visibility, w is the horizon's sine toward the scene's
+//!   first sun;
+//! - `level_light` (RGBA16F, one layer per ring, [`Profile::sg_light_layers`]), only when the scene has
+//!   visibility: the view-independent part of the shading at the sample
+//!   ([`crate::shading::texel_light`] of its r and
+//!   its D horizon angles, computed here on the CPU as the texel is written: every light's diffuse term
+//!   with the horizon applied, and the horizon's mean sine), so the fragment shader blends 4 texels
+//!   instead of fetching the D angles and integrating the horizon per pixel (issue 16, "Cost":
+//!   "precompute the per-patch visibility per texel of each level"). The scene's lights are fixed for
+//!   the renderer's life, so the texels are too.
 //!
 //! Why not a SAT per level: a SAT entry sums everything before it, so it cannot be toroidal, and a ring
 //! that moves by one column would have to rebuild its whole S^2 table (S^2 samples against the column's
@@ -24,37 +31,43 @@ use super::{array_texture, Ledgered, PrepareStats, READ_BACK};
 use crate::gpu::sat_textures::ShadingBake;
 use crate::plan::clipmap::Clipmap;
 use crate::plan::frame::Upload;
+use crate::shading::scene::Scene;
+use crate::shading::{SkyTable, TexelLighting};
 use crate::{Error, Profile, Result};
 
 /// The normal table's format: f32 r, so |r| near 1 (kappa up to 1e4) keeps its precision.
 const NORMAL_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
-/// The horizon table's format: f16 sines, an error below 5e-4.
-const HORIZON_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
+/// The light table's format: f16 radiance (relative error 5e-4) and sines (error below 5e-4).
+const LIGHT_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
 
-/// The per-level tables, their views, the CPU bake they are filled from and the staging they are filled
-/// through (allocated once).
+/// The per-level tables, their views, the CPU bake they are filled from, what the light table's texels
+/// are computed with, and the staging they are filled through (allocated once).
 #[derive(Debug)]
 pub(super) struct SgTables {
     normal: wgpu::Texture,
     pub(super) normal_view: wgpu::TextureView,
-    horizon: Option<wgpu::Texture>,
-    pub(super) horizon_view: Option<wgpu::TextureView>,
+    light: Option<wgpu::Texture>,
+    pub(super) light_view: Option<wgpu::TextureView>,
     bake: ShadingBake,
+    /// The scene's lights and its sky table: the light table's inputs besides the bake.
+    lighting: TexelLighting,
+    sky: SkyTable,
     size: u32,
     levels: u32,
-    /// Horizon layers per ring, ceil(D / 4) (0: no visibility).
-    horizon_layers: u32,
     staging_normal: Vec<[f32; 4]>,
-    staging_horizon: Vec<[u16; 4]>,
+    staging_light: Vec<[u16; 4]>,
 }
 
 impl SgTables {
-    /// Creates the tables for `profile` (`visibility`: with the horizon table of `bake`'s D azimuths).
+    /// Creates the tables for `profile` (`visibility`: with the light table, from `bake`'s horizons),
+    /// for `scene` and its sky table `sky`.
     pub(super) fn new(
         dev: &mut Ledgered<'_>,
         profile: &Profile,
         bake: &ShadingBake,
         visibility: bool,
+        scene: &Scene,
+        sky: &SkyTable,
     ) -> Result<Self> {
         let d = if visibility { bake.azimuths() } else { 0 };
         let need = dev
@@ -77,11 +90,11 @@ impl SgTables {
             dev.texture(label, &array_texture(size, layers, format, READ_BACK))
         };
         let normal = make("sg level_normal", profile.sg_normal_layers(), NORMAL_FORMAT);
-        let horizon = (d > 0).then(|| {
+        let light = (d > 0).then(|| {
             make(
-                "sg level_horizon",
-                profile.sg_horizon_layers(d),
-                HORIZON_FORMAT,
+                "sg level_light",
+                profile.sg_light_layers(true),
+                LIGHT_FORMAT,
             )
         });
         let array = wgpu::TextureViewDescriptor {
@@ -89,22 +102,22 @@ impl SgTables {
             ..Default::default()
         };
         let normal_view = dev.view("sg level_normal view", &normal, &array);
-        let horizon_view = horizon
+        let light_view = light
             .as_ref()
-            .map(|t| dev.view("sg level_horizon view", t, &array));
+            .map(|t| dev.view("sg level_light view", t, &array));
         let texels = size as usize * size as usize;
-        let horizon_layers = d.div_ceil(4);
         Ok(Self {
             normal,
             normal_view,
-            horizon,
-            horizon_view,
+            staging_light: vec![[0; 4]; if light.is_some() { texels } else { 0 }],
+            light,
+            light_view,
             bake: bake.clone(),
+            lighting: TexelLighting::new(scene),
+            sky: sky.clone(),
             size,
             levels: profile.clipmap.levels,
-            horizon_layers,
             staging_normal: vec![[0.0; 4]; texels],
-            staging_horizon: vec![[0; 4]; texels * horizon_layers as usize],
         })
     }
 
@@ -113,9 +126,9 @@ impl SgTables {
         &self.normal
     }
 
-    /// Horizon layers per ring (ceil(D / 4); 0 without visibility).
-    pub(super) fn horizon_layers(&self) -> u32 {
-        self.horizon_layers
+    /// The light table (with visibility).
+    pub(super) fn light(&self) -> Option<&wgpu::Texture> {
+        self.light.as_ref()
     }
 
     /// Writes the tables' texels of `uploads` (the plan's ring rectangles), or of every ring when
@@ -162,8 +175,9 @@ impl SgTables {
         let s = i64::from(self.size);
         let data_level = i32::try_from(u.level).unwrap_or(i32::MAX)
             - i32::try_from(clipmap.synth_levels()).unwrap_or(0);
-        let hl = self.horizon_layers as usize;
+        let light = self.light.is_some();
         let texels = u.w as usize * u.h as usize;
+        let f16 = |x: f32| half::f16::from_f32(x).to_bits();
         for ty in 0..u.h {
             // The lattice row of the clip region stored in texel row tex_y + ty.
             let j = clip.y0 + (i64::from(u.tex_y + ty) - clip.y0).rem_euclid(s);
@@ -171,15 +185,19 @@ impl SgTables {
                 let i = clip.x0 + (i64::from(u.tex_x + tx) - clip.x0).rem_euclid(s);
                 let (r, hz) = self.bake.level_texel(data_level, i, j);
                 let at = ty as usize * u.w as usize + tx as usize;
-                self.staging_normal[at] = [r.x, r.y, r.z, 0.0];
-                for layer in 0..hl {
-                    let mut px = [0u16; 4];
-                    for (c, v) in px.iter_mut().enumerate() {
-                        *v = half::f16::from_f32(hz.get(4 * layer + c).map_or(0.0, |a| a.sin()))
-                            .to_bits();
-                    }
-                    self.staging_horizon[layer * texels + at] = px;
+                let mut w = 0.0;
+                if light {
+                    let sines: heapless::Vec<f32, 16> = hz.iter().map(|a| a.sin()).collect();
+                    let t = self.lighting.texel(r, &sines, &self.sky);
+                    w = t.sun_sin;
+                    self.staging_light[at] = [
+                        f16(t.diffuse.x),
+                        f16(t.diffuse.y),
+                        f16(t.diffuse.z),
+                        f16(t.mean_sin),
+                    ];
                 }
+                self.staging_normal[at] = [r.x, r.y, r.z, w];
             }
         }
         let extent = wgpu::Extent3d {
@@ -208,16 +226,13 @@ impl SgTables {
             layout(16),
             extent,
         );
-        if let Some(horizon) = &self.horizon {
-            for layer in 0..self.horizon_layers {
-                let at = layer as usize * texels;
-                queue.write_texture(
-                    target(horizon, u.level * self.horizon_layers + layer),
-                    bytemuck::cast_slice(&self.staging_horizon[at..at + texels]),
-                    layout(8),
-                    extent,
-                );
-            }
+        if let Some(light) = &self.light {
+            queue.write_texture(
+                target(light, u.level),
+                bytemuck::cast_slice(&self.staging_light[..texels]),
+                layout(8),
+                extent,
+            );
         }
     }
 }

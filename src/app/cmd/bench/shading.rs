@@ -111,7 +111,7 @@ pub(crate) struct BreakdownRow {
 }
 
 impl BreakdownRow {
-    /// Each term's cost in ms: footprint fetch, vMF, sky table + horizon wedges (full minus the variant without
+    /// Each term's cost in ms: footprint fetch, vMF, light + sky tables (full minus the variant without
     /// it), visibility (+visibility minus diffuse), specular (+specular minus +visibility).
     pub(crate) fn term_ms(&self) -> [(&'static str, f64); 5] {
         let full = self.effects_ms[2];
@@ -587,8 +587,10 @@ pub(crate) fn breakdown_markdown(
         "\n**Per-term breakdown** (the evening scene without fog, visibility and specular on): the \
          full shading's ms and ratio to basic, then each term's cost in ms, measured as the time it \
          saves when left out (footprint: the normal table fetch, r from the mesh normal instead; vMF: a \
-         single normal; patches: each lobe as one direction; visibility: +visibility minus diffuse; \
-         specular: +specular minus +visibility). Negative values are timing noise.\n\n\
+         single normal; tables: the light table (with visibility, the view-independent shading per \
+         texel) left out, each lobe one direction, unshadowed; visibility: +visibility minus diffuse \
+         (the light table read instead of the suns' and the sky table's integration, so it can save \
+         time); specular: +specular minus +visibility). Negative values are timing noise.\n\n\
          | terrain | full ms (x basic) | diffuse ms (x basic) |",
     );
     for (label, _) in rows.first().map(BreakdownRow::term_ms).unwrap_or_default() {
