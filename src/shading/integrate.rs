@@ -380,8 +380,9 @@ pub struct TexelLight {
 /// its horizon angles at the D baked azimuths (`sines`, D a multiple of 4 up to 16; empty: no horizon)
 /// for the scene's lights and k_d; `sky` is the scene's [`SkyTable`]. Suns: the vMF-averaged cosine at
 /// the sun ([`vmf_cosine`]) times the sun's fraction above the horizon at its own azimuth; broad lights:
-/// the sky table less [`occluded`] (SAT paper algorithm 3, TransferVis + PatchVis). [`TexelLighting`]
-/// holds the scene's part, for writing many texels.
+/// the sky table less what the horizon hides of them (`occluded`: a wedge per pair of azimuths; SAT
+/// paper algorithm 3, TransferVis + PatchVis). [`TexelLighting`] holds the scene's part, for writing
+/// many texels.
 pub fn texel_light(r: Vec3, sines: &[f32], scene: &Scene, sky: &SkyTable) -> TexelLight {
     TexelLighting::new(scene).texel(r, sines, sky)
 }
