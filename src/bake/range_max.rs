@@ -1,7 +1,7 @@
 //! Stage 1, bake: the range-maximum pyramid that the SAT LOD tables ([`crate::bake::lod_tables`]) keep
 //! beside each level's SAT, for the `exact` bound and the cap of `sat-conservative` (design.md "SAT LOD").
 
-use crate::bake::mapped::{Grid, CHARGE_CHUNK};
+use crate::bake::mapped::Grid;
 
 /// Range maximum over a grid of non-negative f32: a max pyramid (level k+1 = max of 2 x 2 of level k).
 ///
@@ -112,12 +112,13 @@ impl RangeMax {
         }
         let (w, h) = self.dims[j];
         let vals = &self.levels[j];
-        // At most 2 x 2 cells, on two rows: at most four pages (mapped tables count them; bake::mapped).
-        vals.charge(4);
         let mut m = 0.0f32;
         for y in (y0 >> j)..=((y1 - 1) >> j).min(h - 1) {
             for x in (x0 >> j)..=((x1 - 1) >> j).min(w - 1) {
-                m = m.max(vals[y as usize * w as usize + x as usize]);
+                let i = y as usize * w as usize + x as usize;
+                // A mapped grid counts its pages against its resident limit (bake::mapped).
+                vals.touch(i);
+                m = m.max(vals[i]);
             }
         }
         m
@@ -138,42 +139,34 @@ impl RangeMax {
             }
             let grid = &self.levels[k];
             let w = self.dims[k].0 as usize;
-            let at = |x: u32, y: u32| vals[y as usize * w + x as usize];
-            // A column of cells is charged against a mapped grid's resident limit in chunks (a page per
-            // cell at worst), a row as the pages it spans (bake::mapped).
-            let column = |x: u32, y0: u32, y1: u32, m: &mut f32| {
-                let mut y = y0;
-                while y < y1 {
-                    let end = y1.min(y.saturating_add(CHARGE_CHUNK));
-                    grid.charge(u64::from(end - y));
-                    (y..end).for_each(|y| *m = m.max(at(x, y)));
-                    y = end;
-                }
-            };
-            let row = |y: u32, x0: u32, x1: u32, m: &mut f32| {
-                grid.charge_run(u64::from(x1 - x0));
-                (x0..x1).for_each(|x| *m = m.max(at(x, y)));
+            // A mapped grid counts its pages against its resident limit (bake::mapped).
+            let at = |x: u32, y: u32| {
+                let i = y as usize * w + x as usize;
+                grid.touch(i);
+                vals[i]
             };
             if k + 1 == self.levels.len() {
                 for y in y0..y1 {
-                    row(y, x0, x1, &mut m);
+                    for x in x0..x1 {
+                        m = m.max(at(x, y));
+                    }
                 }
                 break;
             }
             if x0 & 1 == 1 {
-                column(x0, y0, y1, &mut m);
+                (y0..y1).for_each(|y| m = m.max(at(x0, y)));
                 x0 += 1;
             }
             if x1 & 1 == 1 && x1 > x0 {
-                column(x1 - 1, y0, y1, &mut m);
+                (y0..y1).for_each(|y| m = m.max(at(x1 - 1, y)));
                 x1 -= 1;
             }
             if y0 & 1 == 1 {
-                row(y0, x0, x1, &mut m);
+                (x0..x1).for_each(|x| m = m.max(at(x, y0)));
                 y0 += 1;
             }
             if y1 & 1 == 1 && y1 > y0 {
-                row(y1 - 1, x0, x1, &mut m);
+                (x0..x1).for_each(|x| m = m.max(at(x, y1 - 1)));
                 y1 -= 1;
             }
             (x0, y0, x1, y1) = (x0 / 2, y0 / 2, x1 / 2, y1 / 2);

@@ -271,7 +271,10 @@ impl Sat {
         if cx == 0 || cy == 0 {
             0
         } else {
-            self.table[(cy - 1) as usize * self.cols as usize + (cx - 1) as usize]
+            let i = (cy - 1) as usize * self.cols as usize + (cx - 1) as usize;
+            // A mapped table counts its pages against its resident limit (bake::mapped).
+            self.table.touch(i);
+            self.table[i]
         }
     }
 
@@ -301,8 +304,6 @@ impl Sat {
             self.edge(y1, self.samples_h, "y"),
         );
         debug_assert!(b <= self.cols && d <= self.rows);
-        // Four entries, each on its own page at worst (mapped tables count them; bake::mapped).
-        self.table.charge(4);
         // Modular arithmetic: exact because the true sum is below 2^64 (checked in `build`).
         self.prefix(b, d)
             .wrapping_sub(self.prefix(a, d))

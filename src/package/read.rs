@@ -93,6 +93,27 @@ impl Package {
         self.map.len() as u64
     }
 
+    /// Drops the mapped pages of bytes `offset .. offset + len` from this process's resident set
+    /// ([`Package::trim`]). Best effort.
+    fn trim_range(&self, offset: usize, len: usize) {
+        #[cfg(unix)]
+        {
+            let end = offset.saturating_add(len).min(self.map.len());
+            if end > offset {
+                // SAFETY: as in `trim`: clean, file-backed, read-only pages only.
+                let _ = unsafe {
+                    self.map.unchecked_advise_range(
+                        memmap2::UncheckedAdvice::DontNeed,
+                        offset,
+                        end - offset,
+                    )
+                };
+            }
+        }
+        #[cfg(not(unix))]
+        let _ = (offset, len);
+    }
+
     /// Drops the package's mapped pages from this process's resident set (they stay in the kernel's page
     /// cache; the next read faults them back in, unchanged): a reader that sweeps the whole file, such as
     /// the LOD tables' bake, calls it as it goes so the file's pages do not add up. Best effort.
@@ -151,7 +172,11 @@ impl Package {
         if crc32fast::hash(payload) != entry.crc {
             return Err(bad("checksum mismatch (damaged tile)"));
         }
-        scratch.decoder.decode(payload, out).map_err(bad)?;
+        let decoded = scratch.decoder.decode(payload, out).map_err(bad);
+        // The payload's pages leave the resident set once decoded (they stay in the kernel's page cache):
+        // a long flight's decodes do not add the package's pages up (issue 13).
+        self.trim_range(start, entry.len as usize);
+        decoded?;
         if level + 1 == self.header.levels.len() {
             return Ok(());
         }
