@@ -103,6 +103,26 @@ pub struct PlannedDraw {
     pub fragment: FragmentPath,
 }
 
+/// Whether ring draw `d` of the clamped draw list is one of block `b`'s (`cull::build_lod_draws` draws
+/// each piece of a block at its level, in its ring's lattice or, tiled exactly, in the level's): a block
+/// or tile skirt at `b`'s level whose bounds lie in `b`'s rectangle in that lattice. The pool's credit
+/// for refining `b`; plan_detail's final check holds the budget whatever it is.
+fn block_draws(b: &crate::plan::lod::BlockLod, d: &cull::Draw) -> bool {
+    if d.pool.is_some() || d.kind == DrawKind::Skirt || d.level != b.level || d.fine < b.ring {
+        return false;
+    }
+    let s = d.fine - b.ring;
+    let r = &b.rect;
+    let up = |v: i64| -((-v) >> s);
+    let rect = crate::plan::frame::Rect::from_bounds(
+        r.x0 >> s,
+        r.y0 >> s,
+        up(r.x1() - 1) + 1,
+        up(r.y1() - 1) + 1,
+    );
+    rect.contains(&d.bounds)
+}
+
 /// What a plan holds, in numbers.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct PlanStats {
@@ -255,6 +275,9 @@ pub struct Planner {
     last: Option<u64>,
     /// The detail pool's CPU state (SAT modes).
     pool: DetailPool,
+    /// Per LOD block: the triangles its ring draws take in the clamped draw list (the pool's credit
+    /// when it refines the block; allocated once).
+    ring_triangles: Box<[u64]>,
     /// The terrain's height range (m).
     z_range: (f32, f32),
     update_budget: u32,
@@ -322,6 +345,7 @@ impl Planner {
             probe_size: [PROBE_WIDTH, probe_rows],
             last: None,
             pool: DetailPool::new(profile),
+            ring_triangles: vec![0; crate::plan::lod::MAX_LOD_BLOCKS].into_boxed_slice(),
             z_range: (lo, hi),
             update_budget: profile.budget.update_samples_per_frame,
         })
@@ -451,12 +475,24 @@ impl Planner {
                 LodSetup::Distance => 0.0,
             }
         };
+        self.ring_triangles.fill(0);
+        for (i, b) in out.lod.blocks.iter().enumerate() {
+            if b.wanted < b.level && b.wanted < b.ring {
+                self.ring_triangles[i] = out
+                    .draws
+                    .iter()
+                    .filter(|d| block_draws(b, d))
+                    .map(|d| self.triangles_of(d))
+                    .sum();
+            }
+        }
         self.pool.plan(
             clipmap,
             &view,
             &mut out.lod,
             &bound_at,
             &budget,
+            &self.ring_triangles,
             &mut out.detail,
         )?;
         if out.detail.served.is_empty() {

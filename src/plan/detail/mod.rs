@@ -378,7 +378,12 @@ impl DetailPool {
     /// read are then filled most-needed first (by the block's bound / epsilon at the clamped level) under
     /// `budget.samples` (spent only when `budget.new_frame`: a clipmap frame planned again spends
     /// nothing), and each block whose tiles are all resident is served: its level in `lod` becomes its
-    /// finest cell's, and `lod.blocks_clamped` drops when every cell meets epsilon. Writes `out`.
+    /// finest cell's, and `lod.blocks_clamped` drops when every cell meets epsilon. A refined block's
+    /// own ring draws, `ring_triangles[i]` for block i, go back to `budget.triangles`. Writes `out`.
+    #[expect(
+        clippy::too_many_arguments,
+        reason = "the plan's inputs, each a different stage's output"
+    )]
     pub fn plan(
         &mut self,
         src: &impl DetailSource,
@@ -386,6 +391,7 @@ impl DetailPool {
         lod: &mut LodFrame,
         bound_at: &dyn Fn(u32, (i64, i64, i64, i64)) -> f64,
         budget: &DetailBudget,
+        ring_triangles: &[u64],
         out: &mut DetailFrame,
     ) -> Result<()> {
         out.uploads.clear();
@@ -402,7 +408,7 @@ impl DetailPool {
         let cap = self.slots.len();
         let eps = view.epsilon_px;
         self.eps = eps;
-        self.tree.start(lod, eps, cap)?;
+        self.tree.start(lod, eps, cap, ring_triangles)?;
         self.tree
             .refine(view, lod, bound_at, budget, self.quads, cap)?;
         out.tiles_needed = u32::try_from(self.tree.keys.len()).expect("keys <= DETAIL_CAPACITY");

@@ -23,6 +23,8 @@ pub(super) struct Cand {
     pub(super) bound: f64,
     /// How far that bound exceeds epsilon (bound / epsilon): the fill order.
     pub(super) need: f64,
+    /// Triangles its own ring draws take in the frame's clamped draw list (freed when it is refined).
+    pub(super) credit: u64,
     /// Drawn from pool cells instead of its ring.
     pub(super) refined: bool,
     /// Its cells do not fit.
@@ -104,8 +106,15 @@ enum Unit {
 }
 
 impl Quadtree {
-    /// Collects the clamped blocks of `lod` (none when the pool has no slots).
-    pub(super) fn start(&mut self, lod: &LodFrame, eps: f64, slots: usize) -> Result<()> {
+    /// Collects the clamped blocks of `lod` (none when the pool has no slots); `ring_triangles[i]`: the
+    /// triangles block i's ring draws take (0 past its end).
+    pub(super) fn start(
+        &mut self,
+        lod: &LodFrame,
+        eps: f64,
+        slots: usize,
+        ring_triangles: &[u64],
+    ) -> Result<()> {
         self.cands.clear();
         self.cells.clear();
         self.keys.clear();
@@ -121,6 +130,7 @@ impl Quadtree {
                         wanted: b.wanted,
                         bound: f64::from(b.bound_px),
                         need: f64::from(b.bound_px) / eps,
+                        credit: ring_triangles.get(i).copied().unwrap_or(0),
                         refined: false,
                         frozen: false,
                     })
@@ -181,28 +191,29 @@ impl Quadtree {
                 .iter()
                 .map(|c| budget.cell_triangles(&c.bounds))
                 .sum();
-            let (mut sub_t, mut add_d, mut freed, mut removed) = (
-                0u64,
+            let (mut add_d, mut freed, mut removed) = (
                 i64::try_from(n).expect("n <= capacity") * i64::from(budget.tile_draws),
                 0,
                 0,
             );
-            match unit {
-                Unit::Block(_) => {
+            let sub_t = match unit {
+                Unit::Block(k) => {
+                    // Its ring draws leave the list (plan_detail's final check still holds the budget).
                     add_d += i64::from(budget.margin.0);
                     add_t += budget.margin.1;
+                    self.cands[k].credit
                 }
                 Unit::Cell(j) => {
                     let old = self.cells[j];
-                    sub_t = budget.cell_triangles(&old.bounds);
                     add_d -= i64::from(budget.tile_draws);
                     removed = 1;
                     let only = self.keys.iter().any(|(k, r)| *k == old.key && *r == 1);
                     if only && !self.new.iter().any(|c| c.key == old.key) {
                         freed = 1;
                     }
+                    budget.cell_triangles(&old.bounds)
                 }
-            }
+            };
             let fits = fitted
                 && n > 0
                 && self.keys.len() + new_keys - freed <= slots
