@@ -29,8 +29,9 @@ fn sg_bilinear(a: vec4<f32>, b: vec4<f32>, c: vec4<f32>, d: vec4<f32>, f: vec2<f
 }
 
 // The taps of eye-relative point rel for a footprint of `w` data samples (the larger side of the pixel's
-// box): level synth + round(log2 w), or the finest ring holding rel if that is coarser; then coarser
-// until one holds it (level_holds, clipmap.wgsl). Where none does (a pixel at the data's border, or a
+// box): the first ring from level synth + round(log2 w) on that holds rel (level_holds, clipmap.wgsl),
+// which is the finest ring holding rel if that is coarser (finest_level need not run first: the rings
+// between do not hold rel). Where none does (a pixel at the data's border, or a
 // footprint coarser than every ring), the coarsest ring of 4 x 4 samples or more (level_info.w), its cell
 // clamped into the held ones: every pixel reads a table, with no branch to a second shading path (which
 // llvmpipe would run at every pixel). level < 0 only for a clipmap without such a ring.
@@ -42,7 +43,7 @@ fn sg_taps(rel: vec2<f32>, w: f32) -> SgTaps {
     let synth = max(i32(round(log2(sg_scene.grid.x / globals.levels[0].rel.w))), 0);
     let k = i32(round(log2(max(w, 1.0))));
     var pick = globals.level_info.w;
-    for (var l = max(synth + k, finest_level(rel)); l < n; l = l + 1) {
+    for (var l = synth + k; l < n; l = l + 1) {
         let lv = globals.levels[l];
         if (level_holds(lv, vec2<i32>(floor(level_uv(lv, rel))))) {
             pick = l;
@@ -55,12 +56,19 @@ fn sg_taps(rel: vec2<f32>, w: f32) -> SgTaps {
     let lv = globals.levels[pick];
     let u = level_uv(lv, rel);
     let i = clamp(vec2<i32>(floor(u)), vec2<i32>(1), lv.tex.zw - vec2<i32>(3));
+    // Toroidal texels mod S without an integer division (llvmpipe has no vector one: 8 scalar divisions
+    // a lane): tex.xy < S and i + 1 <= S - 2, so one subtraction wraps (GLSL ES 3.0 has no integer mix
+    // for a select: the comparison as 0 or 1).
     let s = vec2<i32>(globals.level_info.y);
+    let a = lv.tex.xy + i;
+    let t0 = a - s * vec2<i32>(a >= s);
+    let b = a + vec2<i32>(1);
+    let t1 = b - s * vec2<i32>(b >= s);
     t.level = pick;
-    t.t00 = (lv.tex.xy + i) % s;
-    t.t10 = (lv.tex.xy + i + vec2<i32>(1, 0)) % s;
-    t.t01 = (lv.tex.xy + i + vec2<i32>(0, 1)) % s;
-    t.t11 = (lv.tex.xy + i + vec2<i32>(1, 1)) % s;
+    t.t00 = t0;
+    t.t10 = vec2<i32>(t1.x, t0.y);
+    t.t01 = vec2<i32>(t0.x, t1.y);
+    t.t11 = t1;
     t.f = clamp(u - vec2<f32>(i), vec2<f32>(0.0), vec2<f32>(1.0));
     return t;
 }

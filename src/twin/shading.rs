@@ -208,8 +208,8 @@ pub struct SgTaps {
     pub f: [f32; 2],
 }
 
-/// The CPU twin of `sg_taps`: the ring at data level round(log2 w) (or the finest ring holding `rel`, if
-/// coarser), then coarser until one holds `rel` with `finest_level`'s margin; where none does, the
+/// The CPU twin of `sg_taps`: the first ring from data level round(log2 w) on that holds `rel` with
+/// `finest_level`'s margin (so at least the finest ring holding it); where none does, the
 /// coarsest ring of 4 x 4 samples or more (`globals.level_info[3]`) with the cell clamped into its held
 /// ones. `None` only without such a ring.
 #[expect(
@@ -222,7 +222,7 @@ pub fn sg_taps(globals: &Globals, data_spacing: f32, rel: [f32; 2], w: f32) -> O
     let count = globals.level_info[0].clamp(0, MAX_LEVELS as i32);
     let synth = ((data_spacing / globals.levels[0].rel[3]).log2().round() as i32).max(0);
     let k = w.max(1.0).log2().round() as i32;
-    let first = (synth + k).max(finest_level(globals, rel).map_or(-1, |l| l as i32));
+    let first = synth + k;
     let uv = |l: i32| {
         let lv = &globals.levels[l as usize];
         let g = lv.rel[3];
