@@ -128,23 +128,7 @@ impl Mapping {
     /// them back in from the kernel's page cache; the contents are unchanged). Best effort: a platform
     /// without the advice keeps the pages.
     pub fn trim_range(&self, offset: usize, len: usize) {
-        #[cfg(unix)]
-        {
-            let end = offset.saturating_add(len).min(self.0.map.len());
-            if end > offset {
-                // SAFETY: MADV_DONTNEED on a read-only, file-backed private map only discards clean pages,
-                // which are re-read from the file: no byte a slice of the map shows can change.
-                let _ = unsafe {
-                    self.0.map.unchecked_advise_range(
-                        memmap2::UncheckedAdvice::DontNeed,
-                        offset,
-                        end - offset,
-                    )
-                };
-            }
-        }
-        #[cfg(not(unix))]
-        let _ = (offset, len);
+        drop_resident(&self.0.map, offset, len);
     }
 
     /// Drops every page of the map from the resident set ([`Mapping::trim_range`]); the pages charged
@@ -257,6 +241,25 @@ impl<T: bytemuck::Pod> std::fmt::Debug for Grid<T> {
         let kind = if self.is_mapped() { "mapped" } else { "owned" };
         write!(f, "Grid({} values, {kind})", self.len())
     }
+}
+
+/// Drops the pages of `offset .. offset + len` (clamped to the map) from this process's resident set; the
+/// next read faults them back in from the kernel's page cache, unchanged. Best effort: a platform without
+/// the advice keeps the pages. Shared by the LOD tables' map and the package's.
+pub(crate) fn drop_resident(map: &memmap2::Mmap, offset: usize, len: usize) {
+    #[cfg(unix)]
+    {
+        let end = offset.saturating_add(len).min(map.len());
+        if end > offset {
+            // SAFETY: MADV_DONTNEED on a read-only, file-backed private map only discards clean pages,
+            // which are re-read from the file: no byte a slice of the map shows can change.
+            let _ = unsafe {
+                map.unchecked_advise_range(memmap2::UncheckedAdvice::DontNeed, offset, end - offset)
+            };
+        }
+    }
+    #[cfg(not(unix))]
+    let _ = (map, offset, len);
 }
 
 #[cfg(test)]

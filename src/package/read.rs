@@ -96,37 +96,14 @@ impl Package {
     /// Drops the mapped pages of bytes `offset .. offset + len` from this process's resident set
     /// ([`Package::trim`]). Best effort.
     fn trim_range(&self, offset: usize, len: usize) {
-        #[cfg(unix)]
-        {
-            let end = offset.saturating_add(len).min(self.map.len());
-            if end > offset {
-                // SAFETY: as in `trim`: clean, file-backed, read-only pages only.
-                let _ = unsafe {
-                    self.map.unchecked_advise_range(
-                        memmap2::UncheckedAdvice::DontNeed,
-                        offset,
-                        end - offset,
-                    )
-                };
-            }
-        }
-        #[cfg(not(unix))]
-        let _ = (offset, len);
+        crate::bake::mapped::drop_resident(&self.map, offset, len);
     }
 
     /// Drops the package's mapped pages from this process's resident set (they stay in the kernel's page
     /// cache; the next read faults them back in, unchanged): a reader that sweeps the whole file, such as
     /// the LOD tables' bake, calls it as it goes so the file's pages do not add up. Best effort.
     pub fn trim(&self) {
-        #[cfg(unix)]
-        {
-            // SAFETY: MADV_DONTNEED on a read-only, file-backed private map only discards clean pages,
-            // which are re-read from the file: no byte a slice of the map shows can change.
-            let _ = unsafe {
-                self.map
-                    .unchecked_advise(memmap2::UncheckedAdvice::DontNeed)
-            };
-        }
+        self.trim_range(0, self.map.len());
     }
 
     /// Decoding scratch for this package's tiles (allocates once).

@@ -15,6 +15,19 @@ fn peak_rss(args: &[&str]) -> Option<u64> {
     peak_rss_in(args, None)
 }
 
+/// Bakes `procedural:size={size}` into `dir/p{size}.clipsat`; returns the package's path and the terrain.
+fn bake_procedural(dir: &Path, size: u32) -> (std::path::PathBuf, String) {
+    let pkg = dir.join(format!("p{size}.clipsat"));
+    let terrain = format!("procedural:size={size}");
+    let bake = clipsat(&["bake", &terrain, "--out", &pkg.to_string_lossy(), "--json"]);
+    assert!(
+        bake.status.success(),
+        "bake {terrain}: {}",
+        String::from_utf8_lossy(&bake.stderr)
+    );
+    (pkg, terrain)
+}
+
 /// [`peak_rss`] with `CLIPSAT_CACHE` set to `cache` when given.
 fn peak_rss_in(args: &[&str], cache: Option<&Path>) -> Option<u64> {
     if !Path::new("/usr/bin/time").is_file() {
@@ -43,15 +56,8 @@ fn fly_16385_streamed_within_the_cpu_budget() {
     let dir = super::scratch_in("cli_stream_rss", "fly");
     let mut peaks = Vec::new();
     for size in [257u32, 16385] {
-        let pkg = dir.join(format!("p{size}.clipsat"));
+        let (pkg, terrain) = bake_procedural(&dir, size);
         let p = pkg.to_string_lossy();
-        let terrain = format!("procedural:size={size}");
-        let bake = clipsat(&["bake", &terrain, "--out", &p, "--json"]);
-        assert!(
-            bake.status.success(),
-            "bake {terrain}: {}",
-            String::from_utf8_lossy(&bake.stderr)
-        );
         let fly = [
             "fly",
             "--terrain",
@@ -127,15 +133,8 @@ fn sat_lod_16385_within_the_cpu_budget() {
     let cache = dir.join("cache");
     let mut peaks = Vec::new();
     for size in [257u32, 16385] {
-        let pkg = dir.join(format!("p{size}.clipsat"));
+        let (pkg, terrain) = bake_procedural(&dir, size);
         let p = pkg.to_string_lossy();
-        let terrain = format!("procedural:size={size}");
-        let bake = clipsat(&["bake", &terrain, "--out", &p, "--json"]);
-        assert!(
-            bake.status.success(),
-            "bake {terrain}: {}",
-            String::from_utf8_lossy(&bake.stderr)
-        );
         let render = [
             "render",
             "--terrain",
