@@ -8,7 +8,7 @@
 // texel holds the box mean of the data's normals over 2^k + 1 samples centred on it, so the blend is a
 // tent filter about 2^(k+1) samples wide (its w: the horizon's sine toward the first sun). With visibility
 // the light table is read at the same taps (sg_visibility.wgsl). `clipsat::twin::shading::sg_taps` and
-// `sg_texel` are the CPU twins.
+// `sg_light` are the CPU twins.
 
 @group(2) @binding(0) var<uniform> sg_scene: SgScene;
 @group(2) @binding(1) var level_normal: texture_2d_array<f32>;

@@ -2,8 +2,8 @@
 //! the height and normal under a pixel from the finest ring that holds it (GC section 6's normal maps
 //! from the clipmap's data), in the shader's f32 arithmetic, so tests can check what any drawn level is
 //! shaded with, and [`fragment_data`]: where and how much `fs_ring_data` (and `fs_skirt`) shade from the
-//! rings rather than from the drawn vertices; and [`sg_taps`] / [`sg_inputs`], the twin of the SG shader's
-//! per-level table reads (`shaders_gles/sg_clipmap.wgsl`).
+//! rings rather than from the drawn vertices; and [`sg_taps`] / [`sg_inputs`] / [`sg_light`], the twin of
+//! the SG shader's per-level table reads (`shaders_gles/sg_clipmap.wgsl`).
 
 use crate::plan::clipmap::Clipmap;
 use crate::plan::uniforms::Globals;
@@ -255,10 +255,10 @@ pub fn sg_taps(globals: &Globals, data_spacing: f32, rel: [f32; 2], w: f32) -> O
     })
 }
 
-/// The SG inputs the shader blends from `taps`: r and the D horizon angles, bilinear between the four
-/// texels of the per-level tables, each [`crate::gpu::sat_textures::ShadingBake::level_texel`] of its
-/// lattice sample (the GPU table holds them, horizons as their sines rounded to f16: the angles returned
-/// are the arcsines of the blended sines).
+/// The SG inputs at `taps`: r as the shader blends it from the normal table, and the D horizon angles
+/// blended the same way (as sines rounded to f16, handed back as the arcsines of the blend), each texel
+/// [`crate::gpu::sat_textures::ShadingBake::level_texel`] of its lattice sample. The shader itself
+/// blends the light table's texels instead of the horizons ([`sg_light`]).
 pub fn sg_inputs(
     bake: &crate::gpu::sat_textures::ShadingBake,
     clipmap: &Clipmap,
@@ -296,4 +296,39 @@ pub fn sg_inputs(
         let _ = hz.push(blended.clamp(-1.0, 1.0).asin());
     }
     (r, hz)
+}
+
+/// The CPU twin of `sg_colour`'s light-table read (with visibility, `shaders_gles/sg_visibility.wgsl`):
+/// the bilinear blend over `taps`' four texels of what the light table holds at each (rgb: the diffuse
+/// radiance, a: the horizon's mean sine; [`crate::shading::TexelLighting::texel`] of the texel's
+/// [`crate::gpu::sat_textures::ShadingBake::level_texel`], rounded to f16), and of the normal table's w
+/// (the horizon's sine toward the first sun, f32).
+pub fn sg_light(
+    bake: &crate::gpu::sat_textures::ShadingBake,
+    clipmap: &Clipmap,
+    taps: &SgTaps,
+    lighting: &crate::shading::TexelLighting,
+    sky: &crate::shading::SkyTable,
+) -> ([f32; 4], f32) {
+    let clip = clipmap.frame().levels[taps.level as usize].clip;
+    let data_level = i32::try_from(taps.level).unwrap_or(i32::MAX)
+        - i32::try_from(clipmap.synth_levels()).unwrap_or(0);
+    let f16 = |x: f32| half::f16::from_f32(x).to_f32();
+    let at = |dx: i32, dy: i32| {
+        let (r, hz) = bake.level_texel(
+            data_level,
+            clip.x0 + i64::from(taps.cell[0] + dx),
+            clip.y0 + i64::from(taps.cell[1] + dy),
+        );
+        let sines: heapless::Vec<f32, 16> = hz.iter().map(|a| a.sin()).collect();
+        let t = lighting.texel(r, &sines, sky);
+        let d = t.diffuse;
+        ([f16(d.x), f16(d.y), f16(d.z), f16(t.mean_sin)], t.sun_sin)
+    };
+    let (a, b, c, d) = (at(0, 0), at(1, 0), at(0, 1), at(1, 1));
+    let [fx, fy] = taps.f;
+    let mix = |p: f32, q: f32, t: f32| p * (1.0 - t) + q * t;
+    let bil = |p: f32, q: f32, r: f32, s: f32| mix(mix(p, q, fx), mix(r, s, fx), fy);
+    let light = std::array::from_fn(|k| bil(a.0[k], b.0[k], c.0[k], d.0[k]));
+    (light, bil(a.1, b.1, c.1, d.1))
 }

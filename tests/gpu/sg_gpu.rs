@@ -580,6 +580,59 @@ fn sg_light_table_follows_the_rings() {
         }
     }
     assert!(checked > 4 * 25 * 25, "{checked} texels checked");
+    // The twin of the shader's blend (sg_taps, then sg_light) against the blend of the read-back texels
+    // at the shader's toroidal texels ((tex + cell + {0, 1}) mod S).
+    let g = r.globals();
+    let lighting = shading::TexelLighting::new(&scene);
+    let eye = render_support::flight(&hm, 39, 120.0, 400.0, Some(40)).eye;
+    let (ox, oy) = cm.origin();
+    let mut blended = 0;
+    for (dx, dy) in [
+        (100.0f32, 50.0f32),
+        (-400.0, 300.0),
+        (2000.0, 800.0),
+        (37.0, -450.0),
+    ] {
+        if eye.x + f64::from(dx) <= ox || eye.y + f64::from(dy) <= oy {
+            continue;
+        }
+        let taps = clipsat::twin::shading::sg_taps(g, hm.spacing(), [dx, dy], 2.0).expect("held");
+        let (light, sun) = clipsat::twin::shading::sg_light(&bake, &cm, &taps, &lighting, &sky);
+        let lv = &g.levels[taps.level as usize];
+        let s = p.clip_size() as i32;
+        let texel = |ox: i32, oy: i32| {
+            let tx = (lv.tex[0] + taps.cell[0] + ox) % s;
+            let ty = (lv.tex[1] + taps.cell[1] + oy) % s;
+            usize::try_from(ty * s + tx).expect("texel")
+        };
+        let level = taps.level as usize;
+        let h = |t: usize, k: usize| half::f16::from_bits(lights[level][t][k]).to_f32();
+        let [fx, fy] = taps.f;
+        let mix = |a: f32, b: f32, t: f32| a * (1.0 - t) + b * t;
+        let bil = |v: &dyn Fn(usize) -> f32| {
+            let (a, b, c, d) = (
+                v(texel(0, 0)),
+                v(texel(1, 0)),
+                v(texel(0, 1)),
+                v(texel(1, 1)),
+            );
+            mix(mix(a, b, fx), mix(c, d, fx), fy)
+        };
+        for (k, want) in light.iter().enumerate() {
+            assert_eq!(
+                bil(&|t| h(t, k)).to_bits(),
+                want.to_bits(),
+                "({dx}, {dy}) channel {k}"
+            );
+        }
+        assert_eq!(
+            bil(&|t| normals[level][t][3]).to_bits(),
+            sun.to_bits(),
+            "({dx}, {dy}) w"
+        );
+        blended += 1;
+    }
+    assert!(blended >= 2, "{blended} points blended");
 }
 
 /// Issue 16's memory goal: the SG objects' GPU bytes are fixed by the profile and the scene's visibility,
