@@ -8,8 +8,9 @@
 // With visibility the view-independent part of the shading (every light's diffuse term with the horizon
 // applied: SAT paper algorithm 3) is computed on the CPU per texel of the per-level light table when the
 // texel is written (`clipsat::shading::texel_light`); the program blends 4 texels into the private
-// `sg_texel` (rgb: the diffuse radiance, a: the horizon's mean sine) and `sg_sun_sin` (the horizon's sine
-// toward the first sun) before calling `sg_shade`, which adds the view-dependent specular term. Without
+// `sg_texel` (rgb: the diffuse radiance of every light but the first sun, a: the horizon's mean sine) and
+// `sg_sun_sin` (the horizon's sine toward the first sun) before calling `sg_shade`, which adds the first
+// sun's diffuse term, cut at that sine, and the view-dependent specular term. Without
 // visibility `sg_shade` integrates the diffuse term itself: the suns one direction each, the broad lights
 // from the sky table.
 
@@ -260,6 +261,16 @@ fn sg_shade(r: vec3<f32>, view: vec3<f32>, s: SgScene) -> vec3<f32> {
             d += sg_sky(vmf.axis, vmf.r_len);
         }
         diffuse = s.kd_count.rgb * d / SG_PI;
+    } else if (suns > 0u) {
+        // The first sun is the pixel's own (clipsat::shading::shade_pixel): cut at the blended horizon
+        // sine toward it, its shadow edge stays sharp within a texel. Uniform: the scene's sun count.
+        let l = s.lights[0];
+        let sigma = sqrt(2.0 / l.axis_lambda.w);
+        let el = asin(clamp(l.axis_lambda.z, -1.0, 1.0));
+        let vis = clamp((el + sigma - asin(clamp(sg_sun_sin, -1.0, 1.0))) / (2.0 * sigma), 0.0, 1.0);
+        let t = dot(vmf.axis, l.axis_lambda.xyz);
+        let sun = l.mu.xyz * (sg_unit_integral(l.axis_lambda.w) * (sg_vmf_cosine(t, vmf) * vis));
+        diffuse += s.kd_count.rgb * sun / SG_PI;
     }
     return diffuse + sg_specular(vmf, view, cut, suns, count, s);
 }

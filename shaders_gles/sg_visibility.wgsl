@@ -1,6 +1,6 @@
 // Stage 3, the GPU: the light-table fetch for scenes with `effects.visibility`: the view-independent part
 // of the shading per texel of the pixel's ring (`clipsat::shading::texel_light`, written on the CPU with
-// the ring's texels: every light's diffuse term with the horizon applied, and the horizon's mean sine;
+// the ring's texels: every light's diffuse term but the first sun's with the horizon applied, and the horizon's mean sine;
 // RGBA16F, one layer per ring), blended bilinearly as the normals are (sg_clipmap.wgsl).
 
 @group(2) @binding(2) var level_light: texture_2d_array<f32>;

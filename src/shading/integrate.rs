@@ -365,21 +365,25 @@ pub fn warped_ndf(vmf: &Vmf, roughness: f32, view: Vec3) -> Sg {
 /// shader of a scene with visibility blends 4 of them instead of integrating the horizon per pixel.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TexelLight {
-    /// k_d / pi times the diffuse integral of every light with the horizon applied (linear RGB): the
-    /// suns each one direction, the broad lights from the sky table less what the horizon hides.
+    /// k_d / pi times the diffuse integral of every light but the first sun with the horizon applied
+    /// (linear RGB): the other suns each one direction, the broad lights from the sky table less what the
+    /// horizon hides. The first sun's term is the pixel's own ([`shade_pixel`]): its shadow edge is as
+    /// sharp as the blended horizon sine toward it, where a blend of shaded texels would soften it over
+    /// a texel (several pixels near the eye).
     pub diffuse: Vec3,
     /// The mean of the horizon's sines over the baked azimuths: the horizon the specular terms of the broad
     /// lights and of every sun but the first are cut at (their lobes' azimuths depend on the view).
     pub mean_sin: f32,
-    /// The horizon's sine toward the scene's first sun, for its specular term (-2, below any cut, when the
-    /// scene has no sun).
+    /// The horizon's sine toward the scene's first sun, for its diffuse and specular terms (-2, below any
+    /// cut, when the scene has no sun).
     pub sun_sin: f32,
 }
 
 /// The view-independent part of [`shade`] at one texel ([`TexelLight`]): mean normal `r` and the sines of
 /// its horizon angles at the D baked azimuths (`sines`, D a multiple of 4 up to 16; empty: no horizon)
-/// for the scene's lights and k_d; `sky` is the scene's [`SkyTable`]. Suns: the vMF-averaged cosine at
-/// the sun ([`vmf_cosine`]) times the sun's fraction above the horizon at its own azimuth; broad lights:
+/// for the scene's lights and k_d; `sky` is the scene's [`SkyTable`]. Suns but the first (which the pixel
+/// shades itself, [`shade_pixel`]): the vMF-averaged cosine at the sun ([`vmf_cosine`]) times the sun's
+/// fraction above the horizon at its own azimuth; broad lights:
 /// the sky table less what the horizon hides of them (`occluded`: a wedge per pair of azimuths; SAT
 /// paper algorithm 3, TransferVis + PatchVis). [`TexelLighting`] holds the scene's part, for writing
 /// many texels.
@@ -436,12 +440,14 @@ impl TexelLighting {
                 cut.horizon_sin_at(*azimuth)
             };
             if i == 0 {
+                // The pixel adds the first sun (shade_pixel), with its horizon sine blended.
                 sun_sin = hs;
+                continue;
             }
             let visible = if cut.horizon.is_empty() {
                 1.0
             } else {
-                ((el + sigma - hs.clamp(-1.0, 1.0).asin()) / (2.0 * sigma)).clamp(0.0, 1.0)
+                sun_visible(*el, *sigma, hs)
             };
             if visible > 0.0 {
                 diffuse += *integral * (vmf_cosine(n.dot(light.axis), &vmf) * visible);
@@ -509,7 +515,21 @@ pub fn shade_pixel(
     let cut = Cut::new(n, &[], plane_drop(vmf.kappa));
     let m = &scene.material;
     let diffuse = match texel {
-        Some(t) => t.diffuse,
+        Some(t) => {
+            // The first sun (suns come first in the shader's uniform), cut at the blended horizon sine
+            // toward it; -2 (no horizon) leaves it whole.
+            let sun = scene
+                .lights
+                .iter()
+                .find(|l| l.lambda >= SHARP_LAMBDA)
+                .map_or(Vec3::ZERO, |l| {
+                    let sigma = (2.0 / l.lambda).sqrt();
+                    l.integral()
+                        * (vmf_cosine(n.dot(l.axis), &vmf)
+                            * sun_visible(elevation(l.axis), sigma, t.sun_sin))
+                });
+            t.diffuse + m.kd * sun / PI
+        }
         None => {
             let mut d = Vec3::ZERO;
             for light in scene.lights.iter().filter(|l| l.lambda >= SHARP_LAMBDA) {
@@ -538,6 +558,12 @@ pub fn shade_pixel(
         }
     }
     diffuse + spec
+}
+
+/// The fraction of a sun of elevation `el` and one-sigma radius `sigma` (radians) above a horizon of sine
+/// `hs` (clamped: -2 leaves it whole): linear over the sun's +/- sigma.
+fn sun_visible(el: f32, sigma: f32, hs: f32) -> f32 {
+    ((el + sigma - hs.clamp(-1.0, 1.0).asin()) / (2.0 * sigma)).clamp(0.0, 1.0)
 }
 
 /// k_s times product lobe `q`'s integral, D / 4 with the cosine at the lobe's axis, times the fraction of

@@ -23,10 +23,12 @@
 //!   D(h) / 4; the cosine is taken at the product lobe's axis and visibility as the fraction of the lobe's
 //!   one-sigma cap above the horizon: the first sun's at the sun's azimuth, every other lobe's (whose
 //!   axis moves with the view) at the horizon's mean over the azimuths;
-//! - with visibility, everything that does not depend on the view (the diffuse term of every light with
-//!   the horizon applied, the horizon's mean, the sun's horizon) is [`texel_light`], computed per texel of
-//!   the renderer's per-level tables when the texel is written; the shader blends 4 texels of it
-//!   bilinearly rather than blending the inputs (r, horizons) and integrating per pixel. [`shade`] is
+//! - with visibility, everything that does not depend on the view (the diffuse term of every light but
+//!   the first sun with the horizon applied, the horizon's mean, the sun's horizon) is [`texel_light`],
+//!   computed per texel of the renderer's per-level tables when the texel is written; the shader blends
+//!   4 texels of it bilinearly rather than blending the inputs (r, horizons) and integrating per pixel,
+//!   and adds the first sun's diffuse term per pixel, cut at the blended horizon sine toward it, so its
+//!   shadow edges stay sharp within a texel. [`shade`] is
 //!   [`texel_light`] then [`shade_pixel`] of one set of inputs.
 //!
 //! Files: `basic.rs` (the basic shading's parameters), `scene.rs` (lights, material, effects), `sg.rs` (spherical Gaussians and the vMF), `sky_table.rs` (the per-scene sky table), `integrate.rs`

@@ -12,7 +12,7 @@
 //!   visibility: the view-independent part of the shading at the sample
 //!   ([`crate::shading::texel_light`] of its r and
 //!   its D horizon angles, computed here on the CPU as the texel is written: every light's diffuse term
-//!   with the horizon applied, and the horizon's mean sine), so the fragment shader blends 4 texels
+//!   but the first sun's with the horizon applied, and the horizon's mean sine), so the fragment shader blends 4 texels
 //!   instead of fetching the D angles and integrating the horizon per pixel (issue 16, "Cost":
 //!   "precompute the per-patch visibility per texel of each level"). The scene's lights are fixed for
 //!   the renderer's life, so the texels are too.
