@@ -24,8 +24,13 @@ struct SgTaps {
     f: vec2<f32>,
 }
 
-fn sg_bilinear(a: vec4<f32>, b: vec4<f32>, c: vec4<f32>, d: vec4<f32>, f: vec2<f32>) -> vec4<f32> {
-    return mix(mix(a, b, f.x), mix(c, d, f.x), f.y);
+// Level table `tex` at the taps' 4 texels, blended bilinearly.
+fn sg_blend(tex: texture_2d_array<f32>, t: SgTaps) -> vec4<f32> {
+    let a = textureLoad(tex, t.t00, t.level, 0);
+    let b = textureLoad(tex, t.t10, t.level, 0);
+    let c = textureLoad(tex, t.t01, t.level, 0);
+    let d = textureLoad(tex, t.t11, t.level, 0);
+    return mix(mix(a, b, t.f.x), mix(c, d, t.f.x), t.f.y);
 }
 
 // The taps of eye-relative point rel for a footprint of `w` data samples (the larger side of the pixel's
@@ -88,13 +93,7 @@ fn sg_colour(v: VsOut, w: f32) -> vec4<f32> {
     // where no ring holds the pixel. w: the horizon's sine toward the first sun (visibility only).
     var r = vec4<f32>(normalize(v.normal) * 0.999, -2.0);
     if (SG_OMIT != 1u && taps.level >= 0) {
-        r = sg_bilinear(
-            textureLoad(level_normal, taps.t00, taps.level, 0),
-            textureLoad(level_normal, taps.t10, taps.level, 0),
-            textureLoad(level_normal, taps.t01, taps.level, 0),
-            textureLoad(level_normal, taps.t11, taps.level, 0),
-            taps.f,
-        );
+        r = sg_blend(level_normal, taps);
     }
     // sg_visibility.wgsl, or the stub of sg_no_visibility.wgsl. SG_OMIT 3 does not read the table.
     if (SG_OMIT != 3u) {

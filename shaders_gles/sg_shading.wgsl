@@ -182,8 +182,14 @@ fn sg_plane_sin(c: SgCut, ux: f32, uy: f32) -> f32 {
 fn sg_soft_visible(c: SgCut, axis: vec3<f32>, sigma: f32, hs: f32) -> f32 {
     let inv_d = 1.0 / sqrt(max(axis.x * axis.x + axis.y * axis.y, 1.0e-30));
     let plane = sg_plane_sin(c, axis.x * inv_d, axis.y * inv_d);
-    let cut = asin(clamp(max(plane, hs), -1.0, 1.0));
-    let el = asin(clamp(axis.z, -1.0, 1.0));
+    return sg_above_cut(axis.z, sigma, max(plane, hs));
+}
+
+// The fraction of a lobe whose axis has height `z` (the sine of its elevation), of radius sigma, above a
+// cut of sine `cut_sin` (-2: none): linear in the elevation over +/- sigma (clipsat::shading's above_cut).
+fn sg_above_cut(z: f32, sigma: f32, cut_sin: f32) -> f32 {
+    let cut = asin(clamp(cut_sin, -1.0, 1.0));
+    let el = asin(clamp(z, -1.0, 1.0));
     return clamp((el + sigma - cut) / (2.0 * sigma), 0.0, 1.0);
 }
 
@@ -265,9 +271,7 @@ fn sg_shade(r: vec3<f32>, view: vec3<f32>, s: SgScene) -> vec3<f32> {
         // The first sun is the pixel's own (clipsat::shading::shade_pixel): cut at the blended horizon
         // sine toward it, its shadow edge stays sharp within a texel. Uniform: the scene's sun count.
         let l = s.lights[0];
-        let sigma = sqrt(2.0 / l.axis_lambda.w);
-        let el = asin(clamp(l.axis_lambda.z, -1.0, 1.0));
-        let vis = clamp((el + sigma - asin(clamp(sg_sun_sin, -1.0, 1.0))) / (2.0 * sigma), 0.0, 1.0);
+        let vis = sg_above_cut(l.axis_lambda.z, sqrt(2.0 / l.axis_lambda.w), sg_sun_sin);
         let t = dot(vmf.axis, l.axis_lambda.xyz);
         let sun = l.mu.xyz * (sg_unit_integral(l.axis_lambda.w) * (sg_vmf_cosine(t, vmf) * vis));
         diffuse += s.kd_count.rgb * sun / SG_PI;

@@ -8,12 +8,6 @@
 // Fills sg_texel from the taps' 4 texels; `sun_sin` (the normal table's blended w) is the horizon's sine
 // toward the first sun.
 fn sg_fetch_light(t: SgTaps, sun_sin: f32) {
-    sg_texel = sg_bilinear(
-        textureLoad(level_light, t.t00, t.level, 0),
-        textureLoad(level_light, t.t10, t.level, 0),
-        textureLoad(level_light, t.t01, t.level, 0),
-        textureLoad(level_light, t.t11, t.level, 0),
-        t.f,
-    );
+    sg_texel = sg_blend(level_light, t);
     sg_sun_sin = sun_sin;
 }

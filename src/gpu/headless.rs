@@ -451,11 +451,7 @@ impl<'g> Offscreen<'g> {
     /// of the height texture read back, `size x size` (z, z_c) texels per level, row-major, as the GPU
     /// holds them.
     pub fn read_heights(&self) -> Result<Vec<Vec<[f32; 2]>>> {
-        let layers = self.read_layers(self.renderer.heights(), 8, self.renderer.levels())?;
-        Ok(layers
-            .iter()
-            .map(|b| bytemuck::pod_collect_to_vec(b))
-            .collect())
+        self.read_layers(self.renderer.heights())
     }
 
     /// Diagnostic, as [`Offscreen::read_heights`]: every ring's layer of the SG normal table
@@ -469,11 +465,7 @@ impl<'g> Offscreen<'g> {
                 what: "SG normal table".into(),
                 reason: "the renderer does not shade with SG".into(),
             })?;
-        let layers = self.read_layers(table, 16, self.renderer.levels())?;
-        Ok(layers
-            .iter()
-            .map(|b| bytemuck::pod_collect_to_vec(b))
-            .collect())
+        self.read_layers(table)
     }
 
     /// The SG light table's layers in use (one per ring), each `clip_size^2` texels of RGBA16F bits,
@@ -486,20 +478,14 @@ impl<'g> Offscreen<'g> {
                 what: "SG light table".into(),
                 reason: "the renderer does not shade with SG visibility".into(),
             })?;
-        let layers = self.read_layers(table, 8, self.renderer.levels())?;
-        Ok(layers
-            .iter()
-            .map(|b| bytemuck::pod_collect_to_vec(b))
-            .collect())
+        self.read_layers(table)
     }
 
-    /// The first `layers` layers of square 2D array texture `texture` (`texel` bytes a texel), row-major.
-    fn read_layers(
-        &self,
-        texture: &wgpu::Texture,
-        texel: u32,
-        layers: u32,
-    ) -> Result<Vec<Vec<u8>>> {
+    /// The layers in use (one per ring) of square 2D array texture `texture`, whose texels are `T`s,
+    /// row-major.
+    fn read_layers<T: bytemuck::Pod>(&self, texture: &wgpu::Texture) -> Result<Vec<Vec<T>>> {
+        let texel = u32::try_from(std::mem::size_of::<T>()).expect("a texel is a few bytes");
+        let layers = self.renderer.levels();
         let gpu = self.gpu;
         let s = texture.width();
         let padded = (s * texel).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
@@ -541,12 +527,8 @@ impl<'g> Offscreen<'g> {
                 gpu.queue().submit([encoder.finish()]);
                 Ok(buffer)
             })?;
-            out.push(crate::gpu::readback::map_rows(
-                gpu,
-                &buffer,
-                padded,
-                s * texel,
-            )?);
+            let rows = crate::gpu::readback::map_rows(gpu, &buffer, padded, s * texel)?;
+            out.push(bytemuck::pod_collect_to_vec(&rows));
         }
         Ok(out)
     }

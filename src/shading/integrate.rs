@@ -187,8 +187,7 @@ impl Cut {
     fn soft_visible(&self, axis: Vec3, sigma: f32, hs: f32) -> f32 {
         let inv_d = 1.0 / (axis.x * axis.x + axis.y * axis.y).max(1e-30).sqrt();
         let plane = self.plane_sin(axis.x * inv_d, axis.y * inv_d);
-        let cut = plane.max(hs).clamp(-1.0, 1.0).asin();
-        ((elevation(axis) + sigma - cut) / (2.0 * sigma)).clamp(0.0, 1.0)
+        above_cut(elevation(axis), sigma, plane.max(hs))
     }
 }
 
@@ -447,7 +446,7 @@ impl TexelLighting {
             let visible = if cut.horizon.is_empty() {
                 1.0
             } else {
-                sun_visible(*el, *sigma, hs)
+                above_cut(*el, *sigma, hs)
             };
             if visible > 0.0 {
                 diffuse += *integral * (vmf_cosine(n.dot(light.axis), &vmf) * visible);
@@ -526,7 +525,7 @@ pub fn shade_pixel(
                     let sigma = (2.0 / l.lambda).sqrt();
                     l.integral()
                         * (vmf_cosine(n.dot(l.axis), &vmf)
-                            * sun_visible(elevation(l.axis), sigma, t.sun_sin))
+                            * above_cut(elevation(l.axis), sigma, t.sun_sin))
                 });
             t.diffuse + m.kd * sun / PI
         }
@@ -560,10 +559,10 @@ pub fn shade_pixel(
     diffuse + spec
 }
 
-/// The fraction of a sun of elevation `el` and one-sigma radius `sigma` (radians) above a horizon of sine
-/// `hs` (clamped: -2 leaves it whole): linear over the sun's +/- sigma.
-fn sun_visible(el: f32, sigma: f32, hs: f32) -> f32 {
-    ((el + sigma - hs.clamp(-1.0, 1.0).asin()) / (2.0 * sigma)).clamp(0.0, 1.0)
+/// The fraction of a lobe of elevation `el` and one-sigma radius `sigma` (radians) above a cut of sine
+/// `cut_sin` (clamped: -2 leaves it whole): linear over the lobe's +/- sigma.
+fn above_cut(el: f32, sigma: f32, cut_sin: f32) -> f32 {
+    ((el + sigma - cut_sin.clamp(-1.0, 1.0).asin()) / (2.0 * sigma)).clamp(0.0, 1.0)
 }
 
 /// k_s times product lobe `q`'s integral, D / 4 with the cosine at the lobe's axis, times the fraction of

@@ -15,6 +15,14 @@ fn peak_rss(args: &[&str]) -> Option<u64> {
     peak_rss_in(args, None)
 }
 
+/// gles3-mid's `budget.cpu_memory_bytes`, the bound both flights' terrain-dependent RSS is held to.
+fn gles3_mid_cpu_budget() -> u64 {
+    clipsat::Profile::load("gles3-mid")
+        .expect("profile")
+        .budget
+        .cpu_memory_bytes
+}
+
 /// Bakes `procedural:size={size}` into `dir/p{size}.clipsat`; returns the package's path and the terrain.
 fn bake_procedural(dir: &Path, size: u32) -> (std::path::PathBuf, String) {
     let pkg = dir.join(format!("p{size}.clipsat"));
@@ -77,10 +85,7 @@ fn fly_16385_streamed_within_the_cpu_budget() {
         peaks.push(peak);
         let _ = std::fs::remove_file(&pkg);
     }
-    let budget = clipsat::Profile::load("gles3-mid")
-        .expect("profile")
-        .budget
-        .cpu_memory_bytes;
+    let budget = gles3_mid_cpu_budget();
     assert!(
         peaks[1].saturating_sub(peaks[0]) <= budget,
         "16385^2 flight: {} MiB over the 257^2 one, budget {} MiB",
@@ -179,10 +184,7 @@ fn sat_lod_16385_within_the_cpu_budget() {
         let _ = std::fs::remove_file(&pkg);
     }
     let _ = std::fs::remove_dir_all(&cache);
-    let budget = clipsat::Profile::load("gles3-mid")
-        .expect("profile")
-        .budget
-        .cpu_memory_bytes;
+    let budget = gles3_mid_cpu_budget();
     for (run, (small, large)) in peaks[0].iter().zip(&peaks[1]).enumerate() {
         let over = large.saturating_sub(*small);
         assert!(
