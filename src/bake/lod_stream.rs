@@ -1,5 +1,5 @@
 //! Stage 1, bake: a package's SAT LOD tables baked out of core (issue 13), straight into the LOD cache
-//! file ([`crate::bake`], format 3), without decoding the whole pyramid.
+//! file ([`crate::bake`], format 4), without decoding the whole pyramid.
 //!
 //! The tables are those of [`crate::bake::lod_tables::LevelTables::build_level`] (data level k at level k's resolution: the closed
 //! cells' maximum error, its max pyramid, and the SAT of the half-open cells' quantised (e/E)^p), and the
@@ -25,6 +25,7 @@ use std::path::Path;
 
 use indicatif::{ProgressBar, ProgressStyle};
 
+use crate::bake::lod_record::Coder;
 use crate::bake::lod_tables::{bad_error, closed_count, error_from, RangeMax};
 use crate::bake::sat::{pow_unit, Sat};
 use crate::bake::{BakeParams, FORMAT_VERSION, MAGIC};
@@ -72,6 +73,17 @@ struct Level {
     inv: f64,
     /// Little-endian bytes of a row being written.
     bytes: Vec<u8>,
+    /// The level's record coder, and its codes of the current rows ([`crate::bake::lod_record`]).
+    coder: Option<Coder>,
+    max_codes: Vec<u8>,
+    mean_codes: Vec<u8>,
+    /// The last closed row's decoded maxima and its index.
+    dmax: Vec<f32>,
+    dmax_row: Option<u32>,
+    /// A finished half-open row's sums waiting for its closed row, its index, and its decoded sums.
+    held: Vec<u64>,
+    pending: Option<u32>,
+    lower: Vec<u64>,
 }
 
 impl Level {
@@ -103,6 +115,14 @@ impl Level {
             q: 0,
             inv: 0.0,
             bytes: Vec::new(),
+            coder: None,
+            max_codes: Vec::new(),
+            mean_codes: Vec::new(),
+            dmax: Vec::new(),
+            dmax_row: None,
+            held: Vec::new(),
+            pending: None,
+            lower: Vec::new(),
         }
     }
 
@@ -125,6 +145,12 @@ impl Level {
         self.acc = vec![0.0; self.cw as usize];
         self.sums = vec![0; self.sw as usize];
         self.sat_row = vec![0; self.sw as usize];
+        self.coder = Some(Coder::new(self.e_max, self.p, self.q, s, width, height));
+        self.max_codes = vec![0; self.cw as usize];
+        self.dmax = vec![0.0; self.cw as usize];
+        self.mean_codes = vec![0; self.sw as usize];
+        self.held = vec![0; self.sw as usize];
+        self.lower = vec![0; self.sw as usize];
         let mut at = at.next_multiple_of(8);
         self.sat_off = at;
         at += u64::from(self.sw) * u64::from(sh) * 8;
@@ -229,7 +255,7 @@ impl Level {
         // Closed cell row `cur` covers rows cur 2^s ..= (cur + 1) 2^s: a row on the lattice ends it.
         if y >> s == self.cur + 1 {
             fold_max(&mut self.acc, &self.rowmax);
-            self.emit_max(file)?;
+            self.close_row(file)?;
             self.cur += 1;
             self.acc.copy_from_slice(&self.rowmax);
         } else if y == 0 {
@@ -238,23 +264,59 @@ impl Level {
             fold_max(&mut self.acc, &self.rowmax);
         }
         if y + 1 == height && self.cur < self.ch {
-            self.emit_max(file)?;
+            self.close_row(file)?;
         }
-        // Half-open cell row y >> s ends on its last row or the grid's.
+        // Half-open cell row y >> s ends on its last row or the grid's; it is coded against the decoded
+        // maxima of the closed row that contains it, which ends one data row later (or has ended).
         if (y + 1) & mask == 0 || y + 1 == height {
-            let mut run = 0u64;
-            for (sat, sum) in self.sat_row.iter_mut().zip(&mut self.sums) {
-                run = run.wrapping_add(*sum);
-                *sat = sat.wrapping_add(run);
-                *sum = 0;
-            }
-            let off = self.sat_off + u64::from(y >> s) * u64::from(self.sw) * 8;
-            self.bytes.clear();
-            self.bytes
-                .extend(self.sat_row.iter().flat_map(|v| v.to_le_bytes()));
-            write_at(file, off, &self.bytes)?;
+            std::mem::swap(&mut self.held, &mut self.sums);
+            self.sums.fill(0);
+            self.pending = Some(y >> s);
+            self.flush_mean(file)?;
         }
         Ok(())
+    }
+
+    /// Codes closed cell row `cur` (in `acc`: its maxima rounded up to their codes' values, kept as the
+    /// reference of the half-open row it contains), writes its max-pyramid rows, and codes the pending
+    /// half-open row if it was waiting for it.
+    fn close_row(&mut self, file: &File) -> std::io::Result<()> {
+        let coder = self.coder.expect("laid out");
+        coder.code_max_row(&mut self.acc, &mut self.max_codes);
+        self.dmax.copy_from_slice(&self.acc);
+        self.dmax_row = Some(self.cur);
+        self.emit_max(file)?;
+        self.flush_mean(file)
+    }
+
+    /// Codes the pending half-open row once its closed row's decoded maxima are known, and writes the
+    /// SAT row of its decoded lower sums (the previous SAT row plus the row's running sum).
+    fn flush_mean(&mut self, file: &File) -> std::io::Result<()> {
+        let Some(r) = self.pending else {
+            return Ok(());
+        };
+        if self.dmax_row != Some(r.min(self.ch - 1)) {
+            return Ok(());
+        }
+        let coder = self.coder.expect("laid out");
+        coder.code_mean_row(
+            r,
+            &self.held,
+            &self.dmax,
+            &mut self.mean_codes,
+            &mut self.lower,
+        );
+        self.pending = None;
+        let mut run = 0u64;
+        for (sat, low) in self.sat_row.iter_mut().zip(&self.lower) {
+            run = run.wrapping_add(*low);
+            *sat = sat.wrapping_add(run);
+        }
+        let off = self.sat_off + u64::from(r) * u64::from(self.sw) * 8;
+        self.bytes.clear();
+        self.bytes
+            .extend(self.sat_row.iter().flat_map(|v| v.to_le_bytes()));
+        write_at(file, off, &self.bytes)
     }
 
     /// Writes closed cell row `cur` (in `acc`) as max-pyramid level 0's row, and every coarser row it

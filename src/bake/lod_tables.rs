@@ -16,11 +16,13 @@
 use std::fmt;
 use std::str::FromStr;
 
+use crate::bake::lod_record::{sum_upper, Coder};
 use crate::bake::mapped::Mapping;
 use crate::bake::pyramid::Pyramid;
 use crate::bake::sat::{pow_unit, Sat};
 use crate::{Error, Result};
 
+pub use crate::bake::lod_record::LevelRecords;
 pub use crate::bake::range_max::RangeMax;
 
 /// The exponent p of the SFAMF estimate (design.md "SAT LOD" 3-4), fixed from `clipsat tune-p`.
@@ -188,22 +190,25 @@ pub struct BlockError {
 ///
 /// Built by [`LevelTables::build_level`], data level k's tables live at level k's resolution (cell side
 /// 2^k data samples, `shift` = k), about 4^-k of a full-resolution table (design.md "SAT LOD": a block
-/// drawn at level k covers whole level-k cells, so its box is aligned to level k's lattice):
+/// drawn at level k covers whole level-k cells, so its box is aligned to level k's lattice). They are
+/// decoded from the level's compact records ([`crate::bake::lod_record`], two bytes a cell, what a
+/// package stores), the one definition every path uses:
 ///
-/// - the max pyramid holds the max of e over each **closed** cell [c 2^k, (c + 1) 2^k]^2 (both edges, as
-///   the triangles of level k cover them), so the max over a lattice-aligned inclusive box is exact;
-/// - the SAT sums the per-sample quantised (e/E)^p over each **half-open** cell [c 2^k, (c + 1) 2^k)^2, the
-///   same integers a full-resolution SAT holds ([`Sat`] with `cell` = 2^k), so a box sum over whole cells
-///   equals the full-resolution one bit for bit.
+/// - the max pyramid holds each **closed** cell's [c 2^k, (c + 1) 2^k]^2 (both edges, as the triangles of
+///   level k cover them) max error rounded up to its code, so the max over a lattice-aligned inclusive
+///   box is at least the true one and within one code step (2^(1/16)) of it, or at the codes' floor;
+/// - the SAT sums each **half-open** cell's [c 2^k, (c + 1) 2^k)^2 decoded lower sum of the quantised
+///   (e/E)^p ([`Sat`] with `cell` = 2^k), never above the cell's true sum; the true sum of a box is
+///   below [`crate::bake::lod_record::sum_upper`] of it.
 ///
 /// A query box [x0, x1) x [y0, y1) of data samples (inclusive last sample x1 - 1) is widened to the
 /// closed cells that cover it, the region level k's geometry draws over it: for a lattice-aligned box
-/// that is the box itself. Then `exact` is the exact max over the widened box; `estimate` is the p-mean over
-/// the half-open cells' samples (a subset of the widened box: still <= exact);
-/// `conservative` adds to that SAT sum the far edge column and row (which the half-open cells leave out),
-/// each sample bounded by (M/E)^p with M the edge's max from the max pyramid: still >= exact.
-/// [`LevelTables::build`] (`shift` = 0) keeps the full-resolution tables (one cell per sample) for tools
-/// and tests that compare against them.
+/// that is the box itself. Then `exact` is the decoded max over the widened box (>= its true max);
+/// `estimate` is the p-mean of the lower sums over the half-open cells' samples (a subset of the widened
+/// box: still <= the true max); `conservative` adds to the upper sum the far edge column and row (which
+/// the half-open cells leave out), each sample bounded by (M/E)^p with M the edge's decoded max: still >=
+/// the true max. [`LevelTables::build`] (`shift` = 0) keeps the full-resolution tables of the per-sample
+/// quantised values, uncoded (one cell per sample), for tools and tests that compare against them.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LevelTables {
     e_max: f32,
@@ -290,68 +295,49 @@ impl LevelTables {
     }
 
     /// Builds data level `k`'s tables at level k's resolution (see the type's docs) straight from the
-    /// pyramid, without a full-resolution error map: one pass for the closed cells' maxima (and E), one
-    /// for the half-open cells' quantised sums, rows of cells in parallel. The sums are the integers
-    /// [`LevelTables::build`] would hold, so aligned boxes give the same answers.
+    /// pyramid, without a full-resolution error map: its compact records ([`LevelRecords::build`]),
+    /// decoded into the query structures ([`LevelTables::from_records`]), as every path builds them.
     ///
     /// Errors as [`LevelTables::build`].
     pub fn build_level(pyramid: &Pyramid, k: u32, p: u32) -> Result<Self> {
         let l0 = pyramid.level(0);
-        let (w, h) = (l0.width(), l0.height());
-        let (s, ke) = (k.min(30), k.min(40));
-        if k == 0 {
-            return Ok(Self::zero());
+        match LevelRecords::build(pyramid, k, p)? {
+            None => Ok(Self::zero()),
+            Some(rec) => Self::from_records(l0.width(), l0.height(), p, &rec),
         }
-        let (cw, ch) = (closed_count(w, s), closed_count(h, s));
-        // Pass 1: the closed cells' maxima; a non-finite error is refused, naming its sample.
-        let mut maxima = vec![0.0f32; cw as usize * ch as usize];
-        let bad = par_cell_rows(&mut maxima, cw as usize, |cy, row| {
-            let y0 = cy << s;
-            for y in y0..=(y0 + (1 << s)).min(h - 1) {
-                for x in 0..w {
-                    let e = sample_error(pyramid, ke, i64::from(x), i64::from(y));
-                    if !(e.is_finite() && e >= 0.0) {
-                        return Some((x, y, e));
-                    }
-                    // Sample x lies in closed cell x >> s and, on a lattice line, in the one before.
-                    let c = (x >> s) as usize;
-                    if let Some(m) = row.get_mut(c) {
-                        *m = m.max(e);
-                    }
-                    if c > 0 && x & ((1 << s) - 1) == 0 {
-                        row[c - 1] = row[c - 1].max(e);
-                    }
-                }
-            }
-            None
-        });
-        if let Some((x, y, e)) = bad {
-            return Err(bad_error(x as usize, y as usize, e));
+    }
+
+    /// The query structures of one level's records ([`crate::bake::lod_record`]): the SAT of the decoded
+    /// lower sums and the max pyramid of the decoded maxima.
+    ///
+    /// Errors: records whose sizes do not fit the grid ([`Error::Invalid`]).
+    pub fn from_records(width: u32, height: u32, p: u32, rec: &LevelRecords) -> Result<Self> {
+        let s = rec.k.min(30);
+        let (cw, ch) = (closed_count(width, s), closed_count(height, s));
+        let (sw, sh) = (width.div_ceil(1 << s), height.div_ceil(1 << s));
+        let fits = rec.max.len() as u64 == u64::from(cw) * u64::from(ch)
+            && rec.mean.len() as u64 == u64::from(sw) * u64::from(sh);
+        if !(fits && rec.e_max.is_finite() && rec.e_max > 0.0) {
+            return Err(Error::Invalid {
+                what: "LOD records".into(),
+                reason: format!("level {} records do not fit {width} x {height}", rec.k),
+            });
         }
-        let e_max = maxima.iter().copied().fold(0.0f32, f32::max);
-        if e_max <= 0.0 {
-            return Ok(Self::zero());
+        let q = Sat::max_frac_bits(u64::from(width) * u64::from(height));
+        let coder = Coder::new(rec.e_max, p, q, s, width, height);
+        let maxima: Vec<f32> = rec.max.iter().map(|&c| coder.max_decode(c)).collect();
+        let mut sums = vec![0u64; rec.mean.len()];
+        for (cy, (codes, lower)) in (0u32..).zip(
+            rec.mean
+                .chunks(sw as usize)
+                .zip(sums.chunks_mut(sw as usize)),
+        ) {
+            let r = cy.min(ch - 1) as usize * cw as usize;
+            coder.decode_mean_row(cy, codes, &maxima[r..r + cw as usize], lower);
         }
-        // Pass 2: the half-open cells' sums of the quantised (e/E)^p (the same integers as a full table).
-        let q = Sat::max_frac_bits(u64::from(w) * u64::from(h));
-        let inv = 1.0 / f64::from(e_max);
-        let (sw, sh) = (w.div_ceil(1 << s), h.div_ceil(1 << s));
-        let mut sums = vec![0u64; sw as usize * sh as usize];
-        par_cell_rows(&mut sums, sw as usize, |cy, row| {
-            let y0 = cy << s;
-            for y in y0..(y0 + (1 << s)).min(h) {
-                for x in 0..w {
-                    let e = sample_error(pyramid, ke, i64::from(x), i64::from(y));
-                    let v = pow_unit(f64::from(e) * inv, p).min(1.0);
-                    let c = (x >> s) as usize;
-                    row[c] = row[c].wrapping_add(Sat::quantise_up(v, q, x, y));
-                }
-            }
-            None
-        });
-        let sat = Sat::from_cell_sums(w, h, 1 << s, q, sums)?;
+        let sat = Sat::from_cell_sums(width, height, 1 << s, q, sums)?;
         Ok(Self {
-            e_max,
+            e_max: rec.e_max,
             shift: s,
             tables: Some((sat, RangeMax::build(cw, ch, maxima))),
         })
@@ -424,10 +410,31 @@ impl LevelTables {
         }
     }
 
+    /// Whether the tables are built from compact records ([`crate::bake::lod_record`]: every level-
+    /// resolution table, `shift` > 0), whose SAT holds lower sums, or per-sample quantised values (the
+    /// full-resolution reference, `shift` 0).
+    pub fn coded(&self) -> bool {
+        self.shift > 0
+    }
+
+    /// A certain enclosure [lo, hi] of the sum of (e/E)^p over the SAT box of `c`.
+    fn sum_bounds(&self, sat: &Sat, c: &Cells) -> (f64, f64) {
+        let (x0, y0, x1, y1) = c.sat;
+        if !self.coded() {
+            return sat.box_bounds(x0, y0, x1, y1);
+        }
+        // The decoded lower sums: a lower bound as they are (rounded down once more into f64).
+        let raw = sat.box_sum_raw(x0, y0, x1, y1);
+        let n = u64::from(x1 - x0) * u64::from(y1 - y0);
+        #[expect(clippy::cast_precision_loss, reason = "u64 to f64, then nudged down")]
+        let lo = raw as f64 * sat.quantum() * (1.0 - f64::EPSILON);
+        (lo, sum_upper(raw, n, sat.quantum()))
+    }
+
     /// The upper end of the sum of (e/E)^p over the widened box: the SAT's, plus the far edges bounded by
     /// their maxima.
     fn sum_hi(&self, p: u32, sat: &Sat, max: &RangeMax, c: &Cells) -> (f64, f64) {
-        let (lo, mut hi) = sat.box_bounds(c.sat.0, c.sat.1, c.sat.2, c.sat.3);
+        let (lo, mut hi) = self.sum_bounds(sat, c);
         let inv = 1.0 / f64::from(self.e_max);
         // pow_unit is within p ulps of the power: 2^-40 more covers it and the sum's roundings.
         let bound = |m: f32| pow_unit(f64::from(m) * inv, p).min(1.0) * EDGE_UP;
@@ -474,7 +481,7 @@ impl LevelTables {
             LodMode::Distance => 0.0,
             LodMode::Exact => f64::from(max.max(c.ca, c.ra, c.cb + 1, c.rb + 1)),
             LodMode::Sat => {
-                let (lo, _) = sat.box_bounds(c.sat.0, c.sat.1, c.sat.2, c.sat.3);
+                let (lo, _) = self.sum_bounds(sat, &c);
                 e * (lo / c.n_sat).min(1.0).powf(inv_p) * DOWN
             }
             LodMode::SatConservative => {
@@ -484,6 +491,86 @@ impl LevelTables {
                 (e * hi.powf(inv_p) * UP).min(e).min(f64::from(coarse))
             }
         }
+    }
+}
+
+impl LevelRecords {
+    /// Data level `k`'s records straight from the pyramid (None where k = 0 or E = 0): one pass for the
+    /// closed cells' maxima (and E), one for the half-open cells' quantised sums, rows of cells in
+    /// parallel; then the codes ([`Coder`]).
+    ///
+    /// An error that is not a finite non-negative number is an [`Error::Terrain`] naming the sample.
+    pub fn build(pyramid: &Pyramid, k: u32, p: u32) -> Result<Option<Self>> {
+        let l0 = pyramid.level(0);
+        let (w, h) = (l0.width(), l0.height());
+        let (s, ke) = (k.min(30), k.min(40));
+        if k == 0 {
+            return Ok(None);
+        }
+        let (cw, ch) = (closed_count(w, s), closed_count(h, s));
+        // Pass 1: the closed cells' maxima; a non-finite error is refused, naming its sample.
+        let mut maxima = vec![0.0f32; cw as usize * ch as usize];
+        let bad = par_cell_rows(&mut maxima, cw as usize, |cy, row| {
+            let y0 = cy << s;
+            for y in y0..=(y0 + (1 << s)).min(h - 1) {
+                for x in 0..w {
+                    let e = sample_error(pyramid, ke, i64::from(x), i64::from(y));
+                    if !(e.is_finite() && e >= 0.0) {
+                        return Some((x, y, e));
+                    }
+                    // Sample x lies in closed cell x >> s and, on a lattice line, in the one before.
+                    let c = (x >> s) as usize;
+                    if let Some(m) = row.get_mut(c) {
+                        *m = m.max(e);
+                    }
+                    if c > 0 && x & ((1 << s) - 1) == 0 {
+                        row[c - 1] = row[c - 1].max(e);
+                    }
+                }
+            }
+            None
+        });
+        if let Some((x, y, e)) = bad {
+            return Err(bad_error(x as usize, y as usize, e));
+        }
+        let e_max = maxima.iter().copied().fold(0.0f32, f32::max);
+        if e_max <= 0.0 {
+            return Ok(None);
+        }
+        // Pass 2: the half-open cells' sums of the quantised (e/E)^p (the same integers as a full table).
+        let q = Sat::max_frac_bits(u64::from(w) * u64::from(h));
+        let inv = 1.0 / f64::from(e_max);
+        let (sw, sh) = (w.div_ceil(1 << s), h.div_ceil(1 << s));
+        let mut sums = vec![0u64; sw as usize * sh as usize];
+        par_cell_rows(&mut sums, sw as usize, |cy, row| {
+            let y0 = cy << s;
+            for y in y0..(y0 + (1 << s)).min(h) {
+                for x in 0..w {
+                    let e = sample_error(pyramid, ke, i64::from(x), i64::from(y));
+                    let v = pow_unit(f64::from(e) * inv, p).min(1.0);
+                    let c = (x >> s) as usize;
+                    row[c] = row[c].wrapping_add(Sat::quantise_up(v, q, x, y));
+                }
+            }
+            None
+        });
+        let coder = Coder::new(e_max, p, q, s, w, h);
+        let mut max = vec![0u8; maxima.len()];
+        coder.code_max_row(&mut maxima, &mut max);
+        let mut mean = vec![0u8; sums.len()];
+        let mut lower = vec![0u64; sw as usize];
+        for (cy, (row, codes)) in
+            (0u32..).zip(sums.chunks(sw as usize).zip(mean.chunks_mut(sw as usize)))
+        {
+            let r = cy.min(ch - 1) as usize * cw as usize;
+            coder.code_mean_row(cy, row, &maxima[r..r + cw as usize], codes, &mut lower);
+        }
+        Ok(Some(Self {
+            k,
+            e_max,
+            max,
+            mean,
+        }))
     }
 }
 

@@ -29,6 +29,7 @@
 //! memory; [`bake_lod_mapped`] re-reads them from the file it wrote.
 
 pub mod horizon;
+pub mod lod_record;
 pub mod lod_stream;
 pub mod lod_tables;
 pub mod mapped;
@@ -49,7 +50,7 @@ use crate::{Error, Heightmap, Result};
 
 pub(crate) const MAGIC: &[u8; 8] = b"CSATLOD1";
 /// Bumped whenever the layout or the meaning of a baked number changes.
-pub const FORMAT_VERSION: u32 = 3;
+pub const FORMAT_VERSION: u32 = 4;
 
 /// The default cache folder: `$CLIPSAT_CACHE`, else `target/clipsat-cache`.
 pub fn default_cache_dir() -> PathBuf {

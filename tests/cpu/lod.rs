@@ -586,11 +586,18 @@ fn extent_16385_full_resolution_tables() {
     }
 }
 
+/// The most a decoded maximum may exceed the true `m` of a level with largest error `e`: one max-code
+/// step (2^(1/16)), or the codes' floor E 2^(-254/16) (`clipsat::bake::lod_record`).
+fn step_up(m: f64, e: f64) -> f64 {
+    (m * (1.0f64 / 16.0).exp2()).max(e * (-254.0f64 / 16.0).exp2()) * (1.0 + 1e-6)
+}
+
 /// Level-resolution tables (cells of 2^k samples, what the bake builds) against the full-resolution ones
-/// on the shared terrains and a rough procedural one: over boxes on level k's lattice the exact max is the
-/// same number and the estimate and conservative bounds still enclose it; over boxes off the lattice the
-/// exact max is that of the covering cells (never below the box's own), and estimate <= exact <=
-/// conservative <= E throughout.
+/// on the shared terrains and a rough procedural one. The level tables are decoded from the compact
+/// records (`clipsat::bake::lod_record`): over boxes on level k's lattice the exact max is the true one
+/// rounded up by at most one record step and the estimate and conservative bounds still enclose the true
+/// one; over random boxes, mostly off the lattice, the same holds of the covering cells' true max (never
+/// below the box's own), and estimate <= true max <= conservative <= E throughout.
 #[test]
 fn level_resolution_tables_keep_the_full_resolution_guarantees() {
     let mut terrains = vec![(
@@ -652,22 +659,34 @@ fn level_resolution_tables_keep_the_full_resolution_guarantees() {
                 let (o, n) = (old.block(P, x0, y0, x1, y1), new.block(P, x0, y0, x1, y1));
                 let aligned = |a: u32, len: u32| (a - 1).is_multiple_of(step) || a == len;
                 if aligned(x1, w) && aligned(y1, h) {
-                    assert_eq!(
-                        n.exact, o.exact,
-                        "{name} level {k} box {x0},{y0}..{x1},{y1}"
+                    assert!(
+                        n.exact >= o.exact && n.exact <= step_up(o.exact, e),
+                        "{name} level {k} box {x0},{y0}..{x1},{y1}: {} vs {}",
+                        n.exact,
+                        o.exact
                     );
                     checked += 1;
                 }
                 assert!(n.estimate <= o.exact, "{name} {k}: {n:?} {o:?}");
                 assert!(n.conservative >= o.exact, "{name} {k}: {n:?} {o:?}");
-                assert!(n.estimate <= n.exact && n.exact <= n.conservative && n.conservative <= e);
+                assert!(n.estimate <= n.exact && n.conservative <= e);
             }
             assert!(checked > 0, "{name} level {k}: no aligned box checked");
-            // Off-lattice boxes: the covering cells' max, never below the box's own.
-            for i in 0..24u32 {
-                let x0 = (i * 53 + 3) % (w - 1);
-                let y0 = (i * 31 + 5) % (h - 1);
-                let (x1, y1) = ((x0 + 1 + i * 7 % 90).min(w), (y0 + 2 + i * 11 % 70).min(h));
+            // Random boxes, mostly off the lattice: the covering cells' max (the true max of the region
+            // level k draws over the box, never below the box's own), which `exact` holds within one
+            // record step, `sat` never exceeds and `sat-conservative` never falls below.
+            let mut seed = 0x9e37_79b9_7f4a_7c15u64 ^ u64::from(k);
+            let mut rand = |n: u32| {
+                seed = seed
+                    .wrapping_mul(6_364_136_223_846_793_005)
+                    .wrapping_add(1_442_695_040_888_963_407);
+                u32::try_from((seed >> 33) % u64::from(n.max(1))).expect("below n")
+            };
+            for i in 0..160u32 {
+                let x0 = rand(w - 1);
+                let y0 = rand(h - 1);
+                let span = if i % 4 == 0 { 200 } else { 40 };
+                let (x1, y1) = ((x0 + 1 + rand(span)).min(w), (y0 + 1 + rand(span)).min(h));
                 let (o, n) = (old.block(P, x0, y0, x1, y1), new.block(P, x0, y0, x1, y1));
                 // The closed cells [c 2^k, (c + 1) 2^k] covering inclusive samples [a, b].
                 let widen = |a: u32, b: u32, len: u32| {
@@ -683,13 +702,17 @@ fn level_resolution_tables_keep_the_full_resolution_guarantees() {
                         m = m.max(errs[(y * w + x) as usize]);
                     }
                 }
-                assert_eq!(
-                    n.exact,
-                    f64::from(m),
-                    "{name} level {k} box {x0},{y0}..{x1},{y1}"
+                let m = f64::from(m);
+                assert!(
+                    n.exact >= m && n.exact <= step_up(m, e),
+                    "{name} level {k} box {x0},{y0}..{x1},{y1}: {} vs {m}",
+                    n.exact
+                );
+                assert!(
+                    n.estimate <= m && m <= n.conservative && n.conservative <= e,
+                    "{name} level {k} box {x0},{y0}..{x1},{y1}: {n:?}, true max {m}"
                 );
                 assert!(n.exact >= o.exact && n.conservative >= o.exact);
-                assert!(n.estimate <= n.exact && n.exact <= n.conservative && n.conservative <= e);
             }
         }
     }
