@@ -83,7 +83,18 @@ pub struct CpuSplit {
     /// The most of the SAT LOD tables' mapped pages held resident ([`LOD_TABLES_SHARE`] of what the
     /// rings leave; `bake::mapped`): the tables' queries trim their map once their pages would pass it.
     pub lod_tables: u64,
+    /// The SG shading inputs ([`SHADING_SHARE`] of what the rings leave, on a profile that allows SG;
+    /// `gpu/sat_textures.rs`): their grid is the finest pyramid level whose tables fit it.
+    pub shading: u64,
 }
+
+/// The part of `budget.cpu_memory_bytes` left after the rings that holds the SG shading inputs, on a
+/// profile that allows SG: 1/2 (31.0 MiB on gles3-mid, 123.7 MiB on desktop; less where that would leave
+/// the tile cache under [`MIN_TILE_CACHE_BYTES`]). Half, because that is the least that keeps the shared
+/// terrains (at most 1201^2) shaded at their full resolution: gles3-mid's normal SAT of 1201^2 takes
+/// 28.9 MiB, desktop's normal and 16 horizon SATs 117.1 MiB (`sat_textures::grid_bytes`). Larger terrains
+/// are shaded on a coarser level of a fixed size (1025^2 from 4097^2 on, on both).
+pub const SHADING_SHARE: u64 = 2;
 
 /// The part of `budget.cpu_memory_bytes` left after the rings that the SAT LOD tables' pages may hold
 /// (1/8: 7.8 MiB on gles3-mid; less where that would leave the tile cache under
@@ -377,8 +388,8 @@ impl Profile {
         Ok(())
     }
 
-    /// How `budget.cpu_memory_bytes` is split between the rings' CPU copy, the LOD tables' pages and the
-    /// tile cache (a validated profile never saturates).
+    /// How `budget.cpu_memory_bytes` is split between the rings' CPU copy, the LOD tables' pages, the SG
+    /// shading inputs and the tile cache (a validated profile never saturates).
     pub fn cpu_split(&self) -> CpuSplit {
         let s = u64::from(self.clip_size());
         let rings = s
@@ -388,10 +399,19 @@ impl Profile {
         let rest = self.budget.cpu_memory_bytes.saturating_sub(rings);
         // Never taking the tile cache under its minimum (validation guarantees rest >= the minimum).
         let lod_tables = (rest / LOD_TABLES_SHARE).min(rest.saturating_sub(MIN_TILE_CACHE_BYTES));
+        let shading = if self.allows(Feature::Sg) {
+            (rest / SHADING_SHARE).min(
+                rest.saturating_sub(lod_tables)
+                    .saturating_sub(MIN_TILE_CACHE_BYTES),
+            )
+        } else {
+            0
+        };
         CpuSplit {
             rings,
-            tile_cache: rest - lod_tables,
+            tile_cache: rest - lod_tables - shading,
             lod_tables,
+            shading,
         }
     }
 

@@ -129,15 +129,12 @@ pub fn bake(hm: &Heightmap, azimuths: u32, max_samples: f64) -> Result<Horizons>
         bar.set_message("baking horizons");
         bar
     });
-    let mut angles = Vec::with_capacity(usize::try_from(texels * u64::from(azimuths)).unwrap_or(0));
+    let d = azimuths as usize;
+    let mut angles = vec![0.0f32; usize::try_from(texels * u64::from(azimuths)).unwrap_or(0)];
     for y in 0..h {
         for x in 0..w {
-            for k in 0..azimuths {
-                let a = TAU * f64::from(k) / f64::from(azimuths);
-                let e = horizon_elevation(hm, f64::from(x), f64::from(y), a, max_samples);
-                #[expect(clippy::cast_possible_truncation, reason = "an angle in [-pi/2, pi/2]")]
-                angles.push(e as f32);
-            }
+            let at = (y as usize * w as usize + x as usize) * d;
+            texel_horizons(hm, x, y, max_samples, &mut angles[at..at + d]);
         }
         if let Some(bar) = &bar {
             bar.inc(1);
@@ -152,6 +149,22 @@ pub fn bake(hm: &Heightmap, azimuths: u32, max_samples: f64) -> Result<Horizons>
         azimuths,
         angles,
     })
+}
+
+/// The `out.len()` = D horizon angles of texel (x, y), azimuth k at 2 pi k / D, marching out to
+/// `max_samples` samples: one texel of [`bake`], for bakes that stream their output (the shading
+/// tables, `gpu/sat_textures.rs`).
+pub fn texel_horizons(hm: &Heightmap, x: u32, y: u32, max_samples: f64, out: &mut [f32]) {
+    #[expect(clippy::cast_precision_loss, reason = "D <= MAX_AZIMUTHS")]
+    let d = out.len() as f64;
+    for (k, o) in out.iter_mut().enumerate() {
+        #[expect(clippy::cast_precision_loss, reason = "k < D <= MAX_AZIMUTHS")]
+        let a = TAU * k as f64 / d;
+        let e = horizon_elevation(hm, f64::from(x), f64::from(y), a, max_samples);
+        #[expect(clippy::cast_possible_truncation, reason = "an angle in [-pi/2, pi/2]")]
+        let e = e as f32;
+        *o = e;
+    }
 }
 
 /// The horizon at world azimuth `a` (radians, any range) from D angles at azimuths 2 pi k / D, linearly

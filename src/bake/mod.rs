@@ -389,33 +389,6 @@ impl Reader<'_> {
     }
 }
 
-/// Appends the trailing [`Hash64`] of every byte so far (the last 8 bytes of every cache file).
-pub(crate) fn seal(out: &mut Vec<u8>) {
-    let mut h = Hash64::new();
-    h.write_bytes(out);
-    out.extend_from_slice(&h.finish().to_le_bytes());
-}
-
-/// Checks a cache file's magic and trailing hash ([`seal`]); a reader just past the magic, over the body.
-pub(crate) fn unseal<'a>(
-    bytes: &'a [u8],
-    magic: &[u8; 8],
-    what: &str,
-) -> std::result::Result<Reader<'a>, String> {
-    if bytes.len() < 8 + 8 || &bytes[..8] != magic {
-        return Err(format!("not a clipsat {what} cache file (bad magic)"));
-    }
-    let (body, trailer) = bytes.split_at(bytes.len() - 8);
-    let mut h = Hash64::new();
-    h.write_bytes(body);
-    let mut t = [0u8; 8];
-    t.copy_from_slice(trailer);
-    if h.finish() != u64::from_le_bytes(t) {
-        return Err("content hash mismatch (corrupted file)".into());
-    }
-    Ok(Reader { bytes: body, at: 8 })
-}
-
 /// Reads a cache file through a read-only map: the CRC-32 trailer is checked over the whole body in
 /// chunks whose pages are dropped from the resident set as soon as they are checked, then the tables
 /// borrow their ranges of the map ([`mapped::Grid`]), so nothing terrain-sized is copied into memory.

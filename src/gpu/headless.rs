@@ -112,10 +112,11 @@ pub struct FrameStats {
 }
 
 /// The tables [`Shading::Sg`] needs for `scene` over `hm`, through the disk cache
-/// ([`ShadingBake::bake_cached`]), and the scene as drawn (`shadows: false` drops visibility even if the
-/// scene asks for it). Bakes only what the scene needs ([`Scene::needs`]).
+/// ([`ShadingBake::bake_cached`]) on the finest grid whose tables fit `max_bytes` (the profile's
+/// [`crate::profile::CpuSplit::shading`]), and the scene as drawn (`shadows: false` drops visibility even
+/// if the scene asks for it). Bakes only what the scene needs ([`Scene::needs`]).
 pub fn sg_bake(
-    max_side: u32,
+    max_bytes: u64,
     hm: &Heightmap,
     scene: &Scene,
     shadows: bool,
@@ -126,7 +127,26 @@ pub fn sg_bake(
         hm,
         &scene.needs(),
         DEFAULT_AZIMUTHS,
-        max_side,
+        max_bytes,
+        &crate::bake::default_cache_dir(),
+    )?;
+    Ok((scene, bake))
+}
+
+/// [`sg_bake`] out of core from a streamed package ([`ShadingBake::bake_package_cached`]).
+pub fn sg_bake_package(
+    max_bytes: u64,
+    package: &crate::package::Package,
+    scene: &Scene,
+    shadows: bool,
+) -> Result<(Scene, ShadingBake)> {
+    let mut scene = scene.clone();
+    scene.effects.visibility &= shadows;
+    let (bake, _) = ShadingBake::bake_package_cached(
+        package,
+        &scene.needs(),
+        DEFAULT_AZIMUTHS,
+        max_bytes,
         &crate::bake::default_cache_dir(),
     )?;
     Ok((scene, bake))
@@ -240,15 +260,13 @@ impl<'g> Offscreen<'g> {
         patches: crate::shading::Patches,
         shadows: bool,
     ) -> Result<Self> {
-        let max_side = gpu.device().limits().max_texture_dimension_2d;
-        let (scene, bake) = sg_bake(max_side, hm, scene, shadows)?;
+        let (scene, bake) = sg_bake(profile.cpu_split().shading, hm, scene, shadows)?;
         Self::new(
             gpu,
             profile,
             clipmap,
             OffscreenOptions {
                 shading: Shading::Sg(crate::gpu::renderer::SgShading {
-                    terrain: hm,
                     scene: &scene,
                     patches,
                     bake: &bake,

@@ -15,11 +15,20 @@
 //! box at the border needs no branch. The tables are the low 32 bits of [`crate::bake::sat::Sat`]'s exact u64
 //! sums (the same quantisation up, to a multiple of 2^-20).
 //!
-//! Size: the grid's side is capped at `max_side` (callers pass the GLES 3.0 texture side, 2048, which
-//! bounds the bake's CPU memory and time). A terrain whose padded table would be larger is baked on the
-//! first pyramid level ([`crate::bake::pyramid`]) that fits: level k's sample (i, j) sits on data sample
-//! (i 2^k, j 2^k), and [`ShadingBake::step`] = 2^k maps data samples to it.
+//! Size: the grid is the finest pyramid level ([`crate::bake::pyramid`], the package's own levels when
+//! streamed) whose tables fit a byte budget, the profile's [`crate::profile::CpuSplit::shading`] share of
+//! `budget.cpu_memory_bytes` ([`grid_bytes`]: the tables at the bytes per texel they take, and the grid's
+//! heights while they are baked), so the inputs are a fixed size whatever the terrain. Level k's sample
+//! (i, j) sits on data sample (i 2^k, j 2^k), and [`ShadingBake::step`] = 2^k maps data samples to it.
+//! A package's level is decoded alone ([`crate::package::Package::decode_level`]: it and its coarser
+//! levels, nothing finer), so a streamed terrain's bake holds no full-resolution heightmap.
+//!
+//! The tables are written row by row as running sums (a SAT entry is the one above it plus its row's
+//! prefix, wrapping in u32: the low 32 bits of the exact u64 sums), so the bake holds nothing but the
+//! grid and the tables; the cache file is written and read through buffers, never as a whole in memory.
 
+use std::f64::consts::{FRAC_PI_2, PI};
+use std::io::{BufReader, BufWriter, Read, Write};
 use std::path::Path;
 use std::sync::Arc;
 
@@ -28,28 +37,84 @@ use glam::Vec3;
 use crate::bake::horizon::{self, MAX_AZIMUTHS};
 use crate::bake::pyramid::Pyramid;
 use crate::bake::sat::Sat;
-use crate::bake::{seal, unseal, write_atomic, CacheOutcome};
+use crate::bake::CacheOutcome;
 use crate::hash::{hex, Hash64};
+use crate::package::format::level_sizes;
+use crate::package::Package;
 use crate::shading::scene::Needs;
 use crate::{Error, Heightmap, Result};
 
 const SHADING_MAGIC: &[u8; 8] = b"CSATSHD1";
-/// Bumped whenever the shading cache layout or the meaning of a baked number changes.
-const SHADING_FORMAT_VERSION: u32 = 1;
+/// Bumped whenever the shading cache layout or the meaning of a baked number changes (2: the grid level
+/// in the key, the data's size and spacing in the header, a CRC-32 trailer read as it streams).
+const SHADING_FORMAT_VERSION: u32 = 2;
+/// The cache file's header: magic, version, key, then 7 u32s.
+const HEADER_BYTES: usize = 8 + 4 + 8 + 7 * 4;
 
-/// The shading cache key: the terrain's content and every parameter that changes the tables.
-fn shading_cache_key(hm: &Heightmap, needs: &Needs, azimuths: u32, max_side: u32) -> u64 {
+/// Bytes per shading-grid sample besides the tables while they are baked: the grid's f32 heights, and
+/// while a package's level is decoded its coarser level (a quarter of the samples, 4 bytes each).
+pub const GRID_HEIGHT_BYTES: u64 = 5;
+
+/// Bytes a `w x h` shading grid takes with `azimuths` horizons (0: none): its padded tables, (w + 1)
+/// x (h + 1) texels of 4 u32 for the normal SAT and 4 u32 per 4 horizon SATs, and [`GRID_HEIGHT_BYTES`]
+/// per sample. Saturates, never wraps.
+pub fn grid_bytes(w: u32, h: u32, azimuths: u32) -> u64 {
+    let texels = (u64::from(w) + 1).saturating_mul(u64::from(h) + 1);
+    let per_texel = 16 * (1 + u64::from(azimuths.div_ceil(4)));
+    texels
+        .saturating_mul(per_texel)
+        .saturating_add((u64::from(w) * u64::from(h)).saturating_mul(GRID_HEIGHT_BYTES))
+}
+
+/// The finest of the pyramid levels `sizes` (finest first) whose [`grid_bytes`] fit `max_bytes`.
+pub fn grid_level(sizes: &[(u32, u32)], azimuths: u32, max_bytes: u64) -> Result<usize> {
+    sizes
+        .iter()
+        .position(|&(w, h)| grid_bytes(w, h, azimuths) <= max_bytes)
+        .ok_or(Error::Capacity {
+            what: "shading grid bytes (CpuSplit::shading)",
+            capacity: usize::try_from(max_bytes).unwrap_or(usize::MAX),
+        })
+}
+
+fn check_azimuths(azimuths: u32) -> Result<()> {
+    if azimuths == 0 || azimuths > MAX_AZIMUTHS || !azimuths.is_multiple_of(4) {
+        return Err(Error::Invalid {
+            what: "azimuths".into(),
+            reason: format!("{azimuths} is not a multiple of 4 in 4..={MAX_AZIMUTHS}"),
+        });
+    }
+    Ok(())
+}
+
+/// The parameters every cache key hashes after the terrain's identity: what is baked, and on which level.
+fn key_params(h: &mut Hash64, needs: &Needs, azimuths: u32, level: usize) {
+    h.write_u32(u32::from(needs.bake_horizons));
+    h.write_u32(azimuths);
+    h.write_u64(level as u64);
+    h.write_u32(SAT_FRAC_BITS);
+    h.write_u64(horizon::DEFAULT_MAX_SAMPLES.to_bits());
+}
+
+/// The shading cache key of a resident terrain: its content and every parameter that changes the tables.
+fn shading_cache_key(hm: &Heightmap, needs: &Needs, azimuths: u32, level: usize) -> u64 {
     let mut h = Hash64::new();
     h.write_u32(SHADING_FORMAT_VERSION);
     h.write_u32(hm.width());
     h.write_u32(hm.height());
     h.write_f32(hm.spacing());
     h.write_bytes(bytemuck::cast_slice::<f32, u8>(hm.heights()));
-    h.write_u32(u32::from(needs.bake_horizons));
-    h.write_u32(azimuths);
-    h.write_u32(max_side);
-    h.write_u32(SAT_FRAC_BITS);
-    h.write_u64(horizon::DEFAULT_MAX_SAMPLES.to_bits());
+    key_params(&mut h, needs, azimuths, level);
+    h.finish()
+}
+
+/// The shading cache key of a package: its header (every tile's offset and CRC-32) and the parameters.
+fn package_cache_key(package: &Package, needs: &Needs, azimuths: u32, level: usize) -> u64 {
+    let mut h = Hash64::new();
+    h.write_u32(SHADING_FORMAT_VERSION);
+    h.write_bytes(b"package");
+    h.write_bytes(&package.header().to_bytes());
+    key_params(&mut h, needs, azimuths, level);
     h.finish()
 }
 
@@ -65,6 +130,10 @@ pub struct ShadingBake {
     height: u32,
     step: u32,
     azimuths: u32,
+    /// The data's (level 0's) samples per row and rows, and its spacing in metres: the extent the fog
+    /// fits and the spacing the shader's footprint uses, without the terrain at hand.
+    data: (u32, u32),
+    spacing: f32,
     /// (width + 1) x (height + 1) texels, 4 u32 each: (n + 1) / 2 per normal component, 0. Shared: the
     /// renderer keeps the bake to fill its per-level tables ([`ShadingBake::level_texel`]).
     normal: Arc<[u32]>,
@@ -73,191 +142,345 @@ pub struct ShadingBake {
     baked: Vec<&'static str>,
 }
 
-/// The padded wrapping-u32 table of a u64 SAT: entry (x + 1, y + 1) is the inclusive sum at (x, y).
-fn padded(sat: &Sat, w: u32, h: u32, out: &mut [u32], channel: usize) {
-    let t = sat.table();
-    for y in 0..h as usize {
-        for x in 0..w as usize {
-            let at = ((y + 1) * (w as usize + 1) + x + 1) * 4 + channel;
-            #[expect(
-                clippy::cast_possible_truncation,
-                reason = "sums mod 2^32: box differences stay exact below 2^32 (module docs)"
-            )]
-            let low = t[y * w as usize + x] as u32;
-            out[at] = low;
-        }
-    }
-}
+/// Texels over which a bake shows a progress bar on stderr (the horizons' march is the slow part).
+const PROGRESS_TEXELS: u64 = 1 << 20;
 
 impl ShadingBake {
-    /// Bakes what `needs` asks for on the finest level of `hm` whose padded tables fit `max_side` texels:
-    /// always the normal SAT; the horizons ([`horizon::bake`], `azimuths` of them) and their SATs only when
-    /// `needs.bake_horizons`.
-    pub fn bake(hm: &Heightmap, needs: &Needs, azimuths: u32, max_side: u32) -> Result<Self> {
-        if azimuths == 0 || azimuths > MAX_AZIMUTHS || !azimuths.is_multiple_of(4) {
-            return Err(Error::Invalid {
-                what: "azimuths".into(),
-                reason: format!("{azimuths} is not a multiple of 4 in 4..={MAX_AZIMUTHS}"),
+    /// Bakes what `needs` asks for on the finest level of `hm` whose tables fit `max_bytes`
+    /// ([`grid_level`]): always the normal SAT; the horizons ([`horizon::texel_horizons`], `azimuths`
+    /// of them) and their SATs only when `needs.bake_horizons`.
+    pub fn bake(hm: &Heightmap, needs: &Needs, azimuths: u32, max_bytes: u64) -> Result<Self> {
+        check_azimuths(azimuths)?;
+        let d = if needs.bake_horizons { azimuths } else { 0 };
+        let k = grid_level(&level_sizes(hm.width(), hm.height()), d, max_bytes)?;
+        let data = (hm.width(), hm.height());
+        if k == 0 {
+            return Self::bake_grid(hm, 1, d, data, hm.spacing());
+        }
+        let pyramid = Pyramid::build(hm);
+        if k >= pyramid.len() {
+            return Err(Error::Capacity {
+                what: "shading grid level (pyramid levels)",
+                capacity: pyramid.len(),
             });
         }
-        let mut level = None;
-        let mut step = 1u32;
-        if hm.width() + 1 > max_side || hm.height() + 1 > max_side {
-            let pyramid = Pyramid::build(hm);
-            for k in 1..pyramid.len() {
-                let l = pyramid.level(k);
-                step *= 2;
-                if l.width() < max_side && l.height() < max_side {
-                    level = Some(Heightmap::new(
-                        Path::new("shading grid"),
-                        l.width(),
-                        l.height(),
-                        hm.spacing() * step as f32,
-                        l.heights().to_vec(),
-                    )?);
-                    break;
+        let l = pyramid.level(k);
+        let step = 1u32 << k;
+        #[expect(clippy::cast_precision_loss, reason = "a power of two below 2^32")]
+        let spacing = hm.spacing() * step as f32;
+        let grid = Heightmap::new(
+            Path::new("shading grid"),
+            l.width(),
+            l.height(),
+            spacing,
+            l.heights().to_vec(),
+        )?;
+        drop(pyramid);
+        Self::bake_grid(&grid, step, d, data, hm.spacing())
+    }
+
+    /// [`ShadingBake::bake`] out of core from a package: the grid is the package's own finest level whose
+    /// tables fit `max_bytes`, decoded alone (with its coarser levels, never level 0 unless it fits).
+    pub fn bake_package(
+        package: &Package,
+        needs: &Needs,
+        azimuths: u32,
+        max_bytes: u64,
+    ) -> Result<Self> {
+        check_azimuths(azimuths)?;
+        let d = if needs.bake_horizons { azimuths } else { 0 };
+        let h = package.header();
+        let sizes: Vec<(u32, u32)> = h.levels.iter().map(|l| (l.width, l.height)).collect();
+        let k = grid_level(&sizes, d, max_bytes)?;
+        let dims = h.levels[k];
+        let step = 1u32 << k;
+        // In place: the quantum units become metres in the same allocation.
+        let heights: Vec<f32> = package
+            .decode_level(k)?
+            .into_iter()
+            .map(|v| package.metres(v))
+            .collect();
+        #[expect(clippy::cast_precision_loss, reason = "a power of two below 2^32")]
+        let spacing = h.spacing * step as f32;
+        let grid = Heightmap::new(package.path(), dims.width, dims.height, spacing, heights)?;
+        Self::bake_grid(&grid, step, d, (h.width, h.height), h.spacing)
+    }
+
+    /// The tables of `grid` (level log2(`step`) of the data), `d` horizons (0: none), written row by row.
+    fn bake_grid(
+        grid: &Heightmap,
+        step: u32,
+        d: u32,
+        data: (u32, u32),
+        spacing: f32,
+    ) -> Result<Self> {
+        let (w, h) = (grid.width(), grid.height());
+        let pw = w as usize + 1;
+        let texels = pw * (h as usize + 1);
+        let du = d as usize;
+        let (mut normal_arc, mut horizon_arc) =
+            (zeroed(texels * 4), zeroed(du.div_ceil(4) * texels * 4));
+        let normal = unique(&mut normal_arc);
+        let horizon = unique(&mut horizon_arc);
+        let bar = (d > 0 && u64::from(w) * u64::from(h) > PROGRESS_TEXELS).then(|| {
+            let bar = indicatif::ProgressBar::new(u64::from(h));
+            bar.set_message("baking horizons");
+            bar
+        });
+        // Quantised up to 2^-20 as Sat::build does; a u32 of at most 2^20.
+        let quantum = |v: f64, x: u32, y: u32| -> u32 {
+            let q = Sat::quantise_up(v.clamp(0.0, 1.0), SAT_FRAC_BITS, x, y);
+            u32::try_from(q).expect("a value in [0, 1] is at most 2^20 quanta")
+        };
+        let mut angles = [0.0f32; MAX_AZIMUTHS as usize];
+        for y in 0..h {
+            let mut run = [0u32; 3];
+            let mut hrun = [0u32; MAX_AZIMUTHS as usize];
+            for x in 0..w {
+                // Entry (x + 1, y + 1) is the one above it plus row y's prefix through x.
+                let at = ((y as usize + 1) * pw + x as usize + 1) * 4;
+                let above = at - pw * 4;
+                let n = horizon::texel_normal(grid, x, y);
+                for c in 0..3 {
+                    run[c] = run[c].wrapping_add(quantum((n[c] + 1.0) * 0.5, x, y));
+                    normal[at + c] = normal[above + c].wrapping_add(run[c]);
+                }
+                if du == 0 {
+                    continue;
+                }
+                horizon::texel_horizons(
+                    grid,
+                    x,
+                    y,
+                    horizon::DEFAULT_MAX_SAMPLES,
+                    &mut angles[..du],
+                );
+                for (k, &a) in angles[..du].iter().enumerate() {
+                    hrun[k] = hrun[k].wrapping_add(quantum((f64::from(a) + FRAC_PI_2) / PI, x, y));
+                    let layer = (k / 4) * texels * 4 + k % 4;
+                    horizon[layer + at] = horizon[layer + above].wrapping_add(hrun[k]);
                 }
             }
-            if level.is_none() {
-                return Err(Error::Capacity {
-                    what: "shading SAT side (max_texture_dimension_2d)",
-                    capacity: max_side as usize,
-                });
+            if let Some(bar) = &bar {
+                bar.inc(1);
             }
         }
-        let grid = level.as_ref().unwrap_or(hm);
-        let (w, h) = (grid.width(), grid.height());
-        let texels = (w as usize + 1) * (h as usize + 1);
-        let normals: Vec<glam::DVec3> = (0..h)
-            .flat_map(|y| (0..w).map(move |x| (x, y)))
-            .map(|(x, y)| horizon::texel_normal(grid, x, y))
-            .collect();
-        let at = |x: u32, y: u32| y as usize * w as usize + x as usize;
-        let mut normal = vec![0u32; texels * 4];
-        for c in [0usize, 1, 2] {
-            let sat = Sat::build(w, h, 1, SAT_FRAC_BITS, |x, y| {
-                ((normals[at(x, y)][c] + 1.0) * 0.5).clamp(0.0, 1.0)
-            })?;
-            padded(&sat, w, h, &mut normal, c);
-        }
-        let mut baked = vec!["normal_sat"];
-        let mut horizon = Vec::new();
-        let mut d = 0;
-        if needs.bake_horizons {
-            let hz = horizon::bake(grid, azimuths, horizon::DEFAULT_MAX_SAMPLES)?;
-            d = azimuths;
-            let layers = d.div_ceil(4) as usize;
-            horizon = vec![0u32; layers * texels * 4];
-            for k in 0..d as usize {
-                let sat = Sat::build(w, h, 1, SAT_FRAC_BITS, |x, y| {
-                    ((f64::from(hz.at(x, y)[k]) + std::f64::consts::FRAC_PI_2)
-                        / std::f64::consts::PI)
-                        .clamp(0.0, 1.0)
-                })?;
-                let layer = &mut horizon[(k / 4) * texels * 4..(k / 4 + 1) * texels * 4];
-                padded(&sat, w, h, layer, k % 4);
-            }
-            baked.extend(["horizons", "horizon_sat"]);
+        if let Some(bar) = bar {
+            bar.finish_and_clear();
         }
         Ok(Self {
             width: w,
             height: h,
             step,
             azimuths: d,
-            normal: normal.into(),
-            horizon: horizon.into(),
-            baked,
+            data,
+            spacing,
+            normal: normal_arc,
+            horizon: horizon_arc,
+            baked: baked_names(d),
         })
     }
 
     /// [`ShadingBake::bake`] through the disk cache in `dir` ([`crate::bake::default_cache_dir`]): a
     /// valid `shading-<key>.bin` is read, else the tables are baked and written. The key hashes the
-    /// terrain (size, spacing, every height's bits) and every bake parameter; a damaged or mismatched
-    /// file is rebaked, never trusted. Layout, little-endian: magic `CSATSHD1`, format version, key,
-    /// width, height, step, azimuths, the normal table, the horizon table (u32 each), a trailing hash.
+    /// terrain (size, spacing, every height's bits), every bake parameter and the grid's level; a damaged
+    /// or mismatched file is rebaked, never trusted.
     pub fn bake_cached(
         hm: &Heightmap,
         needs: &Needs,
         azimuths: u32,
-        max_side: u32,
+        max_bytes: u64,
         dir: &Path,
     ) -> Result<(Self, CacheOutcome)> {
-        let key = shading_cache_key(hm, needs, azimuths, max_side);
+        check_azimuths(azimuths)?;
+        let d = if needs.bake_horizons { azimuths } else { 0 };
+        let k = grid_level(&level_sizes(hm.width(), hm.height()), d, max_bytes)?;
+        let key = shading_cache_key(hm, needs, azimuths, k);
+        Self::cached(key, needs, dir, || {
+            Self::bake(hm, needs, azimuths, max_bytes)
+        })
+    }
+
+    /// [`ShadingBake::bake_package`] through the disk cache, keyed by the package's header (every tile's
+    /// CRC-32), the parameters and the grid's level.
+    pub fn bake_package_cached(
+        package: &Package,
+        needs: &Needs,
+        azimuths: u32,
+        max_bytes: u64,
+        dir: &Path,
+    ) -> Result<(Self, CacheOutcome)> {
+        check_azimuths(azimuths)?;
+        let d = if needs.bake_horizons { azimuths } else { 0 };
+        let sizes: Vec<(u32, u32)> = package
+            .header()
+            .levels
+            .iter()
+            .map(|l| (l.width, l.height))
+            .collect();
+        let k = grid_level(&sizes, d, max_bytes)?;
+        let key = package_cache_key(package, needs, azimuths, k);
+        Self::cached(key, needs, dir, || {
+            Self::bake_package(package, needs, azimuths, max_bytes)
+        })
+    }
+
+    /// The cache file of `key` in `dir`, else `bake` and write it.
+    fn cached(
+        key: u64,
+        needs: &Needs,
+        dir: &Path,
+        bake: impl FnOnce() -> Result<Self>,
+    ) -> Result<(Self, CacheOutcome)> {
         let path = dir.join(format!("shading-{}.bin", hex(key)));
-        let refused = match std::fs::read(&path) {
-            Ok(bytes) => match Self::decode(&bytes, key, needs.bake_horizons) {
+        let refused = match std::fs::File::open(&path) {
+            Ok(file) => match Self::read(file, key, needs.bake_horizons) {
                 Ok(b) => return Ok((b, CacheOutcome::Hit)),
                 Err(reason) => Some(reason),
             },
             Err(_) => None,
         };
-        let bake = Self::bake(hm, needs, azimuths, max_side)?;
-        let outcome = match write_atomic(&path, &bake.encode(key)) {
+        let bake = bake()?;
+        let outcome = match bake.write(&path, key) {
             Err(e) => CacheOutcome::NotCached(e.to_string()),
             Ok(()) => refused.map_or(CacheOutcome::Baked, CacheOutcome::Rebaked),
         };
         Ok((bake, outcome))
     }
 
-    fn encode(&self, key: u64) -> Vec<u8> {
-        let mut out = Vec::with_capacity(48 + 4 * (self.normal.len() + self.horizon.len()));
-        out.extend_from_slice(SHADING_MAGIC);
-        out.extend_from_slice(&SHADING_FORMAT_VERSION.to_le_bytes());
-        out.extend_from_slice(&key.to_le_bytes());
-        for w in [self.width, self.height, self.step, self.azimuths] {
-            out.extend_from_slice(&w.to_le_bytes());
+    /// Writes the cache file through a buffer, atomically (a temporary file renamed into place). Layout,
+    /// little-endian: magic `CSATSHD1`, format version, key, width, height, step, azimuths, the data's
+    /// width and height, its spacing's bits, the normal table, the horizon table (u32 each), and a CRC-32
+    /// of every byte before it.
+    fn write(&self, path: &Path, key: u64) -> Result<()> {
+        if let Some(dir) = path.parent() {
+            std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, "cannot create folder", e))?;
         }
-        for v in self.normal.iter().chain(self.horizon.iter()) {
-            out.extend_from_slice(&v.to_le_bytes());
+        let tmp = path.with_extension(format!("tmp{}", std::process::id()));
+        let io = |e| Error::io(&tmp, "cannot write", e);
+        let file = std::fs::File::create(&tmp).map_err(io)?;
+        let mut out = Crc32Writer {
+            inner: BufWriter::with_capacity(1 << 16, file),
+            crc: crc32fast::Hasher::new(),
+        };
+        let mut head = Vec::with_capacity(HEADER_BYTES);
+        head.extend_from_slice(SHADING_MAGIC);
+        head.extend_from_slice(&SHADING_FORMAT_VERSION.to_le_bytes());
+        head.extend_from_slice(&key.to_le_bytes());
+        let (dw, dh) = self.data;
+        for w in [
+            self.width,
+            self.height,
+            self.step,
+            self.azimuths,
+            dw,
+            dh,
+            self.spacing.to_bits(),
+        ] {
+            head.extend_from_slice(&w.to_le_bytes());
         }
-        seal(&mut out);
-        out
+        out.write_all(&head).map_err(io)?;
+        let mut chunk = Vec::with_capacity(1 << 16);
+        for part in self
+            .normal
+            .chunks(1 << 14)
+            .chain(self.horizon.chunks(1 << 14))
+        {
+            chunk.clear();
+            chunk.extend(part.iter().flat_map(|v| v.to_le_bytes()));
+            out.write_all(&chunk).map_err(io)?;
+        }
+        let crc = out.crc.clone().finalize();
+        let mut file = out.inner;
+        file.write_all(&crc.to_le_bytes()).map_err(io)?;
+        file.flush().map_err(io)?;
+        drop(file);
+        std::fs::rename(&tmp, path).map_err(|e| Error::io(path, "cannot rename into place", e))
     }
 
-    fn decode(bytes: &[u8], key: u64, horizons: bool) -> std::result::Result<Self, String> {
-        let mut r = unseal(bytes, SHADING_MAGIC, "shading")?;
-        let version = r.u32()?;
+    /// Reads a cache file through a buffer straight into the tables, checking the CRC-32 as it goes.
+    fn read(file: std::fs::File, key: u64, horizons: bool) -> std::result::Result<Self, String> {
+        let len = file.metadata().map_err(|e| e.to_string())?.len();
+        let mut r = BufReader::with_capacity(1 << 16, file);
+        let mut crc = crc32fast::Hasher::new();
+        let mut head = [0u8; HEADER_BYTES];
+        r.read_exact(&mut head)
+            .map_err(|_| "shorter than its header".to_string())?;
+        crc.update(&head);
+        if &head[..8] != SHADING_MAGIC {
+            return Err("not a clipsat shading cache file (bad magic)".into());
+        }
+        let word = |i: usize| u32::from_le_bytes([head[i], head[i + 1], head[i + 2], head[i + 3]]);
+        let version = word(8);
         if version != SHADING_FORMAT_VERSION {
             return Err(format!(
                 "format version {version}, expected {SHADING_FORMAT_VERSION}"
             ));
         }
-        if r.u64()? != key {
+        if u64::from(word(12)) | u64::from(word(16)) << 32 != key {
             return Err("key does not match".into());
         }
-        let (width, height, step, azimuths) = (r.u32()?, r.u32()?, r.u32()?, r.u32()?);
-        if width == 0 || height == 0 || !step.is_power_of_two() || azimuths > MAX_AZIMUTHS {
+        let [width, height, step, azimuths, dw, dh, spacing] =
+            std::array::from_fn(|i| word(20 + 4 * i));
+        if width == 0 || height == 0 || dw == 0 || dh == 0 || !step.is_power_of_two() {
             return Err("sizes in the header are out of range".into());
         }
-        if horizons != (azimuths > 0) {
+        if azimuths > MAX_AZIMUTHS || !azimuths.is_multiple_of(4) || horizons != (azimuths > 0) {
             return Err("horizon tables do not match the key".into());
         }
-        let texels = (width as usize + 1) * (height as usize + 1);
-        let mut table = |n: usize| -> std::result::Result<Vec<u32>, String> {
-            let bytes = r.take(n.checked_mul(4).ok_or("size overflow")?)?;
-            Ok(bytes
-                .chunks_exact(4)
-                .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-                .collect())
+        let texels = (u64::from(width) + 1) * (u64::from(height) + 1);
+        let words = texels * 4 * (1 + u64::from(azimuths / 4));
+        if len != HEADER_BYTES as u64 + words * 4 + 4 {
+            return Err(format!(
+                "{len} bytes, expected {}",
+                HEADER_BYTES as u64 + words * 4 + 4
+            ));
+        }
+        let mut buf = vec![0u8; 1 << 16];
+        let mut table = |n: u64| -> std::result::Result<Arc<[u32]>, String> {
+            let mut arc = zeroed(usize::try_from(n).map_err(|_| "size overflow")?);
+            for part in unique(&mut arc).chunks_mut(buf.len() / 4) {
+                let bytes = &mut buf[..part.len() * 4];
+                r.read_exact(bytes).map_err(|e| e.to_string())?;
+                crc.update(bytes);
+                for (v, c) in part.iter_mut().zip(bytes.chunks_exact(4)) {
+                    *v = u32::from_le_bytes([c[0], c[1], c[2], c[3]]);
+                }
+            }
+            Ok(arc)
         };
         let normal = table(texels * 4)?;
-        let horizon = table(azimuths.div_ceil(4) as usize * texels * 4)?;
-        if !r.done() {
-            return Err("trailing bytes".into());
-        }
-        let mut baked = vec!["normal_sat"];
-        if azimuths > 0 {
-            baked.extend(["horizons", "horizon_sat"]);
+        let horizon = table(texels * 4 * u64::from(azimuths / 4))?;
+        let mut trailer = [0u8; 4];
+        r.read_exact(&mut trailer).map_err(|e| e.to_string())?;
+        if crc.finalize() != u32::from_le_bytes(trailer) {
+            return Err("checksum mismatch (corrupted file)".into());
         }
         Ok(Self {
             width,
             height,
             step,
             azimuths,
-            normal: normal.into(),
-            horizon: horizon.into(),
-            baked,
+            data: (dw, dh),
+            spacing: f32::from_bits(spacing),
+            normal,
+            horizon,
+            baked: baked_names(azimuths),
         })
+    }
+
+    /// The data's spacing, metres (level 0's, whatever the grid's level).
+    pub fn data_spacing(&self) -> f32 {
+        self.spacing
+    }
+
+    /// The data's extent east and north, metres, as [`Heightmap::extent_m`] gives it.
+    pub fn data_extent_m(&self) -> (f64, f64) {
+        let s = f64::from(self.spacing);
+        (
+            f64::from(self.data.0.saturating_sub(1)) * s,
+            f64::from(self.data.1.saturating_sub(1)) * s,
+        )
     }
 
     /// Shading-grid samples per row.
@@ -383,6 +606,44 @@ impl ShadingBake {
     }
 }
 
+/// A shared table of `n` zeros, allocated once where it lives (a `Vec` turned into an `Arc` would be
+/// copied, holding the table twice for a moment).
+fn zeroed(n: usize) -> Arc<[u32]> {
+    std::iter::repeat_n(0u32, n).collect()
+}
+
+/// The table [`zeroed`] just made, to fill.
+fn unique(table: &mut Arc<[u32]>) -> &mut [u32] {
+    Arc::get_mut(table).expect("a table just made has no other owner")
+}
+
+/// The maps a bake with `d` horizons holds, by name.
+fn baked_names(d: u32) -> Vec<&'static str> {
+    let mut baked = vec!["normal_sat"];
+    if d > 0 {
+        baked.extend(["horizons", "horizon_sat"]);
+    }
+    baked
+}
+
+/// A writer that checksums what passes through it.
+struct Crc32Writer<W> {
+    inner: W,
+    crc: crc32fast::Hasher,
+}
+
+impl<W: Write> Write for Crc32Writer<W> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let n = self.inner.write(buf)?;
+        self.crc.update(&buf[..n]);
+        Ok(n)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.inner.flush()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -402,26 +663,28 @@ mod tests {
             bake_horizons: true,
             ..Needs::default()
         };
-        let (first, outcome) = ShadingBake::bake_cached(&hm, &needs, 8, 2048, &dir).expect("bake");
+        let (first, outcome) =
+            ShadingBake::bake_cached(&hm, &needs, 8, u64::MAX, &dir).expect("bake");
         assert_eq!(outcome, CacheOutcome::Baked);
-        let (again, outcome) = ShadingBake::bake_cached(&hm, &needs, 8, 2048, &dir).expect("hit");
+        let (again, outcome) =
+            ShadingBake::bake_cached(&hm, &needs, 8, u64::MAX, &dir).expect("hit");
         assert_eq!(outcome, CacheOutcome::Hit);
         assert_eq!(again, first);
         // Another parameter is another file; no horizons reads back no horizons.
         let (plain, outcome) =
-            ShadingBake::bake_cached(&hm, &Needs::default(), 8, 2048, &dir).expect("plain");
+            ShadingBake::bake_cached(&hm, &Needs::default(), 8, u64::MAX, &dir).expect("plain");
         assert_eq!((outcome, plain.azimuths()), (CacheOutcome::Baked, 0));
         assert_eq!(plain.baked(), ["normal_sat"]);
         // A flipped byte fails the trailing hash: rebaked, same tables.
         let path = dir.join(format!(
             "shading-{}.bin",
-            hex(shading_cache_key(&hm, &needs, 8, 2048))
+            hex(shading_cache_key(&hm, &needs, 8, 0))
         ));
         let mut bytes = std::fs::read(&path).expect("cache file");
         bytes[40] ^= 1;
         std::fs::write(&path, &bytes).expect("damage");
         let (fixed, outcome) =
-            ShadingBake::bake_cached(&hm, &needs, 8, 2048, &dir).expect("rebake");
+            ShadingBake::bake_cached(&hm, &needs, 8, u64::MAX, &dir).expect("rebake");
         assert!(matches!(outcome, CacheOutcome::Rebaked(_)), "{outcome:?}");
         assert_eq!(fixed, first);
         let _ = std::fs::remove_dir_all(&dir);

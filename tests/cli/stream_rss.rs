@@ -3,7 +3,7 @@
 //! package by at most `budget.cpu_memory_bytes`; the out-of-core bake of 4097^2 .. 16385^2 terrains stays
 //! within a fixed working set; `render --lod sat` over the 16385^2 package, its SAT LOD tables baked out of
 //! core on the first run, stays within the same bound of the 257^2 run. Heavy (packages of a few hundred MB and 1.4 GB of temporary level files;
-//! minutes in release), so ignored:
+//! minutes in release), so ignored (`render_sg_streams_a_package`, a small streamed SG render, is not):
 //! `cargo test --release --test cli stream_rss -- --ignored --nocapture`. Needs `/usr/bin/time`.
 
 use std::path::Path;
@@ -194,4 +194,56 @@ fn sat_lod_16385_within_the_cpu_budget() {
             budget >> 20
         );
     }
+}
+
+/// `render --shading sg` streams a package (issue 13): its SG tables are baked from the package's own
+/// level that fits the profile's shading share (`CpuSplit::shading`; 257^2 fits gles3-mid's at full
+/// resolution), read back from their cache file on the second run to the same image, and `--stream`
+/// refuses `--reference`, whose CPU reference reads the whole terrain.
+#[test]
+fn render_sg_streams_a_package() {
+    let dir = super::scratch_in("cli_stream_rss", "sg");
+    let (pkg, _) = bake_procedural(&dir, 257);
+    let (p, png) = (
+        pkg.to_string_lossy().into_owned(),
+        dir.join("sg.png").to_string_lossy().into_owned(),
+    );
+    let args = [
+        "render",
+        "--terrain",
+        &p,
+        "--profile",
+        "gles3-mid",
+        "--shading",
+        "sg",
+        "--size",
+        "96x64",
+        "--json",
+        "--out",
+        &png,
+    ];
+    let run = || {
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_clipsat"))
+            .args(args)
+            .env("CLIPSAT_CACHE", dir.join("cache"))
+            .output()
+            .expect("run clipsat");
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        serde_json::from_slice::<serde_json::Value>(&o.stdout).expect("json")
+    };
+    let (first, second) = (run(), run());
+    assert_eq!(first["streamed"], true, "{first}");
+    assert_eq!(first["shading_grid"], serde_json::json!([257, 257, 1]));
+    assert_eq!(first["image_hash"], second["image_hash"]);
+    let refused = clipsat(&[
+        "render",
+        "--terrain",
+        "procedural:size=65",
+        "--stream",
+        "--shading",
+        "sg",
+        "--reference",
+    ]);
+    assert!(!refused.status.success());
+    assert!(String::from_utf8_lossy(&refused.stderr).contains("--stream"));
 }

@@ -539,3 +539,50 @@ fn vmf_cosine_matches_dense_integration() {
     }
     println!("vmf_cosine max |error| {worst:.4}");
 }
+
+/// The SG tables baked out of core from a package (`ShadingBake::bake_package`, issue 13): with the grid
+/// at level 0 they equal the resident bake of the decoded terrain; a share too small for level 0 takes
+/// the package's own coarser level, decoded alone, and keeps the data's extent and spacing; a share too
+/// small for any level is an error.
+#[test]
+fn shading_bake_from_a_package() {
+    use clipsat::gpu::sat_textures::{grid_bytes, ShadingBake};
+    use clipsat::package::{self, BakeOptions, Package};
+    use clipsat::shading::scene::Needs;
+    let hm =
+        clipsat::source::procedural::generate(&clipsat::source::procedural::ProceduralParams {
+            size: 129,
+            ..Default::default()
+        })
+        .expect("terrain");
+    let dir = std::env::temp_dir().join(format!("clipsat-sg-package-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let out = dir.join("p129.clipsat");
+    package::bake(
+        &hm,
+        &out,
+        &BakeOptions::default(),
+        &indicatif::ProgressBar::hidden(),
+    )
+    .expect("bake");
+    let p = Package::open(&out).expect("open");
+    let needs = Needs {
+        bake_horizons: true,
+        ..Needs::default()
+    };
+    let streamed = ShadingBake::bake_package(&p, &needs, 8, u64::MAX).expect("package bake");
+    let decoded = p.to_heightmap().expect("decode");
+    let resident = ShadingBake::bake(&decoded, &needs, 8, u64::MAX).expect("resident bake");
+    assert_eq!(streamed, resident);
+    assert_eq!((streamed.step(), streamed.width()), (1, 129));
+    // Level 1 (65^2) is the finest that fits.
+    let coarse = ShadingBake::bake_package(&p, &needs, 8, grid_bytes(65, 65, 8)).expect("coarse");
+    assert_eq!(
+        (coarse.step(), coarse.width(), coarse.height()),
+        (2, 65, 65)
+    );
+    assert_eq!(coarse.data_extent_m(), hm.extent_m());
+    assert_eq!(coarse.data_spacing(), hm.spacing());
+    assert!(ShadingBake::bake_package(&p, &needs, 8, 100).is_err());
+    let _ = std::fs::remove_dir_all(&dir);
+}

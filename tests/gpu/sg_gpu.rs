@@ -13,6 +13,14 @@ use clipsat::shading::scene::{Needs, Scene};
 use clipsat::shading::{self, Inputs, Patches};
 use glam::Vec3;
 
+/// gles3-low's rings and budget, allowed SG (so its `cpu_memory_bytes` carves the shading share,
+/// `CpuSplit::shading`): the small profile these tests draw SG on.
+fn sg_low_profile(width: u32, height: u32, budget: Option<u32>) -> clipsat::Profile {
+    let mut p = render_support::profile("gles3-low", width, height, budget);
+    p.shading.features.push(clipsat::profile::Feature::Sg);
+    p
+}
+
 /// Deterministic inputs covering the hard cases: flat (r = z), tilted, |r| -> 0 and -> 1, a vertical
 /// cliff (r horizontal), grazing and overhead views, low and high horizons.
 fn cases(d: usize) -> Vec<ProbeCase> {
@@ -110,7 +118,7 @@ fn sat_texture_box_means_match_brute_force() {
         bind_visibility: true,
         ..Needs::default()
     };
-    let bake = ShadingBake::bake(&hm, &needs, 8, 2048).expect("bake");
+    let bake = ShadingBake::bake(&hm, &needs, 8, u64::MAX).expect("bake");
     assert_eq!(bake.step(), 1);
     assert_eq!(bake.baked(), ["normal_sat", "horizons", "horizon_sat"]);
     let hz = horizon::bake(&hm, 8, horizon::DEFAULT_MAX_SAMPLES).expect("horizons");
@@ -143,9 +151,10 @@ fn sat_texture_box_means_match_brute_force() {
 }
 
 #[test]
-fn terrain_larger_than_the_texture_side_uses_a_pyramid_level() {
+fn terrain_larger_than_the_shading_share_uses_a_pyramid_level() {
     let hm = render_support::terraces();
-    let bake = ShadingBake::bake(&hm, &Needs::default(), 8, 200).expect("bake");
+    let bytes = clipsat::gpu::sat_textures::grid_bytes(199, 199, 0);
+    let bake = ShadingBake::bake(&hm, &Needs::default(), 8, bytes).expect("bake");
     assert_eq!((bake.step(), bake.width()), (2, 129));
     assert_eq!(bake.baked(), ["normal_sat"]);
 }
@@ -176,7 +185,7 @@ fn variants_compile_only_what_the_scene_declares() {
 fn renderer_bakes_and_binds_only_what_the_scene_needs() {
     let gpu = render_support::strict();
     let hm = render_support::terraces();
-    let profile = render_support::profile("gles3-low", 96, 64, None);
+    let profile = sg_low_profile(96, 64, None);
     let mut clipmap = render_support::clipmap(&hm, &profile);
     let camera = clipsat::Camera::default_for(&hm).expect("camera");
     let mut renderer =
@@ -415,7 +424,7 @@ fn golden_sg_frame() {
             ..Default::default()
         })
         .expect("procedural terrain");
-    let mut profile = render_support::profile("gles3-low", 160, 90, None);
+    let mut profile = sg_low_profile(160, 90, None);
     profile.budget.update_samples_per_frame = u32::MAX;
     let mut cm = render_support::clipmap(&hm, &profile);
     let cam = clipsat::Camera::default_for(&hm).expect("camera");
@@ -470,11 +479,11 @@ fn golden_sg_frame() {
 fn sg_tables_follow_the_rings() {
     let gpu = render_support::strict();
     let hm = render_support::relief();
-    let p = render_support::profile("gles3-low", 64, 48, Some(1600));
+    let p = sg_low_profile(64, 48, Some(1600));
     let mut cm = render_support::clipmap(&hm, &p);
     let noon = Scene::load("noon").expect("noon");
-    let max_side = gpu.device().limits().max_texture_dimension_2d;
-    let (_, bake) = clipsat::gpu::headless::sg_bake(max_side, &hm, &noon, false).expect("bake");
+    let share = p.cpu_split().shading;
+    let (_, bake) = clipsat::gpu::headless::sg_bake(share, &hm, &noon, false).expect("bake");
     let mut r = Offscreen::with_sg(&gpu, &p, &cm, &hm, &noon, Patches::P2x4, false).expect("sg");
     for i in 0..60 {
         let cam = render_support::flight(&hm, i, 120.0, 400.0, Some(40));
@@ -533,12 +542,11 @@ fn sg_tables_follow_the_rings() {
 fn sg_light_table_follows_the_rings() {
     let gpu = render_support::strict();
     let hm = render_support::relief();
-    let p = render_support::profile("gles3-low", 64, 48, Some(1600));
+    let p = sg_low_profile(64, 48, Some(1600));
     let mut cm = render_support::clipmap(&hm, &p);
     let evening = Scene::load("evening").expect("evening");
-    let max_side = gpu.device().limits().max_texture_dimension_2d;
-    let (scene, bake) =
-        clipsat::gpu::headless::sg_bake(max_side, &hm, &evening, true).expect("bake");
+    let share = p.cpu_split().shading;
+    let (scene, bake) = clipsat::gpu::headless::sg_bake(share, &hm, &evening, true).expect("bake");
     let mut r = Offscreen::with_sg(&gpu, &p, &cm, &hm, &evening, Patches::P2x4, true).expect("sg");
     for i in 0..40 {
         let cam = render_support::flight(&hm, i, 120.0, 400.0, Some(40));
@@ -643,7 +651,7 @@ fn sg_light_table_follows_the_rings() {
 #[test]
 fn sg_gpu_bytes_do_not_depend_on_the_terrain_size() {
     let gpu = render_support::strict();
-    let p = render_support::profile("gles3-low", 64, 48, None);
+    let p = sg_low_profile(64, 48, None);
     let evening = Scene::load("evening").expect("evening");
     let sg_bytes = |size: u32| {
         // Rolling hills from one formula: only the size matters here, and the procedural generator's
@@ -662,7 +670,7 @@ fn sg_gpu_bytes_do_not_depend_on_the_terrain_size() {
             &hm,
             &evening.needs(),
             clipsat::bake::horizon::DEFAULT_AZIMUTHS,
-            130,
+            clipsat::gpu::sat_textures::grid_bytes(129, 129, 16),
         )
         .expect("bake");
         let r = Offscreen::new(
@@ -671,7 +679,6 @@ fn sg_gpu_bytes_do_not_depend_on_the_terrain_size() {
             &cm,
             clipsat::gpu::headless::OffscreenOptions {
                 shading: clipsat::gpu::renderer::Shading::Sg(clipsat::gpu::renderer::SgShading {
-                    terrain: &hm,
                     scene: &evening,
                     patches: Patches::P4x8,
                     bake: &bake,

@@ -220,10 +220,10 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
         (render_profile.view.width, render_profile.view.height) = size.pair();
     }
     let baked = match (&gpu, &sg) {
-        (Some(gpu), Some(sg)) => Some(sg.bake(gpu, &hm)?),
+        (Some(_), Some(sg)) => Some(sg.bake(&profile, &hm, None)?),
         _ => None,
     };
-    let shading = super::sg::shading(&hm, sg.as_ref(), baked.as_ref());
+    let shading = super::sg::shading(sg.as_ref(), baked.as_ref());
     // The rendered frames draw the plain geometry clipmap (distance LOD) at the render size.
     let mut renderer = match &gpu {
         Some(gpu) => Some(Offscreen::new(

@@ -80,13 +80,13 @@ pub(crate) fn run(args: &InfoArgs) -> Result<()> {
     outln!("heights   {lo:.1} .. {hi:.1} m");
     outln!("voids     {} filled", hm.voids_filled());
     outln!(
-        "profile     GPU memory needed / budget    coarsest ring span   CPU budget: rings + tile cache + LOD tables   \
+        "profile     GPU memory needed / budget    coarsest ring span   CPU budget: rings + tile cache + LOD tables + SG inputs   \
          detail pool                 SG tables (+ visibility)"
     );
     for p in &profiles {
         let mib = |v: &serde_json::Value| v.as_f64().unwrap_or(0.0) / 1048576.0;
         outln!(
-            "{:<11} {:>9.2} MiB / {:>7.1} MiB    {:>8.1} km          {:>6.1} MiB: {:.2} + {:.2} + {:.2} MiB   \
+            "{:<11} {:>9.2} MiB / {:>7.1} MiB    {:>8.1} km          {:>6.1} MiB: {:.2} + {:.2} + {:.2} + {:.2} MiB   \
              {} tiles of {}^2 ({:.2} MiB)   {:.2} MiB ({:.2} MiB)",
             p["profile"].as_str().unwrap_or("?"),
             mib(&p["gpu_bytes"]),
@@ -96,6 +96,7 @@ pub(crate) fn run(args: &InfoArgs) -> Result<()> {
             mib(&p["cpu_split"]["rings"]),
             mib(&p["cpu_split"]["tile_cache"]),
             mib(&p["cpu_split"]["lod_tables"]),
+            mib(&p["cpu_split"]["shading"]),
             p["detail_tiles"],
             p["detail_tile_samples"],
             mib(&p["parts"]["detail"]),
@@ -124,6 +125,7 @@ fn package_info(pkg: &clipsat::package::Package, as_json: bool) -> Result<()> {
             "rings_bytes": cpu.rings,
             "tile_cache": cache,
             "lod_tables_bytes": cpu.lod_tables,
+            "shading_bytes": cpu.shading,
         }));
     }
     if as_json {
@@ -162,13 +164,13 @@ fn package_info(pkg: &clipsat::package::Package, as_json: bool) -> Result<()> {
         h.max_error
     );
     outln!(
-        "profile     CPU budget = rings + cache (header + tile map + decoder + slots) + LOD table pages"
+        "profile     CPU budget = rings + cache (header + tile map + decoder + slots) + LOD table pages + SG inputs"
     );
     for p in &profiles {
         let mib = |v: &serde_json::Value| v.as_f64().unwrap_or(0.0) / 1048576.0;
         let c = &p["tile_cache"];
         outln!(
-            "{:<11} {:>6.1} MiB = {:.2} + ({:.2} + {:.2} + {:.2} + {:.2} MiB: {} slots) + {:.2} MiB",
+            "{:<11} {:>6.1} MiB = {:.2} + ({:.2} + {:.2} + {:.2} + {:.2} MiB: {} slots) + {:.2} + {:.2} MiB",
             p["profile"].as_str().unwrap_or("?"),
             mib(&p["cpu_budget_bytes"]),
             mib(&p["rings_bytes"]),
@@ -177,7 +179,8 @@ fn package_info(pkg: &clipsat::package::Package, as_json: bool) -> Result<()> {
             mib(&c["decoder"]),
             mib(&c["slots"]),
             c["slot_count"],
-            mib(&p["lod_tables_bytes"])
+            mib(&p["lod_tables_bytes"]),
+            mib(&p["shading_bytes"])
         );
     }
     Ok(())

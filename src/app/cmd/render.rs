@@ -68,8 +68,9 @@ pub(crate) struct RenderArgs {
     #[arg(long, value_delimiter = ',')]
     oracle: Vec<f64>,
     /// Clipmap only: stream a plain source like a package (baked into the cache folder on first use):
-    /// no whole heightmap resident, the SAT LOD tables read through a map of their cache file. Basic
-    /// shading only; a package streams without it.
+    /// no whole heightmap resident, the SAT LOD tables read through a map of their cache file, the SG
+    /// tables baked from one coarse enough level. Not with --reference, --brute or --ground-truth; a
+    /// package streams without it.
     #[arg(long)]
     stream: bool,
     /// Clipmap only: disable the GC 6.2 transition morph.
@@ -132,15 +133,16 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
         None => (profile.view.width, profile.view.height),
     };
     let sg = args.shading.choice(&profile)?;
-    // A package drawn with distance LOD and basic shading streams through the profile's tile cache:
-    // nothing terrain-sized stays resident, and the camera fits a coarse level. The SAT modes, sg shading
-    // and the brute-force reference still decode it whole (their inputs are built from the heightmap).
-    // `--stream` does the same for a plain source, baked into the cache on first use.
-    let streamable = sg.is_none() && !args.brute && !args.ground_truth;
+    // A package streams through the profile's tile cache: nothing terrain-sized stays resident, the
+    // camera fits a coarse level, the SAT LOD tables are baked out of core and mapped, and SG's tables
+    // are baked from the package level that fits the profile's shading share. The brute-force reference
+    // and SG's CPU reference still decode it whole (they read every sample). `--stream` does the same for
+    // a plain source, baked into the cache on first use.
+    let streamable = !args.brute && !args.ground_truth && !args.shading.reference;
     if args.stream && !streamable {
         return Err(arg_error(
             "--stream",
-            "streams with basic shading only (not --shading sg, --brute or --ground-truth)",
+            "needs the whole terrain with --brute, --ground-truth or --reference",
         ));
     }
     let package = match args.terrain.package()? {
@@ -207,8 +209,14 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
     } else {
         None
     };
-    let baked = sg.as_ref().map(|sg| sg.bake(&gpu, &hm)).transpose()?;
-    let shading = super::sg::shading(&hm, sg.as_ref(), baked.as_ref());
+    let package = clipmap
+        .tile_cache()
+        .map(clipsat::package::TileCache::package);
+    let baked = sg
+        .as_ref()
+        .map(|sg| sg.bake(&profile, &hm, package))
+        .transpose()?;
+    let shading = super::sg::shading(sg.as_ref(), baked.as_ref());
     let mut r = Offscreen::new(
         &gpu,
         &profile,
@@ -306,6 +314,8 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
             "shadows": sg.as_ref().map(|s| s.shadows && s.scene.effects.visibility),
             "bound_textures": r.bound_textures(),
             "baked": r.baked(),
+            // The SG tables' grid: samples per row, rows, and data samples per grid sample.
+            "shading_grid": baked.as_ref().map(|(_, b)| [b.width(), b.height(), b.step()]),
             "shading_rmse_vs_reference": reference.map(|e| e.rmse),
             "shading_model_rmse_vs_reference": reference.map(|e| e.model_rmse),
             "shading_max_error_vs_reference": reference.map(|e| e.max),

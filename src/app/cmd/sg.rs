@@ -14,7 +14,6 @@ use clipsat::gpu::headless;
 use clipsat::gpu::readback::Image;
 use clipsat::gpu::renderer::{SgShading, Shading};
 use clipsat::gpu::sat_textures::ShadingBake;
-use clipsat::gpu::Gpu;
 use clipsat::shading::scene::{self, Scene};
 use clipsat::shading::{self, HorizonTable, Patches, RefCosine, RefGrid, RefInputs};
 use clipsat::{Camera, Heightmap, Profile, Result};
@@ -49,11 +48,21 @@ pub(crate) struct SgChoice {
 }
 
 impl SgChoice {
-    /// Bakes (or reads from the disk cache) the tables this choice's scene needs on `gpu`; the scene
-    /// returned is the one drawn. [`shading`] turns the pair into the renderer's shading.
-    pub(crate) fn bake(&self, gpu: &Gpu, hm: &Heightmap) -> Result<(Scene, ShadingBake)> {
-        let max_side = gpu.device().limits().max_texture_dimension_2d;
-        headless::sg_bake(max_side, hm, &self.scene, self.shadows)
+    /// Bakes (or reads from the disk cache) the tables this choice's scene needs within `profile`'s
+    /// shading share of `cpu_memory_bytes`: from `package` out of core when the terrain streams, else
+    /// from `hm`. The scene returned is the one drawn. [`shading`] turns the pair into the renderer's
+    /// shading.
+    pub(crate) fn bake(
+        &self,
+        profile: &Profile,
+        hm: &Heightmap,
+        package: Option<&clipsat::package::Package>,
+    ) -> Result<(Scene, ShadingBake)> {
+        let max_bytes = profile.cpu_split().shading;
+        match package {
+            Some(p) => headless::sg_bake_package(max_bytes, p, &self.scene, self.shadows),
+            None => headless::sg_bake(max_bytes, hm, &self.scene, self.shadows),
+        }
     }
 
     /// The scene as rendered: visibility off under `--no-shadows`.
@@ -67,13 +76,11 @@ impl SgChoice {
 /// The renderer's shading: SG over `baked` (from [`SgChoice::bake`]) when `--shading sg` chose it, else
 /// basic.
 pub(crate) fn shading<'a>(
-    hm: &'a Heightmap,
     sg: Option<&SgChoice>,
     baked: Option<&'a (Scene, ShadingBake)>,
 ) -> Shading<'a> {
     match (sg, baked) {
         (Some(sg), Some((scene, bake))) => Shading::Sg(SgShading {
-            terrain: hm,
             scene,
             patches: sg.patches,
             bake,

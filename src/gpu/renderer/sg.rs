@@ -8,18 +8,17 @@ use crate::gpu::shaders::{self, SgOmit, SgSceneUniform, SgVariant};
 use crate::profile::{SG_SKY_LAYERS, SG_SKY_SIDE};
 use crate::shading::scene::{Effects, Scene};
 use crate::shading::{Patches, SkyTable};
-use crate::{Error, Heightmap, Profile, Result};
+use crate::{Error, Profile, Result};
 
-/// The SG shading variant of [`super::Shading::Sg`]: a scene over the terrain `terrain` (the one the
-/// clipmap was built from), integrated over `patches`, with tables already baked
-/// ([`ShadingBake::bake_cached`]; they stay in CPU memory, and fill the renderer's fixed per-level tables).
+/// The SG shading variant of [`super::Shading::Sg`]: a scene over the clipmap's terrain, integrated over
+/// `patches`, with tables already baked from it ([`ShadingBake::bake_cached`], or out of core
+/// [`ShadingBake::bake_package_cached`]; they stay in CPU memory, and fill the renderer's fixed per-level
+/// tables).
 /// Only what the scene needs ([`Scene::needs`]) is bound and compiled: no light table without
 /// visibility (used when the scene asks for it and `bake` holds horizons), no specular code without
 /// specular.
 #[derive(Clone, Copy, Debug)]
 pub struct SgShading<'a> {
-    /// The terrain.
-    pub terrain: &'a Heightmap,
     /// The scene (lights, material, effects).
     pub scene: &'a Scene,
     /// The patch grid of the integration.
@@ -112,10 +111,11 @@ impl SgState {
         layouts: [&wgpu::BindGroupLayout; 2],
         targets: &Targets,
     ) -> Result<Self> {
-        let (hm, bake) = (s.terrain, s.bake);
+        let bake = s.bake;
         let mut scene = s.scene.clone();
         scene.effects.visibility &= bake.azimuths() > 0;
-        let (ex, ey) = hm.extent_m();
+        // The data's extent and spacing as the bake recorded them: a streamed terrain has no heightmap.
+        let (ex, ey) = bake.data_extent_m();
         scene.fit_fog(ex.hypot(ey));
         let needs = scene.needs();
         let variant = SgVariant {
@@ -129,7 +129,7 @@ impl SgState {
         let tables = SgTables::new(dev, profile, bake, variant.visibility, &scene, &sky_table)?;
         let mut u = SgSceneUniform::new(&scene, bake.azimuths())?;
         // The sun count in z is the scene's (SgSceneUniform::new).
-        u.grid[0] = hm.spacing();
+        u.grid[0] = bake.data_spacing();
         let uniform = dev.buffer_init(
             "sg scene",
             bytemuck::bytes_of(&u),

@@ -228,6 +228,11 @@ fn child_peak_rss(cmd: &mut Command) -> Option<u64> {
 fn measure_refill(name: &str, hm: &Heightmap, path: &FsPath, reps: u32) -> Result<Refill> {
     let mut profile = Profile::load("desktop")?;
     profile.budget.update_samples_per_frame = u32::MAX;
+    // No SG here: the 8 MiB are not split with the SG shading inputs' share (CpuSplit::shading).
+    profile
+        .shading
+        .features
+        .retain(|&f| f != clipsat::profile::Feature::Sg);
     profile.budget.cpu_memory_bytes = profile.cpu_split().rings + (8 << 20);
     let (w, h) = (f64::from(hm.width()), f64::from(hm.height()));
     let s = f64::from(hm.spacing());

@@ -114,14 +114,17 @@ pub(super) fn headless(same: &Same<'_>, mode: GpuMode, frames: u32) -> Result<He
     } else {
         Some(lod_for(same.hm, same.profile, &clipmap, true)?)
     };
-    let baked = same.sg.map(|c| c.bake(&gpu, same.hm)).transpose()?;
+    let baked = same
+        .sg
+        .map(|c| c.bake(same.profile, same.hm, None))
+        .transpose()?;
     let mut r = Offscreen::new(
         &gpu,
         same.profile,
         &clipmap,
         OffscreenOptions {
             lod: LodSetup::new(same.lod, lod)?,
-            shading: sg::shading(same.hm, same.sg, baked.as_ref()),
+            shading: sg::shading(same.sg, baked.as_ref()),
             debug: same.debug,
         },
     )?;

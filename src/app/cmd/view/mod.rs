@@ -477,9 +477,9 @@ impl App<'_> {
         if want == self.applied && built == self.built && !self.resized {
             return Ok(());
         }
-        let Some(max_texture_side) = self.window.as_ref().map(|p| p.max_texture_side) else {
+        if self.window.is_none() {
             return Ok(());
-        };
+        }
         // SG on or off, and effects within those the renderer's SG tables were built for: a switch, not a
         // rebuild (issue 16: the SG tables are created once, never again on a toggle).
         // Fog without the scene's parameters is no effect (`ShadingSwitches::apply`).
@@ -538,7 +538,7 @@ impl App<'_> {
                         self.hm,
                         &needs,
                         DEFAULT_AZIMUTHS,
-                        max_texture_side,
+                        self.profile.cpu_split().shading,
                         &clipsat::bake::default_cache_dir(),
                     )?;
                     eprintln!("clipsat view: shading SATs {outcome:?}");
@@ -549,7 +549,6 @@ impl App<'_> {
                     Some(b) => self.rebuild(
                         lod,
                         gpu_renderer::Shading::Sg(SgShading {
-                            terrain: self.hm,
                             scene: &scene,
                             patches: self.patches,
                             bake: b,

@@ -68,7 +68,6 @@ pub(super) struct Presenter {
     queue: wgpu::Queue,
     depth: wgpu::TextureView,
     pub(super) renderer: Renderer,
-    pub(super) max_texture_side: u32,
     /// The context wgpu got: GL_VERSION (`OpenGL ES 3.0 Mesa ...` or a desktop version) and GL_RENDERER.
     pub(super) context: String,
     /// Whether that is exactly OpenGL ES 3.0.
@@ -179,7 +178,6 @@ impl Presenter {
             },
             profile,
         )?;
-        let max_texture_side = device.limits().max_texture_dimension_2d;
         // Without a window manager (Xvfb) nothing else gives the window the keyboard.
         window.focus_window();
         Ok(Self {
@@ -190,7 +188,6 @@ impl Presenter {
             queue,
             depth,
             renderer,
-            max_texture_side,
             context,
             gles30,
         })
