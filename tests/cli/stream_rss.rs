@@ -196,6 +196,62 @@ fn sat_lod_16385_within_the_cpu_budget() {
     }
 }
 
+/// `render --profile desktop --shading sg --scene evening` (visibility: the largest SG tables) streamed
+/// over `procedural:size=4097` against 257^2, second runs (the first bakes the tables out of core): the
+/// terrain-dependent peak RSS stays within desktop's SG share (`CpuSplit::shading`, 123.7 MiB; measured
+/// 58.9 MiB, and 51.2 MiB at 16385^2, README "SG shading streamed").
+#[test]
+#[ignore = "minutes (the horizons of a 1025^2 grid): cargo test --release --test cli stream_rss -- --ignored"]
+fn render_sg_streamed_within_the_shading_share() {
+    let dir = super::scratch_in("cli_stream_rss", "sg_rss");
+    let cache = dir.join("cache");
+    let mut peaks = Vec::new();
+    for size in [257u32, 4097] {
+        let (pkg, terrain) = bake_procedural(&dir, size);
+        let (p, png) = (
+            pkg.to_string_lossy().into_owned(),
+            dir.join("sg.png").to_string_lossy().into_owned(),
+        );
+        let args = [
+            "render",
+            "--terrain",
+            &p,
+            "--profile",
+            "desktop",
+            "--shading",
+            "sg",
+            "--scene",
+            "evening",
+            "--size",
+            "320x180",
+            "--json",
+            "--out",
+            &png,
+        ];
+        let (Some(_), Some(peak)) = (
+            peak_rss_in(&args, Some(&cache)),
+            peak_rss_in(&args, Some(&cache)),
+        ) else {
+            return;
+        };
+        eprintln!(
+            "render --shading sg over {terrain}: peak RSS {} MiB",
+            peak >> 20
+        );
+        peaks.push(peak);
+    }
+    let share = clipsat::Profile::load("desktop")
+        .expect("profile")
+        .cpu_split()
+        .shading;
+    assert!(
+        peaks[1].saturating_sub(peaks[0]) <= share,
+        "4097^2: {} MiB over the 257^2 render, SG share {} MiB",
+        peaks[1].saturating_sub(peaks[0]) >> 20,
+        share >> 20
+    );
+}
+
 /// `render --shading sg` streams a package (issue 13): its SG tables are baked from the package's own
 /// level that fits the profile's shading share (`CpuSplit::shading`; 257^2 fits gles3-mid's at full
 /// resolution), read back from their cache file on the second run to the same image, and `--stream`
