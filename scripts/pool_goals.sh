@@ -36,7 +36,7 @@ for t in "${TERRAINS[@]}"; do
       else
         f=$(run "$name" "$mode" "$e" "${args[@]}")
       fi
-      row="$row $(jq -r --argjson e "$e" '"\(.max_screen_error_px*100|round/100) px, \(.triangles) tri, \(.detail_tiles_resident) tiles, \(.blocks_clamped) clamped, cracks \(.crack_pixels) \(if .max_screen_error_px <= 1.05*$e then "(met)" else "(NOT met)" end)"' "$f") |"
+      row="$row $(jq -r --argjson e "$e" '"\(.max_screen_error_px*100|round/100) px, \(.triangles) tri, \(.detail_tiles_resident) tiles, \(.blocks_clamped) clamped, holes \(.crack_pixels), border view \(.border_view_pixels) \(if .max_screen_error_px <= 1.05*$e then "(met)" else "(NOT met)" end)"' "$f") |"
     done
     bound="$bound$row"$'\n'
   done
@@ -57,7 +57,7 @@ for t in "${TERRAINS[@]}"; do
     equal="$equal| $name | $(printf %.2f "$d") | $dt | none of: $LADDER | | | |"$'\n'
   fi
 done
-echo "Whole-frame bound ($PROFILE, default camera after the fill): max error, triangles, pool tiles resident, blocks clamped, crack pixels"
+echo "Whole-frame bound ($PROFILE, default camera after the fill): max error, triangles, pool tiles resident, blocks clamped, crack pixels (holes) and border-view pixels"
 echo
 echo "| terrain | mode | epsilon 1 | epsilon 2 | epsilon 4 |"
 echo "|---|---|---|---|---|"

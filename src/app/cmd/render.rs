@@ -258,7 +258,22 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
             ..opts
         },
     )?;
-    let crack_pixels = measure::crack_pixels(&loud.image, measure::CRACK_CLEAR_RGBA8);
+    // Clear pixels inside a column's silhouette are holes only where the view ray passes below the drawn
+    // surface inside the data (`measure::hole_pixels`); the rest see past the terrain's border. Streamed:
+    // not traced (no resident pyramid), every candidate counts.
+    let candidates = measure::crack_pixels(&loud.image, measure::CRACK_CLEAR_RGBA8);
+    let crack_pixels = if streamed || candidates == 0 {
+        candidates
+    } else {
+        measure::hole_pixels(
+            &loud.image,
+            measure::CRACK_CLEAR_RGBA8,
+            r.plan(),
+            &clipmap,
+            &camera,
+            profile.block_m(),
+        )
+    };
     // The measured error of what was drawn (the draw list is the same for both renders above).
     // The SAT modes measure with the epsilon they drew at (the planner's selector).
     let lod_used = r.lod().or(lod.as_ref());
@@ -384,6 +399,11 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
             o.insert(
                 "lod_tables_mapped".into(),
                 json!(lod_used.map(|l| l.tables().is_mapped())),
+            );
+            // Clear pixels inside the silhouette that see past the data's border (not holes).
+            o.insert(
+                "border_view_pixels".into(),
+                json!(candidates - crack_pixels),
             );
             o.insert(
                 "detail_tiles_needed".into(),
