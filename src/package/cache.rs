@@ -1,6 +1,7 @@
 //! Stage 1b, the package: the fixed tile cache, allocated once from `budget.cpu_memory_bytes`.
 //!
-//! The cache holds decoded tiles (heights in quantum units) of any level. Fetching a tile decodes it from
+//! The cache holds decoded tiles (heights in quantum units) of any level, for the rings' fill and the
+//! detail pool's tiles (issue 15) alike. Fetching a tile decodes it from
 //! the package (GC section 7: residual + U of the coarser level, whose tiles are fetched first) and is
 //! charged in samples against the caller's per-frame budget: a fetch the budget cannot pay for, or one with
 //! no free slot (every slot used this frame), returns `false` and the caller falls back as for a budget
@@ -259,6 +260,28 @@ impl TileCache {
             }
         }
         Ok(all)
+    }
+
+    /// Whether every tile of `level` covering samples x0..x1, y0..y1 (clamped to the level) is resident
+    /// now, as [`TileCache::ensure_rect`] would find them (nothing decoded, nothing stamped).
+    pub fn rect_resident(&self, level: usize, (x0, y0, x1, y1): (i64, i64, i64, i64)) -> bool {
+        let h = self.package.header();
+        let l = h.levels[level];
+        let t = i64::from(h.tile);
+        let clamp_x = |x: i64| x.clamp(0, i64::from(l.width) - 1);
+        let clamp_y = |y: i64| y.clamp(0, i64::from(l.height) - 1);
+        #[expect(
+            clippy::cast_possible_truncation,
+            clippy::cast_sign_loss,
+            reason = "clamped sample coordinates over the tile side are u32 tile indices"
+        )]
+        let (tx0, tx1, ty0, ty1) = (
+            (clamp_x(x0) / t) as u32,
+            (clamp_x(x1 - 1) / t) as u32,
+            (clamp_y(y0) / t) as u32,
+            (clamp_y(y1 - 1) / t) as u32,
+        );
+        (ty0..=ty1).all(|ty| (tx0..=tx1).all(|tx| self.map[self.index(level, tx, ty)] != NONE))
     }
 
     /// Makes tile (tx, ty) of `level` resident: a hit is free; a miss first fetches the coarser tiles its

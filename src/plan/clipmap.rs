@@ -70,6 +70,8 @@ pub struct Clipmap {
     next_index: u64,
     /// Which frame last wrote each texel column and row ([`Clipmap::upload_stamps`]).
     stamps: UploadStamps,
+    /// Samples the next update makes readable after the rings ([`Clipmap::request_samples`]).
+    requests: heapless::Vec<(u32, Rect), { crate::profile::MAX_DETAIL_TILES as usize }>,
 }
 
 impl Clipmap {
@@ -190,6 +192,7 @@ impl Clipmap {
             frame: Frame::default(),
             next_index: 0,
             stamps: UploadStamps::new(levels, size),
+            requests: heapless::Vec::new(),
         })
     }
 
@@ -282,6 +285,19 @@ impl Clipmap {
             HeightSource::Streamed(c) => Some(c),
             HeightSource::Resident(_) => None,
         }
+    }
+
+    /// The next [`Clipmap::update`] makes `requests` (level, samples: the pool's `DetailFrame::wanted`)
+    /// readable in order with what the rings leave of its budget; replaces the last (keeps 255).
+    pub fn request_samples(&mut self, requests: &[(u32, Rect)]) {
+        let n = requests.len().min(self.requests.capacity());
+        self.requests.clear();
+        let _ = self.requests.extend_from_slice(&requests[..n]);
+    }
+
+    /// Whether samples `rect` of pyramid level `k` are readable now (streamed: their tiles resident).
+    pub fn source_ready(&self, k: u32, rect: &Rect) -> bool {
+        self.source.rect_ready(k, rect)
     }
 
     /// Samples decoded from the package in the last frame, inside its update budget (0 if resident).
@@ -541,6 +557,10 @@ impl Clipmap {
             stopped = !plan.complete;
         }
 
+        // The detail pool's requests once every ring is finished (coarse-to-fine first), same budget.
+        if !stopped {
+            self.decoded += self.source.prefetch(&self.requests, left)?;
+        }
         // Active regions, coarse to fine: desired, cropped to the clip region and to the coarser active
         // region eroded by one coarse sample, corners snapped inward to even coordinates.
         let mut actives = [Rect::EMPTY; MAX_LEVELS];

@@ -3,7 +3,8 @@
 //!
 //! A streamed level is filled only once every tile its bands read (level k, and level k + 1 for z_c) is
 //! resident. Decoding is charged in samples against the same per-frame budget as the fill; a level whose
-//! tiles are not resident yet stays stale like a budget overrun, and the frame never waits.
+//! tiles are not resident yet stays stale like a budget overrun, and the frame never waits. The detail
+//! pool's requests ([`HeightSource::prefetch`]) are decoded after the rings, under what they leave.
 
 use crate::bake::pyramid::Pyramid;
 use crate::package::TileCache;
@@ -73,6 +74,36 @@ impl HeightSource {
             }
         }
         Ok(ready)
+    }
+
+    /// Whether samples `rect` of pyramid level `k` can be read now ([`HeightSource::at`]): always for a
+    /// resident pyramid; streamed, when every tile under them is resident (past the coarsest stored level,
+    /// the coarsest level's samples they decimate).
+    pub fn rect_ready(&self, k: u32, rect: &Rect) -> bool {
+        match self {
+            Self::Resident(_) => true,
+            Self::Streamed(c) => {
+                let (level, r) = stored_rect(c, k, rect);
+                c.rect_resident(level, r)
+            }
+        }
+    }
+
+    /// Makes resident the tiles under each of `requests` (pyramid level, samples), in order, while
+    /// `budget` (samples) lasts; stops at the first that cannot be decoded this frame (the rest wait).
+    /// Returns the samples decoded (0 for a resident pyramid). The detail pool's tiles (issue 15).
+    pub fn prefetch(&mut self, requests: &[(u32, Rect)], budget: u32) -> Result<u32> {
+        let Self::Streamed(c) = self else {
+            return Ok(0);
+        };
+        let mut left = u64::from(budget);
+        for (k, rect) in requests {
+            let (level, r) = stored_rect(c, *k, rect);
+            if !c.ensure_rect(level, r, &mut left)? {
+                break;
+            }
+        }
+        Ok(budget - u32::try_from(left).expect("at most the budget"))
     }
 
     /// The data's level 0 bilinearly at fractional grid (u, v), clamped at the edges: the pyramid's, or
@@ -200,4 +231,12 @@ fn coarsest_decimated(c: &TileCache, k: u32, i: i64, j: i64) -> (usize, i64, i64
     }
     let s = u32::try_from(k - last).unwrap_or(63).min(40);
     (last, i.saturating_mul(1 << s), j.saturating_mul(1 << s))
+}
+
+/// Samples `rect` of pyramid level `k` as a stored level's sample range (x0, y0, x1, y1): past the
+/// coarsest stored level, the coarsest level's samples they decimate ([`coarsest_decimated`]).
+fn stored_rect(c: &TileCache, k: u32, rect: &Rect) -> (usize, (i64, i64, i64, i64)) {
+    let (level, x0, y0) = coarsest_decimated(c, k, rect.x0, rect.y0);
+    let (_, x1, y1) = coarsest_decimated(c, k, rect.x1() - 1, rect.y1() - 1);
+    (level, (x0, y0, x1 + 1, y1 + 1))
 }

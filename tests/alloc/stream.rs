@@ -228,3 +228,114 @@ fn sat_lod_streams_from_mapped_tables_without_allocating() {
     assert!(frames > 0 && !plan.lod_frame().blocks.is_empty());
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The detail pool over a streamed package (issue 15): a flight in `sat-conservative` whose pool tiles
+/// come from the package's tile cache. Tiles whose package tiles are not resident wait
+/// (`DetailFrame::wanted`); the next update decodes them after the rings. Every frame's ring fill, decode
+/// and pool fill together stay within the sample budget, planning and updating allocate nothing, the
+/// plan hashes repeat run to run, and every pool tile written equals the package's own decode of its
+/// level, so a streamed and a resident render of the package hold the same pool contents.
+#[test]
+fn detail_pool_streams_within_budget_without_allocating() {
+    use clipsat::bake::lod_tables::P;
+    use clipsat::bake::{bake_lod_package, BakeParams};
+    use clipsat::plan::detail::fill_tile;
+    use clipsat::plan::frame_plan::{LodSetup, PlanParams, Planner};
+    use clipsat::plan::lod::{Lod, LodMode};
+
+    let (dir, path) = baked("clipsat-stream-pool", "pool.clipsat");
+    let mut p = profile();
+    p.budget.update_samples_per_frame = 8192;
+    p.budget.detail_tiles = 24;
+    p.budget.detail_tile_quads = 8;
+    p.validate("stream pool test").expect("valid profile");
+    let budget = u64::from(p.budget.update_samples_per_frame);
+    let open = || Package::open(&path).expect("open");
+    let pkg = open();
+    let params = BakeParams {
+        p: P,
+        levels: p.clipmap.levels,
+        synth_levels: 0,
+        g0: f64::from(SPACING),
+    };
+    let (tables, _) =
+        bake_lod_package(&pkg, &params, &dir.join("lod-cache"), false).expect("tables");
+    let coarse = pkg.coarse_heightmap(1 << 16).expect("coarse");
+    // The package's decoded levels: what every pool tile must hold, bit for bit.
+    let levels: Vec<Vec<f32>> = (0..pkg.header().levels.len())
+        .map(|l| {
+            let full = pkg.decode_level(l).expect("decode");
+            full.into_iter().map(|k| pkg.metres(k)).collect()
+        })
+        .collect();
+    let pp = PlanParams {
+        epsilon_px: Some(1.0),
+        ..PlanParams::default()
+    };
+    let quads = p.detail_quads();
+    let side = p.detail_side() as usize;
+    let run = |check: bool| -> (Vec<u64>, u32, u64, u32) {
+        let mut cm = Clipmap::streamed(open(), &p, ClipmapOptions::default()).expect("streamed");
+        let lod = Lod::for_clipmap(tables.clone(), &p, &cm, &coarse);
+        let setup = LodSetup::new(LodMode::SatConservative, Some(lod)).expect("setup");
+        let mut planner = Planner::new(&p, &cm, setup).expect("planner");
+        let mut plan = planner.new_plan();
+        let mut tile = vec![0.0f32; side * side];
+        let (mut hashes, mut most, mut written, mut waited) = (Vec::with_capacity(400), 0, 0, 0);
+        for t in 0..400u32 {
+            // Slow along the circle, so the rings settle and the pool gets budget.
+            let e = eye(t / 4);
+            let cam = clipsat::Camera::new(e, e + DVec3::new(300.0, 200.0, -120.0), 60.0)
+                .and_then(|c| c.with_clip(2.0, 1.0e5))
+                .expect("cam");
+            let n = count(|| {
+                cm.update(e).expect("update");
+                planner.plan(&cm, &cam, &pp, &mut plan).expect("plan");
+                cm.request_samples(&plan.detail().wanted);
+            });
+            assert_eq!(n, 0, "frame {t}: {n} allocations");
+            let f = cm.frame();
+            let work = u64::from(f.samples_updated)
+                + u64::from(cm.decoded_samples())
+                + plan.detail().samples_updated;
+            assert!(
+                work <= budget,
+                "frame {t}: fill + decode + pool {work} > {budget}"
+            );
+            hashes.push(plan.hash());
+            most = most.max(plan.stats().detail_tiles_resident);
+            waited += u32::from(!plan.detail().wanted.is_empty());
+            for u in &plan.detail().uploads {
+                written += 1;
+                assert!(
+                    fill_tile(&cm, &u.key, quads, &mut tile),
+                    "frame {t}: {:?} ready",
+                    u.key
+                );
+                if !check {
+                    continue;
+                }
+                let l = pkg.header().levels[u.key.level as usize];
+                let (i0, j0) = u.key.first_sample(quads);
+                for (k, z) in tile.iter().enumerate() {
+                    let (i, j) = (i0 + (k % side) as i64, j0 + (k / side) as i64);
+                    let x = i.clamp(0, i64::from(l.width) - 1) as usize;
+                    let y = j.clamp(0, i64::from(l.height) - 1) as usize;
+                    let want = levels[u.key.level as usize][y * l.width as usize + x];
+                    assert_eq!(*z, want, "frame {t}: {:?} sample ({i}, {j})", u.key);
+                }
+            }
+        }
+        (hashes, most, written, waited)
+    };
+    let (first, most, written, waited) = run(true);
+    eprintln!("pool: {most} tiles resident at most, {written} written, {waited} frames waited");
+    assert!(
+        most > 0 && written > 0 && waited > 0,
+        "the pool filled from the package after waiting: {most} resident, {written} written, \
+         {waited} frames waited"
+    );
+    let (second, _, _, _) = run(false);
+    assert_eq!(first, second, "plan hashes differ between runs");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -124,7 +124,8 @@ fn render_ground_truth_on_request() {
 
 /// A package rendered with basic shading streams through the profile's tile cache: `streamed` in the
 /// summary, every level filled, no measured error (it needs the whole pyramid); with `--lod sat` too, its
-/// LOD tables read through a map of their cache file (none held in owned memory).
+/// LOD tables read through a map of their cache file (none held in owned memory); with
+/// `--lod sat-conservative` its detail pool fills from the package too.
 #[test]
 fn render_streams_a_package() {
     let dir = scratch("stream");
@@ -161,4 +162,11 @@ fn render_streams_a_package() {
     assert_eq!(j["lod_tables_owned_bytes"], 0, "{j}");
     assert!(j["max_screen_error_px"].is_null(), "{j}");
     assert!(j["triangles"].as_u64().unwrap_or(0) > 0, "{j}");
+    // The detail pool fills from the package's tile cache too (issue 15): 49 tiles here at 1 px.
+    let mut pool = base.to_vec();
+    pool.extend(["--lod", "sat-conservative", "--epsilon", "1"]);
+    let j = json(&clipsat(&pool), "render a package --lod sat-conservative");
+    assert_eq!(j["streamed"], true, "{j}");
+    assert!(j["detail_tiles_resident"].as_u64().unwrap_or(0) > 0, "{j}");
+    assert!(j["blocks_from_pool"].as_u64().unwrap_or(0) > 0, "{j}");
 }

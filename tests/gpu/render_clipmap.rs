@@ -288,7 +288,7 @@ fn twin_check(opts: &FrameOptions, pick: Pick) {
         if let Some(slot) = d.pool {
             let key =
                 r.plan().detail().resident[usize::from(slot)].expect("a drawn slot is resident");
-            fill_tile(&cm, &key, quads, &mut tile);
+            assert!(fill_tile(&cm, &key, quads, &mut tile), "resident source");
         }
         for (v, g) in m.vertices.iter().zip(&gpu_clip) {
             let c = if d.pool.is_some() {

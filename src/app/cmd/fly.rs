@@ -294,6 +294,8 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
         let camera = flight.camera(f);
         clipmap.update(camera.eye)?;
         planner.plan(&clipmap, &camera, &plan_params, &mut plan)?;
+        // Pool tiles waiting for a streamed package's decode: the next update's, after the rings.
+        clipmap.request_samples(&plan.detail().wanted);
         let frame = clipmap.frame();
         let frame_hash = match lod_mode {
             LodMode::Distance => frame.hash,

@@ -240,9 +240,13 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
     if lod_mode != LodMode::Distance {
         while pool_frames < MAX_POOL_FRAMES {
             pool_frames += 1;
-            if r.prepare_only(&clipmap, &camera, &opts)? == 0 {
+            // A streamed package's pool tiles wait for their tiles' decode in the next update.
+            let wrote = r.prepare_only(&clipmap, &camera, &opts)?;
+            let wanted = &r.plan().detail().wanted;
+            if wrote == 0 && wanted.is_empty() {
                 break;
             }
+            clipmap.request_samples(wanted);
             clipmap.update(camera.eye)?;
         }
     }

@@ -101,7 +101,7 @@ impl Renderer {
         }
         stats.upload_bytes = stats.upload_samples * 8;
         self.synced = Some(index);
-        self.prepare_detail(queue, clipmap, plan, &mut stats);
+        self.prepare_detail(queue, clipmap, plan, &mut stats)?;
         queue.write_buffer(&self.globals, 0, bytemuck::bytes_of(plan.globals()));
         let slots = plan.slot_bytes();
         if !slots.is_empty() {
@@ -118,27 +118,37 @@ impl Renderer {
     }
 
     /// Writes the plan's detail tiles, each filled from `clipmap`'s source into the staging buffer; a plan
-    /// that does not follow the last one prepared re-sends every resident tile.
+    /// that does not follow the last one prepared re-sends every resident tile (an error for a streamed
+    /// package whose tiles under one were evicted since: a streamed renderer prepares every plan).
     fn prepare_detail(
         &mut self,
         queue: &wgpu::Queue,
         clipmap: &Clipmap,
         plan: &FramePlan,
         stats: &mut PrepareStats,
-    ) {
+    ) -> Result<()> {
         let d = plan.detail();
         if self.detail_synced == Some(d.seq) {
-            return;
+            return Ok(());
         }
         let chained = d.prev.is_some() && d.prev == self.detail_synced;
         let side = self.detail_side;
-        let mut write = |slot: u32, key: &crate::plan::detail::TileKey| {
-            crate::plan::detail::fill_tile(
+        let mut write = |slot: u32, key: &crate::plan::detail::TileKey| -> Result<()> {
+            if !crate::plan::detail::fill_tile(
                 clipmap,
                 key,
                 self.detail_quads,
                 &mut self.detail_staging,
-            );
+            ) {
+                return Err(Error::Invalid {
+                    what: "detail pool tile".into(),
+                    reason: format!(
+                        "level {} cell ({}, {}): its package tiles were evicted before this \
+                         renderer re-sent it (a streamed renderer must prepare every plan)",
+                        key.level, key.cx, key.cy
+                    ),
+                });
+            }
             queue.write_texture(
                 wgpu::TexelCopyTextureInfo {
                     texture: &self.detail,
@@ -167,19 +177,21 @@ impl Renderer {
             stats.upload_samples += samples;
             stats.upload_bytes += samples * 4;
             stats.detail_tiles += 1;
+            Ok(())
         };
         if chained {
             for u in &d.uploads {
-                write(u.slot, &u.key);
+                write(u.slot, &u.key)?;
             }
         } else {
             for (slot, key) in d.resident.iter().enumerate() {
                 if let Some(key) = key {
-                    write(u32::try_from(slot).expect("slots <= DETAIL_CAPACITY"), key);
+                    write(u32::try_from(slot).expect("slots <= DETAIL_CAPACITY"), key)?;
                 }
             }
         }
         self.detail_synced = Some(d.seq);
+        Ok(())
     }
 
     /// Records the prepared plan's draws into `pass` (whose attachments have the formats and sample count

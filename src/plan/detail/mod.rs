@@ -8,8 +8,11 @@
 //! ring fill stays first), evicts the least recently needed tile, and serves a block from the pool once all
 //! its tiles are resident. Pure, deterministic and allocation-free.
 //!
-//! Tiles come through [`DetailSource`]: the resident pyramid today (the same heights the ring fill
-//! writes, [`Clipmap::sample`]); a streamed package's tile cache can implement it later.
+//! Tiles come through [`DetailSource`], the same heights the ring fill writes ([`Clipmap::sample`]): the
+//! resident pyramid, or a streamed package's tile cache. A tile whose source samples are not resident
+//! waits (the plan never blocks): [`DetailFrame::wanted`] lists them, most needed first, and the caller
+//! hands them to [`Clipmap::request_samples`], whose next update decodes them after the rings under the
+//! same per-frame sample budget.
 
 use glam::DVec3;
 
@@ -46,6 +49,17 @@ impl TileKey {
         let q = i64::from(quads);
         (self.cx * q - 1, self.cy * q - 1)
     }
+
+    /// The level lattice samples the tile holds: (quads + 3)^2 from [`TileKey::first_sample`].
+    pub fn samples(&self, quads: u32) -> Rect {
+        let (x0, y0) = self.first_sample(quads);
+        Rect {
+            x0,
+            y0,
+            w: quads + 3,
+            h: quads + 3,
+        }
+    }
 }
 
 /// A tile written into a pool slot this frame.
@@ -59,17 +73,16 @@ pub struct DetailUpload {
 
 /// Where pool tiles come from: the same heights the ring fill writes.
 pub trait DetailSource {
-    /// Whether the samples of `key` can be read now (a streamed source: its tiles are resident).
-    fn detail_ready(&self, key: &TileKey) -> bool;
+    /// Whether samples `rect` of `level` can be read now (a streamed source: its tiles are resident).
+    fn detail_ready(&self, level: u32, rect: &Rect) -> bool;
     /// The height of `level` at its lattice point (i, j), bit for bit what that ring would hold.
     fn detail_height(&self, level: u32, i: i64, j: i64) -> f32;
 }
 
 impl DetailSource for Clipmap {
-    fn detail_ready(&self, _key: &TileKey) -> bool {
-        // The resident pyramid only, for now: a streamed package reads through its tile cache, which
-        // the ring fill drives (issue 13 can feed the pool from it).
-        self.tile_cache().is_none()
+    fn detail_ready(&self, level: u32, rect: &Rect) -> bool {
+        // Synthesised rings (resident pyramids only) are computed from the data level below them.
+        self.source_ready(level.saturating_sub(self.synth_levels()), rect)
     }
 
     fn detail_height(&self, level: u32, i: i64, j: i64) -> f32 {
@@ -77,19 +90,25 @@ impl DetailSource for Clipmap {
     }
 }
 
-/// Writes tile `key`'s `side x side` samples (side = quads + 3, row-major, border included) into `out`.
-pub fn fill_tile(src: &impl DetailSource, key: &TileKey, quads: u32, out: &mut [f32]) {
+/// Writes tile `key`'s `side x side` samples (side = quads + 3, row-major, border included) into `out`;
+/// false (nothing written) when its source samples are not resident now (a streamed package's tiles
+/// evicted since the plan that filled it: only a renderer re-sending a missed plan's tiles meets this).
+pub fn fill_tile(src: &impl DetailSource, key: &TileKey, quads: u32, out: &mut [f32]) -> bool {
     let side = quads as usize + 3;
     assert!(
         out.len() >= side * side,
         "a tile buffer holds side^2 samples"
     );
+    if !src.detail_ready(key.level, &key.samples(quads)) {
+        return false;
+    }
     let (i0, j0) = key.first_sample(quads);
     for (r, row) in out.chunks_exact_mut(side).take(side).enumerate() {
         for (c, z) in row.iter_mut().enumerate() {
             *z = src.detail_height(key.level, i0 + c as i64, j0 + r as i64);
         }
     }
+    true
 }
 
 /// The pool part of a [`crate::plan::frame_plan::FramePlan`].
@@ -105,6 +124,10 @@ pub struct DetailFrame {
     pub served_met: heapless::Vec<bool, MAX_LOD_BLOCKS>,
     /// Samples the uploads write.
     pub samples_updated: u64,
+    /// Tiles this plan wanted but whose source samples were not resident yet (a streamed package), as
+    /// (level, samples), most needed first: for [`Clipmap::request_samples`]. Not hashed: the frame's
+    /// uploads and resident tiles say what it drew.
+    pub wanted: heapless::Vec<(u32, Rect), DETAIL_CAPACITY>,
     /// Distinct tiles this plan's pool cells read (what the frame needs; resident slots may also hold
     /// tiles no longer needed).
     pub tiles_needed: u32,
@@ -398,6 +421,7 @@ impl DetailPool {
         out.served.clear();
         out.served_met.clear();
         out.samples_updated = 0;
+        out.wanted.clear();
         out.tiles_needed = 0;
         out.prev = (self.seq > 0).then_some(self.seq);
         self.seq += 1;
@@ -441,9 +465,16 @@ impl DetailPool {
                 if self.find(&l.key).is_some() {
                     continue;
                 }
-                let victim = (samples >= tile_samples && src.detail_ready(&l.key))
-                    .then(|| self.victim())
-                    .flatten();
+                let rect = l.key.samples(self.quads);
+                if !src.detail_ready(l.key.level, &rect) {
+                    // Waits for its source; asked for once per plan, in fill order.
+                    if !out.wanted.contains(&(l.key.level, rect)) {
+                        let _ = out.wanted.push((l.key.level, rect));
+                    }
+                    missing += 1;
+                    continue;
+                }
+                let victim = (samples >= tile_samples).then(|| self.victim()).flatten();
                 let Some(s) = victim else {
                     missing += 1;
                     continue;

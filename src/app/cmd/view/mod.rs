@@ -417,6 +417,7 @@ impl App<'_> {
         let opts = self.state.frame_options();
         self.planner
             .plan(&self.clipmap, &camera, &opts.plan_params(), &mut self.plan)?;
+        self.clipmap.request_samples(&self.plan.detail().wanted);
         let Some(p) = self.window.as_mut() else {
             return Ok(());
         };
