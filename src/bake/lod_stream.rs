@@ -29,6 +29,7 @@ use crate::bake::lod_record::Coder;
 use crate::bake::lod_tables::{bad_error, closed_count, error_from, RangeMax};
 use crate::bake::sat::{pow_unit, Sat};
 use crate::bake::{BakeParams, FORMAT_VERSION, MAGIC};
+use crate::package::lod_tiles::RecordRows;
 use crate::package::{CacheSplit, Package, TileCache};
 use crate::{Error, Result};
 
@@ -36,9 +37,9 @@ use crate::{Error, Result};
 const CRC_CHUNK: usize = 4 << 20;
 
 /// One data level's streaming state (k >= 1).
-struct Level {
+pub(super) struct Level {
     /// Data level and its shifts: `s` for cells (k capped at 30), `ke` for the error (k capped at 40).
-    k: u32,
+    pub(super) k: u32,
     s: u32,
     ke: u32,
     /// Values per level-k row buffer: level-k samples 0 ..= ((width - 1) >> ke) + 1.
@@ -47,18 +48,18 @@ struct Level {
     band: Vec<f64>,
     j0: i64,
     /// E, and the first non-finite error met (sweep 1).
-    e_max: f32,
+    pub(super) e_max: f32,
     bad: Option<(u32, u32, f32)>,
     /// Sweep 2 only (tables present): closed cells per row and rows, half-open cells per row.
-    cw: u32,
-    ch: u32,
-    sw: u32,
+    pub(super) cw: u32,
+    pub(super) ch: u32,
+    pub(super) sw: u32,
     /// The errors of the current row, and its closed cells' maxima.
     errs: Vec<f32>,
     rowmax: Vec<f32>,
     /// The current closed cell row and its maxima so far.
-    cur: u32,
-    acc: Vec<f32>,
+    pub(super) cur: u32,
+    pub(super) acc: Vec<f32>,
     /// The current half-open cell row's sums, and the last SAT row written.
     sums: Vec<u64>,
     sat_row: Vec<u64>,
@@ -74,20 +75,22 @@ struct Level {
     /// Little-endian bytes of a row being written.
     bytes: Vec<u8>,
     /// The level's record coder, and its codes of the current rows ([`crate::bake::lod_record`]).
-    coder: Option<Coder>,
+    pub(super) coder: Option<Coder>,
     max_codes: Vec<u8>,
     mean_codes: Vec<u8>,
     /// The last closed row's decoded maxima and its index.
-    dmax: Vec<f32>,
+    pub(super) dmax: Vec<f32>,
     dmax_row: Option<u32>,
     /// A finished half-open row's sums waiting for its closed row, its index, and its decoded sums.
     held: Vec<u64>,
     pending: Option<u32>,
-    lower: Vec<u64>,
+    pub(super) lower: Vec<u64>,
+    /// The records' tiles, when the bake writes them ([`bake_records`]).
+    pub(super) records: Option<RecordRows>,
 }
 
 impl Level {
-    fn new(k: u32, width: u32, p: u32) -> Self {
+    pub(super) fn new(k: u32, width: u32, p: u32) -> Self {
         let ke = k.min(40);
         Self {
             k,
@@ -123,17 +126,18 @@ impl Level {
             held: Vec::new(),
             pending: None,
             lower: Vec::new(),
+            records: None,
         }
     }
 
     /// Whether sweep 2 builds tables for this level (E > 0).
-    fn has_tables(&self) -> bool {
+    pub(super) fn has_tables(&self) -> bool {
         self.e_max > 0.0
     }
 
     /// Sizes the sweep-2 state once E is known, with the level's offsets in the file from `at` (the
     /// byte just past its has-tables flag); returns the byte past its tables.
-    fn lay_out(&mut self, width: u32, height: u32, at: u64) -> u64 {
+    pub(super) fn lay_out(&mut self, width: u32, height: u32, at: u64) -> u64 {
         let s = self.s;
         (self.cw, self.ch) = (closed_count(width, s), closed_count(height, s));
         self.sw = width.div_ceil(1 << s);
@@ -228,7 +232,7 @@ impl Level {
     /// Sweep 2 over one data row (`height` rows in all): cell maxima and sums, finished rows written.
     fn sweep_tables(
         &mut self,
-        file: &File,
+        file: Option<&File>,
         h0: &[f32],
         y: u32,
         height: u32,
@@ -280,18 +284,30 @@ impl Level {
     /// Codes closed cell row `cur` (in `acc`: its maxima rounded up to their codes' values, kept as the
     /// reference of the half-open row it contains), writes its max-pyramid rows, and codes the pending
     /// half-open row if it was waiting for it.
-    fn close_row(&mut self, file: &File) -> std::io::Result<()> {
+    fn close_row(&mut self, file: Option<&File>) -> std::io::Result<()> {
         let coder = self.coder.expect("laid out");
         coder.code_max_row(&mut self.acc, &mut self.max_codes);
+        if let Some(rec) = &mut self.records {
+            rec.push_max(&self.max_codes);
+        }
+        self.emit_closed(file)?;
+        self.flush_mean(file)
+    }
+
+    /// Keeps closed row `cur`'s decoded maxima (in `acc`) as the reference of its half-open row and
+    /// writes its max-pyramid rows (with a file).
+    pub(super) fn emit_closed(&mut self, file: Option<&File>) -> std::io::Result<()> {
         self.dmax.copy_from_slice(&self.acc);
         self.dmax_row = Some(self.cur);
-        self.emit_max(file)?;
-        self.flush_mean(file)
+        match file {
+            Some(f) => self.emit_max(f),
+            None => Ok(()),
+        }
     }
 
     /// Codes the pending half-open row once its closed row's decoded maxima are known, and writes the
     /// SAT row of its decoded lower sums (the previous SAT row plus the row's running sum).
-    fn flush_mean(&mut self, file: &File) -> std::io::Result<()> {
+    fn flush_mean(&mut self, file: Option<&File>) -> std::io::Result<()> {
         let Some(r) = self.pending else {
             return Ok(());
         };
@@ -307,6 +323,18 @@ impl Level {
             &mut self.lower,
         );
         self.pending = None;
+        if let Some(rec) = &mut self.records {
+            rec.push_mean(r, &self.mean_codes)?;
+        }
+        match file {
+            Some(f) => self.write_sat_row(f, r),
+            None => Ok(()),
+        }
+    }
+
+    /// Writes half-open row `r`'s SAT row from its decoded lower sums (`lower`): the previous SAT row
+    /// plus the row's running sum.
+    pub(super) fn write_sat_row(&mut self, file: &File, r: u32) -> std::io::Result<()> {
         let mut run = 0u64;
         for (sat, low) in self.sat_row.iter_mut().zip(&self.lower) {
             run = run.wrapping_add(*low);
@@ -399,6 +427,113 @@ fn write_at(file: &File, offset: u64, bytes: &[u8]) -> std::io::Result<()> {
     }
 }
 
+/// The two sweeps' state over a package: its band cache, the levels and one band of level-0 heights.
+pub(super) struct Sweep {
+    pub(super) cache: TileCache,
+    pub(super) levels: Vec<Level>,
+    h0: Vec<f32>,
+    pub(super) bar: ProgressBar,
+    pub(super) width: u32,
+    pub(super) height: u32,
+    bands: u32,
+    last: u32,
+}
+
+impl Sweep {
+    /// A sweep of data levels `ks` over `package` (exponent `p`), with a progress bar of two passes.
+    pub(super) fn new(
+        package: &Package,
+        p: u32,
+        ks: std::ops::Range<u32>,
+        progress: bool,
+    ) -> Result<Self> {
+        let header = package.header().clone();
+        let (width, height) = (header.width, header.height);
+        let last = u32::try_from(header.levels.len() - 1).expect("levels fit u32");
+        // A cache of its own over the same file: every tile a band reads, pinned for the band.
+        let reopened = Package::open(package.path())?;
+        if reopened.header() != &header {
+            return Err(Error::format(
+                package.path(),
+                "the package changed while its LOD tables were baked",
+            ));
+        }
+        let per_row: u64 = header.levels.iter().map(|l| u64::from(l.tiles_x)).sum();
+        let slots = 4 * per_row + crate::package::cache::MIN_SLOTS * u64::from(last + 1);
+        let cache = TileCache::new(
+            reopened,
+            CacheSplit::budget_for_slots(&header, slots),
+            "the LOD tables' bake",
+        )?;
+        let bands = height.div_ceil(header.tile);
+        Ok(Self {
+            cache,
+            levels: ks.map(|k| Level::new(k, width, p)).collect(),
+            h0: Vec::new(),
+            bar: progress_bar(progress, 2 * u64::from(bands)),
+            width,
+            height,
+            bands,
+            last,
+        })
+    }
+
+    /// Sweep 1: every level's E; the first non-finite error is an [`Error::Terrain`] naming its sample.
+    pub(super) fn sweep_e(&mut self) -> Result<()> {
+        let width = self.width;
+        for band in 0..self.bands {
+            let (y0, y1) = load_band(
+                &mut self.cache,
+                &mut self.levels,
+                &mut self.h0,
+                band,
+                self.last,
+            )?;
+            let h0 = &self.h0;
+            let mut all: Vec<&mut Level> = self.levels.iter_mut().collect();
+            par_levels(&mut all, |lv| {
+                let mut scratch = Vec::new();
+                for y in y0..y1 {
+                    lv.sweep_max(band_row(h0, width, y - y0), y, &mut scratch);
+                }
+                Ok(())
+            })
+            .map_err(|e| Error::io(self.cache.package().path(), "cannot bake", e))?;
+            self.bar.inc(1);
+        }
+        if let Some((x, y, e)) = self.levels.iter().find_map(|l| l.bad) {
+            return Err(bad_error(x as usize, y as usize, e));
+        }
+        Ok(())
+    }
+
+    /// Sweep 2 over the levels with tables, each data row handed to [`Level::sweep_tables`] with `file`.
+    pub(super) fn sweep_tables(&mut self, file: Option<&File>, what: &Path) -> Result<()> {
+        let (width, height) = (self.width, self.height);
+        for band in 0..self.bands {
+            let (y0, y1) = load_band(
+                &mut self.cache,
+                &mut self.levels,
+                &mut self.h0,
+                band,
+                self.last,
+            )?;
+            let h0 = &self.h0;
+            let mut with: Vec<&mut Level> =
+                self.levels.iter_mut().filter(|l| l.has_tables()).collect();
+            par_levels(&mut with, |lv| {
+                for y in y0..y1 {
+                    lv.sweep_tables(file, band_row(h0, width, y - y0), y, height)?;
+                }
+                Ok(())
+            })
+            .map_err(|e| Error::io(what, "cannot write", e))?;
+            self.bar.inc(1);
+        }
+        Ok(())
+    }
+}
+
 /// Bakes `package`'s LOD tables for `params` into the cache file `path` under `key` (written to a
 /// temporary name and renamed, as every cache file), with a progress bar on stderr when `progress`.
 ///
@@ -413,55 +548,42 @@ pub(crate) fn bake_to_file(
     path: &Path,
     progress: bool,
 ) -> Result<()> {
-    let header = package.header().clone();
-    let (width, height) = (header.width, header.height);
-    let last = u32::try_from(header.levels.len() - 1).expect("levels fit u32");
-    // A cache of its own over the same file: every tile a band reads, pinned for the band.
-    let reopened = Package::open(package.path())?;
-    if reopened.header() != &header {
-        return Err(Error::format(
-            package.path(),
-            "the package changed while its LOD tables were baked",
-        ));
-    }
-    let per_row: u64 = header.levels.iter().map(|l| u64::from(l.tiles_x)).sum();
-    let slots = 4 * per_row + crate::package::cache::MIN_SLOTS * u64::from(last + 1);
-    let mut cache = TileCache::new(
-        reopened,
-        CacheSplit::budget_for_slots(&header, slots),
-        "the LOD tables' bake",
-    )?;
     let n = params.data_levels();
-    let mut levels: Vec<Level> = (1..n).map(|k| Level::new(k, width, params.p)).collect();
-    let bands = height.div_ceil(header.tile);
-    let bar = progress_bar(progress, 2 * u64::from(bands));
-    let mut h0 = Vec::new();
-
-    // Sweep 1: every level's E, and the first non-finite error.
-    for band in 0..bands {
-        let (y0, y1) = load_band(&mut cache, &mut levels, &mut h0, band, last)?;
-        let mut all: Vec<&mut Level> = levels.iter_mut().collect();
-        par_levels(&mut all, |lv| {
-            let mut scratch = Vec::new();
-            for y in y0..y1 {
-                lv.sweep_max(band_row(&h0, width, y - y0), y, &mut scratch);
-            }
-            Ok(())
-        })
-        .map_err(|e| Error::io(path, "cannot bake", e))?;
-        bar.inc(1);
+    let mut sw = Sweep::new(package, params.p, 1..n, progress)?;
+    sw.sweep_e()?;
+    let (head, flags, body) = lay_out_file(&mut sw.levels, params.p, sw.width, sw.height, key);
+    let tmp = path.with_extension(format!("tmp{}", std::process::id()));
+    // Sweep 2: the tables, each finished row written in place.
+    let written = write_tables(&tmp, &head, &flags, body, |file| {
+        sw.sweep_tables(Some(file), &tmp)
+    });
+    sw.bar.finish_and_clear();
+    if let Err(e) = written {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(e);
     }
-    if let Some((x, y, e)) = levels.iter().find_map(|l| l.bad) {
-        return Err(bad_error(x as usize, y as usize, e));
-    }
+    std::fs::rename(&tmp, path).map_err(|e| Error::io(path, "cannot rename into place", e))
+}
 
-    // The layout, now that every E (so every level's has-tables flag) is known.
+/// Each level's E and has-tables flag, as bytes, at their offsets in the cache file.
+pub(super) type Flags = Vec<(u64, Vec<u8>)>;
+
+/// The cache file's layout once every level's E (so its has-tables flag) is known: the header, each
+/// level's E and flag (at their offsets), and the body's length; each level with tables is laid out.
+pub(super) fn lay_out_file(
+    levels: &mut [Level],
+    p: u32,
+    width: u32,
+    height: u32,
+    key: u64,
+) -> (Vec<u8>, Flags, u64) {
+    let n = u32::try_from(levels.len() + 1).expect("levels fit u32");
     let mut head = Vec::new();
     head.extend_from_slice(MAGIC);
     head.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
     head.extend_from_slice(&key.to_le_bytes());
     let frac = Sat::max_frac_bits(u64::from(width) * u64::from(height));
-    for w in [params.p, width, height, n, frac] {
+    for w in [p, width, height, n, frac] {
         head.extend_from_slice(&w.to_le_bytes());
     }
     // Data level 0 has no error.
@@ -469,7 +591,7 @@ pub(crate) fn bake_to_file(
     head.extend_from_slice(&0u32.to_le_bytes());
     let mut at = head.len() as u64;
     let mut flags = Vec::new();
-    for lv in &mut levels {
+    for lv in levels.iter_mut() {
         let mut b = lv.e_max.to_le_bytes().to_vec();
         b.extend_from_slice(&u32::from(lv.has_tables()).to_le_bytes());
         flags.push((at, b));
@@ -478,36 +600,12 @@ pub(crate) fn bake_to_file(
             at = lv.lay_out(width, height, at);
         }
     }
-    let body = at.next_multiple_of(8);
-
-    let tmp = path.with_extension(format!("tmp{}", std::process::id()));
-    let written = write_tables(&tmp, &head, &flags, body, |file| {
-        // Sweep 2: the tables, each finished row written in place.
-        for band in 0..bands {
-            let (y0, y1) = load_band(&mut cache, &mut levels, &mut h0, band, last)?;
-            let mut with: Vec<&mut Level> = levels.iter_mut().filter(|l| l.has_tables()).collect();
-            par_levels(&mut with, |lv| {
-                for y in y0..y1 {
-                    lv.sweep_tables(file, band_row(&h0, width, y - y0), y, height)?;
-                }
-                Ok(())
-            })
-            .map_err(|e| Error::io(&tmp, "cannot write", e))?;
-            bar.inc(1);
-        }
-        Ok(())
-    });
-    bar.finish_and_clear();
-    if let Err(e) = written {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(e);
-    }
-    std::fs::rename(&tmp, path).map_err(|e| Error::io(path, "cannot rename into place", e))
+    (head, flags, at.next_multiple_of(8))
 }
 
 /// Creates `tmp` `body` + 8 bytes long (zeros: every padding), writes the header and the levels' flags,
 /// runs `tables`, then appends the CRC-32 of the body read back in chunks.
-fn write_tables(
+pub(super) fn write_tables(
     tmp: &Path,
     head: &[u8],
     flags: &[(u64, Vec<u8>)],
@@ -632,7 +730,7 @@ fn par_levels(
     })
 }
 
-fn progress_bar(progress: bool, len: u64) -> ProgressBar {
+pub(super) fn progress_bar(progress: bool, len: u64) -> ProgressBar {
     if !progress {
         return ProgressBar::hidden();
     }

@@ -3,7 +3,9 @@
 //! - [`pyramid`]: the height pyramid (GC section 4);
 //! - [`sat`]: summed-area tables in exact fixed point;
 //! - [`lod_tables`]: the SAT LOD error maps, their SATs and max pyramids (design.md "SAT LOD");
+//! - [`lod_record`]: the compact per-cell records every path builds the tables from;
 //! - [`lod_stream`]: the same tables of a package baked out of core, straight into the cache file;
+//! - [`lod_package`]: the records in the package: baked into it, and read back into the cache file;
 //! - [`horizon`]: horizon angles for SG visibility (SAT paper section 5);
 //! - this file: the LOD tables' disk cache, keyed by a content hash.
 //!
@@ -29,6 +31,7 @@
 //! memory; [`bake_lod_mapped`] re-reads them from the file it wrote.
 
 pub mod horizon;
+pub mod lod_package;
 pub mod lod_record;
 pub mod lod_stream;
 pub mod lod_tables;
@@ -179,7 +182,13 @@ pub fn bake_lod_package(
         Some(Err(reason)) => Some(reason),
         None => None,
     };
-    match lod_stream::bake_to_file(package, params, key, &path, progress) {
+    // The package's own records when they cover the profile (no error computed), else the heights.
+    let baked = if lod_package::records_cover(package, params) {
+        lod_package::tables_from_records(package, params, key, &path)
+    } else {
+        lod_stream::bake_to_file(package, params, key, &path, progress)
+    };
+    match baked {
         Ok(()) => {}
         // The cache file could not be written (not the package read): bake in memory.
         Err(e @ Error::Io { .. }) if !matches!(&e, Error::Io { path: p, .. } if p == package.path()) =>

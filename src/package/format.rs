@@ -8,25 +8,39 @@
 //! quantum f64 | max_error f64 | lowest f32 | highest f32 | codec u32 | tile u32 | levels u32
 //! per level:  width u32 | height u32
 //! per tile (levels fine to coarse, tiles row-major):  offset u64 | len u32 | crc32 u32
+//! lod_levels u32 | lod_p u32 | lod_tile u32        (0 | 0 | 0: no SAT LOD records)
+//! per record level k = 1 ..= lod_levels:  e_max f32
+//! per record tile (levels k = 1 up, tiles row-major):  offset u64 | len u32 | crc32 u32
 //! header crc32 u32 (over every byte before it)
 //! ```
 //!
 //! A tile payload is one byte (the count of byte planes, 1..=4) then the codec's stream of the planes.
+//! The record tiles ([`super::lod_tiles`], version 2) hold the SAT LOD tables' compact records
+//! ([`crate::bake::lod_record`]) for data levels 1 ..= lod_levels under exponent lod_p, in tiles of
+//! lod_tile x lod_tile cells, after the height tiles. A version 1 package (no records) is refused with
+//! a request to bake it again, never misread.
 //! Everything read back is validated before use: a damaged file is an [`Error::Format`] naming the field or
 //! the tile, never a panic.
 
 use std::path::Path;
 
+use super::lod_tiles::RecordGrid;
 use crate::{Error, Param, Result};
 
 /// The first 8 bytes of every package.
 pub const MAGIC: [u8; 8] = *b"CLIPSAT\0";
 
 /// The format version this build reads and writes.
-pub const VERSION: u32 = 1;
+pub const VERSION: u32 = 2;
+
+/// Most record levels a header may list (data levels 1 ..= this; a profile has at most 16 levels).
+pub const MAX_LOD_LEVELS: u32 = 40;
 
 /// Bytes of one tile-table entry (offset u64, len u32, crc32 u32).
 const TILE_ENTRY: usize = 16;
+
+/// Bytes of the records' fixed fields (lod_levels, lod_p, lod_tile).
+const LOD_FIXED: usize = 12;
 
 /// Bytes before the per-level table.
 const FIXED: usize = 8 + 4 + 4 + 4 + 4 + 4 + 8 + 8 + 8 + 8 + 4 + 4 + 4 + 4 + 4;
@@ -95,7 +109,7 @@ pub struct LevelDims {
 }
 
 /// Where one tile's payload lies and its checksum.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct TileEntry {
     /// Byte offset of the payload in the file.
     pub offset: u64,
@@ -130,6 +144,65 @@ pub struct Header {
     pub levels: Vec<LevelDims>,
     /// Every tile, levels finest first, row-major within a level.
     pub tiles: Vec<TileEntry>,
+    /// The SAT LOD records' tiles, if the package holds them.
+    pub lod: Option<LodIndex>,
+}
+
+/// Where a package's SAT LOD records lie ([`super::lod_tiles`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct LodIndex {
+    /// The SFAMF exponent the records were coded with.
+    pub p: u32,
+    /// Record levels, data level 1 first.
+    pub levels: Vec<LodLevel>,
+    /// Every record tile, levels in order, row-major within a level.
+    pub tiles: Vec<TileEntry>,
+}
+
+/// One record level: its grids, E and its first tile.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LodLevel {
+    /// The cell and tile grids.
+    pub grid: RecordGrid,
+    /// E_k, metres (0: the level has no error; its codes are all 0).
+    pub e_max: f32,
+    /// Index of its first tile in [`LodIndex::tiles`].
+    pub first_tile: usize,
+}
+
+impl LodIndex {
+    /// An index for data levels 1 ..= `levels` of a `width x height` terrain in tiles of `tile` cells, with
+    /// every E and tile entry zero (filled in by the writer).
+    pub fn new(width: u32, height: u32, p: u32, levels: u32, tile: u32) -> Self {
+        let mut first = 0usize;
+        let levels = (1..=levels)
+            .map(|k| {
+                let grid = RecordGrid::new(width, height, k, tile);
+                let l = LodLevel {
+                    grid,
+                    e_max: 0.0,
+                    first_tile: first,
+                };
+                first += grid.tiles();
+                l
+            })
+            .collect();
+        Self {
+            p,
+            levels,
+            tiles: vec![TileEntry::default(); first],
+        }
+    }
+
+    /// Record level `k` (1 ..= levels).
+    pub fn level(&self, k: u32) -> Option<&LodLevel> {
+        self.levels.get(usize::try_from(k).ok()?.checked_sub(1)?)
+    }
+
+    /// The cell side of a record tile.
+    pub fn tile(&self) -> u32 {
+        self.levels.first().map_or(0, |l| l.grid.tile)
+    }
 }
 
 /// The pyramid's level sizes for a `width x height` terrain: halving (w - 1)/2 + 1 until both sides are at
@@ -188,12 +261,29 @@ impl Header {
                 };
                 first
             ],
+            lod: None,
         }
     }
 
     /// Bytes the header takes in the file, including its checksum.
     pub fn byte_len(&self) -> usize {
-        FIXED + 8 * self.levels.len() + TILE_ENTRY * self.tiles.len() + 4
+        let lod = self
+            .lod
+            .as_ref()
+            .map_or(0, |l| 4 * l.levels.len() + TILE_ENTRY * l.tiles.len());
+        FIXED + 8 * self.levels.len() + TILE_ENTRY * self.tiles.len() + LOD_FIXED + lod + 4
+    }
+
+    /// Bytes of the height tiles' payloads (the pyramid).
+    pub fn pyramid_bytes(&self) -> u64 {
+        self.tiles.iter().map(|t| u64::from(t.len)).sum()
+    }
+
+    /// Bytes of the SAT LOD record tiles' payloads (0 without records).
+    pub fn lod_bytes(&self) -> u64 {
+        self.lod
+            .as_ref()
+            .map_or(0, |l| l.tiles.iter().map(|t| u64::from(t.len)).sum())
     }
 
     /// Level-0 samples.
@@ -226,10 +316,28 @@ impl Header {
             b.extend_from_slice(&l.width.to_le_bytes());
             b.extend_from_slice(&l.height.to_le_bytes());
         }
-        for t in &self.tiles {
+        let entry = |b: &mut Vec<u8>, t: &TileEntry| {
             b.extend_from_slice(&t.offset.to_le_bytes());
             b.extend_from_slice(&t.len.to_le_bytes());
             b.extend_from_slice(&t.crc.to_le_bytes());
+        };
+        for t in &self.tiles {
+            entry(&mut b, t);
+        }
+        match &self.lod {
+            None => b.extend_from_slice(&[0u8; LOD_FIXED]),
+            Some(l) => {
+                let n = u32::try_from(l.levels.len()).expect("at most MAX_LOD_LEVELS");
+                for w in [n, l.p, l.tile()] {
+                    b.extend_from_slice(&w.to_le_bytes());
+                }
+                for lv in &l.levels {
+                    b.extend_from_slice(&lv.e_max.to_le_bytes());
+                }
+                for t in &l.tiles {
+                    entry(&mut b, t);
+                }
+            }
         }
         let crc = crc32fast::hash(&b);
         b.extend_from_slice(&crc.to_le_bytes());
@@ -251,8 +359,13 @@ impl Header {
         }
         let version = r.u32().ok_or_else(|| bad("truncated".into()))?;
         if version != VERSION {
+            let again = if version < VERSION {
+                " (an older package, without the SAT LOD records): bake it again with `clipsat bake`"
+            } else {
+                ""
+            };
             return Err(bad(format!(
-                "version {version}, this build reads version {VERSION}"
+                "version {version}, this build reads version {VERSION}{again}"
             )));
         }
         let len = r.u32().ok_or_else(|| bad("truncated".into()))? as usize;
@@ -314,7 +427,28 @@ impl Header {
             .iter()
             .map(|&(w, hh)| u64::from(w.div_ceil(tile)) * u64::from(hh.div_ceil(tile)))
             .sum();
-        let need = (FIXED + 8 * sizes.len() + 4) as u64 + TILE_ENTRY as u64 * count;
+        let base = (FIXED + 8 * sizes.len()) as u64 + TILE_ENTRY as u64 * count;
+        // The records' fields follow the height tiles' table (all inside the checksummed header).
+        let lod_at = usize::try_from(base).map_err(|_| trunc())?;
+        let mut lr = Reader {
+            bytes: &bytes[..len],
+            at: lod_at,
+        };
+        let (lod_n, lod_p, lod_tile) = (
+            lr.u32().ok_or_else(trunc)?,
+            lr.u32().ok_or_else(trunc)?,
+            lr.u32().ok_or_else(trunc)?,
+        );
+        if lod_n > MAX_LOD_LEVELS || (lod_n > 0 && !(1..=4096).contains(&lod_tile)) {
+            return Err(bad(format!(
+                "{lod_n} LOD record levels in tiles of {lod_tile} cells: out of range"
+            )));
+        }
+        let mut lod = (lod_n > 0).then(|| LodIndex::new(width, height, lod_p, lod_n, lod_tile));
+        let lod_len = lod.as_ref().map_or(0, |l| {
+            4 * l.levels.len() as u64 + TILE_ENTRY as u64 * l.tiles.len() as u64
+        });
+        let need = base + (LOD_FIXED + 4) as u64 + lod_len;
         if need != len as u64 {
             return Err(bad(format!(
                 "header length {len}, a {width} x {height} package in {tile}-sample tiles needs {need}"
@@ -323,6 +457,24 @@ impl Header {
         let mut h = Self::new(width, height, spacing, origin, quantum, codec, tile);
         h.max_error = max_error;
         h.range = range;
+        if let Some(l) = &mut lod {
+            for lv in &mut l.levels {
+                lv.e_max = lr.f32().ok_or_else(trunc)?;
+                if !(lv.e_max.is_finite() && lv.e_max >= 0.0) {
+                    return Err(bad(format!(
+                        "LOD record level {}: E {} is not a finite error",
+                        lv.grid.k, lv.e_max
+                    )));
+                }
+            }
+            for t in &mut l.tiles {
+                *t = TileEntry {
+                    offset: lr.u64().ok_or_else(trunc)?,
+                    len: lr.u32().ok_or_else(trunc)?,
+                    crc: lr.u32().ok_or_else(trunc)?,
+                };
+            }
+        }
         if nl as usize != h.levels.len() {
             return Err(bad(format!(
                 "{nl} levels, a {width} x {height} pyramid has {}",
@@ -366,6 +518,30 @@ impl Header {
                 }
             }
         }
+        if let Some(l) = &lod {
+            for lv in &l.levels {
+                let g = lv.grid;
+                for i in 0..g.tiles() {
+                    let t = l.tiles[lv.first_tile + i];
+                    let end = t.offset.checked_add(u64::from(t.len));
+                    if t.offset < len as u64 || t.len < 2 || end.is_none_or(|e| e > file_len) {
+                        return Err(Error::format(
+                            path,
+                            format!(
+                                "LOD table level {} tile ({}, {}): bytes {}..+{} lie outside the \
+                                 file's {file_len} bytes of tile data (truncated file?)",
+                                g.k,
+                                i % g.tiles_x as usize,
+                                i / g.tiles_x as usize,
+                                t.offset,
+                                t.len
+                            ),
+                        ));
+                    }
+                }
+            }
+        }
+        h.lod = lod;
         Ok(h)
     }
 

@@ -5,12 +5,14 @@
 //! - [`codec`]: the integer 4-point prediction U and the tile codec (zigzag byte planes under zstd or lz4).
 //! - [`write`](mod@write): `clipsat bake`, source rows -> residual pyramid quantised with one absolute step,
 //!   out of core (the levels spilled to temporary files by `spill`).
+//! - [`lod_tiles`]: the SAT LOD records' tiles (two bytes a cell of each data level, issue 13).
 //! - [`read`]: validated reading through a memory map; damaged files are errors naming the tile.
 //! - [`cache`]: the tile cache allocated once from `budget.cpu_memory_bytes`, decoding under a sample budget.
 
 pub mod cache;
 pub mod codec;
 pub mod format;
+pub mod lod_tiles;
 pub mod read;
 mod spill;
 pub mod write;

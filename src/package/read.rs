@@ -173,6 +173,47 @@ impl Package {
         Ok(())
     }
 
+    /// Decodes record tile (tx, ty) of data level `k`'s SAT LOD records ([`super::lod_tiles`]) into its
+    /// max codes and mean codes (sized by the caller from [`super::lod_tiles::RecordGrid`]). A package
+    /// without records, a checksum mismatch or a payload that does not decode to the tile's cells is an
+    /// [`Error::Format`] naming the level and the tile.
+    pub fn decode_record_tile(
+        &self,
+        dec: &mut super::codec::Decoder,
+        k: u32,
+        (tx, ty): (u32, u32),
+        max: &mut [u8],
+        mean: &mut [u8],
+        scratch: &mut Vec<i32>,
+    ) -> Result<()> {
+        let bad = |reason: &str| {
+            Error::format(
+                &self.path,
+                format!("LOD table level {k} tile ({tx}, {ty}): {reason}"),
+            )
+        };
+        let lod = self
+            .header
+            .lod
+            .as_ref()
+            .ok_or_else(|| bad("the package has no LOD tables"))?;
+        let lv = lod.level(k).ok_or_else(|| bad("no such level"))?;
+        let g = lv.grid;
+        if tx >= g.tiles_x || ty >= g.tiles_y {
+            return Err(bad("no such tile"));
+        }
+        let entry = lod.tiles[lv.first_tile + (ty * g.tiles_x + tx) as usize];
+        // The header validated offset + len against the file length.
+        let start = usize::try_from(entry.offset).map_err(|_| bad("offset beyond memory"))?;
+        let payload = &self.map[start..start + entry.len as usize];
+        if crc32fast::hash(payload) != entry.crc {
+            return Err(bad("checksum mismatch (damaged tile)"));
+        }
+        let decoded = super::lod_tiles::decode_tile(dec, payload, max, mean, scratch);
+        self.trim_range(start, entry.len as usize);
+        decoded.map_err(bad)
+    }
+
     /// Decodes the whole pyramid, coarse to fine, and returns level 0 in quantum units (allocates the
     /// terrain: for tools and tests, not for streaming).
     pub fn decode_level0(&self) -> Result<Vec<i32>> {

@@ -43,6 +43,9 @@ pub struct BakeOptions {
     pub tile: u32,
     /// zstd compression level (1..=22).
     pub zstd_level: i32,
+    /// Whether to store the SAT LOD records (issue 13; on by default). Without them a package still
+    /// works: its LOD tables are computed from the heights on first use.
+    pub lod_tables: bool,
 }
 
 impl Default for BakeOptions {
@@ -52,6 +55,7 @@ impl Default for BakeOptions {
             codec: CodecKind::Zstd,
             tile: DEFAULT_TILE,
             zstd_level: DEFAULT_ZSTD_LEVEL,
+            lod_tables: true,
         }
     }
 }
@@ -63,6 +67,12 @@ pub struct BakeReport {
     pub bytes: u64,
     /// Bytes of the tile payloads alone (the pyramid).
     pub tile_bytes: u64,
+    /// Bytes of the SAT LOD record tiles (0 without them).
+    pub lod_table_bytes: u64,
+    /// tile_bytes / samples.
+    pub pyramid_bytes_per_sample: f64,
+    /// lod_table_bytes / samples.
+    pub lod_table_bytes_per_sample: f64,
     /// Level-0 samples.
     pub samples: u64,
     /// bytes / samples.
@@ -206,13 +216,23 @@ pub fn bake_source(
         .and_then(|()| file.sync_all())
         .map_err(|e| Error::io(out, "cannot write", e))?;
     bar.finish_and_clear();
+    drop(file);
     let samples = header.samples();
+    let (bytes, lod_bytes) = if opts.lod_tables {
+        let lod = add_lod_records(out, opts, !bar.is_hidden())?;
+        (offset + lod.0, lod.1)
+    } else {
+        (offset, 0)
+    };
     #[expect(clippy::cast_precision_loss, reason = "a ratio for reports")]
     Ok(BakeReport {
-        bytes: offset,
+        bytes,
         tile_bytes: offset - head_len as u64,
+        lod_table_bytes: lod_bytes,
+        pyramid_bytes_per_sample: (offset - head_len as u64) as f64 / samples as f64,
+        lod_table_bytes_per_sample: lod_bytes as f64 / samples as f64,
         samples,
-        bytes_per_sample: offset as f64 / samples as f64,
+        bytes_per_sample: bytes as f64 / samples as f64,
         quantum: q,
         max_error_bound: max_error,
         rms_error: (sq / samples as f64).sqrt(),
@@ -222,6 +242,113 @@ pub fn bake_source(
         codec: opts.codec,
         tile: opts.tile,
     })
+}
+
+/// Adds the SAT LOD records (issue 13) to the package just written at `out`: computed out of core from
+/// it ([`crate::bake::lod_package::bake_records`], each level's tiles spooled beside it), then the file
+/// is written again with the records' table in its header (the height tiles' offsets moved by the
+/// header's growth, their bytes copied as they are) and the record tiles after the height tiles, to a
+/// temporary name renamed over `out`. Returns (bytes added, record tile bytes).
+fn add_lod_records(out: &Path, opts: &BakeOptions, progress: bool) -> Result<(u64, u64)> {
+    use crate::bake::lod_package::{bake_records, RECORD_LEVELS};
+    use crate::bake::lod_tables::P;
+    let pkg = super::read::Package::open(out)?;
+    let spooled = bake_records(
+        &pkg,
+        P,
+        RECORD_LEVELS,
+        (opts.tile, opts.codec, opts.zstd_level),
+        out,
+        progress,
+    )?;
+    let old = pkg.header().clone();
+    let file_len = pkg.file_bytes();
+    drop(pkg);
+    let tmp = out.with_extension(format!("tmp{}", std::process::id()));
+    let written = rewrite_with_records(out, &tmp, old, file_len, &spooled);
+    for sp in &spooled {
+        let _ = std::fs::remove_file(&sp.path);
+    }
+    if written.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    let (added, lod) = written?;
+    std::fs::rename(&tmp, out).map_err(|e| Error::io(out, "cannot rename into place", e))?;
+    Ok((added, lod))
+}
+
+/// [`add_lod_records`]'s second write: `out`'s header with the records' table, its height tiles, then
+/// the spooled record tiles, into `tmp`.
+fn rewrite_with_records(
+    out: &Path,
+    tmp: &Path,
+    old: Header,
+    file_len: u64,
+    spooled: &[crate::bake::lod_package::SpooledLevel],
+) -> Result<(u64, u64)> {
+    use std::io::{Read, Seek};
+    let old_len = old.byte_len() as u64;
+    let mut header = old;
+    let levels = u32::try_from(spooled.len()).expect("at most MAX_LOD_LEVELS");
+    let mut idx = super::format::LodIndex::new(
+        header.width,
+        header.height,
+        crate::bake::lod_tables::P,
+        levels,
+        header.tile,
+    );
+    for (lv, sp) in idx.levels.iter_mut().zip(spooled) {
+        lv.e_max = sp.e_max;
+    }
+    header.lod = Some(idx);
+    let delta = header.byte_len() as u64 - old_len;
+    for t in &mut header.tiles {
+        t.offset += delta;
+    }
+    let mut at = file_len + delta;
+    let mut lod_bytes = 0u64;
+    if let Some(idx) = header.lod.as_mut() {
+        for (lv, sp) in idx.levels.iter().zip(spooled) {
+            assert_eq!(
+                sp.entries.len(),
+                lv.grid.tiles(),
+                "a spooled level has every tile of its grid"
+            );
+            let mut level_bytes = 0u64;
+            for (i, &(off, len, crc)) in sp.entries.iter().enumerate() {
+                idx.tiles[lv.first_tile + i] = TileEntry {
+                    offset: at + off,
+                    len,
+                    crc,
+                };
+                level_bytes = level_bytes.max(off + u64::from(len));
+            }
+            at += level_bytes;
+            lod_bytes += level_bytes;
+        }
+    }
+    let io = |e| Error::io(tmp, "cannot write", e);
+    let mut w = std::io::BufWriter::new(std::fs::File::create(tmp).map_err(io)?);
+    w.write_all(&header.to_bytes()).map_err(io)?;
+    let mut src = std::fs::File::open(out).map_err(|e| Error::io(out, "cannot open", e))?;
+    src.seek(std::io::SeekFrom::Start(old_len))
+        .map_err(|e| Error::io(out, "cannot read", e))?;
+    let copied = std::io::copy(&mut src.take(file_len - old_len), &mut w)
+        .map_err(|e| Error::io(out, "cannot read", e))?;
+    if copied != file_len - old_len {
+        return Err(Error::format(
+            out,
+            "the package shrank while its LOD tables were baked",
+        ));
+    }
+    for sp in spooled {
+        let mut f =
+            std::fs::File::open(&sp.path).map_err(|e| Error::io(&sp.path, "cannot open", e))?;
+        std::io::copy(&mut f, &mut w).map_err(io)?;
+    }
+    let f = w.into_inner().map_err(|e| io(e.into_error()))?;
+    f.sync_all().map_err(io)?;
+    Ok((delta + lod_bytes, lod_bytes))
 }
 
 /// Refuses a bound that is not finite and positive.

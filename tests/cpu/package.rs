@@ -104,6 +104,7 @@ fn lossy_bounds_hold_for_both_codecs() {
                 codec,
                 tile: 32,
                 zstd_level: 3,
+                ..BakeOptions::default()
             };
             let r = bake(&hm, &out, &opts);
             assert!(
@@ -176,11 +177,18 @@ fn damaged_packages_are_errors_naming_the_tile() {
     bad[20] ^= 0x10;
     write(&bad);
     assert!(format_reason(Package::open(&path)).contains("checksum"));
-    // A wrong version.
+    // A wrong version; an older one (version 1, without the SAT LOD tables) asks for a new bake.
     let mut bad = good.clone();
     bad[8] = 9;
     write(&bad);
     assert!(format_reason(Package::open(&path)).contains("version"));
+    bad[8] = 1;
+    write(&bad);
+    let reason = format_reason(Package::open(&path));
+    assert!(
+        reason.contains("version 1") && reason.contains("bake it again"),
+        "{reason}"
+    );
 
     // A flipped byte in each of a few tiles: the file opens, decoding names the tile.
     for (level, t) in [(0usize, (0u32, 0u32)), (0, (3, 2)), (2, (1, 0))] {
@@ -194,6 +202,29 @@ fn damaged_packages_are_errors_naming_the_tile() {
             let name = format!("level {level} tile ({}, {})", t.0, t.1);
             assert!(reason.contains(&name), "{reason} should name {name}");
         }
+    }
+    // A flipped byte in a SAT LOD table tile: the heights decode; the tables' build names the tile.
+    let lod = header.lod.as_ref().expect("a package has its LOD tables");
+    let params = clipsat::bake::BakeParams {
+        p: lod.p,
+        levels: 6,
+        synth_levels: 0,
+        g0: 10.0,
+    };
+    for (k, t) in [(1u32, (0u32, 0u32)), (1, (1, 1)), (3, (0, 0))] {
+        let lv = lod.level(k).expect("level");
+        let e = lod.tiles[lv.first_tile + (t.1 * lv.grid.tiles_x + t.0) as usize];
+        let mut bad = good.clone();
+        bad[(e.offset + u64::from(e.len) / 2) as usize] ^= 0x20;
+        write(&bad);
+        let p = Package::open(&path).expect("the header is intact");
+        assert!(p.to_heightmap().is_ok(), "the heights are intact");
+        let dir = path.with_extension(format!("lod{k}"));
+        let _ = std::fs::remove_dir_all(&dir);
+        let reason = format_reason(clipsat::bake::bake_lod_package(&p, &params, &dir, false));
+        let name = format!("LOD table level {k} tile ({}, {})", t.0, t.1);
+        assert!(reason.contains(&name), "{reason} should name {name}");
+        let _ = std::fs::remove_dir_all(&dir);
     }
     write(&good);
     assert!(Package::open(&path).and_then(|p| p.to_heightmap()).is_ok());
@@ -323,7 +354,10 @@ fn cli_bakes_a_package_and_flies_it_streamed() {
     );
     // A damaged package fails the command with the tile named, exit status 2.
     let mut bytes = std::fs::read(&out).expect("read");
-    let last = bytes.len() - 5;
+    // The last height tile's bytes (the SAT LOD records follow it; `fly` reads no table here).
+    let header = Package::open(&out).expect("open").header().clone();
+    let tile = header.tiles.iter().max_by_key(|t| t.offset).expect("tiles");
+    let last = (tile.offset + u64::from(tile.len)) as usize - 5;
     bytes[last] ^= 0x20;
     std::fs::write(&out, &bytes).expect("write");
     let o = std::process::Command::new(exe)
@@ -345,37 +379,47 @@ fn cli_bakes_a_package_and_flies_it_streamed() {
     let _ = std::fs::remove_file(&out);
 }
 
-/// The out-of-core bake writes the same bytes as the resident bake it replaced: CRC-32 and length of each
-/// package as `clipsat bake` wrote it at e896be5 (whole pyramid in memory), for the shared terrains and
-/// procedural terrains under several options (odd tile sides, lz4, lossy bounds).
+/// The out-of-core bake writes the same bytes as the resident bake it replaced: the height tiles of each
+/// package and its length as `clipsat bake` wrote it at e896be5 (whole pyramid in memory), for the shared
+/// terrains and procedural terrains under several options (odd tile sides, lz4, lossy bounds).
 #[test]
 fn out_of_core_bake_is_byte_identical_to_the_resident_bake() {
+    // Since format 2 the header also lists the SAT LOD records and they follow the height tiles: the
+    // pins are the height tiles' payloads (CRC-32 over them, re-pinned at format 2) and the length the
+    // version 1 file had (its header, 12 bytes shorter than a format 2 header without records, plus the
+    // same payloads: every length pinned at e896be5 still holds).
     let check = |name: &str, out: &Path, (crc, len): (u32, usize)| {
         let bytes = std::fs::read(out).expect("read back");
+        let mut header = Package::open(out).expect("open").header().clone();
+        let pyramid = header.pyramid_bytes() as usize;
+        let start = header.byte_len();
+        let payloads = &bytes[start..start + pyramid];
+        header.lod = None;
+        let v1_len = header.byte_len() - 12 + pyramid;
         assert_eq!(
-            (crc32fast::hash(&bytes), bytes.len()),
+            (crc32fast::hash(payloads), v1_len),
             (crc, len),
             "{name}: package bytes differ from the resident bake's"
         );
         let _ = std::fs::remove_file(out);
     };
     let shared_pins: [(&str, Option<f32>, (u32, usize)); 8] = [
-        ("ps_height_1k.png", Some(160.0), (0x8a4d_9094, 1_702_991)),
-        ("srtm_bigtujunga30m_utm11.tif", None, (0x9537_cf7f, 546_818)),
+        ("ps_height_1k.png", Some(160.0), (0x4a4b_f906, 1_702_991)),
+        ("srtm_bigtujunga30m_utm11.tif", None, (0xf0ed_7646, 546_818)),
         (
             "srtm_bigtujunga30m_utm11_u16dm.png",
             Some(30.0),
-            (0x9537_cf7f, 546_818),
+            (0xf0ed_7646, 546_818),
         ),
-        ("n07_w006_3arc_v2.tif", None, (0xf080_a551, 806_514)),
+        ("n07_w006_3arc_v2.tif", None, (0x6a87_b571, 806_514)),
         (
             "n07_w006_3arc_v2_u16dm.png",
             Some(92.0),
-            (0xf080_a551, 806_514),
+            (0x6a87_b571, 806_514),
         ),
-        ("N57E011.hgt", None, (0x97d3_838c, 163_990)),
-        ("lidar_pkg_dem_1m_400x400.tif", None, (0x9634_648a, 112_349)),
-        ("aletsch_200m.tif", None, (0x3342_9ce2, 283_958)),
+        ("N57E011.hgt", None, (0xbffc_ac53, 163_990)),
+        ("lidar_pkg_dem_1m_400x400.tif", None, (0x942a_d028, 112_349)),
+        ("aletsch_200m.tif", None, (0x1495_c1c1, 283_958)),
     ];
     for (name, spacing, pin) in shared_pins {
         let Some(hm) = shared(name, spacing) else {
@@ -411,6 +455,7 @@ fn out_of_core_bake_is_byte_identical_to_the_resident_bake() {
         codec,
         tile,
         zstd_level,
+        ..BakeOptions::default()
     };
     let zstd19 = package::write::DEFAULT_ZSTD_LEVEL;
     let cases = [
@@ -419,28 +464,28 @@ fn out_of_core_bake_is_byte_identical_to_the_resident_bake() {
             257,
             1,
             opts(CodecKind::Zstd, 64, zstd19, None),
-            (0x5daa_e861, 136_282),
+            (0x6074_4bf8, 136_282),
         ),
         (
             "1025 lz4",
             1025,
             7,
             opts(CodecKind::Lz4, 64, zstd19, Some(0.5)),
-            (0xf98b_ff72, 843_784),
+            (0x04e3_0614, 843_784),
         ),
         (
             "257 tile 16",
             257,
             1,
             opts(CodecKind::Zstd, 16, 3, Some(2.0)),
-            (0x5e0a_0cb8, 56_393),
+            (0xff47_c7a3, 56_393),
         ),
         (
             "513 tile 6",
             513,
             1,
             opts(CodecKind::Zstd, 6, zstd19, Some(0.01)),
-            (0xe51c_789f, 763_786),
+            (0x5cd7_12d4, 763_786),
         ),
     ];
     for (name, size, seed, o, pin) in cases {
@@ -513,10 +558,12 @@ fn raw_files_bake_streamed_as_loaded() {
     }
 }
 
-/// The SAT LOD tables of a package baked out of core (`bake::lod_stream`: bands of tiles, rows written in
-/// place) are the bytes of the cache file baked from the decoded pyramid in memory, but for the key (a
-/// package's tables are keyed by its header, a terrain's by its heights) and so the trailing checksum:
-/// odd sizes, several bands, more data levels than the package has, and a flat terrain (no tables).
+/// The SAT LOD tables of a package, built from the records the package stores (`bake::lod_package`), or
+/// baked out of core from the heights of a package without them (`bake::lod_stream`: bands of tiles,
+/// rows written in place), are the bytes of the cache file baked from the decoded pyramid in memory, but
+/// for the key (a package's tables are keyed by its header, a terrain's by its heights) and so the
+/// trailing checksum: odd sizes, several bands, more data levels than the package has, and a flat
+/// terrain (no tables).
 #[test]
 fn lod_tables_baked_out_of_core_match_the_resident_bake() {
     use clipsat::bake::{self, BakeParams, CacheOutcome};
@@ -568,6 +615,37 @@ fn lod_tables_baked_out_of_core_match_the_resident_bake() {
             a[20..a.len() - 8] == b[20..b.len() - 8],
             "{name}: body bytes differ"
         );
+        // The same package without its records: the tables computed from its heights, the same bytes.
+        let plain = out.with_extension("plain.clipsat");
+        bake(
+            &hm,
+            &plain,
+            &BakeOptions {
+                lod_tables: false,
+                ..opts.clone()
+            },
+        );
+        let plain_pkg = Package::open(&plain).expect("open");
+        assert!(plain_pkg.header().lod.is_none() && pkg.header().lod.is_some());
+        let dir_c = out.with_extension("lodc");
+        let _ = std::fs::remove_dir_all(&dir_c);
+        let (from_heights, _) =
+            bake::bake_lod_package(&plain_pkg, &params, &dir_c, false).expect("from heights");
+        assert_eq!(
+            from_heights, resident,
+            "{name}: tables from the heights differ"
+        );
+        let c = std::fs::read(bake::cache_path(
+            &dir_c,
+            bake::package_cache_key(&plain_pkg, &params),
+        ))
+        .expect("file from the heights");
+        assert!(
+            a[20..a.len() - 8] == c[20..c.len() - 8],
+            "{name}: from the heights"
+        );
+        let _ = std::fs::remove_dir_all(&dir_c);
+        let _ = std::fs::remove_file(&plain);
         let (hit, o) = bake::bake_lod_package(&pkg, &params, &dir, false).expect("hit");
         assert_eq!(o, CacheOutcome::Hit, "{name}");
         assert_eq!(hit, resident, "{name}");

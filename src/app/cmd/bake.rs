@@ -1,4 +1,5 @@
-//! `clipsat bake`: writes a terrain package (stage 1b), the GC section 7 residual pyramid in compressed tiles.
+//! `clipsat bake`: writes a terrain package (stage 1b), the GC section 7 residual pyramid in compressed tiles
+//! and the SAT LOD tables' compact records.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -34,6 +35,9 @@ pub(crate) struct BakeArgs {
     /// zstd level, 1..=22.
     #[arg(long, value_name = "L", default_value_t = package::write::DEFAULT_ZSTD_LEVEL)]
     zstd_level: i32,
+    /// Leave out the SAT LOD tables (they are then computed from the heights on first use).
+    #[arg(long)]
+    no_lod_tables: bool,
     /// Print a machine-readable report on stdout.
     #[arg(long)]
     json: bool,
@@ -50,6 +54,7 @@ pub(crate) fn run(args: &BakeArgs) -> Result<()> {
         codec: CodecKind::parse(&args.codec)?,
         tile: args.tile,
         zstd_level: args.zstd_level,
+        lod_tables: !args.no_lod_tables,
     };
     super::ensure_parent(&args.out)?;
     let bar = if args.json {
@@ -85,6 +90,11 @@ pub(crate) fn run(args: &BakeArgs) -> Result<()> {
         report.tiles,
         report.tile,
         report.codec.name()
+    );
+    outln!(
+        "split        pyramid {:.4} bytes/sample, SAT LOD tables {:.4} bytes/sample",
+        report.pyramid_bytes_per_sample,
+        report.lod_table_bytes_per_sample
     );
     outln!(
         "error        rms {:.4} m, max {:.4} m (bound {} m, quantum {} m)",

@@ -114,6 +114,14 @@ fn package_info(pkg: &clipsat::package::Package, as_json: bool) -> Result<()> {
     let bytes = pkg.file_bytes();
     #[expect(clippy::cast_precision_loss, reason = "a ratio for display")]
     let per_sample = bytes as f64 / h.samples() as f64;
+    // The file's split: the height pyramid's tiles and the SAT LOD records' tiles.
+    let (pyramid, lod) = (h.pyramid_bytes(), h.lod_bytes());
+    #[expect(clippy::cast_precision_loss, reason = "ratios for display")]
+    let (pyramid_ps, lod_ps) = (
+        pyramid as f64 / h.samples() as f64,
+        lod as f64 / h.samples() as f64,
+    );
+    let lod_levels = h.lod.as_ref().map_or(0, |l| l.levels.len());
     let mut profiles = Vec::new();
     for (pname, _) in SHIPPED {
         let p = Profile::load(pname)?;
@@ -143,6 +151,11 @@ fn package_info(pkg: &clipsat::package::Package, as_json: bool) -> Result<()> {
             "tiles": h.tiles.len(),
             "bytes": bytes,
             "bytes_per_sample": per_sample,
+            "pyramid_bytes": pyramid,
+            "pyramid_bytes_per_sample": pyramid_ps,
+            "lod_table_bytes": lod,
+            "lod_table_bytes_per_sample": lod_ps,
+            "lod_table_levels": lod_levels,
             "profiles": profiles,
         }));
         return Ok(());
@@ -162,6 +175,10 @@ fn package_info(pkg: &clipsat::package::Package, as_json: bool) -> Result<()> {
         "size      {bytes} bytes, {per_sample:.4} bytes/sample; quantum {} m (max error {} m)",
         h.quantum,
         h.max_error
+    );
+    outln!(
+        "split     pyramid {pyramid} bytes ({pyramid_ps:.4} bytes/sample), SAT LOD tables {lod} bytes \
+         ({lod_ps:.4} bytes/sample, data levels 1..={lod_levels})"
     );
     outln!(
         "profile     CPU budget = rings + cache (header + tile map + decoder + slots) + LOD table pages + SG inputs"

@@ -28,8 +28,6 @@ pub(super) struct PackageRow {
     decode_s: f64,
     /// A memcpy of the same decoded i32s, best of the repetitions, seconds.
     memcpy_s: f64,
-    /// Bytes of the SAT LOD tables' cache file for the bench's profile (`bake::lod_stream`).
-    lod_bytes: u64,
 }
 
 /// Peak RSS of one terrain's render commands (None: not measured).
@@ -79,8 +77,6 @@ pub(super) fn measure(
 ) -> Result<TerrainMemory> {
     let mut packages = Vec::new();
     let mut refill = None;
-    let lod_profile = Profile::load(profile)?;
-    let lod_dir = dir.join("bench-memory-lod");
     for (i, (name, hm)) in terrains.iter().enumerate() {
         bar.set_message(format!("memory: package {name}"));
         let path = dir.join(format!("bench-memory-{i}.clipsat"));
@@ -104,8 +100,6 @@ pub(super) fn measure(
             black_box(&dst);
             memcpy_s = memcpy_s.min(t.elapsed().as_secs_f64());
         }
-        bar.set_message(format!("memory: LOD tables {name}"));
-        let lod_bytes = lod_table_bytes(&path, &lod_profile, &lod_dir)?;
         if i == 0 {
             bar.set_message(format!("memory: refill {name}"));
             refill = Some(measure_refill(name, hm, &path, reps)?);
@@ -118,7 +112,6 @@ pub(super) fn measure(
             pyramid_samples,
             decode_s,
             memcpy_s,
-            lod_bytes,
         });
         bar.inc(1);
     }
@@ -179,28 +172,6 @@ pub(super) fn measure(
 }
 
 /// Steps [`measure`] reports to the progress bar.
-/// Bytes of the SAT LOD tables' cache file of the package at `path` for `profile` (as `render --lod sat`
-/// bakes them for a streamed package), baked into `dir` and deleted after.
-fn lod_table_bytes(path: &FsPath, profile: &Profile, dir: &FsPath) -> Result<u64> {
-    use clipsat::bake::{self, BakeParams};
-    let clipmap = Clipmap::streamed(Package::open(path)?, profile, ClipmapOptions::default())?;
-    let params = BakeParams {
-        p: bake::lod_tables::P,
-        levels: profile.clipmap.levels,
-        synth_levels: clipmap.synth_levels(),
-        g0: clipmap.g0(),
-    };
-    let pkg = Package::open(path)?;
-    let (tables, _) = bake::bake_lod_package(&pkg, &params, dir, false)?;
-    drop(tables);
-    let file = bake::cache_path(dir, bake::package_cache_key(&pkg, &params));
-    let bytes = std::fs::metadata(&file)
-        .map_err(|e| Error::io(&file, "cannot read", e))?
-        .len();
-    let _ = std::fs::remove_dir_all(dir);
-    Ok(bytes)
-}
-
 pub(super) fn steps(terrains: usize, specs: usize) -> u64 {
     (terrains + specs) as u64
 }
@@ -277,16 +248,15 @@ pub(super) fn section(m: &TerrainMemory, machine: &str, cpu_budget: u64) -> Stri
         s,
         "Each terrain baked with `clipsat bake`'s defaults (`--max-error` half the source's own step: 0.5 m \
          for integer metres, 0.05 m for decimetres, 0.005 m for floats), zstd tiles of the GC section 7 \
-         residual pyramid. B/sample: the whole file over the level-0 samples; pyramid: the tile payloads \
-         alone; with LOD tables: the package plus the SAT LOD tables' cache file that `render --lod sat` \
-         bakes beside it out of core for the SAT run's profile (the package holds the pyramid only; the \
-         shading inputs are still built at load time, their memory shows in the RSS table). Decode: the whole pyramid decoded coarse to \
+         residual pyramid and the SAT LOD tables' compact records. B/sample: the whole file over the level-0 \
+         samples; pyramid: the height tiles' payloads alone; LOD tables: the record tiles' payloads \
+         alone (the shading inputs are still built at load time, their memory shows in the RSS table). Decode: the whole pyramid decoded coarse to \
          fine on one thread, against a memcpy of the same decoded i32s in the same run. GC table 3 (GC \
          section 9): 0.02 B/sample at runtime for the 20-billion-sample U.S., prior methods 1.8-6.0 \
          B/sample.\n\n*Table: {machine}*\n"
     );
     s.push_str(
-        "| terrain | samples | B/sample | pyramid B/sample | with LOD tables B/sample | max error bound | \
+        "| terrain | samples | B/sample | pyramid B/sample | LOD tables B/sample | max error bound | \
          rms error | max error | decode Msamples/s | memcpy Msamples/s | decode / memcpy | GC table 3 |\n\
          |---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
@@ -299,8 +269,8 @@ pub(super) fn section(m: &TerrainMemory, machine: &str, cpu_budget: u64) -> Stri
             p.name,
             p.samples,
             r.bytes_per_sample,
-            r.tile_bytes as f64 / p.samples.max(1) as f64,
-            (r.bytes + p.lod_bytes) as f64 / p.samples.max(1) as f64,
+            r.pyramid_bytes_per_sample,
+            r.lod_table_bytes_per_sample,
             r.max_error_bound,
             r.rms_error,
             r.max_error,
