@@ -262,3 +262,63 @@ fn fly_render_every_k_uploads_at_most_k_budgets() {
     );
     assert_eq!(v["full_uploads_after_first"], 0, "{v}");
 }
+
+/// Issue 13 item 2: `fly --render` streams a package through the profile's tile cache, as `render` does
+/// (`streamed` in the summary, tiles decoded, no whole heightmap loaded), and its image hashes repeat
+/// exactly on a second run; with SG shading and `--lod sat` too, the LOD tables read through a map.
+#[test]
+fn fly_render_streams_a_package() {
+    let dir = scratch("stream");
+    let pkg = dir.join("t.clipsat");
+    let p = pkg.to_string_lossy().into_owned();
+    json_of(&clipsat(&[
+        "bake",
+        "procedural:size=257",
+        "--out",
+        &p,
+        "--json",
+    ]));
+    let run = |name: &str, extra: &[&str]| {
+        let out = dir.join(name);
+        let d = out.to_string_lossy().into_owned();
+        let mut args = vec![
+            "fly",
+            "--terrain",
+            &p,
+            "--frames",
+            "12",
+            "--path",
+            "teleport:6",
+            "--speed",
+            "300",
+            "--render",
+            &d,
+            "--render-every",
+            "5",
+            "--size",
+            "96x54",
+            "--json",
+        ];
+        args.extend_from_slice(extra);
+        let v = json_of(&clipsat(&args));
+        assert_eq!(v["streamed"], true, "{v}");
+        let decoded = v["stream"]["tile_cache"]["stats"]["decoded"]
+            .as_u64()
+            .unwrap_or(0);
+        assert!(decoded > 0, "no tile decoded: {v}");
+        assert_eq!(v["constraint_violations"], 0, "{v}");
+        let renders = v["renders"].as_array().expect("renders").clone();
+        assert_eq!(renders.len(), 3, "frames 0, 5, 10: {v}");
+        (v, renders)
+    };
+    let low = ["--profile", "gles3-low"];
+    let (_, a) = run("basic_a", &low);
+    let (_, b) = run("basic_b", &low);
+    assert_eq!(a, b, "streamed image hashes differ between two runs");
+    let (v, _) = run(
+        "sg_sat",
+        &["--profile", "gles3-mid", "--shading", "sg", "--lod", "sat"],
+    );
+    assert_eq!(v["shading"], "sg", "{v}");
+    assert!(v["stream"]["lod_tables"].is_object(), "{v}");
+}

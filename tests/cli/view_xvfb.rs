@@ -5,7 +5,7 @@
 //! view-xvfb-sg.png (SG shading).
 //!
 //! `view_frames_json_under_xvfb` runs the non-interactive measurement (`--frames 8 --json`) and checks the
-//! window got an OpenGL ES 3.0 context and that both paths were timed.
+//! window got an OpenGL ES 3.0 context and that both paths were timed, then again streamed (`--stream`).
 //!
 //! Ignored by default (needs Xvfb, xdotool and xwd, and takes about a minute on llvmpipe):
 //! `bash .ci/view-xvfb`, or `cargo test --test cli view_xvfb -- --ignored --nocapture`.
@@ -225,6 +225,38 @@ fn view_frames_json_under_xvfb() {
     assert!(j["headless_over_window_mean"]
         .as_f64()
         .is_some_and(|r| r > 0.0));
+
+    // Issue 13 item 2: `--stream` draws a plain source through the tile cache (baked into the cache
+    // first), the window and the headless path alike, with the SAT LOD tables mapped.
+    let out = Command::new(env!("CARGO_BIN_EXE_clipsat"))
+        .args([
+            "view",
+            "--terrain",
+            "procedural:size=257",
+            "--stream",
+            "--lod",
+            "sat",
+            "--size",
+            &format!("{W}x{H}"),
+            "--frames",
+            "4",
+            "--json",
+        ])
+        .env("DISPLAY", &display)
+        .output()
+        .expect("clipsat view --stream");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "clipsat view --stream: {stderr}");
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout)
+        .unwrap_or_else(|e| panic!("stdout is not one JSON document: {e}\n{stderr}"));
+    assert_eq!(j["streamed"], true, "{j}");
+    assert_eq!(j["frames"], 4, "{j}");
+    assert!(
+        j["headless_render"]["times"]["mean_ms"]
+            .as_f64()
+            .is_some_and(|m| m > 0.0),
+        "{j}"
+    );
 }
 
 #[test]

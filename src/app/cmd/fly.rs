@@ -23,9 +23,6 @@ use super::args::{arg_error, flag, pixel_size, GpuArgs, LodArgs, Size};
 use super::hashes::{self, HashFile};
 use super::{ProfileArgs, TerrainArgs};
 
-/// Most samples of the package level a streamed flight's camera path follows (1 Mi: 4 MiB of f32).
-const FLIGHT_SAMPLES: u64 = 1 << 20;
-
 /// The path flown when none is named.
 const DEFAULT_PATH: &str = "figure8";
 
@@ -78,6 +75,11 @@ pub(crate) struct FlyArgs {
     /// With --render: image size, WxH pixels. Default: the profile's viewport.
     #[arg(long, value_name = "WxH", value_parser = pixel_size)]
     size: Option<Size>,
+    /// Stream a plain source like a package (baked into the cache folder on first use), rendered or not:
+    /// no whole heightmap resident, the SAT LOD tables read through a map of their cache file, the SG
+    /// tables baked from one coarse enough level. Not with --reference; a package streams without it.
+    #[arg(long)]
+    stream: bool,
     /// With --render: the GL context.
     #[command(flatten)]
     gpu: GpuArgs,
@@ -133,23 +135,22 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
     let opts = ClipmapOptions {
         synth_levels: args.synth_levels,
     };
-    // A package flown on the CPU alone (no rendering) streams through the profile's tile
-    // cache; the camera path follows a coarse level of it. Otherwise it is decoded whole.
-    let package = match args.terrain.package()? {
-        Some(p) if args.render.is_none() => Some(p),
-        _ => None,
-    };
-    let (terrain_name, hm, mut clipmap) = match package {
-        Some(p) => {
-            let name = p.path().display().to_string();
-            let hm = p.coarse_heightmap(FLIGHT_SAMPLES)?;
-            (name, hm, Clipmap::streamed(p, &profile, opts)?)
-        }
-        None => {
-            let (name, hm) = args.terrain.load()?;
-            let clipmap = Clipmap::new(&hm, &profile, opts)?;
-            (name, hm, clipmap)
-        }
+    // A package (and with --stream a plain source) streams through the profile's tile cache, rendered
+    // or not, as `render` streams it; the camera path follows a coarse level of it. SG's CPU reference
+    // reads every sample, so --reference decodes it whole.
+    let streamable = !args.shading.reference;
+    if args.stream && !streamable {
+        return Err(arg_error(
+            "--stream",
+            "needs the whole terrain with --reference",
+        ));
+    }
+    let (terrain_name, hm, package) =
+        super::render::open_terrain(&args.terrain, args.stream, streamable, !args.json)?;
+    let streamed = package.is_some();
+    let mut clipmap = match package {
+        Some(p) => Clipmap::streamed(p, &profile, opts)?,
+        None => Clipmap::new(&hm, &profile, opts)?,
     };
     let flight = Flight::new(path, args.speed, &hm)
         .map_err(|e| match &e {
@@ -219,8 +220,12 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
     if let Some(size) = args.size {
         (render_profile.view.width, render_profile.view.height) = size.pair();
     }
+    // A streamed terrain's SG tables are baked from the package level that fits the shading share.
+    let package = clipmap
+        .tile_cache()
+        .map(clipsat::package::TileCache::package);
     let baked = match (&gpu, &sg) {
-        (Some(_), Some(sg)) => Some(sg.bake(&profile, &hm, None)?),
+        (Some(_), Some(sg)) => Some(sg.bake(&profile, &hm, package)?),
         _ => None,
     };
     let shading = super::sg::shading(sg.as_ref(), baked.as_ref());
@@ -462,6 +467,8 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
         });
         if let (Some(o), serde_json::Value::Object(extra)) = (out.as_object_mut(), pool) {
             o.extend(extra);
+            // Streamed through the tile cache (`stream.tile_cache`), as `render` says it.
+            o.insert("streamed".into(), json!(streamed));
         }
         super::print_json(&out);
     } else {

@@ -12,6 +12,7 @@ use clipsat::gpu::brute::BruteForce;
 use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen, OffscreenOptions};
 use clipsat::gpu::Gpu;
 use clipsat::measure;
+use clipsat::package::Package;
 use clipsat::plan::camera::parse_vec3;
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::plan::frame_plan::LodSetup;
@@ -112,8 +113,37 @@ pub(crate) fn lod_for(
     Ok(Lod::for_clipmap(tables, profile, clipmap, hm))
 }
 
-/// Most samples of the package level a streamed render fits its camera to (1 Mi: 4 MiB of f32).
+/// Most samples of the package level a streamed terrain's camera fits (1 Mi: 4 MiB of f32).
 const STREAMED_CAMERA_SAMPLES: u64 = 1 << 20;
+
+/// The terrain a clipmap command draws (`render`, `fly`, `view`): when `streamable`, the package
+/// `--terrain` names, or with `stream` a plain source's (baked into the cache folder on first use,
+/// progress bar on stderr when `progress`), to stream through the profile's tile cache, with the
+/// package's coarse stand-in heightmap for the camera; otherwise the terrain loaded whole. Callers
+/// refuse `stream` where the terrain is not `streamable`.
+pub(crate) fn open_terrain(
+    terrain: &TerrainArgs,
+    stream: bool,
+    streamable: bool,
+    progress: bool,
+) -> Result<(String, Heightmap, Option<Package>)> {
+    let package = match terrain.package()? {
+        Some(p) if streamable => Some(p),
+        None if stream && streamable => Some(terrain.stream_package(progress)?),
+        _ => None,
+    };
+    Ok(match package {
+        Some(p) => (
+            p.path().display().to_string(),
+            p.coarse_heightmap(STREAMED_CAMERA_SAMPLES)?,
+            Some(p),
+        ),
+        None => {
+            let (name, hm) = terrain.load()?;
+            (name, hm, None)
+        }
+    })
+}
 
 /// Most clipmap updates `render` runs to let the budget fill every level at the camera.
 const MAX_FILL_FRAMES: u32 = 10_000;
@@ -145,18 +175,8 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
             "needs the whole terrain with --brute, --ground-truth or --reference",
         ));
     }
-    let package = match args.terrain.package()? {
-        Some(p) if streamable => Some(p),
-        None if args.stream => Some(args.terrain.stream_package(!args.json)?),
-        _ => None,
-    };
-    let (terrain_name, hm) = match &package {
-        Some(p) => (
-            p.path().display().to_string(),
-            p.coarse_heightmap(STREAMED_CAMERA_SAMPLES)?,
-        ),
-        None => args.terrain.load()?,
-    };
+    let (terrain_name, hm, package) =
+        open_terrain(&args.terrain, args.stream, streamable, !args.json)?;
     let camera = camera(args, &hm, f64::from(profile.view.fov_y_deg))?;
 
     let gpu = Gpu::new(mode)?;

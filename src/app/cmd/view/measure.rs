@@ -10,6 +10,7 @@ use std::time::Instant;
 
 use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen, OffscreenOptions};
 use clipsat::gpu::{Gpu, GpuMode};
+use clipsat::package::{Package, TileCache};
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::plan::frame_plan::LodSetup;
 use clipsat::plan::lod::LodMode;
@@ -86,7 +87,10 @@ pub(super) struct Headless {
 
 /// What the view drew, for [`headless`] to draw the same.
 pub(super) struct Same<'a> {
+    /// The terrain, or a streamed terrain's coarse stand-in.
     pub(super) hm: &'a Heightmap,
+    /// The package the view streamed, streamed again here.
+    pub(super) package: Option<&'a std::path::Path>,
     /// The profile with the window's size as its viewport.
     pub(super) profile: &'a Profile,
     pub(super) camera: &'a Camera,
@@ -101,7 +105,10 @@ pub(super) struct Same<'a> {
 /// makes) after filling the clipmap as `render` does, and times each.
 pub(super) fn headless(same: &Same<'_>, mode: GpuMode, frames: u32) -> Result<Headless> {
     let gpu = Gpu::new(mode)?;
-    let mut clipmap = Clipmap::new(same.hm, same.profile, ClipmapOptions::default())?;
+    let mut clipmap = match same.package {
+        Some(p) => Clipmap::streamed(Package::open(p)?, same.profile, ClipmapOptions::default())?,
+        None => Clipmap::new(same.hm, same.profile, ClipmapOptions::default())?,
+    };
     // As `render`: update until nothing is stale or pending at the eye (bounded).
     for _ in 0..10_000 {
         let f = clipmap.update(same.camera.eye)?;
@@ -116,7 +123,13 @@ pub(super) fn headless(same: &Same<'_>, mode: GpuMode, frames: u32) -> Result<He
     };
     let baked = same
         .sg
-        .map(|c| c.bake(same.profile, same.hm, None))
+        .map(|c| {
+            c.bake(
+                same.profile,
+                same.hm,
+                clipmap.tile_cache().map(TileCache::package),
+            )
+        })
         .transpose()?;
     let mut r = Offscreen::new(
         &gpu,

@@ -62,6 +62,11 @@ pub(crate) struct ViewArgs {
     size: Option<Size>,
     #[command(flatten)]
     gpu: GpuArgs,
+    /// Stream a plain source like a package (baked into the cache folder on first use): no whole
+    /// heightmap resident, the SAT LOD tables read through a map of their cache file, the SG tables baked
+    /// from one coarse enough level. A package streams without it.
+    #[arg(long)]
+    stream: bool,
     /// Flight speed, m/s (shift: 5x). Default: a twentieth of the terrain's size per second.
     #[arg(long, value_name = "M/S")]
     speed: Option<f64>,
@@ -99,7 +104,20 @@ pub(crate) fn run(args: &ViewArgs) -> Result<()> {
     if let Some(s) = args.size {
         (profile.view.width, profile.view.height) = s.pair();
     }
-    let (terrain_name, hm) = args.terrain.load()?;
+    if args.shading.reference {
+        return Err(arg_error(
+            "--reference",
+            "applies to render and fly, not view",
+        ));
+    }
+    // A package (and with --stream a plain source) streams through the profile's tile cache, as
+    // `render` streams it: the camera and the ground under it come from the package's coarse stand-in.
+    let (terrain_name, hm, package) =
+        super::render::open_terrain(&args.terrain, args.stream, true, true)?;
+    // The data's own spacing (the stand-in's is coarser): the eye's clearance above the ground.
+    let spacing = package
+        .as_ref()
+        .map_or_else(|| hm.spacing(), |p| p.header().spacing);
     let mut camera = Camera::default_for(&hm)?;
     if let Some(text) = &args.camera {
         let eye = parse_vec3("--camera", text)?;
@@ -112,12 +130,6 @@ pub(crate) fn run(args: &ViewArgs) -> Result<()> {
     let mut state = ViewState::new(&camera, speed, epsilon.unwrap_or(profile.view.epsilon_px));
     state.lod = lod;
     state.debug = debug;
-    if args.shading.reference {
-        return Err(arg_error(
-            "--reference",
-            "applies to render and fly, not view",
-        ));
-    }
     // Key 1 switches SG on and off, so the scene is loaded either way (checked against the profile when
     // SG is first switched on).
     let sg = args.shading.choice(&profile)?;
@@ -134,7 +146,11 @@ pub(crate) fn run(args: &ViewArgs) -> Result<()> {
         }
     };
 
-    let clipmap = Clipmap::new(&hm, &profile, ClipmapOptions::default())?;
+    let clipmap = match package {
+        Some(p) => Clipmap::streamed(p, &profile, ClipmapOptions::default())?,
+        None => Clipmap::new(&hm, &profile, ClipmapOptions::default())?,
+    };
+    let streamed = clipmap.tile_cache().is_some();
     let planner = Planner::new(&profile, &clipmap, LodSetup::Distance)?;
     let plan = planner.new_plan();
     // The renderer starts with the basic shading.
@@ -168,7 +184,7 @@ pub(crate) fn run(args: &ViewArgs) -> Result<()> {
         bake: None,
         applied,
         sg_built: None,
-        clearance: (2.0 * f64::from(hm.spacing())).max(30.0),
+        clearance: (2.0 * f64::from(spacing)).max(30.0),
         window: None,
         context: None,
         drag: None,
@@ -197,6 +213,10 @@ pub(crate) fn run(args: &ViewArgs) -> Result<()> {
         .take()
         .map_or((0, 0), |p| (p.config.width, p.config.height));
     let (context, gles30) = app.context.clone().unwrap_or_default();
+    let package = app
+        .clipmap
+        .tile_cache()
+        .map(|c| c.package().path().to_path_buf());
     // With --frames, time the frames from the first one that found the clipmap filled (the others paid
     // the fill under the budget); interactively, every frame after the first.
     let from = match args.frames {
@@ -223,6 +243,7 @@ pub(crate) fn run(args: &ViewArgs) -> Result<()> {
             eprintln!("clipsat view: timing {n} frames of the headless render path at {width}x{height}...");
             let same = measure::Same {
                 hm: &hm,
+                package: package.as_deref(),
                 profile: &profile,
                 camera: &camera,
                 opts: &opts,
@@ -246,6 +267,7 @@ pub(crate) fn run(args: &ViewArgs) -> Result<()> {
     if args.json {
         super::print_json(&json!({
             "terrain": terrain_name,
+            "streamed": streamed,
             "profile": profile.name,
             "width": width,
             "height": height,
@@ -535,13 +557,27 @@ impl App<'_> {
                         "clipsat view: baking the shading SATs for `{}`...",
                         scene.name
                     );
-                    let (bake, outcome) = ShadingBake::bake_cached(
-                        self.hm,
-                        &needs,
-                        DEFAULT_AZIMUTHS,
+                    // A streamed terrain's from the package level that fits the shading share.
+                    let (max_bytes, dir) = (
                         self.profile.cpu_split().shading,
-                        &clipsat::bake::default_cache_dir(),
-                    )?;
+                        clipsat::bake::default_cache_dir(),
+                    );
+                    let (bake, outcome) = match self.clipmap.tile_cache() {
+                        Some(c) => ShadingBake::bake_package_cached(
+                            c.package(),
+                            &needs,
+                            DEFAULT_AZIMUTHS,
+                            max_bytes,
+                            &dir,
+                        )?,
+                        None => ShadingBake::bake_cached(
+                            self.hm,
+                            &needs,
+                            DEFAULT_AZIMUTHS,
+                            max_bytes,
+                            &dir,
+                        )?,
+                    };
                     eprintln!("clipsat view: shading SATs {outcome:?}");
                     self.bake = Some(bake);
                 }
