@@ -5,7 +5,7 @@
 //! view-xvfb-sg.png (SG shading).
 //!
 //! `view_frames_json_under_xvfb` runs the non-interactive measurement (`--frames 8 --json`) and checks the
-//! window got an OpenGL ES 3.0 context and that both paths were timed, then again streamed (`--stream`).
+//! window got an OpenGL ES 3.0 context and that both paths were timed, then again streamed from a package.
 //!
 //! Ignored by default (needs Xvfb, xdotool and xwd, and takes about a minute on llvmpipe):
 //! `bash .ci/view-xvfb`, or `cargo test --test cli view_xvfb -- --ignored --nocapture`.
@@ -226,14 +226,21 @@ fn view_frames_json_under_xvfb() {
         .as_f64()
         .is_some_and(|r| r > 0.0));
 
-    // Issue 13 item 2: `--stream` draws a plain source through the tile cache (baked into the cache
-    // first), the window and the headless path alike, with the SAT LOD tables mapped.
+    // Issue 13 item 2: a package streams through the tile cache, the window and the headless path
+    // alike, with the SAT LOD tables mapped.
+    let pkg =
+        std::env::temp_dir().join(format!("clipsat-view-xvfb-{}.clipsat", std::process::id()));
+    let p = pkg.to_string_lossy().into_owned();
+    let baked = Command::new(env!("CARGO_BIN_EXE_clipsat"))
+        .args(["bake", "procedural:size=257", "--out", &p, "--json"])
+        .output()
+        .expect("clipsat bake");
+    assert!(baked.status.success(), "clipsat bake: {baked:?}");
     let out = Command::new(env!("CARGO_BIN_EXE_clipsat"))
         .args([
             "view",
             "--terrain",
-            "procedural:size=257",
-            "--stream",
+            &p,
             "--lod",
             "sat",
             "--size",
@@ -244,9 +251,10 @@ fn view_frames_json_under_xvfb() {
         ])
         .env("DISPLAY", &display)
         .output()
-        .expect("clipsat view --stream");
+        .expect("clipsat view P.clipsat");
+    let _ = std::fs::remove_file(&pkg);
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "clipsat view --stream: {stderr}");
+    assert!(out.status.success(), "clipsat view P.clipsat: {stderr}");
     let j: serde_json::Value = serde_json::from_slice(&out.stdout)
         .unwrap_or_else(|e| panic!("stdout is not one JSON document: {e}\n{stderr}"));
     assert_eq!(j["streamed"], true, "{j}");
