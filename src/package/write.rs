@@ -264,7 +264,11 @@ fn add_lod_records(out: &Path, opts: &BakeOptions, progress: bool) -> Result<(u6
     let old = pkg.header().clone();
     let file_len = pkg.file_bytes();
     drop(pkg);
-    let tmp = out.with_extension(format!("tmp{}", std::process::id()));
+    // Appended, not `with_extension`: `out` may itself be a temporary name (`cached` bakes into
+    // `P.tmpPID`), which `with_extension("tmpPID")` would give back, truncating the file being read.
+    let mut tmp = out.as_os_str().to_owned();
+    tmp.push(format!(".records{}", std::process::id()));
+    let tmp = std::path::PathBuf::from(tmp);
     let written = rewrite_with_records(out, &tmp, old, file_len, &spooled);
     for sp in &spooled {
         let _ = std::fs::remove_file(&sp.path);

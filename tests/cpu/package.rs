@@ -672,3 +672,39 @@ fn lod_tables_baked_out_of_core_match_the_resident_bake() {
         let _ = std::fs::remove_file(&out);
     }
 }
+
+/// `package::cached` (what `--stream` bakes a plain source with) gives a valid package: its bake writes
+/// a temporary name, and the bake's second write (the LOD records) must not reuse that same name, which
+/// truncated the file it was reading (every `--stream` of a plain source failed at 328a6a7 with
+/// "checksum mismatch"). A second call finds the file without loading the source.
+#[test]
+fn cached_bake_of_a_plain_source_opens_and_is_found_again() {
+    let dir = temp("cached");
+    let _ = std::fs::remove_dir_all(&dir);
+    let hm = synthetic(70, 45);
+    let bar = indicatif::ProgressBar::hidden();
+    let load = || Ok(Box::new(source::Resident::new(hm.clone())));
+    let (path, baked) = package::cached(&dir, 0x5eed, load, &bar).expect("cached bake");
+    assert!(baked, "first call bakes");
+    let pkg = Package::open(&path).expect("the cached package opens");
+    assert_eq!(pkg.decode_level(0).expect("decodes").len(), 70 * 45);
+    let again = package::cached(
+        &dir,
+        0x5eed,
+        || -> clipsat::Result<Box<source::Resident<Heightmap>>> {
+            panic!("a cached package must not load its source again")
+        },
+        &bar,
+    )
+    .expect("found");
+    assert_eq!(again, (path, false));
+    let leftovers: Vec<_> = std::fs::read_dir(&dir)
+        .expect("dir")
+        .filter_map(|e| e.ok())
+        .map(|e| e.file_name())
+        .filter(|n| {
+            n.to_string_lossy().contains(".tmp") || n.to_string_lossy().contains(".records")
+        })
+        .collect();
+    assert!(leftovers.is_empty(), "temporary files left: {leftovers:?}");
+}
