@@ -237,22 +237,7 @@ impl TileCache {
         (x0, y0, x1, y1): (i64, i64, i64, i64),
         budget: &mut u64,
     ) -> Result<bool> {
-        let h = self.package.header();
-        let l = h.levels[level];
-        let t = i64::from(h.tile);
-        let clamp_x = |x: i64| x.clamp(0, i64::from(l.width) - 1);
-        let clamp_y = |y: i64| y.clamp(0, i64::from(l.height) - 1);
-        #[expect(
-            clippy::cast_possible_truncation,
-            clippy::cast_sign_loss,
-            reason = "clamped sample coordinates over the tile side are u32 tile indices"
-        )]
-        let (tx0, tx1, ty0, ty1) = (
-            (clamp_x(x0) / t) as u32,
-            (clamp_x(x1 - 1) / t) as u32,
-            (clamp_y(y0) / t) as u32,
-            (clamp_y(y1 - 1) / t) as u32,
-        );
+        let (tx0, tx1, ty0, ty1) = self.tile_span(level, (x0, y0, x1, y1));
         let mut all = true;
         for ty in ty0..=ty1 {
             for tx in tx0..=tx1 {
@@ -262,9 +247,13 @@ impl TileCache {
         Ok(all)
     }
 
-    /// Whether every tile of `level` covering samples x0..x1, y0..y1 (clamped to the level) is resident
-    /// now, as [`TileCache::ensure_rect`] would find them (nothing decoded, nothing stamped).
-    pub fn rect_resident(&self, level: usize, (x0, y0, x1, y1): (i64, i64, i64, i64)) -> bool {
+    /// The tiles of `level` covering samples x0..x1, y0..y1 clamped to the level: inclusive tile columns
+    /// (tx0, tx1) and rows (ty0, ty1).
+    fn tile_span(
+        &self,
+        level: usize,
+        (x0, y0, x1, y1): (i64, i64, i64, i64),
+    ) -> (u32, u32, u32, u32) {
         let h = self.package.header();
         let l = h.levels[level];
         let t = i64::from(h.tile);
@@ -275,12 +264,18 @@ impl TileCache {
             clippy::cast_sign_loss,
             reason = "clamped sample coordinates over the tile side are u32 tile indices"
         )]
-        let (tx0, tx1, ty0, ty1) = (
+        (
             (clamp_x(x0) / t) as u32,
             (clamp_x(x1 - 1) / t) as u32,
             (clamp_y(y0) / t) as u32,
             (clamp_y(y1 - 1) / t) as u32,
-        );
+        )
+    }
+
+    /// Whether every tile of `level` covering samples x0..x1, y0..y1 (clamped to the level) is resident
+    /// now, as [`TileCache::ensure_rect`] would find them (nothing decoded, nothing stamped).
+    pub fn rect_resident(&self, level: usize, (x0, y0, x1, y1): (i64, i64, i64, i64)) -> bool {
+        let (tx0, tx1, ty0, ty1) = self.tile_span(level, (x0, y0, x1, y1));
         (ty0..=ty1).all(|ty| (tx0..=tx1).all(|tx| self.map[self.index(level, tx, ty)] != NONE))
     }
 
