@@ -77,6 +77,29 @@ pub fn grid_level(sizes: &[(u32, u32)], azimuths: u32, max_bytes: u64) -> Result
         })
 }
 
+/// The azimuths a bake of `needs` holds (0 without visibility) and the grid level [`grid_level`] picks
+/// among `sizes`, after checking `azimuths`: what every bake and cache key starts from.
+fn grid_choice(
+    sizes: &[(u32, u32)],
+    needs: &Needs,
+    azimuths: u32,
+    max_bytes: u64,
+) -> Result<(u32, usize)> {
+    check_azimuths(azimuths)?;
+    let d = if needs.bake_horizons { azimuths } else { 0 };
+    Ok((d, grid_level(sizes, d, max_bytes)?))
+}
+
+/// The pyramid level sizes a package holds, finest first.
+fn package_sizes(package: &Package) -> Vec<(u32, u32)> {
+    package
+        .header()
+        .levels
+        .iter()
+        .map(|l| (l.width, l.height))
+        .collect()
+}
+
 fn check_azimuths(azimuths: u32) -> Result<()> {
     if azimuths == 0 || azimuths > MAX_AZIMUTHS || !azimuths.is_multiple_of(4) {
         return Err(Error::Invalid {
@@ -150,9 +173,12 @@ impl ShadingBake {
     /// ([`grid_level`]): always the normal SAT; the horizons ([`horizon::texel_horizons`], `azimuths`
     /// of them) and their SATs only when `needs.bake_horizons`.
     pub fn bake(hm: &Heightmap, needs: &Needs, azimuths: u32, max_bytes: u64) -> Result<Self> {
-        check_azimuths(azimuths)?;
-        let d = if needs.bake_horizons { azimuths } else { 0 };
-        let k = grid_level(&level_sizes(hm.width(), hm.height()), d, max_bytes)?;
+        let (d, k) = grid_choice(
+            &level_sizes(hm.width(), hm.height()),
+            needs,
+            azimuths,
+            max_bytes,
+        )?;
         let data = (hm.width(), hm.height());
         if k == 0 {
             return Self::bake_grid(hm, 1, d, data, hm.spacing());
@@ -187,11 +213,8 @@ impl ShadingBake {
         azimuths: u32,
         max_bytes: u64,
     ) -> Result<Self> {
-        check_azimuths(azimuths)?;
-        let d = if needs.bake_horizons { azimuths } else { 0 };
+        let (d, k) = grid_choice(&package_sizes(package), needs, azimuths, max_bytes)?;
         let h = package.header();
-        let sizes: Vec<(u32, u32)> = h.levels.iter().map(|l| (l.width, l.height)).collect();
-        let k = grid_level(&sizes, d, max_bytes)?;
         let dims = h.levels[k];
         let step = 1u32 << k;
         // In place: the quantum units become metres in the same allocation.
@@ -292,9 +315,12 @@ impl ShadingBake {
         max_bytes: u64,
         dir: &Path,
     ) -> Result<(Self, CacheOutcome)> {
-        check_azimuths(azimuths)?;
-        let d = if needs.bake_horizons { azimuths } else { 0 };
-        let k = grid_level(&level_sizes(hm.width(), hm.height()), d, max_bytes)?;
+        let (_, k) = grid_choice(
+            &level_sizes(hm.width(), hm.height()),
+            needs,
+            azimuths,
+            max_bytes,
+        )?;
         let key = shading_cache_key(hm, needs, azimuths, k);
         Self::cached(key, needs, dir, || {
             Self::bake(hm, needs, azimuths, max_bytes)
@@ -310,15 +336,7 @@ impl ShadingBake {
         max_bytes: u64,
         dir: &Path,
     ) -> Result<(Self, CacheOutcome)> {
-        check_azimuths(azimuths)?;
-        let d = if needs.bake_horizons { azimuths } else { 0 };
-        let sizes: Vec<(u32, u32)> = package
-            .header()
-            .levels
-            .iter()
-            .map(|l| (l.width, l.height))
-            .collect();
-        let k = grid_level(&sizes, d, max_bytes)?;
+        let (_, k) = grid_choice(&package_sizes(package), needs, azimuths, max_bytes)?;
         let key = package_cache_key(package, needs, azimuths, k);
         Self::cached(key, needs, dir, || {
             Self::bake_package(package, needs, azimuths, max_bytes)

@@ -124,29 +124,19 @@ pub fn hole_pixels(
     block_quads: u32,
 ) -> u64 {
     let (mut holes, mut traced) = (0u64, 0u64);
-    for x in 0..image.width {
-        let is_clear = |y: u32| image.pixel(x, y) == clear;
-        let Some(top) = (0..image.height).find(|&y| !is_clear(y)) else {
-            continue;
-        };
-        let bottom = (0..image.height)
-            .rev()
-            .find(|&y| !is_clear(y))
-            .unwrap_or(top);
-        for y in (top..=bottom).filter(|&y| is_clear(y)) {
-            traced += 1;
-            if traced > MAX_TRACED
-                || ray_below_drawn_surface(
-                    plan,
-                    (image.width, image.height),
-                    clipmap,
-                    camera,
-                    block_quads,
-                    (x, y),
-                )
-            {
-                holes += 1;
-            }
+    for (x, y) in crate::measure::image::crack_candidates(image, clear) {
+        traced += 1;
+        if traced > MAX_TRACED
+            || ray_below_drawn_surface(
+                plan,
+                (image.width, image.height),
+                clipmap,
+                camera,
+                block_quads,
+                (x, y),
+            )
+        {
+            holes += 1;
         }
     }
     holes

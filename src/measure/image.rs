@@ -12,19 +12,26 @@ pub const CRACK_CLEAR_RGBA8: [u8; 4] = [255, 0, 255, 255];
 /// Clear-colour pixels inside the terrain's silhouette: in each pixel column, the pixels of colour `clear`
 /// lying between the lowest and the highest pixel of any other colour. A watertight render has none.
 pub fn crack_pixels(image: &Image, clear: [u8; 4]) -> u64 {
-    let mut cracks = 0;
-    for x in 0..image.width {
-        let is_clear = |y: u32| image.pixel(x, y) == clear;
-        let Some(top) = (0..image.height).find(|&y| !is_clear(y)) else {
-            continue;
+    crack_candidates(image, clear).count() as u64
+}
+
+/// The (x, y) of the pixels [`crack_pixels`] counts, column by column, top to bottom (the column rule;
+/// [`crate::measure::hole_pixels`] traces them).
+pub(crate) fn crack_candidates(
+    image: &Image,
+    clear: [u8; 4],
+) -> impl Iterator<Item = (u32, u32)> + '_ {
+    (0..image.width).flat_map(move |x| {
+        let is_clear = move |y: u32| image.pixel(x, y) == clear;
+        let top = (0..image.height).find(|&y| !is_clear(y));
+        // An empty column has no top, and then no bottom: the range below is empty.
+        let bottom = (0..image.height).rev().find(|&y| !is_clear(y));
+        let rows = match (top, bottom) {
+            (Some(t), Some(b)) => t..b + 1,
+            _ => 0..0,
         };
-        let bottom = (0..image.height)
-            .rev()
-            .find(|&y| !is_clear(y))
-            .expect("a non-clear pixel exists");
-        cracks += (top..=bottom).filter(|&y| is_clear(y)).count() as u64;
-    }
-    cracks
+        rows.filter(move |&y| is_clear(y)).map(move |y| (x, y))
+    })
 }
 
 /// Root-mean-square difference of two RGBA8 images of the same size over every pixel and the R, G, B
