@@ -60,8 +60,9 @@ struct DrawUniform {
     fine_origin: vec4<i32>,
     // xyz: world position of the fine anchor at height 0 minus the eye (m); w: the fine spacing (m).
     fine_rel: vec4<f32>,
-    // Detail pool draws (`clipsat::detail`): x: slot + 1 (0: the ring); y: samples per tile side; zw:
-    // unused. A pool draw is anchored at its tile's first sample, so lattice points are the tile's texels.
+    // Detail pool draws (`clipsat::detail`): x: layer + 1 (0: the ring); y: samples per tile side; zw: the
+    // tile's first texel in its layer (an atlas, `DetailAtlas`). A pool draw is anchored at its tile's
+    // first sample, so lattice points are the tile's texels from there.
     pool: vec4<i32>,
 }
 
@@ -74,7 +75,7 @@ struct DrawUniform {
 // tile (pool draws never morph: z_c = z).
 fn clip_fetch(p: vec2<i32>) -> vec2<f32> {
     if (draw.pool.x > 0) {
-        let z = textureLoad(detail, p, draw.pool.x - 1, 0).x;
+        let z = textureLoad(detail, draw.pool.zw + p, draw.pool.x - 1, 0).x;
         return vec2<f32>(z, z);
     }
     let t = (draw.tex.xy + p) % vec2<i32>(draw.origin.w);

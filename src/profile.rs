@@ -160,8 +160,8 @@ pub struct Footprint {
     pub targets: u64,
     /// Uniform buffers: the globals plus one 256-byte slot per draw (`budget.max_draws`).
     pub uniforms: u64,
-    /// The detail pool: one R32F 2D array texture, [`Profile::detail_side`]^2 x
-    /// [`Profile::detail_layers`].
+    /// The detail pool: one R32F 2D array texture of [`Profile::detail_atlas`]'s layers, each
+    /// `layer_side`^2 texels.
     pub detail: u64,
 }
 
@@ -185,8 +185,48 @@ pub const DRAW_SLOT_BYTES: u64 = 256;
 pub const MAX_TEXTURE_SIDE: u32 = 2048;
 /// Most array layers on the GLES 3.0 floor.
 pub const MAX_TEXTURE_LAYERS: u32 = 256;
-/// Most detail pool tiles a profile may ask for (one array layer each, plus the GL backend's spare layer).
-pub const MAX_DETAIL_TILES: u32 = MAX_TEXTURE_LAYERS - 1;
+/// Most array layers the detail pool takes (the GLES 3.0 floor less the GL backend's spare layer).
+pub const MAX_DETAIL_LAYERS: u32 = MAX_TEXTURE_LAYERS - 1;
+/// Most detail pool tiles a profile may ask for: an atlas of several tiles per array layer
+/// ([`DetailAtlas`]), so more tiles than layers. It sizes the plan's fixed pool collections.
+pub const MAX_DETAIL_TILES: u32 = 1024;
+
+/// Where the detail pool's slots lie in its R32F array texture (issue 15): each layer is a grid of
+/// `cols x cols` tiles, `side` texels each, filled row by row, then the next layer. A single tile per
+/// layer while the tiles fit [`MAX_DETAIL_LAYERS`], else the fewest columns that fit them. Pure: the plan
+/// puts each draw's place into its uniforms (so into its hash), and the renderer uploads there.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DetailAtlas {
+    /// Texels per tile side ([`Profile::detail_side`]).
+    pub side: u32,
+    /// Tiles per layer row (and column).
+    pub cols: u32,
+    /// Array layers, the GL backend's spare layer included.
+    pub layers: u32,
+}
+
+impl DetailAtlas {
+    /// Tiles per layer.
+    pub fn per_layer(&self) -> u32 {
+        self.cols.saturating_mul(self.cols)
+    }
+
+    /// Texels per layer side.
+    pub fn layer_side(&self) -> u32 {
+        self.cols.saturating_mul(self.side)
+    }
+
+    /// Slot `slot`'s (layer, x, y): its layer and the texel of its first sample there.
+    pub fn place(&self, slot: u32) -> (u32, u32, u32) {
+        let per = self.per_layer().max(1);
+        let w = slot % per;
+        (
+            slot / per,
+            (w % self.cols) * self.side,
+            (w / self.cols) * self.side,
+        )
+    }
+}
 /// Most rings a profile may ask for (g_L = g_0 2^L must stay exact in f32).
 pub const MAX_LEVELS: u32 = 16;
 /// Most draws any profile may ask for (`budget.max_draws` is checked against it at start-up; the plan's
@@ -305,7 +345,7 @@ impl Profile {
             return bad(
                 "budget.detail_tiles",
                 format!(
-                    "{} is not in 0..={MAX_DETAIL_TILES} (one GLES 3.0 array layer per tile)",
+                    "{} is not in 0..={MAX_DETAIL_TILES} (the plan's fixed pool capacity)",
                     b.detail_tiles
                 ),
             );
@@ -316,6 +356,18 @@ impl Profile {
                 format!(
                     "{} is not 0 or a power of two (a tile is drawn with the block mesh)",
                     b.detail_tile_quads
+                ),
+            );
+        }
+        let atlas = self.detail_atlas();
+        if atlas.layer_side() > MAX_TEXTURE_SIDE {
+            return bad(
+                "budget.detail_tiles",
+                format!(
+                    "{} tiles of {} samples need a {} texel atlas layer, over the GLES 3.0 {MAX_TEXTURE_SIDE}",
+                    b.detail_tiles,
+                    atlas.side,
+                    atlas.layer_side()
                 ),
             );
         }
@@ -493,15 +545,30 @@ impl Profile {
         self.detail_quads().saturating_add(3)
     }
 
-    /// Layers of the detail pool texture: the tile count (at least 1), with the same GL spare layer as
-    /// [`Profile::height_layers`].
-    pub fn detail_layers(&self) -> u32 {
-        let l = self.budget.detail_tiles.max(1);
-        if l == 1 || l.is_multiple_of(6) {
-            l.saturating_add(1)
-        } else {
-            l
+    /// The detail pool texture's layout ([`DetailAtlas`]): at least one tile; one tile per layer up to
+    /// [`MAX_DETAIL_LAYERS`] tiles, else the fewest tiles per layer side that fit; the layer count with
+    /// the same GL spare layer as [`Profile::height_layers`].
+    pub fn detail_atlas(&self) -> DetailAtlas {
+        let tiles = self.budget.detail_tiles.max(1);
+        let mut cols = 1u32;
+        while cols.saturating_mul(cols).saturating_mul(MAX_DETAIL_LAYERS) < tiles {
+            cols += 1;
         }
+        let l = tiles.div_ceil(cols * cols);
+        DetailAtlas {
+            side: self.detail_side(),
+            cols,
+            layers: if l == 1 || l.is_multiple_of(6) {
+                l.saturating_add(1)
+            } else {
+                l
+            },
+        }
+    }
+
+    /// Layers of the detail pool texture ([`Profile::detail_atlas`]).
+    pub fn detail_layers(&self) -> u32 {
+        self.detail_atlas().layers
     }
 
     /// The GPU memory this profile needs; see [`Footprint`] for what each part holds.
@@ -527,10 +594,13 @@ impl Profile {
                 .saturating_add(padded_row.saturating_mul(h)),
             uniforms: GLOBALS_BYTES
                 .saturating_add(u64::from(self.budget.max_draws) * DRAW_SLOT_BYTES),
-            detail: u64::from(self.detail_side())
-                .saturating_mul(u64::from(self.detail_side()))
-                .saturating_mul(u64::from(self.detail_layers()))
-                .saturating_mul(4),
+            detail: {
+                let a = self.detail_atlas();
+                u64::from(a.layer_side())
+                    .saturating_mul(u64::from(a.layer_side()))
+                    .saturating_mul(u64::from(a.layers))
+                    .saturating_mul(4)
+            },
         }
     }
 }

@@ -648,7 +648,8 @@ impl Planner {
                 let key =
                     out.detail.resident[usize::from(slot)].expect("a pool draw's slot is resident");
                 let first = key.first_sample(self.pool.quads());
-                detail_draw_uniform(clipmap, camera, d, slot, first, self.pool.side(), self.n)
+                let place = self.pool.atlas().place(u32::from(slot));
+                detail_draw_uniform(clipmap, camera, d, place, first, self.pool.side(), self.n)
             } else if sat {
                 lod_draw_uniform(clipmap, camera, d, self.n, self.size)
             } else {

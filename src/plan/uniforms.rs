@@ -164,7 +164,8 @@ pub struct DrawUniform {
     pub fine_origin: [i32; 4],
     /// xyz: world position of the fine anchor at height 0 minus the eye (m); w: fine spacing (m).
     pub fine_rel: [f32; 4],
-    /// x: detail pool slot + 1 (0: the heights come from the ring); y: samples per tile side; zw: unused.
+    /// x: detail pool layer + 1 (0: the heights come from the ring); y: samples per tile side; zw: the
+    /// tile's first texel in that layer ([`crate::profile::DetailAtlas::place`]).
     pub pool: [i32; 4],
 }
 const _: () = assert!(std::mem::size_of::<DrawUniform>() == 192);
@@ -319,7 +320,7 @@ pub fn detail_draw_uniform(
     clipmap: &Clipmap,
     camera: &Camera,
     d: &cull::Draw,
-    slot: u16,
+    place: (u32, u32, u32),
     first: (i64, i64),
     side: u32,
     n: u32,
@@ -358,7 +359,12 @@ pub fn detail_draw_uniform(
         // alpha = 0 everywhere: the transition band starts past any lattice point.
         morph: [0.0, 0.0, 1.0e9, 1.0e9],
         morph_w: [n as f32 / 10.0, n as f32, 0.0, 0.0],
-        pool: [i32::from(slot) + 1, side as i32, 0, 0],
+        pool: [
+            place.0 as i32 + 1,
+            side as i32,
+            place.1 as i32,
+            place.2 as i32,
+        ],
         ..DrawUniform::default()
     }
     .unsnapped()

@@ -34,18 +34,20 @@ pub fn cpu_vertex(globals: &Globals, u: &DrawUniform, ring: &Ring, v: MeshVertex
     vertex_with(globals, u, &fetch, v)
 }
 
-/// [`cpu_vertex`] for a detail pool draw (`u.pool[0] > 0`, issue 15): the heights come from its tile,
-/// `tile` its `side x side` samples as [`crate::plan::detail::fill_tile`] writes them, as `clip_fetch`
-/// reads the pool layer (z_c = z).
+/// [`cpu_vertex`] for a detail pool draw (`u.pool[0] > 0`, issue 15): the heights come from its tile in
+/// the draw's atlas layer, `layer` its `layer_side x layer_side` texels (row-major, each tile as
+/// [`crate::plan::detail::fill_tile`] writes it at its [`crate::profile::DetailAtlas::place`]), read as
+/// `clip_fetch` reads it: at the tile's first texel `u.pool[2..4]` plus the lattice offset (z_c = z).
 pub fn cpu_detail_vertex(
     globals: &Globals,
     u: &DrawUniform,
-    tile: &[f32],
+    layer: &[f32],
+    layer_side: u32,
     v: MeshVertex,
 ) -> CpuVertex {
-    let side = u.pool[1];
+    let w = layer_side as i32;
     let fetch = |x: i32, y: i32| {
-        let z = tile[(y * side + x) as usize];
+        let z = layer[((u.pool[3] + y) * w + u.pool[2] + x) as usize];
         [z, z]
     };
     vertex_with(globals, u, &fetch, v)

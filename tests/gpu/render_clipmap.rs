@@ -226,7 +226,14 @@ fn twin_check(opts: &FrameOptions, pick: Pick) {
     let snapped = pick != Pick::Sample;
     let gpu = strict();
     let hm = relief();
-    let p = profile("gles3-low", W, H, None);
+    let mut p = profile("gles3-low", W, H, None);
+    if pick == Pick::Pool {
+        // More tiles than layers: an atlas of 2 x 2 tiles a layer, so slots past the first sit at an
+        // offset in their layer (`DetailAtlas::place`).
+        p.budget.detail_tiles = 300;
+        assert_eq!(p.detail_atlas().cols, 2);
+        p.validate("test").expect("valid");
+    }
     let mut cm = clipmap(&hm, &p);
     let cam = flight(&hm, 7, 37.0, 120.0, None);
     for _ in 0..40 {
@@ -272,7 +279,10 @@ fn twin_check(opts: &FrameOptions, pick: Pick) {
     assert!(!picked.is_empty(), "no snapped or pool tiles in this frame");
     let quads = p.detail_quads();
     let side = p.detail_side() as usize;
+    let atlas = p.detail_atlas();
+    let ls = atlas.layer_side() as usize;
     let mut tile = vec![0.0f32; side * side];
+    let mut layer = vec![f32::NAN; ls * ls];
     let mut checked = 0;
     let mut worst_px = 0.0f64;
     for k in picked {
@@ -289,10 +299,17 @@ fn twin_check(opts: &FrameOptions, pick: Pick) {
             let key =
                 r.plan().detail().resident[usize::from(slot)].expect("a drawn slot is resident");
             assert!(fill_tile(&cm, &key, quads, &mut tile), "resident source");
+            // The tile at its place in its layer, as the renderer uploads it (NaN elsewhere).
+            layer.fill(f32::NAN);
+            let (_, x0, y0) = atlas.place(u32::from(slot));
+            for (r, row) in tile.chunks_exact(side).enumerate() {
+                let at = (y0 as usize + r) * ls + x0 as usize;
+                layer[at..at + side].copy_from_slice(row);
+            }
         }
         for (v, g) in m.vertices.iter().zip(&gpu_clip) {
             let c = if d.pool.is_some() {
-                cpu_detail_vertex(r.globals(), &u, &tile, *v).clip
+                cpu_detail_vertex(r.globals(), &u, &layer, atlas.layer_side(), *v).clip
             } else {
                 cpu_vertex(r.globals(), &u, cm.ring(d.level), *v).clip
             };

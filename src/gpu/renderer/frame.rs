@@ -133,6 +133,7 @@ impl Renderer {
         }
         let chained = d.prev.is_some() && d.prev == self.detail_synced;
         let side = self.detail_side;
+        let atlas = self.detail_atlas;
         let mut write = |slot: u32, key: &crate::plan::detail::TileKey| -> Result<()> {
             if !crate::plan::detail::fill_tile(
                 clipmap,
@@ -149,15 +150,12 @@ impl Renderer {
                     ),
                 });
             }
+            let (z, x, y) = atlas.place(slot);
             queue.write_texture(
                 wgpu::TexelCopyTextureInfo {
                     texture: &self.detail,
                     mip_level: 0,
-                    origin: wgpu::Origin3d {
-                        x: 0,
-                        y: 0,
-                        z: slot,
-                    },
+                    origin: wgpu::Origin3d { x, y, z },
                     aspect: wgpu::TextureAspect::All,
                 },
                 bytemuck::cast_slice(&self.detail_staging),

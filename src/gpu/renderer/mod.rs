@@ -104,8 +104,9 @@ struct GpuMesh {
 pub struct Renderer {
     ledger: Ledger,
     heights: wgpu::Texture,
-    /// The detail pool (issue 15): one tile per layer, `detail_side^2` R32F samples.
+    /// The detail pool (issue 15): tiles of `detail_side^2` R32F samples, placed by `detail_atlas`.
     detail: wgpu::Texture,
+    detail_atlas: crate::profile::DetailAtlas,
     detail_quads: u32,
     detail_side: u32,
     /// One tile's samples, filled from the clipmap's source before each tile upload (allocated once).
@@ -196,11 +197,12 @@ impl Renderer {
             },
         );
         let detail_side = profile.detail_side();
+        let atlas = profile.detail_atlas();
         let detail = dev.texture(
             "detail pool",
             &array_texture(
-                detail_side,
-                profile.detail_layers(),
+                atlas.layer_side(),
+                atlas.layers,
                 DETAIL_FORMAT,
                 wgpu::TextureUsages::empty(),
             ),
@@ -336,6 +338,7 @@ impl Renderer {
             detail,
             detail_quads: profile.detail_quads(),
             detail_side,
+            detail_atlas: atlas,
             detail_staging: vec![0.0; detail_side as usize * detail_side as usize],
             detail_synced: None,
             block,

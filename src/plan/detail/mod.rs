@@ -1,8 +1,8 @@
 //! Stage 2, the per-frame plan: the detail pool (issue 15; design.md "SAT LOD" 6). The rings hold data by
 //! distance, SAT LOD wants it by error: a block whose wanted level is finer than any ring holding it is
-//! clamped. The pool is a fixed set of height tiles (`budget.detail_tiles`, one GPU array layer each), one
-//! tile per cell of a level's fixed grid (`detail_tile_quads` quads a side, plus a one-sample border for
-//! normals). Each frame [`DetailPool::plan`] refines the clamped blocks as quadtrees of such cells and
+//! clamped. The pool is a fixed set of height tiles (`budget.detail_tiles`, packed into GPU array layers
+//! by [`DetailAtlas`]), one tile per cell of a level's fixed grid (`detail_tile_quads` quads a side, plus
+//! a one-sample border for normals). Each frame [`DetailPool::plan`] refines the clamped blocks as quadtrees of such cells and
 //! quarter cells, largest bound first, under the slots, draws and triangles (`refine.rs`); fills their
 //! tiles most-needed first with what is left of the per-frame sample budget after the rings (coarse-to-fine
 //! ring fill stays first), evicts the least recently needed tile, and serves a block from the pool once all
@@ -24,7 +24,7 @@ use crate::plan::lod::{BlockLod, LodFrame, MAX_LOD_BLOCKS};
 use crate::plan::mesh;
 
 mod refine;
-use crate::profile::MAX_DETAIL_TILES;
+use crate::profile::{DetailAtlas, MAX_DETAIL_TILES};
 use crate::{Error, Profile, Result};
 use refine::Quadtree;
 pub use refine::MAX_DETAIL_CELLS;
@@ -65,7 +65,7 @@ impl TileKey {
 /// A tile written into a pool slot this frame.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct DetailUpload {
-    /// The slot (array layer).
+    /// The slot ([`DetailAtlas::place`] says where it lies).
     pub slot: u32,
     /// What it now holds.
     pub key: TileKey,
@@ -321,6 +321,7 @@ struct Slot {
 pub struct DetailPool {
     quads: u32,
     side: u32,
+    atlas: DetailAtlas,
     slots: heapless::Vec<Slot, DETAIL_CAPACITY>,
     /// Advances once per clipmap frame planned.
     clock: u64,
@@ -344,6 +345,7 @@ impl DetailPool {
         Self {
             quads: profile.detail_quads(),
             side: profile.detail_side(),
+            atlas: profile.detail_atlas(),
             slots,
             clock: 0,
             seq: 0,
@@ -360,6 +362,11 @@ impl DetailPool {
     /// Samples per tile side (border included).
     pub fn side(&self) -> u32 {
         self.side
+    }
+
+    /// Where each slot lies in the pool texture.
+    pub fn atlas(&self) -> DetailAtlas {
+        self.atlas
     }
 
     /// Slots (`budget.detail_tiles`).
