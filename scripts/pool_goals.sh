@@ -5,6 +5,7 @@
 #  2. equal error: distance LOD's whole-frame error D; the largest epsilon of a ladder at which
 #     sat-conservative's whole-frame error is <= D; the triangles there against distance LOD's;
 #  3. the image: RMSE against the brute-force render (`--ground-truth`) at epsilon 1 and distance LOD's.
+# Every run is --resident: the measured screen error and the hole tracing read the whole terrain.
 # Usage: scripts/pool_goals.sh [CLIPSAT_BINARY] [PROFILE]   (run from the repository root; needs jq)
 # Writes Markdown tables on stdout; the per-run JSON goes to out/pool_goals/.
 set -euo pipefail
@@ -19,7 +20,7 @@ run() { # name mode eps args...
   local name=$1 mode=$2 eps=$3; shift 3
   local f="$OUT/$name.$mode.$eps.json"
   "$BIN" render --terrain "../shared/data/$name" "$@" --profile "$PROFILE" --lod "$mode" \
-    ${eps:+--epsilon "$eps"} --json --out "$OUT/frame.png" > "$f"
+    ${eps:+--epsilon "$eps"} --resident --json --out "$OUT/frame.png" > "$f"
   echo "$f"
 }
 bound=""; equal=""; image=""

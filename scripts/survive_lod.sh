@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Issue 16's "shading survives LOD" goal: at epsilon 2, SAT LOD's image RMSE against the brute-force render
 # is within 1.2x of distance LOD's, on every shared terrain (default camera, 640x360, `render --json
-# --ground-truth`). Usage: scripts/survive_lod.sh [CLIPSAT_BINARY] [PROFILE] [EXTRA ARGS...]
+# --ground-truth --resident`: the brute-force reference reads the whole terrain). Usage: scripts/survive_lod.sh [CLIPSAT_BINARY] [PROFILE] [EXTRA ARGS...]
 # (run from the repository root; needs jq). Writes a Markdown table on stdout.
 set -euo pipefail
 BIN=${1:-target/release/clipsat}
@@ -20,7 +20,7 @@ for t in "${TERRAINS[@]}"; do
   for mode in distance sat sat-conservative; do
     f="$OUT/$name.$mode.json"
     "$BIN" render --terrain "../shared/data/$name" "${args[@]}" --profile "$PROFILE" --size 640x360 \
-      --lod "$mode" --epsilon 2 --json --ground-truth --out "$OUT/$name.$mode.png" "$@" > "$f"
+      --lod "$mode" --epsilon 2 --json --ground-truth --resident --out "$OUT/$name.$mode.png" "$@" > "$f"
     r=$(jq .rmse_vs_ground_truth "$f")
     if [ "$mode" = distance ]; then d=$r; row="$row $(printf %.2f "$r") |"; else
       row="$row $(printf %.2f "$r") ($(jq .triangles "$f")) | $(echo "$r / $d" | bc -l | xargs printf %.2f)x |"; fi

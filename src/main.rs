@@ -21,15 +21,19 @@ enum Command {
     /// Bake a terrain into a package: the compressed, tiled residual pyramid streamed at runtime.
     Bake(cmd::bake::BakeArgs),
     /// Benchmarks: `bench lod` compares the LOD estimators across error bounds on the shared terrains; `bench
-    /// all` writes one report of every measurement.
+    /// all` writes one report of every measurement. They load the whole terrain (they measure against every
+    /// sample); only the memory section's `render` runs stream.
     Bench(cmd::bench::BenchArgs),
     /// Fly a camera path on the CPU: per-frame clipmap updates under the budget, statistics and hashes.
+    /// Streams the terrain (a plain source baked into the cache on first use); --resident loads it whole.
     Fly(cmd::fly::FlyArgs),
     /// Describe a terrain: size, spacing, height range, voids, and the GPU memory each shipped profile needs.
     Info(cmd::info::InfoArgs),
-    /// Render one frame offscreen to a PNG.
+    /// Render one frame offscreen to a PNG. Streams the terrain (a plain source baked into the cache on
+    /// first use); --resident loads it whole.
     Render(cmd::render::RenderArgs),
     /// Tune the SAT LOD exponent p: estimate and bound errors against the exact block maximum, per p.
+    /// Loads the whole terrain (it measures against every sample).
     TuneP(cmd::tune_p::TunePArgs),
     /// Fly interactively in a window: WASD and mouse-look, keys for the LOD mode, epsilon and debug views.
     #[cfg(feature = "view")]

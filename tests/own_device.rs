@@ -30,6 +30,8 @@ fn own_device_matches_clipsat_render_gl() {
             "render",
             "--gpu",
             "gl",
+            // The example draws the terrain loaded whole, as --resident does (render streams by default).
+            "--resident",
             "--terrain",
             "procedural:size=257",
             "--profile",

@@ -374,7 +374,16 @@ fn extreme_heights_in_sat_lod_are_a_clear_error() {
             "--look-at",
             "900,900,0",
         ];
-        assert_refused(&clipsat(&args), "too large for f32", &format!("{t} {mode}"));
+        // Streamed (the default), the package's quantum cannot hold the range: a clear error first.
+        assert_refused(&clipsat(&args), "--resident", &format!("{t} {mode}"));
+        // Resident, the SAT LOD bake refuses the range.
+        let mut resident = args.to_vec();
+        resident.push("--resident");
+        assert_refused(
+            &clipsat(&resident),
+            "too large for f32",
+            &format!("{t} {mode} --resident"),
+        );
     }
     let p = &files[1];
     // The library says the same, before any GPU work.

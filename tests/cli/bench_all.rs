@@ -11,6 +11,7 @@ fn quick_report_has_every_section_and_its_plots() {
     let out = Command::new(env!("CARGO_BIN_EXE_clipsat"))
         .args(["bench", "all", "--quick", "--profile", "gles3-low", "--out"])
         .arg(&dir)
+        .env("CLIPSAT_CACHE", super::cache_dir())
         .output()
         .expect("run the clipsat binary");
     assert!(

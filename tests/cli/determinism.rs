@@ -5,17 +5,12 @@
 //! Debug against release is pinned elsewhere: `frame_hash_sequence_is_pinned` in tests/cpu/fly_paths.rs holds a
 //! golden frame-hash sequence that `cargo test --release --test cpu fly_paths::` must reproduce.
 
-use std::process::{Command, Output};
+use std::process::Output;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
 fn clipsat(args: &[&str], env: &[(&str, &str)]) -> Output {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_clipsat"));
-    c.args(args);
-    for (k, v) in env {
-        c.env(k, v);
-    }
-    c.output().expect("run the clipsat binary")
+    super::clipsat_env(args, env)
 }
 
 fn json(out: &Output) -> serde_json::Value {
@@ -139,4 +134,40 @@ fn concurrent_cpu_load_changes_nothing() {
     }
     assert_eq!(quiet_image, loaded_image, "image hash under load");
     assert_eq!(quiet_fly, loaded_fly, "frame hashes under load");
+}
+
+/// `render` streams a plain source by default, from a package baked into the cache on first use: the
+/// first run into an empty `CLIPSAT_CACHE` bakes, the second finds the bake, and both draw the same image;
+/// the frame hashes of `fly` likewise. `--resident` loads the terrain whole instead.
+#[test]
+fn a_clean_and_a_warm_cache_give_the_same_hashes() {
+    let cache = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("determinism-cache");
+    let _ = std::fs::remove_dir_all(&cache);
+    let c = cache.to_string_lossy().into_owned();
+    let env = [("CLIPSAT_CACHE", c.as_str())];
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("determinism");
+    std::fs::create_dir_all(&dir).expect("scratch folder");
+    let png = dir.join("cache.png");
+    let p = png.to_string_lossy();
+    let mut args = RENDER.to_vec();
+    args.extend(["--out", &p]);
+    let clean = json(&clipsat(&args, &env));
+    let baked = std::fs::read_dir(&cache).map_or(0, |d| {
+        d.filter_map(std::result::Result::ok)
+            .filter(|e| e.path().extension().is_some_and(|x| x == "clipsat"))
+            .count()
+    });
+    assert_eq!(baked, 1, "the first run bakes one package into the cache");
+    let warm = json(&clipsat(&args, &env));
+    assert_eq!(clean["streamed"], true, "{clean}");
+    assert_eq!(warm["streamed"], true, "{warm}");
+    assert_eq!(field(&clean, "image_hash"), field(&warm, "image_hash"));
+    assert_eq!(
+        fly_hashes("cache-clean", &env).1,
+        fly_hashes("cache-warm", &env).1
+    );
+    args.push("--resident");
+    let resident = json(&clipsat(&args, &env));
+    assert_eq!(resident["streamed"], false, "{resident}");
+    let _ = std::fs::remove_dir_all(&cache);
 }

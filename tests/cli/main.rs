@@ -11,15 +11,63 @@ mod render_json;
 mod stream_rss;
 mod view_xvfb;
 
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
+use std::sync::{Arc, Mutex, OnceLock, PoisonError};
 
 /// Runs the built `clipsat` binary with `args`.
 fn clipsat(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_clipsat"))
-        .args(args)
-        .output()
-        .expect("run the clipsat binary")
+    clipsat_env(args, &[])
+}
+
+/// The bake cache every run of this test binary shares (`CLIPSAT_CACHE`): `render`, `fly` and `view`
+/// stream a plain source from a package baked there on first use. Emptied once per test run, so that a
+/// run starts from a clean cache (no package left by an older build) and leaves nothing in the source
+/// tree's target/clipsat-cache.
+fn cache_dir() -> &'static Path {
+    static DIR: OnceLock<PathBuf> = OnceLock::new();
+    DIR.get_or_init(|| {
+        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("clipsat-cache");
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("create the bake cache folder");
+        dir
+    })
+}
+
+/// Runs the built `clipsat` binary with `args` and the extra environment `env` (which may set its own
+/// `CLIPSAT_CACHE`). The first run naming each `--terrain` runs alone among those naming it, so that the
+/// tests running in parallel bake each default-cached package once (a concurrent first use is safe, every
+/// bake renames its own temporary file into place, but would spend the machine's cores on the same bake).
+fn clipsat_env(args: &[&str], env: &[(&str, &str)]) -> Output {
+    static FIRST: OnceLock<Mutex<HashMap<String, Arc<Mutex<bool>>>>> = OnceLock::new();
+    let terrain = args
+        .iter()
+        .position(|a| *a == "--terrain")
+        .and_then(|i| args.get(i + 1))
+        .copied()
+        .unwrap_or("procedural")
+        .to_owned();
+    let gate = FIRST
+        .get_or_init(Mutex::default)
+        .lock()
+        .unwrap_or_else(PoisonError::into_inner)
+        .entry(terrain)
+        .or_default()
+        .clone();
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_clipsat"));
+    cmd.args(args).env("CLIPSAT_CACHE", cache_dir());
+    for (k, v) in env {
+        cmd.env(k, v);
+    }
+    let mut warm = gate.lock().unwrap_or_else(PoisonError::into_inner);
+    if *warm {
+        drop(warm);
+        return cmd.output().expect("run the clipsat binary");
+    }
+    let out = cmd.output().expect("run the clipsat binary");
+    *warm = out.status.success();
+    out
 }
 
 /// A fresh, empty folder `group/name` under the target's test scratch space, for one test's outputs.

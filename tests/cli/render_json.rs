@@ -26,7 +26,8 @@ const SIDE: u32 = 3400;
 fn render_json_past_the_brute_force_limit() {
     let dir = scratch("big");
     // A ramp with ripples as raw u16 (23 MB); a one-level profile keeps the LOD bake behind the measured
-    // screen error to the data level, so the test stays a few seconds.
+    // screen error to the data level, so the test stays a few seconds. `--resident`: the measured screen
+    // error reads the whole pyramid (and a streamed run would first bake a package of the 11 M samples).
     let raw: Vec<u8> = (0..SIDE * SIDE)
         .flat_map(|i| {
             let (x, y) = (i % SIDE, i / SIDE);
@@ -71,9 +72,12 @@ fn render_json_past_the_brute_force_limit() {
         "--out",
         &o,
         "--json",
+        "--resident",
     ];
     let j = json(&clipsat(&base), "render --json on the big terrain");
     assert!(j["image_hash"].is_string(), "{j}");
+    assert_eq!(j["streamed"], false, "{j}");
+    assert!(j["max_screen_error_px"].is_number(), "{j}");
     assert!(j["rmse_vs_ground_truth"].is_null(), "{j}");
 
     // Asked for, the ground truth on this terrain is a clear one-line error naming the limit.
@@ -108,9 +112,14 @@ fn render_ground_truth_on_request() {
     ];
     let j = json(&clipsat(&base), "render --json");
     assert!(j["rmse_vs_ground_truth"].is_null(), "{j}");
+    // Streamed by default, with no measured screen error (it needs the whole pyramid: --resident).
+    assert_eq!(j["streamed"], true, "{j}");
+    assert!(j["max_screen_error_px"].is_null(), "{j}");
     let mut asked = base.to_vec();
     asked.push("--ground-truth");
     let j = json(&clipsat(&asked), "render --json --ground-truth");
+    // The ground truth reads every sample: it selects the resident path itself.
+    assert_eq!(j["streamed"], false, "{j}");
     let rmse = j["rmse_vs_ground_truth"].as_f64().unwrap_or(f64::NAN);
     // RMSE in 8-bit levels: the clipmap against the full-resolution grid (16.8 measured here).
     assert!((0.0..64.0).contains(&rmse), "{j}");

@@ -198,6 +198,7 @@ fn view_frames_json_under_xvfb() {
             "--json",
         ])
         .env("DISPLAY", &display)
+        .env("CLIPSAT_CACHE", super::cache_dir())
         .output()
         .expect("clipsat view");
     let stderr = String::from_utf8_lossy(&out.stderr);
@@ -250,6 +251,7 @@ fn view_frames_json_under_xvfb() {
             "--json",
         ])
         .env("DISPLAY", &display)
+        .env("CLIPSAT_CACHE", super::cache_dir())
         .output()
         .expect("clipsat view P.clipsat");
     let _ = std::fs::remove_file(&pkg);
@@ -288,6 +290,7 @@ fn view_flies_under_xvfb() {
                 "120",
             ])
             .env("DISPLAY", &display)
+            .env("CLIPSAT_CACHE", super::cache_dir())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
             .spawn()

@@ -326,8 +326,11 @@ fn cli_render_reports_bound_textures_and_baked() {
         let out = out.to_string_lossy().into_owned();
         args.push(&out);
         args.extend_from_slice(extra);
+        // render streams the terrain from a package baked into this cache on first use.
+        let cache = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("sg_gpu-cache");
         std::process::Command::new(env!("CARGO_BIN_EXE_clipsat"))
             .args(&args)
+            .env("CLIPSAT_CACHE", cache)
             .output()
             .expect("run clipsat")
     };

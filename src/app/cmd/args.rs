@@ -103,6 +103,38 @@ fn positive_px(text: &str) -> Result<f32, String> {
         .ok_or_else(|| format!("`{text}` is not a positive number of pixels"))
 }
 
+/// Streamed or resident terrain (`--resident`, and the old `--stream`), shared by `render`, `fly` and
+/// `view`. Streaming is the default: a package streams through the profile's tile cache, and a plain source
+/// (PNG, GeoTIFF, .hgt, raw, procedural) is baked into the cache folder on first use (`CLIPSAT_CACHE`, default
+/// target/clipsat-cache; a progress bar on stderr) and then streamed the same way.
+#[derive(Args, Clone, Copy, Debug, Default)]
+pub(crate) struct StreamArgs {
+    /// Load the whole terrain instead of streaming it (a package is decoded whole): for what needs every
+    /// sample. `render --json` measures the screen error only with it; `render --brute`, `--ground-truth`,
+    /// `--oracle` and `--reference` (render, fly) select it by themselves.
+    #[arg(long, conflicts_with = "stream")]
+    pub(crate) resident: bool,
+    /// Stream the terrain: now the default, accepted for old scripts. Refused with the flags that need the
+    /// whole terrain (see --resident).
+    #[arg(long, hide_short_help = true)]
+    pub(crate) stream: bool,
+}
+
+impl StreamArgs {
+    /// Whether to stream, given `needs_all`, the flags that read every sample (`--brute`, ...), if any:
+    /// those select the resident path by themselves, and an explicit `--stream` with them is refused.
+    pub(crate) fn streams(&self, needs_all: Option<&str>) -> Result<bool, Error> {
+        match needs_all {
+            Some(flags) if self.stream => Err(arg_error(
+                "--stream",
+                format!("needs the whole terrain with {flags}"),
+            )),
+            Some(_) => Ok(false),
+            None => Ok(!self.resident),
+        }
+    }
+}
+
 /// `--debug`: the debug view.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, ValueEnum)]
 pub(crate) enum DebugArg {

@@ -19,7 +19,7 @@ use clipsat::{Error, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 
-use super::args::{arg_error, flag, pixel_size, GpuArgs, LodArgs, Size};
+use super::args::{arg_error, flag, pixel_size, GpuArgs, LodArgs, Size, StreamArgs};
 use super::hashes::{self, HashFile};
 use super::{ProfileArgs, TerrainArgs};
 
@@ -75,11 +75,8 @@ pub(crate) struct FlyArgs {
     /// With --render: image size, WxH pixels. Default: the profile's viewport.
     #[arg(long, value_name = "WxH", value_parser = pixel_size)]
     size: Option<Size>,
-    /// Stream a plain source like a package (baked into the cache folder on first use), rendered or not:
-    /// no whole heightmap resident, the SAT LOD tables read through a map of their cache file, the SG
-    /// tables baked from one coarse enough level. Not with --reference; a package streams without it.
-    #[arg(long)]
-    stream: bool,
+    #[command(flatten)]
+    stream: StreamArgs,
     /// With --render: the GL context.
     #[command(flatten)]
     gpu: GpuArgs,
@@ -135,18 +132,19 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
     let opts = ClipmapOptions {
         synth_levels: args.synth_levels,
     };
-    // A package (and with --stream a plain source) streams through the profile's tile cache, rendered
-    // or not, as `render` streams it; the camera path follows a coarse level of it. SG's CPU reference
-    // reads every sample, so --reference decodes it whole.
-    let streamable = !args.shading.reference;
-    if args.stream && !streamable {
-        return Err(arg_error(
-            "--stream",
-            "needs the whole terrain with --reference",
-        ));
-    }
+    // The terrain streams through the profile's tile cache by default (a plain source baked into the
+    // cache on first use), rendered or not, as `render` streams it; the camera path follows a coarse
+    // level of it. SG's CPU reference reads every sample, so --reference loads it whole, as --resident;
+    // so does --synth-levels (the synthesised rings are built from the resident pyramid).
+    let needs_all = [
+        (args.shading.reference, "--reference"),
+        (args.synth_levels > 0, "--synth-levels"),
+    ]
+    .into_iter()
+    .find_map(|(on, flag)| on.then_some(flag));
+    let stream = args.stream.streams(needs_all)?;
     let (terrain_name, hm, package) =
-        super::render::open_terrain(&args.terrain, args.stream, streamable, !args.json)?;
+        super::render::open_terrain(&args.terrain, stream, !args.json)?;
     let streamed = package.is_some();
     let mut clipmap = match package {
         Some(p) => Clipmap::streamed(p, &profile, opts)?,
@@ -257,6 +255,8 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
     // Frame-hash file: the header is checked before flying, the hashes as they come.
     let params = [
         ("terrain", terrain_name.clone()),
+        // Streamed heights are the package's (quantised), and the terrain hash is its stand-in's.
+        ("streamed", streamed.to_string()),
         ("terrain_hash", hashes::terrain_hash(&hm)),
         ("profile", profile.name.clone()),
         ("path", path.to_string()),

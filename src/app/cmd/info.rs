@@ -79,6 +79,12 @@ pub(crate) fn run(args: &InfoArgs) -> Result<()> {
     );
     outln!("heights   {lo:.1} .. {hi:.1} m");
     outln!("voids     {} filled", hm.voids_filled());
+    // What render, fly and view do with it: the split below is what they hold once it streams.
+    outln!(
+        "streamed  render, fly and view bake it into a package in {} on first use and stream it \
+         (--resident: loaded whole); `clipsat bake` writes the package elsewhere",
+        clipsat::bake::default_cache_dir().display()
+    );
     outln!(
         "profile     GPU memory needed / budget    coarsest ring span   CPU budget: rings + tile cache + LOD tables + SG inputs   \
          detail pool                 SG tables (+ visibility)"

@@ -138,9 +138,32 @@ impl TerrainArgs {
             h.finish(),
             || self.rows().map(|(_, rows)| rows),
             &bar,
-        )?;
+        )
+        .map_err(|e| match e {
+            // The default quantum cannot hold this terrain's range (`clipsat bake --max-error` can).
+            Error::Param {
+                param: clipsat::Param::MaxError,
+                reason,
+            } => arg_error(
+                "--terrain",
+                format!(
+                    "cannot bake it into a package to stream with the default quantum ({reason}); \
+                     --resident loads it whole, or bake it with a coarser `clipsat bake --max-error`"
+                ),
+            ),
+            other => other,
+        })?;
         bar.finish_and_clear();
         clipsat::package::Package::open(&path)
+    }
+
+    /// The terrain's name in reports: a file's path as given (a package's too), or the procedural
+    /// terrain's parameters.
+    pub(crate) fn name(&self) -> Result<String> {
+        Ok(match self.spec()? {
+            TerrainSpec::Procedural(p) => format!("procedural(seed={}, size={})", p.seed, p.size),
+            TerrainSpec::File(path) => path.display().to_string(),
+        })
     }
 
     /// The terrain these options name as rows for the out-of-core bake: the procedural terrain is

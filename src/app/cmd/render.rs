@@ -22,7 +22,7 @@ use clipsat::{hash, Camera, Heightmap, Profile, Result};
 use glam::DVec3;
 use serde_json::json;
 
-use super::args::{arg_error, pixel_size, DebugArg, GpuArgs, LodArgs, Size};
+use super::args::{arg_error, pixel_size, DebugArg, GpuArgs, LodArgs, Size, StreamArgs};
 use super::sg::ShadingArgs;
 use super::{ensure_parent, print_json, ProfileArgs, TerrainArgs};
 
@@ -68,12 +68,8 @@ pub(crate) struct RenderArgs {
     /// metric (`clipsat::measure::oracle`: a lower bound; reads the whole pyramid once per level).
     #[arg(long, value_delimiter = ',')]
     oracle: Vec<f64>,
-    /// Clipmap only: stream a plain source like a package (baked into the cache folder on first use):
-    /// no whole heightmap resident, the SAT LOD tables read through a map of their cache file, the SG
-    /// tables baked from one coarse enough level. Not with --reference, --brute or --ground-truth; a
-    /// package streams without it.
-    #[arg(long)]
-    stream: bool,
+    #[command(flatten)]
+    stream: StreamArgs,
     /// Clipmap only: disable the GC 6.2 transition morph.
     #[arg(long)]
     no_morph: bool,
@@ -116,25 +112,26 @@ pub(crate) fn lod_for(
 /// Most samples of the package level a streamed terrain's camera fits (1 Mi: 4 MiB of f32).
 const STREAMED_CAMERA_SAMPLES: u64 = 1 << 20;
 
-/// The terrain a clipmap command draws (`render`, `fly`, `view`): when `streamable`, the package
-/// `--terrain` names, or with `stream` a plain source's (baked into the cache folder on first use,
-/// progress bar on stderr when `progress`), to stream through the profile's tile cache, with the
-/// package's coarse stand-in heightmap for the camera; otherwise the terrain loaded whole. Callers
-/// refuse `stream` where the terrain is not `streamable`.
+/// The terrain a clipmap command draws (`render`, `fly`, `view`): when `stream` (the default, see
+/// [`StreamArgs::streams`]), the package `--terrain` names or a plain source's (baked into the cache
+/// folder on first use, progress bar on stderr when `progress`), to stream through the profile's tile
+/// cache, with the package's coarse stand-in heightmap for the camera; otherwise the terrain loaded whole
+/// (`--resident`, and the measurements that read every sample).
 pub(crate) fn open_terrain(
     terrain: &TerrainArgs,
     stream: bool,
-    streamable: bool,
     progress: bool,
 ) -> Result<(String, Heightmap, Option<Package>)> {
-    let package = match terrain.package()? {
-        Some(p) if streamable => Some(p),
-        None if stream && streamable => Some(terrain.stream_package(progress)?),
-        _ => None,
+    let package = if stream {
+        Some(terrain.stream_package(progress)?)
+    } else {
+        None
     };
     Ok(match package {
         Some(p) => (
-            p.path().display().to_string(),
+            // The source's name, not the cache file's (which moves with CLIPSAT_CACHE): `fly`'s
+            // hash file header names it.
+            terrain.name()?,
             p.coarse_heightmap(STREAMED_CAMERA_SAMPLES)?,
             Some(p),
         ),
@@ -163,20 +160,22 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
         None => (profile.view.width, profile.view.height),
     };
     let sg = args.shading.choice(&profile)?;
-    // A package streams through the profile's tile cache: nothing terrain-sized stays resident, the
-    // camera fits a coarse level, the SAT LOD tables are baked out of core and mapped, and SG's tables
-    // are baked from the package level that fits the profile's shading share. The brute-force reference
-    // and SG's CPU reference still decode it whole (they read every sample). `--stream` does the same for
-    // a plain source, baked into the cache on first use.
-    let streamable = !args.brute && !args.ground_truth && !args.shading.reference;
-    if args.stream && !streamable {
-        return Err(arg_error(
-            "--stream",
-            "needs the whole terrain with --brute, --ground-truth or --reference",
-        ));
-    }
-    let (terrain_name, hm, package) =
-        open_terrain(&args.terrain, args.stream, streamable, !args.json)?;
+    // By default the terrain streams through the profile's tile cache (a plain source baked into the
+    // cache on first use): nothing terrain-sized stays resident, the camera fits a coarse level, the SAT
+    // LOD tables are baked out of core and mapped, and SG's tables are baked from the package level that
+    // fits the profile's shading share. The brute-force reference, the oracle and SG's CPU reference read
+    // every sample, so they select the resident path themselves; the measured screen error needs
+    // `--resident`.
+    let needs_all = [
+        (args.brute, "--brute"),
+        (args.ground_truth, "--ground-truth"),
+        (!args.oracle.is_empty(), "--oracle"),
+        (args.shading.reference, "--reference"),
+    ]
+    .into_iter()
+    .find_map(|(on, flag)| on.then_some(flag));
+    let stream = args.stream.streams(needs_all)?;
+    let (terrain_name, hm, package) = open_terrain(&args.terrain, stream, !args.json)?;
     let camera = camera(args, &hm, f64::from(profile.view.fov_y_deg))?;
 
     let gpu = Gpu::new(mode)?;

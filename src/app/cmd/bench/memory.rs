@@ -34,7 +34,8 @@ pub(super) struct PackageRow {
 pub(super) struct RssRow {
     name: String,
     sat: Option<u64>,
-    /// `--lod sat --stream`: the package streamed, the LOD tables read through a map (full runs only).
+    /// `--lod sat` streamed (the default): the package streamed, the LOD tables read through a map (full
+    /// runs only).
     sat_stream: Option<u64>,
     sg: Option<u64>,
 }
@@ -150,14 +151,15 @@ pub(super) fn measure(
         };
         rss.push(RssRow {
             name: name.clone(),
-            sat: run(&["--profile", profile, "--lod", "sat"]),
+            // The whole terrain resident, against the streamed default below.
+            sat: run(&["--profile", profile, "--lod", "sat", "--resident"]),
             // A quick run skips it: its first run bakes a package (seconds even for small terrains).
             sat_stream: if reps > 1 {
-                run(&["--profile", profile, "--lod", "sat", "--stream"])
+                run(&["--profile", profile, "--lod", "sat"])
             } else {
                 None
             },
-            sg: run(&["--profile", "desktop", "--shading", "sg"]),
+            sg: run(&["--profile", "desktop", "--shading", "sg", "--resident"]),
         });
         bar.inc(1);
     }
@@ -298,10 +300,11 @@ pub(super) fn section(m: &TerrainMemory, machine: &str, cpu_budget: u64) -> Stri
     let _ = writeln!(
         s,
         "\nPeak RSS (`/usr/bin/time -v`; a full run reports the second run, as the first bakes the LOD \
-         tables and shading inputs into the cache) of `clipsat render --terrain T --size {}x{}` with `--profile {} --lod sat`, \
-         the same with `--stream` (the terrain baked into a package and streamed through the tile cache, the \
-         LOD tables read through a map of their cache file; full runs only), and with \
-         `--profile desktop --shading sg`; terrain-dependent: minus the same command on the first terrain. \
+         tables and shading inputs into the cache) of `clipsat render --terrain T --size {}x{}` with `--profile {} --lod sat \
+         --resident` (the whole terrain loaded), the same streamed (the default: the terrain baked into a \
+         package in the cache and streamed through the tile cache, the LOD tables read through a map of \
+         their cache file; full runs only), and with `--profile desktop --shading sg --resident`; \
+         terrain-dependent: minus the same command on the first terrain. \
          The budget: `budget.cpu_memory_bytes` of the SAT run's profile ({}); the desktop profile has 256 \
          MiB.{}\n",
         m.rss_size.0,
@@ -313,8 +316,8 @@ pub(super) fn section(m: &TerrainMemory, machine: &str, cpu_budget: u64) -> Stri
             .map_or_else(String::new, |n| format!(" Not measured: {n}."))
     );
     s.push_str(
-        "| terrain | render --lod sat | terrain-dependent | within budget | --lod sat --stream | \
-         terrain-dependent | within budget | render --shading sg (desktop) | terrain-dependent |\n\
+        "| terrain | render --lod sat --resident | terrain-dependent | within budget | --lod sat (streamed) | \
+         terrain-dependent | within budget | render --shading sg --resident (desktop) | terrain-dependent |\n\
          |---|---|---|---|---|---|---|---|---|\n",
     );
     let base = m.rss.first();

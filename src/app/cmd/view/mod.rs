@@ -39,7 +39,7 @@ use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop};
 use winit::keyboard::{KeyCode, PhysicalKey};
 use winit::window::WindowId;
 
-use super::args::{pixel_size, DebugArg, GpuArgs, LodArgs, Size};
+use super::args::{pixel_size, DebugArg, GpuArgs, LodArgs, Size, StreamArgs};
 use super::render::lod_for;
 use super::sg::ShadingArgs;
 use super::{ProfileArgs, TerrainArgs};
@@ -62,11 +62,8 @@ pub(crate) struct ViewArgs {
     size: Option<Size>,
     #[command(flatten)]
     gpu: GpuArgs,
-    /// Stream a plain source like a package (baked into the cache folder on first use): no whole
-    /// heightmap resident, the SAT LOD tables read through a map of their cache file, the SG tables baked
-    /// from one coarse enough level. A package streams without it.
-    #[arg(long)]
-    stream: bool,
+    #[command(flatten)]
+    stream: StreamArgs,
     /// Flight speed, m/s (shift: 5x). Default: a twentieth of the terrain's size per second.
     #[arg(long, value_name = "M/S")]
     speed: Option<f64>,
@@ -110,10 +107,11 @@ pub(crate) fn run(args: &ViewArgs) -> Result<()> {
             "applies to render and fly, not view",
         ));
     }
-    // A package (and with --stream a plain source) streams through the profile's tile cache, as
-    // `render` streams it: the camera and the ground under it come from the package's coarse stand-in.
+    // The terrain streams through the profile's tile cache by default (a plain source baked into the
+    // cache on first use), as `render` streams it: the camera and the ground under it come from the
+    // package's coarse stand-in. --resident loads it whole.
     let (terrain_name, hm, package) =
-        super::render::open_terrain(&args.terrain, args.stream, true, true)?;
+        super::render::open_terrain(&args.terrain, args.stream.streams(None)?, true)?;
     // The data's own spacing (the stand-in's is coarser): the eye's clearance above the ground.
     let spacing = package
         .as_ref()
