@@ -171,3 +171,48 @@ fn a_clean_and_a_warm_cache_give_the_same_hashes() {
     assert_eq!(resident["streamed"], false, "{resident}");
     let _ = std::fs::remove_dir_all(&cache);
 }
+
+/// A cached package the build cannot read (an older format, or damaged) is baked again, not an error:
+/// the file under the cache's name with its format version set back to 1, then cut short, each time
+/// rebaked to the same image. (A new format also gets a new cache name, `terrain-<key>-v<format>`.)
+#[test]
+fn a_stale_cached_package_is_baked_again() {
+    let cache = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("determinism-stale");
+    let _ = std::fs::remove_dir_all(&cache);
+    let c = cache.to_string_lossy().into_owned();
+    let env = [("CLIPSAT_CACHE", c.as_str())];
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("determinism");
+    std::fs::create_dir_all(&dir).expect("scratch folder");
+    let png = dir.join("stale.png");
+    let p = png.to_string_lossy();
+    let mut args = RENDER.to_vec();
+    args.extend(["--out", &p]);
+    let first = field(&json(&clipsat(&args, &env)), "image_hash");
+    let package = std::fs::read_dir(&cache)
+        .expect("cache folder")
+        .filter_map(std::result::Result::ok)
+        .map(|e| e.path())
+        .find(|p| p.extension().is_some_and(|x| x == "clipsat"))
+        .expect("a cached package");
+    let good = std::fs::read(&package).expect("read the package");
+    // magic "CLIPSAT\0", then the version (u32, little-endian).
+    let mut old = good.clone();
+    old[8..12].copy_from_slice(&1u32.to_le_bytes());
+    let cut = good[..good.len() / 2].to_vec();
+    for (what, bytes) in [("version 1", old), ("truncated", cut)] {
+        std::fs::write(&package, bytes).expect("write the stale package");
+        let j = json(&clipsat(&args, &env));
+        assert_eq!(j["streamed"], true, "{what}: {j}");
+        assert_eq!(
+            field(&j, "image_hash"),
+            first,
+            "{what}: rebaked to the same image"
+        );
+        assert_eq!(
+            std::fs::read(&package).expect("read the rebaked package"),
+            good,
+            "{what}: the rebake writes the same bytes"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&cache);
+}
