@@ -196,6 +196,9 @@ fn view_frames_json_under_xvfb() {
             "--frames",
             "8",
             "--json",
+            // The terrain loaded whole: streamed (the default, checked below over a package), the
+            // built-in 1025^2 terrain's fill (decode included) outlasts 8 frames, leaving none to time.
+            "--resident",
         ])
         .env("DISPLAY", &display)
         .env("CLIPSAT_CACHE", super::cache_dir())
@@ -211,6 +214,7 @@ fn view_frames_json_under_xvfb() {
         (Some(W.into()), Some(H.into()))
     );
     assert_eq!(j["frames"], 8);
+    assert_eq!(j["streamed"], false, "{j}");
     let context = j["window"]["context"].as_str().unwrap_or_default();
     assert!(
         j["window"]["gles30"] == true && context.starts_with("OpenGL ES 3.0"),
