@@ -216,3 +216,45 @@ fn a_stale_cached_package_is_baked_again() {
     }
     let _ = std::fs::remove_dir_all(&cache);
 }
+
+/// Concurrent first uses of one terrain in an empty cache are safe: each process bakes the package (and
+/// its SAT LOD tables) under its own temporary name and renames it into place, so three renders started
+/// together all succeed, stream, and draw the same image, and no temporary file is left.
+#[test]
+fn concurrent_first_bakes_of_one_terrain_agree() {
+    let cache = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("determinism-concurrent");
+    let _ = std::fs::remove_dir_all(&cache);
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("determinism");
+    std::fs::create_dir_all(&dir).expect("scratch folder");
+    let children: Vec<_> = (0..3)
+        .map(|i| {
+            let png = dir.join(format!("concurrent-{i}.png"));
+            std::process::Command::new(env!("CARGO_BIN_EXE_clipsat"))
+                .args(RENDER)
+                .args(["--lod", "sat", "--out"])
+                .arg(png)
+                .env("CLIPSAT_CACHE", &cache)
+                .stdout(std::process::Stdio::piped())
+                .stderr(std::process::Stdio::piped())
+                .spawn()
+                .expect("start clipsat")
+        })
+        .collect();
+    let hashes: Vec<String> = children
+        .into_iter()
+        .map(|c| {
+            let j = json(&c.wait_with_output().expect("clipsat runs"));
+            assert_eq!(j["streamed"], true, "{j}");
+            field(&j, "image_hash")
+        })
+        .collect();
+    assert!(hashes.windows(2).all(|w| w[0] == w[1]), "{hashes:?}");
+    let leftovers: Vec<_> = std::fs::read_dir(&cache)
+        .expect("cache folder")
+        .filter_map(std::result::Result::ok)
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains("tmp") || n.contains("records"))
+        .collect();
+    assert!(leftovers.is_empty(), "temporary files left: {leftovers:?}");
+    let _ = std::fs::remove_dir_all(&cache);
+}
