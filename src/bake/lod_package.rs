@@ -5,10 +5,12 @@
 //!   ([`crate::bake::lod_stream`]'s two sweeps: the package read a band of tiles at a time), each level's finished
 //!   tile rows coded ([`crate::package::lod_tiles`]) and spooled to a file beside the package, which the
 //!   writer then appends.
+//!   Data levels 1 ..= [`DERIVED_LEVELS`] keep only their E: their records are not stored (format 3).
 //! - [`tables_from_records`]: at run time the mapped LOD cache file ([`crate::bake`], keyed as before) is
-//!   built from the record tiles, one tile row of cells at a time, without computing an error: the same
-//!   bytes [`crate::bake::lod_stream::bake_to_file`] writes from the heights (both decode the same records), so every
-//!   level chosen and every frame hash is the same either way.
+//!   built from the record tiles, one tile row of cells at a time, without computing an error, and the
+//!   derived levels from the heights (lod_stream's second sweep with the stored E, out of core as the
+//!   bake): the same bytes [`crate::bake::lod_stream::bake_to_file`] writes from the heights (both decode
+//!   the same records), so every level chosen and every frame hash is the same either way.
 
 use std::fs::File;
 use std::path::{Path, PathBuf};
@@ -26,6 +28,14 @@ use crate::{Error, Result};
 /// [`crate::profile::MAX_LEVELS`] rings can ask for.
 pub const RECORD_LEVELS: u32 = crate::profile::MAX_LEVELS - 1;
 
+/// Data levels 1 ..= this keep only their E in the package: their records are derived from the heights
+/// when the tables are built ([`tables_from_records`]).
+///
+/// Level 1 has a record pair for every 4 samples, three quarters of the records' bytes (0.27-0.37
+/// B/sample at `--max-error 0.5`), and its errors are one sweep over level 0 and level 1, which
+/// building the tables reads anyway; level 2 would save a sixth as much and cost as much again.
+pub const DERIVED_LEVELS: u32 = 1;
+
 /// One level's record tiles, spooled.
 #[derive(Debug)]
 pub struct SpooledLevel {
@@ -37,6 +47,8 @@ pub struct SpooledLevel {
     pub path: PathBuf,
     /// Per tile: (offset in the spool, length, CRC-32).
     pub entries: Vec<(u64, u32, u32)>,
+    /// Whether its tiles were spooled (false for the derived levels: E alone, no spool file).
+    pub stored: bool,
 }
 
 /// The records of data levels 1 ..= `levels` of `package` (exponent `p`) in record tiles of `tile`
@@ -82,6 +94,21 @@ fn spool_levels(
     let mut sw = Sweep::new(package, p, 1..levels + 1, progress)?;
     sw.sweep_e()?;
     let (width, height) = (sw.width, sw.height);
+    // The derived levels keep their E only: no tables swept, no tiles.
+    let derived = DERIVED_LEVELS.min(levels) as usize;
+    let mut out: Vec<SpooledLevel> = sw
+        .levels
+        .drain(..derived)
+        .zip(paths)
+        .map(|(lv, path)| SpooledLevel {
+            k: lv.k,
+            e_max: lv.e_max,
+            path: path.clone(),
+            entries: Vec::new(),
+            stored: false,
+        })
+        .collect();
+    let paths = &paths[derived..];
     let mut zero = Vec::new();
     for (lv, path) in sw.levels.iter_mut().zip(paths) {
         let io = |e| Error::io(path, "cannot write", e);
@@ -96,9 +123,10 @@ fn spool_levels(
             zero.push((lv.k, rec.finish().map_err(io)?));
         }
     }
-    sw.sweep_tables(None, &paths[0])?;
+    if let Some(first) = paths.first() {
+        sw.sweep_tables(None, first)?;
+    }
     sw.bar.finish_and_clear();
-    let mut out = Vec::with_capacity(paths.len());
     for (lv, path) in sw.levels.iter_mut().zip(paths) {
         let entries = match lv.records.take() {
             Some(rec) => rec
@@ -115,6 +143,7 @@ fn spool_levels(
             e_max: lv.e_max,
             path: path.clone(),
             entries,
+            stored: true,
         });
     }
     Ok(out)
@@ -149,20 +178,38 @@ pub fn tables_from_records(
         })?;
     let (width, height) = (header.width, header.height);
     let p = params.p;
-    let mut levels: Vec<Level> = (1..params.data_levels())
-        .map(|k| Level::new(k, width, p))
-        .collect();
+    let n = params.data_levels();
+    // Levels without record tiles are swept from the heights (lod_stream's second sweep, E from the
+    // header): the tables `clipsat bake` would have coded, so the file is the same either way.
+    let derived = lod.derived.min(n.saturating_sub(1));
+    let mut sweep = if derived > 0 {
+        Some(Sweep::new(package, p, 1..derived + 1, false)?)
+    } else {
+        None
+    };
+    let mut levels: Vec<Level> = sweep
+        .as_mut()
+        .map(|sw| std::mem::take(&mut sw.levels))
+        .unwrap_or_default();
+    levels.extend((derived + 1..n).map(|k| Level::new(k, width, p)));
     for lv in &mut levels {
         lv.e_max = lod.level(lv.k).map_or(0.0, |l| l.e_max);
     }
     let (head, flags, body) = lay_out_file(&mut levels, p, width, height, key);
+    let mut levels_stored = levels.split_off(derived as usize);
+    if let Some(sw) = sweep.as_mut() {
+        sw.levels = levels;
+    }
     let tmp = path.with_extension(format!("tmp{}", std::process::id()));
     let q = Sat::max_frac_bits(u64::from(width) * u64::from(height));
     let tile = lod.tile();
     let written = write_tables(&tmp, &head, &flags, body, |file| {
-        let mut dec = Decoder::new(header.codec, 2 * tile as usize * tile as usize)
+        if let Some(sw) = sweep.as_mut() {
+            sw.sweep_tables(Some(file), &tmp)?;
+        }
+        let mut dec = Decoder::new(header.codec, tile as usize * tile as usize)
             .map_err(|e| Error::io(package.path(), "cannot start the tile decoder", e))?;
-        for lv in levels.iter_mut().filter(|l| l.has_tables()) {
+        for lv in levels_stored.iter_mut().filter(|l| l.has_tables()) {
             let coder = Coder::new(lv.e_max, p, q, lv.k.min(30), width, height);
             level_from_records(package, lv, &coder, tile, &mut dec, file).map_err(|e| match e {
                 Fail::Io(e) => Error::io(&tmp, "cannot write", e),

@@ -8,17 +8,20 @@
 //! quantum f64 | max_error f64 | lowest f32 | highest f32 | codec u32 | tile u32 | levels u32
 //! per level:  width u32 | height u32
 //! per tile (levels fine to coarse, tiles row-major):  offset u64 | len u32 | crc32 u32
-//! lod_levels u32 | lod_p u32 | lod_tile u32        (0 | 0 | 0: no SAT LOD records)
+//! lod_levels u32 | lod_p u32 | lod_tile u32 | lod_derived u32   (all 0: no SAT LOD records)
 //! per record level k = 1 ..= lod_levels:  e_max f32
-//! per record tile (levels k = 1 up, tiles row-major):  offset u64 | len u32 | crc32 u32
+//! per record tile (levels k = lod_derived + 1 up, tiles row-major):  offset u64 | len u32 | crc32 u32
 //! header crc32 u32 (over every byte before it)
 //! ```
 //!
 //! A tile payload is one byte (the count of byte planes, 1..=4) then the codec's stream of the planes.
-//! The record tiles ([`super::lod_tiles`], version 2) hold the SAT LOD tables' compact records
-//! ([`crate::bake::lod_record`]) for data levels 1 ..= lod_levels under exponent lod_p, in tiles of
-//! lod_tile x lod_tile cells, after the height tiles. A version 1 package (no records) is refused with
-//! a request to bake it again, never misread.
+//! The record tiles ([`super::lod_tiles`]) hold the SAT LOD tables' compact records
+//! ([`crate::bake::lod_record`]) for data levels lod_derived + 1 ..= lod_levels under exponent lod_p, in
+//! tiles of lod_tile x lod_tile cells, after the height tiles; data levels 1 ..= lod_derived keep only
+//! their E, their records derived from the heights when the tables are built
+//! ([`crate::bake::lod_package`]). Version 3 (this one) added lod_derived and codes a record tile's max
+//! and mean codes as two streams; a version 1 (no records) or 2 package is refused with a request to bake
+//! it again, never misread.
 //! Everything read back is validated before use: a damaged file is an [`Error::Format`] naming the field or
 //! the tile, never a panic.
 
@@ -31,7 +34,7 @@ use crate::{Error, Param, Result};
 pub const MAGIC: [u8; 8] = *b"CLIPSAT\0";
 
 /// The format version this build reads and writes.
-pub const VERSION: u32 = 2;
+pub const VERSION: u32 = 3;
 
 /// Most record levels a header may list (data levels 1 ..= this; a profile has at most 16 levels).
 pub const MAX_LOD_LEVELS: u32 = 40;
@@ -39,8 +42,8 @@ pub const MAX_LOD_LEVELS: u32 = 40;
 /// Bytes of one tile-table entry (offset u64, len u32, crc32 u32).
 const TILE_ENTRY: usize = 16;
 
-/// Bytes of the records' fixed fields (lod_levels, lod_p, lod_tile).
-const LOD_FIXED: usize = 12;
+/// Bytes of the records' fixed fields (lod_levels, lod_p, lod_tile, lod_derived).
+const LOD_FIXED: usize = 16;
 
 /// Bytes before the per-level table.
 const FIXED: usize = 8 + 4 + 4 + 4 + 4 + 4 + 8 + 8 + 8 + 8 + 4 + 4 + 4 + 4 + 4;
@@ -155,7 +158,9 @@ pub struct LodIndex {
     pub p: u32,
     /// Record levels, data level 1 first.
     pub levels: Vec<LodLevel>,
-    /// Every record tile, levels in order, row-major within a level.
+    /// Data levels 1 ..= this have no record tiles (their records are derived from the heights).
+    pub derived: u32,
+    /// Every stored record tile, levels in order, row-major within a level.
     pub tiles: Vec<TileEntry>,
 }
 
@@ -168,28 +173,36 @@ pub struct LodLevel {
     pub e_max: f32,
     /// Index of its first tile in [`LodIndex::tiles`].
     pub first_tile: usize,
+    /// Whether its record tiles are stored (false: derived from the heights, no tiles).
+    pub stored: bool,
 }
 
 impl LodIndex {
-    /// An index for data levels 1 ..= `levels` of a `width x height` terrain in tiles of `tile` cells, with
-    /// every E and tile entry zero (filled in by the writer).
-    pub fn new(width: u32, height: u32, p: u32, levels: u32, tile: u32) -> Self {
+    /// An index for data levels 1 ..= `levels` of a `width x height` terrain in tiles of `tile` cells,
+    /// levels 1 ..= `derived` without tiles, with every E and tile entry zero (filled in by the writer).
+    pub fn new(width: u32, height: u32, p: u32, levels: u32, tile: u32, derived: u32) -> Self {
         let mut first = 0usize;
+        let derived = derived.min(levels);
         let levels = (1..=levels)
             .map(|k| {
                 let grid = RecordGrid::new(width, height, k, tile);
+                let stored = k > derived;
                 let l = LodLevel {
                     grid,
                     e_max: 0.0,
                     first_tile: first,
+                    stored,
                 };
-                first += grid.tiles();
+                if stored {
+                    first += grid.tiles();
+                }
                 l
             })
             .collect();
         Self {
             p,
             levels,
+            derived,
             tiles: vec![TileEntry::default(); first],
         }
     }
@@ -328,7 +341,7 @@ impl Header {
             None => b.extend_from_slice(&[0u8; LOD_FIXED]),
             Some(l) => {
                 let n = u32::try_from(l.levels.len()).expect("at most MAX_LOD_LEVELS");
-                for w in [n, l.p, l.tile()] {
+                for w in [n, l.p, l.tile(), l.derived] {
                     b.extend_from_slice(&w.to_le_bytes());
                 }
                 for lv in &l.levels {
@@ -360,7 +373,8 @@ impl Header {
         let version = r.u32().ok_or_else(|| bad("truncated".into()))?;
         if version != VERSION {
             let again = if version < VERSION {
-                " (an older package, without the SAT LOD records): bake it again with `clipsat bake`"
+                " (an older package, without this version's SAT LOD records): bake it again with \
+                 `clipsat bake`"
             } else {
                 ""
             };
@@ -434,17 +448,23 @@ impl Header {
             bytes: &bytes[..len],
             at: lod_at,
         };
-        let (lod_n, lod_p, lod_tile) = (
+        let (lod_n, lod_p, lod_tile, lod_derived) = (
+            lr.u32().ok_or_else(trunc)?,
             lr.u32().ok_or_else(trunc)?,
             lr.u32().ok_or_else(trunc)?,
             lr.u32().ok_or_else(trunc)?,
         );
-        if lod_n > MAX_LOD_LEVELS || (lod_n > 0 && !(1..=4096).contains(&lod_tile)) {
+        if lod_n > MAX_LOD_LEVELS
+            || lod_derived > lod_n
+            || (lod_n > 0 && !(1..=4096).contains(&lod_tile))
+        {
             return Err(bad(format!(
-                "{lod_n} LOD record levels in tiles of {lod_tile} cells: out of range"
+                "{lod_n} LOD record levels ({lod_derived} derived) in tiles of {lod_tile} cells: \
+                 out of range"
             )));
         }
-        let mut lod = (lod_n > 0).then(|| LodIndex::new(width, height, lod_p, lod_n, lod_tile));
+        let mut lod =
+            (lod_n > 0).then(|| LodIndex::new(width, height, lod_p, lod_n, lod_tile, lod_derived));
         let lod_len = lod.as_ref().map_or(0, |l| {
             4 * l.levels.len() as u64 + TILE_ENTRY as u64 * l.tiles.len() as u64
         });
@@ -519,7 +539,7 @@ impl Header {
             }
         }
         if let Some(l) = &lod {
-            for lv in &l.levels {
+            for lv in l.levels.iter().filter(|lv| lv.stored) {
                 let g = lv.grid;
                 for i in 0..g.tiles() {
                     let t = l.tiles[lv.first_tile + i];

@@ -198,6 +198,11 @@ impl Package {
             .as_ref()
             .ok_or_else(|| bad("the package has no LOD tables"))?;
         let lv = lod.level(k).ok_or_else(|| bad("no such level"))?;
+        if !lv.stored {
+            return Err(bad(
+                "the level's records are derived from the heights, not stored",
+            ));
+        }
         let g = lv.grid;
         if tx >= g.tiles_x || ty >= g.tiles_y {
             return Err(bad("no such tile"));

@@ -300,6 +300,7 @@ fn rewrite_with_records(
         crate::bake::lod_tables::P,
         levels,
         header.tile,
+        crate::bake::lod_package::DERIVED_LEVELS,
     );
     for (lv, sp) in idx.levels.iter_mut().zip(spooled) {
         lv.e_max = sp.e_max;
@@ -312,7 +313,7 @@ fn rewrite_with_records(
     let mut at = file_len + delta;
     let mut lod_bytes = 0u64;
     if let Some(idx) = header.lod.as_mut() {
-        for (lv, sp) in idx.levels.iter().zip(spooled) {
+        for (lv, sp) in idx.levels.iter().zip(spooled).filter(|(lv, _)| lv.stored) {
             assert_eq!(
                 sp.entries.len(),
                 lv.grid.tiles(),
@@ -345,7 +346,8 @@ fn rewrite_with_records(
             "the package shrank while its LOD tables were baked",
         ));
     }
-    for sp in spooled {
+    // The derived levels spooled nothing (their E is in the header).
+    for sp in spooled.iter().filter(|sp| sp.stored) {
         let mut f =
             std::fs::File::open(&sp.path).map_err(|e| Error::io(&sp.path, "cannot open", e))?;
         std::io::copy(&mut f, &mut w).map_err(io)?;

@@ -177,18 +177,21 @@ fn damaged_packages_are_errors_naming_the_tile() {
     bad[20] ^= 0x10;
     write(&bad);
     assert!(format_reason(Package::open(&path)).contains("checksum"));
-    // A wrong version; an older one (version 1, without the SAT LOD tables) asks for a new bake.
+    // A wrong version; an older one (version 1 without the SAT LOD tables, version 2 with every
+    // level's records stored as one stream) asks for a new bake.
     let mut bad = good.clone();
     bad[8] = 9;
     write(&bad);
     assert!(format_reason(Package::open(&path)).contains("version"));
-    bad[8] = 1;
-    write(&bad);
-    let reason = format_reason(Package::open(&path));
-    assert!(
-        reason.contains("version 1") && reason.contains("bake it again"),
-        "{reason}"
-    );
+    for old in [1u8, 2] {
+        bad[8] = old;
+        write(&bad);
+        let reason = format_reason(Package::open(&path));
+        assert!(
+            reason.contains(&format!("version {old}")) && reason.contains("bake it again"),
+            "{reason}"
+        );
+    }
 
     // A flipped byte in each of a few tiles: the file opens, decoding names the tile.
     for (level, t) in [(0usize, (0u32, 0u32)), (0, (3, 2)), (2, (1, 0))] {
@@ -211,11 +214,15 @@ fn damaged_packages_are_errors_naming_the_tile() {
         synth_levels: 0,
         g0: 10.0,
     };
-    for (k, t) in [(1u32, (0u32, 0u32)), (1, (1, 1)), (3, (0, 0))] {
+    // Level 1's records are derived from the heights (format 3): no tiles to damage.
+    assert_eq!(lod.derived, 1);
+    assert!(!lod.level(1).expect("level 1").stored);
+    for (k, t, at) in [(2u32, (0u32, 0u32), 2u64), (2, (1, 1), 0), (3, (0, 0), 2)] {
         let lv = lod.level(k).expect("level");
         let e = lod.tiles[lv.first_tile + (t.1 * lv.grid.tiles_x + t.0) as usize];
         let mut bad = good.clone();
-        bad[(e.offset + u64::from(e.len) / 2) as usize] ^= 0x20;
+        // Inside the mean stream, or the first stream's length.
+        bad[(e.offset + u64::from(e.len) * at / 3) as usize] ^= 0x20;
         write(&bad);
         let p = Package::open(&path).expect("the header is intact");
         assert!(p.to_heightmap().is_ok(), "the heights are intact");
@@ -386,7 +393,7 @@ fn cli_bakes_a_package_and_flies_it_streamed() {
 fn out_of_core_bake_is_byte_identical_to_the_resident_bake() {
     // Since format 2 the header also lists the SAT LOD records and they follow the height tiles: the
     // pins are the height tiles' payloads (CRC-32 over them, re-pinned at format 2) and the length the
-    // version 1 file had (its header, 12 bytes shorter than a format 2 header without records, plus the
+    // version 1 file had (its header, 16 bytes shorter than a format 3 header without records, plus the
     // same payloads: every length pinned at e896be5 still holds).
     let check = |name: &str, out: &Path, (crc, len): (u32, usize)| {
         let bytes = std::fs::read(out).expect("read back");
@@ -395,7 +402,7 @@ fn out_of_core_bake_is_byte_identical_to_the_resident_bake() {
         let start = header.byte_len();
         let payloads = &bytes[start..start + pyramid];
         header.lod = None;
-        let v1_len = header.byte_len() - 12 + pyramid;
+        let v1_len = header.byte_len() - 16 + pyramid;
         assert_eq!(
             (crc32fast::hash(payloads), v1_len),
             (crc, len),
