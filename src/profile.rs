@@ -153,8 +153,10 @@ pub struct Footprint {
     /// Ring heights: one RG32F (z, z_c) 2D array texture, `clip_size^2 x` [`Profile::height_layers`].
     /// Normals are derived from the geometry in the vertex shader (GC section 6.3): no normal texture.
     pub heights: u64,
-    /// The static block mesh ((m + 1)^2 vertices), ring skirt mesh (around n + 1 quads) and SAT LOD tile
-    /// skirt loops (around 1, 2, 4, ..., m quads), 8-byte vertices and u16 indices; one set serves every level (see `mesh`).
+    /// The static block mesh ((m + 1)^2 vertices), ring skirt mesh (around n + 1 quads), SAT LOD tile
+    /// skirt loops (around 1, 2, 4, ..., m quads) and the detail pool's cell mesh (a cell of k quads and
+    /// its loop per k, [`Profile::pool_mesh_quads`]), 8-byte vertices and u16 indices; one set serves every
+    /// level (see `mesh`).
     pub meshes: u64,
     /// Colour (RGBA8) and depth (32-bit) targets at the viewport size, plus one padded readback buffer.
     pub targets: u64,
@@ -540,6 +542,15 @@ impl Profile {
         }
     }
 
+    /// Quads of the pool cell mesh ([`crate::plan::mesh::pool_cells`]): the tile's, or 1 without a pool.
+    pub fn pool_mesh_quads(&self) -> u32 {
+        if self.budget.detail_tiles == 0 {
+            1
+        } else {
+            self.detail_quads()
+        }
+    }
+
     /// Samples per detail tile side: quads + 1 plus a one-sample border on each side.
     pub fn detail_side(&self) -> u32 {
         self.detail_quads().saturating_add(3)
@@ -580,7 +591,8 @@ impl Profile {
             .saturating_add(crate::plan::mesh::skirt_bytes(
                 self.clipmap.n.saturating_add(1),
             ))
-            .saturating_add(crate::plan::mesh::skirt_loops_bytes(self.block_m()));
+            .saturating_add(crate::plan::mesh::skirt_loops_bytes(self.block_m()))
+            .saturating_add(crate::plan::mesh::pool_cells_bytes(self.pool_mesh_quads()));
         // Each factor is below 2^32, so the products of two cannot wrap.
         let (w, h) = (u64::from(self.view.width), u64::from(self.view.height));
         let padded_row = (w * 4).div_ceil(256) * 256;

@@ -13,7 +13,7 @@ use glam::{DMat4, DVec3, DVec4, Mat4};
 
 use crate::gpu::readback::Image;
 use crate::plan::clipmap::Clipmap;
-use crate::plan::cull::{DrawKind, DrawList};
+use crate::plan::cull::DrawList;
 use crate::plan::frame_plan::FramePlan;
 use crate::Camera;
 
@@ -41,7 +41,7 @@ pub fn drawn_height(
     let synth = clipmap.synth_levels();
     let pyramid = clipmap.pyramid();
     let mut best: Option<f64> = None;
-    for d in draws.iter().filter(|d| d.kind == DrawKind::Block) {
+    for d in draws.iter().filter(|d| d.kind.surface()) {
         let c = d.covered(block_quads);
         let f = f64::from(1u32 << d.fine);
         let inside = u >= c.x0 as f64 * f

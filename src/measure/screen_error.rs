@@ -3,7 +3,7 @@
 
 use crate::bake::lod_tables::sample_error;
 use crate::plan::clipmap::Clipmap;
-use crate::plan::cull::{self, DrawKind};
+use crate::plan::cull;
 use crate::plan::frame_plan::FramePlan;
 use crate::plan::lod::Lod;
 use crate::Camera;
@@ -72,7 +72,7 @@ pub fn screen_error(
     let boxes = || {
         plan.draws()
             .iter()
-            .filter(|d| d.kind == DrawKind::Block)
+            .filter(|d| d.kind.surface())
             .filter_map(move |d| {
                 // In the fine lattice: a snapped tile is its level's surface cut at the piece's edge, so
                 // its level's error map over the covered samples is exact.

@@ -21,6 +21,16 @@ pub enum DrawKind {
     Skirt,
     /// The tile skirt mesh (around m quads), clamped onto the boundary of `bounds`: a SAT LOD tile's skirt.
     TileSkirt,
+    /// A detail pool cell and its tile skirt in one draw (the pool cell mesh,
+    /// [`crate::plan::mesh::pool_cells`]), clamped into `bounds`.
+    PoolCell,
+}
+
+impl DrawKind {
+    /// Whether it draws the terrain's surface (a block or pool cell), not only a skirt.
+    pub fn surface(self) -> bool {
+        matches!(self, Self::Block | Self::PoolCell)
+    }
 }
 
 /// One draw call: a mesh placed at `origin` of a level's lattice, its vertices clamped into `bounds`.
@@ -53,7 +63,7 @@ impl Draw {
     /// clamped into `bounds`.
     pub fn covered(&self, block_quads: u32) -> Rect {
         match self.kind {
-            DrawKind::Skirt | DrawKind::TileSkirt => self.bounds,
+            DrawKind::Skirt | DrawKind::TileSkirt | DrawKind::PoolCell => self.bounds,
             DrawKind::Block => {
                 let q = i64::from(block_quads);
                 let shift = self.level - self.fine;

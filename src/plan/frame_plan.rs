@@ -410,6 +410,7 @@ impl Planner {
             DrawKind::Block => 0..mesh::block_prefix(d.quads.min(self.block_quads)),
             DrawKind::Skirt => 0..self.skirt_indices,
             DrawKind::TileSkirt => mesh::skirt_loop_range(self.block_quads, d.quads),
+            DrawKind::PoolCell => mesh::pool_cell_range(self.pool.quads(), d.quads),
         }
     }
 
@@ -461,7 +462,7 @@ impl Planner {
             samples: u64::from(self.update_budget).saturating_sub(spent),
             draws: self.max_draws.saturating_sub(base_draws),
             triangles: u64::from(self.max_triangles).saturating_sub(base_triangles),
-            tile_draws: if dp.skirts { 2 } else { 1 },
+            skirts: dp.skirts,
             block_quads: self.block_quads,
             // A neighbour drawn at its ring gains up to one skirt per piece.
             margin: (4, 4 * self.triangles_of(&skirt)),

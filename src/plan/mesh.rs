@@ -146,6 +146,60 @@ pub fn skirt_loop_range(max_side: u32, quads: u32) -> std::ops::Range<u32> {
     first..first + 24 * side
 }
 
+/// The detail pool's cell mesh (issue 15): [`block`]`(quads)`'s vertices, then [`skirt_loops`]`(quads)`'s,
+/// and for each k in 1..=quads one run of indices: the block's top-left k x k quads, then the smallest
+/// loop of side >= k. So a pool cell and its skirt are one draw ([`pool_cell_range`]), drawn in the order
+/// its two draws had (surface, then skirt): a cell per draw is what lets the pool hold more tiles than
+/// half the draw budget.
+pub fn pool_cells(quads: u32) -> Mesh {
+    let b = block(quads);
+    let l = skirt_loops(quads);
+    assert!(
+        b.vertices.len() + l.vertices.len() <= 1 << 16,
+        "pool cells of {quads} quads exceed u16 indices"
+    );
+    let base = u16::try_from(b.vertices.len()).expect("checked above");
+    let mut vertices = b.vertices;
+    vertices.extend_from_slice(&l.vertices);
+    let mut indices = Vec::with_capacity(pool_cell_range(quads, quads).end as usize);
+    for k in 1..=quads {
+        indices.extend_from_slice(&b.indices[..block_prefix(k) as usize]);
+        let r = skirt_loop_range(quads, k);
+        indices.extend(
+            l.indices[r.start as usize..r.end as usize]
+                .iter()
+                .map(|&i| i + base),
+        );
+    }
+    Mesh { vertices, indices }
+}
+
+/// Indices of [`pool_cells`]`(quads)`'s run for a cell of `k` quads (1..=quads).
+fn pool_run(quads: u32, k: u32) -> u32 {
+    let r = skirt_loop_range(quads, k);
+    block_prefix(k) + (r.end - r.start)
+}
+
+/// The index range of [`pool_cells`]`(quads)` that draws a cell of `k` quads (clamped to 1..=quads) and
+/// its skirt: as many triangles as [`block_prefix`]`(k)` and [`skirt_loop_range`]`(quads, k)` together.
+pub fn pool_cell_range(quads: u32, k: u32) -> std::ops::Range<u32> {
+    let k = k.clamp(1, quads.max(1));
+    let start: u32 = (1..k).map(|j| pool_run(quads, j)).sum();
+    start..start + pool_run(quads, k)
+}
+
+/// Bytes of [`pool_cells`]`(quads)`'s buffers, without building it.
+pub fn pool_cells_bytes(quads: u32) -> u64 {
+    let q = u64::from(quads);
+    let mut loop_vertices = 0u64;
+    let mut side = 1u64;
+    while side <= q {
+        loop_vertices += 2 * (4 * side + 1);
+        side *= 2;
+    }
+    ((q + 1) * (q + 1) + loop_vertices) * 8 + u64::from(pool_cell_range(quads, quads).end) * 2
+}
+
 /// A closed skirt around the square [0, side]^2: for each of the 4 side + 1 boundary points (walked
 /// clockwise on screen: north edge east-bound, east edge south-bound, ...), an upper vertex (flag 0) and a
 /// lower one (flag 1), joined by two triangles per boundary segment.
@@ -179,6 +233,29 @@ pub fn skirt(side: u32) -> Mesh {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn pool_cells_are_a_block_prefix_then_its_loop() {
+        let (b, l, p) = (block(8), skirt_loops(8), pool_cells(8));
+        assert_eq!(p.bytes(), pool_cells_bytes(8));
+        assert_eq!(p.indices.len(), pool_cell_range(8, 8).end as usize);
+        let base = b.vertices.len();
+        for k in 1..=8u32 {
+            let r = pool_cell_range(8, k);
+            let run = &p.indices[r.start as usize..r.end as usize];
+            let n = block_prefix(k) as usize;
+            let lr = skirt_loop_range(8, k);
+            assert_eq!(run.len(), n + (lr.end - lr.start) as usize, "k {k}");
+            assert_eq!(&run[..n], &b.indices[..n]);
+            for (&i, &j) in run[n..]
+                .iter()
+                .zip(&l.indices[lr.start as usize..lr.end as usize])
+            {
+                assert_eq!(p.vertices[usize::from(i)], l.vertices[usize::from(j)]);
+                assert!(usize::from(i) >= base);
+            }
+        }
+    }
 
     #[test]
     fn block_is_a_grid_with_the_project_diagonal() {

@@ -293,6 +293,7 @@ fn twin_check(opts: &FrameOptions, pick: Pick) {
             clipsat::plan::cull::DrawKind::Block => mesh::block(p.block_m()),
             clipsat::plan::cull::DrawKind::Skirt => mesh::skirt(p.clipmap.n + 1),
             clipsat::plan::cull::DrawKind::TileSkirt => mesh::skirt_loops(p.block_m()),
+            clipsat::plan::cull::DrawKind::PoolCell => mesh::pool_cells(p.pool_mesh_quads()),
         };
         assert_eq!(gpu_clip.len(), m.vertices.len());
         if let Some(slot) = d.pool {

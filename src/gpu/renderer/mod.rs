@@ -116,6 +116,8 @@ pub struct Renderer {
     block: GpuMesh,
     skirt: GpuMesh,
     tile_skirt: GpuMesh,
+    /// Detail pool cells with their skirts ([`mesh::pool_cells`]).
+    pool_cell: GpuMesh,
     globals: wgpu::Buffer,
     draw_slots: wgpu::Buffer,
     // Layouts kept with the groups and pipelines made from them.
@@ -238,6 +240,10 @@ impl Renderer {
         let block = upload_mesh("clipmap block mesh", &mesh::block(block_quads));
         let skirt = upload_mesh("clipmap skirt mesh", &mesh::skirt(c.n + 1));
         let tile_skirt = upload_mesh("clipmap tile skirt mesh", &mesh::skirt_loops(block_quads));
+        let pool_cell = upload_mesh(
+            "detail pool cell mesh",
+            &mesh::pool_cells(profile.pool_mesh_quads()),
+        );
 
         let group0_layout = dev.bind_group_layout(
             "clipmap globals layout",
@@ -344,6 +350,7 @@ impl Renderer {
             block,
             skirt,
             tile_skirt,
+            pool_cell,
             globals,
             draw_slots,
             _group0_layout: group0_layout,
@@ -454,6 +461,7 @@ impl Renderer {
             DrawKind::Block => &self.block,
             DrawKind::Skirt => &self.skirt,
             DrawKind::TileSkirt => &self.tile_skirt,
+            DrawKind::PoolCell => &self.pool_cell,
         }
     }
 }

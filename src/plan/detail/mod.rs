@@ -184,8 +184,8 @@ pub struct DetailBudget {
     pub draws: u32,
     /// Triangles left of `budget.max_triangles` after it.
     pub triangles: u64,
-    /// Draws per cell (its block, and its skirt when skirts are on).
-    pub tile_draws: u32,
+    /// Skirts are on: each cell hangs its tile skirt, in the same draw ([`DrawKind::PoolCell`]).
+    pub skirts: bool,
     /// The block side m: the widest skirt loop (`mesh::skirt_loop_range`).
     pub block_quads: u32,
     /// Draws and triangles kept per served block for the skirts its neighbours then need.
@@ -198,7 +198,7 @@ impl DetailBudget {
     pub fn cell_triangles(&self, bounds: &Rect) -> u64 {
         let k = cell_quads(bounds);
         let mut t = u64::from(mesh::block_prefix(k) / 3);
-        if self.tile_draws > 1 {
+        if self.skirts {
             let r = mesh::skirt_loop_range(self.block_quads, k);
             t += u64::from((r.end - r.start) / 3);
         }
@@ -544,10 +544,10 @@ impl DetailPool {
         }
     }
 
-    /// Appends the draws of every block `frame` serves: per cell of its quadtree (a tile of the cell's level,
-    /// q x q quads, clamped to the block's piece, reading its pool slot), and the cell's tile skirt when
-    /// `skirts` (cells meet their neighbours at other levels). More than `cap` draws is an
-    /// [`Error::Capacity`].
+    /// Appends the draws of every block `frame` serves: one per cell of its quadtree (a tile of the
+    /// cell's level, q x q quads, clamped to the block's piece, reading its pool slot), with the cell's tile
+    /// skirt in the same draw ([`DrawKind::PoolCell`]) when `skirts` (cells meet their neighbours at other
+    /// levels). More than `cap` draws is an [`Error::Capacity`].
     pub fn push_draws(
         &self,
         frame: &DetailFrame,
@@ -556,7 +556,6 @@ impl DetailPool {
         out: &mut DrawList,
     ) -> Result<u32> {
         let mut blocks = 0;
-        let push = |out: &mut DrawList, d: Draw| cull::push_capped(out, d, cap);
         for &(i, _) in &frame.served {
             for l in self.tree.cells.iter().filter(|l| l.block == i) {
                 let slot = self
@@ -564,7 +563,11 @@ impl DetailPool {
                     .expect("a served block's cells are resident");
                 let d = Draw {
                     level: l.key.level,
-                    kind: DrawKind::Block,
+                    kind: if skirts {
+                        DrawKind::PoolCell
+                    } else {
+                        DrawKind::Block
+                    },
                     origin: [l.bounds.x0, l.bounds.y0],
                     bounds: l.bounds,
                     fine: l.key.level,
@@ -572,17 +575,8 @@ impl DetailPool {
                     clamped: !l.met(self.eps),
                     pool: Some(u16::try_from(slot).expect("slots <= DETAIL_CAPACITY")),
                 };
-                push(out, d)?;
+                cull::push_capped(out, d, cap)?;
                 blocks += 1;
-                if skirts {
-                    push(
-                        out,
-                        Draw {
-                            kind: DrawKind::TileSkirt,
-                            ..d
-                        },
-                    )?;
-                }
             }
         }
         Ok(blocks)

@@ -11,6 +11,10 @@ use crate::{Error, Result};
 /// on every shipped profile; past it a split does not fit.
 pub const MAX_DETAIL_CELLS: usize = 1024;
 
+/// The smallest piece a split cuts a cell into, in quads of the finer level: a part of a cell goes one
+/// level finer only where the coarser level misses epsilon over a piece this small.
+const MIN_SUB_QUADS: u32 = 8;
+
 /// A clamped block while the pool plans it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) struct Cand {
@@ -147,9 +151,13 @@ impl Quadtree {
     /// `slots` tiles and `budget`'s draws and triangles, until none can. A split covers its unit with
     /// the cells of the next finer level (a block: its clamped level's, over the block's piece; a cell:
     /// its four quarters); a quarter whose bound at the unit's own level already meets epsilon stays at
-    /// that level instead, drawn as a quarter of its tile. So a block goes fine only where its error
-    /// needs it, and a cell whose split meets epsilon costs a quarter of a tile's triangles per quarter.
-    /// A cell that meets epsilon or reached its block's wanted level is not split.
+    /// that level instead, drawn as a quarter of its tile. A finer piece costs 4x the triangles of the
+    /// same ground one level coarser, so a split may also cut a quarter that misses epsilon again (down
+    /// to [`MIN_SUB_QUADS`] finer quads) where some of its parts would meet it ([`emit`]): fewer
+    /// triangles, more cells, so more draws. Each split takes whichever of the two (whole quarters or the
+    /// cut) uses the smaller share of what is left of its scarcer budget: at Puget Sound 1 px and Big
+    /// Tujunga 1 and 2 px both budgets then run out together. A cell that meets epsilon or reached its
+    /// block's wanted level is not split.
     pub(super) fn refine(
         &mut self,
         view: &DetailView<'_>,
@@ -175,58 +183,50 @@ impl Quadtree {
                 }
             }
             let Some((_, unit)) = pick else { break };
-            self.new.clear();
-            let fitted = self.split(view, lod, bound_at, unit, quads)?;
-            // What the split adds: its new tiles, draws and triangles less the cell it replaces.
-            let mut new_keys = 0usize;
-            for (i, c) in self.new.iter().enumerate() {
-                let seen = self.new[..i].iter().any(|o| o.key == c.key);
-                if !seen && !self.keys.iter().any(|(k, _)| *k == c.key) {
-                    new_keys += 1;
+            // Two ways to split: whole quarters (fewest cells, so draws) or the finest cut (only the parts
+            // that miss epsilon one level coarser go finer, so fewest triangles). The one that takes the
+            // smaller share of what is left of its scarcer budget is taken (whole quarters on ties).
+            let cuts = [quads, MIN_SUB_QUADS.min(quads)];
+            let mut best: Option<(f64, u32)> = None;
+            for min in cuts {
+                self.new.clear();
+                let fitted = self.split(view, lod, bound_at, unit, quads, min)?;
+                let cost = self
+                    .cost(unit, budget, slots)
+                    .filter(|&(d, t, sub)| fitted && d <= draws && t <= triangles + sub);
+                if let Some((d, t, sub)) = cost {
+                    #[expect(
+                        clippy::cast_precision_loss,
+                        reason = "draw and triangle budgets are far below 2^52"
+                    )]
+                    let share = (d.max(0) as f64 / draws.max(1) as f64)
+                        .max(t.saturating_sub(sub) as f64 / triangles.max(1) as f64);
+                    if best.is_none_or(|(b, _)| share < b) {
+                        best = Some((share, min));
+                    }
+                }
+                if cuts[1] == quads {
+                    break;
                 }
             }
-            let n = self.new.len();
-            let mut add_t: u64 = self
-                .new
-                .iter()
-                .map(|c| budget.cell_triangles(&c.bounds))
-                .sum();
-            let (mut add_d, mut freed, mut removed) = (
-                i64::try_from(n).expect("n <= capacity") * i64::from(budget.tile_draws),
-                0,
-                0,
-            );
-            let sub_t = match unit {
-                Unit::Block(k) => {
-                    // Its ring draws leave the list (plan_detail's final check still holds the budget).
-                    add_d += i64::from(budget.margin.0);
-                    add_t += budget.margin.1;
-                    self.cands[k].credit
+            let mut fit = None;
+            if let Some((_, min)) = best {
+                // `self.new` holds the last cut tried; the other is made again.
+                let mut fitted = true;
+                if min != cuts[1] {
+                    self.new.clear();
+                    fitted = self.split(view, lod, bound_at, unit, quads, min)?;
                 }
-                Unit::Cell(j) => {
-                    let old = self.cells[j];
-                    add_d -= i64::from(budget.tile_draws);
-                    removed = 1;
-                    let only = self.keys.iter().any(|(k, r)| *k == old.key && *r == 1);
-                    if only && !self.new.iter().any(|c| c.key == old.key) {
-                        freed = 1;
-                    }
-                    budget.cell_triangles(&old.bounds)
-                }
-            };
-            let fits = fitted
-                && n > 0
-                && self.keys.len() + new_keys - freed <= slots
-                && self.cells.len() + n - removed <= MAX_DETAIL_CELLS
-                && add_d <= draws
-                && add_t <= triangles + sub_t;
-            if !fits {
+                fit = self.cost(unit, budget, slots).filter(|_| fitted);
+            }
+            let Some((add_d, add_t, sub_t)) = fit else {
                 match unit {
                     Unit::Block(k) => self.cands[k].frozen = true,
                     Unit::Cell(j) => self.cells[j].frozen = true,
                 }
                 continue;
-            }
+            };
+            let n = self.new.len();
             draws -= add_d;
             triangles = triangles + sub_t - add_t;
             match unit {
@@ -253,6 +253,48 @@ impl Quadtree {
         Ok(())
     }
 
+    /// What the split in `self.new` adds: (draws, triangles, triangles it frees), None when it has no
+    /// cells or its tiles or cells do not fit.
+    fn cost(&self, unit: Unit, budget: &DetailBudget, slots: usize) -> Option<(i64, u64, u64)> {
+        let mut new_keys = 0usize;
+        for (i, c) in self.new.iter().enumerate() {
+            let seen = self.new[..i].iter().any(|o| o.key == c.key);
+            if !seen && !self.keys.iter().any(|(k, _)| *k == c.key) {
+                new_keys += 1;
+            }
+        }
+        let n = self.new.len();
+        let mut add_t: u64 = self
+            .new
+            .iter()
+            .map(|c| budget.cell_triangles(&c.bounds))
+            .sum();
+        // One draw per cell (its skirt in the same draw).
+        let (mut add_d, mut freed, mut removed) = (i64::try_from(n).expect("n <= capacity"), 0, 0);
+        let sub_t = match unit {
+            Unit::Block(k) => {
+                // Its ring draws leave the list (plan_detail's final check still holds the budget).
+                add_d += i64::from(budget.margin.0);
+                add_t += budget.margin.1;
+                self.cands[k].credit
+            }
+            Unit::Cell(j) => {
+                let old = self.cells[j];
+                add_d -= 1;
+                removed = 1;
+                let only = self.keys.iter().any(|(k, r)| *k == old.key && *r == 1);
+                if only && !self.new.iter().any(|c| c.key == old.key) {
+                    freed = 1;
+                }
+                budget.cell_triangles(&old.bounds)
+            }
+        };
+        let fits = n > 0
+            && self.keys.len() + new_keys - freed <= slots
+            && self.cells.len() + n - removed <= MAX_DETAIL_CELLS;
+        fits.then_some((add_d, add_t, sub_t))
+    }
+
     fn release(&mut self, key: &TileKey) {
         if let Some(i) = self.keys.iter().position(|(k, _)| k == key) {
             self.keys[i].1 -= 1;
@@ -263,6 +305,8 @@ impl Quadtree {
     }
 
     /// Writes `unit`'s split into `self.new`; false when it has more cells than the scratch holds.
+    /// `min_quads`: the smallest piece, in quads of the finer level, that a part of the split is cut
+    /// into so that only where the coarser level misses epsilon goes finer ([`Quadtree::emit`]).
     fn split(
         &mut self,
         view: &DetailView<'_>,
@@ -270,40 +314,8 @@ impl Quadtree {
         bound_at: &dyn Fn(u32, (i64, i64, i64, i64)) -> f64,
         unit: Unit,
         quads: u32,
+        min_quads: u32,
     ) -> Result<bool> {
-        let eps = view.epsilon_px;
-        let q = i64::from(quads);
-        // A finer cell `key` over `fine` (vertices of level key.level), or the same square one level
-        // coarser when that level's bound there already meets epsilon.
-        let child = |block: u16, wanted: u32, key: TileKey, fine: Rect| -> Cell {
-            let coarse = key.level + 1;
-            let bx = level0_box(key.level, &fine);
-            let kept = bound_at(coarse, bx);
-            if kept <= eps {
-                let bounds = halve(&fine);
-                Cell {
-                    block,
-                    key: TileKey {
-                        level: coarse,
-                        cx: bounds.x0.div_euclid(q),
-                        cy: bounds.y0.div_euclid(q),
-                    },
-                    bounds,
-                    bound: kept,
-                    wanted,
-                    frozen: false,
-                }
-            } else {
-                Cell {
-                    block,
-                    key,
-                    bounds: fine,
-                    bound: bound_at(key.level, bx),
-                    wanted,
-                    frozen: false,
-                }
-            }
-        };
         let new = &mut self.new;
         let mut room = true;
         match unit {
@@ -311,12 +323,18 @@ impl Quadtree {
                 let c = self.cands[k];
                 let b = lod.blocks[usize::from(c.block)];
                 view.cells(&b, c.clamped - 1, quads, |key, fine| {
-                    room = new.push(child(c.block, c.wanted, key, fine)).is_ok();
+                    let at = Piece {
+                        block: c.block,
+                        wanted: c.wanted,
+                        level: key.level,
+                    };
+                    room = emit(new, view, bound_at, &at, quads, min_quads, fine);
                     Ok(room)
                 })?;
             }
             Unit::Cell(j) => {
                 let p = self.cells[j];
+                let q = i64::from(quads);
                 let (k, pw) = (p.key.level - 1, double(&p.bounds));
                 for dy in 0..2 {
                     for dx in 0..2 {
@@ -325,9 +343,12 @@ impl Quadtree {
                             Rect::from_bounds(cx * q, cy * q, (cx + 1) * q + 1, (cy + 1) * q + 1);
                         let fine = cell.intersect(&pw);
                         if fine.w >= 2 && fine.h >= 2 && view.visible(k, &fine) {
-                            let key = TileKey { level: k, cx, cy };
-                            // At most 4 quarters: the scratch holds more.
-                            room &= new.push(child(p.block, p.wanted, key, fine)).is_ok();
+                            let at = Piece {
+                                block: p.block,
+                                wanted: p.wanted,
+                                level: k,
+                            };
+                            room &= emit(new, view, bound_at, &at, quads, min_quads, fine);
                         }
                     }
                 }
@@ -335,4 +356,94 @@ impl Quadtree {
         }
         Ok(room)
     }
+}
+
+/// Whose cells a split makes, and at which (finer) level.
+struct Piece {
+    block: u16,
+    wanted: u32,
+    level: u32,
+}
+
+/// The cell over `r` (vertices of `at.level`) in the tile of `at.level` holding it.
+fn cell_at(at: &Piece, level: u32, r: Rect, bound: f64, quads: u32) -> Cell {
+    let q = i64::from(quads);
+    Cell {
+        block: at.block,
+        key: TileKey {
+            level,
+            cx: r.x0.div_euclid(q),
+            cy: r.y0.div_euclid(q),
+        },
+        bounds: r,
+        bound,
+        wanted: at.wanted,
+        frozen: false,
+    }
+}
+
+/// The even cut of `lo..=hi` (vertices) into two halves of at least `min` quads each, if any.
+fn cut(lo: i64, hi: i64, min: i64) -> Option<i64> {
+    let mid = lo + (((hi - lo) / 2) & !1);
+    (mid - lo >= min && hi - mid >= min).then_some(mid)
+}
+
+/// Pushes the cells that draw `fine` (vertices of `at.level`, even corners, inside one tile cell) onto
+/// `new`: one cell one level coarser (half the vertices, a quarter of the triangles) where that level's
+/// bound already meets epsilon over it; else, when some quarter of it (halves cut on even vertices, at
+/// least `min_quads` quads) would meet it one level coarser, those quarters each the same way; else one
+/// cell at `at.level`. Every cell's bound is its own box's (an upper bound, as the whole square's). False
+/// when the scratch is full.
+fn emit(
+    new: &mut heapless::Vec<Cell, { DETAIL_CAPACITY + 1 }>,
+    view: &DetailView<'_>,
+    bound_at: &dyn Fn(u32, (i64, i64, i64, i64)) -> f64,
+    at: &Piece,
+    quads: u32,
+    min_quads: u32,
+    fine: Rect,
+) -> bool {
+    let eps = view.epsilon_px;
+    let coarse = at.level + 1;
+    let kept = bound_at(coarse, level0_box(at.level, &fine));
+    if kept <= eps {
+        let r = halve(&fine);
+        return new.push(cell_at(at, coarse, r, kept, quads)).is_ok();
+    }
+    let min = i64::from(min_quads);
+    let (x1, y1) = (fine.x1() - 1, fine.y1() - 1);
+    let (mx, my) = (cut(fine.x0, x1, min), cut(fine.y0, y1, min));
+    if mx.is_some() || my.is_some() {
+        let xs = match mx {
+            Some(m) => [(fine.x0, m), (m, x1)],
+            None => [(fine.x0, x1), (0, -1)],
+        };
+        let ys = match my {
+            Some(m) => [(fine.y0, m), (m, y1)],
+            None => [(fine.y0, y1), (0, -1)],
+        };
+        let mut parts: [Option<Rect>; 4] = [None; 4];
+        let mut any = false;
+        for (i, &(ya, yb)) in ys.iter().enumerate() {
+            for (j, &(xa, xb)) in xs.iter().enumerate() {
+                if xb <= xa || yb <= ya {
+                    continue;
+                }
+                let r = Rect::from_bounds(xa, ya, xb + 1, yb + 1);
+                if !view.visible(at.level, &r) {
+                    continue;
+                }
+                any |= bound_at(coarse, level0_box(at.level, &r)) <= eps;
+                parts[i * 2 + j] = Some(r);
+            }
+        }
+        if any {
+            return parts
+                .into_iter()
+                .flatten()
+                .all(|r| emit(new, view, bound_at, at, quads, min_quads, r));
+        }
+    }
+    let b = bound_at(at.level, level0_box(at.level, &fine));
+    new.push(cell_at(at, at.level, fine, b, quads)).is_ok()
 }
