@@ -118,3 +118,13 @@ pub fn data_dir() -> std::path::PathBuf {
         .map(std::path::PathBuf::from)
         .unwrap_or_else(|| std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data"))
 }
+
+/// A temporary file name's suffix that no other live writer uses: the process id, so that processes
+/// sharing a cache folder never write the same file, and a counter, so that threads of one process
+/// (a library caller baking two terrains at once) do not either. Each cached file is written under such
+/// a name and renamed into place.
+pub(crate) fn temp_suffix() -> String {
+    static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    format!("{}-{n}", std::process::id())
+}

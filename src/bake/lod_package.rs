@@ -65,8 +65,9 @@ pub fn bake_records(
     spool: &Path,
     progress: bool,
 ) -> Result<Vec<SpooledLevel>> {
+    let suffix = crate::temp_suffix();
     let paths: Vec<PathBuf> = (1..=levels)
-        .map(|k| spool.with_extension(format!("lod{k}.tmp{}", std::process::id())))
+        .map(|k| spool.with_extension(format!("lod{k}.tmp{suffix}")))
         .collect();
     let out = spool_levels(
         package,
@@ -201,7 +202,7 @@ pub fn tables_from_records(
     if let Some(sw) = sweep.as_mut() {
         sw.levels = levels;
     }
-    let tmp = path.with_extension(format!("tmp{}", std::process::id()));
+    let tmp = path.with_extension(format!("tmp{}", crate::temp_suffix()));
     let q = Sat::max_frac_bits(u64::from(width) * u64::from(height));
     let tile = lod.tile();
     let written = write_tables(&tmp, &head, &flags, body, |file| {

@@ -552,7 +552,7 @@ pub(crate) fn bake_to_file(
     let mut sw = Sweep::new(package, params.p, 1..n, progress)?;
     sw.sweep_e()?;
     let (head, flags, body) = lay_out_file(&mut sw.levels, params.p, sw.width, sw.height, key);
-    let tmp = path.with_extension(format!("tmp{}", std::process::id()));
+    let tmp = path.with_extension(format!("tmp{}", crate::temp_suffix()));
     // Sweep 2: the tables, each finished row written in place.
     let written = write_tables(&tmp, &head, &flags, body, |file| {
         sw.sweep_tables(Some(file), &tmp)

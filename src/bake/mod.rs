@@ -315,7 +315,7 @@ pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     if let Some(dir) = path.parent() {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, "cannot create folder", e))?;
     }
-    let tmp = path.with_extension(format!("tmp{}", std::process::id()));
+    let tmp = path.with_extension(format!("tmp{}", crate::temp_suffix()));
     std::fs::write(&tmp, bytes).map_err(|e| Error::io(&tmp, "cannot write", e))?;
     std::fs::rename(&tmp, path).map_err(|e| Error::io(path, "cannot rename into place", e))
 }

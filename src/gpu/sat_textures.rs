@@ -374,7 +374,7 @@ impl ShadingBake {
         if let Some(dir) = path.parent() {
             std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, "cannot create folder", e))?;
         }
-        let tmp = path.with_extension(format!("tmp{}", std::process::id()));
+        let tmp = path.with_extension(format!("tmp{}", crate::temp_suffix()));
         let io = |e| Error::io(&tmp, "cannot write", e);
         let file = std::fs::File::create(&tmp).map_err(io)?;
         let mut out = Crc32Writer {

@@ -67,7 +67,9 @@ impl CacheSplit {
         fixed + slots * (4 * t * t + std::mem::size_of::<Slot>() as u64)
     }
 
-    /// The split of `budget` bytes for a package with this header: fixed parts first, the rest in slots.
+    /// The split of `budget` bytes for a package with this header: fixed parts first, the rest in slots,
+    /// at most one slot per tile of the package (a small package does not hold a large budget's slots
+    /// it could never fill: 257^2 streamed on desktop touched 88 MiB more than loaded whole).
     pub fn plan(header: &super::format::Header, budget: u64) -> Self {
         let t = u64::from(header.tile);
         let head = header.byte_len() as u64 + 16 * header.tiles.len() as u64;
@@ -75,7 +77,7 @@ impl CacheSplit {
         let decoder = TileDecoder::bytes(header.tile);
         let slot = 4 * t * t + std::mem::size_of::<Slot>() as u64;
         let left = budget.saturating_sub(head + map + decoder);
-        let slot_count = left / slot;
+        let slot_count = (left / slot).min(header.tiles.len() as u64);
         Self {
             budget,
             header: head,
@@ -117,7 +119,8 @@ impl TileCache {
     pub fn new(package: Package, budget: u64, profile: &str) -> Result<Self> {
         let split = CacheSplit::plan(package.header(), budget);
         let levels = package.header().levels.len() as u64;
-        let need = MIN_SLOTS * levels;
+        // Every tile resident also decodes any tile.
+        let need = (MIN_SLOTS * levels).min(package.header().tiles.len() as u64);
         if split.slot_count < need {
             return Err(Error::config(
                 profile,

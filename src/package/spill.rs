@@ -97,7 +97,7 @@ impl Spilled {
         let mut levels = Vec::new();
         for (l, (lw, lh)) in level_sizes(w, h).into_iter().enumerate() {
             let tmp = TempFile::create(
-                near.with_extension(format!("level{l}.tmp{}", std::process::id())),
+                near.with_extension(format!("level{l}.tmp{}", crate::temp_suffix())),
             )?;
             let file = tmp
                 .file

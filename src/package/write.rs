@@ -265,9 +265,9 @@ fn add_lod_records(out: &Path, opts: &BakeOptions, progress: bool) -> Result<(u6
     let file_len = pkg.file_bytes();
     drop(pkg);
     // Appended, not `with_extension`: `out` may itself be a temporary name (`cached` bakes into
-    // `P.tmpPID`), which `with_extension("tmpPID")` would give back, truncating the file being read.
+    // `P.tmp<suffix>`), which `with_extension` with that suffix would give back, truncating the file being read.
     let mut tmp = out.as_os_str().to_owned();
-    tmp.push(format!(".records{}", std::process::id()));
+    tmp.push(format!(".records{}", crate::temp_suffix()));
     let tmp = std::path::PathBuf::from(tmp);
     let written = rewrite_with_records(out, &tmp, old, file_len, &spooled);
     for sp in &spooled {
@@ -419,7 +419,7 @@ pub fn residual_tiles(
     header: &Header,
     mut f: impl FnMut(usize, (u32, u32), &[i32]) -> Result<()>,
 ) -> Result<(f64, f64)> {
-    let near = std::env::temp_dir().join(format!("clipsat-residuals-{}", std::process::id()));
+    let near = std::env::temp_dir().join(format!("clipsat-residuals-{}", crate::temp_suffix()));
     let mut spilled = Spilled::build(
         &mut Resident::new(terrain),
         &near,
@@ -568,7 +568,7 @@ pub fn cached<S: RowSource + ?Sized>(
     }
     let mut terrain = load()?;
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, "cannot create folder", e))?;
-    let tmp = path.with_extension(format!("tmp{}", std::process::id()));
+    let tmp = path.with_extension(format!("tmp{}", crate::temp_suffix()));
     bake_source(&mut *terrain, &tmp, &BakeOptions::default(), bar)?;
     std::fs::rename(&tmp, &path).map_err(|e| Error::io(&path, "cannot rename into place", e))?;
     Ok((path, true))

@@ -247,6 +247,8 @@ fn cache_decodes_under_a_budget_and_matches_the_full_decode() {
     // 9 slots per level and a few more: far smaller than the terrain.
     let levels = pkg.header().levels.len() as u64;
     let split = package::CacheSplit::plan(pkg.header(), u64::MAX);
+    // A budget larger than the package holds one slot per tile, no more.
+    assert_eq!(split.slot_count, pkg.header().tiles.len() as u64);
     let budget_bytes =
         split.header + split.map + split.decoder + (9 * levels + 4) * (16 * 16 * 4 + 64);
     let mut cache = TileCache::new(pkg, budget_bytes, "test").expect("cache");
@@ -714,4 +716,32 @@ fn cached_bake_of_a_plain_source_opens_and_is_found_again() {
         })
         .collect();
     assert!(leftovers.is_empty(), "temporary files left: {leftovers:?}");
+}
+
+/// Two threads of one process baking the same terrain into an empty cache write different temporary
+/// files (`temp_suffix`'s counter; the process id alone was shared) and both end with the same package.
+#[test]
+fn threads_baking_one_terrain_into_the_cache_agree() {
+    let dir = temp("cached-threads");
+    let _ = std::fs::remove_dir_all(&dir);
+    let hm = synthetic(70, 45);
+    let bake = || {
+        let bar = indicatif::ProgressBar::hidden();
+        let load = || Ok(Box::new(source::Resident::new(hm.clone())));
+        package::cached(&dir, 0x7ead, load, &bar).expect("cached bake")
+    };
+    let (a, b) = std::thread::scope(|s| {
+        let a = s.spawn(bake);
+        let b = s.spawn(bake);
+        (a.join().expect("thread a"), b.join().expect("thread b"))
+    });
+    assert_eq!(a.0, b.0, "one cache file");
+    let pkg = Package::open(&a.0).expect("the cached package opens");
+    assert_eq!(pkg.decode_level(0).expect("decodes").len(), 70 * 45);
+    let leftovers = std::fs::read_dir(&dir)
+        .expect("dir")
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().contains(".tmp"))
+        .count();
+    assert_eq!(leftovers, 0, "temporary files left");
 }
