@@ -468,10 +468,13 @@ impl Planner {
             margin: (4, 4 * self.triangles_of(&skirt)),
         };
         // A cell's bound at its level: the selection's own test over the cell's box.
-        let bound_at = |level: u32, cell: (i64, i64, i64, i64)| -> f64 {
+        let bound_at = |level: u32, cell: (i64, i64, i64, i64), exact: bool| -> f64 {
             match &self.lod {
-                LodSetup::Sat(mode, lod) => {
+                LodSetup::Sat(mode, lod) if exact => {
                     lod.box_bound_at_eps(camera, *mode, level, cell, epsilon_px)
+                }
+                LodSetup::Sat(mode, lod) => {
+                    lod.box_bound_test(camera, *mode, level, cell, epsilon_px)
                 }
                 LodSetup::Distance => 0.0,
             }

@@ -32,6 +32,11 @@ pub use refine::MAX_DETAIL_CELLS;
 /// Capacity of the pool's fixed collections; the profile's `budget.detail_tiles` is the limit enforced.
 pub const DETAIL_CAPACITY: usize = MAX_DETAIL_TILES as usize;
 
+/// A level's screen-space bound over a level-0 lattice box (inclusive vertices), pixels: `bound_at(level,
+/// box, exact)`. With `exact` false only whether it is at most epsilon is asked: any value that is at
+/// most epsilon exactly when the bound is will do (a threshold test may stop as soon as it knows).
+pub type BoundAt<'a> = dyn Fn(u32, (i64, i64, i64, i64), bool) -> f64 + 'a;
+
 /// One pool tile: cell (cx, cy) of level `level`'s grid of `detail_tile_quads`-quad cells.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct TileKey {
@@ -404,7 +409,7 @@ impl DetailPool {
 
     /// Plans the pool for one frame (issue 15). The clamped blocks are refined as quadtrees over space and
     /// level (`refine.rs`: the largest bound is split first while its cells fit the slots, draws and
-    /// triangles left; `bound_at` gives a level's bound over a level-0 lattice box). The tiles their cells
+    /// triangles left; `bound_at` gives a level's bound over a level-0 lattice box, [`BoundAt`]). The tiles their cells
     /// read are then filled most-needed first (by the block's bound / epsilon at the clamped level) under
     /// `budget.samples` (spent only when `budget.new_frame`: a clipmap frame planned again spends
     /// nothing), and each block whose tiles are all resident is served: its level in `lod` becomes its
@@ -419,7 +424,7 @@ impl DetailPool {
         src: &impl DetailSource,
         view: &DetailView<'_>,
         lod: &mut LodFrame,
-        bound_at: &dyn Fn(u32, (i64, i64, i64, i64)) -> f64,
+        bound_at: &BoundAt<'_>,
         budget: &DetailBudget,
         ring_triangles: &[u64],
         out: &mut DetailFrame,

@@ -2,7 +2,7 @@
 //! drawn with: a quadtree over space and level, split minimax-first under the pool's slots and the
 //! frame's draws and triangles. Pure, deterministic and allocation-free.
 
-use crate::plan::detail::{DetailBudget, DetailView, TileKey, DETAIL_CAPACITY};
+use crate::plan::detail::{BoundAt, DetailBudget, DetailView, TileKey, DETAIL_CAPACITY};
 use crate::plan::frame::Rect;
 use crate::plan::lod::{LodFrame, MAX_LOD_BLOCKS};
 use crate::{Error, Result};
@@ -66,8 +66,104 @@ pub(super) struct Quadtree {
     pub(super) cells: Box<heapless::Vec<Cell, MAX_DETAIL_CELLS>>,
     /// The distinct tiles the cells read, with how many cells read each (one slot each).
     pub(super) keys: Box<heapless::Vec<(TileKey, u32), DETAIL_CAPACITY>>,
-    /// Scratch: one split's new cells.
-    new: Box<heapless::Vec<Cell, { DETAIL_CAPACITY + 1 }>>,
+    /// Scratch: one split's new cells (whole quarters, then the one taken).
+    new: Box<Scratch>,
+    /// Scratch: the same split's cut.
+    cut: Box<Scratch>,
+    /// The frame's bounds asked so far.
+    memo: Memo,
+}
+
+/// One split's new cells.
+type Scratch = heapless::Vec<Cell, { DETAIL_CAPACITY + 1 }>;
+
+/// Entries of [`Memo`]'s table (a power of two).
+const MEMO_SLOTS: usize = 1 << 13;
+
+/// Probes per look-up: past them a bound is computed and not kept.
+const MEMO_PROBES: usize = 8;
+
+/// A bound asked of `bound_at` this plan.
+#[derive(Clone, Copy, Debug, Default)]
+struct MemoEntry {
+    /// The plan that wrote it (0: never).
+    generation: u32,
+    level: u32,
+    bx: (i64, i64, i64, i64),
+    exact: bool,
+    value: f64,
+}
+
+/// The bounds one plan asked of `bound_at` (a pure function of the frame's view), by level and box: a
+/// split weighs whole quarters against the cut, whose first tests are the same, and a cell's parts are
+/// tested again as the cut recurses. A fixed open-addressed table, emptied by a new generation (no
+/// clearing per frame); a bound that finds no room is computed again when asked again, so every value
+/// is `bound_at`'s, bit for bit.
+#[derive(Clone, Debug)]
+struct Memo {
+    generation: u32,
+    table: Box<[MemoEntry]>,
+}
+
+impl Default for Memo {
+    fn default() -> Self {
+        Self {
+            generation: 0,
+            table: vec![MemoEntry::default(); MEMO_SLOTS].into_boxed_slice(),
+        }
+    }
+}
+
+impl Memo {
+    /// Forgets every bound (a new plan: another view).
+    fn next(&mut self) {
+        self.generation = self.generation.wrapping_add(1);
+        if self.generation == 0 {
+            self.table.fill(MemoEntry::default());
+            self.generation = 1;
+        }
+    }
+
+    /// `bound_at(level, bx)`, computed once per plan where the table has room.
+    fn get(
+        &mut self,
+        bound_at: &BoundAt<'_>,
+        level: u32,
+        bx: (i64, i64, i64, i64),
+        exact: bool,
+    ) -> f64 {
+        #[expect(
+            clippy::cast_sign_loss,
+            clippy::cast_possible_truncation,
+            reason = "hash mixing: only the bits matter"
+        )]
+        let h = {
+            let mut h =
+                (u64::from(level) << 1 | u64::from(exact)).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+            for v in [bx.0, bx.1, bx.2, bx.3] {
+                h = (h ^ v as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+            }
+            (h >> 32) as usize
+        };
+        for i in 0..MEMO_PROBES {
+            let e = &mut self.table[(h + i) & (MEMO_SLOTS - 1)];
+            if e.generation != self.generation {
+                let value = bound_at(level, bx, exact);
+                *e = MemoEntry {
+                    generation: self.generation,
+                    level,
+                    bx,
+                    exact,
+                    value,
+                };
+                return value;
+            }
+            if e.level == level && e.bx == bx && e.exact == exact {
+                return e.value;
+            }
+        }
+        bound_at(level, bx, exact)
+    }
 }
 
 /// A cell's level-0 lattice box (inclusive vertices) from its vertices `r` in level `level`'s lattice.
@@ -162,13 +258,14 @@ impl Quadtree {
         &mut self,
         view: &DetailView<'_>,
         lod: &LodFrame,
-        bound_at: &dyn Fn(u32, (i64, i64, i64, i64)) -> f64,
+        bound_at: &BoundAt<'_>,
         budget: &DetailBudget,
         quads: u32,
         slots: usize,
     ) -> Result<()> {
         let eps = view.epsilon_px;
         let (mut draws, mut triangles) = (i64::from(budget.draws), budget.triangles);
+        self.memo.next();
         loop {
             // The largest bound still splittable (blocks first, then cells; first on ties).
             let mut pick: Option<(f64, Unit)> = None;
@@ -186,13 +283,18 @@ impl Quadtree {
             // Two ways to split: whole quarters (fewest cells, so draws) or the finest cut (only the parts
             // that miss epsilon one level coarser go finer, so fewest triangles). The one that takes the
             // smaller share of what is left of its scarcer budget is taken (whole quarters on ties).
+            // Whole quarters into `self.new`, the cut (when finer than a quarter) into `self.cut`.
             let cuts = [quads, MIN_SUB_QUADS.min(quads)];
-            let mut best: Option<(f64, u32)> = None;
-            for min in cuts {
-                self.new.clear();
-                let fitted = self.split(view, lod, bound_at, unit, quads, min)?;
+            let mut best: Option<(f64, bool, (i64, u64, u64))> = None;
+            for (n, min) in cuts.into_iter().enumerate() {
+                let is_cut = n == 1;
+                if is_cut && cuts[1] == quads {
+                    break;
+                }
+                let fitted = self.split(view, lod, bound_at, unit, quads, min, is_cut)?;
+                let new = if is_cut { &self.cut } else { &self.new };
                 let cost = self
-                    .cost(unit, budget, slots)
+                    .cost(new, unit, budget, slots)
                     .filter(|&(d, t, sub)| fitted && d <= draws && t <= triangles + sub);
                 if let Some((d, t, sub)) = cost {
                     #[expect(
@@ -201,24 +303,17 @@ impl Quadtree {
                     )]
                     let share = (d.max(0) as f64 / draws.max(1) as f64)
                         .max(t.saturating_sub(sub) as f64 / triangles.max(1) as f64);
-                    if best.is_none_or(|(b, _)| share < b) {
-                        best = Some((share, min));
+                    if best.is_none_or(|(b, _, _)| share < b) {
+                        best = Some((share, is_cut, (d, t, sub)));
                     }
                 }
-                if cuts[1] == quads {
-                    break;
-                }
             }
-            let mut fit = None;
-            if let Some((_, min)) = best {
-                // `self.new` holds the last cut tried; the other is made again.
-                let mut fitted = true;
-                if min != cuts[1] {
-                    self.new.clear();
-                    fitted = self.split(view, lod, bound_at, unit, quads, min)?;
+            let fit = best.map(|(_, is_cut, cost)| {
+                if is_cut {
+                    core::mem::swap(&mut self.new, &mut self.cut);
                 }
-                fit = self.cost(unit, budget, slots).filter(|_| fitted);
-            }
+                cost
+            });
             let Some((add_d, add_t, sub_t)) = fit else {
                 match unit {
                     Unit::Block(k) => self.cands[k].frozen = true,
@@ -253,22 +348,24 @@ impl Quadtree {
         Ok(())
     }
 
-    /// What the split in `self.new` adds: (draws, triangles, triangles it frees), None when it has no
-    /// cells or its tiles or cells do not fit.
-    fn cost(&self, unit: Unit, budget: &DetailBudget, slots: usize) -> Option<(i64, u64, u64)> {
+    /// What the split in `new` adds: (draws, triangles, triangles it frees), None when it has no cells
+    /// or its tiles or cells do not fit.
+    fn cost(
+        &self,
+        new: &Scratch,
+        unit: Unit,
+        budget: &DetailBudget,
+        slots: usize,
+    ) -> Option<(i64, u64, u64)> {
         let mut new_keys = 0usize;
-        for (i, c) in self.new.iter().enumerate() {
-            let seen = self.new[..i].iter().any(|o| o.key == c.key);
+        for (i, c) in new.iter().enumerate() {
+            let seen = new[..i].iter().any(|o| o.key == c.key);
             if !seen && !self.keys.iter().any(|(k, _)| *k == c.key) {
                 new_keys += 1;
             }
         }
-        let n = self.new.len();
-        let mut add_t: u64 = self
-            .new
-            .iter()
-            .map(|c| budget.cell_triangles(&c.bounds))
-            .sum();
+        let n = new.len();
+        let mut add_t: u64 = new.iter().map(|c| budget.cell_triangles(&c.bounds)).sum();
         // One draw per cell (its skirt in the same draw).
         let (mut add_d, mut freed, mut removed) = (i64::try_from(n).expect("n <= capacity"), 0, 0);
         let sub_t = match unit {
@@ -283,7 +380,7 @@ impl Quadtree {
                 add_d -= 1;
                 removed = 1;
                 let only = self.keys.iter().any(|(k, r)| *k == old.key && *r == 1);
-                if only && !self.new.iter().any(|c| c.key == old.key) {
+                if only && !new.iter().any(|c| c.key == old.key) {
                     freed = 1;
                 }
                 budget.cell_triangles(&old.bounds)
@@ -304,19 +401,29 @@ impl Quadtree {
         }
     }
 
-    /// Writes `unit`'s split into `self.new`; false when it has more cells than the scratch holds.
-    /// `min_quads`: the smallest piece, in quads of the finer level, that a part of the split is cut
-    /// into so that only where the coarser level misses epsilon goes finer ([`Quadtree::emit`]).
+    /// Writes `unit`'s split into `self.cut` when `to_cut`, else `self.new`; false when it has more cells
+    /// than the scratch holds. `min_quads`: the smallest piece, in quads of the finer level, that a part
+    /// of the split is cut into so that only where the coarser level misses epsilon goes finer ([`emit`]).
+    #[expect(
+        clippy::too_many_arguments,
+        reason = "the split's inputs and which scratch it fills"
+    )]
     fn split(
         &mut self,
         view: &DetailView<'_>,
         lod: &LodFrame,
-        bound_at: &dyn Fn(u32, (i64, i64, i64, i64)) -> f64,
+        bound_at: &BoundAt<'_>,
         unit: Unit,
         quads: u32,
         min_quads: u32,
+        to_cut: bool,
     ) -> Result<bool> {
-        let new = &mut self.new;
+        let new = if to_cut { &mut self.cut } else { &mut self.new };
+        new.clear();
+        let memo = &mut self.memo;
+        let bound_at = &mut |level: u32, bx: (i64, i64, i64, i64), exact: bool| {
+            memo.get(bound_at, level, bx, exact)
+        };
         let mut room = true;
         match unit {
             Unit::Block(k) => {
@@ -395,9 +502,9 @@ fn cut(lo: i64, hi: i64, min: i64) -> Option<i64> {
 /// cell at `at.level`. Every cell's bound is its own box's (an upper bound, as the whole square's). False
 /// when the scratch is full.
 fn emit(
-    new: &mut heapless::Vec<Cell, { DETAIL_CAPACITY + 1 }>,
+    new: &mut Scratch,
     view: &DetailView<'_>,
-    bound_at: &dyn Fn(u32, (i64, i64, i64, i64)) -> f64,
+    bound_at: &mut dyn FnMut(u32, (i64, i64, i64, i64), bool) -> f64,
     at: &Piece,
     quads: u32,
     min_quads: u32,
@@ -405,7 +512,8 @@ fn emit(
 ) -> bool {
     let eps = view.epsilon_px;
     let coarse = at.level + 1;
-    let kept = bound_at(coarse, level0_box(at.level, &fine));
+    // Only whether it meets epsilon is asked: a kept cell's bound is not ranked (it is met).
+    let kept = bound_at(coarse, level0_box(at.level, &fine), false);
     if kept <= eps {
         let r = halve(&fine);
         return new.push(cell_at(at, coarse, r, kept, quads)).is_ok();
@@ -433,7 +541,7 @@ fn emit(
                 if !view.visible(at.level, &r) {
                     continue;
                 }
-                any |= bound_at(coarse, level0_box(at.level, &r)) <= eps;
+                any |= bound_at(coarse, level0_box(at.level, &r), false) <= eps;
                 parts[i * 2 + j] = Some(r);
             }
         }
@@ -444,6 +552,6 @@ fn emit(
                 .all(|r| emit(new, view, bound_at, at, quads, min_quads, r));
         }
     }
-    let b = bound_at(at.level, level0_box(at.level, &fine));
+    let b = bound_at(at.level, level0_box(at.level, &fine), true);
     new.push(cell_at(at, at.level, fine, b, quads)).is_ok()
 }
