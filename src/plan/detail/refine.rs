@@ -44,7 +44,8 @@ pub(super) struct Cell {
     pub(super) key: TileKey,
     /// Its vertices in its level's lattice: the whole tile cell or a quarter of it, clipped to the piece.
     pub(super) bounds: Rect,
-    /// Its screen-space bound, pixels.
+    /// Its screen-space bound, pixels (NaN in a split's scratch until the split is taken; a cell kept
+    /// one level coarser holds a value that only says it meets epsilon).
     pub(super) bound: f64,
     /// Its block's wanted level: no cell is split finer.
     pub(super) wanted: u32,
@@ -132,11 +133,7 @@ impl Memo {
         bx: (i64, i64, i64, i64),
         exact: bool,
     ) -> f64 {
-        #[expect(
-            clippy::cast_sign_loss,
-            clippy::cast_possible_truncation,
-            reason = "hash mixing: only the bits matter"
-        )]
+        #[expect(clippy::cast_sign_loss, reason = "hash mixing: only the bits matter")]
         let h = {
             let mut h =
                 (u64::from(level) << 1 | u64::from(exact)).wrapping_mul(0x9e37_79b9_7f4a_7c15);
@@ -293,19 +290,30 @@ impl Quadtree {
                 }
                 let fitted = self.split(view, lod, bound_at, unit, quads, min, is_cut)?;
                 let new = if is_cut { &self.cut } else { &self.new };
-                let cost = self
-                    .cost(new, unit, budget, slots)
-                    .filter(|&(d, t, sub)| fitted && d <= draws && t <= triangles + sub);
-                if let Some((d, t, sub)) = cost {
+                let cost = self.cost(new, unit, budget, slots).filter(|_| fitted);
+                // The cut draws each whole quarter as one cell or more, so at least as many draws: it
+                // cannot fit where whole quarters take too many, nor take a smaller share where whole
+                // quarters' share is their draws'. Then it is not made.
+                let mut draw_bound = cost.is_some_and(|(d, _, _)| d > draws);
+                if let Some((d, t, sub)) =
+                    cost.filter(|&(d, t, sub)| d <= draws && t <= triangles + sub)
+                {
                     #[expect(
                         clippy::cast_precision_loss,
                         reason = "draw and triangle budgets are far below 2^52"
                     )]
-                    let share = (d.max(0) as f64 / draws.max(1) as f64)
-                        .max(t.saturating_sub(sub) as f64 / triangles.max(1) as f64);
+                    let (dshare, tshare) = (
+                        d.max(0) as f64 / draws.max(1) as f64,
+                        t.saturating_sub(sub) as f64 / triangles.max(1) as f64,
+                    );
+                    let share = dshare.max(tshare);
+                    draw_bound = dshare >= tshare;
                     if best.is_none_or(|(b, _, _)| share < b) {
                         best = Some((share, is_cut, (d, t, sub)));
                     }
+                }
+                if draw_bound {
+                    break;
                 }
             }
             let fit = best.map(|(_, is_cut, cost)| {
@@ -332,7 +340,11 @@ impl Quadtree {
                 }
             }
             for i in 0..n {
-                let c = self.new[i];
+                let mut c = self.new[i];
+                if c.bound.is_nan() {
+                    let bx = level0_box(c.key.level, &c.bounds);
+                    c.bound = self.memo.get(bound_at, c.key.level, bx, true);
+                }
                 self.cells
                     .push(c)
                     .expect("checked against MAX_DETAIL_CELLS");
@@ -552,6 +564,7 @@ fn emit(
                 .all(|r| emit(new, view, bound_at, at, quads, min_quads, r));
         }
     }
-    let b = bound_at(at.level, level0_box(at.level, &fine), true);
-    new.push(cell_at(at, at.level, fine, b, quads)).is_ok()
+    // Its bound is asked once the split is taken (`Quadtree::refine`): a split not taken needs none.
+    new.push(cell_at(at, at.level, fine, f64::NAN, quads))
+        .is_ok()
 }
