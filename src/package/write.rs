@@ -571,5 +571,11 @@ pub fn cached<S: RowSource + ?Sized>(
     let tmp = path.with_extension(format!("tmp{}", crate::temp_suffix()));
     bake_source(&mut *terrain, &tmp, &BakeOptions::default(), bar)?;
     std::fs::rename(&tmp, &path).map_err(|e| Error::io(&path, "cannot rename into place", e))?;
+    // The same terrain's packages of older formats are refused now: drop them, so the cache folder does
+    // not grow with every format change (best effort: a file another process holds stays).
+    for v in 1..super::format::VERSION {
+        let old = dir.join(format!("terrain-{}-v{v}.clipsat", crate::hash::hex(key)));
+        let _ = std::fs::remove_file(old);
+    }
     Ok((path, true))
 }

@@ -693,8 +693,13 @@ fn cached_bake_of_a_plain_source_opens_and_is_found_again() {
     let hm = synthetic(70, 45);
     let bar = indicatif::ProgressBar::hidden();
     let load = || Ok(Box::new(source::Resident::new(hm.clone())));
+    // An older format's package of the same terrain, left by an earlier release: removed by the bake.
+    std::fs::create_dir_all(&dir).expect("dir");
+    let stale = dir.join("terrain-0000000000005eed-v2.clipsat");
+    std::fs::write(&stale, b"an old package").expect("stale file");
     let (path, baked) = package::cached(&dir, 0x5eed, load, &bar).expect("cached bake");
     assert!(baked, "first call bakes");
+    assert!(!stale.exists(), "the older format's package is removed");
     let pkg = Package::open(&path).expect("the cached package opens");
     assert_eq!(pkg.decode_level(0).expect("decodes").len(), 70 * 45);
     let again = package::cached(
