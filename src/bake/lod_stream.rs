@@ -481,26 +481,18 @@ impl Sweep {
     /// Sweep 1: every level's E; the first non-finite error is an [`Error::Terrain`] naming its sample.
     pub(super) fn sweep_e(&mut self) -> Result<()> {
         let width = self.width;
-        for band in 0..self.bands {
-            let (y0, y1) = load_band(
-                &mut self.cache,
-                &mut self.levels,
-                &mut self.h0,
-                band,
-                self.last,
-            )?;
-            let h0 = &self.h0;
-            let mut all: Vec<&mut Level> = self.levels.iter_mut().collect();
-            par_levels(&mut all, |lv| {
+        let what = self.cache.package().path().to_path_buf();
+        self.sweep_bands(
+            |_| true,
+            |lv, h0, y0, y1| {
                 let mut scratch = Vec::new();
                 for y in y0..y1 {
                     lv.sweep_max(band_row(h0, width, y - y0), y, &mut scratch);
                 }
                 Ok(())
-            })
-            .map_err(|e| Error::io(self.cache.package().path(), "cannot bake", e))?;
-            self.bar.inc(1);
-        }
+            },
+            |e| Error::io(&what, "cannot bake", e),
+        )?;
         if let Some((x, y, e)) = self.levels.iter().find_map(|l| l.bad) {
             return Err(bad_error(x as usize, y as usize, e));
         }
@@ -510,6 +502,24 @@ impl Sweep {
     /// Sweep 2 over the levels with tables, each data row handed to [`Level::sweep_tables`] with `file`.
     pub(super) fn sweep_tables(&mut self, file: Option<&File>, what: &Path) -> Result<()> {
         let (width, height) = (self.width, self.height);
+        self.sweep_bands(
+            Level::has_tables,
+            |lv, h0, y0, y1| {
+                (y0..y1)
+                    .try_for_each(|y| lv.sweep_tables(file, band_row(h0, width, y - y0), y, height))
+            },
+            |e| Error::io(what, "cannot write", e),
+        )
+    }
+
+    /// One pass over the terrain a band of level-0 tile rows at a time: each band decoded once, then
+    /// `rows(level, band heights, y0, y1)` for every level `pick` takes, the levels in parallel.
+    fn sweep_bands(
+        &mut self,
+        pick: impl Fn(&Level) -> bool,
+        rows: impl Fn(&mut Level, &[f32], u32, u32) -> std::io::Result<()> + Sync,
+        err: impl Fn(std::io::Error) -> Error,
+    ) -> Result<()> {
         for band in 0..self.bands {
             let (y0, y1) = load_band(
                 &mut self.cache,
@@ -519,15 +529,8 @@ impl Sweep {
                 self.last,
             )?;
             let h0 = &self.h0;
-            let mut with: Vec<&mut Level> =
-                self.levels.iter_mut().filter(|l| l.has_tables()).collect();
-            par_levels(&mut with, |lv| {
-                for y in y0..y1 {
-                    lv.sweep_tables(file, band_row(h0, width, y - y0), y, height)?;
-                }
-                Ok(())
-            })
-            .map_err(|e| Error::io(what, "cannot write", e))?;
+            let mut picked: Vec<&mut Level> = self.levels.iter_mut().filter(|l| pick(l)).collect();
+            par_levels(&mut picked, |lv| rows(lv, h0, y0, y1)).map_err(&err)?;
             self.bar.inc(1);
         }
         Ok(())
