@@ -558,11 +558,8 @@ pub fn cached<S: RowSource + ?Sized>(
     load: impl FnOnce() -> Result<Box<S>>,
     bar: &indicatif::ProgressBar,
 ) -> Result<(std::path::PathBuf, bool)> {
-    let path = dir.join(format!(
-        "terrain-{}-v{}.clipsat",
-        crate::hash::hex(key),
-        super::format::VERSION
-    ));
+    let named = |v: u32| dir.join(format!("terrain-{}-v{v}.clipsat", crate::hash::hex(key)));
+    let path = named(super::format::VERSION);
     if super::read::Package::open(&path).is_ok() {
         return Ok((path, false));
     }
@@ -574,8 +571,7 @@ pub fn cached<S: RowSource + ?Sized>(
     // The same terrain's packages of older formats are refused now: drop them, so the cache folder does
     // not grow with every format change (best effort: a file another process holds stays).
     for v in 1..super::format::VERSION {
-        let old = dir.join(format!("terrain-{}-v{v}.clipsat", crate::hash::hex(key)));
-        let _ = std::fs::remove_file(old);
+        let _ = std::fs::remove_file(named(v));
     }
     Ok((path, true))
 }

@@ -178,7 +178,7 @@ impl TerrainArgs {
                         ..p
                     };
                     return Ok((
-                        format!("procedural(seed={}, size={})", p.seed, p.size),
+                        self.name()?,
                         Box::new(
                             source::procedural::Rows::new(&p).map_err(args::flag("--terrain"))?,
                         ),
@@ -208,7 +208,7 @@ impl TerrainArgs {
                     ..p
                 };
                 Ok((
-                    format!("procedural(seed={}, size={})", p.seed, p.size),
+                    self.name()?,
                     source::procedural::generate(&p).map_err(args::flag("--terrain"))?,
                 ))
             }
