@@ -71,22 +71,54 @@ struct DrawUniform {
 @group(0) @binding(2) var detail: texture_2d_array<f32>;
 @group(1) @binding(0) var<uniform> draw: DrawUniform;
 
+// Mirrors `clipsat::uniforms::PoolCell`: a detail pool cell of an instanced pool draw, one per instance
+// (vertex buffer 1, instance step). The draw's slot holds its first cell's whole DrawUniform; the cells of
+// one draw share level, mesh range and program, and differ in these fields. Draws that are not the pool's
+// read instance 0 and ignore it.
+struct PoolCellIn {
+    // xy: mesh origin (tile-relative); z: pool layer + 1; w: unused.
+    @location(1) origin: vec4<i32>,
+    // The clamp rectangle, inclusive, tile-relative.
+    @location(2) bounds: vec4<i32>,
+    // xy: world position of the tile's first sample at height 0 minus the eye (m).
+    @location(3) anchor: vec4<f32>,
+    // xy: the tile's first texel in its layer.
+    @location(4) texel: vec4<i32>,
+}
+
+// The uniforms the vertex stage reads: the draw's, with a pool cell's own fields put over them (`draw_of`).
+var<private> dr: DrawUniform;
+
+// Operation for operation as `clipsat::uniforms::PoolCell::over` (its CPU twin).
+fn draw_of(c: PoolCellIn) -> DrawUniform {
+    var d = draw;
+    if (draw.pool.x > 0) {
+        d.origin = vec4<i32>(c.origin.xy, draw.origin.zw);
+        d.pool = vec4<i32>(c.origin.z, draw.pool.y, c.texel.xy);
+        d.bounds = c.bounds;
+        d.fine_bounds = c.bounds;
+        d.anchor_rel = vec4<f32>(c.anchor.xy, draw.anchor_rel.zw);
+        d.fine_rel = vec4<f32>(c.anchor.xy, draw.fine_rel.zw);
+    }
+    return d;
+}
+
 // (z, z_c) at anchor-relative lattice point p (p >= 0 inside the active region); a pool draw's z from its
 // tile (pool draws never morph: z_c = z).
 fn clip_fetch(p: vec2<i32>) -> vec2<f32> {
-    if (draw.pool.x > 0) {
-        let z = textureLoad(detail, draw.pool.zw + p, draw.pool.x - 1, 0).x;
+    if (dr.pool.x > 0) {
+        let z = textureLoad(detail, dr.pool.zw + p, dr.pool.x - 1, 0).x;
         return vec2<f32>(z, z);
     }
-    let t = (draw.tex.xy + p) % vec2<i32>(draw.origin.w);
-    return textureLoad(heights, t, draw.origin.z, 0).xy;
+    let t = (dr.tex.xy + p) % vec2<i32>(dr.origin.w);
+    return textureLoad(heights, t, dr.origin.z, 0).xy;
 }
 
 // GC section 6.2's alpha, operation for operation as `clipsat::clipmap::morph_alpha`.
 fn clip_morph_alpha(x: f32, y: f32) -> f32 {
-    let w = draw.morph_w.x;
-    let ax = clamp((abs(x - draw.morph.x) - (draw.morph.z - w - 1.0)) / w, 0.0, 1.0);
-    let ay = clamp((abs(y - draw.morph.y) - (draw.morph.w - w - 1.0)) / w, 0.0, 1.0);
+    let w = dr.morph_w.x;
+    let ax = clamp((abs(x - dr.morph.x) - (dr.morph.z - w - 1.0)) / w, 0.0, 1.0);
+    let ay = clamp((abs(y - dr.morph.y) - (dr.morph.w - w - 1.0)) / w, 0.0, 1.0);
     return max(ax, ay);
 }
 
@@ -103,13 +135,13 @@ struct TerrainVertex {
 // fine bounds; where that lands on this level's lattice it is this level's vertex, else (the edge of a
 // snapped SAT LOD tile) a point of this level's surface between its vertices.
 fn clip_vertex(v: vec4<u32>) -> TerrainVertex {
-    let s = draw.fine.y;
+    let s = dr.fine.y;
     let pf = clamp(
-        draw.fine_origin.xy + (draw.origin.xy + vec2<i32>(v.xy)) * s,
-        draw.fine_bounds.xy,
-        draw.fine_bounds.zw,
+        dr.fine_origin.xy + (dr.origin.xy + vec2<i32>(v.xy)) * s,
+        dr.fine_bounds.xy,
+        dr.fine_bounds.zw,
     );
-    let q = pf - draw.fine_origin.xy;
+    let q = pf - dr.fine_origin.xy;
     if (any(q % vec2<i32>(s) != vec2<i32>(0))) {
         return snapped_vertex(v, q, pf);
     }
@@ -120,11 +152,11 @@ fn clip_vertex(v: vec4<u32>) -> TerrainVertex {
     let z = (1.0 - alpha) * zz.x + alpha * zz.y;
     // GC 6.3: normals from the geometry, central differences of z and z_c blended with the same alpha;
     // one-sided at the active region's edge.
-    let xm = max(p.x - 1, draw.region.x);
-    let xp = min(p.x + 1, draw.region.z);
-    let yn = max(p.y - 1, draw.region.y);
-    let ys = min(p.y + 1, draw.region.w);
-    let g = draw.anchor_rel.w;
+    let xm = max(p.x - 1, dr.region.x);
+    let xp = min(p.x + 1, dr.region.z);
+    let yn = max(p.y - 1, dr.region.y);
+    let ys = min(p.y + 1, dr.region.w);
+    let g = dr.anchor_rel.w;
     let dx = (clip_fetch(vec2<i32>(xp, p.y)) - clip_fetch(vec2<i32>(xm, p.y))) / (f32(xp - xm) * g);
     // Rows run south, so north minus south is the gradient along +y (north).
     let dy = (clip_fetch(vec2<i32>(p.x, yn)) - clip_fetch(vec2<i32>(p.x, ys))) / (f32(ys - yn) * g);
@@ -136,7 +168,7 @@ fn clip_vertex(v: vec4<u32>) -> TerrainVertex {
         h = min(z, globals.params.y);
     }
     var out: TerrainVertex;
-    out.rel = draw.anchor_rel.xyz + vec3<f32>(f32(p.x) * g, -f32(p.y) * g, h);
+    out.rel = dr.anchor_rel.xyz + vec3<f32>(f32(p.x) * g, -f32(p.y) * g, h);
     out.normal = vec3<f32>(-gx, -gy, 1.0);
     out.height = z;
     return out;
@@ -157,11 +189,11 @@ fn outside_data(rel: vec2<f32>) -> bool {
 // tile is exactly this level's surface cut at the piece's edge (SAT LOD draws do not morph). The normal is
 // the triangle's. Positions use the fine lattice (`fine_rel`), where the neighbouring pieces' vertices lie.
 fn snapped_vertex(v: vec4<u32>, q: vec2<i32>, pf: vec2<i32>) -> TerrainVertex {
-    let s = draw.fine.y;
+    let s = dr.fine.y;
     let c = q / s;
     let f = vec2<f32>(q - c * s) / f32(s);
     // The cell's far corner, kept on the tile (a point on its last lattice line has weight 0 there).
-    let cmax = (draw.fine_bounds.zw - draw.fine_origin.xy + vec2<i32>(s - 1)) / s;
+    let cmax = (dr.fine_bounds.zw - dr.fine_origin.xy + vec2<i32>(s - 1)) / s;
     let c1 = min(c + vec2<i32>(1), cmax);
     let z00 = clip_fetch(c).x;
     let z11 = clip_fetch(c1).x;
@@ -181,10 +213,10 @@ fn snapped_vertex(v: vec4<u32>, q: vec2<i32>, pf: vec2<i32>) -> TerrainVertex {
     if (v.z != 0u) {
         h = min(z, globals.params.y);
     }
-    let g = draw.anchor_rel.w;
-    let gf = draw.fine_rel.w;
+    let g = dr.anchor_rel.w;
+    let gf = dr.fine_rel.w;
     var out: TerrainVertex;
-    out.rel = draw.fine_rel.xyz + vec3<f32>(f32(pf.x) * gf, -f32(pf.y) * gf, h);
+    out.rel = dr.fine_rel.xyz + vec3<f32>(f32(pf.x) * gf, -f32(pf.y) * gf, h);
     // Rows run south: the gradient along +y (north) is minus the one along the rows.
     out.normal = vec3<f32>(-dzx / g, dzy / g, 1.0);
     out.height = z;
@@ -346,7 +378,8 @@ struct VsOut {
 }
 
 @vertex
-fn vs_main(@location(0) v: vec4<u32>) -> VsOut {
+fn vs_main(@location(0) v: vec4<u32>, cell: PoolCellIn) -> VsOut {
+    dr = draw_of(cell);
     let t = clip_vertex(v);
     var out: VsOut;
     out.clip = globals.view_proj * vec4<f32>(t.rel, 1.0);
@@ -354,7 +387,7 @@ fn vs_main(@location(0) v: vec4<u32>) -> VsOut {
     out.normal = t.normal;
     out.height = t.height;
     out.skirt = f32(v.z);
-    out.level = draw.origin.z;
+    out.level = dr.origin.z;
     return out;
 }
 
@@ -443,7 +476,8 @@ struct CaptureOut {
 }
 
 @vertex
-fn vs_capture(@builtin(vertex_index) k: u32, @location(0) v: vec4<u32>) -> CaptureOut {
+fn vs_capture(@builtin(vertex_index) k: u32, @location(0) v: vec4<u32>, cell: PoolCellIn) -> CaptureOut {
+    dr = draw_of(cell);
     let t = clip_vertex(v);
     let size = globals.params.zw;
     let px = vec2<f32>(f32(k % u32(size.x)), f32(k / u32(size.x))) + vec2<f32>(0.5);

@@ -42,6 +42,8 @@ fn debug_view(shaded: vec3<f32>, rel: vec3<f32>, normal: vec3<f32>) -> vec3<f32>
     // Wireframe: GLES 3.0 has no line polygon mode, so draw the lattice lines here. The lattice coordinate
     // (level units, anchor-relative) is recovered from the position; a line is where it is within about
     // one pixel (fwidth) of an integer.
+    // A pool draw's slot is its first cell's: its cells share the level, and their anchors differ by
+    // whole lattice steps, so the fraction below is the same.
     let g = draw.anchor_rel.w;
     let lattice = vec2<f32>(rel.x - draw.anchor_rel.x, draw.anchor_rel.y - rel.y) / g;
     let dist = abs(fract(lattice - vec2<f32>(0.5)) - vec2<f32>(0.5)) / max(fwidth(lattice), vec2<f32>(1.0e-6));

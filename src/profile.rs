@@ -165,6 +165,9 @@ pub struct Footprint {
     /// The detail pool: one R32F 2D array texture of [`Profile::detail_atlas`]'s layers, each
     /// `layer_side`^2 texels.
     pub detail: u64,
+    /// The detail pool's cell buffer: one [`POOL_CELL_BYTES`] per-instance record per cell the pool's
+    /// instanced draws may draw ([`Profile::pool_cell_capacity`]).
+    pub pool_cells: u64,
 }
 
 impl Footprint {
@@ -175,6 +178,7 @@ impl Footprint {
             .saturating_add(self.targets)
             .saturating_add(self.uniforms)
             .saturating_add(self.detail)
+            .saturating_add(self.pool_cells)
     }
 }
 
@@ -182,6 +186,10 @@ impl Footprint {
 pub const GLOBALS_BYTES: u64 = 144 + 48 * MAX_LEVELS as u64 + 16;
 /// Bytes of one per-draw uniform slot: the GLES 3.0 floor's uniform offset alignment.
 pub const DRAW_SLOT_BYTES: u64 = 256;
+/// Most detail pool cells one plan draws (the instances of the pool's instanced draws; issue 15).
+pub const MAX_POOL_CELLS: usize = 1024;
+/// Bytes of one pool cell's per-instance record (`PoolCell` in the plan's uniforms).
+pub const POOL_CELL_BYTES: u64 = 64;
 
 /// Largest 2D texture side on the GLES 3.0 floor (`Limits::downlevel_webgl2_defaults`).
 pub const MAX_TEXTURE_SIDE: u32 = 2048;
@@ -613,6 +621,17 @@ impl Profile {
                     .saturating_mul(u64::from(a.layers))
                     .saturating_mul(4)
             },
+            pool_cells: self.pool_cell_capacity() as u64 * POOL_CELL_BYTES,
+        }
+    }
+
+    /// Cells the detail pool's cell buffer holds: [`MAX_POOL_CELLS`], or one when the pool is off (every
+    /// terrain draw binds the buffer and reads instance 0).
+    pub fn pool_cell_capacity(&self) -> usize {
+        if self.budget.detail_tiles == 0 {
+            1
+        } else {
+            MAX_POOL_CELLS
         }
     }
 }

@@ -21,7 +21,7 @@ use crate::plan::lod::{Lod, LodFrame, LodMode};
 use crate::plan::mesh;
 use crate::plan::uniforms::{
     data_extent_rel, detail_draw_uniform, draw_uniform, lod_draw_uniform, shading_levels, to_f32x4,
-    DrawUniform, Globals,
+    DrawUniform, Globals, PoolCell,
 };
 use crate::plan::uploads::UploadList;
 use crate::profile::DRAW_SLOT_BYTES;
@@ -92,7 +92,9 @@ impl LodSetup {
     }
 }
 
-/// One draw of a plan: which mesh and which part of its index buffer.
+/// One draw call of a plan: which mesh, which part of its index buffer, and which of the plan's draws it
+/// draws: one, or a run of detail pool cells of one level, mesh range and program drawn instanced (issue
+/// 15), one instance per cell, each cell's own fields read from the cell buffer ([`PoolCell`]).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct PlannedDraw {
     /// The mesh.
@@ -101,6 +103,44 @@ pub struct PlannedDraw {
     pub indices: Range<u32>,
     /// The fragment program it is recorded with.
     pub fragment: FragmentPath,
+    /// The draws of [`FramePlan::draws`] it draws.
+    pub draws: Range<u32>,
+    /// The pool cells ([`FramePlan::pool_cells`]) it draws, one instance each; empty: one instance, not
+    /// a pool draw.
+    pub cells: Range<u32>,
+}
+
+impl PlannedDraw {
+    /// Instances it draws.
+    pub fn instances(&self) -> u32 {
+        (self.cells.end - self.cells.start).max(1)
+    }
+}
+
+/// Sorts the pool cells `pool` (the tail of a draw list) into runs of one level, mesh and fragment
+/// program, so each run is one instanced draw call, and returns how many runs there are. Unstable but
+/// total order (the cell's place breaks ties), so allocation-free and deterministic.
+fn sort_pool_runs(pool: &mut [cull::Draw], paths: &FragmentPaths) -> u32 {
+    let key = |d: &cull::Draw| {
+        (
+            d.level,
+            d.kind as u32,
+            d.quads,
+            paths.path(d) as u32,
+            d.bounds.y0,
+            d.bounds.x0,
+            d.pool,
+        )
+    };
+    pool.sort_unstable_by_key(key);
+    let run = |d: &cull::Draw| (d.level, d.kind, d.quads, paths.path(d));
+    let mut runs = 0;
+    for (i, d) in pool.iter().enumerate() {
+        if i == 0 || run(&pool[i - 1]) != run(d) {
+            runs += 1;
+        }
+    }
+    runs
 }
 
 /// Whether ring draw `d` of the clamped draw list is one of block `b`'s (`cull::build_lod_draws` draws
@@ -126,8 +166,10 @@ fn block_draws(b: &crate::plan::lod::BlockLod, d: &cull::Draw) -> bool {
 /// What a plan holds, in numbers.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct PlanStats {
-    /// Draw calls.
+    /// Draw calls (a run of pool cells is one instanced call).
     pub draws: u32,
+    /// Detail pool cells drawn, as instances of the pool's calls.
+    pub pool_cells: u32,
     /// Blocks drawn, culled, and skirts drawn.
     pub cull: DrawStats,
     /// Triangles submitted (the zero-area ones of clamped blocks included).
@@ -161,6 +203,7 @@ pub struct FramePlan {
     detail: Box<DetailFrame>,
     draws: Box<DrawList>,
     ranges: Box<heapless::Vec<PlannedDraw, MAX_DRAWS>>,
+    cells: Box<heapless::Vec<PoolCell, MAX_DRAWS>>,
     slots: Vec<u8>,
     globals: Globals,
     stats: PlanStats,
@@ -193,25 +236,55 @@ impl FramePlan {
         &self.detail
     }
 
-    /// The draw list, finest level first.
+    /// The draw list, finest level first, then the detail pool's cells: one entry per block piece,
+    /// skirt or pool cell (what is drawn where; the draw calls are [`FramePlan::planned`]).
     pub fn draws(&self) -> &DrawList {
         &self.draws
     }
 
-    /// Each draw's mesh and index range.
+    /// The draw calls: each one's mesh, index range, program and the draws it covers (a run of pool
+    /// cells is one instanced call). `budget.max_draws` bounds their number.
     pub fn planned(&self) -> &[PlannedDraw] {
         &self.ranges
     }
 
-    /// The uniforms of draw `i`.
-    pub fn draw_uniform(&self, i: usize) -> DrawUniform {
-        let at = i * SLOT;
-        bytemuck::pod_read_unaligned(&self.slots[at..at + std::mem::size_of::<DrawUniform>()])
+    /// The pool cells' per-instance fields, in draw order (the cell buffer's contents).
+    pub fn pool_cells(&self) -> &[PoolCell] {
+        &self.cells
     }
 
-    /// The draw slots' bytes: one [`DRAW_SLOT_BYTES`] slot per draw.
+    /// The draw call of draw `i` and its instance there.
+    pub fn call_of(&self, i: usize) -> Option<(usize, u32)> {
+        let i = u32::try_from(i).ok()?;
+        self.ranges
+            .iter()
+            .position(|c| c.draws.contains(&i))
+            .map(|k| (k, i - self.ranges[k].draws.start))
+    }
+
+    /// The uniforms the vertices of draw `i` see: its call's slot, with a pool cell's own fields put
+    /// over it as the vertex shader's `draw_of` does ([`PoolCell::over`]).
+    pub fn draw_uniform(&self, i: usize) -> DrawUniform {
+        let (k, instance) = self.call_of(i).expect("draw index within the plan");
+        let at = k * SLOT;
+        let slot: DrawUniform =
+            bytemuck::pod_read_unaligned(&self.slots[at..at + std::mem::size_of::<DrawUniform>()]);
+        let c = &self.ranges[k];
+        if c.cells.is_empty() {
+            slot
+        } else {
+            self.cells[(c.cells.start + instance) as usize].over(&slot)
+        }
+    }
+
+    /// The draw slots' bytes: one [`DRAW_SLOT_BYTES`] slot per draw call.
     pub fn slot_bytes(&self) -> &[u8] {
-        &self.slots[..self.draws.len() * SLOT]
+        &self.slots[..self.ranges.len() * SLOT]
+    }
+
+    /// The cell buffer's bytes: one [`PoolCell`] per pool cell.
+    pub fn cell_bytes(&self) -> &[u8] {
+        bytemuck::cast_slice(&self.cells)
     }
 
     /// The global uniforms.
@@ -247,8 +320,13 @@ impl FramePlan {
             h.write_u32(d.indices.start);
             h.write_u32(d.indices.end);
             h.write_u32(d.fragment as u32);
+            h.write_u32(d.draws.start);
+            h.write_u32(d.draws.end);
+            h.write_u32(d.cells.start);
+            h.write_u32(d.cells.end);
         }
         h.write_bytes(self.slot_bytes());
+        h.write_bytes(self.cell_bytes());
         h.write_bytes(bytemuck::bytes_of(&self.globals));
         h.finish()
     }
@@ -363,6 +441,7 @@ impl Planner {
             detail: Box::default(),
             draws,
             ranges: Box::default(),
+            cells: Box::default(),
             slots: vec![0; self.max_draws as usize * SLOT],
             globals: Globals::zeroed(),
             stats: PlanStats::default(),
@@ -434,6 +513,7 @@ impl Planner {
         clipmap: &Clipmap,
         camera: &Camera,
         dp: &DrawParams,
+        paths: &FragmentPaths,
         new_frame: bool,
         out: &mut FramePlan,
     ) -> Result<Option<DrawStats>> {
@@ -502,7 +582,6 @@ impl Planner {
         if out.detail.served.is_empty() {
             return Ok(None);
         }
-        let cap = (self.max_draws as usize).min(MAX_DRAWS);
         loop {
             let built = cull::build_lod_draws(
                 clipmap,
@@ -513,20 +592,25 @@ impl Planner {
                 &mut out.draws,
             )
             .and_then(|mut stats| {
-                let pool = self
-                    .pool
-                    .push_draws(&out.detail, dp.skirts, cap, &mut out.draws)?;
+                let rings = out.draws.len();
+                let pool =
+                    self.pool
+                        .push_draws(&out.detail, dp.skirts, MAX_DRAWS, &mut out.draws)?;
                 stats.blocks += pool;
                 stats.skirts += if dp.skirts { pool } else { 0 };
-                Ok(stats)
+                let runs = sort_pool_runs(&mut out.draws[rings..], paths);
+                Ok((stats, rings, runs))
             });
             let fits = match &built {
-                Ok(_) => self.triangles(&out.draws) <= u64::from(self.max_triangles),
+                Ok((_, rings, runs)) => {
+                    self.triangles(&out.draws) <= u64::from(self.max_triangles)
+                        && *rings as u64 + u64::from(*runs) <= u64::from(self.max_draws)
+                }
                 Err(Error::Capacity { .. }) => false,
                 Err(_) => true,
             };
             if fits {
-                return built.map(Some);
+                return built.map(|(stats, _, _)| Some(stats));
             }
             if !DetailPool::unserve_last(&mut out.lod, &mut out.detail) {
                 // Nothing left to drop: the clamped list alone (it fit before).
@@ -622,9 +706,18 @@ impl Planner {
             }
             LodSetup::Distance => false,
         };
+        let morph = params.morph && !sat;
+        let paths = FragmentPaths::new(
+            clipmap,
+            clipmap.eye_lattice(camera.eye),
+            morph,
+            self.block_quads,
+            self.data_lattice,
+            extent,
+        );
         let cull = if sat {
             let base = cull::build_lod_draws(clipmap, camera, &dp, &out.lod, &[], &mut out.draws)?;
-            self.plan_detail(clipmap, camera, &dp, new_frame, out)?
+            self.plan_detail(clipmap, camera, &dp, &paths, new_frame, out)?
                 .unwrap_or(base)
         } else {
             out.detail.uploads.clear();
@@ -637,43 +730,65 @@ impl Planner {
             0
         };
         out.ranges.clear();
-        let morph = params.morph && !sat;
-        let paths = FragmentPaths::new(
-            clipmap,
-            clipmap.eye_lattice(camera.eye),
-            morph,
-            self.block_quads,
-            self.data_lattice,
-            extent,
-        );
+        out.cells.clear();
         let mut triangles = 0u64;
+        let calls = (self.max_draws as usize).min(MAX_DRAWS);
+        let over = || Error::Capacity {
+            what: "draw calls per frame (budget.max_draws)",
+            capacity: calls,
+        };
         for (k, d) in out.draws.iter().enumerate() {
-            let u = if let Some(slot) = d.pool {
+            let at = u32::try_from(k).expect("draws <= MAX_DRAWS");
+            let indices = self.index_range(d);
+            triangles += u64::from((indices.end - indices.start) / 3);
+            let fragment = paths.path(d);
+            let (u, cells) = if let Some(slot) = d.pool {
                 let key =
                     out.detail.resident[usize::from(slot)].expect("a pool draw's slot is resident");
                 let first = key.first_sample(self.pool.quads());
                 let place = self.pool.atlas().place(u32::from(slot));
-                detail_draw_uniform(clipmap, camera, d, place, first, self.pool.side(), self.n)
+                let u =
+                    detail_draw_uniform(clipmap, camera, d, place, first, self.pool.side(), self.n);
+                let c = u32::try_from(out.cells.len()).expect("cells <= MAX_DRAWS");
+                out.cells.push(PoolCell::of(&u)).map_err(|_| over())?;
+                // The previous call's run goes on: same level, mesh range and program.
+                if let Some(last) = out.ranges.last_mut() {
+                    let prev = &out.draws[last.draws.start as usize];
+                    if !last.cells.is_empty()
+                        && prev.level == d.level
+                        && last.kind == d.kind
+                        && last.indices == indices
+                        && last.fragment == fragment
+                    {
+                        last.draws.end = at + 1;
+                        last.cells.end = c + 1;
+                        continue;
+                    }
+                }
+                (u, c..c + 1)
             } else if sat {
-                lod_draw_uniform(clipmap, camera, d, self.n, self.size)
+                (
+                    lod_draw_uniform(clipmap, camera, d, self.n, self.size),
+                    0..0,
+                )
             } else {
-                draw_uniform(clipmap, camera, d, self.n, self.size)
+                (draw_uniform(clipmap, camera, d, self.n, self.size), 0..0)
             };
-            let at = k * SLOT;
-            out.slots[at..at + std::mem::size_of::<DrawUniform>()]
+            let slot = out.ranges.len();
+            if slot >= calls {
+                return Err(over());
+            }
+            out.slots[slot * SLOT..slot * SLOT + std::mem::size_of::<DrawUniform>()]
                 .copy_from_slice(bytemuck::bytes_of(&u));
-            let indices = self.index_range(d);
-            triangles += u64::from((indices.end - indices.start) / 3);
             out.ranges
                 .push(PlannedDraw {
                     kind: d.kind,
                     indices,
-                    fragment: paths.path(d),
+                    fragment,
+                    draws: at..at + 1,
+                    cells,
                 })
-                .map_err(|_| Error::Capacity {
-                    what: "draws per frame",
-                    capacity: MAX_DRAWS,
-                })?;
+                .map_err(|_| over())?;
         }
         if triangles > u64::from(self.max_triangles) {
             return Err(Error::Capacity {
@@ -700,7 +815,8 @@ impl Planner {
             level_info,
         };
         out.stats = PlanStats {
-            draws: u32::try_from(out.draws.len()).expect("draws <= MAX_DRAWS"),
+            draws: u32::try_from(out.ranges.len()).expect("calls <= MAX_DRAWS"),
+            pool_cells: u32::try_from(out.cells.len()).expect("cells <= MAX_DRAWS"),
             cull,
             triangles,
             uploads: u32::try_from(out.uploads.len()).expect("uploads <= MAX_PLAN_UPLOADS"),

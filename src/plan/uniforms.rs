@@ -370,6 +370,59 @@ pub fn detail_draw_uniform(
     .unsnapped()
 }
 
+/// One detail pool cell of an instanced pool draw (issue 15): the fields of its [`detail_draw_uniform`]
+/// that differ between the cells of one draw (a draw's cells share level, mesh range and program), read
+/// per instance from the cell buffer; mirrors `PoolCellIn` in `shaders_gles/clipmap.wgsl`. The draw's
+/// uniform slot holds its first cell's whole [`DrawUniform`]; `draw_of` there, and its CPU twin
+/// [`PoolCell::over`], put a cell's fields over it.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct PoolCell {
+    /// xy: mesh origin (tile-relative lattice units); z: pool layer + 1; w: unused.
+    pub origin: [i32; 4],
+    /// Clamp rectangle, inclusive, tile-relative: x0, y0, x1, y1.
+    pub bounds: [i32; 4],
+    /// xy: world position of the tile's first sample at height 0 minus the eye (m); zw: unused.
+    pub anchor: [f32; 4],
+    /// xy: the tile's first texel in its layer ([`crate::profile::DetailAtlas::place`]); zw: unused.
+    pub texel: [i32; 4],
+}
+const _: () = assert!(std::mem::size_of::<PoolCell>() as u64 == crate::profile::POOL_CELL_BYTES);
+
+impl PoolCell {
+    /// The per-cell fields of pool draw uniform `u` ([`detail_draw_uniform`]).
+    pub fn of(u: &DrawUniform) -> Self {
+        Self {
+            origin: [u.origin[0], u.origin[1], u.pool[0], 0],
+            bounds: u.bounds,
+            anchor: [u.anchor_rel[0], u.anchor_rel[1], 0.0, 0.0],
+            texel: [u.pool[2], u.pool[3], 0, 0],
+        }
+    }
+
+    /// The CPU twin of `draw_of` in `shaders_gles/clipmap.wgsl`: the uniforms this cell's vertices see in
+    /// a pool draw whose slot is `slot` (its first cell's uniforms: the fields its cells share). A slot
+    /// that is not a pool draw's is returned as it is.
+    pub fn over(&self, slot: &DrawUniform) -> DrawUniform {
+        if slot.pool[0] <= 0 {
+            return *slot;
+        }
+        let mut d = *slot;
+        d.origin[0] = self.origin[0];
+        d.origin[1] = self.origin[1];
+        d.pool[0] = self.origin[2];
+        d.pool[2] = self.texel[0];
+        d.pool[3] = self.texel[1];
+        d.bounds = self.bounds;
+        d.fine_bounds = self.bounds;
+        d.anchor_rel[0] = self.anchor[0];
+        d.anchor_rel[1] = self.anchor[1];
+        d.fine_rel[0] = self.anchor[0];
+        d.fine_rel[1] = self.anchor[1];
+        d
+    }
+}
+
 /// The data's horizontal extent relative to the eye (m), for [`Globals::extent`]: lattice x grows east and
 /// lattice y south, so the north edge (lattice y 0) is the largest y.
 pub(crate) fn data_extent_rel(

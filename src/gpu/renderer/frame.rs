@@ -5,6 +5,7 @@ use super::Renderer;
 use crate::plan::clipmap::Clipmap;
 use crate::plan::fragment::FragmentPath;
 use crate::plan::frame_plan::FramePlan;
+use crate::plan::uniforms::PoolCell;
 use crate::profile::DRAW_SLOT_BYTES;
 use crate::{Error, Result};
 
@@ -48,10 +49,16 @@ impl Renderer {
                 ),
             });
         }
-        if plan.draws().len() > self.max_draws as usize {
+        if plan.planned().len() > self.max_draws as usize {
             return Err(Error::Capacity {
-                what: "draws per frame (budget.max_draws)",
+                what: "draw calls per frame (budget.max_draws)",
                 capacity: self.max_draws as usize,
+            });
+        }
+        if plan.pool_cells().len() > self.pool_cell_capacity {
+            return Err(Error::Capacity {
+                what: "detail pool cells per frame",
+                capacity: self.pool_cell_capacity,
             });
         }
         let mut stats = PrepareStats::default();
@@ -106,6 +113,10 @@ impl Renderer {
         let slots = plan.slot_bytes();
         if !slots.is_empty() {
             queue.write_buffer(&self.draw_slots, 0, slots);
+        }
+        let cells = plan.cell_bytes();
+        if !cells.is_empty() {
+            queue.write_buffer(&self.pool_cells, 0, cells);
         }
         self.prepared.clear();
         for d in plan.planned() {
@@ -207,7 +218,15 @@ impl Renderer {
         pass.set_bind_group(0, &self.group0, &[]);
         let mut bound = None;
         let mut program = None;
+        let cell = std::mem::size_of::<PoolCell>() as u64;
+        let mut cells_at = None;
         for (k, d) in self.prepared.iter().enumerate() {
+            // A pool call's instances are its cells, from its first; any other draw reads instance 0.
+            let at = u64::from(d.cells.start) * cell;
+            if cells_at != Some(at) {
+                pass.set_vertex_buffer(1, self.pool_cells.slice(at..));
+                cells_at = Some(at);
+            }
             let m = self.mesh(d.kind);
             if bound != Some(d.kind) {
                 pass.set_vertex_buffer(0, m.vertices.slice(..));
@@ -226,7 +245,7 @@ impl Renderer {
             let offset =
                 u32::try_from(k as u64 * DRAW_SLOT_BYTES).expect("draw slots fit a u32 offset");
             pass.set_bind_group(1, &self.group1, &[offset]);
-            pass.draw_indexed(d.indices.clone(), 0, 0..1);
+            pass.draw_indexed(d.indices.clone(), 0, 0..d.instances());
         }
     }
 

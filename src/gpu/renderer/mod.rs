@@ -39,8 +39,8 @@ use crate::plan::cull::{DrawKind, MAX_DRAWS};
 use crate::plan::fragment::FRAGMENT_PATHS;
 use crate::plan::frame_plan::PlannedDraw;
 use crate::plan::mesh::{self, Mesh, MeshVertex};
-use crate::plan::uniforms::DrawUniform;
-use crate::profile::{DRAW_SLOT_BYTES, GLOBALS_BYTES};
+use crate::plan::uniforms::{DrawUniform, PoolCell};
+use crate::profile::{DRAW_SLOT_BYTES, GLOBALS_BYTES, POOL_CELL_BYTES};
 use crate::shading::debug_view::DebugView;
 use crate::{Error, Profile, Result};
 
@@ -120,6 +120,11 @@ pub struct Renderer {
     pool_cell: GpuMesh,
     globals: wgpu::Buffer,
     draw_slots: wgpu::Buffer,
+    /// The pool cells' per-instance fields ([`crate::plan::uniforms::PoolCell`]), one per instance of
+    /// the pool's instanced draws.
+    pool_cells: wgpu::Buffer,
+    /// Cells the buffer holds.
+    pool_cell_capacity: usize,
     // Layouts kept with the groups and pipelines made from them.
     _group0_layout: wgpu::BindGroupLayout,
     _group1_layout: wgpu::BindGroupLayout,
@@ -223,6 +228,13 @@ impl Renderer {
             "clipmap draw slots",
             u64::from(max_draws) * DRAW_SLOT_BYTES,
             uniform,
+        );
+        // Pool cells are instances: the most one plan draws.
+        let pool_cell_capacity = profile.pool_cell_capacity();
+        let pool_cells = dev.buffer(
+            "detail pool cells",
+            pool_cell_capacity as u64 * POOL_CELL_BYTES,
+            wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
         );
         let mut upload_mesh = |label: &'static str, m: &Mesh| GpuMesh {
             vertices: dev.buffer_init(
@@ -353,6 +365,8 @@ impl Renderer {
             pool_cell,
             globals,
             draw_slots,
+            pool_cells,
+            pool_cell_capacity,
             _group0_layout: group0_layout,
             _group1_layout: group1_layout,
             group0,
@@ -538,7 +552,7 @@ fn terrain_pipeline(
                 module,
                 entry_point: Some("vs_main"),
                 compilation_options: Default::default(),
-                buffers: &[Some(vertex_layout())],
+                buffers: &vertex_buffers(),
             },
             primitive: wgpu::PrimitiveState {
                 topology: wgpu::PrimitiveTopology::TriangleList,
@@ -572,6 +586,23 @@ fn terrain_pipeline(
             cache: None,
         },
     )
+}
+
+/// The mesh's vertices (slot 0) and the pool cells, one per instance (slot 1; `PoolCellIn` in
+/// `shaders_gles/clipmap.wgsl`): every terrain pipeline reads both, a draw that is not the pool's reads
+/// instance 0 and ignores it.
+pub(super) fn vertex_buffers() -> [Option<wgpu::VertexBufferLayout<'static>>; 2] {
+    const CELL: [wgpu::VertexAttribute; 4] = wgpu::vertex_attr_array![
+        1 => Sint32x4, 2 => Sint32x4, 3 => Float32x4, 4 => Sint32x4
+    ];
+    [
+        Some(vertex_layout()),
+        Some(wgpu::VertexBufferLayout {
+            array_stride: std::mem::size_of::<PoolCell>() as u64,
+            step_mode: wgpu::VertexStepMode::Instance,
+            attributes: &CELL,
+        }),
+    ]
 }
 
 fn vertex_layout() -> wgpu::VertexBufferLayout<'static> {

@@ -1,8 +1,9 @@
 //! Stage 3, the GPU: a test instrument that reads back the vertex shader's clip-space output (its objects
 //! are made through its own [`Ledgered`], outside the renderer's ledger).
 
-use super::{vertex_layout, Ledgered};
+use super::{vertex_buffers, Ledgered};
 use crate::gpu::headless::Offscreen;
+use crate::plan::uniforms::PoolCell;
 use crate::profile::DRAW_SLOT_BYTES;
 use crate::{Error, Result};
 
@@ -58,7 +59,7 @@ impl VertexProbe {
                         module: &renderer.module,
                         entry_point: Some("vs_capture"),
                         compilation_options: Default::default(),
-                        buffers: &[Some(vertex_layout())],
+                        buffers: &vertex_buffers(),
                     },
                     primitive: wgpu::PrimitiveState {
                         topology: wgpu::PrimitiveTopology::PointList,
@@ -100,6 +101,10 @@ impl VertexProbe {
             reason: format!("{index} is past the {} draws", draws.len()),
         })?;
         let m = renderer.mesh(d.kind);
+        let (call, instance) = offscreen
+            .plan()
+            .call_of(index)
+            .expect("every draw is in a call");
         gpu.scoped("vertex probe", || {
             let mut encoder = gpu.device().create_command_encoder(&Default::default());
             {
@@ -121,10 +126,19 @@ impl VertexProbe {
                 });
                 pass.set_pipeline(&self.pipeline);
                 pass.set_bind_group(0, &renderer.group0, &[]);
-                let offset = u32::try_from(index as u64 * DRAW_SLOT_BYTES)
+                let offset = u32::try_from(call as u64 * DRAW_SLOT_BYTES)
                     .expect("draw slots fit a u32 offset");
                 pass.set_bind_group(1, &renderer.group1, &[offset]);
                 pass.set_vertex_buffer(0, m.vertices.slice(..));
+                // The draw's own cell as instance 0 (a pool call's instance `instance`).
+                let cells = &offscreen.plan().planned()[call].cells;
+                let at = u64::from(cells.start + if cells.is_empty() { 0 } else { instance });
+                pass.set_vertex_buffer(
+                    1,
+                    renderer
+                        .pool_cells
+                        .slice(at * std::mem::size_of::<PoolCell>() as u64..),
+                );
                 pass.draw(0..m.vertex_count, 0..1);
             }
             encoder.copy_texture_to_buffer(

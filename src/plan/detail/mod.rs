@@ -3,7 +3,8 @@
 //! clamped. The pool is a fixed set of height tiles (`budget.detail_tiles`, packed into GPU array layers
 //! by [`DetailAtlas`]), one tile per cell of a level's fixed grid (`detail_tile_quads` quads a side, plus
 //! a one-sample border for normals). Each frame [`DetailPool::plan`] refines the clamped blocks as quadtrees of such cells and
-//! quarter cells, largest bound first, under the slots, draws and triangles (`refine.rs`); fills their
+//! quarter cells, largest bound first, under the slots, draw calls and triangles (`refine.rs`; the cells
+//! of one level and size are one instanced call); fills their
 //! tiles most-needed first with what is left of the per-frame sample budget after the rings (coarse-to-fine
 //! ring fill stays first), evicts the least recently needed tile, and serves a block from the pool once all
 //! its tiles are resident. Pure, deterministic and allocation-free.
@@ -185,7 +186,8 @@ pub struct DetailBudget {
     pub new_frame: bool,
     /// Samples left of the per-frame update budget after the rings.
     pub samples: u64,
-    /// Draws left of `budget.max_draws` after the clamped draw list.
+    /// Draw calls left of `budget.max_draws` after the clamped draw list (the pool's cells of one level
+    /// and size are one instanced call).
     pub draws: u32,
     /// Triangles left of `budget.max_triangles` after it.
     pub triangles: u64,
@@ -552,7 +554,8 @@ impl DetailPool {
     /// Appends the draws of every block `frame` serves: one per cell of its quadtree (a tile of the
     /// cell's level, q x q quads, clamped to the block's piece, reading its pool slot), with the cell's tile
     /// skirt in the same draw ([`DrawKind::PoolCell`]) when `skirts` (cells meet their neighbours at other
-    /// levels). More than `cap` draws is an [`Error::Capacity`].
+    /// levels). The plan draws the cells of one level and size as one instanced call. A list longer than
+    /// `cap` is an [`Error::Capacity`].
     pub fn push_draws(
         &self,
         frame: &DetailFrame,

@@ -2,14 +2,20 @@
 //! drawn with: a quadtree over space and level, split minimax-first under the pool's slots and the
 //! frame's draws and triangles. Pure, deterministic and allocation-free.
 
-use crate::plan::detail::{BoundAt, DetailBudget, DetailView, TileKey, DETAIL_CAPACITY};
+use crate::plan::detail::{
+    cell_quads, BoundAt, DetailBudget, DetailView, TileKey, DETAIL_CAPACITY,
+};
 use crate::plan::frame::Rect;
 use crate::plan::lod::{LodFrame, MAX_LOD_BLOCKS};
 use crate::{Error, Result};
 
-/// Most cells one plan draws from the pool. Each is at least one draw, so `budget.max_draws` binds first
-/// on every shipped profile; past it a split does not fit.
-pub const MAX_DETAIL_CELLS: usize = 1024;
+/// Most cells one plan draws from the pool; past it a split does not fit. Cells are instances of a few
+/// instanced draws (one per level and cell size), so triangles bind first on every shipped profile.
+pub const MAX_DETAIL_CELLS: usize = crate::profile::MAX_POOL_CELLS;
+
+/// Most distinct (level, cell quads) pairs the cells take, each one instanced draw; past it a split does
+/// not fit.
+const MAX_CELL_GROUPS: usize = 256;
 
 /// The smallest piece a split cuts a cell into, in quads of the finer level: a part of a cell goes one
 /// level finer only where the coarser level misses epsilon over a piece this small.
@@ -67,6 +73,8 @@ pub(super) struct Quadtree {
     pub(super) cells: Box<heapless::Vec<Cell, MAX_DETAIL_CELLS>>,
     /// The distinct tiles the cells read, with how many cells read each (one slot each).
     pub(super) keys: Box<heapless::Vec<(TileKey, u32), DETAIL_CAPACITY>>,
+    /// The cells' (level, quads) pairs, with how many cells take each: one instanced draw each.
+    groups: heapless::Vec<((u32, u32), u32), MAX_CELL_GROUPS>,
     /// Scratch: one split's new cells (whole quarters, then the one taken).
     new: Box<Scratch>,
     /// Scratch: the same split's cut.
@@ -215,6 +223,7 @@ impl Quadtree {
         self.cands.clear();
         self.cells.clear();
         self.keys.clear();
+        self.groups.clear();
         if slots == 0 {
             return Ok(());
         }
@@ -247,7 +256,7 @@ impl Quadtree {
     /// that level instead, drawn as a quarter of its tile. A finer piece costs 4x the triangles of the
     /// same ground one level coarser, so a split may also cut a quarter that misses epsilon again (down
     /// to [`MIN_SUB_QUADS`] finer quads) where some of its parts would meet it ([`emit`]): fewer
-    /// triangles, more cells, so more draws. Each split takes whichever of the two (whole quarters or the
+    /// triangles, more cells (instances; a draw only per new pair of level and cell quads). Each split takes whichever of the two (whole quarters or the
     /// cut) uses the smaller share of what is left of its scarcer budget: at Puget Sound 1 px and Big
     /// Tujunga 1 and 2 px both budgets then run out together. A cell that meets epsilon or reached its
     /// block's wanted level is not split.
@@ -277,7 +286,7 @@ impl Quadtree {
                 }
             }
             let Some((_, unit)) = pick else { break };
-            // Two ways to split: whole quarters (fewest cells, so draws) or the finest cut (only the parts
+            // Two ways to split: whole quarters (fewest cells, slots and pairs of level and quads) or the finest cut (only the parts
             // that miss epsilon one level coarser go finer, so fewest triangles). The one that takes the
             // smaller share of what is left of its scarcer budget is taken (whole quarters on ties).
             // Whole quarters into `self.new`, the cut (when finer than a quarter) into `self.cut`.
@@ -291,9 +300,9 @@ impl Quadtree {
                 let fitted = self.split(view, lod, bound_at, unit, quads, min, is_cut)?;
                 let new = if is_cut { &self.cut } else { &self.new };
                 let cost = self.cost(new, unit, budget, slots).filter(|_| fitted);
-                // The cut draws each whole quarter as one cell or more, so at least as many draws: it
-                // cannot fit where whole quarters take too many, nor take a smaller share where whole
-                // quarters' share is their draws'. Then it is not made.
+                // Where whole quarters are bound by draws (they start new instanced draws), the cut is
+                // not made: its smaller pieces start as many pairs of (level, quads) or more (a
+                // pruning, nearly always right; the cut is then not weighed).
                 let mut draw_bound = cost.is_some_and(|(d, _, _)| d > draws);
                 if let Some((d, t, sub)) =
                     cost.filter(|&(d, t, sub)| d <= draws && t <= triangles + sub)
@@ -337,6 +346,13 @@ impl Quadtree {
                 Unit::Cell(j) => {
                     let old = self.cells.swap_remove(j);
                     self.release(&old.key);
+                    let g = group(&old);
+                    if let Some(i) = self.groups.iter().position(|(k, _)| *k == g) {
+                        self.groups[i].1 -= 1;
+                        if self.groups[i].1 == 0 {
+                            self.groups.swap_remove(i);
+                        }
+                    }
                 }
             }
             for i in 0..n {
@@ -354,6 +370,13 @@ impl Quadtree {
                         .keys
                         .push((c.key, 1))
                         .expect("checked against the slots"),
+                }
+                match self.groups.iter_mut().find(|(k, _)| *k == group(&c)) {
+                    Some((_, r)) => *r += 1,
+                    None => self
+                        .groups
+                        .push((group(&c), 1))
+                        .expect("checked against MAX_CELL_GROUPS"),
                 }
             }
         }
@@ -378,8 +401,17 @@ impl Quadtree {
         }
         let n = new.len();
         let mut add_t: u64 = new.iter().map(|c| budget.cell_triangles(&c.bounds)).sum();
-        // One draw per cell (its skirt in the same draw).
-        let (mut add_d, mut freed, mut removed) = (i64::try_from(n).expect("n <= capacity"), 0, 0);
+        // One instanced draw per (level, cell quads): a cell adds a draw only when it starts a pair.
+        let mut new_groups = 0usize;
+        for (i, c) in new.iter().enumerate() {
+            let g = group(c);
+            let seen = new[..i].iter().any(|o| group(o) == g);
+            if !seen && !self.groups.iter().any(|(k, _)| *k == g) {
+                new_groups += 1;
+            }
+        }
+        let (mut freed, mut removed, mut gone) = (0, 0, 0);
+        let mut add_d = i64::try_from(new_groups).expect("groups <= capacity");
         let sub_t = match unit {
             Unit::Block(k) => {
                 // Its ring draws leave the list (plan_detail's final check still holds the budget).
@@ -389,7 +421,12 @@ impl Quadtree {
             }
             Unit::Cell(j) => {
                 let old = self.cells[j];
-                add_d -= 1;
+                let g = group(&old);
+                let last = self.groups.iter().any(|(k, r)| *k == g && *r == 1);
+                if last && !new.iter().any(|c| group(c) == g) {
+                    add_d -= 1;
+                    gone = 1;
+                }
                 removed = 1;
                 let only = self.keys.iter().any(|(k, r)| *k == old.key && *r == 1);
                 if only && !new.iter().any(|c| c.key == old.key) {
@@ -400,7 +437,8 @@ impl Quadtree {
         };
         let fits = n > 0
             && self.keys.len() + new_keys - freed <= slots
-            && self.cells.len() + n - removed <= MAX_DETAIL_CELLS;
+            && self.cells.len() + n - removed <= MAX_DETAIL_CELLS
+            && self.groups.len() + new_groups - gone <= MAX_CELL_GROUPS;
         fits.then_some((add_d, add_t, sub_t))
     }
 
@@ -475,6 +513,11 @@ impl Quadtree {
         }
         Ok(room)
     }
+}
+
+/// The instanced draw a cell is one instance of: its level and quads ([`cell_quads`]).
+fn group(c: &Cell) -> (u32, u32) {
+    (c.key.level, cell_quads(&c.bounds))
 }
 
 /// Whose cells a split makes, and at which (finer) level.
