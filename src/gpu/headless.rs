@@ -100,6 +100,8 @@ pub struct FrameStats {
     pub plan_ns: u64,
     /// SAT modes: blocks drawn from the detail pool.
     pub blocks_from_pool: u32,
+    /// Detail pool cells drawn (instances of the pool's instanced draw calls).
+    pub pool_cells: u32,
     /// Detail pool slots holding a tile.
     pub detail_tiles_resident: u32,
     /// Distinct detail tiles the plan's pool cells read.
@@ -408,6 +410,7 @@ impl<'g> Offscreen<'g> {
             blocks_clamped: p.blocks_clamped,
             plan_ns,
             blocks_from_pool: p.blocks_from_pool,
+            pool_cells: p.pool_cells,
             detail_tiles_resident: p.detail_tiles_resident,
             detail_tiles_needed: p.detail_tiles_needed,
             detail_samples_updated: p.detail_samples_updated,

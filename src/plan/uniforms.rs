@@ -447,3 +447,37 @@ pub(crate) fn data_extent_rel(
 pub(crate) fn to_f32x4(v: [f64; 4]) -> [f32; 4] {
     v.map(|e| e as f32)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A pool draw's slot with another cell of its call put over it gives that cell's own uniforms
+    /// (the fields the cells share are the slot's); a slot that is not the pool's is left alone.
+    #[test]
+    fn a_pool_cell_over_its_call_slot_gives_its_own_uniforms() {
+        let cell_uniform = |ox: i32, rel: f32, layer: i32, tx: i32| {
+            DrawUniform {
+                origin: [ox, 3, 1, 0],
+                bounds: [ox, 3, ox + 8, 11],
+                active: [0, 0, 34, 34],
+                anchor_rel: [rel, -rel, -120.0, 60.0],
+                morph: [0.0, 0.0, 1.0e9, 1.0e9],
+                morph_w: [6.3, 63.0, 0.0, 0.0],
+                pool: [layer, 35, tx, 35],
+                ..DrawUniform::default()
+            }
+            .unsnapped()
+        };
+        let first = cell_uniform(0, 1500.5, 3, 0);
+        let other = cell_uniform(16, -250.25, 7, 35);
+        assert_eq!(PoolCell::of(&other).over(&first), other);
+        assert_eq!(PoolCell::of(&first).over(&first), first);
+        let ring = DrawUniform {
+            origin: [4, 5, 2, 256],
+            ..DrawUniform::default()
+        }
+        .unsnapped();
+        assert_eq!(PoolCell::of(&other).over(&ring), ring);
+    }
+}

@@ -118,9 +118,10 @@ fn lod_selection_allocates_nothing() {
 }
 
 /// The detail pool (issue 15) while it fills: at a tight epsilon on a flight, every frame keeps the ring
-/// fill plus the pool's tiles within the update budget, the draws and triangles within theirs, and
-/// allocates nothing; the pool does fill and serve blocks; a second run of the same flight gives the same
-/// plan hashes (deterministic).
+/// fill plus the pool's tiles within the update budget, the draw calls and triangles within theirs, and
+/// allocates nothing; the pool does fill and serve blocks, its cells drawn as instances (each call covers
+/// the next draws of the list; a pool call's cells share level, mesh and size, one cell each); a second
+/// run of the same flight gives the same plan hashes (deterministic).
 #[test]
 fn detail_pool_fills_within_budgets_without_allocating() {
     let hm = generate(&ProceduralParams {
@@ -130,7 +131,7 @@ fn detail_pool_fills_within_budgets_without_allocating() {
     })
     .expect("procedural");
     let prof = Profile::load("gles3-mid").expect("shipped profile");
-    let run = |counted: bool| -> (Vec<u64>, u32, u32) {
+    let run = |counted: bool| -> (Vec<u64>, u32, u32, u32) {
         let mut cm = Clipmap::new(&hm, &prof, ClipmapOptions::default()).expect("clipmap");
         let lod = lod_tables(&hm, &prof, &cm);
         let flight = Flight::new(Path::Figure8, 60.0, &hm).expect("flight");
@@ -142,7 +143,7 @@ fn detail_pool_fills_within_budgets_without_allocating() {
             ..PlanParams::default()
         };
         let mut hashes = Vec::with_capacity(64);
-        let (mut most_tiles, mut most_served) = (0, 0);
+        let (mut most_tiles, mut most_served, mut most_instances) = (0, 0, 0);
         let b = &prof.budget;
         let n = count(|| {
             for f in 0..48 {
@@ -164,6 +165,37 @@ fn detail_pool_fills_within_budgets_without_allocating() {
                 assert!(s.detail_tiles_resident <= b.detail_tiles);
                 most_tiles = most_tiles.max(s.detail_tiles_resident);
                 most_served = most_served.max(s.blocks_from_pool);
+                let draws = plan.draws();
+                let mut next = 0;
+                for c in plan.planned() {
+                    assert_eq!(
+                        c.draws.start, next,
+                        "frame {f}: calls cover the draws in order"
+                    );
+                    next = c.draws.end;
+                    if c.cells.is_empty() {
+                        assert_eq!(c.draws.len(), 1, "frame {f}: one draw a call");
+                        continue;
+                    }
+                    assert_eq!(c.cells.len(), c.draws.len(), "frame {f}: a cell per draw");
+                    let d0 = draws[c.draws.start as usize];
+                    for i in c.draws.clone() {
+                        let d = draws[i as usize];
+                        assert!(
+                            d.pool.is_some()
+                                && (d.level, d.kind, d.quads) == (d0.level, d0.kind, d0.quads)
+                        );
+                    }
+                    most_instances = most_instances.max(c.instances());
+                }
+                assert_eq!(
+                    next as usize,
+                    draws.len(),
+                    "frame {f}: every draw in a call"
+                );
+                let pool_draws = draws.iter().filter(|d| d.pool.is_some()).count();
+                assert_eq!(plan.pool_cells().len(), pool_draws, "frame {f}");
+                assert_eq!(s.pool_cells as usize, pool_draws, "frame {f}");
                 hashes.push(plan.hash());
             }
         });
@@ -173,13 +205,14 @@ fn detail_pool_fills_within_budgets_without_allocating() {
                 "{n} allocations in 48 planned frames with the detail pool"
             );
         }
-        (hashes, most_tiles, most_served)
+        (hashes, most_tiles, most_served, most_instances)
     };
-    let (first, tiles, served) = run(true);
+    let (first, tiles, served, instances) = run(true);
     assert!(
         tiles > 0 && served > 0,
         "the pool never filled ({tiles} tiles) or served ({served} blocks)"
     );
-    let (second, _, _) = run(false);
+    assert!(instances > 1, "no pool call drew more than one cell");
+    let (second, _, _, _) = run(false);
     assert_eq!(first, second, "the same flight gave other plan hashes");
 }

@@ -413,6 +413,7 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
         let pool = json!({
             "blocks_clamped": plan.stats().blocks_clamped,
             "blocks_from_pool": plan.stats().blocks_from_pool,
+            "pool_cells": plan.stats().pool_cells,
             "detail_tiles_resident": plan.stats().detail_tiles_resident,
             "detail_tiles_needed": plan.stats().detail_tiles_needed,
             "detail_samples_updated": detail_samples_total,

@@ -432,6 +432,7 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
                 "detail_tiles_needed".into(),
                 json!(frame.stats.detail_tiles_needed),
             );
+            o.insert("pool_cells".into(), json!(frame.stats.pool_cells));
         }
         print_json(&out);
     } else {
