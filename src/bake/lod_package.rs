@@ -9,7 +9,7 @@
 //! - [`tables_from_records`]: at run time the mapped LOD cache file ([`crate::bake`], keyed as before) is
 //!   built from the record tiles, one tile row of cells at a time, without computing an error, and the
 //!   derived levels from the heights (lod_stream's second sweep with the stored E, out of core as the
-//!   bake): the same bytes [`crate::bake::lod_stream::bake_to_file`] writes from the heights (both decode
+//!   bake): the same bytes `lod_stream::bake_to_file` writes from the heights (both decode
 //!   the same records), so every level chosen and every frame hash is the same either way.
 
 use std::fs::File;
@@ -160,7 +160,7 @@ pub fn records_cover(package: &Package, params: &BakeParams) -> bool {
 
 /// Writes the LOD cache file of `params` at `path` under `key` from `package`'s record tiles (checked
 /// by [`records_cover`]), one tile row of cells at a time per level: the same bytes
-/// [`crate::bake::lod_stream::bake_to_file`] writes. A damaged record tile is an error naming its level and tile.
+/// `lod_stream::bake_to_file` writes. A damaged record tile is an error naming its level and tile.
 pub fn tables_from_records(
     package: &Package,
     params: &BakeParams,

@@ -1,7 +1,8 @@
 //! Stage 2, the per-frame plan as a value: [`Planner::plan`] turns (clipmap frame, camera, per-frame
 //! [`PlanParams`]) into a [`FramePlan`]: the texture rectangles to upload, the SAT LOD level of every block,
-//! the draw list with each draw's index range, the packed uniforms (`Globals` and one `DrawUniform` slot per
-//! draw), and a 64-bit hash of all of it.
+//! the draw list, the draw calls with their index ranges (a run of detail pool cells is one instanced call),
+//! the packed uniforms (`Globals`, one `DrawUniform` slot per call and one `PoolCell` per pool cell), and a
+//! 64-bit hash of all of it.
 //!
 //! Pure and allocation-free: a `FramePlan` is allocated once ([`Planner::new_plan`], capacity from the
 //! profile) and refilled each frame; overflow is [`Error::Capacity`]. The LOD mode is fixed when the

@@ -1,5 +1,5 @@
-//! Stage 3, the GPU: one frame of the renderer: [`Renderer::prepare`] uploads a plan (ring rectangles,
-//! uniforms), [`Renderer::render`] records its draws into the caller's render pass.
+//! Stage 3, the GPU: one frame of the renderer: [`Renderer::prepare`] uploads a plan (ring rectangles, pool
+//! tiles, uniforms, pool cells), [`Renderer::render`] records its draw calls into the caller's render pass.
 
 use super::Renderer;
 use crate::plan::clipmap::Clipmap;
