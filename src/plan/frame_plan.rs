@@ -265,6 +265,9 @@ impl FramePlan {
 
     /// The uniforms the vertices of draw `i` see: its call's slot, with a pool cell's own fields put
     /// over it as the vertex shader's `draw_of` does ([`PoolCell::over`]).
+    ///
+    /// # Panics
+    /// When `i` is past the draw list.
     pub fn draw_uniform(&self, i: usize) -> DrawUniform {
         let (k, instance) = self.call_of(i).expect("draw index within the plan");
         let at = k * SLOT;
