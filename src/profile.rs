@@ -204,7 +204,7 @@ pub const MAX_DETAIL_TILES: u32 = 1024;
 /// Where the detail pool's slots lie in its R32F array texture (issue 15): each layer is a grid of
 /// `cols x cols` tiles, `side` texels each, filled row by row, then the next layer. A single tile per
 /// layer while the tiles fit [`MAX_DETAIL_LAYERS`], else the fewest columns that fit them. Pure: the plan
-/// puts each draw's place into its uniforms (so into its hash), and the renderer uploads there.
+/// puts each cell's place into its per-instance record (so into its hash), and the renderer uploads there.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct DetailAtlas {
     /// Texels per tile side ([`Profile::detail_side`]).
@@ -498,12 +498,7 @@ impl Profile {
     /// one-layer texture for a plain 2D texture and a square one with a multiple of 6 layers for a cube
     /// map, so those counts get one spare layer.
     pub fn height_layers(&self) -> u32 {
-        let l = self.clipmap.levels;
-        if l == 1 || l.is_multiple_of(6) {
-            l.saturating_add(1)
-        } else {
-            l
-        }
+        with_gl_spare_layer(self.clipmap.levels)
     }
 
     /// Layers of the SG normal table (issue 16, "Memory"): one per ring, with the same GL spare layer as
@@ -573,15 +568,10 @@ impl Profile {
         while cols.saturating_mul(cols).saturating_mul(MAX_DETAIL_LAYERS) < tiles {
             cols += 1;
         }
-        let l = tiles.div_ceil(cols * cols);
         DetailAtlas {
             side: self.detail_side(),
             cols,
-            layers: if l == 1 || l.is_multiple_of(6) {
-                l.saturating_add(1)
-            } else {
-                l
-            },
+            layers: with_gl_spare_layer(tiles.div_ceil(cols * cols)),
         }
     }
 
@@ -633,6 +623,16 @@ impl Profile {
         } else {
             MAX_POOL_CELLS
         }
+    }
+}
+
+/// `layers` array layers, plus the spare one wgpu's GL backend needs where it would take the texture
+/// for a plain 2D texture (one layer) or a cube map (a multiple of 6): [`Profile::height_layers`].
+fn with_gl_spare_layer(layers: u32) -> u32 {
+    if layers == 1 || layers.is_multiple_of(6) {
+        layers.saturating_add(1)
+    } else {
+        layers
     }
 }
 

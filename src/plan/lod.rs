@@ -241,27 +241,14 @@ impl Lod {
         }
     }
 
-    /// A value that is at most `eps` exactly when [`Lod::box_bound_at_eps`] is (the threshold test
-    /// alone: it stops as soon as it knows, and reads no whole split of a box that misses). The detail
-    /// pool asks it where only meeting `eps` matters. Its sub-boxes are those of the whole split, each
-    /// at most as large (a deeper cut only lowers), and it reads every one the whole split reads until
-    /// one exceeds `eps`, so it meets `eps` whenever the whole split does.
-    pub fn box_bound_test(
-        &self,
-        camera: &Camera,
-        mode: LodMode,
-        level: u32,
-        bx: (i64, i64, i64, i64),
-        eps: f64,
-    ) -> f64 {
-        self.box_bound_past(camera, mode, level, bx, eps)
-    }
-
     /// [`Lod::box_bound_px`] when `limit` is infinite; otherwise a value that is at most `limit` exactly
     /// when the bound is, the bound here cutting each sub-box over `limit` again, up to [`SPLIT_DEPTH`]
     /// times: the whole box's bound once it meets `limit` (no sub-box read), or the largest sub-box bound
-    /// so far once that exceeds it. All the selection needs of a level it tests against epsilon.
-    fn box_bound_past(
+    /// so far once that exceeds it. All the selection needs of a level it tests against epsilon, and what
+    /// the detail pool asks where only meeting epsilon matters: with `limit` epsilon it is at most epsilon
+    /// exactly when [`Lod::box_bound_at_eps`] is (its sub-boxes are those of the whole split, each at
+    /// most as large, and it reads every one the whole split reads until one exceeds epsilon).
+    pub fn box_bound_past(
         &self,
         camera: &Camera,
         mode: LodMode,

@@ -136,19 +136,29 @@ fn concurrent_cpu_load_changes_nothing() {
     assert_eq!(quiet_fly, loaded_fly, "frame hashes under load");
 }
 
+/// An emptied cache folder `determinism-<name>` in the tests' scratch space (path and text), and the
+/// path of a PNG `<name>.png` beside it for `render --out`.
+fn fresh_cache(name: &str) -> (std::path::PathBuf, String, String) {
+    let tmp = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"));
+    let cache = tmp.join(format!("determinism-{name}"));
+    let _ = std::fs::remove_dir_all(&cache);
+    let dir = tmp.join("determinism");
+    std::fs::create_dir_all(&dir).expect("scratch folder");
+    let text = cache.to_string_lossy().into_owned();
+    let png = dir
+        .join(format!("{name}.png"))
+        .to_string_lossy()
+        .into_owned();
+    (cache, text, png)
+}
+
 /// `render` streams a plain source by default, from a package baked into the cache on first use: the
 /// first run into an empty `CLIPSAT_CACHE` bakes, the second finds the bake, and both draw the same image;
 /// the frame hashes of `fly` likewise. `--resident` loads the terrain whole instead.
 #[test]
 fn a_clean_and_a_warm_cache_give_the_same_hashes() {
-    let cache = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("determinism-cache");
-    let _ = std::fs::remove_dir_all(&cache);
-    let c = cache.to_string_lossy().into_owned();
+    let (cache, c, p) = fresh_cache("cache");
     let env = [("CLIPSAT_CACHE", c.as_str())];
-    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("determinism");
-    std::fs::create_dir_all(&dir).expect("scratch folder");
-    let png = dir.join("cache.png");
-    let p = png.to_string_lossy();
     let mut args = RENDER.to_vec();
     args.extend(["--out", &p]);
     let clean = json(&clipsat(&args, &env));
@@ -177,14 +187,8 @@ fn a_clean_and_a_warm_cache_give_the_same_hashes() {
 /// rebaked to the same image. (A new format also gets a new cache name, `terrain-<key>-v<format>`.)
 #[test]
 fn a_stale_cached_package_is_baked_again() {
-    let cache = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("determinism-stale");
-    let _ = std::fs::remove_dir_all(&cache);
-    let c = cache.to_string_lossy().into_owned();
+    let (cache, c, p) = fresh_cache("stale");
     let env = [("CLIPSAT_CACHE", c.as_str())];
-    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("determinism");
-    std::fs::create_dir_all(&dir).expect("scratch folder");
-    let png = dir.join("stale.png");
-    let p = png.to_string_lossy();
     let mut args = RENDER.to_vec();
     args.extend(["--out", &p]);
     let first = field(&json(&clipsat(&args, &env)), "image_hash");

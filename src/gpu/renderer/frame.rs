@@ -5,8 +5,7 @@ use super::Renderer;
 use crate::plan::clipmap::Clipmap;
 use crate::plan::fragment::FragmentPath;
 use crate::plan::frame_plan::FramePlan;
-use crate::plan::uniforms::PoolCell;
-use crate::profile::DRAW_SLOT_BYTES;
+use crate::profile::{DRAW_SLOT_BYTES, POOL_CELL_BYTES};
 use crate::{Error, Result};
 
 /// What [`Renderer::prepare`] sent.
@@ -143,7 +142,7 @@ impl Renderer {
             return Ok(());
         }
         let chained = d.prev.is_some() && d.prev == self.detail_synced;
-        let side = self.detail_side;
+        let side = self.detail_atlas.side;
         let atlas = self.detail_atlas;
         let mut write = |slot: u32, key: &crate::plan::detail::TileKey| -> Result<()> {
             if !crate::plan::detail::fill_tile(
@@ -218,11 +217,10 @@ impl Renderer {
         pass.set_bind_group(0, &self.group0, &[]);
         let mut bound = None;
         let mut program = None;
-        let cell = std::mem::size_of::<PoolCell>() as u64;
         let mut cells_at = None;
         for (k, d) in self.prepared.iter().enumerate() {
             // A pool call's instances are its cells, from its first; any other draw reads instance 0.
-            let at = u64::from(d.cells.start) * cell;
+            let at = u64::from(d.cells.start) * POOL_CELL_BYTES;
             if cells_at != Some(at) {
                 pass.set_vertex_buffer(1, self.pool_cells.slice(at..));
                 cells_at = Some(at);

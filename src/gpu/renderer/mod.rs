@@ -104,11 +104,10 @@ struct GpuMesh {
 pub struct Renderer {
     ledger: Ledger,
     heights: wgpu::Texture,
-    /// The detail pool (issue 15): tiles of `detail_side^2` R32F samples, placed by `detail_atlas`.
+    /// The detail pool (issue 15): tiles of `detail_atlas.side^2` R32F samples, placed by `detail_atlas`.
     detail: wgpu::Texture,
     detail_atlas: crate::profile::DetailAtlas,
     detail_quads: u32,
-    detail_side: u32,
     /// One tile's samples, filled from the clipmap's source before each tile upload (allocated once).
     detail_staging: Vec<f32>,
     /// The plan (`DetailFrame::seq`) whose pool the texture holds.
@@ -355,7 +354,6 @@ impl Renderer {
             heights,
             detail,
             detail_quads: profile.detail_quads(),
-            detail_side,
             detail_atlas: atlas,
             detail_staging: vec![0.0; detail_side as usize * detail_side as usize],
             detail_synced: None,

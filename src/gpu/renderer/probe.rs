@@ -3,8 +3,7 @@
 
 use super::{vertex_buffers, Ledgered};
 use crate::gpu::headless::Offscreen;
-use crate::plan::uniforms::PoolCell;
-use crate::profile::DRAW_SLOT_BYTES;
+use crate::profile::{DRAW_SLOT_BYTES, POOL_CELL_BYTES};
 use crate::{Error, Result};
 
 /// Test instrument: runs the renderer's vertex shader over one draw of the last frame as points and reads
@@ -130,15 +129,10 @@ impl VertexProbe {
                     .expect("draw slots fit a u32 offset");
                 pass.set_bind_group(1, &renderer.group1, &[offset]);
                 pass.set_vertex_buffer(0, m.vertices.slice(..));
-                // The draw's own cell as instance 0 (a pool call's instance `instance`).
-                let cells = &offscreen.plan().planned()[call].cells;
-                let at = u64::from(cells.start + if cells.is_empty() { 0 } else { instance });
-                pass.set_vertex_buffer(
-                    1,
-                    renderer
-                        .pool_cells
-                        .slice(at * std::mem::size_of::<PoolCell>() as u64..),
-                );
+                // The draw's own cell as instance 0 (a pool call's instance `instance`; any other call
+                // has one instance, 0).
+                let at = u64::from(offscreen.plan().planned()[call].cells.start + instance);
+                pass.set_vertex_buffer(1, renderer.pool_cells.slice(at * POOL_CELL_BYTES..));
                 pass.draw(0..m.vertex_count, 0..1);
             }
             encoder.copy_texture_to_buffer(

@@ -2,10 +2,10 @@
 //! distance, SAT LOD wants it by error: a block whose wanted level is finer than any ring holding it is
 //! clamped. The pool is a fixed set of height tiles (`budget.detail_tiles`, packed into GPU array layers
 //! by [`DetailAtlas`]), one tile per cell of a level's fixed grid (`detail_tile_quads` quads a side, plus
-//! a one-sample border for normals). Each frame [`DetailPool::plan`] refines the clamped blocks as quadtrees of such cells and
-//! quarter cells, largest bound first, under the slots, draw calls and triangles (`refine.rs`; the cells
-//! of one level and size are one instanced call); fills their
-//! tiles most-needed first with what is left of the per-frame sample budget after the rings (coarse-to-fine
+//! a one-sample border for normals). Each frame [`DetailPool::plan`] refines the clamped blocks as
+//! quadtrees of such cells and quarter cells, largest bound first, under the slots, draw calls and
+//! triangles (`refine.rs`; the cells of one level and size are one instanced call); fills their tiles
+//! most-needed first with what is left of the per-frame sample budget after the rings (coarse-to-fine
 //! ring fill stays first), evicts the least recently needed tile, and serves a block from the pool once all
 //! its tiles are resident. Pure, deterministic and allocation-free.
 //!
@@ -411,8 +411,8 @@ impl DetailPool {
 
     /// Plans the pool for one frame (issue 15). The clamped blocks are refined as quadtrees over space and
     /// level (`refine.rs`: the largest bound is split first while its cells fit the slots, draws and
-    /// triangles left; `bound_at` gives a level's bound over a level-0 lattice box, [`BoundAt`]). The tiles their cells
-    /// read are then filled most-needed first (by the block's bound / epsilon at the clamped level) under
+    /// triangles left; `bound_at` gives a level's bound over a level-0 lattice box, [`BoundAt`]). The
+    /// tiles their cells read are then filled most-needed first (by the block's bound / epsilon at the clamped level) under
     /// `budget.samples` (spent only when `budget.new_frame`: a clipmap frame planned again spends
     /// nothing), and each block whose tiles are all resident is served: its level in `lod` becomes its
     /// finest cell's, and `lod.blocks_clamped` drops when every cell meets epsilon. A refined block's

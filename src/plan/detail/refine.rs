@@ -256,10 +256,9 @@ impl Quadtree {
     /// that level instead, drawn as a quarter of its tile. A finer piece costs 4x the triangles of the
     /// same ground one level coarser, so a split may also cut a quarter that misses epsilon again (down
     /// to [`MIN_SUB_QUADS`] finer quads) where some of its parts would meet it ([`emit`]): fewer
-    /// triangles, more cells (instances; a draw only per new pair of level and cell quads). Each split takes whichever of the two (whole quarters or the
-    /// cut) uses the smaller share of what is left of its scarcer budget: at Puget Sound 1 px and Big
-    /// Tujunga 1 and 2 px both budgets then run out together. A cell that meets epsilon or reached its
-    /// block's wanted level is not split.
+    /// triangles, more cells (instances; a draw only per new pair of level and cell quads). Each split
+    /// takes whichever of the two (whole quarters or the cut) uses the smaller share of what is left of
+    /// its scarcer budget. A cell that meets epsilon or reached its block's wanted level is not split.
     pub(super) fn refine(
         &mut self,
         view: &DetailView<'_>,
@@ -286,8 +285,9 @@ impl Quadtree {
                 }
             }
             let Some((_, unit)) = pick else { break };
-            // Two ways to split: whole quarters (fewest cells, slots and pairs of level and quads) or the finest cut (only the parts
-            // that miss epsilon one level coarser go finer, so fewest triangles). The one that takes the
+            // Two ways to split: whole quarters (fewest cells, slots and pairs of level and quads) or the
+            // finest cut (only the parts that miss epsilon one level coarser go finer, so fewest
+            // triangles). The one that takes the
             // smaller share of what is left of its scarcer budget is taken (whole quarters on ties).
             // Whole quarters into `self.new`, the cut (when finer than a quarter) into `self.cut`.
             let cuts = [quads, MIN_SUB_QUADS.min(quads)];
@@ -345,14 +345,8 @@ impl Quadtree {
                 Unit::Block(k) => self.cands[k].refined = true,
                 Unit::Cell(j) => {
                     let old = self.cells.swap_remove(j);
-                    self.release(&old.key);
-                    let g = group(&old);
-                    if let Some(i) = self.groups.iter().position(|(k, _)| *k == g) {
-                        self.groups[i].1 -= 1;
-                        if self.groups[i].1 == 0 {
-                            self.groups.swap_remove(i);
-                        }
-                    }
+                    count_out(&mut self.keys, &old.key);
+                    count_out(&mut self.groups, &group(&old));
                 }
             }
             for i in 0..n {
@@ -364,20 +358,12 @@ impl Quadtree {
                 self.cells
                     .push(c)
                     .expect("checked against MAX_DETAIL_CELLS");
-                match self.keys.iter_mut().find(|(k, _)| *k == c.key) {
-                    Some((_, r)) => *r += 1,
-                    None => self
-                        .keys
-                        .push((c.key, 1))
-                        .expect("checked against the slots"),
-                }
-                match self.groups.iter_mut().find(|(k, _)| *k == group(&c)) {
-                    Some((_, r)) => *r += 1,
-                    None => self
-                        .groups
-                        .push((group(&c), 1))
-                        .expect("checked against MAX_CELL_GROUPS"),
-                }
+                let keyed = count_in(&mut self.keys, c.key);
+                let grouped = count_in(&mut self.groups, group(&c));
+                assert!(
+                    keyed && grouped,
+                    "checked against the slots and MAX_CELL_GROUPS"
+                );
             }
         }
         Ok(())
@@ -392,24 +378,11 @@ impl Quadtree {
         budget: &DetailBudget,
         slots: usize,
     ) -> Option<(i64, u64, u64)> {
-        let mut new_keys = 0usize;
-        for (i, c) in new.iter().enumerate() {
-            let seen = new[..i].iter().any(|o| o.key == c.key);
-            if !seen && !self.keys.iter().any(|(k, _)| *k == c.key) {
-                new_keys += 1;
-            }
-        }
+        let new_keys = unseen(new, |c| c.key, &self.keys);
         let n = new.len();
         let mut add_t: u64 = new.iter().map(|c| budget.cell_triangles(&c.bounds)).sum();
         // One instanced draw per (level, cell quads): a cell adds a draw only when it starts a pair.
-        let mut new_groups = 0usize;
-        for (i, c) in new.iter().enumerate() {
-            let g = group(c);
-            let seen = new[..i].iter().any(|o| group(o) == g);
-            if !seen && !self.groups.iter().any(|(k, _)| *k == g) {
-                new_groups += 1;
-            }
-        }
+        let new_groups = unseen(new, group, &self.groups);
         let (mut freed, mut removed, mut gone) = (0, 0, 0);
         let mut add_d = i64::try_from(new_groups).expect("groups <= capacity");
         let sub_t = match unit {
@@ -422,14 +395,12 @@ impl Quadtree {
             Unit::Cell(j) => {
                 let old = self.cells[j];
                 let g = group(&old);
-                let last = self.groups.iter().any(|(k, r)| *k == g && *r == 1);
-                if last && !new.iter().any(|c| group(c) == g) {
+                if is_last(&self.groups, &g) && !new.iter().any(|c| group(c) == g) {
                     add_d -= 1;
                     gone = 1;
                 }
                 removed = 1;
-                let only = self.keys.iter().any(|(k, r)| *k == old.key && *r == 1);
-                if only && !new.iter().any(|c| c.key == old.key) {
+                if is_last(&self.keys, &old.key) && !new.iter().any(|c| c.key == old.key) {
                     freed = 1;
                 }
                 budget.cell_triangles(&old.bounds)
@@ -440,15 +411,6 @@ impl Quadtree {
             && self.cells.len() + n - removed <= MAX_DETAIL_CELLS
             && self.groups.len() + new_groups - gone <= MAX_CELL_GROUPS;
         fits.then_some((add_d, add_t, sub_t))
-    }
-
-    fn release(&mut self, key: &TileKey) {
-        if let Some(i) = self.keys.iter().position(|(k, _)| k == key) {
-            self.keys[i].1 -= 1;
-            if self.keys[i].1 == 0 {
-                self.keys.swap_remove(i);
-            }
-        }
     }
 
     /// Writes `unit`'s split into `self.cut` when `to_cut`, else `self.new`; false when it has more cells
@@ -513,6 +475,45 @@ impl Quadtree {
         }
         Ok(room)
     }
+}
+
+/// Counts one more `k` in `counts` (a distinct key with how many take it); false when a new key finds
+/// no room.
+fn count_in<K: PartialEq, const N: usize>(counts: &mut heapless::Vec<(K, u32), N>, k: K) -> bool {
+    match counts.iter_mut().find(|(c, _)| *c == k) {
+        Some((_, r)) => {
+            *r += 1;
+            true
+        }
+        None => counts.push((k, 1)).is_ok(),
+    }
+}
+
+/// Counts one `k` fewer in `counts`, dropping it at none.
+fn count_out<K: PartialEq, const N: usize>(counts: &mut heapless::Vec<(K, u32), N>, k: &K) {
+    if let Some(i) = counts.iter().position(|(c, _)| c == k) {
+        counts[i].1 -= 1;
+        if counts[i].1 == 0 {
+            counts.swap_remove(i);
+        }
+    }
+}
+
+/// Whether exactly one taker of `k` is counted in `counts`.
+fn is_last<K: PartialEq>(counts: &[(K, u32)], k: &K) -> bool {
+    counts.iter().any(|(c, r)| c == k && *r == 1)
+}
+
+/// How many distinct keys (`key` of each cell of `new`) are not counted in `counts` yet.
+fn unseen<K: PartialEq>(new: &Scratch, key: impl Fn(&Cell) -> K, counts: &[(K, u32)]) -> usize {
+    let mut n = 0;
+    for (i, c) in new.iter().enumerate() {
+        let k = key(c);
+        if !new[..i].iter().any(|o| key(o) == k) && !counts.iter().any(|(c, _)| *c == k) {
+            n += 1;
+        }
+    }
+    n
 }
 
 /// The instanced draw a cell is one instance of: its level and quads ([`cell_quads`]).

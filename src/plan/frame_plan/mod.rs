@@ -16,7 +16,7 @@ use bytemuck::Zeroable;
 use crate::hash::Hash64;
 use crate::plan::clipmap::Clipmap;
 use crate::plan::cull::{self, DrawKind, DrawList, DrawParams, DrawStats, MAX_DRAWS};
-use crate::plan::detail::{DetailBudget, DetailFrame, DetailPool, DetailView};
+use crate::plan::detail::{DetailFrame, DetailPool};
 use crate::plan::fragment::{FragmentPath, FragmentPaths};
 use crate::plan::lod::{Lod, LodFrame, LodMode};
 use crate::plan::mesh;
@@ -25,6 +25,8 @@ use crate::plan::uniforms::{
     DrawUniform, Globals, PoolCell,
 };
 use crate::plan::uploads::UploadList;
+
+mod pool;
 use crate::profile::DRAW_SLOT_BYTES;
 use crate::shading::basic::BasicShading;
 use crate::{Camera, Error, Profile, Result};
@@ -116,52 +118,6 @@ impl PlannedDraw {
     pub fn instances(&self) -> u32 {
         (self.cells.end - self.cells.start).max(1)
     }
-}
-
-/// Sorts the pool cells `pool` (the tail of a draw list) into runs of one level, mesh and fragment
-/// program, so each run is one instanced draw call, and returns how many runs there are. Unstable but
-/// total order (the cell's place breaks ties), so allocation-free and deterministic.
-fn sort_pool_runs(pool: &mut [cull::Draw], paths: &FragmentPaths) -> u32 {
-    let key = |d: &cull::Draw| {
-        (
-            d.level,
-            d.kind as u32,
-            d.quads,
-            paths.path(d) as u32,
-            d.bounds.y0,
-            d.bounds.x0,
-            d.pool,
-        )
-    };
-    pool.sort_unstable_by_key(key);
-    let run = |d: &cull::Draw| (d.level, d.kind, d.quads, paths.path(d));
-    let mut runs = 0;
-    for (i, d) in pool.iter().enumerate() {
-        if i == 0 || run(&pool[i - 1]) != run(d) {
-            runs += 1;
-        }
-    }
-    runs
-}
-
-/// Whether ring draw `d` of the clamped draw list is one of block `b`'s (`cull::build_lod_draws` draws
-/// each piece of a block at its level, in its ring's lattice or, tiled exactly, in the level's): a block
-/// or tile skirt at `b`'s level whose bounds lie in `b`'s rectangle in that lattice. The pool's credit
-/// for refining `b`; plan_detail's final check holds the budget whatever it is.
-fn block_draws(b: &crate::plan::lod::BlockLod, d: &cull::Draw) -> bool {
-    if d.pool.is_some() || d.kind == DrawKind::Skirt || d.level != b.level || d.fine < b.ring {
-        return false;
-    }
-    let s = d.fine - b.ring;
-    let r = &b.rect;
-    let up = |v: i64| -((-v) >> s);
-    let rect = crate::plan::frame::Rect::from_bounds(
-        r.x0 >> s,
-        r.y0 >> s,
-        up(r.x1() - 1) + 1,
-        up(r.y1() - 1) + 1,
-    );
-    rect.contains(&d.bounds)
 }
 
 /// What a plan holds, in numbers.
@@ -499,173 +455,10 @@ impl Planner {
 
     /// Triangles of a draw list.
     fn triangles(&self, draws: &DrawList) -> u64 {
-        draws
-            .iter()
-            .map(|d| {
-                let r = self.index_range(d);
-                u64::from((r.end - r.start) / 3)
-            })
-            .sum()
+        draws.iter().map(|d| self.triangles_of(d)).sum()
     }
 
-    /// The detail pool's part of a SAT plan (issue 15), after the clamped draw list `out.draws` is built:
-    /// plans the pool under what the rings left of the sample budget and what the clamped list left of
-    /// the draw and triangle budgets, then rebuilds the draw list with the served blocks from the pool,
-    /// dropping the least-needed served block until it fits. None: nothing served, the list stands.
-    fn plan_detail(
-        &mut self,
-        clipmap: &Clipmap,
-        camera: &Camera,
-        dp: &DrawParams,
-        paths: &FragmentPaths,
-        new_frame: bool,
-        out: &mut FramePlan,
-    ) -> Result<Option<DrawStats>> {
-        let frame = clipmap.frame();
-        let frustum = cull::Frustum::new(camera, self.aspect);
-        let epsilon_px = self
-            .lod()
-            .map_or(self.default_epsilon, crate::plan::lod::Lod::epsilon_px);
-        let view = self.detail_view(clipmap, camera, &frustum, epsilon_px);
-        let base_draws = u32::try_from(out.draws.len()).expect("draws <= MAX_DRAWS");
-        let base_triangles = self.triangles(&out.draws);
-        let skirt = cull::Draw {
-            level: 0,
-            kind: DrawKind::TileSkirt,
-            origin: [0, 0],
-            bounds: crate::plan::frame::Rect::EMPTY,
-            fine: 0,
-            quads: self.block_quads,
-            clamped: false,
-            pool: None,
-        };
-        // The rings' fill (and a package's decoding) comes first: the pool gets what is left.
-        let spent = u64::from(frame.samples_updated) + u64::from(clipmap.decoded_samples());
-        let budget = DetailBudget {
-            new_frame,
-            samples: u64::from(self.update_budget).saturating_sub(spent),
-            draws: self.max_draws.saturating_sub(base_draws),
-            triangles: u64::from(self.max_triangles).saturating_sub(base_triangles),
-            skirts: dp.skirts,
-            block_quads: self.block_quads,
-            // A neighbour drawn at its ring gains up to one skirt per piece.
-            margin: (4, 4 * self.triangles_of(&skirt)),
-        };
-        // A cell's bound at its level: the selection's own test over the cell's box.
-        let bound_at = |level: u32, cell: (i64, i64, i64, i64), exact: bool| -> f64 {
-            match &self.lod {
-                LodSetup::Sat(mode, lod) if exact => {
-                    lod.box_bound_at_eps(camera, *mode, level, cell, epsilon_px)
-                }
-                LodSetup::Sat(mode, lod) => {
-                    lod.box_bound_test(camera, *mode, level, cell, epsilon_px)
-                }
-                LodSetup::Distance => 0.0,
-            }
-        };
-        self.ring_triangles.fill(0);
-        for (i, b) in out.lod.blocks.iter().enumerate() {
-            if b.wanted < b.level && b.wanted < b.ring {
-                self.ring_triangles[i] = out
-                    .draws
-                    .iter()
-                    .filter(|d| block_draws(b, d))
-                    .map(|d| self.triangles_of(d))
-                    .sum();
-            }
-        }
-        self.pool.plan(
-            clipmap,
-            &view,
-            &mut out.lod,
-            &bound_at,
-            &budget,
-            &self.ring_triangles,
-            &mut out.detail,
-        )?;
-        if out.detail.served.is_empty() {
-            return Ok(None);
-        }
-        loop {
-            let built = cull::build_lod_draws(
-                clipmap,
-                camera,
-                dp,
-                &out.lod,
-                &out.detail.served,
-                &mut out.draws,
-            )
-            .and_then(|mut stats| {
-                let rings = out.draws.len();
-                let pool =
-                    self.pool
-                        .push_draws(&out.detail, dp.skirts, MAX_DRAWS, &mut out.draws)?;
-                stats.blocks += pool;
-                stats.skirts += if dp.skirts { pool } else { 0 };
-                let runs = sort_pool_runs(&mut out.draws[rings..], paths);
-                Ok((stats, rings, runs))
-            });
-            let fits = match &built {
-                Ok((_, rings, runs)) => {
-                    self.triangles(&out.draws) <= u64::from(self.max_triangles)
-                        && *rings as u64 + u64::from(*runs) <= u64::from(self.max_draws)
-                }
-                Err(Error::Capacity { .. }) => false,
-                Err(_) => true,
-            };
-            if fits {
-                return built.map(|(stats, _, _)| Some(stats));
-            }
-            if !DetailPool::unserve_last(&mut out.lod, &mut out.detail) {
-                // Nothing left to drop: the clamped list alone (it fit before).
-                return cull::build_lod_draws(clipmap, camera, dp, &out.lod, &[], &mut out.draws)
-                    .map(Some);
-            }
-        }
-    }
-
-    /// What the detail pool sees of this frame from `camera` through `frustum`, at `epsilon_px`.
-    fn detail_view<'a>(
-        &self,
-        clipmap: &'a Clipmap,
-        camera: &Camera,
-        frustum: &'a cull::Frustum,
-        epsilon_px: f64,
-    ) -> DetailView<'a> {
-        DetailView {
-            frame: clipmap.frame(),
-            frustum,
-            eye_l: clipmap.eye_lattice(camera.eye),
-            eye_z: camera.eye.z,
-            g0: clipmap.g0(),
-            z_range: self.z_range,
-            data_lattice: self.data_lattice,
-            epsilon_px,
-        }
-    }
-
-    /// The clamped blocks that meet the view frustum (the ones whose error shows): [`LodFrame`]'s
-    /// `blocks_clamped` less those outside it, which the pool never refines. A block the pool serves
-    /// counts when one of its cells misses epsilon.
-    ///
-    /// [`LodFrame`]: crate::plan::lod::LodFrame
-    fn visible_clamped(&self, clipmap: &Clipmap, camera: &Camera, out: &FramePlan) -> u32 {
-        let frustum = cull::Frustum::new(camera, self.aspect);
-        let view = self.detail_view(clipmap, camera, &frustum, 0.0);
-        let d = &out.detail;
-        let mut n = 0u32;
-        for (i, b) in out.lod.blocks.iter().enumerate() {
-            let clamped = match d.served.iter().position(|&(j, _)| usize::from(j) == i) {
-                Some(k) => !d.served_met.get(k).copied().unwrap_or(false),
-                None => b.wanted < b.level,
-            };
-            if clamped && view.visible(b.ring, &b.rect) {
-                n += 1;
-            }
-        }
-        n
-    }
-
+    /// Triangles of draw `d` (a pool cell: its instance's).
     fn triangles_of(&self, d: &cull::Draw) -> u64 {
         let r = self.index_range(d);
         u64::from((r.end - r.start) / 3)
