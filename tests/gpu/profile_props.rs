@@ -16,7 +16,7 @@ use clipsat::profile::{Profile, MAX_N};
 use clipsat::{Camera, Error, Heightmap};
 use glam::DVec3;
 use proptest::prelude::*;
-use proptest::test_runner::{Config, TestRunner};
+use proptest::test_runner::{Config, RngSeed, TestRunner};
 
 /// Values that break arithmetic: zero, one, powers of two and their neighbours, the top of u32.
 fn extreme_u32() -> impl Strategy<Value = u32> {
@@ -225,13 +225,20 @@ fn check(text: &str, gpu: Option<&clipsat::gpu::Gpu>) -> Reached {
     Reached::Planned
 }
 
+/// The generator's seed (see the test).
+const SEED: u64 = 0x00c1_1b5a_7000_0015;
+
 #[test]
 fn random_and_extreme_profiles_error_or_work() {
     let gpu = render_support::strict();
     let counts = Cell::new([0u32; 4]);
+    // A fixed seed: the same 300 profiles on every run, so the stage counts below are a property of the
+    // generator, not of the day (with a random seed, one CI run drew only 18 valid profiles of 300).
+    // `PROPTEST_RNG_SEED` is ignored here; change `SEED` to explore others.
     let mut runner = TestRunner::new(Config {
         cases: 300,
         failure_persistence: None,
+        rng_seed: RngSeed::Fixed(SEED),
         ..Config::default()
     });
     let strategy = prop_oneof![3 => profile_text(), 1 => damaged_text()];
