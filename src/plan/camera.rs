@@ -10,6 +10,10 @@ use crate::{Error, Result};
 /// The default camera's distance to its target, in units of the terrain's larger extent.
 pub const DEFAULT_VIEW_DISTANCE: f64 = 0.45;
 
+/// How many times the typical relief ([`crate::Heightmap::typical_range`]) the height range must span
+/// before the default camera aims at the typical relief instead.
+pub const OUTLIER_STRETCH: f64 = 4.0;
+
 /// A perspective camera.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Camera {
@@ -65,7 +69,8 @@ impl Camera {
     /// close enough that its relief reads, derived from its extent and height range only (so it frames
     /// a flat, a tiny, a huge or a non-square terrain alike).
     ///
-    /// The target is the centre, a tenth of the north-south extent ahead, at a third of the relief. The eye
+    /// The target is the centre, a tenth of the north-south extent ahead, at a third of the relief (the
+    /// typical relief where outliers stretch the range past [`OUTLIER_STRETCH`] times it). The eye
     /// looks down at 28 degrees from [`DEFAULT_VIEW_DISTANCE`] times the larger extent, a little west of
     /// south so that north-south ridges do not line up with the view; it stays above the highest sample
     /// by a twentieth of the extent. A 60 degree vertical field of view then spans the whole width at the
@@ -77,7 +82,16 @@ impl Camera {
         let size = ex.max(ey).max(1e-3);
         let (ox, oy) = hm.origin();
         let o = DVec3::new(ox, oy, 0.0);
-        let target = o + DVec3::new(0.5 * ex, 0.6 * ey, lo + (hi - lo) / 3.0);
+        // Outliers that stretch the range far past the typical relief (an untagged void 30 km down, a
+        // spike) would aim the view at empty space: aim at the typical relief then.
+        let (tlo, thi) = hm.typical_range();
+        let (tlo, thi) = (f64::from(tlo), f64::from(thi));
+        let (alo, ahi) = if hi - lo > OUTLIER_STRETCH * (thi - tlo) + 0.01 * size {
+            (tlo, thi)
+        } else {
+            (lo, hi)
+        };
+        let target = o + DVec3::new(0.5 * ex, 0.6 * ey, alo + (ahi - alo) / 3.0);
         let (dep, az) = (28f64.to_radians(), 12f64.to_radians());
         let dist = DEFAULT_VIEW_DISTANCE * size;
         let back = DVec3::new(-az.sin(), -az.cos(), 0.0) * (dist * dep.cos());

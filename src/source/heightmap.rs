@@ -4,6 +4,9 @@ use std::path::Path;
 
 use crate::{Error, Result};
 
+/// Most samples [`Heightmap::typical_range`] reads.
+const TYPICAL_SAMPLES: usize = 1 << 16;
+
 /// A north-up, row-major grid of heights in metres on square cells of `spacing` metres.
 ///
 /// Every sample is finite: constructors refuse NaN and infinities, so later stages need not check.
@@ -150,6 +153,27 @@ impl Heightmap {
             .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &h| {
                 (lo.min(h), hi.max(h))
             })
+    }
+
+    /// The terrain's typical relief, metres: the 1st and 99th percentiles of its heights, so a few
+    /// outliers (an untagged void at -32768, a mast, a spike) do not stretch it. Read from an evenly
+    /// strided subsample of at most 65,536 samples (deterministic; one allocation, not per
+    /// frame).
+    #[expect(
+        clippy::cast_possible_truncation,
+        clippy::cast_sign_loss,
+        clippy::cast_precision_loss,
+        reason = "ranks of at most TYPICAL_SAMPLES samples"
+    )]
+    pub fn typical_range(&self) -> (f32, f32) {
+        let stride = self.heights.len().div_ceil(TYPICAL_SAMPLES).max(1);
+        let mut s: Vec<f32> = self.heights.iter().step_by(stride).copied().collect();
+        let last = s.len().saturating_sub(1);
+        let rank = |q: f64| ((last as f64) * q).round() as usize;
+        let (lo_at, hi_at) = (rank(0.01), rank(0.99));
+        let lo = *s.select_nth_unstable_by(lo_at, f32::total_cmp).1;
+        let hi = *s.select_nth_unstable_by(hi_at, f32::total_cmp).1;
+        (lo, hi)
     }
 
     /// World position (x east, y north, metres) of grid sample column `u`, row `v`: x = x0 + u s,

@@ -49,9 +49,10 @@ fn grid(name: &str, w: u32, h: u32, spacing: f32, f: impl Fn(f32, f32) -> f32) -
     Heightmap::new(Path::new(name), w, h, spacing, heights).expect("valid test terrain")
 }
 
-/// Flat, tiny, huge and non-square terrains: the default camera looks down at the terrain's middle from
-/// above every sample, sees its centre, far part and the middle 40 % of its width, and stands within a
-/// terrain's extent of it (not a plate on the horizon).
+/// Flat, tiny, huge and non-square terrains, and terrains with outliers (an untagged void 30 km down, a
+/// spike): the default camera looks down at the terrain's middle from above every sample, sees its centre,
+/// far part and the middle 40 % of its width at its typical height, and stands within a terrain's extent
+/// of it (not a plate on the horizon).
 #[test]
 fn default_camera_frames_any_terrain() {
     let terrains = [
@@ -62,8 +63,22 @@ fn default_camera_frames_any_terrain() {
         }),
         grid("<wide>", 513, 33, 30.0, |u, _| 200.0 * (u * 0.02).sin()),
         grid("<tall>", 17, 400, 10.0, |_, v| v),
+        grid("<pit>", 513, 129, 30.0, |u, v| {
+            if u < 5.0 && v < 5.0 {
+                -32768.0
+            } else {
+                150.0 * (u * 0.03).sin() * (v * 0.05).cos()
+            }
+        }),
+        grid("<spike>", 257, 257, 30.0, |u, v| {
+            if u == 128.0 && v == 128.0 {
+                8000.0
+            } else {
+                0.0
+            }
+        }),
     ];
-    let names = ["flat", "tiny", "huge", "wide", "tall"];
+    let names = ["flat", "tiny", "huge", "wide", "tall", "pit", "spike"];
     for (hm, name) in terrains.iter().zip(names) {
         let cam = Camera::default_for(hm).expect("default camera");
         let (lo, hi) = hm.range();
@@ -79,7 +94,8 @@ fn default_camera_frames_any_terrain() {
             "{name}: {dist} m away from a {size} m terrain"
         );
         let vp = cam.view_proj_relative(16.0 / 9.0).as_dmat4();
-        let mid = f64::from(lo) + 0.5 * f64::from(hi - lo);
+        let (tlo, thi) = hm.typical_range();
+        let mid = f64::from(tlo) + 0.5 * f64::from(thi - tlo);
         for (fx, fy) in [(0.5, 0.5), (0.5, 0.9), (0.3, 0.6), (0.7, 0.6)] {
             let p = DVec3::new(ox + fx * ex, oy + fy * ey, mid) - cam.eye;
             let c = vp * DVec4::new(p.x, p.y, p.z, 1.0);
