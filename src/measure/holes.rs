@@ -67,9 +67,12 @@ pub fn drawn_height(
 }
 
 /// Whether the view ray through pixel (x, y) of a `view`-sized frame planned as `plan` passes below the
-/// surface its draws draw while inside the data (inset as `outside_data` insets the border cut): a clear
-/// pixel there is a hole. A ray that leaves the data through its side above the surface sees past the
-/// terrain's edge. Walks the ray in steps of an eighth of the level-0 spacing. Needs the resident pyramid.
+/// surface its draws draw while inside the data (inset as `outside_data` insets the border cut), having
+/// been above it there first: a clear pixel there is a hole. A ray that leaves the data through its side
+/// above the surface sees past the terrain's edge, and one from an eye outside the data that enters
+/// through its side below the surface sees where a solid terrain's side would be (the shader's
+/// `through_side` hides skirts there): neither is a hole. Walks the ray in steps of an eighth of the
+/// level-0 spacing. Needs the resident pyramid.
 #[expect(
     clippy::cast_possible_truncation,
     clippy::cast_sign_loss,
@@ -97,19 +100,30 @@ pub fn ray_below_drawn_surface(
     let (eu, ev) = clipmap.eye_lattice(camera.eye);
     let g0 = clipmap.g0();
     let steps = ((b - a).length() / (g0 / 8.0)).ceil().min(1.0e6) as u32;
-    (0..=steps).any(|i| {
+    let mut above = false;
+    for i in 0..=steps {
         let p = a + (b - a) * (f64::from(i) / f64::from(steps.max(1)));
-        let inside = (0..2).all(|k| p[k] >= lo[k] && p[k] <= hi[k]);
-        inside
-            && drawn_height(
-                clipmap,
-                plan.draws(),
-                block_quads,
-                eu + p.x / g0,
-                ev - p.y / g0,
-            )
-            .is_some_and(|z| camera.eye.z + p.z < z)
-    })
+        if !(0..2).all(|k| p[k] >= lo[k] && p[k] <= hi[k]) {
+            continue;
+        }
+        let Some(z) = drawn_height(
+            clipmap,
+            plan.draws(),
+            block_quads,
+            eu + p.x / g0,
+            ev - p.y / g0,
+        ) else {
+            continue;
+        };
+        if camera.eye.z + p.z >= z {
+            above = true;
+        } else {
+            // Below: a hole if the ray came from above the surface inside the data; entering through the
+            // data's side below it, it sees where a solid terrain's side would be (`through_side`).
+            return above;
+        }
+    }
+    false
 }
 
 /// The crack candidates of `image` (pixels of colour `clear` between terrain pixels of a column, as
