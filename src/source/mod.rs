@@ -183,10 +183,17 @@ pub fn load(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
         "raw" | "r16" | "f32" => raw::load(path, meta.len(), opts),
         _ if magic.starts_with(&png::MAGIC) => png::load(path, opts, &magic),
         _ if tiff::has_magic(&magic) => tiff::load(path, opts, &magic),
+        // A package is opened before any source (by its magic number): one named so without it is damaged.
+        "clipsat" => Err(Error::format(
+            path,
+            "not a clipsat package: it does not start with the package magic number (damaged, or not \
+             written by `clipsat bake`)",
+        )),
         _ => Err(Error::format(
             path,
             format!(
-                "unknown terrain format `.{ext}`: expected .png, .tif/.tiff, .hgt or .raw/.r16/.f32"
+                "unknown terrain format `.{ext}`: expected .png, .tif/.tiff, .hgt, .raw/.r16/.f32 or a \
+                 .clipsat package"
             ),
         )),
     }

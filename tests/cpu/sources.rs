@@ -658,6 +658,11 @@ fn wrong_magic() {
         "magic",
     );
     assert_format(load(&write(&dir, "x.dem", b"whatever")), ".png");
+    // A package whose start is damaged says so, not "unknown format".
+    assert_format(
+        load(&write(&dir, "x.clipsat", b"CLIPSAX\0 damaged")),
+        "not a clipsat package",
+    );
 }
 
 #[test]
