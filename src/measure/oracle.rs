@@ -12,6 +12,11 @@
 //! per block or pool cell, plus skirts, so it needs at least this many. Quads outside the frustum cost
 //! nothing here.
 //!
+//! [`bound_oracle`] runs the same descent with a LOD bound ([`crate::plan::lod::Lod::box_bound_px`] of each
+//! quad) in place of the measured error: what a refinement that decides each quad by the bound would need.
+//! Its distance from [`oracle`] is the bound's cost; the renderer's distance from it is the cost of
+//! deciding whole cells and pieces instead of quads.
+//!
 //! Kept quads at a level whose ring does not hold them (outside that ring's clip region) need pool tiles:
 //! their distinct tile cells (`detail_tile_quads` quads a side) are a lower bound on the pool's tiles for
 //! a pool whose tiles are those cells.
@@ -21,6 +26,7 @@ use crate::plan::camera::px_of_parts;
 use crate::plan::clipmap::Clipmap;
 use crate::plan::cull;
 use crate::plan::frame::Rect;
+use crate::plan::lod::{Lod, LodMode};
 use crate::Camera;
 
 /// What the oracle needs to meet epsilon ([`oracle`]).
@@ -61,6 +67,53 @@ pub fn oracle(
     levels: u32,
     tile_quads: u32,
     epsilons: &[f64],
+) -> Vec<Oracle> {
+    descend(clipmap, camera, view, levels, tile_quads, epsilons, None)
+}
+
+/// [`oracle`] with `lod`'s bound in `mode` for each quad in the frustum ([`Lod::box_bound_px`] of the
+/// quad's level-0 lattice box at its clipmap level) in place of its measured error: the fewest pyramid
+/// quads a refinement deciding each quad by that bound needs.
+#[expect(
+    clippy::too_many_arguments,
+    reason = "the oracle's inputs and the bound's"
+)]
+pub fn bound_oracle(
+    clipmap: &Clipmap,
+    camera: &Camera,
+    view: (u32, u32),
+    levels: u32,
+    tile_quads: u32,
+    epsilons: &[f64],
+    lod: &Lod,
+    mode: LodMode,
+) -> Vec<Oracle> {
+    let bound = |level: u32, bx: (i64, i64, i64, i64)| lod.box_bound_px(camera, mode, level, bx);
+    descend(
+        clipmap,
+        camera,
+        view,
+        levels,
+        tile_quads,
+        epsilons,
+        Some(&bound),
+    )
+}
+
+/// A quad's error in pixels from its clipmap level and level-0 lattice box (x0, y0, x1, y1).
+type QuadBound<'a> = dyn Fn(u32, (i64, i64, i64, i64)) -> f64 + 'a;
+
+/// The descent of [`oracle`] and [`bound_oracle`]: a quad's error is its measured one, or `bound` of its
+/// clipmap level and level-0 lattice box where given (quads with no sample in the frustum are skipped
+/// either way; a level-0 quad is always kept).
+fn descend(
+    clipmap: &Clipmap,
+    camera: &Camera,
+    view: (u32, u32),
+    levels: u32,
+    tile_quads: u32,
+    epsilons: &[f64],
+    bound: Option<&QuadBound<'_>>,
 ) -> Vec<Oracle> {
     let pyr = clipmap.pyramid();
     let data = pyr.level(0);
@@ -152,11 +205,19 @@ pub fn oracle(
                 .collect();
             while let Some((k, c, r)) = stack.pop() {
                 let le = &errs[k as usize];
-                let m = le.max_px[r * le.cols + c];
-                if m < 0.0 {
+                let measured = le.max_px[r * le.cols + c];
+                if measured < 0.0 {
                     continue;
                 }
-                if k == 0 || f64::from(m) <= eps {
+                let m = match bound {
+                    Some(f) if k > 0 => {
+                        let s0 = 1i64 << (k + synth);
+                        let (i, j) = (c as i64, r as i64);
+                        f(k + synth, (i * s0, j * s0, (i + 1) * s0, (j + 1) * s0))
+                    }
+                    _ => f64::from(measured),
+                };
+                if k == 0 || m <= eps {
                     let l = k + synth;
                     o.triangles += 2;
                     o.quads_per_level[l as usize] += 1;

@@ -438,6 +438,41 @@ fn split_bound_covers_every_sample() {
 }
 
 /// The bake cache: miss, hit (identical tables), and every damaged file refused and rebaked.
+/// The oracle run with the LOD bound in place of the measured error (`measure::bound_oracle`) keeps a
+/// quad only where the bound meets epsilon, and the bound is at least the measured error
+/// ([`split_bound_covers_every_sample`]): so it never needs fewer triangles than the measured oracle, in
+/// either SAT mode, and `exact`'s never more than `sat-conservative`'s.
+#[test]
+fn bound_oracle_needs_at_least_the_oracle() {
+    let hm = terrain(129, 97, 30.0, |x, y| {
+        (200.0 * (f64::from(x) / 7.0).sin() * (f64::from(y) / 11.0).cos() + 60.0 * hash01(x, y))
+            as f32
+    });
+    let profile = Profile::load("gles3-low").expect("profile");
+    let clip = Clipmap::new(&hm, &profile, ClipmapOptions::default()).expect("clipmap");
+    let tables =
+        LodTables::build(clip.pyramid(), profile.clipmap.levels, P, |_| {}).expect("tables");
+    let lod = Lod::for_clipmap(tables, &profile, &clip, &hm);
+    let cam = Camera::default_for(&hm).expect("camera");
+    let view = (profile.view.width, profile.view.height);
+    let eps = [0.5, 1.0, 2.0, 4.0];
+    let (levels, quads) = (profile.clipmap.levels, profile.detail_quads());
+    let measured = clipsat::measure::oracle(&clip, &cam, view, levels, quads, &eps);
+    let by =
+        |mode| clipsat::measure::bound_oracle(&clip, &cam, view, levels, quads, &eps, &lod, mode);
+    let (exact, conservative) = (by(LodMode::Exact), by(LodMode::SatConservative));
+    for i in 0..eps.len() {
+        let (m, e, c) = (
+            measured[i].triangles,
+            exact[i].triangles,
+            conservative[i].triangles,
+        );
+        assert!(m > 0 && m <= e && e <= c, "epsilon {}: {m} {e} {c}", eps[i]);
+    }
+    // The bound is not vacuous: at some epsilon it needs more than the measured error does.
+    assert!((0..eps.len()).any(|i| exact[i].triangles > measured[i].triangles));
+}
+
 #[test]
 fn bake_cache_detects_damage() {
     let hm = terrain(65, 33, 25.0, |x, y| (hash01(x, y) * 50.0) as f32);

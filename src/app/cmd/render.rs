@@ -68,6 +68,11 @@ pub(crate) struct RenderArgs {
     /// metric (`clipsat::measure::oracle`: a lower bound; reads the whole pyramid once per level).
     #[arg(long, value_delimiter = ',')]
     oracle: Vec<f64>,
+    /// With --oracle in a SAT mode: also report `oracle_bound`, the same descent deciding each quad by
+    /// the LOD bound instead of its measured error (`clipsat::measure::bound_oracle`): the bound's cost
+    /// against `oracle`, and what a refinement that decides each quad by the bound would draw.
+    #[arg(long, requires = "oracle")]
+    oracle_bound: bool,
     #[command(flatten)]
     stream: StreamArgs,
     /// Clipmap only: disable the GC 6.2 transition morph.
@@ -313,6 +318,20 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
             &args.oracle,
         )
     });
+    let oracle_bound = lod_used
+        .filter(|_| args.oracle_bound && !streamed)
+        .map(|l| {
+            measure::bound_oracle(
+                &clipmap,
+                &camera,
+                r.size(),
+                profile.clipmap.levels,
+                profile.detail_quads(),
+                &args.oracle,
+                l,
+                r.planner().lod_mode(),
+            )
+        });
     ensure_parent(&args.out)?;
     frame.image.save_png(&args.out)?;
     let reference = match (&sg, args.shading.reference) {
@@ -390,14 +409,7 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
                 "x": a.x, "y": a.y, "level": a.level, "clamped": a.clamped, "pool": a.pool,
             })),
             "rmse_vs_ground_truth": rmse,
-            "oracle": oracle.map(|os| os.iter().map(|o| json!({
-                "epsilon_px": o.epsilon_px,
-                "triangles": o.triangles,
-                "quads_per_level": o.quads_per_level,
-                "quads_outside_rings": o.quads_outside_rings,
-                "pool_tiles": o.pool_tiles,
-                "pool_tiles_min": o.pool_tiles_min,
-            })).collect::<Vec<_>>()),
+            "oracle": oracle.as_deref().map(oracle_json),
             "blocks": frame.stats.cull.blocks,
             "blocks_culled": frame.stats.cull.culled,
             "skirts": frame.stats.cull.skirts,
@@ -414,6 +426,11 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
         });
         if let (Some(o), serde_json::Value::Object(extra)) = (out.as_object_mut(), shading) {
             o.extend(extra);
+            // Outside the literal above, which is at json!'s recursion limit.
+            o.insert(
+                "oracle_bound".into(),
+                json!(oracle_bound.as_deref().map(oracle_json)),
+            );
             // The SAT LOD tables: bytes held in owned memory, and whether they are read through a map.
             o.insert(
                 "lod_tables_owned_bytes".into(),
@@ -526,6 +543,22 @@ fn run_brute(
         );
     }
     Ok(())
+}
+
+/// `render --json`'s record of an oracle's answers, one per epsilon.
+fn oracle_json(os: &[measure::Oracle]) -> Vec<serde_json::Value> {
+    os.iter()
+        .map(|o| {
+            json!({
+                "epsilon_px": o.epsilon_px,
+                "triangles": o.triangles,
+                "quads_per_level": o.quads_per_level,
+                "quads_outside_rings": o.quads_outside_rings,
+                "pool_tiles": o.pool_tiles,
+                "pool_tiles_min": o.pool_tiles_min,
+            })
+        })
+        .collect()
 }
 
 /// The camera the options ask for; missing parts come from [`Camera::default_for`].
