@@ -83,7 +83,8 @@ impl Camera {
         let (ox, oy) = hm.origin();
         let o = DVec3::new(ox, oy, 0.0);
         // Outliers that stretch the range far past the typical relief (an untagged void 30 km down, a
-        // spike) would aim the view at empty space: aim at the typical relief then.
+        // spike) would aim the view at empty space: aim at the typical relief then. The hundredth of the
+        // extent keeps a nearly flat terrain (typical relief ~0) on its own range.
         let (tlo, thi) = hm.typical_range();
         let (tlo, thi) = (f64::from(tlo), f64::from(thi));
         let (alo, ahi) = if hi - lo > OUTLIER_STRETCH * (thi - tlo) + 0.01 * size {

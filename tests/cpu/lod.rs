@@ -319,6 +319,20 @@ fn selection_orders_the_modes() {
     }
 }
 
+/// The bound tests' terrain (129 x 97 at 30 m: waves and noise), its gles3-low clipmap and SAT LOD.
+fn bound_fixture() -> (Heightmap, Profile, Clipmap, Lod) {
+    let hm = terrain(129, 97, 30.0, |x, y| {
+        (200.0 * (f64::from(x) / 7.0).sin() * (f64::from(y) / 11.0).cos() + 60.0 * hash01(x, y))
+            as f32
+    });
+    let profile = Profile::load("gles3-low").expect("profile");
+    let clip = Clipmap::new(&hm, &profile, ClipmapOptions::default()).expect("clipmap");
+    let tables =
+        LodTables::build(clip.pyramid(), profile.clipmap.levels, P, |_| {}).expect("tables");
+    let lod = Lod::for_clipmap(tables, &profile, &clip, &hm);
+    (hm, profile, clip, lod)
+}
+
 /// The split bound of `Lod::box_bound_px` stays an upper bound of what is measured: for boxes of every
 /// size and alignment and every level, from two cameras (one looking across the terrain, one low and
 /// steep, so that boxes sit far off the screen's axis), under `exact` and `sat-conservative`, it is at
@@ -329,15 +343,7 @@ fn selection_orders_the_modes() {
 /// test cuts sub-boxes over epsilon again, is a bound too, never above the split bound.
 #[test]
 fn split_bound_covers_every_sample() {
-    let hm = terrain(129, 97, 30.0, |x, y| {
-        (200.0 * (f64::from(x) / 7.0).sin() * (f64::from(y) / 11.0).cos() + 60.0 * hash01(x, y))
-            as f32
-    });
-    let profile = Profile::load("gles3-low").expect("profile");
-    let clip = Clipmap::new(&hm, &profile, ClipmapOptions::default()).expect("clipmap");
-    let tables =
-        LodTables::build(clip.pyramid(), profile.clipmap.levels, P, |_| {}).expect("tables");
-    let lod = Lod::for_clipmap(tables, &profile, &clip, &hm);
+    let (_, profile, clip, lod) = bound_fixture();
     let synth = clip.synth_levels();
     let spacing = clip.g0() * f64::from(1u32 << synth);
     let (ox, oy) = clip.origin();
@@ -437,22 +443,13 @@ fn split_bound_covers_every_sample() {
     assert!(tightened > 0, "the deeper cut never tightened a bound");
 }
 
-/// The bake cache: miss, hit (identical tables), and every damaged file refused and rebaked.
 /// The oracle run with the LOD bound in place of the measured error (`measure::bound_oracle`) keeps a
 /// quad only where the bound meets epsilon, and the bound is at least the measured error
 /// ([`split_bound_covers_every_sample`]): so it never needs fewer triangles than the measured oracle, in
 /// either SAT mode, and `exact`'s never more than `sat-conservative`'s.
 #[test]
 fn bound_oracle_needs_at_least_the_oracle() {
-    let hm = terrain(129, 97, 30.0, |x, y| {
-        (200.0 * (f64::from(x) / 7.0).sin() * (f64::from(y) / 11.0).cos() + 60.0 * hash01(x, y))
-            as f32
-    });
-    let profile = Profile::load("gles3-low").expect("profile");
-    let clip = Clipmap::new(&hm, &profile, ClipmapOptions::default()).expect("clipmap");
-    let tables =
-        LodTables::build(clip.pyramid(), profile.clipmap.levels, P, |_| {}).expect("tables");
-    let lod = Lod::for_clipmap(tables, &profile, &clip, &hm);
+    let (hm, profile, clip, lod) = bound_fixture();
     let cam = Camera::default_for(&hm).expect("camera");
     let view = (profile.view.width, profile.view.height);
     let eps = [0.5, 1.0, 2.0, 4.0];
@@ -473,6 +470,7 @@ fn bound_oracle_needs_at_least_the_oracle() {
     assert!((0..eps.len()).any(|i| exact[i].triangles > measured[i].triangles));
 }
 
+/// The bake cache: miss, hit (identical tables), and every damaged file refused and rebaked.
 #[test]
 fn bake_cache_detects_damage() {
     let hm = terrain(65, 33, 25.0, |x, y| (hash01(x, y) * 50.0) as f32);

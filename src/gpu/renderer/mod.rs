@@ -161,16 +161,7 @@ impl Renderer {
     ) -> Result<Self> {
         profile.validate(&profile.name)?;
         let c = &profile.clipmap;
-        if profile.budget.max_draws as usize > MAX_DRAWS {
-            return Err(Error::config(
-                &profile.name,
-                "budget.max_draws",
-                format!(
-                    "{} exceeds the renderer's fixed capacity {MAX_DRAWS}",
-                    profile.budget.max_draws
-                ),
-            ));
-        }
+        crate::plan::frame_plan::check_draw_capacity(profile)?;
         let limits = device.limits();
         if u64::from(limits.min_uniform_buffer_offset_alignment) > DRAW_SLOT_BYTES {
             return Err(Error::Gpu(format!(

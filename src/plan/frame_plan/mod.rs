@@ -321,6 +321,22 @@ pub struct Planner {
     update_budget: u32,
 }
 
+/// Refuses a profile whose `budget.max_draws` exceeds the draw calls a frame plan (and the renderer's
+/// uniform slots) can hold, [`MAX_DRAWS`].
+pub fn check_draw_capacity(profile: &Profile) -> Result<()> {
+    if profile.budget.max_draws as usize > MAX_DRAWS {
+        return Err(Error::config(
+            &profile.name,
+            "budget.max_draws",
+            format!(
+                "{} exceeds the renderer's fixed capacity {MAX_DRAWS}",
+                profile.budget.max_draws
+            ),
+        ));
+    }
+    Ok(())
+}
+
 impl Planner {
     /// A planner for `clipmap` (built from `profile`) drawn into a `profile.view` viewport.
     pub fn new(profile: &Profile, clipmap: &Clipmap, lod: LodSetup) -> Result<Self> {
@@ -335,16 +351,7 @@ impl Planner {
                 "the clipmap was built from a different profile",
             ));
         }
-        if profile.budget.max_draws as usize > MAX_DRAWS {
-            return Err(Error::config(
-                &profile.name,
-                "budget.max_draws",
-                format!(
-                    "{} exceeds the renderer's fixed capacity {MAX_DRAWS}",
-                    profile.budget.max_draws
-                ),
-            ));
-        }
+        check_draw_capacity(profile)?;
         let block_quads = profile.block_m();
         let skirt_indices = 4 * (c.n + 1) * 6;
         let block_vertices = (block_quads + 1) * (block_quads + 1);
