@@ -17,15 +17,28 @@ use crate::plan::cull::DrawList;
 use crate::plan::frame_plan::FramePlan;
 use crate::Camera;
 
-/// Most candidates [`hole_pixels`] traces; any beyond count as holes unchecked (a frame with that many
-/// is broken anyway, and each trace walks the whole view ray).
+/// Most candidates [`hole_pixels`] traces (each trace walks the whole view ray); past it, an evenly
+/// spaced sample of this many is traced and the holes are scaled to all candidates.
 pub const MAX_TRACED: u64 = 4096;
 
+/// The drawn surface above a level-0 lattice point ([`drawn_height`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Drawn {
+    /// The highest height drawn there, metres.
+    Height(f64),
+    /// No block or pool cell draws the point.
+    Nothing,
+    /// A sample the drawn surface needs is not readable: a streamed terrain whose tile has left the
+    /// cache (a measurement never decodes).
+    Unread,
+}
+
 /// The height of the surface `draws` draw at level-0 lattice point (u, v) (fractional), the highest where
-/// several blocks meet there (their skirts close the step between them); None where no block draws it.
+/// several blocks meet there (their skirts close the step between them).
 /// Each block or pool cell is its level's piecewise-linear surface of the data pyramid, split along the
 /// (i, j)-(i+1, j+1) diagonal, as `clipmap.wgsl` draws it (SAT LOD draws do not morph; a pool tile holds
-/// its level's pyramid samples). Needs the resident pyramid.
+/// its level's pyramid samples), read through [`Clipmap::data_height`]: the resident pyramid, or a
+/// streamed terrain's tile cache.
 #[expect(
     clippy::cast_possible_truncation,
     clippy::cast_precision_loss,
@@ -37,10 +50,9 @@ pub fn drawn_height(
     block_quads: u32,
     u: f64,
     v: f64,
-) -> Option<f64> {
+) -> Drawn {
     let synth = clipmap.synth_levels();
-    let pyramid = clipmap.pyramid();
-    let mut best: Option<f64> = None;
+    let mut best = Drawn::Nothing;
     for d in draws.iter().filter(|d| d.kind.surface()) {
         let c = d.covered(block_quads);
         let f = f64::from(1u32 << d.fine);
@@ -55,13 +67,21 @@ pub fn drawn_height(
         let (x, y) = (u / s, v / s);
         let (i, j) = (x.floor() as i64, y.floor() as i64);
         let (fx, fy) = (x - i as f64, y - j as f64);
-        let z = |a: i64, b: i64| f64::from(pyramid.at(k, a, b));
-        let h = if fx >= fy {
-            z(i, j) + fx * (z(i + 1, j) - z(i, j)) + fy * (z(i + 1, j + 1) - z(i + 1, j))
-        } else {
-            z(i, j) + fx * (z(i + 1, j + 1) - z(i, j + 1)) + fy * (z(i, j + 1) - z(i, j))
+        let z = |a: i64, b: i64| clipmap.data_height(k, a, b).map(f64::from);
+        let (Some(z00), Some(z10), Some(z11), Some(z01)) =
+            (z(i, j), z(i + 1, j), z(i + 1, j + 1), z(i, j + 1))
+        else {
+            return Drawn::Unread;
         };
-        best = Some(best.map_or(h, |b: f64| b.max(h)));
+        let h = if fx >= fy {
+            z00 + fx * (z10 - z00) + fy * (z11 - z10)
+        } else {
+            z00 + fx * (z11 - z01) + fy * (z01 - z00)
+        };
+        best = Drawn::Height(match best {
+            Drawn::Height(b) => b.max(h),
+            _ => h,
+        });
     }
     best
 }
@@ -72,7 +92,8 @@ pub fn drawn_height(
 /// above the surface sees past the terrain's edge, and one from an eye outside the data that enters
 /// through its side below the surface sees where a solid terrain's side would be (the shader's
 /// `through_side` hides skirts there): neither is a hole. Walks the ray in steps of an eighth of the
-/// level-0 spacing. Needs the resident pyramid.
+/// level-0 spacing. A ray that meets a sample it cannot read ([`Drawn::Unread`]: streamed, its tile has
+/// left the cache) counts as below: a pixel that cannot be cleared is a hole.
 #[expect(
     clippy::cast_possible_truncation,
     clippy::cast_sign_loss,
@@ -106,14 +127,16 @@ pub fn ray_below_drawn_surface(
         if !(0..2).all(|k| p[k] >= lo[k] && p[k] <= hi[k]) {
             continue;
         }
-        let Some(z) = drawn_height(
+        let z = match drawn_height(
             clipmap,
             plan.draws(),
             block_quads,
             eu + p.x / g0,
             ev - p.y / g0,
-        ) else {
-            continue;
+        ) {
+            Drawn::Height(z) => z,
+            Drawn::Nothing => continue,
+            Drawn::Unread => return true,
         };
         if camera.eye.z + p.z >= z {
             above = true;
@@ -126,9 +149,22 @@ pub fn ray_below_drawn_surface(
     false
 }
 
+/// What [`hole_pixels`] found among a frame's crack candidates.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Holes {
+    /// Crack candidates: clear pixels between terrain pixels of a column ([`crate::measure::crack_pixels`]).
+    pub candidates: u64,
+    /// Candidates traced: all of them, or an evenly spaced [`MAX_TRACED`] of more.
+    pub traced: u64,
+    /// Holes among the candidates: exact when every candidate was traced; otherwise the traced holes
+    /// scaled to all candidates, rounded, and at least 1 when any traced candidate is a hole.
+    pub holes: u64,
+}
+
 /// The crack candidates of `image` (pixels of colour `clear` between terrain pixels of a column, as
 /// [`crate::measure::crack_pixels`] counts them) whose view ray passes below the drawn surface inside the
-/// data ([`ray_below_drawn_surface`]): the holes. Candidates past the first [`MAX_TRACED`] count as holes.
+/// data ([`ray_below_drawn_surface`]): the holes. Past [`MAX_TRACED`] candidates, an evenly spaced sample
+/// of them is traced and the count scaled ([`Holes::holes`]).
 pub fn hole_pixels(
     image: &Image,
     clear: [u8; 4],
@@ -136,22 +172,64 @@ pub fn hole_pixels(
     clipmap: &Clipmap,
     camera: &Camera,
     block_quads: u32,
-) -> u64 {
-    let (mut holes, mut traced) = (0u64, 0u64);
-    for (x, y) in crate::measure::image::crack_candidates(image, clear) {
+) -> Holes {
+    let candidates = crate::measure::image::crack_candidates(image, clear).count() as u64;
+    let stride = candidates.div_ceil(MAX_TRACED).max(1);
+    let (mut found, mut traced) = (0u64, 0u64);
+    for (x, y) in crate::measure::image::crack_candidates(image, clear)
+        .step_by(usize::try_from(stride).unwrap_or(usize::MAX))
+    {
         traced += 1;
-        if traced > MAX_TRACED
-            || ray_below_drawn_surface(
-                plan,
-                (image.width, image.height),
-                clipmap,
-                camera,
-                block_quads,
-                (x, y),
-            )
-        {
-            holes += 1;
+        if ray_below_drawn_surface(
+            plan,
+            (image.width, image.height),
+            clipmap,
+            camera,
+            block_quads,
+            (x, y),
+        ) {
+            found += 1;
         }
     }
-    holes
+    Holes {
+        candidates,
+        traced,
+        holes: scaled_holes(found, traced, candidates),
+    }
+}
+
+/// `found` holes among `traced` of `candidates` scaled to all of them, rounded to nearest; at least 1 when
+/// `found` is, and exact when every candidate was traced.
+fn scaled_holes(found: u64, traced: u64, candidates: u64) -> u64 {
+    if traced == candidates || found == 0 {
+        return found;
+    }
+    ((found * candidates + traced / 2) / traced).max(1)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sampled_holes_scale_to_all_candidates() {
+        assert_eq!(scaled_holes(0, 4096, 14_431), 0);
+        assert_eq!(scaled_holes(7, 7, 7), 7);
+        assert_eq!(
+            scaled_holes(4096, 4096, 14_431),
+            14_431,
+            "all traced are holes"
+        );
+        assert_eq!(scaled_holes(1, 4096, 14_431), 4, "3.5 rounds up");
+        assert_eq!(
+            scaled_holes(1, 4096, 4097),
+            1,
+            "one traced hole is never scaled to 0"
+        );
+        // The stride hole_pixels uses traces at most MAX_TRACED candidates.
+        for n in [1, 4095, 4096, 4097, 14_431, 1 << 21] {
+            let stride = u64::div_ceil(n, MAX_TRACED).max(1);
+            assert!(n.div_ceil(stride) <= MAX_TRACED, "{n} candidates");
+        }
+    }
 }

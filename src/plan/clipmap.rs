@@ -241,6 +241,13 @@ impl Clipmap {
         }
     }
 
+    /// The data pyramid's level `k` at sample (i, j), as [`Pyramid::at`] reads it (clamped to the data),
+    /// where it can be read without decoding: always for a resident pyramid; streamed, while its tile is
+    /// in the cache. For measurements of a drawn frame, whose tiles the fill just read.
+    pub fn data_height(&self, k: u32, i: i64, j: i64) -> Option<f32> {
+        self.source.try_at(k, i, j)
+    }
+
     /// Level-0 samples of the data, (columns, rows).
     pub fn data_size(&self) -> (u32, u32) {
         match &self.source {

@@ -35,6 +35,18 @@ impl HeightSource {
         }
     }
 
+    /// [`HeightSource::at`] where the sample can be read now: always for a resident pyramid; streamed,
+    /// when its tile is resident in the cache (None otherwise). For measurements, which may not decode.
+    pub fn try_at(&self, k: u32, i: i64, j: i64) -> Option<f32> {
+        match self {
+            Self::Resident(p) => Some(p.at(k, i, j)),
+            Self::Streamed(c) => {
+                let (k, i, j) = coarsest_decimated(c, k, i, j);
+                c.height(k, i, j)
+            }
+        }
+    }
+
     /// Starts a frame (pins the tiles it uses in the cache).
     pub fn begin_frame(&mut self) {
         if let Self::Streamed(c) = self {

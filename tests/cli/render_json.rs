@@ -179,3 +179,50 @@ fn render_streams_a_package() {
     assert!(j["detail_tiles_resident"].as_u64().unwrap_or(0) > 0, "{j}");
     assert!(j["blocks_from_pool"].as_u64().unwrap_or(0) > 0, "{j}");
 }
+
+/// A lone spike on a flat shows the sky past the data's far border between the spike's pixels and the
+/// flat's in a pixel column: column-rule candidates that are border views, not holes. The streamed render
+/// (the default) traces them through the tiles its fill left in the cache and agrees with `--resident`
+/// (before, a streamed render counted every candidate as a crack pixel).
+#[test]
+fn streamed_render_traces_its_crack_candidates() {
+    let dir = scratch("spike");
+    let png = dir.join("spike.png");
+    let mut img = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::new(512, 512);
+    img.put_pixel(256, 256, image::Luma([40_000]));
+    img.save(&png).expect("write the spike PNG");
+    let out = dir.join("frame.png");
+    let (t, o) = (png.to_string_lossy(), out.to_string_lossy());
+    let base = [
+        "render",
+        "--terrain",
+        &t,
+        "--spacing",
+        "30",
+        "--height-scale",
+        "0.2",
+        "--profile",
+        "gles3-low",
+        "--size",
+        "160x90",
+        "--lod",
+        "sat-conservative",
+        "--out",
+        &o,
+        "--json",
+    ];
+    let streamed = json(&clipsat(&base), "streamed spike");
+    let mut resident = base.to_vec();
+    resident.push("--resident");
+    let resident = json(&clipsat(&resident), "resident spike");
+    assert_eq!(streamed["streamed"], true, "{streamed}");
+    for j in [&streamed, &resident] {
+        assert_eq!(j["crack_pixels"], 0, "{j}");
+        assert!(j["border_view_pixels"].as_u64().unwrap_or(0) > 0, "{j}");
+        assert_eq!(j["crack_pixels_traced"], j["border_view_pixels"], "{j}");
+    }
+    assert_eq!(
+        streamed["border_view_pixels"],
+        resident["border_view_pixels"]
+    );
+}

@@ -36,7 +36,7 @@ fn hole_pixels(
     cam: &Camera,
     block_quads: u32,
 ) -> u64 {
-    clipsat::measure::hole_pixels(image, CRACK_CLEAR_RGBA8, r.plan(), cm, cam, block_quads)
+    clipsat::measure::hole_pixels(image, CRACK_CLEAR_RGBA8, r.plan(), cm, cam, block_quads).holes
 }
 
 /// Flies `frames` frames (a small budget, so levels go stale, and a teleport at frame 30) in each SAT mode;

@@ -287,21 +287,17 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
         },
     )?;
     // Clear pixels inside a column's silhouette are holes only where the view ray passes below the drawn
-    // surface inside the data (`measure::hole_pixels`); the rest see past the terrain's border. Streamed:
-    // not traced (no resident pyramid), every candidate counts.
-    let candidates = measure::crack_pixels(&loud.image, measure::CRACK_CLEAR_RGBA8);
-    let crack_pixels = if streamed || candidates == 0 {
-        candidates
-    } else {
-        measure::hole_pixels(
-            &loud.image,
-            measure::CRACK_CLEAR_RGBA8,
-            r.plan(),
-            &clipmap,
-            &camera,
-            profile.block_m(),
-        )
-    };
+    // surface inside the data (`measure::hole_pixels`, through the resident pyramid or, streamed, the
+    // tiles the fill left in the cache); the rest see past the terrain's border.
+    let holes = measure::hole_pixels(
+        &loud.image,
+        measure::CRACK_CLEAR_RGBA8,
+        r.plan(),
+        &clipmap,
+        &camera,
+        profile.block_m(),
+    );
+    let (candidates, crack_pixels) = (holes.candidates, holes.holes);
     // The measured error of what was drawn (the draw list is the same for both renders above).
     // The SAT modes measure with the epsilon they drew at (the planner's selector).
     let lod_used = r.lod().or(lod.as_ref());
@@ -445,6 +441,8 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
                 "border_view_pixels".into(),
                 json!(candidates - crack_pixels),
             );
+            // Candidates whose rays were traced: all, or an evenly spaced sample past MAX_TRACED.
+            o.insert("crack_pixels_traced".into(), json!(holes.traced));
             o.insert(
                 "detail_tiles_needed".into(),
                 json!(frame.stats.detail_tiles_needed),
