@@ -1,5 +1,5 @@
-//! Stage 0, the source: single-band GeoTIFF height maps (int16, uint16, int32, float32, float64;
-//! stripped or tiled), with spacing from a world file or the GeoTIFF tags and GDAL nodata voids filled.
+//! Stage 0, the source: single-band GeoTIFF height maps (8, 16 and 32-bit integers, 16, 32 and 64-bit
+//! floats; stripped or tiled; uncompressed, LZW, Deflate, PackBits or ZSTD), with spacing from a world file or the GeoTIFF tags and GDAL nodata voids filled.
 
 use std::io::BufReader;
 use std::path::{Path, PathBuf};
@@ -52,6 +52,9 @@ pub(super) fn load(path: &Path, opts: &LoadOptions, magic: &[u8]) -> Result<Heig
         DecodingResult::U8(v) => convert(path, w, &v, f64::from, is_void, scale, offset)?,
         DecodingResult::F32(v) => convert(path, w, &v, f64::from, is_void, scale, offset)?,
         DecodingResult::F64(v) => convert(path, w, &v, |s| s, is_void, scale, offset)?,
+        DecodingResult::U32(v) => convert(path, w, &v, f64::from, is_void, scale, offset)?,
+        DecodingResult::I8(v) => convert(path, w, &v, f64::from, is_void, scale, offset)?,
+        DecodingResult::F16(v) => convert(path, w, &v, f64::from, is_void, scale, offset)?,
         other => return Err(unsupported(path, &other)),
     };
     if heights.len() != samples {
@@ -173,7 +176,7 @@ fn unsupported(path: &Path, other: &DecodingResult) -> Error {
     Error::format(
         path,
         format!(
-            "unsupported TIFF sample type {}: use int16, uint16, int32, float32 or float64",
+            "unsupported TIFF sample type {}: use int8, uint8, int16, uint16, int32, uint32, float16, float32 or float64",
             sample_name(other)
         ),
     )
@@ -326,6 +329,9 @@ impl Rows {
                 DecodingResult::U8(v) => put(v.len(), &|i| f64::from(v[i]))?,
                 DecodingResult::F32(v) => put(v.len(), &|i| f64::from(v[i]))?,
                 DecodingResult::F64(v) => put(v.len(), &|i| v[i])?,
+                DecodingResult::U32(v) => put(v.len(), &|i| f64::from(v[i]))?,
+                DecodingResult::I8(v) => put(v.len(), &|i| f64::from(v[i]))?,
+                DecodingResult::F16(v) => put(v.len(), &|i| f64::from(v[i]))?,
                 other => return Err(unsupported(&self.grid.path, other)),
             }
         }

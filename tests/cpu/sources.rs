@@ -298,19 +298,34 @@ fn small_png16(dir: &Path) -> PathBuf {
 
 /// A little-endian TIFF declaring `w` x `h` int16 in one strip, hand-made so nothing is allocated.
 fn tiff_header_only(w: u32, h: u32) -> Vec<u8> {
+    let mut out = one_strip_tiff(w, h, (2, 16), 1, 64);
+    out.resize(264, 0);
+    out
+}
+
+/// The header and tags of a little-endian TIFF of `w` x `h` samples in one strip of `strip_bytes` bytes
+/// at byte 200: `format` is (SampleFormat: 1 unsigned, 2 signed, 3 float; BitsPerSample), `compression`
+/// the TIFF code (1 none, 50000 ZSTD). Hand-made for what the tiff crate's encoder does not write.
+fn one_strip_tiff(
+    w: u32,
+    h: u32,
+    (format, bits): (u32, u32),
+    compression: u32,
+    strip_bytes: u32,
+) -> Vec<u8> {
     let mut out = b"II*\0".to_vec();
     out.extend_from_slice(&8u32.to_le_bytes());
     let entries: [(u16, u16, u32); 10] = [
-        (256, 4, w),   // ImageWidth, LONG
-        (257, 4, h),   // ImageLength
-        (258, 3, 16),  // BitsPerSample, SHORT
-        (259, 3, 1),   // Compression: none
-        (262, 3, 1),   // Photometric: BlackIsZero
-        (273, 4, 200), // StripOffsets
-        (277, 3, 1),   // SamplesPerPixel
-        (278, 4, h),   // RowsPerStrip
-        (279, 4, 64),  // StripByteCounts
-        (339, 3, 2),   // SampleFormat: signed int
+        (256, 4, w),           // ImageWidth, LONG
+        (257, 4, h),           // ImageLength
+        (258, 3, bits),        // BitsPerSample, SHORT
+        (259, 3, compression), // Compression
+        (262, 3, 1),           // Photometric: BlackIsZero
+        (273, 4, 200),         // StripOffsets
+        (277, 3, 1),           // SamplesPerPixel
+        (278, 4, h),           // RowsPerStrip
+        (279, 4, strip_bytes), // StripByteCounts
+        (339, 3, format),      // SampleFormat
     ];
     out.extend_from_slice(&u16::try_from(entries.len()).unwrap().to_le_bytes());
     for (tag, ty, v) in entries {
@@ -325,7 +340,7 @@ fn tiff_header_only(w: u32, h: u32) -> Vec<u8> {
         }
     }
     out.extend_from_slice(&0u32.to_le_bytes());
-    out.resize(264, 0);
+    out.resize(200, 0);
     out
 }
 
@@ -593,6 +608,77 @@ fn tiff_rows_read_by_chunks_match_the_whole_load() {
     let p = f32_tiff(&dir, "strips.tif", w, h, &data, true);
     let hm = load(&p).unwrap();
     assert_eq!(rows_of(&p), (w, h, hm.spacing(), hm.heights().to_vec()));
+}
+
+/// Every sample type elevation data comes in, and ZSTD strips (GDAL's COG default for DEMs), load to the
+/// same heights: int8, uint8 and uint32 through the encoder, float16 and a ZSTD float32 strip by hand.
+#[test]
+fn tiff_sample_types_and_zstd() {
+    use tiff::encoder::{colortype, TiffEncoder};
+    let dir = temp_dir("tiff_types");
+    let (w, h) = (5u32, 3u32);
+    let values: Vec<i8> = (0..15).map(|i| i8::try_from(i * 7 - 50).unwrap()).collect();
+    let want: Vec<f32> = values.iter().map(|&v| f32::from(v)).collect();
+    // Spacing from a world file beside each.
+    let world = |name: &str| {
+        write(
+            &dir,
+            &name.replace(".tif", ".tfw"),
+            b"30\n0\n0\n-30\n0\n0\n",
+        )
+    };
+    for name in ["i8.tif", "u8.tif", "u32.tif", "f16.tif", "zstd.tif"] {
+        world(name);
+    }
+    let encoded = |name: &str, write: &dyn Fn(&mut TiffEncoder<std::fs::File>)| {
+        let p = dir.join(name);
+        let mut enc =
+            TiffEncoder::new(std::fs::File::create(&p).expect("create")).expect("encoder");
+        write(&mut enc);
+        p
+    };
+    let i8_tif = encoded("i8.tif", &|e| {
+        e.write_image::<colortype::GrayI8>(w, h, &values)
+            .expect("i8");
+    });
+    let u8_tif = encoded("u8.tif", &|e| {
+        let v: Vec<u8> = values.iter().map(|&v| v.abs_diff(0)).collect();
+        e.write_image::<colortype::Gray8>(w, h, &v).expect("u8");
+    });
+    let u32_tif = encoded("u32.tif", &|e| {
+        let v: Vec<u32> = values
+            .iter()
+            .map(|&v| 100_000 + u32::from(v.abs_diff(0)))
+            .collect();
+        e.write_image::<colortype::Gray32>(w, h, &v).expect("u32");
+    });
+    assert_eq!(load(&i8_tif).unwrap().heights(), &want[..]);
+    let abs: Vec<f32> = want.iter().map(|v| v.abs()).collect();
+    assert_eq!(load(&u8_tif).unwrap().heights(), &abs[..]);
+    // Past u16's range, and exact in f32.
+    let big: Vec<f32> = abs.iter().map(|v| 100_000.0 + v).collect();
+    assert_eq!(load(&u32_tif).unwrap().heights(), &big[..]);
+    // float16: every value here is exact in half precision.
+    let mut f16_tif = one_strip_tiff(w, h, (3, 16), 1, w * h * 2);
+    for v in &want {
+        f16_tif.extend_from_slice(&half::f16::from_f32(*v).to_bits().to_le_bytes());
+    }
+    assert_eq!(
+        load(&write(&dir, "f16.tif", &f16_tif)).unwrap().heights(),
+        &want[..]
+    );
+    // A ZSTD-compressed float32 strip.
+    let raw: Vec<u8> = want.iter().flat_map(|v| v.to_le_bytes()).collect();
+    let packed = zstd::bulk::compress(&raw, 3).expect("zstd");
+    let mut zstd_tif = one_strip_tiff(w, h, (3, 32), 50000, u32::try_from(packed.len()).unwrap());
+    zstd_tif.extend_from_slice(&packed);
+    let p = write(&dir, "zstd.tif", &zstd_tif);
+    assert_eq!(load(&p).unwrap().heights(), &want[..]);
+    // The bake's band reader agrees with the whole load.
+    for p in [&i8_tif, &u32_tif, &p] {
+        let hm = load(p).unwrap();
+        assert_eq!(rows_of(p).3, hm.heights().to_vec(), "{}", p.display());
+    }
 }
 
 #[test]
