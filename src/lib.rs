@@ -20,7 +20,7 @@
 //! Data flows one way, and each folder holds one stage (ARCHITECTURE.md has the files and invariants):
 //!
 //! ```text
-//! source/   files (PNG, GeoTIFF, SRTM .hgt, raw) or procedural     -> Heightmap
+//! source/   files (PNG, GeoTIFF, SRTM .hgt, ASCII grid, raw) or procedural -> Heightmap
 //!   -> bake/    height pyramid, SATs, LOD tables, horizons (cached)
 //!   -> package/ the pyramid as GC section 7 residuals in compressed, checksummed tiles (`clipsat bake`),
 //!               read through a memory map into a fixed tile cache sized by `budget.cpu_memory_bytes`

@@ -111,6 +111,7 @@ pub enum TerrainSpec {
     File(PathBuf),
 }
 
+mod asc;
 mod heightmap;
 mod hgt;
 mod png;
@@ -155,8 +156,8 @@ impl TerrainSpec {
     }
 }
 
-/// Loads a terrain file, choosing the format from its extension: `.png`, `.tif`/`.tiff`, `.hgt`,
-/// `.raw`/`.r16`/`.f32` (the raw ones need [`LoadOptions::raw`]).
+/// Loads a terrain file, choosing the format from its extension: `.png`, `.tif`/`.tiff`, `.hgt`, `.asc`
+/// (ESRI ASCII grid), `.raw`/`.r16`/`.f32` (the raw ones need [`LoadOptions::raw`]).
 ///
 /// PNG and TIFF files must also start with their magic number. A file with another extension is
 /// accepted when its magic number says PNG or TIFF. Spacing, when neither the file nor
@@ -180,6 +181,7 @@ pub fn load(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
         "png" => png::load(path, opts, &magic),
         "tif" | "tiff" => tiff::load(path, opts, &magic),
         "hgt" => hgt::load(path, meta.len(), opts),
+        "asc" => asc::load(path, opts),
         "raw" | "r16" | "f32" => raw::load(path, meta.len(), opts),
         _ if magic.starts_with(&png::MAGIC) => png::load(path, opts, &magic),
         _ if tiff::has_magic(&magic) => tiff::load(path, opts, &magic),
@@ -192,8 +194,8 @@ pub fn load(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
         _ => Err(Error::format(
             path,
             format!(
-                "unknown terrain format `.{ext}`: expected .png, .tif/.tiff, .hgt, .raw/.r16/.f32 or a \
-                 .clipsat package"
+                "unknown terrain format `.{ext}`: expected .png, .tif/.tiff, .hgt, .asc, .raw/.r16/.f32 \
+                 or a .clipsat package"
             ),
         )),
     }
@@ -202,7 +204,8 @@ pub fn load(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
 /// Opens a terrain file to be read a band of rows at a time (the out-of-core bake's source): a raw file
 /// is read by positioned reads, a GeoTIFF one row of strips or tiles at a time (one with voids is loaded
 /// whole: they are filled over the whole grid), a non-interlaced PNG row by row; the other files are
-/// decoded whole by [`load`] (an SRTM tile is at most 3601^2 samples) and read from memory.
+/// decoded whole by [`load`] (an SRTM tile is at most 3601^2 samples; an ASCII grid is parsed a line at a
+/// time into its heights) and read from memory.
 pub fn open_rows(path: &Path, opts: &LoadOptions) -> Result<Box<dyn RowSource>> {
     let ext = path
         .extension()

@@ -1,4 +1,4 @@
-//! Fuzzing in `cargo test`: every parser (PNG, GeoTIFF, .hgt, raw, profile TOML, scene TOML, terrain
+//! Fuzzing in `cargo test`: every parser (PNG, GeoTIFF, .hgt, ASCII grid, raw, profile TOML, scene TOML, terrain
 //! package) runs its committed corpus, then random mutations of it for [`DEFAULT_SECS`] seconds per target
 //! (about 6 s of wall time for the file on 2 cores). No input may panic; a crash writes its input to
 //! `tests/fuzz/artifacts/TARGET/` and fails. The targets are the cargo-fuzz targets' bodies
@@ -86,6 +86,7 @@ fuzz_tests!(
     load_tiff,
     load_hgt,
     load_hgt_full,
+    load_asc,
     load_raw,
     parse_profile,
     parse_scene,

@@ -681,6 +681,72 @@ fn tiff_sample_types_and_zstd() {
     }
 }
 
+/// ESRI ASCII grids: samples wrapped over lines, voids filled and counted, the spacing from the cell size,
+/// in degrees where the `.prj` is geographic; every malformed file refused naming the line or the count.
+#[test]
+fn ascii_grids() {
+    let dir = temp_dir("asc");
+    let hm = load(&write(
+        &dir,
+        "wrap.asc",
+        b"NCOLS 3\nnrows 2\nxllcorner 0\nyllcorner 0\ncellsize 10\nNODATA_value -9999\n1 2\n3 -9999 5\n6\n",
+    ))
+    .unwrap();
+    assert_eq!((hm.width(), hm.height(), hm.spacing()), (3, 2, 10.0));
+    // The void, the first sample of the second row, is the mean of its neighbours 1 (north) and 5 (east).
+    assert_eq!(hm.heights(), &[1.0, 2.0, 3.0, 3.0, 5.0, 6.0]);
+    assert_eq!(hm.voids_filled(), 1);
+    // Degrees: 3 arc-seconds at 46.5 N from a geographic .prj; refused without one.
+    let deg =
+        b"ncols 2\nnrows 2\nxllcenter 10\nyllcenter 46.5\ncellsize 0.000833333333\n1 2\n3 4\n";
+    let no_prj = write(&dir, "deg.asc", deg);
+    assert_format(load(&no_prj), "under 1 cm");
+    let with_prj = write(&dir, "geo.asc", deg);
+    write(&dir, "geo.prj", br#"GEOGCS["WGS 84",DATUM["WGS_1984"]]"#);
+    let s = load(&with_prj).unwrap().spacing();
+    assert!(
+        (s - 92.6).abs() < 0.1,
+        "3 arc-seconds of latitude at 46.5 N: {s} m"
+    );
+    for (name, text, needle) in [
+        (
+            "short.asc",
+            &b"ncols 3\nnrows 2\ncellsize 10\n1 2 3\n4\n"[..],
+            "4 samples where the header says 3 x 2",
+        ),
+        (
+            "long.asc",
+            b"ncols 2\nnrows 2\ncellsize 10\n1 2 3 4 5\n",
+            "more samples than",
+        ),
+        (
+            "word.asc",
+            b"ncols 2\nnrows 2\ncellsize 10\n1 x\n",
+            "line 4: sample `x`",
+        ),
+        (
+            "key.asc",
+            b"ncols 2\nnrows 2\nsize 10\n1 2\n",
+            "unknown ASCII grid header key `size`",
+        ),
+        ("nocols.asc", b"nrows 1\ncellsize 10\n1 2\n", "no `ncols`"),
+        (
+            "cell.asc",
+            b"ncols 2\nnrows 2\ncellsize -1\n1 2 3 4\n",
+            "not a positive number",
+        ),
+        ("empty.asc", b"ncols 2\nnrows 2\ncellsize 1\n", "no samples"),
+        (
+            "nan.asc",
+            b"ncols 2\nnrows 2\ncellsize 1\n1 nan 3 4\n",
+            "heights must be finite",
+        ),
+    ] {
+        let e = load(&write(&dir, name, text)).expect_err(name);
+        assert!(e.to_string().contains(needle), "{name}: {e}");
+    }
+}
+
 #[test]
 fn raw_u16_and_f32() {
     let dir = temp_dir("raw_ok");

@@ -30,7 +30,7 @@ use clipsat::{Error, Heightmap, Profile, Result};
 /// Options that choose and read a terrain.
 #[derive(Args, Clone, Debug, Default)]
 pub(crate) struct TerrainArgs {
-    /// Terrain file (.png, .tif, .hgt, .raw/.r16/.f32, a `.clipsat` package) or
+    /// Terrain file (.png, .tif, .hgt, .asc, .raw/.r16/.f32, a `.clipsat` package) or
     /// `procedural[:seed=S,size=N,spacing=M]`.
     /// Default: the built-in procedural terrain.
     #[arg(long, value_name = "T")]

@@ -12,10 +12,11 @@ use clipsat::source::{self, LoadOptions, PngEncoding, RawFormat, RawLayout};
 pub(crate) type Target = fn(&[u8]) -> String;
 
 /// Every target, by name, with its body. Names match the cargo-fuzz binaries and the corpus folders.
-pub(crate) const TARGETS: [(&str, Target); 8] = [
+pub(crate) const TARGETS: [(&str, Target); 9] = [
     ("load_png", load_png),
     ("load_tiff", load_tiff),
     ("load_hgt", load_hgt),
+    ("load_asc", load_asc),
     ("load_hgt_full", load_hgt_full),
     ("load_raw", load_raw),
     ("parse_profile", parse_profile),
@@ -145,6 +146,11 @@ pub(crate) fn load_tiff(data: &[u8]) -> String {
 /// An SRTM `.hgt` file (any length: most are refused by size).
 pub(crate) fn load_hgt(data: &[u8]) -> String {
     load_as("N45E006.hgt", data, &small())
+}
+
+/// An ESRI ASCII grid (`.asc`): header lines, then decimal samples.
+pub(crate) fn load_asc(data: &[u8]) -> String {
+    load_as("x.asc", data, &small())
 }
 
 /// Bytes of a 1201 x 1201 HGT tile.

@@ -1,0 +1,230 @@
+//! Stage 0, the source: ESRI ASCII grids (`.asc`, GDAL's AAIGrid): a header of `key value` lines, then
+//! the samples as decimal numbers, row by row from north to south.
+
+use std::io::BufRead;
+use std::path::Path;
+
+use super::{check_size, fill_voids, metres_per_degree_latitude, to_f32, LoadOptions};
+use crate::{Error, Heightmap, Result};
+
+/// The header: sizes, the lower-left reference, the cell size and the void marker.
+#[derive(Debug, Default)]
+struct Header {
+    ncols: Option<u64>,
+    nrows: Option<u64>,
+    /// South edge (`yllcorner`) or south row's centre (`yllcenter`), in the grid's units.
+    yll: Option<(f64, bool)>,
+    cellsize: Option<f64>,
+    /// GDAL writes `dx`/`dy` for cells that are not square.
+    dy: Option<f64>,
+    nodata: Option<f64>,
+}
+
+/// Smallest cell size taken as metres when no `.prj` says the grid is in degrees: a grid this fine in
+/// metres is not terrain, but one in degrees (3 arc-seconds is 0.00083) is common.
+const MIN_METRES: f64 = 0.01;
+
+/// Loads an ESRI ASCII grid, reading it line by line (the text is never held whole).
+///
+/// Keys are case-insensitive: `ncols`, `nrows`, `xllcorner`/`xllcenter`, `yllcorner`/`yllcenter`,
+/// `cellsize` (or `dx` and `dy`) and the optional `NODATA_value`, whose samples are voids, filled from
+/// their neighbours and counted. Cells are taken as square with the N-S size. A `.prj` beside the file
+/// whose WKT is geographic (`GEOGCS` or `GEOGCRS` with no projection) puts the cell size in degrees: metres
+/// of meridian arc at the grid's centre latitude. Without a `.prj`, a cell size under 1 cm is refused as
+/// probably degrees. [`LoadOptions::spacing`] overrides all of this.
+pub(super) fn load(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, "cannot open", e))?;
+    let mut reader = std::io::BufReader::new(file);
+    let mut line = String::new();
+    let mut line_no = 0u64;
+    let mut h = Header::default();
+    // Header lines until the first line that starts with a number.
+    loop {
+        line.clear();
+        let n = reader
+            .read_line(&mut line)
+            .map_err(|e| Error::io(path, "cannot read", e))?;
+        line_no += 1;
+        if n == 0 {
+            return Err(Error::format(
+                path,
+                "the ASCII grid has a header but no samples",
+            ));
+        }
+        let mut words = line.split_whitespace();
+        let Some(key) = words.next() else {
+            continue;
+        };
+        if key.parse::<f64>().is_ok() {
+            break;
+        }
+        let value = words.next().ok_or_else(|| {
+            Error::format(
+                path,
+                format!("line {line_no}: header key `{key}` has no value"),
+            )
+        })?;
+        let num = || {
+            value.parse::<f64>().map_err(|_| {
+                Error::format(
+                    path,
+                    format!("line {line_no}: `{key}` value `{value}` is not a number"),
+                )
+            })
+        };
+        let count = || {
+            value.parse::<u64>().map_err(|_| {
+                Error::format(
+                    path,
+                    format!("line {line_no}: `{key}` value `{value}` is not a whole number"),
+                )
+            })
+        };
+        match key.to_ascii_lowercase().as_str() {
+            "ncols" => h.ncols = Some(count()?),
+            "nrows" => h.nrows = Some(count()?),
+            "xllcorner" | "xllcenter" => {
+                num()?;
+            }
+            "yllcorner" => h.yll = Some((num()?, false)),
+            "yllcenter" => h.yll = Some((num()?, true)),
+            "cellsize" => h.cellsize = Some(num()?),
+            "dx" => {
+                num()?;
+            }
+            "dy" => h.dy = Some(num()?),
+            "nodata_value" => h.nodata = Some(num()?),
+            _ => {
+                return Err(Error::format(
+                    path,
+                    format!(
+                        "line {line_no}: unknown ASCII grid header key `{key}` (expected ncols, nrows, \
+                         xllcorner, yllcorner, cellsize, NODATA_value)"
+                    ),
+                ))
+            }
+        }
+    }
+    let missing = |key: &str| Error::format(path, format!("the ASCII grid header has no `{key}`"));
+    let (width, height) = (
+        h.ncols.ok_or_else(|| missing("ncols"))?,
+        h.nrows.ok_or_else(|| missing("nrows"))?,
+    );
+    let samples = check_size(path, width, height, opts)?;
+    let cell = h.dy.or(h.cellsize).ok_or_else(|| missing("cellsize"))?;
+    if !(cell.is_finite() && cell > 0.0) {
+        return Err(Error::format(
+            path,
+            format!("cell size {cell} is not a positive number"),
+        ));
+    }
+    let mut heights: Vec<f32> = Vec::with_capacity(samples);
+    let mut voids = false;
+    // The first sample line is already in `line`.
+    loop {
+        for word in line.split_whitespace() {
+            let v: f64 = word.parse().map_err(|_| {
+                Error::format(
+                    path,
+                    format!("line {line_no}: sample `{word}` is not a number"),
+                )
+            })?;
+            let i = heights.len();
+            if i == samples {
+                return Err(Error::format(
+                    path,
+                    format!("line {line_no}: more samples than ncols x nrows = {width} x {height}"),
+                ));
+            }
+            if h.nodata == Some(v) {
+                voids = true;
+                heights.push(f32::NAN);
+                continue;
+            }
+            let z = to_f32(
+                v * opts.height_scale.map_or(1.0, f64::from) + f64::from(opts.height_offset),
+            );
+            if !z.is_finite() {
+                let w = usize::try_from(width).unwrap_or(usize::MAX);
+                return Err(Error::NonFinite {
+                    path: path.into(),
+                    x: u32::try_from(i % w).unwrap_or(u32::MAX),
+                    y: u32::try_from(i / w).unwrap_or(u32::MAX),
+                    value: z,
+                });
+            }
+            heights.push(z);
+        }
+        line.clear();
+        let n = reader
+            .read_line(&mut line)
+            .map_err(|e| Error::io(path, "cannot read", e))?;
+        line_no += 1;
+        if n == 0 {
+            break;
+        }
+    }
+    if heights.len() != samples {
+        return Err(Error::format(
+            path,
+            format!(
+                "{} samples where the header says {width} x {height} = {samples} (truncated file?)",
+                heights.len()
+            ),
+        ));
+    }
+    let filled = if voids {
+        fill_voids(
+            path,
+            usize::try_from(width).unwrap_or(usize::MAX),
+            &mut heights,
+        )?
+    } else {
+        0
+    };
+    let spacing = match opts.spacing {
+        Some(s) => s,
+        None => spacing(path, cell, h.yll, height)?,
+    };
+    // check_size bounded both sides by the sample limit, itself far under u32::MAX here.
+    let (w, hh) = (
+        u32::try_from(width).map_err(|_| Error::format(path, "ncols does not fit 32 bits"))?,
+        u32::try_from(height).map_err(|_| Error::format(path, "nrows does not fit 32 bits"))?,
+    );
+    Ok(Heightmap::new(path, w, hh, spacing, heights)?.with_voids_filled(filled))
+}
+
+/// The N-S spacing in metres: the cell size, in degrees where a `.prj` beside the file is geographic.
+fn spacing(path: &Path, cell: f64, yll: Option<(f64, bool)>, rows: u64) -> Result<f32> {
+    let prj = std::fs::read_to_string(path.with_extension("prj")).ok();
+    let geographic = prj.as_deref().is_some_and(|wkt| {
+        let wkt = wkt.to_ascii_uppercase();
+        (wkt.contains("GEOGCS") || wkt.contains("GEOGCRS"))
+            && !wkt.contains("PROJCS")
+            && !wkt.contains("PROJCRS")
+    });
+    #[expect(clippy::cast_precision_loss, reason = "a row count, far below 2^53")]
+    let rows = rows as f64;
+    if geographic {
+        let lat = yll.map_or(0.0, |(y, centre)| {
+            if centre {
+                y + (rows - 1.0) * cell * 0.5
+            } else {
+                y + rows * cell * 0.5
+            }
+        });
+        return Ok(to_f32(
+            cell * metres_per_degree_latitude(lat.clamp(-90.0, 90.0)),
+        ));
+    }
+    if prj.is_none() && cell < MIN_METRES {
+        return Err(Error::format(
+            path,
+            format!(
+                "cell size {cell} is under 1 cm: in degrees? No .prj beside the file says so; give the \
+                 spacing in metres with `--spacing M`"
+            ),
+        ));
+    }
+    Ok(to_f32(cell))
+}
