@@ -226,3 +226,45 @@ fn streamed_render_traces_its_crack_candidates() {
         resident["border_view_pixels"]
     );
 }
+
+/// The cache key covers the sidecars a loader takes its spacing from: adding a geographic `.prj` beside an
+/// ESRI ASCII grid (its 30-unit cells become degrees) bakes a new package, which draws what the resident
+/// load with the `.prj` draws, not the stale one.
+#[test]
+fn a_sidecar_edit_bakes_the_terrain_again() {
+    let dir = scratch("sidecar");
+    let asc = dir.join("grid.asc");
+    let prj = dir.join("grid.prj");
+    let _ = std::fs::remove_file(&prj);
+    let mut text = String::from("ncols 40\nnrows 30\nxllcorner 0\nyllcorner 0\ncellsize 0.001\n");
+    for j in 0..30 {
+        let row: Vec<String> = (0..40)
+            .map(|i| format!("{}", (i * 7 + j * 13) % 50))
+            .collect();
+        text += &row.join(" ");
+        text.push('\n');
+    }
+    std::fs::write(&asc, text).expect("write the grid");
+    std::fs::write(&prj, "PROJCS[\"local metres\"]").expect("write the .prj");
+    let out = dir.join("frame.png");
+    let (a, o) = (asc.to_string_lossy(), out.to_string_lossy());
+    let args = [
+        "render",
+        "--terrain",
+        &a,
+        "--size",
+        "64x36",
+        "--out",
+        &o,
+        "--json",
+    ];
+    let projected = json(&clipsat(&args), "projected");
+    std::fs::write(&prj, "GEOGCS[\"WGS 84\"]").expect("write the .prj");
+    let geographic = json(&clipsat(&args), "geographic");
+    let mut resident = args.to_vec();
+    resident.push("--resident");
+    let fresh = json(&clipsat(&resident), "geographic, resident");
+    assert_eq!(geographic["streamed"], true, "{geographic}");
+    assert_ne!(projected["image_hash"], geographic["image_hash"]);
+    assert_eq!(geographic["image_hash"], fresh["image_hash"]);
+}

@@ -105,8 +105,8 @@ impl TerrainArgs {
 
     /// The package to stream: the one `--terrain` names, or a plain source's, baked with the default
     /// options into the cache folder ([`clipsat::bake::default_cache_dir`]) on first use and found there
-    /// later without loading the source (keyed by these options and the file's size and modification
-    /// time). A progress bar on stderr while baking when `progress`.
+    /// later without loading the source (keyed by these options and the size and modification time of the
+    /// file and of its `.tfw`/`.prj` sidecars). A progress bar on stderr while baking when `progress`.
     pub(crate) fn stream_package(&self, progress: bool) -> Result<clipsat::package::Package> {
         if let Some(p) = self.package()? {
             return Ok(p);
@@ -114,13 +114,23 @@ impl TerrainArgs {
         let mut h = clipsat::hash::Hash64::new();
         h.write_bytes(format!("{self:?}").as_bytes());
         if let TerrainSpec::File(path) = self.spec()? {
+            let stamp = |meta: &std::fs::Metadata, h: &mut clipsat::hash::Hash64| {
+                h.write_u64(meta.len());
+                let mtime = meta
+                    .modified()
+                    .ok()
+                    .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok());
+                h.write_u64(mtime.map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX)));
+            };
             let meta = std::fs::metadata(&path).map_err(|e| Error::io(&path, "cannot read", e))?;
-            h.write_u64(meta.len());
-            let mtime = meta
-                .modified()
-                .ok()
-                .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok());
-            h.write_u64(mtime.map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX)));
+            stamp(&meta, &mut h);
+            // The sidecars a loader reads its spacing from (a world file, a .prj): editing one re-bakes.
+            for ext in ["tfw", "TFW", "tifw", "tiffw", "prj"] {
+                match std::fs::metadata(path.with_extension(ext)) {
+                    Ok(meta) => stamp(&meta, &mut h),
+                    Err(_) => h.write_u64(0),
+                }
+            }
         }
         let bar = if progress {
             let b = indicatif::ProgressBar::new(0);
