@@ -222,7 +222,7 @@ fn spacing(path: &Path, cell: f64, yll: Option<(f64, bool)>, rows: u64) -> Resul
             path,
             format!(
                 "cell size {cell} is under 1 cm: in degrees? No .prj beside the file says so; give the \
-                 spacing in metres with `--spacing M`"
+                 spacing in metres with `LoadOptions::spacing`"
             ),
         ));
     }
