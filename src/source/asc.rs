@@ -4,7 +4,10 @@
 use std::io::BufRead;
 use std::path::Path;
 
-use super::{check_size, fill_voids, metres_per_degree_latitude, to_f32, LoadOptions};
+use super::{
+    check_size, fill_voids, metres_per_degree_latitude, metres_per_degree_longitude, to_f32,
+    LoadOptions,
+};
 use crate::{Error, Heightmap, Result};
 
 /// The header: sizes, the lower-left reference, the cell size and the void marker.
@@ -16,6 +19,7 @@ struct Header {
     yll: Option<(f64, bool)>,
     cellsize: Option<f64>,
     /// GDAL writes `dx`/`dy` for cells that are not square.
+    dx: Option<f64>,
     dy: Option<f64>,
     nodata: Option<f64>,
 }
@@ -28,7 +32,8 @@ const MIN_METRES: f64 = 0.01;
 ///
 /// Keys are case-insensitive: `ncols`, `nrows`, `xllcorner`/`xllcenter`, `yllcorner`/`yllcenter`,
 /// `cellsize` (or `dx` and `dy`) and the optional `NODATA_value`, whose samples are voids, filled from
-/// their neighbours and counted. Cells are taken as square with the N-S size. A `.prj` beside the file
+/// their neighbours and counted. Cells are drawn square with the N-S size (the E-W one is recorded,
+/// [`Heightmap::ew_spacing`]). A `.prj` beside the file
 /// whose WKT is geographic (`GEOGCS` or `GEOGCRS` with no projection) puts the cell size in degrees: metres
 /// of meridian arc at the grid's centre latitude. Without a `.prj`, a cell size under 1 cm is refused as
 /// probably degrees. [`LoadOptions::spacing`] overrides all of this.
@@ -89,9 +94,7 @@ pub(super) fn load(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
             "yllcorner" => h.yll = Some((num()?, false)),
             "yllcenter" => h.yll = Some((num()?, true)),
             "cellsize" => h.cellsize = Some(num()?),
-            "dx" => {
-                num()?;
-            }
+            "dx" => h.dx = Some(num()?),
             "dy" => h.dy = Some(num()?),
             "nodata_value" => h.nodata = Some(num()?),
             _ => {
@@ -182,20 +185,33 @@ pub(super) fn load(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
     } else {
         0
     };
-    let spacing = match opts.spacing {
-        Some(s) => s,
-        None => spacing(path, cell, h.yll, height)?,
+    let (spacing, ew) = match opts.spacing {
+        Some(s) => (s, s),
+        None => spacing(
+            path,
+            (h.dx.or(h.cellsize).unwrap_or(cell), cell),
+            h.yll,
+            height,
+        )?,
     };
     // check_size bounded both sides by the sample limit, itself far under u32::MAX here.
     let (w, hh) = (
         u32::try_from(width).map_err(|_| Error::format(path, "ncols does not fit 32 bits"))?,
         u32::try_from(height).map_err(|_| Error::format(path, "nrows does not fit 32 bits"))?,
     );
-    Ok(Heightmap::new(path, w, hh, spacing, heights)?.with_voids_filled(filled))
+    Ok(Heightmap::new(path, w, hh, spacing, heights)?
+        .with_voids_filled(filled)
+        .with_ew_spacing(ew))
 }
 
-/// The N-S spacing in metres: the cell size, in degrees where a `.prj` beside the file is geographic.
-fn spacing(path: &Path, cell: f64, yll: Option<(f64, bool)>, rows: u64) -> Result<f32> {
+/// The (N-S, E-W) spacing in metres from the cell sizes `(dx, dy)`: in degrees (of meridian arc and of
+/// the parallel at the grid's centre) where a `.prj` beside the file is geographic.
+fn spacing(
+    path: &Path,
+    (dx, cell): (f64, f64),
+    yll: Option<(f64, bool)>,
+    rows: u64,
+) -> Result<(f32, f32)> {
     let prj = std::fs::read_to_string(path.with_extension("prj")).ok();
     let geographic = prj.as_deref().is_some_and(|wkt| {
         let wkt = wkt.to_ascii_uppercase();
@@ -213,8 +229,10 @@ fn spacing(path: &Path, cell: f64, yll: Option<(f64, bool)>, rows: u64) -> Resul
                 y + rows * cell * 0.5
             }
         });
-        return Ok(to_f32(
-            cell * metres_per_degree_latitude(lat.clamp(-90.0, 90.0)),
+        let lat = lat.clamp(-90.0, 90.0);
+        return Ok((
+            to_f32(cell * metres_per_degree_latitude(lat)),
+            to_f32(dx * metres_per_degree_longitude(lat)),
         ));
     }
     if prj.is_none() && cell < MIN_METRES {
@@ -226,5 +244,5 @@ fn spacing(path: &Path, cell: f64, yll: Option<(f64, bool)>, rows: u64) -> Resul
             ),
         ));
     }
-    Ok(to_f32(cell))
+    Ok((to_f32(cell), to_f32(dx)))
 }

@@ -15,6 +15,11 @@ pub struct Heightmap {
     width: u32,
     height: u32,
     spacing: f32,
+    /// The source's E-W spacing (metres): `spacing` but for geographic grids, whose E-W degrees are
+    /// shorter than their N-S ones away from the equator. The grid is drawn with square cells of
+    /// `spacing`, so E-W at `spacing / ew_spacing` times its size unless resampled
+    /// ([`crate::source::LoadOptions::resample_ew`]).
+    ew_spacing: f32,
     heights: Vec<f32>,
     voids_filled: u64,
     /// World position (x east, y north, metres) of the south-west corner sample; (0, 0) unless placed.
@@ -67,10 +72,33 @@ impl Heightmap {
             width,
             height,
             spacing,
+            ew_spacing: spacing,
             heights,
             voids_filled: 0,
             origin: (0.0, 0.0),
         })
+    }
+
+    /// Records the source's E-W spacing, metres ([`Heightmap::ew_spacing`]); a value that is not finite
+    /// and positive keeps square cells.
+    #[must_use]
+    pub fn with_ew_spacing(mut self, ew: f32) -> Self {
+        if ew.is_finite() && ew > 0.0 {
+            self.ew_spacing = ew;
+        }
+        self
+    }
+
+    /// The source's E-W spacing, metres: [`Heightmap::spacing`] unless the source's cells are not square
+    /// in metres (a geographic grid away from the equator).
+    pub fn ew_spacing(&self) -> f32 {
+        self.ew_spacing
+    }
+
+    /// How many times its true E-W size the terrain is drawn (`spacing / ew_spacing`): 1 for square
+    /// cells, 1.86 for an SRTM tile at 57.5 N.
+    pub fn ew_stretch(&self) -> f64 {
+        f64::from(self.spacing) / f64::from(self.ew_spacing)
     }
 
     /// Records how many void samples the loader filled.

@@ -2,7 +2,10 @@
 
 use std::path::Path;
 
-use super::{check_size, fill_voids, metres_per_degree_latitude, to_f32, LoadOptions};
+use super::{
+    check_size, fill_voids, metres_per_degree_latitude, metres_per_degree_longitude, to_f32,
+    LoadOptions,
+};
 use crate::{Error, Heightmap, Result};
 
 /// SRTM's void marker.
@@ -12,8 +15,9 @@ const VOID: i16 = -32768;
 ///
 /// Cells are square here, with the N-S spacing: 3 or 1 arc-seconds of meridian arc in metres at the
 /// tile's centre latitude (read from a name like `N57E011`; the equator if the name says nothing). The
-/// true E-W spacing is that times cos(latitude), so a tile far from the equator is stretched E-W.
-/// [`LoadOptions::spacing`] overrides. Voids are filled from their neighbours and counted.
+/// true E-W spacing, about that times cos(latitude), is recorded ([`Heightmap::ew_spacing`]): a tile far
+/// from the equator is drawn stretched E-W unless [`LoadOptions::resample_ew`]. [`LoadOptions::spacing`]
+/// overrides both. Voids are filled from their neighbours and counted.
 pub(super) fn load(path: &Path, len: u64, opts: &LoadOptions) -> Result<Heightmap> {
     let (side, arcsec) = match len {
         2_884_802 => (1201u32, 3.0),
@@ -46,11 +50,17 @@ pub(super) fn load(path: &Path, len: u64, opts: &LoadOptions) -> Result<Heightma
         .collect();
     drop(bytes);
     let voids = fill_voids(path, side as usize, &mut heights)?;
-    let spacing = opts.spacing.unwrap_or_else(|| {
-        let lat = latitude_from_name(path).map_or(0.0, |south| south + 0.5);
-        to_f32(metres_per_degree_latitude(lat) * arcsec / 3600.0)
-    });
-    Ok(Heightmap::new(path, side, side, spacing, heights)?.with_voids_filled(voids))
+    let lat = latitude_from_name(path).map_or(0.0, |south| south + 0.5);
+    let (spacing, ew) = match opts.spacing {
+        Some(s) => (s, s),
+        None => (
+            to_f32(metres_per_degree_latitude(lat) * arcsec / 3600.0),
+            to_f32(metres_per_degree_longitude(lat) * arcsec / 3600.0),
+        ),
+    };
+    Ok(Heightmap::new(path, side, side, spacing, heights)?
+        .with_voids_filled(voids)
+        .with_ew_spacing(ew))
 }
 
 /// The south edge latitude of a tile named like `N57E011` or `s12w077`, degrees.

@@ -23,6 +23,12 @@ pub struct LoadOptions {
     pub max_samples: u64,
     /// How a PNG's pixels hold heights (grey values, or a web-map RGB encoding).
     pub png_encoding: PngEncoding,
+    /// Resample each row of a grid whose E-W spacing differs from its N-S one (a geographic grid away
+    /// from the equator, [`Heightmap::ew_spacing`]) to square cells of the N-S spacing, so the terrain is
+    /// drawn to scale (a tent filter along the row; fewer columns where E-W samples are denser). Off by
+    /// default: such a grid is drawn with square cells, stretched E-W, as before (frame hashes recorded
+    /// from it stay valid).
+    pub resample_ew: bool,
 }
 
 /// How a PNG's pixels hold heights.
@@ -78,6 +84,7 @@ impl Default for LoadOptions {
             raw: None,
             max_samples: DEFAULT_MAX_SAMPLES,
             png_encoding: PngEncoding::Grey,
+            resample_ew: false,
         }
     }
 }
@@ -164,6 +171,16 @@ impl TerrainSpec {
 /// [`LoadOptions::spacing`] gives it, is [`DEFAULT_SPACING_M`] for PNG and raw files; a GeoTIFF without
 /// georeferencing needs `--spacing`.
 pub fn load(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
+    let hm = load_format(path, opts)?;
+    Ok(if opts.resample_ew {
+        resample_ew(hm)?
+    } else {
+        hm
+    })
+}
+
+/// [`load`] before [`LoadOptions::resample_ew`].
+fn load_format(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
     let meta = std::fs::metadata(path).map_err(|e| Error::io(path, "cannot read", e))?;
     if !meta.is_file() {
         return Err(Error::format(path, "not a regular file"));
@@ -207,6 +224,18 @@ pub fn load(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
 /// decoded whole by [`load`] (an SRTM tile is at most 3601^2 samples; an ASCII grid is parsed a line at a
 /// time into its heights) and read from memory.
 pub fn open_rows(path: &Path, opts: &LoadOptions) -> Result<Box<dyn RowSource>> {
+    let rows = open_format_rows(path, opts)?;
+    if !opts.resample_ew {
+        return Ok(rows);
+    }
+    Ok(match rows::ResampledEw::new(rows) {
+        Ok(r) => Box::new(r),
+        Err(rows) => rows,
+    })
+}
+
+/// [`open_rows`] before [`LoadOptions::resample_ew`].
+fn open_format_rows(path: &Path, opts: &LoadOptions) -> Result<Box<dyn RowSource>> {
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
@@ -352,6 +381,95 @@ fn fill_voids(path: &Path, width: usize, heights: &mut [f32]) -> Result<u64> {
     Ok(voids as u64)
 }
 
+/// Columns of a `width`-sample row of E-W spacing `ew` resampled to spacing `ns`, keeping its ends; None
+/// where the spacings agree within 0.1 % (square enough: left as it is).
+pub(crate) fn resampled_width(width: u32, ns: f32, ew: f32) -> Option<u32> {
+    let ratio = f64::from(ew) / f64::from(ns);
+    if !ratio.is_finite() || ratio <= 0.0 || (ratio - 1.0).abs() <= 1e-3 {
+        return None;
+    }
+    #[expect(
+        clippy::cast_possible_truncation,
+        clippy::cast_sign_loss,
+        reason = "a positive column count, capped at u32::MAX"
+    )]
+    let w = ((f64::from(width - 1) * ratio)
+        .round()
+        .min(f64::from(u32::MAX - 1)) as u32)
+        .max(1)
+        + 1;
+    (w != width).then_some(w)
+}
+
+/// Resamples `src` (one row) into `dst` with a tent filter: output column x sits at source column
+/// x (len(src) - 1) / (len(dst) - 1), and takes the samples within max(1, that step) of it, weighted by
+/// how near they are (so it averages where it drops samples and interpolates linearly where it adds).
+pub(crate) fn resample_row(src: &[f32], dst: &mut [f32]) {
+    let (n, m) = (src.len(), dst.len());
+    assert!(n >= 2 && m >= 2, "rows of at least 2 samples");
+    #[expect(clippy::cast_precision_loss, reason = "row lengths are below 2^32")]
+    let step = (n - 1) as f64 / (m - 1) as f64;
+    let half = step.max(1.0);
+    for (x, out) in dst.iter_mut().enumerate() {
+        #[expect(clippy::cast_precision_loss, reason = "row lengths are below 2^32")]
+        let s = x as f64 * step;
+        #[expect(
+            clippy::cast_possible_truncation,
+            clippy::cast_sign_loss,
+            reason = "clamped to the row"
+        )]
+        let (lo, hi) = (
+            (s - half).ceil().max(0.0) as usize,
+            ((s + half).floor() as usize).min(n - 1),
+        );
+        let (mut sum, mut weight) = (0.0f64, 0.0f64);
+        for (i, z) in src.iter().enumerate().take(hi + 1).skip(lo) {
+            #[expect(clippy::cast_precision_loss, reason = "row lengths are below 2^32")]
+            let w = 1.0 - (i as f64 - s).abs() / half;
+            if w > 0.0 {
+                sum += w * f64::from(*z);
+                weight += w;
+            }
+        }
+        *out = to_f32(sum / weight);
+    }
+}
+
+/// `hm` with every row resampled to square cells of its N-S spacing ([`LoadOptions::resample_ew`]);
+/// as it is where its cells are square already.
+fn resample_ew(hm: Heightmap) -> Result<Heightmap> {
+    let Some(w2) = resampled_width(hm.width(), hm.spacing(), hm.ew_spacing()) else {
+        return Ok(hm);
+    };
+    let (w, h) = (hm.width() as usize, hm.height() as usize);
+    let mut out = vec![0.0f32; w2 as usize * h];
+    for (src, dst) in hm
+        .heights()
+        .chunks_exact(w)
+        .zip(out.chunks_exact_mut(w2 as usize))
+    {
+        resample_row(src, dst);
+    }
+    // The spacing the resampled columns really have (within half a column of the N-S one).
+    let ew = f64::from(hm.ew_spacing()) * f64::from(hm.width() - 1) / f64::from(w2 - 1);
+    let (x, y) = hm.origin();
+    Ok(
+        Heightmap::new(Path::new("<resampled>"), w2, hm.height(), hm.spacing(), out)?
+            .with_voids_filled(hm.voids_filled())
+            .with_ew_spacing(to_f32(ew))
+            .with_origin(x, y),
+    )
+}
+
+/// Metres per degree of longitude at latitude `lat_deg` (the parallel's radius on the WGS84 ellipsoid:
+/// pi / 180 a cos phi / sqrt(1 - e^2 sin^2 phi)).
+pub fn metres_per_degree_longitude(lat_deg: f64) -> f64 {
+    const A: f64 = 6_378_137.0;
+    const E2: f64 = 6.694_379_990_14e-3;
+    let phi = lat_deg.to_radians();
+    std::f64::consts::PI / 180.0 * A * phi.cos() / (1.0 - E2 * phi.sin().powi(2)).sqrt()
+}
+
 /// Metres per degree of latitude at latitude `lat_deg` (the meridian arc on the WGS84 ellipsoid, series
 /// form: 111132.954 - 559.822 cos 2phi + 1.175 cos 4phi).
 pub fn metres_per_degree_latitude(lat_deg: f64) -> f64 {
@@ -375,6 +493,37 @@ mod tests {
         assert!(h.iter().all(|v| v.is_finite()));
         let mut all = vec![nan; 4];
         assert!(fill_voids(Path::new("t"), 2, &mut all).is_err());
+    }
+
+    #[test]
+    fn rows_resample_with_a_tent_filter() {
+        // Halving a ramp keeps it (interior), doubling interpolates it, and the ends stay put.
+        let ramp: Vec<f32> = (0..9).map(|i| i as f32 * 2.0).collect();
+        let mut half = [0.0f32; 5];
+        resample_row(&ramp, &mut half);
+        assert_eq!(&half[1..4], &[4.0, 8.0, 12.0]);
+        let mut double = [0.0f32; 17];
+        resample_row(&ramp, &mut double);
+        assert!(double.iter().enumerate().all(|(x, z)| *z == x as f32));
+        // A spike is averaged, not dropped, when columns are dropped.
+        let mut spike = [0.0f32; 9];
+        spike[4] = 9.0;
+        resample_row(&spike, &mut half);
+        assert_eq!(half.iter().sum::<f32>(), 4.5);
+        assert_eq!(resampled_width(1201, 92.8, 50.0), Some(648));
+        assert_eq!(resampled_width(1201, 30.0, 30.02), None, "within 0.1 %");
+        assert_eq!(
+            resampled_width(2, 100.0, 1.0),
+            Some(2).filter(|_| false),
+            "never under 2 columns"
+        );
+    }
+
+    #[test]
+    fn parallel_arc() {
+        // 1 degree of longitude: 111320 m at the equator, 55800 m at 60 degrees.
+        assert!((metres_per_degree_longitude(0.0) - 111_319.5).abs() < 1.0);
+        assert!((metres_per_degree_longitude(60.0) - 55_800.0).abs() < 10.0);
     }
 
     #[test]

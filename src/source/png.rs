@@ -245,6 +245,7 @@ impl Rows {
                 width,
                 height,
                 spacing: opts.spacing.unwrap_or(DEFAULT_SPACING_M),
+                ew_spacing: opts.spacing.unwrap_or(DEFAULT_SPACING_M),
                 origin: (0.0, 0.0),
                 path: path.into(),
             },

@@ -84,6 +84,7 @@ impl Rows {
                 width: n,
                 height: n,
                 spacing: params.spacing,
+                ew_spacing: params.spacing,
                 origin: (0.0, 0.0),
                 path: "<procedural>".into(),
             },

@@ -65,6 +65,7 @@ impl Rows {
                 width: layout.width,
                 height: layout.height,
                 spacing: opts.spacing.unwrap_or(DEFAULT_SPACING_M),
+                ew_spacing: opts.spacing.unwrap_or(DEFAULT_SPACING_M),
                 origin: (0.0, 0.0),
                 path: path.into(),
             },

@@ -13,8 +13,10 @@ pub struct RowGrid {
     pub width: u32,
     /// Rows.
     pub height: u32,
-    /// Sample spacing, metres.
+    /// Sample spacing, metres (N-S; the grid is drawn with square cells of it).
     pub spacing: f32,
+    /// The source's E-W spacing, metres ([`Heightmap::ew_spacing`]).
+    pub ew_spacing: f32,
     /// World position of the south-west sample, metres ([`Heightmap::origin`]).
     pub origin: (f64, f64),
     /// What errors name: the file, or a description.
@@ -86,6 +88,7 @@ impl<H: Borrow<Heightmap>> Resident<H> {
             width: h.width(),
             height: h.height(),
             spacing: h.spacing(),
+            ew_spacing: h.ew_spacing(),
             origin: h.origin(),
             path: PathBuf::from("<heightmap>"),
         };
@@ -113,5 +116,53 @@ impl<T: RowSource + ?Sized> RowSource for Box<T> {
 
     fn read_rows(&mut self, y0: u32, out: &mut [f32]) -> Result<()> {
         (**self).read_rows(y0, out)
+    }
+}
+
+/// A source whose rows are resampled to square cells of its N-S spacing as they are read
+/// ([`crate::source::LoadOptions::resample_ew`]): the same rows [`crate::source::load`] resamples.
+pub(crate) struct ResampledEw {
+    inner: Box<dyn RowSource>,
+    grid: RowGrid,
+    /// The inner source's rows of the band being read (grown to the largest band asked, then kept).
+    band: Vec<f32>,
+}
+
+impl ResampledEw {
+    /// Wraps `inner`, or gives it back where its cells are square already.
+    pub(crate) fn new(inner: Box<dyn RowSource>) -> std::result::Result<Self, Box<dyn RowSource>> {
+        let g = inner.grid();
+        let Some(width) = super::resampled_width(g.width, g.spacing, g.ew_spacing) else {
+            return Err(inner);
+        };
+        let ew = f64::from(g.ew_spacing) * f64::from(g.width - 1) / f64::from(width - 1);
+        let grid = RowGrid {
+            width,
+            ew_spacing: super::to_f32(ew),
+            ..g.clone()
+        };
+        Ok(Self {
+            inner,
+            grid,
+            band: Vec::new(),
+        })
+    }
+}
+
+impl RowSource for ResampledEw {
+    fn grid(&self) -> &RowGrid {
+        &self.grid
+    }
+
+    fn read_rows(&mut self, y0: u32, out: &mut [f32]) -> Result<()> {
+        check_band(self, y0, out)?;
+        let (w, w2) = (self.inner.width() as usize, self.grid.width as usize);
+        let rows = out.len() / w2;
+        self.band.resize(rows * w, 0.0);
+        self.inner.read_rows(y0, &mut self.band)?;
+        for (src, dst) in self.band.chunks_exact(w).zip(out.chunks_exact_mut(w2)) {
+            super::resample_row(src, dst);
+        }
+        Ok(())
     }
 }

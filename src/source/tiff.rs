@@ -8,7 +8,10 @@ use tiff::decoder::{Decoder, DecodingResult, Limits};
 use tiff::tags::Tag;
 use tiff::ColorType;
 
-use super::{check_size, fill_voids, metres_per_degree_latitude, to_f32, LoadOptions};
+use super::{
+    check_size, fill_voids, metres_per_degree_latitude, metres_per_degree_longitude, to_f32,
+    LoadOptions,
+};
 use crate::{Error, Heightmap, Param, Result};
 
 /// Whether `magic` starts like a TIFF or BigTIFF file (`II*\0`, `MM\0*`, and the BigTIFF 43 forms).
@@ -67,11 +70,13 @@ pub(super) fn load(path: &Path, opts: &LoadOptions, magic: &[u8]) -> Result<Heig
         ));
     }
     let voids = fill_voids(path, w, &mut heights)?;
-    let spacing = match opts.spacing {
-        Some(s) => s,
+    let (spacing, ew) = match opts.spacing {
+        Some(s) => (s, s),
         None => geo.spacing(path, height)?,
     };
-    Ok(Heightmap::new(path, width, height, spacing, heights)?.with_voids_filled(voids))
+    Ok(Heightmap::new(path, width, height, spacing, heights)?
+        .with_voids_filled(voids)
+        .with_ew_spacing(ew))
 }
 
 /// A TIFF opened and checked, its tags read, no sample decoded yet.
@@ -242,8 +247,8 @@ impl Rows {
             geo,
             ..
         } = open(path, opts, magic)?;
-        let spacing = match opts.spacing {
-            Some(s) => s,
+        let (spacing, ew_spacing) = match opts.spacing {
+            Some(s) => (s, s),
             None => geo.spacing(path, height)?,
         };
         let chunk = dec.chunk_dimensions();
@@ -272,6 +277,7 @@ impl Rows {
                 width,
                 height,
                 spacing,
+                ew_spacing,
                 origin: (0.0, 0.0),
                 path: path.into(),
             },
@@ -422,15 +428,16 @@ impl GeoTags {
         }
     }
 
-    /// N-S spacing in metres, or an error asking for `--spacing`.
-    fn spacing(mut self, path: &Path, rows: u32) -> Result<f32> {
+    /// (N-S, E-W) spacing in metres, or an error asking for `--spacing`. Geographic: degrees of meridian
+    /// arc and of the parallel at the grid's middle row.
+    fn spacing(mut self, path: &Path, rows: u32) -> Result<(f32, f32)> {
         self.world_file = ["tfw", "TFW", "tifw", "tiffw"]
             .iter()
             .map(|e| path.with_extension(e))
             .find(|p| p.is_file());
         let mid_row = f64::from(rows - 1) / 2.0;
-        // (N-S pixel size, latitude of the grid's middle row if geographic)
-        let found: Option<(f64, f64)> = if let Some(tfw) = &self.world_file {
+        // (N-S pixel size, latitude of the grid's middle row if geographic, E-W pixel size)
+        let found: Option<(f64, f64, f64)> = if let Some(tfw) = &self.world_file {
             let text = std::fs::read_to_string(tfw)
                 .map_err(|e| Error::io(tfw.clone(), "cannot read world file", e))?;
             let nums: Vec<f64> = text
@@ -445,7 +452,11 @@ impl GeoTags {
                 ));
             }
             // Lines: x size, rotation, rotation, y size (negative), x and y of the first pixel's centre.
-            Some((nums[3].abs(), nums[5] - mid_row * nums[3].abs()))
+            Some((
+                nums[3].abs(),
+                nums[5] - mid_row * nums[3].abs(),
+                nums[0].abs(),
+            ))
         } else {
             self.pixel_scale
                 .as_ref()
@@ -457,10 +468,11 @@ impl GeoTags {
                         Some([_, j, _, _, y, ..]) => y - (mid_row - j) * sy,
                         _ => 0.0,
                     };
-                    (sy, lat)
+                    let sx = self.pixel_scale.as_ref().and_then(|s| s.first().copied());
+                    (sy, lat, sx.unwrap_or(sy))
                 })
         };
-        let Some((size, lat)) = found.filter(|(s, _)| s.is_finite() && *s > 0.0) else {
+        let Some((size, lat, size_x)) = found.filter(|(s, _, _)| s.is_finite() && *s > 0.0) else {
             return Err(Error::format(
                 path,
                 format!(
@@ -470,11 +482,21 @@ impl GeoTags {
                 ),
             ));
         };
-        let metres = if self.geographic {
-            size * metres_per_degree_latitude(lat.clamp(-90.0, 90.0))
+        // A missing or odd E-W size: square cells.
+        let size_x = if size_x.is_finite() && size_x > 0.0 {
+            size_x
         } else {
             size
         };
-        Ok(to_f32(metres))
+        let lat = lat.clamp(-90.0, 90.0);
+        let (ns, ew) = if self.geographic {
+            (
+                size * metres_per_degree_latitude(lat),
+                size_x * metres_per_degree_longitude(lat),
+            )
+        } else {
+            (size, size_x)
+        };
+        Ok((to_f32(ns), to_f32(ew)))
     }
 }

@@ -681,6 +681,71 @@ fn tiff_sample_types_and_zstd() {
     }
 }
 
+/// A geographic grid records its E-W spacing (shorter than the N-S one away from the equator), and
+/// `resample_ew` resamples its rows to square cells, the same through the bake's band reader as through
+/// the whole load: a ramp along each row stays a ramp, and the grid keeps its true E-W extent.
+#[test]
+fn geographic_grids_resample_to_square_cells() {
+    let dir = temp_dir("resample_ew");
+    // 41 x 3 samples of 0.001 degrees at 60 N: E-W cells about half the N-S ones.
+    let mut text =
+        String::from("ncols 41\nnrows 3\nxllcorner 10\nyllcorner 59.9985\ncellsize 0.001\n");
+    for j in 0..3 {
+        let row: Vec<String> = (0..41).map(|i| format!("{}", i * 10 + j)).collect();
+        text += &row.join(" ");
+        text.push('\n');
+    }
+    let p = write(&dir, "geo.asc", text.as_bytes());
+    write(&dir, "geo.prj", b"GEOGCRS[\"WGS 84\"]");
+    let plain = load(&p).unwrap();
+    let (ns, ew) = (f64::from(plain.spacing()), f64::from(plain.ew_spacing()));
+    assert!((ns - 111.41).abs() < 0.05, "N-S {ns} m");
+    assert!((ew - 55.80).abs() < 0.05, "E-W {ew} m");
+    assert!((plain.ew_stretch() - ns / ew).abs() < 1e-12);
+    let opts = LoadOptions {
+        resample_ew: true,
+        ..LoadOptions::default()
+    };
+    let square = source::load(&p, &opts).unwrap();
+    // 40 E-W cells of 55.8 m are 20 cells of 111.4 m.
+    assert_eq!((square.width(), square.height()), (21, 3));
+    assert!(
+        (square.ew_stretch() - 1.0).abs() < 0.01,
+        "{}",
+        square.ew_stretch()
+    );
+    let step = 40.0 / 20.0;
+    for (x, z) in square.heights()[21..42].iter().enumerate() {
+        // Row 1 is 10 i + 1 at source column i; inside the row the tent filter keeps a ramp exact.
+        if (1..20).contains(&x) {
+            assert!(
+                (f64::from(*z) - (10.0 * x as f64 * step + 1.0)).abs() < 1e-3,
+                "column {x}: {z}"
+            );
+        }
+    }
+    let mut rows = source::open_rows(&p, &opts).expect("open rows");
+    assert_eq!((rows.width(), rows.height()), (21, 3));
+    let mut all = vec![0.0f32; 21 * 3];
+    rows.read_rows(0, &mut all[..21]).unwrap();
+    rows.read_rows(1, &mut all[21..]).unwrap();
+    assert_eq!(all, square.heights());
+    // A projected grid, and the shared SRTM tile's recorded E-W spacing (its sidecar: ~50 m at 57.5 N).
+    assert_eq!(
+        load(&write(
+            &dir,
+            "m.asc",
+            b"ncols 2\nnrows 2\ncellsize 5\n1 2 3 4\n"
+        ))
+        .unwrap()
+        .ew_stretch(),
+        1.0
+    );
+    if let Some(hm) = load_shared("N57E011.hgt", &LoadOptions::default()) {
+        assert!((hm.ew_spacing() - 50.0).abs() < 0.1, "{}", hm.ew_spacing());
+    }
+}
+
 /// ESRI ASCII grids: samples wrapped over lines, voids filled and counted, the spacing from the cell size,
 /// in degrees where the `.prj` is geographic; every malformed file refused naming the line or the count.
 #[test]

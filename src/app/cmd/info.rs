@@ -64,6 +64,8 @@ pub(crate) fn run(args: &InfoArgs) -> Result<()> {
             "min_m": lo,
             "max_m": hi,
             "voids_filled": hm.voids_filled(),
+            "ew_spacing_m": hm.ew_spacing(),
+            "ew_stretch": hm.ew_stretch(),
             "profiles": profiles,
         }));
         return Ok(());
@@ -77,6 +79,15 @@ pub(crate) fn run(args: &InfoArgs) -> Result<()> {
         ex / 1e3,
         ey / 1e3
     );
+    if (hm.ew_stretch() - 1.0).abs() > 1e-3 {
+        outln!(
+            "cells     {:.1} m E-W against {} m N-S: drawn {:.2}x wide with square cells \
+             (--resample-ew draws it to scale)",
+            hm.ew_spacing(),
+            hm.spacing(),
+            hm.ew_stretch()
+        );
+    }
     outln!("heights   {lo:.1} .. {hi:.1} m");
     outln!("voids     {} filled", hm.voids_filled());
     // What render, fly and view do with it: the split below is what they hold once it streams.

@@ -62,6 +62,11 @@ pub(crate) struct TerrainArgs {
     /// -10000 + (R 65536 + G 256 + B) 0.1 m) or terrarium (R 256 + G + B / 256 - 32768 m).
     #[arg(long, value_name = "ENCODING", value_enum, default_value_t = PngEncodingArg::Grey)]
     pub(crate) png_encoding: PngEncodingArg,
+    /// Draw a geographic grid (an SRTM .hgt, a GeoTIFF or ASCII grid in degrees) to scale: resample each
+    /// row to square cells of its N-S spacing. Without it such a grid is drawn with square cells,
+    /// stretched E-W by its N-S / E-W spacing (`clipsat info` shows it: 1.86x at 57.5 N).
+    #[arg(long)]
+    pub(crate) resample_ew: bool,
 }
 
 /// `--png-encoding`, the command line's name for [`source::PngEncoding`].
@@ -249,6 +254,7 @@ impl TerrainArgs {
             raw,
             max_samples: self.max_samples,
             png_encoding: self.png_encoding.into(),
+            resample_ew: self.resample_ew,
         };
         Ok(opts)
     }
