@@ -45,12 +45,7 @@ pub(super) fn load(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
     let mut h = Header::default();
     // Header lines until the first line that starts with a number.
     loop {
-        line.clear();
-        let n = reader
-            .read_line(&mut line)
-            .map_err(|e| Error::io(path, "cannot read", e))?;
-        line_no += 1;
-        if n == 0 {
+        if !next_line(path, &mut reader, &mut line, &mut line_no)? {
             return Err(Error::format(
                 path,
                 "the ASCII grid has a header but no samples",
@@ -158,12 +153,7 @@ pub(super) fn load(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
             }
             heights.push(z);
         }
-        line.clear();
-        let n = reader
-            .read_line(&mut line)
-            .map_err(|e| Error::io(path, "cannot read", e))?;
-        line_no += 1;
-        if n == 0 {
+        if !next_line(path, &mut reader, &mut line, &mut line_no)? {
             break;
         }
     }
@@ -202,6 +192,21 @@ pub(super) fn load(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
     Ok(Heightmap::new(path, w, hh, spacing, heights)?
         .with_voids_filled(filled)
         .with_ew_spacing(ew))
+}
+
+/// Reads the next line of `reader` into `line` (replacing it) and counts it; false at the end.
+fn next_line(
+    path: &Path,
+    reader: &mut impl BufRead,
+    line: &mut String,
+    line_no: &mut u64,
+) -> Result<bool> {
+    line.clear();
+    let n = reader
+        .read_line(line)
+        .map_err(|e| Error::io(path, "cannot read", e))?;
+    *line_no += 1;
+    Ok(n > 0)
 }
 
 /// The (N-S, E-W) spacing in metres from the cell sizes `(dx, dy)`: in degrees (of meridian arc and of
