@@ -116,7 +116,11 @@ pub(super) fn load(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
             format!("cell size {cell} is not a positive number"),
         ));
     }
-    let mut heights: Vec<f32> = Vec::with_capacity(samples);
+    // Every sample takes at least two bytes of text ("0 "), so a header declaring more than the file can
+    // hold reserves no more than the file's size (the count is checked at the end).
+    let text_bytes = std::fs::metadata(path).map_or(0, |m| m.len());
+    let mut heights: Vec<f32> =
+        Vec::with_capacity(samples.min(usize::try_from(text_bytes / 2).unwrap_or(usize::MAX)));
     let mut voids = false;
     // The first sample line is already in `line`.
     loop {

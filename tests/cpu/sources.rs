@@ -800,6 +800,11 @@ fn ascii_grids() {
             b"ncols 2\nnrows 2\ncellsize -1\n1 2 3 4\n",
             "not a positive number",
         ),
+        (
+            "huge.asc",
+            b"ncols 30000\nnrows 30000\ncellsize 1\n1 2 3\n",
+            "3 samples where the header says 30000 x 30000",
+        ),
         ("empty.asc", b"ncols 2\nnrows 2\ncellsize 1\n", "no samples"),
         (
             "nan.asc",
