@@ -92,6 +92,63 @@ pub struct Lod {
     /// The viewport (width, height), pixels.
     view: (u32, u32),
     max_blocks: usize,
+    /// The object-space errors asked so far, kept across frames ([`EtaCache`]).
+    etas: EtaCache,
+}
+
+/// Entries of [`EtaCache`] (a power of two): 32 bytes each, 1 MiB, allocated once with the selector.
+const ETA_SLOTS: usize = 1 << 15;
+
+/// One cached object-space error: table level `k`, mode and data box (x0, y0, x1, y1).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct EtaEntry {
+    /// k + 1 (0: empty).
+    k: u16,
+    mode: u8,
+    bx: [u32; 4],
+    value: f64,
+}
+
+/// The object-space errors ([`crate::bake::lod_tables::LevelTables::eta`]) the selection and the detail
+/// pool have asked, by table level, mode and data box. They are a pure function of the tables, which a
+/// selector never changes, while the camera only changes how they project: blocks and pool cells sit on
+/// fixed lattices, so the same boxes are asked frame after frame. A direct-mapped table (a colliding box
+/// replaces the entry), so every value is the tables' own, bit for bit; interior mutability keeps the
+/// selector's methods `&self`. Allocated once; a look-up allocates nothing.
+#[derive(Clone, Debug)]
+struct EtaCache(Box<[std::cell::Cell<EtaEntry>]>);
+
+impl Default for EtaCache {
+    fn default() -> Self {
+        Self(vec![std::cell::Cell::new(EtaEntry::default()); ETA_SLOTS].into_boxed_slice())
+    }
+}
+
+impl EtaCache {
+    /// `compute()`, the error of table level `k` under `mode` over data box `bx`, looked up first.
+    fn get(&self, k: u32, mode: LodMode, bx: [u32; 4], compute: impl FnOnce() -> f64) -> f64 {
+        let key_k = u16::try_from(k + 1).unwrap_or(u16::MAX);
+        let mode_id = mode as u8;
+        let mut h =
+            (u64::from(key_k) << 8 | u64::from(mode_id)).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+        for v in bx {
+            h = (h ^ u64::from(v)).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+        }
+        // The hash's top 24 bits index the table.
+        let slot = &self.0[usize::try_from(h >> 40).unwrap_or(0) & (ETA_SLOTS - 1)];
+        let e = slot.get();
+        if e.k == key_k && e.mode == mode_id && e.bx == bx {
+            return e.value;
+        }
+        let value = compute();
+        slot.set(EtaEntry {
+            k: key_k,
+            mode: mode_id,
+            bx,
+            value,
+        });
+        value
+    }
 }
 
 impl Lod {
@@ -121,6 +178,7 @@ impl Lod {
             epsilon_px: f64::from(profile.view.epsilon_px),
             view: (profile.view.width, profile.view.height),
             max_blocks: (profile.budget.max_draws as usize).min(MAX_LOD_BLOCKS),
+            etas: EtaCache::default(),
         }
     }
 
@@ -277,9 +335,11 @@ impl Lod {
             return f64::INFINITY;
         };
         let p = self.tables.p;
+        let k = level - self.synth;
         let eta_of = |a: i64, c: i64, b: i64, d: i64| -> f64 {
             let (x0, y0, x1, y1) = self.tables.data_box(self.synth, a, c, b, d);
-            t.eta(mode, p, x0, y0, x1, y1)
+            self.etas
+                .get(k, mode, [x0, y0, x1, y1], || t.eta(mode, p, x0, y0, x1, y1))
         };
         let eta = eta_of(a, c, b, d);
         if eta == 0.0 || mode == LodMode::Distance {
@@ -436,11 +496,11 @@ impl Lod {
         );
         let (x0, y0, x1, y1) = self.tables.data_box(self.synth, a, c, b, d);
         let eta_of = |level: u32| -> f64 {
-            match level
-                .checked_sub(self.synth)
-                .and_then(|k| self.tables.level(k))
-            {
-                Some(t) => t.eta(mode, self.tables.p, x0, y0, x1, y1),
+            let k = level.checked_sub(self.synth);
+            match k.and_then(|k| self.tables.level(k).map(|t| (k, t))) {
+                Some((k, t)) => self.etas.get(k, mode, [x0, y0, x1, y1], || {
+                    t.eta(mode, self.tables.p, x0, y0, x1, y1)
+                }),
                 // Past the baked levels: unknown error, never chosen by the bound.
                 None => f64::INFINITY,
             }

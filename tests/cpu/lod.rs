@@ -333,6 +333,52 @@ fn bound_fixture() -> (Heightmap, Profile, Clipmap, Lod) {
     (hm, profile, clip, lod)
 }
 
+/// The selector keeps the object-space errors it has asked across frames (they depend on the tables only):
+/// every bound a selector warmed by thousands of other boxes, levels, modes and cameras gives is the one a
+/// fresh selector computes, bit for bit.
+#[test]
+fn cached_errors_give_the_fresh_bounds() {
+    let (hm, profile, clip, warm) = bound_fixture();
+    let synth = clip.synth_levels();
+    let spacing = clip.g0() * f64::from(1u32 << synth);
+    let (ox, oy) = clip.origin();
+    let top = oy + 96.0 * spacing;
+    let cam = |i: u32| {
+        let f = f64::from(i);
+        Camera::new(
+            DVec3::new(
+                ox + (20.0 + f) * spacing,
+                top - (30.0 + f) * spacing,
+                500.0 + 40.0 * f,
+            ),
+            DVec3::new(ox + 100.0 * spacing, top - 70.0 * spacing, 0.0),
+            60.0,
+        )
+        .expect("camera")
+    };
+    let boxes = |i: u32| {
+        let r = |n: u32| (hash01(i * 13 + n, 5) * 128.0) as i64;
+        let (a, b) = (r(1).min(r(2)), r(1).max(r(2)).max(r(1).min(r(2)) + 1));
+        let (c, d) = (r(3).min(r(4)) * 3 / 4, r(3).max(r(4)) * 3 / 4 + 1);
+        (a << synth, c << synth, b << synth, d << synth)
+    };
+    let modes = [LodMode::Sat, LodMode::SatConservative, LodMode::Exact];
+    for i in 0..3000 {
+        let _ = warm.box_bound_px(&cam(i % 7), modes[i as usize % 3], synth + i % 4, boxes(i));
+    }
+    for i in (0..3000).step_by(37) {
+        let (c, m, l, bx) = (cam(i % 7), modes[i as usize % 3], synth + i % 4, boxes(i));
+        let tables =
+            LodTables::build(clip.pyramid(), profile.clipmap.levels, P, |_| {}).expect("tables");
+        let fresh = Lod::for_clipmap(tables, &profile, &clip, &hm);
+        assert_eq!(
+            warm.box_bound_px(&c, m, l, bx).to_bits(),
+            fresh.box_bound_px(&c, m, l, bx).to_bits(),
+            "box {i}"
+        );
+    }
+}
+
 /// The split bound of `Lod::box_bound_px` stays an upper bound of what is measured: for boxes of every
 /// size and alignment and every level, from two cameras (one looking across the terrain, one low and
 /// steep, so that boxes sit far off the screen's axis), under `exact` and `sat-conservative`, it is at
