@@ -55,7 +55,7 @@ pub enum Error {
         expected: String,
     },
     /// A height sample is NaN or infinite.
-    #[error("{}: sample at column {x}, row {y} is {value}; heights must be finite", path.display())]
+    #[error("{}: sample at column {x}, row {y} is {value}; heights must be finite{}", path.display(), nan_hint(path, *value))]
     NonFinite {
         /// The file (or `<memory>`).
         path: PathBuf,
@@ -214,6 +214,26 @@ impl Error {
             field: field.into(),
             reason: reason.into(),
         }
+    }
+}
+
+/// What to do about a NaN sample in a format with a nodata value (GeoTIFF, ASCII grid): files mark voids
+/// that way, and a declared nodata value of NaN fills them.
+fn nan_hint(path: &std::path::Path, value: f32) -> &'static str {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    match ext.as_deref() {
+        Some("tif" | "tiff") if value.is_nan() => {
+            " (if NaN marks voids, declare NaN the nodata value, as GDAL's `gdal_edit.py -a_nodata nan \
+             FILE` does, and they are filled from their neighbours)"
+        }
+        Some("asc") if value.is_nan() => {
+            " (if NaN marks voids, write `NODATA_value nan` in the header, and they are filled from their \
+             neighbours)"
+        }
+        _ => "",
     }
 }
 

@@ -138,7 +138,9 @@ pub(super) fn load(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
                     format!("line {line_no}: more samples than ncols x nrows = {width} x {height}"),
                 ));
             }
-            if h.nodata == Some(v) {
+            if h.nodata
+                .is_some_and(|nd| nd == v || (nd.is_nan() && v.is_nan()))
+            {
                 voids = true;
                 heights.push(f32::NAN);
                 continue;

@@ -761,6 +761,17 @@ fn ascii_grids() {
     // The void, the first sample of the second row, is the mean of its neighbours 1 (north) and 5 (east).
     assert_eq!(hm.heights(), &[1.0, 2.0, 3.0, 3.0, 5.0, 6.0]);
     assert_eq!(hm.voids_filled(), 1);
+    // NaN declared as the void marker: filled, like any other.
+    let nan = load(&write(
+        &dir,
+        "nan_voids.asc",
+        b"ncols 2\nnrows 2\ncellsize 1\nNODATA_value nan\n1 nan\n3 5\n",
+    ))
+    .unwrap();
+    assert_eq!(
+        (nan.heights(), nan.voids_filled()),
+        (&[1.0, 3.0, 3.0, 5.0][..], 1)
+    );
     // Degrees: 3 arc-seconds at 46.5 N from a geographic .prj; refused without one.
     let deg =
         b"ncols 2\nnrows 2\nxllcenter 10\nyllcenter 46.5\ncellsize 0.000833333333\n1 2\n3 4\n";
@@ -809,7 +820,7 @@ fn ascii_grids() {
         (
             "nan.asc",
             b"ncols 2\nnrows 2\ncellsize 1\n1 nan 3 4\n",
-            "heights must be finite",
+            "write `NODATA_value nan`",
         ),
     ] {
         let e = load(&write(&dir, name, text)).expect_err(name);
