@@ -159,6 +159,7 @@ fn render_streams_a_package() {
     ];
     let j = json(&clipsat(&base), "render a package");
     assert_eq!(j["streamed"], true, "{j}");
+    assert!(j["plan_ms"].as_f64().is_some_and(|ms| ms >= 0.0), "{j}");
     assert_eq!(j["stale_levels"], 0, "{j}");
     assert!(j["triangles"].as_u64().unwrap_or(0) > 0, "{j}");
     assert!(j["max_screen_error_px"].is_null(), "{j}");

@@ -441,6 +441,9 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
                 "border_view_pixels".into(),
                 json!(candidates - crack_pixels),
             );
+            // The frame's plan (LOD selection, the detail pool, culling, uniforms) on the CPU, ms.
+            let plan_us = u32::try_from(frame.stats.plan_ns / 1000).unwrap_or(u32::MAX);
+            o.insert("plan_ms".into(), json!(f64::from(plan_us) / 1000.0));
             // Candidates whose rays were traced: all, or an evenly spaced sample past MAX_TRACED.
             o.insert("crack_pixels_traced".into(), json!(holes.traced));
             o.insert(
