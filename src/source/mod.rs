@@ -24,8 +24,10 @@ pub struct LoadOptions {
     /// How a PNG's pixels hold heights (grey values, or a web-map RGB encoding).
     pub png_encoding: PngEncoding,
     /// Resample each row of a grid whose E-W spacing differs from its N-S one (a geographic grid away
-    /// from the equator, [`Heightmap::ew_spacing`]) to square cells of the N-S spacing, so the terrain is
-    /// drawn to scale (a tent filter along the row; fewer columns where E-W samples are denser). Off by
+    /// from the equator, [`Heightmap::ew_spacing`], taken at the grid's middle row: a grid spanning many
+    /// degrees of latitude needs a map projection instead) to square cells of the N-S spacing, so the
+    /// terrain is drawn to scale (a tent filter along the row; fewer columns where E-W samples are
+    /// denser). Off by
     /// default: such a grid is drawn with square cells, stretched E-W, as before (frame hashes recorded
     /// from it stay valid).
     pub resample_ew: bool,
