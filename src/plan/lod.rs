@@ -75,7 +75,8 @@ impl LodFrame {
 }
 
 /// The per-frame LOD selector: SAT paper algorithm 1 over the fixed block grid, with the clamp to the
-/// held data. Built once; [`Lod::select`] allocates nothing.
+/// held data. Built once; [`Lod::select`] allocates nothing. It may move to another thread (`Send`), but
+/// is not shared between threads (`Sync`): its cache of object-space errors fills through `&self`.
 #[derive(Clone, Debug)]
 pub struct Lod {
     tables: LodTables,
@@ -95,6 +96,13 @@ pub struct Lod {
     /// The object-space errors asked so far, kept across frames ([`EtaCache`]).
     etas: EtaCache,
 }
+
+// A selector, and the planner holding it, can be built on one thread and planned on another.
+const _: () = {
+    const fn send<T: Send>() {}
+    send::<Lod>();
+    send::<crate::plan::frame_plan::Planner>();
+};
 
 /// Entries of [`EtaCache`] (a power of two): 32 bytes each, 1 MiB, allocated once with the selector.
 const ETA_SLOTS: usize = 1 << 15;
