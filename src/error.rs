@@ -55,7 +55,11 @@ pub enum Error {
         expected: String,
     },
     /// A height sample is NaN or infinite.
-    #[error("{}: sample at column {x}, row {y} is {value}; heights must be finite{}", path.display(), nan_hint(path, *value))]
+    #[error(
+        "{}: sample at column {x}, row {y} is {value}; heights must be finite{}",
+        path.display(),
+        nan_hint(path, *value)
+    )]
     NonFinite {
         /// The file (or `<memory>`).
         path: PathBuf,

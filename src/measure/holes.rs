@@ -173,7 +173,7 @@ pub fn hole_pixels(
     camera: &Camera,
     block_quads: u32,
 ) -> Holes {
-    let candidates = crate::measure::image::crack_candidates(image, clear).count() as u64;
+    let candidates = crate::measure::crack_pixels(image, clear);
     let stride = candidates.div_ceil(MAX_TRACED).max(1);
     let (mut found, mut traced) = (0u64, 0u64);
     for (x, y) in crate::measure::image::crack_candidates(image, clear)
@@ -198,13 +198,11 @@ pub fn hole_pixels(
     }
 }
 
-/// `found` holes among `traced` of `candidates` scaled to all of them, rounded to nearest; at least 1 when
-/// `found` is, and exact when every candidate was traced.
+/// `found` holes among `traced` of `candidates` scaled to all of them, rounded to nearest: exact when every
+/// candidate was traced, and never below `found` (candidates are at least the traced ones), so one traced
+/// hole is never scaled to none.
 fn scaled_holes(found: u64, traced: u64, candidates: u64) -> u64 {
-    if traced == candidates || found == 0 {
-        return found;
-    }
-    ((found * candidates + traced / 2) / traced).max(1)
+    (found * candidates + traced / 2) / traced.max(1)
 }
 
 #[cfg(test)]

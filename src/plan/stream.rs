@@ -25,18 +25,13 @@ impl HeightSource {
     /// decimated beyond it. Streamed: the tile must be resident ([`HeightSource::ensure_bands`] ran).
     #[inline]
     pub fn at(&self, k: u32, i: i64, j: i64) -> f32 {
-        match self {
-            Self::Resident(p) => p.at(k, i, j),
-            Self::Streamed(c) => {
-                let (k, i, j) = coarsest_decimated(c, k, i, j);
-                c.height(k, i, j)
-                    .expect("a streamed tile is made resident before its samples are read")
-            }
-        }
+        self.try_at(k, i, j)
+            .expect("a streamed tile is made resident before its samples are read")
     }
 
     /// [`HeightSource::at`] where the sample can be read now: always for a resident pyramid; streamed,
     /// when its tile is resident in the cache (None otherwise). For measurements, which may not decode.
+    #[inline]
     pub fn try_at(&self, k: u32, i: i64, j: i64) -> Option<f32> {
         match self {
             Self::Resident(p) => Some(p.at(k, i, j)),

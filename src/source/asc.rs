@@ -33,10 +33,10 @@ const MIN_METRES: f64 = 0.01;
 /// Keys are case-insensitive: `ncols`, `nrows`, `xllcorner`/`xllcenter`, `yllcorner`/`yllcenter`,
 /// `cellsize` (or `dx` and `dy`) and the optional `NODATA_value`, whose samples are voids, filled from
 /// their neighbours and counted. Cells are drawn square with the N-S size (the E-W one is recorded,
-/// [`Heightmap::ew_spacing`]). A `.prj` beside the file
-/// whose WKT is geographic (`GEOGCS` or `GEOGCRS` with no projection) puts the cell size in degrees: metres
-/// of meridian arc at the grid's centre latitude. Without a `.prj`, a cell size under 1 cm is refused as
-/// probably degrees. [`LoadOptions::spacing`] overrides all of this.
+/// [`Heightmap::ew_spacing`]). A `.prj` beside the file whose WKT is geographic (`GEOGCS` or `GEOGCRS`
+/// with no projection) puts the cell sizes in degrees: metres of meridian arc and of the parallel at the
+/// grid's centre latitude. Without a `.prj`, a cell size under 1 cm is refused as probably degrees.
+/// [`LoadOptions::spacing`] overrides all of this.
 pub(super) fn load(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
     let file = std::fs::File::open(path).map_err(|e| Error::io(path, "cannot open", e))?;
     let mut reader = std::io::BufReader::new(file);
@@ -122,6 +122,10 @@ pub(super) fn load(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
     let mut heights: Vec<f32> =
         Vec::with_capacity(samples.min(usize::try_from(text_bytes / 2).unwrap_or(usize::MAX)));
     let mut voids = false;
+    let (scale, offset) = (
+        opts.height_scale.map_or(1.0, f64::from),
+        f64::from(opts.height_offset),
+    );
     // The first sample line is already in `line`.
     loop {
         for word in line.split_whitespace() {
@@ -138,26 +142,12 @@ pub(super) fn load(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
                     format!("line {line_no}: more samples than ncols x nrows = {width} x {height}"),
                 ));
             }
-            if h.nodata
-                .is_some_and(|nd| nd == v || (nd.is_nan() && v.is_nan()))
-            {
-                voids = true;
-                heights.push(f32::NAN);
-                continue;
-            }
-            let z = to_f32(
-                v * opts.height_scale.map_or(1.0, f64::from) + f64::from(opts.height_offset),
-            );
-            if !z.is_finite() {
-                let w = usize::try_from(width).unwrap_or(usize::MAX);
-                return Err(Error::NonFinite {
-                    path: path.into(),
-                    x: u32::try_from(i % w).unwrap_or(u32::MAX),
-                    y: u32::try_from(i / w).unwrap_or(u32::MAX),
-                    value: z,
-                });
-            }
-            heights.push(z);
+            let void = h
+                .nodata
+                .is_some_and(|nd| nd == v || (nd.is_nan() && v.is_nan()));
+            voids |= void;
+            let w = usize::try_from(width).unwrap_or(usize::MAX);
+            heights.push(super::height(path, v, void, scale, offset, (i % w, i / w))?);
         }
         if !next_line(path, &mut reader, &mut line, &mut line_no)? {
             break;
@@ -219,7 +209,7 @@ fn next_line(
 /// the parallel at the grid's centre) where a `.prj` beside the file is geographic.
 fn spacing(
     path: &Path,
-    (dx, cell): (f64, f64),
+    (dx, dy): (f64, f64),
     yll: Option<(f64, bool)>,
     rows: u64,
 ) -> Result<(f32, f32)> {
@@ -235,25 +225,25 @@ fn spacing(
     if geographic {
         let lat = yll.map_or(0.0, |(y, centre)| {
             if centre {
-                y + (rows - 1.0) * cell * 0.5
+                y + (rows - 1.0) * dy * 0.5
             } else {
-                y + rows * cell * 0.5
+                y + rows * dy * 0.5
             }
         });
         let lat = lat.clamp(-90.0, 90.0);
         return Ok((
-            to_f32(cell * metres_per_degree_latitude(lat)),
+            to_f32(dy * metres_per_degree_latitude(lat)),
             to_f32(dx * metres_per_degree_longitude(lat)),
         ));
     }
-    if prj.is_none() && cell < MIN_METRES {
+    if prj.is_none() && dy < MIN_METRES {
         return Err(Error::format(
             path,
             format!(
-                "cell size {cell} is under 1 cm: in degrees? No .prj beside the file says so; give the \
+                "cell size {dy} is under 1 cm: in degrees? No .prj beside the file says so; give the \
                  spacing in metres with `LoadOptions::spacing`"
             ),
         ));
     }
-    Ok((to_f32(cell), to_f32(dx)))
+    Ok((to_f32(dy), to_f32(dx)))
 }

@@ -27,9 +27,8 @@ pub struct LoadOptions {
     /// from the equator, [`Heightmap::ew_spacing`], taken at the grid's middle row: a grid spanning many
     /// degrees of latitude needs a map projection instead) to square cells of the N-S spacing, so the
     /// terrain is drawn to scale (a tent filter along the row; fewer columns where E-W samples are
-    /// denser). Off by
-    /// default: such a grid is drawn with square cells, stretched E-W, as before (frame hashes recorded
-    /// from it stay valid).
+    /// denser). Off by default: such a grid is drawn with square cells, stretched E-W, as before (frame
+    /// hashes recorded from it stay valid).
     pub resample_ew: bool,
 }
 
@@ -383,11 +382,40 @@ fn fill_voids(path: &Path, width: usize, heights: &mut [f32]) -> Result<u64> {
     Ok(voids as u64)
 }
 
-/// Columns of a `width`-sample row of E-W spacing `ew` resampled to spacing `ns`, keeping its ends; None
-/// where the spacings agree within 0.1 % (square enough: left as it is).
-pub(crate) fn resampled_width(width: u32, ns: f32, ew: f32) -> Option<u32> {
+/// Sample `v` at `(column, row)` in metres: NaN for a void (for [`fill_voids`]), and a non-finite height
+/// that is not a void refused, since filling would otherwise spread it.
+pub(super) fn height(
+    path: &Path,
+    v: f64,
+    void: bool,
+    scale: f64,
+    offset: f64,
+    (x, y): (usize, usize),
+) -> Result<f32> {
+    if void {
+        return Ok(f32::NAN);
+    }
+    let h = to_f32(v * scale + offset);
+    if !h.is_finite() {
+        return Err(Error::NonFinite {
+            path: path.into(),
+            x: u32::try_from(x).unwrap_or(u32::MAX),
+            y: u32::try_from(y).unwrap_or(u32::MAX),
+            value: h,
+        });
+    }
+    Ok(h)
+}
+
+/// How far from 1 the E-W over N-S spacing ratio may be for cells to count as square (left as they are).
+pub const SQUARE_CELLS_TOLERANCE: f64 = 1e-3;
+
+/// Columns of a `width`-sample row of E-W spacing `ew` resampled to spacing `ns`, keeping its ends, and
+/// the E-W spacing they then have (within half a column of `ns`); None where the cells are square
+/// ([`SQUARE_CELLS_TOLERANCE`]).
+pub(crate) fn resampled_width(width: u32, ns: f32, ew: f32) -> Option<(u32, f32)> {
     let ratio = f64::from(ew) / f64::from(ns);
-    if !ratio.is_finite() || ratio <= 0.0 || (ratio - 1.0).abs() <= 1e-3 {
+    if !ratio.is_finite() || ratio <= 0.0 || (ratio - 1.0).abs() <= SQUARE_CELLS_TOLERANCE {
         return None;
     }
     #[expect(
@@ -400,7 +428,8 @@ pub(crate) fn resampled_width(width: u32, ns: f32, ew: f32) -> Option<u32> {
         .min(f64::from(u32::MAX - 1)) as u32)
         .max(1)
         + 1;
-    (w != width).then_some(w)
+    let spacing = f64::from(ew) * f64::from(width - 1) / f64::from(w - 1);
+    (w != width).then_some((w, to_f32(spacing)))
 }
 
 /// Resamples `src` (one row) into `dst` with a tent filter: output column x sits at source column
@@ -440,7 +469,7 @@ pub(crate) fn resample_row(src: &[f32], dst: &mut [f32]) {
 /// `hm` with every row resampled to square cells of its N-S spacing ([`LoadOptions::resample_ew`]);
 /// as it is where its cells are square already.
 fn resample_ew(hm: Heightmap) -> Result<Heightmap> {
-    let Some(w2) = resampled_width(hm.width(), hm.spacing(), hm.ew_spacing()) else {
+    let Some((w2, ew)) = resampled_width(hm.width(), hm.spacing(), hm.ew_spacing()) else {
         return Ok(hm);
     };
     let (w, h) = (hm.width() as usize, hm.height() as usize);
@@ -452,13 +481,11 @@ fn resample_ew(hm: Heightmap) -> Result<Heightmap> {
     {
         resample_row(src, dst);
     }
-    // The spacing the resampled columns really have (within half a column of the N-S one).
-    let ew = f64::from(hm.ew_spacing()) * f64::from(hm.width() - 1) / f64::from(w2 - 1);
     let (x, y) = hm.origin();
     Ok(
         Heightmap::new(Path::new("<resampled>"), w2, hm.height(), hm.spacing(), out)?
             .with_voids_filled(hm.voids_filled())
-            .with_ew_spacing(to_f32(ew))
+            .with_ew_spacing(ew)
             .with_origin(x, y),
     )
 }
@@ -512,11 +539,11 @@ mod tests {
         spike[4] = 9.0;
         resample_row(&spike, &mut half);
         assert_eq!(half.iter().sum::<f32>(), 4.5);
-        assert_eq!(resampled_width(1201, 92.8, 50.0), Some(648));
+        assert_eq!(resampled_width(1201, 92.8, 50.0).map(|(w, _)| w), Some(648));
         assert_eq!(resampled_width(1201, 30.0, 30.02), None, "within 0.1 %");
         assert_eq!(
             resampled_width(2, 100.0, 1.0),
-            Some(2).filter(|_| false),
+            None,
             "never under 2 columns"
         );
     }

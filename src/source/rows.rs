@@ -132,13 +132,13 @@ impl ResampledEw {
     /// Wraps `inner`, or gives it back where its cells are square already.
     pub(crate) fn new(inner: Box<dyn RowSource>) -> std::result::Result<Self, Box<dyn RowSource>> {
         let g = inner.grid();
-        let Some(width) = super::resampled_width(g.width, g.spacing, g.ew_spacing) else {
+        let Some((width, ew_spacing)) = super::resampled_width(g.width, g.spacing, g.ew_spacing)
+        else {
             return Err(inner);
         };
-        let ew = f64::from(g.ew_spacing) * f64::from(g.width - 1) / f64::from(width - 1);
         let grid = RowGrid {
             width,
-            ew_spacing: super::to_f32(ew),
+            ew_spacing,
             ..g.clone()
         };
         Ok(Self {

@@ -1,5 +1,6 @@
 //! Stage 0, the source: single-band GeoTIFF height maps (8, 16 and 32-bit integers, 16, 32 and 64-bit
-//! floats; stripped or tiled; uncompressed, LZW, Deflate, PackBits or ZSTD), with spacing from a world file or the GeoTIFF tags and GDAL nodata voids filled.
+//! floats; stripped or tiled; uncompressed, LZW, Deflate, PackBits or ZSTD), with spacing from a world
+//! file or the GeoTIFF tags and GDAL nodata voids filled.
 
 use std::io::BufReader;
 use std::path::{Path, PathBuf};
@@ -9,8 +10,8 @@ use tiff::tags::Tag;
 use tiff::ColorType;
 
 use super::{
-    check_size, fill_voids, metres_per_degree_latitude, metres_per_degree_longitude, to_f32,
-    LoadOptions,
+    check_size, fill_voids, height, metres_per_degree_latitude, metres_per_degree_longitude,
+    to_f32, LoadOptions,
 };
 use crate::{Error, Heightmap, Param, Result};
 
@@ -151,37 +152,13 @@ fn convert<T: Copy>(
         .collect()
 }
 
-/// Sample `v` at `(column, row)` in metres: NaN for a void (for [`fill_voids`]), and a non-finite height
-/// that is not a void refused, since filling would otherwise spread it.
-fn height(
-    path: &Path,
-    v: f64,
-    void: bool,
-    scale: f64,
-    offset: f64,
-    (x, y): (usize, usize),
-) -> Result<f32> {
-    if void {
-        return Ok(f32::NAN);
-    }
-    let h = to_f32(v * scale + offset);
-    if !h.is_finite() {
-        return Err(Error::NonFinite {
-            path: path.into(),
-            x: u32::try_from(x).unwrap_or(u32::MAX),
-            y: u32::try_from(y).unwrap_or(u32::MAX),
-            value: h,
-        });
-    }
-    Ok(h)
-}
-
 /// The refusal of a sample type no elevation data uses.
 fn unsupported(path: &Path, other: &DecodingResult) -> Error {
     Error::format(
         path,
         format!(
-            "unsupported TIFF sample type {}: use int8, uint8, int16, uint16, int32, uint32, float16, float32 or float64",
+            "unsupported TIFF sample type {}: use int8, uint8, int16, uint16, int32, uint32, float16, \
+             float32 or float64",
             sample_name(other)
         ),
     )

@@ -1,6 +1,6 @@
-//! Fuzzing in `cargo test`: every parser (PNG, GeoTIFF, .hgt, ASCII grid, raw, profile TOML, scene TOML, terrain
-//! package) runs its committed corpus, then random mutations of it for [`DEFAULT_SECS`] seconds per target
-//! (about 6 s of wall time for the file on 2 cores). No input may panic; a crash writes its input to
+//! Fuzzing in `cargo test`: every parser (PNG, GeoTIFF, .hgt, ASCII grid, raw, profile TOML, scene TOML,
+//! terrain package) runs its committed corpus, then random mutations of it for [`DEFAULT_SECS`] seconds
+//! per target (about 6 s of wall time for the file on 2 cores). No input may panic; a crash writes its input to
 //! `tests/fuzz/artifacts/TARGET/` and fails. The targets are the cargo-fuzz targets' bodies
 //! (`tests/fuzz/fuzz_targets/targets.rs`); the driver is `tests/fuzz/harness.rs`.
 //!

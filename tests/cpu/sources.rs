@@ -610,8 +610,8 @@ fn tiff_rows_read_by_chunks_match_the_whole_load() {
     assert_eq!(rows_of(&p), (w, h, hm.spacing(), hm.heights().to_vec()));
 }
 
-/// Every sample type elevation data comes in, and ZSTD strips (GDAL's COG default for DEMs), load to the
-/// same heights: int8, uint8 and uint32 through the encoder, float16 and a ZSTD float32 strip by hand.
+/// Every sample type elevation data comes in, and ZSTD strips (GDAL writes them with COMPRESS=ZSTD), load
+/// to the same heights: int8, uint8 and uint32 through the encoder, float16 and a ZSTD float32 strip by hand.
 #[test]
 fn tiff_sample_types_and_zstd() {
     use tiff::encoder::{colortype, TiffEncoder};

@@ -79,7 +79,7 @@ pub(crate) fn run(args: &InfoArgs) -> Result<()> {
         ex / 1e3,
         ey / 1e3
     );
-    if (hm.ew_stretch() - 1.0).abs() > 1e-3 {
+    if (hm.ew_stretch() - 1.0).abs() > clipsat::source::SQUARE_CELLS_TOLERANCE {
         outln!(
             "cells     {:.1} m E-W against {} m N-S: drawn {:.2}x wide with square cells \
              (--resample-ew draws it to scale)",
