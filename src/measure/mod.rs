@@ -8,5 +8,5 @@ mod screen_error;
 
 pub use holes::{drawn_height, hole_pixels, ray_below_drawn_surface, Drawn, Holes, MAX_TRACED};
 pub use image::{crack_pixels, image_rmse, CRACK_CLEAR, CRACK_CLEAR_RGBA8};
-pub use oracle::{bound_oracle, oracle, Oracle};
+pub use oracle::{bound_oracle, oracle, FanGrain, Oracle};
 pub use screen_error::{screen_error, MaxAt, ScreenError, SCREEN_ERROR_SAMPLES};

@@ -46,6 +46,27 @@ pub struct Oracle {
     /// down to the data) or in pieces from several tiles: a lower bound on the slots of any
     /// pool of `detail_tile_quads`-quad cells that draws no place coarser than its oracle level.
     pub pool_tiles_min: u64,
+    /// The same descent at the grain of 2 x 2-quad fans ([`FanGrain`]).
+    pub fan: FanGrain,
+}
+
+/// What a mesh of 2 x 2-quad fans needs ([`oracle`]'s descent at that grain): each node is a quad of
+/// level k >= 1 drawn as the 2 x 2 quads of level k - 1 under it (8 triangles), kept when level k - 1
+/// meets epsilon over the node's closed box (level 0 always does), split into its 4 children otherwise.
+/// The descent starts at the quads of the coarsest level. This is the grain a restricted quadtree of fans
+/// changes level at: a fan whose neighbour is one level coarser can drop its midpoint on that side and
+/// share the neighbour's edge, which a mesh of single quads cannot do without extra vertices.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct FanGrain {
+    /// Triangles of the kept fans (8 each).
+    pub triangles: u64,
+    /// Fan sides whose same-level neighbour is not kept (a level change, or the frustum's edge): what a
+    /// mesh closing level changes with skirts hangs a skirt on (4 triangles a side with 2-quad sides).
+    pub transition_sides: u64,
+    /// Triangles once the fans are balanced (a restricted quadtree: fans meeting at a side or a corner
+    /// differ by at most one level, split where they do not), which stitching a level change by
+    /// dropping a midpoint needs.
+    pub balanced_triangles: u64,
 }
 
 /// Per data level: the largest measured error over each closed quad's in-frustum samples (negative: no
@@ -243,6 +264,7 @@ fn descend(
                     }
                 }
             }
+            o.fan = fan_grain(&errs, bound, synth, eps);
             tiles.sort_unstable();
             tiles.dedup();
             o.pool_tiles = tiles.len() as u64;
@@ -250,6 +272,111 @@ fn descend(
             o
         })
         .collect()
+}
+
+/// [`FanGrain`] of the descent's per-quad errors `errs` (measured, or `bound` of each node's box at its
+/// drawn level where given) at `eps`.
+fn fan_grain(
+    errs: &[LevelErrors],
+    bound: Option<&QuadBound<'_>>,
+    synth: u32,
+    eps: f64,
+) -> FanGrain {
+    use std::collections::HashSet;
+    let top = errs.len() - 1;
+    // Node (k, c, r) is quad (c, r) of level k: its measured error, where it has a sample in the frustum.
+    let measured = |k: usize, c: i64, r: i64| {
+        let le = &errs[k];
+        let (c, r) = (usize::try_from(c).ok()?, usize::try_from(r).ok()?);
+        (c < le.cols && r < le.rows)
+            .then(|| le.max_px[r * le.cols + c])
+            .filter(|&e| e >= 0.0)
+    };
+    let in_frustum = |k: usize, c: i64, r: i64| measured(k, c, r).is_some();
+    let children = |k: usize, c: i64, r: i64| {
+        [(0, 0), (1, 0), (0, 1), (1, 1)]
+            .into_iter()
+            .map(move |(dc, dr)| (k - 1, 2 * c + dc, 2 * r + dr))
+    };
+    let mut leaves: HashSet<(usize, i64, i64)> = HashSet::new();
+    if top == 0 {
+        return FanGrain::default();
+    }
+    let t = &errs[top];
+    let (cols, rows) = (
+        i64::try_from(t.cols).expect("a level's quads fit i64"),
+        i64::try_from(t.rows).expect("a level's quads fit i64"),
+    );
+    let mut stack: Vec<(usize, i64, i64)> = (0..rows)
+        .flat_map(|r| (0..cols).map(move |c| (top, c, r)))
+        .collect();
+    while let Some((k, c, r)) = stack.pop() {
+        if !in_frustum(k, c, r) {
+            continue;
+        }
+        // The error of level k - 1 over the node.
+        let e = if k == 1 {
+            0.0
+        } else if let Some(f) = bound {
+            let l = u32::try_from(k).expect("levels <= 31") + synth;
+            let s0 = 1i64 << l;
+            f(l - 1, (c * s0, r * s0, (c + 1) * s0, (r + 1) * s0))
+        } else {
+            children(k, c, r)
+                .filter_map(|(j, a, b)| measured(j, a, b))
+                .fold(0.0f64, |m, e| m.max(f64::from(e)))
+        };
+        if e <= eps {
+            leaves.insert((k, c, r));
+        } else {
+            stack.extend(children(k, c, r));
+        }
+    }
+    let mut out = FanGrain {
+        triangles: 8 * leaves.len() as u64,
+        ..FanGrain::default()
+    };
+    for &(k, c, r) in &leaves {
+        for (dc, dr) in [(1, 0), (-1, 0), (0, 1), (0, -1)] {
+            if !leaves.contains(&(k, c + dc, r + dr)) {
+                out.transition_sides += 1;
+            }
+        }
+    }
+    // Balance: a leaf two or more levels coarser than a side or corner neighbour is split.
+    let covering = |leaves: &HashSet<(usize, i64, i64)>, k: usize, c: i64, r: i64| {
+        (k..=top).find_map(|j| {
+            let s = j - k;
+            let n = (j, c >> s, r >> s);
+            leaves.contains(&n).then_some(n)
+        })
+    };
+    let mut work: Vec<(usize, i64, i64)> = leaves.iter().copied().collect();
+    work.sort_unstable();
+    while let Some((k, c, r)) = work.pop() {
+        if !leaves.contains(&(k, c, r)) {
+            continue;
+        }
+        for dr in -1..=1 {
+            for dc in -1..=1 {
+                let Some(n) = covering(&leaves, k, c + dc, r + dr) else {
+                    continue;
+                };
+                if n.0 >= k + 2 {
+                    leaves.remove(&n);
+                    for ch in children(n.0, n.1, n.2) {
+                        if in_frustum(ch.0, ch.1, ch.2) {
+                            leaves.insert(ch);
+                            work.push(ch);
+                        }
+                    }
+                    work.push((k, c, r));
+                }
+            }
+        }
+    }
+    out.balanced_triangles = 8 * leaves.len() as u64;
+    out
 }
 
 /// The fewest tile cells (`q` quads a side, quadtree-aligned, any level <= `top`) that hold every need

@@ -492,7 +492,8 @@ fn split_bound_covers_every_sample() {
 /// The oracle run with the LOD bound in place of the measured error (`measure::bound_oracle`) keeps a
 /// quad only where the bound meets epsilon, and the bound is at least the measured error
 /// ([`split_bound_covers_every_sample`]): so it never needs fewer triangles than the measured oracle, in
-/// either SAT mode, and `exact`'s never more than `sat-conservative`'s.
+/// either SAT mode, and `exact`'s never more than `sat-conservative`'s. The same holds at the grain of
+/// fans ([`clipsat::measure::FanGrain`]).
 #[test]
 fn bound_oracle_needs_at_least_the_oracle() {
     let (hm, profile, clip, lod) = bound_fixture();
@@ -514,6 +515,18 @@ fn bound_oracle_needs_at_least_the_oracle() {
     }
     // The bound is not vacuous: at some epsilon it needs more than the measured error does.
     assert!((0..eps.len()).any(|i| exact[i].triangles > measured[i].triangles));
+    // At the grain of 2 x 2-quad fans: every kept fan is four quads that meet epsilon, so the measured
+    // descent's quads never need more; balancing only splits.
+    for (i, m) in measured.iter().enumerate() {
+        assert!(m.triangles <= m.fan.triangles, "epsilon {}: {m:?}", eps[i]);
+    }
+    for o in measured.iter().chain(&exact).chain(&conservative) {
+        assert!(
+            o.fan.triangles > 0 && o.fan.triangles <= o.fan.balanced_triangles,
+            "{o:?}"
+        );
+        assert!(o.fan.transition_sides > 0, "{o:?}");
+    }
 }
 
 /// The bake cache: miss, hit (identical tables), and every damaged file refused and rebaked.
