@@ -207,7 +207,7 @@ fn next_line(
 
 /// The (N-S, E-W) spacing in metres from the cell sizes `(dx, dy)`: in degrees (of meridian arc and of
 /// the parallel at the grid's centre) where a `.prj` beside the file is geographic.
-fn spacing(
+pub(super) fn spacing(
     path: &Path,
     (dx, dy): (f64, f64),
     yll: Option<(f64, bool)>,

@@ -120,6 +120,7 @@ pub enum TerrainSpec {
 }
 
 mod asc;
+mod bil;
 mod heightmap;
 mod hgt;
 mod png;
@@ -165,7 +166,8 @@ impl TerrainSpec {
 }
 
 /// Loads a terrain file, choosing the format from its extension: `.png`, `.tif`/`.tiff`, `.hgt`, `.asc`
-/// (ESRI ASCII grid), `.raw`/`.r16`/`.f32` (the raw ones need [`LoadOptions::raw`]).
+/// (ESRI ASCII grid), `.flt`/`.bil` (ESRI binary grids, with their `.hdr`), `.raw`/`.r16`/`.f32` (the raw
+/// ones need [`LoadOptions::raw`]).
 ///
 /// PNG and TIFF files must also start with their magic number. A file with another extension is
 /// accepted when its magic number says PNG or TIFF. Spacing, when neither the file nor
@@ -200,6 +202,7 @@ fn load_format(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
         "tif" | "tiff" => tiff::load(path, opts, &magic),
         "hgt" => hgt::load(path, meta.len(), opts),
         "asc" => asc::load(path, opts),
+        "flt" | "bil" => bil::load(path, meta.len(), opts),
         "raw" | "r16" | "f32" => raw::load(path, meta.len(), opts),
         _ if magic.starts_with(&png::MAGIC) => png::load(path, opts, &magic),
         _ if tiff::has_magic(&magic) => tiff::load(path, opts, &magic),
@@ -212,15 +215,15 @@ fn load_format(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
         _ => Err(Error::format(
             path,
             format!(
-                "unknown terrain format `.{ext}`: expected .png, .tif/.tiff, .hgt, .asc, .raw/.r16/.f32 \
-                 or a .clipsat package"
+                "unknown terrain format `.{ext}`: expected .png, .tif/.tiff, .hgt, .asc, .flt/.bil (with \
+                 a .hdr), .raw/.r16/.f32 or a .clipsat package"
             ),
         )),
     }
 }
 
 /// Opens a terrain file to be read a band of rows at a time (the out-of-core bake's source): a raw file
-/// is read by positioned reads, a GeoTIFF one row of strips or tiles at a time (one with voids is loaded
+/// or an ESRI binary grid (one with voids is loaded whole) is read by positioned reads, a GeoTIFF one row of strips or tiles at a time (one with voids is loaded
 /// whole: they are filled over the whole grid), a non-interlaced PNG row by row; the other files are
 /// decoded whole by [`load`] (an SRTM tile is at most 3601^2 samples; an ASCII grid is parsed a line at a
 /// time into its heights) and read from memory.
@@ -242,13 +245,16 @@ fn open_format_rows(path: &Path, opts: &LoadOptions) -> Result<Box<dyn RowSource
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase)
         .unwrap_or_default();
-    if matches!(ext.as_str(), "raw" | "r16" | "f32") {
+    if matches!(ext.as_str(), "raw" | "r16" | "f32" | "flt" | "bil") {
         let meta = std::fs::metadata(path).map_err(|e| Error::io(path, "cannot read", e))?;
         if !meta.is_file() {
             return Err(Error::format(path, "not a regular file"));
         }
         if meta.len() == 0 {
             return Err(Error::format(path, "file is empty"));
+        }
+        if matches!(ext.as_str(), "flt" | "bil") {
+            return bil::open_rows(path, meta.len(), opts);
         }
         return Ok(Box::new(raw::Rows::open(path, meta.len(), opts)?));
     }

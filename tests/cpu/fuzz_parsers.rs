@@ -87,6 +87,7 @@ fuzz_tests!(
     load_hgt,
     load_hgt_full,
     load_asc,
+    load_ehdr,
     load_raw,
     parse_profile,
     parse_scene,

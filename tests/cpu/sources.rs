@@ -828,6 +828,148 @@ fn ascii_grids() {
     }
 }
 
+/// ESRI binary grids with a `.hdr` (GridFloat `.flt`, BIL `.bil`): every sample type and byte order,
+/// row padding and a skipped prefix, voids filled, the spacing from the header (in degrees with a
+/// geographic `.prj`), the bake's row reader giving the same samples; malformed headers refused naming the
+/// key.
+#[test]
+fn esri_binary_grids() {
+    let dir = temp_dir("ehdr");
+    let ints: [i16; 6] = [1, 2, 3, -4, 5, 6];
+    let heights = ints.map(f32::from);
+    // GridFloat, little-endian, with a void (the fifth sample) filled from its neighbours 2 (north),
+    // -4 (west) and 6 (east).
+    let mut flt: Vec<u8> = heights.iter().flat_map(|v| v.to_le_bytes()).collect();
+    flt[16..20].copy_from_slice(&(-9999.0f32).to_le_bytes());
+    let p = write(&dir, "grid.flt", &flt);
+    write(
+        &dir,
+        "grid.hdr",
+        b"ncols 3\nnrows 2\nxllcorner 500000\nyllcorner 4000000\ncellsize 10\nNODATA_value -9999\nbyteorder LSBFIRST\n",
+    );
+    let hm = load(&p).unwrap();
+    assert_eq!((hm.width(), hm.height(), hm.spacing()), (3, 2, 10.0));
+    assert_eq!(hm.heights(), &[1.0, 2.0, 3.0, -4.0, 4.0 / 3.0, 6.0]);
+    assert_eq!(hm.voids_filled(), 1);
+    // A void makes the bake read it whole; the rows are the load's either way.
+    assert_eq!(rows_of(&p).3, hm.heights());
+    // BIL, big-endian int16, 4 bytes skipped and each row padded to 8 bytes.
+    let mut bil = vec![0xee; 4];
+    for row in ints.chunks(3) {
+        for v in row {
+            bil.extend_from_slice(&v.to_be_bytes());
+        }
+        bil.extend_from_slice(&[0xee, 0xee]);
+    }
+    bil.truncate(bil.len() - 2);
+    let p = write(&dir, "be.bil", &bil);
+    write(
+        &dir,
+        "be.hdr",
+        b"BYTEORDER M\nLAYOUT BIL\nNROWS 2\nNCOLS 3\nNBANDS 1\nNBITS 16\nPIXELTYPE SIGNEDINT\nSKIPBYTES 4\nTOTALROWBYTES 8\nXDIM 25\nYDIM 25\nSOMEKEY ignored\n",
+    );
+    let hm = load(&p).unwrap();
+    assert_eq!((hm.heights(), hm.spacing()), (&heights[..], 25.0));
+    assert_eq!(rows_of(&p).3, hm.heights());
+    // Unsigned bytes (ESRI's default type) need no byte order; 32-bit unsigned little-endian.
+    let p = write(&dir, "u8.bil", &[1, 2, 3, 4]);
+    write(&dir, "u8.hdr", b"nrows 2\nncols 2\ncellsize 5\n");
+    assert_eq!(load(&p).unwrap().heights(), &[1.0, 2.0, 3.0, 4.0]);
+    let u32s: Vec<u8> = [7u32, 8, 9, 4_000_000]
+        .iter()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
+    let p = write(&dir, "u32.bil", &u32s);
+    write(
+        &dir,
+        "u32.hdr",
+        b"nrows 2\nncols 2\nnbits 32\nbyteorder I\ncellsize 5\n",
+    );
+    assert_eq!(load(&p).unwrap().heights(), &[7.0, 8.0, 9.0, 4_000_000.0]);
+    // Degrees: 1 arc-second at 34.5 N (ULYMAP is the north-west sample's centre) with a geographic .prj.
+    let p = write(&dir, "geo.bil", &[0, 1, 0, 2, 0, 3, 0, 4]);
+    write(
+        &dir,
+        "geo.hdr",
+        b"BYTEORDER M\nNROWS 2\nNCOLS 2\nNBITS 16\nULYMAP 34.5\nXDIM 0.000277777777778\nYDIM 0.000277777777778\n",
+    );
+    assert_format(load(&p), "under 1 cm");
+    write(&dir, "geo.prj", br#"GEOGCS["WGS 84",DATUM["WGS_1984"]]"#);
+    let hm = load(&p).unwrap();
+    assert!((hm.spacing() - 30.8).abs() < 0.1, "{} m", hm.spacing());
+    assert!(
+        hm.ew_spacing() < hm.spacing() * 0.83,
+        "{} m E-W",
+        hm.ew_spacing()
+    );
+    // Malformed: each refused, naming what is wrong.
+    let four = [0u8; 8];
+    for (name, hdr, data, needle) in [
+        ("nohdr", None, &four[..], "cannot read the header"),
+        (
+            "order",
+            Some(&b"nrows 2\nncols 2\nnbits 16\n"[..]),
+            &four[..],
+            "no byte order",
+        ),
+        (
+            "bands",
+            Some(b"nrows 2\nncols 2\nnbands 3\n"),
+            &four[..],
+            "3 bands",
+        ),
+        (
+            "bits",
+            Some(b"nrows 2\nncols 2\nnbits 12\nbyteorder I\n"),
+            &four[..],
+            "12-bit",
+        ),
+        (
+            "type",
+            Some(b"nrows 2\nncols 2\npixeltype complex\n"),
+            &four[..],
+            "PIXELTYPE `complex`",
+        ),
+        (
+            "rows",
+            Some(b"nrows two\nncols 2\n"),
+            &four[..],
+            "`nrows` value `two`",
+        ),
+        (
+            "short",
+            Some(b"nrows 3\nncols 3\ncellsize 1\n"),
+            &four[..],
+            "at least 9 bytes",
+        ),
+        (
+            "envi",
+            Some(b"ENVI\nsamples = 2\n"),
+            &four[..],
+            "ENVI header",
+        ),
+        (
+            "pad",
+            Some(b"nrows 2\nncols 4\ntotalrowbytes 2\n"),
+            &four[..],
+            "TOTALROWBYTES 2",
+        ),
+        (
+            "cell",
+            Some(b"nrows 2\nncols 4\n"),
+            &four[..],
+            "no cell size",
+        ),
+    ] {
+        let p = write(&dir, &format!("{name}.bil"), data);
+        if let Some(h) = hdr {
+            write(&dir, &format!("{name}.hdr"), h);
+        }
+        let e = load(&p).expect_err(name);
+        assert!(e.to_string().contains(needle), "{name}: {e}");
+    }
+}
+
 #[test]
 fn raw_u16_and_f32() {
     let dir = temp_dir("raw_ok");

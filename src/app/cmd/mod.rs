@@ -111,7 +111,7 @@ impl TerrainArgs {
     /// The package to stream: the one `--terrain` names, or a plain source's, baked with the default
     /// options into the cache folder ([`clipsat::bake::default_cache_dir`]) on first use and found there
     /// later without loading the source (keyed by these options and the size and modification time of the
-    /// file and of its `.tfw`/`.prj` sidecars). A progress bar on stderr while baking when `progress`.
+    /// file and of its `.tfw`/`.prj`/`.hdr` sidecars). A progress bar on stderr while baking when `progress`.
     pub(crate) fn stream_package(&self, progress: bool) -> Result<clipsat::package::Package> {
         if let Some(p) = self.package()? {
             return Ok(p);
@@ -129,8 +129,9 @@ impl TerrainArgs {
             };
             let meta = std::fs::metadata(&path).map_err(|e| Error::io(&path, "cannot read", e))?;
             stamp(&meta, &mut h);
-            // The sidecars a loader reads its spacing from (a world file, a .prj): editing one re-bakes.
-            for ext in ["tfw", "TFW", "tifw", "tiffw", "prj"] {
+            // The sidecars a loader reads its layout or spacing from (a world file, a .prj, an ESRI .hdr):
+            // editing one re-bakes.
+            for ext in ["tfw", "TFW", "tifw", "tiffw", "prj", "hdr"] {
                 match std::fs::metadata(path.with_extension(ext)) {
                     Ok(meta) => stamp(&meta, &mut h),
                     Err(_) => h.write_u64(0),

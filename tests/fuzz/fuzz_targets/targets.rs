@@ -12,11 +12,12 @@ use clipsat::source::{self, LoadOptions, PngEncoding, RawFormat, RawLayout};
 pub(crate) type Target = fn(&[u8]) -> String;
 
 /// Every target, by name, with its body. Names match the cargo-fuzz binaries and the corpus folders.
-pub(crate) const TARGETS: [(&str, Target); 9] = [
+pub(crate) const TARGETS: [(&str, Target); 10] = [
     ("load_png", load_png),
     ("load_tiff", load_tiff),
     ("load_hgt", load_hgt),
     ("load_asc", load_asc),
+    ("load_ehdr", load_ehdr),
     ("load_hgt_full", load_hgt_full),
     ("load_raw", load_raw),
     ("parse_profile", parse_profile),
@@ -151,6 +152,38 @@ pub(crate) fn load_hgt(data: &[u8]) -> String {
 /// An ESRI ASCII grid (`.asc`): header lines, then decimal samples.
 pub(crate) fn load_asc(data: &[u8]) -> String {
     load_as("x.asc", data, &small())
+}
+
+/// An ESRI binary grid: the `.hdr` text up to the first NUL byte, the grid's bytes after it, loaded as
+/// a `.bil` or a `.flt` (by the input's length), with or without a spacing given.
+pub(crate) fn load_ehdr(data: &[u8]) -> String {
+    let (hdr, grid) = match data.iter().position(|&b| b == 0) {
+        Some(i) => (&data[..i], &data[i + 1..]),
+        None => (data, &[][..]),
+    };
+    let dir = std::env::temp_dir().join(format!(
+        "clipsat-fuzz-{}-{:?}",
+        std::process::id(),
+        std::thread::current().id()
+    ));
+    let _ = std::fs::create_dir_all(&dir);
+    let hdr_path = dir.join("x.hdr");
+    if std::fs::write(&hdr_path, hdr).is_err() {
+        return "cannot write".into();
+    }
+    let opts = LoadOptions {
+        spacing: (data.len() % 4 < 2).then_some(30.0),
+        ..small()
+    };
+    let name = if data.len().is_multiple_of(2) {
+        "x.bil"
+    } else {
+        "x.flt"
+    };
+    let r = load_as(name, grid, &opts);
+    let _ = std::fs::remove_file(&hdr_path);
+    let _ = std::fs::remove_dir(&dir);
+    r
 }
 
 /// Bytes of a 1201 x 1201 HGT tile.
