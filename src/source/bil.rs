@@ -361,7 +361,6 @@ impl super::RowSource for Rows {
     }
 
     fn read_rows(&mut self, y0: u32, out: &mut [f32]) -> Result<()> {
-        use std::io::{Read, Seek, SeekFrom};
         super::check_band(self, y0, out)?;
         let w = self.layout.width as usize;
         let packed = w * self.layout.bytes;
@@ -370,17 +369,7 @@ impl super::RowSource for Rows {
         for (r, row) in out.chunks_exact_mut(w).enumerate() {
             let y = u64::from(y0) + r as u64;
             let at = self.layout.skip + y * self.layout.row_bytes;
-            self.file
-                .seek(SeekFrom::Start(at))
-                .and_then(|_| self.file.read_exact(&mut bytes))
-                .map_err(|e| match e.kind() {
-                    std::io::ErrorKind::UnexpectedEof => Error::SizeMismatch {
-                        path: self.grid.path.clone(),
-                        actual: at,
-                        expected: "the length when first checked".into(),
-                    },
-                    _ => Error::io(&self.grid.path, "cannot read", e),
-                })?;
+            super::rows::read_exact_at(&mut self.file, &self.grid.path, at, &mut bytes)?;
             for (x, (o, c)) in row
                 .iter_mut()
                 .zip(bytes.chunks_exact(self.layout.bytes))

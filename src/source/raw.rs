@@ -84,22 +84,11 @@ impl super::RowSource for Rows {
     }
 
     fn read_rows(&mut self, y0: u32, out: &mut [f32]) -> Result<()> {
-        use std::io::{Read, Seek, SeekFrom};
         super::check_band(self, y0, out)?;
         let at = u64::from(y0) * u64::from(self.layout.width) * self.bytes_per;
         let per = if self.bytes_per == 2 { 2 } else { 4 };
         self.bytes.resize(out.len() * per, 0);
-        self.file
-            .seek(SeekFrom::Start(at))
-            .and_then(|_| self.file.read_exact(&mut self.bytes))
-            .map_err(|e| match e.kind() {
-                std::io::ErrorKind::UnexpectedEof => Error::SizeMismatch {
-                    path: self.grid.path.clone(),
-                    actual: at,
-                    expected: "the length when first checked".into(),
-                },
-                _ => Error::io(&self.grid.path, "cannot read", e),
-            })?;
+        super::rows::read_exact_at(&mut self.file, &self.grid.path, at, &mut self.bytes)?;
         match self.layout.format {
             RawFormat::U16 => {
                 let off = f64::from(self.offset);

@@ -53,6 +53,27 @@ pub trait RowSource {
     }
 }
 
+/// Reads `buf.len()` bytes of `file` (named `path` in errors) from byte `at`: a file shorter than its
+/// header said when checked (truncated since) is a size mismatch.
+pub(crate) fn read_exact_at(
+    file: &mut std::fs::File,
+    path: &Path,
+    at: u64,
+    buf: &mut [u8],
+) -> Result<()> {
+    use std::io::{Read, Seek, SeekFrom};
+    file.seek(SeekFrom::Start(at))
+        .and_then(|_| file.read_exact(buf))
+        .map_err(|e| match e.kind() {
+            std::io::ErrorKind::UnexpectedEof => Error::SizeMismatch {
+                path: path.into(),
+                actual: at,
+                expected: "the length when first checked".into(),
+            },
+            _ => Error::io(path, "cannot read", e),
+        })
+}
+
 /// Checks that `out` is whole rows of `src` starting at `y0`, inside the terrain (a caller bug otherwise,
 /// reported as an error rather than a panic since sources are user input).
 pub(crate) fn check_band(src: &(impl RowSource + ?Sized), y0: u32, out: &[f32]) -> Result<()> {

@@ -58,14 +58,19 @@ fn outcome<T>(r: clipsat::Result<T>, ok: impl FnOnce(&T) -> String) -> String {
     }
 }
 
-/// Loads `data` as a file called `name` (in a folder per process and thread, so parallel tests do not
-/// share it).
-fn load_as(name: &str, data: &[u8], opts: &LoadOptions) -> String {
-    let dir = std::env::temp_dir().join(format!(
+/// A folder per process and thread, so parallel tests do not share their files.
+fn scratch_dir() -> PathBuf {
+    std::env::temp_dir().join(format!(
         "clipsat-fuzz-{}-{:?}",
         std::process::id(),
         std::thread::current().id()
-    ));
+    ))
+}
+
+/// Loads `data` as a file called `name` (in a folder per process and thread, so parallel tests do not
+/// share it).
+fn load_as(name: &str, data: &[u8], opts: &LoadOptions) -> String {
+    let dir = scratch_dir();
     let _ = std::fs::create_dir_all(&dir);
     let path: PathBuf = dir.join(name);
     if std::fs::write(&path, data).is_err() {
@@ -161,11 +166,7 @@ pub(crate) fn load_ehdr(data: &[u8]) -> String {
         Some(i) => (&data[..i], &data[i + 1..]),
         None => (data, &[][..]),
     };
-    let dir = std::env::temp_dir().join(format!(
-        "clipsat-fuzz-{}-{:?}",
-        std::process::id(),
-        std::thread::current().id()
-    ));
+    let dir = scratch_dir();
     let _ = std::fs::create_dir_all(&dir);
     let hdr_path = dir.join("x.hdr");
     if std::fs::write(&hdr_path, hdr).is_err() {
@@ -247,11 +248,7 @@ pub(crate) fn parse_scene(data: &[u8]) -> String {
 /// A terrain package (`clipsat bake`): the header validated on open, then every level decoded when the
 /// declared size is small (a bounded coarse level otherwise), as the loader and the tile cache do.
 pub(crate) fn load_package(data: &[u8]) -> String {
-    let dir = std::env::temp_dir().join(format!(
-        "clipsat-fuzz-{}-{:?}",
-        std::process::id(),
-        std::thread::current().id()
-    ));
+    let dir = scratch_dir();
     let _ = std::fs::create_dir_all(&dir);
     let path = dir.join("x.clipsat");
     if std::fs::write(&path, data).is_err() {
