@@ -121,6 +121,7 @@ pub enum TerrainSpec {
 
 mod asc;
 mod bil;
+mod dted;
 mod heightmap;
 mod hgt;
 mod png;
@@ -165,12 +166,12 @@ impl TerrainSpec {
     }
 }
 
-/// Loads a terrain file, choosing the format from its extension: `.png`, `.tif`/`.tiff`, `.hgt`, `.asc`
-/// (ESRI ASCII grid), `.flt`/`.bil` (ESRI binary grids, with their `.hdr`), `.raw`/`.r16`/`.f32` (the raw
+/// Loads a terrain file, choosing the format from its extension: `.png`, `.tif`/`.tiff`, `.hgt`,
+/// `.dt0`/`.dt1`/`.dt2` (DTED), `.asc` (ESRI ASCII grid), `.flt`/`.bil` (ESRI binary grids, with their `.hdr`), `.raw`/`.r16`/`.f32` (the raw
 /// ones need [`LoadOptions::raw`]).
 ///
 /// PNG and TIFF files must also start with their magic number. A file with another extension is
-/// accepted when its magic number says PNG or TIFF. Spacing, when neither the file nor
+/// accepted when its magic number says PNG, TIFF or DTED. Spacing, when neither the file nor
 /// [`LoadOptions::spacing`] gives it, is [`DEFAULT_SPACING_M`] for PNG and raw files; a GeoTIFF without
 /// georeferencing needs `--spacing`.
 pub fn load(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
@@ -203,9 +204,11 @@ fn load_format(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
         "hgt" => hgt::load(path, meta.len(), opts),
         "asc" => asc::load(path, opts),
         "flt" | "bil" => bil::load(path, meta.len(), opts),
+        "dt0" | "dt1" | "dt2" => dted::load(path, meta.len(), opts),
         "raw" | "r16" | "f32" => raw::load(path, meta.len(), opts),
         _ if magic.starts_with(&png::MAGIC) => png::load(path, opts, &magic),
         _ if tiff::has_magic(&magic) => tiff::load(path, opts, &magic),
+        _ if magic.starts_with(dted::MAGIC) => dted::load(path, meta.len(), opts),
         // A package is opened before any source (by its magic number): one named so without it is damaged.
         "clipsat" => Err(Error::format(
             path,
@@ -215,8 +218,8 @@ fn load_format(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
         _ => Err(Error::format(
             path,
             format!(
-                "unknown terrain format `.{ext}`: expected .png, .tif/.tiff, .hgt, .asc, .flt/.bil (with \
-                 a .hdr), .raw/.r16/.f32 or a .clipsat package"
+                "unknown terrain format `.{ext}`: expected .png, .tif/.tiff, .hgt, .dt0/.dt1/.dt2, .asc, \
+                 .flt/.bil (with a .hdr), .raw/.r16/.f32 or a .clipsat package"
             ),
         )),
     }
@@ -225,7 +228,7 @@ fn load_format(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
 /// Opens a terrain file to be read a band of rows at a time (the out-of-core bake's source): a raw file
 /// or an ESRI binary grid (one with voids is loaded whole) is read by positioned reads, a GeoTIFF one row of strips or tiles at a time (one with voids is loaded
 /// whole: they are filled over the whole grid), a non-interlaced PNG row by row; the other files are
-/// decoded whole by [`load`] (an SRTM tile is at most 3601^2 samples; an ASCII grid is parsed a line at a
+/// decoded whole by [`load`] (an SRTM tile or a DTED cell is at most 3601^2 samples; an ASCII grid is parsed a line at a
 /// time into its heights) and read from memory.
 pub fn open_rows(path: &Path, opts: &LoadOptions) -> Result<Box<dyn RowSource>> {
     let rows = open_format_rows(path, opts)?;

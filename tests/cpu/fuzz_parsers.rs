@@ -88,6 +88,7 @@ fuzz_tests!(
     load_hgt_full,
     load_asc,
     load_ehdr,
+    load_dted,
     load_raw,
     parse_profile,
     parse_scene,

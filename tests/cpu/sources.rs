@@ -970,6 +970,95 @@ fn esri_binary_grids() {
     }
 }
 
+/// A DTED cell: the user header label, blank DSI and ACC records, then one data record per column (west to
+/// east), each from south to north in signed magnitude, with its checksum.
+fn dted_cell(lat_origin: &str, lat_int: u32, lon_int: u32, columns: &[Vec<i16>]) -> Vec<u8> {
+    let rows = columns[0].len();
+    let mut f = format!(
+        "UHL10100000E{lat_origin}{lon_int:04}{lat_int:04}NA  U  {:12}{:04}{:04}0{:24}",
+        "",
+        columns.len(),
+        rows,
+        ""
+    )
+    .into_bytes();
+    assert_eq!(f.len(), 80);
+    f.extend(b"DSI");
+    f.resize(80 + 648, b' ');
+    f.extend(b"ACC");
+    f.resize(80 + 648 + 2700, b' ');
+    for (x, col) in columns.iter().enumerate() {
+        let x = u16::try_from(x).expect("a test cell's columns fit u16");
+        // Sentinel, block count (3 bytes), longitude count.
+        let mut rec = vec![0xAA, 0];
+        rec.extend(x.to_be_bytes());
+        rec.extend(x.to_be_bytes());
+        rec.extend(0u16.to_be_bytes());
+        for &v in col {
+            let m = v.unsigned_abs() | if v < 0 { 0x8000 } else { 0 };
+            rec.extend(m.to_be_bytes());
+        }
+        let sum: u32 = rec.iter().map(|&b| u32::from(b)).sum();
+        rec.extend(sum.to_be_bytes());
+        f.extend(rec);
+    }
+    f
+}
+
+/// DTED cells: columns turned into rows (north first), signed-magnitude heights, voids filled, the spacing
+/// from the header's intervals at the cell's latitude (E-W recorded); a damaged record refused naming its
+/// column.
+#[test]
+fn dted_cells() {
+    let dir = temp_dir("dted");
+    // Two columns of three points, south to north; -32767 is a void.
+    let cols = vec![vec![10i16, -20, 30], vec![40, -32767, 60]];
+    // 3 arc-seconds N-S, 6 E-W (DTED level 1 between 50 and 70 degrees), at 60 N.
+    let cell = dted_cell("0600000N", 30, 60, &cols);
+    let p = write(&dir, "n60.dt1", &cell);
+    let hm = load(&p).unwrap();
+    assert_eq!((hm.width(), hm.height()), (2, 3));
+    // North row first: (30, 60), (-20, void), (10, 40). The void is the mean of 60, -20 and 40.
+    assert_eq!(hm.heights(), &[30.0, 60.0, -20.0, 80.0 / 3.0, 10.0, 40.0]);
+    assert_eq!(hm.voids_filled(), 1);
+    assert!(
+        (hm.spacing() - 92.84).abs() < 0.05,
+        "{} m N-S",
+        hm.spacing()
+    );
+    // 6 arc-seconds of longitude at 60 N are about as long as 3 of latitude.
+    assert!(
+        (hm.ew_spacing() / hm.spacing() - 1.0).abs() < 0.01,
+        "{} m E-W",
+        hm.ew_spacing()
+    );
+    // Found by its magic number under another name too.
+    assert_eq!(
+        load(&write(&dir, "cell.bin", &cell)).unwrap().heights(),
+        hm.heights()
+    );
+    let at = 80 + 648 + 2700;
+    let mut sum = cell.clone();
+    sum[at + 8] ^= 1;
+    let mut sentinel = cell.clone();
+    sentinel[at + 18] = 0;
+    let mut order = cell.clone();
+    order[at + 18 + 5] = 7;
+    let mut hemi = cell.clone();
+    hemi[19] = b'X';
+    for (name, bytes, needle) in [
+        ("sum.dt1", &sum[..], "column 0: checksum"),
+        ("sentinel.dt1", &sentinel, "column 1: record sentinel 0x00"),
+        ("order.dt1", &order, "says it is column 7"),
+        ("hemi.dt1", &hemi, "latitude of origin `0600000X`"),
+        ("short.dt1", &cell[..cell.len() - 1], "at least"),
+        ("head.dt1", &cell[..100], "truncated DTED cell"),
+    ] {
+        let e = load(&write(&dir, name, bytes)).expect_err(name);
+        assert!(e.to_string().contains(needle), "{name}: {e}");
+    }
+}
+
 #[test]
 fn raw_u16_and_f32() {
     let dir = temp_dir("raw_ok");
