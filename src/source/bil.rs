@@ -19,7 +19,7 @@ enum Kind {
 struct Layout {
     width: u32,
     height: u32,
-    /// Bytes per sample (1, 2 or 4).
+    /// Bytes per sample (1, 2, 4 or 8).
     bytes: usize,
     kind: Kind,
     big_endian: bool,
@@ -174,13 +174,14 @@ fn layout(path: &Path, len: u64, k: &Keys, opts: &LoadOptions) -> Result<Layout>
     };
     let bytes = match (kind, bits) {
         (Kind::Float, 32) => 4,
+        (Kind::Float, 64) => 8,
         (Kind::Unsigned | Kind::Signed, 8 | 16 | 32) => bits as usize / 8,
         _ => {
             return Err(Error::format(
                 &hdr,
                 format!(
                     "{bits}-bit {kind:?} samples are not supported (8, 16 and 32-bit integers, \
-                     32-bit floats are)"
+                     32 and 64-bit floats are)"
                 ),
             ))
         }
@@ -338,12 +339,14 @@ impl Rows {
     /// The sample at `c` (its bytes) as a number.
     fn value(&self, c: &[u8]) -> f64 {
         let l = &self.layout;
-        let mut b = [0u8; 4];
-        b[..l.bytes].copy_from_slice(c);
+        let mut b8 = [0u8; 8];
+        b8[..l.bytes].copy_from_slice(c);
         if l.big_endian {
-            b[..l.bytes].reverse();
+            b8[..l.bytes].reverse();
         }
+        let b = [b8[0], b8[1], b8[2], b8[3]];
         match (l.kind, l.bytes) {
+            (Kind::Float, 8) => f64::from_le_bytes(b8),
             (Kind::Float, _) => f64::from(f32::from_le_bytes(b)),
             (Kind::Unsigned, 1) => f64::from(b[0]),
             (Kind::Signed, 1) => f64::from(i8::from_le_bytes([b[0]])),
@@ -391,8 +394,8 @@ impl super::RowSource for Rows {
 
 /// Loads an ESRI binary grid whole, voids filled from their neighbours and counted.
 ///
-/// The `.hdr` beside it gives `ncols`, `nrows`, the sample type (`NBITS`: 8, 16 or 32; `PIXELTYPE`:
-/// `SIGNEDINT`, `UNSIGNEDINT` (ESRI's default) or `FLOAT`; a `.flt` is 32-bit float), the byte order
+/// The `.hdr` beside it gives `ncols`, `nrows`, the sample type (`NBITS`: 8, 16 or 32, or 64 for
+/// floats; `PIXELTYPE`: `SIGNEDINT`, `UNSIGNEDINT` (ESRI's default) or `FLOAT`; a `.flt` is 32-bit float), the byte order
 /// (`BYTEORDER` I/M or `byteorder` LSBFIRST/MSBFIRST; needed past 8 bits), and optionally `SKIPBYTES`,
 /// `TOTALROWBYTES` and `NODATA`/`NODATA_value`. One band only. The spacing is `cellsize` or
 /// `XDIM`/`YDIM`, in degrees where a `.prj` beside the file is geographic (as for ASCII grids);

@@ -886,6 +886,18 @@ fn esri_binary_grids() {
         b"nrows 2\nncols 2\nnbits 32\nbyteorder I\ncellsize 5\n",
     );
     assert_eq!(load(&p).unwrap().heights(), &[7.0, 8.0, 9.0, 4_000_000.0]);
+    // 64-bit floats, big-endian.
+    let f64s: Vec<u8> = [1.5f64, -2.25, 3.0, 1e4]
+        .iter()
+        .flat_map(|v| v.to_be_bytes())
+        .collect();
+    let p = write(&dir, "f64.bil", &f64s);
+    write(
+        &dir,
+        "f64.hdr",
+        b"nrows 2\nncols 2\nnbits 64\npixeltype float\nbyteorder M\ncellsize 5\n",
+    );
+    assert_eq!(load(&p).unwrap().heights(), &[1.5, -2.25, 3.0, 1e4]);
     // Degrees: 1 arc-second at 34.5 N (ULYMAP is the north-west sample's centre) with a geographic .prj.
     let p = write(&dir, "geo.bil", &[0, 1, 0, 2, 0, 3, 0, 4]);
     write(
