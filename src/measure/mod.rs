@@ -5,6 +5,7 @@ mod holes;
 mod image;
 mod oracle;
 mod screen_error;
+mod stitch;
 
 pub use holes::{drawn_height, hole_pixels, ray_below_drawn_surface, Drawn, Holes, MAX_TRACED};
 pub use image::{crack_pixels, image_rmse, CRACK_CLEAR, CRACK_CLEAR_RGBA8};

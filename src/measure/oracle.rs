@@ -29,6 +29,8 @@ use crate::plan::frame::Rect;
 use crate::plan::lod::{Lod, LodMode};
 use crate::Camera;
 
+use super::stitch;
+
 /// What the oracle needs to meet epsilon ([`oracle`]).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Oracle {
@@ -46,6 +48,12 @@ pub struct Oracle {
     /// down to the data) or in pieces from several tiles: a lower bound on the slots of any
     /// pool of `detail_tile_quads`-quad cells that draws no place coarser than its oracle level.
     pub pool_tiles_min: u64,
+    /// Triangles of the kept quads once balanced as a restricted quadtree (quads meeting at a side or a
+    /// corner differ by at most one level, split where they do not) and stitched without skirts
+    /// (`measure/stitch.rs`): what a mesh that changes level per quad needs.
+    pub balanced_triangles: u64,
+    /// Of those, the triangles the stitching collapses to a segment (still drawn, so still counted).
+    pub degenerate_triangles: u64,
     /// The same descent at the grain of 2 x 2-quad fans ([`FanGrain`]).
     pub fan: FanGrain,
 }
@@ -217,6 +225,7 @@ fn descend(
                 ..Oracle::default()
             };
             let mut tiles: Vec<(u32, i64, i64)> = Vec::new();
+            let mut kept: std::collections::HashSet<stitch::Node> = Default::default();
             // Pool-held quads as (level, level-0 lattice box).
             let mut needs: Vec<(u32, [i64; 4])> = Vec::new();
             let top_k = data_levels - 1;
@@ -241,6 +250,7 @@ fn descend(
                 if k == 0 || m <= eps {
                     let l = k + synth;
                     o.triangles += 2;
+                    kept.insert((k as usize, c as i64, r as i64));
                     o.quads_per_level[l as usize] += 1;
                     let (i, j) = (c as i64, r as i64);
                     let clip = frame.levels.get(l as usize).map(|lf| lf.clip);
@@ -265,6 +275,18 @@ fn descend(
                 }
             }
             o.fan = fan_grain(&errs, bound, synth, eps);
+            let in_frustum = |(k, c, r): stitch::Node| {
+                let le = &errs[k];
+                let (c, r) = (usize::try_from(c), usize::try_from(r));
+                matches!((c, r), (Ok(c), Ok(r)) if c < le.cols && r < le.rows && le.max_px[r * le.cols + c] >= 0.0)
+            };
+            stitch::balance(&mut kept, top_k as usize, in_frustum);
+            let stitched = stitch::stitch(&kept, top_k as usize);
+            o.balanced_triangles = stitched.len() as u64;
+            o.degenerate_triangles = stitched
+                .iter()
+                .filter(|t| t[0].at == t[1].at || t[1].at == t[2].at || t[0].at == t[2].at)
+                .count() as u64;
             tiles.sort_unstable();
             tiles.dedup();
             o.pool_tiles = tiles.len() as u64;
@@ -293,11 +315,6 @@ fn fan_grain(
             .filter(|&e| e >= 0.0)
     };
     let in_frustum = |k: usize, c: i64, r: i64| measured(k, c, r).is_some();
-    let children = |k: usize, c: i64, r: i64| {
-        [(0, 0), (1, 0), (0, 1), (1, 1)]
-            .into_iter()
-            .map(move |(dc, dr)| (k - 1, 2 * c + dc, 2 * r + dr))
-    };
     let mut leaves: HashSet<(usize, i64, i64)> = HashSet::new();
     if top == 0 {
         return FanGrain::default();
@@ -322,14 +339,14 @@ fn fan_grain(
             let s0 = 1i64 << l;
             f(l - 1, (c * s0, r * s0, (c + 1) * s0, (r + 1) * s0))
         } else {
-            children(k, c, r)
+            stitch::children((k, c, r))
                 .filter_map(|(j, a, b)| measured(j, a, b))
                 .fold(0.0f64, |m, e| m.max(f64::from(e)))
         };
         if e <= eps {
             leaves.insert((k, c, r));
         } else {
-            stack.extend(children(k, c, r));
+            stack.extend(stitch::children((k, c, r)));
         }
     }
     let mut out = FanGrain {
@@ -343,38 +360,7 @@ fn fan_grain(
             }
         }
     }
-    // Balance: a leaf two or more levels coarser than a side or corner neighbour is split.
-    let covering = |leaves: &HashSet<(usize, i64, i64)>, k: usize, c: i64, r: i64| {
-        (k..=top).find_map(|j| {
-            let s = j - k;
-            let n = (j, c >> s, r >> s);
-            leaves.contains(&n).then_some(n)
-        })
-    };
-    let mut work: Vec<(usize, i64, i64)> = leaves.iter().copied().collect();
-    work.sort_unstable();
-    while let Some((k, c, r)) = work.pop() {
-        if !leaves.contains(&(k, c, r)) {
-            continue;
-        }
-        for dr in -1..=1 {
-            for dc in -1..=1 {
-                let Some(n) = covering(&leaves, k, c + dc, r + dr) else {
-                    continue;
-                };
-                if n.0 >= k + 2 {
-                    leaves.remove(&n);
-                    for ch in children(n.0, n.1, n.2) {
-                        if in_frustum(ch.0, ch.1, ch.2) {
-                            leaves.insert(ch);
-                            work.push(ch);
-                        }
-                    }
-                    work.push((k, c, r));
-                }
-            }
-        }
-    }
+    stitch::balance(&mut leaves, top, |(k, c, r)| in_frustum(k, c, r));
     out.balanced_triangles = 8 * leaves.len() as u64;
     out
 }

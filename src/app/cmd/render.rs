@@ -557,6 +557,8 @@ fn oracle_json(os: &[measure::Oracle]) -> Vec<serde_json::Value> {
                 "quads_outside_rings": o.quads_outside_rings,
                 "pool_tiles": o.pool_tiles,
                 "pool_tiles_min": o.pool_tiles_min,
+                "balanced_triangles": o.balanced_triangles,
+                "degenerate_triangles": o.degenerate_triangles,
                 "fan_triangles": o.fan.triangles,
                 "fan_transition_sides": o.fan.transition_sides,
                 "fan_balanced_triangles": o.fan.balanced_triangles,
