@@ -188,9 +188,38 @@ pub(crate) fn load_ehdr(data: &[u8]) -> String {
     r
 }
 
-/// A DTED cell (`.dt1`): header records, then checksummed columns.
+/// A DTED cell (`.dt1`): header records, then checksummed columns. When the input's length is even, each
+/// record's checksum is recomputed first (records as long as the header's point count says), so
+/// mutations reach the heights and the void filling instead of stopping at the checksum.
 pub(crate) fn load_dted(data: &[u8]) -> String {
+    if data.len().is_multiple_of(2) {
+        let mut fixed = data.to_vec();
+        fix_dted_checksums(&mut fixed);
+        return load_as("x.dt1", &fixed, &small());
+    }
     load_as("x.dt1", data, &small())
+}
+
+/// Rewrites every whole data record's checksum in a DTED cell (the header's points per column decide the
+/// record length).
+fn fix_dted_checksums(cell: &mut [u8]) {
+    const DATA: usize = 80 + 648 + 2700;
+    let Some(rows) = cell
+        .get(51..55)
+        .and_then(|b| std::str::from_utf8(b).ok())
+        .and_then(|s| s.trim().parse::<usize>().ok())
+    else {
+        return;
+    };
+    let record = 12 + 2 * rows;
+    let Some(body) = cell.get_mut(DATA..) else {
+        return;
+    };
+    for rec in body.chunks_exact_mut(record) {
+        let n = record - 4;
+        let sum: u32 = rec[..n].iter().map(|&b| u32::from(b)).sum();
+        rec[n..].copy_from_slice(&sum.to_be_bytes());
+    }
 }
 
 /// Bytes of a 1201 x 1201 HGT tile.
