@@ -129,6 +129,7 @@ pub mod procedural;
 mod raw;
 mod rows;
 mod tiff;
+mod xyz;
 
 pub use heightmap::Heightmap;
 pub(crate) use rows::check_band;
@@ -167,7 +168,7 @@ impl TerrainSpec {
 }
 
 /// Loads a terrain file, choosing the format from its extension: `.png`, `.tif`/`.tiff`, `.hgt`,
-/// `.dt0`/`.dt1`/`.dt2` (DTED), `.asc` (ESRI ASCII grid), `.flt`/`.bil` (ESRI binary grids, with their `.hdr`), `.raw`/`.r16`/`.f32` (the raw
+/// `.dt0`/`.dt1`/`.dt2` (DTED), `.asc` (ESRI ASCII grid), `.xyz` (gridded XYZ points), `.flt`/`.bil` (ESRI binary grids, with their `.hdr`), `.raw`/`.r16`/`.f32` (the raw
 /// ones need [`LoadOptions::raw`]).
 ///
 /// PNG and TIFF files must also start with their magic number. A file with another extension is
@@ -205,6 +206,7 @@ fn load_format(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
         "asc" => asc::load(path, opts),
         "flt" | "bil" => bil::load(path, meta.len(), opts),
         "dt0" | "dt1" | "dt2" => dted::load(path, meta.len(), opts),
+        "xyz" => xyz::load(path, opts),
         "raw" | "r16" | "f32" => raw::load(path, meta.len(), opts),
         _ if magic.starts_with(&png::MAGIC) => png::load(path, opts, &magic),
         _ if tiff::has_magic(&magic) => tiff::load(path, opts, &magic),
@@ -219,7 +221,7 @@ fn load_format(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
             path,
             format!(
                 "unknown terrain format `.{ext}`: expected .png, .tif/.tiff, .hgt, .dt0/.dt1/.dt2, .asc, \
-                 .flt/.bil (with a .hdr), .raw/.r16/.f32 or a .clipsat package"
+                 .xyz, .flt/.bil (with a .hdr), .raw/.r16/.f32 or a .clipsat package"
             ),
         )),
     }
@@ -228,8 +230,8 @@ fn load_format(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
 /// Opens a terrain file to be read a band of rows at a time (the out-of-core bake's source): a raw file
 /// or an ESRI binary grid (one with voids is loaded whole) is read by positioned reads, a GeoTIFF one row of strips or tiles at a time (one with voids is loaded
 /// whole: they are filled over the whole grid), a non-interlaced PNG row by row; the other files are
-/// decoded whole by [`load`] (an SRTM tile or a DTED cell is at most 3601^2 samples; an ASCII grid is parsed a line at a
-/// time into its heights) and read from memory.
+/// decoded whole by [`load`] (an SRTM tile or a DTED cell is at most 3601^2 samples; an ASCII grid or
+/// an XYZ file is parsed a line at a time into its heights) and read from memory.
 pub fn open_rows(path: &Path, opts: &LoadOptions) -> Result<Box<dyn RowSource>> {
     let rows = open_format_rows(path, opts)?;
     if !opts.resample_ew {

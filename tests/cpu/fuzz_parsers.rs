@@ -89,6 +89,7 @@ fuzz_tests!(
     load_asc,
     load_ehdr,
     load_dted,
+    load_xyz,
     load_raw,
     parse_profile,
     parse_scene,

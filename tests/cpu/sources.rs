@@ -1071,6 +1071,58 @@ fn dted_cells() {
     }
 }
 
+/// Gridded XYZ text: a header skipped, points in any order and separator, a missing point filled as a
+/// void, the spacing from the points; points off the grid or twice on a cell refused naming the line.
+#[test]
+fn xyz_grids() {
+    let dir = temp_dir("xyz");
+    // A 3 x 2 grid at 2 m, south row first, one point (1002, 502) missing, a header and a comma line.
+    let text = b"X Y Z\n1000 500 4\n1002 500 5\n1004,500,6\n1000 502 1\n\n1004\t502\t3\n";
+    let hm = load(&write(&dir, "grid.xyz", text)).unwrap();
+    assert_eq!((hm.width(), hm.height(), hm.spacing()), (3, 2, 2.0));
+    // North row first; the void is the mean of its neighbours 1 (west), 3 (east) and 5 (south).
+    assert_eq!(hm.heights(), &[1.0, 3.0, 3.0, 4.0, 5.0, 6.0]);
+    assert_eq!(hm.voids_filled(), 1);
+    // Coordinates rounded in the text still find the grid: 0.1 m steps written to 3 decimals over 400
+    // columns, north row first.
+    let mut t = String::new();
+    for row in 0..3 {
+        for col in 0..400 {
+            let x = 2_600_000.0 + f64::from(col) / 3.0;
+            t.push_str(&format!(
+                "{x:.3} {:.3} {}\n",
+                1_200_000.0 - f64::from(row) / 3.0,
+                col % 7
+            ));
+        }
+    }
+    let hm = load(&write(&dir, "rounded.xyz", t.as_bytes())).unwrap();
+    assert_eq!((hm.width(), hm.height()), (400, 3));
+    assert_eq!(hm.heights()[..8], [0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 0.0]);
+    for (name, text, needle) in [
+        (
+            "off.xyz",
+            &b"0 0 1\n2 0 1\n4 0 1\n0 2 1\n2 2 1\n4 2 1\n2.9 2 1\n"[..],
+            "line 7: point (2.9, 2) is off the grid",
+        ),
+        (
+            "twice.xyz",
+            b"0 0 1\n1 0 1\n0 1 1\n1 1 1\n1 1 2\n",
+            "line 5: a second point",
+        ),
+        ("short.xyz", b"0 0 1\n1 0\n", "line 2: expected `x y z`"),
+        (
+            "word.xyz",
+            b"0 0 1\n1 0 x\n",
+            "line 2: `1 0 x` is not three numbers",
+        ),
+        ("line.xyz", b"0 0 1\n1 0 1\n2 0 1\n", "not a grid"),
+    ] {
+        let e = load(&write(&dir, name, text)).expect_err(name);
+        assert!(e.to_string().contains(needle), "{name}: {e}");
+    }
+}
+
 #[test]
 fn raw_u16_and_f32() {
     let dir = temp_dir("raw_ok");

@@ -12,13 +12,14 @@ use clipsat::source::{self, LoadOptions, PngEncoding, RawFormat, RawLayout};
 pub(crate) type Target = fn(&[u8]) -> String;
 
 /// Every target, by name, with its body. Names match the cargo-fuzz binaries and the corpus folders.
-pub(crate) const TARGETS: [(&str, Target); 11] = [
+pub(crate) const TARGETS: [(&str, Target); 12] = [
     ("load_png", load_png),
     ("load_tiff", load_tiff),
     ("load_hgt", load_hgt),
     ("load_asc", load_asc),
     ("load_ehdr", load_ehdr),
     ("load_dted", load_dted),
+    ("load_xyz", load_xyz),
     ("load_hgt_full", load_hgt_full),
     ("load_raw", load_raw),
     ("parse_profile", parse_profile),
@@ -186,6 +187,11 @@ pub(crate) fn load_ehdr(data: &[u8]) -> String {
     let _ = std::fs::remove_file(&hdr_path);
     let _ = std::fs::remove_dir(&dir);
     r
+}
+
+/// Gridded XYZ text (`.xyz`): `x y z` lines.
+pub(crate) fn load_xyz(data: &[u8]) -> String {
+    load_as("x.xyz", data, &small())
 }
 
 /// A DTED cell (`.dt1`): header records, then checksummed columns. When the input's length is even, each
