@@ -11,6 +11,9 @@ use crate::{Error, Heightmap, Result};
 /// rounds coordinates (1/3 m written to the millimetre is off by 0.0015 cells).
 const ON_GRID: f64 = 0.05;
 
+/// Most grid cells a point may stand for: past it the grid would be mostly voids.
+const MAX_CELLS_PER_POINT: u64 = 16;
+
 /// The points of `path`, each as (line number, x, y, z), to `f`; a first line that is not numbers is a
 /// header and skipped. Fields are split by spaces, tabs, commas or semicolons.
 fn points(path: &Path, mut f: impl FnMut(u64, f64, f64, f64) -> Result<()>) -> Result<()> {
@@ -102,6 +105,17 @@ pub(super) fn load(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
     )]
     let (w, h) = (w as u64, h as u64);
     let samples = check_size(path, w, h, opts)?;
+    // A grid mostly of voids is not what the points describe (a stray point, or steps written with
+    // uneven rounding): refused before it is allocated.
+    if samples as u64 > count.saturating_mul(MAX_CELLS_PER_POINT) {
+        return Err(Error::format(
+            path,
+            format!(
+                "{count} points would span {w} x {h} cells of {dx} x {dy}: more than \
+                 {MAX_CELLS_PER_POINT} cells a point is not a grid (a stray point, or uneven steps?)"
+            ),
+        ));
+    }
     let mut heights = vec![f32::NAN; samples];
     let mut filled = vec![false; samples];
     let (scale, offset) = (

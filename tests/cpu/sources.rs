@@ -1117,6 +1117,11 @@ fn xyz_grids() {
             "line 2: `1 0 x` is not three numbers",
         ),
         ("line.xyz", b"0 0 1\n1 0 1\n2 0 1\n", "not a grid"),
+        (
+            "stray.xyz",
+            b"0 0 1\n1 0 1\n0 1 1\n1 1 1\n1000 1000 1\n",
+            "5 points would span 1001 x 1001 cells",
+        ),
     ] {
         let e = load(&write(&dir, name, text)).expect_err(name);
         assert!(e.to_string().contains(needle), "{name}: {e}");
