@@ -142,11 +142,13 @@ pub enum Param {
     PngEncoding,
     /// [`LoadOptions::max_samples`](crate::source::LoadOptions::max_samples).
     MaxSamples,
+    /// [`LoadOptions::nodata`](crate::source::LoadOptions::nodata).
+    Nodata,
 }
 
 impl Param {
     /// Every parameter, so a caller that maps them (the binary to its flags) can check it maps all.
-    pub const ALL: [Param; 8] = [
+    pub const ALL: [Param; 9] = [
         Self::MaxError,
         Self::Tile,
         Self::Codec,
@@ -155,6 +157,7 @@ impl Param {
         Self::RawLayout,
         Self::PngEncoding,
         Self::MaxSamples,
+        Self::Nodata,
     ];
 
     /// The option's name in the library, `Struct::field`; messages quote it in backticks.
@@ -168,6 +171,7 @@ impl Param {
             Self::RawLayout => "LoadOptions::raw",
             Self::PngEncoding => "LoadOptions::png_encoding",
             Self::MaxSamples => "LoadOptions::max_samples",
+            Self::Nodata => "LoadOptions::nodata",
         }
     }
 }
@@ -229,15 +233,20 @@ fn nan_hint(path: &std::path::Path, value: f32) -> &'static str {
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase);
     match ext.as_deref() {
-        Some("tif" | "tiff") if value.is_nan() => {
-            " (if NaN marks voids, declare NaN the nodata value, as GDAL's `gdal_edit.py -a_nodata nan \
-             FILE` does, and they are filled from their neighbours)"
+        _ if !value.is_nan() => "",
+        Some("tif" | "tiff") => {
+            " (if NaN marks voids, give NaN as `LoadOptions::nodata`, or declare NaN the file's nodata value \
+             as GDAL's `gdal_edit.py -a_nodata nan FILE` does, and they are filled from their neighbours)"
         }
-        Some("asc") if value.is_nan() => {
-            " (if NaN marks voids, write `NODATA_value nan` in the header, and they are filled from their \
+        Some("asc") => {
+            " (if NaN marks voids, give NaN as `LoadOptions::nodata`, or write `NODATA_value nan` in the \
+             header, and they are filled from their neighbours)"
+        }
+        Some("png") => "",
+        _ => {
+            " (if NaN marks voids, give NaN as `LoadOptions::nodata`, and they are filled from their \
              neighbours)"
         }
-        _ => "",
     }
 }
 

@@ -142,9 +142,7 @@ pub(super) fn load(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
                     format!("line {line_no}: more samples than ncols x nrows = {width} x {height}"),
                 ));
             }
-            let void = h
-                .nodata
-                .is_some_and(|nd| nd == v || (nd.is_nan() && v.is_nan()));
+            let void = super::is_nodata(opts.nodata.or(h.nodata), v);
             voids |= void;
             let w = usize::try_from(width).unwrap_or(usize::MAX);
             heights.push(super::height(path, v, void, scale, offset, (i % w, i / w))?);

@@ -226,6 +226,7 @@ fn layout(path: &Path, len: u64, k: &Keys, opts: &LoadOptions) -> Result<Layout>
         ));
     }
     let nodata = match &k.nodata {
+        _ if opts.nodata.is_some() => opts.nodata,
         Some(v) if v.eq_ignore_ascii_case("nan") => Some(f64::NAN),
         Some(v) => Some(parse::<f64>(path, "nodata", v)?),
         None => None,
@@ -379,10 +380,7 @@ impl super::RowSource for Rows {
                 .enumerate()
             {
                 let v = self.value(c);
-                let void = self
-                    .layout
-                    .nodata
-                    .is_some_and(|nd| nd == v || (nd.is_nan() && v.is_nan()));
+                let void = super::is_nodata(self.layout.nodata, v);
                 let at = (x, usize::try_from(y).unwrap_or(usize::MAX));
                 *o = height(&self.grid.path, v, void, self.scale, self.offset, at)?;
             }

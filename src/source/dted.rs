@@ -162,7 +162,8 @@ pub(super) fn load(path: &Path, len: u64, opts: &LoadOptions) -> Result<Heightma
             let v = i32::from(raw & 0x7fff) * if raw & 0x8000 != 0 { -1 } else { 1 };
             // Points run south to north; row 0 is north.
             let y = h - 1 - k;
-            heights[y * w + x] = height(path, f64::from(v), v == VOID, scale, offset, (x, y))?;
+            let void = v == VOID || super::is_nodata(opts.nodata, f64::from(v));
+            heights[y * w + x] = height(path, f64::from(v), void, scale, offset, (x, y))?;
         }
     }
     drop(bytes);

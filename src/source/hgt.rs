@@ -45,6 +45,7 @@ pub(super) fn load(path: &Path, len: u64, opts: &LoadOptions) -> Result<Heightma
         .chunks_exact(2)
         .map(|c| match i16::from_be_bytes([c[0], c[1]]) {
             VOID => f32::NAN,
+            v if super::is_nodata(opts.nodata, f64::from(v)) => f32::NAN,
             v => f32::from(v),
         })
         .collect();

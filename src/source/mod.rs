@@ -30,6 +30,11 @@ pub struct LoadOptions {
     /// denser). Off by default: such a grid is drawn with square cells, stretched E-W, as before (frame
     /// hashes recorded from it stay valid).
     pub resample_ew: bool,
+    /// A stored sample value that marks a void, for a file that declares none or another one (it overrides
+    /// the file's): compared with the value as stored, before the height scale and offset, as GDAL
+    /// compares nodata; NaN matches NaN. Voids are filled from their neighbours and counted. Every format
+    /// but PNG.
+    pub nodata: Option<f64>,
 }
 
 /// How a PNG's pixels hold heights.
@@ -86,6 +91,7 @@ impl Default for LoadOptions {
             max_samples: DEFAULT_MAX_SAMPLES,
             png_encoding: PngEncoding::Grey,
             resample_ew: false,
+            nodata: None,
         }
     }
 }
@@ -261,7 +267,11 @@ fn open_format_rows(path: &Path, opts: &LoadOptions) -> Result<Box<dyn RowSource
         if matches!(ext.as_str(), "flt" | "bil") {
             return bil::open_rows(path, meta.len(), opts);
         }
-        return Ok(Box::new(raw::Rows::open(path, meta.len(), opts)?));
+        if opts.nodata.is_none() {
+            return Ok(Box::new(raw::Rows::open(path, meta.len(), opts)?));
+        }
+        // Voids are filled over the whole grid.
+        return Ok(Box::new(Resident::new(load(path, opts)?)));
     }
     if matches!(ext.as_str(), "tif" | "tiff") {
         return tiff::open_rows(path, opts, &read_magic(path)?);
@@ -416,6 +426,16 @@ pub(super) fn height(
         });
     }
     Ok(h)
+}
+
+/// Whether stored value `v` is the void marker `nodata`: NaN matches NaN, and others within a relative
+/// 1e-6 (GDAL prints float nodata such as -3.4028e38 in decimal, not bit-exact).
+pub(super) fn is_nodata(nodata: Option<f64>, v: f64) -> bool {
+    match nodata {
+        None => false,
+        Some(nd) if nd.is_nan() => v.is_nan(),
+        Some(nd) => v == nd || (v - nd).abs() <= 1e-6 * nd.abs(),
+    }
 }
 
 /// How far from 1 the E-W over N-S spacing ratio may be for cells to count as square (left as they are).

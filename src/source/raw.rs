@@ -15,7 +15,12 @@ pub(super) fn load(path: &Path, len: u64, opts: &LoadOptions) -> Result<Heightma
     let (w, h) = (rows.layout.width, rows.layout.height);
     let mut heights = vec![0.0f32; w as usize * h as usize];
     rows.read_rows(0, &mut heights)?;
-    Heightmap::new(path, w, h, rows.grid.spacing, heights)
+    let filled = if opts.nodata.is_some() {
+        super::fill_voids(path, w as usize, &mut heights)?
+    } else {
+        0
+    };
+    Ok(Heightmap::new(path, w, h, rows.grid.spacing, heights)?.with_voids_filled(filled))
 }
 
 /// A raw file read a band of rows at a time by positioned reads (the out-of-core bake's source); the
@@ -27,6 +32,8 @@ pub(super) struct Rows {
     bytes_per: u64,
     scale: f64,
     offset: f32,
+    /// [`LoadOptions::nodata`]: matching samples come back NaN.
+    nodata: Option<f64>,
     bytes: Vec<u8>,
 }
 
@@ -73,6 +80,7 @@ impl Rows {
             bytes_per,
             scale: opts.height_scale.map_or(0.1, f64::from),
             offset: opts.height_offset,
+            nodata: opts.nodata,
             bytes: Vec::new(),
         })
     }
@@ -89,18 +97,37 @@ impl super::RowSource for Rows {
         let per = if self.bytes_per == 2 { 2 } else { 4 };
         self.bytes.resize(out.len() * per, 0);
         super::rows::read_exact_at(&mut self.file, &self.grid.path, at, &mut self.bytes)?;
+        let nodata = self.nodata;
+        let width = self.layout.width as usize;
         match self.layout.format {
             RawFormat::U16 => {
                 let off = f64::from(self.offset);
                 for (o, c) in out.iter_mut().zip(self.bytes.chunks_exact(2)) {
-                    *o = to_f32(f64::from(u16::from_le_bytes([c[0], c[1]])) * self.scale + off);
+                    let v = f64::from(u16::from_le_bytes([c[0], c[1]]));
+                    *o = if super::is_nodata(nodata, v) {
+                        f32::NAN
+                    } else {
+                        to_f32(v * self.scale + off)
+                    };
                 }
             }
             // Non-finite samples stay so, and the bake (or `Heightmap::new`) refuses them with their
-            // position.
+            // position; with a nodata value they are refused here, before voids are filled.
             RawFormat::F32 => {
-                for (o, c) in out.iter_mut().zip(self.bytes.chunks_exact(4)) {
-                    *o = f32::from_le_bytes([c[0], c[1], c[2], c[3]]) + self.offset;
+                for (i, (o, c)) in out.iter_mut().zip(self.bytes.chunks_exact(4)).enumerate() {
+                    let v = f32::from_le_bytes([c[0], c[1], c[2], c[3]]);
+                    *o = match nodata {
+                        Some(_) if super::is_nodata(nodata, f64::from(v)) => f32::NAN,
+                        Some(_) if !v.is_finite() => {
+                            return Err(Error::NonFinite {
+                                path: self.grid.path.clone(),
+                                x: u32::try_from(i % width).unwrap_or(u32::MAX),
+                                y: u32::try_from(i / width).map_or(u32::MAX, |r| r + y0),
+                                value: v,
+                            })
+                        }
+                        _ => v + self.offset,
+                    };
                 }
             }
         }

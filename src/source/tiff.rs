@@ -47,7 +47,7 @@ pub(super) fn load(path: &Path, opts: &LoadOptions, magic: &[u8]) -> Result<Heig
 
     let scale = opts.height_scale.map_or(1.0, f64::from);
     let offset = f64::from(opts.height_offset);
-    let is_void = |v: f64| is_void(nodata, v);
+    let is_void = |v: f64| super::is_nodata(nodata, v);
     let w = width as usize;
     let mut heights: Vec<f32> = match image {
         DecodingResult::I16(v) => convert(path, w, &v, f64::from, is_void, scale, offset)?,
@@ -119,8 +119,10 @@ fn open(path: &Path, opts: &LoadOptions, magic: &[u8]) -> Result<Opened> {
             ))
         }
     }
-    let nodata = tag_ascii(&mut dec, Tag::GdalNodata)
-        .and_then(|s| s.trim().trim_end_matches('\0').trim().parse::<f64>().ok());
+    let nodata = opts.nodata.or_else(|| {
+        tag_ascii(&mut dec, Tag::GdalNodata)
+            .and_then(|s| s.trim().trim_end_matches('\0').trim().parse::<f64>().ok())
+    });
     let geo = GeoTags::read(&mut dec);
     Ok(Opened {
         dec,
@@ -164,20 +166,10 @@ fn unsupported(path: &Path, other: &DecodingResult) -> Error {
     )
 }
 
-/// Whether `v` is a GDAL_NODATA void.
-fn is_void(nodata: Option<f64>, v: f64) -> bool {
-    match nodata {
-        None => false,
-        Some(nd) if nd.is_nan() => v.is_nan(),
-        // Relative tolerance: GDAL prints float nodata such as -3.4028e38 in decimal, not bit-exact.
-        Some(nd) => v == nd || (v - nd).abs() <= 1e-6 * nd.abs(),
-    }
-}
-
 /// Opens a TIFF to be read a band of rows at a time: one row of strips or tiles is decoded at a time
 /// (`Decoder::read_chunk`). A file with voids is loaded whole instead, since they are filled from
 /// neighbours over the whole grid; finding out costs one extra pass over the chunks when the file
-/// declares a nodata value.
+/// declares a nodata value or [`LoadOptions::nodata`] gives one.
 pub(super) fn open_rows(
     path: &Path,
     opts: &LoadOptions,
@@ -297,7 +289,7 @@ impl Rows {
                 for r in 0..dh {
                     for c in 0..dw {
                         let v = at(r * stride + c);
-                        let void = is_void(nodata, v);
+                        let void = super::is_nodata(nodata, v);
                         voids |= void;
                         self.band[r * w + x0 + c] =
                             height(&self.grid.path, v, void, scale, offset, (x0 + c, y0 + r))?;

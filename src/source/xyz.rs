@@ -147,7 +147,8 @@ pub(super) fn load(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
             ));
         }
         filled[i] = true;
-        heights[i] = height(path, z, false, scale, offset, (i % width, i / width))?;
+        let void = super::is_nodata(opts.nodata, z);
+        heights[i] = height(path, z, void, scale, offset, (i % width, i / width))?;
         Ok(())
     })?;
     drop(filled);

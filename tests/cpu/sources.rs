@@ -1128,6 +1128,72 @@ fn xyz_grids() {
     }
 }
 
+/// `LoadOptions::nodata`: a void marker for files that declare none, in every format but PNG; NaN matches
+/// NaN; the rows the bake reads are the load's.
+#[test]
+fn nodata_option_marks_voids() {
+    let dir = temp_dir("nodata");
+    let with = |nd: f64| LoadOptions {
+        nodata: Some(nd),
+        spacing: Some(1.0),
+        ..LoadOptions::default()
+    };
+    // A float32 TIFF with NaN voids and no nodata tag: refused naming the option, filled with it.
+    let (w, h) = (3u32, 2u32);
+    let vals = [1.0f32, f32::NAN, 3.0, 4.0, 5.0, 6.0];
+    let mut tif = one_strip_tiff(w, h, (3, 32), 1, w * h * 4);
+    tif.extend(vals.iter().flat_map(|v| v.to_le_bytes()));
+    let p = write(&dir, "nan.tif", &tif);
+    let e = load(&p).expect_err("NaN without a nodata value");
+    assert!(
+        e.to_string().contains("NaN as `LoadOptions::nodata`"),
+        "{e}"
+    );
+    let hm = source::load(&p, &with(f64::NAN)).unwrap();
+    // The void is the mean of its neighbours 1 (west), 3 (east) and 5 (south).
+    assert_eq!((hm.heights()[1], hm.voids_filled()), (3.0, 1));
+    // A raw u16 file with 0 for voids, scaled after the comparison; the bake reads it whole.
+    let raw: Vec<u8> = [10u16, 0, 30, 40]
+        .iter()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
+    let p = write(&dir, "voids.r16", &raw);
+    let opts = LoadOptions {
+        raw: Some(RawLayout {
+            width: 2,
+            height: 2,
+            format: RawFormat::U16,
+        }),
+        height_scale: Some(0.5),
+        nodata: Some(0.0),
+        ..LoadOptions::default()
+    };
+    let hm = source::load(&p, &opts).unwrap();
+    assert_eq!(
+        (hm.heights(), hm.voids_filled()),
+        (&[5.0, 12.5, 15.0, 20.0][..], 1)
+    );
+    let mut rows = source::open_rows(&p, &opts).expect("open rows");
+    let mut all = vec![0.0f32; 4];
+    rows.read_rows(0, &mut all).expect("rows");
+    assert_eq!(all, hm.heights());
+    // An XYZ file with -9999 for voids; an ASCII grid whose header says -1 while the option says 2.
+    let p = write(&dir, "v.xyz", b"0 0 1\n1 0 -9999\n0 1 3\n1 1 5\n");
+    let hm = source::load(&p, &with(-9999.0)).unwrap();
+    assert_eq!((hm.heights()[3], hm.voids_filled()), (3.0, 1));
+    let p = write(
+        &dir,
+        "o.asc",
+        b"ncols 2\nnrows 2\ncellsize 1\nNODATA_value -1\n-1 2\n3 4\n",
+    );
+    let hm = source::load(&p, &with(2.0)).unwrap();
+    // The void (the 2) is the mean of its neighbours -1 (west) and 4 (south); -1 is a height.
+    assert_eq!(
+        (hm.heights()[0], hm.heights()[1], hm.voids_filled()),
+        (-1.0, 1.5, 1)
+    );
+}
+
 #[test]
 fn raw_u16_and_f32() {
     let dir = temp_dir("raw_ok");

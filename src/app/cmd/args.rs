@@ -277,6 +277,7 @@ pub(crate) fn flag_of(param: Param) -> Option<&'static str> {
         Param::RawLayout => "`--raw-size WxH` (and `--raw-format u16|f32`)",
         Param::PngEncoding => "`--png-encoding`",
         Param::MaxSamples => "`--max-samples`",
+        Param::Nodata => "`--nodata V`",
         _ => return None,
     })
 }

@@ -67,6 +67,11 @@ pub(crate) struct TerrainArgs {
     /// stretched E-W by its N-S / E-W spacing (`clipsat info` shows it: 1.86x at 57.5 N).
     #[arg(long)]
     pub(crate) resample_ew: bool,
+    /// A stored sample value that marks voids (filled from their neighbours), for a file that declares
+    /// none or another: `nan`, -9999, 0... Compared before --height-scale and --height-offset. Every format
+    /// but PNG.
+    #[arg(long, value_name = "V", allow_negative_numbers = true)]
+    pub(crate) nodata: Option<f64>,
 }
 
 /// `--png-encoding`, the command line's name for [`source::PngEncoding`].
@@ -256,6 +261,7 @@ impl TerrainArgs {
             max_samples: self.max_samples,
             png_encoding: self.png_encoding.into(),
             resample_ew: self.resample_ew,
+            nodata: self.nodata,
         };
         Ok(opts)
     }
