@@ -32,8 +32,8 @@ pub struct LoadOptions {
     pub resample_ew: bool,
     /// A stored sample value that marks a void, for a file that declares none or another one (it overrides
     /// the file's): compared with the value as stored, before the height scale and offset, as GDAL
-    /// compares nodata; NaN matches NaN. Voids are filled from their neighbours and counted. Every format
-    /// but PNG.
+    /// compares nodata (a PNG's grey level, or a web-map encoding's decoded metres); NaN matches NaN. Voids
+    /// are filled from their neighbours and counted.
     pub nodata: Option<f64>,
 }
 

@@ -90,7 +90,8 @@ pub(super) fn load(path: &Path, opts: &LoadOptions, magic: &[u8]) -> Result<Heig
     // The decoder hands 16-bit samples over in native byte order.
     let pixel = |p: usize| rgb(&bytes, p, channels, wide.then_some(u16::from_ne_bytes));
     let offset = f64::from(opts.height_offset);
-    let heights: Vec<f32> = match opts.png_encoding {
+    let void = |v: f64| super::is_nodata(opts.nodata, v);
+    let mut heights: Vec<f32> = match opts.png_encoding {
         PngEncoding::Grey => {
             if channels >= 3 {
                 if let Some(p) = (0..samples).find(|&p| {
@@ -109,7 +110,14 @@ pub(super) fn load(path: &Path, opts: &LoadOptions, magic: &[u8]) -> Result<Heig
             let scale = opts.height_scale.map_or(default_scale, f64::from);
             // In f64, so that 0.1 m units land on the nearest f32 (whole metres exactly, as a TIFF holds them).
             (0..samples)
-                .map(|p| to_f32(f64::from(pixel(p)[0]) * scale + offset))
+                .map(|p| {
+                    let v = f64::from(pixel(p)[0]);
+                    if void(v) {
+                        f32::NAN
+                    } else {
+                        to_f32(v * scale + offset)
+                    }
+                })
                 .collect()
         }
         encoding => {
@@ -125,19 +133,26 @@ pub(super) fn load(path: &Path, opts: &LoadOptions, magic: &[u8]) -> Result<Heig
             (0..samples)
                 .map(|p| {
                     let [r, g, b] = pixel(p);
-                    to_f32(encoding.decode(r, g, b) + offset)
+                    let v = encoding.decode(r, g, b);
+                    if void(v) {
+                        f32::NAN
+                    } else {
+                        to_f32(v + offset)
+                    }
                 })
                 .collect()
         }
     };
     drop(bytes);
-    Heightmap::new(
+    let filled = super::fill_voids(path, width as usize, &mut heights)?;
+    Ok(Heightmap::new(
         path,
         width,
         height,
         opts.spacing.unwrap_or(DEFAULT_SPACING_M),
         heights,
-    )
+    )?
+    .with_voids_filled(filled))
 }
 
 /// Pixel `p`'s R, G, B (grey repeated) from samples of `channels` a pixel: bytes, or with `wide` the
@@ -186,7 +201,8 @@ pub(super) fn open_rows(
     opts: &LoadOptions,
     magic: &[u8],
 ) -> Result<Box<dyn super::RowSource>> {
-    match Rows::open(path, opts, magic) {
+    // Voids (a nodata value given) are filled over the whole grid.
+    match Rows::open(path, opts, magic).filter(|_| opts.nodata.is_none()) {
         Some(rows) => Ok(Box::new(rows)),
         None => Ok(Box::new(super::Resident::new(load(path, opts, magic)?))),
     }

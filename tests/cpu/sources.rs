@@ -1128,8 +1128,8 @@ fn xyz_grids() {
     }
 }
 
-/// `LoadOptions::nodata`: a void marker for files that declare none, in every format but PNG; NaN matches
-/// NaN; the rows the bake reads are the load's.
+/// `LoadOptions::nodata`: a void marker for files that declare none; NaN matches NaN; the rows the bake
+/// reads are the load's.
 #[test]
 fn nodata_option_marks_voids() {
     let dir = temp_dir("nodata");
@@ -1175,6 +1175,19 @@ fn nodata_option_marks_voids() {
     );
     let mut rows = source::open_rows(&p, &opts).expect("open rows");
     let mut all = vec![0.0f32; 4];
+    rows.read_rows(0, &mut all).expect("rows");
+    assert_eq!(all, hm.heights());
+    // A 16-bit grey PNG with 0 for voids (compared before the 0.1 m scale); the bake reads it whole.
+    let vals = [10u16, 0, 30, 40, 50, 60];
+    let png = image::ImageBuffer::<image::Luma<u16>, _>::from_fn(3, 2, |x, y| {
+        image::Luma([vals[(y * 3 + x) as usize]])
+    });
+    let p = dir.join("voids.png");
+    png.save(&p).expect("write png");
+    let hm = source::load(&p, &with(0.0)).unwrap();
+    assert_eq!((hm.heights()[1], hm.voids_filled()), (3.0, 1));
+    let mut rows = source::open_rows(&p, &with(0.0)).expect("open rows");
+    let mut all = vec![0.0f32; 6];
     rows.read_rows(0, &mut all).expect("rows");
     assert_eq!(all, hm.heights());
     // An XYZ file with -9999 for voids; an ASCII grid whose header says -1 while the option says 2.

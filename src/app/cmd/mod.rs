@@ -68,8 +68,8 @@ pub(crate) struct TerrainArgs {
     #[arg(long)]
     pub(crate) resample_ew: bool,
     /// A stored sample value that marks voids (filled from their neighbours), for a file that declares
-    /// none or another: `nan`, -9999, 0... Compared before --height-scale and --height-offset. Every format
-    /// but PNG.
+    /// none or another: `nan`, -9999, 0... Compared before --height-scale and --height-offset (a PNG's
+    /// grey level, or a web-map encoding's metres).
     #[arg(long, value_name = "V", allow_negative_numbers = true)]
     pub(crate) nodata: Option<f64>,
 }
