@@ -62,8 +62,8 @@ pub struct Oracle {
 /// level k >= 1 drawn as the 2 x 2 quads of level k - 1 under it (8 triangles), kept when level k - 1
 /// meets epsilon over the node's closed box (level 0 always does), split into its 4 children otherwise.
 /// The descent starts at the quads of the coarsest level. This is the grain a restricted quadtree of fans
-/// changes level at: a fan whose neighbour is one level coarser can drop its midpoint on that side and
-/// share the neighbour's edge, which a mesh of single quads cannot do without extra vertices.
+/// changes level at (single quads can change level too: `measure/stitch.rs`, the oracle's
+/// `balanced_triangles`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct FanGrain {
     /// Triangles of the kept fans (8 each).
@@ -83,6 +83,16 @@ struct LevelErrors {
     cols: usize,
     rows: usize,
     max_px: Vec<f32>,
+}
+
+impl LevelErrors {
+    /// Quad (c, r)'s measured error, where it has a sample in the frustum.
+    fn at(&self, (c, r): (i64, i64)) -> Option<f32> {
+        let (c, r) = (usize::try_from(c).ok()?, usize::try_from(r).ok()?);
+        (c < self.cols && r < self.rows)
+            .then(|| self.max_px[r * self.cols + c])
+            .filter(|&e| e >= 0.0)
+    }
 }
 
 /// The fewest pyramid quads that meet each of `epsilons` over the frustum of `camera` in a viewport
@@ -275,18 +285,13 @@ fn descend(
                 }
             }
             o.fan = fan_grain(&errs, bound, synth, eps);
-            let in_frustum = |(k, c, r): stitch::Node| {
-                let le = &errs[k];
-                let (c, r) = (usize::try_from(c), usize::try_from(r));
-                matches!((c, r), (Ok(c), Ok(r)) if c < le.cols && r < le.rows && le.max_px[r * le.cols + c] >= 0.0)
-            };
-            stitch::balance(&mut kept, top_k as usize, in_frustum);
+            stitch::balance(&mut kept, top_k as usize, |(k, c, r)| {
+                errs[k].at((c, r)).is_some()
+            });
             let stitched = stitch::stitch(&kept, top_k as usize);
             o.balanced_triangles = stitched.len() as u64;
-            o.degenerate_triangles = stitched
-                .iter()
-                .filter(|t| t[0].at == t[1].at || t[1].at == t[2].at || t[0].at == t[2].at)
-                .count() as u64;
+            o.degenerate_triangles =
+                stitched.iter().filter(|t| stitch::collapsed(t)).count() as u64;
             tiles.sort_unstable();
             tiles.dedup();
             o.pool_tiles = tiles.len() as u64;
@@ -304,31 +309,23 @@ fn fan_grain(
     synth: u32,
     eps: f64,
 ) -> FanGrain {
-    use std::collections::HashSet;
     let top = errs.len() - 1;
-    // Node (k, c, r) is quad (c, r) of level k: its measured error, where it has a sample in the frustum.
-    let measured = |k: usize, c: i64, r: i64| {
-        let le = &errs[k];
-        let (c, r) = (usize::try_from(c).ok()?, usize::try_from(r).ok()?);
-        (c < le.cols && r < le.rows)
-            .then(|| le.max_px[r * le.cols + c])
-            .filter(|&e| e >= 0.0)
-    };
-    let in_frustum = |k: usize, c: i64, r: i64| measured(k, c, r).is_some();
-    let mut leaves: HashSet<(usize, i64, i64)> = HashSet::new();
     if top == 0 {
         return FanGrain::default();
     }
+    // Node (k, c, r) is quad (c, r) of level k, in the frustum where it has a sample there.
+    let in_frustum = |(k, c, r): stitch::Node| errs[k].at((c, r)).is_some();
+    let mut leaves: std::collections::HashSet<stitch::Node> = Default::default();
     let t = &errs[top];
     let (cols, rows) = (
         i64::try_from(t.cols).expect("a level's quads fit i64"),
         i64::try_from(t.rows).expect("a level's quads fit i64"),
     );
-    let mut stack: Vec<(usize, i64, i64)> = (0..rows)
+    let mut stack: Vec<stitch::Node> = (0..rows)
         .flat_map(|r| (0..cols).map(move |c| (top, c, r)))
         .collect();
     while let Some((k, c, r)) = stack.pop() {
-        if !in_frustum(k, c, r) {
+        if !in_frustum((k, c, r)) {
             continue;
         }
         // The error of level k - 1 over the node.
@@ -340,7 +337,7 @@ fn fan_grain(
             f(l - 1, (c * s0, r * s0, (c + 1) * s0, (r + 1) * s0))
         } else {
             stitch::children((k, c, r))
-                .filter_map(|(j, a, b)| measured(j, a, b))
+                .filter_map(|(j, a, b)| errs[j].at((a, b)))
                 .fold(0.0f64, |m, e| m.max(f64::from(e)))
         };
         if e <= eps {
@@ -360,7 +357,7 @@ fn fan_grain(
             }
         }
     }
-    stitch::balance(&mut leaves, top, |(k, c, r)| in_frustum(k, c, r));
+    stitch::balance(&mut leaves, top, in_frustum);
     out.balanced_triangles = 8 * leaves.len() as u64;
     out
 }

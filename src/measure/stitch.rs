@@ -73,6 +73,11 @@ pub(crate) struct Corner {
     pub(crate) height: (usize, i64, i64),
 }
 
+/// Whether stitching collapsed triangle `t` to a segment (two corners moved onto one point).
+pub(crate) fn collapsed(t: &[Corner; 3]) -> bool {
+    t[0].at == t[1].at || t[1].at == t[2].at || t[0].at == t[2].at
+}
+
 /// The triangles of balanced `leaves` (levels up to `top`) with every level change stitched as the module
 /// says: two per leaf, in its level's diagonal split, counter-clockwise in (x east, y south) lattice terms
 /// up to the collapses.
@@ -174,8 +179,6 @@ mod tests {
                 }
             }
             let tris = stitch(&leaves, top);
-            let collapsed =
-                |t: &[Corner; 3]| t[0].at == t[1].at || t[1].at == t[2].at || t[0].at == t[2].at;
             assert!(
                 tris.iter().any(collapsed),
                 "seed {seed}: no level change was stitched"
@@ -192,9 +195,8 @@ mod tests {
             // coincide (the collapsed one).
             for t in &tris {
                 let a = area2(t[0].at, t[1].at, t[2].at);
-                let degenerate = t[0].at == t[1].at || t[1].at == t[2].at || t[0].at == t[2].at;
                 assert!(
-                    a > 0 || (a == 0 && degenerate),
+                    a > 0 || (a == 0 && collapsed(t)),
                     "seed {seed}: {t:?} has area {a}"
                 );
             }

@@ -189,7 +189,7 @@ pub(super) fn load(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
 }
 
 /// Reads the next line of `reader` into `line` (replacing it) and counts it; false at the end.
-fn next_line(
+pub(super) fn next_line(
     path: &Path,
     reader: &mut impl BufRead,
     line: &mut String,

@@ -104,23 +104,24 @@ fn read_keys(path: &Path) -> Result<Keys> {
     Ok(k)
 }
 
-/// Parses header value `v` of `key`, naming both when it is not one.
-fn parse<T: std::str::FromStr>(path: &Path, key: &str, v: &str) -> Result<T> {
+/// Parses header value `v` of `key` as a `what`, naming all three when it is not one.
+fn parse<T: std::str::FromStr>(path: &Path, key: &str, v: &str, what: &str) -> Result<T> {
     v.parse().map_err(|_| {
         Error::format(
             path.with_extension("hdr"),
-            format!("`{key}` value `{v}` is not a valid {}", short_type::<T>()),
+            format!("`{key}` value `{v}` is not a valid {what}"),
         )
     })
 }
 
-fn short_type<T>() -> &'static str {
-    let name = std::any::type_name::<T>();
-    if name.contains("f64") {
-        "number"
-    } else {
-        "whole number"
-    }
+/// A count or size in the header.
+fn count<T: std::str::FromStr>(path: &Path, key: &str, v: &str) -> Result<T> {
+    parse(path, key, v, "whole number")
+}
+
+/// A number in the header.
+fn number(path: &Path, key: &str, v: &str) -> Result<f64> {
+    parse(path, key, v, "number")
 }
 
 /// The layout from the header, checked against the file's length `len`.
@@ -131,19 +132,19 @@ fn layout(path: &Path, len: u64, k: &Keys, opts: &LoadOptions) -> Result<Layout>
         .extension()
         .and_then(|e| e.to_str())
         .is_some_and(|e| e.eq_ignore_ascii_case("flt"));
-    let width: u64 = parse(
+    let width: u64 = count(
         path,
         "ncols",
         k.ncols.as_deref().ok_or_else(|| missing("ncols"))?,
     )?;
-    let height: u64 = parse(
+    let height: u64 = count(
         path,
         "nrows",
         k.nrows.as_deref().ok_or_else(|| missing("nrows"))?,
     )?;
     check_size(path, width, height, opts)?;
     if let Some(b) = &k.nbands {
-        let bands: u64 = parse(path, "nbands", b)?;
+        let bands: u64 = count(path, "nbands", b)?;
         if bands != 1 {
             return Err(Error::format(
                 &hdr,
@@ -154,7 +155,7 @@ fn layout(path: &Path, len: u64, k: &Keys, opts: &LoadOptions) -> Result<Layout>
         }
     }
     let bits: u32 = match &k.nbits {
-        Some(b) => parse(path, "nbits", b)?,
+        Some(b) => count(path, "nbits", b)?,
         None if flt => 32,
         None => 8,
     };
@@ -186,13 +187,9 @@ fn layout(path: &Path, len: u64, k: &Keys, opts: &LoadOptions) -> Result<Layout>
             ))
         }
     };
+    let order = k.byteorder.as_deref().map(str::to_ascii_uppercase);
     let big_endian =
-        match k
-            .byteorder
-            .as_deref()
-            .map(str::to_ascii_uppercase)
-            .as_deref()
-        {
+        match order.as_deref() {
             Some("I" | "LSBFIRST") => false,
             Some("M" | "MSBFIRST") => true,
             None if bytes == 1 => false,
@@ -211,12 +208,12 @@ fn layout(path: &Path, len: u64, k: &Keys, opts: &LoadOptions) -> Result<Layout>
             )),
         };
     let skip: u64 = match &k.skipbytes {
-        Some(s) => parse(path, "skipbytes", s)?,
+        Some(s) => count(path, "skipbytes", s)?,
         None => 0,
     };
     let packed = width * bytes as u64;
     let row_bytes: u64 = match &k.totalrowbytes {
-        Some(s) => parse(path, "totalrowbytes", s)?,
+        Some(s) => count(path, "totalrowbytes", s)?,
         None => packed,
     };
     if row_bytes < packed {
@@ -228,7 +225,7 @@ fn layout(path: &Path, len: u64, k: &Keys, opts: &LoadOptions) -> Result<Layout>
     let nodata = match &k.nodata {
         _ if opts.nodata.is_some() => opts.nodata,
         Some(v) if v.eq_ignore_ascii_case("nan") => Some(f64::NAN),
-        Some(v) => Some(parse::<f64>(path, "nodata", v)?),
+        Some(v) => Some(number(path, "nodata", v)?),
         None => None,
     };
     // The last row need not carry its padding.
@@ -269,9 +266,8 @@ fn spacing(path: &Path, k: &Keys, rows: u32, opts: &LoadOptions) -> Result<(f32,
     if let Some(s) = opts.spacing {
         return Ok((s, s));
     }
-    let num = |key: &str, v: &Option<String>| {
-        v.as_deref().map(|v| parse::<f64>(path, key, v)).transpose()
-    };
+    let num =
+        |key: &str, v: &Option<String>| v.as_deref().map(|v| number(path, key, v)).transpose();
     let (dx, dy, yll) = if let Some(c) = num("cellsize", &k.cellsize)? {
         let yll = match (
             num("yllcorner", &k.yllcorner)?,
@@ -393,9 +389,10 @@ impl super::RowSource for Rows {
 /// Loads an ESRI binary grid whole, voids filled from their neighbours and counted.
 ///
 /// The `.hdr` beside it gives `ncols`, `nrows`, the sample type (`NBITS`: 8, 16 or 32, or 64 for
-/// floats; `PIXELTYPE`: `SIGNEDINT`, `UNSIGNEDINT` (ESRI's default) or `FLOAT`; a `.flt` is 32-bit float), the byte order
-/// (`BYTEORDER` I/M or `byteorder` LSBFIRST/MSBFIRST; needed past 8 bits), and optionally `SKIPBYTES`,
-/// `TOTALROWBYTES` and `NODATA`/`NODATA_value`. One band only. The spacing is `cellsize` or
+/// floats; `PIXELTYPE`: `SIGNEDINT`, `UNSIGNEDINT` (ESRI's default) or `FLOAT`; a `.flt` is 32-bit
+/// float), the byte order (`BYTEORDER` I/M or `byteorder` LSBFIRST/MSBFIRST; needed past 8 bits), and
+/// optionally `SKIPBYTES`, `TOTALROWBYTES` and `NODATA`/`NODATA_value` ([`LoadOptions::nodata`] overrides
+/// it). One band only. The spacing is `cellsize` or
 /// `XDIM`/`YDIM`, in degrees where a `.prj` beside the file is geographic (as for ASCII grids);
 /// [`LoadOptions::spacing`] overrides it. Heights are metres times [`LoadOptions::height_scale`] (1
 /// by default) plus the offset.

@@ -174,8 +174,9 @@ impl TerrainSpec {
 }
 
 /// Loads a terrain file, choosing the format from its extension: `.png`, `.tif`/`.tiff`, `.hgt`,
-/// `.dt0`/`.dt1`/`.dt2` (DTED), `.asc` (ESRI ASCII grid), `.xyz` (gridded XYZ points), `.flt`/`.bil` (ESRI binary grids, with their `.hdr`), `.raw`/`.r16`/`.f32` (the raw
-/// ones need [`LoadOptions::raw`]).
+/// `.dt0`/`.dt1`/`.dt2` (DTED), `.asc` (ESRI ASCII grid), `.xyz` (gridded XYZ points), `.flt`/`.bil`
+/// (ESRI binary grids, with their `.hdr`), `.raw`/`.r16`/`.f32` (the raw ones need
+/// [`LoadOptions::raw`]).
 ///
 /// PNG and TIFF files must also start with their magic number. A file with another extension is
 /// accepted when its magic number says PNG, TIFF or DTED. Spacing, when neither the file nor
@@ -234,8 +235,9 @@ fn load_format(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
 }
 
 /// Opens a terrain file to be read a band of rows at a time (the out-of-core bake's source): a raw file
-/// or an ESRI binary grid (one with voids is loaded whole) is read by positioned reads, a GeoTIFF one row of strips or tiles at a time (one with voids is loaded
-/// whole: they are filled over the whole grid), a non-interlaced PNG row by row; the other files are
+/// or an ESRI binary grid is read by positioned reads, a GeoTIFF one row of strips or tiles at a time, a
+/// non-interlaced PNG row by row (any of them with voids is loaded whole: they are filled over the whole
+/// grid; a raw file or PNG given [`LoadOptions::nodata`] always is); the other files are
 /// decoded whole by [`load`] (an SRTM tile or a DTED cell is at most 3601^2 samples; an ASCII grid or
 /// an XYZ file is parsed a line at a time into its heights) and read from memory.
 pub fn open_rows(path: &Path, opts: &LoadOptions) -> Result<Box<dyn RowSource>> {

@@ -117,16 +117,16 @@ impl super::RowSource for Rows {
                 for (i, (o, c)) in out.iter_mut().zip(self.bytes.chunks_exact(4)).enumerate() {
                     let v = f32::from_le_bytes([c[0], c[1], c[2], c[3]]);
                     *o = match nodata {
-                        Some(_) if super::is_nodata(nodata, f64::from(v)) => f32::NAN,
-                        Some(_) if !v.is_finite() => {
-                            return Err(Error::NonFinite {
-                                path: self.grid.path.clone(),
-                                x: u32::try_from(i % width).unwrap_or(u32::MAX),
-                                y: u32::try_from(i / width).map_or(u32::MAX, |r| r + y0),
-                                value: v,
-                            })
-                        }
-                        _ => v + self.offset,
+                        // f64 sum rounded once to f32: the bits of `v + offset` in f32.
+                        Some(_) => super::height(
+                            &self.grid.path,
+                            f64::from(v),
+                            super::is_nodata(nodata, f64::from(v)),
+                            1.0,
+                            f64::from(self.offset),
+                            (i % width, i / width + y0 as usize),
+                        )?,
+                        None => v + self.offset,
                     };
                 }
             }

@@ -1,7 +1,6 @@
 //! Stage 0, the source: gridded XYZ text (`.xyz`, GDAL's XYZ driver, as many LiDAR tools export it): one
 //! `x y z` point per line on a regular grid.
 
-use std::io::BufRead;
 use std::path::Path;
 
 use super::{check_size, fill_voids, height, LoadOptions};
@@ -21,16 +20,7 @@ fn points(path: &Path, mut f: impl FnMut(u64, f64, f64, f64) -> Result<()>) -> R
     let mut reader = std::io::BufReader::new(file);
     let mut line = String::new();
     let mut n = 0u64;
-    loop {
-        line.clear();
-        if reader
-            .read_line(&mut line)
-            .map_err(|e| Error::io(path, "cannot read", e))?
-            == 0
-        {
-            return Ok(());
-        }
-        n += 1;
+    while super::asc::next_line(path, &mut reader, &mut line, &mut n)? {
         let mut fields = line
             .split(|c: char| c.is_ascii_whitespace() || c == ',' || c == ';')
             .filter(|w| !w.is_empty());
@@ -56,6 +46,7 @@ fn points(path: &Path, mut f: impl FnMut(u64, f64, f64, f64) -> Result<()>) -> R
             }
         }
     }
+    Ok(())
 }
 
 /// Loads a gridded XYZ file in two passes over the text (never held whole): the first finds the grid

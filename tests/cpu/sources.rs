@@ -374,6 +374,15 @@ fn f32_tiff(dir: &Path, name: &str, w: u32, h: u32, data: &[f32], geo: bool) -> 
     p
 }
 
+/// Writes each `(name, bytes, needle)` into `dir` and checks that loading it is refused with a message
+/// that contains `needle`.
+fn assert_refused(dir: &Path, cases: &[(&str, &[u8], &str)]) {
+    for &(name, bytes, needle) in cases {
+        let e = load(&write(dir, name, bytes)).expect_err(name);
+        assert!(e.to_string().contains(needle), "{name}: {e}");
+    }
+}
+
 fn assert_format(r: Result<Heightmap, Error>, needle: &str) {
     match r {
         Err(Error::Format { reason, .. }) => assert!(
@@ -575,7 +584,12 @@ fn tiff_nodata_filled_and_geographic_spacing() {
 
 /// Every row of `path` through the bake's reader ([`source::open_rows`]).
 fn rows_of(path: &Path) -> (u32, u32, f32, Vec<f32>) {
-    let mut rows = source::open_rows(path, &LoadOptions::default()).expect("open rows");
+    rows_with(path, &LoadOptions::default())
+}
+
+/// [`rows_of`] with `opts`.
+fn rows_with(path: &Path, opts: &LoadOptions) -> (u32, u32, f32, Vec<f32>) {
+    let mut rows = source::open_rows(path, opts).expect("open rows");
     let (w, h) = (rows.width(), rows.height());
     let mut all = vec![0.0f32; w as usize * h as usize];
     // In uneven bands, to cross strip boundaries.
@@ -784,48 +798,55 @@ fn ascii_grids() {
         (s - 92.6).abs() < 0.1,
         "3 arc-seconds of latitude at 46.5 N: {s} m"
     );
-    for (name, text, needle) in [
-        (
-            "short.asc",
-            &b"ncols 3\nnrows 2\ncellsize 10\n1 2 3\n4\n"[..],
-            "4 samples where the header says 3 x 2",
-        ),
-        (
-            "long.asc",
-            b"ncols 2\nnrows 2\ncellsize 10\n1 2 3 4 5\n",
-            "more samples than",
-        ),
-        (
-            "word.asc",
-            b"ncols 2\nnrows 2\ncellsize 10\n1 x\n",
-            "line 4: sample `x`",
-        ),
-        (
-            "key.asc",
-            b"ncols 2\nnrows 2\nsize 10\n1 2\n",
-            "unknown ASCII grid header key `size`",
-        ),
-        ("nocols.asc", b"nrows 1\ncellsize 10\n1 2\n", "no `ncols`"),
-        (
-            "cell.asc",
-            b"ncols 2\nnrows 2\ncellsize -1\n1 2 3 4\n",
-            "not a positive number",
-        ),
-        (
-            "huge.asc",
-            b"ncols 30000\nnrows 30000\ncellsize 1\n1 2 3\n",
-            "3 samples where the header says 30000 x 30000",
-        ),
-        ("empty.asc", b"ncols 2\nnrows 2\ncellsize 1\n", "no samples"),
-        (
-            "nan.asc",
-            b"ncols 2\nnrows 2\ncellsize 1\n1 nan 3 4\n",
-            "write `NODATA_value nan`",
-        ),
-    ] {
-        let e = load(&write(&dir, name, text)).expect_err(name);
-        assert!(e.to_string().contains(needle), "{name}: {e}");
-    }
+    assert_refused(
+        &dir,
+        &[
+            (
+                "short.asc",
+                &b"ncols 3\nnrows 2\ncellsize 10\n1 2 3\n4\n"[..],
+                "4 samples where the header says 3 x 2",
+            ),
+            (
+                "long.asc",
+                b"ncols 2\nnrows 2\ncellsize 10\n1 2 3 4 5\n",
+                "more samples than",
+            ),
+            (
+                "word.asc",
+                b"ncols 2\nnrows 2\ncellsize 10\n1 x\n",
+                "line 4: sample `x`",
+            ),
+            (
+                "key.asc",
+                b"ncols 2\nnrows 2\nsize 10\n1 2\n",
+                "unknown ASCII grid header key `size`",
+            ),
+            ("nocols.asc", b"nrows 1\ncellsize 10\n1 2\n", "no `ncols`"),
+            (
+                "cell.asc",
+                b"ncols 2\nnrows 2\ncellsize -1\n1 2 3 4\n",
+                "not a positive number",
+            ),
+            (
+                "huge.asc",
+                b"ncols 30000\nnrows 30000\ncellsize 1\n1 2 3\n",
+                "3 samples where the header says 30000 x 30000",
+            ),
+            ("empty.asc", b"ncols 2\nnrows 2\ncellsize 1\n", "no samples"),
+            (
+                "nan.asc",
+                b"ncols 2\nnrows 2\ncellsize 1\n1 nan 3 4\n",
+                "write `NODATA_value nan`",
+            ),
+        ],
+    );
+}
+
+/// Writes an ESRI binary grid `name` and the `.hdr` beside it.
+fn write_gridded(dir: &Path, name: &str, data: &[u8], hdr: &[u8]) -> PathBuf {
+    let p = write(dir, name, data);
+    std::fs::write(p.with_extension("hdr"), hdr).expect("write header");
+    p
 }
 
 /// ESRI binary grids with a `.hdr` (GridFloat `.flt`, BIL `.bil`): every sample type and byte order,
@@ -841,10 +862,10 @@ fn esri_binary_grids() {
     // -4 (west) and 6 (east).
     let mut flt: Vec<u8> = heights.iter().flat_map(|v| v.to_le_bytes()).collect();
     flt[16..20].copy_from_slice(&(-9999.0f32).to_le_bytes());
-    let p = write(&dir, "grid.flt", &flt);
-    write(
+    let p = write_gridded(
         &dir,
-        "grid.hdr",
+        "grid.flt",
+        &flt,
         b"ncols 3\nnrows 2\nxllcorner 500000\nyllcorner 4000000\ncellsize 10\nNODATA_value -9999\nbyteorder LSBFIRST\n",
     );
     let hm = load(&p).unwrap();
@@ -862,27 +883,31 @@ fn esri_binary_grids() {
         bil.extend_from_slice(&[0xee, 0xee]);
     }
     bil.truncate(bil.len() - 2);
-    let p = write(&dir, "be.bil", &bil);
-    write(
+    let p = write_gridded(
         &dir,
-        "be.hdr",
+        "be.bil",
+        &bil,
         b"BYTEORDER M\nLAYOUT BIL\nNROWS 2\nNCOLS 3\nNBANDS 1\nNBITS 16\nPIXELTYPE SIGNEDINT\nSKIPBYTES 4\nTOTALROWBYTES 8\nXDIM 25\nYDIM 25\nSOMEKEY ignored\n",
     );
     let hm = load(&p).unwrap();
     assert_eq!((hm.heights(), hm.spacing()), (&heights[..], 25.0));
     assert_eq!(rows_of(&p).3, hm.heights());
     // Unsigned bytes (ESRI's default type) need no byte order; 32-bit unsigned little-endian.
-    let p = write(&dir, "u8.bil", &[1, 2, 3, 4]);
-    write(&dir, "u8.hdr", b"nrows 2\nncols 2\ncellsize 5\n");
+    let p = write_gridded(
+        &dir,
+        "u8.bil",
+        &[1, 2, 3, 4],
+        b"nrows 2\nncols 2\ncellsize 5\n",
+    );
     assert_eq!(load(&p).unwrap().heights(), &[1.0, 2.0, 3.0, 4.0]);
     let u32s: Vec<u8> = [7u32, 8, 9, 4_000_000]
         .iter()
         .flat_map(|v| v.to_le_bytes())
         .collect();
-    let p = write(&dir, "u32.bil", &u32s);
-    write(
+    let p = write_gridded(
         &dir,
-        "u32.hdr",
+        "u32.bil",
+        &u32s,
         b"nrows 2\nncols 2\nnbits 32\nbyteorder I\ncellsize 5\n",
     );
     assert_eq!(load(&p).unwrap().heights(), &[7.0, 8.0, 9.0, 4_000_000.0]);
@@ -891,18 +916,18 @@ fn esri_binary_grids() {
         .iter()
         .flat_map(|v| v.to_be_bytes())
         .collect();
-    let p = write(&dir, "f64.bil", &f64s);
-    write(
+    let p = write_gridded(
         &dir,
-        "f64.hdr",
+        "f64.bil",
+        &f64s,
         b"nrows 2\nncols 2\nnbits 64\npixeltype float\nbyteorder M\ncellsize 5\n",
     );
     assert_eq!(load(&p).unwrap().heights(), &[1.5, -2.25, 3.0, 1e4]);
     // Degrees: 1 arc-second at 34.5 N (ULYMAP is the north-west sample's centre) with a geographic .prj.
-    let p = write(&dir, "geo.bil", &[0, 1, 0, 2, 0, 3, 0, 4]);
-    write(
+    let p = write_gridded(
         &dir,
-        "geo.hdr",
+        "geo.bil",
+        &[0, 1, 0, 2, 0, 3, 0, 4],
         b"BYTEORDER M\nNROWS 2\nNCOLS 2\nNBITS 16\nULYMAP 34.5\nXDIM 0.000277777777778\nYDIM 0.000277777777778\n",
     );
     assert_format(load(&p), "under 1 cm");
@@ -1058,17 +1083,17 @@ fn dted_cells() {
     order[at + 18 + 5] = 7;
     let mut hemi = cell.clone();
     hemi[19] = b'X';
-    for (name, bytes, needle) in [
-        ("sum.dt1", &sum[..], "column 0: checksum"),
-        ("sentinel.dt1", &sentinel, "column 1: record sentinel 0x00"),
-        ("order.dt1", &order, "says it is column 7"),
-        ("hemi.dt1", &hemi, "latitude of origin `0600000X`"),
-        ("short.dt1", &cell[..cell.len() - 1], "at least"),
-        ("head.dt1", &cell[..100], "truncated DTED cell"),
-    ] {
-        let e = load(&write(&dir, name, bytes)).expect_err(name);
-        assert!(e.to_string().contains(needle), "{name}: {e}");
-    }
+    assert_refused(
+        &dir,
+        &[
+            ("sum.dt1", &sum[..], "column 0: checksum"),
+            ("sentinel.dt1", &sentinel, "column 1: record sentinel 0x00"),
+            ("order.dt1", &order, "says it is column 7"),
+            ("hemi.dt1", &hemi, "latitude of origin `0600000X`"),
+            ("short.dt1", &cell[..cell.len() - 1], "at least"),
+            ("head.dt1", &cell[..100], "truncated DTED cell"),
+        ],
+    );
 }
 
 /// Gridded XYZ text: a header skipped, points in any order and separator, a missing point filled as a
@@ -1083,7 +1108,7 @@ fn xyz_grids() {
     // North row first; the void is the mean of its neighbours 1 (west), 3 (east) and 5 (south).
     assert_eq!(hm.heights(), &[1.0, 3.0, 3.0, 4.0, 5.0, 6.0]);
     assert_eq!(hm.voids_filled(), 1);
-    // Coordinates rounded in the text still find the grid: 0.1 m steps written to 3 decimals over 400
+    // Coordinates rounded in the text still find the grid: 1/3 m steps written to the millimetre over 400
     // columns, north row first.
     let mut t = String::new();
     for row in 0..3 {
@@ -1099,33 +1124,33 @@ fn xyz_grids() {
     let hm = load(&write(&dir, "rounded.xyz", t.as_bytes())).unwrap();
     assert_eq!((hm.width(), hm.height()), (400, 3));
     assert_eq!(hm.heights()[..8], [0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 0.0]);
-    for (name, text, needle) in [
-        (
-            "off.xyz",
-            &b"0 0 1\n2 0 1\n4 0 1\n0 2 1\n2 2 1\n4 2 1\n2.9 2 1\n"[..],
-            "line 7: point (2.9, 2) is off the grid",
-        ),
-        (
-            "twice.xyz",
-            b"0 0 1\n1 0 1\n0 1 1\n1 1 1\n1 1 2\n",
-            "line 5: a second point",
-        ),
-        ("short.xyz", b"0 0 1\n1 0\n", "line 2: expected `x y z`"),
-        (
-            "word.xyz",
-            b"0 0 1\n1 0 x\n",
-            "line 2: `1 0 x` is not three numbers",
-        ),
-        ("line.xyz", b"0 0 1\n1 0 1\n2 0 1\n", "not a grid"),
-        (
-            "stray.xyz",
-            b"0 0 1\n1 0 1\n0 1 1\n1 1 1\n1000 1000 1\n",
-            "5 points would span 1001 x 1001 cells",
-        ),
-    ] {
-        let e = load(&write(&dir, name, text)).expect_err(name);
-        assert!(e.to_string().contains(needle), "{name}: {e}");
-    }
+    assert_refused(
+        &dir,
+        &[
+            (
+                "off.xyz",
+                &b"0 0 1\n2 0 1\n4 0 1\n0 2 1\n2 2 1\n4 2 1\n2.9 2 1\n"[..],
+                "line 7: point (2.9, 2) is off the grid",
+            ),
+            (
+                "twice.xyz",
+                b"0 0 1\n1 0 1\n0 1 1\n1 1 1\n1 1 2\n",
+                "line 5: a second point",
+            ),
+            ("short.xyz", b"0 0 1\n1 0\n", "line 2: expected `x y z`"),
+            (
+                "word.xyz",
+                b"0 0 1\n1 0 x\n",
+                "line 2: `1 0 x` is not three numbers",
+            ),
+            ("line.xyz", b"0 0 1\n1 0 1\n2 0 1\n", "not a grid"),
+            (
+                "stray.xyz",
+                b"0 0 1\n1 0 1\n0 1 1\n1 1 1\n1000 1000 1\n",
+                "5 points would span 1001 x 1001 cells",
+            ),
+        ],
+    );
 }
 
 /// `LoadOptions::nodata`: a void marker for files that declare none; NaN matches NaN; the rows the bake
@@ -1173,10 +1198,7 @@ fn nodata_option_marks_voids() {
         (hm.heights(), hm.voids_filled()),
         (&[5.0, 12.5, 15.0, 20.0][..], 1)
     );
-    let mut rows = source::open_rows(&p, &opts).expect("open rows");
-    let mut all = vec![0.0f32; 4];
-    rows.read_rows(0, &mut all).expect("rows");
-    assert_eq!(all, hm.heights());
+    assert_eq!(rows_with(&p, &opts).3, hm.heights());
     // A 16-bit grey PNG with 0 for voids (compared before the 0.1 m scale); the bake reads it whole.
     let vals = [10u16, 0, 30, 40, 50, 60];
     let png = image::ImageBuffer::<image::Luma<u16>, _>::from_fn(3, 2, |x, y| {
@@ -1186,10 +1208,7 @@ fn nodata_option_marks_voids() {
     png.save(&p).expect("write png");
     let hm = source::load(&p, &with(0.0)).unwrap();
     assert_eq!((hm.heights()[1], hm.voids_filled()), (3.0, 1));
-    let mut rows = source::open_rows(&p, &with(0.0)).expect("open rows");
-    let mut all = vec![0.0f32; 6];
-    rows.read_rows(0, &mut all).expect("rows");
-    assert_eq!(all, hm.heights());
+    assert_eq!(rows_with(&p, &with(0.0)).3, hm.heights());
     // An XYZ file with -9999 for voids; an ASCII grid whose header says -1 while the option says 2.
     let p = write(&dir, "v.xyz", b"0 0 1\n1 0 -9999\n0 1 3\n1 1 5\n");
     let hm = source::load(&p, &with(-9999.0)).unwrap();
