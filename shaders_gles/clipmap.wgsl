@@ -52,7 +52,8 @@ struct DrawUniform {
     // x: the transition width w = n / 10 (GC 6.2); yzw: unused.
     morph_w: vec4<f32>,
     // SAT LOD snapped tiles (`clipsat::cull::Draw::fine`): x: the fine level; y: s, this level's spacing in
-    // fine lattice units (1: not snapped, and the fields below repeat the ones above); zw: unused.
+    // fine lattice units (1: not snapped, and the fields below repeat the ones above); z: a stitched pool
+    // unit's vertex flags (`clipsat::detail::stitch`, 0 otherwise); w: unused.
     fine: vec4<i32>,
     // The clamp rectangle in fine units, inclusive, fine-anchor-relative.
     fine_bounds: vec4<i32>,
@@ -76,7 +77,7 @@ struct DrawUniform {
 // one draw share level, mesh range and program, and differ in these fields. Draws that are not the pool's
 // read instance 0 and ignore it.
 struct PoolCellIn {
-    // xy: mesh origin (tile-relative); z: pool layer + 1; w: unused.
+    // xy: mesh origin (tile-relative); z: pool layer + 1; w: a stitched unit's vertex flags.
     @location(1) origin: vec4<i32>,
     // The clamp rectangle, inclusive, tile-relative.
     @location(2) bounds: vec4<i32>,
@@ -99,16 +100,55 @@ fn draw_of(c: PoolCellIn) -> DrawUniform {
         d.fine_bounds = c.bounds;
         d.anchor_rel = vec4<f32>(c.anchor.xy, draw.anchor_rel.zw);
         d.fine_rel = vec4<f32>(c.anchor.xy, draw.fine_rel.zw);
+        d.fine = vec4<i32>(draw.fine.xy, c.origin.w, draw.fine.w);
     }
     return d;
+}
+
+// A stitched pool unit's vertex rule, operation for operation as `clipsat::detail::stitch::local`: mesh
+// vertex v (0..=2 each) of a unit with flags f goes to xy; z is 1 where the vertex reads z_c. A fine
+// unit's edge midpoint facing a coarse unit collapses onto the edge's end toward -x or -y (flag bits
+// 0..4, sides -y, +x, +y, -x), and a corner a coarse unit touches reads z_c (bits 4..8, corners (0, 0),
+// (2, 0), (2, 2), (0, 2)).
+fn stitch_local(v: vec2<i32>, f: i32) -> vec3<i32> {
+    var x = v.x;
+    var y = v.y;
+    if (y == 0 && x == 1 && (f & 1) != 0) {
+        x = 0;
+    } else if (x == 2 && y == 1 && (f & 2) != 0) {
+        y = 0;
+    } else if (y == 2 && x == 1 && (f & 4) != 0) {
+        x = 0;
+    } else if (x == 0 && y == 1 && (f & 8) != 0) {
+        y = 0;
+    }
+    var corner = -1;
+    if (x == 0 && y == 0) {
+        corner = 0;
+    } else if (x == 2 && y == 0) {
+        corner = 1;
+    } else if (x == 2 && y == 2) {
+        corner = 2;
+    } else if (x == 0 && y == 2) {
+        corner = 3;
+    }
+    var zc = 0;
+    if (corner >= 0 && (f & (16 << u32(corner))) != 0) {
+        zc = 1;
+    }
+    return vec3<i32>(x, y, zc);
 }
 
 // (z, z_c) at anchor-relative lattice point p (p >= 0 inside the active region); a pool draw's z from its
 // tile (pool draws never morph: z_c = z).
 fn clip_fetch(p: vec2<i32>) -> vec2<f32> {
     if (dr.pool.x > 0) {
-        let z = textureLoad(detail, dr.pool.zw + p, dr.pool.x - 1, 0).x;
-        return vec2<f32>(z, z);
+        let t = textureLoad(detail, dr.pool.zw + p, dr.pool.x - 1, 0);
+        if (dr.fine.z != 0) {
+            // A stitched unit: z_c beside z, for the corners coarse units touch (`clip_vertex`).
+            return t.xy;
+        }
+        return vec2<f32>(t.x, t.x);
     }
     let t = (dr.tex.xy + p) % vec2<i32>(dr.origin.w);
     return textureLoad(heights, t, dr.origin.z, 0).xy;
@@ -136,8 +176,9 @@ struct TerrainVertex {
 // snapped SAT LOD tile) a point of this level's surface between its vertices.
 fn clip_vertex(v: vec4<u32>) -> TerrainVertex {
     let s = dr.fine.y;
+    let st = stitch_local(vec2<i32>(v.xy), dr.fine.z);
     let pf = clamp(
-        dr.fine_origin.xy + (dr.origin.xy + vec2<i32>(v.xy)) * s,
+        dr.fine_origin.xy + (dr.origin.xy + st.xy) * s,
         dr.fine_bounds.xy,
         dr.fine_bounds.zw,
     );
@@ -146,7 +187,11 @@ fn clip_vertex(v: vec4<u32>) -> TerrainVertex {
         return snapped_vertex(v, q, pf);
     }
     let p = q / s;
-    let zz = clip_fetch(p);
+    var zz = clip_fetch(p);
+    if (st.z != 0) {
+        // A stitched unit's corner that a coarse unit touches: the coarser level's height there.
+        zz = vec2<f32>(zz.y, zz.y);
+    }
     let alpha = clip_morph_alpha(f32(p.x), f32(p.y)) * globals.params.x;
     // GC 6.2: z' = (1 - alpha) z + alpha z_c.
     let z = (1.0 - alpha) * zz.x + alpha * zz.y;

@@ -162,7 +162,7 @@ pub struct Footprint {
     pub targets: u64,
     /// Uniform buffers: the globals plus one 256-byte slot per draw (`budget.max_draws`).
     pub uniforms: u64,
-    /// The detail pool: one R32F 2D array texture of [`Profile::detail_atlas`]'s layers, each
+    /// The detail pool: one RG32F (z, z_c) 2D array texture of [`Profile::detail_atlas`]'s layers, each
     /// `layer_side`^2 texels.
     pub detail: u64,
     /// The detail pool's cell buffer: one [`POOL_CELL_BYTES`] per-instance record per cell the pool's
@@ -186,8 +186,13 @@ impl Footprint {
 pub const GLOBALS_BYTES: u64 = 144 + 48 * MAX_LEVELS as u64 + 16;
 /// Bytes of one per-draw uniform slot: the GLES 3.0 floor's uniform offset alignment.
 pub const DRAW_SLOT_BYTES: u64 = 256;
-/// Most detail pool cells one plan draws (the instances of the pool's instanced draws; issue 15).
+/// Most detail pool cells one plan draws (issue 15): a cell is drawn whole (one instance) or stitched
+/// (one instance per unit and border side, [`MAX_POOL_INSTANCES`]).
 pub const MAX_POOL_CELLS: usize = 1024;
+/// Most per-instance records the pool's instanced draws may draw in one plan: whole cells and stitched
+/// cells' units. Each takes at least 2 triangles, so a profile's cell buffer holds the fewer of this and
+/// half its triangle budget ([`Profile::pool_cell_capacity`]).
+pub const MAX_POOL_INSTANCES: usize = 1 << 17;
 /// Bytes of one pool cell's per-instance record (`PoolCell` in the plan's uniforms).
 pub const POOL_CELL_BYTES: u64 = 64;
 
@@ -201,7 +206,7 @@ pub const MAX_DETAIL_LAYERS: u32 = MAX_TEXTURE_LAYERS - 1;
 /// ([`DetailAtlas`]), so more tiles than layers. It sizes the plan's fixed pool collections.
 pub const MAX_DETAIL_TILES: u32 = 1024;
 
-/// Where the detail pool's slots lie in its R32F array texture (issue 15): each layer is a grid of
+/// Where the detail pool's slots lie in its RG32F array texture (issue 15): each layer is a grid of
 /// `cols x cols` tiles, `side` texels each, filled row by row, then the next layer. A single tile per
 /// layer while the tiles fit [`MAX_DETAIL_LAYERS`], else the fewest columns that fit them. Pure: the plan
 /// puts each cell's place into its per-instance record (so into its hash), and the renderer uploads there.
@@ -609,19 +614,20 @@ impl Profile {
                 u64::from(a.layer_side())
                     .saturating_mul(u64::from(a.layer_side()))
                     .saturating_mul(u64::from(a.layers))
-                    .saturating_mul(4)
+                    .saturating_mul(8)
             },
             pool_cells: self.pool_cell_capacity() as u64 * POOL_CELL_BYTES,
         }
     }
 
-    /// Cells the detail pool's cell buffer holds: [`MAX_POOL_CELLS`], or one when the pool is off (every
-    /// terrain draw binds the buffer and reads instance 0).
+    /// Records the detail pool's cell buffer holds (whole cells and stitched cells' units): the fewer of
+    /// [`MAX_POOL_INSTANCES`] and half `budget.max_triangles`, at least [`MAX_POOL_CELLS`]; one when the
+    /// pool is off (every terrain draw binds the buffer and reads instance 0).
     pub fn pool_cell_capacity(&self) -> usize {
         if self.budget.detail_tiles == 0 {
             1
         } else {
-            MAX_POOL_CELLS
+            (self.budget.max_triangles as usize / 2).clamp(MAX_POOL_CELLS, MAX_POOL_INSTANCES)
         }
     }
 }

@@ -13,7 +13,7 @@ use glam::{DMat4, DVec3, DVec4, Mat4};
 
 use crate::gpu::readback::Image;
 use crate::plan::clipmap::Clipmap;
-use crate::plan::cull::DrawList;
+use crate::plan::detail::stitch;
 use crate::plan::frame_plan::FramePlan;
 use crate::Camera;
 
@@ -46,14 +46,20 @@ pub enum Drawn {
 )]
 pub fn drawn_height(
     clipmap: &Clipmap,
-    draws: &DrawList,
+    plan: &FramePlan,
     block_quads: u32,
     u: f64,
     v: f64,
 ) -> Drawn {
     let synth = clipmap.synth_levels();
     let mut best = Drawn::Nothing;
-    for d in draws.iter().filter(|d| d.kind.surface()) {
+    let mut keep = |h: f64| {
+        best = Drawn::Height(match best {
+            Drawn::Height(b) => b.max(h),
+            _ => h,
+        });
+    };
+    for d in plan.draws().iter().filter(|d| d.kind.surface()) {
         let c = d.covered(block_quads);
         let f = f64::from(1u32 << d.fine);
         let inside = u >= c.x0 as f64 * f
@@ -65,6 +71,43 @@ pub fn drawn_height(
         };
         let s = f64::from(1u32 << d.level);
         let (x, y) = (u / s, v / s);
+        if d.stitch != 0 {
+            // A stitched cell: the unit under the point, through the stitch rule.
+            let mask = &plan.detail().masks[usize::from(d.stitch) - 1];
+            let (ua, ub) = ((d.bounds.w - 1) / 2, (d.bounds.h - 1) / 2);
+            let a = (((x - c.x0 as f64) / 2.0).floor() as i64).clamp(0, i64::from(ua) - 1);
+            let b = (((y - c.y0 as f64) / 2.0).floor() as i64).clamp(0, i64::from(ub) - 1);
+            let (ux, uy) = (c.x0 + 2 * a, c.y0 + 2 * b);
+            let mut zs = [[0.0f64; 3]; 3];
+            let mut zcs = [[0.0f64; 3]; 3];
+            for j in 0..3 {
+                for i in 0..3 {
+                    let (p, q) = (ux + i as i64, uy + j as i64);
+                    let Some(z) = clipmap.data_height(k, p, q) else {
+                        return Drawn::Unread;
+                    };
+                    zs[j][i] = f64::from(z);
+                    if i % 2 == 0 && j % 2 == 0 {
+                        let Some(zc) = clipmap.data_height(k + 1, p >> 1, q >> 1) else {
+                            return Drawn::Unread;
+                        };
+                        zcs[j][i] = f64::from(zc);
+                    }
+                }
+            }
+            let h = stitch::height(
+                stitch::unit_flags(mask, ua, ub, a, b),
+                stitch::coarse(mask, ua, ub, a, b),
+                &|i, j| zs[j as usize][i as usize],
+                &|i, j| zcs[j as usize][i as usize],
+                x - ux as f64,
+                y - uy as f64,
+            );
+            if let Some(h) = h {
+                keep(h);
+            }
+            continue;
+        }
         let (i, j) = (x.floor() as i64, y.floor() as i64);
         let (fx, fy) = (x - i as f64, y - j as f64);
         let z = |a: i64, b: i64| clipmap.data_height(k, a, b).map(f64::from);
@@ -78,10 +121,7 @@ pub fn drawn_height(
         } else {
             z00 + fx * (z11 - z01) + fy * (z01 - z00)
         };
-        best = Drawn::Height(match best {
-            Drawn::Height(b) => b.max(h),
-            _ => h,
-        });
+        keep(h);
     }
     best
 }
@@ -127,13 +167,7 @@ pub fn ray_below_drawn_surface(
         if !(0..2).all(|k| p[k] >= lo[k] && p[k] <= hi[k]) {
             continue;
         }
-        let z = match drawn_height(
-            clipmap,
-            plan.draws(),
-            block_quads,
-            eu + p.x / g0,
-            ev - p.y / g0,
-        ) {
+        let z = match drawn_height(clipmap, plan, block_quads, eu + p.x / g0, ev - p.y / g0) {
             Drawn::Height(z) => z,
             Drawn::Nothing => continue,
             Drawn::Unread => return true,

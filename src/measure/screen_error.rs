@@ -4,6 +4,7 @@
 use crate::bake::lod_tables::sample_error;
 use crate::plan::clipmap::Clipmap;
 use crate::plan::cull;
+use crate::plan::detail::stitch;
 use crate::plan::frame_plan::FramePlan;
 use crate::plan::lod::Lod;
 use crate::Camera;
@@ -72,7 +73,7 @@ pub fn screen_error(
     let boxes = || {
         plan.draws()
             .iter()
-            .filter(|d| d.kind.surface())
+            .filter(|d| d.kind.surface() && d.stitch == 0)
             .filter_map(move |d| {
                 // In the fine lattice: a snapped tile is its level's surface cut at the piece's edge, so
                 // its level's error map over the covered samples is exact.
@@ -145,6 +146,81 @@ pub fn screen_error(
                 }
                 if !clamped {
                     out.max_px_unclamped = out.max_px_unclamped.max(px);
+                }
+            }
+        }
+    }
+    // Stitched pool cells, unit by unit: a coarse unit is level k + 1's surface and a plain fan level
+    // k's (their error maps); a fan whose corners read z_c or whose midpoints collapse is measured
+    // against the data through the stitched surface itself (`stitch::height`).
+    let pyramid = clipmap.pyramid();
+    let masks = &plan.detail().masks;
+    for d in plan.draws().iter().filter(|d| d.stitch != 0) {
+        let (l, clamped) = (d.level, d.clamped);
+        let Some(k) = l.checked_sub(synth) else {
+            continue;
+        };
+        let mask = &masks[usize::from(d.stitch) - 1];
+        let (ua, ub) = ((d.bounds.w - 1) / 2, (d.bounds.h - 1) / 2);
+        for b in 0..i64::from(ub) {
+            for a in 0..i64::from(ua) {
+                let coarse = stitch::coarse(mask, ua, ub, a, b);
+                let flags = stitch::unit_flags(mask, ua, ub, a, b);
+                let (ux, uy) = (d.bounds.x0 + 2 * a, d.bounds.y0 + 2 * b);
+                let (p0, q0, p1, q1) = (ux << l, uy << l, (ux + 2) << l, (uy + 2) << l);
+                if !(p1 > 0 && q1 > 0 && p0 < last.0 && q0 < last.1) {
+                    continue;
+                }
+                let (x0, y0, x1, y1) = tables.data_box(synth, p0, q0, p1, q1);
+                let z =
+                    |i: u32, j: u32| f64::from(pyramid.at(k, ux + i64::from(i), uy + i64::from(j)));
+                let zc = |i: u32, j: u32| {
+                    f64::from(pyramid.at(k + 1, (ux + i64::from(i)) >> 1, (uy + i64::from(j)) >> 1))
+                };
+                let unit = f64::from(1u32 << k);
+                for y in (y0.next_multiple_of(stride)..y1).step_by(stride as usize) {
+                    for x in (x0.next_multiple_of(stride)..x1).step_by(stride as usize) {
+                        let h0 = f64::from(data.at_clamped(i64::from(x), i64::from(y)));
+                        let rel = glam::DVec3::new(
+                            ox + f64::from(x) * spacing - camera.eye.x,
+                            top - f64::from(y) * spacing - camera.eye.y,
+                            h0 - camera.eye.z,
+                        );
+                        if !frustum.intersects(rel, rel) {
+                            continue;
+                        }
+                        let e = if coarse {
+                            f64::from(sample_error(pyramid, k + 1, x.into(), y.into()))
+                        } else if flags == 0 {
+                            f64::from(sample_error(pyramid, k, x.into(), y.into()))
+                        } else {
+                            #[expect(
+                                clippy::cast_precision_loss,
+                                reason = "lattice offsets in a unit are small"
+                            )]
+                            let (fx, fy) = (
+                                (i64::from(x) - (ux << k)) as f64 / unit,
+                                (i64::from(y) - (uy << k)) as f64 / unit,
+                            );
+                            stitch::height(flags, false, &z, &zc, fx, fy)
+                                .map_or(0.0, |h| (h0 - h).abs())
+                        };
+                        out.samples += 1;
+                        let px = scale.px(rel, e);
+                        if px > out.max_px {
+                            out.max_px = px;
+                            out.max_at = Some(MaxAt {
+                                x,
+                                y,
+                                level: l + u32::from(coarse),
+                                clamped,
+                                pool: true,
+                            });
+                        }
+                        if !clamped {
+                            out.max_px_unclamped = out.max_px_unclamped.max(px);
+                        }
+                    }
                 }
             }
         }

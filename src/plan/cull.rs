@@ -24,12 +24,17 @@ pub enum DrawKind {
     /// A detail pool cell and its tile skirt in one draw (the pool cell mesh,
     /// [`crate::plan::mesh::pool_cells`]), clamped into `bounds`.
     PoolCell,
+    /// A call of a stitched pool cell's units ([`crate::plan::detail::stitch`]), one unit mesh for every
+    /// instance (its fan or its coarse quad); a call kind only: the draw list holds the cell.
+    PoolUnit,
+    /// A call of the skirts under stitched cells' unit sides on their borders; a call kind only.
+    PoolUnitSkirt,
 }
 
 impl DrawKind {
     /// Whether it draws the terrain's surface (a block or pool cell), not only a skirt.
     pub fn surface(self) -> bool {
-        matches!(self, Self::Block | Self::PoolCell)
+        matches!(self, Self::Block | Self::PoolCell | Self::PoolUnit)
     }
 }
 
@@ -56,6 +61,10 @@ pub struct Draw {
     pub clamped: bool,
     /// The detail pool slot the heights come from ([`crate::plan::detail`]); None: the level's ring.
     pub pool: Option<u16>,
+    /// A pool cell drawn stitched ([`crate::plan::detail::stitch`]): 1 + its mask's index in
+    /// [`crate::plan::detail::DetailFrame::masks`]; a unit's own draw (the frame plan's, one instance):
+    /// its vertex flags ([`crate::plan::detail::stitch::unit_flags`]); 0 for every other draw.
+    pub stitch: u16,
 }
 
 impl Draw {
@@ -63,7 +72,11 @@ impl Draw {
     /// clamped into `bounds`.
     pub fn covered(&self, block_quads: u32) -> Rect {
         match self.kind {
-            DrawKind::Skirt | DrawKind::TileSkirt | DrawKind::PoolCell => self.bounds,
+            DrawKind::Skirt
+            | DrawKind::TileSkirt
+            | DrawKind::PoolCell
+            | DrawKind::PoolUnit
+            | DrawKind::PoolUnitSkirt => self.bounds,
             DrawKind::Block => {
                 let q = i64::from(block_quads);
                 let shift = self.level - self.fine;
@@ -360,6 +373,7 @@ pub fn build_draws(
                         quads: params.block_quads,
                         clamped: false,
                         pool: None,
+                        stitch: 0,
                     };
                     let visible = !params.cull || {
                         let c = d.covered(params.block_quads);
@@ -391,6 +405,7 @@ pub fn build_draws(
                     quads: 0,
                     clamped: false,
                     pool: None,
+                    stitch: 0,
                 },
             )?;
             stats.skirts += 1;
@@ -587,6 +602,7 @@ pub fn build_lod_draws(
                         quads: tile.w.max(tile.h) - 1,
                         clamped: b.wanted < b.level,
                         pool: None,
+                        stitch: 0,
                     };
                     let visible = !params.cull || {
                         // Every vertex is a point of the level's surface over the tile's cells.

@@ -161,7 +161,7 @@ pub fn pool_cells(quads: u32) -> Mesh {
     let base = u16::try_from(b.vertices.len()).expect("checked above");
     let mut vertices = b.vertices;
     vertices.extend_from_slice(&l.vertices);
-    let mut indices = Vec::with_capacity(pool_cell_range(quads, quads).end as usize);
+    let mut indices = Vec::with_capacity(pool_cells_indices(quads) as usize);
     for k in 1..=quads {
         indices.extend_from_slice(&b.indices[..block_prefix(k) as usize]);
         let r = skirt_loop_range(quads, k);
@@ -171,7 +171,70 @@ pub fn pool_cells(quads: u32) -> Mesh {
                 .map(|&i| i + base),
         );
     }
+    if quads >= 2 {
+        // A stitched cell's units (`crate::plan::detail::stitch`): the fan is the block's top-left 2 x 2
+        // quads; the coarse quad joins its corners along the same diagonal.
+        indices.extend_from_slice(&b.indices[..block_prefix(2) as usize]);
+        let q = u16::try_from(quads + 1).expect("checked above");
+        let (nw, ne, sw) = (0, 2, 2 * q);
+        indices.extend_from_slice(&[nw, sw, sw + 2, nw, sw + 2, ne]);
+        // Skirt sides from the loop of side 2 (after the loop of side 1's 10 vertices and 24 indices):
+        // side s's two segments, then its one segment corner to corner.
+        let vb = base + 10;
+        for s in 0..4u16 {
+            let r = 24 + 12 * usize::from(s);
+            indices.extend(l.indices[r..r + 12].iter().map(|&i| i + base));
+            let (t0, t1) = (vb + 4 * s, vb + 4 * s + 4);
+            indices.extend_from_slice(&[t0, t0 + 1, t1 + 1, t0, t1 + 1, t1]);
+        }
+    }
     Mesh { vertices, indices }
+}
+
+/// One mesh of a stitched cell's unit (issue 15, [`crate::plan::detail::stitch`]), in the lattice of the
+/// cell's level from the unit's first vertex: a unit is one quad of the next coarser level.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum UnitMesh {
+    /// The unit's four quads of the cell's level (8 triangles around its centre).
+    Fan,
+    /// The one coarser quad, corner to corner (2 triangles).
+    Coarse,
+    /// The skirt under side `side` (0: -y, 1: +x, 2: +y, 3: -x, the skirt loop's order): two segments,
+    /// or one corner to corner when `coarse`.
+    Skirt {
+        /// Which side.
+        side: u8,
+        /// The unit is coarse.
+        coarse: bool,
+    },
+}
+
+/// Indices of [`pool_cells`]`(quads)`: its runs for every k, then (from 2 quads on) the unit meshes.
+fn pool_cells_indices(quads: u32) -> u32 {
+    let runs = pool_cell_range(quads, quads).end;
+    if quads >= 2 {
+        runs + 24 + 6 + 4 * (12 + 6)
+    } else {
+        runs
+    }
+}
+
+/// The index range of [`pool_cells`]`(quads)` (`quads` >= 2) that draws unit mesh `unit`.
+pub fn pool_unit_range(quads: u32, unit: UnitMesh) -> std::ops::Range<u32> {
+    assert!(quads >= 2, "stitched units need cells of 2 quads or more");
+    let first = pool_cell_range(quads, quads).end;
+    match unit {
+        UnitMesh::Fan => first..first + 24,
+        UnitMesh::Coarse => first + 24..first + 30,
+        UnitMesh::Skirt { side, coarse } => {
+            let s = first + 30 + 18 * u32::from(side.min(3));
+            if coarse {
+                s + 12..s + 18
+            } else {
+                s..s + 12
+            }
+        }
+    }
 }
 
 /// Indices of [`pool_cells`]`(quads)`'s run for a cell of `k` quads (1..=quads).
@@ -197,7 +260,7 @@ pub fn pool_cells_bytes(quads: u32) -> u64 {
         loop_vertices += 2 * (4 * side + 1);
         side *= 2;
     }
-    ((q + 1) * (q + 1) + loop_vertices) * 8 + u64::from(pool_cell_range(quads, quads).end) * 2
+    ((q + 1) * (q + 1) + loop_vertices) * 8 + u64::from(pool_cells_indices(quads)) * 2
 }
 
 /// A closed skirt around the square [0, side]^2: for each of the 4 side + 1 boundary points (walked
@@ -238,7 +301,7 @@ mod tests {
     fn pool_cells_are_a_block_prefix_then_its_loop() {
         let (b, l, p) = (block(8), skirt_loops(8), pool_cells(8));
         assert_eq!(p.bytes(), pool_cells_bytes(8));
-        assert_eq!(p.indices.len(), pool_cell_range(8, 8).end as usize);
+        assert_eq!(p.indices.len(), pool_cells_indices(8) as usize);
         let base = b.vertices.len();
         for k in 1..=8u32 {
             let r = pool_cell_range(8, k);
@@ -253,6 +316,48 @@ mod tests {
             {
                 assert_eq!(p.vertices[usize::from(i)], l.vertices[usize::from(j)]);
                 assert!(usize::from(i) >= base);
+            }
+        }
+    }
+
+    #[test]
+    fn unit_meshes_are_the_stitch_rule_s_triangles() {
+        use crate::plan::detail::stitch::surface_triangles;
+        let p = pool_cells(8);
+        let tri = |r: std::ops::Range<u32>| -> Vec<[(u32, u32, u16); 3]> {
+            p.indices[r.start as usize..r.end as usize]
+                .chunks_exact(3)
+                .map(|t| {
+                    [t[0], t[1], t[2]].map(|i| {
+                        let v = p.vertices[usize::from(i)];
+                        (u32::from(v[0]), u32::from(v[1]), v[2])
+                    })
+                })
+                .collect()
+        };
+        for m in [UnitMesh::Fan, UnitMesh::Coarse] {
+            let got: Vec<[(u32, u32); 3]> = tri(pool_unit_range(8, m))
+                .iter()
+                .map(|t| t.map(|(x, y, _)| (x, y)))
+                .collect();
+            assert_eq!(got, surface_triangles(m), "{m:?}");
+        }
+        let sides = [(0, 0), (2, 0), (2, 2), (0, 2), (0, 0)];
+        for side in 0..4u8 {
+            for coarse in [false, true] {
+                let ts = tri(pool_unit_range(8, UnitMesh::Skirt { side, coarse }));
+                assert_eq!(ts.len(), if coarse { 2 } else { 4 });
+                let (a, b) = (sides[usize::from(side)], sides[usize::from(side) + 1]);
+                for t in &ts {
+                    for &(x, y, _) in t {
+                        // On the side's segment, and a coarse skirt only at its corners.
+                        let on = (x == a.0 && x == b.0) || (y == a.1 && y == b.1);
+                        assert!(on, "side {side}: ({x}, {y})");
+                        assert!(!coarse || (x, y) == a || (x, y) == b);
+                    }
+                    // Every triangle hangs from the top to the floor.
+                    assert!(t.iter().any(|v| v.2 == 0) && t.iter().any(|v| v.2 == 1));
+                }
             }
         }
     }

@@ -156,7 +156,8 @@ pub struct DrawUniform {
     /// x: transition width n / 10; y: n; zw: unused.
     pub morph_w: [f32; 4],
     /// SAT LOD snapped tiles ([`cull::Draw::fine`]): x: fine level; y: s, this level's spacing in fine
-    /// lattice units (1: not snapped, and the fine fields repeat the ones above); zw: unused.
+    /// lattice units (1: not snapped, and the fine fields repeat the ones above); z: a stitched pool
+    /// unit's vertex flags (`crate::plan::detail::stitch`, 0 otherwise); w: unused.
     pub fine: [i32; 4],
     /// Clamp rectangle in fine units, inclusive, fine-anchor-relative.
     pub fine_bounds: [i32; 4],
@@ -336,7 +337,7 @@ pub fn detail_draw_uniform(
     )]
     let (fx, fy) = (ax as f64, ay as f64);
     let last = side as i32 - 1;
-    DrawUniform {
+    let mut u = DrawUniform {
         origin: [
             rel(d.origin[0], ax),
             rel(d.origin[1], ay),
@@ -367,7 +368,10 @@ pub fn detail_draw_uniform(
         ],
         ..DrawUniform::default()
     }
-    .unsnapped()
+    .unsnapped();
+    // A stitched unit's vertex flags (`stitch_local` in the shader).
+    u.fine[2] = i32::from(d.stitch & 0xff);
+    u
 }
 
 /// One detail pool cell of an instanced pool draw (issue 15): the fields of its [`detail_draw_uniform`]
@@ -378,7 +382,8 @@ pub fn detail_draw_uniform(
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct PoolCell {
-    /// xy: mesh origin (tile-relative lattice units); z: pool layer + 1; w: unused.
+    /// xy: mesh origin (tile-relative lattice units); z: pool layer + 1; w: a stitched unit's vertex
+    /// flags (`DrawUniform::fine` z; 0 for a whole cell).
     pub origin: [i32; 4],
     /// Clamp rectangle, inclusive, tile-relative: x0, y0, x1, y1.
     pub bounds: [i32; 4],
@@ -393,7 +398,7 @@ impl PoolCell {
     /// The per-cell fields of pool draw uniform `u` ([`detail_draw_uniform`]).
     pub fn of(u: &DrawUniform) -> Self {
         Self {
-            origin: [u.origin[0], u.origin[1], u.pool[0], 0],
+            origin: [u.origin[0], u.origin[1], u.pool[0], u.fine[2]],
             bounds: u.bounds,
             anchor: [u.anchor_rel[0], u.anchor_rel[1], 0.0, 0.0],
             texel: [u.pool[2], u.pool[3], 0, 0],
@@ -419,6 +424,7 @@ impl PoolCell {
         d.anchor_rel[1] = self.anchor[1];
         d.fine_rel[0] = self.anchor[0];
         d.fine_rel[1] = self.anchor[1];
+        d.fine[2] = self.origin[3];
         d
     }
 }

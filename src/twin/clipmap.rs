@@ -5,6 +5,7 @@
 use glam::{Mat4, Vec4};
 
 use crate::plan::clipmap::{morph_alpha, Ring};
+use crate::plan::detail::stitch;
 use crate::plan::frame::Rect;
 use crate::plan::mesh::MeshVertex;
 use crate::plan::uniforms::{DrawUniform, Globals};
@@ -37,19 +38,17 @@ pub fn cpu_vertex(globals: &Globals, u: &DrawUniform, ring: &Ring, v: MeshVertex
 /// [`cpu_vertex`] for a detail pool draw (`u.pool[0] > 0`, issue 15): the heights come from its tile in
 /// the draw's atlas layer, `layer` its `layer_side x layer_side` texels (row-major, each tile as
 /// [`crate::plan::detail::fill_tile`] writes it at its [`crate::profile::DetailAtlas::place`]), read as
-/// `clip_fetch` reads it: at the tile's first texel `u.pool[2..4]` plus the lattice offset (z_c = z).
+/// `clip_fetch` reads it: at the tile's first texel `u.pool[2..4]` plus the lattice offset (a stitched
+/// unit's corners that coarse units touch read z_c, the others z).
 pub fn cpu_detail_vertex(
     globals: &Globals,
     u: &DrawUniform,
-    layer: &[f32],
+    layer: &[[f32; 2]],
     layer_side: u32,
     v: MeshVertex,
 ) -> CpuVertex {
     let w = layer_side as i32;
-    let fetch = |x: i32, y: i32| {
-        let z = layer[((u.pool[3] + y) * w + u.pool[2] + x) as usize];
-        [z, z]
-    };
+    let fetch = |x: i32, y: i32| layer[((u.pool[3] + y) * w + u.pool[2] + x) as usize];
     vertex_with(globals, u, &fetch, v)
 }
 
@@ -65,18 +64,31 @@ fn vertex_with(
     v: MeshVertex,
 ) -> CpuVertex {
     let sn = u.fine[1];
-    let qx = (u.fine_origin[0] + (u.origin[0] + i32::from(v[0])) * sn)
-        .clamp(u.fine_bounds[0], u.fine_bounds[2])
+    // `stitch_local`: a stitched pool unit's vertex rule (flags 0 leave every vertex as it is).
+    #[expect(
+        clippy::cast_possible_truncation,
+        clippy::cast_sign_loss,
+        reason = "the flags are 8 bits"
+    )]
+    let (lx, ly, reads_zc) = stitch::local(u.fine[2] as u16, u32::from(v[0]), u32::from(v[1]));
+    #[expect(clippy::cast_possible_wrap, reason = "mesh coordinates are u16")]
+    let (lx, ly) = (lx as i32, ly as i32);
+    let qx = (u.fine_origin[0] + (u.origin[0] + lx) * sn).clamp(u.fine_bounds[0], u.fine_bounds[2])
         - u.fine_origin[0];
-    let qy = (u.fine_origin[1] + (u.origin[1] + i32::from(v[1])) * sn)
-        .clamp(u.fine_bounds[1], u.fine_bounds[3])
+    let qy = (u.fine_origin[1] + (u.origin[1] + ly) * sn).clamp(u.fine_bounds[1], u.fine_bounds[3])
         - u.fine_origin[1];
     if qx % sn != 0 || qy % sn != 0 {
         let pf = (qx + u.fine_origin[0], qy + u.fine_origin[1]);
         return cpu_snapped_vertex(globals, u, fetch, v, (qx, qy), pf);
     }
     let (px, py) = (qx / sn, qy / sn);
-    let [z, zc] = fetch(px, py);
+    let [mut z, mut zc] = fetch(px, py);
+    if reads_zc {
+        z = zc;
+    } else if u.pool[0] > 0 {
+        // A pool draw never morphs: `clip_fetch` gives (z, z).
+        zc = z;
+    }
     let active = Rect {
         x0: 0,
         y0: 0,

@@ -6,6 +6,7 @@
 use clipsat::bake::lod_tables::P;
 use clipsat::bake::{bake_lod, BakeParams};
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
+use clipsat::plan::cull::DrawKind;
 use clipsat::plan::flight::{Flight, Path};
 use clipsat::plan::frame_plan::{LodSetup, PlanParams, Planner};
 use clipsat::plan::lod::{Lod, LodMode};
@@ -120,8 +121,9 @@ fn lod_selection_allocates_nothing() {
 /// The detail pool (issue 15) while it fills: at a tight epsilon on a flight, every frame keeps the ring
 /// fill plus the pool's tiles within the update budget, the draw calls and triangles within theirs, and
 /// allocates nothing; the pool does fill and serve blocks, its cells drawn as instances (each call covers
-/// the next draws of the list; a pool call's cells share level, mesh and size, one cell each); a second
-/// run of the same flight gives the same plan hashes (deterministic).
+/// the next draws of the list; a pool call's cells share level, mesh and size, one cell each; a stitched
+/// run's unit calls cover its cells, one instance per unit); a second run of the same flight gives the
+/// same plan hashes (deterministic).
 #[test]
 fn detail_pool_fills_within_budgets_without_allocating() {
     let hm = generate(&ProceduralParams {
@@ -131,7 +133,7 @@ fn detail_pool_fills_within_budgets_without_allocating() {
     })
     .expect("procedural");
     let prof = Profile::load("gles3-mid").expect("shipped profile");
-    let run = |counted: bool| -> (Vec<u64>, u32, u32, u32) {
+    let run = |counted: bool| -> (Vec<u64>, u32, u32, u32, usize) {
         let mut cm = Clipmap::new(&hm, &prof, ClipmapOptions::default()).expect("clipmap");
         let lod = lod_tables(&hm, &prof, &cm);
         let flight = Flight::new(Path::Figure8, 60.0, &hm).expect("flight");
@@ -144,6 +146,7 @@ fn detail_pool_fills_within_budgets_without_allocating() {
         };
         let mut hashes = Vec::with_capacity(64);
         let (mut most_tiles, mut most_served, mut most_instances) = (0, 0, 0);
+        let mut stitched_units = 0;
         let b = &prof.budget;
         let n = count(|| {
             for f in 0..48 {
@@ -167,7 +170,26 @@ fn detail_pool_fills_within_budgets_without_allocating() {
                 most_served = most_served.max(s.blocks_from_pool);
                 let draws = plan.draws();
                 let mut next = 0;
+                let mut run = 0..0;
+                let mut instances = 0;
                 for c in plan.planned() {
+                    instances += c.cells.len();
+                    if matches!(c.kind, DrawKind::PoolUnit | DrawKind::PoolUnitSkirt) {
+                        // A run of stitched cells of one level: one call per unit mesh its units use.
+                        assert!(
+                            c.draws == run || c.draws.start == next,
+                            "frame {f}: unit calls cover their runs in order"
+                        );
+                        let d0 = draws[c.draws.start as usize];
+                        for i in c.draws.clone() {
+                            let d = draws[i as usize];
+                            assert!(d.stitch != 0 && d.pool.is_some() && d.level == d0.level);
+                        }
+                        run = c.draws.clone();
+                        next = c.draws.end;
+                        stitched_units += c.cells.len();
+                        continue;
+                    }
                     assert_eq!(
                         c.draws.start, next,
                         "frame {f}: calls cover the draws in order"
@@ -193,9 +215,13 @@ fn detail_pool_fills_within_budgets_without_allocating() {
                     draws.len(),
                     "frame {f}: every draw in a call"
                 );
-                let pool_draws = draws.iter().filter(|d| d.pool.is_some()).count();
-                assert_eq!(plan.pool_cells().len(), pool_draws, "frame {f}");
-                assert_eq!(s.pool_cells as usize, pool_draws, "frame {f}");
+                let whole = draws
+                    .iter()
+                    .filter(|d| d.pool.is_some() && d.stitch == 0)
+                    .count();
+                assert!(plan.pool_cells().len() >= whole, "frame {f}");
+                assert_eq!(plan.pool_cells().len(), instances, "frame {f}");
+                assert_eq!(s.pool_cells as usize, instances, "frame {f}");
                 hashes.push(plan.hash());
             }
         });
@@ -205,14 +231,21 @@ fn detail_pool_fills_within_budgets_without_allocating() {
                 "{n} allocations in 48 planned frames with the detail pool"
             );
         }
-        (hashes, most_tiles, most_served, most_instances)
+        (
+            hashes,
+            most_tiles,
+            most_served,
+            most_instances,
+            stitched_units,
+        )
     };
-    let (first, tiles, served, instances) = run(true);
+    let (first, tiles, served, instances, units) = run(true);
     assert!(
         tiles > 0 && served > 0,
         "the pool never filled ({tiles} tiles) or served ({served} blocks)"
     );
     assert!(instances > 1, "no pool call drew more than one cell");
-    let (second, _, _, _) = run(false);
+    assert!(units > 0, "no cell was drawn stitched");
+    let (second, _, _, _, _) = run(false);
     assert_eq!(first, second, "the same flight gave other plan hashes");
 }

@@ -280,7 +280,7 @@ fn detail_pool_streams_within_budget_without_allocating() {
         let setup = LodSetup::new(LodMode::SatConservative, Some(lod)).expect("setup");
         let mut planner = Planner::new(&p, &cm, setup).expect("planner");
         let mut plan = planner.new_plan();
-        let mut tile = vec![0.0f32; side * side];
+        let mut tile = vec![[0.0f32; 2]; side * side];
         let (mut hashes, mut most, mut written, mut waited) = (Vec::with_capacity(400), 0, 0, 0);
         for t in 0..400u32 {
             // Slow along the circle, so the rings settle and the pool gets budget.
@@ -322,7 +322,7 @@ fn detail_pool_streams_within_budget_without_allocating() {
                     let x = i.clamp(0, i64::from(l.width) - 1) as usize;
                     let y = j.clamp(0, i64::from(l.height) - 1) as usize;
                     let want = levels[u.key.level as usize][y * l.width as usize + x];
-                    assert_eq!(*z, want, "frame {t}: {:?} sample ({i}, {j})", u.key);
+                    assert_eq!(z[0], want, "frame {t}: {:?} sample ({i}, {j})", u.key);
                 }
             }
         }

@@ -264,7 +264,7 @@ fn twin_check(opts: &FrameOptions, pick: Pick) {
     let draws = r.draws().len();
     let picked: Vec<usize> = if pick == Pool {
         (0..draws)
-            .filter(|&k| r.draws()[k].pool.is_some())
+            .filter(|&k| r.draws()[k].pool.is_some() && r.draws()[k].stitch == 0)
             .collect()
     } else if snapped {
         (0..draws)
@@ -281,8 +281,8 @@ fn twin_check(opts: &FrameOptions, pick: Pick) {
     let side = p.detail_side() as usize;
     let atlas = p.detail_atlas();
     let ls = atlas.layer_side() as usize;
-    let mut tile = vec![0.0f32; side * side];
-    let mut layer = vec![f32::NAN; ls * ls];
+    let mut tile = vec![[0.0f32; 2]; side * side];
+    let mut layer = vec![[f32::NAN; 2]; ls * ls];
     let mut checked = 0;
     let mut worst_px = 0.0f64;
     for k in picked {
@@ -293,7 +293,9 @@ fn twin_check(opts: &FrameOptions, pick: Pick) {
             clipsat::plan::cull::DrawKind::Block => mesh::block(p.block_m()),
             clipsat::plan::cull::DrawKind::Skirt => mesh::skirt(p.clipmap.n + 1),
             clipsat::plan::cull::DrawKind::TileSkirt => mesh::skirt_loops(p.block_m()),
-            clipsat::plan::cull::DrawKind::PoolCell => mesh::pool_cells(p.pool_mesh_quads()),
+            clipsat::plan::cull::DrawKind::PoolCell
+            | clipsat::plan::cull::DrawKind::PoolUnit
+            | clipsat::plan::cull::DrawKind::PoolUnitSkirt => mesh::pool_cells(p.pool_mesh_quads()),
         };
         assert_eq!(gpu_clip.len(), m.vertices.len());
         if let Some(slot) = d.pool {
@@ -301,7 +303,7 @@ fn twin_check(opts: &FrameOptions, pick: Pick) {
                 r.plan().detail().resident[usize::from(slot)].expect("a drawn slot is resident");
             assert!(fill_tile(&cm, &key, quads, &mut tile), "resident source");
             // The tile at its place in its layer, as the renderer uploads it (NaN elsewhere).
-            layer.fill(f32::NAN);
+            layer.fill([f32::NAN; 2]);
             let (_, x0, y0) = atlas.place(u32::from(slot));
             for (r, row) in tile.chunks_exact(side).enumerate() {
                 let at = (y0 as usize + r) * ls + x0 as usize;
@@ -330,6 +332,61 @@ fn twin_check(opts: &FrameOptions, pick: Pick) {
             }
             checked += 1;
         }
+    }
+    if pick == Pool {
+        // Stitched cells' units (issue 15): a sample of every unit call's instances, their vertex flags
+        // applied by `stitch_local` on the GPU and `stitch::local` in the twin.
+        let pool_mesh = mesh::pool_cells(p.pool_mesh_quads());
+        let resident = r.plan().detail().resident.clone();
+        let mut units = 0;
+        let mut flagged = 0;
+        for (call, c) in r.plan().planned().iter().enumerate() {
+            if !matches!(
+                c.kind,
+                clipsat::plan::cull::DrawKind::PoolUnit
+                    | clipsat::plan::cull::DrawKind::PoolUnitSkirt
+            ) {
+                continue;
+            }
+            let n = c.instances();
+            for t in (0..n).step_by((n as usize).div_ceil(40).max(1)) {
+                let u = r.plan().instance_uniform(call, t);
+                flagged += u32::from(u.fine[2] != 0);
+                // Its tile: the resident slot placed at its layer and texel.
+                let slots = u32::try_from(resident.len()).expect("slots fit u32");
+                let place = |v: i32| u32::try_from(v).expect("a resident unit's place");
+                let want = (place(u.pool[0] - 1), place(u.pool[2]), place(u.pool[3]));
+                let slot = (0..slots)
+                    .find(|&s| atlas.place(s) == want)
+                    .expect("a unit's tile is resident");
+                let key = resident[slot as usize].expect("resident");
+                assert!(fill_tile(&cm, &key, quads, &mut tile), "resident source");
+                layer.fill([f32::NAN; 2]);
+                let (_, x0, y0) = atlas.place(slot);
+                for (r, row) in tile.chunks_exact(side).enumerate() {
+                    let at = (y0 as usize + r) * ls + x0 as usize;
+                    layer[at..at + side].copy_from_slice(row);
+                }
+                let gpu_clip = probe.capture_instance(&r, call, t).expect("capture");
+                assert_eq!(gpu_clip.len(), pool_mesh.vertices.len());
+                for (v, g) in pool_mesh.vertices.iter().zip(&gpu_clip) {
+                    let c = cpu_detail_vertex(r.globals(), &u, &layer, atlas.layer_side(), *v).clip;
+                    if c[3] > 1.0 {
+                        let px =
+                            |a: f32, w: f32, side: u32| f64::from(a / w) * f64::from(side) * 0.5;
+                        let e = (px(g[0], g[3], W) - px(c[0], c[3], W))
+                            .abs()
+                            .max((px(g[1], g[3], H) - px(c[1], c[3], H)).abs());
+                        worst_px = worst_px.max(e);
+                    }
+                }
+                units += 1;
+            }
+        }
+        assert!(
+            units > 20 && flagged > 0,
+            "{units} units, {flagged} flagged"
+        );
     }
     assert!(checked > 1000 || pick == Pool && checked > 100, "{checked}");
     assert!(worst_px < 0.01, "GPU and CPU twin differ by {worst_px} px");

@@ -171,7 +171,7 @@ impl Renderer {
                 bytemuck::cast_slice(&self.detail_staging),
                 wgpu::TexelCopyBufferLayout {
                     offset: 0,
-                    bytes_per_row: Some(side * 4),
+                    bytes_per_row: Some(side * 8),
                     rows_per_image: Some(side),
                 },
                 wgpu::Extent3d {
@@ -183,7 +183,7 @@ impl Renderer {
             let samples = u64::from(side) * u64::from(side);
             stats.uploads += 1;
             stats.upload_samples += samples;
-            stats.upload_bytes += samples * 4;
+            stats.upload_bytes += samples * 8;
             stats.detail_tiles += 1;
             Ok(())
         };

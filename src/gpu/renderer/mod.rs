@@ -49,7 +49,7 @@ use crate::plan::frame_plan::FramePlan;
 
 const HEIGHT_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rg32Float;
 /// The detail pool's format: z only (pool draws never morph), the same f32 heights as the rings.
-const DETAIL_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Float;
+const DETAIL_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rg32Float;
 /// Bytes per mesh vertex (Uint16x4).
 const VERTEX_BYTES: u64 = std::mem::size_of::<MeshVertex>() as u64;
 
@@ -104,12 +104,12 @@ struct GpuMesh {
 pub struct Renderer {
     ledger: Ledger,
     heights: wgpu::Texture,
-    /// The detail pool (issue 15): tiles of `detail_atlas.side^2` R32F samples, placed by `detail_atlas`.
+    /// The detail pool (issue 15): tiles of `detail_atlas.side^2` RG32F (z, z_c) texels, placed by `detail_atlas`.
     detail: wgpu::Texture,
     detail_atlas: crate::profile::DetailAtlas,
     detail_quads: u32,
     /// One tile's samples, filled from the clipmap's source before each tile upload (allocated once).
-    detail_staging: Vec<f32>,
+    detail_staging: Vec<[f32; 2]>,
     /// The plan (`DetailFrame::seq`) whose pool the texture holds.
     detail_synced: Option<u64>,
     block: GpuMesh,
@@ -346,7 +346,7 @@ impl Renderer {
             detail,
             detail_quads: profile.detail_quads(),
             detail_atlas: atlas,
-            detail_staging: vec![0.0; detail_side as usize * detail_side as usize],
+            detail_staging: vec![[0.0; 2]; detail_side as usize * detail_side as usize],
             detail_synced: None,
             block,
             skirt,
@@ -464,7 +464,7 @@ impl Renderer {
             DrawKind::Block => &self.block,
             DrawKind::Skirt => &self.skirt,
             DrawKind::TileSkirt => &self.tile_skirt,
-            DrawKind::PoolCell => &self.pool_cell,
+            DrawKind::PoolCell | DrawKind::PoolUnit | DrawKind::PoolUnitSkirt => &self.pool_cell,
         }
     }
 }

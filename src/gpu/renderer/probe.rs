@@ -92,18 +92,47 @@ impl VertexProbe {
 
     /// The GPU's clip-space position of every vertex of the last frame's draw `index`, in mesh order.
     pub fn capture(&self, offscreen: &Offscreen<'_>, index: usize) -> Result<Vec<[f32; 4]>> {
-        let gpu = offscreen.gpu();
-        let renderer = offscreen.renderer();
         let draws = offscreen.draws();
-        let d = draws.get(index).ok_or_else(|| Error::Invalid {
-            what: "draw index".into(),
-            reason: format!("{index} is past the {} draws", draws.len()),
-        })?;
-        let m = renderer.mesh(d.kind);
+        if index >= draws.len() {
+            return Err(Error::Invalid {
+                what: "draw index".into(),
+                reason: format!("{index} is past the {} draws", draws.len()),
+            });
+        }
         let (call, instance) = offscreen
             .plan()
             .call_of(index)
-            .expect("every draw is in a call");
+            .ok_or_else(|| Error::Invalid {
+                what: "draw index".into(),
+                reason: format!(
+                    "draw {index} is a stitched cell: capture its units' calls (capture_instance)"
+                ),
+            })?;
+        self.capture_instance(offscreen, call, instance)
+    }
+
+    /// The GPU's clip-space position of every vertex of the mesh of the last frame's call `call`, drawn
+    /// as its instance `instance` (a stitched cell's unit, a pool cell, or 0 for any other call).
+    pub fn capture_instance(
+        &self,
+        offscreen: &Offscreen<'_>,
+        call: usize,
+        instance: u32,
+    ) -> Result<Vec<[f32; 4]>> {
+        let gpu = offscreen.gpu();
+        let renderer = offscreen.renderer();
+        let planned = offscreen.plan().planned();
+        let c = planned.get(call).ok_or_else(|| Error::Invalid {
+            what: "draw call".into(),
+            reason: format!("{call} is past the {} calls", planned.len()),
+        })?;
+        if instance >= c.instances() {
+            return Err(Error::Invalid {
+                what: "instance".into(),
+                reason: format!("{instance} is past call {call}'s {}", c.instances()),
+            });
+        }
+        let m = renderer.mesh(c.kind);
         gpu.scoped("vertex probe", || {
             let mut encoder = gpu.device().create_command_encoder(&Default::default());
             {

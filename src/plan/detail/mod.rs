@@ -25,6 +25,7 @@ use crate::plan::lod::{BlockLod, LodFrame, MAX_LOD_BLOCKS};
 use crate::plan::mesh;
 
 mod refine;
+pub mod stitch;
 use crate::profile::{DetailAtlas, MAX_DETAIL_TILES};
 use crate::{Error, Profile, Result};
 use refine::Quadtree;
@@ -81,29 +82,42 @@ pub struct DetailUpload {
 pub trait DetailSource {
     /// Whether samples `rect` of `level` can be read now (a streamed source: its tiles are resident).
     fn detail_ready(&self, level: u32, rect: &Rect) -> bool;
-    /// The height of `level` at its lattice point (i, j), bit for bit what that ring would hold.
-    fn detail_height(&self, level: u32, i: i64, j: i64) -> f32;
+    /// (z, z_c) of `level` at its lattice point (i, j), bit for bit what that ring would hold: its
+    /// height and the next coarser level's surface there (GC section 3's z_c; at even points the coarser
+    /// sample itself, what a stitched cell's coarse quads read).
+    fn detail_sample(&self, level: u32, i: i64, j: i64) -> [f32; 2];
 }
 
 impl DetailSource for Clipmap {
     fn detail_ready(&self, level: u32, rect: &Rect) -> bool {
-        // Synthesised rings (resident pyramids only) are computed from the data level below them.
-        self.source_ready(level.saturating_sub(self.synth_levels()), rect)
+        // Synthesised rings (resident pyramids only) are computed from the data level below them; z_c
+        // reads the next coarser level under the rectangle's coarse stencil.
+        let synth = self.synth_levels();
+        let coarse = Rect::from_bounds(
+            rect.x0 >> 1,
+            rect.y0 >> 1,
+            ((rect.x1() - 1) >> 1) + 2,
+            ((rect.y1() - 1) >> 1) + 2,
+        );
+        self.source_ready(level.saturating_sub(synth), rect)
+            && (level + 1 >= self.levels()
+                || self.source_ready((level + 1).saturating_sub(synth), &coarse))
     }
 
-    fn detail_height(&self, level: u32, i: i64, j: i64) -> f32 {
-        self.sample(level, i, j)[0]
+    fn detail_sample(&self, level: u32, i: i64, j: i64) -> [f32; 2] {
+        self.sample(level, i, j)
     }
 }
 
-/// Writes tile `key`'s `side x side` samples (side = quads + 3, row-major, border included) into `out`;
-/// false (nothing written) when its source samples are not resident now (a streamed package's tiles
-/// evicted since the plan that filled it: only a renderer re-sending a missed plan's tiles meets this).
-pub fn fill_tile(src: &impl DetailSource, key: &TileKey, quads: u32, out: &mut [f32]) -> bool {
+/// Writes tile `key`'s `side x side` texels (side = quads + 3, row-major, border included), each (z, z_c)
+/// as the rings hold them ([`DetailSource::detail_sample`]), into `out`; false (nothing written) when its
+/// source samples are not resident now (a streamed package's tiles evicted since the plan that filled it:
+/// only a renderer re-sending a missed plan's tiles meets this).
+pub fn fill_tile(src: &impl DetailSource, key: &TileKey, quads: u32, out: &mut [[f32; 2]]) -> bool {
     let side = quads as usize + 3;
     assert!(
         out.len() >= side * side,
-        "a tile buffer holds side^2 samples"
+        "a tile buffer holds side^2 texels"
     );
     if !src.detail_ready(key.level, &key.samples(quads)) {
         return false;
@@ -111,7 +125,7 @@ pub fn fill_tile(src: &impl DetailSource, key: &TileKey, quads: u32, out: &mut [
     let (i0, j0) = key.first_sample(quads);
     for (r, row) in out.chunks_exact_mut(side).take(side).enumerate() {
         for (c, z) in row.iter_mut().enumerate() {
-            *z = src.detail_height(key.level, i0 + c as i64, j0 + r as i64);
+            *z = src.detail_sample(key.level, i0 + c as i64, j0 + r as i64);
         }
     }
     true
@@ -128,6 +142,9 @@ pub struct DetailFrame {
     pub served: heapless::Vec<(u16, u32), MAX_LOD_BLOCKS>,
     /// Per served block: every cell meets epsilon or its wanted level (it no longer counts as clamped).
     pub served_met: heapless::Vec<bool, MAX_LOD_BLOCKS>,
+    /// The coarse units of each cell drawn stitched ([`stitch`]), in draw-list order: a stitched cell's
+    /// draw holds 1 + its index ([`Draw::stitch`]).
+    pub masks: Box<heapless::Vec<stitch::Mask, MAX_DETAIL_CELLS>>,
     /// Samples the uploads write.
     pub samples_updated: u64,
     /// Tiles this plan wanted but whose source samples were not resident yet (a streamed package), as
@@ -197,6 +214,12 @@ pub struct DetailBudget {
     pub block_quads: u32,
     /// Draws and triangles kept per served block for the skirts its neighbours then need.
     pub margin: (u32, u64),
+    /// Cells are drawn stitched ([`stitch`]): each unit whose next coarser level meets epsilon is one
+    /// coarse quad, and a cell costs [`stitch::triangles`].
+    pub stitch: bool,
+    /// Per-instance records the plan's cell buffer holds: a whole cell takes one, a stitched cell one
+    /// per unit and per unit side on its border.
+    pub instances: usize,
 }
 
 impl DetailBudget {
@@ -558,20 +581,31 @@ impl DetailPool {
     /// `cap` is an [`Error::Capacity`].
     pub fn push_draws(
         &self,
-        frame: &DetailFrame,
+        frame: &mut DetailFrame,
         skirts: bool,
         cap: usize,
         out: &mut DrawList,
     ) -> Result<u32> {
         let mut blocks = 0;
+        frame.masks.clear();
         for &(i, _) in &frame.served {
             for l in self.tree.cells.iter().filter(|l| l.block == i) {
                 let slot = self
                     .find(&l.key)
                     .expect("a served block's cells are resident");
+                let stitched = stitch::any(&l.coarse);
+                let stitch = if stitched {
+                    frame
+                        .masks
+                        .push(l.coarse)
+                        .expect("cells <= MAX_DETAIL_CELLS");
+                    u16::try_from(frame.masks.len()).expect("cells <= MAX_DETAIL_CELLS")
+                } else {
+                    0
+                };
                 let d = Draw {
                     level: l.key.level,
-                    kind: if skirts {
+                    kind: if skirts || stitched {
                         DrawKind::PoolCell
                     } else {
                         DrawKind::Block
@@ -582,6 +616,7 @@ impl DetailPool {
                     quads: cell_quads(&l.bounds),
                     clamped: !l.met(self.eps),
                     pool: Some(u16::try_from(slot).expect("slots <= DETAIL_CAPACITY")),
+                    stitch,
                 };
                 cull::push_capped(out, d, cap)?;
                 blocks += 1;

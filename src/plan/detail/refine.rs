@@ -3,7 +3,7 @@
 //! frame's draws and triangles. Pure, deterministic and allocation-free.
 
 use crate::plan::detail::{
-    cell_quads, BoundAt, DetailBudget, DetailView, TileKey, DETAIL_CAPACITY,
+    cell_quads, stitch, BoundAt, DetailBudget, DetailView, TileKey, DETAIL_CAPACITY,
 };
 use crate::plan::frame::Rect;
 use crate::plan::lod::{LodFrame, MAX_LOD_BLOCKS};
@@ -57,9 +57,38 @@ pub(super) struct Cell {
     pub(super) wanted: u32,
     /// Its split does not fit.
     frozen: bool,
+    /// Drawn stitched ([`stitch`]): which of its units are one quad of the next coarser level (none:
+    /// drawn whole).
+    pub(super) coarse: stitch::Mask,
 }
 
 impl Cell {
+    /// Units per side when drawn stitched (each 2 x 2 quads; a cell's corners are even).
+    pub(super) fn units(&self) -> (u32, u32) {
+        ((self.bounds.w - 1) / 2, (self.bounds.h - 1) / 2)
+    }
+
+    /// Per-instance records it takes: one drawn whole; stitched, one per unit and per unit side on its
+    /// border.
+    pub(super) fn instances(&self) -> usize {
+        if stitch::any(&self.coarse) {
+            let (ua, ub) = self.units();
+            (ua * ub + 2 * (ua + ub)) as usize
+        } else {
+            1
+        }
+    }
+
+    /// Triangles it draws: stitched when some unit is coarse, else whole.
+    pub(super) fn triangles(&self, budget: &DetailBudget) -> u64 {
+        if stitch::any(&self.coarse) {
+            let (ua, ub) = self.units();
+            stitch::triangles(&self.coarse, ua, ub)
+        } else {
+            budget.cell_triangles(&self.bounds)
+        }
+    }
+
     /// Whether it is drawn at a level whose bound meets epsilon (or at its block's wanted level).
     pub(super) fn met(&self, eps: f64) -> bool {
         self.bound <= eps || self.key.level <= self.wanted
@@ -81,6 +110,8 @@ pub(super) struct Quadtree {
     cut: Box<Scratch>,
     /// The frame's bounds asked so far.
     memo: Memo,
+    /// Per-instance records its cells take ([`Cell::instances`]).
+    instances: usize,
 }
 
 /// One split's new cells.
@@ -224,6 +255,7 @@ impl Quadtree {
         self.cells.clear();
         self.keys.clear();
         self.groups.clear();
+        self.instances = 0;
         if slots == 0 {
             return Ok(());
         }
@@ -297,7 +329,15 @@ impl Quadtree {
                 if is_cut && cuts[1] == quads {
                     break;
                 }
-                let fitted = self.split(view, lod, bound_at, unit, quads, min, is_cut)?;
+                let fitted = self.split(
+                    view,
+                    lod,
+                    bound_at,
+                    unit,
+                    (quads, budget.stitch),
+                    min,
+                    is_cut,
+                )?;
                 let new = if is_cut { &self.cut } else { &self.new };
                 let cost = self.cost(new, unit, budget, slots).filter(|_| fitted);
                 // Where whole quarters are bound by draws (they start new instanced draws), the cut is
@@ -345,6 +385,7 @@ impl Quadtree {
                 Unit::Block(k) => self.cands[k].refined = true,
                 Unit::Cell(j) => {
                     let old = self.cells.swap_remove(j);
+                    self.instances -= old.instances();
                     count_out(&mut self.keys, &old.key);
                     count_out(&mut self.groups, &group(&old));
                 }
@@ -355,6 +396,7 @@ impl Quadtree {
                     let bx = level0_box(c.key.level, &c.bounds);
                     c.bound = self.memo.get(bound_at, c.key.level, bx, true);
                 }
+                self.instances += c.instances();
                 self.cells
                     .push(c)
                     .expect("checked against MAX_DETAIL_CELLS");
@@ -380,10 +422,10 @@ impl Quadtree {
     ) -> Option<(i64, u64, u64)> {
         let new_keys = unseen(new, |c| c.key, &self.keys);
         let n = new.len();
-        let mut add_t: u64 = new.iter().map(|c| budget.cell_triangles(&c.bounds)).sum();
+        let mut add_t: u64 = new.iter().map(|c| c.triangles(budget)).sum();
         // One instanced draw per (level, cell quads): a cell adds a draw only when it starts a pair.
         let new_groups = unseen(new, group, &self.groups);
-        let (mut freed, mut removed, mut gone) = (0, 0, 0);
+        let (mut freed, mut removed, mut gone, mut dropped) = (0, 0, 0, 0);
         let mut add_d = i64::try_from(new_groups).expect("groups <= capacity");
         let sub_t = match unit {
             Unit::Block(k) => {
@@ -400,13 +442,16 @@ impl Quadtree {
                     gone = 1;
                 }
                 removed = 1;
+                dropped = old.instances();
                 if is_last(&self.keys, &old.key) && !new.iter().any(|c| c.key == old.key) {
                     freed = 1;
                 }
-                budget.cell_triangles(&old.bounds)
+                old.triangles(budget)
             }
         };
+        let added: usize = new.iter().map(Cell::instances).sum();
         let fits = n > 0
+            && self.instances + added - dropped <= budget.instances
             && self.keys.len() + new_keys - freed <= slots
             && self.cells.len() + n - removed <= MAX_DETAIL_CELLS
             && self.groups.len() + new_groups - gone <= MAX_CELL_GROUPS;
@@ -426,7 +471,7 @@ impl Quadtree {
         lod: &LodFrame,
         bound_at: &BoundAt<'_>,
         unit: Unit,
-        quads: u32,
+        (quads, stitched): (u32, bool),
         min_quads: u32,
         to_cut: bool,
     ) -> Result<bool> {
@@ -446,6 +491,7 @@ impl Quadtree {
                         block: c.block,
                         wanted: c.wanted,
                         level: key.level,
+                        stitched,
                     };
                     room = emit(new, view, bound_at, &at, quads, min_quads, fine);
                     Ok(room)
@@ -466,6 +512,7 @@ impl Quadtree {
                                 block: p.block,
                                 wanted: p.wanted,
                                 level: k,
+                                stitched,
                             };
                             room &= emit(new, view, bound_at, &at, quads, min_quads, fine);
                         }
@@ -526,6 +573,8 @@ struct Piece {
     block: u16,
     wanted: u32,
     level: u32,
+    /// Cells are drawn stitched ([`DetailBudget::stitch`]).
+    stitched: bool,
 }
 
 /// The cell over `r` (vertices of `at.level`) in the tile of `at.level` holding it.
@@ -542,6 +591,7 @@ fn cell_at(at: &Piece, level: u32, r: Rect, bound: f64, quads: u32) -> Cell {
         bound,
         wanted: at.wanted,
         frozen: false,
+        coarse: [0; stitch::MAX_UNITS],
     }
 }
 
@@ -572,7 +622,11 @@ fn emit(
     let kept = bound_at(coarse, level0_box(at.level, &fine), false);
     if kept <= eps {
         let r = halve(&fine);
-        return new.push(cell_at(at, coarse, r, kept, quads)).is_ok();
+        let mut c = cell_at(at, coarse, r, kept, quads);
+        if at.stitched {
+            c.coarse = coarse_units(view, bound_at, coarse, &r, eps);
+        }
+        return new.push(c).is_ok();
     }
     let min = i64::from(min_quads);
     let (x1, y1) = (fine.x1() - 1, fine.y1() - 1);
@@ -609,6 +663,38 @@ fn emit(
         }
     }
     // Its bound is asked once the split is taken (`Quadtree::refine`): a split not taken needs none.
-    new.push(cell_at(at, at.level, fine, f64::NAN, quads))
-        .is_ok()
+    let mut c = cell_at(at, at.level, fine, f64::NAN, quads);
+    if at.stitched {
+        c.coarse = coarse_units(view, bound_at, at.level, &fine, eps);
+    }
+    new.push(c).is_ok()
+}
+
+/// The units of a cell over `r` (vertices of `level`) drawn as one quad of the next coarser level
+/// ([`stitch`]): those whose coarser bound meets epsilon (or out of view) and whose neighbours' at their
+/// sides does too ([`stitch::erode`]). None when `r`'s corners are not on the coarser lattice.
+fn coarse_units(
+    view: &DetailView<'_>,
+    bound_at: &mut dyn FnMut(u32, (i64, i64, i64, i64), bool) -> f64,
+    level: u32,
+    r: &Rect,
+    eps: f64,
+) -> stitch::Mask {
+    let mut mask = [0; stitch::MAX_UNITS];
+    let even = r.x0 % 2 == 0 && r.y0 % 2 == 0 && r.w % 2 == 1 && r.h % 2 == 1;
+    if !even {
+        return mask;
+    }
+    let (ua, ub) = ((r.w - 1) / 2, (r.h - 1) / 2);
+    for b in 0..ub.min(stitch::MAX_UNITS_U32) {
+        for a in 0..ua.min(stitch::MAX_UNITS_U32) {
+            let (x, y) = (r.x0 + 2 * i64::from(a), r.y0 + 2 * i64::from(b));
+            let u = Rect::from_bounds(x, y, x + 3, y + 3);
+            if !view.visible(level, &u) || bound_at(level + 1, level0_box(level, &u), false) <= eps
+            {
+                mask[b as usize] |= 1 << a;
+            }
+        }
+    }
+    stitch::erode(&mask, ua, ub)
 }

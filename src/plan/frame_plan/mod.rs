@@ -16,7 +16,7 @@ use bytemuck::Zeroable;
 use crate::hash::Hash64;
 use crate::plan::clipmap::Clipmap;
 use crate::plan::cull::{self, DrawKind, DrawList, DrawParams, DrawStats, MAX_DRAWS};
-use crate::plan::detail::{DetailFrame, DetailPool};
+use crate::plan::detail::{stitch, DetailFrame, DetailPool};
 use crate::plan::fragment::{FragmentPath, FragmentPaths};
 use crate::plan::lod::{Lod, LodFrame, LodMode};
 use crate::plan::mesh;
@@ -27,6 +27,7 @@ use crate::plan::uniforms::{
 use crate::plan::uploads::UploadList;
 
 mod pool;
+mod units;
 use crate::profile::DRAW_SLOT_BYTES;
 use crate::shading::basic::BasicShading;
 use crate::{Camera, Error, Profile, Result};
@@ -160,7 +161,9 @@ pub struct FramePlan {
     detail: Box<DetailFrame>,
     draws: Box<DrawList>,
     ranges: Box<heapless::Vec<PlannedDraw, MAX_DRAWS>>,
-    cells: Box<heapless::Vec<PoolCell, MAX_DRAWS>>,
+    /// Allocated once with [`Profile::pool_cell_capacity`] records; never grown (a full buffer is an
+    /// [`Error::Capacity`]).
+    cells: Vec<PoolCell>,
     slots: Vec<u8>,
     globals: Globals,
     stats: PlanStats,
@@ -210,8 +213,12 @@ impl FramePlan {
         &self.cells
     }
 
-    /// The draw call of draw `i` and its instance there.
+    /// The draw call of draw `i` and its instance there; None for a stitched cell, whose units are
+    /// instances of several calls.
     pub fn call_of(&self, i: usize) -> Option<(usize, u32)> {
+        if self.draws.get(i).is_some_and(|d| d.stitch != 0) {
+            return None;
+        }
         let i = u32::try_from(i).ok()?;
         self.ranges
             .iter()
@@ -223,9 +230,20 @@ impl FramePlan {
     /// over it as the vertex shader's `draw_of` does ([`PoolCell::over`]).
     ///
     /// # Panics
-    /// When `i` is past the draw list.
+    /// When `i` is past the draw list or a stitched cell ([`FramePlan::call_of`]).
     pub fn draw_uniform(&self, i: usize) -> DrawUniform {
-        let (k, instance) = self.call_of(i).expect("draw index within the plan");
+        let (k, instance) = self
+            .call_of(i)
+            .expect("a draw within the plan, not a stitched cell");
+        self.instance_uniform(k, instance)
+    }
+
+    /// The uniforms the vertices of instance `instance` of call `k` see: the call's slot, with a pool
+    /// cell's (or stitched unit's) own fields put over it as `draw_of` does.
+    ///
+    /// # Panics
+    /// When `k` is past the calls.
+    pub fn instance_uniform(&self, k: usize, instance: u32) -> DrawUniform {
         let at = k * SLOT;
         let slot: DrawUniform =
             bytemuck::pod_read_unaligned(&self.slots[at..at + std::mem::size_of::<DrawUniform>()]);
@@ -303,6 +321,8 @@ pub struct Planner {
     skirt_indices: u32,
     max_draws: u32,
     max_triangles: u32,
+    /// Pool cell records a plan holds ([`Profile::pool_cell_capacity`]).
+    cell_capacity: usize,
     aspect: f64,
     skirt_floor: f32,
     /// The data's last sample in level-0 lattice units (east, south).
@@ -383,6 +403,7 @@ impl Planner {
             skirt_indices,
             max_draws: profile.budget.max_draws,
             max_triangles: profile.budget.max_triangles,
+            cell_capacity: profile.pool_cell_capacity(),
             aspect: f64::from(profile.view.width) / f64::from(profile.view.height),
             skirt_floor,
             data_lattice,
@@ -408,7 +429,7 @@ impl Planner {
             detail: Box::default(),
             draws,
             ranges: Box::default(),
-            cells: Box::default(),
+            cells: Vec::with_capacity(self.cell_capacity),
             slots: vec![0; self.max_draws as usize * SLOT],
             globals: Globals::zeroed(),
             stats: PlanStats::default(),
@@ -457,12 +478,30 @@ impl Planner {
             DrawKind::Skirt => 0..self.skirt_indices,
             DrawKind::TileSkirt => mesh::skirt_loop_range(self.block_quads, d.quads),
             DrawKind::PoolCell => mesh::pool_cell_range(self.pool.quads(), d.quads),
+            // Call kinds only (`units.rs`): no draw-list entry has them; a stitched cell (a `PoolCell`
+            // entry) is counted by `triangles_with`.
+            DrawKind::PoolUnit | DrawKind::PoolUnitSkirt => 0..0,
         }
     }
 
     /// Triangles of a draw list.
     fn triangles(&self, draws: &DrawList) -> u64 {
         draws.iter().map(|d| self.triangles_of(d)).sum()
+    }
+
+    /// [`Planner::triangles`] with stitched cells counted by their units (`masks`: the plan's).
+    fn triangles_with(&self, draws: &DrawList, masks: &[stitch::Mask]) -> u64 {
+        draws
+            .iter()
+            .map(|d| {
+                if d.stitch == 0 {
+                    self.triangles_of(d)
+                } else {
+                    let (ua, ub) = ((d.bounds.w - 1) / 2, (d.bounds.h - 1) / 2);
+                    stitch::triangles(&masks[usize::from(d.stitch) - 1], ua, ub)
+                }
+            })
+            .sum()
     }
 
     /// Triangles of draw `d` (a pool cell: its instance's).
@@ -535,13 +574,25 @@ impl Planner {
         };
         out.ranges.clear();
         out.cells.clear();
+        // A plan made by `new_plan` has the room; a clone or another planner's plan gets it once here.
+        if out.cells.capacity() < self.cell_capacity {
+            out.cells.reserve_exact(self.cell_capacity);
+        }
         let mut triangles = 0u64;
         let calls = (self.max_draws as usize).min(MAX_DRAWS);
         let over = || Error::Capacity {
             what: "draw calls per frame (budget.max_draws)",
             capacity: calls,
         };
+        let cells_over = Error::Capacity {
+            what: "pool cell records per frame (Profile::pool_cell_capacity)",
+            capacity: self.cell_capacity,
+        };
         for (k, d) in out.draws.iter().enumerate() {
+            if d.stitch != 0 {
+                // Stitched cells come last (`sort_pool_runs`), drawn by unit below.
+                break;
+            }
             let at = u32::try_from(k).expect("draws <= MAX_DRAWS");
             let indices = self.index_range(d);
             triangles += u64::from((indices.end - indices.start) / 3);
@@ -553,8 +604,11 @@ impl Planner {
                 let place = self.pool.atlas().place(u32::from(slot));
                 let u =
                     detail_draw_uniform(clipmap, camera, d, place, first, self.pool.side(), self.n);
-                let c = u32::try_from(out.cells.len()).expect("cells <= MAX_DRAWS");
-                out.cells.push(PoolCell::of(&u)).map_err(|_| over())?;
+                let c = u32::try_from(out.cells.len()).expect("cells < 2^32");
+                if out.cells.len() >= self.cell_capacity {
+                    return Err(cells_over);
+                }
+                out.cells.push(PoolCell::of(&u));
                 // The previous call's run goes on: same level, mesh range and program.
                 if let Some(last) = out.ranges.last_mut() {
                     let prev = &out.draws[last.draws.start as usize];
@@ -594,6 +648,7 @@ impl Planner {
                 })
                 .map_err(|_| over())?;
         }
+        triangles += self.plan_units(clipmap, camera, &paths, params.skirts, out)?;
         if triangles > u64::from(self.max_triangles) {
             return Err(Error::Capacity {
                 what: "triangles per frame (budget.max_triangles)",
@@ -620,7 +675,7 @@ impl Planner {
         };
         out.stats = PlanStats {
             draws: u32::try_from(out.ranges.len()).expect("calls <= MAX_DRAWS"),
-            pool_cells: u32::try_from(out.cells.len()).expect("cells <= MAX_DRAWS"),
+            pool_cells: u32::try_from(out.cells.len()).expect("cells < 2^32"),
             cull,
             triangles,
             uploads: u32::try_from(out.uploads.len()).expect("uploads <= MAX_PLAN_UPLOADS"),
