@@ -139,16 +139,11 @@ fn stitch_local(v: vec2<i32>, f: i32) -> vec3<i32> {
     return vec3<i32>(x, y, zc);
 }
 
-// (z, z_c) at anchor-relative lattice point p (p >= 0 inside the active region); a pool draw's z from its
-// tile (pool draws never morph: z_c = z).
+// (z, z_c) at anchor-relative lattice point p (p >= 0 inside the active region); a pool draw's from its
+// tile (pool draws never morph, alpha 0, so z_c counts only at a stitched unit's corners, `clip_vertex`).
 fn clip_fetch(p: vec2<i32>) -> vec2<f32> {
     if (dr.pool.x > 0) {
-        let t = textureLoad(detail, dr.pool.zw + p, dr.pool.x - 1, 0);
-        if (dr.fine.z != 0) {
-            // A stitched unit: z_c beside z, for the corners coarse units touch (`clip_vertex`).
-            return t.xy;
-        }
-        return vec2<f32>(t.x, t.x);
+        return textureLoad(detail, dr.pool.zw + p, dr.pool.x - 1, 0).xy;
     }
     let t = (dr.tex.xy + p) % vec2<i32>(dr.origin.w);
     return textureLoad(heights, t, dr.origin.z, 0).xy;

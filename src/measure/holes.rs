@@ -37,8 +37,8 @@ pub enum Drawn {
 /// several blocks meet there (their skirts close the step between them).
 /// Each block or pool cell is its level's piecewise-linear surface of the data pyramid, split along the
 /// (i, j)-(i+1, j+1) diagonal, as `clipmap.wgsl` draws it (SAT LOD draws do not morph; a pool tile holds
-/// its level's pyramid samples), read through [`Clipmap::data_height`]: the resident pyramid, or a
-/// streamed terrain's tile cache.
+/// its level's pyramid samples), and a stitched cell its units' surface ([`stitch::height`]), read
+/// through [`Clipmap::data_height`]: the resident pyramid, or a streamed terrain's tile cache.
 #[expect(
     clippy::cast_possible_truncation,
     clippy::cast_precision_loss,
@@ -74,7 +74,7 @@ pub fn drawn_height(
         if d.stitch != 0 {
             // A stitched cell: the unit under the point, through the stitch rule.
             let mask = &plan.detail().masks[usize::from(d.stitch) - 1];
-            let (ua, ub) = ((d.bounds.w - 1) / 2, (d.bounds.h - 1) / 2);
+            let (ua, ub) = stitch::units(&d.bounds);
             let a = (((x - c.x0 as f64) / 2.0).floor() as i64).clamp(0, i64::from(ua) - 1);
             let b = (((y - c.y0 as f64) / 2.0).floor() as i64).clamp(0, i64::from(ub) - 1);
             let (ux, uy) = (c.x0 + 2 * a, c.y0 + 2 * b);

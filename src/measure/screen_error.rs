@@ -105,33 +105,24 @@ pub fn screen_error(
     };
     let (ox, oy) = clipmap.origin();
     let top = oy + f64::from(data.height() - 1) * spacing;
-    for (l, (clamped, pool), (x0, y0, x1, y1)) in boxes() {
-        // The tables hold level-resolution maxima: the per-sample error comes from the pyramid.
-        let k = l
-            .checked_sub(synth)
-            .filter(|&k| tables.level(k).is_some_and(|t| t.tables().is_some()));
-        let Some(k) = k else {
-            // The data level or finer: no error against the data.
-            continue;
-        };
-        // Aligned to the stride so overlapping boxes visit the same samples.
+    // Visits the samples of data box `bx` in the frustum, aligned to the stride so overlapping boxes
+    // visit the same samples; `err(x, y, h0)` is the vertical error drawn there (h0: the data height).
+    let visit = |out: &mut ScreenError,
+                 (x0, y0, x1, y1): (u32, u32, u32, u32),
+                 (level, clamped, pool): (u32, bool, bool),
+                 err: &dyn Fn(u32, u32, f64) -> f64| {
         for y in (y0.next_multiple_of(stride)..y1).step_by(stride as usize) {
             for x in (x0.next_multiple_of(stride)..x1).step_by(stride as usize) {
-                let z = f64::from(data.at_clamped(i64::from(x), i64::from(y)));
+                let h0 = f64::from(data.at_clamped(i64::from(x), i64::from(y)));
                 let rel = glam::DVec3::new(
                     ox + f64::from(x) * spacing - camera.eye.x,
                     top - f64::from(y) * spacing - camera.eye.y,
-                    z - camera.eye.z,
+                    h0 - camera.eye.z,
                 );
                 if !frustum.intersects(rel, rel) {
                     continue;
                 }
-                let e = f64::from(sample_error(
-                    clipmap.pyramid(),
-                    k.min(40),
-                    i64::from(x),
-                    i64::from(y),
-                ));
+                let e = err(x, y, h0);
                 out.samples += 1;
                 let px = scale.px(rel, e);
                 if px > out.max_px {
@@ -139,7 +130,7 @@ pub fn screen_error(
                     out.max_at = Some(MaxAt {
                         x,
                         y,
-                        level: l,
+                        level,
                         clamped,
                         pool,
                     });
@@ -149,11 +140,24 @@ pub fn screen_error(
                 }
             }
         }
+    };
+    let pyramid = clipmap.pyramid();
+    for (l, (clamped, pool), bx) in boxes() {
+        // The tables hold level-resolution maxima: the per-sample error comes from the pyramid.
+        let k = l
+            .checked_sub(synth)
+            .filter(|&k| tables.level(k).is_some_and(|t| t.tables().is_some()));
+        let Some(k) = k else {
+            // The data level or finer: no error against the data.
+            continue;
+        };
+        visit(&mut out, bx, (l, clamped, pool), &|x, y, _| {
+            f64::from(sample_error(pyramid, k.min(40), x.into(), y.into()))
+        });
     }
     // Stitched pool cells, unit by unit: a coarse unit is level k + 1's surface and a plain fan level
     // k's (their error maps); a fan whose corners read z_c or whose midpoints collapse is measured
     // against the data through the stitched surface itself (`stitch::height`).
-    let pyramid = clipmap.pyramid();
     let masks = &plan.detail().masks;
     for d in plan.draws().iter().filter(|d| d.stitch != 0) {
         let (l, clamped) = (d.level, d.clamped);
@@ -161,7 +165,7 @@ pub fn screen_error(
             continue;
         };
         let mask = &masks[usize::from(d.stitch) - 1];
-        let (ua, ub) = ((d.bounds.w - 1) / 2, (d.bounds.h - 1) / 2);
+        let (ua, ub) = stitch::units(&d.bounds);
         for b in 0..i64::from(ub) {
             for a in 0..i64::from(ua) {
                 let coarse = stitch::coarse(mask, ua, ub, a, b);
@@ -171,25 +175,19 @@ pub fn screen_error(
                 if !(p1 > 0 && q1 > 0 && p0 < last.0 && q0 < last.1) {
                     continue;
                 }
-                let (x0, y0, x1, y1) = tables.data_box(synth, p0, q0, p1, q1);
                 let z =
                     |i: u32, j: u32| f64::from(pyramid.at(k, ux + i64::from(i), uy + i64::from(j)));
                 let zc = |i: u32, j: u32| {
                     f64::from(pyramid.at(k + 1, (ux + i64::from(i)) >> 1, (uy + i64::from(j)) >> 1))
                 };
                 let unit = f64::from(1u32 << k);
-                for y in (y0.next_multiple_of(stride)..y1).step_by(stride as usize) {
-                    for x in (x0.next_multiple_of(stride)..x1).step_by(stride as usize) {
-                        let h0 = f64::from(data.at_clamped(i64::from(x), i64::from(y)));
-                        let rel = glam::DVec3::new(
-                            ox + f64::from(x) * spacing - camera.eye.x,
-                            top - f64::from(y) * spacing - camera.eye.y,
-                            h0 - camera.eye.z,
-                        );
-                        if !frustum.intersects(rel, rel) {
-                            continue;
-                        }
-                        let e = if coarse {
+                let bx = tables.data_box(synth, p0, q0, p1, q1);
+                visit(
+                    &mut out,
+                    bx,
+                    (l + u32::from(coarse), clamped, true),
+                    &|x, y, h0| {
+                        if coarse {
                             f64::from(sample_error(pyramid, k + 1, x.into(), y.into()))
                         } else if flags == 0 {
                             f64::from(sample_error(pyramid, k, x.into(), y.into()))
@@ -204,24 +202,9 @@ pub fn screen_error(
                             );
                             stitch::height(flags, false, &z, &zc, fx, fy)
                                 .map_or(0.0, |h| (h0 - h).abs())
-                        };
-                        out.samples += 1;
-                        let px = scale.px(rel, e);
-                        if px > out.max_px {
-                            out.max_px = px;
-                            out.max_at = Some(MaxAt {
-                                x,
-                                y,
-                                level: l + u32::from(coarse),
-                                clamped,
-                                pool: true,
-                            });
                         }
-                        if !clamped {
-                            out.max_px_unclamped = out.max_px_unclamped.max(px);
-                        }
-                    }
-                }
+                    },
+                );
             }
         }
     }

@@ -34,7 +34,7 @@ pub enum DrawKind {
 impl DrawKind {
     /// Whether it draws the terrain's surface (a block or pool cell), not only a skirt.
     pub fn surface(self) -> bool {
-        matches!(self, Self::Block | Self::PoolCell | Self::PoolUnit)
+        matches!(self, Self::Block | Self::PoolCell)
     }
 }
 
@@ -62,8 +62,7 @@ pub struct Draw {
     /// The detail pool slot the heights come from ([`crate::plan::detail`]); None: the level's ring.
     pub pool: Option<u16>,
     /// A pool cell drawn stitched ([`crate::plan::detail::stitch`]): 1 + its mask's index in
-    /// [`crate::plan::detail::DetailFrame::masks`]; a unit's own draw (the frame plan's, one instance):
-    /// its vertex flags ([`crate::plan::detail::stitch::unit_flags`]); 0 for every other draw.
+    /// [`crate::plan::detail::DetailFrame::masks`]; 0 for every other draw.
     pub stitch: u16,
 }
 

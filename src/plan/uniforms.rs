@@ -337,7 +337,7 @@ pub fn detail_draw_uniform(
     )]
     let (fx, fy) = (ax as f64, ay as f64);
     let last = side as i32 - 1;
-    let mut u = DrawUniform {
+    DrawUniform {
         origin: [
             rel(d.origin[0], ax),
             rel(d.origin[1], ay),
@@ -368,10 +368,7 @@ pub fn detail_draw_uniform(
         ],
         ..DrawUniform::default()
     }
-    .unsnapped();
-    // A stitched unit's vertex flags (`stitch_local` in the shader).
-    u.fine[2] = i32::from(d.stitch & 0xff);
-    u
+    .unsnapped()
 }
 
 /// One detail pool cell of an instanced pool draw (issue 15): the fields of its [`detail_draw_uniform`]

@@ -82,12 +82,9 @@ fn vertex_with(
         return cpu_snapped_vertex(globals, u, fetch, v, (qx, qy), pf);
     }
     let (px, py) = (qx / sn, qy / sn);
-    let [mut z, mut zc] = fetch(px, py);
+    let [mut z, zc] = fetch(px, py);
     if reads_zc {
         z = zc;
-    } else if u.pool[0] > 0 {
-        // A pool draw never morphs: `clip_fetch` gives (z, z).
-        zc = z;
     }
     let active = Rect {
         x0: 0,

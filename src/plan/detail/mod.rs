@@ -212,8 +212,10 @@ pub struct DetailBudget {
     pub skirts: bool,
     /// The block side m: the widest skirt loop (`mesh::skirt_loop_range`).
     pub block_quads: u32,
-    /// Draws and triangles kept per served block for the skirts its neighbours then need.
-    pub margin: (u32, u64),
+    /// Draws kept per served block for the skirts its neighbours then need (their triangles are not
+    /// kept back: the plan's final check holds the triangle budget, dropping the last served block where
+    /// they do not fit).
+    pub margin: u32,
     /// Cells are drawn stitched ([`stitch`]): each unit whose next coarser level meets epsilon is one
     /// coarse quad, and a cell costs [`stitch::triangles`].
     pub stitch: bool,

@@ -63,16 +63,11 @@ pub(super) struct Cell {
 }
 
 impl Cell {
-    /// Units per side when drawn stitched (each 2 x 2 quads; a cell's corners are even).
-    pub(super) fn units(&self) -> (u32, u32) {
-        ((self.bounds.w - 1) / 2, (self.bounds.h - 1) / 2)
-    }
-
     /// Per-instance records it takes: one drawn whole; stitched, one per unit and per unit side on its
     /// border.
     pub(super) fn instances(&self) -> usize {
         if stitch::any(&self.coarse) {
-            let (ua, ub) = self.units();
+            let (ua, ub) = stitch::units(&self.bounds);
             (ua * ub + 2 * (ua + ub)) as usize
         } else {
             1
@@ -82,7 +77,7 @@ impl Cell {
     /// Triangles it draws: stitched when some unit is coarse, else whole.
     pub(super) fn triangles(&self, budget: &DetailBudget) -> u64 {
         if stitch::any(&self.coarse) {
-            let (ua, ub) = self.units();
+            let (ua, ub) = stitch::units(&self.bounds);
             stitch::triangles(&self.coarse, ua, ub)
         } else {
             budget.cell_triangles(&self.bounds)
@@ -422,7 +417,7 @@ impl Quadtree {
     ) -> Option<(i64, u64, u64)> {
         let new_keys = unseen(new, |c| c.key, &self.keys);
         let n = new.len();
-        let mut add_t: u64 = new.iter().map(|c| c.triangles(budget)).sum();
+        let add_t: u64 = new.iter().map(|c| c.triangles(budget)).sum();
         // One instanced draw per (level, cell quads): a cell adds a draw only when it starts a pair.
         let new_groups = unseen(new, group, &self.groups);
         let (mut freed, mut removed, mut gone, mut dropped) = (0, 0, 0, 0);
@@ -430,8 +425,7 @@ impl Quadtree {
         let sub_t = match unit {
             Unit::Block(k) => {
                 // Its ring draws leave the list (plan_detail's final check still holds the budget).
-                add_d += i64::from(budget.margin.0);
-                add_t += budget.margin.1;
+                add_d += i64::from(budget.margin);
                 self.cands[k].credit
             }
             Unit::Cell(j) => {
@@ -591,7 +585,7 @@ fn cell_at(at: &Piece, level: u32, r: Rect, bound: f64, quads: u32) -> Cell {
         bound,
         wanted: at.wanted,
         frozen: false,
-        coarse: [0; stitch::MAX_UNITS],
+        coarse: [0; stitch::MAX_UNITS as usize],
     }
 }
 
@@ -680,14 +674,14 @@ fn coarse_units(
     r: &Rect,
     eps: f64,
 ) -> stitch::Mask {
-    let mut mask = [0; stitch::MAX_UNITS];
+    let mut mask: stitch::Mask = [0; stitch::MAX_UNITS as usize];
     let even = r.x0 % 2 == 0 && r.y0 % 2 == 0 && r.w % 2 == 1 && r.h % 2 == 1;
     if !even {
         return mask;
     }
-    let (ua, ub) = ((r.w - 1) / 2, (r.h - 1) / 2);
-    for b in 0..ub.min(stitch::MAX_UNITS_U32) {
-        for a in 0..ua.min(stitch::MAX_UNITS_U32) {
+    let (ua, ub) = stitch::units(r);
+    for b in 0..ub.min(stitch::MAX_UNITS) {
+        for a in 0..ua.min(stitch::MAX_UNITS) {
             let (x, y) = (r.x0 + 2 * i64::from(a), r.y0 + 2 * i64::from(b));
             let u = Rect::from_bounds(x, y, x + 3, y + 3);
             if !view.visible(level, &u) || bound_at(level + 1, level0_box(level, &u), false) <= eps

@@ -9,16 +9,20 @@
 //! the same vertex rule, to meet other cells and the rings as whole cells do. Pure CPU; the vertex
 //! shader's `stitch_local` is [`local`]'s twin.
 
+use crate::plan::frame::Rect;
 use crate::plan::mesh::UnitMesh;
 
 /// Most units per cell side: a 64-quad tile (the largest a profile allows is the block side m <= 64).
-pub const MAX_UNITS: usize = 32;
-
-/// [`MAX_UNITS`] as a unit count.
-pub const MAX_UNITS_U32: u32 = 32;
+pub const MAX_UNITS: u32 = 32;
 
 /// Which units of a cell are coarse: bit a of row b is unit (a, b).
-pub type Mask = [u32; MAX_UNITS];
+pub type Mask = [u32; MAX_UNITS as usize];
+
+/// The units (columns, rows) of a cell over vertex rectangle `r`: 2 x 2 quads each (its corners are
+/// even).
+pub fn units(r: &Rect) -> (u32, u32) {
+    ((r.w - 1) / 2, (r.h - 1) / 2)
+}
 
 /// Flag bit: a fine unit's side s midpoint collapses (s: 0 -y, 1 +x, 2 +y, 3 -x; bits 0..4).
 pub const COLLAPSE: u16 = 1;
@@ -129,7 +133,7 @@ pub fn triangles(mask: &Mask, ua: u32, ub: u32) -> u64 {
 /// within it (measured: without this, 1.23 px on Puget Sound at epsilon 1; a unit touching a coarse one
 /// only at a corner, one z_c vertex, stays within it).
 pub fn erode(meets: &Mask, ua: u32, ub: u32) -> Mask {
-    let mut out = [0; MAX_UNITS];
+    let mut out: Mask = [0; MAX_UNITS as usize];
     for (b, row) in out.iter_mut().enumerate().take(ub as usize) {
         let b = i64::try_from(b).expect("b < MAX_UNITS");
         for a in 0..i64::from(ua) {
@@ -268,7 +272,7 @@ mod tests {
         let mut rng = Lcg(7);
         for round in 0..60u64 {
             let (ua, ub) = (1 + rng.next() % 8, 1 + rng.next() % 8);
-            let mut mask = [0u32; MAX_UNITS];
+            let mut mask: Mask = [0; MAX_UNITS as usize];
             let p = rng.next() % 4;
             for row in mask.iter_mut().take(ub as usize) {
                 for a in 0..ua {
@@ -384,7 +388,7 @@ mod tests {
         let z = |x: u32, y: u32| f64::from(x * 10 + y);
         let zc = |x: u32, y: u32| f64::from(x * 100 + y * 1000);
         // A coarse unit is the coarser quad through its corners' z_c, split along the diagonal.
-        let f = unit_flags(&[1; MAX_UNITS], 1, 1, 0, 0);
+        let f = unit_flags(&[1; MAX_UNITS as usize], 1, 1, 0, 0);
         assert_eq!(f, 0xf0);
         assert_eq!(height(f, true, &z, &zc, 2.0, 0.0), Some(200.0));
         assert_eq!(height(f, true, &z, &zc, 1.0, 1.0), Some(1100.0));

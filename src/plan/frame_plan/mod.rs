@@ -479,25 +479,29 @@ impl Planner {
             DrawKind::TileSkirt => mesh::skirt_loop_range(self.block_quads, d.quads),
             DrawKind::PoolCell => mesh::pool_cell_range(self.pool.quads(), d.quads),
             // Call kinds only (`units.rs`): no draw-list entry has them; a stitched cell (a `PoolCell`
-            // entry) is counted by `triangles_with`.
+            // entry) is counted by `Planner::triangles`.
             DrawKind::PoolUnit | DrawKind::PoolUnitSkirt => 0..0,
         }
     }
 
-    /// Triangles of a draw list.
-    fn triangles(&self, draws: &DrawList) -> u64 {
-        draws.iter().map(|d| self.triangles_of(d)).sum()
+    /// The error of a plan whose pool cell records fill the cell buffer.
+    fn cells_full(&self) -> Error {
+        Error::Capacity {
+            what: "pool cell records per frame (Profile::pool_cell_capacity)",
+            capacity: self.cell_capacity,
+        }
     }
 
-    /// [`Planner::triangles`] with stitched cells counted by their units (`masks`: the plan's).
-    fn triangles_with(&self, draws: &DrawList, masks: &[stitch::Mask]) -> u64 {
+    /// Triangles of a draw list, a stitched cell counted by its units (`masks`: the plan's,
+    /// [`DetailFrame::masks`]).
+    fn triangles(&self, draws: &DrawList, masks: &[stitch::Mask]) -> u64 {
         draws
             .iter()
             .map(|d| {
                 if d.stitch == 0 {
                     self.triangles_of(d)
                 } else {
-                    let (ua, ub) = ((d.bounds.w - 1) / 2, (d.bounds.h - 1) / 2);
+                    let (ua, ub) = stitch::units(&d.bounds);
                     stitch::triangles(&masks[usize::from(d.stitch) - 1], ua, ub)
                 }
             })
@@ -584,10 +588,6 @@ impl Planner {
             what: "draw calls per frame (budget.max_draws)",
             capacity: calls,
         };
-        let cells_over = Error::Capacity {
-            what: "pool cell records per frame (Profile::pool_cell_capacity)",
-            capacity: self.cell_capacity,
-        };
         for (k, d) in out.draws.iter().enumerate() {
             if d.stitch != 0 {
                 // Stitched cells come last (`sort_pool_runs`), drawn by unit below.
@@ -606,7 +606,7 @@ impl Planner {
                     detail_draw_uniform(clipmap, camera, d, place, first, self.pool.side(), self.n);
                 let c = u32::try_from(out.cells.len()).expect("cells < 2^32");
                 if out.cells.len() >= self.cell_capacity {
-                    return Err(cells_over);
+                    return Err(self.cells_full());
                 }
                 out.cells.push(PoolCell::of(&u));
                 // The previous call's run goes on: same level, mesh range and program.

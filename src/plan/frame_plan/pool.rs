@@ -93,7 +93,7 @@ impl Planner {
             .map_or(self.default_epsilon, crate::plan::lod::Lod::epsilon_px);
         let view = self.detail_view(clipmap, camera, &frustum, epsilon_px);
         let base_draws = u32::try_from(out.draws.len()).expect("draws <= MAX_DRAWS");
-        let base_triangles = self.triangles(&out.draws);
+        let base_triangles = self.triangles(&out.draws, &[]);
         // The rings' fill (and a package's decoding) comes first: the pool gets what is left.
         let spent = u64::from(frame.samples_updated) + u64::from(clipmap.decoded_samples());
         let budget = DetailBudget {
@@ -107,7 +107,7 @@ impl Planner {
             // triangles. The final check below holds the triangle budget whatever the refinement
             // spends, dropping the last served block where the skirts do not fit; keeping four tile
             // skirts a block left Big Tujunga at 1.34 px with 14,358 triangles unspent, none 1.04 px.
-            margin: (4, 0),
+            margin: 4,
             // Stitched cells need the unit meshes (cells of 2 quads or more).
             stitch: self.pool.quads() >= 2,
             instances: self.cell_capacity,
@@ -168,8 +168,7 @@ impl Planner {
             });
             let fits = match &built {
                 Ok((_, rings, runs)) => {
-                    self.triangles_with(&out.draws, &out.detail.masks)
-                        <= u64::from(self.max_triangles)
+                    self.triangles(&out.draws, &out.detail.masks) <= u64::from(self.max_triangles)
                         && *rings as u64 + u64::from(*runs) <= u64::from(self.max_draws)
                 }
                 Err(Error::Capacity { .. }) => false,

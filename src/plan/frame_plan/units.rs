@@ -110,7 +110,7 @@ impl Planner {
                         .expect("a pool draw's slot is resident");
                     let first_sample = key.first_sample(quads);
                     let place = self.pool.atlas().place(u32::from(slot));
-                    let units = ((d.bounds.w - 1) / 2, (d.bounds.h - 1) / 2);
+                    let units = stitch::units(&d.bounds);
                     for b in 0..units.1 {
                         for a in 0..units.0 {
                             let (ai, bi) = (i64::from(a), i64::from(b));
@@ -123,10 +123,9 @@ impl Planner {
                                 origin: [x, y],
                                 bounds: Rect::from_bounds(x, y, x + 3, y + 3),
                                 quads: 2,
-                                stitch: stitch::unit_flags(&mask, units.0, units.1, ai, bi),
                                 ..d
                             };
-                            let u = detail_draw_uniform(
+                            let mut u = detail_draw_uniform(
                                 clipmap,
                                 camera,
                                 &unit,
@@ -135,12 +134,11 @@ impl Planner {
                                 self.pool.side(),
                                 self.n,
                             );
+                            // The unit's vertex flags (`stitch_local` in the shader).
+                            u.fine[2] =
+                                i32::from(stitch::unit_flags(&mask, units.0, units.1, ai, bi));
                             if out.cells.len() >= self.cell_capacity {
-                                return Err(Error::Capacity {
-                                    what:
-                                        "pool cell records per frame (Profile::pool_cell_capacity)",
-                                    capacity: self.cell_capacity,
-                                });
+                                return Err(self.cells_full());
                             }
                             out.cells.push(PoolCell::of(&u));
                             slot_uniform.get_or_insert(u);
