@@ -16,8 +16,10 @@ use clipsat::gpu::{Gpu, GpuMode};
 use clipsat::hash::hex;
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::plan::flight::{Flight, Path};
+use clipsat::profile::Profile;
+use clipsat::source::Heightmap;
 use clipsat::source::{self, procedural, LoadOptions};
-use clipsat::{Heightmap, Profile, Result};
+use clipsat::Result;
 
 /// The (clipmap frame hash, plan hash, image hash) of three frames 100 m apart along a figure-8 over
 /// `terrain`, rendered with the `gles3-low` profile at 320 x 180 pixels.

@@ -1,28 +1,32 @@
-//! Terrain in your own wgpu device and render pass: this example creates its instance, adapter and device
-//! the ordinary wgpu way (the GL backend, as `clipsat render --gpu gl` does), its own colour and depth
-//! targets and its own render pass. In that pass it clears, draws something of its own (an orange triangle
-//! in the top-left corner), then the terrain; it reads the image back and prints its hash.
+//! Terrain in your own wgpu device and render pass, with SAT LOD, through a window resize.
 //!
-//! clipsat's part is three calls: [`Renderer::new`] once (on the caller's device), then per frame
-//! [`Planner::plan`] (CPU, allocation-free), [`Renderer::prepare`] (uploads) and [`Renderer::render`]
-//! (records into the caller's pass).
+//! The example makes its own instance, adapter and device the ordinary wgpu way (the GL backend on the
+//! GLES 3.0 limits), its own colour and depth targets and its own render pass. In that pass it clears,
+//! draws something of its own (an orange triangle in the top-left corner), then the terrain. Halfway
+//! through it "resizes": new targets at another size, and the same `TerrainRenderer` keeps drawing.
+//!
+//! clipsat's part is four types: a `Profile`, a `Terrain` (the procedural one, baked into a package in
+//! a cache folder and streamed), a `TerrainRenderer` built once with `RenderOptions` (SAT LOD at 1 px);
+//! and per frame two calls, `prepare` (with the frame's camera and viewport) and `render`.
 //!
 //! ```sh
-//! cargo run --release --example own_device                 # with the orange triangle
-//! CLIPSAT_OWN_DRAW=0 cargo run --release --example own_device   # terrain only: the same hash as
-//! clipsat render --gpu gl --terrain procedural:size=257 --profile gles3-low --size 320x180
+//! cargo run --release --example own_device                 # writes out/own_device-*.png
+//! CLIPSAT_OWN_DRAW=0 cargo run --release --example own_device   # terrain only
 //! ```
 
-use clipsat::gpu::readback::{read_rgba8_on, Image};
-use clipsat::gpu::renderer::{Renderer, RendererOptions};
-use clipsat::hash::hex;
-use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
-use clipsat::plan::frame_plan::{LodSetup, PlanParams, Planner};
-use clipsat::source::procedural;
-use clipsat::{Camera, Error, Heightmap, Profile, Result};
+use clipsat::{Profile, RenderOptions, Terrain, TerrainRenderer};
+
+type Error = Box<dyn std::error::Error>;
 
 const COLOR: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 const DEPTH: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+/// The sky behind the terrain (the colour `clipsat render` clears to).
+const SKY: wgpu::Color = wgpu::Color {
+    r: 0.63,
+    g: 0.76,
+    b: 0.90,
+    a: 1.0,
+};
 
 /// The example's own draw: a triangle in the top-left corner, in front of everything (depth 0).
 const OWN_WGSL: &str = "
@@ -33,30 +37,62 @@ const OWN_WGSL: &str = "
 @fragment fn fs() -> @location(0) vec4<f32> { return vec4(1.0, 0.5, 0.0, 1.0); }
 ";
 
-/// Renders the default view of `terrain` with the `gles3-low` profile at `width` x `height` on a device
-/// of this function's own; with `own_draw`, the orange triangle first.
-pub(crate) fn render(
-    terrain: &Heightmap,
-    width: u32,
-    height: u32,
-    own_draw: bool,
-) -> Result<Image> {
-    let mut profile = Profile::load("gles3-low")?;
-    (profile.view.width, profile.view.height) = (width, height);
-    // The view `clipsat render` draws by default, after filling every level at the eye.
-    let d = Camera::default_for(terrain)?;
-    let camera = Camera::new(d.eye, d.target, f64::from(profile.view.fov_y_deg))?
-        .with_clip(d.near, d.far)?;
-    let mut clipmap = Clipmap::new(terrain, &profile, ClipmapOptions::default())?;
-    for _ in 0..10_000 {
-        let f = clipmap.update(camera.eye)?;
-        if f.stale_levels == 0 && clipmap.pending_samples(camera.eye) == 0 {
-            break;
-        }
-    }
+/// One frame read back: width, height, tightly packed RGBA8 rows from the top.
+pub(crate) type Pixels = (u32, u32, Vec<u8>);
 
-    // The ordinary wgpu way: the GL backend, the GLES 3.0 / WebGL2 limits. Mesa is asked for exactly
-    // OpenGL ES 3.0, as `clipsat --gpu gl` asks, so both see the same driver.
+/// Draws the procedural terrain (257 x 257 samples, cached in `cache`) with the `gles3-low` profile at
+/// every size of `sizes` in turn, on one device and one `TerrainRenderer`: a window resized between
+/// frames. With `own_draw`, the orange triangle first. Returns each frame's pixels.
+pub(crate) fn render(
+    cache: &std::path::Path,
+    sizes: &[(u32, u32)],
+    own_draw: bool,
+) -> Result<Vec<Pixels>, Error> {
+    let (device, queue) = own_device()?;
+    let own = own_pipeline(&device);
+
+    // clipsat, once: the budget, the terrain (baked into `cache` on first use, then streamed), and the
+    // renderer on our device, with SAT LOD at a 1 px error bound.
+    let profile = Profile::load("gles3-low")?;
+    let terrain = Terrain::procedural(1, 257, 30.0, Some(cache))?;
+    let camera = terrain.default_camera()?;
+    let options = RenderOptions {
+        color_format: COLOR,
+        depth_format: DEPTH,
+        sat_lod_px: Some(1.0),
+        ..RenderOptions::default()
+    };
+    let mut terrain = TerrainRenderer::new(&device, &queue, terrain, &profile, &options)?;
+
+    let mut frames = Vec::new();
+    for &(width, height) in sizes {
+        // A new size: our targets change; the terrain renderer is kept. The warm-up fills the detail
+        // the new size needs before the frame (a flight would let it fill over the next frames).
+        let (color, depth) = (
+            target(&device, COLOR, width, height, true),
+            target(&device, DEPTH, width, height, false),
+        );
+        terrain.warm_up(&queue, &camera, (width, height))?;
+        // Per frame: prepare (the camera and viewport: plan and uploads), render into our pass.
+        terrain.prepare(&queue, &camera, (width, height))?;
+        let mut encoder = device.create_command_encoder(&Default::default());
+        {
+            let mut pass = begin_pass(&mut encoder, &color, &depth);
+            if own_draw {
+                pass.set_pipeline(&own);
+                pass.draw(0..3, 0..1);
+            }
+            terrain.render(&mut pass);
+        }
+        queue.submit([encoder.finish()]);
+        frames.push((width, height, read_back(&device, &queue, &color)?));
+    }
+    Ok(frames)
+}
+
+/// A device the ordinary wgpu way: the GL backend on the GLES 3.0 / WebGL2 limits. Mesa is asked for
+/// exactly OpenGL ES 3.0, as `clipsat render --gpu gl` asks, so both see the same driver.
+fn own_device() -> Result<(wgpu::Device, wgpu::Queue), Error> {
     if std::env::var_os("MESA_GLES_VERSION_OVERRIDE").is_none() {
         std::env::set_var("MESA_GLES_VERSION_OVERRIDE", "3.0");
     }
@@ -70,49 +106,26 @@ pub(crate) fn render(
         force_fallback_adapter: false,
         compatible_surface: None,
         apply_limit_buckets: false,
-    }))
-    .map_err(|e| Error::NoAdapter(format!("wgpu GL backend: {e}")))?;
-    let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-        label: Some("own device"),
-        required_features: wgpu::Features::empty(),
-        required_limits: wgpu::Limits::downlevel_webgl2_defaults(),
-        experimental_features: wgpu::ExperimentalFeatures::disabled(),
-        memory_hints: wgpu::MemoryHints::MemoryUsage,
-        trace: wgpu::Trace::Off,
-    }))
-    .map_err(|e| Error::NoAdapter(format!("request_device: {e}")))?;
+    }))?;
+    Ok(pollster::block_on(adapter.request_device(
+        &wgpu::DeviceDescriptor {
+            label: Some("own device"),
+            required_features: wgpu::Features::empty(),
+            required_limits: wgpu::Limits::downlevel_webgl2_defaults(),
+            experimental_features: wgpu::ExperimentalFeatures::disabled(),
+            memory_hints: wgpu::MemoryHints::MemoryUsage,
+            trace: wgpu::Trace::Off,
+        },
+    ))?)
+}
 
-    // Our own targets and our own pipeline.
-    let target = |format, usage| {
-        device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("own target"),
-            size: wgpu::Extent3d {
-                width,
-                height,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format,
-            usage,
-            view_formats: &[],
-        })
-    };
-    let color = target(
-        COLOR,
-        wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
-    );
-    let depth = target(DEPTH, wgpu::TextureUsages::RENDER_ATTACHMENT);
-    let (color_view, depth_view) = (
-        color.create_view(&Default::default()),
-        depth.create_view(&Default::default()),
-    );
+/// The example's own pipeline: the orange triangle.
+fn own_pipeline(device: &wgpu::Device) -> wgpu::RenderPipeline {
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some("own triangle"),
         source: wgpu::ShaderSource::Wgsl(OWN_WGSL.into()),
     });
-    let own = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some("own triangle"),
         layout: None,
         vertex: wgpu::VertexState {
@@ -138,73 +151,124 @@ pub(crate) fn render(
         }),
         multiview_mask: None,
         cache: None,
-    });
+    })
+}
 
-    // clipsat: a planner and its preallocated plan (CPU), the renderer on our device (GPU), built once.
-    let mut planner = Planner::new(&profile, &clipmap, LodSetup::Distance)?;
-    let mut plan = planner.new_plan();
-    let mut terrain_renderer = Renderer::new(
-        &device,
-        &queue,
-        &RendererOptions {
-            color_format: COLOR,
-            depth_format: DEPTH,
-            sample_count: 1,
-            ..RendererOptions::default()
-        },
-        &profile,
-    )?;
-
-    // One frame: plan, prepare, then our pass.
-    planner.plan(&clipmap, &camera, &PlanParams::default(), &mut plan)?;
-    terrain_renderer.prepare(&queue, &clipmap, &plan)?;
-    let mut encoder = device.create_command_encoder(&Default::default());
-    {
-        let [r, g, b, a] = clipsat::shading::basic::SKY;
-        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("own pass"),
-            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: &color_view,
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(wgpu::Color { r, g, b, a }),
-                    store: wgpu::StoreOp::Store,
-                },
-            })],
-            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                view: &depth_view,
-                depth_ops: Some(wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(1.0),
-                    store: wgpu::StoreOp::Discard,
-                }),
-                stencil_ops: None,
-            }),
-            timestamp_writes: None,
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
-        if own_draw {
-            pass.set_pipeline(&own);
-            pass.draw(0..3, 0..1);
-        }
-        terrain_renderer.render(&mut pass);
+/// A render target of ours; the colour one can be copied out.
+fn target(
+    device: &wgpu::Device,
+    format: wgpu::TextureFormat,
+    width: u32,
+    height: u32,
+    read: bool,
+) -> wgpu::Texture {
+    let mut usage = wgpu::TextureUsages::RENDER_ATTACHMENT;
+    if read {
+        usage |= wgpu::TextureUsages::COPY_SRC;
     }
+    device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("own target"),
+        size: wgpu::Extent3d {
+            width,
+            height,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage,
+        view_formats: &[],
+    })
+}
+
+/// Our pass: sky-coloured clear, depth cleared to 1.
+fn begin_pass<'e>(
+    encoder: &'e mut wgpu::CommandEncoder,
+    color: &wgpu::Texture,
+    depth: &wgpu::Texture,
+) -> wgpu::RenderPass<'e> {
+    encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+        label: Some("own pass"),
+        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+            view: &color.create_view(&Default::default()),
+            depth_slice: None,
+            resolve_target: None,
+            ops: wgpu::Operations {
+                load: wgpu::LoadOp::Clear(SKY),
+                store: wgpu::StoreOp::Store,
+            },
+        })],
+        depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+            view: &depth.create_view(&Default::default()),
+            depth_ops: Some(wgpu::Operations {
+                load: wgpu::LoadOp::Clear(1.0),
+                store: wgpu::StoreOp::Discard,
+            }),
+            stencil_ops: None,
+        }),
+        timestamp_writes: None,
+        occlusion_query_set: None,
+        multiview_mask: None,
+    })
+}
+
+/// The colour target's pixels, tightly packed (wgpu pads rows to 256 bytes).
+fn read_back(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    color: &wgpu::Texture,
+) -> Result<Vec<u8>, Error> {
+    let (width, height) = (color.width(), color.height());
+    let padded = (width * 4).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+    let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("own read-back"),
+        size: u64::from(padded) * u64::from(height),
+        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+        mapped_at_creation: false,
+    });
+    let mut encoder = device.create_command_encoder(&Default::default());
+    encoder.copy_texture_to_buffer(
+        color.as_image_copy(),
+        wgpu::TexelCopyBufferInfo {
+            buffer: &buffer,
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(padded),
+                rows_per_image: None,
+            },
+        },
+        color.size(),
+    );
     queue.submit([encoder.finish()]);
-    read_rgba8_on(&device, &queue, &color)
+    let (tx, rx) = std::sync::mpsc::channel();
+    buffer.map_async(wgpu::MapMode::Read, .., move |r| {
+        let _ = tx.send(r);
+    });
+    device.poll(wgpu::PollType::wait_indefinitely())?;
+    rx.recv()??;
+    let view = buffer.get_mapped_range(..)?;
+    let mut rgba = Vec::with_capacity((width * height * 4) as usize);
+    for row in view.chunks_exact(padded as usize) {
+        rgba.extend_from_slice(&row[..(width * 4) as usize]);
+    }
+    Ok(rgba)
 }
 
 fn main() -> std::process::ExitCode {
     let own_draw = std::env::var("CLIPSAT_OWN_DRAW").map_or(true, |v| v != "0");
-    let terrain = procedural::generate(&procedural::ProceduralParams {
-        size: 257,
-        ..procedural::ProceduralParams::default()
-    });
-    match terrain.and_then(|t| render(&t, 320, 180, own_draw)) {
-        Ok(image) => {
-            println!("image {}", hex(image.hash()));
-            std::process::ExitCode::SUCCESS
+    let sizes = [(320, 180), (200, 200)];
+    let run = || -> Result<(), Error> {
+        std::fs::create_dir_all("out")?;
+        for (width, height, rgba) in render(std::path::Path::new("out/cache"), &sizes, own_draw)? {
+            let path = format!("out/own_device-{width}x{height}.png");
+            image::save_buffer(&path, &rgba, width, height, image::ExtendedColorType::Rgba8)?;
+            println!("{path}");
         }
+        Ok(())
+    };
+    match run() {
+        Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e}");
             std::process::ExitCode::from(2)

@@ -100,11 +100,17 @@ pub enum Error {
     },
     /// The terrain's heights are finite but too extreme for a stage's arithmetic (its f32 values
     /// overflow): refused with the stage and the place, never a panic or a silent infinity.
-    #[error("terrain: {0}")]
-    Terrain(String),
-    /// A camera is unusable (NaN, zero look direction, ...).
-    #[error("camera: {0}")]
-    Camera(String),
+    #[error("terrain: {reason}")]
+    Terrain {
+        /// What overflows, and where.
+        reason: String,
+    },
+    /// A camera is unusable (not finite, no look direction, clip planes out of order...).
+    #[error("camera: {reason}")]
+    Camera {
+        /// What is wrong with it.
+        reason: String,
+    },
     /// A fixed-capacity per-frame collection would overflow: the profile's maximum is too small.
     #[error("capacity exceeded: {what} needs more than {capacity}")]
     Capacity {
@@ -113,13 +119,51 @@ pub enum Error {
         /// Its capacity.
         capacity: usize,
     },
-    /// No GPU adapter could be created.
-    #[error("no GPU adapter: {0}")]
-    NoAdapter(String),
-    /// The GPU failed after start-up (device lost, out of memory, validation).
-    #[error("GPU: {0}")]
-    Gpu(String),
+    /// No GPU adapter or device could be created.
+    #[error("no GPU adapter: {reason}")]
+    NoAdapter {
+        /// What was tried, and what to do about it.
+        reason: String,
+        /// The graphics API's error, where there is one.
+        #[source]
+        source: Option<BoxError>,
+    },
+    /// The device is below what the profile needs: a limit smaller than the profile asks. Choose a
+    /// smaller profile, or a device that offers more.
+    #[error("the GPU device offers {available} for `{limit}`; the profile needs {needed}")]
+    Unsupported {
+        /// The limit, as wgpu names it (`max_texture_array_layers`).
+        limit: &'static str,
+        /// What the profile needs.
+        needed: u64,
+        /// What the device offers.
+        available: u64,
+    },
+    /// A frame plan handed to the renderer does not follow the clipmap frame it is for (planned from
+    /// an older frame, or for another clipmap): plan the clipmap's latest frame, then prepare.
+    #[error(
+        "stale plan: {}, the clipmap is at frame {current}",
+        planned.map_or("never planned".to_string(), |f| format!("planned for clipmap frame {f}"))
+    )]
+    StalePlan {
+        /// The clipmap frame the plan was made for (None: an empty plan).
+        planned: Option<u64>,
+        /// The clipmap's latest frame.
+        current: u64,
+    },
+    /// The GPU failed after start-up (device lost, out of memory, validation, a read-back).
+    #[error("GPU: {action}")]
+    Gpu {
+        /// What was being done.
+        action: String,
+        /// The graphics API's error, where there is one.
+        #[source]
+        source: Option<BoxError>,
+    },
 }
+
+/// An error of another library, kept as the [`std::error::Error::source`] of an [`Error`].
+pub type BoxError = Box<dyn std::error::Error + Send + Sync + 'static>;
 
 /// An option of the library's API that an error can name, in the library's words (`struct::field`). The
 /// library keeps no command-line words: the `clipsat` binary maps each to its flag when it prints.
@@ -211,6 +255,44 @@ impl Error {
         }
     }
 
+    /// An [`Error::Gpu`] caused by `source`.
+    pub(crate) fn gpu(action: impl Into<String>, source: impl Into<BoxError>) -> Self {
+        Self::Gpu {
+            action: action.into(),
+            source: Some(source.into()),
+        }
+    }
+
+    /// An [`Error::Gpu`] with no cause beyond its words.
+    pub(crate) fn gpu_msg(action: impl Into<String>) -> Self {
+        Self::Gpu {
+            action: action.into(),
+            source: None,
+        }
+    }
+
+    /// An [`Error::NoAdapter`], caused by `source` when given.
+    pub(crate) fn no_adapter(reason: impl Into<String>, source: Option<BoxError>) -> Self {
+        Self::NoAdapter {
+            reason: reason.into(),
+            source,
+        }
+    }
+
+    /// An [`Error::Camera`].
+    pub(crate) fn camera(reason: impl Into<String>) -> Self {
+        Self::Camera {
+            reason: reason.into(),
+        }
+    }
+
+    /// An [`Error::Terrain`].
+    pub(crate) fn terrain(reason: impl Into<String>) -> Self {
+        Self::Terrain {
+            reason: reason.into(),
+        }
+    }
+
     /// An [`Error::Config`].
     pub fn config(
         source_name: impl Into<String>,
@@ -223,6 +305,18 @@ impl Error {
             reason: reason.into(),
         }
     }
+}
+
+/// `e` and each of its sources, joined by ": " (an error nested in another's words).
+pub(crate) fn with_sources(e: &dyn std::error::Error) -> String {
+    let mut text = e.to_string();
+    let mut source = e.source();
+    while let Some(s) = source {
+        text.push_str(": ");
+        text.push_str(&s.to_string());
+        source = s.source();
+    }
+    text
 }
 
 /// What to do about a NaN sample in a format with a nodata value (GeoTIFF, ASCII grid): files mark voids

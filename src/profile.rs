@@ -146,6 +146,20 @@ pub enum Feature {
     Synthesis,
 }
 
+impl Feature {
+    /// The feature's name in profile and scene files (`sg`, `visibility`, ...).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Basic => "basic",
+            Self::Sg => "sg",
+            Self::Visibility => "visibility",
+            Self::Specular => "specular",
+            Self::Fog => "fog",
+            Self::Synthesis => "synthesis",
+        }
+    }
+}
+
 /// GPU memory one profile needs, by part, in bytes. `Renderer::new` allocates exactly this (its ledger
 /// is checked against it by a test).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]

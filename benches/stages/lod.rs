@@ -10,8 +10,8 @@ use clipsat::bake::lod_tables::{error_map, LevelTables, LodTables, P};
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::plan::flight::{Flight, Path};
 use clipsat::plan::lod::{Lod, LodFrame, LodMode};
+use clipsat::profile::Profile;
 use clipsat::source::procedural::{generate, ProceduralParams};
-use clipsat::Profile;
 use criterion::{criterion_group, Criterion, Throughput};
 
 /// (a) `Lod::select` per frame along a figure-8 at 50 m/frame, gles3-mid, procedural 1025^2 at 30 m.

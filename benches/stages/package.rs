@@ -9,8 +9,8 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use clipsat::package::{self, BakeOptions, CodecKind, Package, TileCache};
+use clipsat::source::Heightmap;
 use clipsat::source::{self, LoadOptions};
-use clipsat::Heightmap;
 use criterion::{criterion_group, Criterion, Throughput};
 
 fn hills() -> Heightmap {
@@ -50,7 +50,7 @@ fn baked(name: &str, hm: &Heightmap, codec: CodecKind) -> PathBuf {
         codec,
         ..BakeOptions::default()
     };
-    package::bake(hm, &out, &opts, &indicatif::ProgressBar::hidden()).expect("bake");
+    package::bake(hm, &out, &opts, clipsat::Progress::default()).expect("bake");
     out
 }
 
@@ -133,7 +133,7 @@ fn full_level(c: &mut Criterion) {
 /// the time over 11.
 fn refill(c: &mut Criterion) {
     use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
-    use clipsat::Profile;
+    use clipsat::profile::Profile;
     let hm = hills();
     let path = baked("refill", &hm, CodecKind::Zstd);
     let mut profile = Profile::load("desktop").expect("profile");

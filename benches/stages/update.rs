@@ -9,9 +9,10 @@ use std::time::Duration;
 
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::plan::flight::{Flight, Path};
+use clipsat::profile::Profile;
 use clipsat::profile::SHIPPED;
+use clipsat::source::Heightmap;
 use clipsat::source::{self, LoadOptions};
-use clipsat::{Heightmap, Profile};
 use criterion::{criterion_group, Criterion, Throughput};
 use glam::DVec3;
 

@@ -3,5 +3,6 @@
 
 pub(crate) mod cmd;
 pub(crate) mod plot;
+pub(crate) mod progress;
 #[cfg(feature = "view")]
 pub(crate) mod view_keys;

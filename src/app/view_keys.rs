@@ -5,10 +5,11 @@
 use glam::DVec3;
 
 use clipsat::gpu::headless::FrameOptions;
+use clipsat::plan::camera::Camera;
 use clipsat::plan::lod::LodMode;
 use clipsat::shading::debug_view::DebugView;
 use clipsat::shading::scene::Scene;
-use clipsat::{Camera, Result};
+use clipsat::Result;
 
 /// A key held for flight.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -11,7 +11,8 @@ use std::f64::consts::{FRAC_PI_2, TAU};
 use glam::{DVec3, Vec3};
 
 use crate::bake::sat::Sat;
-use crate::{Error, Heightmap, Result};
+use crate::{Error, Result};
+use crate::source::Heightmap;
 
 /// Default number of baked azimuths D: 16, the shader's most. The horizon between baked azimuths is
 /// linear, and a low sun's shadows follow the horizon at its exact azimuth: on Aletsch at 640 x 360
@@ -24,9 +25,6 @@ pub const MAX_AZIMUTHS: u32 = 16;
 /// Default march distance, in samples: far enough for the soft shadows of ridges a few hundred samples
 /// long, bounded so a bake costs O(texels x D x log(distance)).
 pub const DEFAULT_MAX_SAMPLES: f64 = 256.0;
-/// Bakes of more texels than this show a progress bar on stderr.
-const PROGRESS_TEXELS: u64 = 1 << 20;
-
 /// The march's sample distances in samples: every sample out to 16, then growing by 1/16 per step (about
 /// 6 %, so a 2-sample-wide ridge at distance d is never stepped over by more than d/16), up to `max`.
 pub fn march_distances(max: f64) -> impl Iterator<Item = f64> {
@@ -106,7 +104,8 @@ impl Horizons {
 }
 
 /// Bakes D horizon angles for every texel of `hm`, marching out to `max_samples` samples. Deterministic
-/// (single-threaded, fixed order); a progress bar goes to stderr for bakes over 2^20 texels.
+/// (single-threaded, fixed order). The renderer's tables march the same horizons through
+/// `ShadingBake`, which reports progress; this whole-terrain bake serves the CPU references.
 pub fn bake(hm: &Heightmap, azimuths: u32, max_samples: f64) -> Result<Horizons> {
     // Multiples of 4: the light table's writer (shading::texel_light) integrates the sky's wedges over
     // pairs, and the shader's probe reads them four to a texel.
@@ -124,11 +123,6 @@ pub fn bake(hm: &Heightmap, azimuths: u32, max_samples: f64) -> Result<Horizons>
     }
     let (w, h) = (hm.width(), hm.height());
     let texels = u64::from(w) * u64::from(h);
-    let bar = (texels > PROGRESS_TEXELS).then(|| {
-        let bar = indicatif::ProgressBar::new(u64::from(h));
-        bar.set_message("baking horizons");
-        bar
-    });
     let d = azimuths as usize;
     let mut angles = vec![0.0f32; usize::try_from(texels * u64::from(azimuths)).unwrap_or(0)];
     for y in 0..h {
@@ -136,12 +130,6 @@ pub fn bake(hm: &Heightmap, azimuths: u32, max_samples: f64) -> Result<Horizons>
             let at = (y as usize * w as usize + x as usize) * d;
             texel_horizons(hm, x, y, max_samples, &mut angles[at..at + d]);
         }
-        if let Some(bar) = &bar {
-            bar.inc(1);
-        }
-    }
-    if let Some(bar) = bar {
-        bar.finish_and_clear();
     }
     Ok(Horizons {
         width: w,

@@ -22,6 +22,7 @@ use crate::bake::BakeParams;
 use crate::package::codec::{Decoder, Encoder};
 use crate::package::lod_tiles::{RecordGrid, RecordRows};
 use crate::package::{CodecKind, Package};
+use crate::progress::Progress;
 use crate::{Error, Result};
 
 /// Data levels a package's records cover: 1 ..= this, every data level a profile of at most
@@ -63,7 +64,7 @@ pub fn bake_records(
     levels: u32,
     (tile, codec, zstd_level): (u32, CodecKind, i32),
     spool: &Path,
-    progress: bool,
+    progress: Progress<'_>,
 ) -> Result<Vec<SpooledLevel>> {
     let suffix = crate::temp_suffix();
     let paths: Vec<PathBuf> = (1..=levels)
@@ -91,7 +92,7 @@ fn spool_levels(
     levels: u32,
     (tile, codec, zstd_level): (u32, CodecKind, i32),
     paths: &[PathBuf],
-    progress: bool,
+    progress: Progress<'_>,
 ) -> Result<Vec<SpooledLevel>> {
     let mut sw = Sweep::new(package, p, 1..levels + 1, progress)?;
     sw.sweep_e()?;
@@ -128,7 +129,7 @@ fn spool_levels(
     if let Some(first) = paths.first() {
         sw.sweep_tables(None, first)?;
     }
-    sw.bar.finish_and_clear();
+    sw.meter.finish();
     for (lv, path) in sw.levels.iter_mut().zip(paths) {
         let entries = match lv.records.take() {
             Some(rec) => rec
@@ -185,7 +186,7 @@ pub fn tables_from_records(
     // header): the tables `clipsat bake` would have coded, so the file is the same either way.
     let derived = lod.derived.min(n.saturating_sub(1));
     let mut sweep = if derived > 0 {
-        Some(Sweep::new(package, p, 1..derived + 1, false)?)
+        Some(Sweep::new(package, p, 1..derived + 1, Progress::default())?)
     } else {
         None
     };

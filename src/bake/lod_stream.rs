@@ -23,7 +23,6 @@
 use std::fs::File;
 use std::path::Path;
 
-use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::bake::lod_record::Coder;
 use crate::bake::lod_tables::{bad_error, closed_count, error_from, RangeMax};
@@ -31,6 +30,7 @@ use crate::bake::sat::{pow_unit, Sat};
 use crate::bake::{BakeParams, FORMAT_VERSION, MAGIC};
 use crate::package::lod_tiles::RecordRows;
 use crate::package::{CacheSplit, Package, TileCache};
+use crate::progress::{Meter, Progress};
 use crate::{Error, Result};
 
 /// Bytes read at a time for the trailing checksum.
@@ -428,24 +428,24 @@ fn write_at(file: &File, offset: u64, bytes: &[u8]) -> std::io::Result<()> {
 }
 
 /// The two sweeps' state over a package: its band cache, the levels and one band of level-0 heights.
-pub(super) struct Sweep {
+pub(super) struct Sweep<'p> {
     pub(super) cache: TileCache,
     pub(super) levels: Vec<Level>,
     h0: Vec<f32>,
-    pub(super) bar: ProgressBar,
+    pub(super) meter: Meter<'p>,
     pub(super) width: u32,
     pub(super) height: u32,
     bands: u32,
     last: u32,
 }
 
-impl Sweep {
+impl<'p> Sweep<'p> {
     /// A sweep of data levels `ks` over `package` (exponent `p`), with a progress bar of two passes.
     pub(super) fn new(
         package: &Package,
         p: u32,
         ks: std::ops::Range<u32>,
-        progress: bool,
+        progress: Progress<'p>,
     ) -> Result<Self> {
         let header = package.header().clone();
         let (width, height) = (header.width, header.height);
@@ -470,7 +470,7 @@ impl Sweep {
             cache,
             levels: ks.map(|k| Level::new(k, width, p)).collect(),
             h0: Vec::new(),
-            bar: progress_bar(progress, 2 * u64::from(bands)),
+            meter: progress.task("baking LOD tables, bands", 2 * u64::from(bands)),
             width,
             height,
             bands,
@@ -531,14 +531,14 @@ impl Sweep {
             let h0 = &self.h0;
             let mut picked: Vec<&mut Level> = self.levels.iter_mut().filter(|l| pick(l)).collect();
             par_levels(&mut picked, |lv| rows(lv, h0, y0, y1)).map_err(&err)?;
-            self.bar.inc(1);
+            self.meter.inc(1);
         }
         Ok(())
     }
 }
 
 /// Bakes `package`'s LOD tables for `params` into the cache file `path` under `key` (written to a
-/// temporary name and renamed, as every cache file), with a progress bar on stderr when `progress`.
+/// temporary name and renamed, as every cache file), reporting to `progress`.
 ///
 /// Errors: the package's I/O and damaged tiles (naming the tile), a non-finite error (naming its sample,
 /// as [`LevelTables::build_level`]), and the file's writes.
@@ -549,7 +549,7 @@ pub(crate) fn bake_to_file(
     params: &BakeParams,
     key: u64,
     path: &Path,
-    progress: bool,
+    progress: Progress<'_>,
 ) -> Result<()> {
     let n = params.data_levels();
     let mut sw = Sweep::new(package, params.p, 1..n, progress)?;
@@ -560,7 +560,7 @@ pub(crate) fn bake_to_file(
     let written = write_tables(&tmp, &head, &flags, body, |file| {
         sw.sweep_tables(Some(file), &tmp)
     });
-    sw.bar.finish_and_clear();
+    sw.meter.finish();
     if let Err(e) = written {
         let _ = std::fs::remove_file(&tmp);
         return Err(e);
@@ -731,17 +731,4 @@ fn par_levels(
             .into_iter()
             .try_for_each(|h| h.join().expect("a LOD table level panicked"))
     })
-}
-
-pub(super) fn progress_bar(progress: bool, len: u64) -> ProgressBar {
-    if !progress {
-        return ProgressBar::hidden();
-    }
-    let b = ProgressBar::new(len);
-    if let Ok(style) =
-        ProgressStyle::with_template("baking LOD tables {bar:30} band {pos}/{len} {elapsed}")
-    {
-        b.set_style(style);
-    }
-    b
 }

@@ -578,7 +578,7 @@ impl LevelRecords {
 const EDGE_UP: f64 = 1.0 + 1.0 / (1u64 << 40) as f64;
 
 pub(crate) fn bad_error(x: usize, y: usize, e: f32) -> Error {
-    Error::Terrain(format!(
+    Error::terrain(format!(
         "the SAT LOD error at column {x}, row {y} is {e}: the heights are too large for f32 \
          arithmetic (their differences overflow); scale them down, or use distance LOD"
     ))
@@ -630,7 +630,7 @@ pub fn check_height_range(pyramid: &Pyramid) -> Result<()> {
     if (hi - lo).is_finite() {
         Ok(())
     } else {
-        Err(Error::Terrain(format!(
+        Err(Error::terrain(format!(
             "heights span {lo:e} .. {hi:e} m, a range too large for f32 arithmetic (it overflows); \
              scale them down, or use distance LOD"
         )))

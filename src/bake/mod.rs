@@ -42,20 +42,23 @@ pub mod sat;
 
 use std::path::{Path, PathBuf};
 
-use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::bake::lod_tables::{LevelTables, LodTables, RangeMax};
 use crate::bake::mapped::{Grid, Mapping};
 use crate::bake::pyramid::Pyramid;
 use crate::bake::sat::Sat;
 use crate::hash::{hex, Hash64};
-use crate::{Error, Heightmap, Result};
+use crate::progress::Progress;
+use crate::{Error, Result};
+use crate::source::Heightmap;
 
 pub(crate) const MAGIC: &[u8; 8] = b"CSATLOD1";
 /// Bumped whenever the layout or the meaning of a baked number changes.
 pub const FORMAT_VERSION: u32 = 4;
 
-/// The default cache folder: `$CLIPSAT_CACHE`, else `target/clipsat-cache`.
+/// The cache folder of the binary and the tests: `$CLIPSAT_CACHE`, else `target/clipsat-cache`. The
+/// library itself never picks a folder: its callers pass one.
+#[cfg(feature = "internals")]
 pub fn default_cache_dir() -> PathBuf {
     std::env::var_os("CLIPSAT_CACHE")
         .map(PathBuf::from)
@@ -118,14 +121,14 @@ pub fn cache_path(dir: &Path, key: u64) -> PathBuf {
     dir.join(format!("lod-{}.bin", hex(key)))
 }
 
-/// The LOD tables of `terrain`: read from `dir`'s cache when a valid file is there, else baked (with a
-/// progress bar on stderr when `progress`) and written.
+/// The LOD tables of `terrain`: read from `dir`'s cache when a valid file is there, else baked (reporting to
+/// `progress`) and written.
 pub fn bake_lod(
     terrain: &Heightmap,
     pyramid: &Pyramid,
     params: &BakeParams,
     dir: &Path,
-    progress: bool,
+    progress: Progress<'_>,
 ) -> Result<(LodTables, CacheOutcome)> {
     // Before the cache: a table cached by an older build must not let an unusable terrain through.
     crate::bake::lod_tables::check_height_range(pyramid)?;
@@ -166,11 +169,11 @@ pub fn bake_lod_package(
     package: &crate::package::Package,
     params: &BakeParams,
     dir: &Path,
-    progress: bool,
+    progress: Progress<'_>,
 ) -> Result<(LodTables, CacheOutcome)> {
     let (lo, hi) = package.header().range;
     if !(hi - lo).is_finite() {
-        return Err(Error::Terrain(format!(
+        return Err(Error::terrain(format!(
             "heights span {lo:e} .. {hi:e} m, a range too large for f32 arithmetic (it overflows); \
              scale them down, or use distance LOD"
         )));
@@ -231,15 +234,15 @@ fn read_cached(
 /// runs it again without progress, which then reads them through the file's map. The outcome is the first
 /// run's.
 fn mapped(
-    bake: impl Fn(bool) -> Result<(LodTables, CacheOutcome)>,
-    progress: bool,
+    bake: impl Fn(Progress<'_>) -> Result<(LodTables, CacheOutcome)>,
+    progress: Progress<'_>,
 ) -> Result<(LodTables, CacheOutcome)> {
     let (tables, outcome) = bake(progress)?;
     if tables.is_mapped() || matches!(outcome, CacheOutcome::NotCached(_)) {
         return Ok((tables, outcome));
     }
     drop(tables);
-    let (again, _) = bake(false)?;
+    let (again, _) = bake(Progress::default())?;
     Ok((again, outcome))
 }
 
@@ -249,7 +252,7 @@ fn bake_lod_keyed<'a>(
     pyramid: impl FnOnce() -> Result<std::borrow::Cow<'a, Pyramid>>,
     params: &BakeParams,
     dir: &Path,
-    progress: bool,
+    progress: Progress<'_>,
 ) -> Result<(LodTables, CacheOutcome)> {
     let path = cache_path(dir, key);
     let refused = match std::fs::File::open(&path) {
@@ -284,7 +287,7 @@ pub fn bake_lod_mapped(
     pyramid: &Pyramid,
     params: &BakeParams,
     dir: &Path,
-    progress: bool,
+    progress: Progress<'_>,
 ) -> Result<(LodTables, CacheOutcome)> {
     mapped(
         |progress| bake_lod(terrain, pyramid, params, dir, progress),
@@ -292,22 +295,16 @@ pub fn bake_lod_mapped(
     )
 }
 
-/// Bakes without the cache, with an optional progress bar (one step per level).
-pub fn bake_uncached(pyramid: &Pyramid, params: &BakeParams, progress: bool) -> Result<LodTables> {
+/// Bakes without the cache, reporting one step per level to `progress`.
+pub fn bake_uncached(
+    pyramid: &Pyramid,
+    params: &BakeParams,
+    progress: Progress<'_>,
+) -> Result<LodTables> {
     let n = params.data_levels();
-    let bar = if progress {
-        let b = ProgressBar::new(u64::from(n));
-        if let Ok(style) =
-            ProgressStyle::with_template("baking LOD tables {bar:30} level {pos}/{len} {elapsed}")
-        {
-            b.set_style(style);
-        }
-        b
-    } else {
-        ProgressBar::hidden()
-    };
-    let tables = LodTables::build(pyramid, n, params.p, |k| bar.set_position(u64::from(k)))?;
-    bar.finish_and_clear();
+    let mut meter = progress.task("baking LOD tables, levels", u64::from(n));
+    let tables = LodTables::build(pyramid, n, params.p, |k| meter.set_done(u64::from(k)))?;
+    meter.finish();
     Ok(tables)
 }
 

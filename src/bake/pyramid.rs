@@ -3,7 +3,7 @@
 //! Level 0 is the data; level k+1 = D(level k). Sample (i, j) of level k sits on data sample (i 2^k, j 2^k).
 //! Beyond the data's edges every level is clamped: the terrain extends flat.
 
-use crate::Heightmap;
+use crate::source::Heightmap;
 
 /// The downsampling filter D: the 5-tap binomial [1, 4, 6, 4, 1] / 16, evaluated at even samples.
 ///

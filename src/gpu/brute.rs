@@ -13,7 +13,9 @@ use super::readback::{self, Image};
 use super::shaders;
 use super::Gpu;
 use crate::shading::basic::{BasicShading, SKY};
-use crate::{Camera, Error, Heightmap, Result};
+use crate::{Error, Result};
+use crate::plan::camera::Camera;
+use crate::source::Heightmap;
 
 /// The brute-force program's uniforms; mirrors `Globals` in `shaders_gles/brute.wgsl`.
 #[repr(C)]
@@ -93,7 +95,7 @@ impl<'g> BruteForce<'g> {
             (1 << 24) - 1
         };
         let too_big = |what: String| {
-            Error::Gpu(format!(
+            Error::gpu_msg(format!(
                 "terrain {columns} x {rows} is too large for the brute-force reference on the GLES 3.0 \
                  floor: {what}; use a smaller terrain (the clipmap renderer has no such limit)"
             ))
@@ -196,7 +198,7 @@ impl<'g> BruteForce<'g> {
         let gpu = self.gpu;
         let max = gpu.device().limits().max_texture_dimension_2d;
         if width == 0 || height == 0 || width > max || height > max {
-            return Err(Error::Gpu(format!(
+            return Err(Error::gpu_msg(format!(
                 "image size {width} x {height}: each side must be 1..={max} on the GLES 3.0 floor"
             )));
         }

@@ -31,7 +31,7 @@ fn instance() -> Result<&'static EglInstance> {
             .map_err(|e| format!("cannot load libEGL.so.1 with EGL 1.5: {e}"))
     })
     .as_ref()
-    .map_err(|e| Error::NoAdapter(e.clone()))
+    .map_err(|e| Error::no_adapter(e.clone(), None))
 }
 
 /// Sets `MESA_GLES_VERSION_OVERRIDE=3.0` unless the user set it, once, before EGL first starts.
@@ -73,14 +73,15 @@ impl StrictContext {
     pub(super) fn new() -> Result<Self> {
         pin_gles_version();
         let egl = instance()?;
-        let fail = |what: &str, e: egl::Error| Error::NoAdapter(format!("EGL: {what}: {e}"));
+        let fail = |what: &str, e: egl::Error| Error::no_adapter(format!("EGL: {what}"), Some(e.into()));
         let client_ext = egl
             .query_string(None, egl::EXTENSIONS)
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_default();
         if !client_ext.contains("EGL_MESA_platform_surfaceless") {
-            return Err(Error::NoAdapter(
-                "EGL has no EGL_MESA_platform_surfaceless (is Mesa's libEGL installed?)".into(),
+            return Err(Error::no_adapter(
+                "EGL has no EGL_MESA_platform_surfaceless (is Mesa's libEGL installed?)",
+                None,
             ));
         }
         // SAFETY: the surfaceless platform takes EGL_DEFAULT_DISPLAY and no attributes.
@@ -109,7 +110,7 @@ impl StrictContext {
                 ],
             )
             .map_err(|e| fail("eglChooseConfig", e))?
-            .ok_or_else(|| Error::NoAdapter("EGL: no config with OPENGL_ES3_BIT".into()))?;
+            .ok_or_else(|| Error::no_adapter("EGL: no config with OPENGL_ES3_BIT", None))?;
         let context = egl
             .create_context(
                 display,
@@ -140,7 +141,7 @@ impl StrictContext {
         }
         self.egl
             .make_current(self.display, None, None, Some(self.context))
-            .map_err(|e| Error::Gpu(format!("EGL: eglMakeCurrent: {e}")))
+            .map_err(|e| Error::gpu("EGL: eglMakeCurrent", e))
     }
 
     /// The GL function loader wgpu-hal builds its `glow` context from.

@@ -19,7 +19,11 @@ use crate::plan::uniforms::{DrawUniform, Globals};
 use crate::shading::basic::BasicShading;
 use crate::shading::debug_view::DebugView;
 use crate::shading::scene::Scene;
-use crate::{Camera, Heightmap, Profile, Result};
+use crate::progress::Progress;
+use crate::Result;
+use crate::plan::camera::Camera;
+use crate::source::Heightmap;
+use crate::profile::Profile;
 
 const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
@@ -72,6 +76,7 @@ impl FrameOptions {
             cull: self.cull,
             skirts: self.skirts,
             epsilon_px: self.epsilon_px,
+            viewport: None,
         }
     }
 }
@@ -113,10 +118,9 @@ pub struct FrameStats {
     pub sg_samples: u64,
 }
 
-/// The tables [`Shading::Sg`] needs for `scene` over `hm`, through the disk cache
-/// ([`ShadingBake::bake_cached`]) on the finest grid whose tables fit `max_bytes` (the profile's
-/// [`crate::profile::CpuSplit::shading`]), and the scene as drawn (`shadows: false` drops visibility even
-/// if the scene asks for it). Bakes only what the scene needs ([`Scene::needs`]).
+/// The tables [`Shading::Sg`] needs for `scene` over `hm` within `max_bytes` (a test's share), through
+/// the binary's cache folder ([`crate::engine::setup::sg_tables`] with a profile's share), and the scene
+/// as drawn (`shadows: false` drops visibility).
 pub fn sg_bake(
     max_bytes: u64,
     hm: &Heightmap,
@@ -131,25 +135,7 @@ pub fn sg_bake(
         DEFAULT_AZIMUTHS,
         max_bytes,
         &crate::bake::default_cache_dir(),
-    )?;
-    Ok((scene, bake))
-}
-
-/// [`sg_bake`] out of core from a streamed package ([`ShadingBake::bake_package_cached`]).
-pub fn sg_bake_package(
-    max_bytes: u64,
-    package: &crate::package::Package,
-    scene: &Scene,
-    shadows: bool,
-) -> Result<(Scene, ShadingBake)> {
-    let mut scene = scene.clone();
-    scene.effects.visibility &= shadows;
-    let (bake, _) = ShadingBake::bake_package_cached(
-        package,
-        &scene.needs(),
-        DEFAULT_AZIMUTHS,
-        max_bytes,
-        &crate::bake::default_cache_dir(),
+        Progress::default(),
     )?;
     Ok((scene, bake))
 }

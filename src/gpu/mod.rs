@@ -7,13 +7,16 @@
 //! A [`Gpu`] is bound to the thread that made it (GL contexts are current per thread): keep the
 //! renderer on the thread that made it. The type is neither `Send` nor `Sync`, so the compiler enforces it.
 
+#[cfg(feature = "internals")]
 pub mod brute;
 #[cfg(unix)]
 mod egl;
+#[cfg(feature = "internals")]
 pub mod headless;
 pub mod readback;
 pub mod renderer;
 pub mod sat_textures;
+#[cfg(feature = "internals")]
 pub mod sg_probe;
 pub mod shaders;
 
@@ -108,9 +111,14 @@ impl Gpu {
             GpuMode::Gl => Self::new_gl(),
             GpuMode::Auto => Self::new_strict().or_else(|strict| {
                 Self::new_gl().map_err(|gl| {
-                    Error::NoAdapter(format!(
-                        "strict GLES 3.0: {strict}; wgpu GL: {gl}; {NO_ADAPTER_HINT}"
-                    ))
+                    Error::no_adapter(
+                        format!(
+                            "strict GLES 3.0: {}; wgpu GL: {}; {NO_ADAPTER_HINT}",
+                            crate::error::with_sources(&strict),
+                            crate::error::with_sources(&gl)
+                        ),
+                        None,
+                    )
                 })
             }),
         }
@@ -162,7 +170,7 @@ impl Gpu {
         let v = pollster::block_on(validation.pop());
         let o = pollster::block_on(oom.pop());
         match (v, o) {
-            (Some(e), _) | (None, Some(e)) => Err(Error::Gpu(format!("{what}: {e}"))),
+            (Some(e), _) | (None, Some(e)) => Err(Error::gpu(what, e)),
             (None, None) => out,
         }
     }
@@ -186,10 +194,10 @@ impl Gpu {
         let exposed =
             unsafe { wgpu_hal::gles::Adapter::new_external(|n| ctx.proc_address(n), options) }
                 .ok_or_else(|| {
-                    Error::NoAdapter(
+                    Error::no_adapter(
                         "wgpu could not use the OpenGL ES 3.0 context (GL_VERSION unparsable or \
-                         below ES 3.0)"
-                            .into(),
+                         below ES 3.0)",
+                        None,
                     )
                 })?;
         // SAFETY: the hal adapter is of the GLES backend this wgpu build enables.
@@ -199,8 +207,9 @@ impl Gpu {
 
     #[cfg(not(unix))]
     fn new_strict() -> Result<Self> {
-        Err(Error::NoAdapter(
-            "the strict GLES 3.0 mode needs EGL (Linux/Unix)".into(),
+        Err(Error::no_adapter(
+            "the strict GLES 3.0 mode needs EGL (Linux/Unix)",
+            None,
         ))
     }
 
@@ -214,7 +223,7 @@ impl Gpu {
             compatible_surface: None,
             apply_limit_buckets: false,
         }))
-        .map_err(|e| Error::NoAdapter(format!("wgpu GL backend: {e}; {NO_ADAPTER_HINT}")))?;
+        .map_err(|e| Error::no_adapter(format!("wgpu GL backend; {NO_ADAPTER_HINT}"), Some(e.into())))?;
         Self::finish(
             instance,
             adapter,
@@ -237,11 +246,14 @@ impl Gpu {
             short.push(format!("{name}: adapter has {got}, need {want}"));
         });
         if !short.is_empty() {
-            return Err(Error::NoAdapter(format!(
-                "adapter {:?} is below the GLES 3.0 / WebGL2 floor: {}",
-                adapter.get_info().name,
-                short.join(", ")
-            )));
+            return Err(Error::no_adapter(
+                format!(
+                    "adapter {:?} is below the GLES 3.0 / WebGL2 floor: {}",
+                    adapter.get_info().name,
+                    short.join(", ")
+                ),
+                None,
+            ));
         }
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("clipsat"),
@@ -251,7 +263,7 @@ impl Gpu {
             memory_hints: wgpu::MemoryHints::MemoryUsage,
             trace: wgpu::Trace::Off,
         }))
-        .map_err(|e| Error::NoAdapter(format!("request_device on the GLES 3.0 floor: {e}")))?;
+        .map_err(|e| Error::no_adapter("request_device on the GLES 3.0 floor", Some(e.into())))?;
         let info = adapter.get_info();
         let flags = adapter.get_downlevel_capabilities().flags;
         let gl_version = info.driver_info.clone();

@@ -70,7 +70,7 @@ pub fn read_rgba8_on(
     texture: &wgpu::Texture,
 ) -> Result<Image> {
     if texture.format() != wgpu::TextureFormat::Rgba8Unorm {
-        return Err(Error::Gpu(format!(
+        return Err(Error::gpu_msg(format!(
             "readback needs an Rgba8Unorm texture, got {:?}",
             texture.format()
         )));
@@ -78,7 +78,7 @@ pub fn read_rgba8_on(
     let (width, height) = (texture.width(), texture.height());
     let tight = width as usize * 4;
     let padded = u32::try_from(tight.next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT as usize))
-        .map_err(|_| Error::Gpu(format!("texture {width} px wide is too wide to read back")))?;
+        .map_err(|_| Error::gpu_msg(format!("texture {width} px wide is too wide to read back")))?;
     let buffer = {
         let buffer = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("readback"),
@@ -137,15 +137,15 @@ pub fn map_rows_on(
     });
     device
         .poll(wgpu::PollType::wait_indefinitely())
-        .map_err(|e| Error::Gpu(format!("readback: waiting for the GPU: {e}")))?;
+        .map_err(|e| Error::gpu("readback: waiting for the GPU", e))?;
     rx.try_recv()
-        .map_err(|_| Error::Gpu("readback: map callback did not run".into()))?
-        .map_err(|e| Error::Gpu(format!("readback: map failed: {e}")))?;
+        .map_err(|_| Error::gpu_msg("readback: map callback did not run"))?
+        .map_err(|e| Error::gpu("readback: map failed", e))?;
     let mut out = Vec::new();
     {
         let view = buffer
             .get_mapped_range(..)
-            .map_err(|e| Error::Gpu(format!("readback: mapped range: {e}")))?;
+            .map_err(|e| Error::gpu("readback: mapped range", e))?;
         out.reserve(view.len() / padded as usize * tight as usize);
         for row in view.chunks_exact(padded as usize) {
             out.extend_from_slice(&row[..tight as usize]);

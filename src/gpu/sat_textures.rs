@@ -41,8 +41,10 @@ use crate::bake::CacheOutcome;
 use crate::hash::{hex, Hash64};
 use crate::package::format::level_sizes;
 use crate::package::Package;
+use crate::progress::Progress;
 use crate::shading::scene::Needs;
-use crate::{Error, Heightmap, Result};
+use crate::{Error, Result};
+use crate::source::Heightmap;
 
 const SHADING_MAGIC: &[u8; 8] = b"CSATSHD1";
 /// Bumped whenever the shading cache layout or the meaning of a baked number changes (2: the grid level
@@ -165,14 +167,17 @@ pub struct ShadingBake {
     baked: Vec<&'static str>,
 }
 
-/// Texels over which a bake shows a progress bar on stderr (the horizons' march is the slow part).
-const PROGRESS_TEXELS: u64 = 1 << 20;
-
 impl ShadingBake {
     /// Bakes what `needs` asks for on the finest level of `hm` whose tables fit `max_bytes`
     /// ([`grid_level`]): always the normal SAT; the horizons ([`horizon::texel_horizons`], `azimuths`
     /// of them) and their SATs only when `needs.bake_horizons`.
-    pub fn bake(hm: &Heightmap, needs: &Needs, azimuths: u32, max_bytes: u64) -> Result<Self> {
+    pub fn bake(
+        hm: &Heightmap,
+        needs: &Needs,
+        azimuths: u32,
+        max_bytes: u64,
+        progress: Progress<'_>,
+    ) -> Result<Self> {
         let (d, k) = grid_choice(
             &level_sizes(hm.width(), hm.height()),
             needs,
@@ -181,7 +186,7 @@ impl ShadingBake {
         )?;
         let data = (hm.width(), hm.height());
         if k == 0 {
-            return Self::bake_grid(hm, 1, d, data, hm.spacing());
+            return Self::bake_grid(hm, 1, d, data, hm.spacing(), progress);
         }
         let pyramid = Pyramid::build(hm);
         if k >= pyramid.len() {
@@ -202,7 +207,7 @@ impl ShadingBake {
             l.heights().to_vec(),
         )?;
         drop(pyramid);
-        Self::bake_grid(&grid, step, d, data, hm.spacing())
+        Self::bake_grid(&grid, step, d, data, hm.spacing(), progress)
     }
 
     /// [`ShadingBake::bake`] out of core from a package: the grid is the package's own finest level whose
@@ -212,6 +217,7 @@ impl ShadingBake {
         needs: &Needs,
         azimuths: u32,
         max_bytes: u64,
+        progress: Progress<'_>,
     ) -> Result<Self> {
         let (d, k) = grid_choice(&package_sizes(package), needs, azimuths, max_bytes)?;
         let h = package.header();
@@ -226,7 +232,7 @@ impl ShadingBake {
         #[expect(clippy::cast_precision_loss, reason = "a power of two below 2^32")]
         let spacing = h.spacing * step as f32;
         let grid = Heightmap::new(package.path(), dims.width, dims.height, spacing, heights)?;
-        Self::bake_grid(&grid, step, d, (h.width, h.height), h.spacing)
+        Self::bake_grid(&grid, step, d, (h.width, h.height), h.spacing, progress)
     }
 
     /// The tables of `grid` (level log2(`step`) of the data), `d` horizons (0: none), written row by row.
@@ -236,6 +242,7 @@ impl ShadingBake {
         d: u32,
         data: (u32, u32),
         spacing: f32,
+        progress: Progress<'_>,
     ) -> Result<Self> {
         let (w, h) = (grid.width(), grid.height());
         let pw = w as usize + 1;
@@ -245,11 +252,8 @@ impl ShadingBake {
             (zeroed(texels * 4), zeroed(du.div_ceil(4) * texels * 4));
         let normal = unique(&mut normal_arc);
         let horizon = unique(&mut horizon_arc);
-        let bar = (d > 0 && u64::from(w) * u64::from(h) > PROGRESS_TEXELS).then(|| {
-            let bar = indicatif::ProgressBar::new(u64::from(h));
-            bar.set_message("baking horizons");
-            bar
-        });
+        // The horizons' march is the slow part; the normals alone take a moment.
+        let mut meter = (d > 0).then(|| progress.task("baking horizons, rows", u64::from(h)));
         // Quantised up to 2^-20 as Sat::build does; a u32 of at most 2^20.
         let quantum = |v: f64, x: u32, y: u32| -> u32 {
             let q = Sat::quantise_up(v.clamp(0.0, 1.0), SAT_FRAC_BITS, x, y);
@@ -284,12 +288,12 @@ impl ShadingBake {
                     horizon[layer + at] = horizon[layer + above].wrapping_add(hrun[k]);
                 }
             }
-            if let Some(bar) = &bar {
-                bar.inc(1);
+            if let Some(m) = &mut meter {
+                m.inc(1);
             }
         }
-        if let Some(bar) = bar {
-            bar.finish_and_clear();
+        if let Some(m) = &mut meter {
+            m.finish();
         }
         Ok(Self {
             width: w,
@@ -314,6 +318,7 @@ impl ShadingBake {
         azimuths: u32,
         max_bytes: u64,
         dir: &Path,
+        progress: Progress<'_>,
     ) -> Result<(Self, CacheOutcome)> {
         let (_, k) = grid_choice(
             &level_sizes(hm.width(), hm.height()),
@@ -323,7 +328,7 @@ impl ShadingBake {
         )?;
         let key = shading_cache_key(hm, needs, azimuths, k);
         Self::cached(key, needs, dir, || {
-            Self::bake(hm, needs, azimuths, max_bytes)
+            Self::bake(hm, needs, azimuths, max_bytes, progress)
         })
     }
 
@@ -335,11 +340,12 @@ impl ShadingBake {
         azimuths: u32,
         max_bytes: u64,
         dir: &Path,
+        progress: Progress<'_>,
     ) -> Result<(Self, CacheOutcome)> {
         let (_, k) = grid_choice(&package_sizes(package), needs, azimuths, max_bytes)?;
         let key = package_cache_key(package, needs, azimuths, k);
         Self::cached(key, needs, dir, || {
-            Self::bake_package(package, needs, azimuths, max_bytes)
+            Self::bake_package(package, needs, azimuths, max_bytes, progress)
         })
     }
 
@@ -682,15 +688,15 @@ mod tests {
             ..Needs::default()
         };
         let (first, outcome) =
-            ShadingBake::bake_cached(&hm, &needs, 8, u64::MAX, &dir).expect("bake");
+            ShadingBake::bake_cached(&hm, &needs, 8, u64::MAX, &dir, Progress::default()).expect("bake");
         assert_eq!(outcome, CacheOutcome::Baked);
         let (again, outcome) =
-            ShadingBake::bake_cached(&hm, &needs, 8, u64::MAX, &dir).expect("hit");
+            ShadingBake::bake_cached(&hm, &needs, 8, u64::MAX, &dir, Progress::default()).expect("hit");
         assert_eq!(outcome, CacheOutcome::Hit);
         assert_eq!(again, first);
         // Another parameter is another file; no horizons reads back no horizons.
         let (plain, outcome) =
-            ShadingBake::bake_cached(&hm, &Needs::default(), 8, u64::MAX, &dir).expect("plain");
+            ShadingBake::bake_cached(&hm, &Needs::default(), 8, u64::MAX, &dir, Progress::default()).expect("plain");
         assert_eq!((outcome, plain.azimuths()), (CacheOutcome::Baked, 0));
         assert_eq!(plain.baked(), ["normal_sat"]);
         // A flipped byte fails the trailing hash: rebaked, same tables.
@@ -702,7 +708,7 @@ mod tests {
         bytes[40] ^= 1;
         std::fs::write(&path, &bytes).expect("damage");
         let (fixed, outcome) =
-            ShadingBake::bake_cached(&hm, &needs, 8, u64::MAX, &dir).expect("rebake");
+            ShadingBake::bake_cached(&hm, &needs, 8, u64::MAX, &dir, Progress::default()).expect("rebake");
         assert!(matches!(outcome, CacheOutcome::Rebaked(_)), "{outcome:?}");
         assert_eq!(fixed, first);
         let _ = std::fs::remove_dir_all(&dir);

@@ -12,10 +12,10 @@
 use glam::{DMat4, DVec3, DVec4, Mat4};
 
 use crate::gpu::readback::Image;
+use crate::plan::camera::Camera;
 use crate::plan::clipmap::Clipmap;
 use crate::plan::detail::stitch;
 use crate::plan::frame_plan::FramePlan;
-use crate::Camera;
 
 /// Most candidates [`hole_pixels`] traces (each trace walks the whole view ray); past it, an evenly
 /// spaced sample of this many is traced and the holes are scaled to all candidates.

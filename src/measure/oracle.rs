@@ -23,11 +23,11 @@
 
 use crate::bake::lod_tables::sample_error;
 use crate::plan::camera::px_of_parts;
+use crate::plan::camera::Camera;
 use crate::plan::clipmap::Clipmap;
 use crate::plan::cull;
 use crate::plan::frame::Rect;
 use crate::plan::lod::{Lod, LodMode};
-use crate::Camera;
 
 use super::stitch;
 

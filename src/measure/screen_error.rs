@@ -2,12 +2,12 @@
 //! the frame path.
 
 use crate::bake::lod_tables::sample_error;
+use crate::plan::camera::Camera;
 use crate::plan::clipmap::Clipmap;
 use crate::plan::cull;
 use crate::plan::detail::stitch;
 use crate::plan::frame_plan::FramePlan;
 use crate::plan::lod::Lod;
-use crate::Camera;
 
 /// The measured screen-space error of a drawn frame ([`screen_error`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]

@@ -131,7 +131,7 @@ pub struct Header {
     pub height: u32,
     /// Level-0 sample spacing, metres.
     pub spacing: f32,
-    /// World position of the south-west sample, metres ([`crate::Heightmap::origin`]).
+    /// World position of the south-west sample, metres ([`crate::source::Heightmap::origin`]).
     pub origin: (f64, f64),
     /// The one quantisation step of every level, metres (GC section 7); heights are `quantum * k`.
     pub quantum: f64,

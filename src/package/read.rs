@@ -8,7 +8,8 @@ use std::path::{Path, PathBuf};
 
 use super::codec::{Decoder, Predictor};
 use super::format::Header;
-use crate::{Error, Heightmap, Result};
+use crate::{Error, Result};
+use crate::source::Heightmap;
 
 /// An open package: the validated header and a read-only map of the file.
 pub struct Package {

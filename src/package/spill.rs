@@ -10,6 +10,7 @@ use std::io::{Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
 use super::format::level_sizes;
+use crate::progress::Meter;
 use crate::source::RowSource;
 use crate::{Error, Result};
 
@@ -81,11 +82,11 @@ pub(super) fn on_lattice(h: f32, q: f64) -> bool {
 }
 
 impl Spilled {
-    /// Reads `src` top to bottom and spills every level, advancing `bar` by source rows.
+    /// Reads `src` top to bottom and spills every level, advancing `meter` by source rows.
     pub(super) fn build(
         src: &mut (impl RowSource + ?Sized),
         near: &Path,
-        bar: &indicatif::ProgressBar,
+        meter: &mut Meter<'_>,
     ) -> Result<Self> {
         let (w, h) = (src.width(), src.height());
         if w < 2 || h < 2 {
@@ -120,7 +121,7 @@ impl Spilled {
         let mut range = (f32::INFINITY, f32::NEG_INFINITY);
         let mut lattice = [true; 2];
         let mut band = vec![0.0f32; w as usize * BAND_ROWS.min(h) as usize];
-        bar.set_length(u64::from(h));
+        meter.set_total(u64::from(h));
         let mut y0 = 0;
         while y0 < h {
             let rows = BAND_ROWS.min(h - y0);
@@ -145,7 +146,7 @@ impl Spilled {
                 feed(&mut levels, 0, y, row)?;
             }
             y0 += rows;
-            bar.inc(u64::from(rows));
+            meter.inc(u64::from(rows));
         }
         let mut done = Vec::with_capacity(levels.len());
         for l in levels {
@@ -243,8 +244,9 @@ fn feed(levels: &mut [Level], l: usize, y: u32, row: &[f32]) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::progress::Progress;
     use crate::bake::pyramid::Pyramid;
-    use crate::Heightmap;
+    use crate::source::Heightmap;
 
     #[test]
     fn spilled_levels_are_the_pyramid_bit_for_bit() {
@@ -264,7 +266,7 @@ mod tests {
             let mut s = Spilled::build(
                 &mut crate::source::Resident::new(&hm),
                 &dir,
-                &indicatif::ProgressBar::hidden(),
+                &mut Progress::default().task("spill test", 0),
             )
             .unwrap();
             let p = Pyramid::build(&hm);

@@ -12,8 +12,10 @@ use std::path::Path;
 use super::codec::{Encoder, Predictor};
 use super::format::{CodecKind, Header, TileEntry};
 use super::spill::{on_lattice, Spilled};
+use crate::progress::Progress;
 use crate::source::{Resident, RowSource};
-use crate::{Error, Heightmap, Param, Result};
+use crate::{Error, Param, Result};
+use crate::source::Heightmap;
 
 /// Default tile side, samples: 64 x 64 = 4096 samples fits the smallest profile's per-frame update budget
 /// (gles3-low, 8192 samples), so a tile can always be decoded inside one frame.
@@ -113,20 +115,20 @@ pub fn bake(
     terrain: &Heightmap,
     out: &Path,
     opts: &BakeOptions,
-    bar: &indicatif::ProgressBar,
+    progress: Progress<'_>,
 ) -> Result<BakeReport> {
-    bake_source(&mut Resident::new(terrain), out, opts, bar)
+    bake_source(&mut Resident::new(terrain), out, opts, progress)
 }
 
 /// Bakes a source read in bands of rows into the package file `out`, out of core: the pyramid is built
 /// band by band and spilled to temporary files beside `out` (`package::spill`, removed afterwards), then
 /// coded coarse to fine one tile row at a time. The working set is a few rows per level and one tile row
-/// of the finest level, whatever the number of rows. `bar` counts source rows, then tiles.
+/// of the finest level, whatever the number of rows. `progress` counts source rows, then tiles.
 pub fn bake_source(
     src: &mut (impl RowSource + ?Sized),
     out: &Path,
     opts: &BakeOptions,
-    bar: &indicatif::ProgressBar,
+    progress: Progress<'_>,
 ) -> Result<BakeReport> {
     if let Some(m) = opts.max_error {
         check_max_error(m)?;
@@ -142,8 +144,8 @@ pub fn bake_source(
         .collect::<std::io::Result<Vec<_>>>()
         .map_err(|e| Error::io(out, "cannot start the tile encoder", e))?;
     let file = std::fs::File::create(out).map_err(|e| Error::io(out, "cannot create", e))?;
-    bar.set_message("reading the source, rows");
-    let mut spilled = Spilled::build(src, out, bar)?;
+    let mut meter = progress.task("baking the terrain package: reading the source, rows", 0);
+    let mut spilled = Spilled::build(src, out, &mut meter)?;
     let max_error = opts.max_error.unwrap_or_else(|| {
         [1.0, 0.1]
             .into_iter()
@@ -183,9 +185,10 @@ pub fn bake_source(
         .map_err(|e| Error::io(out, "cannot write", e))?;
     let mut offset = head_len as u64;
     let mut table = header.tiles.clone();
-    bar.set_message("coding tiles");
-    bar.set_position(0);
-    bar.set_length(table.len() as u64);
+    meter.next(
+        "baking the terrain package: coding tiles",
+        table.len() as u64,
+    );
     let (sq, worst) = residual_rows(&mut spilled, &header, |lk, ty, tiles| {
         let dims = header.levels[lk];
         let payloads = encode_all(&mut encoders, tiles)
@@ -201,7 +204,7 @@ pub fn bake_source(
             };
             offset += u64::from(len);
         }
-        bar.inc(tiles.len() as u64);
+        meter.inc(tiles.len() as u64);
         Ok(())
     })?;
     drop(spilled);
@@ -215,11 +218,11 @@ pub fn bake_source(
         .and_then(|_| file.write_all(&bytes))
         .and_then(|()| file.sync_all())
         .map_err(|e| Error::io(out, "cannot write", e))?;
-    bar.finish_and_clear();
+    meter.finish();
     drop(file);
     let samples = header.samples();
     let (bytes, lod_bytes) = if opts.lod_tables {
-        let lod = add_lod_records(out, opts, !bar.is_hidden())?;
+        let lod = add_lod_records(out, opts, progress)?;
         (offset + lod.0, lod.1)
     } else {
         (offset, 0)
@@ -249,7 +252,7 @@ pub fn bake_source(
 /// is written again with the records' table in its header (the height tiles' offsets moved by the
 /// header's growth, their bytes copied as they are) and the record tiles after the height tiles, to a
 /// temporary name renamed over `out`. Returns (bytes added, record tile bytes).
-fn add_lod_records(out: &Path, opts: &BakeOptions, progress: bool) -> Result<(u64, u64)> {
+fn add_lod_records(out: &Path, opts: &BakeOptions, progress: Progress<'_>) -> Result<(u64, u64)> {
     use crate::bake::lod_package::{bake_records, RECORD_LEVELS};
     use crate::bake::lod_tables::P;
     let pkg = super::read::Package::open(out)?;
@@ -423,7 +426,7 @@ pub fn residual_tiles(
     let mut spilled = Spilled::build(
         &mut Resident::new(terrain),
         &near,
-        &indicatif::ProgressBar::hidden(),
+        &mut Progress::default().task("spilling the pyramid", 0),
     )?;
     residual_rows(&mut spilled, header, |lk, ty, tiles| {
         for (tx, t) in (0..).zip(tiles) {
@@ -556,7 +559,7 @@ pub fn cached<S: RowSource + ?Sized>(
     dir: &Path,
     key: u64,
     load: impl FnOnce() -> Result<Box<S>>,
-    bar: &indicatif::ProgressBar,
+    progress: Progress<'_>,
 ) -> Result<(std::path::PathBuf, bool)> {
     let named = |v: u32| dir.join(format!("terrain-{}-v{v}.clipsat", crate::hash::hex(key)));
     let path = named(super::format::VERSION);
@@ -566,7 +569,7 @@ pub fn cached<S: RowSource + ?Sized>(
     let mut terrain = load()?;
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, "cannot create folder", e))?;
     let tmp = path.with_extension(format!("tmp{}", crate::temp_suffix()));
-    bake_source(&mut *terrain, &tmp, &BakeOptions::default(), bar)?;
+    bake_source(&mut *terrain, &tmp, &BakeOptions::default(), progress)?;
     std::fs::rename(&tmp, &path).map_err(|e| Error::io(&path, "cannot rename into place", e))?;
     // The same terrain's packages of older formats are refused now: drop them, so the cache folder does
     // not grow with every format change (best effort: a file another process holds stays).

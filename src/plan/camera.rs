@@ -10,7 +10,7 @@ use crate::{Error, Result};
 /// The default camera's distance to its target, in units of the terrain's larger extent.
 pub const DEFAULT_VIEW_DISTANCE: f64 = 0.45;
 
-/// How many times the typical relief ([`crate::Heightmap::typical_range`]) the height range must span
+/// How many times the typical relief ([`crate::source::Heightmap::typical_range`]) the height range must span
 /// before the default camera aims at the typical relief instead.
 pub const OUTLIER_STRETCH: f64 = 4.0;
 
@@ -33,26 +33,26 @@ impl Camera {
     /// A camera at `eye` looking at `target`, checked: finite, distinct points, and a sane field of view.
     pub fn new(eye: DVec3, target: DVec3, fov_y_deg: f64) -> Result<Self> {
         if !eye.is_finite() {
-            return Err(Error::Camera(format!("eye position {eye} is not finite")));
+            return Err(Error::camera(format!("eye position {eye} is not finite")));
         }
         if !target.is_finite() {
-            return Err(Error::Camera(format!(
+            return Err(Error::camera(format!(
                 "look-at point {target} is not finite"
             )));
         }
         let dir = target - eye;
         if dir.length() < 1e-6 {
-            return Err(Error::Camera(
-                "look direction has zero length (eye and look-at coincide)".into(),
+            return Err(Error::camera(
+                "look direction has zero length (eye and look-at coincide)",
             ));
         }
         if dir.normalize().cross(DVec3::Z).length() < 1e-9 {
-            return Err(Error::Camera(
-                "looking straight up or down: the view has no defined 'up'".into(),
+            return Err(Error::camera(
+                "looking straight up or down: the view has no defined 'up'",
             ));
         }
         if !(fov_y_deg.is_finite() && fov_y_deg > 1.0 && fov_y_deg < 179.0) {
-            return Err(Error::Camera(format!(
+            return Err(Error::camera(format!(
                 "field of view {fov_y_deg} deg is not in (1, 179)"
             )));
         }
@@ -75,7 +75,7 @@ impl Camera {
     /// south so that north-south ridges do not line up with the view; it stays above the highest sample
     /// by a twentieth of the extent. A 60 degree vertical field of view then spans the whole width at the
     /// centre on a 16:9 frame; the clip planes are fitted to the terrain.
-    pub fn default_for(hm: &crate::Heightmap) -> Result<Self> {
+    pub fn default_for(hm: &crate::source::Heightmap) -> Result<Self> {
         let (ex, ey) = hm.extent_m();
         let (lo, hi) = hm.range();
         let (lo, hi) = (f64::from(lo), f64::from(hi));
@@ -110,7 +110,7 @@ impl Camera {
     /// Sets the clip planes (metres); `near` must be positive and below `far`.
     pub fn with_clip(mut self, near: f64, far: f64) -> Result<Self> {
         if !(near.is_finite() && far.is_finite() && near > 0.0 && far > near) {
-            return Err(Error::Camera(format!(
+            return Err(Error::camera(format!(
                 "clip planes near {near} m, far {far} m: need 0 < near < far"
             )));
         }

@@ -22,7 +22,9 @@ pub use crate::plan::morph::morph_alpha;
 pub use crate::plan::ring::Ring;
 use crate::plan::synthesis::{extrapolate_sigmas, synthesize, NoiseTable};
 use crate::plan::uploads::UploadStamps;
-use crate::{Error, Heightmap, Param, Profile, Result};
+use crate::{Error, Param, Result};
+use crate::source::Heightmap;
+use crate::profile::Profile;
 
 mod data;
 
@@ -409,15 +411,29 @@ impl Clipmap {
             || h <= HEIGHT_FACTOR * f64::from(self.n) * self.g0 * f64::from(1u32 << level)
     }
 
+    /// Updates at a still eye until no level is stale and nothing is pending there, at most `max_frames`
+    /// frames, each under the budget: the warm-up before a first frame (a camera placed, a teleport).
+    /// Returns the frames run.
+    pub fn fill_at(&mut self, eye: DVec3, max_frames: u32) -> Result<u32> {
+        let mut frames = 0;
+        while frames < max_frames {
+            frames += 1;
+            if self.update(eye)?.stale_levels == 0 && self.pending_samples(eye) == 0 {
+                break;
+            }
+        }
+        Ok(frames)
+    }
+
     /// One frame: plan under the budget (coarse to fine), fill, crop, disable; allocation-free.
     pub fn update(&mut self, eye: DVec3) -> Result<&Frame> {
         if !eye.is_finite() {
-            return Err(Error::Camera(format!("eye position {eye} is not finite")));
+            return Err(Error::camera(format!("eye position {eye} is not finite")));
         }
         let p = self.eye_lattice(eye);
         // Lattice coordinates stay far inside i64 (and doubled corners cannot overflow).
         if !(p.0.abs() < MAX_LATTICE && p.1.abs() < MAX_LATTICE) {
-            return Err(Error::Camera(format!(
+            return Err(Error::camera(format!(
                 "eye position {eye} is too far from the terrain for the clipmap lattice"
             )));
         }

@@ -7,7 +7,8 @@ use glam::{DMat4, DVec3, DVec4};
 
 use crate::plan::clipmap::Clipmap;
 use crate::plan::frame::Rect;
-use crate::{Camera, Error, Result};
+use crate::{Error, Result};
+use crate::plan::camera::Camera;
 
 // The limit lives with the budget it bounds, so that the profile depends on no stage.
 pub use crate::profile::MAX_DRAWS;

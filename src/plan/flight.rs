@@ -12,7 +12,9 @@ use std::str::FromStr;
 use glam::{DVec2, DVec3};
 
 use crate::hash::Hash64;
-use crate::{Camera, Error, Heightmap, Result};
+use crate::{Error, Result};
+use crate::plan::camera::Camera;
+use crate::source::Heightmap;
 
 /// Frames between jumps of `teleport` when the name gives no count.
 pub const DEFAULT_TELEPORT_EVERY: u32 = 120;

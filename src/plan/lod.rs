@@ -167,7 +167,7 @@ impl Lod {
     /// never farther than the true one).
     pub fn new(
         tables: LodTables,
-        profile: &crate::Profile,
+        profile: &crate::profile::Profile,
         synth: u32,
         g0: f64,
         corner: (f64, f64),
@@ -195,9 +195,9 @@ impl Lod {
     /// the data's; the height range is the clipmap's data range).
     pub fn for_clipmap(
         tables: LodTables,
-        profile: &crate::Profile,
+        profile: &crate::profile::Profile,
         clipmap: &crate::plan::clipmap::Clipmap,
-        terrain: &crate::Heightmap,
+        terrain: &crate::source::Heightmap,
     ) -> Self {
         // The data's range (a streamed package's header has it; `terrain` may be a coarse stand-in).
         let (lo, hi) = clipmap.data_range();
@@ -217,6 +217,11 @@ impl Lod {
     /// Sets the screen-space error bound epsilon, pixels (the profile's `view.epsilon_px` until set).
     pub fn set_epsilon_px(&mut self, epsilon_px: f64) {
         self.epsilon_px = epsilon_px;
+    }
+
+    /// Sets the viewport the bound is measured in, pixels (the profile's `view` until set).
+    pub fn set_view(&mut self, view: (u32, u32)) {
+        self.view = view;
     }
 
     /// The screen-space error bound epsilon, pixels.
@@ -596,6 +601,6 @@ fn split_points(lo: i64, hi: i64, level: u32) -> heapless::Vec<i64, { SPLIT + 1 
 }
 
 /// The most blocks one frame of `profile` can have: at most 6 x 6 cells meet a ring's active region.
-pub fn max_blocks_per_frame(profile: &crate::Profile) -> usize {
+pub fn max_blocks_per_frame(profile: &crate::profile::Profile) -> usize {
     36 * (profile.clipmap.levels as usize).min(MAX_LEVELS)
 }

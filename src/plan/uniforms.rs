@@ -10,7 +10,7 @@ use crate::plan::cull;
 use crate::plan::frame::Rect;
 use crate::profile::{GLOBALS_BYTES, MAX_LEVELS};
 use crate::shading::basic::BasicShading;
-use crate::Camera;
+use crate::plan::camera::Camera;
 
 /// The renderer's global uniforms; mirrors `Globals` in `shaders_gles/clipmap.wgsl`.
 #[repr(C)]

@@ -30,7 +30,7 @@ pub struct HorizonTable {
 
 impl HorizonTable {
     /// Marches `azimuths` directions from grid point (u, v) of `hm` out to `max_samples` samples.
-    pub fn march(hm: &crate::Heightmap, u: f64, v: f64, azimuths: u32, max_samples: f64) -> Self {
+    pub fn march(hm: &crate::source::Heightmap, u: f64, v: f64, azimuths: u32, max_samples: f64) -> Self {
         let angles = (0..azimuths)
             .map(|k| {
                 let a = std::f64::consts::TAU * f64::from(k) / f64::from(azimuths);

@@ -325,12 +325,12 @@ impl Scene {
     pub fn check_profile(&self, source_name: &str, profile: &Profile) -> Result<()> {
         for f in self.features() {
             if !profile.allows(f) {
-                let name = serde_json::to_string(&f).unwrap_or_default();
+                let name = format!("\"{}\"", f.name());
                 return Err(Error::config(
                     source_name,
                     match f {
                         Feature::Sg | Feature::Basic => "lights".to_string(),
-                        other => format!("effects.{}", format!("{other:?}").to_lowercase()),
+                        other => format!("effects.{}", other.name()),
                     },
                     format!(
                         "needs shading feature {name}, which profile `{}` does not allow (it allows {:?})",

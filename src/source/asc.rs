@@ -8,7 +8,8 @@ use super::{
     check_size, fill_voids, metres_per_degree_latitude, metres_per_degree_longitude, to_f32,
     LoadOptions,
 };
-use crate::{Error, Heightmap, Result};
+use crate::{Error, Result};
+use crate::source::Heightmap;
 
 /// The header: sizes, the lower-left reference, the cell size and the void marker.
 #[derive(Debug, Default)]

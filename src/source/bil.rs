@@ -4,7 +4,8 @@
 use std::path::Path;
 
 use super::{check_size, fill_voids, height, LoadOptions, RowGrid};
-use crate::{Error, Heightmap, Result};
+use crate::{Error, Result};
+use crate::source::Heightmap;
 
 /// How a sample is stored.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -12,7 +12,8 @@ use super::{
     check_size, fill_voids, height, metres_per_degree_latitude, metres_per_degree_longitude,
     to_f32, LoadOptions,
 };
-use crate::{Error, Heightmap, Result};
+use crate::{Error, Result};
+use crate::source::Heightmap;
 
 /// The user header label's first bytes.
 pub(super) const MAGIC: &[u8; 4] = b"UHL1";

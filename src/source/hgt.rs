@@ -6,7 +6,8 @@ use super::{
     check_size, fill_voids, metres_per_degree_latitude, metres_per_degree_longitude, to_f32,
     LoadOptions,
 };
-use crate::{Error, Heightmap, Result};
+use crate::{Error, Result};
+use crate::source::Heightmap;
 
 /// SRTM's void marker.
 const VOID: i16 = -32768;

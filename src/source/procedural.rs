@@ -7,7 +7,8 @@
 
 use std::path::Path;
 
-use crate::{Error, Heightmap, Result};
+use crate::{Error, Result};
+use crate::source::Heightmap;
 
 /// Parameters of the procedural terrain.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -3,7 +3,8 @@
 use std::path::Path;
 
 use super::{check_size, to_f32, LoadOptions, RawFormat, RowSource, DEFAULT_SPACING_M};
-use crate::{Error, Heightmap, Param, Result};
+use crate::{Error, Param, Result};
+use crate::source::Heightmap;
 
 /// Loads a raw file laid out as [`LoadOptions::raw`] says; its length must match exactly.
 ///

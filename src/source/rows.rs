@@ -4,7 +4,8 @@
 use std::borrow::Borrow;
 use std::path::{Path, PathBuf};
 
-use crate::{Error, Heightmap, Result};
+use crate::{Error, Result};
+use crate::source::Heightmap;
 
 /// What a [`RowSource`] says of itself.
 #[derive(Clone, Debug)]

@@ -13,7 +13,8 @@ use super::{
     check_size, fill_voids, height, metres_per_degree_latitude, metres_per_degree_longitude,
     to_f32, LoadOptions,
 };
-use crate::{Error, Heightmap, Param, Result};
+use crate::{Error, Param, Result};
+use crate::source::Heightmap;
 
 /// Whether `magic` starts like a TIFF or BigTIFF file (`II*\0`, `MM\0*`, and the BigTIFF 43 forms).
 pub(super) fn has_magic(magic: &[u8]) -> bool {

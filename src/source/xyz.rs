@@ -4,7 +4,8 @@
 use std::path::Path;
 
 use super::{check_size, fill_voids, height, LoadOptions};
-use crate::{Error, Heightmap, Result};
+use crate::{Error, Result};
+use crate::source::Heightmap;
 
 /// How far from a lattice point (in cells) a point may lie and still count as on the grid: the text
 /// rounds coordinates (1/3 m written to the millimetre is off by 0.0015 cells).

@@ -10,8 +10,9 @@ use clipsat::plan::cull::DrawKind;
 use clipsat::plan::flight::{Flight, Path};
 use clipsat::plan::frame_plan::{LodSetup, PlanParams, Planner};
 use clipsat::plan::lod::{Lod, LodMode};
+use clipsat::profile::Profile;
 use clipsat::source::procedural::{generate, ProceduralParams};
-use clipsat::{Heightmap, Profile};
+use clipsat::source::Heightmap;
 
 use crate::counting_alloc::count;
 
@@ -24,7 +25,14 @@ fn lod_tables(hm: &Heightmap, prof: &Profile, cm: &Clipmap) -> Lod {
         g0: cm.g0(),
     };
     let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("alloc-lod-cache");
-    let (tables, _) = bake_lod(hm, cm.pyramid(), &params, &dir, false).expect("LOD tables");
+    let (tables, _) = bake_lod(
+        hm,
+        cm.pyramid(),
+        &params,
+        &dir,
+        clipsat::Progress::default(),
+    )
+    .expect("LOD tables");
     Lod::for_clipmap(tables, prof, cm, hm)
 }
 

@@ -17,7 +17,8 @@ use std::path::Path;
 use clipsat::package::{self, BakeOptions, Package};
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::profile::ClipmapBudget;
-use clipsat::{Heightmap, Profile};
+use clipsat::profile::Profile;
+use clipsat::source::Heightmap;
 use glam::DVec3;
 
 use crate::counting_alloc::count;
@@ -80,7 +81,7 @@ fn baked(dir: &str, name: &str) -> (std::path::PathBuf, std::path::PathBuf) {
         zstd_level: 3,
         ..BakeOptions::default()
     };
-    package::bake(&terrain(), &path, &opts, &indicatif::ProgressBar::hidden()).expect("bake");
+    package::bake(&terrain(), &path, &opts, clipsat::Progress::default()).expect("bake");
     (dir, path)
 }
 
@@ -177,15 +178,21 @@ fn sat_lod_streams_from_mapped_tables_without_allocating() {
     let cache = dir.join("lod-cache");
     let pkg = open();
     let coarse = pkg.coarse_heightmap(1 << 16).expect("coarse");
-    let (tables, o) = bake_lod_package(&pkg, &params, &cache, false).expect("tables");
+    let (tables, o) =
+        bake_lod_package(&pkg, &params, &cache, clipsat::Progress::default()).expect("tables");
     assert_eq!(o, CacheOutcome::Baked);
     assert!(tables.is_mapped() && tables.owned_bytes() == 0, "mapped");
-    let (hit, o) = bake_lod_package(&pkg, &params, &cache, false).expect("hit");
+    let (hit, o) =
+        bake_lod_package(&pkg, &params, &cache, clipsat::Progress::default()).expect("hit");
     assert_eq!(o, CacheOutcome::Hit);
     assert!(hit.is_mapped());
     // The same tables baked in memory from the decoded pyramid.
-    let owned = clipsat::bake::bake_uncached(&pkg.to_pyramid().expect("pyramid"), &params, false)
-        .expect("owned");
+    let owned = clipsat::bake::bake_uncached(
+        &pkg.to_pyramid().expect("pyramid"),
+        &params,
+        clipsat::Progress::default(),
+    )
+    .expect("owned");
     assert!(!owned.is_mapped() && owned.owned_bytes() > 0);
     assert_eq!(tables, owned, "mapped and in-memory tables differ");
     let mapped_lod = Lod::for_clipmap(tables, &p, &cm, &coarse);
@@ -209,7 +216,8 @@ fn sat_lod_streams_from_mapped_tables_without_allocating() {
     let mut frames = 0;
     for t in 40..400 {
         let e = eye(t);
-        let cam = clipsat::Camera::new(e, e + DVec3::new(300.0, 200.0, -400.0), 60.0).expect("cam");
+        let cam = clipsat::plan::camera::Camera::new(e, e + DVec3::new(300.0, 200.0, -400.0), 60.0)
+            .expect("cam");
         cm.update(e).expect("update");
         let n = count(|| planner.plan(&cm, &cam, &pp, &mut plan).expect("plan"));
         assert_eq!(n, 0, "frame {t}: {n} allocations");
@@ -258,8 +266,13 @@ fn detail_pool_streams_within_budget_without_allocating() {
         synth_levels: 0,
         g0: f64::from(SPACING),
     };
-    let (tables, _) =
-        bake_lod_package(&pkg, &params, &dir.join("lod-cache"), false).expect("tables");
+    let (tables, _) = bake_lod_package(
+        &pkg,
+        &params,
+        &dir.join("lod-cache"),
+        clipsat::Progress::default(),
+    )
+    .expect("tables");
     let coarse = pkg.coarse_heightmap(1 << 16).expect("coarse");
     // The package's decoded levels: what every pool tile must hold, bit for bit.
     let levels: Vec<Vec<f32>> = (0..pkg.header().levels.len())
@@ -285,9 +298,10 @@ fn detail_pool_streams_within_budget_without_allocating() {
         for t in 0..400u32 {
             // Slow along the circle, so the rings settle and the pool gets budget.
             let e = eye(t / 4);
-            let cam = clipsat::Camera::new(e, e + DVec3::new(300.0, 200.0, -120.0), 60.0)
-                .and_then(|c| c.with_clip(2.0, 1.0e5))
-                .expect("cam");
+            let cam =
+                clipsat::plan::camera::Camera::new(e, e + DVec3::new(300.0, 200.0, -120.0), 60.0)
+                    .and_then(|c| c.with_clip(2.0, 1.0e5))
+                    .expect("cam");
             let n = count(|| {
                 cm.update(e).expect("update");
                 planner.plan(&cm, &cam, &pp, &mut plan).expect("plan");

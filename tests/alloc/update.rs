@@ -8,7 +8,8 @@
 
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::profile::ClipmapBudget;
-use clipsat::{Heightmap, Profile};
+use clipsat::profile::Profile;
+use clipsat::source::Heightmap;
 use glam::DVec3;
 
 use crate::counting_alloc::count;

@@ -19,8 +19,10 @@ use super::clipsat;
 
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::plan::flight::{Flight, Path as FlightPath};
+use clipsat::profile::Profile;
 use clipsat::source::procedural::{generate, ProceduralParams};
-use clipsat::{Error, Heightmap, Profile};
+use clipsat::source::Heightmap;
+use clipsat::Error;
 use glam::DVec3;
 
 fn terrain() -> Heightmap {
@@ -87,7 +89,7 @@ fn refused_eyes_leave_no_trace() {
                 let before = dirty.frame().hash;
                 for b in bad {
                     match dirty.update(b) {
-                        Err(Error::Camera(msg)) => assert!(!msg.is_empty()),
+                        Err(Error::Camera { reason: msg, .. }) => assert!(!msg.is_empty()),
                         other => panic!("eye {b}: expected a camera error, got {other:?}"),
                     }
                     assert_eq!(
@@ -406,8 +408,11 @@ fn extreme_heights_in_sat_lod_are_a_clear_error() {
         synth_levels: 0,
         g0: 30.0,
     };
-    match clipsat::bake::bake_uncached(&pyramid, &params, false).map(|_| ()) {
-        Err(Error::Terrain(reason)) => assert!(reason.contains("too large for f32"), "{reason}"),
+    match clipsat::bake::bake_uncached(&pyramid, &params, clipsat::Progress::default()).map(|_| ())
+    {
+        Err(Error::Terrain { reason, .. }) => {
+            assert!(reason.contains("too large for f32"), "{reason}")
+        }
         other => panic!("expected Error::Terrain, got {other:?}"),
     }
     // An error map that overflowed (or a NaN) is refused per level too, naming the sample; before, E_L
@@ -422,7 +427,7 @@ fn extreme_heights_in_sat_lod_are_a_clear_error() {
         )
         .map(|_| ())
         {
-            Err(Error::Terrain(reason)) => {
+            Err(Error::Terrain { reason, .. }) => {
                 assert!(reason.contains("column 0, row 1"), "{reason}")
             }
             other => panic!("{bad}: expected Error::Terrain, got {other:?}"),

@@ -17,7 +17,7 @@ fn peak_rss(args: &[&str]) -> Option<u64> {
 
 /// gles3-mid's `budget.cpu_memory_bytes`, the bound both flights' terrain-dependent RSS is held to.
 fn gles3_mid_cpu_budget() -> u64 {
-    clipsat::Profile::load("gles3-mid")
+    clipsat::profile::Profile::load("gles3-mid")
         .expect("profile")
         .budget
         .cpu_memory_bytes
@@ -240,7 +240,7 @@ fn render_sg_streamed_within_the_shading_share() {
         );
         peaks.push(peak);
     }
-    let share = clipsat::Profile::load("desktop")
+    let share = clipsat::profile::Profile::load("desktop")
         .expect("profile")
         .cpu_split()
         .shading;

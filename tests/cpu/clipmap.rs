@@ -10,7 +10,8 @@ use clipsat::bake::pyramid::{predict, Pyramid};
 use clipsat::plan::clipmap::{morph_alpha, Clipmap, ClipmapOptions};
 use clipsat::plan::frame::{LevelState, Rect};
 use clipsat::profile::ClipmapBudget;
-use clipsat::{Heightmap, Profile};
+use clipsat::profile::Profile;
+use clipsat::source::Heightmap;
 use glam::DVec3;
 
 /// A deterministic synthetic terrain: two sine octaves and a hashed bumpiness, `amp` metres high.

@@ -3,7 +3,8 @@
 use std::path::Path as FsPath;
 
 use clipsat::plan::flight::{Flight, Path, CRUISE_HEIGHT_M, DEFAULT_TELEPORT_EVERY, PATH_NAMES};
-use clipsat::{Error, Heightmap};
+use clipsat::source::Heightmap;
+use clipsat::Error;
 
 const FRAMES: u64 = 1500;
 

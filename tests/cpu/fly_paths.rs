@@ -8,8 +8,9 @@ use clipsat::hash::{hex, Hash64};
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::plan::flight::{Flight, Path};
 use clipsat::plan::frame::LevelState;
+use clipsat::profile::Profile;
+use clipsat::source::Heightmap;
 use clipsat::source::{self, procedural, LoadOptions};
-use clipsat::{Heightmap, Profile};
 
 const PATHS: [Path; 5] = [
     Path::Straight,

@@ -4,14 +4,15 @@
 //! one drawn with `fs_interior` must have no pixel that `outside_data` discards.
 
 use clipsat::bake::lod_tables::LodTables;
+use clipsat::plan::camera::Camera;
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::plan::cull::DrawKind;
 use clipsat::plan::fragment::FragmentPath;
 use clipsat::plan::frame_plan::{FramePlan, LodSetup, PlanParams, Planner};
 use clipsat::plan::lod::{Lod, LodMode};
+use clipsat::profile::Profile;
 use clipsat::source::procedural::{generate, ProceduralParams};
 use clipsat::twin::shading::fragment_data;
-use clipsat::{Camera, Profile};
 use glam::DVec3;
 
 /// Samples per footprint side, its edges included.

@@ -12,9 +12,11 @@ use clipsat::bake::lod_tables::{error_map, sample_error, LevelTables, LodTables,
 use clipsat::bake::pyramid::Pyramid;
 use clipsat::bake::sat::pow_unit;
 use clipsat::bake::{bake_lod, cache_key, cache_path, BakeParams, CacheOutcome};
+use clipsat::plan::camera::Camera;
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::plan::lod::{Lod, LodFrame, LodMode};
-use clipsat::{Camera, Heightmap, Profile};
+use clipsat::profile::Profile;
+use clipsat::source::Heightmap;
 use glam::{DVec2, DVec3};
 
 fn terrain(w: u32, h: u32, spacing: f32, f: impl Fn(u32, u32) -> f32) -> Heightmap {
@@ -542,9 +544,9 @@ fn bake_cache_detects_damage() {
     };
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("lod-cache-test");
     let _ = std::fs::remove_dir_all(&dir);
-    let (a, o) = bake_lod(&hm, &pyr, &params, &dir, false).expect("bake");
+    let (a, o) = bake_lod(&hm, &pyr, &params, &dir, clipsat::Progress::default()).expect("bake");
     assert_eq!(o, CacheOutcome::Baked);
-    let (b, o) = bake_lod(&hm, &pyr, &params, &dir, false).expect("hit");
+    let (b, o) = bake_lod(&hm, &pyr, &params, &dir, clipsat::Progress::default()).expect("hit");
     assert_eq!(o, CacheOutcome::Hit);
     assert_eq!(a, b);
     let path = cache_path(&dir, cache_key(&hm, &params));
@@ -567,18 +569,26 @@ fn bake_cache_detects_damage() {
     ];
     for (what, bytes) in damages {
         std::fs::write(&path, &bytes).expect("write damaged");
-        let (c, o) = bake_lod(&hm, &pyr, &params, &dir, false).expect("rebake");
+        let (c, o) =
+            bake_lod(&hm, &pyr, &params, &dir, clipsat::Progress::default()).expect("rebake");
         assert!(matches!(o, CacheOutcome::Rebaked(_)), "{what}: {o:?}");
         assert_eq!(c, a, "{what}");
         assert_eq!(std::fs::read(&path).expect("rewritten"), good, "{what}");
     }
     // Another terrain's valid file under this key's name: refused by the key in its header.
     let other = terrain(65, 33, 25.0, |x, y| (hash01(y, x) * 50.0) as f32);
-    let (_, _) = bake_lod(&other, &Pyramid::build(&other), &params, &dir, false).expect("other");
+    let (_, _) = bake_lod(
+        &other,
+        &Pyramid::build(&other),
+        &params,
+        &dir,
+        clipsat::Progress::default(),
+    )
+    .expect("other");
     let other_bytes =
         std::fs::read(cache_path(&dir, cache_key(&other, &params))).expect("other file");
     std::fs::write(&path, other_bytes).expect("swap");
-    let (c, o) = bake_lod(&hm, &pyr, &params, &dir, false).expect("rebake");
+    let (c, o) = bake_lod(&hm, &pyr, &params, &dir, clipsat::Progress::default()).expect("rebake");
     assert!(
         matches!(&o, CacheOutcome::Rebaked(r) if r.contains("key")),
         "{o:?}"
@@ -588,7 +598,9 @@ fn bake_cache_detects_damage() {
     let p64 = BakeParams { p: 64, ..params };
     assert_ne!(cache_key(&hm, &p64), cache_key(&hm, &params));
     assert_eq!(
-        bake_lod(&hm, &pyr, &p64, &dir, false).expect("p64").1,
+        bake_lod(&hm, &pyr, &p64, &dir, clipsat::Progress::default())
+            .expect("p64")
+            .1,
         CacheOutcome::Baked
     );
 }

@@ -9,8 +9,9 @@
 use std::path::{Path, PathBuf};
 
 use clipsat::package::{self, BakeOptions, CodecKind, Package, TileCache};
+use clipsat::source::Heightmap;
 use clipsat::source::{self, LoadOptions};
-use clipsat::{Error, Heightmap};
+use clipsat::Error;
 
 /// Every shared terrain, with the spacing a PNG needs and the default bound the bake must pick.
 const SHARED: [(&str, Option<f32>, f64); 8] = [
@@ -54,7 +55,7 @@ fn temp(name: &str) -> PathBuf {
 }
 
 fn bake(hm: &Heightmap, out: &Path, opts: &BakeOptions) -> package::BakeReport {
-    package::bake(hm, out, opts, &indicatif::ProgressBar::hidden()).expect("bake")
+    package::bake(hm, out, opts, clipsat::Progress::default()).expect("bake")
 }
 
 /// Decodes the package and checks every level-0 sample within the bound (plus one f32 rounding).
@@ -228,7 +229,12 @@ fn damaged_packages_are_errors_naming_the_tile() {
         assert!(p.to_heightmap().is_ok(), "the heights are intact");
         let dir = path.with_extension(format!("lod{k}"));
         let _ = std::fs::remove_dir_all(&dir);
-        let reason = format_reason(clipsat::bake::bake_lod_package(&p, &params, &dir, false));
+        let reason = format_reason(clipsat::bake::bake_lod_package(
+            &p,
+            &params,
+            &dir,
+            clipsat::Progress::default(),
+        ));
         let name = format!("LOD table level {k} tile ({}, {})", t.0, t.1);
         assert!(reason.contains(&name), "{reason} should name {name}");
         let _ = std::fs::remove_dir_all(&dir);
@@ -443,8 +449,8 @@ fn out_of_core_bake_is_byte_identical_to_the_resident_bake() {
             };
             let mut rows =
                 source::open_rows(&clipsat::data_dir().join(name), &opts).expect("open rows");
-            let bar = indicatif::ProgressBar::hidden();
-            package::bake_source(&mut *rows, &out, &BakeOptions::default(), &bar)
+            let bar = clipsat::Progress::default();
+            package::bake_source(&mut *rows, &out, &BakeOptions::default(), bar)
                 .expect("bake rows");
         } else {
             bake(&hm, &out, &BakeOptions::default());
@@ -503,7 +509,7 @@ fn out_of_core_bake_is_byte_identical_to_the_resident_bake() {
             &mut procedural(size, seed),
             &out,
             &o,
-            &indicatif::ProgressBar::hidden(),
+            clipsat::Progress::default(),
         )
         .expect("bake");
         check(name, &out, pin);
@@ -551,8 +557,8 @@ fn raw_files_bake_streamed_as_loaded() {
             temp(&format!("whole-{ext}.clipsat")),
         );
         let mut rows = source::open_rows(&raw, &opts).expect("open rows");
-        let bar = indicatif::ProgressBar::hidden();
-        let ra = package::bake_source(&mut *rows, &a, &BakeOptions::default(), &bar).expect("bake");
+        let bar = clipsat::Progress::default();
+        let ra = package::bake_source(&mut *rows, &a, &BakeOptions::default(), bar).expect("bake");
         let whole = source::load(&raw, &opts).expect("load");
         let rb = bake(&whole, &b, &BakeOptions::default());
         assert_eq!(ra, rb, "{ext}");
@@ -601,7 +607,9 @@ fn lod_tables_baked_out_of_core_match_the_resident_bake() {
         };
         let dir = out.with_extension("lod");
         let _ = std::fs::remove_dir_all(&dir);
-        let (streamed, o) = bake::bake_lod_package(&pkg, &params, &dir, false).expect("streamed");
+        let (streamed, o) =
+            bake::bake_lod_package(&pkg, &params, &dir, clipsat::Progress::default())
+                .expect("streamed");
         assert_eq!(o, CacheOutcome::Baked, "{name}");
         assert!(streamed.is_mapped(), "{name}: read back through the map");
         let file = bake::cache_path(&dir, bake::package_cache_key(&pkg, &params));
@@ -613,8 +621,14 @@ fn lod_tables_baked_out_of_core_match_the_resident_bake() {
         );
         let dir_b = out.with_extension("lodb");
         let _ = std::fs::remove_dir_all(&dir_b);
-        let (resident, _) =
-            bake::bake_lod(&terrain, &pyramid, &params, &dir_b, false).expect("resident");
+        let (resident, _) = bake::bake_lod(
+            &terrain,
+            &pyramid,
+            &params,
+            &dir_b,
+            clipsat::Progress::default(),
+        )
+        .expect("resident");
         assert_eq!(streamed, resident, "{name}: tables differ");
         let b = std::fs::read(bake::cache_path(&dir_b, bake::cache_key(&terrain, &params)))
             .expect("resident file");
@@ -639,7 +653,8 @@ fn lod_tables_baked_out_of_core_match_the_resident_bake() {
         let dir_c = out.with_extension("lodc");
         let _ = std::fs::remove_dir_all(&dir_c);
         let (from_heights, _) =
-            bake::bake_lod_package(&plain_pkg, &params, &dir_c, false).expect("from heights");
+            bake::bake_lod_package(&plain_pkg, &params, &dir_c, clipsat::Progress::default())
+                .expect("from heights");
         assert_eq!(
             from_heights, resident,
             "{name}: tables from the heights differ"
@@ -655,7 +670,8 @@ fn lod_tables_baked_out_of_core_match_the_resident_bake() {
         );
         let _ = std::fs::remove_dir_all(&dir_c);
         let _ = std::fs::remove_file(&plain);
-        let (hit, o) = bake::bake_lod_package(&pkg, &params, &dir, false).expect("hit");
+        let (hit, o) =
+            bake::bake_lod_package(&pkg, &params, &dir, clipsat::Progress::default()).expect("hit");
         assert_eq!(o, CacheOutcome::Hit, "{name}");
         assert_eq!(hit, resident, "{name}");
         drop(hit);
@@ -664,7 +680,8 @@ fn lod_tables_baked_out_of_core_match_the_resident_bake() {
         let mid = bad.len() / 2;
         bad[mid] ^= 0x40;
         std::fs::write(&file, &bad).expect("damage");
-        let (again, o) = bake::bake_lod_package(&pkg, &params, &dir, false).expect("rebake");
+        let (again, o) = bake::bake_lod_package(&pkg, &params, &dir, clipsat::Progress::default())
+            .expect("rebake");
         assert!(
             matches!(&o, CacheOutcome::Rebaked(r) if r.contains("checksum")),
             "{name}: {o:?}"
@@ -691,13 +708,13 @@ fn cached_bake_of_a_plain_source_opens_and_is_found_again() {
     let dir = temp("cached");
     let _ = std::fs::remove_dir_all(&dir);
     let hm = synthetic(70, 45);
-    let bar = indicatif::ProgressBar::hidden();
+    let bar = clipsat::Progress::default();
     let load = || Ok(Box::new(source::Resident::new(hm.clone())));
     // An older format's package of the same terrain, left by an earlier release: removed by the bake.
     std::fs::create_dir_all(&dir).expect("dir");
     let stale = dir.join("terrain-0000000000005eed-v2.clipsat");
     std::fs::write(&stale, b"an old package").expect("stale file");
-    let (path, baked) = package::cached(&dir, 0x5eed, load, &bar).expect("cached bake");
+    let (path, baked) = package::cached(&dir, 0x5eed, load, bar).expect("cached bake");
     assert!(baked, "first call bakes");
     assert!(!stale.exists(), "the older format's package is removed");
     let pkg = Package::open(&path).expect("the cached package opens");
@@ -708,7 +725,7 @@ fn cached_bake_of_a_plain_source_opens_and_is_found_again() {
         || -> clipsat::Result<Box<source::Resident<Heightmap>>> {
             panic!("a cached package must not load its source again")
         },
-        &bar,
+        bar,
     )
     .expect("found");
     assert_eq!(again, (path, false));
@@ -731,9 +748,9 @@ fn threads_baking_one_terrain_into_the_cache_agree() {
     let _ = std::fs::remove_dir_all(&dir);
     let hm = synthetic(70, 45);
     let bake = || {
-        let bar = indicatif::ProgressBar::hidden();
+        let bar = clipsat::Progress::default();
         let load = || Ok(Box::new(source::Resident::new(hm.clone())));
-        package::cached(&dir, 0x7ead, load, &bar).expect("cached bake")
+        package::cached(&dir, 0x7ead, load, bar).expect("cached bake")
     };
     let (a, b) = std::thread::scope(|s| {
         let a = s.spawn(bake);

@@ -1,9 +1,10 @@
 //! Scenes: shipped scenes load, every bad field is named, features are checked against the profile, and
 //! `needs()` asks for exactly what the scene declares.
 
+use clipsat::profile::Profile;
 use clipsat::shading::scene::{self, Scene};
 use clipsat::shading::{self, Inputs, Patches};
-use clipsat::{Error, Profile};
+use clipsat::Error;
 use glam::Vec3;
 
 const NOON: &str = include_str!("../../profiles/scenes/noon.toml");

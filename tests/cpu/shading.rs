@@ -8,7 +8,7 @@ use clipsat::bake::horizon::{self, Horizons};
 use clipsat::shading::scene::{direction, Effects, Material, Scene};
 use clipsat::shading::sg::Sg;
 use clipsat::shading::{self, HorizonTable, Inputs, Patches, RefCosine, RefGrid, RefInputs};
-use clipsat::Heightmap;
+use clipsat::source::Heightmap;
 use glam::{DVec3, Vec3};
 
 /// Sun SG of unit irradiance at (compass azimuth, elevation) in degrees.
@@ -562,7 +562,7 @@ fn shading_bake_from_a_package() {
         &hm,
         &out,
         &BakeOptions::default(),
-        &indicatif::ProgressBar::hidden(),
+        clipsat::Progress::default(),
     )
     .expect("bake");
     let p = Package::open(&out).expect("open");
@@ -570,19 +570,28 @@ fn shading_bake_from_a_package() {
         bake_horizons: true,
         ..Needs::default()
     };
-    let streamed = ShadingBake::bake_package(&p, &needs, 8, u64::MAX).expect("package bake");
+    let streamed = ShadingBake::bake_package(&p, &needs, 8, u64::MAX, clipsat::Progress::default())
+        .expect("package bake");
     let decoded = p.to_heightmap().expect("decode");
-    let resident = ShadingBake::bake(&decoded, &needs, 8, u64::MAX).expect("resident bake");
+    let resident = ShadingBake::bake(&decoded, &needs, 8, u64::MAX, clipsat::Progress::default())
+        .expect("resident bake");
     assert_eq!(streamed, resident);
     assert_eq!((streamed.step(), streamed.width()), (1, 129));
     // Level 1 (65^2) is the finest that fits.
-    let coarse = ShadingBake::bake_package(&p, &needs, 8, grid_bytes(65, 65, 8)).expect("coarse");
+    let coarse = ShadingBake::bake_package(
+        &p,
+        &needs,
+        8,
+        grid_bytes(65, 65, 8),
+        clipsat::Progress::default(),
+    )
+    .expect("coarse");
     assert_eq!(
         (coarse.step(), coarse.width(), coarse.height()),
         (2, 65, 65)
     );
     assert_eq!(coarse.data_extent_m(), hm.extent_m());
     assert_eq!(coarse.data_spacing(), hm.spacing());
-    assert!(ShadingBake::bake_package(&p, &needs, 8, 100).is_err());
+    assert!(ShadingBake::bake_package(&p, &needs, 8, 100, clipsat::Progress::default()).is_err());
     let _ = std::fs::remove_dir_all(&dir);
 }

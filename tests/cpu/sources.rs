@@ -3,8 +3,9 @@
 
 use std::path::{Path, PathBuf};
 
+use clipsat::source::Heightmap;
 use clipsat::source::{self, LoadOptions, RawFormat, RawLayout};
-use clipsat::{Error, Heightmap};
+use clipsat::Error;
 
 // ---- the shared data ----------------------------------------------------------------------------
 

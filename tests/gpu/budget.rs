@@ -12,8 +12,9 @@ use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen};
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::plan::flight::{Flight, Path};
 use clipsat::plan::frame::LevelState;
+use clipsat::profile::Profile;
+use clipsat::source::Heightmap;
 use clipsat::source::{self, LoadOptions};
-use clipsat::{Heightmap, Profile};
 
 const PROFILES: [&str; 3] = ["gles3-low", "gles3-mid", "desktop"];
 

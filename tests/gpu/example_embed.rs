@@ -5,8 +5,8 @@ use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen, OffscreenOpt
 use clipsat::gpu::{Gpu, GpuMode};
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::plan::flight::{Flight, Path};
+use clipsat::profile::Profile;
 use clipsat::source::procedural::{generate, ProceduralParams};
-use clipsat::Profile;
 
 #[expect(
     dead_code,

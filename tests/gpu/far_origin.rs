@@ -113,14 +113,21 @@ fn sat_lod_chooses_the_same_levels_far_from_the_origin() {
     let base = render_support::relief();
     let prof = render_support::profile("gles3-low", 160, 90, None);
     let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("lod-cache-far");
-    let lod_for = |hm: &clipsat::Heightmap, cm: &Clipmap| {
+    let lod_for = |hm: &clipsat::source::Heightmap, cm: &Clipmap| {
         let params = BakeParams {
             p: P,
             levels: prof.clipmap.levels,
             synth_levels: cm.synth_levels(),
             g0: cm.g0(),
         };
-        let (tables, _) = bake_lod(hm, cm.pyramid(), &params, &dir, false).expect("LOD tables");
+        let (tables, _) = bake_lod(
+            hm,
+            cm.pyramid(),
+            &params,
+            &dir,
+            clipsat::Progress::default(),
+        )
+        .expect("LOD tables");
         Lod::for_clipmap(tables, &prof, cm, hm)
     };
     let (mut fa, mut fb) = (LodFrame::new_boxed(), LodFrame::new_boxed());

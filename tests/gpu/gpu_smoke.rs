@@ -6,9 +6,10 @@ use std::path::Path;
 
 use clipsat::gpu::brute::{BruteForce, Frame};
 use clipsat::gpu::{Gpu, GpuMode};
+use clipsat::plan::camera::Camera;
 use clipsat::shading::basic::SKY;
 use clipsat::source::procedural::{self, ProceduralParams};
-use clipsat::{Camera, Heightmap};
+use clipsat::source::Heightmap;
 
 const W: u32 = 256;
 const H: u32 = 160;
@@ -175,7 +176,7 @@ fn refuses_terrain_beyond_the_floor() {
         .expect("valid terrain");
     let gpu = strict();
     let err = BruteForce::new(&gpu, &hm).expect_err("over the GLES 3.0 floor");
-    assert!(matches!(err, clipsat::Error::Gpu(_)), "{err}");
+    assert!(matches!(err, clipsat::Error::Gpu { .. }), "{err}");
     assert!(err.to_string().contains("too large"), "{err}");
 }
 

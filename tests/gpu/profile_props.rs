@@ -9,11 +9,13 @@ use std::cell::Cell;
 use std::path::Path;
 use std::sync::OnceLock;
 
+use clipsat::plan::camera::Camera;
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::plan::cull::{build_draws, DrawList, DrawParams};
 use clipsat::plan::mesh;
 use clipsat::profile::{Profile, MAX_N};
-use clipsat::{Camera, Error, Heightmap};
+use clipsat::source::Heightmap;
+use clipsat::Error;
 use glam::DVec3;
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngSeed, TestRunner};

@@ -29,7 +29,7 @@ fn loud() -> FrameOptions {
 fn fly_cracks(
     r: &mut Offscreen<'_>,
     cm: &mut clipsat::plan::clipmap::Clipmap,
-    hm: &clipsat::Heightmap,
+    hm: &clipsat::source::Heightmap,
     frames: u32,
     opts: &FrameOptions,
 ) -> (Vec<u64>, u32) {
@@ -627,7 +627,7 @@ fn bench_clipmap_vs_brute_force() {
 
 /// 200 frames of the loud flight on gles3-low (1,600 samples per frame, so levels go stale): no crack
 /// pixel on any frame, and more than 20 frames with stale levels.
-fn watertight_low_profile_flight(hm: &clipsat::Heightmap) {
+fn watertight_low_profile_flight(hm: &clipsat::source::Heightmap) {
     let gpu = strict();
     let p = profile("gles3-low", W, H, Some(1600));
     let mut cm = clipmap(hm, &p);

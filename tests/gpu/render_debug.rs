@@ -7,9 +7,9 @@ use std::collections::BTreeMap;
 use crate::render_support::{clipmap, lod, profile, relief, renderer_in, strict};
 use clipsat::gpu::headless::{render_frame, FrameOptions};
 use clipsat::gpu::readback::Image;
+use clipsat::plan::camera::Camera;
 use clipsat::plan::lod::LodMode;
 use clipsat::shading::debug_view::{level_of_pixel, DebugView};
-use clipsat::Camera;
 
 /// Pixels per level colour found in `image`.
 fn level_pixels(image: &Image) -> BTreeMap<u32, u64> {
@@ -29,12 +29,7 @@ fn level_colours_show_the_drawn_levels() {
     let p = profile("gles3-low", 192, 108, None);
     let cam = Camera::default_for(&hm).expect("camera");
     let mut cm = clipmap(&hm, &p);
-    for _ in 0..10_000 {
-        let f = cm.update(cam.eye).expect("update");
-        if f.stale_levels == 0 && cm.pending_samples(cam.eye) == 0 {
-            break;
-        }
-    }
+    cm.fill_at(cam.eye, 10_000).expect("fill");
     let tables = lod(&hm, &p, &cm);
     let mut r = renderer_in(&gpu, &p, &cm, LodMode::Distance, None, DebugView::Normal);
     let normal = render_frame(&mut r, &cm, &cam, &FrameOptions::default()).expect("frame");

@@ -16,8 +16,10 @@ use std::path::{Path, PathBuf};
 use crate::render_support::*;
 use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen};
 use clipsat::gpu::readback::Image;
+use clipsat::hash;
+use clipsat::plan::camera::Camera;
 use clipsat::source::procedural::{self, ProceduralParams};
-use clipsat::{hash, Camera, Heightmap};
+use clipsat::source::Heightmap;
 use glam::DVec3;
 
 const W: u32 = 160;
@@ -63,12 +65,7 @@ fn views(hm: &Heightmap) -> [(&'static str, Camera); 3] {
 fn render(gpu: &clipsat::gpu::Gpu, hm: &Heightmap, cam: &Camera) -> Image {
     let p = profile("gles3-low", W, H, None);
     let mut cm = clipmap(hm, &p);
-    for _ in 0..500 {
-        let f = cm.update(cam.eye).expect("update");
-        if f.stale_levels == 0 && cm.pending_samples(cam.eye) == 0 {
-            break;
-        }
-    }
+    cm.fill_at(cam.eye, 500).expect("fill");
     let mut r = Offscreen::new(gpu, &p, &cm, Default::default()).expect("renderer");
     render_frame(&mut r, &cm, cam, &FrameOptions::default())
         .expect("frame")

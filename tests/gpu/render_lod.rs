@@ -7,11 +7,13 @@ use crate::render_support::{camera, clipmap, flight, lod, profile, puget, render
 use clipsat::gpu::headless::{render_frame, FrameOptions};
 use clipsat::gpu::Gpu;
 use clipsat::measure::{crack_pixels, screen_error, CRACK_CLEAR, CRACK_CLEAR_RGBA8};
+use clipsat::plan::camera::Camera;
 use clipsat::plan::clipmap::Clipmap;
 use clipsat::plan::lod::Lod;
 use clipsat::plan::lod::LodMode;
+use clipsat::profile::Profile;
 use clipsat::shading::debug_view::DebugView;
-use clipsat::{Camera, Heightmap, Profile};
+use clipsat::source::Heightmap;
 use glam::DVec3;
 
 fn loud() -> FrameOptions {
@@ -194,12 +196,7 @@ fn measure(
 
 fn filled(hm: &Heightmap, p: &Profile, eye: DVec3) -> Clipmap {
     let mut cm = clipmap(hm, p);
-    for _ in 0..10_000 {
-        let f = cm.update(eye).expect("update");
-        if f.stale_levels == 0 && cm.pending_samples(eye) == 0 {
-            break;
-        }
-    }
+    cm.fill_at(eye, 10_000).expect("fill");
     cm
 }
 

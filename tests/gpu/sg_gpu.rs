@@ -15,7 +15,7 @@ use glam::Vec3;
 
 /// gles3-low's rings and budget, allowed SG (so its `cpu_memory_bytes` carves the shading share,
 /// `CpuSplit::shading`): the small profile these tests draw SG on.
-fn sg_low_profile(width: u32, height: u32, budget: Option<u32>) -> clipsat::Profile {
+fn sg_low_profile(width: u32, height: u32, budget: Option<u32>) -> clipsat::profile::Profile {
     let mut p = render_support::profile("gles3-low", width, height, budget);
     p.shading.features.push(clipsat::profile::Feature::Sg);
     p
@@ -118,7 +118,8 @@ fn sat_texture_box_means_match_brute_force() {
         bind_visibility: true,
         ..Needs::default()
     };
-    let bake = ShadingBake::bake(&hm, &needs, 8, u64::MAX).expect("bake");
+    let bake =
+        ShadingBake::bake(&hm, &needs, 8, u64::MAX, clipsat::Progress::default()).expect("bake");
     assert_eq!(bake.step(), 1);
     assert_eq!(bake.baked(), ["normal_sat", "horizons", "horizon_sat"]);
     let hz = horizon::bake(&hm, 8, horizon::DEFAULT_MAX_SAMPLES).expect("horizons");
@@ -154,7 +155,14 @@ fn sat_texture_box_means_match_brute_force() {
 fn terrain_larger_than_the_shading_share_uses_a_pyramid_level() {
     let hm = render_support::terraces();
     let bytes = clipsat::gpu::sat_textures::grid_bytes(199, 199, 0);
-    let bake = ShadingBake::bake(&hm, &Needs::default(), 8, bytes).expect("bake");
+    let bake = ShadingBake::bake(
+        &hm,
+        &Needs::default(),
+        8,
+        bytes,
+        clipsat::Progress::default(),
+    )
+    .expect("bake");
     assert_eq!((bake.step(), bake.width()), (2, 129));
     assert_eq!(bake.baked(), ["normal_sat"]);
 }
@@ -187,7 +195,7 @@ fn renderer_bakes_and_binds_only_what_the_scene_needs() {
     let hm = render_support::terraces();
     let profile = sg_low_profile(96, 64, None);
     let mut clipmap = render_support::clipmap(&hm, &profile);
-    let camera = clipsat::Camera::default_for(&hm).expect("camera");
+    let camera = clipsat::plan::camera::Camera::default_for(&hm).expect("camera");
     let mut renderer =
         Offscreen::new(&gpu, &profile, &clipmap, Default::default()).expect("renderer");
     assert_eq!(renderer.bound_textures(), ["heights"]);
@@ -430,7 +438,7 @@ fn golden_sg_frame() {
     let mut profile = sg_low_profile(160, 90, None);
     profile.budget.update_samples_per_frame = u32::MAX;
     let mut cm = render_support::clipmap(&hm, &profile);
-    let cam = clipsat::Camera::default_for(&hm).expect("camera");
+    let cam = clipsat::plan::camera::Camera::default_for(&hm).expect("camera");
     cm.update(cam.eye).expect("update");
     let scene = Scene::load("evening").expect("evening");
     let mut r =
@@ -665,15 +673,21 @@ fn sg_gpu_bytes_do_not_depend_on_the_terrain_size() {
                 400.0 + 300.0 * (x / 37.0).sin() * (y / 53.0).cos()
             })
             .collect();
-        let hm =
-            clipsat::Heightmap::new(std::path::Path::new("<hills>"), size, size, 30.0, heights)
-                .expect("terrain");
+        let hm = clipsat::source::Heightmap::new(
+            std::path::Path::new("<hills>"),
+            size,
+            size,
+            30.0,
+            heights,
+        )
+        .expect("terrain");
         let cm = render_support::clipmap(&hm, &p);
         let bake = ShadingBake::bake(
             &hm,
             &evening.needs(),
             clipsat::bake::horizon::DEFAULT_AZIMUTHS,
             clipsat::gpu::sat_textures::grid_bytes(129, 129, 16),
+            clipsat::Progress::default(),
         )
         .expect("bake");
         let r = Offscreen::new(

@@ -10,22 +10,19 @@ use bytemuck::Zeroable;
 use clipsat::gpu::brute::BruteForce;
 use clipsat::gpu::headless::{render_frame, FrameOptions};
 use clipsat::measure::image_rmse;
+use clipsat::plan::camera::Camera;
 use clipsat::plan::clipmap::Clipmap;
 use clipsat::plan::lod::LodMode;
 use clipsat::plan::uniforms::{shading_levels, Globals};
+use clipsat::profile::Profile;
 use clipsat::shading::debug_view::DebugView;
+use clipsat::source::Heightmap;
 use clipsat::twin::shading::data_surface;
-use clipsat::{Camera, Heightmap, Profile};
 use glam::{DVec3, DVec4};
 
 fn filled(hm: &Heightmap, p: &Profile, eye: DVec3) -> Clipmap {
     let mut cm = clipmap(hm, p);
-    for _ in 0..10_000 {
-        let f = cm.update(eye).expect("update");
-        if f.stale_levels == 0 && cm.pending_samples(eye) == 0 {
-            break;
-        }
-    }
+    cm.fill_at(eye, 10_000).expect("fill");
     cm
 }
 

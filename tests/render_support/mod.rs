@@ -10,9 +10,11 @@ use std::path::Path;
 use clipsat::bake::lod_tables::P;
 use clipsat::bake::{bake_lod, BakeParams};
 use clipsat::gpu::{Gpu, GpuMode};
+use clipsat::plan::camera::Camera;
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::plan::lod::Lod;
-use clipsat::{Camera, Heightmap, Profile};
+use clipsat::profile::Profile;
+use clipsat::source::Heightmap;
 use glam::DVec3;
 
 /// A strict OpenGL ES 3.0 context (Mesa llvmpipe); panics with the fix when there is none.
@@ -132,7 +134,14 @@ pub fn lod(hm: &Heightmap, p: &Profile, cm: &Clipmap) -> Lod {
         g0: cm.g0(),
     };
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("lod-cache");
-    let (tables, _) = bake_lod(hm, cm.pyramid(), &params, &dir, false).expect("LOD tables");
+    let (tables, _) = bake_lod(
+        hm,
+        cm.pyramid(),
+        &params,
+        &dir,
+        clipsat::Progress::default(),
+    )
+    .expect("LOD tables");
     Lod::for_clipmap(tables, p, cm, hm)
 }
 

@@ -7,7 +7,6 @@ use std::time::Instant;
 use clap::Args;
 use clipsat::package::{self, BakeOptions, CodecKind};
 use clipsat::Result;
-use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 
 use super::TerrainArgs;
@@ -57,19 +56,9 @@ pub(crate) fn run(args: &BakeArgs) -> Result<()> {
         lod_tables: !args.no_lod_tables,
     };
     super::ensure_parent(&args.out)?;
-    let bar = if args.json {
-        ProgressBar::hidden()
-    } else {
-        let bar = ProgressBar::new(0);
-        if let Ok(style) = ProgressStyle::with_template(
-            "baking: {msg} {bar:40} {percent}% {human_pos}/{human_len} {elapsed}",
-        ) {
-            bar.set_style(style);
-        }
-        bar
-    };
+    crate::app::progress::bars!(!args.json, bars, report, progress);
     let start = Instant::now();
-    let report = package::bake_source(&mut *rows, &args.out, &opts, &bar)?;
+    let report = package::bake_source(&mut *rows, &args.out, &opts, progress)?;
     let seconds = start.elapsed().as_secs_f64();
     if args.json {
         let mut v = serde_json::to_value(&report).unwrap_or_default();

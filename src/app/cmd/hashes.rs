@@ -161,7 +161,7 @@ impl HashFile {
 }
 
 /// A content hash of a terrain: dimensions, spacing and every height's bits.
-pub(crate) fn terrain_hash(hm: &clipsat::Heightmap) -> String {
+pub(crate) fn terrain_hash(hm: &clipsat::source::Heightmap) -> String {
     let mut h = clipsat::hash::Hash64::new();
     h.write_u32(hm.width());
     h.write_u32(hm.height());

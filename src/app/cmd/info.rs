@@ -1,8 +1,9 @@
 //! `clipsat info`: what a terrain is, and what each shipped profile would need to render it.
 
 use clap::Args;
+use clipsat::profile::Profile;
 use clipsat::profile::SHIPPED;
-use clipsat::{Profile, Result};
+use clipsat::Result;
 use serde_json::json;
 
 use super::TerrainArgs;

@@ -22,10 +22,12 @@ pub(crate) mod view;
 
 use args::{arg_error, Size};
 use clap::{Args, ValueEnum};
+use clipsat::profile::Profile;
+use clipsat::source::Heightmap;
 use clipsat::source::{
     self, procedural::ProceduralParams, LoadOptions, RawFormat, RawLayout, TerrainSpec,
 };
-use clipsat::{Error, Heightmap, Profile, Result};
+use clipsat::{Error, Result};
 
 /// Options that choose and read a terrain.
 #[derive(Args, Clone, Debug, Default)]
@@ -113,52 +115,26 @@ impl TerrainArgs {
         }
     }
 
-    /// The package to stream: the one `--terrain` names, or a plain source's, baked with the default
-    /// options into the cache folder ([`clipsat::bake::default_cache_dir`]) on first use and found there
-    /// later without loading the source (keyed by these options and the size and modification time of the
-    /// file and of its `.tfw`/`.prj`/`.hdr` sidecars). A progress bar on stderr while baking when `progress`.
-    pub(crate) fn stream_package(&self, progress: bool) -> Result<clipsat::package::Package> {
-        if let Some(p) = self.package()? {
-            return Ok(p);
-        }
-        let mut h = clipsat::hash::Hash64::new();
-        h.write_bytes(format!("{self:?}").as_bytes());
-        if let TerrainSpec::File(path) = self.spec()? {
-            let stamp = |meta: &std::fs::Metadata, h: &mut clipsat::hash::Hash64| {
-                h.write_u64(meta.len());
-                let mtime = meta
-                    .modified()
-                    .ok()
-                    .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok());
-                h.write_u64(mtime.map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX)));
-            };
-            let meta = std::fs::metadata(&path).map_err(|e| Error::io(&path, "cannot read", e))?;
-            stamp(&meta, &mut h);
-            // The sidecars a loader reads its layout or spacing from (a world file, a .prj, an ESRI .hdr):
-            // editing one re-bakes.
-            for ext in ["tfw", "TFW", "tifw", "tiffw", "prj", "hdr"] {
-                match std::fs::metadata(path.with_extension(ext)) {
-                    Ok(meta) => stamp(&meta, &mut h),
-                    Err(_) => h.write_u64(0),
-                }
-            }
-        }
-        let bar = if progress {
-            let b = indicatif::ProgressBar::new(0);
-            if let Ok(style) = indicatif::ProgressStyle::with_template(
-                "baking the terrain package into the cache: {msg} {bar:30} {pos}/{len} {elapsed}",
-            ) {
-                b.set_style(style);
-            }
-            b
-        } else {
-            indicatif::ProgressBar::hidden()
+    /// The terrain these options name, opened by the library ([`clipsat::Terrain`]): when `stream`, the
+    /// package `--terrain` names or a plain source's, baked with the default options into the cache
+    /// folder ([`clipsat::bake::default_cache_dir`]) on first use and found there later without loading
+    /// the source (a progress bar on stderr while baking when `progress`), to stream; otherwise loaded
+    /// whole (a package decoded).
+    pub(crate) fn open(&self, stream: bool, progress: bool) -> Result<clipsat::Terrain> {
+        let spec = match self.spec()? {
+            TerrainSpec::Procedural(p) => TerrainSpec::Procedural(ProceduralParams {
+                spacing: self.spacing.unwrap_or(p.spacing),
+                ..p
+            }),
+            file => file,
         };
-        let (path, _) = clipsat::package::cached(
-            &clipsat::bake::default_cache_dir(),
-            h.finish(),
-            || self.rows().map(|(_, rows)| rows),
-            &bar,
+        crate::app::progress::bars!(progress, bars, report, progress);
+        clipsat::Terrain::from_spec(
+            &spec,
+            &self.load_options()?,
+            Some(&clipsat::bake::default_cache_dir()),
+            !stream,
+            progress,
         )
         .map_err(|e| match e {
             // The default quantum cannot hold this terrain's range (`clipsat bake --max-error` can).
@@ -172,10 +148,12 @@ impl TerrainArgs {
                      --resident loads it whole, or bake it with a coarser `clipsat bake --max-error`"
                 ),
             ),
+            // The procedural terrain's parameters come in `--terrain`'s words.
+            e @ Error::Invalid { .. } if matches!(spec, TerrainSpec::Procedural(_)) => {
+                args::flag("--terrain")(e)
+            }
             other => other,
-        })?;
-        bar.finish_and_clear();
-        clipsat::package::Package::open(&path)
+        })
     }
 
     /// The terrain's name in reports: a file's path as given (a package's too), or the procedural

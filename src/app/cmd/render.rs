@@ -7,18 +7,22 @@
 use std::time::Instant;
 
 use clap::Args;
-use clipsat::bake::{self, BakeParams};
+use clipsat::bake;
+use clipsat::engine::setup;
 use clipsat::gpu::brute::BruteForce;
 use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen, OffscreenOptions};
 use clipsat::gpu::Gpu;
 use clipsat::measure;
 use clipsat::package::Package;
 use clipsat::plan::camera::parse_vec3;
+use clipsat::plan::camera::Camera;
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::plan::frame_plan::LodSetup;
 use clipsat::plan::lod::{Lod, LodMode};
+use clipsat::profile::Profile;
 use clipsat::shading::debug_view::DebugView;
-use clipsat::{hash, Camera, Heightmap, Profile, Result};
+use clipsat::source::Heightmap;
+use clipsat::{hash, Result};
 use glam::DVec3;
 use serde_json::json;
 
@@ -98,24 +102,15 @@ pub(crate) fn lod_for(
     clipmap: &Clipmap,
     progress: bool,
 ) -> Result<Lod> {
-    let params = BakeParams {
-        p: clipsat::bake::lod_tables::P,
-        levels: profile.clipmap.levels,
-        synth_levels: clipmap.synth_levels(),
-        g0: clipmap.g0(),
-    };
-    let dir = bake::default_cache_dir();
-    let (tables, _) = match clipmap.tile_cache() {
-        Some(cache) => bake::bake_lod_package(cache.package(), &params, &dir, progress)?,
-        None => bake::bake_lod_mapped(hm, clipmap.pyramid(), &params, &dir, progress)?,
-    };
-    // The mapped tables' pages held resident: their share of budget.cpu_memory_bytes.
-    tables.limit_resident(profile.cpu_split().lod_tables);
-    Ok(Lod::for_clipmap(tables, profile, clipmap, hm))
+    crate::app::progress::bars!(progress, bars, report, progress);
+    setup::sat_lod(
+        hm,
+        profile,
+        clipmap,
+        Some(&bake::default_cache_dir()),
+        progress,
+    )
 }
-
-/// Most samples of the package level a streamed terrain's camera fits (1 Mi: 4 MiB of f32).
-const STREAMED_CAMERA_SAMPLES: u64 = 1 << 20;
 
 /// The terrain a clipmap command draws (`render`, `fly`, `view`): when `stream` (the default, see
 /// [`StreamArgs::streams`]), the package `--terrain` names or a plain source's (baked into the cache
@@ -127,32 +122,8 @@ pub(crate) fn open_terrain(
     stream: bool,
     progress: bool,
 ) -> Result<(String, Heightmap, Option<Package>)> {
-    let package = if stream {
-        Some(terrain.stream_package(progress)?)
-    } else {
-        None
-    };
-    Ok(match package {
-        Some(p) => (
-            // The source's name, not the cache file's (which moves with CLIPSAT_CACHE): `fly`'s
-            // hash file header names it.
-            terrain.name()?,
-            p.coarse_heightmap(STREAMED_CAMERA_SAMPLES)?,
-            Some(p),
-        ),
-        None => {
-            let (name, hm) = terrain.load()?;
-            (name, hm, None)
-        }
-    })
+    Ok(terrain.open(stream, progress)?.parts())
 }
-
-/// Most clipmap updates `render` runs to let the budget fill every level at the camera.
-const MAX_FILL_FRAMES: u32 = 10_000;
-
-/// Most frames `render` lets the detail pool fill at the still camera after the rings (a pool whose
-/// wanted tiles outnumber its slots stops writing once every slot is needed).
-const MAX_POOL_FRAMES: u32 = 256;
 
 pub(crate) fn run(args: &RenderArgs) -> Result<()> {
     let mode = args.gpu.mode();
@@ -217,15 +188,7 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
         None => Clipmap::new(&hm, &profile, ClipmapOptions::default())?,
     };
     // Update until no level is stale and nothing is pending at the eye (bounded).
-    let mut fill_frames = 0;
-    loop {
-        let frame = clipmap.update(camera.eye)?;
-        fill_frames += 1;
-        let done = frame.stale_levels == 0 && clipmap.pending_samples(camera.eye) == 0;
-        if done || fill_frames >= MAX_FILL_FRAMES {
-            break;
-        }
-    }
+    let fill_frames = clipmap.fill_at(camera.eye, setup::MAX_FILL_FRAMES)?;
     // The error maps serve the SAT modes and the measured error of any mode (not measured when streamed:
     // the measurement needs the whole pyramid).
     let lod = if lod_mode != LodMode::Distance || (args.json && !streamed) {
@@ -262,16 +225,13 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
     // (the rings are settled, so the pool gets all of it), until a frame writes no tile (bounded).
     let mut pool_frames = 0;
     if lod_mode != LodMode::Distance {
-        while pool_frames < MAX_POOL_FRAMES {
+        while pool_frames < setup::MAX_POOL_FRAMES {
             pool_frames += 1;
             // A streamed package's pool tiles wait for their tiles' decode in the next update.
             let wrote = r.prepare_only(&clipmap, &camera, &opts)?;
-            let wanted = &r.plan().detail().wanted;
-            if wrote == 0 && wanted.is_empty() {
+            if setup::pool_step(&mut clipmap, camera.eye, r.plan(), wrote)? {
                 break;
             }
-            clipmap.request_samples(wanted);
-            clipmap.update(camera.eye)?;
         }
     }
     let t1 = Instant::now();

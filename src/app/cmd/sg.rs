@@ -10,13 +10,16 @@
 use super::args::{arg_error, PatchesArg, ShadingArg};
 use clap::Args;
 use clipsat::bake::horizon;
-use clipsat::gpu::headless;
+use clipsat::engine::setup;
 use clipsat::gpu::readback::Image;
 use clipsat::gpu::renderer::{SgShading, Shading};
 use clipsat::gpu::sat_textures::ShadingBake;
+use clipsat::plan::camera::Camera;
+use clipsat::profile::Profile;
 use clipsat::shading::scene::{self, Scene};
 use clipsat::shading::{self, HorizonTable, Patches, RefCosine, RefGrid, RefInputs};
-use clipsat::{Camera, Heightmap, Profile, Result};
+use clipsat::source::Heightmap;
+use clipsat::Result;
 use glam::{DVec3, Vec4};
 
 /// The shading options shared by `render` and `fly`.
@@ -58,11 +61,16 @@ impl SgChoice {
         hm: &Heightmap,
         package: Option<&clipsat::package::Package>,
     ) -> Result<(Scene, ShadingBake)> {
-        let max_bytes = profile.cpu_split().shading;
-        match package {
-            Some(p) => headless::sg_bake_package(max_bytes, p, &self.scene, self.shadows),
-            None => headless::sg_bake(max_bytes, hm, &self.scene, self.shadows),
-        }
+        crate::app::progress::bars!(true, bars, report, progress);
+        setup::sg_tables(
+            profile,
+            hm,
+            package,
+            &self.scene,
+            self.shadows,
+            Some(&clipsat::bake::default_cache_dir()),
+            progress,
+        )
     }
 
     /// The scene as rendered: visibility off under `--no-shadows`.

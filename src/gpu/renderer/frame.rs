@@ -40,12 +40,9 @@ impl Renderer {
     ) -> Result<PrepareStats> {
         let index = clipmap.frame().index;
         if plan.frame_index() != Some(index) {
-            return Err(Error::Invalid {
-                what: "frame plan".into(),
-                reason: format!(
-                    "the plan is of clipmap frame {:?}, the clipmap is at frame {index}",
-                    plan.frame_index()
-                ),
+            return Err(Error::StalePlan {
+                planned: plan.frame_index(),
+                current: index,
             });
         }
         if plan.planned().len() > self.max_draws as usize {

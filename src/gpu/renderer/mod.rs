@@ -24,12 +24,14 @@
 
 mod frame;
 mod ledger;
+#[cfg(feature = "internals")]
 mod probe;
 mod sg;
 mod sg_tables;
 
 pub use frame::PrepareStats;
 pub use ledger::{texture_bytes, Ledger, LedgerEntry, Ledgered, ObjectKind};
+#[cfg(feature = "internals")]
 pub use probe::VertexProbe;
 pub use sg::SgShading;
 use sg::SgState;
@@ -42,7 +44,8 @@ use crate::plan::mesh::{self, Mesh, MeshVertex};
 use crate::plan::uniforms::{DrawUniform, PoolCell};
 use crate::profile::{DRAW_SLOT_BYTES, GLOBALS_BYTES, POOL_CELL_BYTES};
 use crate::shading::debug_view::DebugView;
-use crate::{Error, Profile, Result};
+use crate::{Error, Result};
+use crate::profile::Profile;
 
 #[cfg(doc)]
 use crate::plan::frame_plan::FramePlan;
@@ -164,17 +167,19 @@ impl Renderer {
         crate::plan::frame_plan::check_draw_capacity(profile)?;
         let limits = device.limits();
         if u64::from(limits.min_uniform_buffer_offset_alignment) > DRAW_SLOT_BYTES {
-            return Err(Error::Gpu(format!(
-                "uniform offset alignment {} exceeds the {DRAW_SLOT_BYTES}-byte draw slot",
-                limits.min_uniform_buffer_offset_alignment
-            )));
+            return Err(Error::Unsupported {
+                limit: "min_uniform_buffer_offset_alignment",
+                needed: DRAW_SLOT_BYTES,
+                available: u64::from(limits.min_uniform_buffer_offset_alignment),
+            });
         }
         let layers = profile.height_layers();
         if layers > limits.max_texture_array_layers {
-            return Err(Error::Gpu(format!(
-                "{layers} height layers exceed the device's {}",
-                limits.max_texture_array_layers
-            )));
+            return Err(Error::Unsupported {
+                limit: "max_texture_array_layers",
+                needed: u64::from(layers),
+                available: u64::from(limits.max_texture_array_layers),
+            });
         }
         let size = profile.clip_size();
         let block_quads = profile.block_m();

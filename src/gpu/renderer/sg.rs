@@ -8,7 +8,8 @@ use crate::gpu::shaders::{self, SgOmit, SgSceneUniform, SgVariant};
 use crate::profile::{SG_SKY_LAYERS, SG_SKY_SIDE};
 use crate::shading::scene::{Effects, Scene};
 use crate::shading::{Patches, SkyTable};
-use crate::{Error, Profile, Result};
+use crate::{Error, Result};
+use crate::profile::Profile;
 
 /// The SG shading variant of [`super::Shading::Sg`]: a scene over the clipmap's terrain, integrated over
 /// `patches`, with tables already baked from it ([`ShadingBake::bake_cached`], or out of core

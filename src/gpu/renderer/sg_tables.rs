@@ -33,7 +33,8 @@ use crate::plan::clipmap::Clipmap;
 use crate::plan::frame::Upload;
 use crate::shading::scene::Scene;
 use crate::shading::{SkyTable, TexelLighting};
-use crate::{Error, Profile, Result};
+use crate::{Error, Result};
+use crate::profile::Profile;
 
 /// The normal table's format: f32 r, so |r| near 1 (kappa up to 1e4) keeps its precision.
 const NORMAL_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;

@@ -27,7 +27,8 @@ use crate::plan::mesh;
 mod refine;
 pub mod stitch;
 use crate::profile::{DetailAtlas, MAX_DETAIL_TILES};
-use crate::{Error, Profile, Result};
+use crate::{Error, Result};
+use crate::profile::Profile;
 use refine::Quadtree;
 pub use refine::MAX_DETAIL_CELLS;
 

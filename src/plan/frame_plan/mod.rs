@@ -30,7 +30,9 @@ mod pool;
 mod units;
 use crate::profile::DRAW_SLOT_BYTES;
 use crate::shading::basic::BasicShading;
-use crate::{Camera, Error, Profile, Result};
+use crate::{Error, Result};
+use crate::plan::camera::Camera;
+use crate::profile::Profile;
 
 /// [`DRAW_SLOT_BYTES`] as a slice stride.
 #[expect(clippy::cast_possible_truncation, reason = "256 fits every usize")]
@@ -51,6 +53,9 @@ pub struct PlanParams {
     pub skirts: bool,
     /// The SAT modes' screen-space error bound, pixels; None: the profile's `view.epsilon_px`.
     pub epsilon_px: Option<f32>,
+    /// The viewport drawn into, pixels (width, height); None: the profile's `view`. A window's resize
+    /// changes only this: the aspect and the LOD's pixel scale follow, nothing is rebuilt.
+    pub viewport: Option<(u32, u32)>,
 }
 
 impl Default for PlanParams {
@@ -60,6 +65,7 @@ impl Default for PlanParams {
             cull: true,
             skirts: true,
             epsilon_px: None,
+            viewport: None,
         }
     }
 }
@@ -323,7 +329,8 @@ pub struct Planner {
     max_triangles: u32,
     /// Pool cell records a plan holds ([`Profile::pool_cell_capacity`]).
     cell_capacity: usize,
-    aspect: f64,
+    /// The profile's viewport (width, height), pixels: the default of [`PlanParams::viewport`].
+    view: (u32, u32),
     skirt_floor: f32,
     /// The data's last sample in level-0 lattice units (east, south).
     data_lattice: (f64, f64),
@@ -404,7 +411,7 @@ impl Planner {
             max_draws: profile.budget.max_draws,
             max_triangles: profile.budget.max_triangles,
             cell_capacity: profile.pool_cell_capacity(),
-            aspect: f64::from(profile.view.width) / f64::from(profile.view.height),
+            view: (profile.view.width, profile.view.height),
             skirt_floor,
             data_lattice,
             shading: BasicShading::for_terrain((lo, hi), diagonal, clipmap.data_mean_slope()),
@@ -534,13 +541,21 @@ impl Planner {
             out.uploads.clear();
             out.since = self.last;
         }
+        let view = params.viewport.unwrap_or(self.view);
+        if view.0 == 0 || view.1 == 0 {
+            return Err(Error::Invalid {
+                what: "PlanParams::viewport".into(),
+                reason: format!("{} x {} pixels is empty", view.0, view.1),
+            });
+        }
+        let aspect = f64::from(view.0) / f64::from(view.1);
         let extent = data_extent_rel(clipmap, camera, self.data_lattice);
         let dp = DrawParams {
             block_quads: self.block_quads,
             max_draws: self.max_draws,
             cull: params.cull,
             skirts: params.skirts,
-            aspect: self.aspect,
+            aspect,
             extent,
         };
         out.lod.blocks.clear();
@@ -548,6 +563,7 @@ impl Planner {
         let sat = match &mut self.lod {
             LodSetup::Sat(mode, lod) => {
                 lod.set_epsilon_px(params.epsilon_px.map_or(self.default_epsilon, f64::from));
+                lod.set_view(view);
                 lod.select(frame, camera, *mode, &mut out.lod)?;
                 true
             }
@@ -572,7 +588,7 @@ impl Planner {
             cull::build_draws(clipmap, camera, &dp, &mut out.draws)?
         };
         let blocks_clamped = if sat {
-            self.visible_clamped(clipmap, camera, out)
+            self.visible_clamped(clipmap, camera, aspect, out)
         } else {
             0
         };
@@ -659,7 +675,7 @@ impl Planner {
         let probe = [self.probe_size[0] as f32, self.probe_size[1] as f32];
         let (levels, level_info) = shading_levels(clipmap, camera, self.size);
         out.globals = Globals {
-            view_proj: camera.view_proj_relative(self.aspect).to_cols_array(),
+            view_proj: camera.view_proj_relative(aspect).to_cols_array(),
             shading: self.shading,
             params: [
                 // SAT modes draw each block's own level unmorphed (skirts close the level changes), so the

@@ -7,7 +7,8 @@ use crate::plan::clipmap::Clipmap;
 use crate::plan::cull::{self, DrawKind, DrawParams, DrawStats, MAX_DRAWS};
 use crate::plan::detail::{DetailBudget, DetailPool, DetailView};
 use crate::plan::fragment::FragmentPaths;
-use crate::{Camera, Error, Result};
+use crate::{Error, Result};
+use crate::plan::camera::Camera;
 
 /// Sorts the pool cells `pool` (the tail of a draw list) into runs of one level, mesh and fragment
 /// program, so each run is one instanced draw call, and returns how many runs there are. Unstable but
@@ -87,7 +88,7 @@ impl Planner {
         out: &mut FramePlan,
     ) -> Result<Option<DrawStats>> {
         let frame = clipmap.frame();
-        let frustum = cull::Frustum::new(camera, self.aspect);
+        let frustum = cull::Frustum::new(camera, dp.aspect);
         let epsilon_px = self
             .lod()
             .map_or(self.default_epsilon, crate::plan::lod::Lod::epsilon_px);
@@ -214,9 +215,10 @@ impl Planner {
         &self,
         clipmap: &Clipmap,
         camera: &Camera,
+        aspect: f64,
         out: &FramePlan,
     ) -> u32 {
-        let frustum = cull::Frustum::new(camera, self.aspect);
+        let frustum = cull::Frustum::new(camera, aspect);
         let view = self.detail_view(clipmap, camera, &frustum, 0.0);
         let d = &out.detail;
         let mut n = 0u32;

@@ -11,7 +11,8 @@ use crate::plan::frame::Rect;
 use crate::plan::frame_plan::{FramePlan, PlannedDraw, Planner, SLOT};
 use crate::plan::mesh::{self, UnitMesh};
 use crate::plan::uniforms::{detail_draw_uniform, DrawUniform, PoolCell};
-use crate::{Camera, Error, Result};
+use crate::{Error, Result};
+use crate::plan::camera::Camera;
 
 /// Every unit mesh, in the order a run's calls draw them: surfaces, then the skirts.
 const UNIT_MESHES: [UnitMesh; 10] = [

@@ -266,7 +266,7 @@ pub(crate) fn parse_profile(data: &[u8]) -> String {
     let Ok(text) = std::str::from_utf8(data) else {
         return "not utf-8".into();
     };
-    outcome(clipsat::Profile::parse("fuzz", text), |p| {
+    outcome(clipsat::profile::Profile::parse("fuzz", text), |p| {
         let _ = p.footprint().total();
         let _ = clipsat::plan::mesh::block(p.block_m());
         let _ = clipsat::plan::mesh::skirt(p.clipmap.n + 1);

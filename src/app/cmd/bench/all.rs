@@ -14,10 +14,12 @@ use clipsat::gpu::Gpu;
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::plan::flight::{Flight, Path};
 use clipsat::plan::lod::LodMode;
+use clipsat::profile::Profile;
 use clipsat::shading::Patches;
 use clipsat::source::procedural::{self, ProceduralParams};
+use clipsat::source::Heightmap;
 use clipsat::source::{self, LoadOptions};
-use clipsat::{Error, Heightmap, Profile, Result};
+use clipsat::{Error, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::common::{mib, SHARED};
@@ -564,12 +566,7 @@ fn measure_budget(
         // The initial fill (frame 0's eye, updated until every level is current: several frames under
         // the budget) is not flight; the statistics start at frame 1.
         let eye0 = flight.camera(0).eye;
-        for _ in 0..10_000 {
-            let frame = clipmap.update(eye0)?;
-            if frame.stale_levels == 0 && clipmap.pending_samples(eye0) == 0 {
-                break;
-            }
-        }
+        clipmap.fill_at(eye0, 10_000)?;
         bar.inc(1);
         let (mut samples, mut samples_max, mut over) = (0u64, 0u32, 0usize);
         let (mut stale, mut stale_max, mut frames_stale) = (0u64, 0u32, 0usize);

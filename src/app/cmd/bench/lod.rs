@@ -14,8 +14,10 @@ use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::plan::flight::{Flight, Path};
 use clipsat::plan::frame_plan::LodSetup;
 use clipsat::plan::lod::LodMode;
+use clipsat::profile::Profile;
+use clipsat::source::Heightmap;
 use clipsat::source::{self, LoadOptions};
-use clipsat::{Error, Heightmap, Profile, Result};
+use clipsat::{Error, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::common::TERRAINS;

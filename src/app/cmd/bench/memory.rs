@@ -12,7 +12,9 @@ use std::time::Instant;
 
 use clipsat::package::{self, BakeOptions, Package};
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
-use clipsat::{Error, Heightmap, Profile, Result};
+use clipsat::profile::Profile;
+use clipsat::source::Heightmap;
+use clipsat::{Error, Result};
 use indicatif::ProgressBar;
 
 use super::common::mib;
@@ -81,7 +83,12 @@ pub(super) fn measure(
     for (i, (name, hm)) in terrains.iter().enumerate() {
         bar.set_message(format!("memory: package {name}"));
         let path = dir.join(format!("bench-memory-{i}.clipsat"));
-        let report = package::bake(hm, &path, &BakeOptions::default(), &ProgressBar::hidden())?;
+        let report = package::bake(
+            hm,
+            &path,
+            &BakeOptions::default(),
+            clipsat::Progress::default(),
+        )?;
         let pkg = Package::open(&path)?;
         let pyramid_samples: u64 = pkg
             .header()

@@ -11,10 +11,13 @@ use clipsat::gpu::sat_textures::ShadingBake;
 use clipsat::gpu::shaders::SgOmit;
 use clipsat::gpu::Gpu;
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
+use clipsat::profile::Profile;
 use clipsat::shading::scene::{Needs, Scene};
 use clipsat::shading::Patches;
+use clipsat::source::Heightmap;
 use clipsat::source::{self, LoadOptions};
-use clipsat::{Error, Heightmap, Profile, Result};
+use clipsat::Progress;
+use clipsat::{Error, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::common::{SHARED, TERRAINS};
@@ -134,7 +137,7 @@ impl BreakdownRow {
 fn time_frames(
     r: &mut Offscreen<'_>,
     clipmap: &Clipmap,
-    camera: &clipsat::Camera,
+    camera: &clipsat::plan::camera::Camera,
     frames: u32,
 ) -> Result<(f64, clipsat::gpu::readback::Image)> {
     let opts = FrameOptions::default();
@@ -326,15 +329,10 @@ pub(crate) fn measure_shading(
     let mut rows = Vec::new();
     for (name, hm) in terrains {
         bar.set_message(format!("shading {name}"));
-        let camera = clipsat::Camera::default_for(hm)?;
+        let camera = clipsat::plan::camera::Camera::default_for(hm)?;
         let mut clipmap = Clipmap::new(hm, &profile, ClipmapOptions::default())?;
         // Fill every level at the eye.
-        for _ in 0..10_000 {
-            let frame = clipmap.update(camera.eye)?;
-            if frame.stale_levels == 0 && clipmap.pending_samples(camera.eye) == 0 {
-                break;
-            }
-        }
+        clipmap.fill_at(camera.eye, 10_000)?;
         let mut r = Offscreen::new(gpu, &profile, &clipmap, OffscreenOptions::default())?;
         let (basic_ms, _) = time_frames(&mut r, &clipmap, &camera, frames)?;
         drop(r);
@@ -346,8 +344,10 @@ pub(crate) fn measure_shading(
             },
             clipsat::bake::horizon::DEFAULT_AZIMUTHS,
             max_side,
+            Progress::default(),
         )?;
-        let bake_plain = ShadingBake::bake(hm, &Needs::default(), 8, max_side)?;
+        let bake_plain =
+            ShadingBake::bake(hm, &Needs::default(), 8, max_side, Progress::default())?;
         for (label, vis, spec) in SHADING_EFFECTS {
             let mut scene = base.clone();
             scene.effects.visibility = vis;
@@ -406,14 +406,13 @@ pub(crate) fn breakdown_steps(terrains: usize) -> u64 {
 }
 
 /// Fills every level of a clipmap at the camera's eye.
-fn filled_clipmap(hm: &Heightmap, profile: &Profile, camera: &clipsat::Camera) -> Result<Clipmap> {
+fn filled_clipmap(
+    hm: &Heightmap,
+    profile: &Profile,
+    camera: &clipsat::plan::camera::Camera,
+) -> Result<Clipmap> {
     let mut clipmap = Clipmap::new(hm, profile, ClipmapOptions::default())?;
-    for _ in 0..10_000 {
-        let frame = clipmap.update(camera.eye)?;
-        if frame.stale_levels == 0 && clipmap.pending_samples(camera.eye) == 0 {
-            break;
-        }
-    }
+    clipmap.fill_at(camera.eye, 10_000)?;
     Ok(clipmap)
 }
 
@@ -423,7 +422,7 @@ fn time_sg(
     gpu: &Gpu,
     profile: &Profile,
     clipmap: &Clipmap,
-    camera: &clipsat::Camera,
+    camera: &clipsat::plan::camera::Camera,
     scene: &Scene,
     bake: &ShadingBake,
     omit: SgOmit,
@@ -469,7 +468,7 @@ pub(crate) fn measure_breakdown(
     let mut out = Vec::new();
     for (name, hm) in terrains {
         bar.set_message(format!("breakdown {name}"));
-        let camera = clipsat::Camera::default_for(hm)?;
+        let camera = clipsat::plan::camera::Camera::default_for(hm)?;
         let clipmap = filled_clipmap(hm, &profile, &camera)?;
         let mut r = Offscreen::new(gpu, &profile, &clipmap, OffscreenOptions::default())?;
         let (basic_ms, _) = time_frames(&mut r, &clipmap, &camera, frames)?;
@@ -483,8 +482,10 @@ pub(crate) fn measure_breakdown(
             },
             clipsat::bake::horizon::DEFAULT_AZIMUTHS,
             max_side,
+            Progress::default(),
         )?;
-        let bake_plain = ShadingBake::bake(hm, &Needs::default(), 8, max_side)?;
+        let bake_plain =
+            ShadingBake::bake(hm, &Needs::default(), 8, max_side, Progress::default())?;
         let mut evening = Scene::load("evening")?;
         evening.effects.fog = false;
         evening.fog = None;

@@ -11,11 +11,14 @@ use std::time::Instant;
 use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen, OffscreenOptions};
 use clipsat::gpu::{Gpu, GpuMode};
 use clipsat::package::{Package, TileCache};
+use clipsat::plan::camera::Camera;
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::plan::frame_plan::LodSetup;
 use clipsat::plan::lod::LodMode;
+use clipsat::profile::Profile;
 use clipsat::shading::debug_view::DebugView;
-use clipsat::{Camera, Heightmap, Profile, Result};
+use clipsat::source::Heightmap;
+use clipsat::Result;
 use serde_json::json;
 
 use super::super::args::arg_error;
@@ -110,12 +113,7 @@ pub(super) fn headless(same: &Same<'_>, mode: GpuMode, frames: u32) -> Result<He
         None => Clipmap::new(same.hm, same.profile, ClipmapOptions::default())?,
     };
     // As `render`: update until nothing is stale or pending at the eye (bounded).
-    for _ in 0..10_000 {
-        let f = clipmap.update(same.camera.eye)?;
-        if f.stale_levels == 0 && clipmap.pending_samples(same.camera.eye) == 0 {
-            break;
-        }
-    }
+    clipmap.fill_at(same.camera.eye, 10_000)?;
     let lod = if same.lod == LodMode::Distance {
         None
     } else {

@@ -24,14 +24,17 @@ use clipsat::gpu::sat_textures::ShadingBake;
 use clipsat::gpu::shaders::SgOmit;
 use clipsat::gpu::GpuMode;
 use clipsat::plan::camera::parse_vec3;
+use clipsat::plan::camera::Camera;
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
-use clipsat::plan::frame_plan::{FramePlan, LodSetup, Planner};
+use clipsat::plan::frame_plan::{FramePlan, LodSetup, PlanParams, Planner};
 use clipsat::plan::lod::Lod;
 use clipsat::plan::lod::LodMode;
+use clipsat::profile::Profile;
 use clipsat::shading::debug_view::DebugView;
 use clipsat::shading::scene::Scene;
 use clipsat::shading::Patches;
-use clipsat::{Camera, Error, Heightmap, Profile, Result};
+use clipsat::source::Heightmap;
+use clipsat::{Error, Result};
 use serde_json::json;
 use winit::application::ApplicationHandler;
 use winit::event::{ElementState, MouseButton, WindowEvent};
@@ -196,7 +199,6 @@ pub(crate) fn run(args: &ViewArgs) -> Result<()> {
         frames: 0,
         last_ms: 0.0,
         titled: None,
-        resized: false,
         error: None,
     };
     event_loop
@@ -360,8 +362,7 @@ struct App<'a> {
     last_ms: f64,
     /// When the title (the stats line) was last set: a few times a second, not every frame.
     titled: Option<Instant>,
-    /// The window's size changed since the planner was built.
-    resized: bool,
+    /// The first error, returned when the event loop ends.
     error: Option<Error>,
 }
 
@@ -406,11 +407,8 @@ impl App<'_> {
         if (p.config.width, p.config.height) != (width, height) {
             p.resize(width, height);
         }
-        if (self.profile.view.width, self.profile.view.height) != (width, height) {
-            (self.profile.view.width, self.profile.view.height) = (width, height);
-            // The aspect is the planner's: build it again at the next frame.
-            self.resized = true;
-        }
+        // The next plans' viewport (nothing is rebuilt).
+        (self.profile.view.width, self.profile.view.height) = (width, height);
     }
 
     /// One frame: fly, update the clipmap, plan, prepare, draw into the surface's pass, present.
@@ -435,8 +433,12 @@ impl App<'_> {
         }
         self.sync_shading()?;
         let opts = self.state.frame_options();
+        let params = PlanParams {
+            viewport: Some((self.profile.view.width, self.profile.view.height)),
+            ..opts.plan_params()
+        };
         self.planner
-            .plan(&self.clipmap, &camera, &opts.plan_params(), &mut self.plan)?;
+            .plan(&self.clipmap, &camera, &params, &mut self.plan)?;
         self.clipmap.request_samples(&self.plan.detail().wanted);
         let Some(p) = self.window.as_mut() else {
             return Ok(());
@@ -495,7 +497,7 @@ impl App<'_> {
     fn sync_shading(&mut self) -> Result<()> {
         let want = self.state.shading;
         let built = (self.state.lod, self.state.debug);
-        if want == self.applied && built == self.built && !self.resized {
+        if want == self.applied && built == self.built {
             return Ok(());
         }
         if self.window.is_none() {
@@ -508,10 +510,7 @@ impl App<'_> {
             fog: want.fog && self.scene.fog.is_some(),
             ..want
         };
-        if built == self.built
-            && !self.resized
-            && self.sg_built.is_some_and(|b| effective.within(&b))
-        {
+        if built == self.built && self.sg_built.is_some_and(|b| effective.within(&b)) {
             if let Some(p) = self.window.as_mut() {
                 if let Some(scene) = want.apply(&self.scene) {
                     p.set_sg_effects(scene.effects)?;
@@ -560,6 +559,7 @@ impl App<'_> {
                         self.profile.cpu_split().shading,
                         clipsat::bake::default_cache_dir(),
                     );
+                    crate::app::progress::bars!(true, bars, report, progress);
                     let (bake, outcome) = match self.clipmap.tile_cache() {
                         Some(c) => ShadingBake::bake_package_cached(
                             c.package(),
@@ -567,6 +567,7 @@ impl App<'_> {
                             DEFAULT_AZIMUTHS,
                             max_bytes,
                             &dir,
+                            progress,
                         )?,
                         None => ShadingBake::bake_cached(
                             self.hm,
@@ -574,6 +575,7 @@ impl App<'_> {
                             DEFAULT_AZIMUTHS,
                             max_bytes,
                             &dir,
+                            progress,
                         )?,
                     };
                     eprintln!("clipsat view: shading SATs {outcome:?}");
@@ -602,12 +604,11 @@ impl App<'_> {
         }
         self.applied = want;
         self.built = (self.state.lod, self.state.debug);
-        self.resized = false;
         Ok(())
     }
 
-    /// Builds the planner and renderer again for a new LOD mode, debug view, shading (they are fixed per
-    /// renderer) or window size (the planner's aspect).
+    /// Builds the planner and renderer again for a new LOD mode, debug view or shading (they are fixed
+    /// per renderer; a window size is only the plans' viewport).
     fn rebuild(&mut self, lod: LodSetup, shading: gpu_renderer::Shading<'_>) -> Result<()> {
         let Some(p) = self.window.as_mut() else {
             return Ok(());

@@ -13,7 +13,8 @@ use std::sync::Arc;
 
 use clipsat::gpu::renderer::{Renderer, RendererOptions};
 use clipsat::gpu::GpuMode;
-use clipsat::{Error, Profile, Result};
+use clipsat::profile::Profile;
+use clipsat::{Error, Result};
 use winit::dpi::PhysicalSize;
 use winit::event_loop::{ActiveEventLoop, EventLoop};
 use winit::window::Window;
@@ -28,8 +29,11 @@ const GLES_ONLY: [(&str, &str); 2] = [
     ("MESA_GLES_VERSION_OVERRIDE", "3.0"),
 ];
 
-pub(super) fn window_error(what: &str, e: impl std::fmt::Display) -> Error {
-    Error::Gpu(format!("clipsat view: {what}: {e}"))
+pub(super) fn window_error(what: &str, e: impl Into<clipsat::BoxError>) -> Error {
+    Error::Gpu {
+        action: format!("clipsat view: {what}"),
+        source: Some(e.into()),
+    }
 }
 
 /// Asks Mesa for a GLES 3.0 window context unless `mode` is [`GpuMode::Gl`]. Call before anything
@@ -109,25 +113,29 @@ impl Presenter {
             compatible_surface: Some(&surface),
             apply_limit_buckets: false,
         }))
-        .map_err(|e| {
-            Error::NoAdapter(format!(
-                "wgpu GL backend on the window ({}): {e}",
+        .map_err(|e| Error::NoAdapter {
+            reason: format!(
+                "wgpu GL backend on the window ({})",
                 if mode == GpuMode::Gl {
                     "wgpu's own GL context"
                 } else {
                     "OpenGL ES 3.0 asked for; `--gpu gl` takes what wgpu picks"
                 }
-            ))
+            ),
+            source: Some(Box::new(e)),
         })?;
         let info = adapter.get_info();
         let gles30 = info.driver_info.starts_with("OpenGL ES 3.0");
         let context = format!("{}, {}", info.driver_info, info.name);
         match mode {
             GpuMode::Strict if !gles30 => {
-                return Err(Error::NoAdapter(format!(
-                    "--gpu strict: the window's context is `{context}`, not OpenGL ES 3.0 \
-                     (--gpu auto draws on it anyway)"
-                )))
+                return Err(Error::NoAdapter {
+                    reason: format!(
+                        "--gpu strict: the window's context is `{context}`, not OpenGL ES 3.0 \
+                         (--gpu auto draws on it anyway)"
+                    ),
+                    source: None,
+                })
             }
             GpuMode::Auto if !gles30 => eprintln!(
                 "clipsat view: no OpenGL ES 3.0 context on this display; drawing on `{context}` \
@@ -143,7 +151,10 @@ impl Presenter {
             memory_hints: wgpu::MemoryHints::MemoryUsage,
             trace: wgpu::Trace::Off,
         }))
-        .map_err(|e| Error::NoAdapter(format!("request_device on the GLES 3.0 floor: {e}")))?;
+        .map_err(|e| Error::NoAdapter {
+            reason: "request_device on the GLES 3.0 floor".into(),
+            source: Some(Box::new(e)),
+        })?;
         let caps = surface.get_capabilities(&adapter);
         // The renderer writes display-encoded colour, as into the headless Rgba8Unorm target: prefer a
         // non-sRGB format so the window shows the same bytes.

@@ -1,0 +1,18 @@
+//! The embedding API: from a terrain and a budget profile to frames drawn in the caller's own wgpu
+//! device and render pass, through the stages (source, bake, package, plan, gpu) without naming them.
+//!
+//! Five types do it: a [`Profile`] (the budget), a [`Terrain`] (a file or the procedural terrain,
+//! streamed through a package baked into a cache folder on first use), a [`TerrainRenderer`] (built once
+//! on the caller's device, with [`RenderOptions`] choosing SAT LOD and SG shading), and a [`Camera`] each
+//! frame. The viewport is passed each frame, so a resize rebuilds nothing.
+
+mod camera;
+mod profile;
+mod renderer;
+pub mod setup;
+mod terrain;
+
+pub use camera::Camera;
+pub use profile::Profile;
+pub use renderer::{FrameStats, RenderOptions, TerrainRenderer};
+pub use terrain::{Terrain, TerrainOptions};

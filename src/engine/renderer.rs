@@ -1,0 +1,264 @@
+//! The embedding API: the terrain drawn on the caller's device into the caller's render pass. Each frame
+//! runs the stages in order: the clipmap's budgeted update and the plan (stage 2, CPU, allocation-free),
+//! the uploads and the draws (stage 3).
+
+use crate::bake::lod_tables::LodMode;
+use crate::gpu::renderer::{Renderer, RendererOptions, SgShading, Shading};
+use crate::gpu::shaders::SgOmit;
+use crate::plan::clipmap::{Clipmap, ClipmapOptions};
+use crate::plan::frame_plan::{FramePlan, LodSetup, PlanParams, Planner};
+use crate::progress::Progress;
+use crate::shading::scene::Scene;
+use crate::shading::Patches;
+use crate::{Camera, Error, Profile, Result, Terrain};
+
+use super::setup;
+
+/// What a [`TerrainRenderer`] is built with: the caller's target formats, and the choices fixed for its
+/// life. The default is basic shading with distance LOD into `Rgba8Unorm` / `Depth32Float`.
+#[derive(Clone, Copy, Debug)]
+pub struct RenderOptions<'a> {
+    /// The colour attachment's format in the caller's pass.
+    pub color_format: wgpu::TextureFormat,
+    /// The depth attachment's format (the terrain depth-tests with `Less`).
+    pub depth_format: wgpu::TextureFormat,
+    /// The pass's sample count.
+    pub sample_count: u32,
+    /// SAT LOD at this screen-space error bound, pixels: each block takes the coarsest level whose
+    /// conservative error bound stays under it, refined from a detail pool where the rings are too coarse.
+    /// None: each ring at its own level (distance LOD).
+    pub sat_lod_px: Option<f32>,
+    /// SG shading of a scene: a shipped name (`noon`, `evening`, `overcast`) or a scene TOML file. None:
+    /// basic shading.
+    pub sg_scene: Option<&'a str>,
+    /// Where the set-up's bakes (SAT LOD tables, SG tables) report their progress.
+    pub progress: Progress<'a>,
+}
+
+impl Default for RenderOptions<'_> {
+    fn default() -> Self {
+        Self {
+            color_format: wgpu::TextureFormat::Rgba8Unorm,
+            depth_format: wgpu::TextureFormat::Depth32Float,
+            sample_count: 1,
+            sat_lod_px: None,
+            sg_scene: None,
+            progress: Progress::default(),
+        }
+    }
+}
+
+/// What one frame did, within the profile's budget.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[non_exhaustive]
+pub struct FrameStats {
+    /// Draw calls recorded.
+    pub draws: u32,
+    /// Triangles drawn.
+    pub triangles: u64,
+    /// Height samples the clipmap's update wrote (at most the profile's update budget).
+    pub samples_updated: u32,
+    /// Rings still short of their place around the eye (a fast flight outruns the budget).
+    pub stale_levels: u32,
+    /// SAT LOD: visible blocks drawn coarser than the error bound asks (the data not yet at hand).
+    pub blocks_clamped: u32,
+    /// The plan's 64-bit hash: the same terrain, profile, options and cameras give the same hashes on
+    /// every machine.
+    pub plan_hash: u64,
+}
+
+/// A terrain drawn on the caller's wgpu device (the GLES 3.0 downlevel limits suffice) into the caller's
+/// render pass, the egui-wgpu way: [`TerrainRenderer::prepare`] each frame, then
+/// [`TerrainRenderer::render`] into a pass. Everything is allocated by [`TerrainRenderer::new`], from the
+/// profile; a frame allocates nothing.
+#[derive(Debug)]
+pub struct TerrainRenderer {
+    /// The terrain's name in reports.
+    name: String,
+    /// The whole grid, or a streamed terrain's coarse stand-in (the clipmap holds its package).
+    stand_in: crate::source::Heightmap,
+    clipmap: Clipmap,
+    planner: Planner,
+    plan: FramePlan,
+    renderer: Renderer,
+    params: PlanParams,
+}
+
+impl TerrainRenderer {
+    /// Builds the CPU state and every GPU object for `terrain` under `profile`: the clipmap, the planner
+    /// and, as `options` choose, the SAT LOD tables and SG's shading tables (baked into the terrain's
+    /// cache folder on first use). Refuses a device below the profile's needs
+    /// ([`Error::Unsupported`]), a scene the profile does not allow, and a SAT LOD bound that is not
+    /// positive.
+    pub fn new(
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        terrain: Terrain,
+        profile: &Profile,
+        options: &RenderOptions<'_>,
+    ) -> Result<Self> {
+        let profile = &profile.0;
+        if let Some(px) = options.sat_lod_px {
+            if !(px.is_finite() && px > 0.0) {
+                return Err(Error::Invalid {
+                    what: "RenderOptions::sat_lod_px".into(),
+                    reason: format!("{px} px is not a positive error bound"),
+                });
+            }
+        }
+        let cache = terrain.cache_dir().map(std::path::Path::to_path_buf);
+        let (name, stand_in, package) = terrain.into_parts();
+        let clipmap = match package {
+            Some(p) => Clipmap::streamed(p, profile, ClipmapOptions::default())?,
+            None => Clipmap::new(&stand_in, profile, ClipmapOptions::default())?,
+        };
+        let lod = match options.sat_lod_px {
+            Some(px) => {
+                let mut lod = setup::sat_lod(
+                    &stand_in,
+                    profile,
+                    &clipmap,
+                    cache.as_deref(),
+                    options.progress,
+                )?;
+                lod.set_epsilon_px(f64::from(px));
+                LodSetup::new(LodMode::SatConservative, Some(lod))?
+            }
+            None => LodSetup::Distance,
+        };
+        let sg = match options.sg_scene {
+            Some(name) => {
+                let scene = Scene::load(name)?;
+                scene.check_profile(name, profile)?;
+                Some(setup::sg_tables(
+                    profile,
+                    &stand_in,
+                    clipmap.tile_cache().map(crate::package::TileCache::package),
+                    &scene,
+                    true,
+                    cache.as_deref(),
+                    options.progress,
+                )?)
+            }
+            None => None,
+        };
+        let shading = match &sg {
+            Some((scene, bake)) => Shading::Sg(SgShading {
+                scene,
+                patches: Patches::default(),
+                bake,
+                omit: SgOmit::None,
+            }),
+            None => Shading::Basic,
+        };
+        let planner = Planner::new(profile, &clipmap, lod)?;
+        let plan = planner.new_plan();
+        let renderer = Renderer::new(
+            device,
+            queue,
+            &RendererOptions {
+                color_format: options.color_format,
+                depth_format: options.depth_format,
+                sample_count: options.sample_count,
+                shading,
+                ..RendererOptions::default()
+            },
+            profile,
+        )?;
+        Ok(Self {
+            name,
+            stand_in,
+            clipmap,
+            planner,
+            plan,
+            renderer,
+            params: PlanParams {
+                epsilon_px: options.sat_lod_px,
+                ..PlanParams::default()
+            },
+        })
+    }
+
+    /// Fills the clipmap (and, with SAT LOD, the detail pool) for `camera` in a `viewport` of (width,
+    /// height) pixels, frame by frame under the update budget, uploaded through `queue`: what to run
+    /// before the first frame and after a jump, so that the next frame is drawn complete. A flight needs
+    /// no warm-up: each frame's update fills what it can, coarse levels first. Returns the frames it took.
+    pub fn warm_up(
+        &mut self,
+        queue: &wgpu::Queue,
+        camera: &Camera,
+        viewport: (u32, u32),
+    ) -> Result<u32> {
+        let eye = camera.0.eye;
+        self.params.viewport = Some(viewport);
+        let mut frames = self.clipmap.fill_at(eye, setup::MAX_FILL_FRAMES)?;
+        if self.planner.lod().is_some() {
+            for _ in 0..setup::MAX_POOL_FRAMES {
+                frames += 1;
+                self.planner
+                    .plan(&self.clipmap, &camera.0, &self.params, &mut self.plan)?;
+                self.renderer.prepare(queue, &self.clipmap, &self.plan)?;
+                let wrote = self.plan.stats().detail_uploads;
+                if setup::pool_step(&mut self.clipmap, eye, &self.plan, wrote)? {
+                    break;
+                }
+            }
+        }
+        Ok(frames)
+    }
+
+    /// One frame seen from `camera` in a viewport of `viewport` (width, height) pixels: the clipmap's
+    /// update under the budget, the plan, and its uploads through `queue`. Then record it with
+    /// [`TerrainRenderer::render`]. A new viewport size (a resize) needs nothing else.
+    pub fn prepare(
+        &mut self,
+        queue: &wgpu::Queue,
+        camera: &Camera,
+        viewport: (u32, u32),
+    ) -> Result<FrameStats> {
+        let frame = self.clipmap.update(camera.0.eye)?;
+        let (samples_updated, stale_levels) = (frame.samples_updated, frame.stale_levels);
+        self.params.viewport = Some(viewport);
+        self.planner
+            .plan(&self.clipmap, &camera.0, &self.params, &mut self.plan)?;
+        // Pool tiles waiting for a streamed package's decode: the next update's, after the rings.
+        self.clipmap.request_samples(&self.plan.detail().wanted);
+        self.renderer.prepare(queue, &self.clipmap, &self.plan)?;
+        let s = self.plan.stats();
+        Ok(FrameStats {
+            draws: s.draws,
+            triangles: s.triangles,
+            samples_updated,
+            stale_levels,
+            blocks_clamped: s.blocks_clamped,
+            plan_hash: self.plan.hash(),
+        })
+    }
+
+    /// Records the prepared frame into the caller's pass (its colour and depth attachments of the
+    /// formats given at construction); sets its own pipelines and bindings.
+    pub fn render(&self, pass: &mut wgpu::RenderPass<'_>) {
+        self.renderer.render(pass);
+    }
+
+    /// The terrain's name ([`Terrain::name`]).
+    pub fn terrain_name(&self) -> &str {
+        &self.name
+    }
+
+    /// The height of the terrain under world (x, y), metres ([`Terrain::height_at`]).
+    pub fn height_at(&self, x: f64, y: f64) -> f32 {
+        self.stand_in.height_at_world(x, y)
+    }
+
+    /// The height of the surface drawn under the camera's eye, metres (None before the rings reach it):
+    /// what keeps a flying camera above the ground.
+    pub fn surface_height(&self, camera: &Camera) -> Option<f32> {
+        self.clipmap.surface_height(camera.0.eye)
+    }
+
+    /// Bytes of GPU memory the renderer holds (fixed at construction).
+    pub fn gpu_bytes(&self) -> u64 {
+        self.renderer.ledger().bytes()
+    }
+}

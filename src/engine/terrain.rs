@@ -1,0 +1,280 @@
+//! The embedding API: a terrain to draw, from source (stage 0) to a streamed package (stage 1b). A plain
+//! file is baked into a package in the caller's cache folder on first use and streamed from there; a
+//! package is streamed as it is; without a cache folder the terrain is held whole in memory.
+
+use std::path::{Path, PathBuf};
+
+use crate::hash::Hash64;
+use crate::package::{self, Package};
+use crate::progress::Progress;
+use crate::source::procedural::{self, ProceduralParams};
+use crate::source::{self, Heightmap, LoadOptions, RowSource, TerrainSpec};
+use crate::{Camera, Error, Result};
+
+/// Most samples of the package level a streamed terrain's stand-in holds (1 Mi: 4 MiB of f32): the
+/// terrain's rough shape for cameras and clearance, never the drawn heights.
+const STAND_IN_SAMPLES: u64 = 1 << 20;
+
+/// How to open a terrain.
+#[derive(Clone, Debug, Default)]
+pub struct TerrainOptions<'a> {
+    /// The folder that keeps what is baked once per terrain: the package a plain file streams from, the
+    /// SAT LOD tables and SG's shading tables. None: a plain file is loaded whole into memory, and the
+    /// tables are baked at every start.
+    pub cache_dir: Option<PathBuf>,
+    /// Hold the whole terrain in memory even with a cache folder (a package is decoded whole).
+    pub resident: bool,
+    /// Sample spacing in metres, overriding (or supplying) the file's own: PNG and raw files have none.
+    pub spacing_m: Option<f32>,
+    /// Metres per stored unit of a grey PNG (default 0.1 for 16-bit, 1 for 8-bit).
+    pub height_scale: Option<f32>,
+    /// Metres added to every height after scaling.
+    pub height_offset: f32,
+    /// A stored sample value that marks voids (NaN matches NaN), for a file that declares none or
+    /// another; voids are filled from their neighbours.
+    pub nodata: Option<f64>,
+    /// Where the first bake of a plain file reports its progress.
+    pub progress: Progress<'a>,
+}
+
+/// A terrain ready to draw: a package streamed through the profile's tile cache, or a height grid held
+/// whole. Give it to [`crate::TerrainRenderer::new`].
+#[derive(Debug)]
+pub struct Terrain {
+    name: String,
+    /// The whole grid (resident), or a coarse level of the package (streamed): its shape and placement.
+    stand_in: Heightmap,
+    package: Option<Package>,
+    cache_dir: Option<PathBuf>,
+}
+
+impl Terrain {
+    /// Opens a terrain file: a `.clipsat` package, or any source clipsat reads (PNG, GeoTIFF, SRTM
+    /// `.hgt`, DTED, ESRI ASCII and binary grids, gridded XYZ), told by its extension or magic number.
+    /// With a `cache_dir`, a plain file is baked into a package there on first use (keyed by its path,
+    /// size, modification time and sidecars) and streamed; without one it is held whole.
+    /// [`Terrain::open_with`] takes the other options.
+    pub fn open(path: impl AsRef<Path>, cache_dir: Option<&Path>) -> Result<Self> {
+        Self::open_with(
+            path,
+            &TerrainOptions {
+                cache_dir: cache_dir.map(Path::to_path_buf),
+                ..TerrainOptions::default()
+            },
+        )
+    }
+
+    /// [`Terrain::open`] with every option: the spacing, heights' scale and offset, a nodata value, a
+    /// progress callback for the first bake, or the whole terrain held in memory.
+    pub fn open_with(path: impl AsRef<Path>, options: &TerrainOptions<'_>) -> Result<Self> {
+        let load = LoadOptions {
+            spacing: options.spacing_m,
+            height_scale: options.height_scale,
+            height_offset: options.height_offset,
+            nodata: options.nodata,
+            ..LoadOptions::default()
+        };
+        Self::open_spec(
+            &TerrainSpec::File(path.as_ref().to_path_buf()),
+            &load,
+            options.cache_dir.as_deref(),
+            options.resident,
+            options.progress,
+        )
+    }
+
+    /// The built-in procedural terrain: `size` x `size` samples (2^k + 1, 3 ..= 16385) `spacing_m` metres
+    /// apart; the same seed gives the same terrain bit for bit. With a `cache_dir` it is baked into a
+    /// package there on first use and streamed, as a file would be.
+    pub fn procedural(
+        seed: u64,
+        size: u32,
+        spacing_m: f32,
+        cache_dir: Option<&Path>,
+    ) -> Result<Self> {
+        let p = ProceduralParams {
+            seed,
+            size,
+            spacing: spacing_m,
+        };
+        Self::open_spec(
+            &TerrainSpec::Procedural(p),
+            &LoadOptions::default(),
+            cache_dir,
+            false,
+            Progress::default(),
+        )
+    }
+
+    /// A terrain from heights in memory: `width` x `height` samples, row-major from the north-west
+    /// corner, `spacing_m` metres apart, held whole. A `cache_dir` keeps its SAT LOD and SG tables.
+    pub fn from_heights(
+        width: u32,
+        height: u32,
+        spacing_m: f32,
+        heights: Vec<f32>,
+        cache_dir: Option<&Path>,
+    ) -> Result<Self> {
+        let hm = Heightmap::new(Path::new("<memory>"), width, height, spacing_m, heights)?;
+        Ok(Self::whole(format!("heights {width} x {height}"), hm, cache_dir))
+    }
+
+    /// Its name in reports: the path as given, or the procedural terrain's parameters.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// Samples (columns, rows) of the data.
+    pub fn size(&self) -> (u32, u32) {
+        match &self.package {
+            Some(p) => (p.header().width, p.header().height),
+            None => (self.stand_in.width(), self.stand_in.height()),
+        }
+    }
+
+    /// The lowest and highest height, metres.
+    pub fn height_range(&self) -> (f32, f32) {
+        match &self.package {
+            Some(p) => p.header().range,
+            None => self.stand_in.range(),
+        }
+    }
+
+    /// The height under world (x, y), metres, bilinear: from the whole grid, or from a streamed
+    /// terrain's coarse stand-in (its rough shape: keep a camera clear of it with a margin).
+    pub fn height_at(&self, x: f64, y: f64) -> f32 {
+        self.stand_in.height_at_world(x, y)
+    }
+
+    /// Whether the terrain streams from a package (else it is held whole).
+    pub fn is_streamed(&self) -> bool {
+        self.package.is_some()
+    }
+
+    /// An oblique view across the whole terrain from the south, with clip planes fitted to it, and a
+    /// vertical field of view of 60 degrees: the view `clipsat render` draws by default.
+    pub fn default_camera(&self) -> Result<Camera> {
+        crate::plan::camera::Camera::default_for(&self.stand_in).map(Camera)
+    }
+
+    /// Opens what `spec` names with `load`'s reading options; see [`Terrain::open`].
+    pub(crate) fn open_spec(
+        spec: &TerrainSpec,
+        load: &LoadOptions,
+        cache_dir: Option<&Path>,
+        resident: bool,
+        progress: Progress<'_>,
+    ) -> Result<Self> {
+        let name = match spec {
+            TerrainSpec::Procedural(p) => format!("procedural(seed={}, size={})", p.seed, p.size),
+            TerrainSpec::File(path) => path.display().to_string(),
+        };
+        let given = match spec {
+            TerrainSpec::File(path) if package::is_package(path) => Some(Package::open(path)?),
+            _ => None,
+        };
+        let package = match (given, cache_dir) {
+            (Some(p), _) if resident => {
+                return Ok(Self::whole(name, p.to_heightmap()?, cache_dir));
+            }
+            (Some(p), _) => p,
+            (None, Some(dir)) if !resident => cached_package(spec, load, dir, progress)?,
+            (None, _) => {
+                let hm = match spec {
+                    TerrainSpec::Procedural(p) => procedural::generate(p)?,
+                    TerrainSpec::File(path) => source::load(path, load)?,
+                };
+                return Ok(Self::whole(name, hm, cache_dir));
+            }
+        };
+        Ok(Self {
+            name,
+            stand_in: package.coarse_heightmap(STAND_IN_SAMPLES)?,
+            package: Some(package),
+            cache_dir: cache_dir.map(Path::to_path_buf),
+        })
+    }
+
+    fn whole(name: String, hm: Heightmap, cache_dir: Option<&Path>) -> Self {
+        Self {
+            name,
+            stand_in: hm,
+            package: None,
+            cache_dir: cache_dir.map(Path::to_path_buf),
+        }
+    }
+
+    /// The cache folder the terrain was opened with.
+    pub(crate) fn cache_dir(&self) -> Option<&Path> {
+        self.cache_dir.as_deref()
+    }
+
+    /// The parts: name, stand-in (or the whole grid), the package streamed.
+    pub(crate) fn into_parts(self) -> (String, Heightmap, Option<Package>) {
+        (self.name, self.stand_in, self.package)
+    }
+}
+
+#[cfg(feature = "internals")]
+impl Terrain {
+    /// [`Terrain::open`] for what `spec` names with every reading option ([`LoadOptions`]).
+    pub fn from_spec(
+        spec: &TerrainSpec,
+        load: &LoadOptions,
+        cache_dir: Option<&Path>,
+        resident: bool,
+        progress: Progress<'_>,
+    ) -> Result<Self> {
+        Self::open_spec(spec, load, cache_dir, resident, progress)
+    }
+
+    /// The parts: name, stand-in (or the whole grid), the package streamed.
+    pub fn parts(self) -> (String, Heightmap, Option<Package>) {
+        self.into_parts()
+    }
+}
+
+/// The package of a plain source in `dir`, baked there on first use ([`package::cached`]) and found by
+/// later runs without reading the source: keyed by what `spec` names, `load`'s options and, for a
+/// file, its size and modification time and those of the sidecars its loader reads.
+fn cached_package(
+    spec: &TerrainSpec,
+    load: &LoadOptions,
+    dir: &Path,
+    progress: Progress<'_>,
+) -> Result<Package> {
+    let mut h = Hash64::new();
+    h.write_bytes(format!("{spec:?} {load:?}").as_bytes());
+    if let TerrainSpec::File(path) = spec {
+        let stamp = |meta: &std::fs::Metadata, h: &mut Hash64| {
+            h.write_u64(meta.len());
+            let mtime = meta
+                .modified()
+                .ok()
+                .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok());
+            h.write_u64(mtime.map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX)));
+        };
+        let meta = std::fs::metadata(path).map_err(|e| Error::io(path, "cannot read", e))?;
+        stamp(&meta, &mut h);
+        // The sidecars a loader reads its layout or spacing from (a world file, a .prj, an ESRI .hdr):
+        // editing one bakes again.
+        for ext in ["tfw", "TFW", "tifw", "tiffw", "prj", "hdr"] {
+            match std::fs::metadata(path.with_extension(ext)) {
+                Ok(meta) => stamp(&meta, &mut h),
+                Err(_) => h.write_u64(0),
+            }
+        }
+    }
+    let (path, _) = package::cached(
+        dir,
+        h.finish(),
+        || -> Result<Box<dyn RowSource>> {
+            Ok(match spec {
+                TerrainSpec::Procedural(p) => Box::new(procedural::Rows::new(p)?),
+                TerrainSpec::File(path) => source::open_rows(path, load)?,
+            })
+        },
+        progress,
+    )?;
+    Package::open(&path)
+}
