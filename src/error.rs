@@ -170,23 +170,23 @@ pub type BoxError = Box<dyn std::error::Error + Send + Sync + 'static>;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[non_exhaustive]
 pub enum Param {
-    /// [`BakeOptions::max_error`](crate::package::BakeOptions::max_error).
+    /// The package's quantisation error bound (the bake's `max_error`).
     MaxError,
-    /// [`BakeOptions::tile`](crate::package::BakeOptions::tile).
+    /// The package's tile size (the bake's `tile`).
     Tile,
-    /// [`BakeOptions::codec`](crate::package::BakeOptions::codec).
+    /// The package's tile codec (the bake's `codec`).
     Codec,
-    /// [`ClipmapOptions::synth_levels`](crate::plan::clipmap::ClipmapOptions::synth_levels).
+    /// Rings synthesised finer than the data (the clipmap's `synth_levels`).
     SynthLevels,
-    /// [`LoadOptions::spacing`](crate::source::LoadOptions::spacing).
+    /// The sample spacing given for a terrain ([`crate::TerrainOptions::spacing_m`]).
     Spacing,
-    /// [`LoadOptions::raw`](crate::source::LoadOptions::raw).
+    /// A headerless raw file's layout (width, height, sample type).
     RawLayout,
-    /// [`LoadOptions::png_encoding`](crate::source::LoadOptions::png_encoding).
+    /// How a PNG's pixels hold heights (grey, or a web-map RGB encoding).
     PngEncoding,
-    /// [`LoadOptions::max_samples`](crate::source::LoadOptions::max_samples).
+    /// The most samples a terrain file may declare.
     MaxSamples,
-    /// [`LoadOptions::nodata`](crate::source::LoadOptions::nodata).
+    /// The value given as marking voids ([`crate::TerrainOptions::nodata`]).
     Nodata,
 }
 

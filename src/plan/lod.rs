@@ -97,11 +97,10 @@ pub struct Lod {
     etas: EtaCache,
 }
 
-// A selector, and the planner holding it, can be built on one thread and planned on another.
+// A selector can be built on one thread and planned on another (the planner's check is beside it).
 const _: () = {
     const fn send<T: Send>() {}
     send::<Lod>();
-    send::<crate::plan::frame_plan::Planner>();
 };
 
 /// Entries of [`EtaCache`] (a power of two): 32 bytes each, 1 MiB, allocated once with the selector.

@@ -321,48 +321,6 @@ mod tests {
     }
 
     #[test]
-    fn unit_meshes_are_the_stitch_rule_s_triangles() {
-        use crate::plan::detail::stitch::surface_triangles;
-        let p = pool_cells(8);
-        let tri = |r: std::ops::Range<u32>| -> Vec<[(u32, u32, u16); 3]> {
-            p.indices[r.start as usize..r.end as usize]
-                .chunks_exact(3)
-                .map(|t| {
-                    [t[0], t[1], t[2]].map(|i| {
-                        let v = p.vertices[usize::from(i)];
-                        (u32::from(v[0]), u32::from(v[1]), v[2])
-                    })
-                })
-                .collect()
-        };
-        for m in [UnitMesh::Fan, UnitMesh::Coarse] {
-            let got: Vec<[(u32, u32); 3]> = tri(pool_unit_range(8, m))
-                .iter()
-                .map(|t| t.map(|(x, y, _)| (x, y)))
-                .collect();
-            assert_eq!(got, surface_triangles(m), "{m:?}");
-        }
-        let sides = [(0, 0), (2, 0), (2, 2), (0, 2), (0, 0)];
-        for side in 0..4u8 {
-            for coarse in [false, true] {
-                let ts = tri(pool_unit_range(8, UnitMesh::Skirt { side, coarse }));
-                assert_eq!(ts.len(), if coarse { 2 } else { 4 });
-                let (a, b) = (sides[usize::from(side)], sides[usize::from(side) + 1]);
-                for t in &ts {
-                    for &(x, y, _) in t {
-                        // On the side's segment, and a coarse skirt only at its corners.
-                        let on = (x == a.0 && x == b.0) || (y == a.1 && y == b.1);
-                        assert!(on, "side {side}: ({x}, {y})");
-                        assert!(!coarse || (x, y) == a || (x, y) == b);
-                    }
-                    // Every triangle hangs from the top to the floor.
-                    assert!(t.iter().any(|v| v.2 == 0) && t.iter().any(|v| v.2 == 1));
-                }
-            }
-        }
-    }
-
-    #[test]
     fn block_is_a_grid_with_the_project_diagonal() {
         let b = block(4);
         assert_eq!(b.vertices.len(), 25);

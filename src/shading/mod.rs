@@ -40,12 +40,13 @@ pub mod debug_view;
 mod integrate;
 mod reference;
 pub mod scene;
+mod shade;
 pub mod sg;
 pub mod sky_table;
 
 pub use integrate::{
-    plane_drop, shade, shade_pixel, texel_light, vmf_cosine, warped_ndf, Inputs, Patches,
-    TexelLight, TexelLighting, MAX_BANDS, MAX_SECTORS, SHARP_LAMBDA,
+    plane_drop, vmf_cosine, warped_ndf, Inputs, Patches, MAX_BANDS, MAX_SECTORS, SHARP_LAMBDA,
 };
+pub use shade::{shade, shade_pixel, texel_light, TexelLight, TexelLighting};
 pub use reference::{reference, HorizonTable, RefCosine, RefGrid, RefInputs};
 pub use sky_table::SkyTable;

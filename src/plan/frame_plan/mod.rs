@@ -316,6 +316,12 @@ impl FramePlan {
     }
 }
 
+// A planner can be built on one thread and planned on another.
+const _: () = {
+    const fn send<T: Send>() {}
+    send::<Planner>();
+};
+
 /// Builds [`FramePlan`]s for one clipmap and profile; holds the LOD selector and the sizes the plan needs.
 #[derive(Clone, Debug)]
 pub struct Planner {
