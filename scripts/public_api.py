@@ -66,7 +66,12 @@ def args(a):
         parts = []
         for x in ab["args"]:
             (k, v), = x.items()
-            parts.append(ty(v) if k == "type" else (v if isinstance(v, str) else str(v)))
+            if k == "type":
+                parts.append(ty(v))
+            elif k == "const":
+                parts.append(v.get("expr", "_"))
+            else:
+                parts.append(v if isinstance(v, str) else str(v))
         for c in ab.get("constraints", []):
             parts.append(c["name"] + " = " + ty(c["binding"].get("equality", {}).get("type")))
         return "<" + ", ".join(parts) + ">" if parts else ""
