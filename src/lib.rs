@@ -88,6 +88,11 @@ pub use engine::{
 pub use error::{BoxError, Error, Param, Result};
 pub use progress::{Progress, ProgressReport};
 
+/// The README's Rust blocks, compiled as doctests: its embedding example stays true to the API.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+struct ReadmeDoctests;
+
 #[cfg(feature = "internals")]
 /// Where the shared terrain data lives: `$CLIPSAT_DATA`, else `../shared/data` beside the crate.
 pub fn data_dir() -> std::path::PathBuf {
