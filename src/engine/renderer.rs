@@ -48,6 +48,40 @@ impl Default for RenderOptions<'_> {
     }
 }
 
+/// Refuses a device whose limits are below what `profile` creates: its textures' sides (the rings,
+/// the detail pool's layers, the SG sky table) and array layers.
+fn check_limits(limits: &wgpu::Limits, profile: &crate::profile::Profile) -> Result<()> {
+    let side = profile
+        .clip_size()
+        .max(profile.detail_atlas().layer_side())
+        .max(crate::profile::SG_SKY_SIDE);
+    let layers = profile
+        .height_layers()
+        .max(profile.detail_layers())
+        .max(crate::profile::SG_SKY_LAYERS);
+    for (limit, needed, available) in [
+        (
+            "max_texture_dimension_2d",
+            side,
+            limits.max_texture_dimension_2d,
+        ),
+        (
+            "max_texture_array_layers",
+            layers,
+            limits.max_texture_array_layers,
+        ),
+    ] {
+        if needed > available {
+            return Err(Error::Unsupported {
+                limit,
+                needed: u64::from(needed),
+                available: u64::from(available),
+            });
+        }
+    }
+    Ok(())
+}
+
 /// What one frame did, within the profile's budget.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[non_exhaustive]
@@ -153,6 +187,11 @@ impl TerrainRenderer {
         };
         let planner = Planner::new(profile, &clipmap, lod)?;
         let plan = planner.new_plan();
+        check_limits(&device.limits(), profile)?;
+        // Validation and out-of-memory errors of the set-up come back as errors, not as the device's
+        // uncaptured-error handler (which panics by default).
+        let oom = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
         let renderer = Renderer::new(
             device,
             queue,
@@ -164,7 +203,16 @@ impl TerrainRenderer {
                 ..RendererOptions::default()
             },
             profile,
-        )?;
+        );
+        let v = pollster::block_on(validation.pop());
+        let o = pollster::block_on(oom.pop());
+        if let Some(e) = v.or(o) {
+            return Err(Error::Gpu {
+                action: "creating the terrain renderer".into(),
+                source: Some(Box::new(e)),
+            });
+        }
+        let renderer = renderer?;
         Ok(Self {
             name,
             stand_in,
@@ -260,5 +308,41 @@ impl TerrainRenderer {
     /// Bytes of GPU memory the renderer holds (fixed at construction).
     pub fn gpu_bytes(&self) -> u64 {
         self.renderer.ledger().bytes()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A device below the profile is refused with the limit, what the profile needs and what it has.
+    #[test]
+    fn a_device_below_the_profile_is_unsupported() {
+        let profile = crate::profile::Profile::load("gles3-mid").expect("shipped profile");
+        let floor = wgpu::Limits::downlevel_webgl2_defaults();
+        assert!(check_limits(&floor, &profile).is_ok(), "the GLES 3.0 floor");
+        let few = wgpu::Limits {
+            max_texture_array_layers: 4,
+            ..floor.clone()
+        };
+        match check_limits(&few, &profile) {
+            Err(Error::Unsupported {
+                limit: "max_texture_array_layers",
+                needed,
+                available: 4,
+            }) => assert!(needed > 4),
+            other => panic!("{other:?}"),
+        }
+        let small = wgpu::Limits {
+            max_texture_dimension_2d: 64,
+            ..floor
+        };
+        assert!(matches!(
+            check_limits(&small, &profile),
+            Err(Error::Unsupported {
+                limit: "max_texture_dimension_2d",
+                ..
+            })
+        ));
     }
 }
