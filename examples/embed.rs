@@ -4,7 +4,10 @@
 //!
 //! The offscreen renderer plans each frame ([`clipsat::plan::frame_plan::Planner`] into a
 //! [`clipsat::plan::frame_plan::FramePlan`], a value), prepares it on the GPU and reads the image back.
-//! `examples/own_device.rs` draws the same terrain into a wgpu device and render pass of its own.
+//! It reaches into the stages (`clipsat::gpu::headless`, `clipsat::plan`), which are the crate's internal
+//! API: public only with the `internals` feature (examples and tests get it), not covered by semver. An
+//! engine uses the root types instead: `examples/own_device.rs` draws a terrain into a wgpu device and
+//! render pass of its own with them.
 //!
 //! ```sh
 //! cargo run --release --example embed                      # procedural terrain
