@@ -15,16 +15,23 @@
 
 pub use super::planes::{unzigzag, zigzag, Decoder, Encoder};
 pub use super::predict::{predict_int, Predictor};
-use super::predict::{LevelModel, MAX_UNITS, R_TAPS, TAPS, U_TAPS};
+use super::predict::{LevelModel, MAX_UNITS, U_TAPS, WEIGHT_BITS};
 use super::rans::{self, Counts, DecodeTables, Tables};
 
 /// Border of U around a tile: U is evaluated over (tw + 4) x (th + 4) samples from (x0 - 2, y0 - 2).
 pub const U_BORDER: usize = 2;
 
-/// Per-tile scratch: the padded residual field and symbol magnitudes, sized once for a tile side.
+/// Per-tile scratch: the padded residual field and symbol magnitudes, U in i32, a row's partial sums,
+/// sized once for a tile side.
 pub struct TileScratch {
     r: Vec<i64>,
     a: Vec<u32>,
+    u: Vec<i32>,
+    wu: Vec<i32>,
+    acc: Vec<i32>,
+    curv: Vec<i32>,
+    pre: Vec<i64>,
+    act: Vec<u32>,
     syms: Vec<i32>,
 }
 
@@ -35,6 +42,12 @@ impl TileScratch {
         Self {
             r: vec![0; (t + 3) * (t + 2)],
             a: vec![0; (t + 2) * (t + 1)],
+            u: vec![0; (t + 4) * (t + 4)],
+            wu: vec![0; 2 * U_TAPS.len() * t],
+            acc: vec![0; t],
+            curv: vec![0; t],
+            pre: vec![0; t],
+            act: vec![0; t],
             syms: vec![0; t * t],
         }
     }
@@ -42,53 +55,157 @@ impl TileScratch {
     /// Bytes of this scratch for tiles of side `tile`.
     pub fn bytes(tile: u32) -> u64 {
         let t = u64::from(tile);
-        8 * (t + 3) * (t + 2) + 4 * (t + 2) * (t + 1) + 4 * t * t
+        8 * (t + 3) * (t + 2)
+            + 4 * (t + 2) * (t + 1)
+            + 4 * (t + 4) * (t + 4)
+            + 64 * t
+            + 24 * t
+            + 4 * t * t
     }
 }
 
-/// Walks a tw x th tile in raster order: `sample(i, j, p, curv)` gets the prediction p of sample (i, j)
-/// and U's curvature there (|second difference| across plus along, in quanta), and returns its
-/// reconstruction k~ (an error stops the walk). `u` is U with its border ([`U_BORDER`]).
+/// The U taps' part of each sample's sum in row `j` (U_TAPS order), into `acc`, in i32: the caller has
+/// checked that no sum can leave i32 (`narrow`). Written as one pass per tap over the row, which
+/// vectorises.
+#[inline(always)]
+fn u_part_narrow(u: &[i32], uw: usize, tw: usize, j: usize, wu: &[i32], acc: &mut [i32]) {
+    let u0 = &u[(j + 2) * uw + 2..(j + 2) * uw + 2 + tw];
+    acc.fill(0);
+    for (k, &(dx, dy)) in U_TAPS.iter().enumerate() {
+        let at =
+            (j + 2).wrapping_add_signed(dy as isize) * uw + 2usize.wrapping_add_signed(dx as isize);
+        let un = &u[at..at + tw];
+        let w = &wu[k * tw..(k + 1) * tw];
+        for (((s, &n), &c), &wk) in acc.iter_mut().zip(un).zip(u0).zip(w) {
+            *s += wk * (n - c);
+        }
+    }
+}
+
+/// Walks a tw x th tile in raster order: `sample(i, j, p, ctx)` gets the prediction p of sample (i, j)
+/// ([`LevelModel::predict`], computed here a row at a time) and its entropy context
+/// ([`rans::context_base`] + [`rans::bucket`]), and returns its reconstruction k~ and its symbol's
+/// magnitude (an error stops the walk). `u` is U with its border ([`U_BORDER`]).
+///
+/// Each row first sums what does not depend on the row itself (the U taps, the taps on the rows above,
+/// the context's part from them), with no dependency from one sample to the next; the serial part adds
+/// the two taps and the context term of the samples to the left. Every sum is exact, in i32 where the
+/// tile's range of U bounds it there and in i64 otherwise, so the prediction is the same either way.
 #[inline(always)]
 fn walk<E>(
     model: &LevelModel,
     u: &[i64],
     (tw, th): (usize, usize),
-    r: &mut [i64],
-    mut sample: impl FnMut(usize, usize, i64, i64) -> Result<i64, E>,
+    sc: &mut TileScratch,
+    mut sample: impl FnMut(usize, usize, i64, usize) -> Result<(i64, u32), E>,
 ) -> Result<(), E> {
-    let (rw, uw) = (tw + 3, tw + 4);
-    r[..rw * (th + 2)].fill(0);
-    // Offsets of the taps in the padded residual field and in U.
-    #[expect(
-        clippy::cast_possible_wrap,
-        clippy::cast_sign_loss,
-        reason = "tap offsets are small and the padded index stays in the buffer"
-    )]
-    let ro: [isize; 6] = R_TAPS.map(|(dx, dy)| dy as isize * rw as isize + dx as isize);
-    #[expect(
-        clippy::cast_possible_wrap,
-        reason = "tap offsets are small and the padded index stays in the buffer"
-    )]
-    let uo: [isize; 8] = U_TAPS.map(|(dx, dy)| dy as isize * uw as isize + dx as isize);
-    let mut f = [0i64; TAPS];
+    let (rw, uw, aw) = (tw + 3, tw + 4, tw + 2);
+    let u = &u[..uw * (th + 4)];
+    let (r, a) = (&mut sc.r[..rw * (th + 2)], &mut sc.a[..aw * (th + 1)]);
+    let (pre, act) = (&mut sc.pre[..tw], &mut sc.act[..tw]);
+    let (acc, curv) = (&mut sc.acc[..tw], &mut sc.curv[..tw]);
+    r.fill(0);
+    a.fill(0);
+    let st = i64::from(model.step.max(1));
+    let weights = model.weights.map(|w| w.map(i64::from));
+    // |a U tap's difference| <= max U - min U; the U part of a sum is at most that times the largest
+    // sum of |weights| over the U taps.
+    let (lo, hi) = u
+        .iter()
+        .fold((i64::MAX, i64::MIN), |(l, h), &v| (l.min(v), h.max(v)));
+    let wsum = weights
+        .iter()
+        .map(|w| w[6..].iter().map(|x| x.abs()).sum::<i64>())
+        .max()
+        .unwrap_or(0);
+    let narrow =
+        (hi - lo).saturating_mul(wsum.max(1)) < 1 << 30 && hi.abs().max(lo.abs()) < 1 << 30;
+    if narrow {
+        for (d, &s) in sc.u[..u.len()].iter_mut().zip(u) {
+            *d = i32::try_from(s).expect("checked inside i32");
+        }
+        for rp in 0..2 {
+            for k in 0..U_TAPS.len() {
+                let row =
+                    &mut sc.wu[(rp * U_TAPS.len() + k) * tw..(rp * U_TAPS.len() + k + 1) * tw];
+                for (i, w) in row.iter_mut().enumerate() {
+                    *w = i32::from(model.weights[(i & 1) | (rp << 1)][6 + k]);
+                }
+            }
+        }
+    }
     for j in 0..th {
-        for i in 0..tw {
-            let rc = (j + 2) * rw + i + 2;
-            let uc = (j + U_BORDER) * uw + i + U_BORDER;
-            let u0 = u[uc];
-            for (fk, &o) in f[..6].iter_mut().zip(&ro) {
-                *fk = r[rc.wrapping_add_signed(o)];
+        let (we, wo) = (&weights[(j & 1) << 1], &weights[1 | ((j & 1) << 1)]);
+        let (rc0, ac0, uc0) = ((j + 2) * rw + 2, (j + 1) * aw + 1, (j + 2) * uw + 2);
+        let u0row = &u[uc0..uc0 + tw];
+        if narrow {
+            let nt = U_TAPS.len();
+            let wu = &sc.wu[(j & 1) * nt * tw..((j & 1) + 1) * nt * tw];
+            u_part_narrow(&sc.u, uw, tw, j, wu, acc);
+            // U_TAPS 0, 4 are E, W; 1, 5 are S, N: U's second differences across and along.
+            let row = |dx: isize, dy: isize| {
+                let at = (j + 2).wrapping_add_signed(dy) * uw + 2usize.wrapping_add_signed(dx);
+                &sc.u[at..at + tw]
+            };
+            let (e, ww, s, n, c0) = (row(1, 0), row(-1, 0), row(0, 1), row(0, -1), row(0, 0));
+            for (i, cv) in curv.iter_mut().enumerate() {
+                *cv = (e[i] + ww[i] - 2 * c0[i]).abs() + (s[i] + n[i] - 2 * c0[i]).abs();
             }
-            for (fk, &o) in f[6..].iter_mut().zip(&uo) {
-                *fk = u[uc.wrapping_add_signed(o)] - u0;
+        } else {
+            for (i, (s, cv)) in acc.iter_mut().zip(curv.iter_mut()).enumerate() {
+                let w = if i & 1 == 0 { we } else { wo };
+                let c = uc0 + i;
+                let d = |dx: i32, dy: i32| {
+                    u[c.wrapping_add_signed(dy as isize * uw as isize + dx as isize)] - u[c]
+                };
+                let mut sum = 0i64;
+                for (k, &(dx, dy)) in U_TAPS.iter().enumerate() {
+                    sum += w[6 + k] * d(dx, dy);
+                }
+                // Out of i32 only in the wide case: kept in `pre` below through the i64 path.
+                *s = 0;
+                pre[i] = sum;
+                let cu = (d(1, 0) + d(-1, 0)).abs() + (d(0, 1) + d(0, -1)).abs();
+                *cv = i32::try_from(cu.min(i64::from(i32::MAX))).expect("clamped");
             }
-            let par = (i & 1) | ((j & 1) << 1);
-            let p = model.predict(par, u0, &f);
-            // U_TAPS: E, S, ..., W, N: f[6] + f[10] and f[7] + f[11] are U's second differences.
-            let curv = (f[6] + f[10]).abs() + (f[7] + f[11]).abs();
-            let k = sample(i, j, p, curv)?;
-            r[rc] = k - u0;
+        }
+        for (i, ((pr, ac), (&s, &cv))) in pre
+            .iter_mut()
+            .zip(act.iter_mut())
+            .zip(acc.iter().zip(curv.iter()))
+            .enumerate()
+        {
+            let w = if i & 1 == 0 { we } else { wo };
+            let (rc, an) = (rc0 + i, ac0 + i - aw);
+            let upart = if narrow { i64::from(s) } else { *pr };
+            *pr = upart
+                + (1 << (WEIGHT_BITS - 1))
+                + w[1] * r[rc - rw]
+                + w[2] * r[rc - rw - 1]
+                + w[3] * r[rc - rw + 1]
+                + w[5] * r[rc - 2 * rw];
+            let cv = if st == 1 {
+                i64::from(cv)
+            } else {
+                i64::from(cv) / st
+            };
+            *ac = rans::activity(a[an], a[an - 1], a[an + 1], cv);
+        }
+        let (mut r1, mut r2, mut a1) = (0i64, 0i64, 0u32);
+        let base = [
+            rans::context_base((j & 1) << 1),
+            rans::context_base(1 | ((j & 1) << 1)),
+        ];
+        for (i, ((&pr, &ac), &u0)) in pre.iter().zip(act.iter()).zip(u0row).enumerate() {
+            let w = if i & 1 == 0 { we } else { wo };
+            let s = pr + w[0] * r1 + w[4] * r2;
+            let p = (u0 + (s >> WEIGHT_BITS)).clamp(-MAX_UNITS, MAX_UNITS);
+            let ctx = base[i & 1] + rans::bucket(ac, a1);
+            let (k, mag) = sample(i, j, p, ctx)?;
+            let rv = k - u0;
+            r[rc0 + i] = rv;
+            a[ac0 + i] = mag;
+            (r2, r1, a1) = (r1, rv, mag);
         }
     }
     Ok(())
@@ -108,10 +225,7 @@ pub fn quantise(
 ) -> Result<(), String> {
     let step = f64::from(model.step.max(1));
     let st = i64::from(model.step.max(1));
-    let aw = tw + 2;
-    let a = &mut scratch.a;
-    a[..aw * (th + 1)].fill(0);
-    walk(model, u, (tw, th), &mut scratch.r, |i, j, p, curv| {
+    walk(model, u, (tw, th), scratch, |i, j, p, ctx| {
         let at = j * tw + i;
         #[expect(clippy::cast_precision_loss, reason = "|p| <= 2^30 is exact in f64")]
         let e = (t[at] - p as f64) / step;
@@ -126,27 +240,12 @@ pub fn quantise(
             return Err(format!("a height of {k} quanta is out of range"));
         }
         syms[at] = s;
-        #[expect(clippy::cast_possible_truncation, reason = "fewer than 256 contexts")]
-        let c = ctx_at(a, aw, i, j, curv / st) as u8;
-        ctxs[at] = c;
-        a[(j + 1) * aw + i + 1] = s.unsigned_abs();
+        ctxs[at] = u8::try_from(ctx).expect("fewer than 256 contexts");
         #[expect(clippy::cast_possible_truncation, reason = "|k| <= 2^30")]
         let k32 = k as i32;
         recon[at] = k32;
-        Ok(k)
+        Ok((k, s.unsigned_abs()))
     })
-}
-
-/// The context of sample (i, j) from the padded symbol magnitudes `a` (width aw = tw + 2, one row
-/// above) and U's curvature in steps.
-#[inline(always)]
-fn ctx_at(a: &[u32], aw: usize, i: usize, j: usize, curv: i64) -> usize {
-    let c = (j + 1) * aw + i + 1;
-    rans::context(
-        (i & 1) | ((j & 1) << 1),
-        (a[c - 1], a[c - aw], a[c - aw - 1], a[c - aw + 1]),
-        u32::try_from(curv).unwrap_or(u32::MAX),
-    )
 }
 
 /// Adds a tile's symbols to the per-context token counts.
@@ -216,11 +315,14 @@ pub fn decode(
                 .get_mut(..n)
                 .ok_or("tile larger than the package's tile size")?;
             dec.decode(payload, syms)?;
-            let syms = &scratch.syms[..n];
-            walk(model, u, (tw, th), &mut scratch.r, |i, j, p, _| {
+            let syms = std::mem::take(&mut scratch.syms);
+            let done = walk(model, u, (tw, th), scratch, |i, j, p, _| {
                 let at = j * tw + i;
-                store(out, at, p, syms[at])
-            })
+                let s = syms[at];
+                Ok::<_, &'static str>((store(out, at, p, s)?, s.unsigned_abs()))
+            });
+            scratch.syms = syms;
+            done
         }
         Entropy::Rans(tables) => {
             let (len, rest) = payload
@@ -233,17 +335,12 @@ pub fn decode(
             let (body, raw) = rest.split_at(len);
             let mut dec = rans::Decoder::new(body)?;
             let mut bits = rans::BitReader::new(raw);
-            let aw = tw + 2;
-            let a = &mut scratch.a;
-            a[..aw * (th + 1)].fill(0);
-            walk(model, u, (tw, th), &mut scratch.r, |i, j, p, curv| {
-                let ctx = ctx_at(a, aw, i, j, curv / st);
+            walk(model, u, (tw, th), scratch, |i, j, p, ctx| {
                 let tok = dec.get(tables, ctx)?;
                 let raw = bits.get(rans::raw_bits(tok))?;
                 let v = rans::join(tok, raw).ok_or("a symbol beyond 32 bits")?;
                 let s = unzigzag(v);
-                a[(j + 1) * aw + i + 1] = s.unsigned_abs();
-                store(out, j * tw + i, p, s)
+                Ok::<_, &'static str>((store(out, j * tw + i, p, s)?, s.unsigned_abs()))
             })?;
             dec.finish()?;
             bits.finish()
@@ -265,6 +362,82 @@ pub fn tables(counts: &Counts) -> Tables {
 mod tests {
     use super::*;
     use crate::package::kind::CodecKind;
+    use crate::package::predict::{R_TAPS, TAPS};
+
+    /// The prediction as [`LevelModel::predict`] defines it, sample by sample, for lattice targets and
+    /// step 1: the reconstruction is the target, so the symbols are target - prediction.
+    fn reference_symbols(
+        model: &LevelModel,
+        u: &[i64],
+        (tw, th): (usize, usize),
+        t: &[i64],
+    ) -> Vec<i32> {
+        let uw = tw + 4;
+        let uat = |i: i64, j: i64| u[((j + 2) as usize) * uw + (i + 2) as usize];
+        let r = |i: i64, j: i64| -> i64 {
+            if i < 0 || j < 0 || i >= tw as i64 || j >= th as i64 {
+                0
+            } else {
+                t[j as usize * tw + i as usize] - uat(i, j)
+            }
+        };
+        let mut out = Vec::new();
+        for j in 0..th as i64 {
+            for i in 0..tw as i64 {
+                let mut f = [0i64; TAPS];
+                for (fk, &(dx, dy)) in f.iter_mut().zip(&R_TAPS) {
+                    *fk = r(i + i64::from(dx), j + i64::from(dy));
+                }
+                for (fk, &(dx, dy)) in f[6..].iter_mut().zip(&U_TAPS) {
+                    *fk = uat(i + i64::from(dx), j + i64::from(dy)) - uat(i, j);
+                }
+                let par = ((i & 1) | ((j & 1) << 1)) as usize;
+                let p = model.predict(par, uat(i, j), &f);
+                out.push(i32::try_from(t[j as usize * tw + i as usize] - p).unwrap());
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn the_row_walk_predicts_as_the_reference_narrow_and_wide() {
+        let (tw, th) = (11, 7);
+        let mut w = [[0i16; TAPS]; 4];
+        for (k, x) in w.iter_mut().flatten().enumerate() {
+            *x = ((k as i16 * 37) % 300) - 150;
+        }
+        let model = LevelModel {
+            step: 1,
+            weights: w,
+        };
+        for scale in [1i64, 1 << 22] {
+            let u: Vec<i64> = (0..(tw + 4) * (th + 4))
+                .map(|k| ((k as i64 * 7919) % 1001 - 500) * scale)
+                .collect();
+            let t: Vec<i64> = (0..tw * th)
+                .map(|k| ((k as i64 * 104_729) % 301 - 150) * scale)
+                .collect();
+            let tf: Vec<f64> = t.iter().map(|&v| v as f64).collect();
+            let mut sc = TileScratch::new(16);
+            let (mut syms, mut recon, mut ctxs) =
+                (vec![0; tw * th], vec![0; tw * th], vec![0; tw * th]);
+            quantise(
+                &model,
+                &u,
+                (tw, th),
+                &tf,
+                &mut sc,
+                (&mut syms, &mut ctxs),
+                &mut recon,
+            )
+            .unwrap();
+            assert_eq!(
+                syms,
+                reference_symbols(&model, &u, (tw, th), &t),
+                "scale {scale}"
+            );
+        }
+    }
 
     fn u_field(tw: usize, th: usize) -> Vec<i64> {
         (0..(tw + 4) * (th + 4))
@@ -297,11 +470,25 @@ mod tests {
                 t.clone()
             };
             let mut sc = TileScratch::new(16);
-            let (mut syms, mut recon, mut ctxs) = (vec![0; tw * th], vec![0; tw * th], vec![0; tw * th]);
-            quantise(&model, &u, (tw, th), &t, &mut sc, (&mut syms, &mut ctxs), &mut recon).unwrap();
+            let (mut syms, mut recon, mut ctxs) =
+                (vec![0; tw * th], vec![0; tw * th], vec![0; tw * th]);
+            quantise(
+                &model,
+                &u,
+                (tw, th),
+                &t,
+                &mut sc,
+                (&mut syms, &mut ctxs),
+                &mut recon,
+            )
+            .unwrap();
             for (k, (&a, &b)) in recon.iter().zip(&t).enumerate() {
-                let bound = f64::from(step) / 2.0 - if lattice && step % 2 == 1 { 0.5 } else { 0.0 };
-                assert!((f64::from(a) - b).abs() <= bound + 1e-9, "{step} sample {k}");
+                let bound =
+                    f64::from(step) / 2.0 - if lattice && step % 2 == 1 { 0.5 } else { 0.0 };
+                assert!(
+                    (f64::from(a) - b).abs() <= bound + 1e-9,
+                    "{step} sample {k}"
+                );
             }
             let mut counts = Counts::default();
             count(&mut counts, &syms, &ctxs);
@@ -309,22 +496,47 @@ mod tests {
             let dt = DecodeTables::new(&tables);
             let payload = encode_rans(&tables, &syms, &ctxs);
             let mut out = vec![0; tw * th];
-            decode(&model, Entropy::Rans(&dt), &payload, &u, (tw, th), &mut sc, &mut out).unwrap();
+            decode(
+                &model,
+                Entropy::Rans(&dt),
+                &payload,
+                &u,
+                (tw, th),
+                &mut sc,
+                &mut out,
+            )
+            .unwrap();
             assert_eq!(out, recon, "rans, step {step}");
             for codec in [CodecKind::Zstd, CodecKind::Lz4] {
                 let mut e = Encoder::new(codec, 3).unwrap();
                 let p = encode_planes(&mut e, &syms).unwrap();
                 let mut d = Decoder::new(codec, 256).unwrap();
                 let mut out = vec![0; tw * th];
-                decode(&model, Entropy::Planes(&mut d), &p, &u, (tw, th), &mut sc, &mut out)
-                    .unwrap();
+                decode(
+                    &model,
+                    Entropy::Planes(&mut d),
+                    &p,
+                    &u,
+                    (tw, th),
+                    &mut sc,
+                    &mut out,
+                )
+                .unwrap();
                 assert_eq!(out, recon, "{codec:?}, step {step}");
             }
             // Damaged payloads: an error or other heights, never a panic.
             for at in 0..payload.len() {
                 let mut bad = payload.clone();
                 bad[at] ^= 0x5a;
-                let _ = decode(&model, Entropy::Rans(&dt), &bad, &u, (tw, th), &mut sc, &mut out);
+                let _ = decode(
+                    &model,
+                    Entropy::Rans(&dt),
+                    &bad,
+                    &u,
+                    (tw, th),
+                    &mut sc,
+                    &mut out,
+                );
                 let _ = decode(
                     &model,
                     Entropy::Rans(&dt),

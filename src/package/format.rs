@@ -312,7 +312,11 @@ impl Header {
                 b.extend_from_slice(&w.to_le_bytes());
             }
         }
-        let tables = self.tables.as_ref().map(Tables::to_bytes).unwrap_or_default();
+        let tables = self
+            .tables
+            .as_ref()
+            .map(Tables::to_bytes)
+            .unwrap_or_default();
         let tl = u32::try_from(tables.len()).expect("the tables are a few KiB");
         b.extend_from_slice(&tl.to_le_bytes());
         b.extend_from_slice(&tables);
@@ -431,7 +435,9 @@ impl Header {
         for (k, &(ew, eh)) in sizes.iter().enumerate() {
             let (w, hh) = (r.u32().ok_or_else(trunc)?, r.u32().ok_or_else(trunc)?);
             if (w, hh) != (ew, eh) {
-                return Err(bad(format!("level {k} is {w} x {hh}, expected {ew} x {eh}")));
+                return Err(bad(format!(
+                    "level {k} is {w} x {hh}, expected {ew} x {eh}"
+                )));
             }
             let step = r.u32().ok_or_else(trunc)?;
             if !(1..=1 << 20).contains(&step) {
@@ -439,7 +445,12 @@ impl Header {
             }
             let mut m = LevelModel::plain(step);
             for w in m.weights.iter_mut().flatten() {
-                *w = i16::from_le_bytes(r.take(2).ok_or_else(trunc)?.try_into().map_err(|_| trunc())?);
+                *w = i16::from_le_bytes(
+                    r.take(2)
+                        .ok_or_else(trunc)?
+                        .try_into()
+                        .map_err(|_| trunc())?,
+                );
             }
             models.push(m);
         }

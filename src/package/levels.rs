@@ -113,7 +113,10 @@ fn coarse_rows(
     out.rows.resize(n * w as usize, 0);
     file.file
         .seek(SeekFrom::Start(a32 * u64::from(w) * 4))
-        .and_then(|_| file.file.read_exact(bytemuck::cast_slice_mut(&mut out.rows)))
+        .and_then(|_| {
+            file.file
+                .read_exact(bytemuck::cast_slice_mut(&mut out.rows))
+        })
         .map_err(io(&file.path))?;
     out.first = a;
     out.width = i64::from(w);
@@ -163,10 +166,7 @@ fn fit_tile(fit: &mut Fit, u: &[i64], t: &[f64], step: u32, (tw, th): (usize, us
         let at = (j + U_BORDER as i64) as usize * uw + (i + U_BORDER as i64) as usize;
         u[at] as f64
     };
-    #[expect(
-        clippy::cast_possible_wrap,
-        reason = "tile sides are at most 4096"
-    )]
+    #[expect(clippy::cast_possible_wrap, reason = "tile sides are at most 4096")]
     let (tw64, th64) = (tw as i64, th as i64);
     for j in 0..th64 {
         for i in 0..tw64 {
@@ -218,7 +218,11 @@ pub(super) fn code_levels(
     near: &Path,
 ) -> Result<Coded> {
     let n = header.levels.len();
-    assert_eq!(spilled.len(), n, "the header's levels follow the spilled pyramid");
+    assert_eq!(
+        spilled.len(),
+        n,
+        "the header's levels follow the spilled pyramid"
+    );
     let tile = header.tile;
     let t = tile as usize;
     let mut predictor = Predictor::new(tile + 2 * U_BORDER as u32);
@@ -264,7 +268,13 @@ pub(super) fn code_levels(
             for tx in 0..dims.tiles_x {
                 let (x0, _, tw, _) = header.tile_rect(lk, tx, ty);
                 let (tw, thu) = (tw as usize, th as usize);
-                u_tile(&mut predictor, cdims.map(|_| &coarse), (x0, y0), (tw, thu), &mut u);
+                u_tile(
+                    &mut predictor,
+                    cdims.map(|_| &coarse),
+                    (x0, y0),
+                    (tw, thu),
+                    &mut u,
+                );
                 tv.clear();
                 for r in 0..thu {
                     let row = &band[r * w + x0 as usize..r * w + x0 as usize + tw];
@@ -279,10 +289,7 @@ pub(super) fn code_levels(
         };
         // Pass 2: closed loop, symbols and reconstruction.
         let tmp = |what: &str| {
-            TempFile::create(near.with_extension(format!(
-                "{what}{lk}.tmp{}",
-                crate::temp_suffix()
-            )))
+            TempFile::create(near.with_extension(format!("{what}{lk}.tmp{}", crate::temp_suffix())))
         };
         let recon_file = tmp("recon")?;
         let sym_file = tmp("syms")?;
@@ -302,7 +309,13 @@ pub(super) fn code_levels(
                 for tx in 0..dims.tiles_x {
                     let (x0, _, tw, _) = header.tile_rect(lk, tx, ty);
                     let tw = tw as usize;
-                    u_tile(&mut predictor, cdims.map(|_| &coarse), (x0, y0), (tw, thu), &mut u);
+                    u_tile(
+                        &mut predictor,
+                        cdims.map(|_| &coarse),
+                        (x0, y0),
+                        (tw, thu),
+                        &mut u,
+                    );
                     tv.clear();
                     for r in 0..thu {
                         let row = &band[r * w + x0 as usize..r * w + x0 as usize + tw];

@@ -28,4 +28,6 @@ pub mod write;
 pub use cache::{CacheSplit, CacheStats, TileCache};
 pub use format::{CodecKind, Header};
 pub use read::{is_package, Package, TileDecoder};
-pub use write::{bake, bake_source, cached, default_max_error, BakeOptions, BakeReport, LevelBytes};
+pub use write::{
+    bake, bake_source, cached, default_max_error, BakeOptions, BakeReport, LevelBytes,
+};

@@ -339,7 +339,10 @@ mod tests {
         let w = fit.weights();
         assert_eq!((w[1][0], w[1][6], w[1][3]), (128, 64, 0));
         assert_eq!(w[0], [0; TAPS], "too few samples: U alone");
-        let m = LevelModel { step: 1, weights: w };
+        let m = LevelModel {
+            step: 1,
+            weights: w,
+        };
         let mut f = [0i64; TAPS];
         f[0] = 10;
         f[6] = -4;

@@ -47,13 +47,28 @@ const BUCKET: [u8; 27] = {
 /// Context tables: 4 parities x 8 activity buckets.
 pub const CONTEXTS: usize = 4 * (ACTIVITY.len() + 1);
 
-/// The context of a sample of parity `par` whose causal neighbours' symbols have magnitudes (w, n, nw,
-/// ne), with U's curvature `curv` in steps (the local gradients of JPEG-LS and CALIC's error energy,
-/// Wu and Memon 1997 section 3, put together: the neighbours' errors and the coarse level's shape).
+/// The part of a sample's activity known before its row is decoded: from the magnitudes of the symbols
+/// above it (n, nw, ne) and U's curvature `curv` in steps (the local gradients of JPEG-LS and CALIC's
+/// error energy, Wu and Memon 1997 section 3, put together: the neighbours' errors and the coarse
+/// level's shape). The whole activity is a = 2 (|s_W| + |s_N|) + |s_NW| + |s_NE| + curv / 2, each term
+/// clamped to 64.
 #[inline]
-pub fn context(par: usize, (w, n, nw, ne): (u32, u32, u32, u32), curv: u32) -> usize {
-    let a = (w.min(64) + n.min(64)) * 2 + nw.min(64) + ne.min(64) + (curv.min(64) >> 1);
-    (par & 3) * (ACTIVITY.len() + 1) + usize::from(BUCKET[a.min(26) as usize])
+pub fn activity(n: u32, nw: u32, ne: u32, curv: i64) -> u32 {
+    let c = u32::try_from(curv.clamp(0, 64)).unwrap_or(64);
+    2 * n.min(64) + nw.min(64) + ne.min(64) + (c >> 1)
+}
+
+/// The first context of parity `par`.
+#[inline]
+pub fn context_base(par: usize) -> usize {
+    (par & 3) * (ACTIVITY.len() + 1)
+}
+
+/// The activity bucket of a sample: its row-independent part `pre` ([`activity`]) and the magnitude `w`
+/// of its left neighbour's symbol. A sample's context is [`context_base`] of its parity plus this.
+#[inline]
+pub fn bucket(pre: u32, w: u32) -> usize {
+    usize::from(BUCKET[(pre + 2 * w.min(64)).min(26) as usize])
 }
 
 /// Zigzag of a symbol (0, -1, 1, -2 -> 0, 1, 2, 3).
@@ -186,7 +201,9 @@ impl Tables {
         for ctx in 0..CONTEXTS {
             let n = usize::from(next()?);
             if n > TOKENS {
-                return Err(format!("rANS context {ctx} lists {n} tokens (at most {TOKENS})"));
+                return Err(format!(
+                    "rANS context {ctx} lists {n} tokens (at most {TOKENS})"
+                ));
             }
             let mut f = [0u16; TOKENS];
             for x in &mut f[..n] {
@@ -346,7 +363,9 @@ pub struct Decoder<'a> {
 impl<'a> Decoder<'a> {
     /// Starts on `bytes` (the whole rANS part of a payload).
     pub fn new(bytes: &'a [u8]) -> Result<Self, &'static str> {
-        let first = bytes.first_chunk::<4>().ok_or("rANS stream shorter than its state")?;
+        let first = bytes
+            .first_chunk::<4>()
+            .ok_or("rANS stream shorter than its state")?;
         let x = u32::from_le_bytes(*first);
         if x < L {
             return Err("rANS state out of range");
@@ -502,7 +521,12 @@ mod tests {
     #[test]
     fn rans_round_trips_and_refuses_damage() {
         let syms: Vec<(usize, usize)> = (0..5000usize)
-            .map(|i| ((i * 7) % CONTEXTS, ((i * i) % 97 % 23) * usize::from(i % 3 == 0)))
+            .map(|i| {
+                (
+                    (i * 7) % CONTEXTS,
+                    ((i * i) % 97 % 23) * usize::from(i % 3 == 0),
+                )
+            })
             .collect();
         let mut c = Counts::default();
         for &(ctx, tok) in &syms {
@@ -533,7 +557,10 @@ mod tests {
         }
         let mut w = BitWriter::default();
         for i in 0..300u32 {
-            w.put(i % 31, i.wrapping_mul(2_654_435_761) & ((1 << (i % 31)) - 1));
+            w.put(
+                i % 31,
+                i.wrapping_mul(2_654_435_761) & ((1 << (i % 31)) - 1),
+            );
         }
         let b = w.finish();
         let mut r = BitReader::new(&b);

@@ -56,7 +56,12 @@ pub fn coarse_rect((x0, y0): (u32, u32), (tw, th): (u32, u32)) -> (i64, i64, i64
     let b = U_BORDER as i64;
     let (x0, y0) = (i64::from(x0) - b, i64::from(y0) - b);
     let (w, h) = (i64::from(tw) + 2 * b, i64::from(th) + 2 * b);
-    ((x0 >> 1) - 1, (y0 >> 1) - 1, (x0 >> 1) - 1 + w / 2 + 4, (y0 >> 1) - 1 + h / 2 + 4)
+    (
+        (x0 >> 1) - 1,
+        (y0 >> 1) - 1,
+        (x0 >> 1) - 1 + w / 2 + 4,
+        (y0 >> 1) - 1 + h / 2 + 4,
+    )
 }
 
 /// True when `path` starts with the package magic (so any extension works, `.clipsat` by convention).
@@ -177,12 +182,9 @@ impl Package {
             u.fill(0);
         } else {
             let b = U_BORDER as i64;
-            scratch.predictor.predict(
-                coarse,
-                (i64::from(x0) - b, i64::from(y0) - b),
-                (uw, uh),
-                u,
-            );
+            scratch
+                .predictor
+                .predict(coarse, (i64::from(x0) - b, i64::from(y0) - b), (uw, uh), u);
         }
         let entropy = match &self.tables {
             Some(t) => Entropy::Rans(t),
