@@ -118,7 +118,7 @@ fn full_level(c: &mut Criterion) {
                             let take = seg.len().saturating_sub(from).min((N - x) as usize);
                             let at = (y * N + x) as usize;
                             ring[at..at + take].copy_from_slice(&seg[from..from + take]);
-                            x += take as u32;
+                            x += u32::try_from(take).expect("at most N");
                         }
                     }
                     black_box(&ring);

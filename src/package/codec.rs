@@ -21,6 +21,9 @@ use super::rans::{self, Counts, DecodeTables, Tables};
 /// Border of U around a tile: U is evaluated over (tw + 4) x (th + 4) samples from (x0 - 2, y0 - 2).
 pub const U_BORDER: usize = 2;
 
+/// [`U_BORDER`] as a u32, for tile sides.
+pub const U_BORDER_U32: u32 = 2;
+
 /// Per-tile scratch: the padded residual field and symbol magnitudes, U in i32, a row's partial sums,
 /// sized once for a tile side.
 pub struct TileScratch {
@@ -230,7 +233,7 @@ pub fn quantise(
         #[expect(clippy::cast_precision_loss, reason = "|p| <= 2^30 is exact in f64")]
         let e = (t[at] - p as f64) / step;
         let s = e.round();
-        if !(s.abs() < f64::from(i32::MAX)) {
+        if s.is_nan() || s.abs() >= f64::from(i32::MAX) {
             return Err(format!("a residual of {e} steps does not fit a symbol"));
         }
         #[expect(clippy::cast_possible_truncation, reason = "checked to fit i32")]
@@ -359,6 +362,10 @@ pub fn tables(counts: &Counts) -> Tables {
 }
 
 #[cfg(test)]
+#[expect(
+    clippy::cast_possible_truncation,
+    reason = "test indices and values are small"
+)]
 mod tests {
     use super::*;
     use crate::package::kind::CodecKind;

@@ -459,7 +459,7 @@ impl Header {
             None
         } else {
             let tb = r.take(tl).ok_or_else(trunc)?;
-            let (t, used) = Tables::parse(tb).map_err(|e| bad(e))?;
+            let (t, used) = Tables::parse(tb).map_err(&bad)?;
             if used != tl {
                 return Err(bad(format!("rANS tables take {used} of their {tl} bytes")));
             }

@@ -12,7 +12,7 @@
 use std::io::{BufReader, BufWriter, Read, Seek, SeekFrom, Write};
 use std::path::Path;
 
-use super::codec::{self, Encoder, Predictor, TileScratch, U_BORDER};
+use super::codec::{self, Encoder, Predictor, TileScratch, U_BORDER, U_BORDER_U32};
 use super::format::{CodecKind, Header};
 use super::predict::{Fit, LevelModel, R_TAPS, TAPS, U_TAPS};
 use super::rans::{Counts, Tables};
@@ -85,11 +85,12 @@ impl CoarseRows {
             clippy::cast_sign_loss,
             reason = "clamped into the level and the band read"
         )]
-        let (x, y) = (
+        let (x, y, w) = (
             a.clamp(0, self.width - 1) as usize,
             (b.clamp(0, self.height - 1) - self.first) as usize,
+            self.width as usize,
         );
-        i64::from(self.rows[y * self.width as usize + x])
+        i64::from(self.rows[y * w + x])
     }
 }
 
@@ -225,7 +226,7 @@ pub(super) fn code_levels(
     );
     let tile = header.tile;
     let t = tile as usize;
-    let mut predictor = Predictor::new(tile + 2 * U_BORDER as u32);
+    let mut predictor = Predictor::new(tile + 2 * U_BORDER_U32);
     let mut scratch = TileScratch::new(tile);
     let (mut band, mut u, mut tv) = (Vec::new(), Vec::new(), Vec::new());
     let (mut syms, mut rec, mut ctxs) = (vec![0i32; t * t], vec![0i32; t * t], vec![0u8; t * t]);

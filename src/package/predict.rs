@@ -129,15 +129,14 @@ impl Fit {
             if self.n[p] < MIN_FIT {
                 continue;
             }
-            let mut a = [[0.0f64; TAPS]; TAPS];
-            for i in 0..TAPS {
-                for j in i..TAPS {
-                    a[i][j] = self.ata[p][i][j];
-                    a[j][i] = self.ata[p][i][j];
+            // The upper triangle mirrored; a small ridge keeps an all-zero feature (a tile edge, a flat
+            // level) from making the system singular.
+            let mut a = self.ata[p];
+            for (i, row) in a.iter_mut().enumerate() {
+                for (j, v) in row.iter_mut().enumerate() {
+                    *v = self.ata[p][i.min(j)][i.max(j)];
                 }
-                // A small ridge keeps an all-zero feature (a tile edge, a flat level) from making the
-                // system singular.
-                a[i][i] += 1e-3 + 1e-6 * a[i][i];
+                row[i] += 1e-3 + 1e-6 * row[i];
             }
             if let Some(w) = solve(a, self.atb[p]) {
                 for (oi, wi) in o.iter_mut().zip(w) {
@@ -162,13 +161,14 @@ fn solve(mut a: [[f64; TAPS]; TAPS], mut b: [f64; TAPS]) -> Option<[f64; TAPS]> 
         if d.abs() < 1e-12 || !d.is_finite() {
             return None;
         }
-        for r in 0..TAPS {
+        let (pivot, bc) = (a[c], b[c]);
+        for (r, (row, br)) in a.iter_mut().zip(b.iter_mut()).enumerate() {
             if r != c {
-                let f = a[r][c] / d;
-                for k in c..TAPS {
-                    a[r][k] -= f * a[c][k];
+                let f = row[c] / d;
+                for (x, &y) in row[c..].iter_mut().zip(&pivot[c..]) {
+                    *x -= f * y;
                 }
-                b[r] -= f * b[c];
+                *br -= f * bc;
             }
         }
     }

@@ -123,8 +123,8 @@ pub fn join(tok: usize, raw: u32) -> Option<u32> {
         return Some(tok as u32);
     }
     #[expect(clippy::cast_possible_truncation, reason = "tok < TOKENS")]
-    let e = ((tok - 16) / 2 + 4) as u32;
-    let top = (2 | ((tok - 16) & 1) as u32).checked_shl(e - 1)?;
+    let (e, half) = (((tok - 16) / 2 + 4) as u32, ((tok - 16) & 1) as u32);
+    let top = (2 | half).checked_shl(e - 1)?;
     Some(top | raw)
 }
 

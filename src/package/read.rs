@@ -136,7 +136,7 @@ impl Package {
         Ok(TileDecoder {
             decoder: Decoder::new(self.header.codec, t * t)
                 .map_err(|e| Error::io(&self.path, "cannot start the tile decoder", e))?,
-            predictor: Predictor::new(self.header.tile + 2 * U_BORDER as u32),
+            predictor: Predictor::new(self.header.tile + 2 * codec::U_BORDER_U32),
             u: vec![0; e * e],
             tile: TileScratch::new(self.header.tile),
         })
