@@ -5,7 +5,7 @@
 //! reconstructed) and the tile's own reconstructed causal neighbours; the encoder quantises the
 //! prediction error e = t - p (t the height over the quantum) to the symbol s = round(e / step) and
 //! reconstructs k~ = p + s step, which is what the decoder will compute, and what the later samples are
-//! predicted from (JPEG-LS near-lossless mode, Weinberger et al. 2000, section 4: quantised residuals and
+//! predicted from (the near-lossless mode of JPEG-LS, Weinberger, Seroussi and Sapiro 2000: quantised residuals and
 //! the encoder's own reconstruction in the loop, so |t - k~| <= step / 2 for every sample; with an odd
 //! step 2N + 1 over integer data, |t - k~| <= N exactly).
 //!

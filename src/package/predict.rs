@@ -9,11 +9,13 @@
 //!   with one rounding;
 //! - a correction, a linear combination with the level's integer weights ([`LevelModel`]) of
 //!   [`TAPS`] features: the decoded residual field r = k~ - U at six causal neighbours in the tile
-//!   (the LOCO-I / CALIC idea of predicting from the causal template, Weinberger et al. 2000 section 2;
-//!   Wu and Memon 1997 section 2) and the differences of U at the eight neighbours from U at the sample
+//!   (the LOCO-I / CALIC idea of predicting from the causal template: Weinberger, Seroussi and Sapiro
+//!   2000; Wu and Memon 1997) and the differences of U at the eight neighbours from U at the sample
 //!   (the coarse level's local shape, which corrects U's fixed interpolation). The weights are fitted per
-//!   level and per sample parity by least squares at bake time (as in least-squares adaptive prediction,
-//!   Wu, Barthel and Zhang 2000), stored in the header as integers over 256.
+//!   level and per sample parity by least squares at bake time (least-squares prediction as in Li and
+//!   Orchard 2001, "Edge-directed prediction for lossless compression of natural images", but fitted
+//!   once per level by the encoder instead of per sample by both sides), stored in the header as
+//!   integers over 256.
 //!
 //! A neighbour outside the tile counts as r = 0 (k~ = U there), so a tile decodes from its own bytes and
 //! the coarser level alone.

@@ -4,10 +4,10 @@
 //! A residual symbol s is zigzagged to v and split into a token and raw bits, as JPEG XL's hybrid
 //! integers do: v < 16 is its own token; above, the token names the position e of v's top bit and the
 //! bit below it, and the e - 1 bits under those two follow raw. The tokens go through one rANS state
-//! (Duda 2013, "Asymmetric numeral systems", section 3: range variant; 32-bit state, 16-bit words, as in
+//! (Duda 2013, "Asymmetric numeral systems", the range variant rANS; 32-bit state, 16-bit words, as in
 //! Giesen's interleaved-rANS notes) with probabilities from one of [`CONTEXTS`] tables: the sample's
 //! parity and the activity of its decoded neighbours' symbols, bucketed as JPEG-LS buckets its local
-//! gradients (Weinberger et al. 2000, section 3.1). The raw bits follow the rANS words in a plain
+//! gradients (Weinberger, Seroussi and Sapiro 2000, context modelling). The raw bits follow the rANS words in a plain
 //! little-endian bit stream.
 //!
 //! The tables are static, one set per package, stored in the header: every tile decodes with them alone.
@@ -49,7 +49,7 @@ pub const CONTEXTS: usize = 4 * (ACTIVITY.len() + 1);
 
 /// The part of a sample's activity known before its row is decoded: from the magnitudes of the symbols
 /// above it (n, nw, ne) and U's curvature `curv` in steps (the local gradients of JPEG-LS and CALIC's
-/// error energy, Wu and Memon 1997 section 3, put together: the neighbours' errors and the coarse
+/// error energy, Wu and Memon 1997, put together: the neighbours' errors and the coarse
 /// level's shape). The whole activity is a = 2 (|s_W| + |s_N|) + |s_NW| + |s_NE| + curv / 2, each term
 /// clamped to 64.
 #[inline]
