@@ -194,7 +194,7 @@ fn walk<E>(
             };
             *ac = rans::activity(a[an], a[an - 1], a[an + 1], cv);
         }
-        let (mut r1, mut r2, mut a1) = (0i64, 0i64, 0u32);
+        let (mut r1, mut r2, mut m1, mut m2) = (0i64, 0i64, 0u32, 0u32);
         let base = [
             rans::context_base((j & 1) << 1),
             rans::context_base(1 | ((j & 1) << 1)),
@@ -203,12 +203,14 @@ fn walk<E>(
             let w = if i & 1 == 0 { we } else { wo };
             let s = pr + w[0] * r1 + w[4] * r2;
             let p = (u0 + (s >> WEIGHT_BITS)).clamp(-MAX_UNITS, MAX_UNITS);
-            let ctx = base[i & 1] + rans::bucket(ac, a1);
+            // The context's term from the row itself: the symbol two to the left ([`rans::activity`]).
+            let ctx = base[i & 1] + rans::bucket(ac + m2.min(64));
             let (k, mag) = sample(i, j, p, ctx)?;
             let rv = k - u0;
             r[rc0 + i] = rv;
             a[ac0 + i] = mag;
-            (r2, r1, a1) = (r1, rv, mag);
+            (r2, r1) = (r1, rv);
+            (m2, m1) = (m1, mag);
         }
     }
     Ok(())
@@ -266,8 +268,8 @@ pub fn encode_rans(tables: &Tables, syms: &[i32], ctxs: &[u8]) -> Vec<u8> {
         bits.put(n, raw);
     }
     let mut enc = rans::Encoder::new();
-    for (&s, &c) in syms.iter().zip(ctxs).rev() {
-        enc.put(tables, usize::from(c), rans::split(zigzag(s)).0);
+    for (n, (&s, &c)) in syms.iter().zip(ctxs).enumerate().rev() {
+        enc.put(tables, n, usize::from(c), rans::split(zigzag(s)).0);
     }
     let mut body = Vec::new();
     enc.finish(&mut body);
