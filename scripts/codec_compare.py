@@ -95,7 +95,9 @@ def package(binary, path, spacing, e):
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--data", default=os.environ.get("CLIPSAT_DATA", "../shared/data"))
+    # The folder `clipsat::data_dir()` reads: CLIPSAT_DATA, else the project's default beside it.
+    default = os.environ.get("CLIPSAT_DATA") or os.path.join(os.path.dirname(__file__), "..", "..", "shared", "data")
+    ap.add_argument("--data", default=default)
     ap.add_argument("--clipsat", help="a clipsat binary: adds the package column")
     ap.add_argument("--errors", default="default,2", help="comma-separated E in metres; `default`: lossless")
     ap.add_argument("--json", help="also write the rows as JSON here")

@@ -121,8 +121,10 @@ fn walk<E>(
         .map(|w| w[6..].iter().map(|x| x.abs()).sum::<i64>())
         .max()
         .unwrap_or(0);
+    // At least 4 times the range: the curvature's two second differences (each at most twice it) add
+    // up inside i32 too.
     let narrow =
-        (hi - lo).saturating_mul(wsum.max(1)) < 1 << 30 && hi.abs().max(lo.abs()) < 1 << 30;
+        (hi - lo).saturating_mul(wsum.max(4)) < 1 << 30 && hi.abs().max(lo.abs()) < 1 << 30;
     if narrow {
         for (d, &s) in sc.u[..u.len()].iter_mut().zip(u) {
             *d = i32::try_from(s).expect("checked inside i32");

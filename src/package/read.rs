@@ -201,7 +201,7 @@ impl Package {
         )
         .map_err(bad);
         // The payload's pages leave the resident set once decoded (they stay in the kernel's page cache):
-        // a long flight's decodes do not add the package's pages up (issue 13).
+        // a long flight's decodes do not add the package's pages up.
         self.trim_range(start, entry.len as usize);
         decoded
     }
