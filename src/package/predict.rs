@@ -109,19 +109,6 @@ impl Fit {
         self.n[par] += 1;
     }
 
-    /// Adds another accumulation (a thread's share).
-    pub fn merge(&mut self, o: &Fit) {
-        for p in 0..4 {
-            for i in 0..TAPS {
-                self.atb[p][i] += o.atb[p][i];
-                for j in i..TAPS {
-                    self.ata[p][i][j] += o.ata[p][i][j];
-                }
-            }
-            self.n[p] += o.n[p];
-        }
-    }
-
     /// The fitted weights (ridge-regularised normal equations, Gaussian elimination with partial
     /// pivoting), rounded to fixed point and clamped to i16; a parity with too few samples or a singular
     /// system keeps U alone.

@@ -146,17 +146,6 @@ impl Default for Counts {
     }
 }
 
-impl Counts {
-    /// Adds another histogram.
-    pub fn merge(&mut self, o: &Counts) {
-        for (a, b) in self.0.iter_mut().zip(&o.0) {
-            for (x, y) in a.iter_mut().zip(b) {
-                *x += y;
-            }
-        }
-    }
-}
-
 impl Tables {
     /// Normalised tables from counts: every seen token keeps a frequency of at least 1, the rounding
     /// difference goes to the most frequent tokens; a context never seen codes token 0 only.

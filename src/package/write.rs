@@ -1,10 +1,12 @@
 //! Stage 1b, the package: the bake, heightmap -> quantised residual pyramid in compressed tiles (GC section 7).
 //!
-//! The pyramid is the project's own (binomial filter D, [`crate::bake::pyramid::Pyramid`]). Every level is
-//! quantised with one absolute step q (GC section 7: one step for all levels, so the error of the rendered
-//! surface is bounded by q/2 whichever level a ring shows). Coarse to fine, level l is stored as
-//! r_l = k_l - U(k~_{l+1}): since the prediction uses the reconstructed coarser level and the arithmetic is
-//! exact, the decoder rebuilds k~_l = k_l exactly and every level's error stays within q/2.
+//! The pyramid is the project's own (binomial filter D, [`crate::bake::pyramid::Pyramid`]). Heights are
+//! stored as integers over one quantum q (the source's own lattice where the bound allows, else twice
+//! the bound), each level's prediction errors quantised with that level's step so that every level of
+//! the decoded pyramid is within the bound whichever level a ring shows (GC section 7: one bound for all
+//! levels). Coarse to fine, each level is predicted from the coarser level as the decoder reconstructs
+//! it and from its own decoded neighbours (`levels.rs`, `docs/package-codec.md`): the arithmetic is
+//! exact, so the decoder rebuilds every level exactly as the encoder did.
 
 use std::io::Write;
 use std::path::Path;
