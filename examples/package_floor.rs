@@ -1,7 +1,8 @@
 //! Measurement aid (issue 13): what a baked package's tiles cost against the entropy of what they hold.
 //! `cargo run --release --example package_floor -- PACKAGE.clipsat` (bake it first: `clipsat bake T
-//! --out PACKAGE.clipsat --max-error 0.5`); the results are recorded in `src/package/codec.rs`,
-//! `src/package/lod_tiles.rs` and the README's **Terrain packages**.
+//! --out PACKAGE.clipsat --max-error 0.5 --codec zstd`: it reads the byte-plane codings only); the
+//! results are recorded in `src/package/lod_tiles.rs`, `docs/package-codec.md` and the README's
+//! **Terrain packages**.
 //!
 //! - The residual pyramid: its tiles' bytes, the order-0 floor (Shannon entropy of each level's
 //!   residuals), a context floor (each residual conditioned on the sum of its left, upper and half its
@@ -73,6 +74,13 @@ fn main() {
     let path = std::path::PathBuf::from(std::env::args().nth(1).expect("a package path"));
     let bytes = std::fs::read(&path).expect("read the package");
     let hd = Header::parse(&path, &bytes, bytes.len() as u64).expect("a package");
+    if hd.codec == clipsat::package::CodecKind::Rans {
+        eprintln!(
+            "{}: rANS height tiles; bake it with `--codec zstd` or `lz4`",
+            path.display()
+        );
+        std::process::exit(2);
+    }
     let n0 = hd.samples() as f64;
     let per = |b: f64| b / n0;
     let t = hd.tile as usize;

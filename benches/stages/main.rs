@@ -7,10 +7,17 @@
 //! cargo bench --bench stages -- lod_
 //! cargo bench --bench stages -- "decode_|cache_|stream_fill"
 //! cargo bench --bench stages -- "refill|fly_puget"
+//! cargo bench --bench stages -- codec_
 //! ```
 
+mod codec;
 mod lod;
 mod package;
 mod update;
 
-criterion::criterion_main!(update::benches, lod::benches, package::benches);
+criterion::criterion_main!(
+    update::benches,
+    lod::benches,
+    package::benches,
+    codec::benches
+);

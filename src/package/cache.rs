@@ -62,7 +62,7 @@ impl CacheSplit {
     /// inverted): for a caller that sizes its cache by what it reads, such as the LOD tables' bake.
     pub fn budget_for_slots(header: &super::format::Header, slots: u64) -> u64 {
         let t = u64::from(header.tile);
-        let head = header.byte_len() as u64 + 16 * header.tiles.len() as u64;
+        let head = head_bytes(header);
         let fixed = head + 4 * header.tiles.len() as u64 + TileDecoder::bytes(header.tile);
         fixed + slots * (4 * t * t + std::mem::size_of::<Slot>() as u64)
     }
@@ -72,7 +72,7 @@ impl CacheSplit {
     /// it could never fill: 257^2 streamed on desktop touched 88 MiB more than loaded whole).
     pub fn plan(header: &super::format::Header, budget: u64) -> Self {
         let t = u64::from(header.tile);
-        let head = header.byte_len() as u64 + 16 * header.tiles.len() as u64;
+        let head = head_bytes(header);
         let map = 4 * header.tiles.len() as u64;
         let decoder = TileDecoder::bytes(header.tile);
         let slot = 4 * t * t + std::mem::size_of::<Slot>() as u64;
@@ -87,6 +87,16 @@ impl CacheSplit {
             slot_count,
         }
     }
+}
+
+/// The parsed header, its tile table and the rANS tables' lookup form.
+fn head_bytes(header: &super::format::Header) -> u64 {
+    let tables = if header.tables.is_some() {
+        super::rans::DecodeTables::BYTES
+    } else {
+        0
+    };
+    header.byte_len() as u64 + 16 * header.tiles.len() as u64 + tables
 }
 
 /// The resident tiles of one package, in a fixed number of slots.
@@ -302,14 +312,8 @@ impl TileCache {
             return Ok(false);
         }
         if !coarsest {
-            // The 4-point stencils of this tile read coarse samples x0/2 - 1 ..= (x1 - 1)/2 + 2.
-            let (x0, y0) = (i64::from(x0), i64::from(y0));
-            let rect = (
-                x0 / 2 - 1,
-                y0 / 2 - 1,
-                (x0 + i64::from(tw) - 1) / 2 + 3,
-                (y0 + i64::from(th) - 1) / 2 + 3,
-            );
+            // The 4-point stencils of this tile and its border read these coarse samples.
+            let rect = super::read::coarse_rect((x0, y0), (tw, th));
             if !self.ensure_rect(level + 1, rect, budget)? || cost > *budget {
                 self.stats.refused += 1;
                 return Ok(false);

@@ -6,7 +6,8 @@
 //! magic "CLIPSAT\0" | version u32 | header_len u32
 //! width u32 | height u32 | spacing f32 | origin_x f64 | origin_y f64
 //! quantum f64 | max_error f64 | lowest f32 | highest f32 | codec u32 | tile u32 | levels u32
-//! per level:  width u32 | height u32
+//! per level:  width u32 | height u32 | step u32 | weights 4 x 14 i16   (the level's prediction model)
+//! tables_len u32 | rANS tables (tables_len bytes; 0 unless the codec is rans)
 //! per tile (levels fine to coarse, tiles row-major):  offset u64 | len u32 | crc32 u32
 //! lod_levels u32 | lod_p u32 | lod_tile u32 | lod_derived u32   (all 0: no SAT LOD records)
 //! per record level k = 1 ..= lod_levels:  e_max f32
@@ -14,27 +15,33 @@
 //! header crc32 u32 (over every byte before it)
 //! ```
 //!
-//! A tile payload is one byte (the count of byte planes, 1..=4) then the codec's stream of the planes.
+//! A height tile's payload is its residual symbols ([`super::codec`]): the rANS part's length, the rANS
+//! part and the raw bits, or for lz4 and zstd one byte (the count of byte planes, 1..=4) then the codec's
+//! stream of the planes. `docs/package-codec.md` describes the format in full.
 //! The record tiles ([`super::lod_tiles`]) hold the SAT LOD tables' compact records
 //! ([`crate::bake::lod_record`]) for data levels lod_derived + 1 ..= lod_levels under exponent lod_p, in
 //! tiles of lod_tile x lod_tile cells, after the height tiles; data levels 1 ..= lod_derived keep only
 //! their E, their records derived from the heights when the tables are built
-//! ([`crate::bake::lod_package`]). Version 3 (this one) added lod_derived and codes a record tile's max
-//! and mean codes as two streams; a version 1 (no records) or 2 package is refused with a request to bake
-//! it again, never misread.
+//! ([`crate::bake::lod_package`]). Version 3 added lod_derived and codes a record tile's max and mean
+//! codes as two streams; version 4 (this one) predicts each height from the coarser level and its decoded
+//! neighbours with per-level weights, quantises with a per-level step, and adds the rANS codec. An older
+//! package is refused with a request to bake it again, never misread.
 //! Everything read back is validated before use: a damaged file is an [`Error::Format`] naming the field or
 //! the tile, never a panic.
 
 use std::path::Path;
 
+pub use super::kind::CodecKind;
 use super::lod_tiles::RecordGrid;
-use crate::{Error, Param, Result};
+use super::predict::{LevelModel, TAPS};
+use super::rans::Tables;
+use crate::{Error, Result};
 
 /// The first 8 bytes of every package.
 pub const MAGIC: [u8; 8] = *b"CLIPSAT\0";
 
 /// The format version this build reads and writes.
-pub const VERSION: u32 = 3;
+pub const VERSION: u32 = 4;
 
 /// Most record levels a header may list (data levels 1 ..= this; a profile has at most 16 levels).
 pub const MAX_LOD_LEVELS: u32 = 40;
@@ -45,56 +52,11 @@ const TILE_ENTRY: usize = 16;
 /// Bytes of the records' fixed fields (lod_levels, lod_p, lod_tile, lod_derived).
 const LOD_FIXED: usize = 16;
 
+/// Bytes of one level's entry: width, height, step, weights.
+const LEVEL_ENTRY: usize = 12 + 2 * 4 * TAPS;
+
 /// Bytes before the per-level table.
 const FIXED: usize = 8 + 4 + 4 + 4 + 4 + 4 + 8 + 8 + 8 + 8 + 4 + 4 + 4 + 4 + 4;
-
-/// The codec a package's tiles are compressed with.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum CodecKind {
-    /// LZ4 block format (lz4_flex), over zigzag byte planes.
-    Lz4,
-    /// Zstandard (zstd), over zigzag byte planes.
-    Zstd,
-}
-
-impl CodecKind {
-    /// Every codec, for comparisons.
-    pub const ALL: [CodecKind; 2] = [CodecKind::Lz4, CodecKind::Zstd];
-
-    /// The header's code.
-    pub fn code(self) -> u32 {
-        match self {
-            CodecKind::Lz4 => 1,
-            CodecKind::Zstd => 2,
-        }
-    }
-
-    /// The codec of a header code.
-    pub fn from_code(code: u32) -> Option<Self> {
-        match code {
-            1 => Some(CodecKind::Lz4),
-            2 => Some(CodecKind::Zstd),
-            _ => None,
-        }
-    }
-
-    /// The name used on the command line and in reports.
-    pub fn name(self) -> &'static str {
-        match self {
-            CodecKind::Lz4 => "lz4",
-            CodecKind::Zstd => "zstd",
-        }
-    }
-
-    /// Parses a name ([`CodecKind::name`]).
-    pub fn parse(text: &str) -> Result<Self> {
-        Self::ALL
-            .into_iter()
-            .find(|c| c.name() == text)
-            .ok_or_else(|| Error::param(Param::Codec, format!("`{text}` is not lz4 or zstd")))
-    }
-}
 
 /// Dimensions of one pyramid level and its tile grid.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -133,9 +95,10 @@ pub struct Header {
     pub spacing: f32,
     /// World position of the south-west sample, metres ([`crate::source::Heightmap::origin`]).
     pub origin: (f64, f64),
-    /// The one quantisation step of every level, metres (GC section 7); heights are `quantum * k`.
+    /// The unit of the stored integers, metres: heights are `quantum * k` (each level's residuals are
+    /// quantised in steps of [`LevelModel::step`] quanta).
     pub quantum: f64,
-    /// The error bound the bake was asked for, metres (quantum / 2).
+    /// The error bound the bake was asked for, metres: every level of the decoded pyramid is within it.
     pub max_error: f64,
     /// Lowest and highest decoded level-0 height, metres (for shading ramps without decoding the data).
     pub range: (f32, f32),
@@ -149,6 +112,10 @@ pub struct Header {
     pub tiles: Vec<TileEntry>,
     /// The SAT LOD records' tiles, if the package holds them.
     pub lod: Option<LodIndex>,
+    /// Each level's prediction weights and residual step, finest first.
+    pub models: Vec<LevelModel>,
+    /// The rANS tables (the `rans` codec only).
+    pub tables: Option<Tables>,
 }
 
 /// Where a package's SAT LOD records lie ([`super::lod_tiles`]).
@@ -244,7 +211,9 @@ impl Header {
     ) -> Self {
         let mut levels = Vec::new();
         let mut first = 0usize;
-        for (w, h) in level_sizes(width, height) {
+        let sizes = level_sizes(width, height);
+        let models = vec![LevelModel::plain(1); sizes.len()];
+        for (w, h) in sizes {
             let (tx, ty) = (w.div_ceil(tile), h.div_ceil(tile));
             levels.push(LevelDims {
                 width: w,
@@ -275,6 +244,8 @@ impl Header {
                 first
             ],
             lod: None,
+            models,
+            tables: None,
         }
     }
 
@@ -284,7 +255,15 @@ impl Header {
             .lod
             .as_ref()
             .map_or(0, |l| 4 * l.levels.len() + TILE_ENTRY * l.tiles.len());
-        FIXED + 8 * self.levels.len() + TILE_ENTRY * self.tiles.len() + LOD_FIXED + lod + 4
+        let tables = self.tables.as_ref().map_or(0, Tables::byte_len);
+        FIXED
+            + LEVEL_ENTRY * self.levels.len()
+            + 4
+            + tables
+            + TILE_ENTRY * self.tiles.len()
+            + LOD_FIXED
+            + lod
+            + 4
     }
 
     /// Bytes of the height tiles' payloads (the pyramid).
@@ -325,10 +304,22 @@ impl Header {
         let nl =
             u32::try_from(self.levels.len()).expect("a u32 side halves to 4 in under 32 levels");
         b.extend_from_slice(&nl.to_le_bytes());
-        for l in &self.levels {
+        for (l, m) in self.levels.iter().zip(&self.models) {
             b.extend_from_slice(&l.width.to_le_bytes());
             b.extend_from_slice(&l.height.to_le_bytes());
+            b.extend_from_slice(&m.step.to_le_bytes());
+            for w in m.weights.iter().flatten() {
+                b.extend_from_slice(&w.to_le_bytes());
+            }
         }
+        let tables = self
+            .tables
+            .as_ref()
+            .map(Tables::to_bytes)
+            .unwrap_or_default();
+        let tl = u32::try_from(tables.len()).expect("the tables are a few KiB");
+        b.extend_from_slice(&tl.to_le_bytes());
+        b.extend_from_slice(&tables);
         let entry = |b: &mut Vec<u8>, t: &TileEntry| {
             b.extend_from_slice(&t.offset.to_le_bytes());
             b.extend_from_slice(&t.len.to_le_bytes());
@@ -373,8 +364,7 @@ impl Header {
         let version = r.u32().ok_or_else(|| bad("truncated".into()))?;
         if version != VERSION {
             let again = if version < VERSION {
-                " (an older package, without this version's SAT LOD records): bake it again with \
-                 `clipsat bake`"
+                " (an older package format): bake it again with `clipsat bake`"
             } else {
                 ""
             };
@@ -434,14 +424,61 @@ impl Header {
                 "tile side {tile} is not an even size in 4..=4096"
             )));
         }
+        let sizes = level_sizes(width, height);
+        if nl as usize != sizes.len() {
+            return Err(bad(format!(
+                "{nl} levels, a {width} x {height} pyramid has {}",
+                sizes.len()
+            )));
+        }
+        let mut models = Vec::with_capacity(sizes.len());
+        for (k, &(ew, eh)) in sizes.iter().enumerate() {
+            let (w, hh) = (r.u32().ok_or_else(trunc)?, r.u32().ok_or_else(trunc)?);
+            if (w, hh) != (ew, eh) {
+                return Err(bad(format!(
+                    "level {k} is {w} x {hh}, expected {ew} x {eh}"
+                )));
+            }
+            let step = r.u32().ok_or_else(trunc)?;
+            if !(1..=1 << 20).contains(&step) {
+                return Err(bad(format!("level {k}: residual step {step} out of range")));
+            }
+            let mut m = LevelModel::plain(step);
+            for w in m.weights.iter_mut().flatten() {
+                *w = i16::from_le_bytes(
+                    r.take(2)
+                        .ok_or_else(trunc)?
+                        .try_into()
+                        .map_err(|_| trunc())?,
+                );
+            }
+            models.push(m);
+        }
+        let tl = r.u32().ok_or_else(trunc)? as usize;
+        let tables = if tl == 0 {
+            None
+        } else {
+            let tb = r.take(tl).ok_or_else(trunc)?;
+            let (t, used) = Tables::parse(tb).map_err(&bad)?;
+            if used != tl {
+                return Err(bad(format!("rANS tables take {used} of their {tl} bytes")));
+            }
+            Some(t)
+        };
+        if (codec == CodecKind::Rans) != tables.is_some() {
+            return Err(bad(format!(
+                "codec {} with{} rANS tables",
+                codec.name(),
+                if tables.is_some() { "" } else { "out" }
+            )));
+        }
         // The tile table's size follows from the dimensions; check it against the stored length before
         // allocating anything of that size (a damaged width cannot ask for gigabytes).
-        let sizes = level_sizes(width, height);
         let count: u64 = sizes
             .iter()
             .map(|&(w, hh)| u64::from(w.div_ceil(tile)) * u64::from(hh.div_ceil(tile)))
             .sum();
-        let base = (FIXED + 8 * sizes.len()) as u64 + TILE_ENTRY as u64 * count;
+        let base = r.at as u64 + TILE_ENTRY as u64 * count;
         // The records' fields follow the height tiles' table (all inside the checksummed header).
         let lod_at = usize::try_from(base).map_err(|_| trunc())?;
         let mut lr = Reader {
@@ -477,6 +514,8 @@ impl Header {
         let mut h = Self::new(width, height, spacing, origin, quantum, codec, tile);
         h.max_error = max_error;
         h.range = range;
+        h.models = models;
+        h.tables = tables;
         if let Some(l) = &mut lod {
             for lv in &mut l.levels {
                 lv.e_max = lr.f32().ok_or_else(trunc)?;
@@ -493,21 +532,6 @@ impl Header {
                     len: lr.u32().ok_or_else(trunc)?,
                     crc: lr.u32().ok_or_else(trunc)?,
                 };
-            }
-        }
-        if nl as usize != h.levels.len() {
-            return Err(bad(format!(
-                "{nl} levels, a {width} x {height} pyramid has {}",
-                h.levels.len()
-            )));
-        }
-        for (k, l) in h.levels.iter().enumerate() {
-            let (w, hh) = (r.u32().ok_or_else(trunc)?, r.u32().ok_or_else(trunc)?);
-            if (w, hh) != (l.width, l.height) {
-                return Err(bad(format!(
-                    "level {k} is {w} x {hh}, expected {} x {}",
-                    l.width, l.height
-                )));
             }
         }
         for t in h.tiles.iter_mut() {

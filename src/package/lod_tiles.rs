@@ -16,7 +16,7 @@
 
 use std::fs::File;
 
-use super::codec::{Decoder, Encoder};
+use super::planes::{Decoder, Encoder};
 
 /// One record level's cell grids and tile grid.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

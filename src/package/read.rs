@@ -6,16 +6,19 @@
 
 use std::path::{Path, PathBuf};
 
-use super::codec::{Decoder, Predictor};
+use super::codec::{self, Decoder, Entropy, Predictor, TileScratch, U_BORDER};
 use super::format::Header;
-use crate::{Error, Result};
+use super::rans::DecodeTables;
 use crate::source::Heightmap;
+use crate::{Error, Result};
 
 /// An open package: the validated header and a read-only map of the file.
 pub struct Package {
     path: PathBuf,
     header: Header,
     map: memmap2::Mmap,
+    /// The rANS tables' lookup form (the `rans` codec).
+    tables: Option<DecodeTables>,
 }
 
 impl std::fmt::Debug for Package {
@@ -27,21 +30,39 @@ impl std::fmt::Debug for Package {
     }
 }
 
-/// Scratch for decoding tiles of one package without allocating: the codec state, residuals, prediction.
+/// Scratch for decoding tiles of one package without allocating: the byte-plane codec's state, U over a
+/// tile and its border, the tile walk's buffers.
 pub struct TileDecoder {
     decoder: Decoder,
     predictor: Predictor,
-    pred: Vec<i64>,
+    u: Vec<i64>,
+    tile: TileScratch,
 }
 
 impl TileDecoder {
     /// The byte size of this scratch for a package with tile side `tile` (for memory budgets).
     pub fn bytes(tile: u32) -> u64 {
         let t = u64::from(tile);
-        let p = t / 2 + 4;
-        // Planes (4 B/sample), prediction (8 B/sample), gathered and row scratch (8 B each).
-        4 * t * t + 8 * t * t + 8 * p * p + 8 * p * t
+        let e = t + 2 * U_BORDER as u64;
+        let p = e / 2 + 4;
+        // Planes (4 B/sample), U with its border (8 B/sample), the predictor's gathered and row
+        // scratch (8 B each), the tile walk's buffers.
+        4 * t * t + 8 * e * e + 8 * p * p + 8 * p * e + TileScratch::bytes(tile)
     }
+}
+
+/// The coarse samples (x0, y0, x1, y1), end exclusive and not clamped, that decoding the fine tile at
+/// (x0, y0) of size tw x th reads: the 4-point stencils of U over the tile and its border.
+pub fn coarse_rect((x0, y0): (u32, u32), (tw, th): (u32, u32)) -> (i64, i64, i64, i64) {
+    let b = U_BORDER as i64;
+    let (x0, y0) = (i64::from(x0) - b, i64::from(y0) - b);
+    let (w, h) = (i64::from(tw) + 2 * b, i64::from(th) + 2 * b);
+    (
+        (x0 >> 1) - 1,
+        (y0 >> 1) - 1,
+        (x0 >> 1) - 1 + w / 2 + 4,
+        (y0 >> 1) - 1 + h / 2 + 4,
+    )
 }
 
 /// True when `path` starts with the package magic (so any extension works, `.clipsat` by convention).
@@ -72,10 +93,12 @@ impl Package {
             ));
         }
         let header = Header::parse(path, &map, len)?;
+        let tables = header.tables.as_ref().map(DecodeTables::new);
         Ok(Self {
             path: path.to_path_buf(),
             header,
             map,
+            tables,
         })
     }
 
@@ -110,17 +133,19 @@ impl Package {
     /// Decoding scratch for this package's tiles (allocates once).
     pub fn tile_decoder(&self) -> Result<TileDecoder> {
         let t = self.header.tile as usize;
+        let e = t + 2 * U_BORDER;
         Ok(TileDecoder {
             decoder: Decoder::new(self.header.codec, t * t)
                 .map_err(|e| Error::io(&self.path, "cannot start the tile decoder", e))?,
-            predictor: Predictor::new(self.header.tile),
-            pred: vec![0; t * t],
+            predictor: Predictor::new(self.header.tile + 2 * codec::U_BORDER_U32),
+            u: vec![0; e * e],
+            tile: TileScratch::new(self.header.tile),
         })
     }
 
     /// Decodes tile (tx, ty) of `level` into `out` (tw * th heights in quantum units, row-major), with the
-    /// coarser level's reconstructed heights from `coarse` (clamped to that level by the caller; never
-    /// called for the coarsest level). Allocation-free.
+    /// coarser level's reconstructed heights from `coarse` (clamped to that level by the caller; it reads
+    /// the coarse samples of [`coarse_rect`]; never called for the coarsest level). Allocation-free.
     pub fn decode_tile(
         &self,
         scratch: &mut TileDecoder,
@@ -150,28 +175,36 @@ impl Package {
         if crc32fast::hash(payload) != entry.crc {
             return Err(bad("checksum mismatch (damaged tile)"));
         }
-        let decoded = scratch.decoder.decode(payload, out).map_err(bad);
-        // The payload's pages leave the resident set once decoded (they stay in the kernel's page cache):
-        // a long flight's decodes do not add the package's pages up (issue 13).
-        self.trim_range(start, entry.len as usize);
-        decoded?;
+        let (tw, th) = (tw as usize, th as usize);
+        let (uw, uh) = (tw + 2 * U_BORDER, th + 2 * U_BORDER);
+        let u = &mut scratch.u[..uw * uh];
         if level + 1 == self.header.levels.len() {
-            return Ok(());
+            // The coarsest level has no coarser one: U is 0, its neighbours predict it.
+            u.fill(0);
+        } else {
+            let b = U_BORDER as i64;
+            scratch
+                .predictor
+                .predict(coarse, (i64::from(x0) - b, i64::from(y0) - b), (uw, uh), u);
         }
-        let pred = &mut scratch.pred[..n];
-        scratch.predictor.predict(
-            coarse,
-            (i64::from(x0), i64::from(y0)),
-            (tw as usize, th as usize),
-            pred,
-        );
-        for (o, &p) in out.iter_mut().zip(pred.iter()) {
-            *o = i64::from(*o)
-                .checked_add(p)
-                .and_then(|v| i32::try_from(v).ok())
-                .ok_or_else(|| bad("reconstructed height out of range"))?;
-        }
-        Ok(())
+        let entropy = match &self.tables {
+            Some(t) => Entropy::Rans(t),
+            None => Entropy::Planes(&mut scratch.decoder),
+        };
+        let decoded = codec::decode(
+            &self.header.models[level],
+            entropy,
+            payload,
+            u,
+            (tw, th),
+            &mut scratch.tile,
+            out,
+        )
+        .map_err(bad);
+        // The payload's pages leave the resident set once decoded (they stay in the kernel's page cache):
+        // a long flight's decodes do not add the package's pages up.
+        self.trim_range(start, entry.len as usize);
+        decoded
     }
 
     /// Decodes record tile (tx, ty) of data level `k`'s SAT LOD records ([`super::lod_tiles`]) into its

@@ -21,13 +21,13 @@ const BAND_ROWS: u32 = 64;
 const D_WEIGHTS: [f64; 5] = [1.0 / 16.0, 4.0 / 16.0, 6.0 / 16.0, 4.0 / 16.0, 1.0 / 16.0];
 
 /// A temporary file, removed when dropped (and at once where the OS lets an open file be unlinked).
-struct TempFile {
-    file: File,
-    path: PathBuf,
+pub(super) struct TempFile {
+    pub(super) file: File,
+    pub(super) path: PathBuf,
 }
 
 impl TempFile {
-    fn create(path: PathBuf) -> Result<Self> {
+    pub(super) fn create(path: PathBuf) -> Result<Self> {
         let file = std::fs::OpenOptions::new()
             .read(true)
             .write(true)

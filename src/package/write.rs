@@ -1,16 +1,19 @@
 //! Stage 1b, the package: the bake, heightmap -> quantised residual pyramid in compressed tiles (GC section 7).
 //!
-//! The pyramid is the project's own (binomial filter D, [`crate::bake::pyramid::Pyramid`]). Every level is
-//! quantised with one absolute step q (GC section 7: one step for all levels, so the error of the rendered
-//! surface is bounded by q/2 whichever level a ring shows). Coarse to fine, level l is stored as
-//! r_l = k_l - U(k~_{l+1}): since the prediction uses the reconstructed coarser level and the arithmetic is
-//! exact, the decoder rebuilds k~_l = k_l exactly and every level's error stays within q/2.
+//! The pyramid is the project's own (binomial filter D, [`crate::bake::pyramid::Pyramid`]). Heights are
+//! stored as integers over one quantum q (the source's own lattice where the bound allows, else twice
+//! the bound), each level's prediction errors quantised with that level's step so that every level of
+//! the decoded pyramid is within the bound whichever level a ring shows (GC section 7: one bound for all
+//! levels). Coarse to fine, each level is predicted from the coarser level as the decoder reconstructs
+//! it and from its own decoded neighbours (`levels.rs`, `docs/package-codec.md`): the arithmetic is
+//! exact, so the decoder rebuilds every level exactly as the encoder did.
 
 use std::io::Write;
 use std::path::Path;
 
-use super::codec::{Encoder, Predictor};
+use super::codec::Encoder;
 use super::format::{CodecKind, Header, TileEntry};
+use super::levels::{self, Quantiser};
 use super::spill::{on_lattice, Spilled};
 use crate::progress::Progress;
 use crate::source::{Resident, RowSource};
@@ -54,7 +57,7 @@ impl Default for BakeOptions {
     fn default() -> Self {
         Self {
             max_error: None,
-            codec: CodecKind::Zstd,
+            codec: CodecKind::Rans,
             tile: DEFAULT_TILE,
             zstd_level: DEFAULT_ZSTD_LEVEL,
             lod_tables: true,
@@ -79,10 +82,12 @@ pub struct BakeReport {
     pub samples: u64,
     /// bytes / samples.
     pub bytes_per_sample: f64,
-    /// The quantum q, metres.
+    /// The quantum q, metres (the unit of the stored integers).
     pub quantum: f64,
-    /// The bound asked for, q/2, metres.
+    /// The bound asked for, metres.
     pub max_error_bound: f64,
+    /// Largest |decoded - filtered height| over the coarser levels, metres (within the bound too).
+    pub coarse_max_error: f64,
     /// RMS of (decoded level 0 - source), metres.
     pub rms_error: f64,
     /// Largest |decoded level 0 - source|, metres.
@@ -95,6 +100,25 @@ pub struct BakeReport {
     pub codec: CodecKind,
     /// Tile side.
     pub tile: u32,
+    /// Each level's height tiles, finest first.
+    pub level_bytes: Vec<LevelBytes>,
+}
+
+/// One level's share of the pyramid.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct LevelBytes {
+    /// Samples per row.
+    pub width: u32,
+    /// Rows.
+    pub height: u32,
+    /// The residual step, quanta.
+    pub step: u32,
+    /// Bytes of the level's tiles.
+    pub bytes: u64,
+    /// bytes / the level's own samples.
+    pub bytes_per_sample: f64,
+    /// bytes / level-0 samples (the levels' shares add up to the pyramid's).
+    pub bytes_per_level0_sample: f64,
 }
 
 /// The source's own quantum, if its samples sit on one: 1 m (integer metres: .hgt, int16 GeoTIFF) or 0.1 m
@@ -154,7 +178,20 @@ pub fn bake_source(
             .map_or(FLOAT_MAX_ERROR, |(q, _)| q * 0.5)
     });
     check_max_error(max_error)?;
-    let q = 2.0 * max_error;
+    // The quantum: the source's own lattice where the bound allows it (near-lossless steps over it), else
+    // twice the bound (real-valued data, rounded once).
+    let quant = [1.0, 0.1]
+        .into_iter()
+        .zip(spilled.on_lattice)
+        .find(|&(q, ok)| ok && q * 0.5 <= max_error * (1.0 + 1e-9))
+        .map_or(
+            Quantiser {
+                q: 2.0 * max_error,
+                lattice: false,
+            },
+            |(q, _)| Quantiser { q, lattice: true },
+        );
+    let q = quant.q;
     let (lo, hi) = spilled.range;
     let units = f64::from(lo.abs().max(hi.abs())) / q;
     if units >= MAX_UNITS {
@@ -176,8 +213,15 @@ pub fn bake_source(
         opts.tile,
     );
     header.max_error = max_error;
-    // The decoded level 0's range: the extremes quantised as every sample is.
-    header.range = (decoded(lo, q), decoded(hi, q));
+    let steps = levels::steps(header.levels.len(), quant, max_error);
+    let mut coded = levels::code_levels(&mut spilled, &header, quant, &steps, out)?;
+    drop(spilled);
+    // The decoded level 0's range.
+    header.range = coded.range(q);
+    header.models.clone_from(&coded.models);
+    if levels::needs_tables(opts.codec) {
+        header.tables = Some(coded.tables());
+    }
     let mut file = std::io::BufWriter::new(file);
     // Reserve the header; the tile table is written over it at the end.
     let head_len = header.byte_len();
@@ -189,10 +233,8 @@ pub fn bake_source(
         "baking the terrain package: coding tiles",
         table.len() as u64,
     );
-    let (sq, worst) = residual_rows(&mut spilled, &header, |lk, ty, tiles| {
+    coded.write_tiles(&header, &mut encoders, |lk, ty, payloads| {
         let dims = header.levels[lk];
-        let payloads = encode_all(&mut encoders, tiles)
-            .map_err(|e| Error::io(out, "cannot compress a tile", e))?;
         for (tx, payload) in payloads.iter().enumerate() {
             file.write_all(payload)
                 .map_err(|e| Error::io(out, "cannot write", e))?;
@@ -204,11 +246,35 @@ pub fn bake_source(
             };
             offset += u64::from(len);
         }
-        meter.inc(tiles.len() as u64);
+        meter.inc(payloads.len() as u64);
         Ok(())
     })?;
-    drop(spilled);
+    let (sq, worst, coarse_worst) = (coded.sq, coded.worst, coded.worst_coarse);
+    drop(coded);
     header.tiles = table;
+    let samples = header.samples();
+    #[expect(clippy::cast_precision_loss, reason = "ratios for reports")]
+    let level_bytes = header
+        .levels
+        .iter()
+        .zip(&header.models)
+        .map(|(d, m)| {
+            let n = d.tiles_x as usize * d.tiles_y as usize;
+            let bytes: u64 = header.tiles[d.first_tile..d.first_tile + n]
+                .iter()
+                .map(|t| u64::from(t.len))
+                .sum();
+            let own = u64::from(d.width) * u64::from(d.height);
+            LevelBytes {
+                width: d.width,
+                height: d.height,
+                step: m.step,
+                bytes,
+                bytes_per_sample: bytes as f64 / own as f64,
+                bytes_per_level0_sample: bytes as f64 / samples as f64,
+            }
+        })
+        .collect();
     let bytes = header.to_bytes();
     let mut file = file
         .into_inner()
@@ -220,7 +286,6 @@ pub fn bake_source(
         .map_err(|e| Error::io(out, "cannot write", e))?;
     meter.finish();
     drop(file);
-    let samples = header.samples();
     let (bytes, lod_bytes) = if opts.lod_tables {
         let lod = add_lod_records(out, opts, progress)?;
         (offset + lod.0, lod.1)
@@ -238,12 +303,14 @@ pub fn bake_source(
         bytes_per_sample: bytes as f64 / samples as f64,
         quantum: q,
         max_error_bound: max_error,
+        coarse_max_error: coarse_worst,
         rms_error: (sq / samples as f64).sqrt(),
         max_error: worst,
         levels: header.levels.len(),
         tiles: header.tiles.len(),
         codec: opts.codec,
         tile: opts.tile,
+        level_bytes,
     })
 }
 
@@ -379,48 +446,15 @@ fn threads() -> usize {
         .min(8)
 }
 
-/// The payloads of `tiles`, in order, compressed in parallel (one encoder per thread).
-fn encode_all(encoders: &mut [Encoder], tiles: &[Vec<i32>]) -> std::io::Result<Vec<Vec<u8>>> {
-    let per = tiles.len().div_ceil(encoders.len()).max(1);
-    std::thread::scope(|s| {
-        let handles: Vec<_> = tiles
-            .chunks(per)
-            .zip(encoders.iter_mut())
-            .map(|(chunk, enc)| {
-                s.spawn(move || {
-                    chunk
-                        .iter()
-                        .map(|t| enc.encode(t))
-                        .collect::<std::io::Result<Vec<_>>>()
-                })
-            })
-            .collect();
-        let mut all = Vec::with_capacity(tiles.len());
-        for h in handles {
-            all.extend(h.join().expect("a tile encoder thread panicked")?);
-        }
-        Ok(all)
-    })
-}
-
-/// `h` quantised with step `q` and decoded, as the package stores it.
-fn decoded(h: f32, q: f64) -> f32 {
-    #[expect(
-        clippy::cast_possible_truncation,
-        reason = "heights are f32, |h / q| < 2^30"
-    )]
-    let v = ((f64::from(h) / q).round() * q) as f32;
-    v
-}
-
-/// The residual tiles of the package `header` describes for `terrain`, coarse to fine, each handed to `f`
-/// as (level, (tx, ty), residuals row-major); returns (sum of squared, largest) level-0 errors in metres.
-/// The pyramid is spilled to temporary files in the system's temporary folder (a measurement aid's entry;
+/// The residual symbols of the package `header` describes for `terrain` (its quantum and each level's
+/// step; the weights are fitted here as the bake fits them), coarse to fine, each tile handed to `f` as
+/// (level, (tx, ty), symbols row-major); returns (sum of squared, largest) level-0 errors in metres. The
+/// pyramid is spilled to temporary files in the system's temporary folder (a measurement aid's entry;
 /// [`bake_source`] is the bake).
 pub fn residual_tiles(
     terrain: &Heightmap,
     header: &Header,
-    mut f: impl FnMut(usize, (u32, u32), &[i32]) -> Result<()>,
+    f: impl FnMut(usize, (u32, u32), &[i32]) -> Result<()>,
 ) -> Result<(f64, f64)> {
     let near = std::env::temp_dir().join(format!("clipsat-residuals-{}", crate::temp_suffix()));
     let mut spilled = Spilled::build(
@@ -428,125 +462,14 @@ pub fn residual_tiles(
         &near,
         &mut Progress::default().task("spilling the pyramid", 0),
     )?;
-    residual_rows(&mut spilled, header, |lk, ty, tiles| {
-        for (tx, t) in (0..).zip(tiles) {
-            f(lk, (tx, ty), t)?;
-        }
-        Ok(())
-    })
-}
-
-/// The residual tiles of the package `header` describes, from the spilled pyramid, coarse to fine and one
-/// tile row at a time: `f` gets (level, ty, the row's tiles left to right, each row-major). Returns (sum
-/// of squared, largest) level-0 errors in metres.
-///
-/// Closed loop (GC section 7): the prediction reads the coarser level's quantised samples, which is
-/// exactly what the decoder reconstructs. A tile row of level l needs its own rows and the coarser rows
-/// under its 4-point stencils, so only those are read back.
-fn residual_rows(
-    spilled: &mut Spilled,
-    header: &Header,
-    mut f: impl FnMut(usize, u32, &[Vec<i32>]) -> Result<()>,
-) -> Result<(f64, f64)> {
-    let q = header.quantum;
-    assert_eq!(
-        spilled.len(),
-        header.levels.len(),
-        "the header's level sizes follow the spilled pyramid"
-    );
-    let quantise = |h: f32| -> i64 {
-        #[expect(
-            clippy::cast_possible_truncation,
-            reason = "|h / q| < 2^30, checked by bake"
-        )]
-        let k = (f64::from(h) / q).round() as i64;
-        k
+    let quant = Quantiser {
+        q: header.quantum,
+        lattice: source_quantum(terrain).is_some_and(|s| (s - header.quantum).abs() < 1e-12),
     };
-    let t = header.tile as usize;
-    let (mut sq, mut worst) = (0.0f64, 0.0f64);
-    let mut predictor = Predictor::new(header.tile);
-    let mut pred = vec![0i64; t * t];
-    let (mut band, mut k, mut coarse_band, mut coarse_k) =
-        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
-    let mut tiles: Vec<Vec<i32>> = Vec::new();
-    for lk in (0..header.levels.len()).rev() {
-        let dims = header.levels[lk];
-        let w = dims.width as usize;
-        let coarser = header.levels.get(lk + 1).copied();
-        for ty in 0..dims.tiles_y {
-            let (_, y0, _, th) = header.tile_rect(lk, 0, ty);
-            band.resize(th as usize * w, 0.0f32);
-            spilled.read_rows(lk, y0, &mut band)?;
-            k.clear();
-            k.extend(band.iter().map(|&v| quantise(v)));
-            // The coarser rows under this tile row's stencils: cy0 ..= cy0 + th/2 + 3, clamped.
-            let (cw, ca) = match coarser {
-                Some(c) => {
-                    let cy0 = i64::from(y0 >> 1) - 1;
-                    let last = i64::from(c.height) - 1;
-                    let ca = cy0.clamp(0, last);
-                    let cb = (cy0 + i64::from(th / 2) + 3).clamp(0, last);
-                    #[expect(clippy::cast_possible_truncation, reason = "clamped into the level")]
-                    let (ca32, rows) = (ca as u32, (cb - ca + 1) as usize);
-                    coarse_band.resize(rows * c.width as usize, 0.0f32);
-                    spilled.read_rows(lk + 1, ca32, &mut coarse_band)?;
-                    coarse_k.clear();
-                    coarse_k.extend(coarse_band.iter().map(|&v| quantise(v)));
-                    (c.width as usize, ca)
-                }
-                None => (0, 0),
-            };
-            let ch = coarser.map_or(0, |c| i64::from(c.height));
-            let coarse = |a: i64, b: i64| -> i64 {
-                if cw == 0 {
-                    return 0;
-                }
-                #[expect(clippy::cast_possible_truncation, reason = "clamped into the band")]
-                let (x, y) = (
-                    a.clamp(0, cw as i64 - 1) as usize,
-                    (b.clamp(0, ch - 1) - ca) as usize,
-                );
-                coarse_k[y * cw + x]
-            };
-            tiles.resize_with(dims.tiles_x as usize, Vec::new);
-            for (tx, residuals) in (0..dims.tiles_x).zip(tiles.iter_mut()) {
-                let (x0, _, tw, _) = header.tile_rect(lk, tx, ty);
-                let n = tw as usize * th as usize;
-                predictor.predict(
-                    coarse,
-                    (i64::from(x0), i64::from(y0)),
-                    (tw as usize, th as usize),
-                    &mut pred[..n],
-                );
-                residuals.clear();
-                for (jj, prow) in pred[..n].chunks_exact(tw as usize).enumerate() {
-                    let start = jj * w + x0 as usize;
-                    for (&kk, &p) in k[start..start + tw as usize].iter().zip(prow) {
-                        let r = i32::try_from(kk - p).map_err(|_| {
-                            Error::param(
-                                Param::MaxError,
-                                format!("{} m gives residuals beyond i32", header.max_error),
-                            )
-                        })?;
-                        residuals.push(r);
-                    }
-                }
-            }
-            f(lk, ty, &tiles)?;
-            if lk == 0 {
-                // Row-major over the level, as the bands come top to bottom.
-                for (&kk, &src) in k.iter().zip(band.iter()) {
-                    #[expect(clippy::cast_precision_loss, reason = "|k| < 2^30")]
-                    #[expect(clippy::cast_possible_truncation, reason = "heights are f32")]
-                    let dec = (kk as f64 * q) as f32;
-                    let e = f64::from(dec) - f64::from(src);
-                    sq += e * e;
-                    worst = worst.max(e.abs());
-                }
-            }
-        }
-    }
-    Ok((sq, worst))
+    let steps: Vec<u32> = header.models.iter().map(|m| m.step).collect();
+    let mut coded = levels::code_levels(&mut spilled, header, quant, &steps, &near)?;
+    coded.each_tile(header, f)?;
+    Ok((coded.sq, coded.worst))
 }
 
 /// The package of a plain source in the cache folder `dir`, baked with the default options on first use:

@@ -25,8 +25,8 @@ pub(crate) struct BakeArgs {
     /// metres, 0.05 m for decimetres), or 0.005 m for float sources.
     #[arg(long, value_name = "M")]
     max_error: Option<f64>,
-    /// Tile codec: zstd or lz4.
-    #[arg(long, value_name = "C", default_value = "zstd")]
+    /// Tile codec: rans, zstd or lz4.
+    #[arg(long, value_name = "C", default_value = "rans")]
     codec: String,
     /// Tile side, samples (even).
     #[arg(long, value_name = "N", default_value_t = package::write::DEFAULT_TILE)]
