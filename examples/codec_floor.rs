@@ -1,4 +1,4 @@
-//! Measurement aid (issue 13, step 0): bytes per sample of the residual pyramid under several tile codings,
+//! Measurement aid: bytes per sample of the residual pyramid under several tile codings,
 //! and the order-0 / context-conditioned entropy of the quantised residuals per level.
 //! `cargo run --release --example codec_floor -- FILE [MAX_ERROR]`. Since format 4 the residuals are the
 //! symbols of the prediction from the coarser level and the decoded neighbours (`docs/package-codec.md`).

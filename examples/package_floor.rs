@@ -1,4 +1,4 @@
-//! Measurement aid (issue 13): what a baked package's tiles cost against the entropy of what they hold.
+//! Measurement aid: what a baked package's tiles cost against the entropy of what they hold.
 //! `cargo run --release --example package_floor -- PACKAGE.clipsat` (bake it first: `clipsat bake T
 //! --out PACKAGE.clipsat --max-error 0.5 --codec zstd`: it reads the byte-plane codings only); the
 //! results are recorded in `src/package/lod_tiles.rs`, `docs/package-codec.md` and the README's

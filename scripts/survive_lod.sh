@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 16's "shading survives LOD" goal: at epsilon 2, SAT LOD's image RMSE against the brute-force render
+# The "shading survives LOD" goal: at epsilon 2, SAT LOD's image RMSE against the brute-force render
 # is within 1.2x of distance LOD's, on every shared terrain (default camera, 640x360, `render --json
 # --ground-truth --resident`: the brute-force reference reads the whole terrain). Usage: scripts/survive_lod.sh [CLIPSAT_BINARY] [PROFILE] [EXTRA ARGS...]
 # (run from the repository root; needs jq). Writes a Markdown table on stdout.

@@ -1,4 +1,4 @@
-//! Stage 1, bake: a package's SAT LOD records (issue 13), the compact tables [`crate::bake::lod_record`]
+//! Stage 1, bake: a package's SAT LOD records, the compact tables [`crate::bake::lod_record`]
 //! defines, in the package itself.
 //!
 //! - [`bake_records`]: `clipsat bake` computes them out of core from the package it has just written

@@ -1,4 +1,4 @@
-//! Stage 1, bake: a package's SAT LOD tables baked out of core (issue 13), straight into the LOD cache
+//! Stage 1, bake: a package's SAT LOD tables baked out of core, straight into the LOD cache
 //! file ([`crate::bake`], format 4), without decoding the whole pyramid.
 //!
 //! The tables are those of [`crate::bake::lod_tables::LevelTables::build_level`] (data level k at level k's resolution: the closed

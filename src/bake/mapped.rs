@@ -1,5 +1,5 @@
 //! Stage 1, bake: read-only grids of baked numbers, held in memory or read through a memory-mapped cache
-//! file (issue 13: the SAT LOD tables of a large terrain are not kept resident).
+//! file (the SAT LOD tables of a large terrain are not kept resident).
 //!
 //! A [`Grid`] is a slice of plain numbers. Baked in this process it owns a `Vec`; read back from the LOD
 //! cache ([`crate::bake`]) it borrows a range of the file's read-only map, so only the pages a query

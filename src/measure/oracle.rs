@@ -1,5 +1,5 @@
 //! Measurements: a lower bound on what any refinement of a frame needs to meet the screen-space error bound
-//! in the measured metric of [`crate::measure::screen_error`] (issue 15's whole-frame goal). Not the frame
+//! in the measured metric of [`crate::measure::screen_error`] (the whole-frame error the detail pool is held to). Not the frame
 //! path: it reads the whole pyramid.
 //!
 //! The oracle draws the terrain with pyramid quads only: a quad of data level k covers the closed samples

@@ -1,4 +1,4 @@
-//! Measurements: the restricted quadtree a quad-grain mesh needs (issue 15's way on), on the CPU, for the
+//! Measurements: the restricted quadtree a quad-grain mesh needs, on the CPU, for the
 //! oracle's counts and as a tested statement of the stitching rule. Not the frame path.
 //!
 //! Leaves are pyramid quads (k, c, r): quad (c, r) of data level k, drawn as its level's two triangles split

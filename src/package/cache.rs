@@ -1,7 +1,7 @@
 //! Stage 1b, the package: the fixed tile cache, allocated once from `budget.cpu_memory_bytes`.
 //!
 //! The cache holds decoded tiles (heights in quantum units) of any level, for the rings' fill and the
-//! detail pool's tiles (issue 15) alike. Fetching a tile decodes it from
+//! detail pool's tiles alike. Fetching a tile decodes it from
 //! the package (GC section 7: residual + U of the coarser level, whose tiles are fetched first) and is
 //! charged in samples against the caller's per-frame budget: a fetch the budget cannot pay for, or one with
 //! no free slot (every slot used this frame), returns `false` and the caller falls back as for a budget

@@ -1,4 +1,4 @@
-//! Stage 1b, the package: the SAT LOD records' tiles (issue 13).
+//! Stage 1b, the package: the SAT LOD records' tiles.
 //!
 //! Data level k's records ([`crate::bake::lod_record`]: a max code per closed cell, a mean code per
 //! half-open cell, at level k's resolution) are cut into tiles of `tile x tile` cells, the grid of the

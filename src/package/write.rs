@@ -48,7 +48,7 @@ pub struct BakeOptions {
     pub tile: u32,
     /// zstd compression level (1..=22).
     pub zstd_level: i32,
-    /// Whether to store the SAT LOD records (issue 13; on by default). Without them a package still
+    /// Whether to store the SAT LOD records (on by default). Without them a package still
     /// works: its LOD tables are computed from the heights on first use.
     pub lod_tables: bool,
 }
@@ -314,7 +314,7 @@ pub fn bake_source(
     })
 }
 
-/// Adds the SAT LOD records (issue 13) to the package just written at `out`: computed out of core from
+/// Adds the SAT LOD records to the package just written at `out`: computed out of core from
 /// it ([`crate::bake::lod_package::bake_records`], each level's tiles spooled beside it), then the file
 /// is written again with the records' table in its header (the height tiles' offsets moved by the
 /// header's growth, their bytes copied as they are) and the record tiles after the height tiles, to a

@@ -1,7 +1,7 @@
 //! Shading, the per-scene bake: the sky table, the unshadowed diffuse integral of every broad light (sky
 //! lobe) tabulated over the mean normal's direction and spread, so the fragment shader reads it with 8
-//! fetches instead of integrating M x N patches per light per pixel (issue 16, "Cost": "tabulate the
-//! per-patch SG x cosine integrals in a small LUT texture").
+//! fetches instead of integrating M x N patches per light per pixel (the per-patch SG x cosine integrals
+//! tabulated once per scene in a small texture: docs/design.md, "Shading: reduced SG integration").
 //!
 //! With the horizon left out, a broad light's diffuse term (SAT paper eq. 11 over the patches of
 //! `integrate.rs`'s product lobe, cut at the lowered tangent plane) depends only on the vMF fitted

@@ -172,7 +172,7 @@ fn render_streams_a_package() {
     assert_eq!(j["lod_tables_owned_bytes"], 0, "{j}");
     assert!(j["max_screen_error_px"].is_null(), "{j}");
     assert!(j["triangles"].as_u64().unwrap_or(0) > 0, "{j}");
-    // The detail pool fills from the package's tile cache too (issue 15): 49 tiles here at 1 px.
+    // The detail pool fills from the package's tile cache too: 49 tiles here at 1 px.
     let mut pool = base.to_vec();
     pool.extend(["--lod", "sat-conservative", "--epsilon", "1"]);
     let j = json(&clipsat(&pool), "render a package --lod sat-conservative");

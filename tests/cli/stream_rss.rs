@@ -1,4 +1,4 @@
-//! The 16385 x 16385 flight with its RSS bound (issue 13): `fly` streams a `procedural:size=16385`
+//! The 16385 x 16385 flight with its RSS bound: `fly` streams a `procedural:size=16385`
 //! package through gles3-mid's 64 MiB tile cache, and its peak RSS exceeds the same flight over a 257^2
 //! package by at most `budget.cpu_memory_bytes`; the out-of-core bake of 4097^2 .. 16385^2 terrains stays
 //! within a fixed working set; `render --lod sat` over the 16385^2 package, its SAT LOD tables baked out of
@@ -126,7 +126,7 @@ fn bake_out_of_core_within_a_fixed_working_set() {
     }
 }
 
-/// `render --lod sat` on gles3-mid over a `procedural:size=16385` package (issue 13's example): the first
+/// `render --lod sat` on gles3-mid over a `procedural:size=16385` package (the large-terrain case): the first
 /// run bakes the SAT LOD tables out of core (`bake::lod_stream`, a 1.1 GB cache file), the second reads
 /// them through the file's map, then a `fly --lod sat-conservative` reads them within their resident
 /// limit; each run's peak RSS exceeds the same run over a 257^2 package by at most
@@ -252,7 +252,7 @@ fn render_sg_streamed_within_the_shading_share() {
     );
 }
 
-/// `render --shading sg` streams a package (issue 13): its SG tables are baked from the package's own
+/// `render --shading sg` streams a package: its SG tables are baked from the package's own
 /// level that fits the profile's shading share (`CpuSplit::shading`; 257^2 fits gles3-mid's at full
 /// resolution), read back from their cache file on the second run to the same image, and `--stream`
 /// refuses `--reference`, whose CPU reference reads the whole terrain.

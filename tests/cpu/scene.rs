@@ -174,7 +174,7 @@ fn fog_blends_toward_its_colour() {
     assert_eq!(scene::apply_fog(c, 1e6, None), c);
 }
 
-/// Scene fog is fitted to the terrain (issue 16): on a 111 km tile `evening`'s 0.08/km is clamped so that
+/// Scene fog is fitted to the terrain: on a 111 km tile `evening`'s 0.08/km is clamped so that
 /// at two thirds of the diagonal at most half the colour is fog; on a 5 km terrain it is left as written.
 #[test]
 fn fog_never_hides_more_than_the_far_third() {
@@ -231,7 +231,7 @@ fn missing_and_mistyped_fields_are_refused() {
     }
 }
 
-/// Synthesis exists only when asked for (issue 16): a clipmap without synthesised rings has no noise
+/// Synthesis exists only when asked for: a clipmap without synthesised rings has no noise
 /// table (GC section 8), one with them has it; `fly` refuses synthesised rings under a scene that does
 /// not declare `effects.synthesis` (tests/cli/fly.rs `bad_inputs_fail_with_a_clear_error`), and no
 /// shipped scene declares it.

@@ -540,7 +540,7 @@ fn vmf_cosine_matches_dense_integration() {
     println!("vmf_cosine max |error| {worst:.4}");
 }
 
-/// The SG tables baked out of core from a package (`ShadingBake::bake_package`, issue 13): with the grid
+/// The SG tables baked out of core from a package (`ShadingBake::bake_package`): with the grid
 /// at level 0 they equal the resident bake of the decoded terrain; a share too small for level 0 takes
 /// the package's own coarser level, decoded alone, and keeps the data's extent and spacing; a share too
 /// small for any level is an error.

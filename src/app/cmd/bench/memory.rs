@@ -1,4 +1,4 @@
-//! `clipsat bench all`'s terrain memory measurements (issue 13): package size and error per terrain, the
+//! `clipsat bench all`'s terrain memory measurements: package size and error per terrain, the
 //! whole pyramid's decode throughput against a memcpy of the decoded bytes in the same run, decode plus
 //! fill of full desktop levels streamed from a package, and the peak RSS of `render --lod sat` and `render
 //! --profile desktop --shading sg` as child processes under `/usr/bin/time -v`, with the GC table 3

@@ -504,7 +504,7 @@ impl App<'_> {
             return Ok(());
         }
         // SG on or off, and effects within those the renderer's SG tables were built for: a switch, not a
-        // rebuild (issue 16: the SG tables are created once, never again on a toggle).
+        // rebuild (the SG tables are created once, never again on a toggle).
         // Fog without the scene's parameters is no effect (`ShadingSwitches::apply`).
         let effective = ShadingSwitches {
             fog: want.fog && self.scene.fog.is_some(),
