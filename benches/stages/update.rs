@@ -1,6 +1,6 @@
 //! Per-frame plan benchmarks: clipmap update throughput against memcpy, and fly wall time per frame.
 //!
-//! Run with `cargo bench --bench stages -- "refill|fly_puget"`. Work is counted in samples (design.md); these timings only show
+//! Run with `cargo bench --bench stages -- "refill|fly_puget"`. Work is counted in samples (docs/design.md); these timings only show
 //! what a sample costs on this machine.
 
 use std::hint::black_box;

@@ -1,4 +1,4 @@
-//! Stage 1, bake: the LOD tables of design.md "SAT LOD" (error maps, their SATs and max pyramids), after
+//! Stage 1, bake: the LOD tables of docs/design.md "SAT LOD" (error maps, their SATs and max pyramids), after
 //! Li et al. 2021 ("SAT paper").
 //!
 //! # Error maps
@@ -25,7 +25,7 @@ use crate::{Error, Result};
 pub use crate::bake::lod_record::LevelRecords;
 pub use crate::bake::range_max::RangeMax;
 
-/// The exponent p of the SFAMF estimate (design.md "SAT LOD" 3-4), fixed from `clipsat tune-p`.
+/// The exponent p of the SFAMF estimate (docs/design.md "SAT LOD" 3-4), fixed from `clipsat tune-p`.
 ///
 /// Measured with `clipsat tune-p` (gles3-mid blocks, m = 32, 10 levels, 12321 block-level pairs), ratio to
 /// the exact block max, "zero" = blocks whose rounded-down estimate is 0 (below the quantum floor):
@@ -189,7 +189,7 @@ pub struct BlockError {
 /// # Resolution
 ///
 /// Built by [`LevelTables::build_level`], data level k's tables live at level k's resolution (cell side
-/// 2^k data samples, `shift` = k), about 4^-k of a full-resolution table (design.md "SAT LOD": a block
+/// 2^k data samples, `shift` = k), about 4^-k of a full-resolution table (docs/design.md "SAT LOD": a block
 /// drawn at level k covers whole level-k cells, so its box is aligned to level k's lattice). They are
 /// decoded from the level's compact records ([`crate::bake::lod_record`], two bytes a cell, what a
 /// package stores), the one definition every path uses:

@@ -2,7 +2,7 @@
 //!
 //! - [`pyramid`]: the height pyramid (GC section 4);
 //! - [`sat`]: summed-area tables in exact fixed point;
-//! - [`lod_tables`]: the SAT LOD error maps, their SATs and max pyramids (design.md "SAT LOD");
+//! - [`lod_tables`]: the SAT LOD error maps, their SATs and max pyramids (docs/design.md "SAT LOD");
 //! - [`lod_record`]: the compact per-cell records every path builds the tables from;
 //! - [`lod_stream`]: the same tables of a package baked out of core, straight into the cache file;
 //! - [`lod_package`]: the records in the package: baked into it, and read back into the cache file;

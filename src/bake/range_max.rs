@@ -1,5 +1,5 @@
 //! Stage 1, bake: the range-maximum pyramid that the SAT LOD tables ([`crate::bake::lod_tables`]) keep
-//! beside each level's SAT, for the `exact` bound and the cap of `sat-conservative` (design.md "SAT LOD").
+//! beside each level's SAT, for the `exact` bound and the cap of `sat-conservative` (docs/design.md "SAT LOD").
 
 use crate::bake::mapped::Grid;
 

@@ -1,4 +1,4 @@
-//! Stage 1, bake: summed-area tables in exact u64 fixed point (design.md "SAT LOD" 2 and 4; Li et al. 2021).
+//! Stage 1, bake: summed-area tables in exact u64 fixed point (docs/design.md "SAT LOD" 2 and 4; Li et al. 2021).
 //!
 //! A generic SAT over a `width x height` grid of values in [0, 1], answering box sums in O(1) (four
 //! lookups). Used for the LOD error SATs of (e_L / E_L)^p ([`crate::bake::lod_tables`]), and meant for the normal and
@@ -22,7 +22,7 @@
 //! never vanishes: a one-sample needle whose (e/E)^p underflows still adds one quantum to its box, which is
 //! what keeps a conservative bound conservative.
 //!
-//! The alternatives, measured against the 16385^2 case of design.md:
+//! The alternatives, measured against the 16385^2 case of docs/design.md:
 //!
 //! - a raw f32 SAT reaches 2.7e8 with a 24-bit mantissa (ulp 16 at the top): corner differences of a small
 //!   block lose every digit;

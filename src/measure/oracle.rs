@@ -4,7 +4,7 @@
 //!
 //! The oracle draws the terrain with pyramid quads only: a quad of data level k covers the closed samples
 //! [i 2^k, (i + 1) 2^k] x [j 2^k, (j + 1) 2^k], and its two triangles are level k's piecewise-linear surface
-//! there (design.md "SAT LOD" 1), so its error at each sample is e_k exactly, whatever its neighbours are.
+//! there (docs/design.md "SAT LOD" 1), so its error at each sample is e_k exactly, whatever its neighbours are.
 //! From the coarsest baked level down, a quad is kept when its largest measured error over its in-frustum
 //! samples, [`crate::plan::camera::VerticalScale::px`] of e_k at the sample, is <= epsilon, and split into
 //! its four children otherwise. Splitting never makes fewer triangles, so the kept quads are the fewest

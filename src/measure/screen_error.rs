@@ -1,4 +1,4 @@
-//! Measurements: the screen-space error of a drawn frame against the data (design.md "SAT LOD" 1). Not
+//! Measurements: the screen-space error of a drawn frame against the data (docs/design.md "SAT LOD" 1). Not
 //! the frame path.
 
 use crate::bake::lod_tables::sample_error;
@@ -46,7 +46,7 @@ pub const SCREEN_ERROR_SAMPLES: u64 = 1 << 22;
 
 /// Measures a planned frame's screen-space error in a `view` (width, height) viewport (a measurement, not
 /// the frame path): for each data sample
-/// under a drawn block of level L, the error map value e_L = |H_0 - PL(H_L)| (design.md "SAT LOD" 1, from
+/// under a drawn block of level L, the error map value e_L = |H_0 - PL(H_L)| (docs/design.md "SAT LOD" 1, from
 /// `lod`'s tables) projected on the screen at that sample, [`crate::plan::camera::VerticalScale::px`]
 /// (the true projection of a vertical segment of length e there, in the longer direction), for samples
 /// inside the view frustum. The GC 6.2 morph of distance mode is not modelled (its vertices lie between levels L

@@ -2,7 +2,7 @@
 //! oracle's counts and as a tested statement of the stitching rule. Not the frame path.
 //!
 //! Leaves are pyramid quads (k, c, r): quad (c, r) of data level k, drawn as its level's two triangles split
-//! along the (i, j)-(i+1, j+1) diagonal (design.md "SAT LOD" 1). [`balance`] splits leaves until quads that
+//! along the (i, j)-(i+1, j+1) diagonal (docs/design.md "SAT LOD" 1). [`balance`] splits leaves until quads that
 //! meet at a side or a corner differ by at most one level. Then [`stitch`] closes every level change
 //! without a skirt or a new vertex: at a corner P of a level-k leaf that a level-(k+1) leaf touches,
 //! - P on level k+1's lattice is one of that leaf's corners: P takes level k+1's height there (the

@@ -1,5 +1,5 @@
 //! Shading: the CPU twin of the fragment shader's reduced SG integration (SAT paper section 5,
-//! algorithms 2 and 3; design.md "Shading: reduced SG integration") and the f64 reference it is measured
+//! algorithms 2 and 3; docs/design.md "Shading: reduced SG integration") and the f64 reference it is measured
 //! against.
 //!
 //! [`shade`] is f32, allocation-free and written as the WGSL will be: fixed loops over lights, theta

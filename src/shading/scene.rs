@@ -1,4 +1,4 @@
-//! Scenes: what a render shows - SG lights, one material and the effects it asks for (design.md "Only the
+//! Scenes: what a render shows - SG lights, one material and the effects it asks for (docs/design.md "Only the
 //! effects a scene calls for").
 //!
 //! A scene is a TOML file (`profiles/scenes/*.toml`; the shipped ones are compiled in). Loading validates

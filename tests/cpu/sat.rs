@@ -1,5 +1,5 @@
 //! The fixed-point SAT against brute-force sums: exactness, one-sided rounding, and the numerical hard
-//! cases of design.md "SAT LOD" 4 (16385^2 extent, a one-sample needle, values from 1e-300 to 1, sums at
+//! cases of docs/design.md "SAT LOD" 4 (16385^2 extent, a one-sample needle, values from 1e-300 to 1, sums at
 //! the representation's limit, p = 2 and 64).
 
 #![expect(

@@ -1,4 +1,4 @@
-//! SG numerics at the extremes (design.md "Numerics"): sharpness from 1e-6 to 1e4, products whose raw
+//! SG numerics at the extremes (docs/design.md "Numerics"): sharpness from 1e-6 to 1e4, products whose raw
 //! exponents overflow, the vMF clamp and the kappa approximation.
 
 use clipsat::shading::sg::{self, Sg, Vmf};

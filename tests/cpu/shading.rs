@@ -1,4 +1,4 @@
-//! The CPU shading twin against the f64 reference: the numerical hard cases of design.md "Numerics" and
+//! The CPU shading twin against the f64 reference: the numerical hard cases of docs/design.md "Numerics" and
 //! the patch-count error/cost table (2x4, 4x8, 8x16).
 
 use std::path::Path;

@@ -1,6 +1,6 @@
 //! `clipsat tune-p`: bake stage diagnostics. For each candidate SFAMF exponent p, how far the SAT estimate
 //! and the conservative bound stray from the exact block maximum, and the worst SAT rounding error
-//! (design.md "SAT LOD" 4).
+//! (docs/design.md "SAT LOD" 4).
 
 use std::io::IsTerminal;
 
