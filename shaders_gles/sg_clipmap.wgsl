@@ -40,30 +40,40 @@ fn sg_blend(tex: texture_2d_array<f32>, t: SgTaps) -> vec4<f32> {
 // footprint coarser than every ring), the coarsest ring of 4 x 4 samples or more (level_info.w), its cell
 // clamped into the held ones: every pixel reads a table, with no branch to a second shading path (which
 // llvmpipe would run at every pixel). level < 0 only for a clipmap without such a ring.
+//
+// synth, the level of the tables' data spacing: rings finer than it (synthesised, or finer than a bake on
+// a coarser pyramid level) are never read. It comes from the fallback ring's spacing, which holds data,
+// not from level 0's, which is 0 while level 0 holds none (not yet filled, or disabled with the eye high):
+// log2 of an infinity then converted to int was undefined in GLSL ES 3.00, and NVIDIA's saturating
+// conversion started the ring loop past the uniform array (docs/real-drivers.md). Every float-to-int
+// conversion converts a clamped value.
 fn sg_taps(rel: vec2<f32>, w: f32) -> SgTaps {
     var t: SgTaps;
     t.level = -1;
     let n = globals.level_info.x;
-    // Rings finer than the data (synthesised) are never read: the data level is g_data / g_0 = 2^synth.
-    let synth = max(i32(round(log2(sg_scene.grid.x / globals.levels[0].rel.w))), 0);
-    let k = i32(round(log2(max(w, 1.0))));
-    var pick = globals.level_info.w;
+    let fallback = globals.level_info.w;
+    if (fallback < 0 || fallback >= n) {
+        return t;
+    }
+    let g = globals.levels[fallback].rel.w;
+    let synth = max(fallback + i32(clamp(round(log2(sg_scene.grid.x / g)), -32.0, 32.0)), 0);
+    // A NaN footprint compares false: one sample.
+    let side = select(1.0, min(w, 1.0e9), w > 1.0);
+    let k = i32(clamp(round(log2(side)), 0.0, 32.0));
+    var pick = fallback;
     for (var l = synth + k; l < n; l = l + 1) {
         let lv = globals.levels[l];
-        if (level_holds(lv, vec2<i32>(floor(level_uv(lv, rel))))) {
+        if (level_holds(lv, level_cell(lv, rel))) {
             pick = l;
             break;
         }
     }
-    if (pick < 0) {
-        return t;
-    }
     let lv = globals.levels[pick];
     let u = level_uv(lv, rel);
-    let i = clamp(vec2<i32>(floor(u)), vec2<i32>(1), lv.tex.zw - vec2<i32>(3));
+    let i = vec2<i32>(clamp(floor(u), vec2<f32>(1.0), vec2<f32>(lv.tex.zw - vec2<i32>(3))));
     // Toroidal texels mod S without an integer division (llvmpipe has no vector one: 8 scalar divisions
     // a lane): tex.xy < S and i + 1 <= S - 2, so one subtraction wraps (GLSL ES 3.0 has no integer mix
-    // for a select: the comparison as 0 or 1).
+    // for a select: the comparison as 0 or 1, a conversion GLSL ES 3.00 defines).
     let s = vec2<i32>(globals.level_info.y);
     let a = lv.tex.xy + i;
     let t0 = a - s * vec2<i32>(a >= s);

@@ -6,6 +6,7 @@
 mod render_support;
 
 mod budget;
+mod conformance;
 mod example_embed;
 mod far_origin;
 mod gpu_smoke;
