@@ -481,6 +481,13 @@ fn fs_plain(v: VsOut) -> @location(0) vec4<f32> {
 // transition band of that ring's active region, as its geometry does, so the finer detail never shows past
 // the ring's drawn edge, where it would pop as the ring moves; SAT LOD does not morph and keeps it.
 fn ring_data_colour(v: VsOut, rate: vec2<f32>) -> vec4<f32> {
+    let d = ring_data_inputs(v);
+    let shaded = basic_shade(d.x, d.yzw, length(v.rel), globals.shading);
+    return vec4<f32>(debug_view(shaded, v.rel, v.normal, rate), 1.0);
+}
+
+// What ring_data_colour shades with: x the height, yzw the normal.
+fn ring_data_inputs(v: VsOut) -> vec4<f32> {
     var h = v.height;
     var n = v.normal;
     let fine = finest_level(v.rel.xy);
@@ -501,8 +508,7 @@ fn ring_data_colour(v: VsOut, rate: vec2<f32>) -> vec4<f32> {
         h = mix(h, d.height, w);
         n = mix(n, d.normal, w);
     }
-    let shaded = basic_shade(h, n, length(v.rel), globals.shading);
-    return vec4<f32>(debug_view(shaded, v.rel, v.normal, rate), 1.0);
+    return vec4<f32>(h, n);
 }
 
 // Blocks some finer ring's data reaches.
@@ -523,6 +529,58 @@ fn fs_skirt(v: VsOut) -> @location(0) vec4<f32> {
         discard;
     }
     return ring_data_colour(v, rate);
+}
+
+// The shading probe (test and self-test instrument, `clipsat::gpu::renderer::ShadingProbe`): the same
+// draws and discards as the four programs above, writing per pixel the exact bits of what the program
+// shaded the fragment with, for the CPU twins to recompute its colour from.
+struct ProbeOut {
+    // xyz: the eye-relative position; w: the footprint's side (m for basic shading, data samples for SG).
+    @location(0) position: vec4<u32>,
+    // Basic shading: the height and the normal; SG: the normal table's blend r (w: the sun's horizon).
+    @location(1) inputs: vec4<u32>,
+}
+
+fn probe_out(v: VsOut, side: f32, inputs: vec4<f32>) -> ProbeOut {
+    return ProbeOut(bitcast<vec4<u32>>(vec4<f32>(v.rel, side)), bitcast<vec4<u32>>(inputs));
+}
+
+// The pixel's footprint in metres, before any discard.
+fn probe_side(v: VsOut) -> f32 {
+    let d = max(abs(dpdx(v.rel.xy)), abs(dpdy(v.rel.xy)));
+    return max(d.x, d.y);
+}
+
+@fragment
+fn fs_probe_interior(v: VsOut) -> ProbeOut {
+    return probe_out(v, probe_side(v), vec4<f32>(v.height, v.normal));
+}
+
+@fragment
+fn fs_probe_plain(v: VsOut) -> ProbeOut {
+    let side = probe_side(v);
+    if (outside_data(v.rel.xy)) {
+        discard;
+    }
+    return probe_out(v, side, vec4<f32>(v.height, v.normal));
+}
+
+@fragment
+fn fs_probe_ring_data(v: VsOut) -> ProbeOut {
+    let side = probe_side(v);
+    if (outside_data(v.rel.xy)) {
+        discard;
+    }
+    return probe_out(v, side, ring_data_inputs(v));
+}
+
+@fragment
+fn fs_probe_skirt(v: VsOut) -> ProbeOut {
+    let side = probe_side(v);
+    if (outside_data(v.rel.xy) || (v.skirt > 0.0 && through_side(v.rel))) {
+        discard;
+    }
+    return probe_out(v, side, ring_data_inputs(v));
 }
 
 // The vertex probe: draws the mesh as points, vertex k on pixel (k mod W, k / W) of a W x H Rgba32Uint

@@ -96,18 +96,31 @@ fn sg_footprint(v: VsOut) -> f32 {
     return max(d.x, d.y);
 }
 
-// The SG colour of a kept fragment of footprint w (sg_footprint).
-fn sg_colour(v: VsOut, w: f32) -> vec4<f32> {
+// What a kept fragment of footprint w reads: its taps, and r.
+struct SgRead {
+    taps: SgTaps,
+    // The vMF input r, w: the horizon's sine toward the first sun (visibility only).
+    r: vec4<f32>,
+}
+
+fn sg_read(v: VsOut, w: f32) -> SgRead {
     let taps = sg_taps(v.rel.xy, w);
     // SG_OMIT 1 (`bench shading`'s breakdown only): no footprint fetch, the drawn mesh's normal; so too
-    // where no ring holds the pixel. w: the horizon's sine toward the first sun (visibility only).
+    // where no ring holds the pixel.
     var r = vec4<f32>(normalize(v.normal) * 0.999, -2.0);
     if (SG_OMIT != 1u && taps.level >= 0) {
         r = sg_blend(level_normal, taps);
     }
+    return SgRead(taps, r);
+}
+
+// The SG colour of a kept fragment of footprint w (sg_footprint).
+fn sg_colour(v: VsOut, w: f32) -> vec4<f32> {
+    let read = sg_read(v, w);
+    let r = read.r;
     // sg_visibility.wgsl, or the stub of sg_no_visibility.wgsl. SG_OMIT 3 does not read the table.
     if (SG_OMIT != 3u) {
-        sg_fetch_light(taps, r.w);
+        sg_fetch_light(read.taps, r.w);
     }
     // sg_fog.wgsl, or the pass-through of sg_no_fog.wgsl in variants without fog.
     let colour = sg_fog(sg_shade(r.xyz, normalize(-v.rel), sg_scene), length(v.rel));
@@ -133,4 +146,23 @@ fn fs_sg_skirt(v: VsOut) -> @location(0) vec4<f32> {
         discard;
     }
     return sg_colour(v, w);
+}
+
+// The shading probe's SG programs (clipmap.wgsl's `ProbeOut`): the footprint w in data samples and r.
+@fragment
+fn fs_sg_probe(v: VsOut) -> ProbeOut {
+    let w = sg_footprint(v);
+    if (outside_data(v.rel.xy)) {
+        discard;
+    }
+    return probe_out(v, w, sg_read(v, w).r);
+}
+
+@fragment
+fn fs_sg_probe_skirt(v: VsOut) -> ProbeOut {
+    let w = sg_footprint(v);
+    if (outside_data(v.rel.xy) || (v.skirt > 0.0 && through_side(v.rel))) {
+        discard;
+    }
+    return probe_out(v, w, sg_read(v, w).r);
 }

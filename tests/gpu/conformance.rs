@@ -7,9 +7,13 @@ use crate::render_support;
 
 use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen};
 use clipsat::gpu::readback::wait_for_gpu;
+use clipsat::gpu::renderer::{ProbedFrame, ShadingProbe};
 use clipsat::plan::camera::Camera;
+use clipsat::plan::lod::LodMode;
 use clipsat::shading::scene::Scene;
-use clipsat::shading::Patches;
+use clipsat::shading::{Patches, TexelLighting};
+use clipsat::twin::border;
+use clipsat::twin::frame::{compare_basic, compare_sg, SgDrawn};
 use std::time::Duration;
 
 /// gles3-low with SG allowed, the golden SG frame's profile.
@@ -160,4 +164,106 @@ fn readback_waits_past_one_poll_and_names_a_hang() {
     assert!(err.to_string().contains("hung"), "{err}");
     // The device is still usable: the next read-back waits for both frames.
     render_frame(&mut r, &cm, &cam, &FrameOptions::default()).expect("frame after the hang report");
+}
+
+/// What `r` drew for its last frame, and what its programs shaded each pixel with.
+fn probed(
+    r: &mut Offscreen<'_>,
+    cm: &clipsat::plan::clipmap::Clipmap,
+    cam: &Camera,
+    opts: &FrameOptions,
+) -> (clipsat::gpu::readback::Image, ProbedFrame) {
+    let probe = ShadingProbe::new(r).expect("shading probe");
+    let image = render_frame(r, cm, cam, opts).expect("frame").image;
+    (image, probe.capture(r).expect("probe"))
+}
+
+/// The SG frame against its CPU twin (`twin::frame::compare_sg`), within what GLES 3.0 allows a
+/// conformant driver (docs/real-drivers.md): what the shader read (r, against the bake's texels at the
+/// twin's taps) and the colour, pixel by pixel, on the golden SG frame (evening: visibility, specular,
+/// fog; levels 0 to 6 without data) and at noon with a flight's stale rings. NVIDIA's driver drew the
+/// finer rings of such frames flat (r read from the wrong ring): off by tens of levels.
+#[test]
+fn sg_frames_match_their_twin() {
+    let gpu = render_support::strict();
+    let hm = procedural();
+    let clear = border::clear_rgba8(FrameOptions::default().clear);
+    let p = sg_profile(160, 90);
+    let mut cm = render_support::clipmap(&hm, &p);
+    let cam = Camera::default_for(&hm).expect("camera");
+    cm.update(cam.eye).expect("update");
+    for (name, patches) in [("evening", Patches::P4x8), ("noon", Patches::P2x4)] {
+        let scene = Scene::load(name).expect("scene");
+        let share = p.cpu_split().shading;
+        let (_, bake) = clipsat::gpu::headless::sg_bake(share, &hm, &scene, true).expect("bake");
+        let mut r = Offscreen::with_sg(&gpu, &p, &cm, &hm, &scene, patches, true).expect("sg");
+        let (image, probe) = probed(&mut r, &cm, &cam, &FrameOptions::default());
+        let (drawn, sky, spacing) = r.renderer().sg_drawn().expect("SG");
+        let lighting = TexelLighting::new(&drawn);
+        let d = SgDrawn {
+            scene: &drawn,
+            sky,
+            lighting: &lighting,
+            bake: &bake,
+            data_spacing: spacing,
+        };
+        let report = compare_sg(&image, &probe, clear, r.globals(), &cm, &d);
+        println!("{name}: {report:?}");
+        assert!(report.pixels > 160 * 90 / 3, "{name}: {report:?}");
+        assert!(
+            report.passes(),
+            "{name}: the frame is not its twin's: {report:?}"
+        );
+    }
+}
+
+/// A basic-shading frame (distance LOD, the fragment programs' ring data) and a SAT LOD frame drawing
+/// detail pool cells against the twin of `basic_shade` on the inputs each pixel was shaded with.
+#[test]
+fn basic_and_pool_frames_match_their_twin() {
+    let gpu = render_support::strict();
+    let hm = render_support::relief();
+    let clear = border::clear_rgba8(FrameOptions::default().clear);
+    let mut p = render_support::profile("gles3-low", 256, 144, None);
+    p.budget.detail_tiles = 300;
+    p.validate("test").expect("valid");
+    let mut cm = render_support::clipmap(&hm, &p);
+    let cam = render_support::flight(&hm, 7, 37.0, 120.0, None);
+    for _ in 0..40 {
+        cm.update(cam.eye).expect("update");
+    }
+    let tables = render_support::lod(&hm, &p, &cm);
+    for mode in [LodMode::Distance, LodMode::Sat] {
+        // SAT LOD at a tight bound, so blocks need finer data than the rings hold: the pool's.
+        let opts = FrameOptions {
+            epsilon_px: (mode == LodMode::Sat).then_some(0.5),
+            ..FrameOptions::default()
+        };
+        let mut r = render_support::renderer_in(
+            &gpu,
+            &p,
+            &cm,
+            mode,
+            Some(&tables),
+            clipsat::shading::debug_view::DebugView::Normal,
+        );
+        if mode == LodMode::Sat {
+            // The pool fills from what the settled rings leave of each frame's budget.
+            for _ in 0..8 {
+                cm.update(cam.eye).expect("update");
+                r.frame(&cm, &cam, &opts).expect("frame");
+            }
+        }
+        let (image, probe) = probed(&mut r, &cm, &cam, &opts);
+        if mode == LodMode::Sat {
+            assert!(r.plan().stats().pool_cells > 0, "no pool cells drawn");
+        }
+        let report = compare_basic(&image, &probe, clear, &r.shading());
+        println!("{mode}: {report:?}");
+        assert!(report.pixels > 256 * 144 / 3, "{mode}: {report:?}");
+        assert!(
+            report.passes(),
+            "{mode}: the frame is not its twin's: {report:?}"
+        );
+    }
 }
