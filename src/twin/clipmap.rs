@@ -15,9 +15,10 @@ use crate::plan::uniforms::{DrawUniform, Globals};
 pub struct CpuVertex {
     /// Clip-space position.
     pub clip: [f32; 4],
-    /// How far a conformant GLES 3.0 driver's `clip` may lie from this one, per component
-    /// ([`clip_bound`]): highp arithmetic rounds each operation correctly, may fuse `a * b + c` and
-    /// sum a dot product in any order, and its division may be 2.5 ulp off (GLSL ES 3.00 section 4.5.1).
+    /// How far a conformant GLES 3.0 driver's `clip` may lie from this one, per component (derived in
+    /// docs/real-drivers.md): highp arithmetic rounds each operation correctly, may fuse `a * b + c`
+    /// and sum a dot product in any order, and its division may be 2.5 ulp off (GLSL ES 3.00 section
+    /// 4.5.1).
     pub clip_bound: [f32; 4],
     /// Position relative to the eye (m).
     pub rel: [f32; 3],
