@@ -12,6 +12,7 @@
 //! ```sh
 //! cargo run --release --example own_device                 # writes out/own_device-*.png
 //! CLIPSAT_OWN_DRAW=0 cargo run --release --example own_device   # terrain only
+//! CLIPSAT_GPU=vulkan cargo run --release --features vulkan --example own_device   # wgpu's Vulkan
 //! ```
 
 use clipsat::{Profile, RenderOptions, Terrain, TerrainRenderer};
@@ -90,14 +91,21 @@ pub(crate) fn render(
     Ok(frames)
 }
 
-/// A device the ordinary wgpu way: the GL backend on the GLES 3.0 / WebGL2 limits. Mesa is asked for
-/// exactly OpenGL ES 3.0, as `clipsat render --gpu gl` asks, so both see the same driver.
+/// A device the ordinary wgpu way, on the GLES 3.0 / WebGL2 limits: the GL backend, or with
+/// `CLIPSAT_GPU=vulkan` the Vulkan one (an Android or Linux engine's usual device; wgpu built with its
+/// `vulkan` feature). On GL Mesa is asked for exactly OpenGL ES 3.0, as `clipsat render --gpu gl` asks,
+/// so both see the same driver.
 fn own_device() -> Result<(wgpu::Device, wgpu::Queue), Error> {
-    if std::env::var_os("MESA_GLES_VERSION_OVERRIDE").is_none() {
+    let vulkan = std::env::var("CLIPSAT_GPU").is_ok_and(|v| v.trim() == "vulkan");
+    if !vulkan && std::env::var_os("MESA_GLES_VERSION_OVERRIDE").is_none() {
         std::env::set_var("MESA_GLES_VERSION_OVERRIDE", "3.0");
     }
     let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
-        backends: wgpu::Backends::GL,
+        backends: if vulkan {
+            wgpu::Backends::VULKAN
+        } else {
+            wgpu::Backends::GL
+        },
         flags: wgpu::InstanceFlags::empty().with_env(),
         ..wgpu::InstanceDescriptor::new_without_display_handle()
     });
@@ -245,7 +253,22 @@ fn read_back(
     buffer.map_async(wgpu::MapMode::Read, .., move |r| {
         let _ = tx.send(r);
     });
-    device.poll(wgpu::PollType::wait_indefinitely())?;
+    // Waits in slices: wgpu's GL backend ends any single wait after 2.15 s with a timeout, even one
+    // asked to wait indefinitely; a frame that has not finished within a minute is reported.
+    let start = std::time::Instant::now();
+    loop {
+        let slice = Some(std::time::Duration::from_secs(1));
+        match device.poll(wgpu::PollType::Wait {
+            submission_index: None,
+            timeout: slice,
+        }) {
+            Err(wgpu::PollError::Timeout) if start.elapsed().as_secs() < 60 => {}
+            done => {
+                done?;
+                break;
+            }
+        }
+    }
     rx.recv()??;
     let view = buffer.get_mapped_range(..)?;
     let mut rgba = Vec::with_capacity((width * height * 4) as usize);

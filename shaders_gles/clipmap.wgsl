@@ -287,6 +287,20 @@ fn level_holds(lv: ShadeLevel, i: vec2<i32>) -> bool {
     return all(i >= vec2<i32>(1)) && all(i <= lv.tex.zw - vec2<i32>(3));
 }
 
+// Lattice cells past this are outside every ring (S <= 2048); clamping to it keeps the float-to-int
+// conversion in range (a float outside the int range converts to an undefined value in GLSL ES 3.00).
+const CELL_LIMIT: f32 = 65536.0;
+
+// The cell of level lv's lattice under eye-relative rel, for level_holds. A level without data (tex.zw 0,
+// spacing 0: a ring not yet filled, or disabled) is not divided by its zero spacing: (-1, -1), held by
+// nothing (docs/real-drivers.md).
+fn level_cell(lv: ShadeLevel, rel: vec2<f32>) -> vec2<i32> {
+    if (lv.tex.z <= 0 || lv.tex.w <= 0) {
+        return vec2<i32>(-1);
+    }
+    return vec2<i32>(clamp(floor(level_uv(lv, rel)), vec2<f32>(-CELL_LIMIT), vec2<f32>(CELL_LIMIT)));
+}
+
 // GC 6.2's alpha of level l at eye-relative rel, as clip_morph_alpha for that level's active region:
 // 0 inside, 1 from its outer edge on (and everywhere for a level that draws nothing).
 fn shade_morph_alpha(l: i32, rel: vec2<f32>) -> f32 {
@@ -303,7 +317,7 @@ fn shade_morph_alpha(l: i32, rel: vec2<f32>) -> f32 {
 fn finest_level(rel: vec2<f32>) -> i32 {
     for (var l = 0; l < globals.level_info.x; l = l + 1) {
         let lv = globals.levels[l];
-        if (level_holds(lv, vec2<i32>(floor(level_uv(lv, rel))))) {
+        if (level_holds(lv, level_cell(lv, rel))) {
             return l;
         }
     }
@@ -319,11 +333,11 @@ fn level_surface(l: i32, rel: vec2<f32>) -> DataSurface {
     out.found = false;
     let lv = globals.levels[l];
     let g = lv.rel.w;
-    let u = level_uv(lv, rel);
-    let i = vec2<i32>(floor(u));
+    let i = level_cell(lv, rel);
     if (!level_holds(lv, i)) {
         return out;
     }
+    let u = level_uv(lv, rel);
     let f = u - vec2<f32>(i);
     let z00 = level_fetch(l, i);
     let z10 = level_fetch(l, i + vec2<i32>(1, 0));
@@ -438,25 +452,26 @@ fn vs_main(@location(0) v: vec4<u32>, cell: PoolCellIn) -> VsOut {
 // Blocks that no finer ring's data reaches: the drawn vertices' values, which under distance LOD with every
 // level active are the finest data (central differences of the same ring, interpolated across the cell as
 // level_surface blends them).
-fn plain_colour(v: VsOut) -> vec4<f32> {
+fn plain_colour(v: VsOut, rate: vec2<f32>) -> vec4<f32> {
     let shaded = basic_shade(v.height, v.normal, length(v.rel), globals.shading);
     // debug_view.wgsl: the level-colour and wireframe views (the normal view returns `shaded`).
-    return vec4<f32>(debug_view(shaded, v.rel, v.normal), 1.0);
+    return vec4<f32>(debug_view(shaded, v.rel, v.normal, rate), 1.0);
 }
 
 // Such blocks inside the data's border: no discard, so hidden fragments can be rejected before shading.
 @fragment
 fn fs_interior(v: VsOut) -> @location(0) vec4<f32> {
-    return plain_colour(v);
+    return plain_colour(v, debug_rate(v.rel));
 }
 
 // Such blocks crossing the data's border.
 @fragment
 fn fs_plain(v: VsOut) -> @location(0) vec4<f32> {
+    let rate = debug_rate(v.rel);
     if (outside_data(v.rel.xy)) {
         discard;
     }
-    return plain_colour(v);
+    return plain_colour(v, rate);
 }
 
 // Shade from the finest data under the pixel. Only a block drawn coarser than the finest ring holding the
@@ -465,7 +480,14 @@ fn fs_plain(v: VsOut) -> @location(0) vec4<f32> {
 // own) so nothing jumps where it ends. With morphing (distance LOD) it also fades out over GC 6.2's
 // transition band of that ring's active region, as its geometry does, so the finer detail never shows past
 // the ring's drawn edge, where it would pop as the ring moves; SAT LOD does not morph and keeps it.
-fn ring_data_colour(v: VsOut) -> vec4<f32> {
+fn ring_data_colour(v: VsOut, rate: vec2<f32>) -> vec4<f32> {
+    let d = ring_data_inputs(v);
+    let shaded = basic_shade(d.x, d.yzw, length(v.rel), globals.shading);
+    return vec4<f32>(debug_view(shaded, v.rel, v.normal, rate), 1.0);
+}
+
+// What ring_data_colour shades with: x the height, yzw the normal.
+fn ring_data_inputs(v: VsOut) -> vec4<f32> {
     var h = v.height;
     var n = v.normal;
     let fine = finest_level(v.rel.xy);
@@ -486,26 +508,79 @@ fn ring_data_colour(v: VsOut) -> vec4<f32> {
         h = mix(h, d.height, w);
         n = mix(n, d.normal, w);
     }
-    let shaded = basic_shade(h, n, length(v.rel), globals.shading);
-    return vec4<f32>(debug_view(shaded, v.rel, v.normal), 1.0);
+    return vec4<f32>(h, n);
 }
 
 // Blocks some finer ring's data reaches.
 @fragment
 fn fs_ring_data(v: VsOut) -> @location(0) vec4<f32> {
+    let rate = debug_rate(v.rel);
     if (outside_data(v.rel.xy)) {
         discard;
     }
-    return ring_data_colour(v);
+    return ring_data_colour(v, rate);
 }
 
 // Skirts: also hidden where seen through the data's side.
 @fragment
 fn fs_skirt(v: VsOut) -> @location(0) vec4<f32> {
+    let rate = debug_rate(v.rel);
     if (outside_data(v.rel.xy) || (v.skirt > 0.0 && through_side(v.rel))) {
         discard;
     }
-    return ring_data_colour(v);
+    return ring_data_colour(v, rate);
+}
+
+// The shading probe (test and self-test instrument, `clipsat::gpu::renderer::ShadingProbe`): the same
+// draws and discards as the four programs above, writing per pixel the exact bits of what the program
+// shaded the fragment with, for the CPU twins to recompute its colour from.
+struct ProbeOut {
+    // xyz: the eye-relative position; w: the footprint's side (m for basic shading, data samples for SG).
+    @location(0) position: vec4<u32>,
+    // Basic shading: the height and the normal; SG: the normal table's blend r (w: the sun's horizon).
+    @location(1) inputs: vec4<u32>,
+}
+
+fn probe_out(v: VsOut, side: f32, inputs: vec4<f32>) -> ProbeOut {
+    return ProbeOut(bitcast<vec4<u32>>(vec4<f32>(v.rel, side)), bitcast<vec4<u32>>(inputs));
+}
+
+// The pixel's footprint in metres, before any discard.
+fn probe_side(v: VsOut) -> f32 {
+    let d = max(abs(dpdx(v.rel.xy)), abs(dpdy(v.rel.xy)));
+    return max(d.x, d.y);
+}
+
+@fragment
+fn fs_probe_interior(v: VsOut) -> ProbeOut {
+    return probe_out(v, probe_side(v), vec4<f32>(v.height, v.normal));
+}
+
+@fragment
+fn fs_probe_plain(v: VsOut) -> ProbeOut {
+    let side = probe_side(v);
+    if (outside_data(v.rel.xy)) {
+        discard;
+    }
+    return probe_out(v, side, vec4<f32>(v.height, v.normal));
+}
+
+@fragment
+fn fs_probe_ring_data(v: VsOut) -> ProbeOut {
+    let side = probe_side(v);
+    if (outside_data(v.rel.xy)) {
+        discard;
+    }
+    return probe_out(v, side, ring_data_inputs(v));
+}
+
+@fragment
+fn fs_probe_skirt(v: VsOut) -> ProbeOut {
+    let side = probe_side(v);
+    if (outside_data(v.rel.xy) || (v.skirt > 0.0 && through_side(v.rel))) {
+        discard;
+    }
+    return probe_out(v, side, ring_data_inputs(v));
 }
 
 // The vertex probe: draws the mesh as points, vertex k on pixel (k mod W, k / W) of a W x H Rgba32Uint
@@ -520,7 +595,8 @@ fn vs_capture(@builtin(vertex_index) k: u32, @location(0) v: vec4<u32>, cell: Po
     dr = draw_of(cell);
     let t = clip_vertex(v);
     let size = globals.params.zw;
-    let px = vec2<f32>(f32(k % u32(size.x)), f32(k / u32(size.x))) + vec2<f32>(0.5);
+    let width = u32(clamp(size.x, 1.0, 16384.0));
+    let px = vec2<f32>(f32(k % width), f32(k / width)) + vec2<f32>(0.5);
     var out: CaptureOut;
     out.pixel = vec4<f32>(px.x / size.x * 2.0 - 1.0, 1.0 - px.y / size.y * 2.0, 0.5, 1.0);
     out.clip = globals.view_proj * vec4<f32>(t.rel, 1.0);

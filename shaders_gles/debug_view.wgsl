@@ -25,9 +25,27 @@ fn debug_level_colour(level: i32) -> vec3<f32> {
     return DEBUG_LEVEL_COLOURS[clamp(level, 0, 11)];
 }
 
+// The wireframe's lattice coordinates (level units, anchor-relative) of eye-relative position rel.
+// A pool draw's slot is its first cell's: its cells share the level, and their anchors differ by whole
+// lattice steps, so the fraction below is the same.
+fn debug_lattice(rel: vec3<f32>) -> vec2<f32> {
+    let g = draw.anchor_rel.w;
+    return vec2<f32>(rel.x - draw.anchor_rel.x, draw.anchor_rel.y - rel.y) / g;
+}
+
+// The lattice's rate on screen (fwidth) for the wireframe, 1 in the other views. Every fragment entry
+// point takes it first, before any discard: a derivative after a discard is undefined in GLSL ES 3.00,
+// whose discard may end the invocation its quad's neighbours difference against (docs/real-drivers.md).
+fn debug_rate(rel: vec3<f32>) -> vec2<f32> {
+    if (DEBUG_VIEW != 2u) {
+        return vec2<f32>(1.0);
+    }
+    return fwidth(debug_lattice(rel));
+}
+
 // The fragment's colour under DEBUG_VIEW: `shaded` is the normal colour, `rel` the position relative to the
-// eye (m), `normal` the geometric normal.
-fn debug_view(shaded: vec3<f32>, rel: vec3<f32>, normal: vec3<f32>) -> vec3<f32> {
+// eye (m), `normal` the geometric normal, `rate` the fragment's `debug_rate`.
+fn debug_view(shaded: vec3<f32>, rel: vec3<f32>, normal: vec3<f32>, rate: vec2<f32>) -> vec3<f32> {
     if (DEBUG_VIEW == 0u) {
         return shaded;
     }
@@ -39,14 +57,10 @@ fn debug_view(shaded: vec3<f32>, rel: vec3<f32>, normal: vec3<f32>) -> vec3<f32>
     if (DEBUG_VIEW == 1u) {
         return lit;
     }
-    // Wireframe: GLES 3.0 has no line polygon mode, so draw the lattice lines here. The lattice coordinate
-    // (level units, anchor-relative) is recovered from the position; a line is where it is within about
-    // one pixel (fwidth) of an integer.
-    // A pool draw's slot is its first cell's: its cells share the level, and their anchors differ by
-    // whole lattice steps, so the fraction below is the same.
-    let g = draw.anchor_rel.w;
-    let lattice = vec2<f32>(rel.x - draw.anchor_rel.x, draw.anchor_rel.y - rel.y) / g;
-    let dist = abs(fract(lattice - vec2<f32>(0.5)) - vec2<f32>(0.5)) / max(fwidth(lattice), vec2<f32>(1.0e-6));
+    // Wireframe: GLES 3.0 has no line polygon mode, so draw the lattice lines here. A line is where the
+    // lattice coordinate is within about one pixel (its rate) of an integer.
+    let lattice = debug_lattice(rel);
+    let dist = abs(fract(lattice - vec2<f32>(0.5)) - vec2<f32>(0.5)) / max(rate, vec2<f32>(1.0e-6));
     let line = 1.0 - clamp(min(dist.x, dist.y) - 0.5, 0.0, 1.0);
     return mix(0.3 * shaded, lit, line);
 }

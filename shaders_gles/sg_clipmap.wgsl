@@ -40,30 +40,40 @@ fn sg_blend(tex: texture_2d_array<f32>, t: SgTaps) -> vec4<f32> {
 // footprint coarser than every ring), the coarsest ring of 4 x 4 samples or more (level_info.w), its cell
 // clamped into the held ones: every pixel reads a table, with no branch to a second shading path (which
 // llvmpipe would run at every pixel). level < 0 only for a clipmap without such a ring.
+//
+// synth, the level of the tables' data spacing: rings finer than it (synthesised, or finer than a bake on
+// a coarser pyramid level) are never read. It comes from the fallback ring's spacing, which holds data,
+// not from level 0's, which is 0 while level 0 holds none (not yet filled, or disabled with the eye high):
+// log2 of an infinity then converted to int was undefined in GLSL ES 3.00, and NVIDIA's saturating
+// conversion started the ring loop past the uniform array (docs/real-drivers.md). Every float-to-int
+// conversion converts a clamped value.
 fn sg_taps(rel: vec2<f32>, w: f32) -> SgTaps {
     var t: SgTaps;
     t.level = -1;
     let n = globals.level_info.x;
-    // Rings finer than the data (synthesised) are never read: the data level is g_data / g_0 = 2^synth.
-    let synth = max(i32(round(log2(sg_scene.grid.x / globals.levels[0].rel.w))), 0);
-    let k = i32(round(log2(max(w, 1.0))));
-    var pick = globals.level_info.w;
+    let fallback = globals.level_info.w;
+    if (fallback < 0 || fallback >= n) {
+        return t;
+    }
+    let g = globals.levels[fallback].rel.w;
+    let synth = max(fallback + i32(clamp(round(log2(sg_scene.grid.x / g)), -32.0, 32.0)), 0);
+    // A NaN footprint compares false: one sample.
+    let side = select(1.0, min(w, 1.0e9), w > 1.0);
+    let k = i32(clamp(round(log2(side)), 0.0, 32.0));
+    var pick = fallback;
     for (var l = synth + k; l < n; l = l + 1) {
         let lv = globals.levels[l];
-        if (level_holds(lv, vec2<i32>(floor(level_uv(lv, rel))))) {
+        if (level_holds(lv, level_cell(lv, rel))) {
             pick = l;
             break;
         }
     }
-    if (pick < 0) {
-        return t;
-    }
     let lv = globals.levels[pick];
     let u = level_uv(lv, rel);
-    let i = clamp(vec2<i32>(floor(u)), vec2<i32>(1), lv.tex.zw - vec2<i32>(3));
+    let i = vec2<i32>(clamp(floor(u), vec2<f32>(1.0), vec2<f32>(lv.tex.zw - vec2<i32>(3))));
     // Toroidal texels mod S without an integer division (llvmpipe has no vector one: 8 scalar divisions
     // a lane): tex.xy < S and i + 1 <= S - 2, so one subtraction wraps (GLSL ES 3.0 has no integer mix
-    // for a select: the comparison as 0 or 1).
+    // for a select: the comparison as 0 or 1, a conversion GLSL ES 3.00 defines).
     let s = vec2<i32>(globals.level_info.y);
     let a = lv.tex.xy + i;
     let t0 = a - s * vec2<i32>(a >= s);
@@ -86,18 +96,31 @@ fn sg_footprint(v: VsOut) -> f32 {
     return max(d.x, d.y);
 }
 
-// The SG colour of a kept fragment of footprint w (sg_footprint).
-fn sg_colour(v: VsOut, w: f32) -> vec4<f32> {
+// What a kept fragment of footprint w reads: its taps, and r.
+struct SgRead {
+    taps: SgTaps,
+    // The vMF input r, w: the horizon's sine toward the first sun (visibility only).
+    r: vec4<f32>,
+}
+
+fn sg_read(v: VsOut, w: f32) -> SgRead {
     let taps = sg_taps(v.rel.xy, w);
     // SG_OMIT 1 (`bench shading`'s breakdown only): no footprint fetch, the drawn mesh's normal; so too
-    // where no ring holds the pixel. w: the horizon's sine toward the first sun (visibility only).
+    // where no ring holds the pixel.
     var r = vec4<f32>(normalize(v.normal) * 0.999, -2.0);
     if (SG_OMIT != 1u && taps.level >= 0) {
         r = sg_blend(level_normal, taps);
     }
+    return SgRead(taps, r);
+}
+
+// The SG colour of a kept fragment of footprint w (sg_footprint).
+fn sg_colour(v: VsOut, w: f32) -> vec4<f32> {
+    let read = sg_read(v, w);
+    let r = read.r;
     // sg_visibility.wgsl, or the stub of sg_no_visibility.wgsl. SG_OMIT 3 does not read the table.
     if (SG_OMIT != 3u) {
-        sg_fetch_light(taps, r.w);
+        sg_fetch_light(read.taps, r.w);
     }
     // sg_fog.wgsl, or the pass-through of sg_no_fog.wgsl in variants without fog.
     let colour = sg_fog(sg_shade(r.xyz, normalize(-v.rel), sg_scene), length(v.rel));
@@ -123,4 +146,23 @@ fn fs_sg_skirt(v: VsOut) -> @location(0) vec4<f32> {
         discard;
     }
     return sg_colour(v, w);
+}
+
+// The shading probe's SG programs (clipmap.wgsl's `ProbeOut`): the footprint w in data samples and r.
+@fragment
+fn fs_sg_probe(v: VsOut) -> ProbeOut {
+    let w = sg_footprint(v);
+    if (outside_data(v.rel.xy)) {
+        discard;
+    }
+    return probe_out(v, w, sg_read(v, w).r);
+}
+
+@fragment
+fn fs_sg_probe_skirt(v: VsOut) -> ProbeOut {
+    let w = sg_footprint(v);
+    if (outside_data(v.rel.xy) || (v.skirt > 0.0 && through_side(v.rel))) {
+        discard;
+    }
+    return probe_out(v, w, sg_read(v, w).r);
 }

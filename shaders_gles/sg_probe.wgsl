@@ -17,7 +17,7 @@ fn vs_probe(@builtin(vertex_index) k: u32) -> @builtin(position) vec4<f32> {
 
 @fragment
 fn fs_probe(@builtin(position) p: vec4<f32>) -> @location(0) vec4<u32> {
-    let x = i32(p.x);
+    let x = i32(clamp(p.x, 0.0, 16384.0));
     let r = textureLoad(probe_inputs, vec2<i32>(x, 0), 0);
     let view = textureLoad(probe_inputs, vec2<i32>(x, 1), 0).xyz;
     sg_texel = textureLoad(probe_inputs, vec2<i32>(x, 2), 0);

@@ -244,9 +244,10 @@ fn sg_shade(r: vec3<f32>, view: vec3<f32>, s: SgScene) -> vec3<f32> {
     } else {
         cut = sg_cut(vmf.axis, sg_plane_drop(vmf.kappa));
     }
-    let count = min(u32(s.kd_count.w), SG_MAX_LIGHTS);
+    // Small whole numbers in f32, clamped before the conversion (docs/real-drivers.md).
+    let count = u32(clamp(s.kd_count.w, 0.0, f32(SG_MAX_LIGHTS)));
     // Suns come first (SgSceneUniform::new).
-    let suns = min(u32(s.grid.z), count);
+    let suns = min(u32(clamp(s.grid.z, 0.0, f32(SG_MAX_LIGHTS))), count);
     var diffuse = sg_texel.rgb;
     // Constant per variant: the other side is not compiled.
     if (!SG_VISIBILITY || SG_OMIT == 3u) {

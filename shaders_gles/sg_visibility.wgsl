@@ -8,6 +8,12 @@
 // Fills sg_texel from the taps' 4 texels; `sun_sin` (the normal table's blended w) is the horizon's sine
 // toward the first sun.
 fn sg_fetch_light(t: SgTaps, sun_sin: f32) {
-    sg_texel = sg_blend(level_light, t);
-    sg_sun_sin = sun_sin;
+    // No ring (a clipmap without one of 4 x 4 samples): no layer -1 is read (out of the texture, undefined
+    // in GLSL ES 3.00); as without visibility.
+    sg_texel = vec4<f32>(0.0, 0.0, 0.0, -2.0);
+    sg_sun_sin = -2.0;
+    if (t.level >= 0) {
+        sg_texel = sg_blend(level_light, t);
+        sg_sun_sin = sun_sin;
+    }
 }

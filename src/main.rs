@@ -32,6 +32,9 @@ enum Command {
     /// Render one frame offscreen to a PNG. Streams the terrain (a plain source baked into the cache on
     /// first use); --resident loads it whole.
     Render(cmd::render::RenderArgs),
+    /// Check this machine's GPU draws clipsat correctly (adapter, frames against the CPU twin, border,
+    /// read-back); exits 1 when a check fails.
+    Selftest(cmd::selftest::SelftestArgs),
     /// Tune the SAT LOD exponent p: estimate and bound errors against the exact block maximum, per p.
     /// Loads the whole terrain (it measures against every sample).
     TuneP(cmd::tune_p::TunePArgs),
@@ -48,6 +51,7 @@ fn main() -> ExitCode {
         Command::Fly(args) => cmd::fly::run(&args),
         Command::Info(args) => cmd::info::run(&args),
         Command::Render(args) => cmd::render::run(&args),
+        Command::Selftest(args) => cmd::selftest::run(&args),
         Command::TuneP(args) => cmd::tune_p::run(&args),
         #[cfg(feature = "view")]
         Command::View(args) => cmd::view::run(&args),

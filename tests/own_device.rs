@@ -1,7 +1,8 @@
 //! `examples/own_device.rs`: a streamed terrain with SAT LOD drawn into a caller's own wgpu device and
 //! render pass, through a resize, with the public API only. Without the example's own draw, each frame's
-//! image hash equals `clipsat render --gpu gl` of the same view at that size; with it, the orange
-//! triangle shows in the top-left corner and nothing else changes.
+//! image hash equals `clipsat render --gpu gl` of the same view at that size (with `CLIPSAT_GPU=vulkan`,
+//! both on wgpu's Vulkan backend); with it, the orange triangle shows in the top-left corner and nothing
+//! else changes.
 //!
 //! Its own test binary: the example's wgpu GL instance closes the process's EGL display when it drops,
 //! which other GPU tests running beside it in one process would not survive.
@@ -25,6 +26,10 @@ const SIZES: [(u32, u32); 2] = [(320, 180), (200, 200)];
 fn own_device_matches_clipsat_render_through_a_resize() {
     let cache = Path::new(env!("CARGO_TARGET_TMPDIR")).join("own_device_cache");
     let plain = own_device::render(&cache, &SIZES, false).expect("own device renders");
+    // The same backend as the example's device: wgpu's GL, or (`CLIPSAT_GPU=vulkan`, which `--gpu auto`
+    // reads) its Vulkan.
+    let vulkan = std::env::var("CLIPSAT_GPU").is_ok_and(|v| v.trim() == "vulkan");
+    let gpu = if vulkan { "auto" } else { "gl" };
     for (&(w, h), (fw, fh, rgba)) in SIZES.iter().zip(&plain) {
         assert_eq!((w, h), (*fw, *fh));
         let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("own_device_{w}x{h}.png"));
@@ -33,7 +38,7 @@ fn own_device_matches_clipsat_render_through_a_resize() {
             .args([
                 "render",
                 "--gpu",
-                "gl",
+                gpu,
                 "--terrain",
                 "procedural:size=257",
                 "--profile",
@@ -58,7 +63,7 @@ fn own_device_matches_clipsat_render_through_a_resize() {
         let want = hex(hash_bytes(rgba));
         assert!(
             stdout.contains(&format!("image {want}")),
-            "{w}x{h}: own device image {want}, clipsat render --gpu gl: {stdout}"
+            "{w}x{h}: own device image {want}, clipsat render --gpu {gpu}: {stdout}"
         );
     }
 

@@ -11,6 +11,7 @@
 pub mod brute;
 #[cfg(unix)]
 mod egl;
+pub mod floor;
 #[cfg(feature = "internals")]
 pub mod headless;
 pub mod readback;
@@ -37,9 +38,28 @@ pub enum GpuMode {
     Strict,
     /// wgpu's own GL backend, headless. On Mesa this is usually a desktop GL 4.5 context.
     Gl,
-    /// [`GpuMode::Strict`] if it works, else [`GpuMode::Gl`].
+    /// wgpu's Vulkan backend, headless (the `vulkan` feature), on the same GLES 3.0 limits: the shaders
+    /// go through naga's SPIR-V path instead of GLSL ES. Mesa's lavapipe on machines without a GPU.
+    Vulkan,
+    /// The mode `CLIPSAT_GPU` names (`strict`, `gl` or `vulkan`) if it is set; else [`GpuMode::Strict`]
+    /// if it works, else [`GpuMode::Gl`].
     #[default]
     Auto,
+}
+
+/// The variable [`GpuMode::Auto`] reads: a test run or a user picks the backend without a flag.
+pub const GPU_MODE_VAR: &str = "CLIPSAT_GPU";
+
+impl GpuMode {
+    /// The mode `CLIPSAT_GPU` names, if it is set (an error for a value that is no mode).
+    pub fn from_env() -> Option<Result<Self>> {
+        let v = std::env::var(GPU_MODE_VAR).ok()?;
+        let v = v.trim();
+        if v.is_empty() {
+            return None;
+        }
+        Some(v.parse())
+    }
 }
 
 impl std::str::FromStr for GpuMode {
@@ -49,10 +69,11 @@ impl std::str::FromStr for GpuMode {
         match s {
             "strict" => Ok(Self::Strict),
             "gl" => Ok(Self::Gl),
+            "vulkan" => Ok(Self::Vulkan),
             "auto" => Ok(Self::Auto),
             other => Err(Error::Invalid {
                 what: "GPU mode".into(),
-                reason: format!("`{other}` is not auto, strict or gl"),
+                reason: format!("`{other}` is not auto, strict, gl or vulkan"),
             }),
         }
     }
@@ -63,15 +84,16 @@ impl std::str::FromStr for GpuMode {
 pub struct AdapterReport {
     /// The renderer (GL_RENDERER), e.g. "llvmpipe (LLVM 15.0.6, 256 bits)".
     pub name: String,
-    /// The wgpu backend, e.g. "Gl".
+    /// The wgpu backend, e.g. "Gl" or "Vulkan".
     pub backend: String,
-    /// The GL version string (GL_VERSION), e.g. "OpenGL ES 3.0 Mesa 22.3.6".
+    /// The GL version string (GL_VERSION), e.g. "OpenGL ES 3.0 Mesa 22.3.6"; on Vulkan, "Vulkan" and
+    /// the driver's own description.
     pub gl_version: String,
     /// The driver and its version, e.g. "Mesa 22.3.6" (from the GL version string when wgpu has none).
     pub driver: String,
     /// wgpu's driver info field, verbatim.
     pub driver_info: String,
-    /// Which [`GpuMode`] made the context: "strict" or "gl".
+    /// Which [`GpuMode`] made the device: "strict", "gl" or "vulkan".
     pub mode: String,
     /// Whether the adapter offers compute shaders (a GLES 3.0 device does not).
     pub compute: bool,
@@ -109,7 +131,18 @@ impl Gpu {
         match mode {
             GpuMode::Strict => Self::new_strict(),
             GpuMode::Gl => Self::new_gl(),
-            GpuMode::Auto => Self::new_strict().or_else(|strict| {
+            GpuMode::Vulkan => Self::new_vulkan(),
+            GpuMode::Auto => match GpuMode::from_env() {
+                Some(Ok(GpuMode::Auto)) | None => Self::new_auto(),
+                Some(Ok(chosen)) => Self::new(chosen),
+                Some(Err(e)) => Err(e),
+            },
+        }
+    }
+
+    /// Strict, else wgpu's GL backend.
+    fn new_auto() -> Result<Self> {
+        Self::new_strict().or_else(|strict| {
                 Self::new_gl().map_err(|gl| {
                     Error::no_adapter(
                         format!(
@@ -120,8 +153,44 @@ impl Gpu {
                         None,
                     )
                 })
-            }),
-        }
+        })
+    }
+
+    #[cfg(feature = "vulkan")]
+    fn new_vulkan() -> Result<Self> {
+        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
+            backends: wgpu::Backends::VULKAN,
+            flags: wgpu::InstanceFlags::empty().with_env(),
+            ..wgpu::InstanceDescriptor::new_without_display_handle()
+        });
+        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+            power_preference: wgpu::PowerPreference::None,
+            force_fallback_adapter: false,
+            compatible_surface: None,
+            apply_limit_buckets: false,
+        }))
+        .map_err(|e| {
+            Error::no_adapter(
+                "wgpu Vulkan backend: no Vulkan device (install a Vulkan driver, e.g. Mesa's \
+                 lavapipe: `apt-get install mesa-vulkan-drivers`)",
+                Some(e.into()),
+            )
+        })?;
+        Self::finish(
+            instance,
+            adapter,
+            #[cfg(unix)]
+            None,
+            "vulkan",
+        )
+    }
+
+    #[cfg(not(feature = "vulkan"))]
+    fn new_vulkan() -> Result<Self> {
+        Err(Error::no_adapter(
+            "this build has no Vulkan backend: build clipsat with the `vulkan` feature",
+            None,
+        ))
     }
 
     /// What the adapter reports.
@@ -240,11 +309,7 @@ impl Gpu {
         mode: &str,
     ) -> Result<Self> {
         let limits = wgpu::Limits::downlevel_webgl2_defaults();
-        let have = adapter.limits();
-        let mut short = Vec::new();
-        limits.check_limits_with_fail_fn(&have, false, |name, want, got| {
-            short.push(format!("{name}: adapter has {got}, need {want}"));
-        });
+        let short = floor::shortfalls(&floor::check(&adapter));
         if !short.is_empty() {
             return Err(Error::no_adapter(
                 format!(
@@ -266,7 +331,11 @@ impl Gpu {
         .map_err(|e| Error::no_adapter("request_device on the GLES 3.0 floor", Some(e.into())))?;
         let info = adapter.get_info();
         let flags = adapter.get_downlevel_capabilities().flags;
-        let gl_version = info.driver_info.clone();
+        let gl_version = if info.backend == wgpu::Backend::Vulkan {
+            format!("Vulkan ({})", info.driver_info)
+        } else {
+            info.driver_info.clone()
+        };
         let driver = if info.driver.is_empty() {
             driver_from_version(&gl_version)
         } else {

@@ -2,6 +2,7 @@
 
 use std::path::Path;
 use std::sync::mpsc;
+use std::time::{Duration, Instant};
 
 use super::Gpu;
 use crate::{hash, Error, Result};
@@ -135,9 +136,7 @@ pub fn map_rows_on(
         // The receiver outlives the poll below; a send error cannot happen.
         let _ = tx.send(r);
     });
-    device
-        .poll(wgpu::PollType::wait_indefinitely())
-        .map_err(|e| Error::gpu("readback: waiting for the GPU", e))?;
+    wait_for_gpu(device, gpu_wait_limit(), WAIT_SLICE)?;
     rx.try_recv()
         .map_err(|_| Error::gpu_msg("readback: map callback did not run"))?
         .map_err(|e| Error::gpu("readback: map failed", e))?;
@@ -153,4 +152,63 @@ pub fn map_rows_on(
     }
     buffer.unmap();
     Ok(out)
+}
+
+/// How long [`wait_for_gpu`] waits by default before it calls a frame hung.
+pub const DEFAULT_GPU_WAIT: Duration = Duration::from_secs(60);
+
+/// One poll's wait. wgpu's GL backend waits at most `i32::MAX` ns (2.15 s) in one poll whatever the poll
+/// asks, even "indefinitely" (wgpu-hal 30 clamps `glClientWaitSync`'s timeout), and reports a longer
+/// frame as a timeout; slices of 1 s keep that limit out of the way on every backend.
+pub const WAIT_SLICE: Duration = Duration::from_secs(1);
+
+/// The longest a read-back waits for the GPU: `CLIPSAT_GPU_WAIT_S` seconds if set (a slow device, or a
+/// debugger), else [`DEFAULT_GPU_WAIT`].
+pub fn gpu_wait_limit() -> Duration {
+    std::env::var("CLIPSAT_GPU_WAIT_S")
+        .ok()
+        .and_then(|v| v.trim().parse::<f64>().ok())
+        .filter(|s| s.is_finite() && *s > 0.0)
+        .map_or(DEFAULT_GPU_WAIT, Duration::from_secs_f64)
+}
+
+/// What a [`wait_for_gpu`] took.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct GpuWait {
+    /// Wall time until the device was idle.
+    pub elapsed: Duration,
+    /// Polls made (each waits at most one slice).
+    pub polls: u32,
+}
+
+/// Waits until the device has finished every submission, polling in slices of `slice` until `limit`:
+/// a frame slower than one slice is waited for, and one that has not finished after `limit` is reported
+/// as a hung frame, not as a wait that was too short (docs/real-drivers.md).
+pub fn wait_for_gpu(device: &wgpu::Device, limit: Duration, slice: Duration) -> Result<GpuWait> {
+    let t0 = Instant::now();
+    let mut polls = 0u32;
+    loop {
+        polls = polls.saturating_add(1);
+        let left = limit.saturating_sub(t0.elapsed());
+        match device.poll(wgpu::PollType::Wait {
+            submission_index: None,
+            timeout: Some(slice.min(left)),
+        }) {
+            Ok(_) => {
+                return Ok(GpuWait {
+                    elapsed: t0.elapsed(),
+                    polls,
+                })
+            }
+            Err(wgpu::PollError::Timeout) if t0.elapsed() < limit => {}
+            Err(wgpu::PollError::Timeout) => {
+                return Err(Error::gpu_msg(format!(
+                    "readback: the GPU did not finish a frame within {:.1} s ({polls} polls): a hung \
+                     frame, or a device slower than that (set CLIPSAT_GPU_WAIT_S to wait longer)",
+                    limit.as_secs_f64()
+                )))
+            }
+            Err(e) => return Err(Error::gpu("readback: waiting for the GPU", e)),
+        }
+    }
 }

@@ -6,7 +6,7 @@
 //! the SG shader's per-level table reads (`shaders_gles/sg_clipmap.wgsl`).
 
 use crate::plan::clipmap::Clipmap;
-use crate::plan::uniforms::Globals;
+use crate::plan::uniforms::{Globals, ShadeLevel};
 use crate::profile::MAX_LEVELS;
 
 /// The data under an eye-relative point: the level read, its height (m) and geometric normal (not unit).
@@ -52,23 +52,55 @@ pub fn data_surface(globals: &Globals, clipmap: &Clipmap, rel: [f32; 2]) -> Opti
     None
 }
 
-/// The CPU twin of `finest_level`: the finest ring whose clip region holds `rel` with the one-sample margin
-/// of `level_surface`, or `None`. No ring data is read, as the shader fetches none.
+/// `CELL_LIMIT` of `clipmap.wgsl`: lattice cells are clamped to it before their conversion to int.
+pub const CELL_LIMIT: f32 = 65_536.0;
+
+/// A float-to-int conversion as the shaders write it, `i32(x)` of an `x` they clamped first. GLSL ES 3.00
+/// leaves the conversion of a float outside the int range (an infinity, a NaN) undefined, and drivers
+/// differ (x86 llvmpipe gives `i32::MIN`, NVIDIA saturates); Rust's `as` saturates, so the twin would
+/// silently agree with one of them. Panics instead: a twin reaching this with such a value found
+/// undefined behaviour in the shader it mirrors (docs/real-drivers.md).
 #[expect(
     clippy::cast_possible_truncation,
-    reason = "lattice coordinates inside a ring, as the shader's i32"
+    reason = "checked to be within the i32 range first"
 )]
+pub fn glsl_int(x: f32) -> i32 {
+    assert!(
+        (-2_147_483_648.0..2_147_483_648.0).contains(&x),
+        "float-to-int conversion of {x}: undefined in GLSL ES 3.00 (clamp it first)"
+    );
+    x as i32
+}
+
+/// The twin of `level_cell` in `clipmap.wgsl`: level `lv`'s lattice cell under `rel`, clamped to
+/// [`CELL_LIMIT`] before the conversion; `[-1, -1]` (held by nothing) for a level without data, whose
+/// spacing (0) is not divided by.
+pub fn level_cell(lv: &ShadeLevel, rel: [f32; 2]) -> [i32; 2] {
+    if lv.tex[2] <= 0 || lv.tex[3] <= 0 {
+        return [-1, -1];
+    }
+    let u = level_uv(lv, rel);
+    u.map(|x| glsl_int(x.floor().clamp(-CELL_LIMIT, CELL_LIMIT)))
+}
+
+/// `level_uv`: level `lv`'s lattice coordinates of `rel` (x east, y south).
+fn level_uv(lv: &ShadeLevel, rel: [f32; 2]) -> [f32; 2] {
+    let g = lv.rel[3];
+    [(rel[0] - lv.rel[0]) / g, (lv.rel[1] - rel[1]) / g]
+}
+
+/// `level_holds`: cell `i` lies in level `lv`'s clip region with a one-sample margin.
+fn level_holds(lv: &ShadeLevel, i: [i32; 2]) -> bool {
+    i[0] >= 1 && i[1] >= 1 && i[0] <= lv.tex[2] - 3 && i[1] <= lv.tex[3] - 3
+}
+
+/// The CPU twin of `finest_level`: the finest ring whose clip region holds `rel` with the one-sample margin
+/// of `level_surface`, or `None`. No ring data is read, as the shader fetches none.
 pub fn finest_level(globals: &Globals, rel: [f32; 2]) -> Option<u32> {
     let count = globals.level_info[0].clamp(0, MAX_LEVELS as i32);
     (0..count).find_map(|l| {
         let lv = &globals.levels[l as usize];
-        let g = lv.rel[3];
-        let i = [
-            ((rel[0] - lv.rel[0]) / g).floor() as i32,
-            ((lv.rel[1] - rel[1]) / g).floor() as i32,
-        ];
-        let holds = i[0] >= 1 && i[1] >= 1 && i[0] <= lv.tex[2] - 3 && i[1] <= lv.tex[3] - 3;
-        holds.then_some(l.unsigned_abs())
+        level_holds(lv, level_cell(lv, rel)).then_some(l.unsigned_abs())
     })
 }
 
@@ -144,7 +176,6 @@ pub struct FragmentData {
 /// `level_surface`: level `l`'s data at `rel` and its blend weight, or `None` outside its clip region's
 /// one-sample margin.
 #[expect(
-    clippy::cast_possible_truncation,
     clippy::cast_sign_loss,
     clippy::cast_precision_loss,
     reason = "lattice coordinates inside a ring, as the shader's i32/f32"
@@ -158,11 +189,11 @@ fn level_surface(
     let s = globals.level_info[1];
     let lv = &globals.levels[l as usize];
     let g = lv.rel[3];
-    let u = [(rel[0] - lv.rel[0]) / g, (lv.rel[1] - rel[1]) / g];
-    let i = [u[0].floor() as i32, u[1].floor() as i32];
-    if i[0] < 1 || i[1] < 1 || i[0] > lv.tex[2] - 3 || i[1] > lv.tex[3] - 3 {
+    let i = level_cell(lv, rel);
+    if !level_holds(lv, i) {
         return None;
     }
+    let u = level_uv(lv, rel);
     let f = [u[0] - i[0] as f32, u[1] - i[1] as f32];
     let ring = clipmap.ring(l as u32).texels();
     let z = |dx: i32, dy: i32| {
@@ -211,39 +242,44 @@ pub struct SgTaps {
 /// The CPU twin of `sg_taps`: the first ring from data level round(log2 w) on that holds `rel` with
 /// `finest_level`'s margin (so at least the finest ring holding it); where none does, the
 /// coarsest ring of 4 x 4 samples or more (`globals.level_info[3]`) with the cell clamped into its held
-/// ones. `None` only without such a ring.
+/// ones. The data level comes from that ring's spacing (a level without data has spacing 0). `None` only
+/// without such a ring. Every float-to-int conversion goes through [`glsl_int`].
 #[expect(
-    clippy::cast_possible_truncation,
     clippy::cast_sign_loss,
     clippy::cast_precision_loss,
-    reason = "lattice coordinates and level indices, as the shader's i32/f32"
+    reason = "level indices checked to be in range, and ring sizes exact in f32, as the shader's"
 )]
 pub fn sg_taps(globals: &Globals, data_spacing: f32, rel: [f32; 2], w: f32) -> Option<SgTaps> {
     let count = globals.level_info[0].clamp(0, MAX_LEVELS as i32);
-    let synth = ((data_spacing / globals.levels[0].rel[3]).log2().round() as i32).max(0);
-    let k = w.max(1.0).log2().round() as i32;
-    let first = synth + k;
-    let uv = |l: i32| {
-        let lv = &globals.levels[l as usize];
-        let g = lv.rel[3];
-        [(rel[0] - lv.rel[0]) / g, (lv.rel[1] - rel[1]) / g]
-    };
-    let pick = (first.max(0)..count)
-        .find(|&l| {
-            let lv = &globals.levels[l as usize];
-            let u = uv(l);
-            let i = [u[0].floor() as i32, u[1].floor() as i32];
-            i[0] >= 1 && i[1] >= 1 && i[0] <= lv.tex[2] - 3 && i[1] <= lv.tex[3] - 3
-        })
-        .unwrap_or(globals.level_info[3]);
-    if !(0..count).contains(&pick) {
+    let fallback = globals.level_info[3];
+    if !(0..count).contains(&fallback) {
         return None;
     }
+    let g = globals.levels[fallback as usize].rel[3];
+    // WGSL's round is round-half-to-even, as f32::round_ties_even.
+    let synth = (fallback
+        + glsl_int(
+            (data_spacing / g)
+                .log2()
+                .round_ties_even()
+                .clamp(-32.0, 32.0),
+        ))
+    .max(0);
+    // A NaN footprint compares false: one sample.
+    let side = if w > 1.0 { w.min(1.0e9) } else { 1.0 };
+    let k = glsl_int(side.log2().round_ties_even().clamp(0.0, 32.0));
+    let pick = (synth + k..count)
+        .find(|&l| {
+            let lv = &globals.levels[l as usize];
+            level_holds(lv, level_cell(lv, rel))
+        })
+        .unwrap_or(fallback);
     let lv = &globals.levels[pick as usize];
-    let u = uv(pick);
+    let u = level_uv(lv, rel);
+    let hi = [(lv.tex[2] - 3) as f32, (lv.tex[3] - 3) as f32];
     let i = [
-        (u[0].floor() as i32).clamp(1, lv.tex[2] - 3),
-        (u[1].floor() as i32).clamp(1, lv.tex[3] - 3),
+        glsl_int(u[0].floor().clamp(1.0, hi[0])),
+        glsl_int(u[1].floor().clamp(1.0, hi[1])),
     ];
     Some(SgTaps {
         level: pick as u32,

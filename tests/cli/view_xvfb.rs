@@ -12,7 +12,6 @@
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
-use std::sync::atomic::{AtomicU32, Ordering};
 use std::thread::sleep;
 use std::time::{Duration, Instant};
 
@@ -116,21 +115,6 @@ fn distinct_colours(rgb: &[u8]) -> usize {
     seen.len()
 }
 
-/// A display number no other X server here uses, and no other test of this process took (the tests run
-/// in parallel).
-fn free_display() -> u32 {
-    static NEXT: AtomicU32 = AtomicU32::new(90);
-    loop {
-        let n = NEXT.fetch_add(1, Ordering::Relaxed);
-        assert!(n < 200, "no free X display number in 90..200");
-        if !Path::new(&format!("/tmp/.X11-unix/X{n}")).exists()
-            && !Path::new(&format!("/tmp/.X{n}-lock")).exists()
-        {
-            return n;
-        }
-    }
-}
-
 /// Whether the tools the tests need are installed (if not: skipped with the reason, a failure under CI=true).
 fn tools_present() -> bool {
     let missing: Vec<&str> = ["Xvfb", "xdotool", "xwd"]
@@ -148,35 +132,48 @@ fn tools_present() -> bool {
     false
 }
 
-/// Starts a private Xvfb of `w` x `h`; returns it (killed on drop) and its display name.
+/// Starts a private Xvfb of `w` x `h`; returns it (killed on drop) and its display name. Xvfb picks a free
+/// display number itself (`-displayfd`: it takes the first whose lock file it can create, atomically,
+/// and writes the number to the descriptor once it accepts connections), so two tests, or two processes
+/// (another checkout's CI run), never race for one: picking a number that looked free and starting
+/// Xvfb on it lost that race ("Xvfb :91 did not start").
 fn start_xvfb(w: u32, h: u32) -> (Reaped, String) {
-    let n = free_display();
-    let display = format!(":{n}");
-    let xvfb = Reaped(
-        Command::new("Xvfb")
-            .args([
-                display.as_str(),
-                "-screen",
-                "0",
-                &format!("{w}x{h}x24"),
-                "-nolisten",
-                "tcp",
-            ])
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("Xvfb"),
-    );
+    use std::io::BufRead as _;
+    let mut child = Command::new("Xvfb")
+        .args([
+            "-displayfd",
+            "1",
+            "-screen",
+            "0",
+            &format!("{w}x{h}x24"),
+            "-nolisten",
+            "tcp",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("Xvfb");
+    let stdout = child.stdout.take().expect("Xvfb's stdout");
+    let xvfb = Reaped(child);
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let mut line = String::new();
+        let _ = std::io::BufReader::new(stdout).read_line(&mut line);
+        let _ = tx.send(line);
+    });
+    let line = rx
+        .recv_timeout(Duration::from_secs(20))
+        .unwrap_or_else(|_| panic!("Xvfb did not report a display within 20 s"));
+    let n: u32 = line
+        .trim()
+        .parse()
+        .unwrap_or_else(|_| panic!("Xvfb reported no display number: {line:?}"));
     let socket = PathBuf::from(format!("/tmp/.X11-unix/X{n}"));
-    let t0 = Instant::now();
-    while !socket.exists() {
-        assert!(
-            t0.elapsed() < Duration::from_secs(20),
-            "Xvfb {display} did not start"
-        );
-        sleep(Duration::from_millis(100));
-    }
-    (xvfb, display)
+    assert!(
+        socket.exists(),
+        "Xvfb :{n} reported ready without its socket"
+    );
+    (xvfb, format!(":{n}"))
 }
 
 /// `--frames N --json`: the window draws in an OpenGL ES 3.0 context, times its frames, then times the

@@ -284,7 +284,7 @@ fn twin_check(opts: &FrameOptions, pick: Pick) {
     let mut tile = vec![[0.0f32; 2]; side * side];
     let mut layer = vec![[f32::NAN; 2]; ls * ls];
     let mut checked = 0;
-    let mut worst_px = 0.0f64;
+    let mut worst = (0.0f64, 0.0f64, f64::INFINITY, 0.0f64);
     for k in picked {
         let d = r.draws()[k];
         let gpu_clip = probe.capture(&r, k).expect("capture");
@@ -312,24 +312,18 @@ fn twin_check(opts: &FrameOptions, pick: Pick) {
         }
         for (v, g) in m.vertices.iter().zip(&gpu_clip) {
             let c = if d.pool.is_some() {
-                cpu_detail_vertex(r.globals(), &u, &layer, atlas.layer_side(), *v).clip
+                cpu_detail_vertex(r.globals(), &u, &layer, atlas.layer_side(), *v)
             } else {
-                cpu_vertex(r.globals(), &u, cm.ring(d.level), *v).clip
+                cpu_vertex(r.globals(), &u, cm.ring(d.level), *v)
             };
-            let w_rel = ((g[3] - c[3]) / c[3].abs().max(1.0)).abs();
+            let w_rel = ((g[3] - c.clip[3]) / c.clip[3].abs().max(1.0)).abs();
             assert!(
                 w_rel < 1e-4,
                 "draw {k} vertex {v:?}: w {} vs {}",
                 g[3],
-                c[3]
+                c.clip[3]
             );
-            if c[3] > 1.0 {
-                let px = |a: f32, w: f32, side: u32| f64::from(a / w) * f64::from(side) * 0.5;
-                let e = (px(g[0], g[3], W) - px(c[0], c[3], W))
-                    .abs()
-                    .max((px(g[1], g[3], H) - px(c[1], c[3], H)).abs());
-                worst_px = worst_px.max(e);
-            }
+            within_bound(*g, &c, &mut worst);
             checked += 1;
         }
     }
@@ -370,15 +364,8 @@ fn twin_check(opts: &FrameOptions, pick: Pick) {
                 let gpu_clip = probe.capture_instance(&r, call, t).expect("capture");
                 assert_eq!(gpu_clip.len(), pool_mesh.vertices.len());
                 for (v, g) in pool_mesh.vertices.iter().zip(&gpu_clip) {
-                    let c = cpu_detail_vertex(r.globals(), &u, &layer, atlas.layer_side(), *v).clip;
-                    if c[3] > 1.0 {
-                        let px =
-                            |a: f32, w: f32, side: u32| f64::from(a / w) * f64::from(side) * 0.5;
-                        let e = (px(g[0], g[3], W) - px(c[0], c[3], W))
-                            .abs()
-                            .max((px(g[1], g[3], H) - px(c[1], c[3], H)).abs());
-                        worst_px = worst_px.max(e);
-                    }
+                    let c = cpu_detail_vertex(r.globals(), &u, &layer, atlas.layer_side(), *v);
+                    within_bound(*g, &c, &mut worst);
                 }
                 units += 1;
             }
@@ -389,7 +376,53 @@ fn twin_check(opts: &FrameOptions, pick: Pick) {
         );
     }
     assert!(checked > 1000 || pick == Pool && checked > 100, "{checked}");
-    assert!(worst_px < 0.01, "GPU and CPU twin differ by {worst_px} px");
+    println!(
+        "GPU vs CPU twin: {:.2e} px at most, {:.3} of the conformance bound at most (bounds {:.1e} to \
+         {:.1e} px)",
+        worst.0, worst.1, worst.2, worst.3
+    );
+    assert!(
+        worst.1 <= 1.0,
+        "GPU and CPU twin differ by {} px, {:.2}x what conformant highp arithmetic allows",
+        worst.0,
+        worst.1
+    );
+}
+
+/// The pixel distance between the GPU's clip position `g` and the twin's `c`, against the twin's bound of
+/// what a conformant GLES 3.0 driver may compute (`twin::clipmap::pixel_bound`: rounding, fused
+/// multiply-adds, summation order, division's 2.5 ulp; docs/real-drivers.md derives it). `worst` keeps
+/// the largest distance and the largest distance over its bound. Vertices at or behind the eye are
+/// skipped (no pixel). Also keeps the smallest and largest bound.
+fn within_bound(
+    g: [f32; 4],
+    c: &clipsat::twin::clipmap::CpuVertex,
+    worst: &mut (f64, f64, f64, f64),
+) {
+    let Some(b) = clipsat::twin::clipmap::pixel_bound(c.clip, c.clip_bound, W, H) else {
+        return;
+    };
+    if c.clip[3] <= 1.0 {
+        return;
+    }
+    let px = |a: f32, w: f32, side: u32| f64::from(a / w) * f64::from(side) * 0.5;
+    let e = [
+        (px(g[0], g[3], W) - px(c.clip[0], c.clip[3], W)).abs(),
+        (px(g[1], g[3], H) - px(c.clip[1], c.clip[3], H)).abs(),
+    ];
+    worst.0 = worst.0.max(e[0]).max(e[1]);
+    worst.1 = worst.1.max(e[0] / b[0]).max(e[1] / b[1]);
+    worst.2 = worst.2.min(b[0].min(b[1]));
+    worst.3 = worst.3.max(b[0].max(b[1]));
+}
+
+/// GPU memory held by `gpu`'s textures, as wgpu counts it (allocation sizes).
+fn texture_memory(gpu: &clipsat::gpu::Gpu) -> isize {
+    gpu.device()
+        .get_internal_counters()
+        .hal
+        .texture_memory
+        .read()
 }
 
 /// Live GPU objects of `gpu`'s device by kind, as wgpu itself counts them (its `counters` feature), after
@@ -422,10 +455,11 @@ const KINDS: [ObjectKind; 8] = [
     ObjectKind::RenderPipeline,
 ];
 
-/// The ledger is what the device really holds: wgpu's own live-object counters grow by exactly the
-/// ledger's objects of each kind when the renderer is built (wgpu's internal clear views of render targets
-/// included, which the ledger notes), do not grow over 300 frames, and fall back when it drops (a creation
-/// that bypassed `Ledgered` would show here); its bytes equal the profile's footprint.
+/// The ledger is what the renderer creates: wgpu's own live-object counters grow by exactly the ledger's
+/// objects of each kind when the renderer is built (wgpu's internal clear views of render targets
+/// included, which the ledger notes; buffers give or take the staging buffers of objects created with
+/// their contents, which some backends count), do not grow over 300 frames, and fall back when it drops
+/// (a creation that bypassed `Ledgered` would show here); its bytes equal the profile's footprint.
 #[test]
 fn ledger_equals_wgpu_live_objects_and_footprint() {
     let gpu = strict();
@@ -434,6 +468,7 @@ fn ledger_equals_wgpu_live_objects_and_footprint() {
         let p = profile(name, W, H, None);
         let mut cm = clipmap(&hm, &p);
         let before = live(&gpu);
+        let texture_memory_before = texture_memory(&gpu);
         let mut r = Offscreen::new(&gpu, &p, &cm, Default::default()).expect("renderer");
         let built = live(&gpu);
         assert_eq!(
@@ -448,7 +483,39 @@ fn ledger_equals_wgpu_live_objects_and_footprint() {
             .collect();
         let grown: Vec<isize> = built.iter().zip(before).map(|(a, b)| a - b).collect();
         eprintln!("{name}: ledger {ledger:?}, wgpu live objects grew by {grown:?}");
-        assert_eq!(grown, ledger, "{name}: wgpu's live objects {KINDS:?}");
+        // Every kind but buffers (and textures on Vulkan) exactly. Buffers: the renderer's, plus at most
+        // one staging buffer of wgpu's per object created with its contents, which the backend may count
+        // until the queue runs (`Ledger::staged`; NVIDIA's GL counted 8 here: 20 for 12). Textures on
+        // Vulkan: wgpu-hal 30 counts them only when it destroys them, so their bytes are compared.
+        let exact = if on_vulkan() { 2 } else { 1 };
+        assert_eq!(
+            grown[exact..],
+            ledger[exact..],
+            "{name}: wgpu's live objects {KINDS:?}"
+        );
+        if on_vulkan() {
+            let memory = texture_memory(&gpu) - texture_memory_before;
+            let bytes = r
+                .ledger()
+                .entries()
+                .iter()
+                .filter(|e| e.kind == ObjectKind::Texture)
+                .map(|e| e.bytes)
+                .sum::<u64>();
+            let bytes = isize::try_from(bytes).expect("small");
+            // Allocations round up (alignment, tiling): at least the ledger's bytes, at most twice.
+            assert!(
+                (bytes..=2 * bytes).contains(&memory),
+                "{name}: textures hold {memory} bytes, the ledger says {bytes}"
+            );
+        }
+        let staged = isize::try_from(r.ledger().staged()).expect("small");
+        assert!(
+            (ledger[0]..=ledger[0] + staged).contains(&grown[0]),
+            "{name}: wgpu counts {} buffers, the ledger {} and {staged} staged",
+            grown[0],
+            ledger[0]
+        );
         let frames = if name == "gles3-low" { 300 } else { 20 };
         for i in 0..frames {
             let cam = flight(&hm, i, 90.0, 200.0, None);
@@ -467,10 +534,17 @@ fn ledger_equals_wgpu_live_objects_and_footprint() {
         assert_eq!(after[1..], built[1..], "{name}: frames created GPU objects");
         drop(r);
         assert_eq!(
-            live(&gpu)[1..],
-            before[1..],
+            live(&gpu)[exact..],
+            before[exact..],
             "{name}: objects outlived the renderer"
         );
+        if on_vulkan() {
+            assert_eq!(
+                texture_memory(&gpu),
+                texture_memory_before,
+                "{name}: textures outlived it"
+            );
+        }
     }
 }
 

@@ -17,11 +17,21 @@ use clipsat::profile::Profile;
 use clipsat::source::Heightmap;
 use glam::DVec3;
 
-/// A strict OpenGL ES 3.0 context (Mesa llvmpipe); panics with the fix when there is none.
+/// The GPU the tests draw on: a strict OpenGL ES 3.0 context (Mesa llvmpipe), or the backend
+/// `CLIPSAT_GPU` names (`vulkan`: wgpu's Vulkan backend, lavapipe, on the same GLES 3.0 limits); panics
+/// with the fix when there is none.
 pub fn strict() -> Gpu {
-    Gpu::new(GpuMode::Strict).unwrap_or_else(|e| {
-        panic!("strict OpenGL ES 3.0 context on Mesa llvmpipe (run `bash .ci/setup`): {e}")
+    let mode = GpuMode::from_env()
+        .map(|m| m.expect("CLIPSAT_GPU names a GPU mode"))
+        .unwrap_or(GpuMode::Strict);
+    Gpu::new(mode).unwrap_or_else(|e| {
+        panic!("{mode:?} GPU (run `bash .ci/setup`: Mesa's llvmpipe with EGL, and lavapipe): {e}")
     })
+}
+
+/// Whether the tests run on wgpu's Vulkan backend (`CLIPSAT_GPU=vulkan`).
+pub fn on_vulkan() -> bool {
+    matches!(GpuMode::from_env(), Some(Ok(GpuMode::Vulkan)))
 }
 
 /// A 513 x 513 terrain at 30 m with relief that does not depend on the procedural generator (a stub on

@@ -15,6 +15,7 @@ pub(crate) mod fly;
 pub(crate) mod hashes;
 pub(crate) mod info;
 pub(crate) mod render;
+pub(crate) mod selftest;
 pub(crate) mod sg;
 pub(crate) mod tune_p;
 #[cfg(feature = "view")]

@@ -1,6 +1,7 @@
 //! Stage 3, the GPU: one frame of the renderer: [`Renderer::prepare`] uploads a plan (ring rectangles, pool
 //! tiles, uniforms, pool cells), [`Renderer::render`] records its draw calls into the caller's render pass.
 
+use super::sg::SgPrograms;
 use super::Renderer;
 use crate::plan::clipmap::Clipmap;
 use crate::plan::fragment::FragmentPath;
@@ -202,10 +203,21 @@ impl Renderer {
     /// Records the prepared plan's draws into `pass` (whose attachments have the formats and sample count
     /// of [`super::RendererOptions`]). Sets its own pipeline, bind groups and buffers; creates nothing.
     pub fn render(&self, pass: &mut wgpu::RenderPass<'_>) {
+        self.record(pass, None);
+    }
+
+    /// Whether frames draw with the SG programs (SG shading, switched on, no debug view).
+    pub(super) fn draws_sg(&self) -> bool {
+        self.sg.is_some() && self.sg_enabled && self.debug.code() == 0
+    }
+
+    /// [`Renderer::render`], with `probe`'s programs in place of the renderer's when given (the shading
+    /// probe: the same draws, buffers and bind groups).
+    pub(super) fn record(&self, pass: &mut wgpu::RenderPass<'_>, probe: Option<&ProbePrograms>) {
         // A debug view replaces the shading, SG included. Each draw is recorded with its own program,
         // set when it changes: basic shading's `FragmentPath`, SG's block or skirt program.
-        let sg = match (&self.sg, self.debug.code()) {
-            (Some(sg), 0) if self.sg_enabled => {
+        let sg = match &self.sg {
+            Some(sg) if self.draws_sg() => {
                 pass.set_bind_group(2, &sg.group, &[]);
                 Some(sg)
             }
@@ -228,10 +240,14 @@ impl Renderer {
                 pass.set_index_buffer(m.indices.slice(..), wgpu::IndexFormat::Uint16);
                 bound = Some(d.kind);
             }
-            let pipeline = match sg {
-                Some(sg) if d.fragment == FragmentPath::Skirt => &sg.programs().skirt,
-                Some(sg) => &sg.programs().block,
-                None => &self.pipelines[d.fragment as usize],
+            let (programs, pipelines) = match probe {
+                Some(p) => (p.sg.as_ref(), &p.basic),
+                None => (sg.map(|s| s.programs()), &self.pipelines),
+            };
+            let pipeline = match (sg, programs) {
+                (Some(_), Some(s)) if d.fragment == FragmentPath::Skirt => &s.skirt,
+                (Some(_), Some(s)) => &s.block,
+                _ => &pipelines[d.fragment as usize],
             };
             if !program.is_some_and(|p| std::ptr::eq(p, pipeline)) {
                 pass.set_pipeline(pipeline);
@@ -249,4 +265,12 @@ impl Renderer {
         self.synced = None;
         self.detail_synced = None;
     }
+}
+
+/// The programs a probe draws a prepared frame with: one per [`FragmentPath`], and the SG block and skirt
+/// pair when the renderer draws SG.
+#[derive(Debug)]
+pub(super) struct ProbePrograms {
+    pub(super) basic: [wgpu::RenderPipeline; crate::plan::fragment::FRAGMENT_PATHS],
+    pub(super) sg: Option<SgPrograms>,
 }

@@ -38,6 +38,8 @@ pub struct LedgerEntry {
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct Ledger {
     entries: Vec<LedgerEntry>,
+    /// Objects created with their contents, each copied in through a staging buffer of wgpu's own.
+    staged: usize,
 }
 
 impl Ledger {
@@ -68,6 +70,16 @@ impl Ledger {
     /// Appends `other`'s entries (e.g. a headless target's objects after the renderer's).
     pub fn extend(&mut self, other: &Ledger) {
         self.entries.extend_from_slice(&other.entries);
+        self.staged += other.staged;
+    }
+
+    /// Objects created with their contents ([`Ledgered::buffer_init`], [`Ledgered::texture_with_data`]):
+    /// wgpu copies each in through a staging buffer of its own until the queue next runs. wgpu's live
+    /// buffer counter counts those on some backends (Vulkan, GL with `GL_EXT_buffer_storage`: NVIDIA, Mesa's
+    /// ES 3.2) and not on others (GL without it: Mesa's ES 3.0), so a check of the counter allows for
+    /// them; they are not the renderer's.
+    pub fn staged(&self) -> usize {
+        self.staged
     }
 }
 
@@ -183,6 +195,7 @@ impl<'d> Ledgered<'d> {
     ) -> wgpu::Buffer {
         use wgpu::util::DeviceExt;
         self.note(label, ObjectKind::Buffer, contents.len() as u64);
+        self.ledger.staged += 1;
         self.device
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some(label),
@@ -201,6 +214,7 @@ impl<'d> Ledgered<'d> {
     ) -> wgpu::Texture {
         use wgpu::util::DeviceExt;
         self.note(label, ObjectKind::Texture, texture_bytes(desc));
+        self.ledger.staged += 1;
         self.note_clear_views(desc);
         let desc = wgpu::TextureDescriptor {
             label: Some(label),

@@ -28,11 +28,15 @@ mod ledger;
 mod probe;
 mod sg;
 mod sg_tables;
+#[cfg(feature = "internals")]
+mod shading_probe;
 
 pub use frame::PrepareStats;
 pub use ledger::{texture_bytes, Ledger, LedgerEntry, Ledgered, ObjectKind};
 #[cfg(feature = "internals")]
 pub use probe::VertexProbe;
+#[cfg(feature = "internals")]
+pub use shading_probe::{ProbedFrame, ShadingProbe};
 pub use sg::SgShading;
 use sg::SgState;
 
@@ -44,6 +48,8 @@ use crate::plan::mesh::{self, Mesh, MeshVertex};
 use crate::plan::uniforms::{DrawUniform, PoolCell};
 use crate::profile::{DRAW_SLOT_BYTES, GLOBALS_BYTES, POOL_CELL_BYTES};
 use crate::shading::debug_view::DebugView;
+use crate::shading::scene::Scene;
+use crate::shading::SkyTable;
 use crate::{Error, Result};
 use crate::profile::Profile;
 
@@ -134,6 +140,8 @@ pub struct Renderer {
     group1: wgpu::BindGroup,
     module: wgpu::ShaderModule,
     pipeline_layout: wgpu::PipelineLayout,
+    /// The caller's attachment formats and sample count.
+    targets: Targets,
     /// The pipelines drawn, basic shading or the debug view's, indexed by [`crate::plan::fragment::FragmentPath`].
     pipelines: [wgpu::RenderPipeline; FRAGMENT_PATHS],
     sg: Option<SgState>,
@@ -367,6 +375,7 @@ impl Renderer {
             group1,
             module,
             pipeline_layout,
+            targets,
             pipelines,
             sg,
             sg_enabled: true,
@@ -399,6 +408,19 @@ impl Renderer {
     /// shading with visibility.
     pub fn sg_light_table(&self) -> Option<&wgpu::Texture> {
         self.sg.as_ref().and_then(|s| s.tables.light())
+    }
+
+    /// Under SG shading, the scene as drawn (visibility as bound and as the effects switched now, fog
+    /// fitted to the terrain), its sky table and the data's spacing (m) the shader's footprint uses:
+    /// what a CPU twin of the frame shades with.
+    pub fn sg_drawn(&self) -> Option<(Scene, &SkyTable, f32)> {
+        self.sg.as_ref().map(|s| {
+            let mut scene = s.scene.clone();
+            scene.effects.visibility = s.variant.visibility;
+            scene.effects.specular = s.variant.specular;
+            scene.effects.fog = s.variant.fog;
+            (scene, &s.sky, s.uniform.grid[0])
+        })
     }
 
     /// Rings (array layers) in use.
@@ -537,6 +559,25 @@ fn terrain_pipeline(
     fragment_entry: &str,
     targets: &Targets,
 ) -> wgpu::RenderPipeline {
+    let colour = [Some(wgpu::ColorTargetState {
+        format: targets.color,
+        blend: None,
+        write_mask: wgpu::ColorWrites::ALL,
+    })];
+    pipeline_to(dev, label, layout, module, fragment_entry, targets, &colour)
+}
+
+/// A terrain pipeline (`vs_main`, both sides, depth `Less`) into `colour` targets and `targets`' depth
+/// and sample count.
+fn pipeline_to(
+    dev: &mut Ledgered<'_>,
+    label: &'static str,
+    layout: &wgpu::PipelineLayout,
+    module: &wgpu::ShaderModule,
+    fragment_entry: &str,
+    targets: &Targets,
+    colour: &[Option<wgpu::ColorTargetState>],
+) -> wgpu::RenderPipeline {
     dev.render_pipeline(
         label,
         &wgpu::RenderPipelineDescriptor {
@@ -570,11 +611,7 @@ fn terrain_pipeline(
                 module,
                 entry_point: Some(fragment_entry),
                 compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState {
-                    format: targets.color,
-                    blend: None,
-                    write_mask: wgpu::ColorWrites::ALL,
-                })],
+                targets: colour,
             }),
             multiview_mask: None,
             cache: None,

@@ -2,6 +2,8 @@
 //! the scene needs.
 
 use super::sg_tables::SgTables;
+#[cfg(feature = "internals")]
+use super::pipeline_to;
 use super::{array_entry, terrain_pipeline, Ledger, Ledgered, Targets};
 use crate::gpu::sat_textures::ShadingBake;
 use crate::gpu::shaders::{self, SgOmit, SgSceneUniform, SgVariant};
@@ -56,6 +58,11 @@ pub(super) struct SgState {
     pub(super) bound: Vec<&'static str>,
     pub(super) layout_entries: usize,
     pub(super) tables: SgTables,
+    /// The scene as drawn (visibility as bound, fog fitted), its sky table and uniform: what a CPU twin of
+    /// the frame shades with.
+    pub(super) scene: Scene,
+    pub(super) sky: SkyTable,
+    pub(super) uniform: SgSceneUniform,
     /// The scene's sky table (`shading/sky_table.rs`), written once.
     _sky: wgpu::Texture,
     _uniform: wgpu::Buffer,
@@ -205,6 +212,9 @@ impl SgState {
         let mut programs: [Option<SgPrograms>; SUBSETS] = Default::default();
         programs[subset_index(variant)] = Some(compile(dev, variant, &pipeline_layout, targets));
         Ok(SgState {
+            scene: scene.clone(),
+            sky: sky_table.clone(),
+            uniform: u,
             variant,
             built: variant,
             baked: bake.baked().to_vec(),
@@ -219,6 +229,31 @@ impl SgState {
             targets: *targets,
             programs,
         })
+    }
+
+    /// The shading probe's programs for the variant drawn (`fs_sg_probe`, `fs_sg_probe_skirt`) into
+    /// `colour` targets, compiled through `dev` (the probe's own ledger).
+    #[cfg(feature = "internals")]
+    pub(super) fn probe_programs(
+        &self,
+        dev: &mut Ledgered<'_>,
+        colour: &[Option<wgpu::ColorTargetState>],
+    ) -> SgPrograms {
+        let module = dev.shader_module("sg_clipmap.wgsl (probe)", shaders::sg_clipmap(self.variant));
+        let layout = &self.pipeline_layout;
+        let t = &self.targets;
+        SgPrograms {
+            block: pipeline_to(dev, "sg probe", layout, &module, "fs_sg_probe", t, colour),
+            skirt: pipeline_to(
+                dev,
+                "sg probe skirt",
+                layout,
+                &module,
+                "fs_sg_probe_skirt",
+                t,
+                colour,
+            ),
+        }
     }
 
     /// The programs of the variant drawn.
