@@ -101,7 +101,7 @@ impl Renderer {
         }
         // The SG tables follow the rings' texels (sg_tables.rs).
         if let (Some(sg), Some(list)) = (self.sg.as_mut(), sg_uploads) {
-            sg.tables.upload(queue, clipmap, list, &mut stats);
+            stats.sg_samples += sg.tables.upload(queue, clipmap, list);
         }
         stats.upload_bytes = stats.upload_samples * 8;
         self.synced = Some(index);

@@ -27,7 +27,7 @@
 //! Created once from the profile and the scene's effects through [`Ledgered`], checked against
 //! `budget.gpu_memory_bytes`; their bytes are [`Profile::sg_table_bytes`] for any terrain.
 
-use super::{array_texture, Ledgered, PrepareStats, READ_BACK};
+use super::{array_texture, Ledgered, READ_BACK};
 use crate::gpu::sat_textures::ShadingBake;
 use crate::plan::clipmap::Clipmap;
 use crate::plan::frame::Upload;
@@ -133,19 +133,19 @@ impl SgTables {
     }
 
     /// Writes the tables' texels of `uploads` (the plan's ring rectangles), or of every ring when
-    /// `None`, from the bake at the clipmap's current clip regions. Counts the samples in `stats`.
+    /// `None`, from the bake at the clipmap's current clip regions. Returns the texels written.
     pub(super) fn upload(
         &mut self,
         queue: &wgpu::Queue,
         clipmap: &Clipmap,
         uploads: Option<&[Upload]>,
-        stats: &mut PrepareStats,
-    ) {
+    ) -> u64 {
+        let mut samples = 0;
         match uploads {
             Some(list) => {
                 for u in list {
                     self.write(queue, clipmap, u);
-                    stats.sg_samples += u64::from(u.w) * u64::from(u.h);
+                    samples += u64::from(u.w) * u64::from(u.h);
                 }
             }
             None => {
@@ -158,10 +158,11 @@ impl SgTables {
                         h: self.size,
                     };
                     self.write(queue, clipmap, &whole);
-                    stats.sg_samples += u64::from(self.size) * u64::from(self.size);
+                    samples += u64::from(self.size) * u64::from(self.size);
                 }
             }
         }
+        samples
     }
 
     /// Fills and writes one rectangle of ring `u.level`'s texels.
