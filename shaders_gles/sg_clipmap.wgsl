@@ -1,7 +1,7 @@
 // Stage 3, the GPU: the clipmap renderer's SG fragment shader. Appended after basic_shading.wgsl,
 // clipmap.wgsl, sg_shading.wgsl, one specular file, one visibility file and one fog file (src/gpu/shaders.rs).
 //
-// SAT paper algorithm 2, on per-level tables (issue 16, "Memory"; src/gpu/renderer/sg_tables.rs): the
+// SAT paper algorithm 2, on per-level tables (docs/design.md "Memory model"; src/gpu/renderer/sg_tables.rs): the
 // pixel's footprint from dpdx/dpdy of its data coordinates picks the level k whose spacing 2^k data
 // samples matches it, as the SAT paper picks its box; the finest ring at or above that level holding the
 // pixel is read, 4 textureLoads (float textures are not filterable on GLES 3.0) blended bilinearly. Each

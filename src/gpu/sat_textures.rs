@@ -1,7 +1,7 @@
 //! Stage 1, the bake: the shading SATs - the normal SAT and the horizon SATs (SAT paper section 5,
 //! algorithm 2) - kept in CPU memory only. The renderer never uploads them: it fills fixed per-level
 //! tables of the clipmap's ring size from them ([`ShadingBake::level_texel`], `gpu/renderer/sg_tables.rs`),
-//! so its GPU memory does not grow with the terrain (issue 16, "Memory").
+//! so its GPU memory does not grow with the terrain (docs/design.md "Memory model").
 //!
 //! Format: wrapping u32 fixed point with Q = [`SAT_FRAC_BITS`] = 20 fractional bits, four channels per
 //! RGBA32UI texel (integer textures, read with `textureLoad`: GLES 3.0 filters neither integer nor float

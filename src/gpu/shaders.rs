@@ -76,7 +76,7 @@ pub fn sources() -> Vec<(&'static str, String)> {
     ]
 }
 
-/// One SG shader variant: what the text of a program contains (design.md "Only the effects a scene
+/// One SG shader variant: what the text of a program contains (docs/design.md "Only the effects a scene
 /// calls for"). Each effect set is its own text and its own pipeline.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct SgVariant {

@@ -60,7 +60,7 @@ pub fn glsl_div(a: i32, b: i32) -> i32 {
     a / b
 }
 
-/// [`cpu_vertex`] for a detail pool draw (`u.pool[0] > 0`, issue 15): the heights come from its tile in
+/// [`cpu_vertex`] for a detail pool draw (`u.pool[0] > 0`): the heights come from its tile in
 /// the draw's atlas layer, `layer` its `layer_side x layer_side` texels (row-major, each tile as
 /// [`crate::plan::detail::fill_tile`] writes it at its [`crate::profile::DetailAtlas::place`]), read as
 /// `clip_fetch` reads it: at the tile's first texel `u.pool[2..4]` plus the lattice offset (a stitched

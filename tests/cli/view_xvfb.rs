@@ -228,7 +228,7 @@ fn view_frames_json_under_xvfb() {
         .as_f64()
         .is_some_and(|r| r > 0.0));
 
-    // Issue 13 item 2: a package streams through the tile cache, the window and the headless path
+    // A package streams through the tile cache, the window and the headless path
     // alike, with the SAT LOD tables mapped.
     let pkg =
         std::env::temp_dir().join(format!("clipsat-view-xvfb-{}.clipsat", std::process::id()));
@@ -349,7 +349,7 @@ fn view_flies_under_xvfb() {
     xdotool(&display, &["key", "2"]);
     sleep(Duration::from_secs(2));
     let (_, _, sg) = screenshot(&display);
-    // 1 twice: SG off and on again, each a switch of the renderer built above (issue 16: the SG tables
+    // 1 twice: SG off and on again, each a switch of the renderer built above (the SG tables
     // are never re-created on a toggle), back to the same SG frame.
     xdotool(&display, &["key", "1"]);
     sleep(Duration::from_secs(2));

@@ -187,7 +187,7 @@ fn vertex_positions_match_the_cpu_twin() {
     twin_check(&FrameOptions::default(), Pick::Sample);
 }
 
-/// The same for detail pool draws (issue 15): the pool fills over a few frames of a SAT LOD flight at a
+/// The same for detail pool draws: the pool fills over a few frames of a SAT LOD flight at a
 /// tight epsilon, then every draw reading a pool tile is checked against the twin over the tile's samples.
 #[test]
 fn pool_tile_vertices_match_the_cpu_twin() {
@@ -328,7 +328,7 @@ fn twin_check(opts: &FrameOptions, pick: Pick) {
         }
     }
     if pick == Pool {
-        // Stitched cells' units (issue 15): a sample of every unit call's instances, their vertex flags
+        // Stitched cells' units: a sample of every unit call's instances, their vertex flags
         // applied by `stitch_local` on the GPU and `stitch::local` in the twin.
         let pool_mesh = mesh::pool_cells(p.pool_mesh_quads());
         let resident = r.plan().detail().resident.clone();

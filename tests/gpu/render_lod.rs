@@ -1,4 +1,4 @@
-//! SAT LOD in the renderer (design.md "SAT LOD" 6-7): blocks drawn at their selected levels stay
+//! SAT LOD in the renderer (docs/design.md "SAT LOD" 6-7): blocks drawn at their selected levels stay
 //! watertight over fly-throughs (procedural terrain and Puget Sound), the conservative bound holds on the
 //! measured screen error, and on gentle terrain the SAT estimate draws fewer triangles than distance LOD.
 //! Headless strict GLES 3.0 on llvmpipe.

@@ -178,7 +178,7 @@ fn variants_compile_only_what_the_scene_declares() {
             v.label()
         );
         assert_eq!(text.contains("level_light"), v.visibility, "{}", v.label());
-        // Fog (issue 16): no fog code in a variant whose scene has none.
+        // Fog: no fog code in a variant whose scene has none.
         assert_eq!(text.contains("sg_scene.fog"), v.fog, "{}", v.label());
         assert_eq!(text.contains("material.w"), v.fog, "{}", v.label());
         assert!(text.contains(&format!("const SG_BANDS: u32 = {}u;", v.patches.bands())));
@@ -216,7 +216,7 @@ fn renderer_bakes_and_binds_only_what_the_scene_needs() {
     assert_eq!(renderer.renderer().sg_layout_entries(), Some(3));
     let sg = render_frame(&mut renderer, &clipmap, &camera, &opts).expect("sg frame");
     assert_ne!(sg.image.hash(), basic.image.hash());
-    // Switching SG off and on again draws basic and SG frames and creates nothing (issue 16: the tables
+    // Switching SG off and on again draws basic and SG frames and creates nothing (the tables
     // are never re-created on a toggle).
     let objects = renderer.renderer().ledger().count();
     renderer.renderer_mut().set_sg_enabled(false);
@@ -271,7 +271,7 @@ fn renderer_bakes_and_binds_only_what_the_scene_needs() {
     assert_eq!(renderer.renderer().sg_layout_entries(), Some(4));
     let full = render_frame(&mut renderer, &clipmap, &camera, &opts).expect("sg evening frame");
 
-    // The effect keys (issue 16): visibility and specular off and on again switch the renderer's
+    // The effect keys: visibility and specular off and on again switch the renderer's
     // programs; the tables, bindings and bytes stay. Off draws what a renderer built without them draws.
     let (bytes, objects) = (
         renderer.renderer().ledger().bytes(),
@@ -406,7 +406,7 @@ fn cli_render_reference_error_is_small() {
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
     let e = v["shading_rmse_vs_reference"].as_f64().expect("rmse");
     assert!(e < 0.05 && v["reference_pixels"].as_u64() > Some(50), "{v}");
-    // The shading model's own part (the CPU twin on the reference's inputs): issue 16's 0.02.
+    // The shading model's own part (the CPU twin on the reference's inputs): the 0.02.
     let model = v["shading_model_rmse_vs_reference"]
         .as_f64()
         .expect("model rmse");
@@ -482,7 +482,7 @@ fn golden_sg_frame() {
     assert!(mean <= 3.0 && max <= 160, "mean {mean:.3}, max {max}");
 }
 
-/// The per-level SG normal table (issue 16, "Memory") equals its CPU twin `ShadingBake::level_texel` at
+/// The per-level SG normal table ("Memory") equals its CPU twin `ShadingBake::level_texel` at
 /// every texel of every ring's clip region, bit for bit, after a flight on a small budget (rings move
 /// toroidally and go stale, some frames are planned but never prepared, one teleport): the tables follow
 /// the plan's ring uploads exactly. The twin `sg_taps` picks a held ring for points inside the data.
@@ -545,7 +545,7 @@ fn sg_tables_follow_the_rings() {
     }
 }
 
-/// With visibility, the light table (issue 16, "Cost": the view-independent shading per texel) equals
+/// With visibility, the light table ("Cost": the view-independent shading per texel) equals
 /// its CPU twin at every texel of every ring's clip region after a flight on a small budget:
 /// `shading::texel_light` of `ShadingBake::level_texel`'s r and horizon sines, rounded to f16, and the
 /// normal table's w the horizon's sine toward the sun, bit for bit.
@@ -654,7 +654,7 @@ fn sg_light_table_follows_the_rings() {
     assert!(blended >= 2, "{blended} points blended");
 }
 
-/// Issue 16's memory goal: the SG objects' GPU bytes are fixed by the profile and the scene's visibility,
+/// The memory goal: the SG objects' GPU bytes are fixed by the profile and the scene's visibility,
 /// whatever the terrain's size: the same on a 257^2 and a 4097^2 terrain, and equal to
 /// `Profile::sg_table_bytes` (the whole renderer: `Profile::footprint` plus that, plus the scene
 /// uniform). The bake (CPU memory) is capped at 129^2 here to keep the test fast; it does not change

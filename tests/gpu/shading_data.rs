@@ -1,4 +1,4 @@
-//! Issue 16, frames worth looking at: the default camera frames any terrain, shading comes from the finest
+//! Frames worth looking at: the default camera frames any terrain, shading comes from the finest
 //! resident ring data (GC section 6) whatever level a block is drawn at (CPU twin `twin::shading` and the
 //! renderer: SAT LOD's image error against the brute-force render stays near distance LOD's), and scene fog
 //! is fitted to the terrain. Headless strict GLES 3.0 on llvmpipe for the GPU test.
@@ -157,7 +157,7 @@ fn data_surface_twin_reads_the_finest_ring() {
     );
 }
 
-/// Shading survives LOD (issue 16's goal): at epsilon 2 px SAT LOD draws far fewer triangles, but its
+/// Shading survives LOD (goal): at epsilon 2 px SAT LOD draws far fewer triangles, but its
 /// image RMSE against the brute-force render stays within 1.2x of distance LOD's, because both shade from
 /// the same ring data rather than from the drawn mesh.
 #[test]
@@ -196,7 +196,7 @@ fn sat_lod_keeps_the_shading() {
     );
 }
 
-/// A clean data border (issue 16): seen from outside and low, the clipmap draws nothing where no view
+/// A clean data border: seen from outside and low, the clipmap draws nothing where no view
 /// ray within a pixel meets the data, so no skirt hangs below the terrain's edge as a curtain. The truth
 /// is the CPU's (`twin::border`: rays marched through the bilinear heights), not a GPU reference: on
 /// NVIDIA's driver the brute-force frame this test compared against came back one colour, which made

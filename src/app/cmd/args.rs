@@ -12,7 +12,7 @@ use clipsat::shading::debug_view::DebugView;
 use clipsat::shading::Patches;
 use clipsat::{Error, Param};
 
-/// `--gpu`: which GL context renders.
+/// `--gpu`: which graphics context renders.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, ValueEnum)]
 pub(crate) enum GpuArg {
     /// Strict if it works, else gl.
@@ -22,6 +22,8 @@ pub(crate) enum GpuArg {
     Strict,
     /// wgpu's own GL backend.
     Gl,
+    /// wgpu's Vulkan backend on the same GLES 3.0 limits (a build with the `vulkan` feature).
+    Vulkan,
 }
 
 impl From<GpuArg> for GpuMode {
@@ -30,6 +32,7 @@ impl From<GpuArg> for GpuMode {
             GpuArg::Auto => GpuMode::Auto,
             GpuArg::Strict => GpuMode::Strict,
             GpuArg::Gl => GpuMode::Gl,
+            GpuArg::Vulkan => GpuMode::Vulkan,
         }
     }
 }
@@ -37,7 +40,7 @@ impl From<GpuArg> for GpuMode {
 /// The `--gpu` option, shared by every command that renders.
 #[derive(Args, Clone, Copy, Debug)]
 pub(crate) struct GpuArgs {
-    /// GL context.
+    /// Graphics context (auto honours $CLIPSAT_GPU: strict, gl or vulkan).
     #[arg(long, value_enum, default_value_t = GpuArg::Auto)]
     pub(crate) gpu: GpuArg,
 }

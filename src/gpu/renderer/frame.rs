@@ -21,7 +21,7 @@ pub struct PrepareStats {
     /// Whether every level was re-sent in full (only for a plan that does not follow the last one
     /// prepared, e.g. one from another planner).
     pub full_upload: bool,
-    /// Detail pool tiles written (issue 15); their samples are in `upload_samples`.
+    /// Detail pool tiles written; their samples are in `upload_samples`.
     pub detail_tiles: u32,
     /// SG table texels written (`sg_tables.rs`): the same texels as the ring rectangles, so the same
     /// per-frame sample budget; not in `upload_samples`.

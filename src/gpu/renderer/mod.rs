@@ -113,7 +113,7 @@ struct GpuMesh {
 pub struct Renderer {
     ledger: Ledger,
     heights: wgpu::Texture,
-    /// The detail pool (issue 15): tiles of `detail_atlas.side^2` RG32F (z, z_c) texels, placed by `detail_atlas`.
+    /// The detail pool: tiles of `detail_atlas.side^2` RG32F (z, z_c) texels, placed by `detail_atlas`.
     detail: wgpu::Texture,
     detail_atlas: crate::profile::DetailAtlas,
     detail_quads: u32,

@@ -44,7 +44,7 @@ pub(super) struct SgPrograms {
 /// The variants a renderer can switch between: one slot per subset of (visibility, specular, fog).
 const SUBSETS: usize = 8;
 
-/// The GPU objects of the SG shading of one scene (design.md "Only the effects a scene calls for"): only
+/// The GPU objects of the SG shading of one scene (docs/design.md "Only the effects a scene calls for"): only
 /// the tables the scene needs are baked and bound, only its effects compiled. The effects can be switched
 /// off and on again within that set ([`SgState::set_effects`]): the tables stay, and each subset's programs
 /// are compiled the first time it is drawn and kept.

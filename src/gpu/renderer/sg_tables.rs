@@ -1,4 +1,4 @@
-//! Stage 3, the GPU: the SG shading inputs per clipmap level (issue 16, "Memory"; GC section 6's normal
+//! Stage 3, the GPU: the SG shading inputs per clipmap level (docs/design.md "Memory model"; GC section 6's normal
 //! maps kept per level, like the heights).
 //!
 //! Two 2D array textures of the rings' size S, toroidal like the height texture (texel = lattice sample
@@ -13,8 +13,8 @@
 //!   ([`crate::shading::texel_light`] of its r and
 //!   its D horizon angles, computed here on the CPU as the texel is written: every light's diffuse term
 //!   but the first sun's with the horizon applied, and the horizon's mean sine), so the fragment shader blends 4 texels
-//!   instead of fetching the D angles and integrating the horizon per pixel (issue 16, "Cost":
-//!   "precompute the per-patch visibility per texel of each level"). The scene's lights are fixed for
+//!   instead of fetching the D angles and integrating the horizon per pixel (the visibility
+//!   precomputed per texel of each level). The scene's lights are fixed for
 //!   the renderer's life, so the texels are too.
 //!
 //! Why not a SAT per level: a SAT entry sums everything before it, so it cannot be toroidal, and a ring
