@@ -95,6 +95,8 @@ pub struct Lod {
     max_blocks: usize,
     /// The object-space errors asked so far, kept across frames ([`EtaCache`]).
     etas: EtaCache,
+    /// Screen-space bounds evaluated so far ([`Lod::box_bound_past`] calls): the plan's work count.
+    evaluations: std::cell::Cell<u64>,
 }
 
 // A selector, and the planner holding it, can be built on one thread and planned on another.
@@ -187,6 +189,7 @@ impl Lod {
             view: (profile.view.width, profile.view.height),
             max_blocks: (profile.budget.max_draws as usize).min(MAX_LOD_BLOCKS),
             etas: EtaCache::default(),
+            evaluations: std::cell::Cell::new(0),
         }
     }
 
@@ -232,6 +235,12 @@ impl Lod {
     /// Rings finer than the data (clipmap level = data level + this).
     pub fn synth_levels(&self) -> u32 {
         self.synth
+    }
+
+    /// Screen-space bounds this selector has evaluated ([`Lod::box_bound_past`], through which every
+    /// bound goes): a count of the plan's work that does not depend on the machine.
+    pub fn evaluations(&self) -> u64 {
+        self.evaluations.get()
     }
 
     /// The baked tables.
@@ -327,6 +336,7 @@ impl Lod {
         bx: (i64, i64, i64, i64),
         limit: f64,
     ) -> f64 {
+        self.evaluations.set(self.evaluations.get() + 1);
         self.box_bound_deep(camera, mode, level, bx, limit, SPLIT_DEPTH)
     }
 

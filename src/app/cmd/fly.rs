@@ -4,6 +4,7 @@
 use std::fs::File;
 use std::io::{BufWriter, IsTerminal, Write};
 use std::path::{Path as FsPath, PathBuf};
+use std::time::Instant;
 
 use crate::app::plot::{LinePlot, Series};
 use clap::Args;
@@ -72,7 +73,8 @@ pub(crate) struct FlyArgs {
     /// With --render: render frames 0, K, 2K, ...
     #[arg(long, value_name = "K", default_value_t = 10)]
     render_every: u64,
-    /// With --render: image size, WxH pixels. Default: the profile's viewport.
+    /// The viewport, WxH pixels: the plan's (SAT LOD measures its error in these pixels) and, with
+    /// --render, the images'. Default: the profile's viewport.
     #[arg(long, value_name = "WxH", value_parser = pixel_size)]
     size: Option<Size>,
     #[command(flatten)]
@@ -94,6 +96,10 @@ pub(crate) struct FlyArgs {
 /// What the statistics keep of one frame.
 #[derive(Clone, Copy, Debug)]
 struct Row {
+    /// Wall time of `Planner::plan`, nanoseconds (measured in the run; the only clock in `fly`).
+    plan_ns: u64,
+    /// Screen-space bounds the plan evaluated (its work, the same on every machine).
+    bound_evaluations: u64,
     samples_updated: u32,
     stale_levels: u32,
     disabled_levels: u32,
@@ -170,6 +176,8 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
     let mut plan = planner.new_plan();
     let plan_params = PlanParams {
         epsilon_px: epsilon,
+        // --size is the viewport the plan's LOD measures pixels in, as well as the rendered image's.
+        viewport: args.size.map(Size::pair),
         ..PlanParams::default()
     };
     let mut blocks_clamped_max = 0u32;
@@ -298,7 +306,9 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
     for f in 0..frames {
         let camera = flight.camera(f);
         clipmap.update(camera.eye)?;
+        let t = Instant::now();
         planner.plan(&clipmap, &camera, &plan_params, &mut plan)?;
+        let plan_ns = u64::try_from(t.elapsed().as_nanos()).unwrap_or(u64::MAX);
         // Pool tiles waiting for a streamed package's decode: the next update's, after the rings.
         clipmap.request_samples(&plan.detail().wanted);
         let frame = clipmap.frame();
@@ -326,6 +336,8 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
         run_hash.write_u64(frame_hash);
         final_hash = frame_hash;
         rows.push(Row {
+            plan_ns,
+            bound_evaluations: plan.stats().bound_evaluations,
             samples_updated: frame.samples_updated,
             stale_levels: frame.stale_levels,
             disabled_levels: frame.disabled_levels,
@@ -419,6 +431,17 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
             "detail_samples_updated": detail_samples_total,
             "detail_samples_updated_max": detail_samples_max,
         });
+        // The plan's cost per frame, measured in the run (wall time) and counted (bounds evaluated).
+        let plan_cost = json!({
+            "plan_ms_p50": stats.plan_ns[0] as f64 / 1e6,
+            "plan_ms_p99": stats.plan_ns[1] as f64 / 1e6,
+            "plan_ms_max": stats.plan_ns[2] as f64 / 1e6,
+            "plan_ms_mean": stats.plan_ns_mean / 1e6,
+            "bound_evaluations_p50": stats.evaluations[0],
+            "bound_evaluations_p99": stats.evaluations[1],
+            "bound_evaluations_max": stats.evaluations[2],
+            "bound_evaluations_mean": stats.evaluations_mean,
+        });
         let mut out = json!({
             "stream": stream,
             "terrain": terrain_name,
@@ -466,6 +489,9 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
             "hash_out": args.hash_out.as_ref().map(|p| p.display().to_string()),
             "checked_against": args.check.as_ref().map(|p| p.display().to_string()),
         });
+        if let (Some(o), serde_json::Value::Object(cost)) = (out.as_object_mut(), plan_cost) {
+            o.extend(cost);
+        }
         if let (Some(o), serde_json::Value::Object(extra)) = (out.as_object_mut(), pool) {
             o.extend(extra);
             // Streamed through the tile cache (`stream.tile_cache`), as `render` says it.
@@ -513,6 +539,10 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
         outln!("samples      {a:>14} {b:>10} {c:>10}");
         let [a, b, c] = stats.triangles;
         outln!("triangles    {a:>14} {b:>10} {c:>10}");
+        let [a, b, c] = stats.plan_ns.map(|v| v as f64 / 1e6);
+        outln!("plan ms      {a:>14.3} {b:>10.3} {c:>10.3}");
+        let [a, b, c] = stats.evaluations;
+        outln!("bounds       {a:>14} {b:>10} {c:>10}");
         outln!(
             "stale levels max {} ({} frames with any), disabled max {}",
             stats.max_stale,
@@ -548,27 +578,42 @@ struct Stats {
     max_stale: u32,
     frames_stale: usize,
     max_disabled: u32,
+    /// `Planner::plan`'s wall time per frame, nanoseconds: p50, p99, max.
+    plan_ns: [u64; 3],
+    plan_ns_mean: f64,
+    /// Bounds evaluated per frame: p50, p99, max.
+    evaluations: [u64; 3],
+    evaluations_mean: f64,
+}
+
+/// p50, p99 and max of `v` by nearest rank (0 when empty).
+fn percentiles<T: Copy + Ord + Default>(mut v: Vec<T>) -> [T; 3] {
+    v.sort_unstable();
+    let at = |percent: usize| {
+        let rank = (percent * v.len()).div_ceil(100);
+        v.get(rank.max(1) - 1).copied().unwrap_or_default()
+    };
+    [at(50), at(99), v.last().copied().unwrap_or_default()]
 }
 
 impl Stats {
     fn of(rows: &[Row], budget: u32) -> Self {
-        let pct = |mut v: Vec<u32>| {
-            v.sort_unstable();
-            let at = |percent: usize| {
-                let rank = (percent * v.len()).div_ceil(100);
-                v.get(rank.max(1) - 1).copied().unwrap_or(0)
-            };
-            [at(50), at(99), v.last().copied().unwrap_or(0)]
-        };
+        let n = rows.len().max(1) as f64;
         let total: u64 = rows.iter().map(|r| u64::from(r.samples_updated)).sum();
+        let plan_total: u64 = rows.iter().map(|r| r.plan_ns).sum();
+        let eval_total: u64 = rows.iter().map(|r| r.bound_evaluations).sum();
         Self {
-            samples: pct(rows.iter().map(|r| r.samples_updated).collect()),
-            samples_mean: total as f64 / rows.len().max(1) as f64,
-            triangles: pct(rows.iter().map(|r| r.triangles).collect()),
+            samples: percentiles(rows.iter().map(|r| r.samples_updated).collect()),
+            samples_mean: total as f64 / n,
+            triangles: percentiles(rows.iter().map(|r| r.triangles).collect()),
             over_budget: rows.iter().filter(|r| r.samples_updated > budget).count(),
             max_stale: rows.iter().map(|r| r.stale_levels).max().unwrap_or(0),
             frames_stale: rows.iter().filter(|r| r.stale_levels > 0).count(),
             max_disabled: rows.iter().map(|r| r.disabled_levels).max().unwrap_or(0),
+            plan_ns: percentiles(rows.iter().map(|r| r.plan_ns).collect()),
+            plan_ns_mean: plan_total as f64 / n,
+            evaluations: percentiles(rows.iter().map(|r| r.bound_evaluations).collect()),
+            evaluations_mean: eval_total as f64 / n,
         }
     }
 }

@@ -155,6 +155,9 @@ pub struct PlanStats {
     pub detail_uploads: u32,
     /// Samples they hold (charged to the same per-frame budget as the rings, after them).
     pub detail_samples_updated: u64,
+    /// SAT modes: screen-space bounds this plan evaluated (selection and detail pool together,
+    /// [`Lod::evaluations`]): its work, counted the same on every machine.
+    pub bound_evaluations: u64,
 }
 
 /// One frame's plan; see the module doc. Allocated once by [`Planner::new_plan`], refilled per frame.
@@ -560,6 +563,7 @@ impl Planner {
         };
         out.lod.blocks.clear();
         out.detail.served.clear();
+        let evaluated = self.lod().map_or(0, Lod::evaluations);
         let sat = match &mut self.lod {
             LodSetup::Sat(mode, lod) => {
                 lod.set_epsilon_px(params.epsilon_px.map_or(self.default_epsilon, f64::from));
@@ -708,6 +712,7 @@ impl Planner {
             detail_uploads: u32::try_from(out.detail.uploads.len())
                 .expect("uploads <= DETAIL_CAPACITY"),
             detail_samples_updated: out.detail.samples_updated,
+            bound_evaluations: self.lod().map_or(0, Lod::evaluations) - evaluated,
         };
         out.hash = out.compute_hash();
         self.last = Some(frame.index);
