@@ -501,14 +501,16 @@ fn piece_level(frame: &crate::plan::frame::Frame, ring: u32, selected: u32, p: &
 /// each tile of a block that is drawn at another level than its ring, is edge-adjacent to such a block of the
 /// same ring, or lies on its ring's outer or hole boundary, so every boundary between different levels has a
 /// skirt on both sides. Blocks listed in `skip` (drawn from the detail pool, [`crate::plan::detail`]) are
-/// left out but still count as drawn at their level for their neighbours' skirts. More than
-/// `params.max_draws` draws is an [`Error::Capacity`].
+/// left out but still count as drawn at their level for their neighbours' skirts. The tiles' height
+/// ranges come through `heights` (kept while their texels are unchanged). More than `params.max_draws`
+/// draws is an [`Error::Capacity`].
 pub fn build_lod_draws(
     clipmap: &Clipmap,
     camera: &Camera,
     params: &DrawParams,
     lod: &crate::plan::lod::LodFrame,
     skip: &[(u16, u32)],
+    heights: &crate::plan::heights::TileHeights,
     out: &mut DrawList,
 ) -> Result<DrawStats> {
     out.clear();
@@ -606,7 +608,9 @@ pub fn build_lod_draws(
                     };
                     let visible = !params.cull || {
                         // Every vertex is a point of the level's surface over the tile's cells.
-                        let z = height_range(clipmap, level, &tile);
+                        let z = heights.range(clipmap, level, &tile, || {
+                            height_range(clipmap, level, &tile)
+                        });
                         let (lo, hi) = block_box(
                             clipmap,
                             fine,

@@ -6,7 +6,8 @@
 //! - [`budget`], [`clipmap`], [`ring`], [`synthesis`]: the budgeted coarse-to-fine toroidal update of every ring
 //!   (GC sections 3-5 and 8), recorded in a [`frame::Frame`] with its hash;
 //! - [`lod`]: SAT LOD block selection over the tables of [`crate::bake::lod_tables`];
-//! - [`cull`]: frustum culling into the fixed-capacity draw list;
+//! - [`cull`]: frustum culling into the fixed-capacity draw list ([`heights`]: the culled tiles' height
+//!   ranges, kept while their texels are unchanged);
 //! - [`detail`]: the detail pool, finer tiles for the blocks SAT LOD wants finer than the rings hold;
 //! - [`fragment`]: which fragment program each draw needs (the cheapest that gives the same pixels);
 //! - [`uniforms`]: the packed `#[repr(C)]` uniforms each draw needs;
@@ -25,6 +26,7 @@ pub mod flight;
 pub mod fragment;
 pub mod frame;
 pub mod frame_plan;
+pub mod heights;
 pub mod lod;
 pub mod mesh;
 pub mod morph;

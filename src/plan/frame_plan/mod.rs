@@ -176,6 +176,9 @@ pub struct FramePlan {
     slots: Vec<u8>,
     globals: Globals,
     stats: PlanStats,
+    /// The hash of the stitched pool cells' records, compact: each cell's own record, rectangle and
+    /// unit mask, from which its units' records follow (`units.rs`).
+    stitched_hash: u64,
     hash: u64,
 }
 
@@ -313,7 +316,18 @@ impl FramePlan {
             h.write_u32(d.cells.end);
         }
         h.write_bytes(self.slot_bytes());
-        h.write_bytes(self.cell_bytes());
+        // Pool cell records: those of whole cells as they are (the first ones); a stitched cell's units
+        // through the cell's record and mask (hashing every unit's record was a tenth of a SAT LOD
+        // plan's time). A plan without stitched cells hashes as it always did.
+        let whole = self
+            .ranges
+            .iter()
+            .find(|d| matches!(d.kind, DrawKind::PoolUnit | DrawKind::PoolUnitSkirt))
+            .map_or(self.cells.len(), |d| d.cells.start as usize);
+        h.write_bytes(bytemuck::cast_slice(&self.cells[..whole]));
+        if whole < self.cells.len() {
+            h.write_u64(self.stitched_hash);
+        }
         h.write_bytes(bytemuck::bytes_of(&self.globals));
         h.finish()
     }
@@ -349,6 +363,11 @@ pub struct Planner {
     /// The terrain's height range (m).
     z_range: (f32, f32),
     update_budget: u32,
+    /// The culled ring tiles' height ranges, kept while their texels are unchanged.
+    heights: crate::plan::heights::TileHeights,
+    /// Bound evaluations the detail pool's refinement may spend a frame
+    /// (`budget.refine_bounds_per_frame`).
+    refine_budget: u32,
 }
 
 /// Refuses a profile whose `budget.max_draws` exceeds the draw calls a frame plan (and the renderer's
@@ -424,6 +443,8 @@ impl Planner {
             ring_triangles: vec![0; crate::plan::lod::MAX_LOD_BLOCKS].into_boxed_slice(),
             z_range: (lo, hi),
             update_budget: profile.budget.update_samples_per_frame,
+            refine_budget: profile.budget.refine_bounds_per_frame,
+            heights: crate::plan::heights::TileHeights::default(),
         })
     }
 
@@ -443,6 +464,7 @@ impl Planner {
             slots: vec![0; self.max_draws as usize * SLOT],
             globals: Globals::zeroed(),
             stats: PlanStats::default(),
+            stitched_hash: 0,
             hash: 0,
         }
     }
@@ -583,7 +605,15 @@ impl Planner {
             extent,
         );
         let cull = if sat {
-            let base = cull::build_lod_draws(clipmap, camera, &dp, &out.lod, &[], &mut out.draws)?;
+            let base = cull::build_lod_draws(
+                clipmap,
+                camera,
+                &dp,
+                &out.lod,
+                &[],
+                &self.heights,
+                &mut out.draws,
+            )?;
             self.plan_detail(clipmap, camera, &dp, &paths, new_frame, out)?
                 .unwrap_or(base)
         } else {
@@ -598,6 +628,7 @@ impl Planner {
         };
         out.ranges.clear();
         out.cells.clear();
+        out.stitched_hash = 0;
         // A plan made by `new_plan` has the room; a clone or another planner's plan gets it once here.
         if out.cells.capacity() < self.cell_capacity {
             out.cells.reserve_exact(self.cell_capacity);
