@@ -532,11 +532,27 @@ pub fn build_lod_draws(
     // differs from its ring exactly when its level does.
     let differs = |b: &crate::plan::lod::BlockLod| b.level != b.ring;
     let blocks = &lod.blocks;
+    // The blocks of each ring (listed ring by ring), for the neighbour test, and the skipped blocks.
+    let mut rings = [(0usize, 0usize); crate::plan::frame::MAX_LEVELS];
     for (bi, b) in blocks.iter().enumerate() {
-        if skip.iter().any(|&(i, _)| usize::from(i) == bi) {
+        let r = &mut rings[(b.ring as usize).min(crate::plan::frame::MAX_LEVELS - 1)];
+        if r.1 == 0 {
+            r.0 = bi;
+        }
+        r.1 = bi + 1;
+    }
+    let mut skipped = [0u64; crate::plan::lod::MAX_LOD_BLOCKS / 64];
+    for &(i, _) in skip {
+        if let Some(w) = skipped.get_mut(usize::from(i) / 64) {
+            *w |= 1 << (i % 64);
+        }
+    }
+    for (bi, b) in blocks.iter().enumerate() {
+        if skipped[bi / 64] >> (bi % 64) & 1 == 1 {
             continue;
         }
         let (cx, cy) = cell(&b.rect);
+        let (r0, r1) = rings[(b.ring as usize).min(crate::plan::frame::MAX_LEVELS - 1)];
         // A block on its ring's outer boundary or on the hole borders another ring, drawn at another level.
         let a = frame.levels[b.ring as usize].active;
         let r = &b.rect;
@@ -545,7 +561,7 @@ pub fn build_lod_draws(
             && (differs(b)
                 || on_ring_edge
                 || !r.intersect(&hole_of(b.ring)).is_empty()
-                || blocks.iter().any(|o| {
+                || blocks[r0..r1].iter().any(|o| {
                     let (ox, oy) = cell(&o.rect);
                     differs(o) && o.ring == b.ring && (ox - cx).abs() + (oy - cy).abs() == 1
                 }));

@@ -49,13 +49,14 @@ impl TileHeights {
             (tile.x0, tile.x1()),
             (tile.y0, tile.y1()),
         );
-        let mut h = (u64::from(level) + 1).wrapping_mul(0x9e37_79b9_7f4a_7c15);
-        for v in [tile.x0, tile.y0, i64::from(tile.w), i64::from(tile.h)] {
-            #[expect(clippy::cast_sign_loss, reason = "hash mixing: only the bits matter")]
-            let v = v as u64;
-            h = (h ^ v).wrapping_mul(0x9e37_79b9_7f4a_7c15);
-        }
-        let slot = &self.0[usize::try_from(h >> 40).unwrap_or(0) & (SLOTS - 1)];
+        #[expect(clippy::cast_sign_loss, reason = "hash mixing: only the bits matter")]
+        let h = crate::plan::slot_hash(&[
+            u64::from(level),
+            tile.x0 as u64,
+            tile.y0 as u64,
+            u64::from(tile.w) << 32 | u64::from(tile.h),
+        ]);
+        let slot = &self.0[usize::try_from(h).unwrap_or(0) & (SLOTS - 1)];
         let e = slot.get();
         if e.clipmap == clipmap.id() && e.level == level && e.tile == *tile && e.stamp == stamp {
             return e.range;

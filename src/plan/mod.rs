@@ -35,3 +35,15 @@ pub mod stream;
 pub mod synthesis;
 pub mod uniforms;
 pub mod uploads;
+
+/// The slot of a fixed table for key `words`: every bit of every word mixed into the low bits (a
+/// multiply alone left keys such as (1, -1) and (-1, 1) on one slot).
+pub(crate) fn slot_hash(words: &[u64]) -> u64 {
+    let mut h = 0x243f_6a88_85a3_08d3u64;
+    for &w in words {
+        h = (h ^ w).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+        h ^= h >> 29;
+    }
+    h = h.wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    h ^ (h >> 32)
+}

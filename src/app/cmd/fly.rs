@@ -184,6 +184,14 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
         ..PlanParams::default()
     };
     let mut blocks_clamped_max = 0u32;
+    // SAT modes: per jump of the path (frame 0 counts as one), the frames until the plan has settled
+    // (no ring stale, the refinement has no work left that its budget stopped, every pool tile its cells
+    // read resident) and the blocks then clamped (None: not before the next jump or the end).
+    let mut recover: Vec<Option<(u64, u32)>> = Vec::new();
+    recover
+        .try_reserve_exact(usize::try_from(frames).unwrap_or(usize::MAX).min(1 << 20))
+        .map_err(|_| arg_error("--frames", "too many frames to keep jumps for"))?;
+    let mut since_jump: Option<u64> = None;
     // The detail pool (SAT modes): samples written per frame (max), and the last frame's state.
     let mut detail_samples_max = 0u64;
     let mut detail_samples_total = 0u64;
@@ -322,6 +330,19 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
             LodMode::Distance => frame.hash,
             _ => {
                 blocks_clamped_max = blocks_clamped_max.max(plan.stats().blocks_clamped);
+                if f == 0 || flight.jumps_at(f) {
+                    if since_jump.is_some() {
+                        recover.push(None);
+                    }
+                    since_jump = Some(f);
+                }
+                let s = plan.stats();
+                let settled =
+                    clipmap.frame().stale_levels == 0 && !s.refining && s.detail_tiles_waiting == 0;
+                if let Some(j) = since_jump.filter(|_| settled) {
+                    recover.push(Some((f - j, s.blocks_clamped)));
+                    since_jump = None;
+                }
                 let mut h = Hash64::new();
                 h.write_u64(frame.hash);
                 plan.lod_frame().hash_into(&mut h);
@@ -352,7 +373,9 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
             triangles: frame.triangles,
         });
         if let Some((p, w)) = &mut csv {
-            write_row(w, frame).map_err(|e| Error::io(*p, "cannot write", e))?;
+            let last = rows.last().copied();
+            write_row(w, frame, last.as_ref(), plan.stats())
+                .map_err(|e| Error::io(*p, "cannot write", e))?;
         }
         let updated = rows.last().map_or(0, |r| r.samples_updated);
         let detail = u32::try_from(plan.stats().detail_samples_updated).unwrap_or(u32::MAX);
@@ -440,7 +463,16 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
             "detail_samples_updated_max": detail_samples_max,
         });
         // The plan's cost per frame, measured in the run (wall time) and counted (bounds evaluated).
+        if since_jump.is_some() {
+            recover.push(None);
+        }
+        let settled: Vec<u64> = recover.iter().flatten().map(|r| r.0).collect();
         let plan_cost = json!({
+            "jumps": recover.len(),
+            "settle_frames": recover.iter().map(|r| r.map(|r| r.0)).collect::<Vec<_>>(),
+            "settle_blocks_clamped": recover.iter().map(|r| r.map(|r| r.1)).collect::<Vec<_>>(),
+            "settle_frames_max": settled.iter().max(),
+            "jumps_not_settled": recover.iter().filter(|r| r.is_none()).count(),
             "plan_run_hash": hex(plan_hashes.finish()),
             "plan_ms_p50": stats.plan_ns[0] as f64 / 1e6,
             "plan_ms_p99": stats.plan_ns[1] as f64 / 1e6,
@@ -646,7 +678,8 @@ fn open_csv(path: &FsPath, levels: u32) -> Result<BufWriter<File>> {
     let file = File::create(path).map_err(|e| Error::io(path, "cannot create", e))?;
     let mut w = BufWriter::with_capacity(1 << 16, file);
     let mut header = String::from(
-        "frame,samples_updated,budget_used,levels_updated,stale_levels,disabled_levels,triangles,hash",
+        "frame,samples_updated,budget_used,levels_updated,stale_levels,disabled_levels,triangles,hash,\
+         plan_us,plan_cpu_us,bound_evaluations,refine_evaluations,blocks_clamped,plan_triangles",
     );
     for l in 0..levels {
         header.push_str(&format!(",active_l{l}"));
@@ -656,7 +689,12 @@ fn open_csv(path: &FsPath, levels: u32) -> Result<BufWriter<File>> {
 }
 
 /// One CSV row; `write!` into the buffered writer formats in place, without allocating.
-fn write_row(w: &mut impl Write, f: &Frame) -> std::io::Result<()> {
+fn write_row(
+    w: &mut impl Write,
+    f: &Frame,
+    row: Option<&Row>,
+    s: clipsat::plan::frame_plan::PlanStats,
+) -> std::io::Result<()> {
     let used = f64::from(f.samples_updated) / f64::from(f.budget.max(1));
     write!(
         w,
@@ -668,6 +706,18 @@ fn write_row(w: &mut impl Write, f: &Frame) -> std::io::Result<()> {
         f.disabled_levels,
         f.triangles,
         f.hash
+    )?;
+    let (us, cpu) = row.map_or((0, None), |r| {
+        (r.plan_ns / 1000, r.plan_cpu_ns.map(|c| c / 1000))
+    });
+    write!(
+        w,
+        ",{us},{},{},{},{},{}",
+        cpu.map_or(String::new(), |c| c.to_string()),
+        s.bound_evaluations,
+        s.refine_evaluations,
+        s.blocks_clamped,
+        s.triangles
     )?;
     for l in &f.levels {
         write!(w, ",{}x{}", l.active.w, l.active.h)?;

@@ -200,6 +200,8 @@ pub struct DetailFrame {
     pub refining: bool,
     /// Bound evaluations the refinement spent (at most the budget). Not hashed.
     pub refine_evaluations: u64,
+    /// Distinct tiles this plan's pool cells read that no slot holds yet (their blocks wait). Not hashed.
+    pub tiles_waiting: u32,
 }
 
 impl DetailFrame {
@@ -425,7 +427,7 @@ impl DetailPool {
             slots,
             clock: 0,
             seq: 0,
-            tree: Quadtree::default(),
+            tree: Quadtree::new(profile.detail_quads()),
             order: Box::default(),
             eps: 0.0,
         }
@@ -456,7 +458,7 @@ impl DetailPool {
         for s in &mut self.slots {
             *s = Slot::default();
         }
-        self.tree = Quadtree::default();
+        self.tree = Quadtree::new(self.quads);
         self.clock = 0;
         self.seq = 0;
     }
@@ -527,7 +529,7 @@ impl DetailPool {
             ring_triangles,
             evaluations,
         )?;
-        out.refining = self.tree.pending.is_some();
+        out.refining = self.tree.refining;
         out.refine_evaluations = self.tree.spent;
         out.tiles_needed = u32::try_from(self.tree.keys.len()).expect("keys <= DETAIL_CAPACITY");
         // Every resident tile needed this frame is kept before any slot is refilled.
@@ -620,7 +622,7 @@ impl DetailPool {
         }
         // The refinement has splits left for later frames: the region the next one reads, so that a
         // streamed source decodes it ahead and a warm-up knows the pool is not done.
-        if let Some(next) = self.tree.pending {
+        if let Some(next) = self.tree.pending.filter(|_| self.tree.refining) {
             if !out.wanted.contains(&next) {
                 let _ = out.wanted.push(next);
             }
@@ -629,6 +631,13 @@ impl DetailPool {
         for s in &self.slots {
             out.resident.push(s.key).expect("slots <= DETAIL_CAPACITY");
         }
+        let waiting = self
+            .tree
+            .keys
+            .iter()
+            .filter(|(k, _)| self.find(k).is_none())
+            .count();
+        out.tiles_waiting = u32::try_from(waiting).expect("keys <= DETAIL_CAPACITY");
         Ok(())
     }
 

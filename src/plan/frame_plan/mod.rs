@@ -158,6 +158,14 @@ pub struct PlanStats {
     /// SAT modes: screen-space bounds this plan evaluated (selection and detail pool together,
     /// [`Lod::evaluations`]): its work, counted the same on every machine.
     pub bound_evaluations: u64,
+    /// SAT modes: the bound evaluations the detail pool's refinement spent (at most
+    /// `budget.refine_bounds_per_frame`).
+    pub refine_evaluations: u64,
+    /// SAT modes: the refinement stopped at its budget with work left (a still camera's next plans
+    /// refine further).
+    pub refining: bool,
+    /// SAT modes: distinct pool tiles the plan's cells read that no slot holds yet.
+    pub detail_tiles_waiting: u32,
 }
 
 /// One frame's plan; see the module doc. Allocated once by [`Planner::new_plan`], refilled per frame.
@@ -744,6 +752,9 @@ impl Planner {
                 .expect("uploads <= DETAIL_CAPACITY"),
             detail_samples_updated: out.detail.samples_updated,
             bound_evaluations: self.lod().map_or(0, Lod::evaluations) - evaluated,
+            refine_evaluations: if sat { out.detail.refine_evaluations } else { 0 },
+            refining: sat && out.detail.refining,
+            detail_tiles_waiting: if sat { out.detail.tiles_waiting } else { 0 },
         };
         out.hash = out.compute_hash();
         self.last = Some(frame.index);

@@ -215,9 +215,9 @@ impl Planner {
         }
     }
 
-    /// The clamped blocks that meet the view frustum (the ones whose error shows): [`LodFrame`]'s
-    /// `blocks_clamped` less those outside it, which the pool never refines. A block the pool serves
-    /// counts when one of its cells misses epsilon.
+    /// The clamped blocks whose pieces (the block less the finer ring's hole, what it draws) meet the view
+    /// frustum (the ones whose error shows): [`LodFrame`]'s `blocks_clamped` less those out of view,
+    /// which the pool never refines. A block the pool serves counts when one of its cells misses epsilon.
     ///
     /// [`LodFrame`]: crate::plan::lod::LodFrame
     pub(super) fn visible_clamped(
@@ -236,7 +236,17 @@ impl Planner {
                 Some(k) => !d.served_met.get(k).copied().unwrap_or(false),
                 None => b.wanted < b.level,
             };
-            if clamped && view.visible(b.ring, &b.rect) {
+            // What the block draws is its pieces: the part under the finer ring's hole is that ring's.
+            let hole = match b.ring.checked_sub(1) {
+                Some(f) => cull::hole(&clipmap.frame().levels[f as usize].active),
+                None => crate::plan::frame::Rect::EMPTY,
+            };
+            let shown = || {
+                cull::block_pieces(&b.rect, &hole)
+                    .iter()
+                    .any(|p| view.visible(b.ring, p))
+            };
+            if clamped && shown() {
                 n += 1;
             }
         }

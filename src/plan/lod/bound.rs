@@ -104,6 +104,78 @@ impl Lod {
         }
     }
 
+    /// What a box's scale reads of its corner at level-0 lattice vertex (x, y), at the terrain's highest
+    /// height when `top`, else its lowest ([`VerticalScale::corner`]): boxes that share corners (a cell's
+    /// stitched units and their groups) compute each once.
+    pub fn corner(&self, v: &BoundView, x: i64, y: i64, top: bool) -> Corner {
+        let z = if top { self.z_range.1 } else { self.z_range.0 };
+        v.scale.corner(self.rel(v, x, y, z))
+    }
+
+    /// The scale of `bx` from its eight corners ([`Lod::corner`]): [`Lod::box_scale`], bit for bit.
+    fn scale_of_corners(&self, v: &BoundView, (a, c, b, d): LatticeBox, corners: &[Corner; 8]) -> BoxScale {
+        let lo = self.rel(v, a, d, self.z_range.0);
+        let hi = self.rel(v, b, c, self.z_range.1);
+        v.scale.box_of(corners, DVec3::ZERO.clamp(lo, hi).length())
+    }
+
+    /// [`Lod::bound_in`] of `bx` whose eight corners are known ([`Lod::corner`]): the same value.
+    #[expect(clippy::too_many_arguments, reason = "the bound's inputs and the corners it reads")]
+    pub fn bound_with_corners(
+        &self,
+        v: &BoundView,
+        mode: LodMode,
+        level: u32,
+        bx: LatticeBox,
+        limit: f64,
+        corners: &[Corner; 8],
+    ) -> f64 {
+        let whole = self.scale_of_corners(v, bx, corners);
+        self.evaluations.set(self.evaluations.get() + 1);
+        self.bound_deep(v, mode, level, bx, limit, SPLIT_DEPTH, Some(whole), None)
+    }
+
+    /// The object-space error of `level` under `mode` over `bx` (None: no table holds the level): what a
+    /// stitched unit's bound projects, for a caller that keeps it ([`Lod::unit_bound`]).
+    pub fn eta_of(&self, mode: LodMode, level: u32, bx: LatticeBox) -> Option<f64> {
+        self.eta(mode, level, bx)
+    }
+
+    /// [`Lod::bound_with_corners`] of a box that is not split (a stitched unit, one quad of `level`),
+    /// whose error `eta` ([`Lod::eta_of`]) is known: the same value (one bound evaluation).
+    pub fn unit_bound(
+        &self,
+        v: &BoundView,
+        mode: LodMode,
+        bx: LatticeBox,
+        corners: &[Corner; 8],
+        eta: Option<f64>,
+    ) -> f64 {
+        self.evaluations.set(self.evaluations.get() + 1);
+        match eta {
+            None => f64::INFINITY,
+            Some(e) if e == 0.0 || mode == LodMode::Distance => 0.0,
+            Some(e) => self.scale_of_corners(v, bx, corners).px(e),
+        }
+    }
+
+    /// [`Lod::cap_bound_in`] of `bx` whose eight corners are known: the same value.
+    pub fn cap_bound_with_corners(
+        &self,
+        v: &BoundView,
+        mode: LodMode,
+        level: u32,
+        bx: LatticeBox,
+        corners: &[Corner; 8],
+    ) -> f64 {
+        self.evaluations.set(self.evaluations.get() + 1);
+        match self.eta_cap(mode, level, bx) {
+            None => f64::INFINITY,
+            Some(e) if e == 0.0 => 0.0,
+            Some(e) => self.scale_of_corners(v, bx, corners).px(e),
+        }
+    }
+
     /// A key of everything the bounds of a frame seen from `camera` in `mode` depend on besides the
     /// box: the camera, the viewport and epsilon, bit for bit (never 0). Equal keys, equal bounds.
     pub fn view_key(&self, camera: &Camera, mode: LodMode) -> u64 {

@@ -7,6 +7,7 @@ use std::cell::Cell;
 
 use super::LodMode;
 use crate::plan::frame::Rect;
+use crate::plan::slot_hash;
 
 /// Entries of [`EtaCache`] (a power of two): 32 bytes each, 1 MiB, allocated once with the selector.
 const ETA_SLOTS: usize = 1 << 15;
@@ -41,13 +42,12 @@ impl EtaCache {
     pub(super) fn get(&self, k: u32, mode: LodMode, bx: [u32; 4], compute: impl FnOnce() -> f64) -> f64 {
         let key_k = u16::try_from(k + 1).unwrap_or(u16::MAX);
         let mode_id = mode as u8;
-        let mut h =
-            (u64::from(key_k) << 8 | u64::from(mode_id)).wrapping_mul(0x9e37_79b9_7f4a_7c15);
-        for v in bx {
-            h = (h ^ u64::from(v)).wrapping_mul(0x9e37_79b9_7f4a_7c15);
-        }
-        // The hash's top 24 bits index the table.
-        let slot = &self.0[usize::try_from(h >> 40).unwrap_or(0) & (ETA_SLOTS - 1)];
+        let h = slot_hash(&[
+            u64::from(key_k) << 8 | u64::from(mode_id),
+            u64::from(bx[0]) << 32 | u64::from(bx[1]),
+            u64::from(bx[2]) << 32 | u64::from(bx[3]),
+        ]);
+        let slot = &self.0[usize::try_from(h).unwrap_or(0) & (ETA_SLOTS - 1)];
         let e = slot.get();
         if e.k == key_k && e.mode == mode_id && e.bx == bx {
             return e.value;
@@ -72,6 +72,8 @@ pub(super) struct Selected {
     /// The view it was computed in ([`view_key`]; 0: empty).
     pub(super) view: u64,
     pub(super) ring: u32,
+    /// Its column and row in the ring's grid of blocks.
+    pub(super) cell: (i64, i64),
     pub(super) rect: Rect,
     /// The frame's levels when computed (the descent starts at the coarsest).
     pub(super) levels: u32,
@@ -81,11 +83,16 @@ pub(super) struct Selected {
     pub(super) level: u32,
     pub(super) eta: f64,
     pub(super) bound: f64,
+    /// The block's scale then, pixels per metre of error ([`crate::plan::camera::BoxScale::per_metre`]).
+    pub(super) scale: f64,
+    /// The threshold test's value at the wanted level then (at most epsilon; infinite if none met it).
+    pub(super) met: f64,
 }
 
-/// Each block's last selection, by ring and rectangle: a block seen in the same view (camera, viewport,
-/// epsilon and mode bit for bit, so every bound of it is the same) takes its wanted level, error and
-/// bound from here instead of reading bounds. Direct-mapped (a colliding block replaces the entry), so
+/// Each block's last selection, by ring and grid cell: a block seen in the same view (camera, viewport,
+/// epsilon and mode bit for bit, so every bound of it is the same) with the same rectangle takes its
+/// wanted level, error and bound from here instead of reading bounds; one seen in another view, or
+/// clipped otherwise, starts its search from the level kept here. Direct-mapped (a colliding block replaces the entry), so
 /// every value is the selection's own; interior mutability keeps the selector's methods `&self`.
 #[derive(Clone, Debug)]
 pub(super) struct SelectCache(Box<[Cell<Selected>]>);
@@ -97,31 +104,37 @@ impl Default for SelectCache {
 }
 
 impl SelectCache {
-    fn slot(&self, ring: u32, rect: &Rect) -> &Cell<Selected> {
-        let mut h = (u64::from(ring) + 1).wrapping_mul(0x9e37_79b9_7f4a_7c15);
-        for v in [rect.x0, rect.y0, i64::from(rect.w), i64::from(rect.h)] {
-            #[expect(clippy::cast_sign_loss, reason = "hash mixing: only the bits matter")]
-            let v = v as u64;
-            h = (h ^ v).wrapping_mul(0x9e37_79b9_7f4a_7c15);
-        }
-        &self.0[usize::try_from(h >> 40).unwrap_or(0) & (SELECT_SLOTS - 1)]
+    /// The entry of the block in cell `cell` (its column and row in the ring's block grid) of `ring`.
+    fn slot(&self, ring: u32, cell: (i64, i64)) -> &Cell<Selected> {
+        #[expect(clippy::cast_sign_loss, reason = "hash mixing: only the bits matter")]
+        let h = slot_hash(&[u64::from(ring), cell.0 as u64, cell.1 as u64]);
+        &self.0[usize::try_from(h).unwrap_or(0) & (SELECT_SLOTS - 1)]
     }
 
-    /// Block (`ring`, `rect`)'s selection in view `view` with `levels` levels, if kept.
-    pub(super) fn get(&self, view: u64, ring: u32, rect: &Rect, levels: u32) -> Option<Selected> {
-        let e = self.slot(ring, rect).get();
-        (e.view == view && e.ring == ring && e.rect == *rect && e.levels == levels).then_some(e)
+    /// Block (`ring`, `rect`, in grid cell `cell`)'s selection in view `view` with `levels` levels, if
+    /// kept.
+    pub(super) fn get(
+        &self,
+        view: u64,
+        ring: u32,
+        cell: (i64, i64),
+        rect: &Rect,
+        levels: u32,
+    ) -> Option<Selected> {
+        self.last(ring, cell, levels)
+            .filter(|e| e.view == view && e.rect == *rect)
     }
 
-    /// Block (`ring`, `rect`)'s last selection with `levels` levels, in whatever view.
-    pub(super) fn last(&self, ring: u32, rect: &Rect, levels: u32) -> Option<Selected> {
-        let e = self.slot(ring, rect).get();
-        (e.view != 0 && e.ring == ring && e.rect == *rect && e.levels == levels).then_some(e)
+    /// The last selection of a block in grid cell `cell` of `ring` with `levels` levels, in whatever
+    /// view and clipping of the cell.
+    pub(super) fn last(&self, ring: u32, cell: (i64, i64), levels: u32) -> Option<Selected> {
+        let e = self.slot(ring, cell).get();
+        (e.view != 0 && e.ring == ring && e.cell == cell && e.levels == levels).then_some(e)
     }
 
     /// Keeps `e`.
     pub(super) fn put(&self, e: Selected) {
-        self.slot(e.ring, &e.rect).set(e);
+        self.slot(e.ring, e.cell).set(e);
     }
 }
 

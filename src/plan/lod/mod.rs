@@ -102,6 +102,8 @@ pub struct Lod {
     etas: EtaCache,
     /// Each block's last selection, by view ([`SelectCache`]).
     selected: SelectCache,
+    /// The view of the last selection ([`Lod::view_key`]): the camera moves while it changes.
+    last_view: std::cell::Cell<u64>,
     /// Screen-space bounds evaluated so far ([`Lod::box_bound_past`] calls): the plan's work count.
     evaluations: std::cell::Cell<u64>,
 }
@@ -142,6 +144,7 @@ impl Lod {
             max_blocks: (profile.budget.max_draws as usize).min(MAX_LOD_BLOCKS),
             etas: EtaCache::default(),
             selected: SelectCache::default(),
+            last_view: std::cell::Cell::new(0),
             evaluations: std::cell::Cell::new(0),
         }
     }
@@ -334,7 +337,7 @@ impl Lod {
                     if r.w < 2 || r.h < 2 || hole.contains(&r) {
                         continue;
                     }
-                    let b = self.choose(frame, &v, view, mode, l32, r);
+                    let b = self.choose(frame, &v, view, mode, (l32, (cx, cy)), r);
                     if b.wanted < b.level {
                         out.blocks_clamped += 1;
                     }
@@ -356,6 +359,7 @@ impl Lod {
                 }
             }
         }
+        self.last_view.set(view);
         Ok(())
     }
 
@@ -368,7 +372,7 @@ impl Lod {
         v: &BoundView,
         view: u64,
         mode: LodMode,
-        ring: u32,
+        (ring, cell): (u32, (i64, i64)),
         r: Rect,
     ) -> BlockLod {
         // Level-0 lattice box of the block (inclusive vertices).
@@ -380,15 +384,31 @@ impl Lod {
         );
         let bx = (a, c, b, d);
         let levels = u32::try_from(frame.levels.len()).expect("levels < MAX_LEVELS");
-        let kept = self.selected.get(view, ring, &r, levels);
+        let kept = self.selected.get(view, ring, cell, &r, levels);
         let mut whole: Option<BoxScale> = None;
+        let eps = self.epsilon_px;
+        // Moving: a block whose scale has not changed enough to take it past epsilon (its last bound at
+        // its wanted level, rescaled) or to let it go coarser keeps that level without a bound read.
+        let moving = self.last_view.get() != view;
+        let held = match kept {
+            Some(_) => None,
+            None if !moving || mode == LodMode::Distance => None,
+            None => self
+                .selected
+                .last(ring, cell, levels)
+                .filter(|e| e.rect == r)
+                .and_then(|e| {
+                    let now = whole.get_or_insert_with(|| self.box_scale(v, bx)).per_metre();
+                    let k = now / e.scale;
+                    (e.scale > 0.0 && k >= 1.0 / KEEP_BAND && e.met * k <= eps).then_some((e, k))
+                }),
+        };
         let mut cut = Split::default();
         let mut scale_of = |lod: &Self| *whole.get_or_insert_with(|| lod.box_scale(v, bx));
         // The threshold test of one level, and the value of the last one that met epsilon.
         let mut met_at: Option<(u32, f64)> = None;
         let mut test = |lod: &Self, level: u32| -> bool {
             lod.evaluations.set(lod.evaluations.get() + 1);
-            let eps = lod.epsilon_px;
             let s = scale_of(lod);
             let t = lod.bound_deep(v, mode, level, bx, eps, SPLIT_DEPTH, Some(s), Some(&mut cut));
             if t <= eps {
@@ -397,10 +417,10 @@ impl Lod {
             t <= eps
         };
         let top = levels.max(self.synth + 1);
-        let wanted = match kept {
-            Some(e) => e.wanted,
-            None if mode == LodMode::Distance => ring,
-            None => match self.selected.last(ring, &r, levels) {
+        let wanted = match (kept, held) {
+            (Some(e), _) | (None, Some((e, _))) => e.wanted,
+            (None, None) if mode == LodMode::Distance => ring,
+            (None, None) => match self.selected.last(ring, cell, levels) {
                 // Seen in another view: the search starts at its last wanted level and ends at the
                 // coarsest level of the run of levels meeting epsilon it finds there. That is algorithm
                 // 1's level wherever the bound grows with the level, and never a coarser one: a level it
@@ -441,6 +461,11 @@ impl Lod {
         let (eta, bound) = match (kept, met_at) {
             _ if mode == LodMode::Distance => (0.0, 0.0),
             (Some(e), _) if e.level == level => (e.eta, e.bound),
+            // Held by its scale: its bound then, rescaled (an estimate until it is tested again).
+            (None, _) if held.is_some_and(|(e, _)| e.level == level) => {
+                let (e, k) = held.expect("checked");
+                (e.eta, e.bound * k)
+            }
             // Drawn at the level the search took: its threshold test's value is a bound (<= epsilon).
             (_, Some((l, t))) if l == level => (self.eta(mode, level, bx).unwrap_or(f64::INFINITY), t),
             _ => {
@@ -452,16 +477,28 @@ impl Lod {
                 (eta, bound)
             }
         };
-        if mode != LodMode::Distance {
+        if mode != LodMode::Distance && held.is_none() {
+            let met = match (kept, met_at) {
+                (Some(e), _) => e.met,
+                (None, Some((l, t))) if l == wanted => t,
+                _ => f64::INFINITY,
+            };
+            let scale = match kept {
+                Some(e) => e.scale,
+                None => scale_of(self).per_metre(),
+            };
             self.selected.put(Selected {
                 view,
                 ring,
+                cell,
                 rect: r,
                 levels,
                 wanted,
                 level,
                 eta,
                 bound,
+                scale,
+                met,
             });
         }
         #[expect(clippy::cast_possible_truncation, reason = "reported in f32")]
@@ -475,6 +512,12 @@ impl Lod {
         }
     }
 }
+
+/// While the camera moves, a block keeps its last level as long as its scale has not shrunk by more than
+/// this factor (it could then take a coarser one) nor grown enough to take its last bound at that level
+/// past epsilon: the issue of a moving camera is which blocks changed, not every block every frame. A
+/// still camera tests every block kept that way again in its next frame.
+pub const KEEP_BAND: f64 = 1.125;
 
 /// Sub-boxes per side [`Lod::box_bound_px`] splits a box into (on the tested level's lattice).
 pub const SPLIT: usize = 4;

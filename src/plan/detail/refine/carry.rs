@@ -26,6 +26,8 @@ impl Quadtree {
         let view = at.view;
         let eps = view.epsilon_px;
         let fresh_view = self.inputs.is_none() || bounds.key != self.view_key;
+        // The first view is not a move: its refinement is the one-frame refinement, spread over frames.
+        self.moved = fresh_view && self.inputs.is_some();
         if fresh_view {
             self.view = self.view.wrapping_add(1).max(1);
             self.view_key = bounds.key;
@@ -67,6 +69,7 @@ impl Quadtree {
                     credit: ring_triangles.get(i).copied().unwrap_or(0),
                     refined: false,
                     frozen: false,
+                    hidden: false,
                     scale: 0.0,
                 };
                 for v in [u64::from(c.block), u64::from(c.key.ring), u64::from(c.clamped)] {
@@ -93,7 +96,7 @@ impl Quadtree {
             return Ok(());
         }
         self.inputs = Some(inputs);
-        self.rematch();
+        self.rematch(fresh_view);
         for k in 0..self.cands.len() {
             let bl = &at.lod.blocks[usize::from(self.cands[k].block)];
             let bx = (
@@ -109,18 +112,41 @@ impl Quadtree {
         }
         self.recount(at);
         self.shed(at);
+        // Units frozen for want of room are tried again once more is left than when the last one froze.
+        if let Some(m) = self.mark {
+            let f = self.free(at);
+            if f.0 > m.0 || f.1 > m.1 || f.2 > m.2 || f.3 > m.3 {
+                self.thaw();
+            }
+        }
         Ok(())
+    }
+
+    /// Lets every frozen unit be tried again.
+    fn thaw(&mut self) {
+        self.mark = None;
+        for c in self.cands.iter_mut() {
+            c.frozen = false;
+        }
+        for c in self.cells.iter_mut() {
+            c.frozen = false;
+        }
+        for g in self.ghosts.iter_mut() {
+            g.frozen = false;
+        }
     }
 
     /// Matches this frame's blocks (`self.next`) with the last frame's by [`BlockKey`]: a match keeps
     /// its refinement, its cells and ghosts move to the block's new index; the others' are dropped.
-    fn rematch(&mut self) {
+    fn rematch(&mut self, fresh_view: bool) {
         for c in self.cands.iter() {
             self.remap[usize::from(c.block)] = NONE;
         }
         for n in self.next.iter_mut() {
             if let Some(o) = self.cands.iter().find(|o| o.key == n.key) {
                 n.refined = o.refined;
+                n.frozen = o.frozen;
+                n.hidden = o.hidden && !fresh_view;
                 self.remap[usize::from(o.block)] = n.block;
             }
         }
@@ -139,14 +165,15 @@ impl Quadtree {
         };
         retain(&mut self.cells, |c: &mut Cell| match moved(c.block) {
             Some((n, wanted)) => {
-                (c.block, c.wanted, c.frozen) = (n, wanted, false);
+                (c.block, c.wanted) = (n, wanted);
+                c.hidden &= !fresh_view;
                 true
             }
             None => false,
         });
         retain(&mut self.ghosts, |g: &mut Ghost| match moved(g.block) {
             Some((n, wanted)) => {
-                (g.block, g.wanted, g.frozen) = (n, wanted, false);
+                (g.block, g.wanted) = (n, wanted);
                 true
             }
             None => false,
@@ -191,9 +218,6 @@ impl Quadtree {
         self.keys.clear();
         self.groups.clear();
         self.instances = 0;
-        for c in self.cands.iter_mut() {
-            c.frozen = false;
-        }
         let mut has = [false; MAX_LOD_BLOCKS];
         let mut grouped = true;
         for c in self.cells.iter() {

@@ -3,10 +3,12 @@
 //! its error capped by the level's max pyramid is at least each unit's own bound, so a group that meets
 //! epsilon has every unit meet it, and a group out of view has every unit out of view: only the groups
 //! that miss are cut into quarters, down to single units, each tested as before. Most of a cell meets
-//! epsilon or misses it together, so a cell of 16 x 16 units costs a few tests instead of 256.
+//! epsilon or misses it together, so a cell of 16 x 16 units costs a few tests instead of 256. The units
+//! and groups of a cell share their corners ([`CornerGrid`]), each projected once.
 
 use super::level0_box;
 use super::memo::Asker;
+use crate::plan::camera::Corner;
 use crate::plan::detail::{stitch, DetailView};
 use crate::plan::frame::Rect;
 
@@ -15,11 +17,126 @@ use crate::plan::frame::Rect;
 /// the roundings of the two computations (relative 1e-15).
 const GROUP_MARGIN: f64 = 1.0 - 1.0e-9;
 
+/// Unit corners a cell side has at most.
+const SIDE: usize = stitch::MAX_UNITS as usize + 1;
+
+/// The projected corners of one cell's units ([`crate::plan::lod::Lod::corner`]), computed when first
+/// read: a scratch allocated once with the quadtree, emptied per cell by a new stamp.
+#[derive(Clone, Debug)]
+pub(super) struct CornerGrid {
+    stamp: u32,
+    /// Per unit corner (row-major, [`SIDE`] a row): the stamp it was computed under, and its corner at
+    /// the terrain's lowest and highest height.
+    at: Box<[(u32, [Corner; 2])]>,
+}
+
+impl Default for CornerGrid {
+    fn default() -> Self {
+        Self {
+            stamp: 0,
+            at: vec![(0, [Corner::default(); 2]); SIDE * SIDE].into_boxed_slice(),
+        }
+    }
+}
+
+impl CornerGrid {
+    /// Forgets every corner (another cell).
+    fn begin(&mut self) {
+        self.stamp = self.stamp.wrapping_add(1);
+        if self.stamp == 0 {
+            self.at.fill((0, [Corner::default(); 2]));
+            self.stamp = 1;
+        }
+    }
+}
+
+/// Tiles whose units' errors [`UnitEtas`] keeps.
+const ETA_TILES: usize = 256;
+
+/// The object-space errors of stitched units, per pool tile: unit (a, b) of tile (level k, cx, cy) is
+/// one quad of level k + 1, whose error is a pure function of the tables, read once and kept for every
+/// later mask of the tile (a mask of a moving view asks them again). Allocated once with the quadtree;
+/// the least recently used tile gives its room to a new one.
+#[derive(Clone, Debug)]
+pub(super) struct UnitEtas {
+    /// Units per tile side.
+    side: usize,
+    /// Per tile slot: (level, cx, cy) and the frame it was last read (0: empty).
+    keys: Box<[(u32, i64, i64, u32)]>,
+    /// `side^2` errors per slot, row-major; NaN: not read yet; infinite: no table holds the level.
+    vals: Box<[f64]>,
+    frame: u32,
+}
+
+impl UnitEtas {
+    /// A table for tiles of `quads` quads a side.
+    pub(super) fn new(quads: u32) -> Self {
+        let side = (quads as usize / 2).clamp(1, stitch::MAX_UNITS as usize);
+        Self {
+            side,
+            keys: vec![(0, 0, 0, 0); ETA_TILES].into_boxed_slice(),
+            vals: vec![f64::NAN; ETA_TILES * side * side].into_boxed_slice(),
+            frame: 1,
+        }
+    }
+
+    /// A new frame: tiles read since may give their room.
+    pub(super) fn next_frame(&mut self) {
+        self.frame = self.frame.wrapping_add(1).max(1);
+    }
+
+    /// The slot of tile (`level`, `cx`, `cy`), emptied for it if it was not kept: an empty slot, else
+    /// the least recently read (the first on ties).
+    fn slot(&mut self, level: u32, cx: i64, cy: i64) -> usize {
+        let frame = self.frame;
+        if let Some(i) = self
+            .keys
+            .iter()
+            .position(|k| k.3 != 0 && (k.0, k.1, k.2) == (level, cx, cy))
+        {
+            self.keys[i].3 = frame;
+            return i;
+        }
+        let i = match self.keys.iter().position(|k| k.3 == 0) {
+            Some(i) => i,
+            None => {
+                let mut best = (0u32, 0usize);
+                for (i, k) in self.keys.iter().enumerate() {
+                    let age = frame.wrapping_sub(k.3);
+                    if i == 0 || age > best.0 {
+                        best = (age, i);
+                    }
+                }
+                best.1
+            }
+        };
+        self.keys[i] = (level, cx, cy, frame);
+        let n = self.side * self.side;
+        self.vals[i * n..(i + 1) * n].fill(f64::NAN);
+        i
+    }
+
+    /// Unit (a, b)'s error in tile slot `slot`, read by `read` the first time (None: no table holds it).
+    pub(super) fn get(
+        &mut self,
+        slot: usize,
+        (a, b): (usize, usize),
+        read: impl FnOnce() -> Option<f64>,
+    ) -> Option<f64> {
+        let n = self.side * self.side;
+        let i = slot * n + (b * self.side + a).min(n - 1);
+        if self.vals[i].is_nan() {
+            self.vals[i] = read().unwrap_or(f64::INFINITY);
+        }
+        Some(self.vals[i]).filter(|e| e.is_finite())
+    }
+}
+
 /// The units of a cell over `r` (vertices of `level`) drawn as one quad of the next coarser level: those
 /// whose coarser bound meets epsilon (or out of view) and whose neighbours' at their sides does too
 /// ([`stitch::erode`]), with the largest coarser bound read of the ones that meet it (0 if none: what a
-/// later view rescales to see whether the mask still holds). None when `r`'s corners are not on the
-/// coarser lattice gives no coarse unit. None: the frame's refinement budget ran out.
+/// later view rescales to see whether the mask still holds). A cell whose corners are not on the coarser
+/// lattice has none. None: the frame's refinement budget ran out.
 pub(super) fn coarse_units(
     view: &DetailView<'_>,
     ask: &mut Asker<'_, '_>,
@@ -36,12 +153,20 @@ pub(super) fn coarse_units(
     let units = (ua.min(stitch::MAX_UNITS), ub.min(stitch::MAX_UNITS));
     let side = units.0.max(units.1).next_power_of_two();
     let mut worst = 0.0f64;
+    ask.grid.begin();
+    // The cell's tile, and the cell's first unit in it.
+    let q = 2 * ask.etas.side as i64;
+    let (cx, cy) = (r.x0.div_euclid(q), r.y0.div_euclid(q));
+    let tile = ask.etas.slot(level, cx, cy);
+    #[expect(clippy::cast_sign_loss, clippy::cast_possible_truncation, reason = "inside the tile")]
+    let first = (((r.x0 - cx * q) / 2) as usize, ((r.y0 - cy * q) / 2) as usize);
     let mut g = Groups {
         view,
         level,
         r,
         eps,
         units,
+        tile: (tile, first),
         meets: &mut meets,
         worst: &mut worst,
     };
@@ -56,11 +181,40 @@ struct Groups<'a, 'v> {
     r: &'a Rect,
     eps: f64,
     units: (u32, u32),
+    /// The cell's tile slot in [`UnitEtas`] and its first unit there.
+    tile: (usize, (usize, usize)),
     meets: &'a mut stitch::Mask,
     worst: &'a mut f64,
 }
 
 impl Groups<'_, '_> {
+    /// The level-0 lattice vertex of unit corner (a, b).
+    fn vertex(&self, a: u32, b: u32) -> (i64, i64) {
+        (
+            (self.r.x0 + 2 * i64::from(a)) << self.level,
+            (self.r.y0 + 2 * i64::from(b)) << self.level,
+        )
+    }
+
+    /// The eight corners of the box from unit corner (a0, b0) to (a1, b1).
+    fn corners(&self, ask: &mut Asker<'_, '_>, (a0, b0): (u32, u32), (a1, b1): (u32, u32)) -> [Corner; 8] {
+        let mut out = [Corner::default(); 8];
+        for (k, (a, b)) in [(a0, b0), (a1, b0), (a0, b1), (a1, b1)].into_iter().enumerate() {
+            let i = b as usize * SIDE + a as usize;
+            let stamp = ask.grid.stamp;
+            if ask.grid.at[i].0 != stamp {
+                let (x, y) = self.vertex(a, b);
+                let lod = ask.bounds.lod;
+                let v = &ask.bounds.view;
+                ask.grid.at[i] = (stamp, [lod.corner(v, x, y, false), lod.corner(v, x, y, true)]);
+            }
+            let [lo, hi] = ask.grid.at[i].1;
+            out[k] = lo;
+            out[k + 4] = hi;
+        }
+        out
+    }
+
     /// Marks the units of group (a0.., b0..) of `side` units a side that meet epsilon one level coarser.
     fn test(&mut self, ask: &mut Asker<'_, '_>, a0: u32, b0: u32, side: u32) -> Option<()> {
         let (ua, ub) = self.units;
@@ -71,25 +225,25 @@ impl Groups<'_, '_> {
         let x = |a: u32| self.r.x0 + 2 * i64::from(a);
         let y = |b: u32| self.r.y0 + 2 * i64::from(b);
         let g = Rect::from_bounds(x(a0), y(b0), x(a1) + 1, y(b1) + 1);
+        if !self.view.visible(self.level, &g) {
+            self.mark(a0, b0, a1, b1);
+            return Some(());
+        }
         let bx = level0_box(self.level, &g);
         if side == 1 {
             // One unit: its own bound, as every unit was tested before groups.
-            if !self.view.visible(self.level, &g) {
-                self.mark(a0, b0, a1, b1);
-                return Some(());
-            }
-            let v = ask.bound(self.level + 1, bx, false)?;
+            let corners = self.corners(ask, (a0, b0), (a1, b1));
+            let (slot, (fa, fb)) = self.tile;
+            let at = (slot, (fa + a0 as usize, fb + b0 as usize));
+            let v = ask.unit(self.level + 1, bx, &corners, at)?;
             if v <= self.eps {
                 *self.worst = self.worst.max(v);
                 self.mark(a0, b0, a1, b1);
             }
             return Some(());
         }
-        if !self.view.visible(self.level, &g) {
-            self.mark(a0, b0, a1, b1);
-            return Some(());
-        }
-        let v = ask.group(self.level + 1, bx)?;
+        let corners = self.corners(ask, (a0, b0), (a1, b1));
+        let v = ask.group(self.level + 1, bx, &corners)?;
         if v <= self.eps * GROUP_MARGIN {
             *self.worst = self.worst.max(v);
             self.mark(a0, b0, a1, b1);

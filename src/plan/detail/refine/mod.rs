@@ -18,7 +18,7 @@ mod memo;
 mod split;
 
 use memo::{Asker, Memo, Work};
-use split::{resolve_ghost, split_block, split_cell, Outcome};
+use split::{resolve_ghost, split_block, split_cell, Outcome, Shape};
 
 /// Most cells one plan draws from the pool; past it a split does not fit. Cells are instances of a few
 /// instanced draws (one per level and cell size), so triangles bind first on every shipped profile.
@@ -34,6 +34,15 @@ const MAX_CELL_GROUPS: usize = 256;
 /// The smallest piece a split cuts a cell into, in quads of the finer level: a part of a cell goes one
 /// level finer only where the coarser level misses epsilon over a piece this small.
 const MIN_SUB_QUADS: u32 = 8;
+
+/// While the camera moves, a stale cell is asked again only when its rescaled bound (or its coarse
+/// units') is past this share of epsilon: the others cannot have passed it yet, to first order.
+const AT_RISK: f64 = 0.9;
+
+/// How far past epsilon a stale bound, rescaled, may be while the camera moves before it counts as missing
+/// it (`Quadtree::limit`): an estimate's margin, not the bound's; a still camera asks every stale bound
+/// again and holds it to epsilon.
+const MOTION_SLACK: f64 = 1.0 / 32.0;
 
 /// No block (an unused entry of the quadtree's block maps).
 const NONE: u16 = u16::MAX;
@@ -65,8 +74,10 @@ pub(super) struct Cand {
     pub(super) credit: u64,
     /// Drawn from pool cells instead of its ring.
     pub(super) refined: bool,
-    /// Its cells do not fit.
+    /// Its cells do not fit (kept until what is left of the budgets grows: `carry.rs`).
     frozen: bool,
+    /// Its split has no cell in view (kept while the view stays).
+    hidden: bool,
     /// Its box's scale in this frame's view, pixels per metre: what its cells' bounds are rescaled by.
     scale: f64,
 }
@@ -85,13 +96,18 @@ pub(super) struct Cell {
     pub(super) bound: f64,
     /// Its block's wanted level: no cell is split finer.
     pub(super) wanted: u32,
-    /// Its split does not fit.
+    /// Its split does not fit (kept until what is left of the budgets grows).
     frozen: bool,
+    /// Its split has no cell in view (kept while the view stays).
+    hidden: bool,
     /// Drawn stitched ([`stitch`]): which of its units are one quad of the next coarser level (none:
     /// drawn whole).
     pub(super) coarse: stitch::Mask,
     /// The largest bound of a coarse unit's coarser level in view `view` (0: none).
     coarse_bound: f64,
+    /// Its units were asked, or it is not drawn stitched (a cell made while the camera moves is drawn
+    /// whole until they are: `Quadtree::mask_cell`).
+    masked: bool,
     /// The view its bound and units were asked in ([`Quadtree`]'s count of views).
     view: u32,
     /// Its block's scale then ([`Cand::scale`]).
@@ -122,7 +138,7 @@ pub(super) struct Ghost {
     pub(super) kind: GhostKind,
     /// In view this frame.
     pub(super) visible: bool,
-    /// Its cover does not fit.
+    /// Its cover does not fit (kept until what is left of the budgets grows).
     frozen: bool,
 }
 
@@ -186,6 +202,10 @@ pub(super) struct Quadtree {
     cand_of: Box<[u16]>,
     /// The bounds asked in the current view.
     memo: Memo,
+    /// Scratch: the corners of the cell whose units are asked.
+    grid: mask::CornerGrid,
+    /// The stitched units' errors, per tile.
+    etas: mask::UnitEtas,
     /// Per-instance records its cells take ([`Cell::instances`]).
     instances: usize,
     /// Views seen (a cell's bound is fresh when asked in the current one).
@@ -195,18 +215,27 @@ pub(super) struct Quadtree {
     /// A key of everything the refinement's result depends on: the view, the clamped blocks and the
     /// budgets. While it holds, a frame takes up the refinement where the last one stopped.
     inputs: Option<u64>,
+    /// The view changed this frame (the camera moves).
+    moved: bool,
+    /// What was left of the budgets (triangles, draws, slots, records) when a split last did not fit:
+    /// frozen units are tried again once more than that is left (`carry.rs`).
+    mark: Option<(u64, i64, usize, usize)>,
     /// Draw calls and triangles left of the frame's budgets.
     draws: i64,
     triangles: u64,
     /// The budget ran out with work left: the region (level, samples) the next split reads, for the
     /// source to make ready ([`crate::plan::detail::DetailFrame::wanted`]).
     pub(super) pending: Option<(u32, Rect)>,
+    /// The budget ran out with splits, cover or units left (or, at a still camera, stale bounds): later
+    /// frames refine further. A moving camera's refreshes of stale bounds do not count.
+    pub(super) refining: bool,
     /// Bound evaluations this frame's refinement spent.
     pub(super) spent: u64,
 }
 
-impl Default for Quadtree {
-    fn default() -> Self {
+impl Quadtree {
+    /// Empty quadtrees for tiles of `quads` quads a side (allocated once).
+    pub(super) fn new(quads: u32) -> Self {
         Self {
             cands: Box::default(),
             cells: Box::default(),
@@ -219,13 +248,18 @@ impl Default for Quadtree {
             remap: vec![NONE; MAX_LOD_BLOCKS].into_boxed_slice(),
             cand_of: vec![NONE; MAX_LOD_BLOCKS].into_boxed_slice(),
             memo: Memo::default(),
+            grid: mask::CornerGrid::default(),
+            etas: mask::UnitEtas::new(quads),
             instances: 0,
             view: 0,
             view_key: 0,
             inputs: None,
+            moved: false,
+            mark: None,
             draws: 0,
             triangles: 0,
             pending: None,
+            refining: false,
             spent: 0,
         }
     }
@@ -260,6 +294,8 @@ enum Unit {
     Cell(usize),
     /// A ghost come into view.
     Ghost(usize),
+    /// A cell whose units are to be asked (it will not be split).
+    Mask(usize),
 }
 
 /// The frame's fixed inputs of a split.
@@ -297,12 +333,19 @@ impl Quadtree {
             slots,
         };
         self.pending = None;
+        self.memo.next_frame();
+        self.etas.next_frame();
         self.carry(&at, bounds, ring_triangles)?;
         let mut work = Work::new(evaluations);
+        self.refining = false;
         if slots > 0 {
             self.grow(&at, bounds, &mut work)?;
-            if self.pending.is_none() {
+            if self.pending.is_some() {
+                self.refining = true;
+            } else {
                 self.refresh(&at, bounds, &mut work);
+                // A moving camera's refreshes are upkeep that never ends; a still camera's converge.
+                self.refining = self.pending.is_some() && !self.moved;
             }
         }
         self.spent = work.used();
@@ -326,10 +369,23 @@ impl Quadtree {
         }
     }
 
+    /// What cell `c`'s bounds are held to now: epsilon where they are fresh; where they are rescaled
+    /// estimates, epsilon and [`MOTION_SLACK`] (a bound just under epsilon would otherwise pass it with
+    /// every step of a camera moving closer and be asked again every frame).
+    fn limit(&self, c: &Cell, eps: f64) -> f64 {
+        if c.view == self.view {
+            eps
+        } else {
+            eps * (1.0 + MOTION_SLACK)
+        }
+    }
+
     /// Whether cell `c` is drawn within epsilon now: its bound (or its block's wanted level) and its coarse
-    /// units', rescaled where stale.
+    /// units', rescaled where stale ([`Quadtree::limit`]).
     fn meets(&self, c: &Cell, eps: f64) -> bool {
-        (self.now(c, c.bound) <= eps || c.key.level <= c.wanted) && self.now(c, c.coarse_bound) <= eps
+        let limit = self.limit(c, eps);
+        (self.now(c, c.bound) <= limit || c.key.level <= c.wanted)
+            && self.now(c, c.coarse_bound) <= limit
     }
 
     /// Sets every cell's met flag for this frame.
@@ -370,6 +426,13 @@ impl Quadtree {
             let Some(unit) = self.pick(eps) else {
                 return Ok(());
             };
+            if let Unit::Mask(j) = unit {
+                if !self.mask_cell(j, at, bounds, work) {
+                    self.pending = Some(self.region(unit));
+                    return Ok(());
+                }
+                continue;
+            }
             if let Unit::Cell(j) = unit {
                 if self.cells[j].view != self.view {
                     if !self.refresh_cell(j, at, bounds, work) {
@@ -388,6 +451,7 @@ impl Quadtree {
             let cuts = [quads, MIN_SUB_QUADS.min(quads)];
             let mut best: Option<(f64, bool, (i64, u64, u64))> = None;
             let mut out_of_budget = false;
+            let mut empty = true;
             for (n, min) in cuts.into_iter().enumerate() {
                 let is_cut = n == 1;
                 if is_cut && (cuts[1] == quads || whole_only) {
@@ -399,6 +463,7 @@ impl Quadtree {
                     break;
                 }
                 let new = if is_cut { &self.cut } else { &self.new };
+                empty &= new.cells.is_empty();
                 let cost = self
                     .cost(new, unit, at.budget, at.slots)
                     .filter(|_| outcome == Outcome::Room);
@@ -432,10 +497,17 @@ impl Quadtree {
                 return Ok(());
             }
             let Some((_, is_cut, cost)) = best else {
+                // Nothing in view: hidden while the view stays; else frozen until more is left.
+                if !empty {
+                    self.mark = Some(self.free(at));
+                }
                 match unit {
+                    Unit::Block(k) if empty => self.cands[k].hidden = true,
+                    Unit::Cell(j) if empty => self.cells[j].hidden = true,
                     Unit::Block(k) => self.cands[k].frozen = true,
                     Unit::Cell(j) => self.cells[j].frozen = true,
                     Unit::Ghost(g) => self.ghosts[g].frozen = true,
+                    Unit::Mask(_) => {}
                 }
                 continue;
             };
@@ -447,11 +519,13 @@ impl Quadtree {
                 memo: &mut self.memo,
                 work,
                 bounds,
+                grid: &mut self.grid,
+            etas: &mut self.etas,
             };
             let mut asked = true;
             for c in &mut self.new.cells {
                 if c.bound.is_nan() {
-                    match ask.bound(c.key.level, level0_box(c.key.level, &c.bounds), true) {
+                    match ask.ranked(c.key.level, level0_box(c.key.level, &c.bounds)) {
                         Some(b) => c.bound = b,
                         None => {
                             asked = false;
@@ -468,24 +542,84 @@ impl Quadtree {
         }
     }
 
+    /// What is left of the budgets: triangles, draws, slots and records.
+    fn free(&self, at: &Inputs<'_, '_>) -> (u64, i64, usize, usize) {
+        (
+            self.triangles,
+            self.draws,
+            at.slots.saturating_sub(self.keys.len()),
+            at.budget.instances.saturating_sub(self.instances),
+        )
+    }
+
+    /// Asks the coarse units of cell `j` if it has not had them asked and will not be split (it meets
+    /// epsilon, or its split does not fit); false when the budget ran out first (nothing changed). Units
+    /// that do not fit the records or triangles left are not taken (the cell stays whole).
+    fn mask_cell(
+        &mut self,
+        j: usize,
+        at: &Inputs<'_, '_>,
+        bounds: &PoolBounds<'_>,
+        work: &mut Work,
+    ) -> bool {
+        let c = self.cells[j];
+        let eps = at.view.epsilon_px;
+        if c.masked || !(c.bound <= eps || c.key.level <= c.wanted || c.frozen) {
+            return true;
+        }
+        let mut ask = Asker {
+            memo: &mut self.memo,
+            work,
+            bounds,
+            grid: &mut self.grid,
+            etas: &mut self.etas,
+        };
+        let Some((m, worst)) = mask::coarse_units(at.view, &mut ask, c.key.level, &c.bounds, eps)
+        else {
+            return false;
+        };
+        let stitched = Cell {
+            coarse: m,
+            coarse_bound: worst,
+            masked: true,
+            ..c
+        };
+        let (old_t, new_t) = (c.triangles(at.budget), stitched.triangles(at.budget));
+        let records = self.instances - c.instances() + stitched.instances();
+        self.cells[j] = if new_t <= self.triangles + old_t && records <= at.budget.instances {
+            self.triangles = self.triangles + old_t - new_t;
+            self.instances = records;
+            stitched
+        } else {
+            Cell { masked: true, ..c }
+        };
+        true
+    }
+
     /// The unit the refinement splits next: a ghost come into view, else the largest bound still
     /// splittable (blocks first, then cells; first on ties). None when nothing is left.
     fn pick(&self, eps: f64) -> Option<Unit> {
         if let Some(g) = self.ghosts.iter().position(|g| g.visible && !g.frozen) {
             return Some(Unit::Ghost(g));
         }
+        // Cells made while the camera moved whose units are still to ask, and that will not be split:
+        // their units take triangles off the frame before anything else is split.
+        let settled = |c: &Cell| c.bound <= eps || c.key.level <= c.wanted || c.frozen;
+        if let Some(j) = self.cells.iter().position(|c| !c.masked && settled(c)) {
+            return Some(Unit::Mask(j));
+        }
         let mut pick: Option<(f64, Unit)> = None;
         for (k, c) in self.cands.iter().enumerate() {
-            if !c.refined && !c.frozen && pick.is_none_or(|(b, _)| c.bound > b) {
+            if !c.refined && !c.frozen && !c.hidden && pick.is_none_or(|(b, _)| c.bound > b) {
                 pick = Some((c.bound, Unit::Block(k)));
             }
         }
         for (j, c) in self.cells.iter().enumerate() {
-            if c.frozen || c.key.level <= c.wanted {
+            if c.frozen || c.hidden || c.key.level <= c.wanted {
                 continue;
             }
             let b = self.now(c, c.bound);
-            if b > eps && pick.is_none_or(|(p, _)| b > p) {
+            if b > self.limit(c, eps) && pick.is_none_or(|(p, _)| b > p) {
                 pick = Some((b, Unit::Cell(j)));
             }
         }
@@ -510,8 +644,15 @@ impl Quadtree {
                     ),
                 )
             }
-            Unit::Cell(j) => (self.cells[j].key.level - 1, double(&self.cells[j].bounds)),
+            Unit::Cell(j) => {
+                let c = &self.cells[j];
+                match c.key.level.checked_sub(1) {
+                    Some(finer) => (finer, double(&c.bounds)),
+                    None => (c.key.level, c.bounds),
+                }
+            }
             Unit::Ghost(g) => (self.ghosts[g].level, self.ghosts[g].bounds),
+            Unit::Mask(j) => (self.cells[j].key.level, self.cells[j].bounds),
         };
         // With the tiles' one-sample border.
         (
@@ -541,12 +682,21 @@ impl Quadtree {
             memo: &mut self.memo,
             work,
             bounds,
+            grid: &mut self.grid,
+            etas: &mut self.etas,
         };
-        let shape = (at.quads, min_quads, at.budget.stitch);
+        let shape = Shape {
+            quads: at.quads,
+            min_quads,
+            stitch: at.budget.stitch,
+            eager: !self.moved,
+        };
         Ok(match unit {
             Unit::Block(k) => split_block(new, at.view, &mut ask, at.lod, &self.cands[k], shape)?,
             Unit::Cell(j) => split_cell(new, at.view, &mut ask, &self.cells[j], shape),
             Unit::Ghost(g) => resolve_ghost(new, at.view, &mut ask, &self.ghosts[g], shape),
+            // Not split (`grow` asks its units).
+            Unit::Mask(_) => Outcome::Full,
         })
     }
 
@@ -591,6 +741,7 @@ impl Quadtree {
                 ghost_gone = 1;
                 0
             }
+            Unit::Mask(_) => return None,
         };
         let added: usize = cells.iter().map(Cell::instances).sum();
         let fits = n > 0
@@ -619,6 +770,7 @@ impl Quadtree {
                 old.block
             }
             Unit::Ghost(g) => self.ghosts.swap_remove(g).block,
+            Unit::Mask(j) => self.cells[j].block,
         };
         let (view, scale) = (self.view, self.scale_of(block));
         for i in 0..self.new.cells.len() {
@@ -641,9 +793,15 @@ impl Quadtree {
     }
 
     /// Asks stale cells' bounds and units again in this view, largest (rescaled) bound first, while the
-    /// budget lasts: what a still camera converges with. A cell whose new units do not fit what is left
-    /// keeps its old ones and is frozen (not met).
+    /// budget lasts: while the camera moves, those whose rescaled bound is within [`AT_RISK`] of epsilon
+    /// (the others are kept as they are); at a still camera every one, which it converges with. A cell
+    /// whose new units do not fit what is left keeps its old ones and is frozen (not met).
     fn refresh(&mut self, at: &Inputs<'_, '_>, bounds: &PoolBounds<'_>, work: &mut Work) {
+        let floor = if self.moved {
+            AT_RISK * at.view.epsilon_px
+        } else {
+            f64::NEG_INFINITY
+        };
         loop {
             let mut pick: Option<(f64, usize)> = None;
             for (j, c) in self.cells.iter().enumerate() {
@@ -651,7 +809,7 @@ impl Quadtree {
                     continue;
                 }
                 let b = self.now(c, c.bound.max(c.coarse_bound));
-                if pick.is_none_or(|(p, _)| b > p) {
+                if b > floor && pick.is_none_or(|(p, _)| b > p) {
                     pick = Some((b, j));
                 }
             }
@@ -678,8 +836,10 @@ impl Quadtree {
             memo: &mut self.memo,
             work,
             bounds,
+            grid: &mut self.grid,
+            etas: &mut self.etas,
         };
-        let Some(bound) = ask.bound(c.key.level, level0_box(c.key.level, &c.bounds), true) else {
+        let Some(bound) = ask.ranked(c.key.level, level0_box(c.key.level, &c.bounds)) else {
             return false;
         };
         let mut fresh = Cell {
@@ -693,7 +853,7 @@ impl Quadtree {
             let Some((m, worst)) = units else {
                 return false;
             };
-            (fresh.coarse, fresh.coarse_bound) = (m, worst);
+            (fresh.coarse, fresh.coarse_bound, fresh.masked) = (m, worst, true);
         }
         let (old_t, new_t) = (c.triangles(at.budget), fresh.triangles(at.budget));
         let records = self.instances - c.instances() + fresh.instances();

@@ -20,18 +20,30 @@ pub(super) enum Outcome {
     Budget,
 }
 
+/// The shape of a split's cells: tile quads, the smallest cut, and their stitched units.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Shape {
+    pub(super) quads: u32,
+    /// The smallest piece a part is cut into, in quads of the finer level.
+    pub(super) min_quads: u32,
+    /// Cells are drawn stitched ([`crate::plan::detail::DetailBudget::stitch`]).
+    pub(super) stitch: bool,
+    /// Their units are asked within the split (a still view: as the one-frame refinement asks them);
+    /// else once the split is taken, for the cells that meet epsilon (`Quadtree::mask_cell`).
+    pub(super) eager: bool,
+}
+
 /// Whose cells a split makes, and at which (finer) level.
 pub(super) struct Piece {
     pub(super) block: u16,
     pub(super) wanted: u32,
     pub(super) level: u32,
-    /// Cells are drawn stitched ([`crate::plan::detail::DetailBudget::stitch`]).
-    pub(super) stitched: bool,
+    pub(super) shape: Shape,
 }
 
-/// The cell over `r` (vertices of `level`) in the tile of `level` holding it.
-pub(super) fn cell_at(at: &Piece, level: u32, r: Rect, bound: f64, quads: u32) -> Cell {
-    let q = i64::from(quads);
+/// The cell over `r` (vertices of `level`) in the tile of `level` holding it (its units not asked).
+pub(super) fn cell_at(at: &Piece, level: u32, r: Rect, bound: f64) -> Cell {
+    let q = i64::from(at.shape.quads);
     Cell {
         block: at.block,
         key: TileKey {
@@ -43,8 +55,10 @@ pub(super) fn cell_at(at: &Piece, level: u32, r: Rect, bound: f64, quads: u32) -
         bound,
         wanted: at.wanted,
         frozen: false,
+        hidden: false,
         coarse: [0; stitch::MAX_UNITS as usize],
         coarse_bound: 0.0,
+        masked: !at.shape.stitch,
         view: 0,
         scale: 0.0,
         met: false,
@@ -75,11 +89,11 @@ pub(super) fn split_block(
     ask: &mut Asker<'_, '_>,
     lod: &LodFrame,
     c: &Cand,
-    (quads, min_quads, stitched): (u32, u32, bool),
+    shape: Shape,
 ) -> Result<Outcome> {
     let b = lod.blocks[usize::from(c.block)];
     let mut out = Outcome::Room;
-    view.cells(&b, c.clamped - 1, quads, |key, fine, visible| {
+    view.cells(&b, c.clamped - 1, shape.quads, |key, fine, visible| {
         if !visible {
             out = ghost(new, c.block, c.wanted, key.level, fine);
             return Ok(out == Outcome::Room);
@@ -88,9 +102,9 @@ pub(super) fn split_block(
             block: c.block,
             wanted: c.wanted,
             level: key.level,
-            stitched,
+            shape,
         };
-        out = emit(new, view, ask, &at, (quads, min_quads), fine);
+        out = emit(new, view, ask, &at, fine);
         Ok(out == Outcome::Room)
     })?;
     Ok(out)
@@ -103,9 +117,9 @@ pub(super) fn split_cell(
     view: &DetailView<'_>,
     ask: &mut Asker<'_, '_>,
     p: &Cell,
-    (quads, min_quads, stitched): (u32, u32, bool),
+    shape: Shape,
 ) -> Outcome {
-    let q = i64::from(quads);
+    let q = i64::from(shape.quads);
     let (k, pw) = (p.key.level - 1, double(&p.bounds));
     for dy in 0..2 {
         for dx in 0..2 {
@@ -120,9 +134,9 @@ pub(super) fn split_cell(
                     block: p.block,
                     wanted: p.wanted,
                     level: k,
-                    stitched,
+                    shape,
                 };
-                emit(new, view, ask, &at, (quads, min_quads), fine)
+                emit(new, view, ask, &at, fine)
             } else {
                 ghost(new, p.block, p.wanted, k, fine)
             };
@@ -141,29 +155,29 @@ pub(super) fn resolve_ghost(
     view: &DetailView<'_>,
     ask: &mut Asker<'_, '_>,
     g: &Ghost,
-    (quads, min_quads, stitched): (u32, u32, bool),
+    shape: Shape,
 ) -> Outcome {
     let at = Piece {
         block: g.block,
         wanted: g.wanted,
         level: g.level,
-        stitched,
+        shape,
     };
     match g.kind {
-        GhostKind::Part => emit(new, view, ask, &at, (quads, min_quads), g.bounds),
+        GhostKind::Part => emit(new, view, ask, &at, g.bounds),
         GhostKind::Cell => {
             let bx = level0_box(g.level, &g.bounds);
-            let Some(bound) = ask.bound(g.level, bx, true) else {
+            let Some(bound) = ask.ranked(g.level, bx) else {
                 return Outcome::Budget;
             };
-            let mut c = cell_at(&at, g.level, g.bounds, bound, quads);
-            if stitched {
+            let mut c = cell_at(&at, g.level, g.bounds, bound);
+            if shape.stitch && shape.eager {
                 let Some((mask, worst)) =
                     coarse_units(view, ask, g.level, &g.bounds, view.epsilon_px)
                 else {
                     return Outcome::Budget;
                 };
-                (c.coarse, c.coarse_bound) = (mask, worst);
+                (c.coarse, c.coarse_bound, c.masked) = (mask, worst, true);
             }
             push(new, c)
         }
@@ -207,27 +221,27 @@ fn emit(
     view: &DetailView<'_>,
     ask: &mut Asker<'_, '_>,
     at: &Piece,
-    (quads, min_quads): (u32, u32),
     fine: Rect,
 ) -> Outcome {
+    let eager = at.shape.stitch && at.shape.eager;
     let eps = view.epsilon_px;
     let coarse = at.level + 1;
     // Only whether it meets epsilon is asked: a kept cell's bound is not ranked (it is met).
-    let Some(kept) = ask.bound(coarse, level0_box(at.level, &fine), false) else {
+    let Some(kept) = ask.bound(coarse, level0_box(at.level, &fine)) else {
         return Outcome::Budget;
     };
     if kept <= eps {
         let r = halve(&fine);
-        let mut c = cell_at(at, coarse, r, kept, quads);
-        if at.stitched {
+        let mut c = cell_at(at, coarse, r, kept);
+        if eager {
             let Some((mask, worst)) = coarse_units(view, ask, coarse, &r, eps) else {
                 return Outcome::Budget;
             };
-            (c.coarse, c.coarse_bound) = (mask, worst);
+            (c.coarse, c.coarse_bound, c.masked) = (mask, worst, true);
         }
         return push(new, c);
     }
-    let min = i64::from(min_quads);
+    let min = i64::from(at.shape.min_quads);
     let (x1, y1) = (fine.x1() - 1, fine.y1() - 1);
     let (mx, my) = (cut(fine.x0, x1, min), cut(fine.y0, y1, min));
     if mx.is_some() || my.is_some() {
@@ -252,7 +266,7 @@ fn emit(
                     parts[i * 2 + j] = Some((r, false));
                     continue;
                 }
-                let Some(b) = ask.bound(coarse, level0_box(at.level, &r), false) else {
+                let Some(b) = ask.bound(coarse, level0_box(at.level, &r)) else {
                     return Outcome::Budget;
                 };
                 any |= b <= eps;
@@ -262,7 +276,7 @@ fn emit(
         if any {
             for (r, visible) in parts.into_iter().flatten() {
                 let out = if visible {
-                    emit(new, view, ask, at, (quads, min_quads), r)
+                    emit(new, view, ask, at, r)
                 } else {
                     ghost(new, at.block, at.wanted, at.level, r)
                 };
@@ -274,12 +288,12 @@ fn emit(
         }
     }
     // Its bound is asked once the split is taken (`Quadtree::refine`): a split not taken needs none.
-    let mut c = cell_at(at, at.level, fine, f64::NAN, quads);
-    if at.stitched {
+    let mut c = cell_at(at, at.level, fine, f64::NAN);
+    if eager {
         let Some((mask, worst)) = coarse_units(view, ask, at.level, &fine, eps) else {
             return Outcome::Budget;
         };
-        (c.coarse, c.coarse_bound) = (mask, worst);
+        (c.coarse, c.coarse_bound, c.masked) = (mask, worst, true);
     }
     push(new, c)
 }
