@@ -80,7 +80,7 @@ pub struct FrameBudget {
 }
 
 /// `budget.refine_bounds_per_frame` where a profile does not set it.
-pub const DEFAULT_REFINE_BOUNDS_PER_FRAME: u32 = 2000;
+pub const DEFAULT_REFINE_BOUNDS_PER_FRAME: u32 = 1000;
 
 fn default_refine_bounds() -> u32 {
     DEFAULT_REFINE_BOUNDS_PER_FRAME

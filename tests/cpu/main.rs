@@ -9,6 +9,7 @@ mod fragment;
 mod fuzz_parsers;
 mod lod;
 mod package;
+mod plan_time;
 mod profiles;
 mod sat;
 mod scene;

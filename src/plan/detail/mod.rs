@@ -24,6 +24,7 @@ use crate::plan::frame::{Frame, Rect};
 use crate::plan::lod::{BlockLod, BoundView, LatticeBox, Lod, LodFrame, LodMode, MAX_LOD_BLOCKS};
 use crate::plan::mesh;
 
+pub mod keymap;
 mod refine;
 pub mod stitch;
 use crate::profile::{DetailAtlas, MAX_DETAIL_TILES};
@@ -51,20 +52,10 @@ pub struct PoolBounds<'a> {
 }
 
 impl PoolBounds<'_> {
-    /// `level`'s screen-space bound over `bx`: with `exact` the ranking value
-    /// ([`Lod::bound_at_eps_in`]), else a value that is at most epsilon exactly when the bound is (the
-    /// threshold test, [`Lod::bound_in`]).
-    pub fn at(&self, level: u32, bx: LatticeBox, exact: bool) -> f64 {
-        if exact {
-            self.lod.bound_at_eps_in(&self.view, self.mode, level, bx, self.eps)
-        } else {
-            self.lod.bound_in(&self.view, self.mode, level, bx, self.eps)
-        }
-    }
-
-    /// An upper bound of `level`'s bound over every box inside `bx` ([`Lod::cap_bound_in`]).
-    pub fn group(&self, level: u32, bx: LatticeBox) -> f64 {
-        self.lod.cap_bound_in(&self.view, self.mode, level, bx)
+    /// `level`'s screen-space bound over `bx` as a threshold test at epsilon: a value at most epsilon
+    /// exactly when the bound is ([`Lod::bound_in`]; NaN where the refinement's budget ran out).
+    pub fn meets(&self, level: u32, bx: LatticeBox) -> f64 {
+        self.lod.bound_in(&self.view, self.mode, level, bx, self.eps)
     }
 
     /// How many pixels a metre of error moves a point of `bx` at most, to first order: what a stale
@@ -405,6 +396,8 @@ pub struct DetailPool {
     /// The clamped blocks and the cells they are drawn with, carried from frame to frame (and kept for
     /// [`DetailPool::push_draws`]).
     tree: Quadtree,
+    /// Which slot holds each resident tile.
+    slot_of: keymap::KeyMap,
     /// Scratch: the clamped blocks in fill order (indices into the quadtree's).
     order: Box<heapless::Vec<u16, MAX_LOD_BLOCKS>>,
     /// The last plan's epsilon, pixels.
@@ -429,6 +422,7 @@ impl DetailPool {
             seq: 0,
             tree: Quadtree::new(profile.detail_quads()),
             order: Box::default(),
+            slot_of: keymap::KeyMap::new(DETAIL_CAPACITY),
             eps: 0.0,
         }
     }
@@ -458,13 +452,14 @@ impl DetailPool {
         for s in &mut self.slots {
             *s = Slot::default();
         }
+        self.slot_of.clear();
         self.tree = Quadtree::new(self.quads);
         self.clock = 0;
         self.seq = 0;
     }
 
     fn find(&self, key: &TileKey) -> Option<usize> {
-        self.slots.iter().position(|s| s.key.as_ref() == Some(key))
+        self.slot_of.get(key).map(|s| s as usize)
     }
 
     /// The slot to fill next: an empty one, else the least recently needed one not needed this frame
@@ -535,7 +530,7 @@ impl DetailPool {
         // Every resident tile needed this frame is kept before any slot is refilled.
         let clock = self.clock;
         for (key, _) in self.tree.keys.iter() {
-            if let Some(s) = self.slots.iter().position(|s| s.key == Some(*key)) {
+            if let Some(s) = self.find(&key) {
                 self.slots[s].needed = clock;
             }
         }
@@ -560,11 +555,8 @@ impl DetailPool {
             }
             // A part in view not covered yet: the block is drawn from its ring until it is.
             let (mut missing, mut met, mut finest) = (u32::from(self.tree.uncovered(c.block)), true, c.clamped);
-            for j in 0..self.tree.cells.len() {
-                let l = self.tree.cells[j];
-                if l.block != c.block {
-                    continue;
-                }
+            for l in self.tree.cells_of(c.block) {
+                let l = *l;
                 met &= l.met;
                 finest = finest.min(l.key.level);
                 if self.find(&l.key).is_some() {
@@ -584,10 +576,15 @@ impl DetailPool {
                     missing += 1;
                     continue;
                 };
+                if let Some(old) = self.slots[s].key {
+                    self.slot_of.remove(&old);
+                }
                 self.slots[s] = Slot {
                     key: Some(l.key),
                     needed: clock,
                 };
+                self.slot_of
+                    .insert(l.key, u32::try_from(s).expect("slots <= DETAIL_CAPACITY"));
                 samples -= tile_samples;
                 out.samples_updated += tile_samples;
                 let slot = u32::try_from(s).expect("slots <= DETAIL_CAPACITY");
@@ -671,7 +668,7 @@ impl DetailPool {
         let mut blocks = 0;
         frame.masks.clear();
         for &(i, _) in &frame.served {
-            for l in self.tree.cells.iter().filter(|l| l.block == i) {
+            for l in self.tree.cells_of(i) {
                 let slot = self
                     .find(&l.key)
                     .expect("a served block's cells are resident");

@@ -75,15 +75,24 @@ fn border((a, b): (u32, u32), (ua, ub): (u32, u32)) -> [bool; 4] {
 /// Per unit mesh, the units of stitched cell `d` drawn with it (skirts only with `skirts`).
 fn unit_counts(mask: &stitch::Mask, d: &cull::Draw, skirts: bool) -> [usize; 10] {
     let mut n = [0usize; 10];
-    let units = stitch::units(&d.bounds);
-    for b in 0..units.1 {
-        for a in 0..units.0 {
-            let coarse = stitch::coarse(mask, units.0, units.1, i64::from(a), i64::from(b));
-            n[surface(coarse)] += 1;
-            if skirts {
-                for (side, on) in border((a, b), units).into_iter().enumerate() {
-                    n[skirt(side, coarse)] += usize::from(on);
+    let (ua, ub) = stitch::units(&d.bounds);
+    let full = if ua >= 32 { u32::MAX } else { (1u32 << ua) - 1 };
+    let ones = |x: u32| x.count_ones() as usize;
+    let (last, first) = (1u32 << ua.saturating_sub(1), 1u32);
+    for b in 0..ub {
+        let row = mask.get(b as usize).map_or(0, |r| r & full);
+        n[surface(true)] += ones(row);
+        n[surface(false)] += ua as usize - ones(row);
+        if skirts {
+            // Sides 0 and 2 take a whole border row; sides 1 and 3 the row's last and first unit.
+            for (side, on) in [(0, b == 0), (2, b + 1 == ub)] {
+                if on {
+                    n[skirt(side, true)] += ones(row);
+                    n[skirt(side, false)] += ua as usize - ones(row);
                 }
+            }
+            for (side, bit) in [(1, last), (3, first)] {
+                n[skirt(side, row & bit != 0)] += 1;
             }
         }
     }
@@ -180,10 +189,11 @@ impl Planner {
                 )]
                 let rel = |v: i64, o: i64| (v - o) as i32;
                 for b in 0..units.1 {
+                    let row = stitch::RowFlags::of(&mask, units.0, units.1, b);
                     for a in 0..units.0 {
                         let (ai, bi) = (i64::from(a), i64::from(b));
-                        let coarse = stitch::coarse(&mask, units.0, units.1, ai, bi);
-                        let flags = stitch::unit_flags(&mask, units.0, units.1, ai, bi);
+                        let coarse = row.coarse(a);
+                        let flags = row.flags(a);
                         let (x, y) = (d.bounds.x0 + 2 * ai, d.bounds.y0 + 2 * bi);
                         let record = PoolCell {
                             origin: [rel(x, ax), rel(y, ay), base.origin[2], i32::from(flags)],

@@ -96,10 +96,12 @@ impl Lod {
     /// (its corners' images lie in the hull of `bx`'s, it is no nearer) and a smaller error, so its own
     /// bound is at most this, up to rounding. Infinite for a level no table holds.
     pub fn cap_bound_in(&self, v: &BoundView, mode: LodMode, level: u32, bx: LatticeBox) -> f64 {
-        self.evaluations.set(self.evaluations.get() + 1);
+        if !self.charge() {
+            return f64::NAN;
+        }
         match self.eta_cap(mode, level, bx) {
             None => f64::INFINITY,
-            Some(e) if e == 0.0 => 0.0,
+            Some(0.0) => 0.0,
             Some(e) => self.box_scale(v, bx).px(e),
         }
     }
@@ -120,7 +122,6 @@ impl Lod {
     }
 
     /// [`Lod::bound_in`] of `bx` whose eight corners are known ([`Lod::corner`]): the same value.
-    #[expect(clippy::too_many_arguments, reason = "the bound's inputs and the corners it reads")]
     pub fn bound_with_corners(
         &self,
         v: &BoundView,
@@ -131,7 +132,6 @@ impl Lod {
         corners: &[Corner; 8],
     ) -> f64 {
         let whole = self.scale_of_corners(v, bx, corners);
-        self.evaluations.set(self.evaluations.get() + 1);
         self.bound_deep(v, mode, level, bx, limit, SPLIT_DEPTH, Some(whole), None)
     }
 
@@ -139,6 +139,12 @@ impl Lod {
     /// stitched unit's bound projects, for a caller that keeps it ([`Lod::unit_bound`]).
     pub fn eta_of(&self, mode: LodMode, level: u32, bx: LatticeBox) -> Option<f64> {
         self.eta(mode, level, bx)
+    }
+
+    /// [`Lod::eta_of`] counted as one bound evaluation (a stitched unit's error, read once and kept by
+    /// the caller); None when the allowance is spent.
+    pub fn read_eta(&self, mode: LodMode, level: u32, bx: LatticeBox) -> Option<Option<f64>> {
+        self.charge().then(|| self.eta(mode, level, bx))
     }
 
     /// [`Lod::bound_with_corners`] of a box that is not split (a stitched unit, one quad of `level`),
@@ -151,7 +157,9 @@ impl Lod {
         corners: &[Corner; 8],
         eta: Option<f64>,
     ) -> f64 {
-        self.evaluations.set(self.evaluations.get() + 1);
+        if !self.charge() {
+            return f64::NAN;
+        }
         match eta {
             None => f64::INFINITY,
             Some(e) if e == 0.0 || mode == LodMode::Distance => 0.0,
@@ -168,10 +176,12 @@ impl Lod {
         bx: LatticeBox,
         corners: &[Corner; 8],
     ) -> f64 {
-        self.evaluations.set(self.evaluations.get() + 1);
+        if !self.charge() {
+            return f64::NAN;
+        }
         match self.eta_cap(mode, level, bx) {
             None => f64::INFINITY,
-            Some(e) if e == 0.0 => 0.0,
+            Some(0.0) => 0.0,
             Some(e) => self.scale_of_corners(v, bx, corners).px(e),
         }
     }
@@ -182,7 +192,7 @@ impl Lod {
         super::cache::view_key(camera, self.view, self.epsilon_px, mode)
     }
 
-    /// [`Lod::box_bound_past`] in the frame `v` (one bound evaluation).
+    /// [`Lod::box_bound_past`] in the frame `v` (NaN where the allowance ran out first).
     pub fn bound_in(
         &self,
         v: &BoundView,
@@ -191,7 +201,6 @@ impl Lod {
         bx: LatticeBox,
         limit: f64,
     ) -> f64 {
-        self.evaluations.set(self.evaluations.get() + 1);
         self.bound_deep(v, mode, level, bx, limit, SPLIT_DEPTH, None, None)
     }
 
@@ -205,11 +214,11 @@ impl Lod {
         eps: f64,
     ) -> f64 {
         let whole = self.bound_in(v, mode, level, bx, f64::INFINITY);
-        if whole <= eps {
+        if whole <= eps || whole.is_nan() {
             return whole;
         }
         let t = self.bound_in(v, mode, level, bx, eps);
-        if t <= eps {
+        if t <= eps || t.is_nan() {
             t
         } else {
             whole
@@ -287,6 +296,9 @@ impl Lod {
         if eta == 0.0 || mode == LodMode::Distance {
             return 0.0;
         }
+        if !self.charge() {
+            return f64::NAN;
+        }
         let (a, c, b, d) = bx;
         let whole = whole.unwrap_or_else(|| self.box_scale(v, bx)).px(eta);
         let (nx, ny) = (
@@ -313,12 +325,19 @@ impl Lod {
             }
             let (bs, [sa, sc, sb, sd]) = split.subs[i];
             let sub_box = (sa, sc, sb, sd);
+            if !self.charge() {
+                return f64::NAN;
+            }
             let sub = self.eta(mode, level, sub_box).unwrap_or(eta).min(eta);
             let mut val = bs.px(sub);
             if val > limit && val <= DEEP_RATIO * limit && depth > 0 {
                 // Over the threshold: cut this sub-box again (each of its parts bounds its own samples,
                 // so the largest of theirs is still a bound; past the limit it only has to stay past).
-                val = val.min(self.bound_deep(v, mode, level, sub_box, limit, depth - 1, Some(bs), None));
+                let deep = self.bound_deep(v, mode, level, sub_box, limit, depth - 1, Some(bs), None);
+                if deep.is_nan() {
+                    return f64::NAN;
+                }
+                val = val.min(deep);
             }
             worst = worst.max(val);
         }

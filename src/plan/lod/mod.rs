@@ -104,8 +104,13 @@ pub struct Lod {
     selected: SelectCache,
     /// The view of the last selection ([`Lod::view_key`]): the camera moves while it changes.
     last_view: std::cell::Cell<u64>,
-    /// Screen-space bounds evaluated so far ([`Lod::box_bound_past`] calls): the plan's work count.
+    /// The viewport of the last selection.
+    last_viewport: std::cell::Cell<(u32, u32)>,
+    /// Bound evaluations so far: boxes and sub-boxes whose object-space error was read and projected
+    /// (the plan's work, counted the same on every machine).
     evaluations: std::cell::Cell<u64>,
+    /// How many more may be made ([`Lod::set_allowance`]; `u64::MAX`: no limit).
+    allowance: std::cell::Cell<u64>,
 }
 
 // A selector, and the planner holding it, can be built on one thread and planned on another.
@@ -145,7 +150,9 @@ impl Lod {
             etas: EtaCache::default(),
             selected: SelectCache::default(),
             last_view: std::cell::Cell::new(0),
+            last_viewport: std::cell::Cell::new((0, 0)),
             evaluations: std::cell::Cell::new(0),
+            allowance: std::cell::Cell::new(u64::MAX),
         }
     }
 
@@ -183,6 +190,11 @@ impl Lod {
         self.view = view;
     }
 
+    /// The viewport the bound is measured in, pixels.
+    pub fn viewport(&self) -> (u32, u32) {
+        self.view
+    }
+
     /// The screen-space error bound epsilon, pixels.
     pub fn epsilon_px(&self) -> f64 {
         self.epsilon_px
@@ -193,10 +205,36 @@ impl Lod {
         self.synth
     }
 
-    /// Screen-space bounds this selector has evaluated ([`Lod::box_bound_past`], through which every
-    /// bound goes): a count of the plan's work that does not depend on the machine.
+    /// Bound evaluations this selector has made: each box or sub-box whose object-space error a bound
+    /// read and projected (a split box counts its sub-boxes read): a count of the plan's work that does
+    /// not depend on the machine.
     pub fn evaluations(&self) -> u64 {
         self.evaluations.get()
+    }
+
+    /// Lets the next bounds make at most `n` evaluations ([`Lod::evaluations`]; `u64::MAX`: no limit). A
+    /// bound that would make one more returns NaN (nothing kept of it): what holds the detail pool's
+    /// refinement to its budget. The selection runs with no limit.
+    pub fn set_allowance(&self, n: u64) {
+        self.allowance.set(n);
+    }
+
+    /// Evaluations left of the allowance ([`Lod::set_allowance`]).
+    pub fn allowance(&self) -> u64 {
+        self.allowance.get()
+    }
+
+    /// Counts one evaluation; false (nothing counted) when the allowance is spent.
+    fn charge(&self) -> bool {
+        let left = self.allowance.get();
+        if left == 0 {
+            return false;
+        }
+        if left != u64::MAX {
+            self.allowance.set(left - 1);
+        }
+        self.evaluations.set(self.evaluations.get() + 1);
+        true
     }
 
     /// The baked tables.
@@ -326,6 +364,9 @@ impl Lod {
                 _ => Rect::EMPTY,
             };
             let (ax1, ay1) = (a.x1() - 1, a.y1() - 1);
+            // The last block's wanted level: where a block new to this ring starts its search while the
+            // camera moves.
+            let mut near: Option<u32> = None;
             for cy in a.y0.div_euclid(m)..=(ay1 - 1).div_euclid(m) {
                 for cx in a.x0.div_euclid(m)..=(ax1 - 1).div_euclid(m) {
                     let r = Rect::from_bounds(
@@ -337,7 +378,8 @@ impl Lod {
                     if r.w < 2 || r.h < 2 || hole.contains(&r) {
                         continue;
                     }
-                    let b = self.choose(frame, &v, view, mode, (l32, (cx, cy)), r);
+                    let b = self.choose(frame, &v, (view, near), mode, (l32, (cx, cy)), r);
+                    near = Some(b.wanted);
                     if b.wanted < b.level {
                         out.blocks_clamped += 1;
                     }
@@ -360,6 +402,7 @@ impl Lod {
             }
         }
         self.last_view.set(view);
+        self.last_viewport.set(self.view);
         Ok(())
     }
 
@@ -370,7 +413,7 @@ impl Lod {
         &self,
         frame: &Frame,
         v: &BoundView,
-        view: u64,
+        (view, near): (u64, Option<u32>),
         mode: LodMode,
         (ring, cell): (u32, (i64, i64)),
         r: Rect,
@@ -389,7 +432,8 @@ impl Lod {
         let eps = self.epsilon_px;
         // Moving: a block whose scale has not changed enough to take it past epsilon (its last bound at
         // its wanted level, rescaled) or to let it go coarser keeps that level without a bound read.
-        let moving = self.last_view.get() != view;
+        // A new viewport is not a move: every block is tested in it.
+        let moving = self.last_view.get() != view && self.last_viewport.get() == self.view;
         let held = match kept {
             Some(_) => None,
             None if !moving || mode == LodMode::Distance => None,
@@ -408,7 +452,6 @@ impl Lod {
         // The threshold test of one level, and the value of the last one that met epsilon.
         let mut met_at: Option<(u32, f64)> = None;
         let mut test = |lod: &Self, level: u32| -> bool {
-            lod.evaluations.set(lod.evaluations.get() + 1);
             let s = scale_of(lod);
             let t = lod.bound_deep(v, mode, level, bx, eps, SPLIT_DEPTH, Some(s), Some(&mut cut));
             if t <= eps {
@@ -420,13 +463,19 @@ impl Lod {
         let wanted = match (kept, held) {
             (Some(e), _) | (None, Some((e, _))) => e.wanted,
             (None, None) if mode == LodMode::Distance => ring,
-            (None, None) => match self.selected.last(ring, cell, levels) {
-                // Seen in another view: the search starts at its last wanted level and ends at the
-                // coarsest level of the run of levels meeting epsilon it finds there. That is algorithm
-                // 1's level wherever the bound grows with the level, and never a coarser one: a level it
-                // takes meets epsilon, and the first from the coarsest that does is at least as coarse.
-                Some(e) => {
-                    let w = e.wanted.clamp(self.synth, top - 1);
+            (None, None) => match self
+                .selected
+                .last(ring, cell, levels)
+                .map(|e| e.wanted)
+                .or(near.filter(|_| moving && self.last_view.get() != 0))
+            {
+                // Seen in another view (or, new while the camera moves, beside a block just selected):
+                // the search starts at that wanted level and ends at the coarsest level of the run of
+                // levels meeting epsilon it finds there. That is algorithm 1's level wherever the bound
+                // grows with the level, and never a coarser one: a level it takes meets epsilon, and the
+                // first from the coarsest that does is at least as coarse.
+                Some(w) => {
+                    let w = w.clamp(self.synth, top - 1);
                     if test(self, w) {
                         (w + 1..top).take_while(|&l| test(self, l)).last().unwrap_or(w)
                     } else {
@@ -471,7 +520,6 @@ impl Lod {
             _ => {
                 // Past the baked levels: unknown error, never chosen by the bound.
                 let eta = self.eta(mode, level, bx).unwrap_or(f64::INFINITY);
-                self.evaluations.set(self.evaluations.get() + 1);
                 let s = scale_of(self);
                 let bound = self.bound_deep(v, mode, level, bx, f64::INFINITY, SPLIT_DEPTH, Some(s), Some(&mut cut));
                 (eta, bound)

@@ -25,6 +25,17 @@ impl Quadtree {
     ) -> Result<()> {
         let view = at.view;
         let eps = view.epsilon_px;
+        // A new viewport starts the refinement again (its screen scale is another): coarse and valid
+        // at once, as after a jump.
+        let viewport = bounds.lod.viewport();
+        if self.viewport != viewport {
+            self.viewport = viewport;
+            self.cands.clear();
+            self.cells.clear();
+            self.ghosts.clear();
+            self.inputs = None;
+            self.mark = None;
+        }
         let fresh_view = self.inputs.is_none() || bounds.key != self.view_key;
         // The first view is not a move: its refinement is the one-frame refinement, spread over frames.
         self.moved = fresh_view && self.inputs.is_some();
@@ -134,6 +145,7 @@ impl Quadtree {
         for g in self.ghosts.iter_mut() {
             g.frozen = false;
         }
+        self.seen_ghosts = self.ghosts.iter().any(|g| g.visible);
     }
 
     /// Matches this frame's blocks (`self.next`) with the last frame's by [`BlockKey`]: a match keeps
@@ -210,6 +222,7 @@ impl Quadtree {
         for g in self.ghosts.iter_mut() {
             g.visible = view.visible(g.level, &g.bounds);
         }
+        self.seen_ghosts = self.ghosts.iter().any(|g| g.visible && !g.frozen);
     }
 
     /// Counts what the cells take (tiles, draws, records) and what is left of the frame's draws and
@@ -223,8 +236,7 @@ impl Quadtree {
         for c in self.cells.iter() {
             has[usize::from(c.block)] = true;
             self.instances += c.instances();
-            grouped &= super::count_in(&mut self.keys, c.key)
-                && super::count_in(&mut self.groups, super::group(c));
+            grouped &= self.keys.count_in(c.key) && super::count_in(&mut self.groups, super::group(c));
         }
         for g in self.ghosts.iter() {
             has[usize::from(g.block)] = true;

@@ -8,6 +8,8 @@
 
 use super::level0_box;
 use super::memo::Asker;
+use crate::plan::detail::keymap::KeyMap;
+use crate::plan::detail::TileKey;
 use crate::plan::camera::Corner;
 use crate::plan::detail::{stitch, DetailView};
 use crate::plan::frame::Rect;
@@ -55,14 +57,17 @@ const ETA_TILES: usize = 256;
 
 /// The object-space errors of stitched units, per pool tile: unit (a, b) of tile (level k, cx, cy) is
 /// one quad of level k + 1, whose error is a pure function of the tables, read once and kept for every
-/// later mask of the tile (a mask of a moving view asks them again). Allocated once with the quadtree;
-/// the least recently used tile gives its room to a new one.
+/// later mask of the tile (a mask of a moving view asks them again) and for its groups' exact caps (the
+/// largest of their units'). Allocated once with the quadtree; the least recently used tile gives its
+/// room to a new one.
 #[derive(Clone, Debug)]
 pub(super) struct UnitEtas {
     /// Units per tile side.
     side: usize,
     /// Per tile slot: (level, cx, cy) and the frame it was last read (0: empty).
     keys: Box<[(u32, i64, i64, u32)]>,
+    /// Which slot holds each tile.
+    slot_of: KeyMap,
     /// `side^2` errors per slot, row-major; NaN: not read yet; infinite: no table holds the level.
     vals: Box<[f64]>,
     frame: u32,
@@ -75,6 +80,7 @@ impl UnitEtas {
         Self {
             side,
             keys: vec![(0, 0, 0, 0); ETA_TILES].into_boxed_slice(),
+            slot_of: KeyMap::new(ETA_TILES),
             vals: vec![f64::NAN; ETA_TILES * side * side].into_boxed_slice(),
             frame: 1,
         }
@@ -89,11 +95,9 @@ impl UnitEtas {
     /// the least recently read (the first on ties).
     fn slot(&mut self, level: u32, cx: i64, cy: i64) -> usize {
         let frame = self.frame;
-        if let Some(i) = self
-            .keys
-            .iter()
-            .position(|k| k.3 != 0 && (k.0, k.1, k.2) == (level, cx, cy))
-        {
+        let key = TileKey { level, cx, cy };
+        if let Some(i) = self.slot_of.get(&key) {
+            let i = i as usize;
             self.keys[i].3 = frame;
             return i;
         }
@@ -110,25 +114,36 @@ impl UnitEtas {
                 best.1
             }
         };
+        let old = self.keys[i];
+        if old.3 != 0 {
+            self.slot_of.remove(&TileKey {
+                level: old.0,
+                cx: old.1,
+                cy: old.2,
+            });
+        }
         self.keys[i] = (level, cx, cy, frame);
+        self.slot_of
+            .insert(key, u32::try_from(i).expect("ETA_TILES < 2^32"));
         let n = self.side * self.side;
         self.vals[i * n..(i + 1) * n].fill(f64::NAN);
         i
     }
 
-    /// Unit (a, b)'s error in tile slot `slot`, read by `read` the first time (None: no table holds it).
+    /// Unit (a, b)'s error in tile slot `slot` (infinite: no table holds its level), read by `read` the
+    /// first time; None when `read` says the budget ran out (nothing kept).
     pub(super) fn get(
         &mut self,
         slot: usize,
         (a, b): (usize, usize),
-        read: impl FnOnce() -> Option<f64>,
+        read: impl FnOnce() -> Option<Option<f64>>,
     ) -> Option<f64> {
         let n = self.side * self.side;
         let i = slot * n + (b * self.side + a).min(n - 1);
         if self.vals[i].is_nan() {
-            self.vals[i] = read().unwrap_or(f64::INFINITY);
+            self.vals[i] = read()?.unwrap_or(f64::INFINITY);
         }
-        Some(self.vals[i]).filter(|e| e.is_finite())
+        Some(self.vals[i])
     }
 }
 
@@ -215,6 +230,26 @@ impl Groups<'_, '_> {
         out
     }
 
+    /// The level-0 lattice box of unit (a, b).
+    fn unit_box(&self, a: u32, b: u32) -> (i64, i64, i64, i64) {
+        let (x, y) = (self.r.x0 + 2 * i64::from(a), self.r.y0 + 2 * i64::from(b));
+        level0_box(self.level, &Rect::from_bounds(x, y, x + 3, y + 3))
+    }
+
+    /// The largest error of units [a0, a1) x [b0, b1) one level coarser (each read once per tile,
+    /// [`UnitEtas`]); None when the budget ran out.
+    fn cap(&self, ask: &mut Asker<'_, '_>, (a0, b0): (u32, u32), (a1, b1): (u32, u32)) -> Option<f64> {
+        let (slot, (fa, fb)) = self.tile;
+        let mut m = 0.0f64;
+        for b in b0..b1 {
+            for a in a0..a1 {
+                let e = ask.unit_eta(self.level + 1, self.unit_box(a, b), (slot, (fa + a as usize, fb + b as usize)))?;
+                m = m.max(e);
+            }
+        }
+        Some(m)
+    }
+
     /// Marks the units of group (a0.., b0..) of `side` units a side that meet epsilon one level coarser.
     fn test(&mut self, ask: &mut Asker<'_, '_>, a0: u32, b0: u32, side: u32) -> Option<()> {
         let (ua, ub) = self.units;
@@ -243,7 +278,15 @@ impl Groups<'_, '_> {
             return Some(());
         }
         let corners = self.corners(ask, (a0, b0), (a1, b1));
+        // First the error capped by the max pyramid (no unit read), then by the units' own errors.
         let v = ask.group(self.level + 1, bx, &corners)?;
+        if v <= self.eps * GROUP_MARGIN {
+            *self.worst = self.worst.max(v);
+            self.mark(a0, b0, a1, b1);
+            return Some(());
+        }
+        let cap = self.cap(ask, (a0, b0), (a1, b1))?;
+        let v = ask.capped(self.level + 1, bx, &corners, cap)?;
         if v <= self.eps * GROUP_MARGIN {
             *self.worst = self.worst.max(v);
             self.mark(a0, b0, a1, b1);

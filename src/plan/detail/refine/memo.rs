@@ -1,41 +1,14 @@
-//! Stage 2, the per-frame plan: how the detail pool's refinement asks bounds. Every bound it computes is
-//! one evaluation of the frame's refinement budget ([`Work`], a count, never a clock); the bounds asked
-//! in the current view are kept ([`Memo`]) while the view does not change, across frames, so a split the
-//! budget cut short is taken up again next frame without asking its bounds twice.
+//! Stage 2, the per-frame plan: how the detail pool's refinement asks bounds. Every box or sub-box whose
+//! error a bound reads and projects is one evaluation of the frame's refinement budget (the selector's
+//! allowance, [`crate::plan::lod::Lod::set_allowance`]: a count, never a clock); a bound the budget stops
+//! halfway is NaN and kept nowhere. The bounds asked in the current view are kept ([`Memo`]) while the
+//! view does not change, across frames, so a split the budget cut short is taken up again next frame
+//! without asking its bounds twice.
 
 use super::mask::{CornerGrid, UnitEtas};
 use crate::plan::camera::Corner;
 use crate::plan::detail::PoolBounds;
 use crate::plan::lod::LatticeBox;
-
-/// The frame's refinement budget: bound evaluations left and spent.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub(crate) struct Work {
-    left: u64,
-    used: u64,
-}
-
-impl Work {
-    /// `budget` evaluations to spend.
-    pub(crate) fn new(budget: u64) -> Self {
-        Self {
-            left: budget,
-            used: 0,
-        }
-    }
-
-    /// Takes one evaluation; None when the budget is spent (nothing is taken).
-    pub(crate) fn take(&mut self) -> Option<()> {
-        self.left = self.left.checked_sub(1)?;
-        self.used += 1;
-        Some(())
-    }
-
-    /// Evaluations spent.
-    pub(crate) fn used(&self) -> u64 {
-        self.used
-    }
-}
 
 /// What a bound is asked as ([`Asker`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -45,8 +18,11 @@ enum Kind {
     Meets,
     /// The whole split's value ([`crate::plan::lod::Lod::bound_in`] with no limit).
     Full,
-    /// A group of stitched units: their error capped by the max pyramid ([`PoolBounds::group`]).
+    /// A group of stitched units: their error capped by the max pyramid
+    /// ([`crate::plan::lod::Lod::cap_bound_with_corners`]).
     Group,
+    /// The same with the error capped by the largest of its units' own.
+    Capped,
 }
 
 /// Entries of [`Memo`]'s table (a power of two).
@@ -109,11 +85,10 @@ impl Memo {
         }
     }
 
-    /// `compute()`, the bound of `kind` at `level` over `bx`, looked up first; one evaluation of `work`
-    /// when computed, None (nothing computed) when that is spent.
+    /// `compute()`, the bound of `kind` at `level` over `bx`, looked up first; None (nothing kept) when
+    /// it is NaN: the budget ran out while it was computed.
     fn get(
         &mut self,
-        work: &mut Work,
         level: u32,
         bx: LatticeBox,
         kind: Kind,
@@ -150,8 +125,10 @@ impl Memo {
                 oldest = Some((age, at));
             }
         }
-        work.take()?;
         let value = compute();
+        if value.is_nan() {
+            return None;
+        }
         if let Some(at) = free.or(oldest.map(|(_, at)| at)) {
             self.table[at] = MemoEntry {
                 generation: self.generation,
@@ -170,7 +147,6 @@ impl Memo {
 /// Each method is None when the budget is spent.
 pub(super) struct Asker<'q, 'b> {
     pub(super) memo: &'q mut Memo,
-    pub(super) work: &'q mut Work,
     pub(super) bounds: &'q PoolBounds<'b>,
     /// The corners of the cell whose units are asked.
     pub(super) grid: &'q mut CornerGrid,
@@ -184,7 +160,7 @@ impl Asker<'_, '_> {
     pub(super) fn bound(&mut self, level: u32, bx: LatticeBox) -> Option<f64> {
         let b = self.bounds;
         self.memo
-            .get(self.work, level, bx, Kind::Meets, || b.at(level, bx, false))
+            .get(level, bx, Kind::Meets, || b.meets(level, bx))
     }
 
     /// `level`'s bound over `bx` to rank a cell by: the threshold test's value where the box meets
@@ -196,7 +172,7 @@ impl Asker<'_, '_> {
             return Some(t);
         }
         let b = self.bounds;
-        self.memo.get(self.work, level, bx, Kind::Full, || {
+        self.memo.get(level, bx, Kind::Full, || {
             b.lod
                 .bound_in(&b.view, b.mode, level, bx, f64::INFINITY)
         })
@@ -211,19 +187,49 @@ impl Asker<'_, '_> {
         corners: &[Corner; 8],
         (slot, unit): (usize, (usize, usize)),
     ) -> Option<f64> {
+        let eta = self.unit_eta(level, bx, (slot, unit))?;
         let b = self.bounds;
-        let etas = &mut *self.etas;
-        self.memo.get(self.work, level, bx, Kind::Meets, || {
-            let eta = etas.get(slot, unit, || b.lod.eta_of(b.mode, level, bx));
+        self.memo.get(level, bx, Kind::Meets, || {
+            let eta = Some(eta).filter(|e| e.is_finite());
+            b.lod.unit_bound(&b.view, b.mode, bx, corners, eta)
+        })
+    }
+
+    /// A stitched unit's error at `level` (one quad, box `bx`), kept in `etas` at `at` (tile slot, unit):
+    /// read the first time (one evaluation). Infinite where no table holds the level; None when the
+    /// budget ran out.
+    pub(super) fn unit_eta(
+        &mut self,
+        level: u32,
+        bx: LatticeBox,
+        (slot, unit): (usize, (usize, usize)),
+    ) -> Option<f64> {
+        let b = self.bounds;
+        self.etas
+            .get(slot, unit, || b.lod.read_eta(b.mode, level, bx))
+    }
+
+    /// The bound of `level` over group box `bx` whose corners are known, with its units' largest error
+    /// `cap`: at least every unit's own bound.
+    pub(super) fn capped(
+        &mut self,
+        level: u32,
+        bx: LatticeBox,
+        corners: &[Corner; 8],
+        cap: f64,
+    ) -> Option<f64> {
+        let b = self.bounds;
+        self.memo.get(level, bx, Kind::Capped, || {
+            let eta = Some(cap).filter(|e| e.is_finite());
             b.lod.unit_bound(&b.view, b.mode, bx, corners, eta)
         })
     }
 
     /// An upper bound of the bound of `level` over every box inside `bx`, whose corners are known
-    /// ([`PoolBounds::group`]).
+    /// ([`crate::plan::lod::Lod::cap_bound_with_corners`]).
     pub(super) fn group(&mut self, level: u32, bx: LatticeBox, corners: &[Corner; 8]) -> Option<f64> {
         let b = self.bounds;
-        self.memo.get(self.work, level, bx, Kind::Group, || {
+        self.memo.get(level, bx, Kind::Group, || {
             b.lod
                 .cap_bound_with_corners(&b.view, b.mode, level, bx, corners)
         })

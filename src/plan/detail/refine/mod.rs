@@ -5,6 +5,7 @@
 //! re-tests what changed screen scale, covers what came into view, and spends what is left of its budget
 //! where the error is largest (docs/plan-time.md). Pure, deterministic and allocation-free.
 
+use crate::plan::detail::keymap::KeyMap;
 use crate::plan::detail::{
     cell_quads, stitch, DetailBudget, DetailView, PoolBounds, TileKey, DETAIL_CAPACITY,
 };
@@ -17,7 +18,7 @@ mod mask;
 mod memo;
 mod split;
 
-use memo::{Asker, Memo, Work};
+use memo::{Asker, Memo};
 use split::{resolve_ghost, split_block, split_cell, Outcome, Shape};
 
 /// Most cells one plan draws from the pool; past it a split does not fit. Cells are instances of a few
@@ -187,7 +188,7 @@ pub(super) struct Quadtree {
     pub(super) cells: Box<heapless::Vec<Cell, MAX_DETAIL_CELLS>>,
     pub(super) ghosts: Box<heapless::Vec<Ghost, MAX_GHOSTS>>,
     /// The distinct tiles the cells read, with how many cells read each (one slot each).
-    pub(super) keys: Box<heapless::Vec<(TileKey, u32), DETAIL_CAPACITY>>,
+    pub(super) keys: KeyMap,
     /// The cells' (level, quads) pairs, with how many cells take each: one instanced draw each.
     groups: heapless::Vec<((u32, u32), u32), MAX_CELL_GROUPS>,
     /// Scratch: one split's new cells (whole quarters, then the one taken).
@@ -204,6 +205,10 @@ pub(super) struct Quadtree {
     memo: Memo,
     /// Scratch: the corners of the cell whose units are asked.
     grid: mask::CornerGrid,
+    /// The cells' indices by block, then by index (`settle`).
+    by_block: Box<heapless::Vec<u16, MAX_DETAIL_CELLS>>,
+    /// Scratch: stale cells in the order they are asked again.
+    order: Box<heapless::Vec<(f64, u16), MAX_DETAIL_CELLS>>,
     /// The stitched units' errors, per tile.
     etas: mask::UnitEtas,
     /// Per-instance records its cells take ([`Cell::instances`]).
@@ -212,11 +217,15 @@ pub(super) struct Quadtree {
     view: u32,
     /// The current view's key ([`PoolBounds::key`]).
     view_key: u64,
+    /// The viewport the quadtrees were refined in.
+    viewport: (u32, u32),
     /// A key of everything the refinement's result depends on: the view, the clamped blocks and the
     /// budgets. While it holds, a frame takes up the refinement where the last one stopped.
     inputs: Option<u64>,
     /// The view changed this frame (the camera moves).
     moved: bool,
+    /// Some ghost is in view and not frozen (`pick` looks for it).
+    seen_ghosts: bool,
     /// What was left of the budgets (triangles, draws, slots, records) when a split last did not fit:
     /// frozen units are tried again once more than that is left (`carry.rs`).
     mark: Option<(u64, i64, usize, usize)>,
@@ -240,7 +249,7 @@ impl Quadtree {
             cands: Box::default(),
             cells: Box::default(),
             ghosts: Box::default(),
-            keys: Box::default(),
+            keys: KeyMap::new(DETAIL_CAPACITY),
             groups: heapless::Vec::new(),
             new: Box::default(),
             cut: Box::default(),
@@ -249,12 +258,16 @@ impl Quadtree {
             cand_of: vec![NONE; MAX_LOD_BLOCKS].into_boxed_slice(),
             memo: Memo::default(),
             grid: mask::CornerGrid::default(),
+            order: Box::default(),
+            by_block: Box::default(),
             etas: mask::UnitEtas::new(quads),
             instances: 0,
             view: 0,
             view_key: 0,
+            viewport: (0, 0),
             inputs: None,
             moved: false,
+            seen_ghosts: false,
             mark: None,
             draws: 0,
             triangles: 0,
@@ -294,8 +307,6 @@ enum Unit {
     Cell(usize),
     /// A ghost come into view.
     Ghost(usize),
-    /// A cell whose units are to be asked (it will not be split).
-    Mask(usize),
 }
 
 /// The frame's fixed inputs of a split.
@@ -336,19 +347,27 @@ impl Quadtree {
         self.memo.next_frame();
         self.etas.next_frame();
         self.carry(&at, bounds, ring_triangles)?;
-        let mut work = Work::new(evaluations);
+        // The budget: the selector makes at most this many bound evaluations for the refinement.
+        let lod = bounds.lod;
+        lod.set_allowance(evaluations);
         self.refining = false;
-        if slots > 0 {
-            self.grow(&at, bounds, &mut work)?;
+        let grown = if slots > 0 {
+            self.grow(&at, bounds)
+        } else {
+            Ok(())
+        };
+        if grown.is_ok() && slots > 0 {
             if self.pending.is_some() {
                 self.refining = true;
             } else {
-                self.refresh(&at, bounds, &mut work);
+                self.refresh(&at, bounds);
                 // A moving camera's refreshes are upkeep that never ends; a still camera's converge.
                 self.refining = self.pending.is_some() && !self.moved;
             }
         }
-        self.spent = work.used();
+        self.spent = evaluations - lod.allowance();
+        lod.set_allowance(u64::MAX);
+        grown?;
         self.settle(view.epsilon_px);
         Ok(())
     }
@@ -388,12 +407,28 @@ impl Quadtree {
             && self.now(c, c.coarse_bound) <= limit
     }
 
-    /// Sets every cell's met flag for this frame.
+    /// Sets every cell's met flag for this frame, and indexes the cells by block.
     fn settle(&mut self, eps: f64) {
+        self.by_block.clear();
         for j in 0..self.cells.len() {
             let m = self.meets(&self.cells[j], eps);
             self.cells[j].met = m;
+            let j = u16::try_from(j).expect("cells <= MAX_DETAIL_CELLS");
+            self.by_block.push(j).expect("cells <= MAX_DETAIL_CELLS");
         }
+        let cells = &self.cells;
+        self.by_block
+            .sort_unstable_by_key(|&j| (cells[usize::from(j)].block, j));
+    }
+
+    /// Block `block`'s cells, in the order they were made (as of the last [`Quadtree::refine`]).
+    pub(super) fn cells_of(&self, block: u16) -> impl Iterator<Item = &Cell> + '_ {
+        let key = |j: &u16| self.cells[usize::from(*j)].block;
+        let lo = self.by_block.partition_point(|j| key(j) < block);
+        let hi = self.by_block.partition_point(|j| key(j) <= block);
+        self.by_block[lo..hi]
+            .iter()
+            .map(|&j| &self.cells[usize::from(j)])
     }
 
     /// Whether block `block` has a part in view not covered yet (it is not served until it has none).
@@ -419,23 +454,21 @@ impl Quadtree {
     /// more cells (instances; a draw only per new pair of level and cell quads). Each split takes
     /// whichever of the two (whole quarters or the cut) uses the smaller share of what is left of its
     /// scarcer budget. A cell that meets epsilon or reached its block's wanted level is not split.
-    fn grow(&mut self, at: &Inputs<'_, '_>, bounds: &PoolBounds<'_>, work: &mut Work) -> Result<()> {
+    fn grow(&mut self, at: &Inputs<'_, '_>, bounds: &PoolBounds<'_>) -> Result<()> {
         let eps = at.view.epsilon_px;
         let quads = at.quads;
+        // Cells made while the camera moved whose units are still to ask, and that will not be split:
+        // their units take triangles off the frame before anything else is split.
+        if !self.mask_cells(0, at, bounds) {
+            return Ok(());
+        }
         loop {
             let Some(unit) = self.pick(eps) else {
                 return Ok(());
             };
-            if let Unit::Mask(j) = unit {
-                if !self.mask_cell(j, at, bounds, work) {
-                    self.pending = Some(self.region(unit));
-                    return Ok(());
-                }
-                continue;
-            }
             if let Unit::Cell(j) = unit {
                 if self.cells[j].view != self.view {
-                    if !self.refresh_cell(j, at, bounds, work) {
+                    if !self.refresh_cell(j, at, bounds) {
                         self.pending = Some(self.region(unit));
                         return Ok(());
                     }
@@ -457,7 +490,7 @@ impl Quadtree {
                 if is_cut && (cuts[1] == quads || whole_only) {
                     break;
                 }
-                let outcome = self.split(at, bounds, work, unit, min, is_cut)?;
+                let outcome = self.split(at, bounds, unit, min, is_cut)?;
                 if outcome == Outcome::Budget {
                     out_of_budget = true;
                     break;
@@ -505,9 +538,15 @@ impl Quadtree {
                     Unit::Block(k) if empty => self.cands[k].hidden = true,
                     Unit::Cell(j) if empty => self.cells[j].hidden = true,
                     Unit::Block(k) => self.cands[k].frozen = true,
-                    Unit::Cell(j) => self.cells[j].frozen = true,
+                    Unit::Cell(j) => {
+                        // Not split: drawn as it is, with its units.
+                        self.cells[j].frozen = true;
+                        if !self.mask_cell(j, at, bounds) {
+                            self.pending = Some(self.region(unit));
+                            return Ok(());
+                        }
+                    }
                     Unit::Ghost(g) => self.ghosts[g].frozen = true,
-                    Unit::Mask(_) => {}
                 }
                 continue;
             };
@@ -517,7 +556,6 @@ impl Quadtree {
             // The new cells' own bounds, asked before anything is taken (the budget may end here).
             let mut ask = Asker {
                 memo: &mut self.memo,
-                work,
                 bounds,
                 grid: &mut self.grid,
             etas: &mut self.etas,
@@ -538,8 +576,27 @@ impl Quadtree {
                 self.pending = Some(self.region(unit));
                 return Ok(());
             }
+            let first = self.cells.len() - usize::from(matches!(unit, Unit::Cell(_)));
             self.commit(unit, cost);
+            if matches!(unit, Unit::Ghost(_)) {
+                self.seen_ghosts = self.ghosts.iter().any(|g| g.visible && !g.frozen);
+            }
+            if !self.mask_cells(first, at, bounds) {
+                return Ok(());
+            }
         }
+    }
+
+    /// [`Quadtree::mask_cell`] of cells `first..`, in order; false (the region noted) when the budget ran
+    /// out.
+    fn mask_cells(&mut self, first: usize, at: &Inputs<'_, '_>, bounds: &PoolBounds<'_>) -> bool {
+        for j in first..self.cells.len() {
+            if !self.mask_cell(j, at, bounds) {
+                self.pending = Some(self.region(Unit::Cell(j)));
+                return false;
+            }
+        }
+        true
     }
 
     /// What is left of the budgets: triangles, draws, slots and records.
@@ -560,7 +617,6 @@ impl Quadtree {
         j: usize,
         at: &Inputs<'_, '_>,
         bounds: &PoolBounds<'_>,
-        work: &mut Work,
     ) -> bool {
         let c = self.cells[j];
         let eps = at.view.epsilon_px;
@@ -569,7 +625,6 @@ impl Quadtree {
         }
         let mut ask = Asker {
             memo: &mut self.memo,
-            work,
             bounds,
             grid: &mut self.grid,
             etas: &mut self.etas,
@@ -599,14 +654,10 @@ impl Quadtree {
     /// The unit the refinement splits next: a ghost come into view, else the largest bound still
     /// splittable (blocks first, then cells; first on ties). None when nothing is left.
     fn pick(&self, eps: f64) -> Option<Unit> {
-        if let Some(g) = self.ghosts.iter().position(|g| g.visible && !g.frozen) {
-            return Some(Unit::Ghost(g));
-        }
-        // Cells made while the camera moved whose units are still to ask, and that will not be split:
-        // their units take triangles off the frame before anything else is split.
-        let settled = |c: &Cell| c.bound <= eps || c.key.level <= c.wanted || c.frozen;
-        if let Some(j) = self.cells.iter().position(|c| !c.masked && settled(c)) {
-            return Some(Unit::Mask(j));
+        if self.seen_ghosts {
+            if let Some(g) = self.ghosts.iter().position(|g| g.visible && !g.frozen) {
+                return Some(Unit::Ghost(g));
+            }
         }
         let mut pick: Option<(f64, Unit)> = None;
         for (k, c) in self.cands.iter().enumerate() {
@@ -652,7 +703,6 @@ impl Quadtree {
                 }
             }
             Unit::Ghost(g) => (self.ghosts[g].level, self.ghosts[g].bounds),
-            Unit::Mask(j) => (self.cells[j].key.level, self.cells[j].bounds),
         };
         // With the tiles' one-sample border.
         (
@@ -667,7 +717,6 @@ impl Quadtree {
         &mut self,
         at: &Inputs<'_, '_>,
         bounds: &PoolBounds<'_>,
-        work: &mut Work,
         unit: Unit,
         min_quads: u32,
         to_cut: bool,
@@ -680,7 +729,6 @@ impl Quadtree {
         new.clear();
         let mut ask = Asker {
             memo: &mut self.memo,
-            work,
             bounds,
             grid: &mut self.grid,
             etas: &mut self.etas,
@@ -695,8 +743,6 @@ impl Quadtree {
             Unit::Block(k) => split_block(new, at.view, &mut ask, at.lod, &self.cands[k], shape)?,
             Unit::Cell(j) => split_cell(new, at.view, &mut ask, &self.cells[j], shape),
             Unit::Ghost(g) => resolve_ghost(new, at.view, &mut ask, &self.ghosts[g], shape),
-            // Not split (`grow` asks its units).
-            Unit::Mask(_) => Outcome::Full,
         })
     }
 
@@ -710,7 +756,13 @@ impl Quadtree {
         slots: usize,
     ) -> Option<(i64, u64, u64)> {
         let cells = &new.cells;
-        let new_keys = unseen(cells, |c| c.key, &self.keys);
+        let new_keys = cells
+            .iter()
+            .enumerate()
+            .filter(|&(i, c)| {
+                !cells[..i].iter().any(|o| o.key == c.key) && self.keys.get(&c.key).is_none()
+            })
+            .count();
         let n = cells.len();
         let add_t: u64 = cells.iter().map(|c| c.triangles(budget)).sum();
         // One instanced draw per (level, cell quads): a cell adds a draw only when it starts a pair.
@@ -732,7 +784,7 @@ impl Quadtree {
                 }
                 removed = 1;
                 dropped = old.instances();
-                if is_last(&self.keys, &old.key) && !cells.iter().any(|c| c.key == old.key) {
+                if self.keys.get(&old.key) == Some(1) && !cells.iter().any(|c| c.key == old.key) {
                     freed = 1;
                 }
                 old.triangles(budget)
@@ -741,7 +793,6 @@ impl Quadtree {
                 ghost_gone = 1;
                 0
             }
-            Unit::Mask(_) => return None,
         };
         let added: usize = cells.iter().map(Cell::instances).sum();
         let fits = n > 0
@@ -765,12 +816,11 @@ impl Quadtree {
             Unit::Cell(j) => {
                 let old = self.cells.swap_remove(j);
                 self.instances -= old.instances();
-                count_out(&mut self.keys, &old.key);
+                self.keys.count_out(&old.key);
                 count_out(&mut self.groups, &group(&old));
                 old.block
             }
             Unit::Ghost(g) => self.ghosts.swap_remove(g).block,
-            Unit::Mask(j) => self.cells[j].block,
         };
         let (view, scale) = (self.view, self.scale_of(block));
         for i in 0..self.new.cells.len() {
@@ -780,7 +830,7 @@ impl Quadtree {
             self.cells
                 .push(c)
                 .expect("checked against MAX_DETAIL_CELLS");
-            let keyed = count_in(&mut self.keys, c.key);
+            let keyed = self.keys.count_in(c.key);
             let grouped = count_in(&mut self.groups, group(&c));
             assert!(
                 keyed && grouped,
@@ -796,27 +846,29 @@ impl Quadtree {
     /// budget lasts: while the camera moves, those whose rescaled bound is within [`AT_RISK`] of epsilon
     /// (the others are kept as they are); at a still camera every one, which it converges with. A cell
     /// whose new units do not fit what is left keeps its old ones and is frozen (not met).
-    fn refresh(&mut self, at: &Inputs<'_, '_>, bounds: &PoolBounds<'_>, work: &mut Work) {
+    fn refresh(&mut self, at: &Inputs<'_, '_>, bounds: &PoolBounds<'_>) {
         let floor = if self.moved {
             AT_RISK * at.view.epsilon_px
         } else {
             f64::NEG_INFINITY
         };
-        loop {
-            let mut pick: Option<(f64, usize)> = None;
-            for (j, c) in self.cells.iter().enumerate() {
-                if c.view == self.view || c.frozen {
-                    continue;
-                }
-                let b = self.now(c, c.bound.max(c.coarse_bound));
-                if b > floor && pick.is_none_or(|(p, _)| b > p) {
-                    pick = Some((b, j));
-                }
+        // The stale cells, largest first (a refresh changes no cell's place).
+        self.order.clear();
+        for j in 0..self.cells.len() {
+            let c = &self.cells[j];
+            let b = self.now(c, c.bound.max(c.coarse_bound));
+            if c.view != self.view && !c.frozen && b > floor {
+                let j = u16::try_from(j).expect("cells <= MAX_DETAIL_CELLS");
+                self.order.push((b, j)).expect("cells <= MAX_DETAIL_CELLS");
             }
-            let Some((_, j)) = pick else { return };
-            if !self.refresh_cell(j, at, bounds, work) {
+        }
+        self.order
+            .sort_unstable_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+        for i in 0..self.order.len() {
+            let j = usize::from(self.order[i].1);
+            if !self.refresh_cell(j, at, bounds) {
                 self.pending = Some(self.region(Unit::Cell(j)));
-                return;
+                break;
             }
         }
     }
@@ -828,13 +880,11 @@ impl Quadtree {
         j: usize,
         at: &Inputs<'_, '_>,
         bounds: &PoolBounds<'_>,
-        work: &mut Work,
     ) -> bool {
         let c = self.cells[j];
         let scale = self.scale_of(c.block);
         let mut ask = Asker {
             memo: &mut self.memo,
-            work,
             bounds,
             grid: &mut self.grid,
             etas: &mut self.etas,
