@@ -43,9 +43,12 @@ fn params(eps: f32) -> PlanParams {
     }
 }
 
+/// One draw of [`drawn`]: level, bounds (x0, y0, w, h) and a stitched cell's unit mask.
+type DrawnCell = (u32, i64, i64, u32, u32, Vec<u32>);
+
 /// What a plan draws, slot placement aside (a refinement spread over frames fills other slots on the way):
 /// every block's level, every draw's level, bounds and unit mask, and the triangles.
-fn drawn(plan: &FramePlan) -> (Vec<u32>, Vec<(u32, i64, i64, u32, u32, Vec<u32>)>, u64) {
+fn drawn(plan: &FramePlan) -> (Vec<u32>, Vec<DrawnCell>, u64) {
     let levels = plan.lod_frame().blocks.iter().map(|b| b.level).collect();
     let mut draws: Vec<_> = plan
         .draws()
