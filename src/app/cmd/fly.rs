@@ -4,7 +4,6 @@
 use std::fs::File;
 use std::io::{BufWriter, IsTerminal, Write};
 use std::path::{Path as FsPath, PathBuf};
-use std::time::Instant;
 
 use crate::app::plot::{LinePlot, Series};
 use clap::Args;
@@ -21,6 +20,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 
 use super::args::{arg_error, flag, pixel_size, GpuArgs, LodArgs, Size, StreamArgs};
+use super::bench::plan::{percentiles, timed_plan, Settling};
 use super::hashes::{self, HashFile};
 use super::{ProfileArgs, TerrainArgs};
 
@@ -82,6 +82,11 @@ pub(crate) struct FlyArgs {
     /// With --render: the GL context.
     #[command(flatten)]
     gpu: GpuArgs,
+    /// SAT modes: measure the whole frame's screen error (`render --json`'s measure: every visible data
+    /// sample's projected error as drawn) on frames 0, K, 2K, ... of the flight; reads the whole terrain
+    /// (selects --resident).
+    #[arg(long, value_name = "K")]
+    error_every: Option<u64>,
     /// Write every frame's hash here, one `frame<TAB>hash` line each, under a header naming the run.
     #[arg(long, value_name = "FILE")]
     hash_out: Option<PathBuf>,
@@ -145,9 +150,19 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
     // cache on first use), rendered or not, as `render` streams it; the camera path follows a coarse
     // level of it. SG's CPU reference reads every sample, so --reference loads it whole, as --resident;
     // so does --synth-levels (the synthesised rings are built from the resident pyramid).
+    if args.error_every == Some(0) {
+        return Err(arg_error("--error-every", "must be at least 1"));
+    }
+    if args.error_every.is_some() && lod_mode == LodMode::Distance {
+        return Err(arg_error(
+            "--error-every",
+            "measures a SAT mode's frames (give --lod sat, sat-conservative or exact)",
+        ));
+    }
     let needs_all = [
         (args.shading.reference, "--reference"),
         (args.synth_levels > 0, "--synth-levels"),
+        (args.error_every.is_some(), "--error-every"),
     ]
     .into_iter()
     .find_map(|(on, flag)| on.then_some(flag));
@@ -184,14 +199,10 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
         ..PlanParams::default()
     };
     let mut blocks_clamped_max = 0u32;
-    // SAT modes: per jump of the path (frame 0 counts as one), the frames until the plan has settled
-    // (no ring stale, the refinement has no work left that its budget stopped, every pool tile its cells
-    // read resident) and the blocks then clamped (None: not before the next jump or the end).
-    let mut recover: Vec<Option<(u64, u32)>> = Vec::new();
-    recover
-        .try_reserve_exact(usize::try_from(frames).unwrap_or(usize::MAX).min(1 << 20))
-        .map_err(|_| arg_error("--frames", "too many frames to keep jumps for"))?;
-    let mut since_jump: Option<u64> = None;
+    // SAT modes: per jump of the path (frame 0 counts as one), the frames until the plan settles.
+    let mut settling = Settling::default();
+    // --error-every: per sampled frame, (frame, max px, max px over unclamped blocks).
+    let mut errors: Vec<(u64, f64, f64)> = Vec::new();
     // The detail pool (SAT modes): samples written per frame (max), and the last frame's state.
     let mut detail_samples_max = 0u64;
     let mut detail_samples_total = 0u64;
@@ -319,30 +330,25 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
     for f in 0..frames {
         let camera = flight.camera(f);
         clipmap.update(camera.eye)?;
-        let (t, cpu) = (Instant::now(), thread_cpu_ns());
-        planner.plan(&clipmap, &camera, &plan_params, &mut plan)?;
-        let plan_ns = u64::try_from(t.elapsed().as_nanos()).unwrap_or(u64::MAX);
-        let plan_cpu_ns = thread_cpu_ns().zip(cpu).map(|(b, a)| b.saturating_sub(a));
+        let (plan_ns, plan_cpu_ns) =
+            timed_plan(&mut planner, &clipmap, &camera, &plan_params, &mut plan)?;
         // Pool tiles waiting for a streamed package's decode: the next update's, after the rings.
         clipmap.request_samples(&plan.detail().wanted);
+        if let (Some(k), Some(lod)) = (args.error_every, planner.lod()) {
+            if f % k == 0 {
+                let view = plan_params
+                    .viewport
+                    .unwrap_or((profile.view.width, profile.view.height));
+                let e = clipsat::measure::screen_error(&plan, view, &clipmap, &camera, lod);
+                errors.push((f, e.max_px, e.max_px_unclamped));
+            }
+        }
         let frame = clipmap.frame();
         let frame_hash = match lod_mode {
             LodMode::Distance => frame.hash,
             _ => {
                 blocks_clamped_max = blocks_clamped_max.max(plan.stats().blocks_clamped);
-                if f == 0 || flight.jumps_at(f) {
-                    if since_jump.is_some() {
-                        recover.push(None);
-                    }
-                    since_jump = Some(f);
-                }
-                let s = plan.stats();
-                let settled =
-                    clipmap.frame().stale_levels == 0 && !s.refining && s.detail_tiles_waiting == 0;
-                if let Some(j) = since_jump.filter(|_| settled) {
-                    recover.push(Some((f - j, s.blocks_clamped)));
-                    since_jump = None;
-                }
+                settling.frame(f, flight.jumps_at(f), &plan, &clipmap);
                 let mut h = Hash64::new();
                 h.write_u64(frame.hash);
                 plan.lod_frame().hash_into(&mut h);
@@ -463,11 +469,28 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
             "detail_samples_updated_max": detail_samples_max,
         });
         // The plan's cost per frame, measured in the run (wall time) and counted (bounds evaluated).
-        if since_jump.is_some() {
-            recover.push(None);
-        }
+        settling.finish();
+        let recover = &settling.legs;
         let settled: Vec<u64> = recover.iter().flatten().map(|r| r.0).collect();
+        let eps = planner.lod().map(Lod::epsilon_px);
+        let screen_error = (!errors.is_empty()).then(|| {
+            let most =
+                |pick: fn(&(u64, f64, f64)) -> f64| errors.iter().map(pick).fold(0.0, f64::max);
+            let over = eps.map_or(0, |e| errors.iter().filter(|r| r.1 > 1.05 * e).count());
+            json!({
+                "frames": errors.len(),
+                "every": args.error_every,
+                "max_px": most(|r| r.1),
+                "max_px_unclamped": most(|r| r.2),
+                "frames_over_1_05_eps": over,
+                "per_frame": errors
+                    .iter()
+                    .map(|&(f, m, u)| json!({ "frame": f, "max_px": m, "max_px_unclamped": u }))
+                    .collect::<Vec<_>>(),
+            })
+        });
         let plan_cost = json!({
+            "screen_error_sampled": screen_error,
             "jumps": recover.len(),
             "settle_frames": recover.iter().map(|r| r.map(|r| r.0)).collect::<Vec<_>>(),
             "settle_blocks_clamped": recover.iter().map(|r| r.map(|r| r.1)).collect::<Vec<_>>(),
@@ -636,16 +659,6 @@ struct Stats {
     evaluations_mean: f64,
 }
 
-/// p50, p99 and max of `v` by nearest rank (0 when empty).
-fn percentiles<T: Copy + Ord + Default>(mut v: Vec<T>) -> [T; 3] {
-    v.sort_unstable();
-    let at = |percent: usize| {
-        let rank = (percent * v.len()).div_ceil(100);
-        v.get(rank.max(1) - 1).copied().unwrap_or_default()
-    };
-    [at(50), at(99), v.last().copied().unwrap_or_default()]
-}
-
 impl Stats {
     fn of(rows: &[Row], budget: u32) -> Self {
         let n = rows.len().max(1) as f64;
@@ -767,35 +780,4 @@ fn plot(rows: &[Row], budget: u32, profile: &str, path: Path, out: &FsPath) -> R
         ],
     };
     plot.write_png(out, 1200, 600)
-}
-
-/// This thread's CPU time, nanoseconds (`CLOCK_THREAD_CPUTIME_ID`); None where unavailable. Beside the
-/// wall clock, it tells the plan's own time from the time a loaded machine's scheduler gave others.
-#[cfg(all(target_os = "linux", target_pointer_width = "64"))]
-fn thread_cpu_ns() -> Option<u64> {
-    #[repr(C)]
-    struct Timespec {
-        tv_sec: i64,
-        tv_nsec: i64,
-    }
-    extern "C" {
-        fn clock_gettime(clock: i32, tp: *mut Timespec) -> i32;
-    }
-    const CLOCK_THREAD_CPUTIME_ID: i32 = 3;
-    let mut t = Timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: clock_gettime writes one timespec (two 64-bit fields on 64-bit Linux) through a valid,
-    // exclusive pointer and reads nothing else.
-    let rc = unsafe { clock_gettime(CLOCK_THREAD_CPUTIME_ID, &mut t) };
-    let secs = u64::try_from(t.tv_sec).ok()?;
-    let nanos = u64::try_from(t.tv_nsec).ok()?;
-    (rc == 0).then(|| secs * 1_000_000_000 + nanos)
-}
-
-/// No thread clock here.
-#[cfg(not(all(target_os = "linux", target_pointer_width = "64")))]
-fn thread_cpu_ns() -> Option<u64> {
-    None
 }

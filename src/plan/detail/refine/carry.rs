@@ -236,7 +236,7 @@ impl Quadtree {
         for c in self.cells.iter() {
             has[usize::from(c.block)] = true;
             self.instances += c.instances();
-            grouped &= self.keys.count_in(c.key) && super::count_in(&mut self.groups, super::group(c));
+            grouped &= self.keys.count_in(c.key) && super::grow::count_in(&mut self.groups, super::grow::group(c));
         }
         for g in self.ghosts.iter() {
             has[usize::from(g.block)] = true;
