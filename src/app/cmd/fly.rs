@@ -691,12 +691,14 @@ fn open_csv(path: &FsPath, levels: u32) -> Result<BufWriter<File>> {
     let file = File::create(path).map_err(|e| Error::io(path, "cannot create", e))?;
     let mut w = BufWriter::with_capacity(1 << 16, file);
     let mut header = String::from(
-        "frame,samples_updated,budget_used,levels_updated,stale_levels,disabled_levels,triangles,hash,\
-         plan_us,plan_cpu_us,bound_evaluations,refine_evaluations,blocks_clamped,plan_triangles",
+        "frame,samples_updated,budget_used,levels_updated,stale_levels,disabled_levels,triangles,hash",
     );
     for l in 0..levels {
         header.push_str(&format!(",active_l{l}"));
     }
+    header.push_str(
+        ",plan_us,plan_cpu_us,bound_evaluations,refine_evaluations,blocks_clamped,plan_triangles",
+    );
     writeln!(w, "{header}").map_err(|e| Error::io(path, "cannot write", e))?;
     Ok(w)
 }
@@ -720,6 +722,9 @@ fn write_row(
         f.triangles,
         f.hash
     )?;
+    for l in &f.levels {
+        write!(w, ",{}x{}", l.active.w, l.active.h)?;
+    }
     let (us, cpu) = row.map_or((0, None), |r| {
         (r.plan_ns / 1000, r.plan_cpu_ns.map(|c| c / 1000))
     });
@@ -732,9 +737,6 @@ fn write_row(
         s.blocks_clamped,
         s.triangles
     )?;
-    for l in &f.levels {
-        write!(w, ",{}x{}", l.active.w, l.active.h)?;
-    }
     writeln!(w)
 }
 
