@@ -151,13 +151,16 @@ impl UnitEtas {
 /// whose coarser bound meets epsilon (or out of view) and whose neighbours' at their sides does too
 /// ([`stitch::erode`]), with the largest coarser bound read of the ones that meet it (0 if none: what a
 /// later view rescales to see whether the mask still holds). A cell whose corners are not on the coarser
-/// lattice has none. None: the frame's refinement budget ran out.
+/// lattice has none. `rough` (a moving view): groups are tested with the max pyramid's cap only and down
+/// to 2 x 2 units, never unit by unit (a unit that would meet epsilon alone in a group that misses stays
+/// fine: more triangles, never more error; a still view asks the units again one by one). None: the
+/// frame's refinement budget ran out.
 pub(super) fn coarse_units(
     view: &DetailView<'_>,
     ask: &mut Asker<'_, '_>,
     level: u32,
     r: &Rect,
-    eps: f64,
+    (eps, rough): (f64, bool),
 ) -> Option<(stitch::Mask, f64)> {
     let mut meets: stitch::Mask = [0; stitch::MAX_UNITS as usize];
     let even = r.x0 % 2 == 0 && r.y0 % 2 == 0 && r.w % 2 == 1 && r.h % 2 == 1;
@@ -182,6 +185,7 @@ pub(super) fn coarse_units(
         eps,
         units,
         tile: (tile, first),
+        rough,
         meets: &mut meets,
         worst: &mut worst,
     };
@@ -198,6 +202,8 @@ struct Groups<'a, 'v> {
     units: (u32, u32),
     /// The cell's tile slot in [`UnitEtas`] and its first unit there.
     tile: (usize, (usize, usize)),
+    /// Groups only, capped by the max pyramid, down to 2 x 2 units ([`coarse_units`]).
+    rough: bool,
     meets: &'a mut stitch::Mask,
     worst: &'a mut f64,
 }
@@ -285,12 +291,18 @@ impl Groups<'_, '_> {
             self.mark(a0, b0, a1, b1);
             return Some(());
         }
-        let cap = self.cap(ask, (a0, b0), (a1, b1))?;
-        let v = ask.capped(self.level + 1, bx, &corners, cap)?;
-        if v <= self.eps * GROUP_MARGIN {
-            *self.worst = self.worst.max(v);
-            self.mark(a0, b0, a1, b1);
-            return Some(());
+        if self.rough {
+            if side <= 2 {
+                return Some(());
+            }
+        } else {
+            let cap = self.cap(ask, (a0, b0), (a1, b1))?;
+            let v = ask.capped(self.level + 1, bx, &corners, cap)?;
+            if v <= self.eps * GROUP_MARGIN {
+                *self.worst = self.worst.max(v);
+                self.mark(a0, b0, a1, b1);
+                return Some(());
+            }
         }
         let h = side / 2;
         for (da, db) in [(0, 0), (h, 0), (0, h), (h, h)] {

@@ -173,7 +173,7 @@ pub(super) fn resolve_ghost(
             let mut c = cell_at(&at, g.level, g.bounds, bound);
             if shape.stitch && shape.eager {
                 let Some((mask, worst)) =
-                    coarse_units(view, ask, g.level, &g.bounds, view.epsilon_px)
+                    coarse_units(view, ask, g.level, &g.bounds, (view.epsilon_px, false))
                 else {
                     return Outcome::Budget;
                 };
@@ -234,7 +234,7 @@ fn emit(
         let r = halve(&fine);
         let mut c = cell_at(at, coarse, r, kept);
         if eager {
-            let Some((mask, worst)) = coarse_units(view, ask, coarse, &r, eps) else {
+            let Some((mask, worst)) = coarse_units(view, ask, coarse, &r, (eps, false)) else {
                 return Outcome::Budget;
             };
             (c.coarse, c.coarse_bound, c.masked) = (mask, worst, true);
@@ -290,7 +290,7 @@ fn emit(
     // Its bound is asked once the split is taken (`Quadtree::refine`): a split not taken needs none.
     let mut c = cell_at(at, at.level, fine, f64::NAN);
     if eager {
-        let Some((mask, worst)) = coarse_units(view, ask, at.level, &fine, eps) else {
+        let Some((mask, worst)) = coarse_units(view, ask, at.level, &fine, (eps, false)) else {
             return Outcome::Budget;
         };
         (c.coarse, c.coarse_bound, c.masked) = (mask, worst, true);

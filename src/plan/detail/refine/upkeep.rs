@@ -18,6 +18,7 @@ impl Quadtree {
         bounds: &PoolBounds<'_>,
     ) -> bool {
         let c = self.cells[j];
+        let moved = self.moved;
         let eps = at.view.epsilon_px;
         if c.masked || !(c.bound <= eps || c.key.level <= c.wanted || c.frozen) {
             return true;
@@ -28,7 +29,7 @@ impl Quadtree {
             grid: &mut self.grid,
             etas: &mut self.etas,
         };
-        let Some((m, worst)) = mask::coarse_units(at.view, &mut ask, c.key.level, &c.bounds, eps)
+        let Some((m, worst)) = mask::coarse_units(at.view, &mut ask, c.key.level, &c.bounds, (eps, moved))
         else {
             return false;
         };
@@ -90,6 +91,7 @@ impl Quadtree {
         bounds: &PoolBounds<'_>,
     ) -> bool {
         let c = self.cells[j];
+        let moved = self.moved;
         let scale = self.scale_of(c.block);
         let mut ask = Asker {
             memo: &mut self.memo,
@@ -107,7 +109,13 @@ impl Quadtree {
             ..c
         };
         if at.budget.stitch {
-            let units = mask::coarse_units(at.view, &mut ask, c.key.level, &c.bounds, at.view.epsilon_px);
+            let units = mask::coarse_units(
+                at.view,
+                &mut ask,
+                c.key.level,
+                &c.bounds,
+                (at.view.epsilon_px, moved),
+            );
             let Some((m, worst)) = units else {
                 return false;
             };
