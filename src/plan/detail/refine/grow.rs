@@ -3,6 +3,7 @@
 //! the finest cut, whichever takes the smaller share of its scarcer budget, while the slots, draws,
 //! triangles, records and the frame's bound evaluations last.
 
+use super::mask;
 use super::memo::Asker;
 use super::split::{resolve_ghost, split_block, split_cell, Outcome, Shape};
 use super::{
@@ -267,13 +268,48 @@ impl Quadtree {
             quads: at.quads,
             min_quads,
             stitch: at.budget.stitch,
-            eager: !self.moved,
         };
-        Ok(match unit {
+        let out = match unit {
             Unit::Block(k) => split_block(new, at.view, &mut ask, at.lod, &self.cands[k], shape)?,
             Unit::Cell(j) => split_cell(new, at.view, &mut ask, &self.cells[j], shape),
             Unit::Ghost(g) => resolve_ghost(new, at.view, &mut ask, &self.ghosts[g], shape),
-        })
+        };
+        // A still view asks the new cells' units within the split, as the one-frame refinement does
+        // (they weigh in its cost); a moving view once the split is taken (`mask_cell`). A split that
+        // would not fit even with every unit coarse (its fewest triangles) does not fit with any units:
+        // they are not asked.
+        if out != Outcome::Room || self.moved || !at.budget.stitch {
+            return Ok(out);
+        }
+        let new = if to_cut { &self.cut } else { &self.new };
+        let fewest: u64 = new.cells.iter().map(|c| c.fewest_triangles(at.budget)).sum();
+        let cheapest = self
+            .cost(new, unit, at.budget, at.slots)
+            .is_some_and(|(d, _, sub)| d <= self.draws && fewest <= self.triangles + sub);
+        if !cheapest {
+            return Ok(out);
+        }
+        let new = if to_cut {
+            &mut self.cut
+        } else {
+            &mut self.new
+        };
+        let mut ask = Asker {
+            memo: &mut self.memo,
+            bounds,
+            grid: &mut self.grid,
+            etas: &mut self.etas,
+        };
+        let eps = at.view.epsilon_px;
+        for c in &mut new.cells {
+            let Some((mask, worst)) =
+                mask::coarse_units(at.view, &mut ask, c.key.level, &c.bounds, (eps, false))
+            else {
+                return Ok(Outcome::Budget);
+            };
+            (c.coarse, c.coarse_bound, c.masked) = (mask, worst, true);
+        }
+        Ok(out)
     }
 
     /// What the split in `new` adds: (draws, triangles, triangles it frees), None when it has no cells

@@ -156,6 +156,19 @@ impl Cell {
         }
     }
 
+    /// The fewest triangles it can draw: every unit coarse where it can be stitched, else whole.
+    pub(super) fn fewest_triangles(&self, budget: &DetailBudget) -> u64 {
+        let r = &self.bounds;
+        let even = r.x0 % 2 == 0 && r.y0 % 2 == 0 && r.w % 2 == 1 && r.h % 2 == 1;
+        if budget.stitch && even {
+            let (ua, ub) = stitch::units(r);
+            let all: stitch::Mask = [u32::MAX; stitch::MAX_UNITS as usize];
+            stitch::triangles(&all, ua, ub).min(budget.cell_triangles(r))
+        } else {
+            budget.cell_triangles(r)
+        }
+    }
+
     /// Triangles it draws: stitched when some unit is coarse, else whole.
     pub(super) fn triangles(&self, budget: &DetailBudget) -> u64 {
         if stitch::any(&self.coarse) {

@@ -3,7 +3,6 @@
 //! already meets epsilon stays there, and a part that misses it may be cut smaller ([`emit`]). Parts out
 //! of the view are kept as ghosts (not drawn, no tile), to be covered when they come into view.
 
-use super::mask::coarse_units;
 use super::memo::Asker;
 use super::{double, level0_box, Cand, Cell, Ghost, GhostKind, Scratch};
 use crate::plan::detail::{stitch, DetailView, TileKey};
@@ -20,17 +19,14 @@ pub(super) enum Outcome {
     Budget,
 }
 
-/// The shape of a split's cells: tile quads, the smallest cut, and their stitched units.
+/// The shape of a split's cells: tile quads, the smallest cut, and whether they are drawn stitched
+/// ([`crate::plan::detail::DetailBudget::stitch`]; their units are asked by the caller, `grow.rs`).
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Shape {
     pub(super) quads: u32,
     /// The smallest piece a part is cut into, in quads of the finer level.
     pub(super) min_quads: u32,
-    /// Cells are drawn stitched ([`crate::plan::detail::DetailBudget::stitch`]).
     pub(super) stitch: bool,
-    /// Their units are asked within the split (a still view: as the one-frame refinement asks them);
-    /// else once the split is taken, for the cells that meet epsilon (`Quadtree::mask_cell`).
-    pub(super) eager: bool,
 }
 
 /// Whose cells a split makes, and at which (finer) level.
@@ -170,16 +166,7 @@ pub(super) fn resolve_ghost(
             let Some(bound) = ask.ranked(g.level, bx) else {
                 return Outcome::Budget;
             };
-            let mut c = cell_at(&at, g.level, g.bounds, bound);
-            if shape.stitch && shape.eager {
-                let Some((mask, worst)) =
-                    coarse_units(view, ask, g.level, &g.bounds, (view.epsilon_px, false))
-                else {
-                    return Outcome::Budget;
-                };
-                (c.coarse, c.coarse_bound, c.masked) = (mask, worst, true);
-            }
-            push(new, c)
+            push(new, cell_at(&at, g.level, g.bounds, bound))
         }
     }
 }
@@ -223,7 +210,6 @@ fn emit(
     at: &Piece,
     fine: Rect,
 ) -> Outcome {
-    let eager = at.shape.stitch && at.shape.eager;
     let eps = view.epsilon_px;
     let coarse = at.level + 1;
     // Only whether it meets epsilon is asked: a kept cell's bound is not ranked (it is met).
@@ -231,15 +217,7 @@ fn emit(
         return Outcome::Budget;
     };
     if kept <= eps {
-        let r = halve(&fine);
-        let mut c = cell_at(at, coarse, r, kept);
-        if eager {
-            let Some((mask, worst)) = coarse_units(view, ask, coarse, &r, (eps, false)) else {
-                return Outcome::Budget;
-            };
-            (c.coarse, c.coarse_bound, c.masked) = (mask, worst, true);
-        }
-        return push(new, c);
+        return push(new, cell_at(at, coarse, halve(&fine), kept));
     }
     let min = i64::from(at.shape.min_quads);
     let (x1, y1) = (fine.x1() - 1, fine.y1() - 1);
@@ -288,12 +266,5 @@ fn emit(
         }
     }
     // Its bound is asked once the split is taken (`Quadtree::refine`): a split not taken needs none.
-    let mut c = cell_at(at, at.level, fine, f64::NAN);
-    if eager {
-        let Some((mask, worst)) = coarse_units(view, ask, at.level, &fine, (eps, false)) else {
-            return Outcome::Budget;
-        };
-        (c.coarse, c.coarse_bound, c.masked) = (mask, worst, true);
-    }
-    push(new, c)
+    push(new, cell_at(at, at.level, fine, f64::NAN))
 }
