@@ -83,7 +83,7 @@ pub(crate) struct FlyArgs {
     #[command(flatten)]
     gpu: GpuArgs,
     /// SAT modes: measure the whole frame's screen error (`render --json`'s measure: every visible data
-    /// sample's projected error as drawn) on frames 0, K, 2K, ... of the flight; reads the whole terrain
+    /// sample's projected error as drawn) on frames K, 2K, ... of the flight; reads the whole terrain
     /// (selects --resident).
     #[arg(long, value_name = "K")]
     error_every: Option<u64>,
@@ -335,7 +335,8 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
         // Pool tiles waiting for a streamed package's decode: the next update's, after the rings.
         clipmap.request_samples(&plan.detail().wanted);
         if let (Some(k), Some(lod)) = (args.error_every, planner.lod()) {
-            if f % k == 0 {
+            // Frames K, 2K, ...: frame 0 draws what one update filled (the flight's start).
+            if f > 0 && f % k == 0 {
                 let view = plan_params
                     .viewport
                     .unwrap_or((profile.view.width, profile.view.height));

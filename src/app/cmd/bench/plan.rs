@@ -226,10 +226,10 @@ pub(crate) fn plan_section(
          `sat-conservative`, profile {} ({}x{}, refinement budget {} bound evaluations a frame), a \
          {}-frame figure-8 flight at 50 m/frame over each terrain held resident; the bound evaluations a \
          plan made (boxes and sub-boxes whose error it read and projected: selection and refinement, then \
-         the refinement's alone); the whole frame's measured screen error on every {}th frame (over every \
-         block, and over the blocks the held data could pay for); and a teleport flight (a jump every 60 \
+         the refinement's alone); the whole frame's measured screen error on frames {every}, 2 x {every}, ... (over \
+         every block, and over the blocks the held data could pay for); and a teleport flight (a jump every 60 \
          frames, 1 m/frame between) for the frames from each jump until the plan settles, with the blocks \
-         clamped then. {machine}.\n\n\
+         clamped then. {machine}\n\n\
          | terrain | epsilon | p50 ms | p99 ms | max ms | bounds p50 / p99 / max | refinement p50 / p99 / max \
          | error px: frame / unclamped | settle frames (clamped) |\n|---|---|---|---|---|---|---|---|---|\n",
         profile.name,
@@ -237,7 +237,7 @@ pub(crate) fn plan_section(
         profile.view.height,
         profile.budget.refine_bounds_per_frame,
         run.frames,
-        run.error_every,
+        every = run.error_every,
     );
     for r in rows {
         let t = |i: usize| match r.cpu_ms {
