@@ -563,8 +563,8 @@ impl Lod {
 
 /// While the camera moves, a block keeps its last level as long as its scale has not shrunk by more than
 /// this factor (it could then take a coarser one) nor grown enough to take its last bound at that level
-/// past epsilon: the issue of a moving camera is which blocks changed, not every block every frame. A
-/// still camera tests every block kept that way again in its next frame.
+/// past epsilon (docs/plan-time.md): only the blocks whose screen scale changed that much are tested
+/// again. A still camera tests every block kept that way again in its next frame.
 pub const KEEP_BAND: f64 = 1.125;
 
 /// Sub-boxes per side [`Lod::box_bound_px`] splits a box into (on the tested level's lattice).
