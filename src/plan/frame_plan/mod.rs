@@ -142,8 +142,9 @@ pub struct PlanStats {
     pub uploads: u32,
     /// Texels (samples) they cover.
     pub upload_samples: u64,
-    /// SAT modes: blocks in the view frustum whose wanted level is finer than the held data, rings and
-    /// detail pool; 0 in distance mode.
+    /// SAT modes: blocks whose drawn pieces (the block less the finer ring's hole) meet the view
+    /// frustum and whose wanted level is finer than the held data, rings and detail pool, or whose pool
+    /// cells miss epsilon (by their stale estimates while the camera moves); 0 in distance mode.
     pub blocks_clamped: u32,
     /// SAT modes: blocks drawn from the detail pool at their wanted level.
     pub blocks_from_pool: u32,

@@ -327,7 +327,7 @@ impl Lod {
     /// Chooses every block's level for `frame` seen from `camera` (SAT paper algorithm 1): from the coarsest
     /// level to the finest, the first whose bound is <= epsilon; then the nearest level whose clip region
     /// covers the block. A block seen in the same view as when last selected keeps that selection's
-    /// bounds ([`SelectCache`]). Writes `out`; allocation-free. Fails with [`Error::Capacity`] past
+    /// bounds (a cache of each block's selection by view). Writes `out`; allocation-free. Fails with [`Error::Capacity`] past
     /// `profile.budget.max_draws` blocks.
     pub fn select(
         &self,
