@@ -71,6 +71,19 @@ pub struct FrameBudget {
     /// quads + 1 samples per side plus a one-sample border (for normals): [`Profile::detail_side`].
     #[serde(default)]
     pub detail_tile_quads: u32,
+    /// Bound evaluations the detail pool's refinement may spend per frame, at most: a count, never a
+    /// clock, so frames stay deterministic. The refinement carries over between frames and spends it
+    /// where the error is largest (docs/plan-time.md). Positive where the pool is on; default
+    /// [`DEFAULT_REFINE_BOUNDS_PER_FRAME`].
+    #[serde(default = "default_refine_bounds")]
+    pub refine_bounds_per_frame: u32,
+}
+
+/// `budget.refine_bounds_per_frame` where a profile does not set it.
+pub const DEFAULT_REFINE_BOUNDS_PER_FRAME: u32 = 1000;
+
+fn default_refine_bounds() -> u32 {
+    DEFAULT_REFINE_BOUNDS_PER_FRAME
 }
 
 /// How a profile's `budget.cpu_memory_bytes` is split.
@@ -377,6 +390,14 @@ impl Profile {
                     "{} is not in 0..={MAX_DETAIL_TILES} (the plan's fixed pool capacity)",
                     b.detail_tiles
                 ),
+            );
+        }
+        if b.detail_tiles > 0 && b.refine_bounds_per_frame == 0 {
+            return bad(
+                "budget.refine_bounds_per_frame",
+                "must be positive where the detail pool is on (budget.detail_tiles > 0): a zero \
+                 budget never refines a block"
+                    .into(),
             );
         }
         if b.detail_tile_quads != 0 && !b.detail_tile_quads.is_power_of_two() {

@@ -1,5 +1,5 @@
 //! SAT LOD benchmarks: per-frame CPU block selection (each mode) for a gles3-mid clipmap on the procedural
-//! terrain, and SAT build time per level.
+//! terrain, SAT build time per level, and the whole SAT plan per frame in a flight.
 //!
 //! Run with `cargo bench --bench stages -- lod_`.
 
@@ -84,4 +84,58 @@ fn sat_build_per_level(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, select_per_frame, sat_build_per_level);
+/// (c) `Planner::plan` per frame, selection and the detail pool's refinement within its budget
+/// (docs/plan-time.md), along a figure-8 at 50 m/frame (the planner carrying its state from frame to
+/// frame; the clipmap's update is not timed), gles3-mid, procedural 1025^2 at 30 m, sat-conservative.
+fn plan_per_frame(c: &mut Criterion) {
+    use clipsat::plan::frame_plan::{LodSetup, PlanParams, Planner};
+    let terrain = generate(&ProceduralParams::default()).expect("procedural terrain");
+    let profile = Profile::load("gles3-mid").expect("shipped profile");
+    let mut group = c.benchmark_group("lod_plan_gles3_mid_procedural_1025");
+    group
+        .sample_size(20)
+        .warm_up_time(Duration::from_secs(1))
+        .measurement_time(Duration::from_secs(3));
+    for eps in [1.0f32, 2.0, 4.0] {
+        let mut clipmap =
+            Clipmap::new(&terrain, &profile, ClipmapOptions::default()).expect("clipmap");
+        let tables =
+            LodTables::build(clipmap.pyramid(), profile.clipmap.levels, P, |_| {}).expect("tables");
+        let lod = Lod::for_clipmap(tables, &profile, &clipmap, &terrain);
+        let setup = LodSetup::new(LodMode::SatConservative, Some(lod)).expect("tables");
+        let mut planner = Planner::new(&profile, &clipmap, setup).expect("planner");
+        let mut plan = planner.new_plan();
+        let flight = Flight::new(Path::Figure8, 50.0, &terrain).expect("flight");
+        let params = PlanParams {
+            epsilon_px: Some(eps),
+            ..PlanParams::default()
+        };
+        let mut f = 0u64;
+        group.bench_function(format!("sat_conservative_{eps}px"), |b| {
+            b.iter_custom(|iters| {
+                let mut spent = Duration::ZERO;
+                for _ in 0..iters {
+                    let cam = flight.camera(f);
+                    f += 1;
+                    clipmap.update(cam.eye).expect("update");
+                    let t = std::time::Instant::now();
+                    planner
+                        .plan(&clipmap, &cam, &params, &mut plan)
+                        .expect("plan");
+                    spent += t.elapsed();
+                    clipmap.request_samples(&plan.detail().wanted);
+                    black_box(plan.hash());
+                }
+                spent
+            });
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(
+    benches,
+    select_per_frame,
+    sat_build_per_level,
+    plan_per_frame
+);

@@ -209,6 +209,12 @@ pub struct BoxScale {
 }
 
 impl BoxScale {
+    /// Pixels a metre of error moves a visible point of the box at most, to first order (f max(|n| /
+    /// q_z) / min q_z): how the box's bounds scale from one view to another.
+    pub fn per_metre(&self) -> f64 {
+        self.focal_slope / self.depth
+    }
+
     /// The most pixels a vertical error of at most `eta` metres moves a visible point of the box:
     /// f eta max(|n| / q_z) / (min q_z - eta |v_z|) (infinite when the error can reach the eye's depth).
     pub fn px(&self, eta: f64) -> f64 {

@@ -35,6 +35,9 @@ pub struct ClipmapOptions {
     pub synth_levels: u32,
 }
 
+/// The next clipmap's [`Clipmap::id`].
+static NEXT_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
+
 /// The narrowest active region (vertices per side) still rendered; narrower cropped levels are disabled.
 pub const MIN_ACTIVE: u32 = 5;
 
@@ -47,6 +50,8 @@ pub const HEIGHT_FACTOR: f64 = 0.4;
 /// The geometry clipmap: pyramid, rings, clip regions and the last frame's record.
 #[derive(Debug)]
 pub struct Clipmap {
+    /// This clipmap among all built in the process: what keys caches of its contents (never 0).
+    id: u64,
     source: HeightSource,
     /// Samples decoded from the package in the last frame (0 for a resident pyramid).
     decoded: u32,
@@ -197,7 +202,14 @@ impl Clipmap {
             next_index: 0,
             stamps: UploadStamps::new(levels, size),
             requests: heapless::Vec::new(),
+            id: NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
         })
+    }
+
+    /// This clipmap's identity among those built in the process (a key for caches of its contents, such
+    /// as the planner's tile height ranges; never 0, never reused).
+    pub fn id(&self) -> u64 {
+        self.id
     }
 
     /// World (x, y) of the terrain's south-west sample (`Heightmap::origin`), metres.

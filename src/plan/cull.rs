@@ -501,14 +501,16 @@ fn piece_level(frame: &crate::plan::frame::Frame, ring: u32, selected: u32, p: &
 /// each tile of a block that is drawn at another level than its ring, is edge-adjacent to such a block of the
 /// same ring, or lies on its ring's outer or hole boundary, so every boundary between different levels has a
 /// skirt on both sides. Blocks listed in `skip` (drawn from the detail pool, [`crate::plan::detail`]) are
-/// left out but still count as drawn at their level for their neighbours' skirts. More than
-/// `params.max_draws` draws is an [`Error::Capacity`].
+/// left out but still count as drawn at their level for their neighbours' skirts. The tiles' height
+/// ranges come through `heights` (kept while their texels are unchanged). More than `params.max_draws`
+/// draws is an [`Error::Capacity`].
 pub fn build_lod_draws(
     clipmap: &Clipmap,
     camera: &Camera,
     params: &DrawParams,
     lod: &crate::plan::lod::LodFrame,
     skip: &[(u16, u32)],
+    heights: &crate::plan::heights::TileHeights,
     out: &mut DrawList,
 ) -> Result<DrawStats> {
     out.clear();
@@ -530,11 +532,27 @@ pub fn build_lod_draws(
     // differs from its ring exactly when its level does.
     let differs = |b: &crate::plan::lod::BlockLod| b.level != b.ring;
     let blocks = &lod.blocks;
+    // The blocks of each ring (listed ring by ring), for the neighbour test, and the skipped blocks.
+    let mut rings = [(0usize, 0usize); crate::plan::frame::MAX_LEVELS];
     for (bi, b) in blocks.iter().enumerate() {
-        if skip.iter().any(|&(i, _)| usize::from(i) == bi) {
+        let r = &mut rings[(b.ring as usize).min(crate::plan::frame::MAX_LEVELS - 1)];
+        if r.1 == 0 {
+            r.0 = bi;
+        }
+        r.1 = bi + 1;
+    }
+    let mut skipped = [0u64; crate::plan::lod::MAX_LOD_BLOCKS / 64];
+    for &(i, _) in skip {
+        if let Some(w) = skipped.get_mut(usize::from(i) / 64) {
+            *w |= 1 << (i % 64);
+        }
+    }
+    for (bi, b) in blocks.iter().enumerate() {
+        if skipped[bi / 64] >> (bi % 64) & 1 == 1 {
             continue;
         }
         let (cx, cy) = cell(&b.rect);
+        let (r0, r1) = rings[(b.ring as usize).min(crate::plan::frame::MAX_LEVELS - 1)];
         // A block on its ring's outer boundary or on the hole borders another ring, drawn at another level.
         let a = frame.levels[b.ring as usize].active;
         let r = &b.rect;
@@ -543,7 +561,7 @@ pub fn build_lod_draws(
             && (differs(b)
                 || on_ring_edge
                 || !r.intersect(&hole_of(b.ring)).is_empty()
-                || blocks.iter().any(|o| {
+                || blocks[r0..r1].iter().any(|o| {
                     let (ox, oy) = cell(&o.rect);
                     differs(o) && o.ring == b.ring && (ox - cx).abs() + (oy - cy).abs() == 1
                 }));
@@ -606,7 +624,9 @@ pub fn build_lod_draws(
                     };
                     let visible = !params.cull || {
                         // Every vertex is a point of the level's surface over the tile's cells.
-                        let z = height_range(clipmap, level, &tile);
+                        let z = heights.range(clipmap, level, &tile, || {
+                            height_range(clipmap, level, &tile)
+                        });
                         let (lo, hi) = block_box(
                             clipmap,
                             fine,

@@ -6,7 +6,8 @@
 //! - [`budget`], [`clipmap`], [`ring`], [`synthesis`]: the budgeted coarse-to-fine toroidal update of every ring
 //!   (GC sections 3-5 and 8), recorded in a [`frame::Frame`] with its hash;
 //! - [`lod`]: SAT LOD block selection over the tables of [`crate::bake::lod_tables`];
-//! - [`cull`]: frustum culling into the fixed-capacity draw list;
+//! - [`cull`]: frustum culling into the fixed-capacity draw list ([`heights`]: the culled tiles' height
+//!   ranges, kept while their texels are unchanged);
 //! - [`detail`]: the detail pool, finer tiles for the blocks SAT LOD wants finer than the rings hold;
 //! - [`fragment`]: which fragment program each draw needs (the cheapest that gives the same pixels);
 //! - [`uniforms`]: the packed `#[repr(C)]` uniforms each draw needs;
@@ -25,6 +26,7 @@ pub mod flight;
 pub mod fragment;
 pub mod frame;
 pub mod frame_plan;
+pub mod heights;
 pub mod lod;
 pub mod mesh;
 pub mod morph;
@@ -33,3 +35,15 @@ pub mod stream;
 pub mod synthesis;
 pub mod uniforms;
 pub mod uploads;
+
+/// The slot of a fixed table for key `words`: every bit of every word mixed into the low bits (a
+/// multiply alone left keys such as (1, -1) and (-1, 1) on one slot).
+pub(crate) fn slot_hash(words: &[u64]) -> u64 {
+    let mut h = 0x243f_6a88_85a3_08d3u64;
+    for &w in words {
+        h = (h ^ w).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+        h ^= h >> 29;
+    }
+    h = h.wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    h ^ (h >> 32)
+}

@@ -39,6 +39,24 @@ impl UploadStamps {
         }
     }
 
+    /// The latest stamp of the texel columns of lattice columns `x0..x1` and the texel rows of lattice
+    /// rows `y0..y1` of `level` (toroidal): a texel of that rectangle written after a frame has its
+    /// column or its row stamped later (every write is a whole column or row strip), so the rectangle is
+    /// unchanged since the frame whose stamp this was.
+    pub fn latest(&self, level: u32, (x0, x1): (i64, i64), (y0, y1): (i64, i64)) -> u64 {
+        let s = i64::from(self.size.max(1));
+        let base = level as usize * self.size as usize;
+        let mut m = 0;
+        for (stamps, lo, hi) in [(&self.cols, x0, x1), (&self.rows, y0, y1)] {
+            for v in lo..hi.min(lo + s) {
+                #[expect(clippy::cast_possible_truncation, reason = "rem_euclid by the side")]
+                let i = v.rem_euclid(s) as usize;
+                m = m.max(stamps.get(base + i).copied().unwrap_or(u64::MAX));
+            }
+        }
+        m
+    }
+
     /// Records frame `index`'s uploads.
     pub fn note(&mut self, index: u64, uploads: &[Upload]) {
         let s = self.size as usize;

@@ -127,8 +127,9 @@ fn lod_selection_allocates_nothing() {
 }
 
 /// The detail pool (issue 15) while it fills: at a tight epsilon on a flight, every frame keeps the ring
-/// fill plus the pool's tiles within the update budget, the draw calls and triangles within theirs, and
-/// allocates nothing; the pool does fill and serve blocks, its cells drawn as instances (each call covers
+/// fill plus the pool's tiles within the update budget, the draw calls and triangles within theirs, the
+/// refinement within its bound evaluations (its quadtrees carried from frame to frame), and allocates
+/// nothing; the pool does fill and serve blocks, its cells drawn as instances (each call covers
 /// the next draws of the list; a pool call's cells share level, mesh and size, one cell each; a stitched
 /// run's unit calls cover its cells, one instance per unit); a second run of the same flight gives the
 /// same plan hashes (deterministic).
@@ -174,6 +175,11 @@ fn detail_pool_fills_within_budgets_without_allocating() {
                     s.triangles
                 );
                 assert!(s.detail_tiles_resident <= b.detail_tiles);
+                assert!(
+                    s.refine_evaluations <= u64::from(b.refine_bounds_per_frame),
+                    "frame {f}: {} bound evaluations",
+                    s.refine_evaluations
+                );
                 most_tiles = most_tiles.max(s.detail_tiles_resident);
                 most_served = most_served.max(s.blocks_from_pool);
                 let draws = plan.draws();

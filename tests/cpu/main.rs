@@ -10,6 +10,7 @@ mod fuzz_parsers;
 mod layering;
 mod lod;
 mod package;
+mod plan_time;
 mod profiles;
 mod sat;
 mod scene;

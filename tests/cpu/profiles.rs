@@ -111,6 +111,22 @@ fn bad_values_name_their_field() {
         ("max_draws", "4294967295", "budget.max_draws"),
         ("max_sg_lights", "9", "shading.max_sg_lights"),
         ("width", "4294967295", "view.width"),
+        // A pool that never refines, and a count past u32.
+        (
+            "refine_bounds_per_frame",
+            "0",
+            "budget.refine_bounds_per_frame",
+        ),
+        (
+            "refine_bounds_per_frame",
+            "4294967296",
+            "budget.refine_bounds_per_frame",
+        ),
+        (
+            "refine_bounds_per_frame",
+            "-1",
+            "budget.refine_bounds_per_frame",
+        ),
     ];
     for (key, value, field) in cases {
         let (got, reason) = field_of(&with(key, value));
@@ -122,6 +138,38 @@ fn bad_values_name_their_field() {
         reason.contains("needs") && reason.contains("1000"),
         "memory reason should give both numbers: {reason}"
     );
+}
+
+/// The detail pool's refinement budget: every shipped profile sets it, a profile without it takes the
+/// default, and a profile without a pool may set 0.
+#[test]
+fn refinement_budget_is_set_or_defaulted() {
+    for (name, _) in SHIPPED {
+        let p = Profile::load(name).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert!(p.budget.refine_bounds_per_frame > 0, "{name}");
+    }
+    let without: String = base()
+        .lines()
+        .filter(|l| !l.trim_start().starts_with("refine_bounds_per_frame"))
+        .collect::<Vec<_>>()
+        .join("\n");
+    let p = Profile::parse("test.toml", &without).expect("a profile without the field");
+    assert_eq!(
+        p.budget.refine_bounds_per_frame,
+        clipsat::profile::DEFAULT_REFINE_BOUNDS_PER_FRAME
+    );
+    let no_pool = with("detail_tiles", "0")
+        .lines()
+        .map(|l| {
+            if l.trim_start().starts_with("refine_bounds_per_frame") {
+                "refine_bounds_per_frame = 0".to_string()
+            } else {
+                l.to_string()
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    assert!(Profile::parse("test.toml", &no_pool).is_ok());
 }
 
 #[test]

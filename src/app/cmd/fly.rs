@@ -20,6 +20,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 
 use super::args::{arg_error, flag, pixel_size, GpuArgs, LodArgs, Size, StreamArgs};
+use super::bench::plan::{percentiles, timed_plan, Settling};
 use super::hashes::{self, HashFile};
 use super::{ProfileArgs, TerrainArgs};
 
@@ -72,7 +73,8 @@ pub(crate) struct FlyArgs {
     /// With --render: render frames 0, K, 2K, ...
     #[arg(long, value_name = "K", default_value_t = 10)]
     render_every: u64,
-    /// With --render: image size, WxH pixels. Default: the profile's viewport.
+    /// The viewport, WxH pixels: the plan's (SAT LOD measures its error in these pixels) and, with
+    /// --render, the images'. Default: the profile's viewport.
     #[arg(long, value_name = "WxH", value_parser = pixel_size)]
     size: Option<Size>,
     #[command(flatten)]
@@ -80,6 +82,11 @@ pub(crate) struct FlyArgs {
     /// With --render: the GL context.
     #[command(flatten)]
     gpu: GpuArgs,
+    /// SAT modes: measure the whole frame's screen error (`render --json`'s measure: every visible data
+    /// sample's projected error as drawn) on frames K, 2K, ... of the flight; reads the whole terrain
+    /// (selects --resident).
+    #[arg(long, value_name = "K")]
+    error_every: Option<u64>,
     /// Write every frame's hash here, one `frame<TAB>hash` line each, under a header naming the run.
     #[arg(long, value_name = "FILE")]
     hash_out: Option<PathBuf>,
@@ -94,6 +101,13 @@ pub(crate) struct FlyArgs {
 /// What the statistics keep of one frame.
 #[derive(Clone, Copy, Debug)]
 struct Row {
+    /// Wall time of `Planner::plan`, nanoseconds (measured in the run; the only clock in `fly`).
+    plan_ns: u64,
+    /// The CPU time this thread spent in it (None where the platform has no thread clock): the same
+    /// less the time the scheduler gave other processes, on a loaded machine.
+    plan_cpu_ns: Option<u64>,
+    /// Screen-space bounds the plan evaluated (its work, the same on every machine).
+    bound_evaluations: u64,
     samples_updated: u32,
     stale_levels: u32,
     disabled_levels: u32,
@@ -136,9 +150,19 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
     // cache on first use), rendered or not, as `render` streams it; the camera path follows a coarse
     // level of it. SG's CPU reference reads every sample, so --reference loads it whole, as --resident;
     // so does --synth-levels (the synthesised rings are built from the resident pyramid).
+    if args.error_every == Some(0) {
+        return Err(arg_error("--error-every", "must be at least 1"));
+    }
+    if args.error_every.is_some() && lod_mode == LodMode::Distance {
+        return Err(arg_error(
+            "--error-every",
+            "measures a SAT mode's frames (give --lod sat, sat-conservative or exact)",
+        ));
+    }
     let needs_all = [
         (args.shading.reference, "--reference"),
         (args.synth_levels > 0, "--synth-levels"),
+        (args.error_every.is_some(), "--error-every"),
     ]
     .into_iter()
     .find_map(|(on, flag)| on.then_some(flag));
@@ -170,9 +194,15 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
     let mut plan = planner.new_plan();
     let plan_params = PlanParams {
         epsilon_px: epsilon,
+        // --size is the viewport the plan's LOD measures pixels in, as well as the rendered image's.
+        viewport: args.size.map(Size::pair),
         ..PlanParams::default()
     };
     let mut blocks_clamped_max = 0u32;
+    // SAT modes: per jump of the path (frame 0 counts as one), the frames until the plan settles.
+    let mut settling = Settling::default();
+    // --error-every: per sampled frame, (frame, max px, max px over unclamped blocks).
+    let mut errors: Vec<(u64, f64, f64)> = Vec::new();
     // The detail pool (SAT modes): samples written per frame (max), and the last frame's state.
     let mut detail_samples_max = 0u64;
     let mut detail_samples_total = 0u64;
@@ -291,6 +321,8 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
     let mut mismatch = None;
 
     let mut run_hash = Hash64::new();
+    // Every frame's plan hash (`FramePlan::hash`: uploads, LOD levels, draws, uniforms and pool cells).
+    let mut plan_hashes = Hash64::new();
     let mut violations = 0u64;
     let mut final_hash = 0;
     // Largest fill + package decode of one frame, in samples (the decode is 0 for a resident pyramid).
@@ -298,14 +330,26 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
     for f in 0..frames {
         let camera = flight.camera(f);
         clipmap.update(camera.eye)?;
-        planner.plan(&clipmap, &camera, &plan_params, &mut plan)?;
+        let (plan_ns, plan_cpu_ns) =
+            timed_plan(&mut planner, &clipmap, &camera, &plan_params, &mut plan)?;
         // Pool tiles waiting for a streamed package's decode: the next update's, after the rings.
         clipmap.request_samples(&plan.detail().wanted);
+        if let (Some(k), Some(lod)) = (args.error_every, planner.lod()) {
+            // Frames K, 2K, ...: frame 0 draws what one update filled (the flight's start).
+            if f > 0 && f % k == 0 {
+                let view = plan_params
+                    .viewport
+                    .unwrap_or((profile.view.width, profile.view.height));
+                let e = clipsat::measure::screen_error(&plan, view, &clipmap, &camera, lod);
+                errors.push((f, e.max_px, e.max_px_unclamped));
+            }
+        }
         let frame = clipmap.frame();
         let frame_hash = match lod_mode {
             LodMode::Distance => frame.hash,
             _ => {
                 blocks_clamped_max = blocks_clamped_max.max(plan.stats().blocks_clamped);
+                settling.frame(f, flight.jumps_at(f), &plan, &clipmap);
                 let mut h = Hash64::new();
                 h.write_u64(frame.hash);
                 plan.lod_frame().hash_into(&mut h);
@@ -324,15 +368,21 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
             }
         }
         run_hash.write_u64(frame_hash);
+        plan_hashes.write_u64(plan.hash());
         final_hash = frame_hash;
         rows.push(Row {
+            plan_ns,
+            plan_cpu_ns,
+            bound_evaluations: plan.stats().bound_evaluations,
             samples_updated: frame.samples_updated,
             stale_levels: frame.stale_levels,
             disabled_levels: frame.disabled_levels,
             triangles: frame.triangles,
         });
         if let Some((p, w)) = &mut csv {
-            write_row(w, frame).map_err(|e| Error::io(*p, "cannot write", e))?;
+            let last = rows.last().copied();
+            write_row(w, frame, last.as_ref(), plan.stats())
+                .map_err(|e| Error::io(*p, "cannot write", e))?;
         }
         let updated = rows.last().map_or(0, |r| r.samples_updated);
         let detail = u32::try_from(plan.stats().detail_samples_updated).unwrap_or(u32::MAX);
@@ -419,6 +469,47 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
             "detail_samples_updated": detail_samples_total,
             "detail_samples_updated_max": detail_samples_max,
         });
+        // The plan's cost per frame, measured in the run (wall time) and counted (bounds evaluated).
+        settling.finish();
+        let recover = &settling.legs;
+        let settled: Vec<u64> = recover.iter().flatten().map(|r| r.0).collect();
+        let eps = planner.lod().map(Lod::epsilon_px);
+        let screen_error = (!errors.is_empty()).then(|| {
+            let most =
+                |pick: fn(&(u64, f64, f64)) -> f64| errors.iter().map(pick).fold(0.0, f64::max);
+            let over = eps.map_or(0, |e| errors.iter().filter(|r| r.1 > 1.05 * e).count());
+            json!({
+                "frames": errors.len(),
+                "every": args.error_every,
+                "max_px": most(|r| r.1),
+                "max_px_unclamped": most(|r| r.2),
+                "frames_over_1_05_eps": over,
+                "per_frame": errors
+                    .iter()
+                    .map(|&(f, m, u)| json!({ "frame": f, "max_px": m, "max_px_unclamped": u }))
+                    .collect::<Vec<_>>(),
+            })
+        });
+        let plan_cost = json!({
+            "screen_error_sampled": screen_error,
+            "jumps": recover.len(),
+            "settle_frames": recover.iter().map(|r| r.map(|r| r.0)).collect::<Vec<_>>(),
+            "settle_blocks_clamped": recover.iter().map(|r| r.map(|r| r.1)).collect::<Vec<_>>(),
+            "settle_frames_max": settled.iter().max(),
+            "jumps_not_settled": recover.iter().filter(|r| r.is_none()).count(),
+            "plan_run_hash": hex(plan_hashes.finish()),
+            "plan_ms_p50": stats.plan_ns[0] as f64 / 1e6,
+            "plan_ms_p99": stats.plan_ns[1] as f64 / 1e6,
+            "plan_ms_max": stats.plan_ns[2] as f64 / 1e6,
+            "plan_ms_mean": stats.plan_ns_mean / 1e6,
+            "plan_cpu_ms_p50": stats.plan_cpu_ns.map(|p| p[0] as f64 / 1e6),
+            "plan_cpu_ms_p99": stats.plan_cpu_ns.map(|p| p[1] as f64 / 1e6),
+            "plan_cpu_ms_max": stats.plan_cpu_ns.map(|p| p[2] as f64 / 1e6),
+            "bound_evaluations_p50": stats.evaluations[0],
+            "bound_evaluations_p99": stats.evaluations[1],
+            "bound_evaluations_max": stats.evaluations[2],
+            "bound_evaluations_mean": stats.evaluations_mean,
+        });
         let mut out = json!({
             "stream": stream,
             "terrain": terrain_name,
@@ -466,6 +557,9 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
             "hash_out": args.hash_out.as_ref().map(|p| p.display().to_string()),
             "checked_against": args.check.as_ref().map(|p| p.display().to_string()),
         });
+        if let (Some(o), serde_json::Value::Object(cost)) = (out.as_object_mut(), plan_cost) {
+            o.extend(cost);
+        }
         if let (Some(o), serde_json::Value::Object(extra)) = (out.as_object_mut(), pool) {
             o.extend(extra);
             // Streamed through the tile cache (`stream.tile_cache`), as `render` says it.
@@ -513,6 +607,14 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
         outln!("samples      {a:>14} {b:>10} {c:>10}");
         let [a, b, c] = stats.triangles;
         outln!("triangles    {a:>14} {b:>10} {c:>10}");
+        let [a, b, c] = stats.plan_ns.map(|v| v as f64 / 1e6);
+        outln!("plan ms      {a:>14.3} {b:>10.3} {c:>10.3}");
+        if let Some(p) = stats.plan_cpu_ns {
+            let [a, b, c] = p.map(|v| v as f64 / 1e6);
+            outln!("plan cpu ms  {a:>14.3} {b:>10.3} {c:>10.3}");
+        }
+        let [a, b, c] = stats.evaluations;
+        outln!("bounds       {a:>14} {b:>10} {c:>10}");
         outln!(
             "stale levels max {} ({} frames with any), disabled max {}",
             stats.max_stale,
@@ -548,27 +650,39 @@ struct Stats {
     max_stale: u32,
     frames_stale: usize,
     max_disabled: u32,
+    /// `Planner::plan`'s wall time per frame, nanoseconds: p50, p99, max.
+    plan_ns: [u64; 3],
+    plan_ns_mean: f64,
+    /// The same in CPU time (None without a thread clock).
+    plan_cpu_ns: Option<[u64; 3]>,
+    /// Bounds evaluated per frame: p50, p99, max.
+    evaluations: [u64; 3],
+    evaluations_mean: f64,
 }
 
 impl Stats {
     fn of(rows: &[Row], budget: u32) -> Self {
-        let pct = |mut v: Vec<u32>| {
-            v.sort_unstable();
-            let at = |percent: usize| {
-                let rank = (percent * v.len()).div_ceil(100);
-                v.get(rank.max(1) - 1).copied().unwrap_or(0)
-            };
-            [at(50), at(99), v.last().copied().unwrap_or(0)]
-        };
+        let n = rows.len().max(1) as f64;
         let total: u64 = rows.iter().map(|r| u64::from(r.samples_updated)).sum();
+        let plan_total: u64 = rows.iter().map(|r| r.plan_ns).sum();
+        let eval_total: u64 = rows.iter().map(|r| r.bound_evaluations).sum();
         Self {
-            samples: pct(rows.iter().map(|r| r.samples_updated).collect()),
-            samples_mean: total as f64 / rows.len().max(1) as f64,
-            triangles: pct(rows.iter().map(|r| r.triangles).collect()),
+            samples: percentiles(rows.iter().map(|r| r.samples_updated).collect()),
+            samples_mean: total as f64 / n,
+            triangles: percentiles(rows.iter().map(|r| r.triangles).collect()),
             over_budget: rows.iter().filter(|r| r.samples_updated > budget).count(),
             max_stale: rows.iter().map(|r| r.stale_levels).max().unwrap_or(0),
             frames_stale: rows.iter().filter(|r| r.stale_levels > 0).count(),
             max_disabled: rows.iter().map(|r| r.disabled_levels).max().unwrap_or(0),
+            plan_ns: percentiles(rows.iter().map(|r| r.plan_ns).collect()),
+            plan_cpu_ns: rows
+                .iter()
+                .map(|r| r.plan_cpu_ns)
+                .collect::<Option<Vec<u64>>>()
+                .map(percentiles),
+            plan_ns_mean: plan_total as f64 / n,
+            evaluations: percentiles(rows.iter().map(|r| r.bound_evaluations).collect()),
+            evaluations_mean: eval_total as f64 / n,
         }
     }
 }
@@ -583,12 +697,20 @@ fn open_csv(path: &FsPath, levels: u32) -> Result<BufWriter<File>> {
     for l in 0..levels {
         header.push_str(&format!(",active_l{l}"));
     }
+    header.push_str(
+        ",plan_us,plan_cpu_us,bound_evaluations,refine_evaluations,blocks_clamped,plan_triangles",
+    );
     writeln!(w, "{header}").map_err(|e| Error::io(path, "cannot write", e))?;
     Ok(w)
 }
 
 /// One CSV row; `write!` into the buffered writer formats in place, without allocating.
-fn write_row(w: &mut impl Write, f: &Frame) -> std::io::Result<()> {
+fn write_row(
+    w: &mut impl Write,
+    f: &Frame,
+    row: Option<&Row>,
+    s: clipsat::plan::frame_plan::PlanStats,
+) -> std::io::Result<()> {
     let used = f64::from(f.samples_updated) / f64::from(f.budget.max(1));
     write!(
         w,
@@ -604,6 +726,18 @@ fn write_row(w: &mut impl Write, f: &Frame) -> std::io::Result<()> {
     for l in &f.levels {
         write!(w, ",{}x{}", l.active.w, l.active.h)?;
     }
+    let (us, cpu) = row.map_or((0, None), |r| {
+        (r.plan_ns / 1000, r.plan_cpu_ns.map(|c| c / 1000))
+    });
+    write!(
+        w,
+        ",{us},{},{},{},{},{}",
+        cpu.map_or(String::new(), |c| c.to_string()),
+        s.bound_evaluations,
+        s.refine_evaluations,
+        s.blocks_clamped,
+        s.triangles
+    )?;
     writeln!(w)
 }
 

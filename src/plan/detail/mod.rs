@@ -21,9 +21,10 @@ use crate::hash::Hash64;
 use crate::plan::clipmap::Clipmap;
 use crate::plan::cull::{self, Draw, DrawKind, DrawList, Frustum};
 use crate::plan::frame::{Frame, Rect};
-use crate::plan::lod::{BlockLod, LodFrame, MAX_LOD_BLOCKS};
+use crate::plan::lod::{BlockLod, BoundView, LatticeBox, Lod, LodFrame, LodMode, MAX_LOD_BLOCKS};
 use crate::plan::mesh;
 
+pub mod keymap;
 mod refine;
 pub mod stitch;
 use crate::profile::{DetailAtlas, MAX_DETAIL_TILES};
@@ -35,10 +36,34 @@ pub use refine::MAX_DETAIL_CELLS;
 /// Capacity of the pool's fixed collections; the profile's `budget.detail_tiles` is the limit enforced.
 pub const DETAIL_CAPACITY: usize = MAX_DETAIL_TILES as usize;
 
-/// A level's screen-space bound over a level-0 lattice box (inclusive vertices), pixels: `bound_at(level,
-/// box, exact)`. With `exact` false only whether it is at most epsilon is asked: any value that is at
-/// most epsilon exactly when the bound is will do (a threshold test may stop as soon as it knows).
-pub type BoundAt<'a> = dyn Fn(u32, (i64, i64, i64, i64), bool) -> f64 + 'a;
+/// How the pool asks the frame's bounds: the SAT LOD selector's, in the frame's view.
+#[derive(Clone, Copy, Debug)]
+pub struct PoolBounds<'a> {
+    /// The selector (its tables and its count of evaluations).
+    pub lod: &'a Lod,
+    /// The frame's view ([`Lod::bound_view`]).
+    pub view: BoundView,
+    /// A key of the view, bit for bit ([`Lod::view_key`]): the same key, the same bounds.
+    pub key: u64,
+    /// The SAT mode.
+    pub mode: LodMode,
+    /// The screen-space error bound, pixels.
+    pub eps: f64,
+}
+
+impl PoolBounds<'_> {
+    /// `level`'s screen-space bound over `bx` as a threshold test at epsilon: a value at most epsilon
+    /// exactly when the bound is ([`Lod::bound_in`]; NaN where the refinement's budget ran out).
+    pub fn meets(&self, level: u32, bx: LatticeBox) -> f64 {
+        self.lod.bound_in(&self.view, self.mode, level, bx, self.eps)
+    }
+
+    /// How many pixels a metre of error moves a point of `bx` at most, to first order: what a stale
+    /// bound is rescaled by.
+    pub fn scale(&self, bx: LatticeBox) -> f64 {
+        self.lod.box_scale(&self.view, bx).per_metre()
+    }
+}
 
 /// One pool tile: cell (cx, cy) of level `level`'s grid of `detail_tile_quads`-quad cells.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -149,8 +174,10 @@ pub struct DetailFrame {
     /// Samples the uploads write.
     pub samples_updated: u64,
     /// Tiles this plan wanted but whose source samples were not resident yet (a streamed package), as
-    /// (level, samples), most needed first: for [`Clipmap::request_samples`]. Not hashed: the frame's
-    /// uploads and resident tiles say what it drew.
+    /// (level, samples), most needed first, and, while the refinement has splits left ([`Self::refining`]),
+    /// the region its next split reads: for [`Clipmap::request_samples`], which decodes what is not
+    /// resident ahead (a warm-up also goes on while this is not empty). Not hashed: the frame's uploads
+    /// and resident tiles say what it drew.
     pub wanted: heapless::Vec<(u32, Rect), DETAIL_CAPACITY>,
     /// Distinct tiles this plan's pool cells read (what the frame needs; resident slots may also hold
     /// tiles no longer needed).
@@ -159,6 +186,13 @@ pub struct DetailFrame {
     pub seq: u64,
     /// The previous plan's number (None: the first plan; the GPU holds nothing).
     pub prev: Option<u64>,
+    /// The refinement stopped at its budget (`budget.refine_bounds_per_frame`) with splits left: the
+    /// next plans of a still camera refine further. Not hashed.
+    pub refining: bool,
+    /// Bound evaluations the refinement spent (at most the budget). Not hashed.
+    pub refine_evaluations: u64,
+    /// Distinct tiles this plan's pool cells read that no slot holds yet (their blocks wait). Not hashed.
+    pub tiles_waiting: u32,
 }
 
 impl DetailFrame {
@@ -296,15 +330,15 @@ impl DetailView<'_> {
         self.frustum.intersects(lo, hi)
     }
 
-    /// Calls `f` with every visible cell of level `w` (finer than `b`'s ring) over the block minus the
-    /// finer ring's active region, and the vertices of that level the cell draws there; stops when `f`
-    /// says false.
+    /// Calls `f` with every cell of level `w` (finer than `b`'s ring) over the block minus the finer
+    /// ring's active region, the vertices of that level the cell draws there and whether it is in view;
+    /// stops when `f` says false.
     fn cells(
         &self,
         b: &BlockLod,
         w: u32,
         quads: u32,
-        mut f: impl FnMut(TileKey, Rect) -> Result<bool>,
+        mut f: impl FnMut(TileKey, Rect, bool) -> Result<bool>,
     ) -> Result<()> {
         let shift = b.ring - w;
         let q = i64::from(quads);
@@ -320,18 +354,17 @@ impl DetailView<'_> {
                 ((p.x1() - 1) << shift) + 1,
                 ((p.y1() - 1) << shift) + 1,
             );
-            if !self.visible(w, &pw) {
-                continue;
-            }
+            let piece_visible = self.visible(w, &pw);
             for cy in pw.y0.div_euclid(q)..=(pw.y1() - 2).div_euclid(q) {
                 for cx in pw.x0.div_euclid(q)..=(pw.x1() - 2).div_euclid(q) {
                     let cell =
                         Rect::from_bounds(cx * q, cy * q, (cx + 1) * q + 1, (cy + 1) * q + 1);
                     let bounds = cell.intersect(&pw);
-                    if bounds.w < 2 || bounds.h < 2 || !self.visible(w, &bounds) {
+                    if bounds.w < 2 || bounds.h < 2 {
                         continue;
                     }
-                    if !f(TileKey { level: w, cx, cy }, bounds)? {
+                    let visible = piece_visible && self.visible(w, &bounds);
+                    if !f(TileKey { level: w, cx, cy }, bounds, visible)? {
                         return Ok(());
                     }
                 }
@@ -360,8 +393,13 @@ pub struct DetailPool {
     clock: u64,
     /// Plans made (the renderer's sync chain).
     seq: u64,
-    /// The clamped blocks and the cells they are drawn with, kept for [`DetailPool::push_draws`].
+    /// The clamped blocks and the cells they are drawn with, carried from frame to frame (and kept for
+    /// [`DetailPool::push_draws`]).
     tree: Quadtree,
+    /// Which slot holds each resident tile.
+    slot_of: keymap::KeyMap,
+    /// Scratch: the clamped blocks in fill order (indices into the quadtree's).
+    order: Box<heapless::Vec<u16, MAX_LOD_BLOCKS>>,
     /// The last plan's epsilon, pixels.
     eps: f64,
 }
@@ -382,7 +420,9 @@ impl DetailPool {
             slots,
             clock: 0,
             seq: 0,
-            tree: Quadtree::default(),
+            tree: Quadtree::new(profile.detail_quads()),
+            order: Box::default(),
+            slot_of: keymap::KeyMap::new(DETAIL_CAPACITY),
             eps: 0.0,
         }
     }
@@ -412,13 +452,14 @@ impl DetailPool {
         for s in &mut self.slots {
             *s = Slot::default();
         }
-        self.tree = Quadtree::default();
+        self.slot_of.clear();
+        self.tree = Quadtree::new(self.quads);
         self.clock = 0;
         self.seq = 0;
     }
 
     fn find(&self, key: &TileKey) -> Option<usize> {
-        self.slots.iter().position(|s| s.key.as_ref() == Some(key))
+        self.slot_of.get(key).map(|s| s as usize)
     }
 
     /// The slot to fill next: an empty one, else the least recently needed one not needed this frame
@@ -435,14 +476,15 @@ impl DetailPool {
             .map(|(i, _)| i)
     }
 
-    /// Plans the pool for one frame (issue 15). The clamped blocks are refined as quadtrees over space and
-    /// level (`refine.rs`: the largest bound is split first while its cells fit the slots, draws and
-    /// triangles left; `bound_at` gives a level's bound over a level-0 lattice box, [`BoundAt`]). The
-    /// tiles their cells read are then filled most-needed first (by the block's bound / epsilon at the clamped level) under
-    /// `budget.samples` (spent only when `budget.new_frame`: a clipmap frame planned again spends
-    /// nothing), and each block whose tiles are all resident is served: its level in `lod` becomes its
-    /// finest cell's, and `lod.blocks_clamped` drops when every cell meets epsilon. A refined block's
-    /// own ring draws, `ring_triangles[i]` for block i, go back to `budget.triangles`. Writes `out`.
+    /// Plans the pool for one frame. The clamped blocks are refined as quadtrees over space and level,
+    /// carried over from the last frame (`refine/`: the largest bound is split first while its cells fit
+    /// the slots, draws and triangles left and `evaluations` bound evaluations last; `bounds` gives a
+    /// level's bound over a level-0 lattice box). The tiles their cells read are then filled most-needed
+    /// first (by the block's bound / epsilon at the clamped level) under `budget.samples` (spent only
+    /// when `budget.new_frame`: a clipmap frame planned again spends nothing), and each block whose tiles
+    /// are all resident and whose parts in view are all covered is served: its level in `lod` becomes its
+    /// finest cell's, and `lod.blocks_clamped` drops when every cell meets epsilon. A refined block's own
+    /// ring draws, `ring_triangles[i]` for block i, go back to `budget.triangles`. Writes `out`.
     #[expect(
         clippy::too_many_arguments,
         reason = "the plan's inputs, each a different stage's output"
@@ -452,9 +494,10 @@ impl DetailPool {
         src: &impl DetailSource,
         view: &DetailView<'_>,
         lod: &mut LodFrame,
-        bound_at: &BoundAt<'_>,
+        bounds: &PoolBounds<'_>,
         budget: &DetailBudget,
         ring_triangles: &[u64],
+        evaluations: u64,
         out: &mut DetailFrame,
     ) -> Result<()> {
         out.uploads.clear();
@@ -472,35 +515,49 @@ impl DetailPool {
         let cap = self.slots.len();
         let eps = view.epsilon_px;
         self.eps = eps;
-        self.tree.start(lod, eps, cap, ring_triangles)?;
-        self.tree
-            .refine(view, lod, bound_at, budget, self.quads, cap)?;
+        self.tree.refine(
+            view,
+            lod,
+            bounds,
+            budget,
+            (self.quads, cap),
+            ring_triangles,
+            evaluations,
+        )?;
+        out.refining = self.tree.refining;
+        out.refine_evaluations = self.tree.spent;
         out.tiles_needed = u32::try_from(self.tree.keys.len()).expect("keys <= DETAIL_CAPACITY");
         // Every resident tile needed this frame is kept before any slot is refilled.
         let clock = self.clock;
         for (key, _) in self.tree.keys.iter() {
-            if let Some(s) = self.slots.iter().position(|s| s.key == Some(*key)) {
+            if let Some(s) = self.find(&key) {
                 self.slots[s].needed = clock;
             }
         }
         // Fill most-needed first: by the clamped bound / epsilon, then block order.
-        self.tree
-            .cands
-            .sort_unstable_by(|a, b| b.need.total_cmp(&a.need).then(a.block.cmp(&b.block)));
+        let cands = &self.tree.cands;
+        self.order.clear();
+        for k in 0..cands.len() {
+            self.order
+                .push(u16::try_from(k).expect("cands <= MAX_LOD_BLOCKS"))
+                .expect("cands <= MAX_LOD_BLOCKS");
+        }
+        self.order.sort_unstable_by(|&a, &b| {
+            let (a, b) = (&cands[usize::from(a)], &cands[usize::from(b)]);
+            b.need.total_cmp(&a.need).then(a.block.cmp(&b.block))
+        });
         let tile_samples = u64::from(self.side) * u64::from(self.side);
         let mut samples = if budget.new_frame { budget.samples } else { 0 };
-        for r in 0..self.tree.cands.len() {
-            let c = self.tree.cands[r];
+        for r in 0..self.order.len() {
+            let c = self.tree.cands[usize::from(self.order[r])];
             if !c.refined {
                 continue;
             }
-            let (mut missing, mut met, mut finest) = (0u32, true, c.clamped);
-            for j in 0..self.tree.cells.len() {
-                let l = self.tree.cells[j];
-                if l.block != c.block {
-                    continue;
-                }
-                met &= l.met(eps);
+            // A part in view not covered yet: the block is drawn from its ring until it is.
+            let (mut missing, mut met, mut finest) = (u32::from(self.tree.uncovered(c.block)), true, c.clamped);
+            for l in self.tree.cells_of(c.block) {
+                let l = *l;
+                met &= l.met;
                 finest = finest.min(l.key.level);
                 if self.find(&l.key).is_some() {
                     continue;
@@ -519,10 +576,15 @@ impl DetailPool {
                     missing += 1;
                     continue;
                 };
+                if let Some(old) = self.slots[s].key {
+                    self.slot_of.remove(&old);
+                }
                 self.slots[s] = Slot {
                     key: Some(l.key),
                     needed: clock,
                 };
+                self.slot_of
+                    .insert(l.key, u32::try_from(s).expect("slots <= DETAIL_CAPACITY"));
                 samples -= tile_samples;
                 out.samples_updated += tile_samples;
                 let slot = u32::try_from(s).expect("slots <= DETAIL_CAPACITY");
@@ -555,10 +617,24 @@ impl DetailPool {
                 }
             }
         }
+        // The refinement has splits left for later frames: the region the next one reads, so that a
+        // streamed source decodes it ahead and a warm-up knows the pool is not done.
+        if let Some(next) = self.tree.pending.filter(|_| self.tree.refining) {
+            if !out.wanted.contains(&next) {
+                let _ = out.wanted.push(next);
+            }
+        }
         out.resident.clear();
         for s in &self.slots {
             out.resident.push(s.key).expect("slots <= DETAIL_CAPACITY");
         }
+        let waiting = self
+            .tree
+            .keys
+            .iter()
+            .filter(|(k, _)| self.find(k).is_none())
+            .count();
+        out.tiles_waiting = u32::try_from(waiting).expect("keys <= DETAIL_CAPACITY");
         Ok(())
     }
 
@@ -592,7 +668,7 @@ impl DetailPool {
         let mut blocks = 0;
         frame.masks.clear();
         for &(i, _) in &frame.served {
-            for l in self.tree.cells.iter().filter(|l| l.block == i) {
+            for l in self.tree.cells_of(i) {
                 let slot = self
                     .find(&l.key)
                     .expect("a served block's cells are resident");
@@ -617,7 +693,7 @@ impl DetailPool {
                     bounds: l.bounds,
                     fine: l.key.level,
                     quads: cell_quads(&l.bounds),
-                    clamped: !l.met(self.eps),
+                    clamped: !l.met,
                     pool: Some(u16::try_from(slot).expect("slots <= DETAIL_CAPACITY")),
                     stitch,
                 };

@@ -63,6 +63,60 @@ pub fn unit_flags(mask: &Mask, ua: u32, ub: u32, a: i64, b: i64) -> u16 {
     f
 }
 
+/// The vertex flags of one row of a cell's units at once ([`unit_flags`], bit for bit), from the
+/// mask's rows as bit sets: a unit's neighbours are the row's bits shifted by one and the rows above and
+/// below. The stitched cells' records are written every frame, one per unit.
+#[derive(Clone, Copy, Debug)]
+pub struct RowFlags {
+    row: u32,
+    /// Per side s, the bits of the units whose neighbour there is coarse.
+    sides: [u32; 4],
+    /// Per corner k, the bits of the units a coarse unit touches there.
+    corners: [u32; 4],
+}
+
+impl RowFlags {
+    /// Row `b` of a cell of `ua x ub` units with coarse units `mask`.
+    pub fn of(mask: &Mask, ua: u32, ub: u32, b: u32) -> Self {
+        let full = if ua >= 32 { u32::MAX } else { (1u32 << ua) - 1 };
+        let at = |y: i64| -> u32 {
+            usize::try_from(y)
+                .ok()
+                .filter(|&y| y < ub as usize)
+                .and_then(|y| mask.get(y))
+                .map_or(0, |r| r & full)
+        };
+        let b = i64::from(b);
+        let (u, r, d) = (at(b - 1), at(b), at(b + 1));
+        // Bit a of p(x) is unit a's or a - 1's; of q(x), a's or a + 1's.
+        let p = |x: u32| x | x << 1;
+        let q = |x: u32| x | x >> 1;
+        Self {
+            row: r,
+            sides: [u, r >> 1, d, r << 1],
+            corners: [p(u) | p(r), q(u) | q(r), q(r) | q(d), p(r) | p(d)],
+        }
+    }
+
+    /// Whether unit a is coarse.
+    pub fn coarse(&self, a: u32) -> bool {
+        self.row >> a & 1 == 1
+    }
+
+    /// Unit a's flags ([`unit_flags`]).
+    pub fn flags(&self, a: u32) -> u16 {
+        if self.coarse(a) {
+            return 0xf * ZC;
+        }
+        let mut f = 0u16;
+        for s in 0..4 {
+            f |= u16::from(self.sides[s] >> a & 1 == 1) * (COLLAPSE << s);
+            f |= u16::from(self.corners[s] >> a & 1 == 1) * (ZC << s);
+        }
+        f
+    }
+}
+
 /// The vertex rule (the twin of `stitch_local` in `shaders_gles/clipmap.wgsl`): mesh vertex (x, y) of a
 /// unit (0..=2 each) with `flags` goes to lattice offset (x', y') in the unit, reading z_c when true.
 pub fn local(flags: u16, x: u32, y: u32) -> (u32, u32, bool) {
@@ -380,6 +434,26 @@ mod tests {
             outer.sort_unstable();
             tops.sort_unstable();
             assert_eq!(outer, tops, "round {round}: skirts and border edges differ");
+        }
+    }
+
+    #[test]
+    fn row_flags_are_unit_flags() {
+        let mut rng = Lcg(11);
+        for _ in 0..200 {
+            let (ua, ub) = (1 + rng.next() % 32, 1 + rng.next() % 32);
+            let mut mask: Mask = [0; MAX_UNITS as usize];
+            for row in mask.iter_mut().take(ub as usize) {
+                *row = rng.next() & if ua == 32 { u32::MAX } else { (1 << ua) - 1 };
+            }
+            for b in 0..ub {
+                let r = RowFlags::of(&mask, ua, ub, b);
+                for a in 0..ua {
+                    let want = unit_flags(&mask, ua, ub, a.into(), b.into());
+                    assert_eq!(r.flags(a), want, "unit ({a}, {b}) of {ua} x {ub}");
+                    assert_eq!(r.coarse(a), coarse(&mask, ua, ub, a.into(), b.into()));
+                }
+            }
         }
     }
 

@@ -142,8 +142,9 @@ pub struct PlanStats {
     pub uploads: u32,
     /// Texels (samples) they cover.
     pub upload_samples: u64,
-    /// SAT modes: blocks in the view frustum whose wanted level is finer than the held data, rings and
-    /// detail pool; 0 in distance mode.
+    /// SAT modes: blocks whose drawn pieces (the block less the finer ring's hole) meet the view
+    /// frustum and whose wanted level is finer than the held data, rings and detail pool, or whose pool
+    /// cells miss epsilon (by their stale estimates while the camera moves); 0 in distance mode.
     pub blocks_clamped: u32,
     /// SAT modes: blocks drawn from the detail pool at their wanted level.
     pub blocks_from_pool: u32,
@@ -155,6 +156,17 @@ pub struct PlanStats {
     pub detail_uploads: u32,
     /// Samples they hold (charged to the same per-frame budget as the rings, after them).
     pub detail_samples_updated: u64,
+    /// SAT modes: screen-space bounds this plan evaluated (selection and detail pool together,
+    /// [`Lod::evaluations`]): its work, counted the same on every machine.
+    pub bound_evaluations: u64,
+    /// SAT modes: the bound evaluations the detail pool's refinement spent (at most
+    /// `budget.refine_bounds_per_frame`).
+    pub refine_evaluations: u64,
+    /// SAT modes: the refinement stopped at its budget with work left (a still camera's next plans
+    /// refine further).
+    pub refining: bool,
+    /// SAT modes: distinct pool tiles the plan's cells read that no slot holds yet.
+    pub detail_tiles_waiting: u32,
 }
 
 /// One frame's plan; see the module doc. Allocated once by [`Planner::new_plan`], refilled per frame.
@@ -173,6 +185,9 @@ pub struct FramePlan {
     slots: Vec<u8>,
     globals: Globals,
     stats: PlanStats,
+    /// The hash of the stitched pool cells' records, compact: each cell's own record, rectangle and
+    /// unit mask, from which its units' records follow (`units.rs`).
+    stitched_hash: u64,
     hash: u64,
 }
 
@@ -310,7 +325,18 @@ impl FramePlan {
             h.write_u32(d.cells.end);
         }
         h.write_bytes(self.slot_bytes());
-        h.write_bytes(self.cell_bytes());
+        // Pool cell records: those of whole cells as they are (the first ones); a stitched cell's units
+        // through the cell's record and mask (hashing every unit's record was a tenth of a SAT LOD
+        // plan's time). A plan without stitched cells hashes as it always did.
+        let whole = self
+            .ranges
+            .iter()
+            .find(|d| matches!(d.kind, DrawKind::PoolUnit | DrawKind::PoolUnitSkirt))
+            .map_or(self.cells.len(), |d| d.cells.start as usize);
+        h.write_bytes(bytemuck::cast_slice(&self.cells[..whole]));
+        if whole < self.cells.len() {
+            h.write_u64(self.stitched_hash);
+        }
         h.write_bytes(bytemuck::bytes_of(&self.globals));
         h.finish()
     }
@@ -352,6 +378,11 @@ pub struct Planner {
     /// The terrain's height range (m).
     z_range: (f32, f32),
     update_budget: u32,
+    /// The culled ring tiles' height ranges, kept while their texels are unchanged.
+    heights: crate::plan::heights::TileHeights,
+    /// Bound evaluations the detail pool's refinement may spend a frame
+    /// (`budget.refine_bounds_per_frame`).
+    refine_budget: u32,
 }
 
 /// Refuses a profile whose `budget.max_draws` exceeds the draw calls a frame plan (and the renderer's
@@ -427,6 +458,8 @@ impl Planner {
             ring_triangles: vec![0; crate::plan::lod::MAX_LOD_BLOCKS].into_boxed_slice(),
             z_range: (lo, hi),
             update_budget: profile.budget.update_samples_per_frame,
+            refine_budget: profile.budget.refine_bounds_per_frame,
+            heights: crate::plan::heights::TileHeights::default(),
         })
     }
 
@@ -446,6 +479,7 @@ impl Planner {
             slots: vec![0; self.max_draws as usize * SLOT],
             globals: Globals::zeroed(),
             stats: PlanStats::default(),
+            stitched_hash: 0,
             hash: 0,
         }
     }
@@ -566,6 +600,7 @@ impl Planner {
         };
         out.lod.blocks.clear();
         out.detail.served.clear();
+        let evaluated = self.lod().map_or(0, Lod::evaluations);
         let sat = match &mut self.lod {
             LodSetup::Sat(mode, lod) => {
                 lod.set_epsilon_px(params.epsilon_px.map_or(self.default_epsilon, f64::from));
@@ -585,7 +620,15 @@ impl Planner {
             extent,
         );
         let cull = if sat {
-            let base = cull::build_lod_draws(clipmap, camera, &dp, &out.lod, &[], &mut out.draws)?;
+            let base = cull::build_lod_draws(
+                clipmap,
+                camera,
+                &dp,
+                &out.lod,
+                &[],
+                &self.heights,
+                &mut out.draws,
+            )?;
             self.plan_detail(clipmap, camera, &dp, &paths, new_frame, out)?
                 .unwrap_or(base)
         } else {
@@ -600,6 +643,7 @@ impl Planner {
         };
         out.ranges.clear();
         out.cells.clear();
+        out.stitched_hash = 0;
         // A plan made by `new_plan` has the room; a clone or another planner's plan gets it once here.
         if out.cells.capacity() < self.cell_capacity {
             out.cells.reserve_exact(self.cell_capacity);
@@ -714,6 +758,10 @@ impl Planner {
             detail_uploads: u32::try_from(out.detail.uploads.len())
                 .expect("uploads <= DETAIL_CAPACITY"),
             detail_samples_updated: out.detail.samples_updated,
+            bound_evaluations: self.lod().map_or(0, Lod::evaluations) - evaluated,
+            refine_evaluations: if sat { out.detail.refine_evaluations } else { 0 },
+            refining: sat && out.detail.refining,
+            detail_tiles_waiting: if sat { out.detail.tiles_waiting } else { 0 },
         };
         out.hash = out.compute_hash();
         self.last = Some(frame.index);
@@ -722,56 +770,4 @@ impl Planner {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::plan::clipmap::ClipmapOptions;
-    use crate::source::procedural::{generate, ProceduralParams};
-
-    #[test]
-    fn a_sat_mode_without_tables_is_a_construction_error() {
-        assert!(matches!(
-            LodSetup::new(LodMode::Sat, None),
-            Err(Error::Invalid { .. })
-        ));
-        assert!(matches!(
-            LodSetup::new(LodMode::Distance, None),
-            Ok(LodSetup::Distance)
-        ));
-    }
-
-    #[test]
-    fn plans_are_values_with_hashes_and_chained_uploads() {
-        let hm = generate(&ProceduralParams {
-            size: 129,
-            ..ProceduralParams::default()
-        })
-        .expect("terrain");
-        let profile = Profile::load("gles3-low").expect("profile");
-        let mut cm = Clipmap::new(&hm, &profile, ClipmapOptions::default()).expect("clipmap");
-        let cam = Camera::default_for(&hm).expect("camera");
-        let mut planner = Planner::new(&profile, &cm, LodSetup::Distance).expect("planner");
-        let mut plan = planner.new_plan();
-        cm.update(cam.eye).expect("update");
-        planner
-            .plan(&cm, &cam, &PlanParams::default(), &mut plan)
-            .expect("plan");
-        assert_eq!((plan.frame_index(), plan.since()), (Some(0), None));
-        assert!(!plan.draws().is_empty() && plan.planned().len() == plan.draws().len());
-        let first = plan.hash();
-        let samples = plan.stats().upload_samples;
-        assert!(samples > 0 && samples <= u64::from(profile.budget.update_samples_per_frame));
-        // The same frame again: nothing to upload, the same draws.
-        planner
-            .plan(&cm, &cam, &PlanParams::default(), &mut plan)
-            .expect("plan");
-        assert!(plan.uploads().is_empty());
-        assert_ne!(plan.hash(), first);
-        // A fresh planner over the same frame gives the first plan again.
-        let mut again = Planner::new(&profile, &cm, LodSetup::Distance).expect("planner");
-        let mut p2 = again.new_plan();
-        again
-            .plan(&cm, &cam, &PlanParams::default(), &mut p2)
-            .expect("plan");
-        assert_eq!(p2.hash(), first);
-    }
-}
+mod tests;

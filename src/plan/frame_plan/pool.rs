@@ -5,7 +5,7 @@
 use super::{FramePlan, LodSetup, Planner};
 use crate::plan::clipmap::Clipmap;
 use crate::plan::cull::{self, DrawKind, DrawParams, DrawStats, MAX_DRAWS};
-use crate::plan::detail::{DetailBudget, DetailPool, DetailView};
+use crate::plan::detail::{DetailBudget, DetailPool, DetailView, PoolBounds};
 use crate::plan::fragment::FragmentPaths;
 use crate::{Error, Result};
 use crate::plan::camera::Camera;
@@ -113,17 +113,16 @@ impl Planner {
             stitch: self.pool.quads() >= 2,
             instances: self.cell_capacity,
         };
-        // A cell's bound at its level: the selection's own test over the cell's box.
-        let bound_at = |level: u32, cell: (i64, i64, i64, i64), exact: bool| -> f64 {
-            match &self.lod {
-                LodSetup::Sat(mode, lod) if exact => {
-                    lod.box_bound_at_eps(camera, *mode, level, cell, epsilon_px)
-                }
-                LodSetup::Sat(mode, lod) => {
-                    lod.box_bound_past(camera, *mode, level, cell, epsilon_px)
-                }
-                LodSetup::Distance => 0.0,
-            }
+        // A cell's bound at its level: the selection's own test over the cell's box, in the frame's view.
+        let LodSetup::Sat(mode, lod) = &self.lod else {
+            return Ok(None);
+        };
+        let bounds = PoolBounds {
+            lod,
+            view: lod.bound_view(camera),
+            key: lod.view_key(camera, *mode),
+            mode: *mode,
+            eps: epsilon_px,
         };
         self.ring_triangles.fill(0);
         for (i, b) in out.lod.blocks.iter().enumerate() {
@@ -140,9 +139,10 @@ impl Planner {
             clipmap,
             &view,
             &mut out.lod,
-            &bound_at,
+            &bounds,
             &budget,
             &self.ring_triangles,
+            u64::from(self.refine_budget),
             &mut out.detail,
         )?;
         if out.detail.served.is_empty() {
@@ -155,6 +155,7 @@ impl Planner {
                 dp,
                 &out.lod,
                 &out.detail.served,
+                &self.heights,
                 &mut out.draws,
             )
             .and_then(|mut stats| {
@@ -180,7 +181,15 @@ impl Planner {
             }
             if !DetailPool::unserve_last(&mut out.lod, &mut out.detail) {
                 // Nothing left to drop: the clamped list alone (it fit before).
-                return cull::build_lod_draws(clipmap, camera, dp, &out.lod, &[], &mut out.draws)
+                return cull::build_lod_draws(
+                    clipmap,
+                    camera,
+                    dp,
+                    &out.lod,
+                    &[],
+                    &self.heights,
+                    &mut out.draws,
+                )
                     .map(Some);
             }
         }
@@ -206,9 +215,9 @@ impl Planner {
         }
     }
 
-    /// The clamped blocks that meet the view frustum (the ones whose error shows): [`LodFrame`]'s
-    /// `blocks_clamped` less those outside it, which the pool never refines. A block the pool serves
-    /// counts when one of its cells misses epsilon.
+    /// The clamped blocks whose pieces (the block less the finer ring's hole, what it draws) meet the view
+    /// frustum (the ones whose error shows): [`LodFrame`]'s `blocks_clamped` less those out of view,
+    /// which the pool never refines. A block the pool serves counts when one of its cells misses epsilon.
     ///
     /// [`LodFrame`]: crate::plan::lod::LodFrame
     pub(super) fn visible_clamped(
@@ -227,7 +236,17 @@ impl Planner {
                 Some(k) => !d.served_met.get(k).copied().unwrap_or(false),
                 None => b.wanted < b.level,
             };
-            if clamped && view.visible(b.ring, &b.rect) {
+            // What the block draws is its pieces: the part under the finer ring's hole is that ring's.
+            let hole = match b.ring.checked_sub(1) {
+                Some(f) => cull::hole(&clipmap.frame().levels[f as usize].active),
+                None => crate::plan::frame::Rect::EMPTY,
+            };
+            let shown = || {
+                cull::block_pieces(&b.rect, &hole)
+                    .iter()
+                    .any(|p| view.visible(b.ring, p))
+            };
+            if clamped && shown() {
                 n += 1;
             }
         }

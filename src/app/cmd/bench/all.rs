@@ -7,7 +7,6 @@ use std::path::{Path as FsPath, PathBuf};
 use std::time::Instant;
 
 use crate::app::cmd::sg::RefQuality;
-use crate::app::plot::{LinePlot, Series};
 use clap::Args;
 use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen, OffscreenOptions};
 use clipsat::gpu::Gpu;
@@ -22,7 +21,9 @@ use clipsat::source::{self, LoadOptions};
 use clipsat::{Error, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 
+use super::budget::{self, BudgetRow};
 use super::common::{mib, SHARED};
+use super::plan::{self, PlanRow, PlanRun};
 use super::{lod, memory, shading};
 use crate::app::cmd::args::GpuArgs;
 use crate::app::cmd::ProfileArgs;
@@ -47,17 +48,6 @@ pub(crate) struct BenchAllArgs {
 const SPEEDS_FULL: [f64; 7] = [0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0];
 const SPEEDS_QUICK: [f64; 4] = [0.25, 1.0, 4.0, 16.0];
 
-/// Plot colours, one per terrain.
-const COLORS: [[u8; 3]; 7] = [
-    [31, 119, 180],
-    [214, 39, 40],
-    [44, 160, 44],
-    [148, 103, 189],
-    [255, 127, 14],
-    [140, 86, 75],
-    [120, 120, 120],
-];
-
 /// How big a run is.
 struct Plan {
     procedural: ProceduralParams,
@@ -73,6 +63,8 @@ struct Plan {
     shading_ref: RefQuality,
     /// The patch counts the shading section compares (every one builds its own SG renderer).
     shading_patches: &'static [Patches],
+    /// The plan-time section's flights.
+    plan_run: PlanRun,
 }
 
 impl Plan {
@@ -92,6 +84,10 @@ impl Plan {
                 shading_frames: 1,
                 shading_ref: RefQuality::QUICK,
                 shading_patches: &[Patches::P4x8],
+                plan_run: PlanRun {
+                    frames: 24,
+                    error_every: 12,
+                },
             }
         } else {
             Self {
@@ -105,6 +101,10 @@ impl Plan {
                 shading_frames: 3,
                 shading_ref: RefQuality::FULL,
                 shading_patches: &Patches::ALL,
+                plan_run: PlanRun {
+                    frames: 200,
+                    error_every: 20,
+                },
             }
         }
     }
@@ -143,20 +143,6 @@ impl Machine {
             self.cpu, self.cores, self.adapter
         )
     }
-}
-
-/// One (terrain, speed) of the budget section.
-struct BudgetRow {
-    terrain: String,
-    multiple: f64,
-    speed_m: f64,
-    samples_mean: f64,
-    samples_max: u32,
-    over_budget: usize,
-    stale_mean: f64,
-    stale_max: u32,
-    frames_stale: usize,
-    update_us: f64,
 }
 
 /// One profile of the memory section.
@@ -270,9 +256,23 @@ pub(crate) fn run(args: &BenchAllArgs) -> Result<()> {
     let mut budget = Vec::new();
     for (name, hm) in &terrains {
         bar.set_message(format!("budget {name}"));
-        budget.extend(measure_budget(&profile, name, hm, &plan, &bar)?);
+        budget.extend(budget::measure_budget(
+            &profile,
+            name,
+            hm,
+            (plan.speeds, plan.fly_frames),
+            &bar,
+        )?);
     }
     sections.push(("budget", t0.elapsed().as_secs_f64()));
+    let mut plan_rows = Vec::new();
+    for (name, hm) in &terrains {
+        for eps in [1.0, 2.0, 4.0] {
+            bar.set_message(format!("plan time {name} {eps} px"));
+            plan_rows.push(plan::measure_plan(&profile, name, hm, eps, &plan.plan_run)?);
+        }
+    }
+    sections.push(("plan time", t0.elapsed().as_secs_f64()));
     let scratch = memory::scratch(&args.out)?;
     let terrain_memory = memory::measure(
         &terrains,
@@ -321,7 +321,9 @@ pub(crate) fn run(args: &BenchAllArgs) -> Result<()> {
         })
         .collect();
     let _ = writeln!(md, "Time per section: {}.\n", spent.join(", "));
-    md.push_str(&headline(&lod, &shading, &budget, &memory, &profile));
+    md.push_str(&headline(
+        &lod, &shading, &budget, &plan_rows, &memory, &profile,
+    ));
     md.push_str(&lod_section(out, &lod, &plan, &machine, &profile)?);
     md.push_str(&shading_section(
         out,
@@ -330,7 +332,19 @@ pub(crate) fn run(args: &BenchAllArgs) -> Result<()> {
         &plan,
         &machine,
     )?);
-    md.push_str(&budget_section(out, &budget, &plan, &machine, &profile)?);
+    md.push_str(&budget::budget_section(
+        out,
+        &budget,
+        plan.fly_frames,
+        &machine.line(),
+        &profile,
+    )?);
+    md.push_str(&plan::plan_section(
+        &plan_rows,
+        &profile,
+        &machine.line(),
+        &plan.plan_run,
+    ));
     md.push_str(&memory_section(&memory, &machine));
     md.push_str(&memory::section(
         &terrain_memory,
@@ -349,6 +363,7 @@ fn headline(
     lod: &[LodResult],
     shading: &[shading::ShadingRow],
     budget: &[BudgetRow],
+    plan_rows: &[PlanRow],
     memory: &[MemoryRow],
     p: &Profile,
 ) -> String {
@@ -363,9 +378,10 @@ fn headline(
         "At epsilon = 1 px, per terrain: SAT LOD (`sat`, the paper's estimate) against distance LOD (each ring \
          at its own level), and the measured worst screen error of each: over the whole frame, and over the \
          unclamped blocks only (those drawn at the level they wanted; the rest is what the clip margin \
-         cannot hold).\n\n| terrain | triangles sat / distance | render time sat / distance | max error px: \
-         distance | sat | sat-conservative | exact | unclamped: sat | sat-conservative | exact |\n\
-         |---|---|---|---|---|---|---|---|---|---|\n",
+         cannot hold); and `sat-conservative`'s plan time per frame in a figure-8 flight (p99 and max, ms, \
+         the plan-time section below).\n\n| terrain | triangles sat / distance | render time sat / distance | max error px: \
+         distance | sat | sat-conservative | exact | unclamped: sat | sat-conservative | exact | plan ms p99 / max |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for t in names {
         let (Some(d), Some(sat), Some(c), Some(x)) = (
@@ -376,9 +392,15 @@ fn headline(
         ) else {
             continue;
         };
+        let time = plan_rows
+            .iter()
+            .find(|r| r.terrain == t && r.epsilon == 1.0)
+            .map_or("-".to_string(), |r| {
+                format!("{:.3} / {:.3}", r.wall_ms[1], r.wall_ms[2])
+            });
         let _ = writeln!(
             s,
-            "| {t} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} |",
+            "| {t} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {time} |",
             sat.acc.triangles / d.acc.triangles.max(1.0),
             sat.acc.render_ms / d.acc.render_ms.max(f64::MIN_POSITIVE),
             d.acc.max_error_px,
@@ -541,167 +563,6 @@ fn shading_section(
             r.ms / r.basic_ms.max(1e-9),
             r.rmse,
             r.max
-        );
-    }
-    s.push('\n');
-    Ok(s)
-}
-
-/// Flies a straight line over `hm` at multiples of the speed the profile's update budget sustains and
-/// counts what the budget updates and leaves stale (GC section 5).
-fn measure_budget(
-    profile: &Profile,
-    name: &str,
-    hm: &Heightmap,
-    plan: &Plan,
-    bar: &ProgressBar,
-) -> Result<Vec<BudgetRow>> {
-    let mut rows = Vec::new();
-    let b = profile.budget.update_samples_per_frame;
-    for &multiple in plan.speeds {
-        let mut clipmap = Clipmap::new(hm, profile, ClipmapOptions::default())?;
-        let v = multiple * sustained_speed(profile, clipmap.g0());
-        let flight =
-            Flight::new(Path::Straight, v, hm)?.with_fov_y_deg(f64::from(profile.view.fov_y_deg));
-        // The initial fill (frame 0's eye, updated until every level is current: several frames under
-        // the budget) is not flight; the statistics start at frame 1.
-        let eye0 = flight.camera(0).eye;
-        clipmap.fill_at(eye0, 10_000)?;
-        bar.inc(1);
-        let (mut samples, mut samples_max, mut over) = (0u64, 0u32, 0usize);
-        let (mut stale, mut stale_max, mut frames_stale) = (0u64, 0u32, 0usize);
-        let mut update_s = 0.0;
-        for f in 1..plan.fly_frames {
-            let eye = flight.camera(f).eye;
-            let t = Instant::now();
-            let frame = clipmap.update(eye)?;
-            update_s += t.elapsed().as_secs_f64();
-            samples += u64::from(frame.samples_updated);
-            samples_max = samples_max.max(frame.samples_updated);
-            over += usize::from(frame.samples_updated > b);
-            stale += u64::from(frame.stale_levels);
-            stale_max = stale_max.max(frame.stale_levels);
-            frames_stale += usize::from(frame.stale_levels > 0);
-            bar.inc(1);
-        }
-        let n = (plan.fly_frames.saturating_sub(1)).max(1) as f64;
-        rows.push(BudgetRow {
-            terrain: name.to_string(),
-            multiple,
-            speed_m: v,
-            samples_mean: samples as f64 / n,
-            samples_max,
-            over_budget: over,
-            stale_mean: stale as f64 / n,
-            stale_max,
-            frames_stale,
-            update_us: update_s * 1e6 / n,
-        });
-    }
-    Ok(rows)
-}
-
-/// v* = B g0 / (2 s): a straight move of v metres per frame along one axis makes level l fill s v / g_l
-/// samples (GC section 5), and the sum over levels stays under 2 s v / g0, so v* is about the speed the
-/// budget B keeps up with.
-fn sustained_speed(profile: &Profile, g0: f64) -> f64 {
-    f64::from(profile.budget.update_samples_per_frame) * g0
-        / (2.0 * f64::from(profile.clip_size().max(1)))
-}
-
-fn budget_section(
-    out: &FsPath,
-    rows: &[BudgetRow],
-    plan: &Plan,
-    machine: &Machine,
-    profile: &Profile,
-) -> Result<String> {
-    let png = "budget.png";
-    let mut names: Vec<&str> = rows.iter().map(|r| r.terrain.as_str()).collect();
-    names.dedup();
-    let mut series = Vec::new();
-    for (i, t) in names.iter().enumerate() {
-        let color = COLORS[i % COLORS.len()];
-        let short = t.split(['_', '.']).next().unwrap_or(t);
-        let of = |f: &dyn Fn(&BudgetRow) -> f64| {
-            rows.iter()
-                .filter(|r| r.terrain == *t)
-                .map(|r| (r.multiple, f(r)))
-                .collect::<Vec<_>>()
-        };
-        series.push(Series {
-            name: format!("{short} samples"),
-            points: of(&|r| r.samples_mean),
-            color,
-            right_axis: false,
-        });
-        series.push(Series {
-            name: format!("{short} stale"),
-            points: of(&|r| r.stale_mean),
-            color: color.map(|c| c / 2 + 120),
-            right_axis: true,
-        });
-    }
-    LinePlot {
-        title: "Updates and stale levels vs speed".into(),
-        x_label: "speed / v*".into(),
-        y_label: "samples / frame".into(),
-        y2_label: "stale levels / frame".into(),
-        x_log: true,
-        series,
-    }
-    .write_png(&out.join(png), 960, 480)?;
-
-    let mut s = String::from("## Budget: samples updated and stale levels against speed\n\n");
-    let _ = writeln!(
-        s,
-        "Profile {} (n {}, {} levels, clip size s = {}, budget B = {} samples/frame). A straight flight \
-         (`--path straight`, the terrain's diagonal, back and forth) of {} frames per speed; the initial fill \
-         (frame 0's eye, updated until every level is current) is left out. Speeds are multiples of v* = B g0 / (2 s), the first-order speed the \
-         budget sustains (GC section 5: a level of spacing g_l moving v m/frame along one axis fills \
-         s v / g_l samples). The diagonal path needs both axes, so stale levels may start just below 1x. \
-         Update time: `Clipmap::update` alone, baseline the 1x speed on the same terrain in this run.\n",
-        profile.name,
-        profile.clipmap.n,
-        profile.clipmap.levels,
-        profile.clip_size(),
-        profile.budget.update_samples_per_frame,
-        plan.fly_frames,
-    );
-    let _ = writeln!(
-        s,
-        "![samples updated and stale levels against speed]({png})\n\n*Figure: mean samples updated (left \
-         axis) and mean stale levels (right axis, lighter) per frame against speed / v*. {}*\n",
-        machine.line()
-    );
-    let _ = writeln!(s, "*Table: {}*\n", machine.line());
-    s.push_str(
-        "| terrain | speed / v* | m/frame | samples mean | samples max | frames over B | stale levels mean | \
-         stale max | frames with stale | update us | update time / 1x |\n\
-         |---|---|---|---|---|---|---|---|---|---|---|\n",
-    );
-    for r in rows {
-        let base = rows
-            .iter()
-            .find(|b| b.terrain == r.terrain && b.multiple == 1.0)
-            .map(|b| b.update_us);
-        let ratio = match base {
-            Some(b) if b > 0.0 => format!("{:.2}", r.update_us / b),
-            _ => "-".into(),
-        };
-        let _ = writeln!(
-            s,
-            "| {} | {} | {:.0} | {:.0} | {} | {} | {:.2} | {} | {} | {:.0} | {ratio} |",
-            r.terrain,
-            r.multiple,
-            r.speed_m,
-            r.samples_mean,
-            r.samples_max,
-            r.over_budget,
-            r.stale_mean,
-            r.stale_max,
-            r.frames_stale,
-            r.update_us,
         );
     }
     s.push('\n');

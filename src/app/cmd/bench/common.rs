@@ -22,3 +22,14 @@ pub(crate) const SHARED: [(&str, Option<f32>, Option<f32>); 6] = [
 pub(crate) fn mib(bytes: u64) -> String {
     format!("{:.2} MiB", bytes as f64 / (1024.0 * 1024.0))
 }
+
+/// Plot colours, one per terrain.
+pub(crate) const COLORS: [[u8; 3]; 7] = [
+    [31, 119, 180],
+    [214, 39, 40],
+    [44, 160, 44],
+    [148, 103, 189],
+    [255, 127, 14],
+    [140, 86, 75],
+    [120, 120, 120],
+];

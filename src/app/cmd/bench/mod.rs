@@ -1,12 +1,15 @@
 //! `clipsat bench`: the measurement subcommands. `lod.rs` measures the LOD stage, `shading.rs` the SG
-//! shading, `memory.rs` the terrain package and resident set, `all.rs` runs them and the budget and GPU
-//! memory measurements into one report; `common.rs` holds what they share. Dependencies go one way: `all`
-//! uses `lod`, `shading`, `memory` and `common`, never the reverse.
+//! shading, `memory.rs` the terrain package and resident set, `budget.rs` the update budget against
+//! speed, `plan.rs` the plan's time per frame (also `fly`'s), `all.rs` runs them and the GPU memory
+//! measurement into one report; `common.rs` holds what they share. Dependencies go one way: `all` uses
+//! the others, never the reverse.
 
 mod all;
+mod budget;
 mod common;
 mod lod;
 mod memory;
+pub(crate) mod plan;
 mod shading;
 
 use clap::{Args, Subcommand};

@@ -14,10 +14,15 @@
 /// Defined beside the tables whose estimators it chooses.
 pub use crate::bake::lod_tables::LodMode;
 use crate::bake::lod_tables::{ceil_shr, LodTables};
-use crate::plan::camera::{BoxScale, Camera, Corner};
+use crate::plan::camera::{BoxScale, Camera};
 use crate::plan::frame::{Frame, Rect, MAX_LEVELS};
 use crate::{Error, Result};
-use glam::DVec3;
+
+mod bound;
+mod cache;
+pub use bound::{BoundView, LatticeBox};
+use bound::Split;
+use cache::{EtaCache, SelectCache, Selected};
 
 /// Capacity of a frame's block list; the profile's `max_draws` is the limit actually enforced.
 pub const MAX_LOD_BLOCKS: usize = 4096;
@@ -95,6 +100,17 @@ pub struct Lod {
     max_blocks: usize,
     /// The object-space errors asked so far, kept across frames ([`EtaCache`]).
     etas: EtaCache,
+    /// Each block's last selection, by view ([`SelectCache`]).
+    selected: SelectCache,
+    /// The view of the last selection ([`Lod::view_key`]): the camera moves while it changes.
+    last_view: std::cell::Cell<u64>,
+    /// The viewport of the last selection.
+    last_viewport: std::cell::Cell<(u32, u32)>,
+    /// Bound evaluations so far: boxes and sub-boxes whose object-space error was read and projected
+    /// (the plan's work, counted the same on every machine).
+    evaluations: std::cell::Cell<u64>,
+    /// How many more may be made ([`Lod::set_allowance`]; `u64::MAX`: no limit).
+    allowance: std::cell::Cell<u64>,
 }
 
 // A selector can be built on one thread and planned on another (the planner's check is beside it).
@@ -102,61 +118,6 @@ const _: () = {
     const fn send<T: Send>() {}
     send::<Lod>();
 };
-
-/// Entries of [`EtaCache`] (a power of two): 32 bytes each, 1 MiB, allocated once with the selector.
-const ETA_SLOTS: usize = 1 << 15;
-
-/// One cached object-space error: table level `k`, mode and data box (x0, y0, x1, y1).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-struct EtaEntry {
-    /// k + 1 (0: empty).
-    k: u16,
-    mode: u8,
-    bx: [u32; 4],
-    value: f64,
-}
-
-/// The object-space errors ([`crate::bake::lod_tables::LevelTables::eta`]) the selection and the detail
-/// pool have asked, by table level, mode and data box. They are a pure function of the tables, which a
-/// selector never changes, while the camera only changes how they project: blocks and pool cells sit on
-/// fixed lattices, so the same boxes are asked frame after frame. A direct-mapped table (a colliding box
-/// replaces the entry), so every value is the tables' own, bit for bit; interior mutability keeps the
-/// selector's methods `&self`. Allocated once; a look-up allocates nothing.
-#[derive(Clone, Debug)]
-struct EtaCache(Box<[std::cell::Cell<EtaEntry>]>);
-
-impl Default for EtaCache {
-    fn default() -> Self {
-        Self(vec![std::cell::Cell::new(EtaEntry::default()); ETA_SLOTS].into_boxed_slice())
-    }
-}
-
-impl EtaCache {
-    /// `compute()`, the error of table level `k` under `mode` over data box `bx`, looked up first.
-    fn get(&self, k: u32, mode: LodMode, bx: [u32; 4], compute: impl FnOnce() -> f64) -> f64 {
-        let key_k = u16::try_from(k + 1).unwrap_or(u16::MAX);
-        let mode_id = mode as u8;
-        let mut h =
-            (u64::from(key_k) << 8 | u64::from(mode_id)).wrapping_mul(0x9e37_79b9_7f4a_7c15);
-        for v in bx {
-            h = (h ^ u64::from(v)).wrapping_mul(0x9e37_79b9_7f4a_7c15);
-        }
-        // The hash's top 24 bits index the table.
-        let slot = &self.0[usize::try_from(h >> 40).unwrap_or(0) & (ETA_SLOTS - 1)];
-        let e = slot.get();
-        if e.k == key_k && e.mode == mode_id && e.bx == bx {
-            return e.value;
-        }
-        let value = compute();
-        slot.set(EtaEntry {
-            k: key_k,
-            mode: mode_id,
-            bx,
-            value,
-        });
-        value
-    }
-}
 
 impl Lod {
     /// A selector for a clipmap of `profile` over the terrain the tables were built from.
@@ -186,6 +147,11 @@ impl Lod {
             view: (profile.view.width, profile.view.height),
             max_blocks: (profile.budget.max_draws as usize).min(MAX_LOD_BLOCKS),
             etas: EtaCache::default(),
+            selected: SelectCache::default(),
+            last_view: std::cell::Cell::new(0),
+            last_viewport: std::cell::Cell::new((0, 0)),
+            evaluations: std::cell::Cell::new(0),
+            allowance: std::cell::Cell::new(u64::MAX),
         }
     }
 
@@ -223,6 +189,11 @@ impl Lod {
         self.view = view;
     }
 
+    /// The viewport the bound is measured in, pixels.
+    pub fn viewport(&self) -> (u32, u32) {
+        self.view
+    }
+
     /// The screen-space error bound epsilon, pixels.
     pub fn epsilon_px(&self) -> f64 {
         self.epsilon_px
@@ -231,6 +202,38 @@ impl Lod {
     /// Rings finer than the data (clipmap level = data level + this).
     pub fn synth_levels(&self) -> u32 {
         self.synth
+    }
+
+    /// Bound evaluations this selector has made: each box or sub-box whose object-space error a bound
+    /// read and projected (a split box counts its sub-boxes read): a count of the plan's work that does
+    /// not depend on the machine.
+    pub fn evaluations(&self) -> u64 {
+        self.evaluations.get()
+    }
+
+    /// Lets the next bounds make at most `n` evaluations ([`Lod::evaluations`]; `u64::MAX`: no limit). A
+    /// bound that would make one more returns NaN (nothing kept of it): what holds the detail pool's
+    /// refinement to its budget. The selection runs with no limit.
+    pub fn set_allowance(&self, n: u64) {
+        self.allowance.set(n);
+    }
+
+    /// Evaluations left of the allowance ([`Lod::set_allowance`]).
+    pub fn allowance(&self) -> u64 {
+        self.allowance.get()
+    }
+
+    /// Counts one evaluation; false (nothing counted) when the allowance is spent.
+    fn charge(&self) -> bool {
+        let left = self.allowance.get();
+        if left == 0 {
+            return false;
+        }
+        if left != u64::MAX {
+            self.allowance.set(left - 1);
+        }
+        self.evaluations.set(self.evaluations.get() + 1);
+        true
     }
 
     /// The baked tables.
@@ -299,16 +302,7 @@ impl Lod {
         bx: (i64, i64, i64, i64),
         eps: f64,
     ) -> f64 {
-        let v = self.box_bound_px(camera, mode, level, bx);
-        if v <= eps {
-            return v;
-        }
-        let t = self.box_bound_past(camera, mode, level, bx, eps);
-        if t <= eps {
-            t
-        } else {
-            v
-        }
+        self.bound_at_eps_in(&self.bound_view(camera), mode, level, bx, eps)
     }
 
     /// [`Lod::box_bound_px`] when `limit` is infinite; otherwise a value that is at most `limit` exactly
@@ -326,101 +320,13 @@ impl Lod {
         bx: (i64, i64, i64, i64),
         limit: f64,
     ) -> f64 {
-        self.box_bound_deep(camera, mode, level, bx, limit, SPLIT_DEPTH)
-    }
-
-    /// [`Lod::box_bound_past`] with `depth` more cuts allowed of a sub-box whose bound exceeds a finite
-    /// `limit` (the threshold test only: an infinite `limit` reads one level of sub-boxes).
-    fn box_bound_deep(
-        &self,
-        camera: &Camera,
-        mode: LodMode,
-        level: u32,
-        (a, c, b, d): (i64, i64, i64, i64),
-        limit: f64,
-        depth: u32,
-    ) -> f64 {
-        let Some(t) = level
-            .checked_sub(self.synth)
-            .and_then(|k| self.tables.level(k))
-        else {
-            return f64::INFINITY;
-        };
-        let p = self.tables.p;
-        let k = level - self.synth;
-        let eta_of = |a: i64, c: i64, b: i64, d: i64| -> f64 {
-            let (x0, y0, x1, y1) = self.tables.data_box(self.synth, a, c, b, d);
-            self.etas
-                .get(k, mode, [x0, y0, x1, y1], || t.eta(mode, p, x0, y0, x1, y1))
-        };
-        let eta = eta_of(a, c, b, d);
-        if eta == 0.0 || mode == LodMode::Distance {
-            return 0.0;
-        }
-        let scale = camera.vertical_scale(self.view);
-        let (xs, ys) = (split_points(a, b, level), split_points(c, d, level));
-        let e = camera.eye;
-        // World y falls as the lattice row grows: row d is the box's south edge.
-        let world = |x: i64, y: i64, z: f64| DVec3::new(self.world_x(x), self.world_y(y), z) - e;
-        let whole = scale
-            .box_max(world(a, d, self.z_range.0), world(b, c, self.z_range.1))
-            .px(eta);
-        let (nx, ny) = (xs.len() - 1, ys.len() - 1);
-        if (nx <= 1 && ny <= 1) || (limit.is_finite() && whole <= limit) {
-            return whole;
-        }
-        // The corners of the split grid, each computed once (sub-boxes share them): [row][column][z].
-        let mut grid = [[[Corner::default(); 2]; SPLIT + 1]; SPLIT + 1];
-        for (row, &y) in grid.iter_mut().zip(&ys) {
-            for (cell, &x) in row.iter_mut().zip(&xs) {
-                for (k, z) in [self.z_range.0, self.z_range.1].into_iter().enumerate() {
-                    cell[k] = scale.corner(world(x, y, z));
-                }
-            }
-        }
-        // Sub-box (i..=i2, j..=j2) of the grid: its scale from its eight corners.
-        let scale_of = |i: usize, j: usize, i2: usize, j2: usize| -> BoxScale {
-            let (g00, g10, g01, g11) = (grid[j][i], grid[j][i2], grid[j2][i], grid[j2][i2]);
-            let corners = [
-                g00[0], g10[0], g01[0], g11[0], g00[1], g10[1], g01[1], g11[1],
-            ];
-            let lo = world(xs[i], ys[j2], self.z_range.0);
-            let hi = world(xs[i2], ys[j], self.z_range.1);
-            scale.box_of(&corners, DVec3::ZERO.clamp(lo, hi).length())
-        };
-        // Sub-boxes by their cap first: a sub-box's bound is at most its bound for the whole box's error
-        // (which bounds its samples too; the bound grows with the error), so once that is below the
-        // largest bound so far its own error need not be read.
-        let mut subs: heapless::Vec<(f64, BoxScale, [i64; 4]), { SPLIT * SPLIT }> =
-            heapless::Vec::new();
-        for j in 0..ny {
-            for i in 0..nx {
-                let bs = scale_of(i, j, i + 1, j + 1);
-                subs.push((bs.px(eta), bs, [xs[i], ys[j], xs[i + 1], ys[j + 1]]))
-                    .expect("SPLIT x SPLIT sub-boxes");
-            }
-        }
-        subs.sort_unstable_by(|u, v| v.0.total_cmp(&u.0));
-        let mut worst = 0.0f64;
-        for &(cap, bs, [a, c, b, d]) in &subs {
-            if cap <= worst || worst > limit {
-                break;
-            }
-            let sub = eta_of(a, c, b, d).min(eta);
-            let mut v = bs.px(sub);
-            if v > limit && v <= DEEP_RATIO * limit && depth > 0 {
-                // Over the threshold: cut this sub-box again (each of its parts bounds its own samples,
-                // so the largest of theirs is still a bound; past the limit it only has to stay past).
-                v = v.min(self.box_bound_deep(camera, mode, level, (a, c, b, d), limit, depth - 1));
-            }
-            worst = worst.max(v);
-        }
-        worst.min(whole)
+        self.bound_in(&self.bound_view(camera), mode, level, bx, limit)
     }
 
     /// Chooses every block's level for `frame` seen from `camera` (SAT paper algorithm 1): from the coarsest
     /// level to the finest, the first whose bound is <= epsilon; then the nearest level whose clip region
-    /// covers the block. Writes `out`; allocation-free. Fails with [`Error::Capacity`] past
+    /// covers the block. A block seen in the same view as when last selected keeps that selection's
+    /// bounds (a cache of each block's selection by view). Writes `out`; allocation-free. Fails with [`Error::Capacity`] past
     /// `profile.budget.max_draws` blocks.
     pub fn select(
         &self,
@@ -429,12 +335,15 @@ impl Lod {
         mode: LodMode,
         out: &mut LodFrame,
     ) -> Result<()> {
-        // Mapped tables: last frame's pages leave the resident set (issue 13; at most a frame's are held).
-        self.tables.trim();
+        // Mapped tables keep the pages the queries read while they fit the profile's share
+        // (`LodTables::limit_resident`, which trims them before they pass it): not trimmed every frame,
+        // which made every frame fault the same pages in again (an eighth of a SAT LOD flight's plan time).
         out.blocks.clear();
         out.blocks_clamped = 0;
         out.blocks_coarser = 0;
         out.blocks_finer = 0;
+        let v = self.bound_view(camera);
+        let view = cache::view_key(camera, self.view, self.epsilon_px, mode);
         let levels = frame.levels.len().min(self.levels as usize);
         let m = i64::from(self.m);
         for l in 0..levels {
@@ -454,6 +363,9 @@ impl Lod {
                 _ => Rect::EMPTY,
             };
             let (ax1, ay1) = (a.x1() - 1, a.y1() - 1);
+            // The last block's wanted level: where a block new to this ring starts its search while the
+            // camera moves.
+            let mut near: Option<u32> = None;
             for cy in a.y0.div_euclid(m)..=(ay1 - 1).div_euclid(m) {
                 for cx in a.x0.div_euclid(m)..=(ax1 - 1).div_euclid(m) {
                     let r = Rect::from_bounds(
@@ -465,7 +377,8 @@ impl Lod {
                     if r.w < 2 || r.h < 2 || hole.contains(&r) {
                         continue;
                     }
-                    let b = self.choose(frame, camera, mode, l32, r);
+                    let b = self.choose(frame, &v, (view, near), mode, (l32, (cx, cy)), r);
+                    near = Some(b.wanted);
                     if b.wanted < b.level {
                         out.blocks_clamped += 1;
                     }
@@ -487,16 +400,21 @@ impl Lod {
                 }
             }
         }
+        self.last_view.set(view);
+        self.last_viewport.set(self.view);
         Ok(())
     }
 
-    /// One block: algorithm 1, then the clamp.
+    /// One block: algorithm 1, then the clamp. The block's own scale and its cut on the levels' lattices
+    /// are computed once for every level the descent tests (the cut is the same for the levels whose
+    /// lattice lines fall on the block's quarter points).
     fn choose(
         &self,
         frame: &Frame,
-        camera: &Camera,
+        v: &BoundView,
+        (view, near): (u64, Option<u32>),
         mode: LodMode,
-        ring: u32,
+        (ring, cell): (u32, (i64, i64)),
         r: Rect,
     ) -> BlockLod {
         // Level-0 lattice box of the block (inclusive vertices).
@@ -506,30 +424,70 @@ impl Lod {
             (r.x1() - 1) << ring,
             (r.y1() - 1) << ring,
         );
-        let (x0, y0, x1, y1) = self.tables.data_box(self.synth, a, c, b, d);
-        let eta_of = |level: u32| -> f64 {
-            let k = level.checked_sub(self.synth);
-            match k.and_then(|k| self.tables.level(k).map(|t| (k, t))) {
-                Some((k, t)) => self.etas.get(k, mode, [x0, y0, x1, y1], || {
-                    t.eta(mode, self.tables.p, x0, y0, x1, y1)
-                }),
-                // Past the baked levels: unknown error, never chosen by the bound.
-                None => f64::INFINITY,
-            }
-        };
-        let bound_of = |level: u32| self.box_bound_px(camera, mode, level, (a, c, b, d));
+        let bx = (a, c, b, d);
         let levels = u32::try_from(frame.levels.len()).expect("levels < MAX_LEVELS");
-        let mut wanted = ring;
-        if mode != LodMode::Distance {
-            wanted = self.synth;
-            for level in (self.synth..levels).rev() {
-                let eps = self.epsilon_px;
-                if self.box_bound_past(camera, mode, level, (a, c, b, d), eps) <= eps {
-                    wanted = level;
-                    break;
-                }
+        let kept = self.selected.get(view, ring, cell, &r, levels);
+        let mut whole: Option<BoxScale> = None;
+        let eps = self.epsilon_px;
+        // Moving: a block whose scale has not changed enough to take it past epsilon (its last bound at
+        // its wanted level, rescaled) or to let it go coarser keeps that level without a bound read.
+        // A new viewport is not a move: every block is tested in it.
+        let moving = self.last_view.get() != view && self.last_viewport.get() == self.view;
+        let held = match kept {
+            Some(_) => None,
+            None if !moving || mode == LodMode::Distance => None,
+            None => self
+                .selected
+                .last(ring, cell, levels)
+                .filter(|e| e.rect == r)
+                .and_then(|e| {
+                    let now = whole.get_or_insert_with(|| self.box_scale(v, bx)).per_metre();
+                    let k = now / e.scale;
+                    (e.scale > 0.0 && k >= 1.0 / KEEP_BAND && e.met * k <= eps).then_some((e, k))
+                }),
+        };
+        let mut cut = Split::default();
+        let mut scale_of = |lod: &Self| *whole.get_or_insert_with(|| lod.box_scale(v, bx));
+        // The threshold test of one level, and the value of the last one that met epsilon.
+        let mut met_at: Option<(u32, f64)> = None;
+        let mut test = |lod: &Self, level: u32| -> bool {
+            let s = scale_of(lod);
+            let t = lod.bound_deep(v, mode, level, bx, eps, SPLIT_DEPTH, Some(s), Some(&mut cut));
+            if t <= eps {
+                met_at = Some((level, t));
             }
-        }
+            t <= eps
+        };
+        let top = levels.max(self.synth + 1);
+        let wanted = match (kept, held) {
+            (Some(e), _) | (None, Some((e, _))) => e.wanted,
+            (None, None) if mode == LodMode::Distance => ring,
+            (None, None) => match self
+                .selected
+                .last(ring, cell, levels)
+                .map(|e| e.wanted)
+                .or(near.filter(|_| moving && self.last_view.get() != 0))
+            {
+                // Seen in another view (or, new while the camera moves, beside a block just selected):
+                // the search starts at that wanted level and ends at the coarsest level of the run of
+                // levels meeting epsilon it finds there. That is algorithm 1's level wherever the bound
+                // grows with the level, and never a coarser one: a level it takes meets epsilon, and the
+                // first from the coarsest that does is at least as coarse.
+                Some(w) => {
+                    let w = w.clamp(self.synth, top - 1);
+                    if test(self, w) {
+                        (w + 1..top).take_while(|&l| test(self, l)).last().unwrap_or(w)
+                    } else {
+                        (self.synth..w).rev().find(|&l| test(self, l)).unwrap_or(self.synth)
+                    }
+                }
+                // Algorithm 1: from the coarsest level, the first that meets epsilon.
+                None => (self.synth..levels)
+                    .rev()
+                    .find(|&l| test(self, l))
+                    .unwrap_or(self.synth),
+            },
+        };
         let covers = |level: u32| -> bool {
             let lf = &frame.levels[level as usize];
             let box_l = Rect::from_bounds(
@@ -548,11 +506,48 @@ impl Lod {
                 .or_else(|| (0..wanted).rev().find(|&l| covers(l)))
                 .unwrap_or(ring)
         };
-        let (eta, bound) = if mode == LodMode::Distance {
-            (0.0, 0.0)
-        } else {
-            (eta_of(level), bound_of(level))
+        let (eta, bound) = match (kept, met_at) {
+            _ if mode == LodMode::Distance => (0.0, 0.0),
+            (Some(e), _) if e.level == level => (e.eta, e.bound),
+            // Held by its scale: its bound then, rescaled (an estimate until it is tested again).
+            (None, _) if held.is_some_and(|(e, _)| e.level == level) => {
+                let (e, k) = held.expect("checked");
+                (e.eta, e.bound * k)
+            }
+            // Drawn at the level the search took: its threshold test's value is a bound (<= epsilon).
+            (_, Some((l, t))) if l == level => (self.eta(mode, level, bx).unwrap_or(f64::INFINITY), t),
+            _ => {
+                // Past the baked levels: unknown error, never chosen by the bound.
+                let eta = self.eta(mode, level, bx).unwrap_or(f64::INFINITY);
+                let s = scale_of(self);
+                let bound = self.bound_deep(v, mode, level, bx, f64::INFINITY, SPLIT_DEPTH, Some(s), Some(&mut cut));
+                (eta, bound)
+            }
         };
+        if mode != LodMode::Distance && held.is_none() {
+            let met = match (kept, met_at) {
+                (Some(e), _) => e.met,
+                (None, Some((l, t))) if l == wanted => t,
+                _ => f64::INFINITY,
+            };
+            let scale = match kept {
+                Some(e) => e.scale,
+                None => scale_of(self).per_metre(),
+            };
+            self.selected.put(Selected {
+                view,
+                ring,
+                cell,
+                rect: r,
+                levels,
+                wanted,
+                level,
+                eta,
+                bound,
+                scale,
+                met,
+            });
+        }
         #[expect(clippy::cast_possible_truncation, reason = "reported in f32")]
         BlockLod {
             ring,
@@ -564,6 +559,12 @@ impl Lod {
         }
     }
 }
+
+/// While the camera moves, a block keeps its last level as long as its scale has not shrunk by more than
+/// this factor (it could then take a coarser one) nor grown enough to take its last bound at that level
+/// past epsilon (docs/plan-time.md): only the blocks whose screen scale changed that much are tested
+/// again. A still camera tests every block kept that way again in its next frame.
+pub const KEEP_BAND: f64 = 1.125;
 
 /// Sub-boxes per side [`Lod::box_bound_px`] splits a box into (on the tested level's lattice).
 pub const SPLIT: usize = 4;
@@ -581,23 +582,6 @@ pub const SPLIT_DEPTH: u32 = 2;
 /// measured maximum at the coarser level. Cutting every sub-box again, SPLIT 16, cost 6.5x the plan
 /// time of a 610-frame fly; this ratio, 1.45x.)
 pub const DEEP_RATIO: f64 = 1.5;
-
-/// Up to [`SPLIT`] + 1 cut points from `lo` to `hi` (level-0 lattice), the inner ones on `level`'s lattice
-/// (multiples of 2^level), strictly increasing; just [lo, hi] when the span holds no inner lattice line.
-fn split_points(lo: i64, hi: i64, level: u32) -> heapless::Vec<i64, { SPLIT + 1 }> {
-    let mut out = heapless::Vec::new();
-    let step = 1i64 << level.min(62);
-    out.push(lo).expect("SPLIT + 1 points");
-    let n = i64::try_from(SPLIT).expect("SPLIT is small");
-    for i in 1..n {
-        let t = (lo + (hi - lo) * i / n).div_euclid(step) * step;
-        if t > *out.last().unwrap_or(&lo) && t < hi {
-            out.push(t).expect("SPLIT + 1 points");
-        }
-    }
-    out.push(hi).expect("SPLIT + 1 points");
-    out
-}
 
 /// The most blocks one frame of `profile` can have: at most 6 x 6 cells meet a ring's active region.
 pub fn max_blocks_per_frame(profile: &crate::profile::Profile) -> usize {

@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# The whole frame's measured screen error during a flight (docs/plan-time.md): `clipsat fly --resident
+# --error-every 20` on every shared terrain, sat-conservative at epsilon 1, 2 and 4, gles3-mid at 1920x1080,
+# a 200-frame figure-8 flight: the largest error over sampled frames 20, 40, ..., over every block and over
+# the blocks the held data could pay for (unclamped), and how many sampled frames passed 1.05 epsilon.
+# Usage: scripts/flight_error.sh [CLIPSAT_BINARY] [PROFILE]   (from the repository root; needs jq)
+set -euo pipefail
+BIN=${1:-target/release/clipsat}
+PROFILE=${2:-gles3-mid}
+OUT=out/flight_error
+mkdir -p "$OUT"
+TERRAINS=("ps_height_1k.png --spacing 160" "n07_w006_3arc_v2.tif" "srtm_bigtujunga30m_utm11.tif"
+  "aletsch_200m.tif" "lidar_pkg_dem_1m_400x400.tif" "N57E011.hgt")
+echo "| terrain | epsilon | sampled frames | max error px | max unclamped px | sampled frames with unclamped > 1.05 epsilon |"
+echo "|---|---|---|---|---|---|"
+for t in "${TERRAINS[@]}"; do
+  read -r -a a <<< "$t"; name=${a[0]}; args=("${a[@]:1}")
+  if [ ! -f "../shared/data/$name" ]; then echo "skipped $name (missing)" >&2; continue; fi
+  for eps in 1 2 4; do
+    f="$OUT/$name.$eps.json"
+    "$BIN" fly --terrain "../shared/data/$name" "${args[@]}" --profile "$PROFILE" --lod sat-conservative \
+      --epsilon "$eps" --size 1920x1080 --frames 200 --path figure8 --error-every 20 --json > "$f"
+    jq -r --arg n "$name" --arg e "$eps" '.screen_error_sampled as $s
+      | ([$s.per_frame[] | select(.max_px_unclamped > 1.05 * ($e|tonumber))] | length) as $over
+      | "| \($n) | \($e) | \($s.frames) | \($s.max_px*100|round/100) | \($s.max_px_unclamped*100|round/100) | \($over) |"' "$f"
+  done
+done

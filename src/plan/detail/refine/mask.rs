@@ -1,0 +1,325 @@
+//! Stage 2, the per-frame plan: which units of a stitched pool cell are drawn one level coarser
+//! ([`crate::plan::detail::stitch`]), tested a group of units before single units. A group's bound with
+//! its error capped by the level's max pyramid is at least each unit's own bound, so a group that meets
+//! epsilon has every unit meet it, and a group out of view has every unit out of view: only the groups
+//! that miss are cut into quarters, down to single units, each tested as before. Most of a cell meets
+//! epsilon or misses it together, so a cell of 16 x 16 units costs a few tests instead of 256. The units
+//! and groups of a cell share their corners ([`CornerGrid`]), each projected once.
+
+use super::level0_box;
+use super::memo::Asker;
+use crate::plan::detail::keymap::KeyMap;
+use crate::plan::detail::TileKey;
+use crate::plan::camera::Corner;
+use crate::plan::detail::{stitch, DetailView};
+use crate::plan::frame::Rect;
+
+/// A group meets epsilon when its bound is below epsilon by this factor: the bound of a unit inside it
+/// is at most the group's in exact arithmetic (a larger box, a larger error), and this leaves room for
+/// the roundings of the two computations (relative 1e-15).
+const GROUP_MARGIN: f64 = 1.0 - 1.0e-9;
+
+/// Unit corners a cell side has at most.
+const SIDE: usize = stitch::MAX_UNITS as usize + 1;
+
+/// The projected corners of one cell's units ([`crate::plan::lod::Lod::corner`]), computed when first
+/// read: a scratch allocated once with the quadtree, emptied per cell by a new stamp.
+#[derive(Clone, Debug)]
+pub(super) struct CornerGrid {
+    stamp: u32,
+    /// Per unit corner (row-major, [`SIDE`] a row): the stamp it was computed under, and its corner at
+    /// the terrain's lowest and highest height.
+    at: Box<[(u32, [Corner; 2])]>,
+}
+
+impl Default for CornerGrid {
+    fn default() -> Self {
+        Self {
+            stamp: 0,
+            at: vec![(0, [Corner::default(); 2]); SIDE * SIDE].into_boxed_slice(),
+        }
+    }
+}
+
+impl CornerGrid {
+    /// Forgets every corner (another cell).
+    fn begin(&mut self) {
+        self.stamp = self.stamp.wrapping_add(1);
+        if self.stamp == 0 {
+            self.at.fill((0, [Corner::default(); 2]));
+            self.stamp = 1;
+        }
+    }
+}
+
+/// Tiles whose units' errors [`UnitEtas`] keeps.
+const ETA_TILES: usize = 256;
+
+/// The object-space errors of stitched units, per pool tile: unit (a, b) of tile (level k, cx, cy) is
+/// one quad of level k + 1, whose error is a pure function of the tables, read once and kept for every
+/// later mask of the tile (a mask of a moving view asks them again) and for its groups' exact caps (the
+/// largest of their units'). Allocated once with the quadtree; the least recently used tile gives its
+/// room to a new one.
+#[derive(Clone, Debug)]
+pub(super) struct UnitEtas {
+    /// Units per tile side.
+    side: usize,
+    /// Per tile slot: (level, cx, cy) and the frame it was last read (0: empty).
+    keys: Box<[(u32, i64, i64, u32)]>,
+    /// Which slot holds each tile.
+    slot_of: KeyMap,
+    /// `side^2` errors per slot, row-major; NaN: not read yet; infinite: no table holds the level.
+    vals: Box<[f64]>,
+    frame: u32,
+}
+
+impl UnitEtas {
+    /// A table for tiles of `quads` quads a side.
+    pub(super) fn new(quads: u32) -> Self {
+        let side = (quads as usize / 2).clamp(1, stitch::MAX_UNITS as usize);
+        Self {
+            side,
+            keys: vec![(0, 0, 0, 0); ETA_TILES].into_boxed_slice(),
+            slot_of: KeyMap::new(ETA_TILES),
+            vals: vec![f64::NAN; ETA_TILES * side * side].into_boxed_slice(),
+            frame: 1,
+        }
+    }
+
+    /// A new frame: tiles read since may give their room.
+    pub(super) fn next_frame(&mut self) {
+        self.frame = self.frame.wrapping_add(1).max(1);
+    }
+
+    /// The slot of tile (`level`, `cx`, `cy`), emptied for it if it was not kept: an empty slot, else
+    /// the least recently read (the first on ties).
+    fn slot(&mut self, level: u32, cx: i64, cy: i64) -> usize {
+        let frame = self.frame;
+        let key = TileKey { level, cx, cy };
+        if let Some(i) = self.slot_of.get(&key) {
+            let i = i as usize;
+            self.keys[i].3 = frame;
+            return i;
+        }
+        let i = match self.keys.iter().position(|k| k.3 == 0) {
+            Some(i) => i,
+            None => {
+                let mut best = (0u32, 0usize);
+                for (i, k) in self.keys.iter().enumerate() {
+                    let age = frame.wrapping_sub(k.3);
+                    if i == 0 || age > best.0 {
+                        best = (age, i);
+                    }
+                }
+                best.1
+            }
+        };
+        let old = self.keys[i];
+        if old.3 != 0 {
+            self.slot_of.remove(&TileKey {
+                level: old.0,
+                cx: old.1,
+                cy: old.2,
+            });
+        }
+        self.keys[i] = (level, cx, cy, frame);
+        self.slot_of
+            .insert(key, u32::try_from(i).expect("ETA_TILES < 2^32"));
+        let n = self.side * self.side;
+        self.vals[i * n..(i + 1) * n].fill(f64::NAN);
+        i
+    }
+
+    /// Unit (a, b)'s error in tile slot `slot` (infinite: no table holds its level), read by `read` the
+    /// first time; None when `read` says the budget ran out (nothing kept).
+    pub(super) fn get(
+        &mut self,
+        slot: usize,
+        (a, b): (usize, usize),
+        read: impl FnOnce() -> Option<Option<f64>>,
+    ) -> Option<f64> {
+        let n = self.side * self.side;
+        let i = slot * n + (b * self.side + a).min(n - 1);
+        if self.vals[i].is_nan() {
+            self.vals[i] = read()?.unwrap_or(f64::INFINITY);
+        }
+        Some(self.vals[i])
+    }
+}
+
+/// The units of a cell over `r` (vertices of `level`) drawn as one quad of the next coarser level: those
+/// whose coarser bound meets epsilon (or out of view) and whose neighbours' at their sides does too
+/// ([`stitch::erode`]), with the largest coarser bound read of the ones that meet it (0 if none: what a
+/// later view rescales to see whether the mask still holds). A cell whose corners are not on the coarser
+/// lattice has none. `rough` (a moving view): groups are tested with the max pyramid's cap only and down
+/// to 2 x 2 units, never unit by unit (a unit that would meet epsilon alone in a group that misses stays
+/// fine: more triangles, never more error; a still view asks the units again one by one). None: the
+/// frame's refinement budget ran out.
+pub(super) fn coarse_units(
+    view: &DetailView<'_>,
+    ask: &mut Asker<'_, '_>,
+    level: u32,
+    r: &Rect,
+    (eps, rough): (f64, bool),
+) -> Option<(stitch::Mask, f64)> {
+    let mut meets: stitch::Mask = [0; stitch::MAX_UNITS as usize];
+    let even = r.x0 % 2 == 0 && r.y0 % 2 == 0 && r.w % 2 == 1 && r.h % 2 == 1;
+    if !even {
+        return Some((meets, 0.0));
+    }
+    let (ua, ub) = stitch::units(r);
+    let units = (ua.min(stitch::MAX_UNITS), ub.min(stitch::MAX_UNITS));
+    let side = units.0.max(units.1).next_power_of_two();
+    let mut worst = 0.0f64;
+    ask.grid.begin();
+    // The cell's tile, and the cell's first unit in it.
+    let q = 2 * ask.etas.side as i64;
+    let (cx, cy) = (r.x0.div_euclid(q), r.y0.div_euclid(q));
+    let tile = ask.etas.slot(level, cx, cy);
+    #[expect(clippy::cast_sign_loss, clippy::cast_possible_truncation, reason = "inside the tile")]
+    let first = (((r.x0 - cx * q) / 2) as usize, ((r.y0 - cy * q) / 2) as usize);
+    let mut g = Groups {
+        view,
+        level,
+        r,
+        eps,
+        units,
+        tile: (tile, first),
+        rough,
+        meets: &mut meets,
+        worst: &mut worst,
+    };
+    g.test(ask, 0, 0, side)?;
+    Some((stitch::erode(&meets, ua, ub), worst))
+}
+
+/// One cell's group tests.
+struct Groups<'a, 'v> {
+    view: &'a DetailView<'v>,
+    level: u32,
+    r: &'a Rect,
+    eps: f64,
+    units: (u32, u32),
+    /// The cell's tile slot in [`UnitEtas`] and its first unit there.
+    tile: (usize, (usize, usize)),
+    /// Groups only, capped by the max pyramid, down to 2 x 2 units ([`coarse_units`]).
+    rough: bool,
+    meets: &'a mut stitch::Mask,
+    worst: &'a mut f64,
+}
+
+impl Groups<'_, '_> {
+    /// The level-0 lattice vertex of unit corner (a, b).
+    fn vertex(&self, a: u32, b: u32) -> (i64, i64) {
+        (
+            (self.r.x0 + 2 * i64::from(a)) << self.level,
+            (self.r.y0 + 2 * i64::from(b)) << self.level,
+        )
+    }
+
+    /// The eight corners of the box from unit corner (a0, b0) to (a1, b1).
+    fn corners(&self, ask: &mut Asker<'_, '_>, (a0, b0): (u32, u32), (a1, b1): (u32, u32)) -> [Corner; 8] {
+        let mut out = [Corner::default(); 8];
+        for (k, (a, b)) in [(a0, b0), (a1, b0), (a0, b1), (a1, b1)].into_iter().enumerate() {
+            let i = b as usize * SIDE + a as usize;
+            let stamp = ask.grid.stamp;
+            if ask.grid.at[i].0 != stamp {
+                let (x, y) = self.vertex(a, b);
+                let lod = ask.bounds.lod;
+                let v = &ask.bounds.view;
+                ask.grid.at[i] = (stamp, [lod.corner(v, x, y, false), lod.corner(v, x, y, true)]);
+            }
+            let [lo, hi] = ask.grid.at[i].1;
+            out[k] = lo;
+            out[k + 4] = hi;
+        }
+        out
+    }
+
+    /// The level-0 lattice box of unit (a, b).
+    fn unit_box(&self, a: u32, b: u32) -> (i64, i64, i64, i64) {
+        let (x, y) = (self.r.x0 + 2 * i64::from(a), self.r.y0 + 2 * i64::from(b));
+        level0_box(self.level, &Rect::from_bounds(x, y, x + 3, y + 3))
+    }
+
+    /// The largest error of units [a0, a1) x [b0, b1) one level coarser (each read once per tile,
+    /// [`UnitEtas`]); None when the budget ran out.
+    fn cap(&self, ask: &mut Asker<'_, '_>, (a0, b0): (u32, u32), (a1, b1): (u32, u32)) -> Option<f64> {
+        let (slot, (fa, fb)) = self.tile;
+        let mut m = 0.0f64;
+        for b in b0..b1 {
+            for a in a0..a1 {
+                let e = ask.unit_eta(self.level + 1, self.unit_box(a, b), (slot, (fa + a as usize, fb + b as usize)))?;
+                m = m.max(e);
+            }
+        }
+        Some(m)
+    }
+
+    /// Marks the units of group (a0.., b0..) of `side` units a side that meet epsilon one level coarser.
+    fn test(&mut self, ask: &mut Asker<'_, '_>, a0: u32, b0: u32, side: u32) -> Option<()> {
+        let (ua, ub) = self.units;
+        if a0 >= ua || b0 >= ub {
+            return Some(());
+        }
+        let (a1, b1) = ((a0 + side).min(ua), (b0 + side).min(ub));
+        let x = |a: u32| self.r.x0 + 2 * i64::from(a);
+        let y = |b: u32| self.r.y0 + 2 * i64::from(b);
+        let g = Rect::from_bounds(x(a0), y(b0), x(a1) + 1, y(b1) + 1);
+        if !self.view.visible(self.level, &g) {
+            self.mark(a0, b0, a1, b1);
+            return Some(());
+        }
+        let bx = level0_box(self.level, &g);
+        if side == 1 {
+            // One unit: its own bound, as every unit was tested before groups.
+            let corners = self.corners(ask, (a0, b0), (a1, b1));
+            let (slot, (fa, fb)) = self.tile;
+            let at = (slot, (fa + a0 as usize, fb + b0 as usize));
+            let v = ask.unit(self.level + 1, bx, &corners, at)?;
+            if v <= self.eps {
+                *self.worst = self.worst.max(v);
+                self.mark(a0, b0, a1, b1);
+            }
+            return Some(());
+        }
+        let corners = self.corners(ask, (a0, b0), (a1, b1));
+        // First the error capped by the max pyramid (no unit read), then by the units' own errors.
+        let v = ask.group(self.level + 1, bx, &corners)?;
+        if v <= self.eps * GROUP_MARGIN {
+            *self.worst = self.worst.max(v);
+            self.mark(a0, b0, a1, b1);
+            return Some(());
+        }
+        if self.rough {
+            if side <= 2 {
+                return Some(());
+            }
+        } else {
+            let cap = self.cap(ask, (a0, b0), (a1, b1))?;
+            let v = ask.capped(self.level + 1, bx, &corners, cap)?;
+            if v <= self.eps * GROUP_MARGIN {
+                *self.worst = self.worst.max(v);
+                self.mark(a0, b0, a1, b1);
+                return Some(());
+            }
+        }
+        let h = side / 2;
+        for (da, db) in [(0, 0), (h, 0), (0, h), (h, h)] {
+            self.test(ask, a0 + da, b0 + db, h)?;
+        }
+        Some(())
+    }
+
+    /// Marks units [a0, a1) x [b0, b1) as meeting epsilon one level coarser.
+    fn mark(&mut self, a0: u32, b0: u32, a1: u32, b1: u32) {
+        let bits = if a1 - a0 >= 32 {
+            u32::MAX
+        } else {
+            ((1u32 << (a1 - a0)) - 1) << a0
+        };
+        for row in &mut self.meets[b0 as usize..b1 as usize] {
+            *row |= bits;
+        }
+    }
+}

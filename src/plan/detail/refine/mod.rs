@@ -1,0 +1,458 @@
+//! Stage 2, the per-frame plan: the detail pool's refinement. Which cells a clamped block is drawn with: a
+//! quadtree over space and level, split minimax-first under the pool's slots and the frame's draws and
+//! triangles, and under a fixed number of bound evaluations a frame (`budget.refine_bounds_per_frame`).
+//! The quadtree carries over from frame to frame (`carry.rs`): a frame starts from the last one's,
+//! re-tests what changed screen scale, covers what came into view, and spends what is left of its budget
+//! where the error is largest (docs/plan-time.md). Pure, deterministic and allocation-free.
+
+use crate::plan::detail::keymap::KeyMap;
+use crate::plan::detail::{
+    stitch, DetailBudget, DetailView, PoolBounds, TileKey, DETAIL_CAPACITY,
+};
+use crate::plan::frame::Rect;
+use crate::plan::lod::{LatticeBox, LodFrame, MAX_LOD_BLOCKS};
+use crate::Result;
+
+mod carry;
+mod grow;
+mod mask;
+mod memo;
+mod split;
+mod upkeep;
+
+use memo::Memo;
+
+/// Most cells one plan draws from the pool; past it a split does not fit. Cells are instances of a few
+/// instanced draws (one per level and cell size), so triangles bind first on every shipped profile.
+pub const MAX_DETAIL_CELLS: usize = crate::profile::MAX_POOL_CELLS;
+
+/// Most ghosts (parts of a split out of the view) the quadtrees keep; past it a split does not fit.
+const MAX_GHOSTS: usize = 2 * MAX_DETAIL_CELLS;
+
+/// Most distinct (level, cell quads) pairs the cells take, each one instanced draw; past it a split does
+/// not fit.
+const MAX_CELL_GROUPS: usize = 256;
+
+/// The smallest piece a split cuts a cell into, in quads of the finer level: a part of a cell goes one
+/// level finer only where the coarser level misses epsilon over a piece this small.
+const MIN_SUB_QUADS: u32 = 8;
+
+/// While the camera moves, a stale cell is asked again only when its rescaled bound (or its coarse
+/// units') is past this share of epsilon: the others cannot have passed it yet, to first order.
+const AT_RISK: f64 = 0.9;
+
+/// How far past epsilon a stale bound, rescaled, may be while the camera moves before it counts as missing
+/// it (`Quadtree::limit`): an estimate's margin, not the bound's; a still camera asks every stale bound
+/// again and holds it to epsilon.
+const MOTION_SLACK: f64 = 1.0 / 32.0;
+
+/// No block (an unused entry of the quadtree's block maps).
+const NONE: u16 = u16::MAX;
+
+/// What a clamped block is across frames: its ring, its rectangle and the finer ring's hole in it (its
+/// pieces, which its cells cover).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(super) struct BlockKey {
+    ring: u32,
+    rect: Rect,
+    hole: Rect,
+}
+
+/// A clamped block while the pool plans it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct Cand {
+    /// Its index in the frame's LOD blocks.
+    pub(super) block: u16,
+    key: BlockKey,
+    /// The level the selection clamped it to.
+    pub(super) clamped: u32,
+    /// The level its bound asked for (no cell of it goes finer).
+    pub(super) wanted: u32,
+    /// Its screen-space bound at `clamped`, pixels (this frame's).
+    pub(super) bound: f64,
+    /// How far that bound exceeds epsilon (bound / epsilon): the fill order.
+    pub(super) need: f64,
+    /// Triangles its own ring draws take in the frame's clamped draw list (freed when it is refined).
+    pub(super) credit: u64,
+    /// Drawn from pool cells instead of its ring.
+    pub(super) refined: bool,
+    /// Its cells do not fit (kept until what is left of the budgets grows: `carry.rs`).
+    frozen: bool,
+    /// Its split has no cell in view (kept while the view stays).
+    hidden: bool,
+    /// Its box's scale in this frame's view, pixels per metre: what its cells' bounds are rescaled by.
+    scale: f64,
+}
+
+/// One square a refined block is drawn with: part of a tile's cell, clipped to the block's piece.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct Cell {
+    /// The block (index in the LOD frame).
+    pub(super) block: u16,
+    /// The tile it reads (its level is the cell's).
+    pub(super) key: TileKey,
+    /// Its vertices in its level's lattice: the whole tile cell or a quarter of it, clipped to the piece.
+    pub(super) bounds: Rect,
+    /// Its screen-space bound, pixels, in view `view` (NaN in a split's scratch until the split is
+    /// taken; a cell kept one level coarser holds a value that only says it meets epsilon).
+    pub(super) bound: f64,
+    /// Its block's wanted level: no cell is split finer.
+    pub(super) wanted: u32,
+    /// Its split does not fit (kept until what is left of the budgets grows).
+    frozen: bool,
+    /// Its split has no cell in view (kept while the view stays).
+    hidden: bool,
+    /// Drawn stitched ([`stitch`]): which of its units are one quad of the next coarser level (none:
+    /// drawn whole).
+    pub(super) coarse: stitch::Mask,
+    /// The largest bound of a coarse unit's coarser level in view `view` (0: none).
+    coarse_bound: f64,
+    /// Its units were asked, or it is not drawn stitched (a cell made while the camera moves is drawn
+    /// whole until they are: `Quadtree::mask_cell`).
+    masked: bool,
+    /// The view its bound and units were asked in ([`Quadtree`]'s count of views).
+    view: u32,
+    /// Its block's scale then ([`Cand::scale`]).
+    scale: f64,
+    /// Drawn within epsilon (or at its block's wanted level) in this frame's view: fresh, or its
+    /// bounds rescaled by its block's change of scale since they were asked.
+    pub(super) met: bool,
+}
+
+/// What a ghost stands for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum GhostKind {
+    /// A part of a split that was out of view: covered through `emit` when it comes into view.
+    Part,
+    /// A cell that left the view: drawn as it was when it comes back.
+    Cell,
+}
+
+/// A part of a refined block out of view: not drawn, no tile; when it comes into view the block is not
+/// served until it is covered.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) struct Ghost {
+    pub(super) block: u16,
+    pub(super) wanted: u32,
+    /// Its level and vertices in that level's lattice.
+    pub(super) level: u32,
+    pub(super) bounds: Rect,
+    pub(super) kind: GhostKind,
+    /// In view this frame.
+    pub(super) visible: bool,
+    /// Its cover does not fit (kept until what is left of the budgets grows).
+    frozen: bool,
+}
+
+impl Cell {
+    /// Per-instance records it takes: one drawn whole; stitched, one per unit and per unit side on its
+    /// border.
+    pub(super) fn instances(&self) -> usize {
+        if stitch::any(&self.coarse) {
+            let (ua, ub) = stitch::units(&self.bounds);
+            (ua * ub + 2 * (ua + ub)) as usize
+        } else {
+            1
+        }
+    }
+
+    /// The fewest triangles it can draw: every unit coarse where it can be stitched, else whole.
+    pub(super) fn fewest_triangles(&self, budget: &DetailBudget) -> u64 {
+        let r = &self.bounds;
+        let even = r.x0 % 2 == 0 && r.y0 % 2 == 0 && r.w % 2 == 1 && r.h % 2 == 1;
+        if budget.stitch && even {
+            let (ua, ub) = stitch::units(r);
+            let all: stitch::Mask = [u32::MAX; stitch::MAX_UNITS as usize];
+            stitch::triangles(&all, ua, ub).min(budget.cell_triangles(r))
+        } else {
+            budget.cell_triangles(r)
+        }
+    }
+
+    /// Triangles it draws: stitched when some unit is coarse, else whole.
+    pub(super) fn triangles(&self, budget: &DetailBudget) -> u64 {
+        if stitch::any(&self.coarse) {
+            let (ua, ub) = stitch::units(&self.bounds);
+            stitch::triangles(&self.coarse, ua, ub)
+        } else {
+            budget.cell_triangles(&self.bounds)
+        }
+    }
+}
+
+/// One split's new cells and ghosts.
+#[derive(Clone, Debug, Default)]
+pub(super) struct Scratch {
+    pub(super) cells: heapless::Vec<Cell, { DETAIL_CAPACITY + 1 }>,
+    pub(super) ghosts: heapless::Vec<Ghost, { DETAIL_CAPACITY + 1 }>,
+}
+
+impl Scratch {
+    fn clear(&mut self) {
+        self.cells.clear();
+        self.ghosts.clear();
+    }
+}
+
+/// The frame's quadtrees, carried from frame to frame: the clamped blocks, the cells of the refined ones
+/// and the tiles they read.
+#[derive(Clone, Debug)]
+pub(super) struct Quadtree {
+    pub(super) cands: Box<heapless::Vec<Cand, MAX_LOD_BLOCKS>>,
+    pub(super) cells: Box<heapless::Vec<Cell, MAX_DETAIL_CELLS>>,
+    pub(super) ghosts: Box<heapless::Vec<Ghost, MAX_GHOSTS>>,
+    /// The distinct tiles the cells read, with how many cells read each (one slot each).
+    pub(super) keys: KeyMap,
+    /// The cells' (level, quads) pairs, with how many cells take each: one instanced draw each.
+    groups: heapless::Vec<((u32, u32), u32), MAX_CELL_GROUPS>,
+    /// Scratch: one split's new cells (whole quarters, then the one taken).
+    new: Box<Scratch>,
+    /// Scratch: the same split's cut.
+    cut: Box<Scratch>,
+    /// Scratch: the next frame's blocks while they are matched with the last one's.
+    next: Box<heapless::Vec<Cand, MAX_LOD_BLOCKS>>,
+    /// Per block of the last LOD frame: its index in this one (`carry.rs`).
+    remap: Box<[u16]>,
+    /// Per block of the LOD frame: its index in `cands`.
+    cand_of: Box<[u16]>,
+    /// The bounds asked in the current view.
+    memo: Memo,
+    /// Scratch: the corners of the cell whose units are asked.
+    grid: mask::CornerGrid,
+    /// The cells' indices by block, then by index (`settle`).
+    by_block: Box<heapless::Vec<u16, MAX_DETAIL_CELLS>>,
+    /// Scratch: stale cells in the order they are asked again.
+    order: Box<heapless::Vec<(f64, u16), MAX_DETAIL_CELLS>>,
+    /// The stitched units' errors, per tile.
+    etas: mask::UnitEtas,
+    /// Per-instance records its cells take ([`Cell::instances`]).
+    instances: usize,
+    /// Views seen (a cell's bound is fresh when asked in the current one).
+    view: u32,
+    /// The current view's key ([`PoolBounds::key`]).
+    view_key: u64,
+    /// The viewport the quadtrees were refined in.
+    viewport: (u32, u32),
+    /// A key of everything the refinement's result depends on: the view, the clamped blocks and the
+    /// budgets. While it holds, a frame takes up the refinement where the last one stopped.
+    inputs: Option<u64>,
+    /// The view changed this frame (the camera moves).
+    moved: bool,
+    /// Some ghost is in view and not frozen (`pick` looks for it).
+    seen_ghosts: bool,
+    /// What was left of the budgets (triangles, draws, slots, records) when a split last did not fit:
+    /// frozen units are tried again once more than that is left (`carry.rs`).
+    mark: Option<(u64, i64, usize, usize)>,
+    /// Draw calls and triangles left of the frame's budgets.
+    draws: i64,
+    triangles: u64,
+    /// The budget ran out with work left: the region (level, samples) the next split reads, for the
+    /// source to make ready ([`crate::plan::detail::DetailFrame::wanted`]).
+    pub(super) pending: Option<(u32, Rect)>,
+    /// The budget ran out with splits, cover or units left (or, at a still camera, stale bounds): later
+    /// frames refine further. A moving camera's refreshes of stale bounds do not count.
+    pub(super) refining: bool,
+    /// Bound evaluations this frame's refinement spent.
+    pub(super) spent: u64,
+}
+
+impl Quadtree {
+    /// Empty quadtrees for tiles of `quads` quads a side (allocated once).
+    pub(super) fn new(quads: u32) -> Self {
+        Self {
+            cands: Box::default(),
+            cells: Box::default(),
+            ghosts: Box::default(),
+            keys: KeyMap::new(DETAIL_CAPACITY),
+            groups: heapless::Vec::new(),
+            new: Box::default(),
+            cut: Box::default(),
+            next: Box::default(),
+            remap: vec![NONE; MAX_LOD_BLOCKS].into_boxed_slice(),
+            cand_of: vec![NONE; MAX_LOD_BLOCKS].into_boxed_slice(),
+            memo: Memo::default(),
+            grid: mask::CornerGrid::default(),
+            order: Box::default(),
+            by_block: Box::default(),
+            etas: mask::UnitEtas::new(quads),
+            instances: 0,
+            view: 0,
+            view_key: 0,
+            viewport: (0, 0),
+            inputs: None,
+            moved: false,
+            seen_ghosts: false,
+            mark: None,
+            draws: 0,
+            triangles: 0,
+            pending: None,
+            refining: false,
+            spent: 0,
+        }
+    }
+}
+
+/// A cell's level-0 lattice box (inclusive vertices) from its vertices `r` in level `level`'s lattice.
+pub(super) fn level0_box(level: u32, r: &Rect) -> LatticeBox {
+    (
+        r.x0 << level,
+        r.y0 << level,
+        (r.x1() - 1) << level,
+        (r.y1() - 1) << level,
+    )
+}
+
+/// The same vertices one level finer.
+pub(super) fn double(r: &Rect) -> Rect {
+    Rect::from_bounds(
+        r.x0 << 1,
+        r.y0 << 1,
+        ((r.x1() - 1) << 1) + 1,
+        ((r.y1() - 1) << 1) + 1,
+    )
+}
+
+/// What the refinement splits next.
+#[derive(Clone, Copy)]
+enum Unit {
+    /// A clamped block (drawn from its ring).
+    Block(usize),
+    /// A cell.
+    Cell(usize),
+    /// A ghost come into view.
+    Ghost(usize),
+}
+
+/// The frame's fixed inputs of a split.
+struct Inputs<'a, 'b> {
+    view: &'a DetailView<'b>,
+    lod: &'a LodFrame,
+    budget: &'a DetailBudget,
+    quads: u32,
+    slots: usize,
+}
+
+impl Quadtree {
+    /// Refines the clamped blocks of `lod` for this frame (none when the pool has no slots), starting
+    /// from the last frame's quadtrees (`carry.rs`), spending at most `evaluations` bound evaluations:
+    /// `ring_triangles[i]` is what block i's ring draws take (0 past its end).
+    #[expect(
+        clippy::too_many_arguments,
+        reason = "the refinement's inputs, each a different stage's output"
+    )]
+    pub(super) fn refine(
+        &mut self,
+        view: &DetailView<'_>,
+        lod: &LodFrame,
+        bounds: &PoolBounds<'_>,
+        budget: &DetailBudget,
+        (quads, slots): (u32, usize),
+        ring_triangles: &[u64],
+        evaluations: u64,
+    ) -> Result<()> {
+        let at = Inputs {
+            view,
+            lod,
+            budget,
+            quads,
+            slots,
+        };
+        self.pending = None;
+        self.memo.next_frame();
+        self.etas.next_frame();
+        self.carry(&at, bounds, ring_triangles)?;
+        // The budget: the selector makes at most this many bound evaluations for the refinement.
+        let lod = bounds.lod;
+        lod.set_allowance(evaluations);
+        self.refining = false;
+        let grown = if slots > 0 {
+            self.grow(&at, bounds)
+        } else {
+            Ok(())
+        };
+        if grown.is_ok() && slots > 0 {
+            if self.pending.is_some() {
+                self.refining = true;
+            } else {
+                self.refresh(&at, bounds);
+                // A moving camera's refreshes are upkeep that never ends; a still camera's converge.
+                self.refining = self.pending.is_some() && !self.moved;
+            }
+        }
+        self.spent = evaluations - lod.allowance();
+        lod.set_allowance(u64::MAX);
+        grown?;
+        self.settle(view.epsilon_px);
+        Ok(())
+    }
+
+    /// A cell's bound in this frame's view: its own when fresh, else rescaled by its block's change of
+    /// scale since it was asked (an estimate: the ranking and the met flag use it until it is asked
+    /// again).
+    fn now(&self, c: &Cell, value: f64) -> f64 {
+        if c.view == self.view {
+            return value;
+        }
+        let k = self.cand_of[usize::from(c.block)];
+        let s = self.cands.get(usize::from(k)).map_or(c.scale, |d| d.scale);
+        if c.scale > 0.0 && s.is_finite() {
+            value * (s / c.scale)
+        } else {
+            f64::INFINITY
+        }
+    }
+
+    /// What cell `c`'s bounds are held to now: epsilon where they are fresh; where they are rescaled
+    /// estimates, epsilon and [`MOTION_SLACK`] (a bound just under epsilon would otherwise pass it with
+    /// every step of a camera moving closer and be asked again every frame).
+    fn limit(&self, c: &Cell, eps: f64) -> f64 {
+        if c.view == self.view {
+            eps
+        } else {
+            eps * (1.0 + MOTION_SLACK)
+        }
+    }
+
+    /// Whether cell `c` is drawn within epsilon now: its bound (or its block's wanted level) and its coarse
+    /// units', rescaled where stale ([`Quadtree::limit`]).
+    fn meets(&self, c: &Cell, eps: f64) -> bool {
+        let limit = self.limit(c, eps);
+        (self.now(c, c.bound) <= limit || c.key.level <= c.wanted)
+            && self.now(c, c.coarse_bound) <= limit
+    }
+
+    /// Sets every cell's met flag for this frame, and indexes the cells by block.
+    fn settle(&mut self, eps: f64) {
+        self.by_block.clear();
+        for j in 0..self.cells.len() {
+            let m = self.meets(&self.cells[j], eps);
+            self.cells[j].met = m;
+            let j = u16::try_from(j).expect("cells <= MAX_DETAIL_CELLS");
+            self.by_block.push(j).expect("cells <= MAX_DETAIL_CELLS");
+        }
+        let cells = &self.cells;
+        self.by_block
+            .sort_unstable_by_key(|&j| (cells[usize::from(j)].block, j));
+    }
+
+    /// Block `block`'s cells, in the order they were made (as of the last [`Quadtree::refine`]).
+    pub(super) fn cells_of(&self, block: u16) -> impl Iterator<Item = &Cell> + '_ {
+        let key = |j: &u16| self.cells[usize::from(*j)].block;
+        let lo = self.by_block.partition_point(|j| key(j) < block);
+        let hi = self.by_block.partition_point(|j| key(j) <= block);
+        self.by_block[lo..hi]
+            .iter()
+            .map(|&j| &self.cells[usize::from(j)])
+    }
+
+    /// Whether block `block` has a part in view not covered yet (it is not served until it has none).
+    pub(super) fn uncovered(&self, block: u16) -> bool {
+        self.ghosts.iter().any(|g| g.block == block && g.visible)
+    }
+
+    /// The scale of a cell's block in this frame's view.
+    fn scale_of(&self, block: u16) -> f64 {
+        let k = self.cand_of[usize::from(block)];
+        self.cands.get(usize::from(k)).map_or(0.0, |c| c.scale)
+    }
+}

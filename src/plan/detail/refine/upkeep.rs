@@ -1,0 +1,135 @@
+//! Stage 2, the per-frame plan: the detail pool's refinement keeps what it drew in step with the view:
+//! a cell made while the camera moved asks its stitched units once it will not be split, and stale cells
+//! ask their bounds and units again, largest first (while the camera moves, only those near epsilon).
+
+use super::mask;
+use super::memo::Asker;
+use super::{level0_box, Cell, Inputs, Quadtree, Unit, AT_RISK};
+use crate::plan::detail::PoolBounds;
+
+impl Quadtree {
+    /// Asks the coarse units of cell `j` if it has not had them asked and will not be split (it meets
+    /// epsilon, or its split does not fit); false when the budget ran out first (nothing changed). Units
+    /// that do not fit the records or triangles left are not taken (the cell stays whole).
+    pub(super) fn mask_cell(
+        &mut self,
+        j: usize,
+        at: &Inputs<'_, '_>,
+        bounds: &PoolBounds<'_>,
+    ) -> bool {
+        let c = self.cells[j];
+        let moved = self.moved;
+        let eps = at.view.epsilon_px;
+        if c.masked || !(c.bound <= eps || c.key.level <= c.wanted || c.frozen) {
+            return true;
+        }
+        let mut ask = Asker {
+            memo: &mut self.memo,
+            bounds,
+            grid: &mut self.grid,
+            etas: &mut self.etas,
+        };
+        let Some((m, worst)) = mask::coarse_units(at.view, &mut ask, c.key.level, &c.bounds, (eps, moved))
+        else {
+            return false;
+        };
+        let stitched = Cell {
+            coarse: m,
+            coarse_bound: worst,
+            masked: true,
+            ..c
+        };
+        let (old_t, new_t) = (c.triangles(at.budget), stitched.triangles(at.budget));
+        let records = self.instances - c.instances() + stitched.instances();
+        self.cells[j] = if new_t <= self.triangles + old_t && records <= at.budget.instances {
+            self.triangles = self.triangles + old_t - new_t;
+            self.instances = records;
+            stitched
+        } else {
+            Cell { masked: true, ..c }
+        };
+        true
+    }
+
+    /// Asks stale cells' bounds and units again in this view, largest (rescaled) bound first, while the
+    /// budget lasts: while the camera moves, those whose rescaled bound is within [`AT_RISK`] of epsilon
+    /// (the others are kept as they are); at a still camera every one, which it converges with. A cell
+    /// whose new units do not fit what is left keeps its old ones and is frozen (not met).
+    pub(super) fn refresh(&mut self, at: &Inputs<'_, '_>, bounds: &PoolBounds<'_>) {
+        let floor = if self.moved {
+            AT_RISK * at.view.epsilon_px
+        } else {
+            f64::NEG_INFINITY
+        };
+        // The stale cells, largest first (a refresh changes no cell's place).
+        self.order.clear();
+        for j in 0..self.cells.len() {
+            let c = &self.cells[j];
+            let b = self.now(c, c.bound.max(c.coarse_bound));
+            if c.view != self.view && !c.frozen && b > floor {
+                let j = u16::try_from(j).expect("cells <= MAX_DETAIL_CELLS");
+                self.order.push((b, j)).expect("cells <= MAX_DETAIL_CELLS");
+            }
+        }
+        self.order
+            .sort_unstable_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+        for i in 0..self.order.len() {
+            let j = usize::from(self.order[i].1);
+            if !self.refresh_cell(j, at, bounds) {
+                self.pending = Some(self.region(Unit::Cell(j)));
+                break;
+            }
+        }
+    }
+
+    /// Asks cell `j`'s bound and coarse units again in this view; false when the budget ran out first
+    /// (nothing changed).
+    pub(super) fn refresh_cell(
+        &mut self,
+        j: usize,
+        at: &Inputs<'_, '_>,
+        bounds: &PoolBounds<'_>,
+    ) -> bool {
+        let c = self.cells[j];
+        let moved = self.moved;
+        let scale = self.scale_of(c.block);
+        let mut ask = Asker {
+            memo: &mut self.memo,
+            bounds,
+            grid: &mut self.grid,
+            etas: &mut self.etas,
+        };
+        let Some(bound) = ask.ranked(c.key.level, level0_box(c.key.level, &c.bounds)) else {
+            return false;
+        };
+        let mut fresh = Cell {
+            bound,
+            view: self.view,
+            scale,
+            ..c
+        };
+        if at.budget.stitch {
+            let units = mask::coarse_units(
+                at.view,
+                &mut ask,
+                c.key.level,
+                &c.bounds,
+                (at.view.epsilon_px, moved),
+            );
+            let Some((m, worst)) = units else {
+                return false;
+            };
+            (fresh.coarse, fresh.coarse_bound, fresh.masked) = (m, worst, true);
+        }
+        let (old_t, new_t) = (c.triangles(at.budget), fresh.triangles(at.budget));
+        let records = self.instances - c.instances() + fresh.instances();
+        if new_t > self.triangles + old_t || records > at.budget.instances {
+            self.cells[j].frozen = true;
+            return true;
+        }
+        self.triangles = self.triangles + old_t - new_t;
+        self.instances = records;
+        self.cells[j] = fresh;
+        true
+    }
+}

@@ -1,0 +1,225 @@
+//! The SAT LOD plan inside a frame's time (docs/plan-time.md): the detail pool's refinement carries over
+//! between frames under `budget.refine_bounds_per_frame` bound evaluations a frame, never more; a still
+//! camera converges to the refinement one unbounded frame makes; a teleport settles again within 30
+//! frames; a block kept from another viewport is not kept past epsilon in the new one.
+
+use clipsat::bake::lod_tables::{LodTables, P};
+use clipsat::plan::camera::Camera;
+use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
+use clipsat::plan::flight::{Flight, Path};
+use clipsat::plan::frame_plan::{FramePlan, LodSetup, PlanParams, Planner};
+use clipsat::plan::lod::{Lod, LodMode};
+use clipsat::profile::Profile;
+use clipsat::source::procedural::{generate, ProceduralParams};
+use clipsat::source::Heightmap;
+
+fn terrain() -> Heightmap {
+    generate(&ProceduralParams {
+        seed: 5,
+        size: 257,
+        spacing: 30.0,
+    })
+    .expect("procedural")
+}
+
+/// gles3-mid with a refinement budget of `budget` bound evaluations a frame.
+fn profile(budget: u32) -> Profile {
+    let mut p = Profile::load("gles3-mid").expect("profile");
+    p.budget.refine_bounds_per_frame = budget;
+    p
+}
+
+fn planner(hm: &Heightmap, p: &Profile, cm: &Clipmap) -> Planner {
+    let tables = LodTables::build(cm.pyramid(), p.clipmap.levels, P, |_| {}).expect("tables");
+    let lod = Lod::for_clipmap(tables, p, cm, hm);
+    let setup = LodSetup::new(LodMode::SatConservative, Some(lod)).expect("setup");
+    Planner::new(p, cm, setup).expect("planner")
+}
+
+fn params(eps: f32) -> PlanParams {
+    PlanParams {
+        epsilon_px: Some(eps),
+        ..PlanParams::default()
+    }
+}
+
+/// One draw of [`drawn`]: level, bounds (x0, y0, w, h) and a stitched cell's unit mask.
+type DrawnCell = (u32, i64, i64, u32, u32, Vec<u32>);
+
+/// What a plan draws, slot placement aside (a refinement spread over frames fills other slots on the way):
+/// every block's level, every draw's level, bounds and unit mask, and the triangles.
+fn drawn(plan: &FramePlan) -> (Vec<u32>, Vec<DrawnCell>, u64) {
+    let levels = plan.lod_frame().blocks.iter().map(|b| b.level).collect();
+    let mut draws: Vec<_> = plan
+        .draws()
+        .iter()
+        .map(|d| {
+            let mask = match d.stitch {
+                0 => Vec::new(),
+                s => plan.detail().masks[usize::from(s) - 1].to_vec(),
+            };
+            (
+                d.level,
+                d.bounds.x0,
+                d.bounds.y0,
+                d.bounds.w,
+                d.bounds.h,
+                mask,
+            )
+        })
+        .collect();
+    draws.sort();
+    (levels, draws, plan.stats().triangles)
+}
+
+#[test]
+fn the_refinement_stays_within_its_budget_and_is_deterministic() {
+    let hm = terrain();
+    for (path, budget) in [(Path::Figure8, 300), (Path::Teleport { every: 20 }, 150)] {
+        let run = || {
+            let p = profile(budget);
+            let mut cm = Clipmap::new(&hm, &p, ClipmapOptions::default()).expect("clipmap");
+            let mut planner = planner(&hm, &p, &cm);
+            let mut plan = planner.new_plan();
+            let flight = Flight::new(path, 60.0, &hm).expect("flight");
+            let mut hashes = Vec::new();
+            let mut refined = 0;
+            for f in 0..60 {
+                let cam = flight.camera(f);
+                cm.update(cam.eye).expect("update");
+                planner
+                    .plan(&cm, &cam, &params(0.5), &mut plan)
+                    .expect("plan");
+                let s = plan.stats();
+                assert!(
+                    s.refine_evaluations <= u64::from(budget),
+                    "{path} frame {f}: {} bound evaluations over {budget}",
+                    s.refine_evaluations
+                );
+                refined += s.refine_evaluations;
+                hashes.push(plan.hash());
+            }
+            assert!(refined > 0, "{path}: the pool never refined");
+            hashes
+        };
+        assert_eq!(run(), run(), "{path}: the same flight, other plan hashes");
+    }
+}
+
+#[test]
+fn a_still_camera_converges_to_the_unbounded_refinement() {
+    let hm = terrain();
+    let cam = Camera::default_for(&hm).expect("camera");
+    let settle = |budget: u32| {
+        let p = profile(budget);
+        let mut cm = Clipmap::new(&hm, &p, ClipmapOptions::default()).expect("clipmap");
+        cm.fill_at(cam.eye, 10_000).expect("fill");
+        let mut planner = planner(&hm, &p, &cm);
+        let mut plan = planner.new_plan();
+        let mut frames = 0;
+        loop {
+            planner
+                .plan(&cm, &cam, &params(0.5), &mut plan)
+                .expect("plan");
+            frames += 1;
+            let s = plan.stats();
+            if !s.refining && s.detail_tiles_waiting == 0 {
+                break;
+            }
+            assert!(frames < 2000, "budget {budget}: no convergence");
+            cm.request_samples(&plan.detail().wanted);
+            cm.update(cam.eye).expect("update");
+        }
+        (drawn(&plan), frames)
+    };
+    let (one, _) = settle(u32::MAX);
+    let (spread, frames) = settle(40);
+    assert!(frames > 3, "a budget of 40 should take frames ({frames})");
+    assert!(!one.1.is_empty());
+    assert_eq!(
+        one, spread,
+        "a refinement spread over {frames} frames drew otherwise"
+    );
+}
+
+#[test]
+fn a_teleport_settles_within_30_frames() {
+    let hm = terrain();
+    let p = profile(
+        Profile::load("gles3-mid")
+            .expect("p")
+            .budget
+            .refine_bounds_per_frame,
+    );
+    let mut cm = Clipmap::new(&hm, &p, ClipmapOptions::default()).expect("clipmap");
+    let mut planner = planner(&hm, &p, &cm);
+    let mut plan = planner.new_plan();
+    let flight = Flight::new(Path::Teleport { every: 40 }, 1.0, &hm).expect("flight");
+    let mut jump = Some(0u64);
+    let mut settled = Vec::new();
+    for f in 0..160 {
+        let cam = flight.camera(f);
+        if flight.jumps_at(f) {
+            assert!(jump.is_none(), "frame {f}: the last jump never settled");
+            jump = Some(f);
+        }
+        cm.update(cam.eye).expect("update");
+        planner
+            .plan(&cm, &cam, &params(1.0), &mut plan)
+            .expect("plan");
+        cm.request_samples(&plan.detail().wanted);
+        let s = plan.stats();
+        if let Some(j) = jump {
+            if cm.frame().stale_levels == 0 && !s.refining && s.detail_tiles_waiting == 0 {
+                settled.push(f - j);
+                jump = None;
+            }
+        }
+    }
+    assert_eq!(settled.len(), 4, "settled after {settled:?}");
+    assert!(
+        settled.iter().all(|&n| n <= 30),
+        "frames to settle: {settled:?}"
+    );
+}
+
+#[test]
+fn a_new_viewport_tests_kept_blocks_again() {
+    let hm = terrain();
+    let p = profile(1000);
+    let mut cm = Clipmap::new(&hm, &p, ClipmapOptions::default()).expect("clipmap");
+    let cam = Camera::default_for(&hm).expect("camera");
+    cm.fill_at(cam.eye, 10_000).expect("fill");
+    let mut planner = planner(&hm, &p, &cm);
+    let mut plan = planner.new_plan();
+    let eps = 1.0;
+    for viewport in [(1920, 1080), (640, 1080), (1920, 1080), (3840, 2160)] {
+        let params = PlanParams {
+            viewport: Some(viewport),
+            ..params(eps)
+        };
+        planner.plan(&cm, &cam, &params, &mut plan).expect("plan");
+        // Every block drawn at the level it wanted meets epsilon in this viewport, bound afresh.
+        let lod = planner.lod().expect("SAT");
+        let mut fresh = lod.clone();
+        fresh.set_view(viewport);
+        for b in &plan.lod_frame().blocks {
+            if b.level != b.wanted {
+                continue;
+            }
+            let bx = (
+                b.rect.x0 << b.ring,
+                b.rect.y0 << b.ring,
+                (b.rect.x1() - 1) << b.ring,
+                (b.rect.y1() - 1) << b.ring,
+            );
+            let v =
+                fresh.box_bound_past(&cam, LodMode::SatConservative, b.level, bx, f64::from(eps));
+            assert!(
+                v <= f64::from(eps),
+                "{viewport:?}: block at level {} bound {v} px",
+                b.level
+            );
+        }
+    }
+}
