@@ -22,8 +22,9 @@ use crate::{Error, Result};
 pub const MAX_FILL_FRAMES: u32 = 10_000;
 
 /// Most frames a warm-up lets the detail pool fill at a still camera after the rings (a pool whose
-/// wanted tiles outnumber its slots stops writing once every slot is needed).
-pub const MAX_POOL_FRAMES: u32 = 256;
+/// wanted tiles outnumber its slots stops writing once every slot is needed). Each frame refines within
+/// the profile's budget of bound evaluations, so a fine epsilon on a rough terrain takes a few hundred.
+pub const MAX_POOL_FRAMES: u32 = 1024;
 
 /// The SAT LOD selector for `clipmap`'s terrain. Its tables are read from `cache` (baked there, reporting
 /// to `progress`, on a miss) through a map whose resident pages stay within the profile's share of

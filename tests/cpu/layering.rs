@@ -360,7 +360,7 @@ fn the_scan_sees_imports_and_cycles() {
 
     let g = graph();
     // The SAT LOD selector imports the bake's tables; a re-exported item names its defining file.
-    let lod = &g[Path::new("plan/lod.rs")];
+    let lod = &g[Path::new("plan/lod/mod.rs")];
     assert!(lod.contains(Path::new("bake/lod_tables.rs")), "{lod:?}");
     let a = PathBuf::from("a.rs");
     let b = PathBuf::from("b.rs");

@@ -5,7 +5,7 @@
 //! view does not change, across frames, so a split the budget cut short is taken up again next frame
 //! without asking its bounds twice.
 
-use super::mask::{CornerGrid, UnitEtas};
+use super::corners::{CornerGrid, UnitEtas};
 use crate::plan::camera::Corner;
 use crate::plan::detail::PoolBounds;
 use crate::plan::lod::LatticeBox;

@@ -15,6 +15,7 @@ use crate::Result;
 
 mod carry;
 mod grow;
+mod corners;
 mod mask;
 mod memo;
 mod split;
@@ -218,13 +219,13 @@ pub(super) struct Quadtree {
     /// The bounds asked in the current view.
     memo: Memo,
     /// Scratch: the corners of the cell whose units are asked.
-    grid: mask::CornerGrid,
+    grid: corners::CornerGrid,
     /// The cells' indices by block, then by index (`settle`).
     by_block: Box<heapless::Vec<u16, MAX_DETAIL_CELLS>>,
     /// Scratch: stale cells in the order they are asked again.
     order: Box<heapless::Vec<(f64, u16), MAX_DETAIL_CELLS>>,
     /// The stitched units' errors, per tile.
-    etas: mask::UnitEtas,
+    etas: corners::UnitEtas,
     /// Per-instance records its cells take ([`Cell::instances`]).
     instances: usize,
     /// Views seen (a cell's bound is fresh when asked in the current one).
@@ -271,10 +272,10 @@ impl Quadtree {
             remap: vec![NONE; MAX_LOD_BLOCKS].into_boxed_slice(),
             cand_of: vec![NONE; MAX_LOD_BLOCKS].into_boxed_slice(),
             memo: Memo::default(),
-            grid: mask::CornerGrid::default(),
+            grid: corners::CornerGrid::default(),
             order: Box::default(),
             by_block: Box::default(),
-            etas: mask::UnitEtas::new(quads),
+            etas: corners::UnitEtas::new(quads),
             instances: 0,
             view: 0,
             view_key: 0,
