@@ -11,7 +11,7 @@
 //!
 //! ```sh
 //! cargo run --release --example embed                      # procedural terrain
-//! cargo run --release --example embed -- ../shared/data/N57E011.hgt
+//! cargo run --release --example embed -- path/to/N57E011.hgt
 //! ```
 
 use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen, OffscreenOptions};

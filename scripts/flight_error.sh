@@ -5,6 +5,8 @@
 # the blocks the held data could pay for (unclamped), and how many sampled frames passed 1.05 epsilon.
 # Usage: scripts/flight_error.sh [CLIPSAT_BINARY] [PROFILE]   (from the repository root; needs jq)
 set -euo pipefail
+# The test terrains' folder, as the tests find it.
+DATA=${CLIPSAT_DATA:-../shared/data}
 BIN=${1:-target/release/clipsat}
 PROFILE=${2:-gles3-mid}
 OUT=out/flight_error
@@ -15,10 +17,10 @@ echo "| terrain | epsilon | sampled frames | max error px | max unclamped px | s
 echo "|---|---|---|---|---|---|"
 for t in "${TERRAINS[@]}"; do
   read -r -a a <<< "$t"; name=${a[0]}; args=("${a[@]:1}")
-  if [ ! -f "../shared/data/$name" ]; then echo "skipped $name (missing)" >&2; continue; fi
+  if [ ! -f "$DATA/$name" ]; then echo "skipped $name (missing)" >&2; continue; fi
   for eps in 1 2 4; do
     f="$OUT/$name.$eps.json"
-    "$BIN" fly --terrain "../shared/data/$name" "${args[@]}" --profile "$PROFILE" --lod sat-conservative \
+    "$BIN" fly --terrain "$DATA/$name" "${args[@]}" --profile "$PROFILE" --lod sat-conservative \
       --epsilon "$eps" --size 1920x1080 --frames 200 --path figure8 --error-every 20 --json > "$f"
     jq -r --arg n "$name" --arg e "$eps" '.screen_error_sampled as $s
       | ([$s.per_frame[] | select(.max_px_unclamped > 1.05 * ($e|tonumber))] | length) as $over

@@ -8,6 +8,8 @@
 # Writes Markdown tables on stdout (the load average before and after beside them); the JSON goes to
 # out/plan_time/.
 set -euo pipefail
+# The test terrains' folder, as the tests find it.
+DATA=${CLIPSAT_DATA:-../shared/data}
 BIN=${1:-target/release/clipsat}
 PROFILE=${2:-gles3-mid}
 FRAMES=${3:-200}
@@ -24,12 +26,12 @@ echo "| terrain | mode | epsilon | p50 ms | p99 ms | max ms | mean ms | bounds p
 echo "|---|---|---|---|---|---|---|---|---|---|---|"
 for t in "${TERRAINS[@]}"; do
   read -r -a a <<< "$t"; name=${a[0]}; args=("${a[@]:1}")
-  if [ ! -f "../shared/data/$name" ]; then echo "skipped $name (missing)" >&2; continue; fi
+  if [ ! -f "$DATA/$name" ]; then echo "skipped $name (missing)" >&2; continue; fi
   for run in "distance -" "sat-conservative 1" "sat-conservative 2" "sat-conservative 4"; do
     read -r mode eps <<< "$run"
     f="$OUT/$name.$mode.$eps.figure8.json"
     e=(); [ "$eps" != - ] && e=(--epsilon "$eps")
-    "$BIN" fly --terrain "../shared/data/$name" "${args[@]}" --profile "$PROFILE" --lod "$mode" "${e[@]}" \
+    "$BIN" fly --terrain "$DATA/$name" "${args[@]}" --profile "$PROFILE" --lod "$mode" "${e[@]}" \
       --size 1920x1080 --frames "$FRAMES" --path figure8 --json > "$f"
     echo "| $name | $mode | $eps | $(num .plan_ms_p50 "$f") ($(num .plan_cpu_ms_p50 "$f")) |" \
       "$(num .plan_ms_p99 "$f") ($(num .plan_cpu_ms_p99 "$f")) | $(num .plan_ms_max "$f") ($(num .plan_cpu_ms_max "$f")) |" \
@@ -45,10 +47,10 @@ echo "| terrain | epsilon | settle frames | clamped at settle | p99 ms | max ms 
 echo "|---|---|---|---|---|---|"
 for t in "${TERRAINS[@]}"; do
   read -r -a a <<< "$t"; name=${a[0]}; args=("${a[@]:1}")
-  if [ ! -f "../shared/data/$name" ]; then continue; fi
+  if [ ! -f "$DATA/$name" ]; then continue; fi
   for eps in 1 2 4; do
     f="$OUT/$name.sat-conservative.$eps.teleport.json"
-    "$BIN" fly --terrain "../shared/data/$name" "${args[@]}" --profile "$PROFILE" --lod sat-conservative \
+    "$BIN" fly --terrain "$DATA/$name" "${args[@]}" --profile "$PROFILE" --lod sat-conservative \
       --epsilon "$eps" --size 1920x1080 --frames 240 --path teleport:60 --speed 1 --json > "$f"
     echo "| $name | $eps | $(jq -c '.settle_frames' "$f") | $(jq -c '.settle_blocks_clamped' "$f") |" \
       "$(num .plan_ms_p99 "$f") ($(num .plan_cpu_ms_p99 "$f")) | $(num .plan_ms_max "$f") ($(num .plan_cpu_ms_max "$f")) |"

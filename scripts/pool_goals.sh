@@ -9,6 +9,8 @@
 # Usage: scripts/pool_goals.sh [CLIPSAT_BINARY] [PROFILE]   (run from the repository root; needs jq)
 # Writes Markdown tables on stdout; the per-run JSON goes to out/pool_goals/.
 set -euo pipefail
+# The test terrains' folder, as the tests find it.
+DATA=${CLIPSAT_DATA:-../shared/data}
 BIN=${1:-target/release/clipsat}
 PROFILE=${2:-gles3-mid}
 OUT=out/pool_goals
@@ -19,14 +21,14 @@ TERRAINS=("ps_height_1k.png --spacing 160" "n07_w006_3arc_v2.tif" "srtm_bigtujun
 run() { # name mode eps args...
   local name=$1 mode=$2 eps=$3; shift 3
   local f="$OUT/$name.$mode.$eps.json"
-  "$BIN" render --terrain "../shared/data/$name" "$@" --profile "$PROFILE" --lod "$mode" \
+  "$BIN" render --terrain "$DATA/$name" "$@" --profile "$PROFILE" --lod "$mode" \
     ${eps:+--epsilon "$eps"} --resident --json --out "$OUT/frame.png" > "$f"
   echo "$f"
 }
 bound=""; equal=""; image=""
 for t in "${TERRAINS[@]}"; do
   read -r -a a <<< "$t"; name=${a[0]}; args=("${a[@]:1}")
-  if [ ! -f "../shared/data/$name" ]; then echo "skipped $name (missing)" >&2; continue; fi
+  if [ ! -f "$DATA/$name" ]; then echo "skipped $name (missing)" >&2; continue; fi
   irow="| $name |"
   for mode in sat-conservative exact; do
     row="| $name | $mode |"

@@ -3,10 +3,12 @@
 # in one sitting, three runs each (the first may bake into the shared cache), over three terrain sizes.
 # Usage: scripts/rss_stream.sh BIN_BEFORE BIN_AFTER [CACHE_DIR]
 set -euo pipefail
+# The test terrains' folder, as the tests find it.
+DATA=${CLIPSAT_DATA:-../shared/data}
 before=$1 after=$2
 export CLIPSAT_CACHE=${3:-target/rss-stream-cache}
 out=$(mktemp -d)
-for t in procedural:size=257 ../shared/data/N57E011.hgt procedural:size=4097; do
+for t in procedural:size=257 $DATA/N57E011.hgt procedural:size=4097; do
   for cmd in "--lod sat" "--profile desktop --shading sg"; do
     for run in 1 2 3; do
       for b in "$before" "$after"; do

@@ -4,6 +4,8 @@
 # --ground-truth --resident`: the brute-force reference reads the whole terrain). Usage: scripts/survive_lod.sh [CLIPSAT_BINARY] [PROFILE] [EXTRA ARGS...]
 # (run from the repository root; needs jq). Writes a Markdown table on stdout.
 set -euo pipefail
+# The test terrains' folder, as the tests find it.
+DATA=${CLIPSAT_DATA:-../shared/data}
 BIN=${1:-target/release/clipsat}
 PROFILE=${2:-gles3-mid}
 shift $(( $# > 2 ? 2 : $# ))
@@ -15,11 +17,11 @@ echo "| terrain | distance RMSE | sat RMSE (tri) | ratio | sat-conservative RMSE
 echo "|---|---|---|---|---|---|"
 for t in "${TERRAINS[@]}"; do
   read -r -a a <<< "$t"; name=${a[0]}; args=("${a[@]:1}")
-  if [ ! -f "../shared/data/$name" ]; then echo "skipped $name (missing)" >&2; continue; fi
+  if [ ! -f "$DATA/$name" ]; then echo "skipped $name (missing)" >&2; continue; fi
   row="| $name |"
   for mode in distance sat sat-conservative; do
     f="$OUT/$name.$mode.json"
-    "$BIN" render --terrain "../shared/data/$name" "${args[@]}" --profile "$PROFILE" --size 640x360 \
+    "$BIN" render --terrain "$DATA/$name" "${args[@]}" --profile "$PROFILE" --size 640x360 \
       --lod "$mode" --epsilon 2 --json --ground-truth --resident --out "$OUT/$name.$mode.png" "$@" > "$f"
     r=$(jq .rmse_vs_ground_truth "$f")
     if [ "$mode" = distance ]; then d=$r; row="$row $(printf %.2f "$r") |"; else

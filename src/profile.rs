@@ -63,7 +63,7 @@ pub struct FrameBudget {
     /// the SAT LOD tables' resident pages, and the package tile cache, which gets the rest
     /// ([`Profile::cpu_split`]).
     pub cpu_memory_bytes: u64,
-    /// Height tiles in the detail pool (issue 15): finer data for the SAT LOD blocks whose wanted level
+    /// Height tiles in the detail pool: finer data for the SAT LOD blocks whose wanted level
     /// the rings do not hold there; 0: no pool. At most [`MAX_DETAIL_TILES`].
     #[serde(default)]
     pub detail_tiles: u32,
@@ -213,7 +213,7 @@ impl Footprint {
 pub const GLOBALS_BYTES: u64 = 144 + 48 * MAX_LEVELS as u64 + 16;
 /// Bytes of one per-draw uniform slot: the GLES 3.0 floor's uniform offset alignment.
 pub const DRAW_SLOT_BYTES: u64 = 256;
-/// Most detail pool cells one plan draws (issue 15): a cell is drawn whole (one instance) or stitched
+/// Most detail pool cells one plan draws: a cell is drawn whole (one instance) or stitched
 /// (one instance per unit and border side, [`MAX_POOL_INSTANCES`]).
 pub const MAX_POOL_CELLS: usize = 1024;
 /// Most per-instance records the pool's instanced draws may draw in one plan: whole cells and stitched
@@ -233,7 +233,7 @@ pub const MAX_DETAIL_LAYERS: u32 = MAX_TEXTURE_LAYERS - 1;
 /// ([`DetailAtlas`]), so more tiles than layers. It sizes the plan's fixed pool collections.
 pub const MAX_DETAIL_TILES: u32 = 1024;
 
-/// Where the detail pool's slots lie in its RG32F array texture (issue 15): each layer is a grid of
+/// Where the detail pool's slots lie in its RG32F array texture: each layer is a grid of
 /// `cols x cols` tiles, `side` texels each, filled row by row, then the next layer. A single tile per
 /// layer while the tiles fit [`MAX_DETAIL_LAYERS`], else the fewest columns that fit them. Pure: the plan
 /// puts each cell's place into its per-instance record (so into its hash), and the renderer uploads there.
@@ -541,7 +541,7 @@ impl Profile {
         with_gl_spare_layer(self.clipmap.levels)
     }
 
-    /// Layers of the SG normal table (issue 16, "Memory"): one per ring, with the same GL spare layer as
+    /// Layers of the SG normal table (docs/design.md "Memory model"): one per ring, with the same GL spare layer as
     /// [`Profile::height_layers`].
     pub fn sg_normal_layers(&self) -> u32 {
         self.height_layers()

@@ -1,7 +1,7 @@
 //! Package decode benchmarks (stage 1b): whole-pyramid decode per codec against a memcpy of the decoded
 //! bytes, and one full 256 x 256 level through the tile cache.
 //!
-//! Run with `cargo bench --bench stages -- "decode_|cache_|stream_fill"`. Uses `../shared/data/ps_height_1k.png` (skipped with a reason
+//! Run with `cargo bench --bench stages -- "decode_|cache_|stream_fill"`. Uses `ps_height_1k.png` from the test terrains' folder (`$CLIPSAT_DATA`) (skipped with a reason
 //! when missing) and a synthetic 1025^2 terrain.
 
 use std::hint::black_box;

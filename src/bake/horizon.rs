@@ -16,7 +16,7 @@ use crate::source::Heightmap;
 
 /// Default number of baked azimuths D: 16, the shader's most. The horizon between baked azimuths is
 /// linear, and a low sun's shadows follow the horizon at its exact azimuth: on Aletsch at 640 x 360
-/// (`clipsat render --profile desktop --terrain ../shared/data/aletsch_200m.tif --size 640x360
+/// (`clipsat render --profile desktop --terrain aletsch_200m.tif --size 640x360
 /// --shading sg --scene evening --reference --json`) the RMSE against the CPU reference is 0.0208 with
 /// D = 8 and 0.0124 with D = 16 (0.0120 without visibility): D = 8 was most of the evening error.
 pub const DEFAULT_AZIMUTHS: u32 = 16;

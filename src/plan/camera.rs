@@ -142,7 +142,7 @@ impl Camera {
     }
 
     /// How this camera projects vertical segments on a `view` (width, height) viewport
-    /// (design.md "SAT LOD" 5).
+    /// (docs/design.md "SAT LOD" 5).
     pub fn vertical_scale(&self, view: (u32, u32)) -> VerticalScale {
         let fwd = self.forward();
         // look_to_rh with up +Z: the camera's right is horizontal, its up is right x forward.
@@ -167,7 +167,7 @@ impl Camera {
     }
 }
 
-/// The true projection of a vertical segment (design.md "SAT LOD" 5): how many pixels a point moves on
+/// The true projection of a vertical segment (docs/design.md "SAT LOD" 5): how many pixels a point moves on
 /// the screen when its height is off by e.
 ///
 /// A point q (camera space: x right, y up, z depth) and q + t v, v the world's up (v = (0, v_y, v_z):

@@ -44,7 +44,7 @@ pub const MIN_ACTIVE: u32 = 5;
 /// Largest |lattice coordinate| of an eye, 2^48 level-0 samples (2.8e15 m at 10 m spacing).
 const MAX_LATTICE: f64 = (1u64 << 48) as f64;
 
-/// The viewer-height rule: level l is disabled above 0.4 n g_l over the terrain (design.md).
+/// The viewer-height rule: level l is disabled above 0.4 n g_l over the terrain (docs/design.md).
 pub const HEIGHT_FACTOR: f64 = 0.4;
 
 /// The geometry clipmap: pyramid, rings, clip regions and the last frame's record.

@@ -15,7 +15,7 @@ use crate::plan::frame::Rect;
 ///    of the finer level coincide with coarser vertices (no T-junctions; z_c = z there).
 /// 4. The enabled levels are a contiguous range ending at the coarsest: disabled levels are the finest ones.
 ///
-/// The GC paper text itself was not at hand while writing this; these are the constraints as design.md and
+/// The GC paper text itself was not at hand while writing this; these are the constraints as docs/design.md and
 /// the paper's section 5 describe them, in the form the renderer relies on.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 #[non_exhaustive]

@@ -494,7 +494,7 @@ fn piece_level(frame: &crate::plan::frame::Frame, ring: u32, selected: u32, p: &
     level
 }
 
-/// Builds the SAT LOD draw list (design.md "SAT LOD" 6-7) into `out` (cleared first): every block of `lod`
+/// Builds the SAT LOD draw list (docs/design.md "SAT LOD" 6-7) into `out` (cleared first): every block of `lod`
 /// minus the finer ring's active region, drawn at the level the selection chose, as tiles of at most m x m
 /// quads of that level (one block-mesh draw each, a prefix of its indices when smaller). Blocks are culled
 /// like [`build_draws`]'s. Skirts (the smallest tile skirt loop that spans the tile, culled with it): around

@@ -146,7 +146,7 @@ pub fn skirt_loop_range(max_side: u32, quads: u32) -> std::ops::Range<u32> {
     first..first + 24 * side
 }
 
-/// The detail pool's cell mesh (issue 15): [`block`]`(quads)`'s vertices, then [`skirt_loops`]`(quads)`'s,
+/// The detail pool's cell mesh: [`block`]`(quads)`'s vertices, then [`skirt_loops`]`(quads)`'s,
 /// and for each k in 1..=quads one run of indices: the block's top-left k x k quads, then the smallest
 /// loop of side >= k. So a pool cell and its skirt are one draw ([`pool_cell_range`]), drawn in the order
 /// its two draws had (surface, then skirt): a cell per draw is what lets the pool hold more tiles than
@@ -191,7 +191,7 @@ pub fn pool_cells(quads: u32) -> Mesh {
     Mesh { vertices, indices }
 }
 
-/// One mesh of a stitched cell's unit (issue 15, [`crate::plan::detail::stitch`]), in the lattice of the
+/// One mesh of a stitched cell's unit ([`crate::plan::detail::stitch`]), in the lattice of the
 /// cell's level from the unit's first vertex: a unit is one quad of the next coarser level.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum UnitMesh {

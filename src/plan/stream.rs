@@ -98,7 +98,7 @@ impl HeightSource {
 
     /// Makes resident the tiles under each of `requests` (pyramid level, samples), in order, while
     /// `budget` (samples) lasts; stops at the first that cannot be decoded this frame (the rest wait).
-    /// Returns the samples decoded (0 for a resident pyramid). The detail pool's tiles (issue 15).
+    /// Returns the samples decoded (0 for a resident pyramid). The detail pool's tiles.
     pub fn prefetch(&mut self, requests: &[(u32, Rect)], budget: u32) -> Result<u32> {
         let Self::Streamed(c) = self else {
             return Ok(0);

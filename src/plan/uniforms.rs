@@ -308,7 +308,7 @@ pub fn lod_draw_uniform(
     u
 }
 
-/// The uniforms of detail-pool draw `d` (issue 15; [`crate::plan::detail`]): anchored at the first held
+/// The uniforms of detail-pool draw `d` ([`crate::plan::detail`]): anchored at the first held
 /// sample of its tile (`first`, level units), so lattice offsets are the tile's texels; the region for
 /// one-sided normals is the whole tile (its border included), no morph, no snapping.
 #[expect(
@@ -371,7 +371,7 @@ pub fn detail_draw_uniform(
     .unsnapped()
 }
 
-/// One detail pool cell of an instanced pool draw (issue 15): the fields of its [`detail_draw_uniform`]
+/// One detail pool cell of an instanced pool draw: the fields of its [`detail_draw_uniform`]
 /// that differ between the cells of one draw (a draw's cells share level, mesh range and program), read
 /// per instance from the cell buffer; mirrors `PoolCellIn` in `shaders_gles/clipmap.wgsl`. The draw's
 /// uniform slot holds its first cell's whole [`DrawUniform`]; `draw_of` there, and its CPU twin

@@ -4,7 +4,7 @@
 //! ([`crate::plan::budget`]). [`UploadStamps`] remembers, per level, the last frame that wrote each texel
 //! column and row. A plan built for frame i after a plan for frame j then uploads the union of the strips
 //! written in frames j + 1 ..= i, never more than those frames updated: the GPU copy stays equal to the CPU
-//! rings when frames are skipped (issue 17 item 5) without refilling whole levels.
+//! rings when frames are skipped without refilling whole levels.
 
 use crate::plan::frame::{Upload, MAX_LEVELS};
 use crate::{Error, Result};

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use crate::{Error, Result};
 
-/// How to read a terrain file. The defaults suit the data in `../shared/data`.
+/// How to read a terrain file. The defaults suit the common elevation formats as their files come.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LoadOptions {
     /// Sample spacing in metres, overriding (or supplying) what the file says.

@@ -126,7 +126,7 @@ fn lod_selection_allocates_nothing() {
     }
 }
 
-/// The detail pool (issue 15) while it fills: at a tight epsilon on a flight, every frame keeps the ring
+/// The detail pool while it fills: at a tight epsilon on a flight, every frame keeps the ring
 /// fill plus the pool's tiles within the update budget, the draw calls and triangles within theirs, the
 /// refinement within its bound evaluations (its quadtrees carried from frame to frame), and allocates
 /// nothing; the pool does fill and serve blocks, its cells drawn as instances (each call covers

@@ -155,7 +155,7 @@ fn fly_from(cm: &mut Clipmap, range: std::ops::Range<u32>, budget: u32, hashes: 
     }
 }
 
-/// SAT LOD over a streamed package (issue 13): the tables are read through a map of their cache file
+/// SAT LOD over a streamed package: the tables are read through a map of their cache file
 /// (nothing owned), every frame's block levels equal those chosen from the same tables baked in memory
 /// from the package's decoded pyramid, and planning allocates nothing while the map is trimmed each frame.
 #[test]
@@ -237,7 +237,7 @@ fn sat_lod_streams_from_mapped_tables_without_allocating() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// The detail pool over a streamed package (issue 15): a flight in `sat-conservative` whose pool tiles
+/// The detail pool over a streamed package: a flight in `sat-conservative` whose pool tiles
 /// come from the package's tile cache. Tiles whose package tiles are not resident wait
 /// (`DetailFrame::wanted`); the next update decodes them after the rings. Every frame's ring fill, decode
 /// and pool fill together stay within the sample budget, planning and updating allocate nothing, the

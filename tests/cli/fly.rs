@@ -143,7 +143,7 @@ fn bad_inputs_fail_with_a_clear_error() {
         (&["--frames", "0"], "--frames"),
         (&["--profile", "missing.toml"], "missing.toml"),
         (&["--frames", "2", "--csv", &csv_s], "a-file"),
-        // Synthesis only when the scene declares it (issue 16).
+        // Synthesis only when the scene declares it.
         (
             &[
                 "--shading",
@@ -233,7 +233,7 @@ fn fly_render_writes_frames_and_image_hashes() {
     );
 }
 
-/// Issue 17 item 5: rendering every K-th frame uploads the union of the skipped frames' rectangles, never
+/// Rendering every K-th frame uploads the union of the skipped frames' rectangles, never
 /// a whole-texture refill after the first frame, so a rendered frame uploads at most K x the update
 /// budget (before: every level in full, about 256k samples on gles3-mid against a 32,640 budget).
 #[test]
@@ -271,7 +271,7 @@ fn fly_render_every_k_uploads_at_most_k_budgets() {
     assert_eq!(v["full_uploads_after_first"], 0, "{v}");
 }
 
-/// Issue 13 item 2: `fly --render` streams a package through the profile's tile cache, as `render` does
+/// `fly --render` streams a package through the profile's tile cache, as `render` does
 /// (`streamed` in the summary, tiles decoded, no whole heightmap loaded), and its image hashes repeat
 /// exactly on a second run; with SG shading and `--lod sat` too, the LOD tables read through a map.
 #[test]

@@ -614,7 +614,7 @@ fn lod_mode_parses() {
     assert!("fast".parse::<LodMode>().is_err());
 }
 
-/// The 16385 x 16385 extent at full resolution (design.md "SAT LOD" hard cases): an error field spanning
+/// The 16385 x 16385 extent at full resolution (docs/design.md "SAT LOD" hard cases): an error field spanning
 /// ten decades (1e-6 .. 1e4 m) with one needle, the level tables built as the bake builds them (1.1 GB of
 /// errors, a 2.1 GB SAT, a 1.4 GB max pyramid), then blocks of every size up to the whole extent keep
 /// estimate <= exact <= conservative and their SAT sums match a compensated f64 sum within

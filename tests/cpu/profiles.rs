@@ -56,7 +56,7 @@ fn shipped_profiles_load_from_names_and_files() {
 
 #[test]
 fn design_table_values() {
-    // design.md "Budgets": gles3-low n=63 L=8 ~8k; gles3-mid n=127 L=10 ~32k; desktop n=255 L=11 n^2.
+    // docs/design.md "Budgets": gles3-low n=63 L=8 ~8k; gles3-mid n=127 L=10 ~32k; desktop n=255 L=11 n^2.
     // Low and mid are whole rows of their clip texture (S = 80, 160): updates are spent in rows.
     let expect = [
         ("gles3-low", 63, 8, 8160),
@@ -101,7 +101,7 @@ fn bad_values_name_their_field() {
         ("height", "4096", "view.height"),
         ("fov_y_deg", "180.0", "view.fov_y_deg"),
         ("features", "[]", "shading.features"),
-        // Issue 17 item 3: these validated, then panicked (n = 1023 in mesh::block's u16 indices), wrapped
+        // These once validated, then panicked (n = 1023 in mesh::block's u16 indices), wrapped
         // (2 * clip_margin in u32: 0 triangles, no error) or overflowed (n + 1).
         ("n", "1023", "clipmap.n"),
         ("n", "4294967295", "clipmap.n"),

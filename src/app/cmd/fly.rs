@@ -130,7 +130,7 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
             "sg shading needs --render DIR (fly simulates without a GPU otherwise)",
         ));
     }
-    // Synthesis only when the scene asks for it (issue 16): an SG scene without `effects.synthesis`
+    // Synthesis only when the scene asks for it: an SG scene without `effects.synthesis`
     // gets no synthesised rings, and so no noise table.
     if let Some(choice) = sg.as_ref().filter(|c| !c.scene.effects.synthesis) {
         if args.synth_levels > 0 {
@@ -181,7 +181,7 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
         })?
         .with_fov_y_deg(f64::from(profile.view.fov_y_deg));
 
-    // A streamed clipmap's tables are baked from its package and read through a map (issue 13).
+    // A streamed clipmap's tables are baked from its package and read through a map.
     let lod = match lod_mode {
         LodMode::Distance => None,
         _ => Some(super::render::lod_for(&hm, &profile, &clipmap, !args.json)?),

@@ -1,4 +1,4 @@
-//! Stage 2, the per-frame plan: the detail pool (issue 15; design.md "SAT LOD" 6). The rings hold data by
+//! Stage 2, the per-frame plan: the detail pool (docs/design.md "SAT LOD" 6). The rings hold data by
 //! distance, SAT LOD wants it by error: a block whose wanted level is finer than any ring holding it is
 //! clamped. The pool is a fixed set of height tiles (`budget.detail_tiles`, packed into GPU array layers
 //! by [`DetailAtlas`]), one tile per cell of a level's fixed grid (`detail_tile_quads` quads a side, plus

@@ -1,4 +1,4 @@
-//! Stage 2, the per-frame plan: stitched pool cells (issue 15). A cell of level k is drawn in units, each
+//! Stage 2, the per-frame plan: stitched pool cells. A cell of level k is drawn in units, each
 //! one quad of level k + 1 (2 x 2 quads of level k): a unit whose level-(k + 1) bound meets epsilon is that
 //! one coarse quad (2 triangles), the others the four fine quads (8 triangles). Two levels meet inside a
 //! cell with no skirt and no new vertex, by the rule `measure/stitch.rs` tests on whole quadtrees: a

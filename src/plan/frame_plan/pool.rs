@@ -1,4 +1,4 @@
-//! Stage 2, the per-frame plan as a value: the detail pool's part of a SAT plan (issue 15): the pool
+//! Stage 2, the per-frame plan as a value: the detail pool's part of a SAT plan: the pool
 //! planned under what the rings and the clamped draw list leave, the draw list rebuilt with the served
 //! blocks' cells, sorted into runs that are one instanced call each.
 
@@ -74,7 +74,7 @@ fn block_draws(b: &crate::plan::lod::BlockLod, d: &cull::Draw) -> bool {
 }
 
 impl Planner {
-    /// The detail pool's part of a SAT plan (issue 15), after the clamped draw list `out.draws` is built:
+    /// The detail pool's part of a SAT plan, after the clamped draw list `out.draws` is built:
     /// plans the pool under what the rings left of the sample budget and what the clamped list left of
     /// the draw and triangle budgets, then rebuilds the draw list with the served blocks from the pool,
     /// dropping the least-needed served block until it fits. None: nothing served, the list stands.

@@ -1,5 +1,5 @@
-//! Stage 2, the per-frame plan: the draw calls of stitched pool cells (issue 15,
-//! [`crate::plan::detail::stitch`]). A stitched cell is one entry of the draw list; its units are
+//! Stage 2, the per-frame plan: the draw calls of stitched pool cells
+//! ([`crate::plan::detail::stitch`]). A stitched cell is one entry of the draw list; its units are
 //! instances of the pool's instanced calls, one call per run of cells of one level and program and unit
 //! mesh, each unit a [`PoolCell`] record carrying its vertex flags.
 

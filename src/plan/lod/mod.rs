@@ -1,4 +1,4 @@
-//! Stage 2, the per-frame plan: allocation-free block LOD selection (design.md "SAT LOD", after Li et al.
+//! Stage 2, the per-frame plan: allocation-free block LOD selection (docs/design.md "SAT LOD", after Li et al.
 //! 2021, "SAT paper", algorithm 1) over the tables [`crate::bake::lod_tables`] bakes.
 //!
 //! # Blocks
@@ -8,7 +8,7 @@
 //! multiples of m 2^l, so coarser levels up to l + log2 m have samples on its corners. Each frame, ring l
 //! contributes the cells that meet its active region (clipped to it) and are not wholly inside the finer
 //! ring's active region (the hole). The renderer draws each block at its chosen level, covering the clipped
-//! cell; skirts hide the cracks (design.md "SAT LOD" 7). A full ring of n = 4m - 1 vertices meets at most
+//! cell; skirts hide the cracks (docs/design.md "SAT LOD" 7). A full ring of n = 4m - 1 vertices meets at most
 //! 6 x 6 cells, so a frame has at most 36 L blocks, and selection is O(blocks x levels).
 
 /// Defined beside the tables whose estimators it chooses.
@@ -273,7 +273,7 @@ impl Lod {
     /// visible sample's projected error, and under `sat-conservative` the p-sum of a sub-box counts fewer
     /// samples (its N^(1/p) slack shrinks) and its scale is smaller.
     ///
-    /// Design deviation (design.md "SAT LOD" 5 projects a segment of +/- eta, length 2 eta, at the closest
+    /// Design deviation (docs/design.md "SAT LOD" 5 projects a segment of +/- eta, length 2 eta, at the closest
     /// point with the on-axis scale): a sample whose drawn height is off by e <= eta moves on the screen
     /// by the projection of one segment of length e (from its true height to its drawn one), so the
     /// bound is one-sided; and the scale is the true projection's, which off the screen's axis exceeds
@@ -572,8 +572,8 @@ pub const SPLIT: usize = 4;
 /// How many more times the threshold test (the selection's, at epsilon) cuts a sub-box whose bound
 /// exceeds epsilon into [`SPLIT`] x [`SPLIT`] parts: 4 x 4, then 16 x 16 and 64 x 64 where needed (a
 /// block of 32 quads reaches single quads). A box decided by its whole bound or by one sub-box past the
-/// limit reads no more; the cost is in the boxes near epsilon, which the deeper cut is for (issue 15:
-/// at 4 x 4 alone the pool refined tiles that the measured error did not need, and ran out of slots).
+/// limit reads no more; the cost is in the boxes near epsilon, which the deeper cut is for (the
+/// detail pool at 4 x 4 alone the pool refined tiles that the measured error did not need, and ran out of slots).
 pub const SPLIT_DEPTH: u32 = 2;
 
 /// A sub-box is cut again only when its bound is within this factor of the limit: one further past it

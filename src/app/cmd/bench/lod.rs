@@ -66,7 +66,7 @@ pub(crate) struct Acc {
     pub(crate) frames_over: u32,
     pub(crate) rmse: f64,
     pub(crate) clamped: f64,
-    /// Blocks drawn from the detail pool (issue 15), summed over the frames.
+    /// Blocks drawn from the detail pool, summed over the frames.
     pub(crate) from_pool: f64,
     /// Detail pool tiles resident, summed over the frames.
     pub(crate) pool_tiles: f64,
@@ -141,7 +141,7 @@ pub(crate) const LOD_TABLE_NOTE: &str = "Means per frame, except max screen erro
     cannot hold (for distance, every block). LOD time: the frame plan (`Planner::plan`: selection, culling, uniforms; \
     for distance, which selects nothing). Render time: upload, draw and readback on this machine's GL driver. \
     Blocks from pool / pool tiles: SAT blocks drawn from the detail pool (at their wanted level or a finer \
-    one than the rings hold) and the pool's resident tiles (issue 15; blocks clamped counts those still \
+    one than the rings hold) and the pool's resident tiles (blocks clamped counts those still \
     short of their wanted level). \
     RMSE: RGB, 0..255, every pixel, against the brute-force render.";
 
