@@ -76,9 +76,32 @@ fn assert_round_trip(name: &str, hm: &Heightmap, path: &Path, bound: f64) {
     }
 }
 
+/// The shared terrains the default test run bakes: one of integer metres (lossless, read as a TIFF and as
+/// a PNG), one of float centimetres and one of float decimetres; `--ignored` bakes all eight (about 20 s
+/// of CPU in a test build).
+const QUICK: [&str; 4] = [
+    "srtm_bigtujunga30m_utm11.tif",
+    "srtm_bigtujunga30m_utm11_u16dm.png",
+    "lidar_pkg_dem_1m_400x400.tif",
+    "aletsch_200m.tif",
+];
+
 #[test]
 fn shared_terrains_round_trip_within_the_default_bound() {
+    round_trips(false);
+}
+
+#[test]
+#[ignore = "every shared terrain, about 20 s: cargo test --test cpu package:: -- --ignored"]
+fn every_shared_terrain_round_trips_within_the_default_bound() {
+    round_trips(true);
+}
+
+fn round_trips(all: bool) {
     for (name, spacing, bound) in SHARED {
+        if !all && !QUICK.contains(&name) {
+            continue;
+        }
         let Some(hm) = shared(name, spacing) else {
             continue;
         };
@@ -409,6 +432,16 @@ fn cli_bakes_a_package_and_flies_it_streamed() {
 /// the out-of-core one replaced, and kept through format 3).
 #[test]
 fn out_of_core_bake_is_byte_identical_to_the_resident_bake() {
+    byte_pins(false);
+}
+
+#[test]
+#[ignore = "every shared terrain, about 25 s: cargo test --test cpu package:: -- --ignored"]
+fn out_of_core_bake_is_byte_identical_on_every_shared_terrain() {
+    byte_pins(true);
+}
+
+fn byte_pins(all: bool) {
     let pins_seen = std::cell::RefCell::new(Vec::new());
     let check = |name: &str, out: &Path, (crc, len): (u32, usize)| {
         let bytes = std::fs::read(out).expect("read back");
@@ -443,6 +476,9 @@ fn out_of_core_bake_is_byte_identical_to_the_resident_bake() {
         ("aletsch_200m.tif", None, (0x14c9_400b, 249_185)),
     ];
     for (name, spacing, pin) in shared_pins {
+        if !all && !QUICK.contains(&name) {
+            continue;
+        }
         let Some(hm) = shared(name, spacing) else {
             continue;
         };
@@ -517,6 +553,9 @@ fn out_of_core_bake_is_byte_identical_to_the_resident_bake() {
         ),
     ];
     for (name, size, seed, o, pin) in cases {
+        if !all && size > 513 {
+            continue;
+        }
         let out = temp(&format!("pin-{size}-{}.clipsat", o.tile));
         package::bake_source(
             &mut procedural(size, seed),
