@@ -48,11 +48,19 @@ impl UploadStamps {
         let base = level as usize * self.size as usize;
         let mut m = 0;
         for (stamps, lo, hi) in [(&self.cols, x0, x1), (&self.rows, y0, y1)] {
-            for v in lo..hi.min(lo + s) {
-                #[expect(clippy::cast_possible_truncation, reason = "rem_euclid by the side")]
-                let i = v.rem_euclid(s) as usize;
-                m = m.max(stamps.get(base + i).copied().unwrap_or(u64::MAX));
-            }
+            // One remainder, then the run walks the torus: at most two contiguous slices.
+            #[expect(clippy::cast_possible_truncation, reason = "rem_euclid by the side")]
+            let start = lo.rem_euclid(s) as usize;
+            #[expect(clippy::cast_possible_truncation, reason = "at most the side")]
+            let n = (hi.min(lo + s) - lo).max(0) as usize;
+            let side = s as usize;
+            let first = n.min(side - start);
+            let run = |from: usize, len: usize| {
+                stamps
+                    .get(base + from..base + from + len)
+                    .map_or(u64::MAX, |r| r.iter().copied().max().unwrap_or(0))
+            };
+            m = m.max(run(start, first)).max(run(0, n - first));
         }
         m
     }
