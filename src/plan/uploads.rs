@@ -53,7 +53,7 @@ impl UploadStamps {
             let start = lo.rem_euclid(s) as usize;
             #[expect(clippy::cast_possible_truncation, reason = "at most the side")]
             let n = (hi.min(lo + s) - lo).max(0) as usize;
-            let side = s as usize;
+            let side = self.size.max(1) as usize;
             let first = n.min(side - start);
             let run = |from: usize, len: usize| {
                 stamps
