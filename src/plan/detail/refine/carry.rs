@@ -123,6 +123,7 @@ impl Quadtree {
         }
         self.recount(at);
         self.shed(at);
+        self.debug_check_cover();
         // Units frozen for want of room are tried again once more is left than when the last one froze.
         if let Some(m) = self.mark {
             let f = self.free(at);

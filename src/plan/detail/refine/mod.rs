@@ -14,6 +14,7 @@ use crate::plan::lod::{LatticeBox, LodFrame, MAX_LOD_BLOCKS};
 use crate::Result;
 
 mod carry;
+mod check;
 mod grow;
 mod corners;
 mod mask;
@@ -384,6 +385,7 @@ impl Quadtree {
         lod.set_allowance(u64::MAX);
         grown?;
         self.settle(view.epsilon_px);
+        self.debug_check_cover();
         Ok(())
     }
 
