@@ -35,6 +35,11 @@ impl Quadtree {
         if !self.mask_cells(0, at, bounds) {
             return Ok(());
         }
+        self.ranks.clear();
+        for j in 0..self.cells.len() {
+            let r = self.rank(&self.cells[j], eps);
+            self.ranks.push(r).expect("ranks hold MAX_DETAIL_CELLS");
+        }
         loop {
             let Some(unit) = self.pick(eps) else {
                 return Ok(());
@@ -45,6 +50,7 @@ impl Quadtree {
                         self.pending = Some(self.region(unit));
                         return Ok(());
                     }
+                    self.ranks[j] = self.rank(&self.cells[j], eps);
                     continue;
                 }
             }
@@ -121,6 +127,9 @@ impl Quadtree {
                     }
                     Unit::Ghost(g) => self.ghosts[g].frozen = true,
                 }
+                if let Unit::Cell(j) = unit {
+                    self.ranks[j] = self.rank(&self.cells[j], eps);
+                }
                 continue;
             };
             if is_cut {
@@ -151,6 +160,14 @@ impl Quadtree {
             }
             let first = self.cells.len() - usize::from(matches!(unit, Unit::Cell(_)));
             self.commit(unit, cost);
+            // The ranks follow the cells: the split cell's place taken by the last, the new ones after.
+            if let Unit::Cell(j) = unit {
+                self.ranks.swap_remove(j);
+            }
+            for j in self.ranks.len()..self.cells.len() {
+                let r = self.rank(&self.cells[j], eps);
+                self.ranks.push(r).expect("ranks hold MAX_DETAIL_CELLS");
+            }
             if matches!(unit, Unit::Ghost(_)) {
                 self.seen_ghosts = self.ghosts.iter().any(|g| g.visible && !g.frozen);
             }
@@ -196,12 +213,49 @@ impl Quadtree {
                 pick = Some((c.bound, Unit::Block(k)));
             }
         }
-        for (j, c) in self.cells.iter().enumerate() {
-            if c.frozen || c.hidden || c.key.level <= c.wanted {
-                continue;
+        for (j, &r) in self.ranks.iter().enumerate() {
+            if r > f64::NEG_INFINITY && pick.is_none_or(|(p, _)| r > p) {
+                pick = Some((r, Unit::Cell(j)));
             }
-            let b = self.now(c, c.bound);
-            if b > self.limit(c, eps) && pick.is_none_or(|(p, _)| b > p) {
+        }
+        let pick = pick.map(|(_, u)| u);
+        debug_assert_eq!(pick, self.pick_by_scan(eps), "the cells' ranks are out of step");
+        pick
+    }
+
+    /// A cell's rank in [`Quadtree::pick`]: its bound now where it may be split and misses epsilon, else
+    /// minus infinity.
+    pub(super) fn rank(&self, c: &Cell, eps: f64) -> f64 {
+        if c.frozen || c.hidden || c.key.level <= c.wanted {
+            return f64::NEG_INFINITY;
+        }
+        let b = self.now(c, c.bound);
+        if b > self.limit(c, eps) {
+            b
+        } else {
+            f64::NEG_INFINITY
+        }
+    }
+
+    /// [`Quadtree::pick`] from the cells themselves (debug builds check the ranks against it).
+    fn pick_by_scan(&self, eps: f64) -> Option<Unit> {
+        if !cfg!(debug_assertions) {
+            return None;
+        }
+        if self.seen_ghosts {
+            if let Some(g) = self.ghosts.iter().position(|g| g.visible && !g.frozen) {
+                return Some(Unit::Ghost(g));
+            }
+        }
+        let mut pick: Option<(f64, Unit)> = None;
+        for (k, c) in self.cands.iter().enumerate() {
+            if !c.refined && !c.frozen && !c.hidden && pick.is_none_or(|(b, _)| c.bound > b) {
+                pick = Some((c.bound, Unit::Block(k)));
+            }
+        }
+        for (j, c) in self.cells.iter().enumerate() {
+            let b = self.rank(c, eps);
+            if b > f64::NEG_INFINITY && pick.is_none_or(|(p, _)| b > p) {
                 pick = Some((b, Unit::Cell(j)));
             }
         }

@@ -202,6 +202,9 @@ impl Scratch {
 pub(super) struct Quadtree {
     pub(super) cands: Box<heapless::Vec<Cand, MAX_LOD_BLOCKS>>,
     pub(super) cells: Box<heapless::Vec<Cell, MAX_DETAIL_CELLS>>,
+    /// While the refinement grows: each cell's rank ([`Quadtree::rank`]), in step with `cells`, so
+    /// that picking the next split reads one number a cell.
+    ranks: Box<heapless::Vec<f64, MAX_DETAIL_CELLS>>,
     pub(super) ghosts: Box<heapless::Vec<Ghost, MAX_GHOSTS>>,
     /// The distinct tiles the cells read, with how many cells read each (one slot each).
     pub(super) keys: KeyMap,
@@ -264,6 +267,7 @@ impl Quadtree {
         Self {
             cands: Box::default(),
             cells: Box::default(),
+            ranks: Box::default(),
             ghosts: Box::default(),
             keys: KeyMap::new(DETAIL_CAPACITY),
             groups: heapless::Vec::new(),
@@ -315,7 +319,7 @@ pub(super) fn double(r: &Rect) -> Rect {
 }
 
 /// What the refinement splits next.
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Unit {
     /// A clamped block (drawn from its ring).
     Block(usize),
