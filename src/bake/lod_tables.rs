@@ -705,7 +705,8 @@ impl LodTables {
     }
 
     /// Drops the table pages the queries so far touched from the resident set (mapped tables; nothing
-    /// otherwise). The per-frame selector calls it once per frame, so at most one frame's pages are held.
+    /// otherwise). The selector does not call it per frame (a frame would fault the same pages in again):
+    /// [`LodTables::limit_resident`] bounds them instead.
     pub fn trim(&self) {
         if let Some(m) = &self.mapping {
             m.trim();
@@ -713,8 +714,7 @@ impl LodTables {
     }
 
     /// Holds at most `bytes` of the mapped tables' pages resident ([`Mapping::limit_resident`]: the
-    /// queries trim the map as they go once their pages would pass it, on top of the selector's trim once
-    /// per frame); nothing for tables in memory. The budget is [`crate::profile::CpuSplit::lod_tables`].
+    /// queries trim the map as they go once their pages would pass it); nothing for tables in memory. The budget is [`crate::profile::CpuSplit::lod_tables`].
     pub fn limit_resident(&self, bytes: u64) {
         if let Some(m) = &self.mapping {
             m.limit_resident(bytes);
