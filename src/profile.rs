@@ -101,6 +101,19 @@ pub struct CpuSplit {
     pub shading: u64,
 }
 
+impl CpuSplit {
+    /// The SAT LOD tables' resident pages: their share, and the SG shading inputs' share too when no SG
+    /// shading is drawn (`sg` false): memory a scene does not use goes to the tables, whose pages a rough
+    /// terrain needs (docs/plan-time.md).
+    pub fn lod_tables_with(&self, sg: bool) -> u64 {
+        if sg {
+            self.lod_tables
+        } else {
+            self.lod_tables.saturating_add(self.shading)
+        }
+    }
+}
+
 /// The part of `budget.cpu_memory_bytes` left after the rings that holds the SG shading inputs, on a
 /// profile that allows SG: 1/2 (31.0 MiB on gles3-mid, 123.7 MiB on desktop; less where that would leave
 /// the tile cache under [`MIN_TILE_CACHE_BYTES`]). Half, because that is the least that keeps the shared
@@ -111,7 +124,8 @@ pub const SHADING_SHARE: u64 = 2;
 
 /// The part of `budget.cpu_memory_bytes` left after the rings that the SAT LOD tables' pages may hold
 /// (1/8: 7.8 MiB on gles3-mid; less where that would leave the tile cache under
-/// [`MIN_TILE_CACHE_BYTES`]); the tile cache gets the rest.
+/// [`MIN_TILE_CACHE_BYTES`]); the tile cache gets the rest. Frames that draw no SG shading give the tables
+/// the SG inputs' share too ([`CpuSplit::lod_tables_with`]: 38.8 MiB on gles3-mid).
 pub const LOD_TABLES_SHARE: u64 = 8;
 
 /// The smallest tile cache a profile may leave: 1 MiB (about 60 tiles of 64^2 samples).

@@ -153,6 +153,7 @@ impl TerrainRenderer {
                     profile,
                     &clipmap,
                     cache.as_deref(),
+                    options.sg_scene.is_some(),
                     options.progress,
                 )?;
                 lod.set_epsilon_px(f64::from(px));

@@ -209,3 +209,21 @@ fn missing_profile_file_is_a_clear_error() {
         "{err}"
     );
 }
+
+/// The CPU budget's split adds up to the budget, and frames without SG give the SG inputs' share to the
+/// SAT LOD tables' pages (memory the scene does not use), never more than that.
+#[test]
+fn cpu_split_fills_the_budget_and_lends_the_shading_share_to_the_tables() {
+    for (name, _) in SHIPPED {
+        let p = Profile::load(name).expect("shipped profile");
+        let s = p.cpu_split();
+        assert_eq!(
+            s.rings + s.tile_cache + s.lod_tables + s.shading,
+            p.budget.cpu_memory_bytes,
+            "{name}: {s:?}"
+        );
+        assert_eq!(s.lod_tables_with(true), s.lod_tables, "{name}");
+        assert_eq!(s.lod_tables_with(false), s.lod_tables + s.shading, "{name}");
+        assert_eq!(s.shading == 0, !p.allows(Feature::Sg), "{name}: {s:?}");
+    }
+}

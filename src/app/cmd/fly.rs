@@ -184,7 +184,13 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
     // A streamed clipmap's tables are baked from its package and read through a map.
     let lod = match lod_mode {
         LodMode::Distance => None,
-        _ => Some(super::render::lod_for(&hm, &profile, &clipmap, !args.json)?),
+        _ => Some(super::render::lod_for(
+            &hm,
+            &profile,
+            &clipmap,
+            sg.is_some(),
+            !args.json,
+        )?),
     };
     // The mapped tables' resident limit, for the report.
     let table_map = lod.as_ref().and_then(|l| l.tables().mapping.clone());

@@ -93,13 +93,15 @@ pub(crate) struct RenderArgs {
 }
 
 /// The SAT LOD selector for `clipmap`'s terrain: tables from the bake cache ([`bake::default_cache_dir`]),
-/// baked (progress bar on stderr when `progress`) on a miss, and read through a map of the cache file. A
+/// baked (progress bar on stderr when `progress`) on a miss, and read through a map of the cache file
+/// (its pages within the tables' share of the CPU memory, and the SG inputs' share unless `sg`). A
 /// streamed clipmap's tables are baked from its decoded package, and `hm` is then the package's coarse
 /// stand-in heightmap.
 pub(crate) fn lod_for(
     hm: &Heightmap,
     profile: &Profile,
     clipmap: &Clipmap,
+    sg: bool,
     progress: bool,
 ) -> Result<Lod> {
     crate::app::progress::bars!(progress, bars, report, progress);
@@ -108,6 +110,7 @@ pub(crate) fn lod_for(
         profile,
         clipmap,
         Some(&bake::default_cache_dir()),
+        sg,
         progress,
     )
 }
@@ -192,7 +195,7 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
     // The error maps serve the SAT modes and the measured error of any mode (not measured when streamed:
     // the measurement needs the whole pyramid).
     let lod = if lod_mode != LodMode::Distance || (args.json && !streamed) {
-        Some(lod_for(&hm, &profile, &clipmap, !args.json)?)
+        Some(lod_for(&hm, &profile, &clipmap, sg.is_some(), !args.json)?)
     } else {
         None
     };

@@ -171,7 +171,7 @@ pub(crate) fn measure_lod(
 ) -> Result<Vec<LodResult>> {
     let (w, h) = (profile.view.width, profile.view.height);
     let mut clipmap = Clipmap::new(hm, profile, ClipmapOptions::default())?;
-    let lod = crate::app::cmd::render::lod_for(hm, profile, &clipmap, false)?;
+    let lod = crate::app::cmd::render::lod_for(hm, profile, &clipmap, false, false)?;
     // One renderer per LOD mode (the mode is fixed when a renderer is built).
     let mut renderers = LodMode::ALL
         .iter()

@@ -153,7 +153,7 @@ pub(crate) fn measure_plan(
     let view = (profile.view.width, profile.view.height);
     let fly = |path: Path, speed: f64, frames: u64, error_every: u64| -> Result<_> {
         let mut clipmap = Clipmap::new(hm, profile, ClipmapOptions::default())?;
-        let lod = crate::app::cmd::render::lod_for(hm, profile, &clipmap, false)?;
+        let lod = crate::app::cmd::render::lod_for(hm, profile, &clipmap, false, false)?;
         let mut planner = Planner::new(
             profile,
             &clipmap,

@@ -117,7 +117,7 @@ pub(super) fn headless(same: &Same<'_>, mode: GpuMode, frames: u32) -> Result<He
     let lod = if same.lod == LodMode::Distance {
         None
     } else {
-        Some(lod_for(same.hm, same.profile, &clipmap, true)?)
+        Some(lod_for(same.hm, same.profile, &clipmap, true, true)?)
     };
     let baked = same
         .sg

@@ -429,7 +429,8 @@ impl App<'_> {
         let (samples, stale) = (frame.samples_updated, frame.stale_levels);
         if self.state.lod != LodMode::Distance && self.lod.is_none() {
             eprintln!("clipsat view: loading the SAT LOD tables (baked once, then cached)...");
-            self.lod = Some(lod_for(self.hm, &self.profile, &self.clipmap, true)?);
+            // SG may be switched on while the view runs: the tables keep to their own share.
+            self.lod = Some(lod_for(self.hm, &self.profile, &self.clipmap, true, true)?);
         }
         self.sync_shading()?;
         let opts = self.state.frame_options();
