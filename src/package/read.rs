@@ -123,6 +123,16 @@ impl Package {
         crate::bake::mapped::drop_resident(&self.map, offset, len);
     }
 
+    /// Drops the pages a read of bytes `offset .. offset + len` made resident: the aligned windows
+    /// around them ([`crate::bake::mapped::PAGE_BYTES`]), since a read fault maps the cached pages of its
+    /// whole window, other tiles' bytes included, which no decode would drop otherwise.
+    fn trim_read(&self, offset: usize, len: usize) {
+        let w = usize::try_from(crate::bake::mapped::PAGE_BYTES).unwrap_or(usize::MAX);
+        let start = offset - offset % w;
+        let end = offset.saturating_add(len).saturating_add(w - 1) / w * w;
+        self.trim_range(start, end - start);
+    }
+
     /// Drops the package's mapped pages from this process's resident set (they stay in the kernel's page
     /// cache; the next read faults them back in, unchanged): a reader that sweeps the whole file, such as
     /// the LOD tables' bake, calls it as it goes so the file's pages do not add up. Best effort.
@@ -203,7 +213,7 @@ impl Package {
         .map_err(bad);
         // The payload's pages leave the resident set once decoded (they stay in the kernel's page cache):
         // a long flight's decodes do not add the package's pages up.
-        self.trim_range(start, entry.len as usize);
+        self.trim_read(start, entry.len as usize);
         decoded
     }
 
@@ -249,7 +259,7 @@ impl Package {
             return Err(bad("checksum mismatch (damaged tile)"));
         }
         let decoded = super::lod_tiles::decode_tile(dec, payload, max, mean, scratch);
-        self.trim_range(start, entry.len as usize);
+        self.trim_read(start, entry.len as usize);
         decoded.map_err(bad)
     }
 
