@@ -318,21 +318,10 @@ fn index_data(columns: u32, rows: u32) -> Vec<u32> {
 }
 
 fn targets(device: &wgpu::Device, width: u32, height: u32) -> Targets {
-    let size = wgpu::Extent3d {
-        width,
-        height,
-        depth_or_array_layers: 1,
-    };
     let texture = |label, format, usage| {
         device.create_texture(&wgpu::TextureDescriptor {
             label: Some(label),
-            size,
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format,
-            usage,
-            view_formats: &[],
+            ..crate::gpu::render_target(width, height, format, usage)
         })
     };
     let color = texture(

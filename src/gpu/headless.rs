@@ -185,20 +185,7 @@ impl<'g> Offscreen<'g> {
                 profile,
             )?;
             let mut dev = Ledgered::new(gpu.device());
-            let target = |format, usage| wgpu::TextureDescriptor {
-                label: None,
-                size: wgpu::Extent3d {
-                    width,
-                    height,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format,
-                usage,
-                view_formats: &[],
-            };
+            let target = |format, usage| crate::gpu::render_target(width, height, format, usage);
             let color = dev.texture(
                 "clipmap color",
                 &target(

@@ -403,6 +403,20 @@ pub(crate) fn texture_2d(
     }
 }
 
+/// A single-sample 2D render target of one layer and mip level, with exactly `usage`: the colour, depth
+/// and probe targets clipsat draws into.
+pub(crate) fn render_target(
+    width: u32,
+    height: u32,
+    format: wgpu::TextureFormat,
+    usage: wgpu::TextureUsages,
+) -> wgpu::TextureDescriptor<'static> {
+    wgpu::TextureDescriptor {
+        usage,
+        ..texture_2d(width, height, 1, format, wgpu::TextureUsages::empty())
+    }
+}
+
 /// wgpu's GL instance, one per process and never dropped.
 ///
 /// EGL hands out one display per platform, shared by every context in the process. Dropping a wgpu GL

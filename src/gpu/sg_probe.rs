@@ -129,17 +129,12 @@ pub fn shade_gpu(
         });
         let target = device.create_texture(&wgpu::TextureDescriptor {
             label: Some("sg probe target"),
-            size: wgpu::Extent3d {
+            ..crate::gpu::render_target(
                 width,
-                height: 1,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::Rgba32Uint,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
-            view_formats: &[],
+                1,
+                wgpu::TextureFormat::Rgba32Uint,
+                wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+            )
         });
         let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some("sg probe"),

@@ -28,20 +28,12 @@ impl VertexProbe {
             let mut dev = Ledgered::new(gpu.device());
             let target = dev.texture(
                 "vertex probe",
-                &wgpu::TextureDescriptor {
-                    label: None,
-                    size: wgpu::Extent3d {
-                        width: size[0],
-                        height: size[1],
-                        depth_or_array_layers: 1,
-                    },
-                    mip_level_count: 1,
-                    sample_count: 1,
-                    dimension: wgpu::TextureDimension::D2,
-                    format: wgpu::TextureFormat::Rgba32Uint,
-                    usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
-                    view_formats: &[],
-                },
+                &crate::gpu::render_target(
+                    size[0],
+                    size[1],
+                    wgpu::TextureFormat::Rgba32Uint,
+                    wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+                ),
             );
             let view = dev.view("vertex probe view", &target, &Default::default());
             let buffer = dev.buffer(

@@ -55,20 +55,7 @@ impl ShadingProbe {
             let target = |dev: &mut Ledgered<'_>, format, usage| {
                 dev.texture(
                     "shading probe",
-                    &wgpu::TextureDescriptor {
-                        label: None,
-                        size: wgpu::Extent3d {
-                            width,
-                            height,
-                            depth_or_array_layers: 1,
-                        },
-                        mip_level_count: 1,
-                        sample_count: 1,
-                        dimension: wgpu::TextureDimension::D2,
-                        format,
-                        usage,
-                        view_formats: &[],
-                    },
+                    &crate::gpu::render_target(width, height, format, usage),
                 )
             };
             let read = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC;
