@@ -714,7 +714,8 @@ impl LodTables {
     }
 
     /// Holds at most `bytes` of the mapped tables' pages resident ([`Mapping::limit_resident`]: the
-    /// queries trim the map as they go once their pages would pass it); nothing for tables in memory. The budget is [`crate::profile::CpuSplit::lod_tables`].
+    /// queries trim the map as they go once their pages would pass it); nothing for tables in memory.
+    /// The budget is [`crate::profile::CpuSplit::lod_tables`].
     pub fn limit_resident(&self, bytes: u64) {
         if let Some(m) = &self.mapping {
             m.limit_resident(bytes);

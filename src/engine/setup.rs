@@ -29,9 +29,9 @@ pub const MAX_POOL_FRAMES: u32 = 1024;
 /// The SAT LOD selector for `clipmap`'s terrain. Its tables are read from `cache` (baked there, reporting
 /// to `progress`, on a miss) through a map whose resident pages stay within the profile's share of
 /// `budget.cpu_memory_bytes` (with the SG shading inputs' share too unless `sg`, the frames draw SG:
-/// [`crate::profile::CpuSplit::lod_tables_with`]); without a cache folder a resident terrain's are baked in memory. A streamed
-/// clipmap's tables are baked from its package out of core, and `stand_in` is then the package's coarse
-/// stand-in, which places the grid.
+/// [`crate::profile::CpuSplit::lod_tables_with`]); without a cache folder a resident terrain's are baked
+/// in memory. A streamed clipmap's tables are baked from its package out of core, and `stand_in` is then
+/// the package's coarse stand-in, which places the grid.
 pub fn sat_lod(
     stand_in: &Heightmap,
     profile: &Profile,

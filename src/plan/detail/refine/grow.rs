@@ -200,8 +200,20 @@ impl Quadtree {
     }
 
     /// The unit the refinement splits next: a ghost come into view, else the largest bound still
-    /// splittable (blocks first, then cells; first on ties). None when nothing is left.
+    /// splittable (blocks first, then cells; first on ties). None when nothing is left. The cells' bounds
+    /// are read from `ranks`; debug builds check them against the cells.
     pub(super) fn pick(&self, eps: f64) -> Option<Unit> {
+        let pick = self.pick_among(self.ranks.iter().copied());
+        debug_assert_eq!(
+            pick,
+            self.pick_among(self.cells.iter().map(|c| self.rank(c, eps))),
+            "the cells' ranks are out of step"
+        );
+        pick
+    }
+
+    /// [`Quadtree::pick`] with the cells' ranks ([`Quadtree::rank`]) in their order.
+    fn pick_among(&self, ranks: impl Iterator<Item = f64>) -> Option<Unit> {
         if self.seen_ghosts {
             if let Some(g) = self.ghosts.iter().position(|g| g.visible && !g.frozen) {
                 return Some(Unit::Ghost(g));
@@ -213,14 +225,12 @@ impl Quadtree {
                 pick = Some((c.bound, Unit::Block(k)));
             }
         }
-        for (j, &r) in self.ranks.iter().enumerate() {
+        for (j, r) in ranks.enumerate() {
             if r > f64::NEG_INFINITY && pick.is_none_or(|(p, _)| r > p) {
                 pick = Some((r, Unit::Cell(j)));
             }
         }
-        let pick = pick.map(|(_, u)| u);
-        debug_assert_eq!(pick, self.pick_by_scan(eps), "the cells' ranks are out of step");
-        pick
+        pick.map(|(_, u)| u)
     }
 
     /// A cell's rank in [`Quadtree::pick`]: its bound now where it may be split and misses epsilon, else
@@ -237,30 +247,6 @@ impl Quadtree {
         }
     }
 
-    /// [`Quadtree::pick`] from the cells themselves (debug builds check the ranks against it).
-    fn pick_by_scan(&self, eps: f64) -> Option<Unit> {
-        if !cfg!(debug_assertions) {
-            return None;
-        }
-        if self.seen_ghosts {
-            if let Some(g) = self.ghosts.iter().position(|g| g.visible && !g.frozen) {
-                return Some(Unit::Ghost(g));
-            }
-        }
-        let mut pick: Option<(f64, Unit)> = None;
-        for (k, c) in self.cands.iter().enumerate() {
-            if !c.refined && !c.frozen && !c.hidden && pick.is_none_or(|(b, _)| c.bound > b) {
-                pick = Some((c.bound, Unit::Block(k)));
-            }
-        }
-        for (j, c) in self.cells.iter().enumerate() {
-            let b = self.rank(c, eps);
-            if b > f64::NEG_INFINITY && pick.is_none_or(|(p, _)| b > p) {
-                pick = Some((b, Unit::Cell(j)));
-            }
-        }
-        pick.map(|(_, u)| u)
-    }
 
     /// The region (level, samples) a split of `unit` reads: what the source is asked to make ready
     /// while the budget waits for the next frame.
