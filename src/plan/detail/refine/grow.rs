@@ -14,6 +14,10 @@ use crate::plan::detail::{cell_quads, DetailBudget, PoolBounds};
 use crate::plan::frame::Rect;
 use crate::Result;
 
+/// [`Quadtree::lazy`]: the share of the frame's triangles (one in this many) below which units are asked
+/// as soon as their cells are made.
+const LAZY_SHARE: u64 = 4;
+
 impl Quadtree {
     /// Splits minimax-first: the block or cell whose bound is largest is split while its new cells fit
     /// `slots` tiles and `budget`'s draws and triangles, until none can or the frame's evaluations are
@@ -31,8 +35,9 @@ impl Quadtree {
         let eps = at.view.epsilon_px;
         let quads = at.quads;
         // Cells made while the camera moved whose units are still to ask, and that will not be split:
-        // their units take triangles off the frame before anything else is split.
-        if !self.mask_cells(0, at, bounds) {
+        // their units take triangles off the frame before anything else is split, where triangles are
+        // short ([`Quadtree::lazy`]).
+        if !self.lazy(at) && !self.mask_cells(0, at, bounds) {
             return Ok(());
         }
         self.ranks.clear();
@@ -42,6 +47,8 @@ impl Quadtree {
         }
         loop {
             let Some(unit) = self.pick(eps) else {
+                // Nothing left to split: the units still to ask take what is left of the budget.
+                self.mask_cells(0, at, bounds);
                 return Ok(());
             };
             if let Unit::Cell(j) = unit {
@@ -109,6 +116,13 @@ impl Quadtree {
                 return Ok(());
             }
             let Some((_, is_cut, cost)) = best else {
+                // Out of room with units still to ask: their triangles first, then the split again.
+                if !empty && self.unmasked(at) {
+                    if !self.mask_cells(0, at, bounds) {
+                        return Ok(());
+                    }
+                    continue;
+                }
                 // Nothing in view: hidden while the view stays; else frozen until more is left.
                 if !empty {
                     self.mark = Some(self.free(at));
@@ -140,7 +154,7 @@ impl Quadtree {
                 memo: &mut self.memo,
                 bounds,
                 grid: &mut self.grid,
-            etas: &mut self.etas,
+                etas: &mut self.etas,
             };
             let mut asked = true;
             for c in &mut self.new.cells {
@@ -171,10 +185,25 @@ impl Quadtree {
             if matches!(unit, Unit::Ghost(_)) {
                 self.seen_ghosts = self.ghosts.iter().any(|g| g.visible && !g.frozen);
             }
-            if !self.mask_cells(first, at, bounds) {
+            if !self.lazy(at) && !self.mask_cells(first, at, bounds) {
                 return Ok(());
             }
         }
+    }
+
+    /// While the camera moves and at least [`LAZY_SHARE`] of the frame's triangles are left, cells that
+    /// will not be split are drawn whole and their units asked later (when a split lacks room, or when
+    /// nothing is left to split): the evaluations go to the largest errors first. A whole cell is drawn
+    /// at its own bound, within epsilon as its stitched form is, with more triangles and one record.
+    fn lazy(&self, at: &Inputs<'_, '_>) -> bool {
+        self.moved && self.triangles >= at.budget.triangles / LAZY_SHARE
+    }
+
+    /// Whether some cell that will not be split still has its units to ask (and they may save room).
+    fn unmasked(&self, at: &Inputs<'_, '_>) -> bool {
+        let eps = at.view.epsilon_px;
+        // A still camera asks them first thing in the frame.
+        self.moved && at.budget.stitch && self.cells.iter().any(|c| c.waits_for_units(eps))
     }
 
     /// [`Quadtree::mask_cell`] of cells `first..`, in order; false (the region noted) when the budget ran

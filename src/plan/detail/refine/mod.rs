@@ -171,6 +171,12 @@ impl Cell {
         }
     }
 
+    /// Whether its units are still to ask and it will not be split (it meets epsilon, is at its block's
+    /// wanted level or is frozen): drawn whole until they are.
+    pub(super) fn waits_for_units(&self, eps: f64) -> bool {
+        !self.masked && (self.bound <= eps || self.key.level <= self.wanted || self.frozen)
+    }
+
     /// Triangles it draws: stitched when some unit is coarse, else whole.
     pub(super) fn triangles(&self, budget: &DetailBudget) -> u64 {
         if stitch::any(&self.coarse) {

@@ -20,7 +20,7 @@ impl Quadtree {
         let c = self.cells[j];
         let moved = self.moved;
         let eps = at.view.epsilon_px;
-        if c.masked || !(c.bound <= eps || c.key.level <= c.wanted || c.frozen) {
+        if !c.waits_for_units(eps) {
             return true;
         }
         let mut ask = Asker {
