@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# The whole frame's measured screen error during a flight (docs/plan-time.md): `clipsat fly --resident
-# --error-every 20` on every shared terrain, sat-conservative at epsilon 1, 2 and 4, gles3-mid at 1920x1080,
+# The whole frame's measured screen error during a flight (docs/plan-time.md): `clipsat fly --error-every
+# 20` (streamed, as `fly` streams by default) on every shared terrain, sat-conservative at epsilon 1, 2 and 4, gles3-mid at 1920x1080,
 # a 200-frame figure-8 flight: the largest error over sampled frames 20, 40, ..., over every block and over
 # the blocks the held data could pay for (unclamped), and how many sampled frames passed 1.05 epsilon.
 # Usage: scripts/flight_error.sh [CLIPSAT_BINARY] [PROFILE]   (from the repository root; needs jq)
