@@ -5,14 +5,12 @@
 # the blocks the held data could pay for (unclamped), and how many sampled frames passed 1.05 epsilon.
 # Usage: scripts/flight_error.sh [CLIPSAT_BINARY] [PROFILE]   (from the repository root; needs jq)
 set -euo pipefail
-# The test terrains' folder, as the tests find it.
-DATA=${CLIPSAT_DATA:-../shared/data}
+# DATA and TERRAINS: the shared terrains.
+source "$(dirname "$0")/shared_terrains.sh"
 BIN=${1:-target/release/clipsat}
 PROFILE=${2:-gles3-mid}
 OUT=out/flight_error
 mkdir -p "$OUT"
-TERRAINS=("ps_height_1k.png --spacing 160" "n07_w006_3arc_v2.tif" "srtm_bigtujunga30m_utm11.tif"
-  "aletsch_200m.tif" "lidar_pkg_dem_1m_400x400.tif" "N57E011.hgt")
 echo "| terrain | epsilon | sampled frames | max error px | max unclamped px | sampled frames with unclamped > 1.05 epsilon |"
 echo "|---|---|---|---|---|---|"
 for t in "${TERRAINS[@]}"; do

@@ -8,15 +8,13 @@
 # Writes Markdown tables on stdout (the load average before and after beside them); the JSON goes to
 # out/plan_time/.
 set -euo pipefail
-# The test terrains' folder, as the tests find it.
-DATA=${CLIPSAT_DATA:-../shared/data}
+# DATA and TERRAINS: the shared terrains.
+source "$(dirname "$0")/shared_terrains.sh"
 BIN=${1:-target/release/clipsat}
 PROFILE=${2:-gles3-mid}
 FRAMES=${3:-200}
 OUT=out/plan_time/$(basename "$PROFILE" .toml)
 mkdir -p "$OUT"
-TERRAINS=("ps_height_1k.png --spacing 160" "n07_w006_3arc_v2.tif" "srtm_bigtujunga30m_utm11.tif"
-  "aletsch_200m.tif" "lidar_pkg_dem_1m_400x400.tif" "N57E011.hgt")
 num() { jq -r "if $1 == null then \"-\" else ($1*1000|round/1000|tostring) end" "$2"; }
 echo "load before: $(cut -d' ' -f1-3 /proc/loadavg)"
 echo

@@ -9,15 +9,13 @@
 # Usage: scripts/pool_goals.sh [CLIPSAT_BINARY] [PROFILE]   (run from the repository root; needs jq)
 # Writes Markdown tables on stdout; the per-run JSON goes to out/pool_goals/.
 set -euo pipefail
-# The test terrains' folder, as the tests find it.
-DATA=${CLIPSAT_DATA:-../shared/data}
+# DATA and TERRAINS: the shared terrains.
+source "$(dirname "$0")/shared_terrains.sh"
 BIN=${1:-target/release/clipsat}
 PROFILE=${2:-gles3-mid}
 OUT=out/pool_goals
 mkdir -p "$OUT"
 LADDER="1 1.25 1.5 1.75 2 2.5 3 3.5 4 4.5 5 5.5 6 7 8 9 10 11 12 12.5 13 14 16 20 24 28 32 40 48 64"
-TERRAINS=("ps_height_1k.png --spacing 160" "n07_w006_3arc_v2.tif" "srtm_bigtujunga30m_utm11.tif"
-  "aletsch_200m.tif" "lidar_pkg_dem_1m_400x400.tif" "N57E011.hgt")
 run() { # name mode eps args...
   local name=$1 mode=$2 eps=$3; shift 3
   local f="$OUT/$name.$mode.$eps.json"

@@ -4,15 +4,13 @@
 # --ground-truth --resident`: the brute-force reference reads the whole terrain). Usage: scripts/survive_lod.sh [CLIPSAT_BINARY] [PROFILE] [EXTRA ARGS...]
 # (run from the repository root; needs jq). Writes a Markdown table on stdout.
 set -euo pipefail
-# The test terrains' folder, as the tests find it.
-DATA=${CLIPSAT_DATA:-../shared/data}
+# DATA and TERRAINS: the shared terrains.
+source "$(dirname "$0")/shared_terrains.sh"
 BIN=${1:-target/release/clipsat}
 PROFILE=${2:-gles3-mid}
 shift $(( $# > 2 ? 2 : $# ))
 OUT=out/survive_lod
 mkdir -p "$OUT"
-TERRAINS=("ps_height_1k.png --spacing 160" "n07_w006_3arc_v2.tif" "srtm_bigtujunga30m_utm11.tif"
-  "aletsch_200m.tif" "lidar_pkg_dem_1m_400x400.tif" "N57E011.hgt")
 echo "| terrain | distance RMSE | sat RMSE (tri) | ratio | sat-conservative RMSE (tri) | ratio |"
 echo "|---|---|---|---|---|---|"
 for t in "${TERRAINS[@]}"; do

@@ -6,14 +6,12 @@
 # (`-`: none within the leg), and the error on the leg's last frame; then the plan's CPU p99 and max.
 # Usage: scripts/teleport_error.sh [CLIPSAT_BINARY] [PROFILE]   (from the repository root; needs jq)
 set -euo pipefail
-# The test terrains' folder, as the tests find it.
-DATA=${CLIPSAT_DATA:-../shared/data}
+# DATA and TERRAINS: the shared terrains.
+source "$(dirname "$0")/shared_terrains.sh"
 BIN=${1:-target/release/clipsat}
 PROFILE=${2:-gles3-mid}
 OUT=out/teleport_error
 mkdir -p "$OUT"
-TERRAINS=("ps_height_1k.png --spacing 160" "n07_w006_3arc_v2.tif" "srtm_bigtujunga30m_utm11.tif"
-  "aletsch_200m.tif" "lidar_pkg_dem_1m_400x400.tif" "N57E011.hgt")
 echo "| terrain | epsilon | first frame within 1.05 epsilon, per leg | every later frame within | error at each leg's end, px | plan CPU p99 / max ms |"
 echo "|---|---|---|---|---|---|"
 for t in "${TERRAINS[@]}"; do

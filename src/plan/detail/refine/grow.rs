@@ -203,7 +203,7 @@ impl Quadtree {
     fn unmasked(&self, at: &Inputs<'_, '_>) -> bool {
         let eps = at.view.epsilon_px;
         // A still camera asks them first thing in the frame.
-        self.moved && at.budget.stitch && self.cells.iter().any(|c| c.waits_for_units(eps))
+        self.moved && self.cells.iter().any(|c| c.waits_for_units(eps))
     }
 
     /// [`Quadtree::mask_cell`] of cells `first..`, in order; false (the region noted) when the budget ran
