@@ -713,6 +713,31 @@ impl LodTables {
         }
     }
 
+    /// Faults in the mapped tables' smallest grids now, smallest first, while their pages fit `bytes`
+    /// (charged against the resident limit as the queries' pages are): the coarse levels' SATs and every
+    /// level's coarse max-pyramid levels, which every frame's block selection reads (algorithm 1 starts
+    /// from the coarsest level). A first frame, or the first frames after a jump, would otherwise spend
+    /// most of their plan time faulting them in (docs/plan-time.md). Nothing for tables in memory; the
+    /// answers are the same bytes either way.
+    pub fn prime(&self, bytes: u64) {
+        let Some(m) = &self.mapping else {
+            return;
+        };
+        let allowance = bytes / crate::bake::mapped::PAGE_BYTES;
+        let mut grids: Vec<(usize, usize)> = Vec::new();
+        for (sat, max) in self.levels.iter().filter_map(|l| l.tables.as_ref()) {
+            let ranges = std::iter::once(sat.grid().mapped_range())
+                .chain(max.levels().iter().map(|g| g.mapped_range()));
+            grids.extend(ranges.flatten().map(|(_, offset, len)| (len, offset)));
+        }
+        grids.sort_unstable();
+        for (len, offset) in grids {
+            if !m.prime(offset, len, allowance) {
+                break;
+            }
+        }
+    }
+
     /// Holds at most `bytes` of the mapped tables' pages resident ([`Mapping::limit_resident`]: the
     /// queries trim the map as they go once their pages would pass it); nothing for tables in memory.
     /// The budget is [`crate::profile::CpuSplit::lod_tables`].

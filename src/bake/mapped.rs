@@ -124,6 +124,38 @@ impl Mapping {
         slot.store(page, Ordering::Relaxed);
     }
 
+    /// Faults in the pages of `offset .. offset + len` now (clamped to the map), each 64 KiB window
+    /// charged against the resident limit as a reader's would be: load-time work that a frame would
+    /// otherwise do in its first queries. Nothing is read, and false returned, when the windows would
+    /// bring the pages charged since the last trim past `allowance` windows (or past the limit).
+    pub fn prime(&self, offset: usize, len: usize, allowance: u64) -> bool {
+        let end = offset.saturating_add(len).min(self.0.map.len());
+        if end <= offset {
+            return true;
+        }
+        let (first, last) = (offset >> PAGE_SHIFT, (end - 1) >> PAGE_SHIFT);
+        let windows = (last - first + 1) as u64;
+        let limit = self.0.limit.load(Ordering::Relaxed);
+        let charged = self.0.charged.load(Ordering::Relaxed);
+        let cap = if limit == 0 { allowance } else { allowance.min(limit) };
+        if charged.saturating_add(windows) > cap {
+            return false;
+        }
+        let bytes = &self.0.map[..];
+        let mut x = 0u8;
+        for w in first..=last {
+            self.touch(w << PAGE_SHIFT);
+            // A read in every 4 KiB page of the window: fault-around maps only the pages already in the
+            // page cache, so each page is read once to have all of them mapped.
+            let (a, b) = (w << PAGE_SHIFT, ((w + 1) << PAGE_SHIFT).min(bytes.len()));
+            for at in (a..b).step_by(4096) {
+                x ^= bytes[at];
+            }
+        }
+        std::hint::black_box(x);
+        true
+    }
+
     /// Drops the pages of `offset .. offset + len` from this process's resident set (the next read faults
     /// them back in from the kernel's page cache; the contents are unchanged). Best effort: a platform
     /// without the advice keeps the pages.
@@ -196,6 +228,16 @@ impl<T: bytemuck::Pod> Grid<T> {
     pub fn touch(&self, index: usize) {
         if let Store::Mapped { map, offset, .. } = &self.store {
             map.touch(offset + index * std::mem::size_of::<T>());
+        }
+    }
+
+    /// The byte range of the map the values live in (None for an owned grid).
+    pub fn mapped_range(&self) -> Option<(&Mapping, usize, usize)> {
+        match &self.store {
+            Store::Mapped { map, offset, len } => {
+                Some((map, *offset, *len * std::mem::size_of::<T>()))
+            }
+            Store::Owned(_) => None,
         }
     }
 
@@ -325,6 +367,36 @@ mod tests {
         Grid::owned(values.clone()).touch(7);
         assert!(Grid::<u64>::mapped(&map, 4, 10).is_none(), "misaligned");
         assert!(Grid::<u64>::mapped(&map, 8, 101).is_none(), "past the end");
+        drop(g);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn priming_charges_its_windows_and_stops_at_the_allowance() {
+        let dir = std::env::temp_dir().join(format!("clipsat-prime-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("grid.bin");
+        let per_page = (PAGE_BYTES / 8) as usize;
+        let big: Vec<u64> = (0..4 * per_page as u64).collect();
+        let bytes: Vec<u8> = big.iter().flat_map(|v| v.to_le_bytes()).collect();
+        std::fs::write(&path, &bytes).unwrap();
+        let map = Mapping::new(&std::fs::File::open(&path).unwrap()).unwrap();
+        let g = Grid::<u64>::mapped(&map, 0, big.len()).unwrap();
+        let (_, offset, len) = g.mapped_range().unwrap();
+        assert_eq!((offset, len), (0, bytes.len()));
+        assert!(Grid::owned(vec![1u64]).mapped_range().is_none());
+        map.limit_resident(3 * PAGE_BYTES);
+        // Four windows do not fit an allowance of two, nor the limit of three: nothing is charged.
+        assert!(!map.prime(0, len, 2));
+        assert!(!map.prime(0, len, 10));
+        assert!(map.prime(0, len / 2, 2), "the first two windows");
+        // The two windows are charged: a third fits the limit, a fourth trims first.
+        g.touch(2 * per_page);
+        assert_eq!(map.resident_stats().forced_trims, 0);
+        g.touch(3 * per_page);
+        assert_eq!(map.resident_stats().forced_trims, 1);
+        assert!(map.prime(len, 8, 1), "an empty range primes nothing");
+        assert_eq!(&*g, &big[..], "priming never changes the bytes");
         drop(g);
         let _ = std::fs::remove_dir_all(&dir);
     }

@@ -255,6 +255,11 @@ impl Sat {
         &self.table
     }
 
+    /// The table as stored (owned, or borrowed from a mapped cache file).
+    pub fn grid(&self) -> &Grid<u64> {
+        &self.table
+    }
+
     /// Bytes the table takes.
     pub fn memory_bytes(&self) -> u64 {
         self.table.len() as u64 * 8

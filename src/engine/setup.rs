@@ -26,6 +26,11 @@ pub const MAX_FILL_FRAMES: u32 = 10_000;
 /// the profile's budget of bound evaluations, so a fine epsilon on a rough terrain takes a few hundred.
 pub const MAX_POOL_FRAMES: u32 = 1024;
 
+/// The mapped SAT LOD tables faulted in when they are opened: one in this many bytes of their resident
+/// share ([`crate::bake::lod_tables::LodTables::prime`]). Half: the other half is left to the frames'
+/// own queries, so that the first frames do not pass the limit and trim what was primed.
+const PRIME_SHARE: u64 = 2;
+
 /// The SAT LOD selector for `clipmap`'s terrain. Its tables are read from `cache` (baked there, reporting
 /// to `progress`, on a miss) through a map whose resident pages stay within the profile's share of
 /// `budget.cpu_memory_bytes` (with the SG shading inputs' share too unless `sg`, the frames draw SG:
@@ -65,7 +70,10 @@ pub fn sat_lod(
         }
     };
     // The mapped tables' pages held resident: their share of budget.cpu_memory_bytes.
-    tables.limit_resident(profile.cpu_split().lod_tables_with(sg));
+    let share = profile.cpu_split().lod_tables_with(sg);
+    tables.limit_resident(share);
+    // Half the share faulted in now, smallest tables first; the frames' own queries keep the other half.
+    tables.prime(share / PRIME_SHARE);
     Ok(Lod::for_clipmap(tables, profile, clipmap, stand_in))
 }
 
