@@ -5,7 +5,7 @@
 use super::mask;
 use super::memo::Asker;
 use super::{level0_box, Cell, Inputs, Quadtree, Unit, AT_RISK};
-use crate::plan::detail::PoolBounds;
+use crate::plan::detail::{stitch, PoolBounds};
 
 impl Quadtree {
     /// Asks the coarse units of cell `j` if it has not had them asked and will not be split (it meets
@@ -75,7 +75,7 @@ impl Quadtree {
             .sort_unstable_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
         for i in 0..self.order.len() {
             let j = usize::from(self.order[i].1);
-            if !self.refresh_cell(j, at, bounds) {
+            if !self.refresh_cell(j, at, bounds, false) {
                 self.pending = Some(self.region(Unit::Cell(j)));
                 break;
             }
@@ -83,12 +83,15 @@ impl Quadtree {
     }
 
     /// Asks cell `j`'s bound and coarse units again in this view; false when the budget ran out first
-    /// (nothing changed).
+    /// (nothing changed). `lazy` ([`Quadtree::lazy`]: the camera moves): only the bound is asked and the
+    /// cell is drawn whole, its units asked later, where the whole cell fits what is left. The refinement
+    /// refreshes a cell to split it next, most often: its units would be asked for nothing.
     pub(super) fn refresh_cell(
         &mut self,
         j: usize,
         at: &Inputs<'_, '_>,
         bounds: &PoolBounds<'_>,
+        lazy: bool,
     ) -> bool {
         let c = self.cells[j];
         let moved = self.moved;
@@ -108,27 +111,41 @@ impl Quadtree {
             scale,
             ..c
         };
+        let fits = |f: &Cell, triangles: u64, instances: usize| {
+            let records = instances - c.instances() + f.instances();
+            f.triangles(at.budget) <= triangles + c.triangles(at.budget)
+                && records <= at.budget.instances
+        };
         if at.budget.stitch {
-            let units = mask::coarse_units(
-                at.view,
-                &mut ask,
-                c.key.level,
-                &c.bounds,
-                (at.view.epsilon_px, moved),
-            );
-            let Some((m, worst)) = units else {
-                return false;
+            let whole = Cell {
+                coarse: [0; stitch::MAX_UNITS as usize],
+                coarse_bound: 0.0,
+                masked: false,
+                ..fresh
             };
-            (fresh.coarse, fresh.coarse_bound, fresh.masked) = (m, worst, true);
+            if lazy && fits(&whole, self.triangles, self.instances) {
+                fresh = whole;
+            } else {
+                let units = mask::coarse_units(
+                    at.view,
+                    &mut ask,
+                    c.key.level,
+                    &c.bounds,
+                    (at.view.epsilon_px, moved),
+                );
+                let Some((m, worst)) = units else {
+                    return false;
+                };
+                (fresh.coarse, fresh.coarse_bound, fresh.masked) = (m, worst, true);
+            }
         }
-        let (old_t, new_t) = (c.triangles(at.budget), fresh.triangles(at.budget));
-        let records = self.instances - c.instances() + fresh.instances();
-        if new_t > self.triangles + old_t || records > at.budget.instances {
+        if !fits(&fresh, self.triangles, self.instances) {
             self.cells[j].frozen = true;
             return true;
         }
+        let (old_t, new_t) = (c.triangles(at.budget), fresh.triangles(at.budget));
         self.triangles = self.triangles + old_t - new_t;
-        self.instances = records;
+        self.instances = self.instances - c.instances() + fresh.instances();
         self.cells[j] = fresh;
         true
     }
