@@ -5,6 +5,7 @@
 
 use super::mask;
 use super::memo::Asker;
+use super::ranks;
 use super::split::{resolve_ghost, split_block, split_cell, Outcome, Shape};
 use super::{
     double, level0_box, Cell, GhostKind, Inputs, Quadtree, Scratch, Unit, MAX_CELL_GROUPS,
@@ -52,7 +53,8 @@ impl Quadtree {
                         self.pending = Some(self.region(unit));
                         return Ok(());
                     }
-                    self.ranks[j] = self.rank(&self.cells[j], eps);
+                    let r = self.rank(&self.cells[j], eps);
+                    self.ranks.set(j, r);
                     continue;
                 }
             }
@@ -137,7 +139,8 @@ impl Quadtree {
                     Unit::Ghost(g) => self.ghosts[g].frozen = true,
                 }
                 if let Unit::Cell(j) = unit {
-                    self.ranks[j] = self.rank(&self.cells[j], eps);
+                    let r = self.rank(&self.cells[j], eps);
+                    self.ranks.set(j, r);
                 }
                 continue;
             };
@@ -229,17 +232,17 @@ impl Quadtree {
     /// splittable (blocks first, then cells; first on ties). None when nothing is left. The cells' bounds
     /// are read from `ranks`; debug builds check them against the cells.
     pub(super) fn pick(&self, eps: f64) -> Option<Unit> {
-        let pick = self.pick_among(self.ranks.iter().copied());
+        let pick = self.pick_among(self.ranks.best());
         debug_assert_eq!(
             pick,
-            self.pick_among(self.cells.iter().map(|c| self.rank(c, eps))),
+            self.pick_among(ranks::best_of(self.cells.iter().map(|c| self.rank(c, eps)))),
             "the cells' ranks are out of step"
         );
         pick
     }
 
-    /// [`Quadtree::pick`] with the cells' ranks ([`Quadtree::rank`]) in their order.
-    fn pick_among(&self, ranks: impl Iterator<Item = f64>) -> Option<Unit> {
+    /// [`Quadtree::pick`] with the cells' largest rank ([`Quadtree::rank`]) and the first cell with it.
+    fn pick_among(&self, best: Option<(f64, usize)>) -> Option<Unit> {
         if self.seen_ghosts {
             if let Some(g) = self.ghosts.iter().position(|g| g.visible && !g.frozen) {
                 return Some(Unit::Ghost(g));
@@ -251,8 +254,8 @@ impl Quadtree {
                 pick = Some((c.bound, Unit::Block(k)));
             }
         }
-        for (j, r) in ranks.enumerate() {
-            if r > f64::NEG_INFINITY && pick.is_none_or(|(p, _)| r > p) {
+        if let Some((r, j)) = best {
+            if pick.is_none_or(|(p, _)| r > p) {
                 pick = Some((r, Unit::Cell(j)));
             }
         }

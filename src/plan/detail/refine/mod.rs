@@ -19,6 +19,7 @@ mod grow;
 mod corners;
 mod mask;
 mod memo;
+mod ranks;
 mod split;
 mod upkeep;
 
@@ -209,8 +210,8 @@ pub(super) struct Quadtree {
     pub(super) cands: Box<heapless::Vec<Cand, MAX_LOD_BLOCKS>>,
     pub(super) cells: Box<heapless::Vec<Cell, MAX_DETAIL_CELLS>>,
     /// While the refinement grows: each cell's rank ([`Quadtree::rank`]), in step with `cells`, so
-    /// that picking the next split reads one number a cell.
-    ranks: Box<heapless::Vec<f64, MAX_DETAIL_CELLS>>,
+    /// that picking the next split reads one number a run of cells and the cells of one run.
+    ranks: Box<ranks::Ranks>,
     pub(super) ghosts: Box<heapless::Vec<Ghost, MAX_GHOSTS>>,
     /// The distinct tiles the cells read, with how many cells read each (one slot each).
     pub(super) keys: KeyMap,
