@@ -34,8 +34,6 @@ const MEMO_PROBES: usize = 8;
 /// A bound asked in one view.
 #[derive(Clone, Copy, Debug, Default)]
 struct MemoEntry {
-    /// The view it was asked in (0: never).
-    generation: u32,
     /// The last frame that asked it ([`Memo::frame`]).
     used: u32,
     level: u32,
@@ -57,6 +55,10 @@ pub(super) struct Memo {
     generation: u32,
     /// Counts the frames (plans) that asked bounds.
     frame: u32,
+    /// Each entry's view (0: never), apart from the entries: a moving camera's view is new every frame,
+    /// so nearly every probe ends on an entry of another view, and reading 64 KiB of these instead of
+    /// the megabyte of entries took a fraction of the plan's time (docs/plan-time.md).
+    generations: Box<[u32]>,
     table: Box<[MemoEntry]>,
 }
 
@@ -65,6 +67,7 @@ impl Default for Memo {
         Self {
             generation: 1,
             frame: 1,
+            generations: vec![0; MEMO_SLOTS].into_boxed_slice(),
             table: vec![MemoEntry::default(); MEMO_SLOTS].into_boxed_slice(),
         }
     }
@@ -80,7 +83,7 @@ impl Memo {
     pub(super) fn next(&mut self) {
         self.generation = self.generation.wrapping_add(1);
         if self.generation == 0 {
-            self.table.fill(MemoEntry::default());
+            self.generations.fill(0);
             self.generation = 1;
         }
     }
@@ -110,11 +113,11 @@ impl Memo {
         let mut oldest: Option<(u32, usize)> = None;
         for i in 0..MEMO_PROBES {
             let at = (h + i) & (MEMO_SLOTS - 1);
-            let e = &mut self.table[at];
-            if e.generation != self.generation {
+            if self.generations[at] != self.generation {
                 free = Some(at);
                 break;
             }
+            let e = &mut self.table[at];
             if e.level == level && e.bx == bx && e.kind == kind {
                 e.used = self.frame;
                 return Some(e.value);
@@ -130,8 +133,8 @@ impl Memo {
             return None;
         }
         if let Some(at) = free.or(oldest.map(|(_, at)| at)) {
+            self.generations[at] = self.generation;
             self.table[at] = MemoEntry {
-                generation: self.generation,
                 used: self.frame,
                 level,
                 bx,
