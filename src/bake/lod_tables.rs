@@ -728,7 +728,7 @@ impl LodTables {
         for (sat, max) in self.levels.iter().filter_map(|l| l.tables.as_ref()) {
             let ranges = std::iter::once(sat.grid().mapped_range())
                 .chain(max.levels().iter().map(|g| g.mapped_range()));
-            grids.extend(ranges.flatten().map(|(_, offset, len)| (len, offset)));
+            grids.extend(ranges.flatten().map(|(offset, len)| (len, offset)));
         }
         grids.sort_unstable();
         for (len, offset) in grids {

@@ -231,12 +231,10 @@ impl<T: bytemuck::Pod> Grid<T> {
         }
     }
 
-    /// The byte range of the map the values live in (None for an owned grid).
-    pub fn mapped_range(&self) -> Option<(&Mapping, usize, usize)> {
+    /// The byte range (offset, length) of the map the values live in (None for an owned grid).
+    pub fn mapped_range(&self) -> Option<(usize, usize)> {
         match &self.store {
-            Store::Mapped { map, offset, len } => {
-                Some((map, *offset, *len * std::mem::size_of::<T>()))
-            }
+            Store::Mapped { offset, len, .. } => Some((*offset, *len * std::mem::size_of::<T>())),
             Store::Owned(_) => None,
         }
     }
@@ -382,7 +380,7 @@ mod tests {
         std::fs::write(&path, &bytes).unwrap();
         let map = Mapping::new(&std::fs::File::open(&path).unwrap()).unwrap();
         let g = Grid::<u64>::mapped(&map, 0, big.len()).unwrap();
-        let (_, offset, len) = g.mapped_range().unwrap();
+        let (offset, len) = g.mapped_range().unwrap();
         assert_eq!((offset, len), (0, bytes.len()));
         assert!(Grid::owned(vec![1u64]).mapped_range().is_none());
         map.limit_resident(3 * PAGE_BYTES);
