@@ -667,6 +667,51 @@ mod tests {
     use super::*;
 
     #[test]
+    fn kept_tile_ranges_are_the_texels_while_the_rings_move() {
+        use crate::plan::clipmap::ClipmapOptions;
+        use crate::source::procedural::{generate, ProceduralParams};
+        let hm = generate(&ProceduralParams {
+            size: 257,
+            ..ProceduralParams::default()
+        })
+        .expect("terrain");
+        let profile = crate::profile::Profile::load("gles3-low").expect("profile");
+        let mut cm = Clipmap::new(&hm, &profile, ClipmapOptions::default()).expect("clipmap");
+        let start = crate::plan::camera::Camera::default_for(&hm).expect("camera").eye;
+        let heights = crate::plan::heights::TileHeights::default();
+        let mut kept = 0;
+        let mut first: Vec<Rect> = Vec::new();
+        for f in 0..48_u32 {
+            // Still for a while, then moving: kept entries are taken both ways.
+            let step = f64::from(f.saturating_sub(8));
+            cm.update(start + glam::DVec3::new(23.0 * step, 9.0 * step, 0.0))
+                .expect("update");
+            if f == 0 {
+                first = cm.frame().levels.iter().map(|l| l.clip).collect();
+            }
+            for (level, clip) in (0..cm.levels()).zip(&first) {
+                // Tiles fixed on the lattice across the first clip region's moving edge: the part
+                // outside it is written as the ring moves over it.
+                for ty in 0..4 {
+                    for tx in 0..4 {
+                        let (x0, y0) = (clip.x1() - 16 + tx * 8, clip.y0 + 20 + ty * 12);
+                        let tile = Rect::from_bounds(x0, y0, x0 + 13, y0 + 13);
+                        let fresh = height_range(&cm, level, &tile);
+                        let mut read = false;
+                        let got = heights.range(&cm, level, &tile, || {
+                            read = true;
+                            height_range(&cm, level, &tile)
+                        });
+                        kept += u32::from(!read);
+                        assert_eq!(got, fresh, "frame {f}, level {level}, tile {tile:?}");
+                    }
+                }
+            }
+        }
+        assert!(kept > 100, "ranges were kept ({kept})");
+    }
+
+    #[test]
     fn render_rects_tile_the_ring_exactly() {
         let active = Rect::from_bounds(-10, 4, 53, 67);
         let h = hole(&Rect::from_bounds(12, 40, 75, 103));

@@ -20,6 +20,9 @@ struct Entry {
     tile: Rect,
     /// The latest stamp of the tile's columns and rows when read.
     stamp: u64,
+    /// The level's [`crate::plan::uploads::UploadStamps::writes`] when last checked: while it is the
+    /// same, no stamp is read.
+    writes: u64,
     range: (f32, f32),
 }
 
@@ -44,11 +47,8 @@ impl TileHeights {
         tile: &Rect,
         read: impl FnOnce() -> (f32, f32),
     ) -> (f32, f32) {
-        let stamp = clipmap.upload_stamps().latest(
-            level,
-            (tile.x0, tile.x1()),
-            (tile.y0, tile.y1()),
-        );
+        let stamps = clipmap.upload_stamps();
+        let writes = stamps.writes(level);
         #[expect(clippy::cast_sign_loss, reason = "hash mixing: only the bits matter")]
         let h = crate::plan::slot_hash(&[
             u64::from(level),
@@ -57,8 +57,16 @@ impl TileHeights {
             u64::from(tile.w) << 32 | u64::from(tile.h),
         ]);
         let slot = &self.0[usize::try_from(h).unwrap_or(0) & (SLOTS - 1)];
-        let e = slot.get();
-        if e.clipmap == clipmap.id() && e.level == level && e.tile == *tile && e.stamp == stamp {
+        let mut e = slot.get();
+        let same_tile = e.clipmap == clipmap.id() && e.level == level && e.tile == *tile;
+        // No strip of the level written since the entry was checked: its stamps are as they were.
+        if same_tile && e.writes == writes {
+            return e.range;
+        }
+        let stamp = stamps.latest(level, (tile.x0, tile.x1()), (tile.y0, tile.y1()));
+        if same_tile && e.stamp == stamp {
+            e.writes = writes;
+            slot.set(e);
             return e.range;
         }
         let range = read();
@@ -67,6 +75,7 @@ impl TileHeights {
             level,
             tile: *tile,
             stamp,
+            writes,
             range,
         });
         range

@@ -25,6 +25,8 @@ pub struct UploadStamps {
     levels: u32,
     cols: Vec<u64>,
     rows: Vec<u64>,
+    /// Per level, the strips written so far: equal counts mean no stamp of the level changed between.
+    writes: Vec<u64>,
 }
 
 impl UploadStamps {
@@ -36,6 +38,7 @@ impl UploadStamps {
             levels,
             cols: vec![0; n],
             rows: vec![0; n],
+            writes: vec![0; levels as usize],
         }
     }
 
@@ -78,7 +81,14 @@ impl UploadStamps {
             };
             let at = base + start as usize;
             stamps[at..at + len as usize].fill(index + 1);
+            self.writes[u.level as usize] += 1;
         }
+    }
+
+    /// Strips written to `level` so far ([`UploadStamps::note`]): while it stays the same, so do the
+    /// level's stamps, and a tile's [`UploadStamps::latest`] need not be read again.
+    pub fn writes(&self, level: u32) -> u64 {
+        self.writes.get(level as usize).copied().unwrap_or(u64::MAX)
     }
 
     /// The rectangles written after frame `since` (every written one when `None`), into `out` (cleared
