@@ -716,9 +716,9 @@ impl LodTables {
     /// Faults in the mapped tables' smallest grids now, smallest first, while their pages fit `bytes`
     /// (charged against the resident limit as the queries' pages are): the coarse levels' SATs and every
     /// level's coarse max-pyramid levels, which every frame's block selection reads (algorithm 1 starts
-    /// from the coarsest level). A first frame, or the first frames after a jump, would otherwise spend
-    /// most of their plan time faulting them in (docs/plan-time.md). Nothing for tables in memory; the
-    /// answers are the same bytes either way.
+    /// from the coarsest level). A first frame would otherwise spend much of its plan time faulting them
+    /// in (half of it, in a profile of a 4097^2 terrain's; docs/plan-time.md). Nothing for tables in
+    /// memory; the answers are the same bytes either way.
     pub fn prime(&self, bytes: u64) {
         let Some(m) = &self.mapping else {
             return;

@@ -56,8 +56,8 @@ pub(super) struct Memo {
     /// Counts the frames (plans) that asked bounds.
     frame: u32,
     /// Each entry's view (0: never), apart from the entries: a moving camera's view is new every frame,
-    /// so nearly every probe ends on an entry of another view, and reading 64 KiB of these instead of
-    /// the megabyte of entries took a fraction of the plan's time (docs/plan-time.md).
+    /// so nearly every probe ends on an entry of another view: reading 64 KiB of these, not the entries'
+    /// 900 KiB, took that load from 6 % of a flight's samples to under 1 % (docs/plan-time.md).
     generations: Box<[u32]>,
     table: Box<[MemoEntry]>,
 }

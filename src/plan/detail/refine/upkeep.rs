@@ -111,11 +111,11 @@ impl Quadtree {
             scale,
             ..c
         };
-        let fits = |f: &Cell, triangles: u64, instances: usize| {
-            let records = instances - c.instances() + f.instances();
-            f.triangles(at.budget) <= triangles + c.triangles(at.budget)
-                && records <= at.budget.instances
-        };
+        // What is left for the cell's own draw: the frame's triangles and records with its current form's
+        // given back.
+        let room = self.triangles + c.triangles(at.budget);
+        let records = |f: &Cell| self.instances - c.instances() + f.instances();
+        let fits = |f: &Cell| f.triangles(at.budget) <= room && records(f) <= at.budget.instances;
         if at.budget.stitch {
             let whole = Cell {
                 coarse: [0; stitch::MAX_UNITS as usize],
@@ -123,7 +123,7 @@ impl Quadtree {
                 masked: false,
                 ..fresh
             };
-            if lazy && fits(&whole, self.triangles, self.instances) {
+            if lazy && fits(&whole) {
                 fresh = whole;
             } else {
                 let units = mask::coarse_units(
@@ -139,13 +139,12 @@ impl Quadtree {
                 (fresh.coarse, fresh.coarse_bound, fresh.masked) = (m, worst, true);
             }
         }
-        if !fits(&fresh, self.triangles, self.instances) {
+        if !fits(&fresh) {
             self.cells[j].frozen = true;
             return true;
         }
-        let (old_t, new_t) = (c.triangles(at.budget), fresh.triangles(at.budget));
-        self.triangles = self.triangles + old_t - new_t;
-        self.instances = self.instances - c.instances() + fresh.instances();
+        self.triangles = room - fresh.triangles(at.budget);
+        self.instances = records(&fresh);
         self.cells[j] = fresh;
         true
     }
