@@ -55,9 +55,8 @@ pub const CONTEXTS: usize = 4 * (ACTIVITY.len() + 1);
 /// pyramid was 0.4 % smaller on Big Tujunga, 0.3 % on n07_w006, 1.5 % on N57E011 and the same on Puget
 /// Sound, and every token's decoding waited on the one before.
 #[inline]
-pub fn activity(n: u32, nw: u32, ne: u32, curv: i64) -> u32 {
-    let c = u32::try_from(curv.clamp(0, 64)).unwrap_or(64);
-    2 * n.min(64) + nw.min(64) + ne.min(64) + (c >> 1)
+pub fn activity(n: u32, nw: u32, ne: u32, curv: u32) -> u32 {
+    2 * n.min(64) + nw.min(64) + ne.min(64) + (curv.min(64) >> 1)
 }
 
 /// The first context of parity `par`.
@@ -267,10 +266,10 @@ fn normalise(c: &[u64; TOKENS]) -> [u16; TOKENS] {
 /// The decoder's view of [`Tables`]: a token per probability slot and each token's cumulative frequency.
 #[derive(Clone, Debug)]
 pub struct DecodeTables {
-    slot: Vec<u8>,
+    slot: Box<[[u8; M as usize]; CONTEXTS]>,
     /// Per context and token byte: the frequency in the high half, the cumulative frequency in the low
     /// half (256 entries, so any byte indexes it).
-    fc: Vec<[u32; 256]>,
+    fc: Box<[[u32; 256]; CONTEXTS]>,
 }
 
 impl DecodeTables {
@@ -279,13 +278,21 @@ impl DecodeTables {
 
     /// The lookup tables of `t`.
     pub fn new(t: &Tables) -> Self {
-        let mut slot = vec![0u8; CONTEXTS * M as usize];
-        let mut fc = vec![[0u32; 256]; CONTEXTS];
+        // Fixed sizes: a context masked to CONTEXTS - 1 and a slot masked to M - 1 index them with no
+        // bounds check in the decoder's loop.
+        let mut slot: Box<[[u8; M as usize]; CONTEXTS]> = vec![[0u8; M as usize]; CONTEXTS]
+            .into_boxed_slice()
+            .try_into()
+            .expect("CONTEXTS rows");
+        let mut fc: Box<[[u32; 256]; CONTEXTS]> = vec![[0u32; 256]; CONTEXTS]
+            .into_boxed_slice()
+            .try_into()
+            .expect("CONTEXTS rows");
         for (ctx, f) in t.freq.iter().enumerate() {
             let mut c = 0usize;
             for (tok, &fr) in f.iter().enumerate() {
                 fc[ctx][tok] = (u32::from(fr) << 16) | u32::try_from(c).expect("below M");
-                let s = &mut slot[ctx * M as usize + c..ctx * M as usize + c + usize::from(fr)];
+                let s = &mut slot[ctx][c..c + usize::from(fr)];
                 #[expect(clippy::cast_possible_truncation, reason = "tok < TOKENS < 256")]
                 s.fill(tok as u8);
                 c += usize::from(fr);
@@ -346,7 +353,9 @@ impl Encoder {
     }
 }
 
-/// Decodes tokens from a stream written by [`Encoder`].
+/// Decodes tokens from a stream written by [`Encoder`]. `Copy`, so that a loop can hold it in registers
+/// (a copy, written back after the loop) rather than store its state through a reference every token.
+#[derive(Clone, Copy)]
 pub struct Decoder<'a> {
     x: [u32; 2],
     bytes: &'a [u8],
@@ -371,30 +380,38 @@ impl<'a> Decoder<'a> {
 
     /// The stream's next token, in context `ctx` (tokens are read in order, one state after the other:
     /// the states swap places after each token, so the one in use is always the first).
-    #[inline]
-    pub fn get(&mut self, t: &DecodeTables, ctx: usize) -> Result<usize, &'static str> {
-        let x = &mut self.x[0];
-        let s = *x & (M - 1);
-        let tok = t.slot[ctx * M as usize + s as usize];
+    ///
+    /// Never fails: a stream that ends early reads zero words and walks `at` past its end, which
+    /// [`Self::finish`] refuses. So the renormalisation is a select, not a branch, and the tile's loop
+    /// carries no error path per token (a renormalisation follows about one token in five, too seldom to
+    /// predict and too often to mispredict).
+    #[inline(always)]
+    pub fn get(&mut self, t: &DecodeTables, ctx: usize) -> usize {
+        let x = self.x[0];
+        let s = x & (M - 1);
+        // Contexts are below CONTEXTS (a power of two) by construction; the mask says so to the compiler.
+        let ctx = ctx & (CONTEXTS - 1);
+        let tok = t.slot[ctx][s as usize];
         let fc = t.fc[ctx][usize::from(tok)];
         let (f, c) = (fc >> 16, fc & 0xffff);
-        // x >= L and f >= 1 keep this in u32: f (x >> 12) + (s - c) < f 2^20 + f <= 2^32.
-        *x = f * (*x >> PROB_BITS) + s - c;
-        if *x < L {
-            let w = self
-                .bytes
-                .get(self.at..self.at + 2)
-                .ok_or("rANS stream ends early")?;
-            *x = (*x << 16) | u32::from(u16::from_le_bytes([w[0], w[1]]));
-            self.at += 2;
-        }
-        self.x.swap(0, 1);
-        Ok(usize::from(tok))
+        // x >= L and f >= 1 keep this in u32: f (x >> 12) + (s - c) < f 2^20 + f <= 2^32; after it
+        // x >= 16 f >= 16, so x << 16 | w >= L again.
+        let x = f * (x >> PROB_BITS) + s - c;
+        let need = x < L;
+        let w = self
+            .bytes
+            .get(self.at..self.at + 2)
+            .map_or(0, |w| u32::from(u16::from_le_bytes([w[0], w[1]])));
+        self.at += 2 * usize::from(need);
+        self.x = [self.x[1], if need { (x << 16) | w } else { x }];
+        usize::from(tok)
     }
 
     /// Checks that the stream ended where the encoder began: every word read, both initial states back.
     pub fn finish(&self) -> Result<(), &'static str> {
-        if self.at == self.bytes.len() && self.x == [L; 2] {
+        if self.at > self.bytes.len() {
+            Err("rANS stream ends early")
+        } else if self.at == self.bytes.len() && self.x == [L; 2] {
             Ok(())
         } else {
             Err("rANS stream does not end where it should")
@@ -541,14 +558,14 @@ mod tests {
         let dt = DecodeTables::new(&t);
         let mut d = Decoder::new(&bytes).unwrap();
         for &(ctx, tok) in &syms {
-            assert_eq!(d.get(&dt, ctx).unwrap(), tok);
+            assert_eq!(d.get(&dt, ctx), tok);
         }
         d.finish().unwrap();
         // Cut or flipped streams: errors or wrong tokens, never a panic.
         for cut in [0, 3, 4, 8, bytes.len() / 2, bytes.len() - 1] {
             let r = Decoder::new(&bytes[..cut]).and_then(|mut d| {
                 for &(ctx, _) in &syms {
-                    d.get(&dt, ctx)?;
+                    d.get(&dt, ctx);
                 }
                 d.finish()
             });
