@@ -390,6 +390,7 @@ impl<'a> Decoder<'a> {
         let x = self.x[0];
         let s = x & (M - 1);
         // Contexts are below CONTEXTS (a power of two) by construction; the mask says so to the compiler.
+        debug_assert!(ctx < CONTEXTS, "context {ctx} out of range");
         let ctx = ctx & (CONTEXTS - 1);
         let tok = t.slot[ctx][s as usize];
         let fc = t.fc[ctx][usize::from(tok)];
