@@ -83,7 +83,7 @@ fn check_limits(limits: &wgpu::Limits, profile: &crate::profile::Profile) -> Res
 }
 
 /// What one frame did, within the profile's budget.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 #[non_exhaustive]
 pub struct FrameStats {
     /// Draw calls recorded.
@@ -94,8 +94,14 @@ pub struct FrameStats {
     pub samples_updated: u32,
     /// Rings still short of their place around the eye (a fast flight outruns the budget).
     pub stale_levels: u32,
-    /// SAT LOD: visible blocks drawn coarser than the error bound asks (the data not yet at hand).
+    /// SAT LOD: visible blocks drawn coarser than the error bound asks (the data, memory or the frame's
+    /// budgets not yet at hand).
     pub blocks_clamped: u32,
+    /// SAT LOD: the largest screen-space error bound, pixels, those blocks are drawn at: what the frame
+    /// misses epsilon by (0 when it meets it everywhere in view). While the camera moves, a bound not asked
+    /// again this frame is its last one rescaled by the block's change of scale. Infinite while a block is
+    /// drawn at a level past the SAT LOD tables' (just after a jump), whose error is not known.
+    pub unmet_px: f32,
     /// The plan's 64-bit hash: the same terrain, profile, options and cameras give the same hashes on
     /// every machine.
     pub plan_hash: u64,
@@ -280,6 +286,7 @@ impl TerrainRenderer {
             samples_updated,
             stale_levels,
             blocks_clamped: s.blocks_clamped,
+            unmet_px: s.unmet_px,
             plan_hash: self.plan.hash(),
         })
     }

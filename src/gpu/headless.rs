@@ -82,7 +82,7 @@ impl FrameOptions {
 }
 
 /// What one frame did.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct FrameStats {
     /// Draw calls.
     pub draws: u32,
@@ -101,6 +101,9 @@ pub struct FrameStats {
     /// SAT modes: LOD blocks whose wanted level is finer than the held data (see
     /// [`crate::plan::lod::LodFrame::blocks_clamped`]); 0 in distance mode.
     pub blocks_clamped: u32,
+    /// SAT modes: the largest screen-space bound, pixels, those blocks are drawn at (0 when none is:
+    /// [`crate::plan::frame_plan::PlanStats::unmet_px`]).
+    pub unmet_px: f32,
     /// Wall time of [`Planner::plan`] (LOD selection, culling, uniforms), nanoseconds.
     pub plan_ns: u64,
     /// SAT modes: blocks drawn from the detail pool.
@@ -381,6 +384,7 @@ impl<'g> Offscreen<'g> {
             upload_bytes: up.upload_bytes,
             full_upload: up.full_upload,
             blocks_clamped: p.blocks_clamped,
+            unmet_px: p.unmet_px,
             plan_ns,
             blocks_from_pool: p.blocks_from_pool,
             pool_cells: p.pool_cells,

@@ -1,9 +1,11 @@
 //! The SAT LOD plan inside a frame's time (docs/plan-time.md): the detail pool's refinement carries over
 //! between frames under `budget.refine_bounds_per_frame` bound evaluations a frame, never more; a still
 //! camera converges to the refinement one unbounded frame makes; a teleport settles again within 30
-//! frames; a block kept from another viewport is not kept past epsilon in the new one.
+//! frames; a block kept from another viewport is not kept past epsilon in the new one; the bound a plan
+//! reports it misses epsilon by holds over the error measured in its frame.
 
 use clipsat::bake::lod_tables::{LodTables, P};
+use clipsat::measure::screen_error;
 use clipsat::plan::camera::Camera;
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::plan::flight::{Flight, Path};
@@ -180,6 +182,56 @@ fn a_teleport_settles_within_30_frames() {
     assert!(
         settled.iter().all(|&n| n <= 30),
         "frames to settle: {settled:?}"
+    );
+}
+
+/// `PlanStats::unmet_px` is the frame's error bound where the plan misses epsilon: in a teleport flight
+/// whose refinement budget is too small to settle at once, the whole frame's measured error stays within
+/// the larger of epsilon and it (5 % for the moving camera's rescaled estimates; the shared terrains'
+/// teleport flights measured none past it), it is 0 exactly when no block in view is clamped, and it is
+/// past epsilon while the plan catches up.
+#[test]
+fn the_reported_unmet_bound_holds_over_the_measured_error() {
+    let hm = terrain();
+    let p = profile(250);
+    let mut cm = Clipmap::new(&hm, &p, ClipmapOptions::default()).expect("clipmap");
+    let mut planner = planner(&hm, &p, &cm);
+    let mut plan = planner.new_plan();
+    let flight = Flight::new(Path::Teleport { every: 30 }, 1.0, &hm).expect("flight");
+    let eps = 1.0;
+    let view = (p.view.width, p.view.height);
+    let (mut unmet_frames, mut met_frames) = (0, 0);
+    for f in 0..90 {
+        let cam = flight.camera(f);
+        cm.update(cam.eye).expect("update");
+        planner
+            .plan(&cm, &cam, &params(eps), &mut plan)
+            .expect("plan");
+        cm.request_samples(&plan.detail().wanted);
+        let s = plan.stats();
+        assert_eq!(
+            s.unmet_px == 0.0,
+            s.blocks_clamped == 0,
+            "frame {f}: {} px unmet, {} blocks clamped",
+            s.unmet_px,
+            s.blocks_clamped
+        );
+        let lod = planner.lod().expect("SAT LOD");
+        let measured = screen_error(&plan, view, &cm, &cam, lod).max_px;
+        let bound = f64::from(s.unmet_px).max(f64::from(eps));
+        assert!(
+            measured <= 1.05 * bound,
+            "frame {f}: measured {measured} px past the plan's bound {bound} px"
+        );
+        if f64::from(s.unmet_px) > f64::from(eps) {
+            unmet_frames += 1;
+        } else {
+            met_frames += 1;
+        }
+    }
+    assert!(
+        unmet_frames > 0 && met_frames > 0,
+        "the flight should both miss and meet epsilon: {unmet_frames} frames past it, {met_frames} within"
     );
 }
 

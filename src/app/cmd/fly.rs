@@ -205,6 +205,9 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
         ..PlanParams::default()
     };
     let mut blocks_clamped_max = 0u32;
+    // SAT modes: the largest known bound the plan missed epsilon by, and the frames where one was not
+    // known (a block drawn at a level past the LOD tables').
+    let (mut unmet_px_max, mut frames_unmet_unknown) = (0.0f32, 0u64);
     // SAT modes: per jump of the path (frame 0 counts as one), the frames until the plan settles.
     let mut settling = Settling::default();
     // --error-every: per sampled frame, (frame, max px, max px over unclamped blocks).
@@ -355,6 +358,12 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
             LodMode::Distance => frame.hash,
             _ => {
                 blocks_clamped_max = blocks_clamped_max.max(plan.stats().blocks_clamped);
+                let unmet = plan.stats().unmet_px;
+                if unmet.is_finite() {
+                    unmet_px_max = unmet_px_max.max(unmet);
+                } else {
+                    frames_unmet_unknown += 1;
+                }
                 settling.frame(f, flight.jumps_at(f), &plan, &clipmap);
                 let mut h = Hash64::new();
                 h.write_u64(frame.hash);
@@ -503,6 +512,10 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
             "settle_blocks_clamped": recover.iter().map(|r| r.map(|r| r.1)).collect::<Vec<_>>(),
             "settle_frames_max": settled.iter().max(),
             "jumps_not_settled": recover.iter().filter(|r| r.is_none()).count(),
+            "met_frames": settling.met,
+            "leg_end_unmet_px": settling.end_unmet_px,
+            "unmet_px_max": unmet_px_max,
+            "frames_unmet_px_unknown": frames_unmet_unknown,
             "plan_run_hash": hex(plan_hashes.finish()),
             "plan_ms_p50": stats.plan_ns[0] as f64 / 1e6,
             "plan_ms_p99": stats.plan_ns[1] as f64 / 1e6,
@@ -704,7 +717,7 @@ fn open_csv(path: &FsPath, levels: u32) -> Result<BufWriter<File>> {
         header.push_str(&format!(",active_l{l}"));
     }
     header.push_str(
-        ",plan_us,plan_cpu_us,bound_evaluations,refine_evaluations,blocks_clamped,plan_triangles",
+        ",plan_us,plan_cpu_us,bound_evaluations,refine_evaluations,blocks_clamped,unmet_px,plan_triangles",
     );
     writeln!(w, "{header}").map_err(|e| Error::io(path, "cannot write", e))?;
     Ok(w)
@@ -737,11 +750,12 @@ fn write_row(
     });
     write!(
         w,
-        ",{us},{},{},{},{},{}",
+        ",{us},{},{},{},{},{:.3},{}",
         cpu.map_or(String::new(), |c| c.to_string()),
         s.bound_evaluations,
         s.refine_evaluations,
         s.blocks_clamped,
+        s.unmet_px,
         s.triangles
     )?;
     writeln!(w)

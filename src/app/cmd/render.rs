@@ -386,6 +386,7 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
         if let (Some(o), serde_json::Value::Object(extra)) = (out.as_object_mut(), shading) {
             o.extend(extra);
             // Outside the literal above, which is at json!'s recursion limit.
+            o.insert("unmet_px".into(), json!(frame.stats.unmet_px));
             o.insert(
                 "oracle_bound".into(),
                 json!(oracle_bound.as_deref().map(oracle_json)),

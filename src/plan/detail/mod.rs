@@ -166,8 +166,10 @@ pub struct DetailFrame {
     pub resident: heapless::Vec<Option<TileKey>, DETAIL_CAPACITY>,
     /// Blocks drawn from the pool: (index in the LOD frame, the level the selection had clamped it to).
     pub served: heapless::Vec<(u16, u32), MAX_LOD_BLOCKS>,
-    /// Per served block: every cell meets epsilon or its wanted level (it no longer counts as clamped).
-    pub served_met: heapless::Vec<bool, MAX_LOD_BLOCKS>,
+    /// Per served block: the largest screen-space bound, pixels, of its cells that miss epsilon (rescaled
+    /// estimates where stale); 0 when every cell meets epsilon or its wanted level (the block no longer
+    /// counts as clamped).
+    pub served_unmet: heapless::Vec<f32, MAX_LOD_BLOCKS>,
     /// The coarse units of each cell drawn stitched ([`stitch`]), in draw-list order: a stitched cell's
     /// draw holds 1 + its index ([`Draw::stitch`]).
     pub masks: Box<heapless::Vec<stitch::Mask, MAX_DETAIL_CELLS>>,
@@ -502,7 +504,7 @@ impl DetailPool {
     ) -> Result<()> {
         out.uploads.clear();
         out.served.clear();
-        out.served_met.clear();
+        out.served_unmet.clear();
         out.samples_updated = 0;
         out.wanted.clear();
         out.tiles_needed = 0;
@@ -554,10 +556,10 @@ impl DetailPool {
                 continue;
             }
             // A part in view not covered yet: the block is drawn from its ring until it is.
-            let (mut missing, mut met, mut finest) = (u32::from(self.tree.uncovered(c.block)), true, c.clamped);
+            let (mut missing, mut unmet, mut finest) = (u32::from(self.tree.uncovered(c.block)), 0.0f64, c.clamped);
             for l in self.tree.cells_of(c.block) {
                 let l = *l;
-                met &= l.met;
+                unmet = unmet.max(self.tree.unmet_px(&l));
                 finest = finest.min(l.key.level);
                 if self.find(&l.key).is_some() {
                     continue;
@@ -607,12 +609,13 @@ impl DetailPool {
                         what: "blocks served by the detail pool",
                         capacity: MAX_LOD_BLOCKS,
                     })?;
-                out.served_met.push(met).map_err(|_| Error::Capacity {
+                #[expect(clippy::cast_possible_truncation, reason = "reported in f32")]
+                out.served_unmet.push(unmet as f32).map_err(|_| Error::Capacity {
                     what: "blocks served by the detail pool",
                     capacity: MAX_LOD_BLOCKS,
                 })?;
                 lod.blocks[usize::from(c.block)].level = finest;
-                if met {
+                if unmet == 0.0 {
                     lod.blocks_clamped -= 1;
                 }
             }
@@ -643,7 +646,7 @@ impl DetailPool {
     pub fn unserve_last(lod: &mut LodFrame, out: &mut DetailFrame) -> bool {
         match out.served.pop() {
             Some((i, level)) => {
-                if out.served_met.pop().unwrap_or(false) {
+                if out.served_unmet.pop().is_some_and(|u| u == 0.0) {
                     lod.blocks_clamped += 1;
                 }
                 lod.blocks[usize::from(i)].level = level;

@@ -128,7 +128,7 @@ impl PlannedDraw {
 }
 
 /// What a plan holds, in numbers.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct PlanStats {
     /// Draw calls (a run of pool cells is one instanced call).
     pub draws: u32,
@@ -146,6 +146,13 @@ pub struct PlanStats {
     /// frustum and whose wanted level is finer than the held data, rings and detail pool, or whose pool
     /// cells miss epsilon (by their stale estimates while the camera moves); 0 in distance mode.
     pub blocks_clamped: u32,
+    /// SAT modes: the largest screen-space bound, pixels, that those blocks are drawn at: a block drawn
+    /// from its ring, its bound at that level as the selection holds it; a block drawn from the pool, the
+    /// bounds of its cells that miss epsilon (rescaled estimates while the camera moves). 0 when none is
+    /// clamped: the error the plan could not yet pay for, reported beside their count. Infinite where a
+    /// block is drawn at a level past the SAT LOD tables' (a ring the update has not yet brought finer
+    /// data to, as after a jump): its error is not known.
+    pub unmet_px: f32,
     /// SAT modes: blocks drawn from the detail pool at their wanted level.
     pub blocks_from_pool: u32,
     /// Detail pool slots holding a tile after this plan.
@@ -636,10 +643,10 @@ impl Planner {
             out.detail.samples_updated = 0;
             cull::build_draws(clipmap, camera, &dp, &mut out.draws)?
         };
-        let blocks_clamped = if sat {
+        let (blocks_clamped, unmet_px) = if sat {
             self.visible_clamped(clipmap, camera, aspect, out)
         } else {
-            0
+            (0, 0.0)
         };
         out.ranges.clear();
         out.cells.clear();
@@ -751,6 +758,7 @@ impl Planner {
                 .map(|u| u64::from(u.w) * u64::from(u.h))
                 .sum(),
             blocks_clamped,
+            unmet_px,
             blocks_from_pool: u32::try_from(out.detail.served.len())
                 .expect("served <= MAX_LOD_BLOCKS"),
             detail_tiles_resident: out.detail.tiles_resident(),

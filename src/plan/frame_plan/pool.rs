@@ -218,7 +218,9 @@ impl Planner {
     /// The clamped blocks whose pieces (the block less the finer ring's hole, what it draws) meet the view
     /// frustum (the ones whose error shows): [`LodFrame`]'s `blocks_clamped` less those out of view,
     /// which the pool never refines. A block the pool serves counts when one of its cells misses epsilon.
+    /// With it, the largest bound those blocks are drawn at ([`PlanStats::unmet_px`]).
     ///
+    /// [`PlanStats::unmet_px`]: super::PlanStats::unmet_px
     /// [`LodFrame`]: crate::plan::lod::LodFrame
     pub(super) fn visible_clamped(
         &self,
@@ -226,15 +228,20 @@ impl Planner {
         camera: &Camera,
         aspect: f64,
         out: &FramePlan,
-    ) -> u32 {
+    ) -> (u32, f32) {
         let frustum = cull::Frustum::new(camera, aspect);
         let view = self.detail_view(clipmap, camera, &frustum, 0.0);
         let d = &out.detail;
-        let mut n = 0u32;
+        let (mut n, mut unmet) = (0u32, 0.0f32);
         for (i, b) in out.lod.blocks.iter().enumerate() {
-            let clamped = match d.served.iter().position(|&(j, _)| usize::from(j) == i) {
-                Some(k) => !d.served_met.get(k).copied().unwrap_or(false),
-                None => b.wanted < b.level,
+            // Whether it misses epsilon, and by how much: its pool cells' bounds, or its own at the level
+            // it is drawn at.
+            let (clamped, miss) = match d.served.iter().position(|&(j, _)| usize::from(j) == i) {
+                Some(k) => {
+                    let u = d.served_unmet.get(k).copied().unwrap_or(f32::INFINITY);
+                    (u != 0.0, u)
+                }
+                None => (b.wanted < b.level, b.bound_px),
             };
             // What the block draws is its pieces: the part under the finer ring's hole is that ring's.
             let hole = match b.ring.checked_sub(1) {
@@ -248,8 +255,9 @@ impl Planner {
             };
             if clamped && shown() {
                 n += 1;
+                unmet = unmet.max(miss);
             }
         }
-        n
+        (n, unmet)
     }
 }

@@ -76,11 +76,16 @@ pub(crate) fn timed_plan(
 
 /// Per jump of a flight (frame 0 counts as one): the frames until the plan settled (no ring stale, no
 /// refinement work its budget stopped, every pool tile its cells read resident) and the blocks then
-/// clamped; None when the next jump or the end came first.
+/// clamped; None when the next jump or the end came first. Beside it, per leg (a jump to the next): the
+/// first frame whose plan meets epsilon over every block in view (`PlanStats::unmet_px` 0) and the
+/// bound the leg's last frame misses epsilon by.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct Settling {
     since: Option<u64>,
+    start: u64,
     pub(crate) legs: Vec<Option<(u64, u32)>>,
+    pub(crate) met: Vec<Option<u64>>,
+    pub(crate) end_unmet_px: Vec<f32>,
 }
 
 impl Settling {
@@ -91,8 +96,21 @@ impl Settling {
                 self.legs.push(None);
             }
             self.since = Some(f);
+            self.start = f;
+            self.met.push(None);
+            self.end_unmet_px.push(0.0);
         }
         let s = plan.stats();
+        if let Some(m) = self
+            .met
+            .last_mut()
+            .filter(|m| m.is_none() && s.unmet_px == 0.0)
+        {
+            *m = Some(f - self.start);
+        }
+        if let Some(e) = self.end_unmet_px.last_mut() {
+            *e = s.unmet_px;
+        }
         let settled =
             clipmap.frame().stale_levels == 0 && !s.refining && s.detail_tiles_waiting == 0;
         if let Some(j) = self.since.filter(|_| settled) {

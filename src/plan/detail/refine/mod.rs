@@ -435,6 +435,26 @@ impl Quadtree {
             && self.now(c, c.coarse_bound) <= limit
     }
 
+    /// What cell `c` misses epsilon by in this frame's view: 0 when it is drawn within epsilon (its met
+    /// flag), else the largest of its bound and its coarse units' bound, rescaled where stale (the bound
+    /// of its wanted level does not count: no cell goes finer). Infinite where no bound is held.
+    pub(super) fn unmet_px(&self, c: &Cell) -> f64 {
+        if c.met {
+            return 0.0;
+        }
+        let own = if c.key.level > c.wanted {
+            self.now(c, c.bound)
+        } else {
+            0.0
+        };
+        let b = own.max(self.now(c, c.coarse_bound));
+        if b > 0.0 {
+            b
+        } else {
+            f64::INFINITY
+        }
+    }
+
     /// Sets every cell's met flag for this frame, and indexes the cells by block.
     fn settle(&mut self, eps: f64) {
         self.by_block.clear();
