@@ -205,9 +205,6 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
         ..PlanParams::default()
     };
     let mut blocks_clamped_max = 0u32;
-    // SAT modes: the largest known bound the plan missed epsilon by, and the frames where one was not
-    // known (a block drawn at a level past the LOD tables').
-    let (mut unmet_px_max, mut frames_unmet_unknown) = (0.0f32, 0u64);
     // SAT modes: per jump of the path (frame 0 counts as one), the frames until the plan settles.
     let mut settling = Settling::default();
     // --error-every: per sampled frame, (frame, max px, max px over unclamped blocks).
@@ -358,12 +355,6 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
             LodMode::Distance => frame.hash,
             _ => {
                 blocks_clamped_max = blocks_clamped_max.max(plan.stats().blocks_clamped);
-                let unmet = plan.stats().unmet_px;
-                if unmet.is_finite() {
-                    unmet_px_max = unmet_px_max.max(unmet);
-                } else {
-                    frames_unmet_unknown += 1;
-                }
                 settling.frame(f, flight.jumps_at(f), &plan, &clipmap);
                 let mut h = Hash64::new();
                 h.write_u64(frame.hash);
@@ -514,8 +505,8 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
             "jumps_not_settled": recover.iter().filter(|r| r.is_none()).count(),
             "met_frames": settling.met,
             "leg_end_unmet_px": settling.end_unmet_px,
-            "unmet_px_max": unmet_px_max,
-            "frames_unmet_px_unknown": frames_unmet_unknown,
+            "unmet_px_max": settling.unmet_px_max,
+            "frames_unmet_px_unknown": settling.frames_unmet_unknown,
             "plan_run_hash": hex(plan_hashes.finish()),
             "plan_ms_p50": stats.plan_ns[0] as f64 / 1e6,
             "plan_ms_p99": stats.plan_ns[1] as f64 / 1e6,

@@ -78,7 +78,8 @@ pub(crate) fn timed_plan(
 /// refinement work its budget stopped, every pool tile its cells read resident) and the blocks then
 /// clamped; None when the next jump or the end came first. Beside it, per leg (a jump to the next): the
 /// first frame whose plan meets epsilon over every block in view (`PlanStats::unmet_px` 0) and the
-/// bound the leg's last frame misses epsilon by.
+/// bound the leg's last frame misses epsilon by; over the flight, the largest known such bound and the
+/// frames where it was not known (a block drawn at a level past the LOD tables').
 #[derive(Clone, Debug, Default)]
 pub(crate) struct Settling {
     since: Option<u64>,
@@ -86,6 +87,8 @@ pub(crate) struct Settling {
     pub(crate) legs: Vec<Option<(u64, u32)>>,
     pub(crate) met: Vec<Option<u64>>,
     pub(crate) end_unmet_px: Vec<f32>,
+    pub(crate) unmet_px_max: f32,
+    pub(crate) frames_unmet_unknown: u64,
 }
 
 impl Settling {
@@ -110,6 +113,11 @@ impl Settling {
         }
         if let Some(e) = self.end_unmet_px.last_mut() {
             *e = s.unmet_px;
+        }
+        if s.unmet_px.is_finite() {
+            self.unmet_px_max = self.unmet_px_max.max(s.unmet_px);
+        } else {
+            self.frames_unmet_unknown += 1;
         }
         let settled =
             clipmap.frame().stale_levels == 0 && !s.refining && s.detail_tiles_waiting == 0;

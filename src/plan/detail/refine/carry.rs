@@ -16,11 +16,13 @@ use crate::plan::lod::MAX_LOD_BLOCKS;
 use crate::{Error, Result};
 
 impl Quadtree {
-    /// Starts this frame's refinement from the last frame's quadtrees (see the module doc).
+    /// Starts this frame's refinement from the last frame's quadtrees (see the module doc), in the view of
+    /// `bounds`: this frame's, whose key is `frame_key`, or the last frame's when it lags ([`super::Lag`]).
     pub(super) fn carry(
         &mut self,
         at: &Inputs<'_, '_>,
         bounds: &PoolBounds<'_>,
+        frame_key: u64,
         ring_triangles: &[u64],
     ) -> Result<()> {
         let view = at.view;
@@ -36,9 +38,11 @@ impl Quadtree {
             self.inputs = None;
             self.mark = None;
         }
-        let fresh_view = self.inputs.is_none() || bounds.key != self.view_key;
+        // A lagging frame's bounds are the last view's (the memo keeps them), but its frustum is new.
+        let fresh_view = !self.lagging && (self.inputs.is_none() || bounds.key != self.view_key);
+        let new_frustum = fresh_view || self.lagging;
         // The first view is not a move: its refinement is the one-frame refinement, spread over frames.
-        self.moved = fresh_view && self.inputs.is_some();
+        self.moved = self.lagging || (fresh_view && self.inputs.is_some());
         if fresh_view {
             self.view = self.view.wrapping_add(1).max(1);
             self.view_key = bounds.key;
@@ -46,7 +50,7 @@ impl Quadtree {
         }
         let b = at.budget;
         let mut h = Hash64::new();
-        h.write_u64(bounds.key);
+        h.write_u64(frame_key);
         h.write_u64(eps.to_bits());
         for v in [u64::from(b.draws), b.triangles, u64::from(b.margin), u64::from(b.block_quads)] {
             h.write_u64(v);
@@ -107,18 +111,9 @@ impl Quadtree {
             return Ok(());
         }
         self.inputs = Some(inputs);
-        self.rematch(fresh_view);
-        for k in 0..self.cands.len() {
-            let bl = &at.lod.blocks[usize::from(self.cands[k].block)];
-            let bx = (
-                bl.rect.x0 << bl.ring,
-                bl.rect.y0 << bl.ring,
-                (bl.rect.x1() - 1) << bl.ring,
-                (bl.rect.y1() - 1) << bl.ring,
-            );
-            self.cands[k].scale = bounds.scale(bx);
-        }
-        if fresh_view {
+        self.rematch(new_frustum);
+        self.rescale(at, bounds);
+        if new_frustum {
             self.review(at);
         }
         self.recount(at);
@@ -151,6 +146,23 @@ impl Quadtree {
 
     /// Matches this frame's blocks (`self.next`) with the last frame's by [`BlockKey`]: a match keeps
     /// its refinement, its cells and ghosts move to the block's new index; the others' are dropped.
+    /// Each clamped block's scale in the view of `bounds` ([`Cand::scale`]).
+    fn rescale(&mut self, at: &Inputs<'_, '_>, bounds: &PoolBounds<'_>) {
+        for k in 0..self.cands.len() {
+            let bl = &at.lod.blocks[usize::from(self.cands[k].block)];
+            self.cands[k].scale = bounds.scale(super::level0_box(bl.ring, &bl.rect));
+        }
+    }
+
+    /// After a lagging frame's refinement ([`super::Lag`]): moves to this frame's view (`own`). Every bound
+    /// asked so far is now stale, rescaled by its block's change of scale, as after any move.
+    pub(super) fn catch_up(&mut self, at: &Inputs<'_, '_>, own: &PoolBounds<'_>) {
+        self.view = self.view.wrapping_add(1).max(1);
+        self.view_key = own.key;
+        self.memo.next();
+        self.rescale(at, own);
+    }
+
     fn rematch(&mut self, fresh_view: bool) {
         for c in self.cands.iter() {
             self.remap[usize::from(c.block)] = NONE;

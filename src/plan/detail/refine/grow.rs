@@ -50,6 +50,7 @@ impl Quadtree {
             if let Unit::Cell(j) = unit {
                 if self.cells[j].view != self.view {
                     if !self.refresh_cell(j, at, bounds, self.lazy()) {
+                        self.mid_split = true;
                         self.pending = Some(self.region(unit));
                         return Ok(());
                     }
@@ -109,6 +110,7 @@ impl Quadtree {
                 }
             }
             if out_of_budget {
+                self.mid_split = true;
                 self.pending = Some(self.region(unit));
                 return Ok(());
             }
@@ -167,6 +169,7 @@ impl Quadtree {
                 }
             }
             if !asked {
+                self.mid_split = true;
                 self.pending = Some(self.region(unit));
                 return Ok(());
             }
@@ -441,6 +444,7 @@ impl Quadtree {
 
     /// Takes the split in `self.new` of `unit`, which adds `cost` ([`Quadtree::cost`]).
     pub(super) fn commit(&mut self, unit: Unit, (add_d, add_t, sub_t): (i64, u64, u64)) {
+        self.taken += 1;
         self.draws -= add_d;
         self.triangles = self.triangles + sub_t - add_t;
         let block = match unit {

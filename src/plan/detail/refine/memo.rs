@@ -79,6 +79,18 @@ impl Memo {
         self.frame = self.frame.wrapping_add(1).max(1);
     }
 
+    /// The current view's generation (what [`Memo::resume`] takes back).
+    pub(super) fn generation(&self) -> u32 {
+        self.generation
+    }
+
+    /// Goes back to an earlier view's generation, `g`, whose entries are kept where no later view's took
+    /// their place (a lagging refinement: `refine/mod.rs`, `Lag`). No later view may have asked a bound:
+    /// its entries would be read as `g`'s.
+    pub(super) fn resume(&mut self, g: u32) {
+        self.generation = g;
+    }
+
     /// Forgets every bound (another view).
     pub(super) fn next(&mut self) {
         self.generation = self.generation.wrapping_add(1);

@@ -10,7 +10,7 @@ use crate::plan::detail::{
     stitch, DetailBudget, DetailView, PoolBounds, TileKey, DETAIL_CAPACITY,
 };
 use crate::plan::frame::Rect;
-use crate::plan::lod::{LatticeBox, LodFrame, MAX_LOD_BLOCKS};
+use crate::plan::lod::{BoundView, LatticeBox, LodFrame, LodMode, KEEP_BAND, MAX_LOD_BLOCKS};
 use crate::Result;
 
 mod carry;
@@ -250,6 +250,16 @@ pub(super) struct Quadtree {
     inputs: Option<u64>,
     /// The view changed this frame (the camera moves).
     moved: bool,
+    /// The view of the last frame, when the camera moved in it and the budget stopped its refinement with
+    /// work left (a split, a cover or units): the next frame, if the camera moved again, refines in it
+    /// first ([`Lag`]).
+    lag: Option<Lag>,
+    /// This frame refines in the last frame's view ([`Quadtree::lag`]), then moves to its own.
+    lagging: bool,
+    /// Splits this frame's refinement took.
+    taken: u32,
+    /// The budget stopped this frame's refinement within a split (its bounds asked in part).
+    mid_split: bool,
     /// Some ghost is in view and not frozen (`pick` looks for it).
     seen_ghosts: bool,
     /// What was left of the budgets (triangles, draws, slots, records) when a split last did not fit:
@@ -294,6 +304,10 @@ impl Quadtree {
             viewport: (0, 0),
             inputs: None,
             moved: false,
+            lag: None,
+            lagging: false,
+            taken: 0,
+            mid_split: false,
             seen_ghosts: false,
             mark: None,
             draws: 0,
@@ -336,6 +350,51 @@ enum Unit {
     Ghost(usize),
 }
 
+/// A view a frame's refinement may take up again in the next frame ([`Quadtree::lag`]). While the camera
+/// moves, every frame is a new view, and the bounds asked in one are kept only while it lasts ([`Memo`]):
+/// a split the budget stopped started again from nothing in the next view, so a split costing more than
+/// the budget never ended, and a frame's last split was asked for nothing. Counted in a flight (Puget
+/// Sound at 1 px, gles3-mid, teleport legs), 82 of 240 frames spent their whole budget that way without
+/// taking one split. Now the next frame first goes on in the last one's view, where the bounds it asked
+/// are kept, and then moves to its own: the cells it made are that view's, rescaled to this one as every
+/// stale cell is. A frame that lagged lags the next only when the budget stopped it within a split and it
+/// took none (a split costing more than a frame's budget goes on, over as many frames as it needs, up to
+/// [`MAX_LAG`]); otherwise the next frame is its own view, so the refinement's view is one frame old every
+/// other frame while it has work left. Only a view [`near`] this frame's is taken up: never across a jump.
+#[derive(Clone, Copy, Debug)]
+struct Lag {
+    view: BoundView,
+    key: u64,
+    /// The refinement's count of views and the memo's generation then.
+    id: u32,
+    generation: u32,
+    /// Frames since it was this frame's view.
+    age: u32,
+    eps: f64,
+    mode: LodMode,
+    viewport: (u32, u32),
+}
+
+/// The most frames a refinement's view lags the camera by ([`Lag`]): past it a split still unfinished is
+/// asked again from nothing in the frame's own view. The teleport goal's 30 frames.
+const MAX_LAG: u32 = 30;
+
+/// Whether the view of `then` is near enough to `now`'s for bounds asked in it to stand for this frame's
+/// by their first-order rescaling: every clamped block of `lod` (the refinement's candidates) has a scale
+/// within [`KEEP_BAND`] of its scale now, the band in which the selection keeps a moving block's level.
+/// A jump is not: after a teleport, cells made in the last view and rescaled to this one were drawn as
+/// meeting epsilon at 1.57 px (Puget Sound at 1 px, third leg).
+fn near(then: &PoolBounds<'_>, now: &PoolBounds<'_>, lod: &LodFrame) -> bool {
+    lod.blocks
+        .iter()
+        .filter(|b| b.wanted < b.level && b.wanted < b.ring)
+        .all(|b| {
+            let bx = level0_box(b.ring, &b.rect);
+            let k = then.scale(bx) / now.scale(bx);
+            (1.0 / KEEP_BAND..=KEEP_BAND).contains(&k)
+        })
+}
+
 /// The frame's fixed inputs of a split.
 struct Inputs<'a, 'b> {
     view: &'a DetailView<'b>,
@@ -373,7 +432,37 @@ impl Quadtree {
         self.pending = None;
         self.memo.next_frame();
         self.etas.next_frame();
-        self.carry(&at, bounds, ring_triangles)?;
+        // The last frame's view, where it stopped with work left, when the camera has moved since.
+        let lagged = self.lag.take().filter(|l| {
+            l.key != bounds.key
+                && l.eps.to_bits() == bounds.eps.to_bits()
+                && l.mode == bounds.mode
+                && l.viewport == bounds.lod.viewport()
+        });
+        let lagged = lagged.filter(|l| {
+            let f = PoolBounds {
+                view: l.view,
+                key: l.key,
+                ..*bounds
+            };
+            near(&f, bounds, lod)
+        });
+        self.lagging = lagged.is_some();
+        if let Some(l) = lagged {
+            // Back in that view (after a lagging frame's catch-up, which asked nothing in its own).
+            self.view = l.id;
+            self.view_key = l.key;
+            self.memo.resume(l.generation);
+        }
+        (self.taken, self.mid_split) = (0, false);
+        let own = bounds;
+        let frozen = lagged.map(|l| PoolBounds {
+            view: l.view,
+            key: l.key,
+            ..*own
+        });
+        let bounds = frozen.as_ref().unwrap_or(own);
+        self.carry(&at, bounds, own.key, ring_triangles)?;
         // The budget: the selector makes at most this many bound evaluations for the refinement.
         let lod = bounds.lod;
         lod.set_allowance(evaluations);
@@ -395,6 +484,29 @@ impl Quadtree {
         self.spent = evaluations - lod.allowance();
         lod.set_allowance(u64::MAX);
         grown?;
+        // The next frame goes on in this view, or, where this frame lagged and took no split, in the same
+        // earlier view.
+        let next = match lagged {
+            Some(l) if self.taken == 0 && self.mid_split && l.age < MAX_LAG && std::env::var("NOCHAIN").is_err() => Some(Lag {
+                age: l.age + 1,
+                ..l
+            }),
+            Some(_) => None,
+            None => Some(Lag {
+                view: own.view,
+                key: own.key,
+                id: self.view,
+                generation: self.memo.generation(),
+                age: 1,
+                eps: own.eps,
+                mode: own.mode,
+                viewport: own.lod.viewport(),
+            }),
+        };
+        self.lag = next.filter(|_| self.moved && self.refining);
+        if self.lagging {
+            self.catch_up(&at, own);
+        }
         self.settle(view.epsilon_px);
         self.debug_check_cover();
         Ok(())
