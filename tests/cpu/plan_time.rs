@@ -45,6 +45,19 @@ fn params(eps: f32) -> PlanParams {
     }
 }
 
+/// One frame of a flight: the clipmap's update, the plan at `eps`, and the pool's reads asked for.
+fn fly_frame(
+    cm: &mut Clipmap,
+    planner: &mut Planner,
+    plan: &mut FramePlan,
+    cam: &Camera,
+    eps: f32,
+) {
+    cm.update(cam.eye).expect("update");
+    planner.plan(cm, cam, &params(eps), plan).expect("plan");
+    cm.request_samples(&plan.detail().wanted);
+}
+
 /// One draw of [`drawn`]: level, bounds (x0, y0, w, h) and a stitched cell's unit mask.
 type DrawnCell = (u32, i64, i64, u32, u32, Vec<u32>);
 
@@ -165,11 +178,7 @@ fn a_teleport_settles_within_30_frames() {
             assert!(jump.is_none(), "frame {f}: the last jump never settled");
             jump = Some(f);
         }
-        cm.update(cam.eye).expect("update");
-        planner
-            .plan(&cm, &cam, &params(1.0), &mut plan)
-            .expect("plan");
-        cm.request_samples(&plan.detail().wanted);
+        fly_frame(&mut cm, &mut planner, &mut plan, &cam, 1.0);
         let s = plan.stats();
         if let Some(j) = jump {
             if cm.frame().stale_levels == 0 && !s.refining && s.detail_tiles_waiting == 0 {
@@ -206,11 +215,7 @@ fn the_reported_unmet_bound_holds_over_the_measured_error() {
         let (mut unmet_frames, mut met_frames) = (0, 0);
         for f in 0..90 {
             let cam = flight.camera(f);
-            cm.update(cam.eye).expect("update");
-            planner
-                .plan(&cm, &cam, &params(eps), &mut plan)
-                .expect("plan");
-            cm.request_samples(&plan.detail().wanted);
+            fly_frame(&mut cm, &mut planner, &mut plan, &cam, eps);
             let s = plan.stats();
             assert_eq!(
                 s.unmet_px == 0.0,
@@ -256,11 +261,7 @@ fn a_split_larger_than_the_budget_ends_while_the_camera_moves() {
     let mut met = [None; 3];
     for f in 0..90u64 {
         let cam = flight.camera(f);
-        cm.update(cam.eye).expect("update");
-        planner
-            .plan(&cm, &cam, &params(1.0), &mut plan)
-            .expect("plan");
-        cm.request_samples(&plan.detail().wanted);
+        fly_frame(&mut cm, &mut planner, &mut plan, &cam, 1.0);
         let s = plan.stats();
         assert!(
             s.refine_evaluations <= 50,

@@ -144,8 +144,6 @@ impl Quadtree {
         self.seen_ghosts = self.ghosts.iter().any(|g| g.visible);
     }
 
-    /// Matches this frame's blocks (`self.next`) with the last frame's by [`BlockKey`]: a match keeps
-    /// its refinement, its cells and ghosts move to the block's new index; the others' are dropped.
     /// Each clamped block's scale in the view of `bounds` ([`Cand::scale`]).
     fn rescale(&mut self, at: &Inputs<'_, '_>, bounds: &PoolBounds<'_>) {
         for k in 0..self.cands.len() {
@@ -163,6 +161,8 @@ impl Quadtree {
         self.rescale(at, own);
     }
 
+    /// Matches this frame's blocks (`self.next`) with the last frame's by [`BlockKey`]: a match keeps
+    /// its refinement, its cells and ghosts move to the block's new index; the others' are dropped.
     fn rematch(&mut self, fresh_view: bool) {
         for c in self.cands.iter() {
             self.remap[usize::from(c.block)] = NONE;

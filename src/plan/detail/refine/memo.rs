@@ -85,8 +85,8 @@ impl Memo {
     }
 
     /// Goes back to an earlier view's generation, `g`, whose entries are kept where no later view's took
-    /// their place (a lagging refinement: `refine/mod.rs`, `Lag`). No later view may have asked a bound:
-    /// its entries would be read as `g`'s.
+    /// their place (a lagging refinement: `refine/mod.rs`, `Lag`). No generation after `g` may hold an
+    /// entry: [`Memo::next`] gives its number out again, and the entry would be read as the new view's.
     pub(super) fn resume(&mut self, g: u32) {
         self.generation = g;
     }

@@ -433,20 +433,21 @@ impl Quadtree {
         self.memo.next_frame();
         self.etas.next_frame();
         // The last frame's view, where it stopped with work left, when the camera has moved since.
-        let lagged = self.lag.take().filter(|l| {
+        let lag = self.lag.take().filter(|l| {
             l.key != bounds.key
                 && l.eps.to_bits() == bounds.eps.to_bits()
                 && l.mode == bounds.mode
                 && l.viewport == bounds.lod.viewport()
         });
-        let lagged = lagged.filter(|l| {
-            let f = PoolBounds {
+        let own = bounds;
+        let frozen = lag
+            .map(|l| PoolBounds {
                 view: l.view,
                 key: l.key,
-                ..*bounds
-            };
-            near(&f, bounds, lod)
-        });
+                ..*own
+            })
+            .filter(|f| near(f, own, lod));
+        let lagged = lag.filter(|_| frozen.is_some());
         self.lagging = lagged.is_some();
         if let Some(l) = lagged {
             // Back in that view (after a lagging frame's catch-up, which asked nothing in its own).
@@ -455,12 +456,6 @@ impl Quadtree {
             self.memo.resume(l.generation);
         }
         (self.taken, self.mid_split) = (0, false);
-        let own = bounds;
-        let frozen = lagged.map(|l| PoolBounds {
-            view: l.view,
-            key: l.key,
-            ..*own
-        });
         let bounds = frozen.as_ref().unwrap_or(own);
         self.carry(&at, bounds, own.key, ring_triangles)?;
         // The budget: the selector makes at most this many bound evaluations for the refinement.
@@ -487,7 +482,7 @@ impl Quadtree {
         // The next frame goes on in this view, or, where this frame lagged and took no split, in the same
         // earlier view.
         let next = match lagged {
-            Some(l) if self.taken == 0 && self.mid_split && l.age < MAX_LAG && std::env::var("NOCHAIN").is_err() => Some(Lag {
+            Some(l) if self.taken == 0 && self.mid_split && l.age < MAX_LAG => Some(Lag {
                 age: l.age + 1,
                 ..l
             }),
