@@ -151,6 +151,10 @@ pub(crate) struct PlanRow {
     pub(crate) error_px: (f64, f64),
     /// The teleport flight's frames to settle per jump, and the blocks then clamped.
     pub(crate) settle: Vec<Option<(u64, u32)>>,
+    /// Per leg of the teleport flight: the first frame whose plan meets epsilon everywhere in view, and
+    /// the bound the leg's last frame misses it by ([`Settling`]).
+    pub(crate) met: Vec<Option<u64>>,
+    pub(crate) end_unmet_px: Vec<f32>,
 }
 
 /// What a plan-time run flies.
@@ -220,12 +224,12 @@ pub(crate) fn measure_plan(
             percentiles(evals),
             percentiles(refine),
             error,
-            settle.legs,
+            settle,
         ))
     };
     let (wall_ms, cpu_ms, evaluations, refine, error_px, _) =
         fly(Path::Figure8, 50.0, run.frames, run.error_every)?;
-    let (.., settle) = fly(Path::Teleport { every: 60 }, 1.0, 240, 0)?;
+    let (.., teleport) = fly(Path::Teleport { every: 60 }, 1.0, 240, 0)?;
     Ok(PlanRow {
         terrain: name.to_string(),
         epsilon,
@@ -234,7 +238,9 @@ pub(crate) fn measure_plan(
         evaluations,
         refine,
         error_px,
-        settle,
+        settle: teleport.legs,
+        met: teleport.met,
+        end_unmet_px: teleport.end_unmet_px,
     })
 }
 
@@ -255,9 +261,11 @@ pub(crate) fn plan_section(
          the refinement's alone); the whole frame's measured screen error on frames {every}, 2 x {every}, ... (over \
          every block, and over the blocks the held data could pay for); and a teleport flight (a jump every 60 \
          frames, 1 m/frame between) for the frames from each jump until the plan settles, with the blocks \
-         clamped then. {machine}\n\n\
+         clamped then, and until its plan first meets epsilon everywhere in view (`-`: not within the leg, \
+         with the bound the leg's last frame misses it by). {machine}\n\n\
          | terrain | epsilon | p50 ms | p99 ms | max ms | bounds p50 / p99 / max | refinement p50 / p99 / max \
-         | error px: frame / unclamped | settle frames (clamped) |\n|---|---|---|---|---|---|---|---|---|\n",
+         | error px: frame / unclamped | settle frames (clamped) | epsilon met after |\n\
+         |---|---|---|---|---|---|---|---|---|---|\n",
         profile.name,
         profile.view.width,
         profile.view.height,
@@ -278,9 +286,18 @@ pub(crate) fn plan_section(
                 None => "-".into(),
             })
             .collect();
+        let met: Vec<String> = r
+            .met
+            .iter()
+            .zip(&r.end_unmet_px)
+            .map(|(m, u)| match m {
+                Some(f) => f.to_string(),
+                None => format!("- ({u:.2} px)"),
+            })
+            .collect();
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {} | {} / {} / {} | {} / {} / {} | {:.2} / {:.2} | {} |",
+            "| {} | {} | {} | {} | {} | {} / {} / {} | {} / {} / {} | {:.2} / {:.2} | {} | {} |",
             r.terrain,
             r.epsilon,
             t(0),
@@ -295,6 +312,7 @@ pub(crate) fn plan_section(
             r.error_px.0,
             r.error_px.1,
             settle.join(", "),
+            met.join(", "),
         );
     }
     s.push('\n');
