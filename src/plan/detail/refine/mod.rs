@@ -10,7 +10,7 @@ use crate::plan::detail::{
     stitch, DetailBudget, DetailView, PoolBounds, TileKey, DETAIL_CAPACITY,
 };
 use crate::plan::frame::Rect;
-use crate::plan::lod::{BoundView, LatticeBox, LodFrame, LodMode, KEEP_BAND, MAX_LOD_BLOCKS};
+use crate::plan::lod::{BoundView, LatticeBox, LodFrame, KEEP_BAND, MAX_LOD_BLOCKS};
 use crate::Result;
 
 mod carry;
@@ -370,8 +370,9 @@ struct Lag {
     generation: u32,
     /// Frames since it was this frame's view.
     age: u32,
+    /// What the view's key also holds, checked apart: a view of another epsilon or viewport is never
+    /// taken up. (The SAT mode is the planner's, fixed.)
     eps: f64,
-    mode: LodMode,
     viewport: (u32, u32),
 }
 
@@ -436,7 +437,6 @@ impl Quadtree {
         let lag = self.lag.take().filter(|l| {
             l.key != bounds.key
                 && l.eps.to_bits() == bounds.eps.to_bits()
-                && l.mode == bounds.mode
                 && l.viewport == bounds.lod.viewport()
         });
         let own = bounds;
@@ -494,7 +494,6 @@ impl Quadtree {
                 generation: self.memo.generation(),
                 age: 1,
                 eps: own.eps,
-                mode: own.mode,
                 viewport: own.lod.viewport(),
             }),
         };
