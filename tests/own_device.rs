@@ -24,6 +24,9 @@ const SIZES: [(u32, u32); 2] = [(320, 180), (200, 200)];
 
 #[test]
 fn own_device_matches_clipsat_render_through_a_resize() {
+    // Under `.ci/run`'s Vulkan passes (`WGPU_VALIDATION=1 WGPU_DEBUG=1`, `CLIPSAT_VALIDATION_LOG`) the
+    // example's own instance asks for the validation layer, whose reports reach the run's file.
+    clipsat::gpu::validation::install_from_env();
     let cache = Path::new(env!("CARGO_TARGET_TMPDIR")).join("own_device_cache");
     let plain = own_device::render(&cache, &SIZES, false).expect("own device renders");
     // The same backend as the example's device: wgpu's GL, or (`CLIPSAT_GPU=vulkan`, which `--gpu auto`

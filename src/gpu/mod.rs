@@ -20,6 +20,7 @@ pub mod sat_textures;
 #[cfg(feature = "internals")]
 pub mod sg_probe;
 pub mod shaders;
+pub mod validation;
 
 use std::marker::PhantomData;
 use std::sync::OnceLock;
@@ -95,6 +96,14 @@ pub struct AdapterReport {
     pub driver_info: String,
     /// Which [`GpuMode`] made the device: "strict", "gl" or "vulkan".
     pub mode: String,
+    /// The PCI vendor id (0x10de NVIDIA, 0x13b5 ARM, 0x5143 Qualcomm; 0x10005 Mesa's software
+    /// devices); 0 where the backend does not know it (GL).
+    pub vendor: u32,
+    /// The PCI device id; 0 where the backend does not know it.
+    pub device: u32,
+    /// The device type: "DiscreteGpu", "IntegratedGpu", "Cpu" (a software rasteriser), "VirtualGpu" or
+    /// "Other".
+    pub device_type: String,
     /// Whether the adapter offers compute shaders (a GLES 3.0 device does not).
     pub compute: bool,
     /// Whether the adapter offers storage buffers in vertex shaders (a GLES 3.0 device does not).
@@ -158,9 +167,14 @@ impl Gpu {
 
     #[cfg(feature = "vulkan")]
     fn new_vulkan() -> Result<Self> {
+        // Under `CLIPSAT_VALIDATION_LOG` (a test run) the Khronos validation layer checks every call.
+        let mut flags = wgpu::InstanceFlags::empty().with_env();
+        if validation::install_from_env() {
+            flags |= wgpu::InstanceFlags::VALIDATION | wgpu::InstanceFlags::DEBUG;
+        }
         let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
             backends: wgpu::Backends::VULKAN,
-            flags: wgpu::InstanceFlags::empty().with_env(),
+            flags,
             ..wgpu::InstanceDescriptor::new_without_display_handle()
         });
         let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
@@ -348,6 +362,9 @@ impl Gpu {
             driver,
             driver_info: info.driver_info.clone(),
             mode: mode.into(),
+            vendor: info.vendor,
+            device: info.device,
+            device_type: format!("{:?}", info.device_type),
             compute: flags.contains(wgpu::DownlevelFlags::COMPUTE_SHADERS),
             vertex_storage: flags.contains(wgpu::DownlevelFlags::VERTEX_STORAGE),
         };

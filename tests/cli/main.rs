@@ -4,6 +4,7 @@
 
 mod bad_input;
 mod bench_all;
+mod cross_driver;
 mod determinism;
 mod fly;
 mod hash;

@@ -16,5 +16,6 @@ mod sat;
 mod scene;
 mod sg_numerics;
 mod shaders_glsl;
+mod shaders_glslang;
 mod shading;
 mod sources;

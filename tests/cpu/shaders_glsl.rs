@@ -94,7 +94,7 @@ fn every_entry_point_translates_to_glsl_es_300() {
 
 /// Every program as the renderer assembles it: the plain files, every SG variant and the benchmark's
 /// omissions, parsed and validated.
-fn programs() -> Vec<(String, naga::Module, naga::valid::ModuleInfo)> {
+pub(crate) fn programs() -> Vec<(String, naga::Module, naga::valid::ModuleInfo)> {
     shaders::sources()
         .into_iter()
         .map(|(n, t)| (n.to_string(), t))
@@ -112,7 +112,7 @@ fn programs() -> Vec<(String, naga::Module, naga::valid::ModuleInfo)> {
 
 /// The GLSL ES text of every entry point of `module` for `#version {version} es`, with the writer flags
 /// wgpu's GL backend sets and its bounds-check policy on GLES (none: image loads are `Unchecked` there).
-fn glsl_es(
+pub(crate) fn glsl_es(
     module: &naga::Module,
     info: &naga::valid::ModuleInfo,
     version: u16,

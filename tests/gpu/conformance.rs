@@ -268,47 +268,17 @@ fn basic_and_pool_frames_match_their_twin() {
     }
 }
 
-/// `clipsat selftest --json` on this machine's device (the backend `CLIPSAT_GPU` names, as `--gpu auto`
-/// reads it): every check passes and it exits 0; without a device it can use (`CLIPSAT_GPU` naming no
-/// backend) the adapter check fails and it exits 1.
+/// `clipsat selftest --json` without a device it can use (`CLIPSAT_GPU` naming no backend): the adapter
+/// check fails and it exits 1. Its passing runs, on every driver present, are `tests/cli/cross_driver.rs`.
 #[test]
-fn selftest_passes_here_and_exits_1_on_a_failure() {
+fn selftest_exits_1_without_a_device() {
     let cache = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("selftest-cache");
-    let run = |gpu: Option<&str>| {
-        let mut c = std::process::Command::new(env!("CARGO_BIN_EXE_clipsat"));
-        c.args(["selftest", "--json", "--frames", "5"])
-            .env("CLIPSAT_CACHE", &cache);
-        if let Some(g) = gpu {
-            c.env("CLIPSAT_GPU", g);
-        }
-        c.output().expect("run clipsat selftest")
-    };
-    let out = run(None);
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout)
-        .unwrap_or_else(|e| panic!("{e}: {}", String::from_utf8_lossy(&out.stderr)));
-    assert_eq!(out.status.code(), Some(0), "{v:#}");
-    assert_eq!(v["passed"], true, "{v:#}");
-    let names: Vec<&str> = v["checks"]
-        .as_array()
-        .expect("checks")
-        .iter()
-        .map(|c| c["name"].as_str().expect("name"))
-        .collect();
-    assert_eq!(
-        names,
-        [
-            "adapter",
-            "vertices",
-            "basic frame",
-            "SG frame",
-            "detail-pool frame",
-            "border",
-            "read-back and frame times"
-        ]
-    );
-    let backend = v["adapter"]["backend"].as_str().expect("backend");
-    assert_eq!(backend == "Vulkan", render_support::on_vulkan(), "{v:#}");
-    let failed = run(Some("no-such-backend"));
+    let failed = std::process::Command::new(env!("CARGO_BIN_EXE_clipsat"))
+        .args(["selftest", "--json", "--frames", "5"])
+        .env("CLIPSAT_CACHE", &cache)
+        .env("CLIPSAT_GPU", "no-such-backend")
+        .output()
+        .expect("run clipsat selftest");
     assert_eq!(
         failed.status.code(),
         Some(1),

@@ -18,3 +18,4 @@ mod render_goldens;
 mod render_lod;
 mod sg_gpu;
 mod shading_data;
+mod validation;

@@ -3,11 +3,13 @@
 //! what GLES 3.0 allows a conformant driver (`clipsat::twin::frame`), not with another driver's pixels.
 //! Exits 0 when every check passes, 1 when one fails (2 for a bad command line, as every command).
 
+use std::path::Path;
 use std::time::{Duration, Instant};
 
 use clap::{Args, ValueEnum};
 use clipsat::bake::{bake_lod, default_cache_dir, BakeParams};
 use clipsat::gpu::headless::{render_frame, sg_bake, FrameOptions, Offscreen, OffscreenOptions};
+use clipsat::gpu::readback::Image;
 use clipsat::gpu::renderer::{ShadingProbe, VertexProbe};
 use clipsat::gpu::{floor, Gpu, GpuMode};
 use clipsat::plan::camera::Camera;
@@ -53,6 +55,10 @@ pub(crate) struct SelftestArgs {
     /// The report as JSON on stdout.
     #[arg(long)]
     json: bool,
+    /// Also writes the frames compared with their CPU twins to this folder as PNG (`basic.png`,
+    /// `sg.png`, `pool.png`): with the JSON, what to send when a check fails on a device.
+    #[arg(long, value_name = "DIR")]
+    images: Option<std::path::PathBuf>,
 }
 
 /// One check's outcome.
@@ -61,8 +67,14 @@ struct Check {
     name: &'static str,
     ok: bool,
     detail: String,
+    /// The check's measurements by name, for a device farm to group and compare failures.
+    #[serde(skip_serializing_if = "serde_json::Map::is_empty")]
+    figures: serde_json::Map<String, serde_json::Value>,
     #[serde(skip_serializing_if = "Option::is_none")]
     twin: Option<TwinReport>,
+    /// The frame's PNG, with `--images`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    image: Option<String>,
 }
 
 impl Check {
@@ -71,8 +83,18 @@ impl Check {
             name,
             ok,
             detail,
+            figures: serde_json::Map::new(),
             twin: None,
+            image: None,
         }
+    }
+
+    /// Adds measurements to the check's figures.
+    fn with(mut self, figures: &[(&str, f64)]) -> Self {
+        for (k, v) in figures {
+            self.figures.insert((*k).to_string(), serde_json::json!(v));
+        }
+        self
     }
 
     /// A frame's comparison with its twin.
@@ -97,8 +119,20 @@ impl Check {
             name,
             ok: report.passes(),
             detail,
+            figures: serde_json::Map::new(),
             twin: Some(report),
+            image: None,
         }
+    }
+
+    /// With a folder, writes the frame there as `{stem}.png` and names it in the check.
+    fn saved(mut self, image: &Image, dir: Option<&Path>, stem: &str) -> Result<Self> {
+        if let Some(dir) = dir {
+            let path = dir.join(format!("{stem}.png"));
+            image.save_png(&path)?;
+            self.image = Some(path.display().to_string());
+        }
+        Ok(self)
     }
 
     /// A check that could not run: failed, with the error.
@@ -128,13 +162,16 @@ pub(crate) fn run(args: &SelftestArgs) -> Result<()> {
     let (adapter, checks) = match Gpu::new(mode) {
         Ok(gpu) => {
             let adapter = serde_json::to_value(gpu.report()).unwrap_or_default();
-            (adapter, checks(&gpu, args.frames))
+            (adapter, checks(&gpu, args.frames, args.images.as_deref()))
         }
         Err(e) => (serde_json::Value::Null, vec![Check::error("adapter", &e)]),
     };
     let passed = checks.iter().all(|c| c.ok);
     if args.json {
         let v = serde_json::json!({
+            "clipsat": env!("CARGO_PKG_VERSION"),
+            "os": std::env::consts::OS,
+            "arch": std::env::consts::ARCH,
             "adapter": adapter,
             "checks": checks,
             "passed": passed,
@@ -145,8 +182,9 @@ pub(crate) fn run(args: &SelftestArgs) -> Result<()> {
         if let Some(a) = adapter.as_object() {
             let field = |k: &str| a.get(k).and_then(|v| v.as_str()).unwrap_or("?").to_string();
             outln!(
-                "device: {} ({}, {}, {})",
+                "device: {}, driver {} ({}, {}, {})",
                 field("name"),
+                field("driver"),
                 field("backend"),
                 field("gl_version"),
                 field("mode")
@@ -179,7 +217,7 @@ pub(crate) fn run(args: &SelftestArgs) -> Result<()> {
 }
 
 /// The checks after the adapter's: each returns its own outcome, an error included.
-fn checks(gpu: &Gpu, frames: u32) -> Vec<Check> {
+fn checks(gpu: &Gpu, frames: u32, images: Option<&Path>) -> Vec<Check> {
     let floor = floor::check(gpu.adapter());
     let short = floor::shortfalls(&floor);
     let mut out = vec![Check::new(
@@ -194,6 +232,15 @@ fn checks(gpu: &Gpu, frames: u32) -> Vec<Check> {
             short.join("; ")
         },
     )];
+    if let Some(dir) = images {
+        if let Err(e) = std::fs::create_dir_all(dir) {
+            out.push(Check::error(
+                "images",
+                &clipsat::Error::io(dir, "creating the images folder", e),
+            ));
+            return out;
+        }
+    }
     let hm = match generate(&ProceduralParams {
         size: 257,
         ..ProceduralParams::default()
@@ -206,9 +253,9 @@ fn checks(gpu: &Gpu, frames: u32) -> Vec<Check> {
     };
     let runs: [(&'static str, &dyn Fn() -> Result<Check>); 6] = [
         ("vertices", &|| vertices(gpu, &hm)),
-        ("basic frame", &|| basic_frame(gpu, &hm)),
-        ("SG frame", &|| sg_frame(gpu, &hm)),
-        ("detail-pool frame", &|| pool_frame(gpu, &hm)),
+        ("basic frame", &|| basic_frame(gpu, &hm, images)),
+        ("SG frame", &|| sg_frame(gpu, &hm, images)),
+        ("detail-pool frame", &|| pool_frame(gpu, &hm, images)),
         ("border", &|| border_check(gpu, &hm)),
         ("read-back and frame times", &|| {
             frame_times(gpu, &hm, frames)
@@ -289,6 +336,8 @@ fn vertices(gpu: &Gpu, hm: &Heightmap) -> Result<Check> {
             checked += 1;
         }
     }
+    #[expect(clippy::cast_precision_loss, reason = "a vertex count far below 2^52")]
+    let figures = [("vertices", checked as f64), ("worst_of_bound", worst)];
     Ok(Check::new(
         "vertices",
         checked > 1000 && worst <= 1.0,
@@ -296,11 +345,12 @@ fn vertices(gpu: &Gpu, hm: &Heightmap) -> Result<Check> {
             "{checked} vertices against the CPU twin: at most {worst:.2} of what conformant highp \
              arithmetic allows"
         ),
-    ))
+    )
+    .with(&figures))
 }
 
 /// A basic-shading frame (distance LOD, ring data under coarser blocks) against its twin.
-fn basic_frame(gpu: &Gpu, hm: &Heightmap) -> Result<Check> {
+fn basic_frame(gpu: &Gpu, hm: &Heightmap, images: Option<&Path>) -> Result<Check> {
     let p = profile(None)?;
     let cam = Camera::default_for(hm)?;
     let cm = clipmap_at(hm, &p, cam.eye)?;
@@ -309,16 +359,17 @@ fn basic_frame(gpu: &Gpu, hm: &Heightmap) -> Result<Check> {
     let image = render_frame(&mut r, &cm, &cam, &FrameOptions::default())?.image;
     let probed = probe.capture(&r)?;
     let clear = border::clear_rgba8(FrameOptions::default().clear);
-    Ok(Check::frame(
+    Check::frame(
         "basic frame",
         compare_basic(&image, &probed, clear, &r.shading()),
         "",
-    ))
+    )
+    .saved(&image, images, "basic")
 }
 
 /// An SG frame (evening: visibility, specular, fog; 4 x 8 patches) against its twin: what the shader read
 /// from the per-level tables, and the colour.
-fn sg_frame(gpu: &Gpu, hm: &Heightmap) -> Result<Check> {
+fn sg_frame(gpu: &Gpu, hm: &Heightmap, images: Option<&Path>) -> Result<Check> {
     let p = profile(None)?;
     let cam = Camera::default_for(hm)?;
     let cm = clipmap_at(hm, &p, cam.eye)?;
@@ -345,11 +396,11 @@ fn sg_frame(gpu: &Gpu, hm: &Heightmap) -> Result<Check> {
     };
     let clear = border::clear_rgba8(FrameOptions::default().clear);
     let report = compare_sg(&image, &probed, clear, r.globals(), &cm, &d);
-    Ok(Check::frame("SG frame", report, ""))
+    Check::frame("SG frame", report, "").saved(&image, images, "sg")
 }
 
 /// A SAT LOD frame at 0.5 px, low over the terrain, drawing detail pool cells, against its twin.
-fn pool_frame(gpu: &Gpu, hm: &Heightmap) -> Result<Check> {
+fn pool_frame(gpu: &Gpu, hm: &Heightmap, images: Option<&Path>) -> Result<Check> {
     let p = profile(Some(300))?;
     let cam = low_camera(hm)?;
     let mut cm = clipmap_at(hm, &p, cam.eye)?;
@@ -392,7 +443,9 @@ fn pool_frame(gpu: &Gpu, hm: &Heightmap) -> Result<Check> {
         &format!("; {cells} pool cells drawn"),
     );
     check.ok &= cells > 0;
-    Ok(check)
+    check
+        .with(&[("pool_cells", f64::from(cells))])
+        .saved(&image, images, "pool")
 }
 
 /// Seen from outside and low, nothing is drawn where no ray within a pixel meets the data (the CPU's
@@ -417,11 +470,17 @@ fn border_check(gpu: &Gpu, hm: &Heightmap) -> Result<Check> {
     let mut r = Offscreen::new(gpu, &p, &cm, OffscreenOptions::default())?;
     let image = render_frame(&mut r, &cm, &cam, &FrameOptions::default())?.image;
     let curtains = border::curtain_pixels(&image, clear, &coverage);
+    #[expect(clippy::cast_precision_loss, reason = "pixel counts far below 2^52")]
+    let figures = [
+        ("curtain_pixels", curtains as f64),
+        ("data_pixels", seen as f64),
+    ];
     Ok(Check::new(
         "border",
         curtains <= 20 && seen > 0,
         format!("{curtains} pixels drawn where no ray meets the data ({seen} pixels see it)"),
-    ))
+    )
+    .with(&figures))
 }
 
 /// `frames` frames along a short path, each planned, uploaded, drawn and read back: none may hang (a
@@ -460,5 +519,11 @@ fn frame_times(gpu: &Gpu, hm: &Heightmap, frames: u32) -> Result<Check> {
             ms(worst),
             ms(read)
         ),
-    ))
+    )
+    .with(&[
+        ("frames", f64::from(frames)),
+        ("mean_ms", ms(total) / f64::from(frames)),
+        ("max_ms", ms(worst)),
+        ("max_read_back_ms", ms(read)),
+    ]))
 }
