@@ -3,7 +3,8 @@
 # what a headless run on a machine with a real GPU needs: the GPU test binary, the test build's clipsat
 # (the CLI tests run it; on-gpu.sh renders and self-tests with it), the shared terrains and the GL/Vulkan
 # loader packages (the GPU machine has the driver but may lack loaders). About 60 MiB with the project's
-# files. The test build has the Vulkan backend too (CLIPSAT_GPU=vulkan picks it).
+# files. The test build has the Vulkan backend too (CLIPSAT_GPU=vulkan picks it), and .gpu/vulkan-layer holds
+# the Khronos validation layer CI uses (.ci/vulkan-layer), so the Vulkan pass there runs under it too.
 # Differs from the first version in where on-gpu.sh comes from (this folder), in building the own_device
 # test binary as well, and in finding the exclude file of a worktree; docs/real-drivers.md says how to
 # use both.
@@ -23,6 +24,12 @@ cp "$(exe gpu)" .gpu/gputest && cp "$(exe own_device)" .gpu/owndevicetest && cp 
 strip .gpu/gputest .gpu/owndevicetest .gpu/clipsat-test
 cp -r ../shared/data .gpu/data
 cp scripts/real-gpu/on-gpu.sh .gpu/
+# The validation layer beside its manifest (the manifest's path made relative to it); `bash .ci/setup`
+# installs it here.
+mkdir -p .gpu/vulkan-layer
+cp /usr/lib/chromium/libVkLayer_khronos_validation.so .gpu/vulkan-layer/
+sed 's#/usr/lib/chromium/#./#' .ci/vulkan-layer/VkLayer_khronos_validation.json \
+  > .gpu/vulkan-layer/VkLayer_khronos_validation.json
 echo "$PWD" > .gpu/build_root   # the path the test binary has compiled in (CARGO_MANIFEST_DIR)
 o='-oAPT::Architecture=amd64 -oAPT::Architectures=amd64 -oDir::State::Lists=/tmp/amd64'
 mkdir -p /tmp/amd64/partial && apt-get $o update >/dev/null

@@ -262,7 +262,9 @@ fn checks(gpu: &Gpu, frames: u32, images: Option<&Path>) -> Vec<Check> {
         }),
     ];
     for (name, check) in runs {
-        out.push(check().unwrap_or_else(|e| Check::error(name, &e)));
+        let t = Instant::now();
+        let c = check().unwrap_or_else(|e| Check::error(name, &e));
+        out.push(c.with(&[("seconds", t.elapsed().as_secs_f64())]));
     }
     out
 }
