@@ -93,6 +93,11 @@ pub use progress::{Progress, ProgressReport};
 #[doc = include_str!("../README.md")]
 struct ReadmeDoctests;
 
+/// The guide's Rust blocks, compiled as doctests.
+#[cfg(doctest)]
+#[doc = include_str!("../docs/guide.md")]
+struct GuideDoctests;
+
 #[cfg(feature = "internals")]
 /// Where the shared terrain data lives: `$CLIPSAT_DATA`, else `../shared/data` beside the crate.
 pub fn data_dir() -> std::path::PathBuf {
