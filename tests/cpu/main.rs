@@ -7,6 +7,7 @@ mod flight;
 mod fly_paths;
 mod fragment;
 mod fuzz_parsers;
+mod imagery;
 mod layering;
 mod lod;
 mod package;

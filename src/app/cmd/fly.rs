@@ -167,7 +167,8 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
     .into_iter()
     .find_map(|(on, flag)| on.then_some(flag));
     let stream = args.stream.streams(needs_all)?;
-    let (terrain_name, hm, package) =
+    // Imagery (`--imagery`) is checked and baked, not flown yet (issue 43).
+    let (terrain_name, hm, package, _imagery) =
         super::render::open_terrain(&args.terrain, stream, !args.json)?;
     let streamed = package.is_some();
     let mut clipmap = match package {

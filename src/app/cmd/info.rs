@@ -1,6 +1,7 @@
 //! `clipsat info`: what a terrain is, and what each shipped profile would need to render it.
 
 use clap::Args;
+use clipsat::package::imagery::ImageryPackage;
 use clipsat::profile::Profile;
 use clipsat::profile::SHIPPED;
 use clipsat::Result;
@@ -25,7 +26,28 @@ pub(crate) fn run(args: &InfoArgs) -> Result<()> {
     if let Some(t) = &args.terrain_pos {
         targs.terrain = Some(t.clone());
     }
+    // An imagery package alone (`clipsat bake --imagery` writes one beside the terrain's).
+    if let Some(t) = targs.terrain.as_deref() {
+        let path = std::path::Path::new(t);
+        if ImageryPackage::is_imagery_package(path) {
+            let p = ImageryPackage::open(path)?;
+            if args.json {
+                super::print_json(&super::imagery::imagery_json(&p));
+            } else {
+                super::imagery::print_imagery(&p);
+            }
+            return Ok(());
+        }
+    }
+    // `--imagery`: checked, placed on this terrain and baked into the cache, then described.
+    let imagery = match &targs.imagery {
+        Some(_) => targs.open(false, false)?.take_imagery(),
+        None => None,
+    };
     if let Some(pkg) = targs.package()? {
+        if let (Some(p), false) = (&imagery, args.json) {
+            super::imagery::print_imagery(p);
+        }
         return package_info(&pkg, args.json);
     }
     let (name, hm) = targs.load()?;
@@ -68,6 +90,7 @@ pub(crate) fn run(args: &InfoArgs) -> Result<()> {
             "ew_spacing_m": hm.ew_spacing(),
             "ew_stretch": hm.ew_stretch(),
             "profiles": profiles,
+            "imagery": imagery.as_ref().map(super::imagery::imagery_json),
         }));
         return Ok(());
     }
@@ -91,6 +114,9 @@ pub(crate) fn run(args: &InfoArgs) -> Result<()> {
     }
     outln!("heights   {lo:.1} .. {hi:.1} m");
     outln!("voids     {} filled", hm.voids_filled());
+    if let Some(p) = &imagery {
+        super::imagery::print_imagery(p);
+    }
     // What render, fly and view do with it: the split below is what they hold once it streams.
     outln!(
         "streamed  render, fly and view bake it into a package in {} on first use and stream it \

@@ -13,6 +13,7 @@ use clipsat::gpu::brute::BruteForce;
 use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen, OffscreenOptions};
 use clipsat::gpu::Gpu;
 use clipsat::measure;
+use clipsat::package::imagery::ImageryPackage;
 use clipsat::package::Package;
 use clipsat::plan::camera::parse_vec3;
 use clipsat::plan::camera::Camera;
@@ -124,9 +125,16 @@ pub(crate) fn open_terrain(
     terrain: &TerrainArgs,
     stream: bool,
     progress: bool,
-) -> Result<(String, Heightmap, Option<Package>)> {
-    Ok(terrain.open(stream, progress)?.parts())
+) -> Result<OpenedTerrain> {
+    let mut t = terrain.open(stream, progress)?;
+    let imagery = t.take_imagery();
+    let (name, hm, package) = t.parts();
+    Ok((name, hm, package, imagery))
 }
+
+/// What [`open_terrain`] opens: the name, the stand-in (or the whole grid), the package streamed and
+/// the imagery package draped (`--imagery`).
+pub(crate) type OpenedTerrain = (String, Heightmap, Option<Package>, Option<ImageryPackage>);
 
 pub(crate) fn run(args: &RenderArgs) -> Result<()> {
     let mode = args.gpu.mode();
@@ -154,7 +162,7 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
     .into_iter()
     .find_map(|(on, flag)| on.then_some(flag));
     let stream = args.stream.streams(needs_all)?;
-    let (terrain_name, hm, package) = open_terrain(&args.terrain, stream, !args.json)?;
+    let (terrain_name, hm, package, imagery) = open_terrain(&args.terrain, stream, !args.json)?;
     let camera = camera(args, &hm, f64::from(profile.view.fov_y_deg))?;
 
     let gpu = Gpu::new(mode)?;
@@ -415,6 +423,11 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
                 json!(frame.stats.detail_tiles_needed),
             );
             o.insert("pool_cells".into(), json!(frame.stats.pool_cells));
+            // The imagery package (`--imagery`): checked and baked; not drawn yet (issue 43).
+            o.insert(
+                "imagery".into(),
+                json!(imagery.as_ref().map(super::imagery::imagery_json)),
+            );
         }
         print_json(&out);
     } else {
@@ -430,6 +443,14 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
             report.name,
             report.gl_version,
         );
+        if let Some(p) = &imagery {
+            println!(
+                "imagery {} ({} x {} texels) checked and baked; drawing it is not implemented yet",
+                p.path().display(),
+                p.header().width,
+                p.header().height
+            );
+        }
         if let Some(e) = reference {
             println!(
                 "shading vs CPU reference ({} pixels): rmse {:.4}, max {:.4} (shading model: rmse {:.4})",

@@ -113,7 +113,8 @@ pub(crate) fn run(args: &ViewArgs) -> Result<()> {
     // The terrain streams through the profile's tile cache by default (a plain source baked into the
     // cache on first use), as `render` streams it: the camera and the ground under it come from the
     // package's coarse stand-in. --resident loads it whole.
-    let (terrain_name, hm, package) =
+    // Imagery (`--imagery`) is checked and baked, not drawn yet (issue 43).
+    let (terrain_name, hm, package, _imagery) =
         super::render::open_terrain(&args.terrain, args.stream.streams(None)?, true)?;
     // The data's own spacing (the stand-in's is coarser): the eye's clearance above the ground.
     let spacing = package
