@@ -7,6 +7,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
+pub use crate::profile_imagery::{ImageryBudget, MAX_COLOR_LEVELS};
 use crate::{Error, Result};
 
 /// The profiles shipped in `profiles/`, by name, with their TOML text.
@@ -33,6 +34,10 @@ pub struct Profile {
     pub view: View,
     /// The shading features the device may use.
     pub shading: Shading,
+    /// The colour clipmap of draped imagery (used only where the terrain has imagery and the profile
+    /// allows `imagery`); a profile without the section gets [`ImageryBudget::default`].
+    #[serde(default)]
+    pub imagery: ImageryBudget,
 }
 
 /// Clipmap geometry (GC section 3).
@@ -171,6 +176,8 @@ pub enum Feature {
     Fog,
     /// Fractal detail synthesised below the data's resolution (GC section 8).
     Synthesis,
+    /// Draped imagery: the colour clipmap and its albedo (`[imagery]`'s budget).
+    Imagery,
 }
 
 impl Feature {
@@ -183,6 +190,7 @@ impl Feature {
             Self::Specular => "specular",
             Self::Fog => "fog",
             Self::Synthesis => "synthesis",
+            Self::Imagery => "imagery",
         }
     }
 }
@@ -476,14 +484,21 @@ impl Profile {
             .checked_mul(u64::from(self.clip_size()))
             .and_then(|t| t.checked_mul(u64::from(c.levels)))
             .and_then(|t| t.checked_mul(8));
-        match rings.and_then(|r| r.checked_add(MIN_TILE_CACHE_BYTES)) {
+        // The imagery's tile cache and staging, where the profile allows imagery (checked first).
+        let imagery_cpu = if self.allows(Feature::Imagery) {
+            self.imagery.validate(source_name)?;
+            self.imagery.cpu_bytes()
+        } else {
+            0
+        };
+        match rings.and_then(|r| r.checked_add(MIN_TILE_CACHE_BYTES + imagery_cpu)) {
             Some(need) if need <= b.cpu_memory_bytes => {}
             _ => {
                 return bad(
                     "budget.cpu_memory_bytes",
                     format!(
                     "{} bytes do not hold the rings' CPU copy ({} bytes) plus a tile cache of at \
-                         least {MIN_TILE_CACHE_BYTES} bytes",
+                         least {MIN_TILE_CACHE_BYTES} bytes (and the imagery's {imagery_cpu} bytes)",
                     b.cpu_memory_bytes,
                     rings.map_or_else(|| "overflowing".to_owned(), |r| r.to_string())
                 ),
@@ -491,7 +506,7 @@ impl Profile {
             }
         }
         // Every part is bounded by the checks above (at most a few GiB), so the u64 sums cannot wrap.
-        let need = self.footprint().total();
+        let need = self.footprint().total() + self.imagery_gpu_bytes();
         if b.gpu_memory_bytes == 0 || need > b.gpu_memory_bytes {
             return bad(
                 "budget.gpu_memory_bytes",
@@ -528,6 +543,16 @@ impl Profile {
             tile_cache: rest - lod_tables - shading,
             lod_tables,
             shading,
+        }
+    }
+
+    /// GPU bytes of the colour rings where the profile allows imagery (else 0): counted against
+    /// `budget.gpu_memory_bytes` with [`Profile::footprint`], allocated only for a terrain with imagery.
+    pub fn imagery_gpu_bytes(&self) -> u64 {
+        if self.allows(Feature::Imagery) {
+            self.imagery.gpu_bytes()
+        } else {
+            0
         }
     }
 

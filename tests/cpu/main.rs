@@ -8,6 +8,7 @@ mod fly_paths;
 mod fragment;
 mod fuzz_parsers;
 mod imagery;
+mod imagery_rings;
 mod layering;
 mod lod;
 mod package;
