@@ -23,6 +23,29 @@ const SG_NO_FOG_WGSL: &str = include_str!("../../shaders_gles/sg_no_fog.wgsl");
 const SG_CLIPMAP_WGSL: &str = include_str!("../../shaders_gles/sg_clipmap.wgsl");
 const SG_PROBE_WGSL: &str = include_str!("../../shaders_gles/sg_probe.wgsl");
 const DEBUG_VIEW_WGSL: &str = include_str!("../../shaders_gles/debug_view.wgsl");
+const IMAGERY_WGSL: &str = include_str!("../../shaders_gles/imagery.wgsl");
+
+/// The imagery variant's edits of `clipmap.wgsl`: both shading calls take the imagery's albedo, and the
+/// pixel's footprint is taken where each fragment program starts, before its discard (GLSL ES 3.00
+/// leaves derivatives after a discard undefined).
+const IMAGERY_EDITS: [(&str, &str); 4] = [
+    (
+        "basic_shade(v.height, v.normal, length(v.rel), globals.shading)",
+        "imagery_shade(v, v.height, v.normal, globals.shading)",
+    ),
+    (
+        "basic_shade(d.x, d.yzw, length(v.rel), globals.shading)",
+        "imagery_shade(v, d.x, d.yzw, globals.shading)",
+    ),
+    (
+        "    let rate = debug_rate(v.rel);\n",
+        "    let rate = debug_rate(v.rel);\n    imagery_fp = imagery_footprint(v.rel);\n",
+    ),
+    (
+        "    return plain_colour(v, debug_rate(v.rel));\n",
+        "    imagery_fp = imagery_footprint(v.rel);\n    return plain_colour(v, debug_rate(v.rel));\n",
+    ),
+];
 
 /// The brute-force reference program: basic shading + `brute.wgsl`.
 pub fn brute() -> String {
@@ -39,6 +62,18 @@ pub fn clipmap() -> String {
 pub fn clipmap_view(view: DebugView) -> String {
     let constant = format!("\nconst DEBUG_VIEW: u32 = {}u;\n", view.code());
     [BASIC_SHADING_WGSL, DEBUG_VIEW_WGSL, CLIPMAP_WGSL, &constant].concat()
+}
+
+/// The clipmap renderer's program with draped imagery (`imagery.wgsl`, group 2): `clipmap.wgsl` with
+/// [`IMAGERY_EDITS`], normal view. Built only for a terrain with imagery.
+pub fn clipmap_imagery() -> String {
+    let mut body = CLIPMAP_WGSL.to_string();
+    for (from, to) in IMAGERY_EDITS {
+        debug_assert!(body.contains(from), "clipmap.wgsl no longer has `{from}`");
+        body = body.replace(from, to);
+    }
+    let constant = format!("\nconst DEBUG_VIEW: u32 = {}u;\n", DebugView::Normal.code());
+    [BASIC_SHADING_WGSL, DEBUG_VIEW_WGSL, &body, IMAGERY_WGSL, &constant].concat()
 }
 
 /// Every file in `shaders_gles/`, by file name, as the renderer assembles it. A library file (no entry
@@ -73,6 +108,7 @@ pub fn sources() -> Vec<(&'static str, String)> {
         ("sg_clipmap.wgsl", sg_clipmap(SgVariant::ALL_ON)),
         ("sg_probe.wgsl", sg_probe(SgVariant::ALL_ON)),
         ("debug_view.wgsl", clipmap_view(DebugView::Wireframe)),
+        ("imagery.wgsl", clipmap_imagery()),
     ]
 }
 
@@ -339,5 +375,27 @@ impl SgSceneUniform {
         u.material = [ks, m.roughness, vis, fog_density];
         u.fog = [fog_rgb.x, fog_rgb.y, fog_rgb.z, 0.0];
         Ok(u)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every edit of the imagery variant finds its text in `clipmap.wgsl`: the footprint is taken in all
+    /// four fragment programs and both shading calls take the imagery's albedo.
+    #[test]
+    fn imagery_edits_apply() {
+        let counts = IMAGERY_EDITS.map(|(from, _)| CLIPMAP_WGSL.matches(from).count());
+        assert!(counts.iter().all(|&c| c > 0), "{counts:?}");
+        let text = clipmap_imagery();
+        assert!(!text.contains("basic_shade(v."), "a shading call kept the basic albedo");
+        assert!(!text.contains("basic_shade(d."), "a shading call kept the basic albedo");
+        for entry in ["fs_interior", "fs_plain", "fs_ring_data", "fs_skirt"] {
+            let at = text.find(&format!("fn {entry}(")).expect(entry);
+            let body = &text[at..at + text[at..].find("\n}").expect("end")];
+            let fp = body.find("imagery_fp = imagery_footprint").expect(entry);
+            assert!(body.find("discard").is_none_or(|d| fp < d), "{entry}");
+        }
     }
 }

@@ -10,6 +10,8 @@
 //! the coarsest level (at most 256 texels a side) is held whole; outside the image nothing is drawn
 //! from the rings (the shader keeps the terrain's own albedo).
 
+use bytemuck::Zeroable as _;
+
 use crate::hash::Hash64;
 use crate::package::imagery::ImageryPackage;
 use crate::package::imagery_cache::ImageryCache;
@@ -163,6 +165,20 @@ pub struct ColorLevelView {
     /// The level's blend weight, rising from 0 to 1 over [`FADE_FRAMES`] after it became whole.
     pub fade: f32,
 }
+
+/// The imagery program's uniform (`Imagery` in `shaders_gles/imagery.wgsl`): per ring (finest first) the
+/// eye's texel modulo the ring and the texels per metre, the held region relative to the eye, the
+/// fade-in weight; then the rings in use and the ring side.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct ImageryUniform {
+    /// Per ring: `eye` (xy, and texels per metre in zw), `held`, `fade` (x).
+    pub levels: [[[f32; 4]; 3]; LEVELS],
+    /// x: rings in use; y: the ring side; zw: unused.
+    pub info: [i32; 4],
+}
+
+const _: () = assert!(std::mem::size_of::<ImageryUniform>() == LEVELS * 48 + 16);
 
 /// The colour clipmap: rings, tile cache, the frame's writes.
 #[derive(Debug)]
@@ -466,6 +482,30 @@ impl ColorRings {
             };
         }
         out
+    }
+
+    /// The uniform of the imagery program with the eye at world (x, y): [`ColorRings::views`] packed.
+    pub fn uniform(&self, x: f64, y: f64) -> ImageryUniform {
+        let mut u = ImageryUniform::zeroed();
+        for (dst, v) in u.levels.iter_mut().zip(self.views(x, y)) {
+            *dst = [
+                [v.eye_mod[0], v.eye_mod[1], v.per_m[0], v.per_m[1]],
+                v.held,
+                [v.fade, 0.0, 0.0, 0.0],
+            ];
+        }
+        u.info = [
+            i32::try_from(self.levels.len()).unwrap_or(0),
+            i32::try_from(self.budget.ring).unwrap_or(0),
+            0,
+            0,
+        ];
+        u
+    }
+
+    /// The ring side, texels.
+    pub fn ring(&self) -> u32 {
+        self.budget.ring
     }
 
     /// The region ring `level` holds (empty when none), for tests and the twin.

@@ -1,8 +1,85 @@
 //! Application (CLI): what an imagery package holds, in words and as JSON, for `info`, `bake`, `render`
 //! and `fly`.
 
+use clipsat::gpu::renderer::Renderer;
+use clipsat::gpu::Gpu;
 use clipsat::package::imagery::ImageryPackage;
+use clipsat::plan::color_rings::ColorRings;
+use clipsat::profile::{Feature, Profile};
+use clipsat::{Error, Result};
+use glam::DVec3;
 use serde_json::json;
+
+/// Most frames [`fill_rings`] updates the colour rings at a still camera.
+pub(crate) const MAX_FILL_FRAMES: u32 = 256;
+
+/// Refuses imagery on a profile that does not allow it or under SG shading (not implemented yet), and
+/// takes the imagery's CPU memory (tile cache and staging) out of `budget.cpu_memory_bytes`, so that the
+/// heights' split and the imagery's together stay within the profile's budget.
+pub(crate) fn check_profile(profile: &mut Profile, sg: bool) -> Result<()> {
+    if !profile.allows(Feature::Imagery) {
+        return Err(Error::config(
+            &profile.name,
+            "shading.features",
+            "draping imagery needs the feature \"imagery\"",
+        ));
+    }
+    if sg {
+        return Err(super::args::arg_error(
+            "--imagery",
+            "draped imagery is drawn under basic shading (--shading basic); under SG it is not \
+             implemented yet",
+        ));
+    }
+    let b = &mut profile.budget;
+    b.cpu_memory_bytes = b
+        .cpu_memory_bytes
+        .checked_sub(profile.imagery.cpu_bytes())
+        .ok_or_else(|| {
+            Error::config(
+                &profile.name,
+                "imagery.cache_bytes",
+                "over budget.cpu_memory_bytes",
+            )
+        })?;
+    profile.validate(&profile.name.clone())
+}
+
+/// The colour rings of `package` for `profile`, set up in `renderer` and filled at a still camera at
+/// `eye` (updated and uploaded until no ring is stale, at most [`MAX_FILL_FRAMES`] frames); with the
+/// frames it took.
+pub(crate) fn fill_rings(
+    package: ImageryPackage,
+    profile: &Profile,
+    renderer: &mut Renderer,
+    gpu: &Gpu,
+    eye: DVec3,
+) -> Result<(ColorRings, u32)> {
+    let mut rings = ColorRings::new(package, &profile.imagery)?;
+    renderer.enable_imagery(gpu.device(), rings.ring(), rings.level_count())?;
+    let mut frames = 0;
+    while frames < MAX_FILL_FRAMES {
+        frames += 1;
+        let s = rings.update(eye.x, eye.y)?;
+        renderer.prepare_imagery(gpu.queue(), &rings, (eye.x, eye.y))?;
+        if s.stale_levels == 0 {
+            break;
+        }
+    }
+    Ok((rings, frames))
+}
+
+/// The colour rings as JSON: the package, the rings and the last update.
+pub(crate) fn rings_json(rings: &ColorRings, fill_frames: u32) -> serde_json::Value {
+    let mut v = imagery_json(rings.package());
+    v["rings"] = json!(rings.level_count());
+    v["ring_side"] = json!(rings.ring());
+    v["fill_frames"] = json!(fill_frames);
+    v["cpu_bytes"] = json!(rings.cpu_bytes());
+    v["last_update"] = json!(rings.stats());
+    v["hash"] = json!(clipsat::hash::hex(rings.stats().hash));
+    v
+}
 
 /// The imagery package's header as JSON: file, size, extent, texel spacing per level, tiles, bytes.
 pub(crate) fn imagery_json(p: &ImageryPackage) -> serde_json::Value {

@@ -192,6 +192,9 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
     let mut profile = profile;
     profile.view.width = size_w;
     profile.view.height = size_h;
+    if imagery.is_some() {
+        super::imagery::check_profile(&mut profile, sg.is_some())?;
+    }
     let t0 = Instant::now();
     let streamed = package.is_some();
     let mut clipmap = match package {
@@ -225,6 +228,10 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
             debug,
         },
     )?;
+    // Draped imagery: its colour rings filled at the camera (bounded), as the heights were.
+    let rings = imagery
+        .map(|p| super::imagery::fill_rings(p, &profile, r.renderer_mut(), &gpu, camera.eye))
+        .transpose()?;
     let setup_ms = t0.elapsed().as_secs_f64() * 1e3;
     let opts = FrameOptions {
         morph: !args.no_morph,
@@ -423,10 +430,12 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
                 json!(frame.stats.detail_tiles_needed),
             );
             o.insert("pool_cells".into(), json!(frame.stats.pool_cells));
-            // The imagery package (`--imagery`): checked and baked; not drawn yet (issue 43).
+            // Draped imagery (`--imagery`): the package and its colour rings.
             o.insert(
                 "imagery".into(),
-                json!(imagery.as_ref().map(super::imagery::imagery_json)),
+                json!(rings
+                    .as_ref()
+                    .map(|(rings, frames)| super::imagery::rings_json(rings, *frames))),
             );
         }
         print_json(&out);
@@ -443,12 +452,15 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
             report.name,
             report.gl_version,
         );
-        if let Some(p) = &imagery {
+        if let Some((rings, frames)) = &rings {
+            let s = rings.stats();
             println!(
-                "imagery {} ({} x {} texels) checked and baked; drawing it is not implemented yet",
-                p.path().display(),
-                p.header().width,
-                p.header().height
+                "imagery {} ({} x {} texels): {} colour rings filled in {frames} frames, {} stale",
+                rings.package().path().display(),
+                rings.package().header().width,
+                rings.package().header().height,
+                rings.level_count(),
+                s.stale_levels
             );
         }
         if let Some(e) = reference {

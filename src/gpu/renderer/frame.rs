@@ -223,6 +223,14 @@ impl Renderer {
             }
             _ => None,
         };
+        // Draped imagery: its programs in place of basic shading's (not under SG, a debug view or a probe).
+        let imagery = match &self.imagery {
+            Some(i) if sg.is_none() && probe.is_none() && self.draws_imagery() => {
+                pass.set_bind_group(2, &i.group, &[]);
+                Some(i)
+            }
+            _ => None,
+        };
         pass.set_bind_group(0, &self.group0, &[]);
         let mut bound = None;
         let mut program = None;
@@ -247,7 +255,10 @@ impl Renderer {
             let pipeline = match (sg, programs) {
                 (Some(_), Some(s)) if d.fragment == FragmentPath::Skirt => &s.skirt,
                 (Some(_), Some(s)) => &s.block,
-                _ => &pipelines[d.fragment as usize],
+                _ => match imagery {
+                    Some(i) => &i.pipelines[d.fragment as usize],
+                    None => &pipelines[d.fragment as usize],
+                },
             };
             if !program.is_some_and(|p| std::ptr::eq(p, pipeline)) {
                 pass.set_pipeline(pipeline);

@@ -1,0 +1,203 @@
+//! Stage 3, the GPU: draped imagery, the colour clipmap's GPU side (`shaders_gles/imagery.wgsl`): one RGBA8
+//! 2D array texture of `ring^2 x levels` texels, its uniform, a bind group (group 2) and the imagery
+//! variant of the four fragment programs. Created once by [`Renderer::enable_imagery`] for a terrain
+//! with imagery (counted in the ledger, [`crate::profile::Profile::imagery_gpu_bytes`]); a renderer
+//! without it creates, binds and compiles none of this. Each frame [`Renderer::prepare_imagery`] writes
+//! the plan's colour uploads ([`ColorRings::uploads`]) and the uniform, and creates nothing.
+
+use super::{array_entry, array_texture, terrain_pipeline, Ledgered, Renderer, FRAGMENT_ENTRIES};
+use crate::gpu::shaders;
+use crate::plan::color_rings::{ColorRings, ImageryUniform};
+use crate::plan::fragment::FRAGMENT_PATHS;
+use crate::{Error, Result};
+
+/// The colour rings' format: RGBA8, read with `textureLoad` and filtered in the shader (as its twin).
+const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
+/// Bytes of the imagery uniform.
+const UNIFORM_BYTES: u64 = std::mem::size_of::<ImageryUniform>() as u64;
+
+/// The imagery's GPU objects.
+#[derive(Debug)]
+pub(super) struct ImageryState {
+    texture: wgpu::Texture,
+    uniform: wgpu::Buffer,
+    _layout: wgpu::BindGroupLayout,
+    pub(super) group: wgpu::BindGroup,
+    pub(super) pipelines: [wgpu::RenderPipeline; FRAGMENT_PATHS],
+    ring: u32,
+    levels: u32,
+}
+
+impl Renderer {
+    /// Creates the colour rings (`ring^2 x levels` RGBA8), their uniform, bind group and the imagery
+    /// programs, once: frames then draw the terrain's albedo from the imagery under basic shading (and
+    /// its fog). Refused under SG shading (not implemented yet), a second time, or past the device's
+    /// limits.
+    pub fn enable_imagery(&mut self, device: &wgpu::Device, ring: u32, levels: u32) -> Result<()> {
+        let refuse = |reason: &str| Error::Invalid {
+            what: "imagery".into(),
+            reason: reason.into(),
+        };
+        if self.sg.is_some() {
+            return Err(refuse(
+                "draped imagery under SG shading is not implemented yet: use basic shading",
+            ));
+        }
+        if self.imagery.is_some() {
+            return Err(refuse("the renderer's imagery is already set up"));
+        }
+        let limits = device.limits();
+        if levels > limits.max_texture_array_layers || levels == 0 {
+            return Err(Error::Unsupported {
+                limit: "max_texture_array_layers",
+                needed: u64::from(levels),
+                available: u64::from(limits.max_texture_array_layers),
+            });
+        }
+        if ring > limits.max_texture_dimension_2d {
+            return Err(Error::Unsupported {
+                limit: "max_texture_dimension_2d",
+                needed: u64::from(ring),
+                available: u64::from(limits.max_texture_dimension_2d),
+            });
+        }
+        let mut dev = Ledgered::new(device);
+        let texture = dev.texture(
+            "imagery rings",
+            &array_texture(ring, levels, COLOR_FORMAT, wgpu::TextureUsages::COPY_SRC),
+        );
+        let view = dev.view(
+            "imagery rings view",
+            &texture,
+            &wgpu::TextureViewDescriptor {
+                dimension: Some(wgpu::TextureViewDimension::D2Array),
+                ..Default::default()
+            },
+        );
+        let uniform = dev.buffer(
+            "imagery uniform",
+            UNIFORM_BYTES,
+            wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        );
+        let layout = dev.bind_group_layout(
+            "imagery layout",
+            &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: wgpu::BufferSize::new(UNIFORM_BYTES),
+                    },
+                    count: None,
+                },
+                array_entry(1, wgpu::ShaderStages::FRAGMENT),
+            ],
+        );
+        let group = dev.bind_group(
+            "imagery group",
+            &layout,
+            &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: uniform.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::TextureView(&view),
+                },
+            ],
+        );
+        let module = dev.shader_module("clipmap.wgsl (imagery)", shaders::clipmap_imagery());
+        let pipeline_layout = dev.pipeline_layout(
+            "imagery pipeline layout",
+            &[
+                Some(&self._group0_layout),
+                Some(&self._group1_layout),
+                Some(&layout),
+            ],
+        );
+        let targets = self.targets;
+        let pipelines = FRAGMENT_ENTRIES.map(|(label, entry)| {
+            terrain_pipeline(&mut dev, label, &pipeline_layout, &module, entry, &targets)
+        });
+        self.ledger.extend(&dev.finish());
+        self.imagery = Some(ImageryState {
+            texture,
+            uniform,
+            _layout: layout,
+            group,
+            pipelines,
+            ring,
+            levels,
+        });
+        Ok(())
+    }
+
+    /// Whether frames draw imagery ([`Renderer::enable_imagery`], and no debug view).
+    pub fn draws_imagery(&self) -> bool {
+        self.imagery.is_some() && self.debug.code() == 0
+    }
+
+    /// The colour rings' texture, where imagery is set up.
+    pub fn imagery_texture(&self) -> Option<&wgpu::Texture> {
+        self.imagery.as_ref().map(|i| &i.texture)
+    }
+
+    /// Writes `rings`' uploads of its last update into the colour rings and its uniform with the eye at
+    /// world (x, y); creates nothing. Refused for rings of another size than set up.
+    pub fn prepare_imagery(
+        &self,
+        queue: &wgpu::Queue,
+        rings: &ColorRings,
+        (x, y): (f64, f64),
+    ) -> Result<()> {
+        let Some(state) = &self.imagery else {
+            return Err(Error::Invalid {
+                what: "imagery".into(),
+                reason: "the renderer has no imagery set up (Renderer::enable_imagery)".into(),
+            });
+        };
+        if rings.ring() != state.ring || rings.level_count() > state.levels {
+            return Err(Error::Invalid {
+                what: "imagery".into(),
+                reason: format!(
+                    "rings of {} x {} levels for a texture of {} x {}",
+                    rings.ring(),
+                    rings.level_count(),
+                    state.ring,
+                    state.levels
+                ),
+            });
+        }
+        for u in rings.uploads() {
+            let bytes = u.w as usize * u.h as usize * 4;
+            queue.write_texture(
+                wgpu::TexelCopyTextureInfo {
+                    texture: &state.texture,
+                    mip_level: 0,
+                    origin: wgpu::Origin3d {
+                        x: u.x,
+                        y: u.y,
+                        z: u.level,
+                    },
+                    aspect: wgpu::TextureAspect::All,
+                },
+                &rings.staging()[u.offset..u.offset + bytes],
+                wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(u.w * 4),
+                    rows_per_image: Some(u.h),
+                },
+                wgpu::Extent3d {
+                    width: u.w,
+                    height: u.h,
+                    depth_or_array_layers: 1,
+                },
+            );
+        }
+        queue.write_buffer(&state.uniform, 0, bytemuck::bytes_of(&rings.uniform(x, y)));
+        Ok(())
+    }
+}
