@@ -48,6 +48,11 @@ fn mix3(a: Vec3, b: Vec3, t: f32) -> Vec3 {
 /// The CPU twin of `basic_shade`: the display-encoded colour of a terrain point of height `h`, geometric
 /// normal `n` (not unit) at distance `dist` (m).
 pub fn basic_colour(h: f32, n: Vec3, dist: f32, s: &BasicShading) -> Vec3 {
+    basic_lit(basic_albedo(h, s), n, dist, s)
+}
+
+/// The CPU twin of `basic_albedo`: the ramp's linear-light albedo at height `h`.
+pub fn basic_albedo(h: f32, s: &BasicShading) -> Vec3 {
     let lo = s.ramp_fog[0];
     let span = (s.ramp_fog[1] - lo).max(1.0e-3);
     let t = ((h - lo) / span).clamp(0.0, 1.0);
@@ -77,11 +82,16 @@ pub fn basic_colour(h: f32, n: Vec3, dist: f32, s: &BasicShading) -> Vec3 {
         ((t - 0.80) / 0.08).clamp(0.0, 1.0),
     );
     let depth = (-h / (0.25 * span).max(1.0)).clamp(0.0, 1.0);
-    let albedo = if h <= 0.0 {
+    if h <= 0.0 {
         mix3(stop([0.18, 0.40, 0.64]), stop([0.05, 0.16, 0.36]), depth)
     } else {
         land
-    };
+    }
+}
+
+/// The light and fog of `basic_shade` (and of `imagery_shade`) on `albedo`: the display-encoded colour
+/// with geometric normal `n` (not unit) at distance `dist` (m).
+pub fn basic_lit(albedo: Vec3, n: Vec3, dist: f32, s: &BasicShading) -> Vec3 {
     let z = s.ramp_fog[3] / n.z.max(1.0e-6);
     let nn = Vec3::new(n.x * z, n.y * z, 1.0).normalize();
     let sun_dir = Vec3::new(s.sun_dir[0], s.sun_dir[1], s.sun_dir[2]);
@@ -237,6 +247,23 @@ pub fn compare_basic(
     compare(image, probe, clear, &mut |p, q, _| {
         let rel = Vec3::new(p[0], p[1], p[2]);
         basic_colour(q[0], Vec3::new(q[1], q[2], q[3]), rel.length(), s)
+    })
+}
+
+/// Compares a frame with draped imagery with its twin: `basic_shade`'s light and fog on the imagery's
+/// albedo ([`super::imagery::ImageryTwin::albedo`]) at each pixel's probed position and footprint, over
+/// the ramp's albedo of the height it was shaded with.
+pub fn compare_imagery(
+    image: &Image,
+    probe: &ProbedFrame,
+    clear: [u8; 4],
+    s: &BasicShading,
+    twin: &super::imagery::ImageryTwin,
+) -> TwinReport {
+    compare(image, probe, clear, &mut |p, q, _| {
+        let rel = Vec3::new(p[0], p[1], p[2]);
+        let albedo = twin.albedo([p[0], p[1]], p[3], basic_albedo(q[0], s));
+        basic_lit(albedo, Vec3::new(q[1], q[2], q[3]), rel.length(), s)
     })
 }
 
