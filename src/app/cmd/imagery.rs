@@ -139,3 +139,84 @@ pub(crate) fn print_imagery(p: &ImageryPackage) {
         p.len()
     );
 }
+
+/// `fly --imagery`: the colour rings flown with the heights, on the CPU: each frame updates them at the
+/// eye under the profile's `[imagery]` budget and folds their hash (regions, writes, texel bits) into the
+/// frame's hash; a flight without imagery keeps its hashes.
+pub(crate) struct FlyColour {
+    rings: Option<ColorRings>,
+    texels_max: u64,
+    tiles_max: u32,
+    stale_frames: u64,
+}
+
+impl FlyColour {
+    /// The rings of `package`, if any, with `profile` checked and its CPU budget shared ([`check_profile`]).
+    pub(crate) fn new(
+        package: Option<ImageryPackage>,
+        profile: &mut Profile,
+        sg: bool,
+    ) -> Result<Self> {
+        let rings = match package {
+            Some(p) => {
+                check_profile(profile, sg)?;
+                Some(ColorRings::new(p, &profile.imagery)?)
+            }
+            None => None,
+        };
+        Ok(Self {
+            rings,
+            texels_max: 0,
+            tiles_max: 0,
+            stale_frames: 0,
+        })
+    }
+
+    /// Updates the rings at `eye`; the frame's hash with theirs folded in (unchanged without imagery).
+    pub(crate) fn frame(&mut self, eye: DVec3, hash: u64) -> Result<u64> {
+        let Some(rings) = self.rings.as_mut() else {
+            return Ok(hash);
+        };
+        let s = rings.update(eye.x, eye.y)?;
+        self.texels_max = self.texels_max.max(s.texels);
+        self.tiles_max = self.tiles_max.max(s.tiles_decoded);
+        self.stale_frames += u64::from(s.stale_levels > 0);
+        let mut h = clipsat::hash::Hash64::new();
+        h.write_u64(hash);
+        h.write_u64(s.hash);
+        Ok(h.finish())
+    }
+
+    fn summary(&self) -> Option<serde_json::Value> {
+        let rings = self.rings.as_ref()?;
+        let mut v = imagery_json(rings.package());
+        v["rings"] = json!(rings.level_count());
+        v["texels_per_frame_max"] = json!(self.texels_max);
+        v["tiles_per_frame_max"] = json!(self.tiles_max);
+        v["frames_with_stale_rings"] = json!(self.stale_frames);
+        v["cpu_bytes"] = json!(rings.cpu_bytes());
+        v["cache"] = json!(rings.cache().stats());
+        Some(v)
+    }
+
+    /// Adds `imagery` to fly's JSON summary.
+    pub(crate) fn annotate(&self, out: &mut serde_json::Value) {
+        if let Some(v) = self.summary() {
+            out["imagery"] = v;
+        }
+    }
+
+    /// fly's text line for the imagery, with its newline ("" without imagery).
+    pub(crate) fn line(&self) -> String {
+        self.rings.as_ref().map_or_else(String::new, |rings| {
+            format!(
+                "imagery      {} rings; texels per frame max {}, tiles decoded per frame max {}, {} \
+                 frames with stale rings\n",
+                rings.level_count(),
+                self.texels_max,
+                self.tiles_max,
+                self.stale_frames
+            )
+        })
+    }
+}
