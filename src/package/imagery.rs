@@ -363,7 +363,12 @@ fn copy_tile(level: &ColorLevel, x0: u32, y0: u32, w: u32, h: u32, out: &mut Vec
 
 /// Decodes a JPEG tile of `w` x `h` RGB texels into `out` (`w * h * 3` bytes).
 fn decode_jpeg(path: &Path, coded: &[u8], w: u32, h: u32, out: &mut [u8]) -> Result<()> {
-    let bad = |e: String| Error::format(path, format!("imagery tile: {e}"));
+    let bad = |e: String| {
+        Error::format(
+            path,
+            format!("imagery tile: {}", crate::source::imagery::one_line(&e)),
+        )
+    };
     let d = image::codecs::jpeg::JpegDecoder::new(Cursor::new(coded)).map_err(|e| bad(e.to_string()))?;
     if d.dimensions() != (w, h) || d.color_type() != image::ColorType::Rgb8 {
         return Err(bad(format!(

@@ -163,7 +163,7 @@ impl Imagery {
         };
         let (width, height) = open()?
             .into_dimensions()
-            .map_err(|e| Error::format(path, format!("cannot read the image header: {e}")))?;
+            .map_err(|e| Error::format(path, format!("cannot read the image header: {}", one_line(&e))))?;
         let texels = u64::from(width) * u64::from(height);
         if texels > options.max_texels {
             return Err(Error::param(
@@ -189,7 +189,7 @@ impl Imagery {
         reader.limits(limits);
         let decoded = reader
             .decode()
-            .map_err(|e| Error::format(path, format!("cannot decode the image: {e}")))?;
+            .map_err(|e| Error::format(path, format!("cannot decode the image: {}", one_line(&e))))?;
         if (decoded.width(), decoded.height()) != (width, height) {
             return Err(Error::format(
                 path,
@@ -299,6 +299,11 @@ fn check_jpeg_end(path: &Path) -> Result<()> {
             "truncated JPEG: no end-of-image marker",
         ))
     }
+}
+
+/// A decoder's error on one line (some end theirs with a newline).
+pub(crate) fn one_line(e: &dyn std::fmt::Display) -> String {
+    e.to_string().split_whitespace().collect::<Vec<_>>().join(" ")
 }
 
 /// Refuses images too small to place: a texel spacing needs two texels each way.

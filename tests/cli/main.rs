@@ -7,6 +7,7 @@ mod bench_all;
 mod determinism;
 mod fly;
 mod hash;
+mod imagery;
 mod render_json;
 mod stream_rss;
 mod view_xvfb;
