@@ -83,18 +83,22 @@ fn imagery_albedo(rel: vec2<f32>, base: vec3<f32>) -> vec3<f32> {
     let lod = clamp(log2(max(imagery_fp * imagery.levels[0].eye.z, 1.0e-6)), 0.0, f32(n - 1));
     let l0 = i32(lod);
     let t = lod - f32(l0);
-    // Coarse to fine: C(l) is ring l over C(l + 1) by ring l's weight (premultiplied).
-    var c = vec4<f32>(0.0);
-    var coarse = vec4<f32>(0.0);
-    for (var l = 11; l >= 0; l = l - 1) {
-        if (l < n && l >= l0) {
-            let s = imagery_sample(l, rel);
-            c = s + (1.0 - s.a) * c;
-            if (l == l0 + 1) {
-                coarse = c;
-            }
+    // Fine to coarse, front to back: a is ring l0 over the coarser rings, b ring l0 + 1 over those
+    // coarser than it, each ring sampled once; a pixel stops once both are whole (most take two rings).
+    var a = vec4<f32>(0.0);
+    var b = vec4<f32>(0.0);
+    for (var l = l0; l < n; l = l + 1) {
+        let s = imagery_sample(l, rel);
+        a = a + (1.0 - a.a) * s;
+        if (l > l0) {
+            b = b + (1.0 - b.a) * s;
+        }
+        if (a.a >= 1.0 && b.a >= 1.0) {
+            break;
         }
     }
+    let c = a;
+    let coarse = b;
     let m = select(c, mix(c, coarse, t), l0 + 1 < n);
     let img = pow(m.rgb / max(m.a, 1.0e-6), vec3<f32>(2.2));
     return mix(base, img, m.a);

@@ -148,3 +148,59 @@ fn imagery_frame_matches_its_twin() {
         .image;
     assert_eq!(again.rgba, before.rgba);
 }
+
+/// Warm-frame cost with and without imagery, basic shading, 1920 x 1080 on gles3-mid, the same run
+/// (`cargo test --test imagery cost -- --ignored --nocapture`): the goal is at most 1.3x.
+#[test]
+#[ignore = "a measurement: cargo test --test imagery cost -- --ignored --nocapture"]
+fn cost_with_and_without_imagery() {
+    let gpu = gpu();
+    let hm = generate(&ProceduralParams::default()).expect("terrain");
+    let mut p = Profile::load("gles3-mid").expect("profile");
+    p.view.width = 1920;
+    p.view.height = 1080;
+    let mut cm = Clipmap::new(&hm, &p, ClipmapOptions::default()).expect("clipmap");
+    let cam = Camera::default_for(&hm).expect("camera");
+    for _ in 0..64 {
+        cm.update(cam.eye).expect("update");
+    }
+    let options = || OffscreenOptions {
+        lod: LodSetup::new(LodMode::Distance, None).expect("lod"),
+        shading: Shading::Basic,
+        debug: DebugView::Normal,
+    };
+    let opts = FrameOptions::default();
+    let mut plain = Offscreen::new(&gpu, &p, &cm, options()).expect("renderer");
+    let mut draped = Offscreen::new(&gpu, &p, &cm, options()).expect("renderer");
+    let mut rings = ColorRings::new(imagery(&hm), &p.imagery).expect("rings");
+    draped
+        .renderer_mut()
+        .enable_imagery(gpu.device(), rings.ring(), rings.level_count())
+        .expect("imagery");
+    for _ in 0..64 {
+        rings.update(cam.eye.x, cam.eye.y).expect("update");
+        draped
+            .renderer()
+            .prepare_imagery(gpu.queue(), &rings, (cam.eye.x, cam.eye.y))
+            .expect("upload");
+    }
+    let time = |r: &mut Offscreen<'_>| {
+        render_frame(r, &cm, &cam, &opts).expect("warm-up");
+        let t = std::time::Instant::now();
+        for _ in 0..5 {
+            render_frame(r, &cm, &cam, &opts).expect("frame");
+        }
+        t.elapsed().as_secs_f64() * 1e3 / 5.0
+    };
+    let (a, b, a2, b2) = (
+        time(&mut plain),
+        time(&mut draped),
+        time(&mut plain),
+        time(&mut draped),
+    );
+    let (a, b) = (a.min(a2), b.min(b2));
+    println!(
+        "basic: {a:.1} ms, basic + imagery: {b:.1} ms, ratio {:.2}",
+        b / a
+    );
+}

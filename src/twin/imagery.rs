@@ -142,13 +142,14 @@ impl ImageryTwin {
         let t = lod - l0 as f32;
         let mut c = Vec4::ZERO;
         let mut coarse = Vec4::ZERO;
-        for l in (0..12).rev() {
-            if l < n && l >= l0 {
-                let s = self.sample(usize::try_from(l).unwrap_or(0), rel);
-                c = s + (1.0 - s.w) * c;
-                if l == l0 + 1 {
-                    coarse = c;
-                }
+        for l in l0..n {
+            let s = self.sample(usize::try_from(l).unwrap_or(0), rel);
+            c += (1.0 - c.w) * s;
+            if l > l0 {
+                coarse += (1.0 - coarse.w) * s;
+            }
+            if c.w >= 1.0 && coarse.w >= 1.0 {
+                break;
             }
         }
         let m = if l0 + 1 < n {
