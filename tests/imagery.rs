@@ -204,3 +204,131 @@ fn cost_with_and_without_imagery() {
         b / a
     );
 }
+
+/// Fidelity against a reference drape (the goal): Puget Sound and Grand Canyon from the default
+/// camera, rings filled; each terrain pixel's reference albedo is the source image (uncompressed,
+/// full resolution) averaged over 8 x 8 bilinear samples of the pixel's footprint square (the probe's
+/// side, the larger ground step of the pixel), lit as the frame is; PSNR over terrain pixels. Needs the
+/// shared data: `cargo test --test imagery fidelity -- --ignored --nocapture`.
+#[test]
+#[ignore = "a measurement on the shared data: cargo test --test imagery fidelity -- --ignored --nocapture"]
+#[expect(
+    clippy::cast_possible_truncation,
+    reason = "bilinear fractions as f32; texel indices of a test image, clamped on lookup"
+)]
+fn fidelity_against_a_reference_drape() {
+    let gpu = gpu();
+    for (heights, image, spacing, scale) in [
+        ("ps_height_1k.png", "imagery/ps_texture_1k.png", 160.0, None),
+        (
+            "imagery/gcanyon_elev_1200.png",
+            "imagery/gcanyon_color_1024.png",
+            60.0,
+            Some(10.0),
+        ),
+    ] {
+        let dir = clipsat::data_dir();
+        if !dir.join(heights).is_file() || !dir.join(image).is_file() {
+            eprintln!("skipping: shared data missing in {}", dir.display());
+            continue;
+        }
+        let load = clipsat::source::LoadOptions {
+            spacing: Some(spacing),
+            height_scale: scale,
+            ..clipsat::source::LoadOptions::default()
+        };
+        let hm = clipsat::source::load(&dir.join(heights), &load).expect("heights");
+        let grid = Extent::of_grid(
+            hm.width(),
+            hm.height(),
+            f64::from(hm.spacing()),
+            hm.origin(),
+        );
+        let src = Imagery::load(&dir.join(image), &grid, &Default::default()).expect("image");
+        // The package's tiles as stored, and at JPEG quality 100 (near the source: the renderer's own loss).
+        for quality in [clipsat::package::imagery::DEFAULT_QUALITY, 100] {
+            let (bytes, _) = bake_imagery(&src, quality, 0).expect("bake");
+            let pkg = ImageryPackage::from_bytes(Path::new(image), bytes).expect("package");
+            let mut p = Profile::load("gles3-mid").expect("profile");
+            p.view.width = 1920;
+            p.view.height = 1080;
+            p.budget.update_samples_per_frame = u32::MAX;
+            let mut cm = Clipmap::new(&hm, &p, ClipmapOptions::default()).expect("clipmap");
+            let cam = Camera::default_for(&hm).expect("camera");
+            cm.update(cam.eye).expect("update");
+            let mut r = Offscreen::new(
+                &gpu,
+                &p,
+                &cm,
+                OffscreenOptions {
+                    lod: LodSetup::new(LodMode::Distance, None).expect("lod"),
+                    shading: Shading::Basic,
+                    debug: DebugView::Normal,
+                },
+            )
+            .expect("renderer");
+            let mut rings = ColorRings::new(pkg, &p.imagery).expect("rings");
+            r.renderer_mut()
+                .enable_imagery(gpu.device(), rings.ring(), rings.level_count())
+                .expect("imagery");
+            for _ in 0..64 {
+                rings.update(cam.eye.x, cam.eye.y).expect("update");
+                r.renderer()
+                    .prepare_imagery(gpu.queue(), &rings, (cam.eye.x, cam.eye.y))
+                    .expect("upload");
+            }
+            let probe = ShadingProbe::new(&r).expect("probe");
+            let opts = FrameOptions::default();
+            let frame = render_frame(&mut r, &cm, &cam, &opts).expect("frame").image;
+            let probed = probe.capture(&r).expect("capture");
+            let s = r.shading();
+            let (dx, dy) = src.texel_spacing();
+            let e = src.extent();
+            // The source, bilinear at world (x, y), display-encoded, 0..1.
+            let at = |x: f64, y: f64| -> glam::Vec3 {
+                let u = (x - e.west) / dx - 0.5;
+                let v = (e.north - y) / dy - 0.5;
+                let (u0, v0) = (u.floor(), v.floor());
+                let (fu, fv) = ((u - u0) as f32, (v - v0) as f32);
+                let t = |i: f64, j: f64| {
+                    let c = src.texel(i as i64, j as i64);
+                    glam::Vec3::new(f32::from(c[0]), f32::from(c[1]), f32::from(c[2])) / 255.0
+                };
+                let a = t(u0, v0) * (1.0 - fu) + t(u0 + 1.0, v0) * fu;
+                let b = t(u0, v0 + 1.0) * (1.0 - fu) + t(u0 + 1.0, v0 + 1.0) * fu;
+                a * (1.0 - fv) + b * fv
+            };
+            let (mut sq, mut n) = (0.0f64, 0u64);
+            for (i, (pos, q)) in probed.position.iter().zip(&probed.inputs).enumerate() {
+                let Some(pos) = pos else { continue };
+                let (x, y) = (cam.eye.x + f64::from(pos[0]), cam.eye.y + f64::from(pos[1]));
+                let side = f64::from(pos[3]);
+                let mut sum = glam::Vec3::ZERO;
+                for k in 0..64 {
+                    let (a, b) = (f64::from(k % 8) + 0.5, f64::from(k / 8) + 0.5);
+                    sum += at(x + (a / 8.0 - 0.5) * side, y + (b / 8.0 - 0.5) * side);
+                }
+                let m = sum / 64.0;
+                let albedo = glam::Vec3::new(m.x.powf(2.2), m.y.powf(2.2), m.z.powf(2.2));
+                let rel = glam::Vec3::new(pos[0], pos[1], pos[2]);
+                let want = clipsat::twin::frame::basic_lit(
+                    albedo,
+                    glam::Vec3::new(q[1], q[2], q[3]),
+                    rel.length(),
+                    &s,
+                );
+                let got = &frame.rgba[i * 4..i * 4 + 3];
+                for (w, g) in [want.x, want.y, want.z].iter().zip(got) {
+                    let d = f64::from(w * 255.0) - f64::from(*g);
+                    sq += d * d;
+                }
+                n += 3;
+            }
+            let psnr = 10.0 * (255.0f64 * 255.0 / (sq / n as f64)).log10();
+            println!(
+            "{image}, tiles at JPEG quality {quality}: PSNR {psnr:.2} dB over {} terrain pixels (1920 x 1080, gles3-mid)",
+            n / 3
+        );
+        }
+    }
+}
