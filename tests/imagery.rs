@@ -332,3 +332,80 @@ fn fidelity_against_a_reference_drape() {
         }
     }
 }
+
+/// The embedding API: `TerrainOptions::imagery` bakes the image into the cache folder and the
+/// `TerrainRenderer` draws it: its colour rings in the GPU bytes, their uploads in each frame's plan hash
+/// (the same run to run), refused with SG shading.
+#[test]
+fn the_embedding_api_drapes_imagery() {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("imagery-embed");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("scratch");
+    let heights = dir.join("heights.png");
+    image::GrayImage::from_fn(129, 129, |x, y| {
+        image::Luma([u8::try_from((x * 3 + y * 5) % 200).expect("byte")])
+    })
+    .save(&heights)
+    .expect("heights");
+    let photo = dir.join("photo.jpg");
+    image::RgbImage::from_fn(300, 300, |x, y| {
+        image::Rgb([
+            u8::try_from(x % 256).expect("byte"),
+            u8::try_from(y % 256).expect("byte"),
+            90,
+        ])
+    })
+    .save(&photo)
+    .expect("photo");
+    let gpu = gpu();
+    let profile = clipsat::Profile::load("gles3-low").expect("profile");
+    let open = |imagery: Option<&Path>| {
+        clipsat::Terrain::open_with(
+            &heights,
+            &clipsat::TerrainOptions {
+                cache_dir: Some(dir.join("cache")),
+                spacing_m: Some(20.0),
+                imagery: imagery.map(Path::to_path_buf),
+                ..clipsat::TerrainOptions::default()
+            },
+        )
+        .expect("terrain")
+    };
+    let options = clipsat::RenderOptions::default();
+    let run = |imagery: Option<&Path>| {
+        let terrain = open(imagery);
+        assert_eq!(terrain.has_imagery(), imagery.is_some());
+        let cam = terrain.default_camera().expect("camera");
+        let mut r =
+            clipsat::TerrainRenderer::new(gpu.device(), gpu.queue(), terrain, &profile, &options)
+                .expect("renderer");
+        r.warm_up(gpu.queue(), &cam, (160, 90)).expect("warm up");
+        let hashes: Vec<u64> = (0..3)
+            .map(|_| {
+                r.prepare(gpu.queue(), &cam, (160, 90))
+                    .expect("frame")
+                    .plan_hash
+            })
+            .collect();
+        (r.gpu_bytes(), hashes)
+    };
+    let (plain_bytes, plain) = run(None);
+    let (bytes, draped) = run(Some(&photo));
+    let ring = u64::from(profile.get().imagery.ring);
+    // A 300^2 image has two levels (300, 150): two rings.
+    assert_eq!(bytes - plain_bytes, ring * ring * 2 * 4 + 12 * 48 + 16);
+    assert_ne!(plain, draped);
+    assert_eq!(run(Some(&photo)).1, draped, "the same hashes run to run");
+    let sg = clipsat::RenderOptions {
+        sg_scene: Some("noon"),
+        ..clipsat::RenderOptions::default()
+    };
+    assert!(clipsat::TerrainRenderer::new(
+        gpu.device(),
+        gpu.queue(),
+        open(Some(&photo)),
+        &profile,
+        &sg
+    )
+    .is_err());
+}

@@ -234,6 +234,11 @@ impl Terrain {
         self.imagery.is_some()
     }
 
+    /// Takes the imagery package out (before [`Terrain::into_parts`]).
+    pub(crate) fn take_imagery_package(&mut self) -> Option<ImageryPackage> {
+        self.imagery.take()
+    }
+
     /// The height grid's extent in its world frame, corner sample to corner sample: where a plain image
     /// is placed.
     fn grid_extent(&self) -> Extent {
@@ -336,7 +341,7 @@ impl Terrain {
 
     /// Takes the imagery package out (before [`Terrain::parts`]).
     pub fn take_imagery(&mut self) -> Option<ImageryPackage> {
-        self.imagery.take()
+        self.take_imagery_package()
     }
 }
 
