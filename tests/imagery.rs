@@ -130,6 +130,7 @@ fn imagery_frame_matches_its_twin() {
         report.passes(),
         "the imagery frame is not its twin's: {report:?}"
     );
+    golden(&gpu, "procedural-imagery", &image);
     // The imagery shows: most terrain pixels differ from the plain frame's.
     let differ = before
         .rgba
@@ -408,4 +409,40 @@ fn the_embedding_api_drapes_imagery() {
         &sg
     )
     .is_err());
+}
+
+/// The exact image hash of an imagery frame on this driver against `tests/goldens/imagery_hashes.txt`
+/// (lines `adapter|driver<TAB>view<TAB>hash`; a driver with no line is checked by the twin alone), and a
+/// reference PNG beside it. `CLIPSAT_BLESS=1` records this driver's hash and the PNG.
+fn golden(gpu: &Gpu, view: &str, image: &clipsat::gpu::readback::Image) {
+    let report = gpu.report();
+    let key = format!("{}|{}", report.name, report.driver);
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/goldens");
+    let path = dir.join("imagery_hashes.txt");
+    let text = std::fs::read_to_string(&path).unwrap_or_default();
+    let mut lines: Vec<String> = text
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+        .map(str::to_string)
+        .collect();
+    let hash = clipsat::hash::hex(image.hash());
+    let prefix = format!("{key}\t{view}\t");
+    if std::env::var_os("CLIPSAT_BLESS").is_some_and(|v| v == "1") {
+        lines.retain(|l| !l.starts_with(&prefix));
+        lines.push(format!("{prefix}{hash}"));
+        lines.sort();
+        let head = "# Exact image hashes of imagery frames per driver: adapter|driver<TAB>view<TAB>hash (tests/imagery.rs).\n";
+        std::fs::write(&path, head.to_string() + &lines.join("\n") + "\n").expect("write hashes");
+        image
+            .save_png(&dir.join(format!("{view}.png")))
+            .expect("write golden");
+        return;
+    }
+    if let Some(line) = lines.iter().find(|l| l.starts_with(&prefix)) {
+        assert_eq!(
+            &line[prefix.len()..],
+            hash,
+            "{view}: the image hash on {key} changed"
+        );
+    }
 }
