@@ -336,7 +336,7 @@ fn fidelity_against_a_reference_drape() {
 
 /// The embedding API: `TerrainOptions::imagery` bakes the image into the cache folder and the
 /// `TerrainRenderer` draws it: its colour rings in the GPU bytes, their uploads in each frame's plan hash
-/// (the same run to run), refused with SG shading.
+/// (the same run to run).
 #[test]
 fn the_embedding_api_drapes_imagery() {
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("imagery-embed");
@@ -397,18 +397,6 @@ fn the_embedding_api_drapes_imagery() {
     assert_eq!(bytes - plain_bytes, ring * ring * 2 * 4 + 12 * 48 + 16);
     assert_ne!(plain, draped);
     assert_eq!(run(Some(&photo)).1, draped, "the same hashes run to run");
-    let sg = clipsat::RenderOptions {
-        sg_scene: Some("noon"),
-        ..clipsat::RenderOptions::default()
-    };
-    assert!(clipsat::TerrainRenderer::new(
-        gpu.device(),
-        gpu.queue(),
-        open(Some(&photo)),
-        &profile,
-        &sg
-    )
-    .is_err());
 }
 
 /// The exact image hash of an imagery frame on this driver against `tests/goldens/imagery_hashes.txt`
@@ -445,4 +433,60 @@ fn golden(gpu: &Gpu, view: &str, image: &clipsat::gpu::readback::Image) {
             "{view}: the image hash on {key} changed"
         );
     }
+}
+
+/// Draped imagery under SG shading (evening: visibility, specular, fog): the diffuse term scaled by the
+/// imagery's albedo over the scene's k_d, against the SG twin so scaled (`compare_sg_imagery`), within
+/// the same tolerance as the SG frames.
+#[test]
+fn sg_imagery_frame_matches_its_twin() {
+    use clipsat::shading::scene::Scene;
+    use clipsat::shading::{Patches, TexelLighting};
+    use clipsat::twin::frame::{compare_sg_imagery, SgDrawn};
+    let gpu = gpu();
+    let hm = terrain();
+    let mut p = profile();
+    p.view.width = 160;
+    p.view.height = 90;
+    p.shading.features.push(clipsat::profile::Feature::Sg);
+    let mut cm = Clipmap::new(&hm, &p, ClipmapOptions::default()).expect("clipmap");
+    let cam = Camera::default_for(&hm).expect("camera");
+    cm.update(cam.eye).expect("update");
+    let scene = Scene::load("evening").expect("scene");
+    let share = p.cpu_split().shading;
+    let (_, bake) = clipsat::gpu::headless::sg_bake(share, &hm, &scene, true).expect("bake");
+    let mut r = Offscreen::with_sg(&gpu, &p, &cm, &hm, &scene, Patches::P4x8, true).expect("sg");
+    let mut rings = ColorRings::new(imagery(&hm), &p.imagery).expect("rings");
+    r.renderer_mut()
+        .enable_imagery(gpu.device(), rings.ring(), rings.level_count())
+        .expect("imagery");
+    let (x, y) = (cam.eye.x, cam.eye.y);
+    for _ in 0..40 {
+        rings.update(x, y).expect("colour update");
+        r.renderer()
+            .prepare_imagery(gpu.queue(), &rings, (x, y))
+            .expect("upload");
+    }
+    let opts = FrameOptions::default();
+    let probe = ShadingProbe::new(&r).expect("probe");
+    let image = render_frame(&mut r, &cm, &cam, &opts).expect("frame").image;
+    let probed = probe.capture(&r).expect("capture");
+    let twin = ImageryTwin::new(&rings, x, y).expect("twin");
+    let (drawn, sky, spacing) = r.renderer().sg_drawn().expect("SG");
+    let lighting = TexelLighting::new(&drawn);
+    let d = SgDrawn {
+        scene: &drawn,
+        sky,
+        lighting: &lighting,
+        bake: &bake,
+        data_spacing: spacing,
+    };
+    let clear = clipsat::twin::border::clear_rgba8(opts.clear);
+    let report = compare_sg_imagery(&image, &probed, clear, r.globals(), &cm, &d, &twin);
+    println!("sg imagery twin: {report:?}");
+    assert!(report.pixels > 160 * 90 / 3, "{report:?}");
+    assert!(
+        report.passes(),
+        "the SG imagery frame is not its twin's: {report:?}"
+    );
 }

@@ -152,20 +152,12 @@ impl TerrainRenderer {
         let cache = terrain.cache_dir().map(std::path::Path::to_path_buf);
         let mut terrain = terrain;
         let imagery = terrain.take_imagery_package();
-        // Draped imagery: basic shading on a profile that allows it; its tile cache and staging come
-        // out of the CPU budget before the heights' split.
+        // Draped imagery, on a profile that allows it: its tile cache and staging come out of the CPU
+        // budget before the heights' split.
         let mut with_imagery;
         let profile = match &imagery {
             Some(_) => {
                 with_imagery = profile.clone();
-                if options.sg_scene.is_some() {
-                    return Err(Error::Invalid {
-                        what: "RenderOptions::sg_scene".into(),
-                        reason: "draped imagery is drawn under basic shading; under SG it is not \
-                                 implemented yet"
-                            .into(),
-                    });
-                }
                 if !profile.allows(crate::profile::Feature::Imagery) {
                     return Err(Error::config(
                         &profile.name,

@@ -76,6 +76,43 @@ pub fn clipmap_imagery() -> String {
     [BASIC_SHADING_WGSL, DEBUG_VIEW_WGSL, &body, IMAGERY_WGSL, &constant].concat()
 }
 
+/// The SG variant's edits for draped imagery: the diffuse term scaled by the imagery's albedo over the
+/// scene's k_d (specular unchanged), the footprint taken before each program's discard.
+const SG_IMAGERY_EDITS: [(&str, &str); 3] = [
+    (
+        "    return diffuse + sg_specular(vmf, view, cut, suns, count, s);",
+        "    return diffuse * sg_albedo_scale + sg_specular(vmf, view, cut, suns, count, s);",
+    ),
+    (
+        "    let w = sg_footprint(v);\n",
+        "    let w = sg_footprint(v);\n    imagery_fp = imagery_footprint(v.rel);\n",
+    ),
+    (
+        "    let colour = sg_fog(sg_shade(",
+        "    let kd = sg_scene.kd_count.rgb;\n    \
+         sg_albedo_scale = imagery_albedo(v.rel.xy, kd) / max(kd, vec3<f32>(1.0e-6));\n    \
+         let colour = sg_fog(sg_shade(",
+    ),
+];
+
+/// SG variant `v` with draped imagery ([`SG_IMAGERY_EDITS`]; `imagery.wgsl` bound at group 3, after the
+/// SG tables' group 2). Built only for a terrain with imagery under SG shading.
+pub fn sg_clipmap_imagery(v: SgVariant) -> String {
+    let mut text = sg_clipmap(v);
+    for (from, to) in SG_IMAGERY_EDITS {
+        debug_assert!(text.contains(from), "the SG program no longer has `{from}`");
+        text = text.replace(from, to);
+    }
+    let imagery = IMAGERY_WGSL.replace("@group(2)", "@group(3)");
+    [
+        text.as_str(),
+        "\n// Draped imagery: the diffuse term's scale, the imagery's albedo over k_d.\n\
+         var<private> sg_albedo_scale: vec3<f32>;\n",
+        &imagery,
+    ]
+    .concat()
+}
+
 /// Every file in `shaders_gles/`, by file name, as the renderer assembles it. A library file (no entry
 /// points) appears on its own, so it is validated even before any program uses it.
 pub fn sources() -> Vec<(&'static str, String)> {
@@ -288,6 +325,13 @@ pub fn sg_variants() -> Vec<(String, String)> {
         out.push((format!("sg_clipmap.wgsl[{}]", v.label()), sg_clipmap(v)));
         out.push((format!("sg_probe.wgsl[{}]", v.label()), sg_probe(v)));
     }
+    // With draped imagery: every effect on, and none.
+    for v in [SgVariant::ALL_ON, SgVariant::default()] {
+        out.push((
+            format!("sg_clipmap.wgsl[{}+imagery]", v.label()),
+            sg_clipmap_imagery(v),
+        ));
+    }
     for omit in SgOmit::TERMS {
         let v = SgVariant {
             omit,
@@ -391,6 +435,8 @@ mod tests {
         let text = clipmap_imagery();
         assert!(!text.contains("basic_shade(v."), "a shading call kept the basic albedo");
         assert!(!text.contains("basic_shade(d."), "a shading call kept the basic albedo");
+        let counts = SG_IMAGERY_EDITS.map(|(from, _)| sg_clipmap(SgVariant::ALL_ON).matches(from).count());
+        assert!(counts.iter().all(|&c| c > 0), "{counts:?}");
         for entry in ["fs_interior", "fs_plain", "fs_ring_data", "fs_skirt"] {
             let at = text.find(&format!("fn {entry}(")).expect(entry);
             let body = &text[at..at + text[at..].find("\n}").expect("end")];

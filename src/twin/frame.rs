@@ -134,13 +134,31 @@ pub struct SgDrawn<'a> {
 /// The CPU twin of `sg_colour` given r (xyz, w the horizon's sine toward the first sun) and, with
 /// visibility, the light table's blend (rgb diffuse, a the horizon's mean sine), at eye-relative `rel`.
 pub fn sg_colour(r: Vec4, light: Option<[f32; 4]>, rel: Vec3, d: &SgDrawn<'_>) -> Vec3 {
+    sg_colour_scaled(r, light, rel, d, Vec3::ONE)
+}
+
+/// [`sg_colour`] with the diffuse term scaled by `albedo_scale` (draped imagery's albedo over k_d).
+pub fn sg_colour_scaled(
+    r: Vec4,
+    light: Option<[f32; 4]>,
+    rel: Vec3,
+    d: &SgDrawn<'_>,
+    albedo_scale: Vec3,
+) -> Vec3 {
     let texel = light.map(|l| TexelLight {
         diffuse: Vec3::new(l[0], l[1], l[2]),
         mean_sin: l[3],
         sun_sin: r.w,
     });
     let view = (-rel).normalize();
-    let mut c = crate::shading::shade_pixel(r.truncate(), view, texel.as_ref(), d.scene, d.sky);
+    let mut c = crate::shading::shade_pixel_scaled(
+        r.truncate(),
+        view,
+        texel.as_ref(),
+        d.scene,
+        d.sky,
+        albedo_scale,
+    );
     if let (true, Some(f)) = (d.scene.effects.fog, d.scene.fog.as_ref()) {
         let keep = (-(f.density_per_km * 1.0e-3) * rel.length()).exp();
         c = c * keep + f.rgb * (1.0 - keep);
@@ -279,9 +297,40 @@ pub fn compare_sg(
     clipmap: &Clipmap,
     d: &SgDrawn<'_>,
 ) -> TwinReport {
+    compare_sg_with(image, probe, clear, globals, clipmap, d, None)
+}
+
+/// [`compare_sg`] of a frame with draped imagery: the twin's diffuse term scaled by the imagery's albedo
+/// ([`super::imagery::ImageryTwin::albedo`] at the pixel's footprint in metres) over the scene's k_d.
+pub fn compare_sg_imagery(
+    image: &Image,
+    probe: &ProbedFrame,
+    clear: [u8; 4],
+    globals: &Globals,
+    clipmap: &Clipmap,
+    d: &SgDrawn<'_>,
+    imagery: &super::imagery::ImageryTwin,
+) -> TwinReport {
+    compare_sg_with(image, probe, clear, globals, clipmap, d, Some(imagery))
+}
+
+fn compare_sg_with(
+    image: &Image,
+    probe: &ProbedFrame,
+    clear: [u8; 4],
+    globals: &Globals,
+    clipmap: &Clipmap,
+    d: &SgDrawn<'_>,
+    imagery: Option<&super::imagery::ImageryTwin>,
+) -> TwinReport {
     compare(image, probe, clear, &mut |p, q, report| {
         let rel = Vec3::new(p[0], p[1], p[2]);
         let w = p[3];
+        // The SG footprint is in data samples; the imagery's in metres.
+        let scale = imagery.map_or(Vec3::ONE, |t| {
+            let kd = d.scene.material.kd;
+            t.albedo([p[0], p[1]], w * d.data_spacing, kd) / kd.max(Vec3::splat(1.0e-6))
+        });
         let got_r = Vec4::from(q);
         let l = w.max(1.0).log2();
         let mut sides = vec![w];
@@ -307,7 +356,7 @@ pub fn compare_sg(
             };
             let e = (r - got_r).abs().max_element();
             if best.is_none_or(|b| e < b.0) {
-                best = Some((e, r, sg_colour(r, light, rel, d)));
+                best = Some((e, r, sg_colour_scaled(r, light, rel, d, scale)));
             }
         }
         let Some((e, _, c)) = best else {

@@ -169,7 +169,7 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
     let stream = args.stream.streams(needs_all)?;
     let (terrain_name, hm, package, imagery) =
         super::render::open_terrain(&args.terrain, stream, !args.json)?;
-    let mut colour = super::imagery::FlyColour::new(imagery, &mut profile, sg.is_some())?;
+    let mut colour = super::imagery::FlyColour::new(imagery, &mut profile)?;
     let streamed = package.is_some();
     let mut clipmap = match package {
         Some(p) => Clipmap::streamed(p, &profile, opts)?,

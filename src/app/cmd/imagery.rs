@@ -13,22 +13,14 @@ use serde_json::json;
 /// Most frames [`fill_rings`] updates the colour rings at a still camera.
 pub(crate) const MAX_FILL_FRAMES: u64 = 256;
 
-/// Refuses imagery on a profile that does not allow it or under SG shading (not implemented yet), and
-/// takes the imagery's CPU memory (tile cache and staging) out of `budget.cpu_memory_bytes`, so that the
+/// Refuses imagery on a profile that does not allow it, and takes the imagery's CPU memory (tile cache and staging) out of `budget.cpu_memory_bytes`, so that the
 /// heights' split and the imagery's together stay within the profile's budget.
-pub(crate) fn check_profile(profile: &mut Profile, sg: bool) -> Result<()> {
+pub(crate) fn check_profile(profile: &mut Profile) -> Result<()> {
     if !profile.allows(Feature::Imagery) {
         return Err(Error::config(
             &profile.name,
             "shading.features",
             "draping imagery needs the feature \"imagery\"",
-        ));
-    }
-    if sg {
-        return Err(super::args::arg_error(
-            "--imagery",
-            "draped imagery is drawn under basic shading (--shading basic); under SG it is not \
-             implemented yet",
         ));
     }
     let b = &mut profile.budget;
@@ -152,14 +144,10 @@ pub(crate) struct FlyColour {
 
 impl FlyColour {
     /// The rings of `package`, if any, with `profile` checked and its CPU budget shared ([`check_profile`]).
-    pub(crate) fn new(
-        package: Option<ImageryPackage>,
-        profile: &mut Profile,
-        sg: bool,
-    ) -> Result<Self> {
+    pub(crate) fn new(package: Option<ImageryPackage>, profile: &mut Profile) -> Result<Self> {
         let rings = match package {
             Some(p) => {
-                check_profile(profile, sg)?;
+                check_profile(profile)?;
                 Some(ColorRings::new(p, &profile.imagery)?)
             }
             None => None,

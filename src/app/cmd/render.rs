@@ -193,7 +193,7 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
     profile.view.width = size_w;
     profile.view.height = size_h;
     if imagery.is_some() {
-        super::imagery::check_profile(&mut profile, sg.is_some())?;
+        super::imagery::check_profile(&mut profile)?;
     }
     let t0 = Instant::now();
     let streamed = package.is_some();

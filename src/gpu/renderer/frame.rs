@@ -223,6 +223,17 @@ impl Renderer {
             }
             _ => None,
         };
+        // Draped imagery under SG: the programs of the variant drawn, if built with the imagery.
+        let sg_imagery = match (&self.imagery, sg) {
+            (Some(i), Some(sg)) if probe.is_none() => match &i.sg {
+                Some((v, programs)) if *v == sg.variant => {
+                    pass.set_bind_group(3, &i.group, &[]);
+                    Some(programs)
+                }
+                _ => None,
+            },
+            _ => None,
+        };
         // Draped imagery: its programs in place of basic shading's (not under SG, a debug view or a probe).
         let imagery = match &self.imagery {
             Some(i) if sg.is_none() && probe.is_none() && self.draws_imagery() => {
@@ -250,7 +261,7 @@ impl Renderer {
             }
             let (programs, pipelines) = match probe {
                 Some(p) => (p.sg.as_ref(), &p.basic),
-                None => (sg.map(|s| s.programs()), &self.pipelines),
+                None => (sg_imagery.or(sg.map(|s| s.programs())), &self.pipelines),
             };
             let pipeline = match (sg, programs) {
                 (Some(_), Some(s)) if d.fragment == FragmentPath::Skirt => &s.skirt,

@@ -5,8 +5,9 @@
 //! without it creates, binds and compiles none of this. Each frame [`Renderer::prepare_imagery`] writes
 //! the plan's colour uploads ([`ColorRings::uploads`]) and the uniform, and creates nothing.
 
+use super::sg::{programs, SgPrograms};
 use super::{array_entry, array_texture, terrain_pipeline, Ledgered, Renderer, FRAGMENT_ENTRIES};
-use crate::gpu::shaders;
+use crate::gpu::shaders::{self, SgVariant};
 use crate::plan::color_rings::{ColorRings, ImageryUniform};
 use crate::plan::fragment::FRAGMENT_PATHS;
 use crate::{Error, Result};
@@ -24,6 +25,8 @@ pub(super) struct ImageryState {
     _layout: wgpu::BindGroupLayout,
     pub(super) group: wgpu::BindGroup,
     pub(super) pipelines: [wgpu::RenderPipeline; FRAGMENT_PATHS],
+    /// Under SG shading: the SG variant drawn with imagery and its programs (group 3).
+    pub(super) sg: Option<(SgVariant, SgPrograms)>,
     ring: u32,
     levels: u32,
 }
@@ -31,18 +34,15 @@ pub(super) struct ImageryState {
 impl Renderer {
     /// Creates the colour rings (`ring^2 x levels` RGBA8), their uniform, bind group and the imagery
     /// programs, once: frames then draw the terrain's albedo from the imagery under basic shading (and
-    /// its fog). Refused under SG shading (not implemented yet), a second time, or past the device's
-    /// limits.
+    /// its fog), and under SG shading the diffuse term of the SG variant drawn now scaled by the imagery's
+    /// albedo over the scene's k_d (the bind group at 3, after the SG tables'; a variant switched to later
+    /// by [`Renderer::set_sg_effects`] draws without imagery). Refused a second time, or past the
+    /// device's limits.
     pub fn enable_imagery(&mut self, device: &wgpu::Device, ring: u32, levels: u32) -> Result<()> {
         let refuse = |reason: &str| Error::Invalid {
             what: "imagery".into(),
             reason: reason.into(),
         };
-        if self.sg.is_some() {
-            return Err(refuse(
-                "draped imagery under SG shading is not implemented yet: use basic shading",
-            ));
-        }
         if self.imagery.is_some() {
             return Err(refuse("the renderer's imagery is already set up"));
         }
@@ -122,6 +122,22 @@ impl Renderer {
         let pipelines = FRAGMENT_ENTRIES.map(|(label, entry)| {
             terrain_pipeline(&mut dev, label, &pipeline_layout, &module, entry, &targets)
         });
+        let sg = self.sg.as_ref().map(|sg| {
+            let module = dev.shader_module(
+                "sg_clipmap.wgsl (imagery)",
+                shaders::sg_clipmap_imagery(sg.variant),
+            );
+            let layout = dev.pipeline_layout(
+                "sg imagery pipeline layout",
+                &[
+                    Some(&self._group0_layout),
+                    Some(&self._group1_layout),
+                    Some(&sg._layout),
+                    Some(&layout),
+                ],
+            );
+            (sg.variant, programs(&mut dev, &module, &layout, &targets))
+        });
         self.ledger.extend(&dev.finish());
         self.imagery = Some(ImageryState {
             texture,
@@ -129,6 +145,7 @@ impl Renderer {
             _layout: layout,
             group,
             pipelines,
+            sg,
             ring,
             levels,
         });
