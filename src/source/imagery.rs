@@ -1,5 +1,7 @@
 //! Stage 0, the source: imagery to drape on the terrain (PNG and JPEG: 8- or 16-bit grey, grey + alpha,
-//! RGB, RGBA or palette), read into RGB8 texels placed over an extent of the terrain's world frame.
+//! RGB, RGBA or palette; TIFF and GeoTIFF: 8- or 16-bit grey, RGB or RGBA), read into RGB8 texels placed
+//! over an extent of the terrain's world frame. A GeoTIFF's georeference is not read yet: it is placed as
+//! a plain image is.
 //!
 //! Placement is pixel-is-area (docs/guide.md "Imagery"): an image of W x H texels over the extent
 //! (west, south, east, north) has texel (i, j) cover x in [west + i dx, west + (i + 1) dx] and y in
@@ -144,6 +146,10 @@ impl Imagery {
     /// than PNG or JPEG, a declared size over `options.max_texels` (before allocating), fewer than 2 x 2
     /// texels, a truncated or corrupt file, an extent that shares no area with `grid`.
     pub fn load(path: &Path, grid: &Extent, options: &ImageryOptions) -> Result<Self> {
+        if is_tiff(path)? {
+            let (width, height, rgb) = load_tiff(path, options)?;
+            return Self::from_rgb(path, width, height, rgb, grid, options.extent);
+        }
         let open = || -> Result<image::ImageReader<BufReader<std::fs::File>>> {
             let reader = image::ImageReader::open(path)
                 .map_err(|e| Error::io(path, "cannot read", e))?
@@ -153,11 +159,11 @@ impl Imagery {
                 Some(image::ImageFormat::Png | image::ImageFormat::Jpeg) => Ok(reader),
                 Some(other) => Err(Error::format(
                     path,
-                    format!("imagery is read from PNG or JPEG files, not {other:?}"),
+                    format!("imagery is read from PNG, JPEG or TIFF files, not {other:?}"),
                 )),
                 None => Err(Error::format(
                     path,
-                    "not a PNG or JPEG image (unknown signature)",
+                    "not a PNG, JPEG or TIFF image (unknown signature)",
                 )),
             }
         };
@@ -299,6 +305,84 @@ fn check_jpeg_end(path: &Path) -> Result<()> {
             "truncated JPEG: no end-of-image marker",
         ))
     }
+}
+
+/// Whether `path` starts with a TIFF's magic (`II*\0` or `MM\0*`).
+fn is_tiff(path: &Path) -> Result<bool> {
+    use std::io::Read as _;
+    let mut magic = [0u8; 4];
+    let mut f = std::fs::File::open(path).map_err(|e| Error::io(path, "cannot read", e))?;
+    let n = f
+        .read(&mut magic)
+        .map_err(|e| Error::io(path, "cannot read", e))?;
+    Ok(n == 4 && (magic == *b"II*\0" || magic == *b"MM\0*"))
+}
+
+/// A (Geo)TIFF's texels as RGB8: 8- or 16-bit grey, RGB or RGBA (16 bits rounded to 8, alpha dropped),
+/// its size checked against `options.max_texels` before the image is read.
+fn load_tiff(path: &Path, options: &ImageryOptions) -> Result<(u32, u32, Vec<u8>)> {
+    use tiff::decoder::{DecodingResult, Limits};
+    use tiff::ColorType;
+    let bad = |e: &dyn std::fmt::Display| {
+        Error::format(
+            path,
+            format!("corrupt, truncated or unsupported TIFF: {}", one_line(e)),
+        )
+    };
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, "cannot read", e))?;
+    let mut dec = tiff::decoder::Decoder::new(BufReader::new(file)).map_err(|e| bad(&e))?;
+    let (width, height) = dec.dimensions().map_err(|e| bad(&e))?;
+    let texels = u64::from(width) * u64::from(height);
+    if texels > options.max_texels {
+        return Err(Error::param(
+            Param::MaxImageryTexels,
+            format!(
+                "{}: declared size {width} x {height} = {texels} texels is over the limit of {} texels",
+                path.display(),
+                options.max_texels
+            ),
+        ));
+    }
+    check_size(path, width, height)?;
+    let channels = match dec.colortype().map_err(|e| bad(&e))? {
+        ColorType::Gray(8 | 16) => 1,
+        ColorType::RGB(8 | 16) => 3,
+        ColorType::RGBA(8 | 16) => 4,
+        other => {
+            return Err(Error::format(
+                path,
+                format!("imagery TIFF is {other:?}: 8- or 16-bit grey, RGB or RGBA are read"),
+            ))
+        }
+    };
+    let mut limits = Limits::default();
+    let bytes = usize::try_from(texels.saturating_mul(8)).unwrap_or(usize::MAX);
+    limits.decoding_buffer_size = bytes.saturating_add(1 << 20);
+    limits.intermediate_buffer_size = limits.decoding_buffer_size;
+    let mut dec = dec.with_limits(limits);
+    let n = usize::try_from(texels).unwrap_or(usize::MAX);
+    let to8: Vec<u8> = match dec.read_image().map_err(|e| bad(&e))? {
+        DecodingResult::U8(v) => v,
+        DecodingResult::U16(v) => v
+            .iter()
+            .map(|&x| u8::try_from((u32::from(x) + 128) / 257).unwrap_or(255))
+            .collect(),
+        _ => return Err(Error::format(path, "imagery TIFF samples are not 8- or 16-bit integers")),
+    };
+    if to8.len() < n * channels {
+        return Err(Error::format(
+            path,
+            format!("the TIFF holds {} samples, {width} x {height} needs {}", to8.len(), n * channels),
+        ));
+    }
+    let mut rgb = Vec::with_capacity(n * 3);
+    for px in to8.chunks_exact(channels).take(n) {
+        match channels {
+            1 => rgb.extend_from_slice(&[px[0], px[0], px[0]]),
+            _ => rgb.extend_from_slice(&px[..3]),
+        }
+    }
+    Ok((width, height, rgb))
 }
 
 /// A decoder's error on one line (some end theirs with a newline).

@@ -409,3 +409,69 @@ fn shared_images_beat_jpeg_q90() {
         assert!(r.psnr_db >= jpeg_db, "{image}: {r:?}");
     }
 }
+
+/// (Geo)TIFF imagery: 8-bit RGB, 16-bit RGB (rounded to 8 bits), 8-bit RGBA and 16-bit grey, placed as
+/// a plain image; a truncated TIFF and a float one are refused, a huge declared size before allocating.
+#[test]
+fn tiff_imagery_is_read() {
+    use tiff::encoder::{colortype, TiffEncoder};
+    let dir = scratch("tiff");
+    let (w, h) = (6u32, 4u32);
+    let rgb = pattern(w, h);
+    let write = |name: &str, f: &dyn Fn(&mut TiffEncoder<&mut std::fs::File>)| {
+        let path = dir.join(name);
+        let mut file = std::fs::File::create(&path).expect("create");
+        let mut enc = TiffEncoder::new(&mut file).expect("encoder");
+        f(&mut enc);
+        path
+    };
+    let p8 = write("rgb8.tif", &|e| {
+        e.write_image::<colortype::RGB8>(w, h, &rgb).expect("write");
+    });
+    let wide: Vec<u16> = rgb.iter().map(|&v| u16::from(v) * 257).collect();
+    let p16 = write("rgb16.tif", &|e| {
+        e.write_image::<colortype::RGB16>(w, h, &wide)
+            .expect("write");
+    });
+    let rgba: Vec<u8> = rgb.chunks(3).flat_map(|c| [c[0], c[1], c[2], 7]).collect();
+    let pa = write("rgba8.tif", &|e| {
+        e.write_image::<colortype::RGBA8>(w, h, &rgba)
+            .expect("write");
+    });
+    let grey: Vec<u16> = (0..w * h)
+        .map(|i| u16::try_from(i * 2570).expect("u16"))
+        .collect();
+    let pg = write("grey16.tif", &|e| {
+        e.write_image::<colortype::Gray16>(w, h, &grey)
+            .expect("write");
+    });
+    for path in [&p8, &p16, &pa] {
+        let im = load(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        assert_eq!(im.size(), (w, h));
+        assert_eq!(im.texels(), rgb.as_slice(), "{}", path.display());
+        assert_eq!(im.extent(), grid());
+    }
+    let im = load(&pg).expect("grey");
+    assert_eq!(im.texel(1, 0), [10, 10, 10]);
+    // Refused: truncated, float samples, too many texels.
+    let bytes = std::fs::read(&p8).expect("read");
+    let cut = dir.join("cut.tif");
+    std::fs::write(&cut, &bytes[..bytes.len() / 3]).expect("write");
+    assert!(is_format_for(&load(&cut).expect_err("cut"), &cut));
+    let float = write("float.tif", &|e| {
+        e.write_image::<colortype::RGB32Float>(w, h, &vec![0.5f32; (w * h * 3) as usize])
+            .expect("write");
+    });
+    assert!(is_format_for(&load(&float).expect_err("float"), &float));
+    let small = ImageryOptions {
+        max_texels: 10,
+        ..ImageryOptions::default()
+    };
+    assert!(matches!(
+        Imagery::load(&p8, &grid(), &small),
+        Err(Error::Param {
+            param: Param::MaxImageryTexels,
+            ..
+        })
+    ));
+}
