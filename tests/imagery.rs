@@ -204,6 +204,38 @@ fn cost_with_and_without_imagery() {
         "basic: {a:.1} ms, basic + imagery: {b:.1} ms, ratio {:.2}",
         b / a
     );
+    // SG (noon: diffuse, sun and sky) with and without imagery, the same run.
+    let scene = clipsat::shading::scene::Scene::load("noon").expect("scene");
+    let sg = |imagery: bool| {
+        let mut r = Offscreen::with_sg(
+            &gpu,
+            &p,
+            &cm,
+            &hm,
+            &scene,
+            clipsat::shading::Patches::P4x8,
+            false,
+        )
+        .expect("sg");
+        if imagery {
+            r.renderer_mut()
+                .enable_imagery(gpu.device(), rings.ring(), rings.level_count())
+                .expect("imagery");
+            r.renderer()
+                .prepare_imagery(gpu.queue(), &rings, (cam.eye.x, cam.eye.y))
+                .expect("upload");
+        }
+        r
+    };
+    let (mut sg_plain, mut sg_draped) = (sg(false), sg(true));
+    let (a, b, a2, b2) = (
+        time(&mut sg_plain),
+        time(&mut sg_draped),
+        time(&mut sg_plain),
+        time(&mut sg_draped),
+    );
+    let (a, b) = (a.min(a2), b.min(b2));
+    println!("sg: {a:.1} ms, sg + imagery: {b:.1} ms, ratio {:.2}", b / a);
 }
 
 /// Fidelity against a reference drape (the goal): Puget Sound and Grand Canyon from the default

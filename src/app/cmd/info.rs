@@ -75,6 +75,9 @@ pub(crate) fn run(args: &InfoArgs) -> Result<()> {
             // terrain): normals only, and with visibility's horizon tables.
             "sg_bytes": p.sg_table_bytes(0),
             "sg_visibility_bytes": p.sg_table_bytes(clipsat::bake::horizon::DEFAULT_AZIMUTHS),
+            // Draped imagery's colour rings (GPU) and tile cache plus staging (CPU), where allowed.
+            "imagery_gpu_bytes": p.imagery_gpu_bytes(),
+            "imagery_cpu_bytes": p.allows(clipsat::profile::Feature::Imagery).then(|| p.imagery.cpu_bytes()),
         }));
     }
     if args.json {
