@@ -503,6 +503,14 @@ impl ColorRings {
         u
     }
 
+    /// Forgets what the rings hold (a new texture, as after the renderer is built again): the next
+    /// updates write every texel again, under the budget, and the rings fade in anew.
+    pub fn reset(&mut self) {
+        for l in &mut self.levels {
+            *l = Level::default();
+        }
+    }
+
     /// The ring side, texels.
     pub fn ring(&self) -> u32 {
         self.budget.ring
