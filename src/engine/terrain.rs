@@ -9,6 +9,7 @@ use crate::package::imagery::{bake_imagery, cached_imagery, ImageryPackage, DEFA
 use crate::package::{self, Package};
 use crate::progress::Progress;
 use crate::source::procedural::{self, ProceduralParams};
+use crate::source::georef::{georef_extent, GeoRef};
 use crate::source::imagery::{Extent, Imagery, ImageryOptions};
 use crate::source::{self, Heightmap, LoadOptions, RowSource, TerrainSpec};
 use crate::{Camera, Error, Param, Result};
@@ -57,6 +58,8 @@ pub struct Terrain {
     package: Option<Package>,
     cache_dir: Option<PathBuf>,
     imagery: Option<ImageryPackage>,
+    /// The heights' source file (not a package), whose georeference places GeoTIFF imagery.
+    source: Option<PathBuf>,
 }
 
 impl Terrain {
@@ -207,7 +210,9 @@ impl Terrain {
                     TerrainSpec::Procedural(p) => procedural::generate(p)?,
                     TerrainSpec::File(path) => source::load(path, load)?,
                 };
-                return Ok(Self::whole(name, hm, cache_dir));
+                let mut t = Self::whole(name, hm, cache_dir);
+                t.source = source_file(spec);
+                return Ok(t);
             }
         };
         Ok(Self {
@@ -216,6 +221,7 @@ impl Terrain {
             package: Some(package),
             cache_dir: cache_dir.map(Path::to_path_buf),
             imagery: None,
+            source: source_file(spec),
         })
     }
 
@@ -226,6 +232,7 @@ impl Terrain {
             package: None,
             cache_dir: cache_dir.map(Path::to_path_buf),
             imagery: None,
+            source: None,
         }
     }
 
@@ -274,6 +281,25 @@ impl Terrain {
             }
             ImageryPackage::open(path)?
         } else {
+            // A GeoTIFF over GeoTIFF heights: placed by both georeferences (unless an extent is given).
+            let georef = match (options.extent, self.source.as_deref().and_then(GeoRef::read)) {
+                (None, Some(heights)) => match GeoRef::read(path) {
+                    Some(image) => {
+                        let (spacing, origin) = match &self.package {
+                            Some(p) => (f64::from(p.header().spacing), p.header().origin),
+                            None => (f64::from(self.stand_in.spacing()), self.stand_in.origin()),
+                        };
+                        Some(georef_extent(path, &heights, &image, spacing, origin)?)
+                    }
+                    None => None,
+                },
+                _ => None,
+            };
+            let placed = ImageryOptions {
+                extent: georef.or(options.extent),
+                ..*options
+            };
+            let options = &placed;
             let key = imagery_key(path, &grid, options)?;
             let load = || Imagery::load(path, &grid, options);
             match &self.cache_dir {
@@ -342,6 +368,14 @@ impl Terrain {
     /// Takes the imagery package out (before [`Terrain::parts`]).
     pub fn take_imagery(&mut self) -> Option<ImageryPackage> {
         self.take_imagery_package()
+    }
+}
+
+/// The file a spec names, unless it is a package (whose source is not known).
+fn source_file(spec: &TerrainSpec) -> Option<PathBuf> {
+    match spec {
+        TerrainSpec::File(path) if !package::is_package(path) => Some(path.clone()),
+        _ => None,
     }
 }
 

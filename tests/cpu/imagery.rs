@@ -475,3 +475,141 @@ fn tiff_imagery_is_read() {
         })
     ));
 }
+
+/// Writes a GeoTIFF of `w` x `h` with a pixel scale `s`, a tiepoint of pixel (0, 0) at `tie` and the
+/// GeoKeys `keys` (entries of key, 0, 1, value).
+fn geotiff<C: tiff::encoder::colortype::ColorType>(
+    path: &Path,
+    w: u32,
+    h: u32,
+    data: &[C::Inner],
+    s: f64,
+    tie: (f64, f64),
+    keys: &[(u16, u16)],
+) where
+    [C::Inner]: tiff::encoder::TiffValue,
+{
+    use tiff::tags::Tag;
+    let mut file = std::fs::File::create(path).expect("create");
+    let mut enc = tiff::encoder::TiffEncoder::new(&mut file).expect("encoder");
+    let mut img = enc.new_image::<C>(w, h).expect("image");
+    img.encoder()
+        .write_tag(Tag::ModelPixelScaleTag, &[s, s, 0.0][..])
+        .expect("scale");
+    img.encoder()
+        .write_tag(
+            Tag::ModelTiepointTag,
+            &[0.0, 0.0, 0.0, tie.0, tie.1, 0.0][..],
+        )
+        .expect("tiepoint");
+    let count = u16::try_from(keys.len()).expect("keys");
+    let mut dir = vec![1u16, 1, 0, count];
+    for (k, v) in keys {
+        dir.extend_from_slice(&[*k, 0, 1, *v]);
+    }
+    img.encoder()
+        .write_tag(Tag::GeoKeyDirectoryTag, &dir[..])
+        .expect("geokeys");
+    img.write_data(data).expect("data");
+}
+
+/// A GeoTIFF image over GeoTIFF heights is placed by both georeferences: 11 x 11 heights at 30 m whose
+/// south-west sample centre is the world's origin, a 20 x 10 image at 15 m covering their northern half
+/// from the west sample's centre, so (0, 150, 300, 300) m; through the library (`TerrainOptions`) too. A
+/// pixel-is-point image moves half a pixel; another coordinate system is refused.
+#[test]
+fn geotiff_imagery_is_placed_by_its_georeference() {
+    use clipsat::source::georef::{georef_extent, GeoRef};
+    use tiff::encoder::colortype::{Gray32Float, RGB8};
+    let dir = scratch("georef");
+    let utm = [(1024, 1), (1025, 1), (3072, 32611)];
+    let heights = dir.join("heights.tif");
+    geotiff::<Gray32Float>(
+        &heights,
+        11,
+        11,
+        &[100.0f32; 121],
+        30.0,
+        (500_000.0, 4_000_300.0),
+        &utm,
+    );
+    let image = dir.join("image.tif");
+    let rgb = pattern(20, 10);
+    geotiff::<RGB8>(&image, 20, 10, &rgb, 15.0, (500_015.0, 4_000_285.0), &utm);
+    let (h, i) = (
+        GeoRef::read(&heights).expect("heights"),
+        GeoRef::read(&image).expect("image"),
+    );
+    let e = georef_extent(&image, &h, &i, 30.0, (0.0, 0.0)).expect("extent");
+    assert_eq!(e, Extent::new(0.0, 150.0, 300.0, 300.0).expect("extent"));
+    let terrain = clipsat::Terrain::open_with(
+        &heights,
+        &clipsat::TerrainOptions {
+            imagery: Some(image.clone()),
+            ..clipsat::TerrainOptions::default()
+        },
+    )
+    .expect("terrain");
+    assert_eq!(terrain.imagery().expect("imagery").header().extent, e);
+    // Pixel-is-point: the tiepoint is a pixel's centre, so the image lies half a pixel (7.5 m) west and north.
+    let point = dir.join("point.tif");
+    geotiff::<RGB8>(
+        &point,
+        20,
+        10,
+        &rgb,
+        15.0,
+        (500_015.0, 4_000_285.0),
+        &[(1024, 1), (1025, 2), (3072, 32611)],
+    );
+    let p = georef_extent(
+        &point,
+        &h,
+        &GeoRef::read(&point).expect("point"),
+        30.0,
+        (0.0, 0.0),
+    )
+    .expect("extent");
+    assert_eq!(p, Extent::new(-7.5, 157.5, 292.5, 307.5).expect("extent"));
+    // Another UTM zone: refused, naming both.
+    let other = dir.join("other.tif");
+    geotiff::<RGB8>(
+        &other,
+        20,
+        10,
+        &rgb,
+        15.0,
+        (500_015.0, 4_000_285.0),
+        &[(1024, 1), (3072, 32612)],
+    );
+    let e = georef_extent(
+        &other,
+        &h,
+        &GeoRef::read(&other).expect("other"),
+        30.0,
+        (0.0, 0.0),
+    )
+    .expect_err("another coordinate system");
+    assert!(
+        e.to_string().contains("32612") && e.to_string().contains("32611"),
+        "{e}"
+    );
+    let e = clipsat::Terrain::open_with(
+        &heights,
+        &clipsat::TerrainOptions {
+            imagery: Some(other),
+            ..clipsat::TerrainOptions::default()
+        },
+    )
+    .expect_err("another coordinate system");
+    assert!(
+        matches!(
+            e,
+            Error::Param {
+                param: Param::ImageryExtent,
+                ..
+            }
+        ),
+        "{e}"
+    );
+}

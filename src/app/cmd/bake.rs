@@ -7,6 +7,7 @@ use std::time::Instant;
 use clap::Args;
 use clipsat::package::imagery::{bake_imagery, DEFAULT_QUALITY};
 use clipsat::package::{self, BakeOptions, CodecKind};
+use clipsat::source::georef::{georef_extent, GeoRef};
 use clipsat::source::imagery::{Extent, Imagery};
 use clipsat::source::RowSource;
 use clipsat::{Error, Result};
@@ -144,5 +145,13 @@ fn load_imagery(
 ) -> Result<Imagery> {
     let g = rows.grid();
     let grid = Extent::of_grid(g.width, g.height, f64::from(g.spacing), g.origin);
-    Imagery::load(path, &grid, &targs.imagery_options()?)
+    let mut options = targs.imagery_options()?;
+    // A GeoTIFF over GeoTIFF heights: placed by both georeferences (unless an extent is given).
+    if let (None, clipsat::source::TerrainSpec::File(heights)) = (options.extent, targs.spec()?) {
+        if let (Some(h), Some(i)) = (GeoRef::read(&heights), GeoRef::read(path)) {
+            let spacing = f64::from(g.spacing);
+            options.extent = Some(georef_extent(path, &h, &i, spacing, g.origin)?);
+        }
+    }
+    Imagery::load(path, &grid, &options)
 }
