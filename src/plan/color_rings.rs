@@ -254,18 +254,19 @@ impl ColorRings {
     }
 
     /// The region ring `level` should hold with the eye at texel (cx, cy) of that level: a `ring`
-    /// square centred there, snapped to [`SNAP`], clipped to the level's image.
+    /// square centred there, snapped to [`SNAP`], moved inside the level's image where it fits and
+    /// clipped to it.
     fn want(&self, level: usize, cx: i64, cy: i64) -> TexRect {
         let ring = i64::from(self.budget.ring);
         let l = &self.package().header().levels[level];
-        let x0 = (cx - ring / 2).div_euclid(SNAP) * SNAP;
-        let y0 = (cy - ring / 2).div_euclid(SNAP) * SNAP;
-        TexRect { x0, y0, w: ring, h: ring }.intersect(&TexRect {
-            x0: 0,
-            y0: 0,
-            w: i64::from(l.width),
-            h: i64::from(l.height),
-        })
+        let (w, h) = (i64::from(l.width), i64::from(l.height));
+        // Kept inside the level where it fits (a level no larger than the ring is held whole and never
+        // moves), so that a ring near the image's edge holds as much of it as it can.
+        let inside = |c: i64| (c - ring / 2).div_euclid(SNAP) * SNAP;
+        let fit = |v: i64, size: i64| if size <= ring { 0 } else { v.clamp(0, size - ring) };
+        let x0 = fit(inside(cx), w);
+        let y0 = fit(inside(cy), h);
+        TexRect { x0, y0, w: ring, h: ring }.intersect(&TexRect { x0: 0, y0: 0, w, h })
     }
 
     /// The eye's position in texels of `level` (column, row from the north-west corner), exact in f64.
