@@ -484,21 +484,19 @@ impl Profile {
             .checked_mul(u64::from(self.clip_size()))
             .and_then(|t| t.checked_mul(u64::from(c.levels)))
             .and_then(|t| t.checked_mul(8));
-        // The imagery's tile cache and staging, where the profile allows imagery (checked first).
-        let imagery_cpu = if self.allows(Feature::Imagery) {
+        // The `[imagery]` section's fields, where the profile allows imagery; its memory is checked
+        // where a terrain has imagery (`engine::setup::imagery_profile`).
+        if self.allows(Feature::Imagery) {
             self.imagery.validate(source_name)?;
-            self.imagery.cpu_bytes()
-        } else {
-            0
-        };
-        match rings.and_then(|r| r.checked_add(MIN_TILE_CACHE_BYTES + imagery_cpu)) {
+        }
+        match rings.and_then(|r| r.checked_add(MIN_TILE_CACHE_BYTES)) {
             Some(need) if need <= b.cpu_memory_bytes => {}
             _ => {
                 return bad(
                     "budget.cpu_memory_bytes",
                     format!(
                     "{} bytes do not hold the rings' CPU copy ({} bytes) plus a tile cache of at \
-                         least {MIN_TILE_CACHE_BYTES} bytes (and the imagery's {imagery_cpu} bytes)",
+                         least {MIN_TILE_CACHE_BYTES} bytes",
                     b.cpu_memory_bytes,
                     rings.map_or_else(|| "overflowing".to_owned(), |r| r.to_string())
                 ),
@@ -506,7 +504,7 @@ impl Profile {
             }
         }
         // Every part is bounded by the checks above (at most a few GiB), so the u64 sums cannot wrap.
-        let need = self.footprint().total() + self.imagery_gpu_bytes();
+        let need = self.footprint().total();
         if b.gpu_memory_bytes == 0 || need > b.gpu_memory_bytes {
             return bad(
                 "budget.gpu_memory_bytes",
@@ -547,7 +545,8 @@ impl Profile {
     }
 
     /// GPU bytes of the colour rings where the profile allows imagery (else 0): counted against
-    /// `budget.gpu_memory_bytes` with [`Profile::footprint`], allocated only for a terrain with imagery.
+    /// `budget.gpu_memory_bytes` with [`Profile::footprint`] for a terrain with imagery
+    /// (`engine::setup::imagery_profile`), and allocated only for one.
     pub fn imagery_gpu_bytes(&self) -> u64 {
         if self.allows(Feature::Imagery) {
             self.imagery.gpu_bytes()

@@ -154,25 +154,10 @@ impl TerrainRenderer {
         let imagery = terrain.take_imagery_package();
         // Draped imagery, on a profile that allows it: its tile cache and staging come out of the CPU
         // budget before the heights' split.
-        let mut with_imagery;
+        let with_imagery;
         let profile = match &imagery {
             Some(_) => {
-                with_imagery = profile.clone();
-                if !profile.allows(crate::profile::Feature::Imagery) {
-                    return Err(Error::config(
-                        &profile.name,
-                        "shading.features",
-                        "draping imagery needs the feature \"imagery\"",
-                    ));
-                }
-                let b = &mut with_imagery.budget;
-                b.cpu_memory_bytes = b
-                    .cpu_memory_bytes
-                    .checked_sub(profile.imagery.cpu_bytes())
-                    .ok_or_else(|| {
-                        Error::config(&profile.name, "imagery.cache_bytes", "over the CPU budget")
-                    })?;
-                with_imagery.validate(&profile.name)?;
+                with_imagery = setup::imagery_profile(profile)?;
                 &with_imagery
             }
             None => profile,

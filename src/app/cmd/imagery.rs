@@ -5,36 +5,19 @@ use clipsat::gpu::renderer::Renderer;
 use clipsat::gpu::Gpu;
 use clipsat::package::imagery::ImageryPackage;
 use clipsat::plan::color_rings::{ColorRings, FADE_FRAMES};
-use clipsat::profile::{Feature, Profile};
-use clipsat::{Error, Result};
+use clipsat::profile::Profile;
+use clipsat::Result;
 use glam::DVec3;
 use serde_json::json;
 
 /// Most frames [`fill_rings`] updates the colour rings at a still camera.
 pub(crate) const MAX_FILL_FRAMES: u64 = 256;
 
-/// Refuses imagery on a profile that does not allow it, and takes the imagery's CPU memory (tile cache and staging) out of `budget.cpu_memory_bytes`, so that the
-/// heights' split and the imagery's together stay within the profile's budget.
+/// The profile with draped imagery (`engine::setup::imagery_profile`): the feature allowed, the colour
+/// rings within the GPU budget, the imagery's CPU share taken out of the budget the heights split.
 pub(crate) fn check_profile(profile: &mut Profile) -> Result<()> {
-    if !profile.allows(Feature::Imagery) {
-        return Err(Error::config(
-            &profile.name,
-            "shading.features",
-            "draping imagery needs the feature \"imagery\"",
-        ));
-    }
-    let b = &mut profile.budget;
-    b.cpu_memory_bytes = b
-        .cpu_memory_bytes
-        .checked_sub(profile.imagery.cpu_bytes())
-        .ok_or_else(|| {
-            Error::config(
-                &profile.name,
-                "imagery.cache_bytes",
-                "over budget.cpu_memory_bytes",
-            )
-        })?;
-    profile.validate(&profile.name.clone())
+    *profile = clipsat::engine::setup::imagery_profile(profile)?;
+    Ok(())
 }
 
 /// The colour rings of `package` for `profile`, set up in `renderer` and filled at a still camera at
