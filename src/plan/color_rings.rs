@@ -299,7 +299,10 @@ impl ColorRings {
             #[expect(clippy::cast_possible_truncation, reason = "checked above to fit i64")]
             let want = self.want(level, ex.floor() as i64, ey.floor() as i64);
             let state = &mut self.levels[level];
-            if want != state.target {
+            // A ring still writing toward its target keeps it while the new one shares three quarters
+            // of it (else a moving eye would restart a large fill every frame and it would never end).
+            let far = want.intersect(&state.target).texels() * 4 < state.target.texels() * 3;
+            if want != state.target && (state.pending.is_empty() || far) {
                 state.held = state.held.intersect(&want);
                 state.target = want;
                 state.pending.clear();

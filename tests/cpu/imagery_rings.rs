@@ -133,9 +133,12 @@ fn rings_hold_the_pyramid_within_budget() {
         texels: vec![0; 3 * 256 * 256 * 4],
     };
     let mut hashes = Vec::new();
+    let mut current = 0;
     for i in 0..150 {
         let (x, y) = eye(i);
         let s = rings.update(x, y).expect("update");
+        // A moving eye's rings keep up once filled (a large fill is not restarted by every move).
+        current += u32::from(i >= 30 && s.stale_levels == 0);
         assert!(
             s.texels <= u64::from(b.texels_per_frame),
             "frame {i}: {s:?}"
@@ -145,6 +148,10 @@ fn rings_hold_the_pyramid_within_budget() {
         assert_rings_true(&rings, &mirror, &decoded, &format!("frame {i}"));
         hashes.push(s.hash);
     }
+    assert!(
+        current > 60,
+        "{current} of 120 moving frames had every ring current"
+    );
     // A still camera over the image: every ring becomes whole.
     let (x, y) = (1500.0, 900.0);
     let mut frames = 0;
