@@ -522,3 +522,16 @@ fn sg_imagery_frame_matches_its_twin() {
         "the SG imagery frame is not its twin's: {report:?}"
     );
 }
+
+/// `twin::imagery::check_frame`, the check `clipsat selftest` runs, passes on this device.
+#[test]
+fn the_selftest_check_passes() {
+    let gpu = gpu();
+    let mut p = profile();
+    (p.view.width, p.view.height) = (160, 90);
+    let report = clipsat::twin::imagery::check_frame(&gpu, &terrain(), &p).expect("check");
+    assert!(
+        report.passes() && report.pixels > 160 * 90 / 3,
+        "{report:?}"
+    );
+}
