@@ -523,13 +523,13 @@ fn sg_imagery_frame_matches_its_twin() {
     );
 }
 
-/// `twin::imagery::check_frame`, the check `clipsat selftest` runs, passes on this device.
+/// `twin::imagery_check::check_frame`, the check `clipsat selftest` runs, passes on this device.
 #[test]
 fn the_selftest_check_passes() {
     let gpu = gpu();
     let mut p = profile();
     (p.view.width, p.view.height) = (160, 90);
-    let report = clipsat::twin::imagery::check_frame(&gpu, &terrain(), &p).expect("check");
+    let report = clipsat::twin::imagery_check::check_frame(&gpu, &terrain(), &p).expect("check");
     assert!(
         report.passes() && report.pixels > 160 * 90 / 3,
         "{report:?}"

@@ -6,7 +6,7 @@
 //! - [`frame`]: a drawn frame's colours, `basic_shade` and `sg_colour` recomputed from what the shading
 //!   probe read back, with the tolerance a conformant driver is held to.
 //! - [`imagery`](mod@imagery): `shaders_gles/imagery.wgsl`, a pixel's albedo from the colour rings
-//!   (draped imagery) at its position and footprint.
+//!   (draped imagery) at its position and footprint; [`imagery_check`] a whole imagery frame against it.
 //! - [`border`]: what a frame must cover at the data's border (`outside_data`, `through_side`): the
 //!   pixels whose ray meets the data, marched on the CPU.
 //! - The SG integration of `shaders_gles/sg_shading.wgsl` has its twin in [`crate::shading::shade`]
@@ -17,4 +17,5 @@ pub mod border;
 pub mod clipmap;
 pub mod frame;
 pub mod imagery;
+pub mod imagery_check;
 pub mod shading;
