@@ -3,8 +3,8 @@
 // imagery compiles and binds none of this.
 //
 // Ring l holds texels of pyramid level l at toroidal addresses (texel (i, j) at (i mod S, j mod S)), in
-// one RGBA8 2D array texture read with textureLoad and filtered bilinearly here, as the CPU twin
-// (`clipsat::twin::imagery`) does. A pixel's level follows its footprint (texture clipmaps, Tanner et
+// one RGBA8 2D array texture sampled bilinearly with wrapping (the sampler's repeat mode is the
+// toroidal addressing; the CPU twin, `clipsat::twin::imagery`, filters as GLES 3.0 defines it). A pixel's level follows its footprint (texture clipmaps, Tanner et
 // al. 1998; docs/design.md "Imagery and tiles"): lod = log2(footprint / level 0's spacing), the pixel
 // blends level floor(lod) with the next by the fraction. A ring that does not hold the pixel hands it to
 // the next coarser ring, over IMAGERY_BORDER texels at its held region's border, so no seam shows where
@@ -33,6 +33,8 @@ struct Imagery {
 
 @group(2) @binding(0) var<uniform> imagery: Imagery;
 @group(2) @binding(1) var imagery_rings: texture_2d_array<f32>;
+// Bilinear with repeat: a ring's toroidal addressing is the sampler's wrap.
+@group(2) @binding(2) var imagery_sampler: sampler;
 
 // The pixel's footprint in metres: its largest step on the ground, taken before any discard.
 var<private> imagery_fp: f32;
@@ -40,13 +42,6 @@ var<private> imagery_fp: f32;
 fn imagery_footprint(rel: vec3<f32>) -> f32 {
     let d = max(abs(dpdx(rel.xy)), abs(dpdy(rel.xy)));
     return max(d.x, d.y);
-}
-
-// Ring l's texel at non-negative texel coordinates p (clamped before the conversion; mod the ring).
-fn imagery_texel(l: i32, p: vec2<f32>) -> vec4<f32> {
-    let ring = imagery.info.y;
-    let i = vec2<i32>(clamp(p, vec2<f32>(0.0), vec2<f32>(f32(8 * ring)))) % vec2<i32>(ring);
-    return textureLoad(imagery_rings, i, l, 0);
 }
 
 // Ring l's colour at `rel` (m from the eye), bilinear, premultiplied: alpha is the ring's weight there, 0
@@ -63,16 +58,9 @@ fn imagery_sample(l: i32, rel: vec2<f32>) -> vec4<f32> {
     if (w <= 0.0) {
         return vec4<f32>(0.0);
     }
-    // Two rings added keep the coordinate positive where the pixel is held (the region lies within a
-    // ring of the eye), so `%` sees no negative operand.
-    let u = lv.eye.xy + t + 2.0 * f32(imagery.info.y) - 0.5;
-    let b = floor(u);
-    let f = u - b;
-    let c00 = imagery_texel(l, b);
-    let c10 = imagery_texel(l, b + vec2<f32>(1.0, 0.0));
-    let c01 = imagery_texel(l, b + vec2<f32>(0.0, 1.0));
-    let c11 = imagery_texel(l, b + vec2<f32>(1.0, 1.0));
-    let c = mix(mix(c00, c10, f.x), mix(c01, c11, f.x), f.y);
+    // The eye's texel modulo the ring plus the offset, over the ring: the sampler wraps it.
+    let uv = (lv.eye.xy + t) / f32(imagery.info.y);
+    let c = textureSampleLevel(imagery_rings, imagery_sampler, uv, l, 0.0);
     return vec4<f32>(c.rgb * w, w);
 }
 

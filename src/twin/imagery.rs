@@ -1,7 +1,9 @@
 //! CPU twin of `shaders_gles/imagery.wgsl`: a pixel's albedo from the colour rings at its position and
 //! footprint, in the shader's f32 arithmetic, reading each ring's texels from the imagery package's own
-//! decode of the pyramid (what the rings hold, `tests/cpu/imagery_rings.rs`). The float-to-int
-//! conversions panic where GLSL ES 3.00 leaves them undefined (out of range), as the other twins do.
+//! decode of the pyramid (what the rings hold, `tests/cpu/imagery_rings.rs`), filtered as the GPU's
+//! bilinear sampler with repeat is defined to (a driver's own weight precision is within the tolerance).
+//! The float-to-int conversions panic where GLSL ES 3.00 leaves them undefined (out of range), as the
+//! other twins do.
 
 use glam::{Vec3, Vec4};
 
@@ -85,20 +87,15 @@ impl ImageryTwin {
         )
     }
 
-    /// `imagery_texel`: the ring address of non-negative texel coordinates `p`, clamped before the
-    /// conversion as the shader does.
-    fn address(&self, p: f32) -> i32 {
-        let c = p.clamp(0.0, (8 * self.ring) as f32);
-        assert!(
-            c.is_finite(),
-            "a NaN texel coordinate (undefined in GLSL ES 3.00)"
-        );
+    /// The sampler's wrap (repeat): a texel coordinate modulo the ring.
+    fn address(&self, i: f32) -> i32 {
+        assert!(i.is_finite(), "a NaN texel coordinate");
         #[expect(
             clippy::cast_possible_truncation,
-            reason = "clamped to [0, 8 ring] above"
+            reason = "a floored texel coordinate near the ring"
         )]
-        let i = c as i32;
-        i % self.ring
+        let i = i as i64;
+        i32::try_from(i.rem_euclid(i64::from(self.ring))).unwrap_or(0)
     }
 
     /// `imagery_sample`: ring `l`'s premultiplied colour at `rel` (m from the eye).
@@ -112,8 +109,11 @@ impl ImageryTwin {
         if w.is_nan() || w <= 0.0 {
             return Vec4::ZERO;
         }
-        let ring2 = 2.0 * self.ring as f32;
-        let u = [eye[0] + t[0] + ring2 - 0.5, eye[1] + t[1] + ring2 - 0.5];
+        // The sampler's bilinear filter (GLES 3.0 section 3.8.10): u = uv size - 1/2, taps at floor(u)
+        // and the next, weights its fraction, each wrapped.
+        let ring = self.ring as f32;
+        let uv = [(eye[0] + t[0]) / ring, (eye[1] + t[1]) / ring];
+        let u = [uv[0] * ring - 0.5, uv[1] * ring - 0.5];
         let b = [u[0].floor(), u[1].floor()];
         let f = [u[0] - b[0], u[1] - b[1]];
         let tap =

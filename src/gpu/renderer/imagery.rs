@@ -6,13 +6,13 @@
 //! the plan's colour uploads ([`ColorRings::uploads`]) and the uniform, and creates nothing.
 
 use super::sg::{programs, SgPrograms};
-use super::{array_entry, array_texture, terrain_pipeline, Ledgered, Renderer, FRAGMENT_ENTRIES};
+use super::{array_texture, terrain_pipeline, Ledgered, Renderer, FRAGMENT_ENTRIES};
 use crate::gpu::shaders::{self, SgVariant};
 use crate::plan::color_rings::{ColorRings, ImageryUniform};
 use crate::plan::fragment::FRAGMENT_PATHS;
 use crate::{Error, Result};
 
-/// The colour rings' format: RGBA8, read with `textureLoad` and filtered in the shader (as its twin).
+/// The colour rings' format: RGBA8, filtered bilinearly by the GPU (filterable on GLES 3.0).
 const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 /// Bytes of the imagery uniform.
 const UNIFORM_BYTES: u64 = std::mem::size_of::<ImageryUniform>() as u64;
@@ -21,6 +21,7 @@ const UNIFORM_BYTES: u64 = std::mem::size_of::<ImageryUniform>() as u64;
 #[derive(Debug)]
 pub(super) struct ImageryState {
     texture: wgpu::Texture,
+    _sampler: wgpu::Sampler,
     uniform: wgpu::Buffer,
     _layout: wgpu::BindGroupLayout,
     pub(super) group: wgpu::BindGroup,
@@ -74,6 +75,18 @@ impl Renderer {
                 ..Default::default()
             },
         );
+        // Bilinear, wrapping: the ring's toroidal addresses are its texels modulo the ring, which the
+        // repeat mode gives for free.
+        let sampler = dev.sampler(
+            "imagery sampler",
+            &wgpu::SamplerDescriptor {
+                address_mode_u: wgpu::AddressMode::Repeat,
+                address_mode_v: wgpu::AddressMode::Repeat,
+                mag_filter: wgpu::FilterMode::Linear,
+                min_filter: wgpu::FilterMode::Linear,
+                ..Default::default()
+            },
+        );
         let uniform = dev.buffer(
             "imagery uniform",
             UNIFORM_BYTES,
@@ -92,7 +105,22 @@ impl Renderer {
                     },
                     count: None,
                 },
-                array_entry(1, wgpu::ShaderStages::FRAGMENT),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                        view_dimension: wgpu::TextureViewDimension::D2Array,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 2,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                    count: None,
+                },
             ],
         );
         let group = dev.bind_group(
@@ -106,6 +134,10 @@ impl Renderer {
                 wgpu::BindGroupEntry {
                     binding: 1,
                     resource: wgpu::BindingResource::TextureView(&view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: wgpu::BindingResource::Sampler(&sampler),
                 },
             ],
         );
@@ -141,6 +173,7 @@ impl Renderer {
         self.ledger.extend(&dev.finish());
         self.imagery = Some(ImageryState {
             texture,
+            _sampler: sampler,
             uniform,
             _layout: layout,
             group,
