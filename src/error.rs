@@ -188,11 +188,15 @@ pub enum Param {
     MaxSamples,
     /// The value given as marking voids ([`crate::TerrainOptions::nodata`]).
     Nodata,
+    /// Where imagery lies on the terrain ([`crate::TerrainOptions::imagery_extent`]).
+    ImageryExtent,
+    /// The most texels an imagery file may declare.
+    MaxImageryTexels,
 }
 
 impl Param {
     /// Every parameter, so a caller that maps them (the binary to its flags) can check it maps all.
-    pub const ALL: [Param; 9] = [
+    pub const ALL: [Param; 11] = [
         Self::MaxError,
         Self::Tile,
         Self::Codec,
@@ -202,6 +206,8 @@ impl Param {
         Self::PngEncoding,
         Self::MaxSamples,
         Self::Nodata,
+        Self::ImageryExtent,
+        Self::MaxImageryTexels,
     ];
 
     /// The option's name in the library, `Struct::field`; messages quote it in backticks.
@@ -216,6 +222,8 @@ impl Param {
             Self::PngEncoding => "LoadOptions::png_encoding",
             Self::MaxSamples => "LoadOptions::max_samples",
             Self::Nodata => "LoadOptions::nodata",
+            Self::ImageryExtent => "ImageryOptions::extent",
+            Self::MaxImageryTexels => "ImageryOptions::max_texels",
         }
     }
 }

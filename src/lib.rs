@@ -73,7 +73,18 @@ macro_rules! stages {
     )*};
 }
 
-stages!(bake, engine, gpu, hash, package, plan, profile, shading, source);
+stages!(
+    bake,
+    engine,
+    gpu,
+    hash,
+    package,
+    plan,
+    profile,
+    profile_imagery,
+    shading,
+    source
+);
 // Measurements of drawn frames and the shaders' CPU twins: for tests and the binary only.
 mod error;
 #[cfg(feature = "internals")]

@@ -7,6 +7,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
+pub use crate::profile_imagery::{ImageryBudget, MAX_COLOR_LEVELS};
 use crate::{Error, Result};
 
 /// The profiles shipped in `profiles/`, by name, with their TOML text.
@@ -33,6 +34,10 @@ pub struct Profile {
     pub view: View,
     /// The shading features the device may use.
     pub shading: Shading,
+    /// The colour clipmap of draped imagery (used only where the terrain has imagery and the profile
+    /// allows `imagery`); a profile without the section gets [`ImageryBudget::default`].
+    #[serde(default)]
+    pub imagery: ImageryBudget,
 }
 
 /// Clipmap geometry (GC section 3).
@@ -171,6 +176,8 @@ pub enum Feature {
     Fog,
     /// Fractal detail synthesised below the data's resolution (GC section 8).
     Synthesis,
+    /// Draped imagery: the colour clipmap and its albedo (`[imagery]`'s budget).
+    Imagery,
 }
 
 impl Feature {
@@ -183,6 +190,7 @@ impl Feature {
             Self::Specular => "specular",
             Self::Fog => "fog",
             Self::Synthesis => "synthesis",
+            Self::Imagery => "imagery",
         }
     }
 }
@@ -476,6 +484,11 @@ impl Profile {
             .checked_mul(u64::from(self.clip_size()))
             .and_then(|t| t.checked_mul(u64::from(c.levels)))
             .and_then(|t| t.checked_mul(8));
+        // The `[imagery]` section's fields, where the profile allows imagery; its memory is checked
+        // where a terrain has imagery (`engine::setup::imagery_profile`).
+        if self.allows(Feature::Imagery) {
+            self.imagery.validate(source_name)?;
+        }
         match rings.and_then(|r| r.checked_add(MIN_TILE_CACHE_BYTES)) {
             Some(need) if need <= b.cpu_memory_bytes => {}
             _ => {
@@ -528,6 +541,17 @@ impl Profile {
             tile_cache: rest - lod_tables - shading,
             lod_tables,
             shading,
+        }
+    }
+
+    /// GPU bytes of the colour rings where the profile allows imagery (else 0): counted against
+    /// `budget.gpu_memory_bytes` with [`Profile::footprint`] for a terrain with imagery
+    /// (`engine::setup::imagery_profile`), and allocated only for one.
+    pub fn imagery_gpu_bytes(&self) -> u64 {
+        if self.allows(Feature::Imagery) {
+            self.imagery.gpu_bytes()
+        } else {
+            0
         }
     }
 

@@ -7,6 +7,7 @@
 //! - [`lod_stream`]: the same tables of a package baked out of core, straight into the cache file;
 //! - [`lod_package`]: the records in the package: baked into it, and read back into the cache file;
 //! - [`horizon`]: horizon angles for SG visibility (SAT paper section 5);
+//! - [`imagery`](mod@imagery): the imagery's colour pyramid (GC section 3, "additional images");
 //! - this file: the LOD tables' disk cache, keyed by a content hash.
 //!
 //! # The cache
@@ -31,6 +32,7 @@
 //! memory; [`bake_lod_mapped`] re-reads them from the file it wrote.
 
 pub mod horizon;
+pub mod imagery;
 pub mod lod_package;
 pub mod lod_record;
 pub mod lod_stream;

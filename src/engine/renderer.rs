@@ -6,6 +6,7 @@ use crate::bake::lod_tables::LodMode;
 use crate::gpu::renderer::{Renderer, RendererOptions, SgShading, Shading};
 use crate::gpu::shaders::SgOmit;
 use crate::plan::clipmap::{Clipmap, ClipmapOptions};
+use crate::plan::color_rings::{ColorRings, FADE_FRAMES};
 use crate::plan::frame_plan::{FramePlan, LodSetup, PlanParams, Planner};
 use crate::progress::Progress;
 use crate::shading::scene::Scene;
@@ -122,6 +123,8 @@ pub struct TerrainRenderer {
     plan: FramePlan,
     renderer: Renderer,
     params: PlanParams,
+    /// Draped imagery's colour rings ([`crate::TerrainOptions::imagery`]).
+    imagery: Option<ColorRings>,
 }
 
 impl TerrainRenderer {
@@ -147,6 +150,21 @@ impl TerrainRenderer {
             }
         }
         let cache = terrain.cache_dir().map(std::path::Path::to_path_buf);
+        let mut terrain = terrain;
+        let imagery = terrain.take_imagery_package();
+        // Draped imagery, on a profile that allows it: its tile cache and staging come out of the CPU
+        // budget before the heights' split.
+        let with_imagery;
+        let profile = match &imagery {
+            Some(_) => {
+                with_imagery = setup::imagery_profile(profile)?;
+                &with_imagery
+            }
+            None => profile,
+        };
+        let mut imagery = imagery
+            .map(|p| ColorRings::new(p, &profile.imagery))
+            .transpose()?;
         let (name, stand_in, package) = terrain.into_parts();
         let clipmap = match package {
             Some(p) => Clipmap::streamed(p, profile, ClipmapOptions::default())?,
@@ -210,7 +228,13 @@ impl TerrainRenderer {
                 ..RendererOptions::default()
             },
             profile,
-        );
+        )
+        .and_then(|mut r| {
+            if let Some(rings) = &imagery {
+                r.enable_imagery(device, rings.ring(), rings.level_count())?;
+            }
+            Ok(r)
+        });
         let v = pollster::block_on(validation.pop());
         let o = pollster::block_on(oom.pop());
         if let Some(e) = v.or(o) {
@@ -231,6 +255,7 @@ impl TerrainRenderer {
                 epsilon_px: options.sat_lod_px,
                 ..PlanParams::default()
             },
+            imagery: imagery.take(),
         })
     }
 
@@ -247,6 +272,20 @@ impl TerrainRenderer {
         let eye = camera.0.eye;
         self.params.viewport = Some(viewport);
         let mut frames = self.clipmap.fill_at(eye, setup::MAX_FILL_FRAMES)?;
+        if let Some(rings) = &mut self.imagery {
+            // The colour rings until whole, and while the last fade in (bounded).
+            let mut settled = None;
+            for f in 0..setup::MAX_FILL_FRAMES {
+                let s = rings.update(eye.x, eye.y)?;
+                self.renderer.prepare_imagery(queue, rings, (eye.x, eye.y))?;
+                if s.stale_levels == 0 && settled.is_none() {
+                    settled = Some(f);
+                }
+                if settled.is_some_and(|s| u64::from(f) >= u64::from(s) + FADE_FRAMES) {
+                    break;
+                }
+            }
+        }
         if self.planner.lod().is_some() {
             for _ in 0..setup::MAX_POOL_FRAMES {
                 frames += 1;
@@ -279,6 +318,17 @@ impl TerrainRenderer {
         // Pool tiles waiting for a streamed package's decode: the next update's, after the rings.
         self.clipmap.request_samples(&self.plan.detail().wanted);
         self.renderer.prepare(queue, &self.clipmap, &self.plan)?;
+        // Draped imagery: its rings' update and uploads, their hash folded into the plan's.
+        let mut plan_hash = self.plan.hash();
+        if let Some(rings) = &mut self.imagery {
+            let eye = camera.0.eye;
+            let c = rings.update(eye.x, eye.y)?;
+            self.renderer.prepare_imagery(queue, rings, (eye.x, eye.y))?;
+            let mut h = crate::hash::Hash64::new();
+            h.write_u64(plan_hash);
+            h.write_u64(c.hash);
+            plan_hash = h.finish();
+        }
         let s = self.plan.stats();
         Ok(FrameStats {
             draws: s.draws,
@@ -287,7 +337,7 @@ impl TerrainRenderer {
             stale_levels,
             blocks_clamped: s.blocks_clamped,
             unmet_px: s.unmet_px,
-            plan_hash: self.plan.hash(),
+            plan_hash,
         })
     }
 

@@ -121,3 +121,43 @@ pub fn pool_step(clipmap: &mut Clipmap, eye: DVec3, plan: &FramePlan, wrote: u32
     clipmap.update(eye)?;
     Ok(false)
 }
+
+/// The profile a terrain with draped imagery is drawn with: `profile` allowing the feature `imagery`,
+/// with the colour rings' GPU bytes within `budget.gpu_memory_bytes` beside [`Profile::footprint`], and
+/// the imagery's CPU share (tile cache and staging) taken out of `budget.cpu_memory_bytes` before it is
+/// split for the heights, so that the two together stay within the budget.
+pub fn imagery_profile(profile: &Profile) -> Result<Profile> {
+    use crate::profile::Feature;
+    let bad = |field: &str, reason: String| Err(Error::config(&profile.name, field, reason));
+    if !profile.allows(Feature::Imagery) {
+        return bad(
+            "shading.features",
+            "draping imagery needs the feature \"imagery\"".into(),
+        );
+    }
+    profile.imagery.validate(&profile.name)?;
+    let need = profile.footprint().total() + profile.imagery.gpu_bytes();
+    if need > profile.budget.gpu_memory_bytes {
+        return bad(
+            "budget.gpu_memory_bytes",
+            format!(
+                "the profile with its colour rings needs {need} bytes of GPU memory but the budget is {}",
+                profile.budget.gpu_memory_bytes
+            ),
+        );
+    }
+    let mut p = profile.clone();
+    let Some(left) = p.budget.cpu_memory_bytes.checked_sub(p.imagery.cpu_bytes()) else {
+        return bad(
+            "budget.cpu_memory_bytes",
+            format!(
+                "{} bytes do not hold the imagery's tile cache and staging ({} bytes)",
+                p.budget.cpu_memory_bytes,
+                p.imagery.cpu_bytes()
+            ),
+        );
+    };
+    p.budget.cpu_memory_bytes = left;
+    p.validate(&profile.name)?;
+    Ok(p)
+}

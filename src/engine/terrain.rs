@@ -5,11 +5,14 @@
 use std::path::{Path, PathBuf};
 
 use crate::hash::Hash64;
+use crate::package::imagery::{bake_imagery, cached_imagery, ImageryPackage, DEFAULT_QUALITY};
 use crate::package::{self, Package};
 use crate::progress::Progress;
 use crate::source::procedural::{self, ProceduralParams};
+use crate::source::georef::{georef_extent, GeoRef};
+use crate::source::imagery::{Extent, Imagery, ImageryOptions};
 use crate::source::{self, Heightmap, LoadOptions, RowSource, TerrainSpec};
-use crate::{Camera, Error, Result};
+use crate::{Camera, Error, Param, Result};
 
 /// Most samples of the package level a streamed terrain's stand-in holds (1 Mi: 4 MiB of f32): the
 /// terrain's rough shape for cameras and clearance, never the drawn heights.
@@ -35,6 +38,14 @@ pub struct TerrainOptions<'a> {
     pub nodata: Option<f64>,
     /// Where the first bake of a plain file reports its progress.
     pub progress: Progress<'a>,
+    /// An image to drape on the terrain: a PNG or JPEG (8- or 16-bit grey, RGB, RGBA or palette; alpha
+    /// is dropped), baked into an imagery package (a colour pyramid in JPEG tiles) in the cache folder on
+    /// first use, or an imagery package as `clipsat bake` writes it.
+    pub imagery: Option<PathBuf>,
+    /// Where the imagery lies, (west, south, east, north) metres in the terrain's frame (x east, y north,
+    /// the south-west sample at the origin); `None`: the height grid's extent, corner sample to corner
+    /// sample. Texels are areas: texel (i, j) of W x H covers 1/W of the width and 1/H of the height.
+    pub imagery_extent: Option<[f64; 4]>,
 }
 
 /// A terrain ready to draw: a package streamed through the profile's tile cache, or a height grid held
@@ -46,6 +57,9 @@ pub struct Terrain {
     stand_in: Heightmap,
     package: Option<Package>,
     cache_dir: Option<PathBuf>,
+    imagery: Option<ImageryPackage>,
+    /// The heights' source file (not a package), whose georeference places GeoTIFF imagery.
+    source: Option<PathBuf>,
 }
 
 impl Terrain {
@@ -74,13 +88,25 @@ impl Terrain {
             nodata: options.nodata,
             ..LoadOptions::default()
         };
-        Self::open_spec(
+        let mut terrain = Self::open_spec(
             &TerrainSpec::File(path.as_ref().to_path_buf()),
             &load,
             options.cache_dir.as_deref(),
             options.resident,
             options.progress,
-        )
+        )?;
+        if let Some(imagery) = &options.imagery {
+            let extent = options
+                .imagery_extent
+                .map(|[w, s, e, n]| Extent::new(w, s, e, n))
+                .transpose()?;
+            let opts = ImageryOptions {
+                extent,
+                ..ImageryOptions::default()
+            };
+            terrain.attach_imagery(imagery, &opts)?;
+        }
+        Ok(terrain)
     }
 
     /// The built-in procedural terrain: `size` x `size` samples (2^k + 1, 3 ..= 16385) `spacing_m` metres
@@ -184,7 +210,9 @@ impl Terrain {
                     TerrainSpec::Procedural(p) => procedural::generate(p)?,
                     TerrainSpec::File(path) => source::load(path, load)?,
                 };
-                return Ok(Self::whole(name, hm, cache_dir));
+                let mut t = Self::whole(name, hm, cache_dir);
+                t.source = source_file(spec);
+                return Ok(t);
             }
         };
         Ok(Self {
@@ -192,6 +220,8 @@ impl Terrain {
             stand_in: package.coarse_heightmap(STAND_IN_SAMPLES)?,
             package: Some(package),
             cache_dir: cache_dir.map(Path::to_path_buf),
+            imagery: None,
+            source: source_file(spec),
         })
     }
 
@@ -201,7 +231,97 @@ impl Terrain {
             stand_in: hm,
             package: None,
             cache_dir: cache_dir.map(Path::to_path_buf),
+            imagery: None,
+            source: None,
         }
+    }
+
+    /// Whether imagery is draped on it ([`TerrainOptions::imagery`]).
+    pub fn has_imagery(&self) -> bool {
+        self.imagery.is_some()
+    }
+
+    /// Takes the imagery package out (before [`Terrain::into_parts`]).
+    pub(crate) fn take_imagery_package(&mut self) -> Option<ImageryPackage> {
+        self.imagery.take()
+    }
+
+    /// The height grid's extent in its world frame, corner sample to corner sample: where a plain image
+    /// is placed.
+    fn grid_extent(&self) -> Extent {
+        match &self.package {
+            Some(p) => {
+                let h = p.header();
+                Extent::of_grid(h.width, h.height, f64::from(h.spacing), h.origin)
+            }
+            None => Extent::of_grid(
+                self.stand_in.width(),
+                self.stand_in.height(),
+                f64::from(self.stand_in.spacing()),
+                self.stand_in.origin(),
+            ),
+        }
+    }
+
+    /// Drapes the imagery at `path` (an image, or an imagery package) on the terrain: an image is baked
+    /// into an imagery package in the cache folder on first use (keyed by the file's path, size and
+    /// modification time, `options` and the grid's extent), or in memory without a cache folder. An
+    /// imagery package keeps the extent it was baked with, so `options.extent` is refused with one.
+    pub(crate) fn attach_imagery(&mut self, path: &Path, options: &ImageryOptions) -> Result<()> {
+        let grid = self.grid_extent();
+        let package = if ImageryPackage::is_imagery_package(path) {
+            if options.extent.is_some() {
+                return Err(Error::param(
+                    Param::ImageryExtent,
+                    format!(
+                        "{}: an imagery package keeps the extent it was baked with",
+                        path.display()
+                    ),
+                ));
+            }
+            ImageryPackage::open(path)?
+        } else {
+            // A GeoTIFF over GeoTIFF heights: placed by both georeferences (unless an extent is given).
+            let georef = match (options.extent, self.source.as_deref().and_then(GeoRef::read)) {
+                (None, Some(heights)) => match GeoRef::read(path) {
+                    Some(image) => {
+                        let (spacing, origin) = match &self.package {
+                            Some(p) => (f64::from(p.header().spacing), p.header().origin),
+                            None => (f64::from(self.stand_in.spacing()), self.stand_in.origin()),
+                        };
+                        Some(georef_extent(path, &heights, &image, spacing, origin)?)
+                    }
+                    None => None,
+                },
+                _ => None,
+            };
+            let placed = ImageryOptions {
+                extent: georef.or(options.extent),
+                ..*options
+            };
+            let options = &placed;
+            let key = imagery_key(path, &grid, options)?;
+            let load = || Imagery::load(path, &grid, options);
+            match &self.cache_dir {
+                Some(dir) => cached_imagery(dir, key, load)?,
+                None => {
+                    let (bytes, _) = bake_imagery(&load()?, DEFAULT_QUALITY, key)?;
+                    ImageryPackage::from_bytes(path, bytes)?
+                }
+            }
+        };
+        let extent = package.header().extent;
+        if extent.overlap(&grid).is_none() {
+            return Err(Error::param(
+                Param::ImageryExtent,
+                format!(
+                    "{}: the imagery ({extent}) does not overlap the terrain ({grid})",
+                    path.display()
+                ),
+            ));
+        }
+        self.imagery = Some(package);
+        Ok(())
     }
 
     /// The cache folder the terrain was opened with.
@@ -232,6 +352,47 @@ impl Terrain {
     pub fn parts(self) -> (String, Heightmap, Option<Package>) {
         self.into_parts()
     }
+
+    /// [`TerrainOptions::imagery`] for a terrain opened by [`Terrain::from_spec`], with every option
+    /// ([`ImageryOptions`]).
+    pub fn with_imagery(mut self, path: &Path, options: &ImageryOptions) -> Result<Self> {
+        self.attach_imagery(path, options)?;
+        Ok(self)
+    }
+
+    /// The imagery package draped on it, if any.
+    pub fn imagery(&self) -> Option<&ImageryPackage> {
+        self.imagery.as_ref()
+    }
+
+    /// Takes the imagery package out (before [`Terrain::parts`]).
+    pub fn take_imagery(&mut self) -> Option<ImageryPackage> {
+        self.take_imagery_package()
+    }
+}
+
+/// The file a spec names, unless it is a package (whose source is not known).
+fn source_file(spec: &TerrainSpec) -> Option<PathBuf> {
+    match spec {
+        TerrainSpec::File(path) if !package::is_package(path) => Some(path.clone()),
+        _ => None,
+    }
+}
+
+/// The cache key of an image draped on a grid of `grid`'s extent with `options`: the file's path, size
+/// and modification time, the extent and the format version.
+fn imagery_key(path: &Path, grid: &Extent, options: &ImageryOptions) -> Result<u64> {
+    let meta = std::fs::metadata(path).map_err(|e| Error::io(path, "cannot read", e))?;
+    let mut h = Hash64::new();
+    h.write_bytes(format!("imagery {} {options:?} {grid:?} q{DEFAULT_QUALITY}", path.display()).as_bytes());
+    h.write_u64(u64::from(crate::package::imagery::VERSION));
+    h.write_u64(meta.len());
+    let mtime = meta
+        .modified()
+        .ok()
+        .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok());
+    h.write_u64(mtime.map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX)));
+    Ok(h.finish())
 }
 
 /// The package of a plain source in `dir`, baked there on first use ([`package::cached`]) and found by

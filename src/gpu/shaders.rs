@@ -23,6 +23,29 @@ const SG_NO_FOG_WGSL: &str = include_str!("../../shaders_gles/sg_no_fog.wgsl");
 const SG_CLIPMAP_WGSL: &str = include_str!("../../shaders_gles/sg_clipmap.wgsl");
 const SG_PROBE_WGSL: &str = include_str!("../../shaders_gles/sg_probe.wgsl");
 const DEBUG_VIEW_WGSL: &str = include_str!("../../shaders_gles/debug_view.wgsl");
+const IMAGERY_WGSL: &str = include_str!("../../shaders_gles/imagery.wgsl");
+
+/// The imagery variant's edits of `clipmap.wgsl`: both shading calls take the imagery's albedo, and the
+/// pixel's footprint is taken where each fragment program starts, before its discard (GLSL ES 3.00
+/// leaves derivatives after a discard undefined).
+const IMAGERY_EDITS: [(&str, &str); 4] = [
+    (
+        "basic_shade(v.height, v.normal, length(v.rel), globals.shading)",
+        "imagery_shade(v, v.height, v.normal, globals.shading)",
+    ),
+    (
+        "basic_shade(d.x, d.yzw, length(v.rel), globals.shading)",
+        "imagery_shade(v, d.x, d.yzw, globals.shading)",
+    ),
+    (
+        "    let rate = debug_rate(v.rel);\n",
+        "    let rate = debug_rate(v.rel);\n    imagery_fp = imagery_footprint(v.rel);\n",
+    ),
+    (
+        "    return plain_colour(v, debug_rate(v.rel));\n",
+        "    imagery_fp = imagery_footprint(v.rel);\n    return plain_colour(v, debug_rate(v.rel));\n",
+    ),
+];
 
 /// The brute-force reference program: basic shading + `brute.wgsl`.
 pub fn brute() -> String {
@@ -39,6 +62,55 @@ pub fn clipmap() -> String {
 pub fn clipmap_view(view: DebugView) -> String {
     let constant = format!("\nconst DEBUG_VIEW: u32 = {}u;\n", view.code());
     [BASIC_SHADING_WGSL, DEBUG_VIEW_WGSL, CLIPMAP_WGSL, &constant].concat()
+}
+
+/// The clipmap renderer's program with draped imagery (`imagery.wgsl`, group 2): `clipmap.wgsl` with
+/// [`IMAGERY_EDITS`], normal view. Built only for a terrain with imagery.
+pub fn clipmap_imagery() -> String {
+    let mut body = CLIPMAP_WGSL.to_string();
+    for (from, to) in IMAGERY_EDITS {
+        debug_assert!(body.contains(from), "clipmap.wgsl no longer has `{from}`");
+        body = body.replace(from, to);
+    }
+    let constant = format!("\nconst DEBUG_VIEW: u32 = {}u;\n", DebugView::Normal.code());
+    [BASIC_SHADING_WGSL, DEBUG_VIEW_WGSL, &body, IMAGERY_WGSL, &constant].concat()
+}
+
+/// The SG variant's edits for draped imagery: the diffuse term scaled by the imagery's albedo over the
+/// scene's k_d (specular unchanged), the footprint taken before each program's discard.
+const SG_IMAGERY_EDITS: [(&str, &str); 3] = [
+    (
+        "    return diffuse + sg_specular(vmf, view, cut, suns, count, s);",
+        "    return diffuse * sg_albedo_scale + sg_specular(vmf, view, cut, suns, count, s);",
+    ),
+    (
+        "    let w = sg_footprint(v);\n",
+        "    let w = sg_footprint(v);\n    imagery_fp = imagery_footprint(v.rel);\n",
+    ),
+    (
+        "    let colour = sg_fog(sg_shade(",
+        "    let kd = sg_scene.kd_count.rgb;\n    \
+         sg_albedo_scale = imagery_albedo(v.rel.xy, kd) / max(kd, vec3<f32>(1.0e-6));\n    \
+         let colour = sg_fog(sg_shade(",
+    ),
+];
+
+/// SG variant `v` with draped imagery ([`SG_IMAGERY_EDITS`]; `imagery.wgsl` bound at group 3, after the
+/// SG tables' group 2). Built only for a terrain with imagery under SG shading.
+pub fn sg_clipmap_imagery(v: SgVariant) -> String {
+    let mut text = sg_clipmap(v);
+    for (from, to) in SG_IMAGERY_EDITS {
+        debug_assert!(text.contains(from), "the SG program no longer has `{from}`");
+        text = text.replace(from, to);
+    }
+    let imagery = IMAGERY_WGSL.replace("@group(2)", "@group(3)");
+    [
+        text.as_str(),
+        "\n// Draped imagery: the diffuse term's scale, the imagery's albedo over k_d.\n\
+         var<private> sg_albedo_scale: vec3<f32>;\n",
+        &imagery,
+    ]
+    .concat()
 }
 
 /// Every file in `shaders_gles/`, by file name, as the renderer assembles it. A library file (no entry
@@ -73,6 +145,7 @@ pub fn sources() -> Vec<(&'static str, String)> {
         ("sg_clipmap.wgsl", sg_clipmap(SgVariant::ALL_ON)),
         ("sg_probe.wgsl", sg_probe(SgVariant::ALL_ON)),
         ("debug_view.wgsl", clipmap_view(DebugView::Wireframe)),
+        ("imagery.wgsl", clipmap_imagery()),
     ]
 }
 
@@ -252,6 +325,13 @@ pub fn sg_variants() -> Vec<(String, String)> {
         out.push((format!("sg_clipmap.wgsl[{}]", v.label()), sg_clipmap(v)));
         out.push((format!("sg_probe.wgsl[{}]", v.label()), sg_probe(v)));
     }
+    // With draped imagery: every effect on, and none.
+    for v in [SgVariant::ALL_ON, SgVariant::default()] {
+        out.push((
+            format!("sg_clipmap.wgsl[{}+imagery]", v.label()),
+            sg_clipmap_imagery(v),
+        ));
+    }
     for omit in SgOmit::TERMS {
         let v = SgVariant {
             omit,
@@ -339,5 +419,29 @@ impl SgSceneUniform {
         u.material = [ks, m.roughness, vis, fog_density];
         u.fog = [fog_rgb.x, fog_rgb.y, fog_rgb.z, 0.0];
         Ok(u)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every edit of the imagery variant finds its text in `clipmap.wgsl`: the footprint is taken in all
+    /// four fragment programs and both shading calls take the imagery's albedo.
+    #[test]
+    fn imagery_edits_apply() {
+        let counts = IMAGERY_EDITS.map(|(from, _)| CLIPMAP_WGSL.matches(from).count());
+        assert!(counts.iter().all(|&c| c > 0), "{counts:?}");
+        let text = clipmap_imagery();
+        assert!(!text.contains("basic_shade(v."), "a shading call kept the basic albedo");
+        assert!(!text.contains("basic_shade(d."), "a shading call kept the basic albedo");
+        let counts = SG_IMAGERY_EDITS.map(|(from, _)| sg_clipmap(SgVariant::ALL_ON).matches(from).count());
+        assert!(counts.iter().all(|&c| c > 0), "{counts:?}");
+        for entry in ["fs_interior", "fs_plain", "fs_ring_data", "fs_skirt"] {
+            let at = text.find(&format!("fn {entry}(")).expect(entry);
+            let body = &text[at..at + text[at..].find("\n}").expect("end")];
+            let fp = body.find("imagery_fp = imagery_footprint").expect(entry);
+            assert!(body.find("discard").is_none_or(|d| fp < d), "{entry}");
+        }
     }
 }

@@ -11,10 +11,14 @@
 //! - [`lod_tiles`]: the SAT LOD records' tiles (two bytes a cell of each data level).
 //! - [`read`]: validated reading through a memory map; damaged files are errors naming the tile.
 //! - [`cache`]: the tile cache allocated once from `budget.cpu_memory_bytes`, decoding under a sample budget.
+//! - [`imagery`](mod@imagery): the imagery package, the colour pyramid in JPEG tiles beside a terrain
+//!   package; [`imagery_cache`] its tile cache, allocated once, decoding under a texel budget.
 
 pub mod cache;
 pub mod codec;
 pub mod format;
+pub mod imagery;
+pub mod imagery_cache;
 pub mod kind;
 mod levels;
 pub mod lod_tiles;

@@ -14,11 +14,14 @@
 //! - [`uploads`]: which ring rectangles the GPU copy still lacks (the union over skipped frames);
 //! - [`frame_plan`]: all of the above for one frame as a value, the [`frame_plan::FramePlan`] the GPU
 //!   stage uploads and draws;
-//! - [`mesh`]: the static block meshes (built once at start-up) the draws index.
+//! - [`mesh`]: the static block meshes (built once at start-up) the draws index;
+//! - [`color_rings`]: the colour clipmap of draped imagery, its own rings moved toward the viewer coarse
+//!   to fine under `[imagery]`'s texel budget (a terrain without imagery has none).
 
 pub mod budget;
 pub mod camera;
 pub mod clipmap;
+pub mod color_rings;
 pub mod constraints;
 pub mod cull;
 pub mod detail;

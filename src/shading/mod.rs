@@ -47,6 +47,6 @@ pub mod sky_table;
 pub use integrate::{
     plane_drop, vmf_cosine, warped_ndf, Inputs, Patches, MAX_BANDS, MAX_SECTORS, SHARP_LAMBDA,
 };
-pub use shade::{shade, shade_pixel, texel_light, TexelLight, TexelLighting};
+pub use shade::{shade, shade_pixel, shade_pixel_scaled, texel_light, TexelLight, TexelLighting};
 pub use reference::{reference, HorizonTable, RefCosine, RefGrid, RefInputs};
 pub use sky_table::SkyTable;

@@ -164,6 +164,19 @@ pub fn shade_pixel(
     scene: &Scene,
     sky: &SkyTable,
 ) -> Vec3 {
+    shade_pixel_scaled(r, view, texel, scene, sky, Vec3::ONE)
+}
+
+/// [`shade_pixel`] with the diffuse term scaled by `albedo_scale` (draped imagery: its albedo over the
+/// material's k_d, `shaders_gles/imagery.wgsl`'s SG variant); the specular term unchanged.
+pub fn shade_pixel_scaled(
+    r: Vec3,
+    view: Vec3,
+    texel: Option<&TexelLight>,
+    scene: &Scene,
+    sky: &SkyTable,
+    albedo_scale: Vec3,
+) -> Vec3 {
     let vmf = Vmf::from_mean_normal(r);
     let n = vmf.axis;
     let cut = Cut::new(n, &[], plane_drop(vmf.kappa));
@@ -211,7 +224,7 @@ pub fn shade_pixel(
             spec += lobe_specular(&light.product(&lobe), n, &cut, hs, m.ks);
         }
     }
-    diffuse + spec
+    diffuse * albedo_scale + spec
 }
 
 /// k_s times product lobe `q`'s integral, D / 4 with the cosine at the lobe's axis, times the fraction of

@@ -131,6 +131,8 @@ mod dted;
 mod heightmap;
 mod hgt;
 mod png;
+pub mod georef;
+pub mod imagery;
 pub mod procedural;
 mod raw;
 mod rows;

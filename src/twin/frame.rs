@@ -48,6 +48,11 @@ fn mix3(a: Vec3, b: Vec3, t: f32) -> Vec3 {
 /// The CPU twin of `basic_shade`: the display-encoded colour of a terrain point of height `h`, geometric
 /// normal `n` (not unit) at distance `dist` (m).
 pub fn basic_colour(h: f32, n: Vec3, dist: f32, s: &BasicShading) -> Vec3 {
+    basic_lit(basic_albedo(h, s), n, dist, s)
+}
+
+/// The CPU twin of `basic_albedo`: the ramp's linear-light albedo at height `h`.
+pub fn basic_albedo(h: f32, s: &BasicShading) -> Vec3 {
     let lo = s.ramp_fog[0];
     let span = (s.ramp_fog[1] - lo).max(1.0e-3);
     let t = ((h - lo) / span).clamp(0.0, 1.0);
@@ -77,11 +82,16 @@ pub fn basic_colour(h: f32, n: Vec3, dist: f32, s: &BasicShading) -> Vec3 {
         ((t - 0.80) / 0.08).clamp(0.0, 1.0),
     );
     let depth = (-h / (0.25 * span).max(1.0)).clamp(0.0, 1.0);
-    let albedo = if h <= 0.0 {
+    if h <= 0.0 {
         mix3(stop([0.18, 0.40, 0.64]), stop([0.05, 0.16, 0.36]), depth)
     } else {
         land
-    };
+    }
+}
+
+/// The light and fog of `basic_shade` (and of `imagery_shade`) on `albedo`: the display-encoded colour
+/// with geometric normal `n` (not unit) at distance `dist` (m).
+pub fn basic_lit(albedo: Vec3, n: Vec3, dist: f32, s: &BasicShading) -> Vec3 {
     let z = s.ramp_fog[3] / n.z.max(1.0e-6);
     let nn = Vec3::new(n.x * z, n.y * z, 1.0).normalize();
     let sun_dir = Vec3::new(s.sun_dir[0], s.sun_dir[1], s.sun_dir[2]);
@@ -124,13 +134,31 @@ pub struct SgDrawn<'a> {
 /// The CPU twin of `sg_colour` given r (xyz, w the horizon's sine toward the first sun) and, with
 /// visibility, the light table's blend (rgb diffuse, a the horizon's mean sine), at eye-relative `rel`.
 pub fn sg_colour(r: Vec4, light: Option<[f32; 4]>, rel: Vec3, d: &SgDrawn<'_>) -> Vec3 {
+    sg_colour_scaled(r, light, rel, d, Vec3::ONE)
+}
+
+/// [`sg_colour`] with the diffuse term scaled by `albedo_scale` (draped imagery's albedo over k_d).
+pub fn sg_colour_scaled(
+    r: Vec4,
+    light: Option<[f32; 4]>,
+    rel: Vec3,
+    d: &SgDrawn<'_>,
+    albedo_scale: Vec3,
+) -> Vec3 {
     let texel = light.map(|l| TexelLight {
         diffuse: Vec3::new(l[0], l[1], l[2]),
         mean_sin: l[3],
         sun_sin: r.w,
     });
     let view = (-rel).normalize();
-    let mut c = crate::shading::shade_pixel(r.truncate(), view, texel.as_ref(), d.scene, d.sky);
+    let mut c = crate::shading::shade_pixel_scaled(
+        r.truncate(),
+        view,
+        texel.as_ref(),
+        d.scene,
+        d.sky,
+        albedo_scale,
+    );
     if let (true, Some(f)) = (d.scene.effects.fog, d.scene.fog.as_ref()) {
         let keep = (-(f.density_per_km * 1.0e-3) * rel.length()).exp();
         c = c * keep + f.rgb * (1.0 - keep);
@@ -240,6 +268,23 @@ pub fn compare_basic(
     })
 }
 
+/// Compares a frame with draped imagery with its twin: `basic_shade`'s light and fog on the imagery's
+/// albedo ([`super::imagery::ImageryTwin::albedo`]) at each pixel's probed position and footprint, over
+/// the ramp's albedo of the height it was shaded with.
+pub fn compare_imagery(
+    image: &Image,
+    probe: &ProbedFrame,
+    clear: [u8; 4],
+    s: &BasicShading,
+    twin: &super::imagery::ImageryTwin,
+) -> TwinReport {
+    compare(image, probe, clear, &mut |p, q, _| {
+        let rel = Vec3::new(p[0], p[1], p[2]);
+        let albedo = twin.albedo([p[0], p[1]], p[3], basic_albedo(q[0], s));
+        basic_lit(albedo, Vec3::new(q[1], q[2], q[3]), rel.length(), s)
+    })
+}
+
 /// Compares an SG frame with its twin: per pixel the taps of the GPU's own position and footprint
 /// ([`super::shading::sg_taps`]; where round(log2 w) sits within 1e-3 of a half, both levels are
 /// tried), r and the light texel from the bake's values at them, and the colour from those. The GPU's
@@ -252,9 +297,40 @@ pub fn compare_sg(
     clipmap: &Clipmap,
     d: &SgDrawn<'_>,
 ) -> TwinReport {
+    compare_sg_with(image, probe, clear, globals, clipmap, d, None)
+}
+
+/// [`compare_sg`] of a frame with draped imagery: the twin's diffuse term scaled by the imagery's albedo
+/// ([`super::imagery::ImageryTwin::albedo`] at the pixel's footprint in metres) over the scene's k_d.
+pub fn compare_sg_imagery(
+    image: &Image,
+    probe: &ProbedFrame,
+    clear: [u8; 4],
+    globals: &Globals,
+    clipmap: &Clipmap,
+    d: &SgDrawn<'_>,
+    imagery: &super::imagery::ImageryTwin,
+) -> TwinReport {
+    compare_sg_with(image, probe, clear, globals, clipmap, d, Some(imagery))
+}
+
+fn compare_sg_with(
+    image: &Image,
+    probe: &ProbedFrame,
+    clear: [u8; 4],
+    globals: &Globals,
+    clipmap: &Clipmap,
+    d: &SgDrawn<'_>,
+    imagery: Option<&super::imagery::ImageryTwin>,
+) -> TwinReport {
     compare(image, probe, clear, &mut |p, q, report| {
         let rel = Vec3::new(p[0], p[1], p[2]);
         let w = p[3];
+        // The SG footprint is in data samples; the imagery's in metres.
+        let scale = imagery.map_or(Vec3::ONE, |t| {
+            let kd = d.scene.material.kd;
+            t.albedo([p[0], p[1]], w * d.data_spacing, kd) / kd.max(Vec3::splat(1.0e-6))
+        });
         let got_r = Vec4::from(q);
         let l = w.max(1.0).log2();
         let mut sides = vec![w];
@@ -280,7 +356,7 @@ pub fn compare_sg(
             };
             let e = (r - got_r).abs().max_element();
             if best.is_none_or(|b| e < b.0) {
-                best = Some((e, r, sg_colour(r, light, rel, d)));
+                best = Some((e, r, sg_colour_scaled(r, light, rel, d, scale)));
             }
         }
         let Some((e, _, c)) = best else {

@@ -4,6 +4,7 @@
 #[path = "../counting_alloc/mod.rs"]
 mod counting_alloc;
 
+mod color;
 mod plan;
 mod stream;
 mod update;

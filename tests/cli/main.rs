@@ -8,6 +8,7 @@ mod cross_driver;
 mod determinism;
 mod fly;
 mod hash;
+mod imagery;
 mod render_json;
 mod stream_rss;
 mod view_xvfb;

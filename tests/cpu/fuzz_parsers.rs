@@ -1,5 +1,5 @@
 //! Fuzzing in `cargo test`: every parser (PNG, GeoTIFF, .hgt, ASCII grid, raw, profile TOML, scene TOML,
-//! terrain package) runs its committed corpus, then random mutations of it for [`DEFAULT_SECS`] seconds
+//! terrain package, imagery PNG/JPEG, imagery package) runs its committed corpus, then random mutations of it for [`DEFAULT_SECS`] seconds
 //! per target (about 6 s of wall time for the file on 2 cores). No input may panic; a crash writes its input to
 //! `tests/fuzz/artifacts/TARGET/` and fails. The targets are the cargo-fuzz targets' bodies
 //! (`tests/fuzz/fuzz_targets/targets.rs`); the driver is `tests/fuzz/harness.rs`.
@@ -93,7 +93,9 @@ fuzz_tests!(
     load_raw,
     parse_profile,
     parse_scene,
-    load_package
+    load_package,
+    load_imagery,
+    load_imagery_package
 );
 
 /// Every target has a corpus folder and a test above (a new target cannot be left out of the run).

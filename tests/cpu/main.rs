@@ -7,6 +7,8 @@ mod flight;
 mod fly_paths;
 mod fragment;
 mod fuzz_parsers;
+mod imagery;
+mod imagery_rings;
 mod layering;
 mod lod;
 mod package;

@@ -281,6 +281,8 @@ pub(crate) fn flag_of(param: Param) -> Option<&'static str> {
         Param::PngEncoding => "`--png-encoding`",
         Param::MaxSamples => "`--max-samples`",
         Param::Nodata => "`--nodata V`",
+        Param::ImageryExtent => "`--imagery-extent W,S,E,N`",
+        Param::MaxImageryTexels => "`--max-imagery-texels`",
         _ => return None,
     })
 }

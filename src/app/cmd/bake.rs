@@ -5,8 +5,12 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use clap::Args;
+use clipsat::package::imagery::{bake_imagery, DEFAULT_QUALITY};
 use clipsat::package::{self, BakeOptions, CodecKind};
-use clipsat::Result;
+use clipsat::source::georef::{georef_extent, GeoRef};
+use clipsat::source::imagery::{Extent, Imagery};
+use clipsat::source::RowSource;
+use clipsat::{Error, Result};
 use serde_json::json;
 
 use super::TerrainArgs;
@@ -58,10 +62,32 @@ pub(crate) fn run(args: &BakeArgs) -> Result<()> {
     super::ensure_parent(&args.out)?;
     crate::app::progress::bars!(!args.json, bars, report, progress);
     let start = Instant::now();
+    // Imagery is read and placed first, so that bad imagery writes nothing.
+    let imagery = match &targs.imagery {
+        Some(path) => Some(load_imagery(&targs, path, &*rows)?),
+        None => None,
+    };
     let report = package::bake_source(&mut *rows, &args.out, &opts, progress)?;
+    let imagery = match imagery {
+        Some(im) => {
+            let out = args.out.with_extension("clipsat-imagery");
+            let (bytes, r) = bake_imagery(&im, DEFAULT_QUALITY, 0)?;
+            let tmp = out.with_extension(format!("tmp{}", std::process::id()));
+            std::fs::write(&tmp, &bytes).map_err(|e| Error::io(&tmp, "cannot write", e))?;
+            std::fs::rename(&tmp, &out)
+                .map_err(|e| Error::io(&out, "cannot rename into place", e))?;
+            Some((out, r))
+        }
+        None => None,
+    };
     let seconds = start.elapsed().as_secs_f64();
     if args.json {
         let mut v = serde_json::to_value(&report).unwrap_or_default();
+        if let Some((out, r)) = &imagery {
+            let mut i = serde_json::to_value(r).unwrap_or_default();
+            i["out"] = json!(out.display().to_string());
+            v["imagery"] = i;
+        }
         v["terrain"] = json!(name);
         v["out"] = json!(args.out.display().to_string());
         v["seconds"] = json!(seconds);
@@ -92,6 +118,40 @@ pub(crate) fn run(args: &BakeArgs) -> Result<()> {
         report.max_error_bound,
         report.quantum
     );
+    if let Some((out, r)) = &imagery {
+        outln!(
+            "imagery      {}: {} bytes, {:.4} bytes/texel ({:.4} at level 0, {} texels, {} levels, {} tiles), \
+             PSNR {:.2} dB",
+            out.display(),
+            r.bytes,
+            r.bytes_per_texel,
+            r.level0_bytes_per_texel,
+            r.texels,
+            r.levels,
+            r.tiles,
+            r.psnr_db
+        );
+    }
     outln!("time         {seconds:.2} s");
     Ok(())
+}
+
+/// `--imagery` read and placed on the heights `rows` will give: over the grid's extent, corner sample to
+/// corner sample, unless `--imagery-extent` says otherwise.
+fn load_imagery(
+    targs: &TerrainArgs,
+    path: &std::path::Path,
+    rows: &dyn RowSource,
+) -> Result<Imagery> {
+    let g = rows.grid();
+    let grid = Extent::of_grid(g.width, g.height, f64::from(g.spacing), g.origin);
+    let mut options = targs.imagery_options()?;
+    // A GeoTIFF over GeoTIFF heights: placed by both georeferences (unless an extent is given).
+    if let (None, clipsat::source::TerrainSpec::File(heights)) = (options.extent, targs.spec()?) {
+        if let (Some(h), Some(i)) = (GeoRef::read(&heights), GeoRef::read(path)) {
+            let spacing = f64::from(g.spacing);
+            options.extent = Some(georef_extent(path, &h, &i, spacing, g.origin)?);
+        }
+    }
+    Imagery::load(path, &grid, &options)
 }

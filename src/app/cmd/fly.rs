@@ -122,7 +122,7 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
         .ok_or_else(|| arg_error("--frames", format!("{}: fly at least 1 frame", args.frames)))?;
     let lod_mode = args.lod.mode();
     let epsilon = args.lod.epsilon;
-    let profile = args.profile.load()?;
+    let mut profile = args.profile.load()?;
     let sg = args.shading.choice(&profile)?;
     if sg.is_some() && args.render.is_none() {
         return Err(arg_error(
@@ -167,8 +167,9 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
     .into_iter()
     .find_map(|(on, flag)| on.then_some(flag));
     let stream = args.stream.streams(needs_all)?;
-    let (terrain_name, hm, package) =
+    let (terrain_name, hm, package, imagery) =
         super::render::open_terrain(&args.terrain, stream, !args.json)?;
+    let mut colour = super::imagery::FlyColour::new(imagery, &mut profile)?;
     let streamed = package.is_some();
     let mut clipmap = match package {
         Some(p) => Clipmap::streamed(p, &profile, opts)?,
@@ -363,6 +364,7 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
                 h.finish()
             }
         };
+        let frame_hash = colour.frame(camera.eye, frame_hash)?;
         if args.hash_out.is_some() {
             frame_hashes.push(frame_hash);
         }
@@ -575,6 +577,7 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
             // Streamed through the tile cache (`stream.tile_cache`), as `render` says it.
             o.insert("streamed".into(), json!(streamed));
         }
+        colour.annotate(&mut out);
         super::print_json(&out);
     } else {
         outln!("terrain      {terrain_name}");
@@ -635,7 +638,7 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
             "over budget  {} frames; constraint violations {violations}",
             stats.over_budget
         );
-        outln!("final hash   {}", hex(final_hash));
+        outln!("{}final hash   {}", colour.line(), hex(final_hash));
         if let (Some(dir), Some((f, h))) = (&args.render, renders.last()) {
             outln!(
                 "rendered     {} frames into {} (frame {f}: image {})",

@@ -1,6 +1,7 @@
 //! `clipsat info`: what a terrain is, and what each shipped profile would need to render it.
 
 use clap::Args;
+use clipsat::package::imagery::ImageryPackage;
 use clipsat::profile::Profile;
 use clipsat::profile::SHIPPED;
 use clipsat::Result;
@@ -25,7 +26,28 @@ pub(crate) fn run(args: &InfoArgs) -> Result<()> {
     if let Some(t) = &args.terrain_pos {
         targs.terrain = Some(t.clone());
     }
+    // An imagery package alone (`clipsat bake --imagery` writes one beside the terrain's).
+    if let Some(t) = targs.terrain.as_deref() {
+        let path = std::path::Path::new(t);
+        if ImageryPackage::is_imagery_package(path) {
+            let p = ImageryPackage::open(path)?;
+            if args.json {
+                super::print_json(&super::imagery::imagery_json(&p));
+            } else {
+                super::imagery::print_imagery(&p);
+            }
+            return Ok(());
+        }
+    }
+    // `--imagery`: checked, placed on this terrain and baked into the cache, then described.
+    let imagery = match &targs.imagery {
+        Some(_) => targs.open(false, false)?.take_imagery(),
+        None => None,
+    };
     if let Some(pkg) = targs.package()? {
+        if let (Some(p), false) = (&imagery, args.json) {
+            super::imagery::print_imagery(p);
+        }
         return package_info(&pkg, args.json);
     }
     let (name, hm) = targs.load()?;
@@ -53,6 +75,9 @@ pub(crate) fn run(args: &InfoArgs) -> Result<()> {
             // terrain): normals only, and with visibility's horizon tables.
             "sg_bytes": p.sg_table_bytes(0),
             "sg_visibility_bytes": p.sg_table_bytes(clipsat::bake::horizon::DEFAULT_AZIMUTHS),
+            // Draped imagery's colour rings (GPU) and tile cache plus staging (CPU), where allowed.
+            "imagery_gpu_bytes": p.imagery_gpu_bytes(),
+            "imagery_cpu_bytes": p.allows(clipsat::profile::Feature::Imagery).then(|| p.imagery.cpu_bytes()),
         }));
     }
     if args.json {
@@ -68,6 +93,7 @@ pub(crate) fn run(args: &InfoArgs) -> Result<()> {
             "ew_spacing_m": hm.ew_spacing(),
             "ew_stretch": hm.ew_stretch(),
             "profiles": profiles,
+            "imagery": imagery.as_ref().map(super::imagery::imagery_json),
         }));
         return Ok(());
     }
@@ -91,6 +117,9 @@ pub(crate) fn run(args: &InfoArgs) -> Result<()> {
     }
     outln!("heights   {lo:.1} .. {hi:.1} m");
     outln!("voids     {} filled", hm.voids_filled());
+    if let Some(p) = &imagery {
+        super::imagery::print_imagery(p);
+    }
     // What render, fly and view do with it: the split below is what they hold once it streams.
     outln!(
         "streamed  render, fly and view bake it into a package in {} on first use and stream it \

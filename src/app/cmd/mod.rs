@@ -13,6 +13,7 @@ pub(crate) mod bake;
 pub(crate) mod bench;
 pub(crate) mod fly;
 pub(crate) mod hashes;
+pub(crate) mod imagery;
 pub(crate) mod info;
 pub(crate) mod render;
 pub(crate) mod selftest;
@@ -75,6 +76,24 @@ pub(crate) struct TerrainArgs {
     /// grey level, or a web-map encoding's metres).
     #[arg(long, value_name = "V", allow_negative_numbers = true)]
     pub(crate) nodata: Option<f64>,
+    /// Imagery to drape on the terrain: a PNG or JPEG (grey, RGB, RGBA or palette; alpha is dropped), baked
+    /// into an imagery package in the cache folder on first use, or an imagery package from `clipsat bake
+    /// --imagery`. A plain image spans the height grid's extent, corner sample to corner sample, each
+    /// texel an area (see --imagery-extent).
+    #[arg(long, value_name = "FILE")]
+    pub(crate) imagery: Option<std::path::PathBuf>,
+    /// Where the imagery lies: west,south,east,north in metres in the terrain's frame (x east, y north, the
+    /// south-west sample at 0,0). Default: the height grid's extent.
+    #[arg(
+        long,
+        value_name = "W,S,E,N",
+        requires = "imagery",
+        allow_hyphen_values = true
+    )]
+    pub(crate) imagery_extent: Option<String>,
+    /// Refuse imagery declaring more texels than this (checked before allocating).
+    #[arg(long, value_name = "N", default_value_t = source::imagery::DEFAULT_MAX_IMAGERY_TEXELS)]
+    pub(crate) max_imagery_texels: u64,
 }
 
 /// `--png-encoding`, the command line's name for [`source::PngEncoding`].
@@ -130,7 +149,7 @@ impl TerrainArgs {
             file => file,
         };
         crate::app::progress::bars!(progress, bars, report, progress);
-        clipsat::Terrain::from_spec(
+        let terrain = clipsat::Terrain::from_spec(
             &spec,
             &self.load_options()?,
             Some(&clipsat::bake::default_cache_dir()),
@@ -154,6 +173,22 @@ impl TerrainArgs {
                 args::flag("--terrain")(e)
             }
             other => other,
+        })?;
+        match &self.imagery {
+            Some(path) => terrain.with_imagery(path, &self.imagery_options()?),
+            None => Ok(terrain),
+        }
+    }
+
+    /// How to read and place `--imagery`.
+    pub(crate) fn imagery_options(&self) -> Result<source::imagery::ImageryOptions> {
+        Ok(source::imagery::ImageryOptions {
+            extent: self
+                .imagery_extent
+                .as_deref()
+                .map(source::imagery::Extent::parse)
+                .transpose()?,
+            max_texels: self.max_imagery_texels,
         })
     }
 

@@ -13,6 +13,7 @@ use clipsat::gpu::brute::BruteForce;
 use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen, OffscreenOptions};
 use clipsat::gpu::Gpu;
 use clipsat::measure;
+use clipsat::package::imagery::ImageryPackage;
 use clipsat::package::Package;
 use clipsat::plan::camera::parse_vec3;
 use clipsat::plan::camera::Camera;
@@ -124,9 +125,16 @@ pub(crate) fn open_terrain(
     terrain: &TerrainArgs,
     stream: bool,
     progress: bool,
-) -> Result<(String, Heightmap, Option<Package>)> {
-    Ok(terrain.open(stream, progress)?.parts())
+) -> Result<OpenedTerrain> {
+    let mut t = terrain.open(stream, progress)?;
+    let imagery = t.take_imagery();
+    let (name, hm, package) = t.parts();
+    Ok((name, hm, package, imagery))
 }
+
+/// What [`open_terrain`] opens: the name, the stand-in (or the whole grid), the package streamed and
+/// the imagery package draped (`--imagery`).
+pub(crate) type OpenedTerrain = (String, Heightmap, Option<Package>, Option<ImageryPackage>);
 
 pub(crate) fn run(args: &RenderArgs) -> Result<()> {
     let mode = args.gpu.mode();
@@ -154,7 +162,7 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
     .into_iter()
     .find_map(|(on, flag)| on.then_some(flag));
     let stream = args.stream.streams(needs_all)?;
-    let (terrain_name, hm, package) = open_terrain(&args.terrain, stream, !args.json)?;
+    let (terrain_name, hm, package, imagery) = open_terrain(&args.terrain, stream, !args.json)?;
     let camera = camera(args, &hm, f64::from(profile.view.fov_y_deg))?;
 
     let gpu = Gpu::new(mode)?;
@@ -184,6 +192,9 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
     let mut profile = profile;
     profile.view.width = size_w;
     profile.view.height = size_h;
+    if imagery.is_some() {
+        super::imagery::check_profile(&mut profile)?;
+    }
     let t0 = Instant::now();
     let streamed = package.is_some();
     let mut clipmap = match package {
@@ -217,6 +228,10 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
             debug,
         },
     )?;
+    // Draped imagery: its colour rings filled at the camera (bounded), as the heights were.
+    let rings = imagery
+        .map(|p| super::imagery::fill_rings(p, &profile, r.renderer_mut(), &gpu, camera.eye))
+        .transpose()?;
     let setup_ms = t0.elapsed().as_secs_f64() * 1e3;
     let opts = FrameOptions {
         morph: !args.no_morph,
@@ -415,6 +430,13 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
                 json!(frame.stats.detail_tiles_needed),
             );
             o.insert("pool_cells".into(), json!(frame.stats.pool_cells));
+            // Draped imagery (`--imagery`): the package and its colour rings.
+            o.insert(
+                "imagery".into(),
+                json!(rings
+                    .as_ref()
+                    .map(|(rings, frames)| super::imagery::rings_json(rings, *frames))),
+            );
         }
         print_json(&out);
     } else {
@@ -430,6 +452,17 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
             report.name,
             report.gl_version,
         );
+        if let Some((rings, frames)) = &rings {
+            let s = rings.stats();
+            println!(
+                "imagery {} ({} x {} texels): {} colour rings filled in {frames} frames, {} stale",
+                rings.package().path().display(),
+                rings.package().header().width,
+                rings.package().header().height,
+                rings.level_count(),
+                s.stale_levels
+            );
+        }
         if let Some(e) = reference {
             println!(
                 "shading vs CPU reference ({} pixels): rmse {:.4}, max {:.4} (shading model: rmse {:.4})",

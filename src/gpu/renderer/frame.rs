@@ -223,6 +223,25 @@ impl Renderer {
             }
             _ => None,
         };
+        // Draped imagery under SG: the programs of the variant drawn, if built with the imagery.
+        let sg_imagery = match (&self.imagery, sg) {
+            (Some(i), Some(sg)) if probe.is_none() => match &i.sg {
+                Some((v, programs)) if *v == sg.variant => {
+                    pass.set_bind_group(3, &i.group, &[]);
+                    Some(programs)
+                }
+                _ => None,
+            },
+            _ => None,
+        };
+        // Draped imagery: its programs in place of basic shading's (not under SG, a debug view or a probe).
+        let imagery = match &self.imagery {
+            Some(i) if sg.is_none() && probe.is_none() && self.draws_imagery() => {
+                pass.set_bind_group(2, &i.group, &[]);
+                Some(i)
+            }
+            _ => None,
+        };
         pass.set_bind_group(0, &self.group0, &[]);
         let mut bound = None;
         let mut program = None;
@@ -242,12 +261,15 @@ impl Renderer {
             }
             let (programs, pipelines) = match probe {
                 Some(p) => (p.sg.as_ref(), &p.basic),
-                None => (sg.map(|s| s.programs()), &self.pipelines),
+                None => (sg_imagery.or(sg.map(|s| s.programs())), &self.pipelines),
             };
             let pipeline = match (sg, programs) {
                 (Some(_), Some(s)) if d.fragment == FragmentPath::Skirt => &s.skirt,
                 (Some(_), Some(s)) => &s.block,
-                _ => &pipelines[d.fragment as usize],
+                _ => match imagery {
+                    Some(i) => &i.pipelines[d.fragment as usize],
+                    None => &pipelines[d.fragment as usize],
+                },
             };
             if !program.is_some_and(|p| std::ptr::eq(p, pipeline)) {
                 pass.set_pipeline(pipeline);

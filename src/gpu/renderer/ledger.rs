@@ -21,6 +21,8 @@ pub enum ObjectKind {
     PipelineLayout,
     /// A render pipeline.
     RenderPipeline,
+    /// A sampler (draped imagery's colour rings, filtered by the GPU).
+    Sampler,
 }
 
 /// One object the renderer created.
@@ -254,6 +256,19 @@ impl<'d> Ledgered<'d> {
             label: Some(label),
             layout,
             entries,
+        })
+    }
+
+    /// A sampler.
+    pub fn sampler(
+        &mut self,
+        label: &'static str,
+        desc: &wgpu::SamplerDescriptor<'_>,
+    ) -> wgpu::Sampler {
+        self.note(label, ObjectKind::Sampler, 0);
+        self.device.create_sampler(&wgpu::SamplerDescriptor {
+            label: Some(label),
+            ..desc.clone()
         })
     }
 

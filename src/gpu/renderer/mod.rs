@@ -20,9 +20,11 @@
 //! [`crate::twin::clipmap::cpu_vertex`] is its CPU twin.
 //!
 //! Files: this one holds the type and its set-up; `frame.rs` prepare and render; `sg.rs` the SG shading
-//! variant, `sg_tables.rs` its per-level tables; `ledger.rs` the object ledger and [`Ledgered`]; `probe.rs` the vertex-probe test instrument.
+//! variant, `sg_tables.rs` its per-level tables; `imagery.rs` draped imagery's colour rings and programs;
+//! `ledger.rs` the object ledger and [`Ledgered`]; `probe.rs` the vertex-probe test instrument.
 
 mod frame;
+mod imagery;
 mod ledger;
 #[cfg(feature = "internals")]
 mod probe;
@@ -145,6 +147,8 @@ pub struct Renderer {
     /// The pipelines drawn, basic shading or the debug view's, indexed by [`crate::plan::fragment::FragmentPath`].
     pipelines: [wgpu::RenderPipeline; FRAGMENT_PATHS],
     sg: Option<SgState>,
+    /// Draped imagery's colour rings and programs ([`Renderer::enable_imagery`]), for a terrain with it.
+    imagery: Option<imagery::ImageryState>,
     /// Whether frames draw with the SG programs ([`Renderer::set_sg_enabled`]); the SG state is kept
     /// (and its level tables updated) either way.
     sg_enabled: bool,
@@ -378,6 +382,7 @@ impl Renderer {
             targets,
             pipelines,
             sg,
+            imagery: None,
             sg_enabled: true,
             debug: options.debug,
             size,

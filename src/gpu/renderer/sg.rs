@@ -66,7 +66,7 @@ pub(super) struct SgState {
     /// The scene's sky table (`shading/sky_table.rs`), written once.
     _sky: wgpu::Texture,
     _uniform: wgpu::Buffer,
-    _layout: wgpu::BindGroupLayout,
+    pub(super) _layout: wgpu::BindGroupLayout,
     pub(super) group: wgpu::BindGroup,
     pipeline_layout: wgpu::PipelineLayout,
     targets: Targets,
@@ -87,12 +87,22 @@ fn compile(
     targets: &Targets,
 ) -> SgPrograms {
     let module = dev.shader_module("sg_clipmap.wgsl", shaders::sg_clipmap(v));
+    programs(dev, &module, layout, targets)
+}
+
+/// The block and skirt programs of an SG module (`fs_sg`, `fs_sg_skirt`).
+pub(super) fn programs(
+    dev: &mut Ledgered<'_>,
+    module: &wgpu::ShaderModule,
+    layout: &wgpu::PipelineLayout,
+    targets: &Targets,
+) -> SgPrograms {
     SgPrograms {
         block: terrain_pipeline(
             dev,
             "clipmap sg pipeline",
             layout,
-            &module,
+            module,
             "fs_sg",
             targets,
         ),
@@ -100,7 +110,7 @@ fn compile(
             dev,
             "clipmap sg skirt pipeline",
             layout,
-            &module,
+            module,
             "fs_sg_skirt",
             targets,
         ),

@@ -12,7 +12,7 @@ use clipsat::source::{self, LoadOptions, PngEncoding, RawFormat, RawLayout};
 pub(crate) type Target = fn(&[u8]) -> String;
 
 /// Every target, by name, with its body. Names match the cargo-fuzz binaries and the corpus folders.
-pub(crate) const TARGETS: [(&str, Target); 12] = [
+pub(crate) const TARGETS: [(&str, Target); 14] = [
     ("load_png", load_png),
     ("load_tiff", load_tiff),
     ("load_hgt", load_hgt),
@@ -25,6 +25,8 @@ pub(crate) const TARGETS: [(&str, Target); 12] = [
     ("parse_profile", parse_profile),
     ("parse_scene", parse_scene),
     ("load_package", load_package),
+    ("load_imagery", load_imagery),
+    ("load_imagery_package", load_imagery_package),
 ];
 
 /// The outcome of a result: "ok" plus `ok`'s text, or the error's kind: its first few plain words, with
@@ -306,4 +308,55 @@ pub(crate) fn load_package(data: &[u8]) -> String {
     let _ = std::fs::remove_file(&path);
     let _ = std::fs::remove_dir(&dir);
     outcome(r, |w| format!("{}", *w > 2))
+}
+
+/// Imagery (`source::imagery`): the bytes as a PNG (even length, chunk CRCs recomputed so mutations reach
+/// the decoder) or a JPEG (odd length), read and placed over a 65 x 65 grid under a small texel limit.
+pub(crate) fn load_imagery(data: &[u8]) -> String {
+    use clipsat::source::imagery::{Extent, Imagery, ImageryOptions};
+    let dir = scratch_dir();
+    let _ = std::fs::create_dir_all(&dir);
+    let (name, bytes) = if data.len().is_multiple_of(2) {
+        let mut fixed = data.to_vec();
+        fix_png_crcs(&mut fixed);
+        ("x.png", fixed)
+    } else {
+        ("x.jpg", data.to_vec())
+    };
+    let path = dir.join(name);
+    if std::fs::write(&path, bytes).is_err() {
+        return "cannot write".into();
+    }
+    let opts = ImageryOptions {
+        max_texels: 1 << 21,
+        ..ImageryOptions::default()
+    };
+    let r = Imagery::load(&path, &Extent::of_grid(65, 65, 30.0, (0.0, 0.0)), &opts);
+    let _ = std::fs::remove_file(&path);
+    let _ = std::fs::remove_dir(&dir);
+    outcome(r, |im| format!("{}", im.size().0 > 2))
+}
+
+/// An imagery package (`package::imagery`) from bytes: the header checked, then every tile of a small
+/// one decoded (CRCs and JPEG).
+pub(crate) fn load_imagery_package(data: &[u8]) -> String {
+    use clipsat::package::imagery::ImageryPackage;
+    let r = ImageryPackage::from_bytes(std::path::Path::new("x.clipsat-imagery"), data.to_vec())
+        .and_then(|p| {
+            let h = p.header().clone();
+            let mut tile = vec![0u8; 3 * h.tile as usize * h.tile as usize];
+            let mut decoded = 0;
+            if h.texels() <= 1 << 21 {
+                for (level, l) in h.levels.iter().enumerate() {
+                    for ty in 0..l.tiles_y {
+                        for tx in 0..l.tiles_x {
+                            p.decode_tile(level, tx, ty, &mut tile)?;
+                            decoded += 1;
+                        }
+                    }
+                }
+            }
+            Ok(decoded)
+        });
+    outcome(r, |n| format!("{}", *n > 0))
 }

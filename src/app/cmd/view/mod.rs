@@ -46,6 +46,7 @@ use super::args::{pixel_size, DebugArg, GpuArgs, LodArgs, Size, StreamArgs};
 use super::render::lod_for;
 use super::sg::ShadingArgs;
 use super::{ProfileArgs, TerrainArgs};
+use clipsat::plan::color_rings::ColorRings;
 use measure::{round2, Times};
 use present::{window_error, Presented, Presenter};
 
@@ -113,8 +114,16 @@ pub(crate) fn run(args: &ViewArgs) -> Result<()> {
     // The terrain streams through the profile's tile cache by default (a plain source baked into the
     // cache on first use), as `render` streams it: the camera and the ground under it come from the
     // package's coarse stand-in. --resident loads it whole.
-    let (terrain_name, hm, package) =
+    let (terrain_name, hm, package, imagery) =
         super::render::open_terrain(&args.terrain, args.stream.streams(None)?, true)?;
+    // Draped imagery's colour rings, their CPU share taken from the budget before the heights'.
+    let imagery = match imagery {
+        Some(p) => {
+            super::imagery::check_profile(&mut profile)?;
+            Some(ColorRings::new(p, &profile.imagery)?)
+        }
+        None => None,
+    };
     // The data's own spacing (the stand-in's is coarser): the eye's clearance above the ground.
     let spacing = package
         .as_ref()
@@ -200,6 +209,7 @@ pub(crate) fn run(args: &ViewArgs) -> Result<()> {
         last_ms: 0.0,
         titled: None,
         error: None,
+        imagery,
     };
     event_loop
         .run_app(&mut app)
@@ -364,6 +374,8 @@ struct App<'a> {
     titled: Option<Instant>,
     /// The first error, returned when the event loop ends.
     error: Option<Error>,
+    /// Draped imagery's colour rings (`--imagery`).
+    imagery: Option<ColorRings>,
 }
 
 impl App<'_> {
@@ -373,7 +385,7 @@ impl App<'_> {
     }
 
     fn open(&mut self, event_loop: &ActiveEventLoop) -> Result<()> {
-        let p = Presenter::open(&self.instance, event_loop, &self.profile, self.mode)?;
+        let mut p = Presenter::open(&self.instance, event_loop, &self.profile, self.mode)?;
         let kind = if p.gles30 {
             "OpenGL ES 3.0"
         } else {
@@ -391,6 +403,9 @@ impl App<'_> {
         );
         let size = p.window.inner_size();
         self.context = Some((p.context.clone(), p.gles30));
+        if let Some(rings) = &mut self.imagery {
+            p.enable_imagery(rings)?;
+        }
         self.window = Some(p);
         self.resize(size.width, size.height);
         Ok(())
@@ -444,6 +459,10 @@ impl App<'_> {
         let Some(p) = self.window.as_mut() else {
             return Ok(());
         };
+        if let Some(rings) = &mut self.imagery {
+            rings.update(camera.eye.x, camera.eye.y)?;
+            p.prepare_imagery(rings, (camera.eye.x, camera.eye.y))?;
+        }
         if let Presented::Skipped = p.draw(&self.clipmap, &self.plan, opts.clear)? {
             return Ok(());
         }
@@ -623,7 +642,11 @@ impl App<'_> {
                 ..RendererOptions::default()
             },
             &self.profile,
-        )
+        )?;
+        match &mut self.imagery {
+            Some(rings) => p.enable_imagery(rings),
+            None => Ok(()),
+        }
     }
 }
 

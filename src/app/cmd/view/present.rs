@@ -232,6 +232,26 @@ impl Presenter {
         Ok(())
     }
 
+    /// Sets up draped imagery on this renderer (after each build: a new renderer's colour rings start
+    /// empty, so `rings` write every texel again, fading in).
+    pub(super) fn enable_imagery(
+        &mut self,
+        rings: &mut clipsat::plan::color_rings::ColorRings,
+    ) -> Result<()> {
+        rings.reset();
+        self.renderer
+            .enable_imagery(&self.device, rings.ring(), rings.level_count())
+    }
+
+    /// Uploads the colour rings' writes of their last update, with the eye at world (x, y).
+    pub(super) fn prepare_imagery(
+        &self,
+        rings: &clipsat::plan::color_rings::ColorRings,
+        eye: (f64, f64),
+    ) -> Result<()> {
+        self.renderer.prepare_imagery(&self.queue, rings, eye)
+    }
+
     /// Switches the renderer's SG effects within those it was built for (`Renderer::set_sg_effects`).
     pub(super) fn set_sg_effects(
         &mut self,

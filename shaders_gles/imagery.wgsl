@@ -1,0 +1,106 @@
+// Stage 3, the GPU: draped imagery, the colour clipmap (src/plan/color_rings.rs). Concatenated after
+// clipmap.wgsl in its imagery variant only (src/gpu/shaders.rs `clipmap_imagery`): a terrain without
+// imagery compiles and binds none of this.
+//
+// Ring l holds texels of pyramid level l at toroidal addresses (texel (i, j) at (i mod S, j mod S)), in
+// one RGBA8 2D array texture sampled bilinearly with wrapping (the sampler's repeat mode is the
+// toroidal addressing; the CPU twin, `clipsat::twin::imagery`, filters as GLES 3.0 defines it). A pixel's level follows its footprint (texture clipmaps, Tanner et
+// al. 1998; docs/design.md "Imagery and tiles"): lod = log2(footprint / level 0's spacing), the pixel
+// blends level floor(lod) with the next by the fraction. A ring that does not hold the pixel hands it to
+// the next coarser ring, over IMAGERY_BORDER texels at its held region's border, so no seam shows where
+// a ring ends, and a ring that has just become whole fades in over a few frames. Outside every ring
+// (past the image) the terrain keeps its own albedo.
+
+// Texels over which a ring's held region fades into the next coarser ring at its border.
+const IMAGERY_BORDER: f32 = 4.0;
+
+// Mirrors `clipsat::plan::color_rings::ImageryUniform`.
+struct ImageryLevel {
+    // xy: the eye's texel (column, row from the north-west corner) modulo the ring; zw: texels per metre
+    // (east-west, north-south).
+    eye: vec4<f32>,
+    // The held region relative to the eye, texels: x0, y0, x1, y1 (x1 <= x0: the ring holds nothing).
+    held: vec4<f32>,
+    // x: the ring's fade-in weight, 0 to 1; yzw: unused.
+    fade: vec4<f32>,
+}
+
+struct Imagery {
+    levels: array<ImageryLevel, 12>,
+    // x: rings in use; y: ring side S (a power of two); zw: unused.
+    info: vec4<i32>,
+}
+
+@group(2) @binding(0) var<uniform> imagery: Imagery;
+@group(2) @binding(1) var imagery_rings: texture_2d_array<f32>;
+// Bilinear with repeat: a ring's toroidal addressing is the sampler's wrap.
+@group(2) @binding(2) var imagery_sampler: sampler;
+
+// The pixel's footprint in metres: its largest step on the ground, taken before any discard.
+var<private> imagery_fp: f32;
+
+fn imagery_footprint(rel: vec3<f32>) -> f32 {
+    let d = max(abs(dpdx(rel.xy)), abs(dpdy(rel.xy)));
+    return max(d.x, d.y);
+}
+
+// Ring l's colour at `rel` (m from the eye), bilinear, premultiplied: alpha is the ring's weight there, 0
+// outside its held region, rising over IMAGERY_BORDER texels inside it, times its fade-in.
+fn imagery_sample(l: i32, rel: vec2<f32>) -> vec4<f32> {
+    let lv = imagery.levels[l];
+    // Texels from the eye: columns east, rows south.
+    let t = vec2<f32>(rel.x * lv.eye.z, -rel.y * lv.eye.w);
+    // Inside by at least half a texel: the four taps are held.
+    let lo = t - (lv.held.xy + 0.5);
+    let hi = (lv.held.zw - 0.5) - t;
+    let d = min(min(lo.x, lo.y), min(hi.x, hi.y));
+    let w = clamp(d / IMAGERY_BORDER, 0.0, 1.0) * lv.fade.x;
+    if (w <= 0.0) {
+        return vec4<f32>(0.0);
+    }
+    // The eye's texel modulo the ring plus the offset, over the ring: the sampler wraps it.
+    let uv = (lv.eye.xy + t) / f32(imagery.info.y);
+    let c = textureSampleLevel(imagery_rings, imagery_sampler, uv, l, 0.0);
+    return vec4<f32>(c.rgb * w, w);
+}
+
+// The albedo of a pixel at `rel` whose terrain albedo is `base` (linear light): the imagery's colour,
+// display-encoded as stored and decoded (^2.2) as the basic ramp's stops are, over `base` by its weight.
+fn imagery_albedo(rel: vec2<f32>, base: vec3<f32>) -> vec3<f32> {
+    let n = imagery.info.x;
+    let lod = clamp(log2(max(imagery_fp * imagery.levels[0].eye.z, 1.0e-6)), 0.0, f32(n - 1));
+    let l0 = i32(lod);
+    let t = lod - f32(l0);
+    // Fine to coarse, front to back: a is ring l0 over the coarser rings, b ring l0 + 1 over those
+    // coarser than it, each ring sampled once; a pixel stops once both are whole (most take two rings).
+    var a = vec4<f32>(0.0);
+    var b = vec4<f32>(0.0);
+    for (var l = l0; l < n; l = l + 1) {
+        let s = imagery_sample(l, rel);
+        a = a + (1.0 - a.a) * s;
+        if (l > l0) {
+            b = b + (1.0 - b.a) * s;
+        }
+        if (a.a >= 1.0 && b.a >= 1.0) {
+            break;
+        }
+    }
+    let c = a;
+    let coarse = b;
+    let m = select(c, mix(c, coarse, t), l0 + 1 < n);
+    let img = pow(m.rgb / max(m.a, 1.0e-6), vec3<f32>(2.2));
+    return mix(base, img, m.a);
+}
+
+// basic_shade (basic_shading.wgsl) with the imagery's albedo: the same light and fog, in the same
+// arithmetic (keep the two in step; `clipsat::twin::imagery::shade` mirrors this one).
+fn imagery_shade(v: VsOut, h: f32, n: vec3<f32>, s: BasicShading) -> vec3<f32> {
+    let albedo = imagery_albedo(v.rel.xy, basic_albedo(h, s));
+    let nn = normalize(vec3<f32>(n.xy * (s.ramp_fog.w / max(n.z, 1.0e-6)), 1.0));
+    let sun = max(dot(nn, s.sun_dir.xyz), 0.0);
+    let sky = 0.5 + 0.5 * nn.z;
+    let light = vec3<f32>(1.00, 0.95, 0.86) * (1.45 * sun) + vec3<f32>(0.50, 0.62, 0.80) * (0.30 * sky);
+    let fog = 1.0 - exp(-length(v.rel) * s.ramp_fog.z);
+    let lit = mix(albedo * light, s.fog_colour.rgb, fog);
+    return pow(clamp(lit, vec3<f32>(0.0), vec3<f32>(1.0)), vec3<f32>(1.0 / 2.2));
+}

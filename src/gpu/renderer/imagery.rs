@@ -1,0 +1,253 @@
+//! Stage 3, the GPU: draped imagery, the colour clipmap's GPU side (`shaders_gles/imagery.wgsl`): one RGBA8
+//! 2D array texture of `ring^2 x levels` texels, its uniform, a bind group (group 2) and the imagery
+//! variant of the four fragment programs. Created once by [`Renderer::enable_imagery`] for a terrain
+//! with imagery (counted in the ledger, [`crate::profile::Profile::imagery_gpu_bytes`]); a renderer
+//! without it creates, binds and compiles none of this. Each frame [`Renderer::prepare_imagery`] writes
+//! the plan's colour uploads ([`ColorRings::uploads`]) and the uniform, and creates nothing.
+
+use super::sg::{programs, SgPrograms};
+use super::{array_texture, terrain_pipeline, Ledgered, Renderer, FRAGMENT_ENTRIES};
+use crate::gpu::shaders::{self, SgVariant};
+use crate::plan::color_rings::{ColorRings, ImageryUniform};
+use crate::plan::fragment::FRAGMENT_PATHS;
+use crate::{Error, Result};
+
+/// The colour rings' format: RGBA8, filtered bilinearly by the GPU (filterable on GLES 3.0).
+const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
+/// Bytes of the imagery uniform.
+const UNIFORM_BYTES: u64 = std::mem::size_of::<ImageryUniform>() as u64;
+
+/// The imagery's GPU objects.
+#[derive(Debug)]
+pub(super) struct ImageryState {
+    texture: wgpu::Texture,
+    _sampler: wgpu::Sampler,
+    uniform: wgpu::Buffer,
+    _layout: wgpu::BindGroupLayout,
+    pub(super) group: wgpu::BindGroup,
+    pub(super) pipelines: [wgpu::RenderPipeline; FRAGMENT_PATHS],
+    /// Under SG shading: the SG variant drawn with imagery and its programs (group 3).
+    pub(super) sg: Option<(SgVariant, SgPrograms)>,
+    ring: u32,
+    levels: u32,
+}
+
+impl Renderer {
+    /// Creates the colour rings (`ring^2 x levels` RGBA8), their uniform, bind group and the imagery
+    /// programs, once: frames then draw the terrain's albedo from the imagery under basic shading (and
+    /// its fog), and under SG shading the diffuse term of the SG variant drawn now scaled by the imagery's
+    /// albedo over the scene's k_d (the bind group at 3, after the SG tables'; a variant switched to later
+    /// by [`Renderer::set_sg_effects`] draws without imagery). Refused a second time, or past the
+    /// device's limits.
+    pub fn enable_imagery(&mut self, device: &wgpu::Device, ring: u32, levels: u32) -> Result<()> {
+        let refuse = |reason: &str| Error::Invalid {
+            what: "imagery".into(),
+            reason: reason.into(),
+        };
+        if self.imagery.is_some() {
+            return Err(refuse("the renderer's imagery is already set up"));
+        }
+        let limits = device.limits();
+        if levels > limits.max_texture_array_layers || levels == 0 {
+            return Err(Error::Unsupported {
+                limit: "max_texture_array_layers",
+                needed: u64::from(levels),
+                available: u64::from(limits.max_texture_array_layers),
+            });
+        }
+        if ring > limits.max_texture_dimension_2d {
+            return Err(Error::Unsupported {
+                limit: "max_texture_dimension_2d",
+                needed: u64::from(ring),
+                available: u64::from(limits.max_texture_dimension_2d),
+            });
+        }
+        let mut dev = Ledgered::new(device);
+        let texture = dev.texture(
+            "imagery rings",
+            &array_texture(ring, levels, COLOR_FORMAT, wgpu::TextureUsages::COPY_SRC),
+        );
+        let view = dev.view(
+            "imagery rings view",
+            &texture,
+            &wgpu::TextureViewDescriptor {
+                dimension: Some(wgpu::TextureViewDimension::D2Array),
+                ..Default::default()
+            },
+        );
+        // Bilinear, wrapping: the ring's toroidal addresses are its texels modulo the ring, which the
+        // repeat mode gives for free.
+        let sampler = dev.sampler(
+            "imagery sampler",
+            &wgpu::SamplerDescriptor {
+                address_mode_u: wgpu::AddressMode::Repeat,
+                address_mode_v: wgpu::AddressMode::Repeat,
+                mag_filter: wgpu::FilterMode::Linear,
+                min_filter: wgpu::FilterMode::Linear,
+                ..Default::default()
+            },
+        );
+        let uniform = dev.buffer(
+            "imagery uniform",
+            UNIFORM_BYTES,
+            wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        );
+        let layout = dev.bind_group_layout(
+            "imagery layout",
+            &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: wgpu::BufferSize::new(UNIFORM_BYTES),
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                        view_dimension: wgpu::TextureViewDimension::D2Array,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 2,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                    count: None,
+                },
+            ],
+        );
+        let group = dev.bind_group(
+            "imagery group",
+            &layout,
+            &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: uniform.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::TextureView(&view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: wgpu::BindingResource::Sampler(&sampler),
+                },
+            ],
+        );
+        let module = dev.shader_module("clipmap.wgsl (imagery)", shaders::clipmap_imagery());
+        let pipeline_layout = dev.pipeline_layout(
+            "imagery pipeline layout",
+            &[
+                Some(&self._group0_layout),
+                Some(&self._group1_layout),
+                Some(&layout),
+            ],
+        );
+        let targets = self.targets;
+        let pipelines = FRAGMENT_ENTRIES.map(|(label, entry)| {
+            terrain_pipeline(&mut dev, label, &pipeline_layout, &module, entry, &targets)
+        });
+        let sg = self.sg.as_ref().map(|sg| {
+            let module = dev.shader_module(
+                "sg_clipmap.wgsl (imagery)",
+                shaders::sg_clipmap_imagery(sg.variant),
+            );
+            let layout = dev.pipeline_layout(
+                "sg imagery pipeline layout",
+                &[
+                    Some(&self._group0_layout),
+                    Some(&self._group1_layout),
+                    Some(&sg._layout),
+                    Some(&layout),
+                ],
+            );
+            (sg.variant, programs(&mut dev, &module, &layout, &targets))
+        });
+        self.ledger.extend(&dev.finish());
+        self.imagery = Some(ImageryState {
+            texture,
+            _sampler: sampler,
+            uniform,
+            _layout: layout,
+            group,
+            pipelines,
+            sg,
+            ring,
+            levels,
+        });
+        Ok(())
+    }
+
+    /// Whether frames draw imagery ([`Renderer::enable_imagery`], and no debug view).
+    pub fn draws_imagery(&self) -> bool {
+        self.imagery.is_some() && self.debug.code() == 0
+    }
+
+    /// The colour rings' texture, where imagery is set up.
+    pub fn imagery_texture(&self) -> Option<&wgpu::Texture> {
+        self.imagery.as_ref().map(|i| &i.texture)
+    }
+
+    /// Writes `rings`' uploads of its last update into the colour rings and its uniform with the eye at
+    /// world (x, y); creates nothing. Refused for rings of another size than set up.
+    pub fn prepare_imagery(
+        &self,
+        queue: &wgpu::Queue,
+        rings: &ColorRings,
+        (x, y): (f64, f64),
+    ) -> Result<()> {
+        let Some(state) = &self.imagery else {
+            return Err(Error::Invalid {
+                what: "imagery".into(),
+                reason: "the renderer has no imagery set up (Renderer::enable_imagery)".into(),
+            });
+        };
+        if rings.ring() != state.ring || rings.level_count() > state.levels {
+            return Err(Error::Invalid {
+                what: "imagery".into(),
+                reason: format!(
+                    "rings of {} x {} levels for a texture of {} x {}",
+                    rings.ring(),
+                    rings.level_count(),
+                    state.ring,
+                    state.levels
+                ),
+            });
+        }
+        for u in rings.uploads() {
+            let bytes = u.w as usize * u.h as usize * 4;
+            queue.write_texture(
+                wgpu::TexelCopyTextureInfo {
+                    texture: &state.texture,
+                    mip_level: 0,
+                    origin: wgpu::Origin3d {
+                        x: u.x,
+                        y: u.y,
+                        z: u.level,
+                    },
+                    aspect: wgpu::TextureAspect::All,
+                },
+                &rings.staging()[u.offset..u.offset + bytes],
+                wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(u.w * 4),
+                    rows_per_image: Some(u.h),
+                },
+                wgpu::Extent3d {
+                    width: u.w,
+                    height: u.h,
+                    depth_or_array_layers: 1,
+                },
+            );
+        }
+        queue.write_buffer(&state.uniform, 0, bytemuck::bytes_of(&rings.uniform(x, y)));
+        Ok(())
+    }
+}

@@ -1,0 +1,542 @@
+//! Stage 1b, the package: the imagery package, a companion of the terrain package that holds the colour
+//! pyramid (`bake::imagery`) in tiles, each coded as a baseline JPEG (4:4:4, quality
+//! [`DEFAULT_QUALITY`]) with a CRC-32, behind a checksummed header. The format was chosen by
+//! measurement (docs/guide.md "Imagery"): per-tile 4:4:4 JPEG at quality 80 takes fewer bytes per texel
+//! than a whole-image JPEG at quality 90 (4:2:0) at a higher PSNR, on both shared images.
+//!
+//! Layout, little-endian: magic `CSIMAGE\0`, version (u32), quality (u32), tile side (u32), level-0
+//! width and height (u32), extent (4 x f64: west, south, east, north), source key (u64), level count
+//! (u32), each level's width and height (u32), each tile's offset (u64), length and CRC-32 (u32),
+//! levels finest first and tiles row-major; then the header's CRC-32 (u32); then the tiles.
+
+use std::io::Cursor;
+use std::path::{Path, PathBuf};
+
+use image::ImageDecoder as _;
+
+use super::format::TileEntry;
+use crate::bake::imagery::{level_count, level_sizes, ColorLevel};
+use crate::source::imagery::{Extent, Imagery};
+use crate::{Error, Result};
+
+/// The file's first eight bytes.
+pub const MAGIC: &[u8; 8] = b"CSIMAGE\0";
+/// The format version this build writes and reads.
+pub const VERSION: u32 = 1;
+/// Texels on a side of a tile.
+pub const TILE: u32 = 256;
+/// The JPEG quality of the tiles (4:4:4): the measured choice, see the module's notes.
+pub const DEFAULT_QUALITY: u8 = 80;
+/// Bytes before the per-level table.
+const FIXED: usize = 8 + 4 + 4 + 4 + 4 + 4 + 4 * 8 + 8 + 4;
+/// Bytes of one tile entry.
+const TILE_ENTRY: usize = 16;
+
+/// One level of the pyramid in the package.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ImageryLevel {
+    /// Texel columns.
+    pub width: u32,
+    /// Texel rows.
+    pub height: u32,
+    /// Tiles per row.
+    pub tiles_x: u32,
+    /// Tile rows.
+    pub tiles_y: u32,
+    /// Index of the level's first tile in the tile table.
+    pub first_tile: usize,
+}
+
+/// An imagery package's header.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ImageryHeader {
+    /// JPEG quality of the tiles.
+    pub quality: u32,
+    /// Tile side, texels.
+    pub tile: u32,
+    /// Level-0 texel columns.
+    pub width: u32,
+    /// Level-0 texel rows.
+    pub height: u32,
+    /// Where level 0 lies in the terrain's world frame (pixel-is-area).
+    pub extent: Extent,
+    /// The key of what it was baked from (the cache's name for it).
+    pub key: u64,
+    /// The levels, finest first.
+    pub levels: Vec<ImageryLevel>,
+    /// Every tile's place in the file and checksum.
+    pub tiles: Vec<TileEntry>,
+}
+
+impl ImageryHeader {
+    /// Bytes of the header, its CRC included.
+    pub fn byte_len(&self) -> usize {
+        FIXED + 8 * self.levels.len() + TILE_ENTRY * self.tiles.len() + 4
+    }
+
+    /// Metres per texel of `level` (east-west, north-south): level 0's doubled per level.
+    pub fn texel_spacing(&self, level: usize) -> (f64, f64) {
+        let (w, h) = self.extent.size();
+        let scale = f64::from(1u32 << level.min(31));
+        (
+            w / f64::from(self.width) * scale,
+            h / f64::from(self.height) * scale,
+        )
+    }
+
+    /// Level-0 texels.
+    pub fn texels(&self) -> u64 {
+        u64::from(self.width) * u64::from(self.height)
+    }
+
+    /// Bytes of the tiles.
+    pub fn tile_bytes(&self) -> u64 {
+        self.tiles.iter().map(|t| u64::from(t.len)).sum()
+    }
+
+    /// The levels and tile table of a pyramid over `width` x `height` texels, offsets left at 0.
+    fn layout(width: u32, height: u32, tile: u32) -> (Vec<ImageryLevel>, usize) {
+        let mut first_tile = 0;
+        let levels = level_sizes(width, height)
+            .into_iter()
+            .map(|(w, h)| {
+                let l = ImageryLevel {
+                    width: w,
+                    height: h,
+                    tiles_x: w.div_ceil(tile),
+                    tiles_y: h.div_ceil(tile),
+                    first_tile,
+                };
+                first_tile += l.tiles_x as usize * l.tiles_y as usize;
+                l
+            })
+            .collect();
+        (levels, first_tile)
+    }
+
+    fn write(&self, out: &mut Vec<u8>) {
+        let start = out.len();
+        out.extend_from_slice(MAGIC);
+        for v in [VERSION, self.quality, self.tile, self.width, self.height] {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+        for v in self.extent.to_array() {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+        out.extend_from_slice(&self.key.to_le_bytes());
+        let count = u32::try_from(self.levels.len()).unwrap_or(u32::MAX);
+        out.extend_from_slice(&count.to_le_bytes());
+        for l in &self.levels {
+            out.extend_from_slice(&l.width.to_le_bytes());
+            out.extend_from_slice(&l.height.to_le_bytes());
+        }
+        for t in &self.tiles {
+            out.extend_from_slice(&t.offset.to_le_bytes());
+            out.extend_from_slice(&t.len.to_le_bytes());
+            out.extend_from_slice(&t.crc.to_le_bytes());
+        }
+        let crc = crc32fast::hash(&out[start..]);
+        out.extend_from_slice(&crc.to_le_bytes());
+    }
+
+    /// Parses and checks a header at the start of `bytes` (a file of `bytes.len()` bytes).
+    fn parse(path: &Path, bytes: &[u8]) -> Result<Self> {
+        let bad = |reason: String| Error::format(path, format!("imagery package: {reason}"));
+        let mut r = Reader { bytes, at: 0 };
+        if r.take(8).ok_or_else(|| bad("truncated".into()))? != MAGIC {
+            return Err(bad("not an imagery package (wrong magic)".into()));
+        }
+        let mut u32s = [0u32; 5];
+        for v in &mut u32s {
+            *v = r.u32().ok_or_else(|| bad("truncated header".into()))?;
+        }
+        let [version, quality, tile, width, height] = u32s;
+        if version != VERSION {
+            return Err(bad(format!(
+                "format version {version}, this build reads {VERSION}: bake it again"
+            )));
+        }
+        if !(16..=4096).contains(&tile) || width < 2 || height < 2 {
+            return Err(bad(format!(
+                "tile {tile}, size {width} x {height} are out of range"
+            )));
+        }
+        let mut e = [0f64; 4];
+        for v in &mut e {
+            *v = r.f64().ok_or_else(|| bad("truncated header".into()))?;
+        }
+        let extent =
+            Extent::new(e[0], e[1], e[2], e[3]).map_err(|err| bad(format!("extent: {err}")))?;
+        let key = r.u64().ok_or_else(|| bad("truncated header".into()))?;
+        let count = r.u32().ok_or_else(|| bad("truncated header".into()))?;
+        if count != level_count(width, height) {
+            return Err(bad(format!(
+                "{count} levels, a pyramid over {width} x {height} has {}",
+                level_count(width, height)
+            )));
+        }
+        let (levels, tile_count) = Self::layout(width, height, tile);
+        for l in &levels {
+            let (w, h) = (r.u32(), r.u32());
+            if (w, h) != (Some(l.width), Some(l.height)) {
+                return Err(bad("level sizes do not follow the pyramid".into()));
+            }
+        }
+        let table_end = FIXED + 8 * levels.len() + TILE_ENTRY * tile_count + 4;
+        if bytes.len() < table_end {
+            return Err(bad(format!(
+                "truncated: {} bytes, the header alone takes {table_end}",
+                bytes.len()
+            )));
+        }
+        let mut tiles = Vec::with_capacity(tile_count);
+        for i in 0..tile_count {
+            let t = TileEntry {
+                offset: r.u64().ok_or_else(|| bad("truncated tile table".into()))?,
+                len: r.u32().ok_or_else(|| bad("truncated tile table".into()))?,
+                crc: r.u32().ok_or_else(|| bad("truncated tile table".into()))?,
+            };
+            let end = t.offset.checked_add(u64::from(t.len));
+            if t.offset < table_end as u64 || end.is_none_or(|e| e > bytes.len() as u64) {
+                return Err(bad(format!("tile {i} lies outside the file (truncated?)")));
+            }
+            tiles.push(t);
+        }
+        let crc = r.u32().ok_or_else(|| bad("truncated header".into()))?;
+        if crc != crc32fast::hash(&bytes[..table_end - 4]) {
+            return Err(bad("header checksum mismatch (damaged file)".into()));
+        }
+        Ok(Self {
+            quality,
+            tile,
+            width,
+            height,
+            extent,
+            key,
+            levels,
+            tiles,
+        })
+    }
+}
+
+/// A little-endian cursor that answers `None` past the end.
+struct Reader<'a> {
+    bytes: &'a [u8],
+    at: usize,
+}
+
+impl Reader<'_> {
+    fn take(&mut self, n: usize) -> Option<&[u8]> {
+        let s = self.bytes.get(self.at..self.at.checked_add(n)?)?;
+        self.at += n;
+        Some(s)
+    }
+    fn u32(&mut self) -> Option<u32> {
+        Some(u32::from_le_bytes(self.take(4)?.try_into().ok()?))
+    }
+    fn u64(&mut self) -> Option<u64> {
+        Some(u64::from_le_bytes(self.take(8)?.try_into().ok()?))
+    }
+    fn f64(&mut self) -> Option<f64> {
+        Some(f64::from_le_bytes(self.take(8)?.try_into().ok()?))
+    }
+}
+
+/// What a bake wrote and how close it is to the source.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct ImageryBakeReport {
+    /// Bytes of the package.
+    pub bytes: u64,
+    /// Level-0 texels.
+    pub texels: u64,
+    /// Levels of the pyramid.
+    pub levels: u32,
+    /// Tiles of all levels.
+    pub tiles: u32,
+    /// Bytes of level 0's tiles per level-0 texel.
+    pub level0_bytes_per_texel: f64,
+    /// Bytes of the whole package per level-0 texel (the coarser levels add about a third).
+    pub bytes_per_texel: f64,
+    /// PSNR of level 0 decoded against the source, over RGB, dB.
+    pub psnr_db: f64,
+}
+
+/// Bakes `imagery` into an imagery package in memory: the pyramid coded a level at a time (the finer
+/// level dropped once the coarser is made), `key` recorded in the header.
+pub fn bake_imagery(imagery: &Imagery, quality: u8, key: u64) -> Result<(Vec<u8>, ImageryBakeReport)> {
+    let (width, height) = imagery.size();
+    let (levels, tile_count) = ImageryHeader::layout(width, height, TILE);
+    let mut header = ImageryHeader {
+        quality: u32::from(quality),
+        tile: TILE,
+        width,
+        height,
+        extent: imagery.extent(),
+        key,
+        levels,
+        tiles: vec![TileEntry::default(); tile_count],
+    };
+    let head = header.byte_len();
+    let mut payload = Vec::new();
+    let mut level = ColorLevel {
+        width,
+        height,
+        texels: imagery.texels().to_vec(),
+    };
+    let mut scratch = Vec::new();
+    let mut decoded = Vec::new();
+    let mut sq_err = 0u64;
+    let mut level0_bytes = 0u64;
+    for (li, l) in header.levels.clone().iter().enumerate() {
+        for ty in 0..l.tiles_y {
+            for tx in 0..l.tiles_x {
+                let (tw, th) = tile_size(l, TILE, tx, ty);
+                copy_tile(&level, tx * TILE, ty * TILE, tw, th, &mut scratch);
+                let at = payload.len();
+                image::codecs::jpeg::JpegEncoder::new_with_quality(&mut payload, quality)
+                    .encode(&scratch, tw, th, image::ExtendedColorType::Rgb8)
+                    .map_err(|e| Error::format(imagery.path(), format!("JPEG encoder: {e}")))?;
+                let coded = &payload[at..];
+                let i = l.first_tile + (ty * l.tiles_x + tx) as usize;
+                header.tiles[i] = TileEntry {
+                    offset: (head + at) as u64,
+                    len: u32::try_from(coded.len()).unwrap_or(u32::MAX),
+                    crc: crc32fast::hash(coded),
+                };
+                if li == 0 {
+                    level0_bytes += coded.len() as u64;
+                    decoded.resize(scratch.len(), 0);
+                    decode_jpeg(imagery.path(), coded, tw, th, &mut decoded)?;
+                    sq_err += scratch
+                        .iter()
+                        .zip(&decoded)
+                        .map(|(a, b)| u64::from(a.abs_diff(*b)).pow(2))
+                        .sum::<u64>();
+                }
+            }
+        }
+        if li + 1 < header.levels.len() {
+            level = level.coarser();
+        }
+    }
+    let mut out = Vec::with_capacity(head + payload.len());
+    header.write(&mut out);
+    out.extend_from_slice(&payload);
+    let texels = header.texels();
+    #[expect(clippy::cast_precision_loss, reason = "a ratio for a report")]
+    let report = ImageryBakeReport {
+        bytes: out.len() as u64,
+        texels,
+        levels: u32::try_from(header.levels.len()).unwrap_or(u32::MAX),
+        tiles: u32::try_from(tile_count).unwrap_or(u32::MAX),
+        level0_bytes_per_texel: level0_bytes as f64 / texels as f64,
+        bytes_per_texel: out.len() as f64 / texels as f64,
+        psnr_db: psnr(sq_err, texels * 3),
+    };
+    Ok((out, report))
+}
+
+/// PSNR in dB of a sum of squared 8-bit errors over `n` values (infinite when exact).
+pub fn psnr(sq_err: u64, n: u64) -> f64 {
+    #[expect(clippy::cast_precision_loss, reason = "a measurement")]
+    let mse = sq_err as f64 / n.max(1) as f64;
+    10.0 * (255.0f64 * 255.0 / mse).log10()
+}
+
+/// Texels (columns, rows) of tile (tx, ty) of a level: `tile` but at the east and south edges.
+fn tile_size(l: &ImageryLevel, tile: u32, tx: u32, ty: u32) -> (u32, u32) {
+    (
+        (l.width - tx * tile).min(tile),
+        (l.height - ty * tile).min(tile),
+    )
+}
+
+/// Copies the `w` x `h` texels at (x0, y0) of `level` into `out`.
+fn copy_tile(level: &ColorLevel, x0: u32, y0: u32, w: u32, h: u32, out: &mut Vec<u8>) {
+    out.clear();
+    let stride = level.width as usize * 3;
+    for y in y0..y0 + h {
+        let row = y as usize * stride + x0 as usize * 3;
+        out.extend_from_slice(&level.texels[row..row + w as usize * 3]);
+    }
+}
+
+/// Decodes a JPEG tile of `w` x `h` RGB texels into `out` (`w * h * 3` bytes).
+fn decode_jpeg(path: &Path, coded: &[u8], w: u32, h: u32, out: &mut [u8]) -> Result<()> {
+    let bad = |e: String| {
+        Error::format(
+            path,
+            format!("imagery tile: {}", crate::source::imagery::one_line(&e)),
+        )
+    };
+    let d = image::codecs::jpeg::JpegDecoder::new(Cursor::new(coded)).map_err(|e| bad(e.to_string()))?;
+    if d.dimensions() != (w, h) || d.color_type() != image::ColorType::Rgb8 {
+        return Err(bad(format!(
+            "holds {:?} {} x {}, the header says RGB {w} x {h}",
+            d.color_type(),
+            d.dimensions().0,
+            d.dimensions().1
+        )));
+    }
+    d.read_image(out).map_err(|e| bad(e.to_string()))
+}
+
+/// The package's bytes: a memory map of its file, or bytes baked in memory.
+enum Store {
+    Mapped(memmap2::Mmap),
+    Owned(Vec<u8>),
+}
+
+impl std::ops::Deref for Store {
+    type Target = [u8];
+    fn deref(&self) -> &[u8] {
+        match self {
+            Self::Mapped(m) => m,
+            Self::Owned(v) => v,
+        }
+    }
+}
+
+/// An imagery package, checked and ready to decode tiles from.
+pub struct ImageryPackage {
+    path: PathBuf,
+    store: Store,
+    header: ImageryHeader,
+}
+
+impl std::fmt::Debug for ImageryPackage {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ImageryPackage")
+            .field("path", &self.path)
+            .field("header", &self.header)
+            .finish_non_exhaustive()
+    }
+}
+
+impl ImageryPackage {
+    /// Opens and checks the imagery package at `path` (mapped, not read whole).
+    pub fn open(path: &Path) -> Result<Self> {
+        let file = std::fs::File::open(path).map_err(|e| Error::io(path, "cannot read", e))?;
+        // SAFETY: the cache writes packages under a private name and renames them into place, so a
+        // mapped file is never written; a file truncated by another program is caught by the checks of
+        // the header (sizes) and of each tile (CRC) before its bytes are used.
+        let map = unsafe { memmap2::Mmap::map(&file) }.map_err(|e| Error::io(path, "cannot map", e))?;
+        let header = ImageryHeader::parse(path, &map)?;
+        Ok(Self {
+            path: path.to_path_buf(),
+            store: Store::Mapped(map),
+            header,
+        })
+    }
+
+    /// A package from bytes in memory ([`bake_imagery`]'s), checked as [`ImageryPackage::open`] checks a
+    /// file; `path` names it in errors.
+    pub fn from_bytes(path: &Path, bytes: Vec<u8>) -> Result<Self> {
+        let header = ImageryHeader::parse(path, &bytes)?;
+        Ok(Self {
+            path: path.to_path_buf(),
+            store: Store::Owned(bytes),
+            header,
+        })
+    }
+
+    /// Whether `path` starts with the imagery package's magic.
+    pub fn is_imagery_package(path: &Path) -> bool {
+        use std::io::Read as _;
+        let mut magic = [0u8; 8];
+        std::fs::File::open(path)
+            .and_then(|mut f| f.read_exact(&mut magic))
+            .is_ok()
+            && &magic == MAGIC
+    }
+
+    /// The file it was opened from (or the name given to bytes in memory).
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The checked header.
+    pub fn header(&self) -> &ImageryHeader {
+        &self.header
+    }
+
+    /// Bytes of the package.
+    pub fn len(&self) -> u64 {
+        self.store.len() as u64
+    }
+
+    /// Whether it holds no bytes (never: a checked package has a header).
+    pub fn is_empty(&self) -> bool {
+        self.store.is_empty()
+    }
+
+    /// The texels (columns, rows) of tile (tx, ty) of `level`, or `None` for a tile it does not hold.
+    pub fn tile_size(&self, level: usize, tx: u32, ty: u32) -> Option<(u32, u32)> {
+        let l = self.header.levels.get(level)?;
+        (tx < l.tiles_x && ty < l.tiles_y).then(|| tile_size(l, self.header.tile, tx, ty))
+    }
+
+    /// Decodes tile (tx, ty) of `level` into `out` (RGB8, row-major, at least `w * h * 3` bytes) after
+    /// checking its CRC; returns its size. Damage is an error naming the tile.
+    pub fn decode_tile(&self, level: usize, tx: u32, ty: u32, out: &mut [u8]) -> Result<(u32, u32)> {
+        let Some((w, h)) = self.tile_size(level, tx, ty) else {
+            return Err(Error::Invalid {
+                what: format!("imagery tile {level}/{tx}/{ty}"),
+                reason: "not in the package".into(),
+            });
+        };
+        let l = &self.header.levels[level];
+        let entry = self.header.tiles[l.first_tile + (ty * l.tiles_x + tx) as usize];
+        #[expect(
+            clippy::cast_possible_truncation,
+            reason = "checked against the file's length when the header was parsed"
+        )]
+        let coded = &self.store[entry.offset as usize..(entry.offset + u64::from(entry.len)) as usize];
+        if crc32fast::hash(coded) != entry.crc {
+            return Err(Error::format(
+                &self.path,
+                format!("imagery tile {level}/{tx}/{ty}: checksum mismatch (damaged file)"),
+            ));
+        }
+        let n = w as usize * h as usize * 3;
+        let Some(out) = out.get_mut(..n) else {
+            return Err(Error::Capacity {
+                what: "imagery tile buffer",
+                capacity: out.len(),
+            });
+        };
+        decode_jpeg(&self.path, coded, w, h, out).map_err(|e| match e {
+            Error::Format { path, reason } => Error::Format {
+                path,
+                reason: format!("{reason} (tile {level}/{tx}/{ty})"),
+            },
+            other => other,
+        })?;
+        Ok((w, h))
+    }
+}
+
+/// The imagery package for `imagery` in the cache folder `dir`, named by `key`, baked there on first
+/// use (written under a private name and renamed into place) and opened.
+pub fn cached_imagery(
+    dir: &Path,
+    key: u64,
+    load: impl FnOnce() -> Result<Imagery>,
+) -> Result<ImageryPackage> {
+    let path = dir.join(format!(
+        "imagery-{}-v{VERSION}.clipsat-imagery",
+        crate::hash::hex(key)
+    ));
+    if let Ok(p) = ImageryPackage::open(&path) {
+        if p.header().key == key {
+            return Ok(p);
+        }
+    }
+    let imagery = load()?;
+    let (bytes, _) = bake_imagery(&imagery, DEFAULT_QUALITY, key)?;
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, "cannot create folder", e))?;
+    let tmp = path.with_extension(format!("tmp{}", crate::temp_suffix()));
+    std::fs::write(&tmp, &bytes).map_err(|e| Error::io(&tmp, "cannot write", e))?;
+    std::fs::rename(&tmp, &path).map_err(|e| Error::io(&path, "cannot rename into place", e))?;
+    ImageryPackage::open(&path)
+}

@@ -1,0 +1,93 @@
+//! Budgets: the profile's `[imagery]` section, what the colour clipmap of draped imagery may take (beside
+//! `profile.rs`, the bottom of the import graph, which it extends). Used only where a terrain has
+//! imagery: a frame without imagery allocates and spends none of it.
+
+use serde::{Deserialize, Serialize};
+
+use crate::{Error, Result};
+
+/// Most colour levels (rings) a profile may keep: a 2^(12 + 11) texel-wide image at its coarsest ring.
+pub const MAX_COLOR_LEVELS: u32 = 12;
+
+/// The colour clipmap's budget: ring size, levels, per-frame work and memory.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ImageryBudget {
+    /// Texels on a side of each colour ring (a power of two, 64 ..= 2048): the GPU holds
+    /// `ring^2 x levels` RGBA8 texels.
+    pub ring: u32,
+    /// Colour rings, at most (the image's pyramid may have fewer levels); 1 ..= [`MAX_COLOR_LEVELS`].
+    pub levels: u32,
+    /// Colour texels written into the rings per frame, at most (at least one tile row, 256).
+    pub texels_per_frame: u32,
+    /// Imagery tiles decoded per frame, at most (at least 1).
+    pub tiles_per_frame: u32,
+    /// Bytes of CPU memory for the imagery tile cache (decoded RGB8 tiles of 256^2, 192 KiB each, at
+    /// least one); the upload staging (`texels_per_frame x 4` bytes) comes on top.
+    pub cache_bytes: u64,
+}
+
+impl Default for ImageryBudget {
+    /// A small colour clipmap for a profile without an `[imagery]` section: rings of 256^2, 8 levels.
+    fn default() -> Self {
+        Self {
+            ring: 256,
+            levels: 8,
+            texels_per_frame: 65536,
+            tiles_per_frame: 2,
+            cache_bytes: 4 << 20,
+        }
+    }
+}
+
+impl ImageryBudget {
+    /// Bytes of GPU memory of the colour rings: `ring^2 x levels` RGBA8 texels.
+    pub fn gpu_bytes(&self) -> u64 {
+        u64::from(self.ring) * u64::from(self.ring) * u64::from(self.levels) * 4
+    }
+
+    /// Bytes of CPU memory: the tile cache and the upload staging.
+    pub fn cpu_bytes(&self) -> u64 {
+        self.cache_bytes + u64::from(self.texels_per_frame) * 4
+    }
+
+    /// Checks every field, naming the one at fault (`imagery.ring`).
+    pub fn validate(&self, source_name: &str) -> Result<()> {
+        let bad = |field: &str, reason: String| Err(Error::config(source_name, field, reason));
+        if !(64..=2048).contains(&self.ring) || !self.ring.is_power_of_two() {
+            return bad(
+                "imagery.ring",
+                format!(
+                    "{} is not a power of two in 64..=2048 (toroidal wrap by the sampler, the GLES \
+                     3.0 texture floor)",
+                    self.ring
+                ),
+            );
+        }
+        if self.levels == 0 || self.levels > MAX_COLOR_LEVELS {
+            return bad(
+                "imagery.levels",
+                format!("{} is not in 1..={MAX_COLOR_LEVELS}", self.levels),
+            );
+        }
+        if self.texels_per_frame < 256 {
+            return bad(
+                "imagery.texels_per_frame",
+                format!("{} is under one tile row (256)", self.texels_per_frame),
+            );
+        }
+        if self.tiles_per_frame == 0 {
+            return bad("imagery.tiles_per_frame", "must be at least 1".into());
+        }
+        if self.cache_bytes < 3 * 256 * 256 + 4096 {
+            return bad(
+                "imagery.cache_bytes",
+                format!(
+                    "{} bytes do not hold one decoded tile (196608 bytes and its record)",
+                    self.cache_bytes
+                ),
+            );
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,126 @@
+//! Stage 0, the source: a (Geo)TIFF's georeference (ModelPixelScale, ModelTiepoint and the GeoKeys that
+//! name its coordinate system and raster type), for placing draped imagery against the heights' own
+//! georeference (docs/guide.md "Imagery").
+
+use std::io::BufReader;
+use std::path::Path;
+
+use tiff::decoder::Decoder;
+use tiff::tags::Tag;
+
+use super::imagery::Extent;
+use crate::{Error, Param, Result};
+
+/// GTRasterTypeGeoKey: 1 pixel-is-area (the default), 2 pixel-is-point.
+const RASTER_TYPE_KEY: u16 = 1025;
+/// GeographicTypeGeoKey and ProjectedCSTypeGeoKey: the coordinate system's EPSG code.
+const CRS_KEYS: [u16; 2] = [2048, 3072];
+
+/// Where a TIFF's pixels lie in its model space.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GeoRef {
+    /// Pixels (columns, rows).
+    pub size: (u32, u32),
+    /// Model units per pixel, (x, y).
+    pub scale: (f64, f64),
+    /// The model position of pixel corner (0, 0), (x, y): the tiepoint moved to the raster's corner.
+    pub corner: (f64, f64),
+    /// The coordinate system's key and EPSG code (projected, else geographic), where the file names one.
+    pub crs: Option<(u16, u16)>,
+}
+
+impl GeoRef {
+    /// The georeference of the TIFF at `path`, or `None` for a file that is not a TIFF or has no
+    /// ModelPixelScale and ModelTiepoint (a rotated or unusable one is `None` too).
+    pub fn read(path: &Path) -> Option<Self> {
+        let file = std::fs::File::open(path).ok()?;
+        let mut dec = Decoder::new(BufReader::new(file)).ok()?;
+        let size = dec.dimensions().ok()?;
+        let f64s = |dec: &mut Decoder<_>, tag| -> Option<Vec<f64>> {
+            dec.find_tag(tag).ok().flatten()?.into_f64_vec().ok()
+        };
+        let scale = f64s(&mut dec, Tag::ModelPixelScaleTag)?;
+        let tie = f64s(&mut dec, Tag::ModelTiepointTag)?;
+        let keys: Vec<u16> = dec
+            .find_tag(Tag::GeoKeyDirectoryTag)
+            .ok()
+            .flatten()
+            .and_then(|v| v.into_u16_vec().ok())
+            .unwrap_or_default();
+        let key = |k: u16| {
+            keys.get(4..)?
+                .chunks_exact(4)
+                .find(|e| e[0] == k && e[1] == 0)
+                .map(|e| e[3])
+        };
+        let (sx, sy) = (*scale.first()?, *scale.get(1)?);
+        if !(sx.is_finite() && sy.is_finite() && sx > 0.0 && sy > 0.0) || tie.len() < 6 {
+            return None;
+        }
+        // Pixel-is-point: the tiepoint names a pixel's centre; the corner is half a pixel before it.
+        let half = if key(RASTER_TYPE_KEY) == Some(2) { 0.5 } else { 0.0 };
+        let corner = (
+            tie[3] - (tie[0] + half) * sx,
+            tie[4] + (tie[1] + half) * sy,
+        );
+        if !(corner.0.is_finite() && corner.1.is_finite()) {
+            return None;
+        }
+        let crs = CRS_KEYS
+            .iter()
+            .rev()
+            .find_map(|&k| key(k).filter(|&v| v != 0 && v != 32767).map(|v| (k, v)));
+        Some(Self {
+            size,
+            scale: (sx, sy),
+            corner,
+            crs,
+        })
+    }
+}
+
+/// The extent in the terrain's world frame of imagery georeferenced by `image`, over heights
+/// georeferenced by `heights` and drawn `spacing` metres a sample with their south-west sample at
+/// `origin`: model coordinates are mapped through the heights' own grid (sample centres at their pixels'
+/// centres), so a geographic grid maps as it is drawn. Refused when the two name different coordinate
+/// systems.
+pub fn georef_extent(
+    path: &Path,
+    heights: &GeoRef,
+    image: &GeoRef,
+    spacing: f64,
+    origin: (f64, f64),
+) -> Result<Extent> {
+    if let (Some(a), Some(b)) = (heights.crs, image.crs) {
+        if a != b {
+            return Err(Error::param(
+                Param::ImageryExtent,
+                format!(
+                    "{}: the imagery's georeference is in another coordinate system (EPSG {}) than \
+                     the heights' (EPSG {}); reproject one of them",
+                    path.display(),
+                    b.1,
+                    a.1
+                ),
+            ));
+        }
+    }
+    let (hsx, hsy) = heights.scale;
+    // The heights' south-west sample, at the centre of its pixel.
+    let sw = (
+        heights.corner.0 + 0.5 * hsx,
+        heights.corner.1 - (f64::from(heights.size.1) - 0.5) * hsy,
+    );
+    let world = |mx: f64, my: f64| {
+        (
+            origin.0 + (mx - sw.0) / hsx * spacing,
+            origin.1 + (my - sw.1) / hsy * spacing,
+        )
+    };
+    let (west, north) = world(image.corner.0, image.corner.1);
+    let (east, south) = world(
+        image.corner.0 + f64::from(image.size.0) * image.scale.0,
+        image.corner.1 - f64::from(image.size.1) * image.scale.1,
+    );
+    Extent::new(west, south, east, north)
+}

@@ -1,0 +1,402 @@
+//! Stage 0, the source: imagery to drape on the terrain (PNG and JPEG: 8- or 16-bit grey, grey + alpha,
+//! RGB, RGBA or palette; TIFF and GeoTIFF: 8- or 16-bit grey, RGB or RGBA), read into RGB8 texels placed
+//! over an extent of the terrain's world frame. A GeoTIFF's georeference is not read yet: it is placed as
+//! a plain image is.
+//!
+//! Placement is pixel-is-area (docs/guide.md "Imagery"): an image of W x H texels over the extent
+//! (west, south, east, north) has texel (i, j) cover x in [west + i dx, west + (i + 1) dx] and y in
+//! [north - (j + 1) dy, north - j dy], with dx = (east - west) / W and dy = (north - south) / H; row 0 is
+//! the north edge. A plain image spans the height grid's extent, corner sample to corner sample, unless
+//! an extent is given. Alpha is read and dropped: the drape is opaque.
+
+use std::io::BufReader;
+use std::path::{Path, PathBuf};
+
+use crate::{Error, Param, Result};
+
+/// Most texels an imagery file may declare by default (2^28, a 16384 x 16384 image): checked against the
+/// header before anything is allocated.
+pub const DEFAULT_MAX_IMAGERY_TEXELS: u64 = 1 << 28;
+
+/// A rectangle of the terrain's world frame, metres (x east, y north; the height grid's south-west
+/// sample is at its origin, (0, 0) unless placed).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Extent {
+    /// Smallest x.
+    pub west: f64,
+    /// Smallest y.
+    pub south: f64,
+    /// Largest x.
+    pub east: f64,
+    /// Largest y.
+    pub north: f64,
+}
+
+impl Extent {
+    /// An extent from (west, south, east, north), checked: finite, west < east and south < north.
+    pub fn new(west: f64, south: f64, east: f64, north: f64) -> Result<Self> {
+        let e = Self {
+            west,
+            south,
+            east,
+            north,
+        };
+        if ![west, south, east, north].iter().all(|v| v.is_finite()) {
+            return Err(Error::param(
+                Param::ImageryExtent,
+                format!("{e} is not finite"),
+            ));
+        }
+        if !(west < east && south < north) {
+            return Err(Error::param(
+                Param::ImageryExtent,
+                format!("{e} is empty: needs west < east and south < north"),
+            ));
+        }
+        Ok(e)
+    }
+
+    /// Parses `W,S,E,N` (metres, in the terrain's world frame).
+    pub fn parse(text: &str) -> Result<Self> {
+        let parts: Vec<&str> = text.split(',').map(str::trim).collect();
+        let values: Vec<f64> = parts.iter().filter_map(|p| p.parse().ok()).collect();
+        match values.as_slice() {
+            [w, s, e, n] if parts.len() == 4 => Self::new(*w, *s, *e, *n),
+            _ => Err(Error::param(
+                Param::ImageryExtent,
+                format!("`{text}` is not four numbers W,S,E,N"),
+            )),
+        }
+    }
+
+    /// The extent of a height grid of `width` x `height` samples `spacing` metres apart whose south-west
+    /// sample is at `origin`: from the corner samples' positions, as a plain image is placed.
+    pub fn of_grid(width: u32, height: u32, spacing: f64, origin: (f64, f64)) -> Self {
+        Self {
+            west: origin.0,
+            south: origin.1,
+            east: origin.0 + f64::from(width.saturating_sub(1)) * spacing,
+            north: origin.1 + f64::from(height.saturating_sub(1)) * spacing,
+        }
+    }
+
+    /// Width (east - west) and height (north - south), metres.
+    pub fn size(&self) -> (f64, f64) {
+        (self.east - self.west, self.north - self.south)
+    }
+
+    /// The part shared with `other`, or `None` when they share no area.
+    pub fn overlap(&self, other: &Extent) -> Option<Extent> {
+        let e = Extent {
+            west: self.west.max(other.west),
+            south: self.south.max(other.south),
+            east: self.east.min(other.east),
+            north: self.north.min(other.north),
+        };
+        (e.west < e.east && e.south < e.north).then_some(e)
+    }
+
+    /// The four values, (west, south, east, north).
+    pub fn to_array(self) -> [f64; 4] {
+        [self.west, self.south, self.east, self.north]
+    }
+}
+
+impl std::fmt::Display for Extent {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "west {} south {} east {} north {} m",
+            self.west, self.south, self.east, self.north
+        )
+    }
+}
+
+/// How to read and place an imagery file.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ImageryOptions {
+    /// Where the image lies; `None`: the height grid's extent, corner to corner.
+    pub extent: Option<Extent>,
+    /// Most texels the file may declare; checked before allocating.
+    pub max_texels: u64,
+}
+
+impl Default for ImageryOptions {
+    fn default() -> Self {
+        Self {
+            extent: None,
+            max_texels: DEFAULT_MAX_IMAGERY_TEXELS,
+        }
+    }
+}
+
+/// An image placed on the terrain: RGB8 texels, row-major from the north-west corner.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Imagery {
+    path: PathBuf,
+    width: u32,
+    height: u32,
+    texels: Vec<u8>,
+    extent: Extent,
+}
+
+impl Imagery {
+    /// Reads a PNG or JPEG and places it over `options.extent`, or over `grid` (the height grid's
+    /// extent, [`Extent::of_grid`]) without one. Refused, with the file and the reason: a format other
+    /// than PNG or JPEG, a declared size over `options.max_texels` (before allocating), fewer than 2 x 2
+    /// texels, a truncated or corrupt file, an extent that shares no area with `grid`.
+    pub fn load(path: &Path, grid: &Extent, options: &ImageryOptions) -> Result<Self> {
+        if is_tiff(path)? {
+            let (width, height, rgb) = load_tiff(path, options)?;
+            return Self::from_rgb(path, width, height, rgb, grid, options.extent);
+        }
+        let open = || -> Result<image::ImageReader<BufReader<std::fs::File>>> {
+            let reader = image::ImageReader::open(path)
+                .map_err(|e| Error::io(path, "cannot read", e))?
+                .with_guessed_format()
+                .map_err(|e| Error::io(path, "cannot read", e))?;
+            match reader.format() {
+                Some(image::ImageFormat::Png | image::ImageFormat::Jpeg) => Ok(reader),
+                Some(other) => Err(Error::format(
+                    path,
+                    format!("imagery is read from PNG, JPEG or TIFF files, not {other:?}"),
+                )),
+                None => Err(Error::format(
+                    path,
+                    "not a PNG, JPEG or TIFF image (unknown signature)",
+                )),
+            }
+        };
+        let (width, height) = open()?
+            .into_dimensions()
+            .map_err(|e| Error::format(path, format!("cannot read the image header: {}", one_line(&e))))?;
+        let texels = u64::from(width) * u64::from(height);
+        if texels > options.max_texels {
+            return Err(Error::param(
+                Param::MaxImageryTexels,
+                format!(
+                    "{}: declared size {width} x {height} = {texels} texels is over the limit of {} \
+                     texels",
+                    path.display(),
+                    options.max_texels
+                ),
+            ));
+        }
+        check_size(path, width, height)?;
+        let mut reader = open()?;
+        if reader.format() == Some(image::ImageFormat::Jpeg) {
+            check_jpeg_end(path)?;
+        }
+        let mut limits = image::Limits::default();
+        limits.max_image_width = Some(width);
+        limits.max_image_height = Some(height);
+        // The decoded image at 16 bits a channel with alpha, and as much again for the decoder's own.
+        limits.max_alloc = Some(texels.saturating_mul(16));
+        reader.limits(limits);
+        let decoded = reader
+            .decode()
+            .map_err(|e| Error::format(path, format!("cannot decode the image: {}", one_line(&e))))?;
+        if (decoded.width(), decoded.height()) != (width, height) {
+            return Err(Error::format(
+                path,
+                format!(
+                    "the header says {width} x {height} texels, the data {} x {}",
+                    decoded.width(),
+                    decoded.height()
+                ),
+            ));
+        }
+        let rgb = decoded.into_rgb8().into_raw();
+        Self::from_rgb(path, width, height, rgb, grid, options.extent)
+    }
+
+    /// An image from RGB8 texels in memory (row-major from the north-west corner), placed over `extent`,
+    /// or over `grid` without one, with [`Imagery::load`]'s checks.
+    pub fn from_rgb(
+        path: &Path,
+        width: u32,
+        height: u32,
+        texels: Vec<u8>,
+        grid: &Extent,
+        extent: Option<Extent>,
+    ) -> Result<Self> {
+        check_size(path, width, height)?;
+        let expected = u64::from(width) * u64::from(height) * 3;
+        if texels.len() as u64 != expected {
+            return Err(Error::format(
+                path,
+                format!(
+                    "{} bytes given for {width} x {height} RGB texels ({expected})",
+                    texels.len()
+                ),
+            ));
+        }
+        let extent = match extent {
+            Some(e) => Extent::new(e.west, e.south, e.east, e.north)?,
+            None => *grid,
+        };
+        if extent.overlap(grid).is_none() {
+            return Err(Error::param(
+                Param::ImageryExtent,
+                format!(
+                    "{}: the imagery ({extent}) does not overlap the terrain ({grid})",
+                    path.display()
+                ),
+            ));
+        }
+        Ok(Self {
+            path: path.to_path_buf(),
+            width,
+            height,
+            texels,
+            extent,
+        })
+    }
+
+    /// The file it was read from.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Texels (columns, rows).
+    pub fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+
+    /// Where it lies in the terrain's world frame.
+    pub fn extent(&self) -> Extent {
+        self.extent
+    }
+
+    /// Metres per texel, (east-west, north-south).
+    pub fn texel_spacing(&self) -> (f64, f64) {
+        let (w, h) = self.extent.size();
+        (w / f64::from(self.width), h / f64::from(self.height))
+    }
+
+    /// The RGB8 texels, row-major from the north-west corner.
+    pub fn texels(&self) -> &[u8] {
+        &self.texels
+    }
+
+    /// The texel at column `x`, row `y` (row 0 north), clamped to the image.
+    pub fn texel(&self, x: i64, y: i64) -> [u8; 3] {
+        let cx = x.clamp(0, i64::from(self.width) - 1);
+        let cy = y.clamp(0, i64::from(self.height) - 1);
+        #[expect(
+            clippy::cast_possible_truncation,
+            reason = "clamped into the image, whose size fits usize (its texels are held)"
+        )]
+        let i = (cy as usize * self.width as usize + cx as usize) * 3;
+        [self.texels[i], self.texels[i + 1], self.texels[i + 2]]
+    }
+}
+
+/// Refuses a JPEG without an end-of-image marker: the decoder fills a truncated scan with grey instead
+/// of failing, so a cut file is caught here (an entropy-coded 0xFF is stuffed with 0x00, so 0xFF 0xD9
+/// is a marker wherever it appears).
+fn check_jpeg_end(path: &Path) -> Result<()> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, "cannot read", e))?;
+    if bytes.windows(2).any(|w| w == [0xFF, 0xD9]) {
+        Ok(())
+    } else {
+        Err(Error::format(
+            path,
+            "truncated JPEG: no end-of-image marker",
+        ))
+    }
+}
+
+/// Whether `path` starts with a TIFF's magic (`II*\0` or `MM\0*`).
+fn is_tiff(path: &Path) -> Result<bool> {
+    use std::io::Read as _;
+    let mut magic = [0u8; 4];
+    let mut f = std::fs::File::open(path).map_err(|e| Error::io(path, "cannot read", e))?;
+    let n = f
+        .read(&mut magic)
+        .map_err(|e| Error::io(path, "cannot read", e))?;
+    Ok(n == 4 && (magic == *b"II*\0" || magic == *b"MM\0*"))
+}
+
+/// A (Geo)TIFF's texels as RGB8: 8- or 16-bit grey, RGB or RGBA (16 bits rounded to 8, alpha dropped),
+/// its size checked against `options.max_texels` before the image is read.
+fn load_tiff(path: &Path, options: &ImageryOptions) -> Result<(u32, u32, Vec<u8>)> {
+    use tiff::decoder::{DecodingResult, Limits};
+    use tiff::ColorType;
+    let bad = |e: &dyn std::fmt::Display| {
+        Error::format(
+            path,
+            format!("corrupt, truncated or unsupported TIFF: {}", one_line(e)),
+        )
+    };
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, "cannot read", e))?;
+    let mut dec = tiff::decoder::Decoder::new(BufReader::new(file)).map_err(|e| bad(&e))?;
+    let (width, height) = dec.dimensions().map_err(|e| bad(&e))?;
+    let texels = u64::from(width) * u64::from(height);
+    if texels > options.max_texels {
+        return Err(Error::param(
+            Param::MaxImageryTexels,
+            format!(
+                "{}: declared size {width} x {height} = {texels} texels is over the limit of {} texels",
+                path.display(),
+                options.max_texels
+            ),
+        ));
+    }
+    check_size(path, width, height)?;
+    let channels = match dec.colortype().map_err(|e| bad(&e))? {
+        ColorType::Gray(8 | 16) => 1,
+        ColorType::RGB(8 | 16) => 3,
+        ColorType::RGBA(8 | 16) => 4,
+        other => {
+            return Err(Error::format(
+                path,
+                format!("imagery TIFF is {other:?}: 8- or 16-bit grey, RGB or RGBA are read"),
+            ))
+        }
+    };
+    let mut limits = Limits::default();
+    let bytes = usize::try_from(texels.saturating_mul(8)).unwrap_or(usize::MAX);
+    limits.decoding_buffer_size = bytes.saturating_add(1 << 20);
+    limits.intermediate_buffer_size = limits.decoding_buffer_size;
+    let mut dec = dec.with_limits(limits);
+    let n = usize::try_from(texels).unwrap_or(usize::MAX);
+    let to8: Vec<u8> = match dec.read_image().map_err(|e| bad(&e))? {
+        DecodingResult::U8(v) => v,
+        DecodingResult::U16(v) => v
+            .iter()
+            .map(|&x| u8::try_from((u32::from(x) + 128) / 257).unwrap_or(255))
+            .collect(),
+        _ => return Err(Error::format(path, "imagery TIFF samples are not 8- or 16-bit integers")),
+    };
+    if to8.len() < n * channels {
+        return Err(Error::format(
+            path,
+            format!("the TIFF holds {} samples, {width} x {height} needs {}", to8.len(), n * channels),
+        ));
+    }
+    let mut rgb = Vec::with_capacity(n * 3);
+    for px in to8.chunks_exact(channels).take(n) {
+        match channels {
+            1 => rgb.extend_from_slice(&[px[0], px[0], px[0]]),
+            _ => rgb.extend_from_slice(&px[..3]),
+        }
+    }
+    Ok((width, height, rgb))
+}
+
+/// A decoder's error on one line (some end theirs with a newline).
+pub(crate) fn one_line(e: &dyn std::fmt::Display) -> String {
+    e.to_string().split_whitespace().collect::<Vec<_>>().join(" ")
+}
+
+/// Refuses images too small to place: a texel spacing needs two texels each way.
+fn check_size(path: &Path, width: u32, height: u32) -> Result<()> {
+    if width < 2 || height < 2 {
+        return Err(Error::format(
+            path,
+            format!("{width} x {height} texels: imagery needs at least 2 x 2"),
+        ));
+    }
+    Ok(())
+}
