@@ -1,5 +1,5 @@
 //! CPU twins of the shaders: the imagery frame check, one call that drapes a synthetic image on a
-//! terrain, draws it on a device and compares it with its twin (`clipsat selftest`, `tests/imagery.rs`).
+//! terrain, draws it on a device and compares it with its twin (`clipsat selftest`, `tests/gpu/imagery.rs`).
 
 use crate::Result;
 
@@ -12,7 +12,7 @@ pub fn check_frame(
     gpu: &crate::gpu::Gpu,
     hm: &crate::source::Heightmap,
     profile: &crate::profile::Profile,
-) -> Result<super::frame::TwinReport> {
+) -> Result<(super::frame::TwinReport, crate::gpu::readback::Image)> {
     use crate::gpu::headless::{render_frame, FrameOptions, Offscreen, OffscreenOptions};
     use crate::gpu::renderer::ShadingProbe;
     use crate::package::imagery::{bake_imagery, ImageryPackage};
@@ -68,11 +68,6 @@ pub fn check_frame(
     let probed = probe.capture(&r)?;
     let twin = super::imagery::ImageryTwin::new(&rings, x, y)?;
     let clear = super::border::clear_rgba8(opts.clear);
-    Ok(super::frame::compare_imagery(
-        &frame,
-        &probed,
-        clear,
-        &r.shading(),
-        &twin,
-    ))
+    let report = super::frame::compare_imagery(&frame, &probed, clear, &r.shading(), &twin);
+    Ok((report, frame))
 }

@@ -1,6 +1,6 @@
 //! The default frames on every driver present: `clipsat selftest --json --images` on Mesa's llvmpipe (GL,
 //! strict ES 3.0), softpipe (GL), lavapipe (Vulkan) and Google's SwiftShader (Vulkan, no code shared with
-//! Mesa). Each driver's basic, SG and detail-pool frames must match their CPU twins within the tolerance
+//! Mesa). Each driver's basic, SG, detail-pool and imagery frames must match their CPU twins within the tolerance
 //! of `twin::frame` (the selftest's own checks), and the largest difference between any two drivers'
 //! frames is reported as a table: docs/real-drivers.md's, built by
 //! `cargo test --test cli cross_driver -- --nocapture` (also written to
@@ -19,10 +19,11 @@ use std::process::{Command, Output};
 use crate::{cache_dir, scratch_in};
 
 /// The frames `selftest --images` writes, each checked against its twin.
-const FRAMES: [(&str, &str); 3] = [
+const FRAMES: [(&str, &str); 4] = [
     ("basic", "basic frame"),
     ("sg", "SG frame"),
     ("pool", "detail-pool frame"),
+    ("imagery", "imagery frame"),
 ];
 
 /// A driver: its name in the table, `--gpu`, the environment that picks it, and whether CI needs it.
@@ -199,6 +200,7 @@ fn default_frames_agree_with_their_twins_on_every_driver() {
                 "basic frame",
                 "SG frame",
                 "detail-pool frame",
+                "imagery frame",
                 "border",
                 "read-back and frame times"
             ],

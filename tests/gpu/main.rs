@@ -11,6 +11,7 @@ mod conformance;
 mod example_embed;
 mod far_origin;
 mod gpu_smoke;
+mod imagery;
 mod profile_props;
 mod render_clipmap;
 mod render_debug;

@@ -56,7 +56,7 @@ pub(crate) struct SelftestArgs {
     #[arg(long)]
     json: bool,
     /// Also writes the frames compared with their CPU twins to this folder as PNG (`basic.png`,
-    /// `sg.png`, `pool.png`): with the JSON, what to send when a check fails on a device.
+    /// `sg.png`, `pool.png`, `imagery.png`): with the JSON, what to send when a check fails on a device.
     #[arg(long, value_name = "DIR")]
     images: Option<std::path::PathBuf>,
 }
@@ -251,11 +251,12 @@ fn checks(gpu: &Gpu, frames: u32, images: Option<&Path>) -> Vec<Check> {
             return out;
         }
     };
-    let runs: [(&'static str, &dyn Fn() -> Result<Check>); 6] = [
+    let runs: [(&'static str, &dyn Fn() -> Result<Check>); 7] = [
         ("vertices", &|| vertices(gpu, &hm)),
         ("basic frame", &|| basic_frame(gpu, &hm, images)),
         ("SG frame", &|| sg_frame(gpu, &hm, images)),
         ("detail-pool frame", &|| pool_frame(gpu, &hm, images)),
+        ("imagery frame", &|| imagery_frame(gpu, &hm, images)),
         ("border", &|| border_check(gpu, &hm)),
         ("read-back and frame times", &|| {
             frame_times(gpu, &hm, frames)
@@ -448,6 +449,12 @@ fn pool_frame(gpu: &Gpu, hm: &Heightmap, images: Option<&Path>) -> Result<Check>
     check
         .with(&[("pool_cells", f64::from(cells))])
         .saved(&image, images, "pool")
+}
+
+/// A basic frame with draped imagery (the colour rings, filled and faded in) against its twin.
+fn imagery_frame(gpu: &Gpu, hm: &Heightmap, images: Option<&Path>) -> Result<Check> {
+    let (report, image) = clipsat::twin::imagery_check::check_frame(gpu, hm, &profile(None)?)?;
+    Check::frame("imagery frame", report, "").saved(&image, images, "imagery")
 }
 
 /// Seen from outside and low, nothing is drawn where no ray within a pixel meets the data (the CPU's

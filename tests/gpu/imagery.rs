@@ -1,13 +1,13 @@
-//! Draped imagery on the GPU (issue 43): a frame with imagery against its CPU twin
+//! Draped imagery on the GPU: a frame with imagery against its CPU twin
 //! (`twin::imagery`, `twin::frame::compare_imagery`) within the tolerance of the basic and SG frames,
 //! the GPU memory it adds, and a frame without imagery untouched by it. Headless on the strict OpenGL
-//! ES 3.0 context (llvmpipe), or with `CLIPSAT_GPU=vulkan` on lavapipe: `cargo test --test imagery`.
+//! ES 3.0 context (llvmpipe), or with `CLIPSAT_GPU=vulkan` on lavapipe: `cargo test --test gpu imagery::`.
 
 use std::path::Path;
 
 use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen, OffscreenOptions};
 use clipsat::gpu::renderer::{Shading, ShadingProbe};
-use clipsat::gpu::{Gpu, GpuMode};
+use clipsat::gpu::Gpu;
 use clipsat::package::imagery::{bake_imagery, ImageryPackage};
 use clipsat::plan::camera::Camera;
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
@@ -24,10 +24,7 @@ use clipsat::twin::imagery::ImageryTwin;
 
 /// The strict GLES 3.0 context, or the backend `CLIPSAT_GPU` names.
 fn gpu() -> Gpu {
-    let mode = GpuMode::from_env()
-        .map(|m| m.expect("CLIPSAT_GPU names a GPU mode"))
-        .unwrap_or(GpuMode::Strict);
-    Gpu::new(mode).unwrap_or_else(|e| panic!("{mode:?} GPU (run `bash .ci/setup`): {e}"))
+    crate::render_support::strict()
 }
 
 fn terrain() -> Heightmap {
@@ -151,9 +148,9 @@ fn imagery_frame_matches_its_twin() {
 }
 
 /// Warm-frame cost with and without imagery, basic shading, 1920 x 1080 on gles3-mid, the same run
-/// (`cargo test --test imagery cost -- --ignored --nocapture`): the issue's goal is at most 1.3x.
+/// (`cargo test --test gpu imagery::cost -- --ignored --nocapture`): the issue's goal is at most 1.3x.
 #[test]
-#[ignore = "a measurement: cargo test --test imagery cost -- --ignored --nocapture"]
+#[ignore = "a measurement: cargo test --test gpu imagery::cost -- --ignored --nocapture"]
 fn cost_with_and_without_imagery() {
     let gpu = gpu();
     let hm = generate(&ProceduralParams::default()).expect("terrain");
@@ -242,9 +239,9 @@ fn cost_with_and_without_imagery() {
 /// camera, rings filled; each terrain pixel's reference albedo is the source image (uncompressed,
 /// full resolution) averaged over 8 x 8 bilinear samples of the pixel's footprint square (the probe's
 /// side, the larger ground step of the pixel), lit as the frame is; PSNR over terrain pixels. Needs the
-/// shared data: `cargo test --test imagery fidelity -- --ignored --nocapture`.
+/// shared data: `cargo test --test gpu imagery::fidelity -- --ignored --nocapture`.
 #[test]
-#[ignore = "a measurement on the shared data: cargo test --test imagery fidelity -- --ignored --nocapture"]
+#[ignore = "a measurement on the shared data: cargo test --test gpu imagery::fidelity -- --ignored --nocapture"]
 #[expect(
     clippy::cast_possible_truncation,
     reason = "bilinear fractions as f32; texel indices of a test image, clamped on lookup"
@@ -451,7 +448,7 @@ fn golden(gpu: &Gpu, view: &str, image: &clipsat::gpu::readback::Image) {
         lines.retain(|l| !l.starts_with(&prefix));
         lines.push(format!("{prefix}{hash}"));
         lines.sort();
-        let head = "# Exact image hashes of imagery frames per driver: adapter|driver<TAB>view<TAB>hash (tests/imagery.rs).\n";
+        let head = "# Exact image hashes of imagery frames per driver: adapter|driver<TAB>view<TAB>hash (tests/gpu/imagery.rs).\n";
         std::fs::write(&path, head.to_string() + &lines.join("\n") + "\n").expect("write hashes");
         image
             .save_png(&dir.join(format!("{view}.png")))
@@ -529,7 +526,8 @@ fn the_selftest_check_passes() {
     let gpu = gpu();
     let mut p = profile();
     (p.view.width, p.view.height) = (160, 90);
-    let report = clipsat::twin::imagery_check::check_frame(&gpu, &terrain(), &p).expect("check");
+    let (report, _) =
+        clipsat::twin::imagery_check::check_frame(&gpu, &terrain(), &p).expect("check");
     assert!(
         report.passes() && report.pixels > 160 * 90 / 3,
         "{report:?}"
