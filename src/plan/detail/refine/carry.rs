@@ -10,7 +10,7 @@ use super::{Cand, Ghost, GhostKind, Inputs, Quadtree, NONE};
 use super::{BlockKey, Cell};
 use crate::hash::Hash64;
 use crate::plan::cull;
-use crate::plan::detail::PoolBounds;
+use crate::plan::detail::{stitch, PoolBounds};
 use crate::plan::frame::Rect;
 use crate::plan::lod::MAX_LOD_BLOCKS;
 use crate::{Error, Result};
@@ -210,13 +210,23 @@ impl Quadtree {
     }
 
     /// A new view: cells that left it become ghosts (their tiles and triangles free), ghosts say whether
-    /// they are in it.
+    /// they are in it, and a stitched cell whose units drawn coarse because they were out of view may be
+    /// in it draws them fine ([`super::Cell::unseen`]: no bound was read of them; fine, they are within
+    /// the cell's own bound) until its units are asked again.
     fn review(&mut self, at: &Inputs<'_, '_>) {
         let view = at.view;
         let mut j = 0;
         while j < self.cells.len() {
             let c = self.cells[j];
             if view.visible(c.key.level, &c.bounds) || self.ghosts.is_full() {
+                if !c.unseen.is_empty() && view.visible(c.key.level, &c.unseen) {
+                    self.cells[j] = Cell {
+                        coarse: seen_units(&c),
+                        unseen: Rect::EMPTY,
+                        masked: false,
+                        ..c
+                    };
+                }
                 j += 1;
                 continue;
             }
@@ -297,6 +307,25 @@ impl Quadtree {
             self.recount(at);
         }
     }
+}
+
+/// Cell `c`'s coarse units less those in its [`super::Cell::unseen`] rectangle and those beside them (a
+/// coarse unit beside a fine one blends into it: [`stitch::erode`]). The rest's coarser bound was read
+/// (`coarse_bound`).
+fn seen_units(c: &Cell) -> stitch::Mask {
+    let (ua, ub) = stitch::units(&c.bounds);
+    let (ua, ub) = (ua.min(stitch::MAX_UNITS), ub.min(stitch::MAX_UNITS));
+    // The rectangle's vertices are on unit corners (`mask.rs`): units [a0, a1) x [b0, b1).
+    let u = &c.unseen;
+    let unit = |v: i64, o: i64, n: u32| u32::try_from(((v - o) / 2).max(0)).map_or(n, |a| a.min(n));
+    let (a0, a1) = (unit(u.x0, c.bounds.x0, ua), unit(u.x1() - 1, c.bounds.x0, ua));
+    let (b0, b1) = (unit(u.y0, c.bounds.y0, ub), unit(u.y1() - 1, c.bounds.y0, ub));
+    let bits = (a0..a1).fold(0u32, |m, a| m | 1 << a);
+    let mut m = c.coarse;
+    for row in &mut m[b0 as usize..b1.max(b0) as usize] {
+        *row &= !bits;
+    }
+    stitch::erode(&m, ua, ub)
 }
 
 /// Keeps the entries of `v` for which `keep` says true (it may change them), in order.
