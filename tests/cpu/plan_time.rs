@@ -250,8 +250,8 @@ fn the_reported_unmet_bound_holds_over_the_measured_error() {
 /// 50 m a frame a few tens of metres over 1 m data), frames 86 to 93. A mask marked out-of-view units
 /// coarse without reading their bound, and the cell's coarse bound said nothing of them: when the camera
 /// turned they were drawn one level coarser unchecked, frames 92 and 93 measuring 2.92 and 2.17 px with no
-/// block clamped (unmet_px 0; 1.83 and 1.70 px now). Now a cell whose such units may be in the new view is
-/// drawn whole until its units are asked again (`refine/carry.rs`, `review`). The flight's first 94
+/// block clamped (unmet_px 0; 1.83 and 1.70 px now). Now such units that may be in the new view are drawn
+/// fine until the cell's units are asked again (`refine/carry.rs`, `review`). The flight's first 94
 /// frames, resident, in under a second.
 #[test]
 fn the_reported_bound_holds_where_units_drawn_coarse_out_of_view_come_into_it() {

@@ -6,7 +6,6 @@ use super::mask;
 use super::memo::Asker;
 use super::{level0_box, Cell, Inputs, Quadtree, Unit, AT_RISK};
 use crate::plan::detail::{stitch, PoolBounds};
-use crate::plan::frame::Rect;
 
 impl Quadtree {
     /// Asks the coarse units of cell `j` if it has not had them asked and will not be split (it meets
@@ -122,7 +121,7 @@ impl Quadtree {
             let whole = Cell {
                 coarse: [0; stitch::MAX_UNITS as usize],
                 coarse_bound: 0.0,
-                unseen: Rect::EMPTY,
+                unseen: [0; stitch::MAX_UNITS as usize],
                 masked: false,
                 ..fresh
             };
