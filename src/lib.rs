@@ -90,6 +90,7 @@ mod error;
 #[cfg(feature = "internals")]
 pub mod measure;
 mod progress;
+mod temp;
 #[cfg(feature = "internals")]
 pub mod twin;
 
@@ -120,7 +121,8 @@ pub fn data_dir() -> std::path::PathBuf {
 /// A temporary file name's suffix that no other live writer uses: the process id, so that processes
 /// sharing a cache folder never write the same file, and a counter, so that threads of one process
 /// (a library caller baking two terrains at once) do not either. Each cached file is written under such
-/// a name and renamed into place.
+/// a name and renamed into place; the bake's own temporaries are locked while they live, so that a
+/// later run can remove those a killed bake left ([`temp`]).
 pub(crate) fn temp_suffix() -> String {
     static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
     let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);

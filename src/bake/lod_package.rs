@@ -86,7 +86,8 @@ pub fn bake_records(
     out
 }
 
-fn spool_levels(
+/// [`bake_records`] into the spool files `paths` (one per level, created here; the caller removes them).
+pub(crate) fn spool_levels(
     package: &Package,
     p: u32,
     levels: u32,
@@ -203,7 +204,8 @@ pub fn tables_from_records(
     if let Some(sw) = sweep.as_mut() {
         sw.levels = levels;
     }
-    let tmp = path.with_extension(format!("tmp{}", crate::temp_suffix()));
+    let guard = crate::temp::TempFile::create(path.with_extension(format!("tmp{}", crate::temp_suffix())))?;
+    let tmp = guard.path.clone();
     let q = Sat::max_frac_bits(u64::from(width) * u64::from(height));
     let tile = lod.tile();
     let written = write_tables(&tmp, &head, &flags, body, |file| {
@@ -225,7 +227,7 @@ pub fn tables_from_records(
         let _ = std::fs::remove_file(&tmp);
         return Err(e);
     }
-    std::fs::rename(&tmp, path).map_err(|e| Error::io(path, "cannot rename into place", e))
+    guard.persist(path)
 }
 
 /// Why a level's tables could not be written: the cache file or the package.

@@ -555,7 +555,8 @@ pub(crate) fn bake_to_file(
     let mut sw = Sweep::new(package, params.p, 1..n, progress)?;
     sw.sweep_e()?;
     let (head, flags, body) = lay_out_file(&mut sw.levels, params.p, sw.width, sw.height, key);
-    let tmp = path.with_extension(format!("tmp{}", crate::temp_suffix()));
+    let guard = crate::temp::TempFile::create(path.with_extension(format!("tmp{}", crate::temp_suffix())))?;
+    let tmp = guard.path.clone();
     // Sweep 2: the tables, each finished row written in place.
     let written = write_tables(&tmp, &head, &flags, body, |file| {
         sw.sweep_tables(Some(file), &tmp)
@@ -565,7 +566,7 @@ pub(crate) fn bake_to_file(
         let _ = std::fs::remove_file(&tmp);
         return Err(e);
     }
-    std::fs::rename(&tmp, path).map_err(|e| Error::io(path, "cannot rename into place", e))
+    guard.persist(path)
 }
 
 /// Each level's E and has-tables flag, as bytes, at their offsets in the cache file.

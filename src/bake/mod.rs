@@ -187,6 +187,8 @@ pub fn bake_lod_package(
         Some(Err(reason)) => Some(reason),
         None => None,
     };
+    // A miss: first the temporaries a killed bake left in the cache folder (`crate::temp`).
+    crate::temp::sweep(dir);
     // The package's own records when they cover the profile (no error computed), else the heights.
     let baked = if lod_package::records_cover(package, params) {
         lod_package::tables_from_records(package, params, key, &path)
@@ -267,6 +269,7 @@ fn bake_lod_keyed<'a>(
         },
         Err(_) => None,
     };
+    crate::temp::sweep(dir);
     let pyramid = pyramid()?;
     crate::bake::lod_tables::check_height_range(&pyramid)?;
     let tables = bake_uncached(&pyramid, params, progress)?;
@@ -314,9 +317,11 @@ pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     if let Some(dir) = path.parent() {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, "cannot create folder", e))?;
     }
-    let tmp = path.with_extension(format!("tmp{}", crate::temp_suffix()));
-    std::fs::write(&tmp, bytes).map_err(|e| Error::io(&tmp, "cannot write", e))?;
-    std::fs::rename(&tmp, path).map_err(|e| Error::io(path, "cannot rename into place", e))
+    let tmp =
+        crate::temp::TempFile::create(path.with_extension(format!("tmp{}", crate::temp_suffix())))?;
+    std::io::Write::write_all(&mut &tmp.file, bytes)
+        .map_err(|e| Error::io(&tmp.path, "cannot write", e))?;
+    tmp.persist(path)
 }
 
 fn encode(t: &LodTables, key: u64) -> Vec<u8> {

@@ -7,7 +7,7 @@
 
 use std::fs::File;
 use std::io::{Read, Seek, SeekFrom, Write};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use super::format::level_sizes;
 use crate::progress::Meter;
@@ -20,31 +20,8 @@ const BAND_ROWS: u32 = 64;
 /// The binomial weights of D ([1, 4, 6, 4, 1] / 16), as `bake::pyramid` applies them.
 const D_WEIGHTS: [f64; 5] = [1.0 / 16.0, 4.0 / 16.0, 6.0 / 16.0, 4.0 / 16.0, 1.0 / 16.0];
 
-/// A temporary file, removed when dropped (and at once where the OS lets an open file be unlinked).
-pub(super) struct TempFile {
-    pub(super) file: File,
-    pub(super) path: PathBuf,
-}
-
-impl TempFile {
-    pub(super) fn create(path: PathBuf) -> Result<Self> {
-        let file = std::fs::OpenOptions::new()
-            .read(true)
-            .write(true)
-            .create(true)
-            .truncate(true)
-            .open(&path)
-            .map_err(|e| Error::io(&path, "cannot create a temporary level file", e))?;
-        Ok(Self { file, path })
-    }
-}
-
-impl Drop for TempFile {
-    fn drop(&mut self) {
-        // Best effort: a leftover temporary file is harmless, and drop cannot report.
-        let _ = std::fs::remove_file(&self.path);
-    }
-}
+/// A temporary file beside the package, locked while it lives and removed when dropped.
+pub(super) use crate::temp::TempFile;
 
 /// One level in progress: its file, and D's state (the five latest horizontally filtered finer rows).
 struct Level {

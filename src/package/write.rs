@@ -14,7 +14,7 @@ use std::path::Path;
 use super::codec::Encoder;
 use super::format::{CodecKind, Header, TileEntry};
 use super::levels::{self, Quantiser};
-use super::spill::{on_lattice, Spilled};
+use super::spill::{on_lattice, Spilled, TempFile};
 use crate::progress::Progress;
 use crate::source::{Resident, RowSource};
 use crate::{Error, Param, Result};
@@ -148,6 +148,11 @@ pub fn bake(
 /// band by band and spilled to temporary files beside `out` (`package::spill`, removed afterwards), then
 /// coded coarse to fine one tile row at a time. The working set is a few rows per level and one tile row
 /// of the finest level, whatever the number of rows. `progress` counts source rows, then tiles.
+///
+/// The package is written under a temporary name beside `out` and renamed into place as the last step:
+/// `out` is never a partial file. Every temporary is locked while the bake lives (`crate::temp`), and a
+/// bake first removes those that a killed bake left beside `out`. A bake that is stopped starts again from
+/// the source: a package is one file, made whole or not at all.
 pub fn bake_source(
     src: &mut (impl RowSource + ?Sized),
     out: &Path,
@@ -167,7 +172,12 @@ pub fn bake_source(
         .map(|_| Encoder::new(opts.codec, opts.zstd_level))
         .collect::<std::io::Result<Vec<_>>>()
         .map_err(|e| Error::io(out, "cannot start the tile encoder", e))?;
-    let file = std::fs::File::create(out).map_err(|e| Error::io(out, "cannot create", e))?;
+    crate::temp::sweep(folder_of(out));
+    let heights = TempFile::create(out.with_extension(format!("tmp{}", crate::temp_suffix())))?;
+    let file = heights
+        .file
+        .try_clone()
+        .map_err(|e| Error::io(&heights.path, "cannot open", e))?;
     let mut meter = progress.task("baking the terrain package: reading the source, rows", 0);
     let mut spilled = Spilled::build(src, out, &mut meter)?;
     let max_error = opts.max_error.unwrap_or_else(|| {
@@ -287,9 +297,11 @@ pub fn bake_source(
     meter.finish();
     drop(file);
     let (bytes, lod_bytes) = if opts.lod_tables {
-        let lod = add_lod_records(out, opts, progress)?;
+        let (lod, whole) = add_lod_records(&heights.path, out, opts, progress)?;
+        whole.persist(out)?;
         (offset + lod.0, lod.1)
     } else {
+        heights.persist(out)?;
         (offset, 0)
     };
     #[expect(clippy::cast_precision_loss, reason = "a ratio for reports")]
@@ -314,41 +326,49 @@ pub fn bake_source(
     })
 }
 
-/// Adds the SAT LOD records to the package just written at `out`: computed out of core from
-/// it ([`crate::bake::lod_package::bake_records`], each level's tiles spooled beside it), then the file
-/// is written again with the records' table in its header (the height tiles' offsets moved by the
-/// header's growth, their bytes copied as they are) and the record tiles after the height tiles, to a
-/// temporary name renamed over `out`. Returns (bytes added, record tile bytes).
-fn add_lod_records(out: &Path, opts: &BakeOptions, progress: Progress<'_>) -> Result<(u64, u64)> {
-    use crate::bake::lod_package::{bake_records, RECORD_LEVELS};
+/// The folder `path` is in (the current one for a bare file name).
+fn folder_of(path: &Path) -> &Path {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    }
+}
+
+/// Adds the SAT LOD records to the package just written at `heights` (a temporary name of `out`):
+/// computed out of core from it ([`crate::bake::lod_package::bake_records`], each level's tiles spooled
+/// beside `out`), then the file is written again with the records' table in its header (the height
+/// tiles' offsets moved by the header's growth, their bytes copied as they are) and the record tiles
+/// after the height tiles, to another temporary file, returned for the caller to rename into place.
+/// Returns (bytes added, record tile bytes) and that file.
+fn add_lod_records(
+    heights: &Path,
+    out: &Path,
+    opts: &BakeOptions,
+    progress: Progress<'_>,
+) -> Result<((u64, u64), TempFile)> {
+    use crate::bake::lod_package::{spool_levels, RECORD_LEVELS};
     use crate::bake::lod_tables::P;
-    let pkg = super::read::Package::open(out)?;
-    let spooled = bake_records(
+    let pkg = super::read::Package::open(heights)?;
+    let suffix = crate::temp_suffix();
+    let spools = (1..=RECORD_LEVELS)
+        .map(|k| TempFile::create(out.with_extension(format!("lod{k}.tmp{suffix}"))))
+        .collect::<Result<Vec<_>>>()?;
+    let paths: Vec<std::path::PathBuf> = spools.iter().map(|t| t.path.clone()).collect();
+    let spooled = spool_levels(
         &pkg,
         P,
         RECORD_LEVELS,
         (opts.tile, opts.codec, opts.zstd_level),
-        out,
+        &paths,
         progress,
     )?;
     let old = pkg.header().clone();
     let file_len = pkg.file_bytes();
     drop(pkg);
-    // Appended, not `with_extension`: `out` may itself be a temporary name (`cached` bakes into
-    // `P.tmp<suffix>`), which `with_extension` with that suffix would give back, truncating the file being read.
-    let mut tmp = out.as_os_str().to_owned();
-    tmp.push(format!(".records{}", crate::temp_suffix()));
-    let tmp = std::path::PathBuf::from(tmp);
-    let written = rewrite_with_records(out, &tmp, old, file_len, &spooled);
-    for sp in &spooled {
-        let _ = std::fs::remove_file(&sp.path);
-    }
-    if written.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    let (added, lod) = written?;
-    std::fs::rename(&tmp, out).map_err(|e| Error::io(out, "cannot rename into place", e))?;
-    Ok((added, lod))
+    let whole = TempFile::create(out.with_extension(format!("records{}", crate::temp_suffix())))?;
+    let written = rewrite_with_records(heights, &whole.path, old, file_len, &spooled)?;
+    drop(spools);
+    Ok((written, whole))
 }
 
 /// [`add_lod_records`]'s second write: `out`'s header with the records' table, its height tiles, then
@@ -476,8 +496,9 @@ pub fn residual_tiles(
 /// `terrain-<key>.clipsat`, `key` naming the source (the caller hashes what identifies it: its path,
 /// size, modification time and load options, or a procedural terrain's parameters) so that a later run
 /// finds it without loading the source. `load` runs only on a miss. A file that does not open as a valid
-/// package is baked again; the bake goes to a temporary name renamed into place, so a killed bake leaves
-/// no half file. Returns the path and whether it was baked now.
+/// package is baked again; the bake goes to a temporary name renamed into place ([`bake_source`]), so a
+/// killed bake leaves no half file, and every call first removes the temporaries a killed bake left in
+/// `dir` (those no live bake holds: `crate::temp`). Returns the path and whether it was baked now.
 pub fn cached<S: RowSource + ?Sized>(
     dir: &Path,
     key: u64,
@@ -486,14 +507,13 @@ pub fn cached<S: RowSource + ?Sized>(
 ) -> Result<(std::path::PathBuf, bool)> {
     let named = |v: u32| dir.join(format!("terrain-{}-v{v}.clipsat", crate::hash::hex(key)));
     let path = named(super::format::VERSION);
+    crate::temp::sweep(dir);
     if super::read::Package::open(&path).is_ok() {
         return Ok((path, false));
     }
     let mut terrain = load()?;
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, "cannot create folder", e))?;
-    let tmp = path.with_extension(format!("tmp{}", crate::temp_suffix()));
-    bake_source(&mut *terrain, &tmp, &BakeOptions::default(), progress)?;
-    std::fs::rename(&tmp, &path).map_err(|e| Error::io(&path, "cannot rename into place", e))?;
+    bake_source(&mut *terrain, &path, &BakeOptions::default(), progress)?;
     // The same terrain's packages of older formats are refused now: drop them, so the cache folder does
     // not grow with every format change (best effort: a file another process holds stays).
     for v in 1..super::format::VERSION {

@@ -10,7 +10,7 @@ use super::{Cand, Ghost, GhostKind, Inputs, Quadtree, NONE};
 use super::{BlockKey, Cell};
 use crate::hash::Hash64;
 use crate::plan::cull;
-use crate::plan::detail::PoolBounds;
+use crate::plan::detail::{stitch, DetailView, PoolBounds};
 use crate::plan::frame::Rect;
 use crate::plan::lod::MAX_LOD_BLOCKS;
 use crate::{Error, Result};
@@ -210,13 +210,25 @@ impl Quadtree {
     }
 
     /// A new view: cells that left it become ghosts (their tiles and triangles free), ghosts say whether
-    /// they are in it.
+    /// they are in it, and a stitched cell whose units drawn coarse because they were out of view may be
+    /// in it draws them fine ([`super::Cell::unseen`]: no bound was read of them; fine, they are within
+    /// the cell's own bound) until its units are asked again.
     fn review(&mut self, at: &Inputs<'_, '_>) {
         let view = at.view;
         let mut j = 0;
         while j < self.cells.len() {
             let c = self.cells[j];
             if view.visible(c.key.level, &c.bounds) || self.ghosts.is_full() {
+                if stitch::any(&c.unseen) {
+                    if let Some((coarse, unseen)) = come_into_view(&c, view) {
+                        self.cells[j] = Cell {
+                            coarse,
+                            unseen,
+                            masked: false,
+                            ..c
+                        };
+                    }
+                }
                 j += 1;
                 continue;
             }
@@ -297,6 +309,54 @@ impl Quadtree {
             self.recount(at);
         }
     }
+}
+
+/// Where some of cell `c`'s units drawn coarse while out of view ([`super::Cell::unseen`]) may be in
+/// `view`: its coarse units less those (a row's at a time, the row's span of them tested) and those
+/// beside them (a coarse unit beside a fine one blends into it: [`stitch::erode`]), and the ones still out
+/// of view. The rest's coarser bound was read (`coarse_bound`). None where none may be in view.
+fn come_into_view(c: &Cell, view: &DetailView<'_>) -> Option<(stitch::Mask, stitch::Mask)> {
+    let (ua, ub) = stitch::units(&c.bounds);
+    let (ua, ub) = (ua.min(stitch::MAX_UNITS), ub.min(stitch::MAX_UNITS));
+    let span = |b: usize, row: u32| {
+        let (a0, a1) = (row.trailing_zeros(), 32 - row.leading_zeros());
+        let x = |a: u32| c.bounds.x0 + 2 * i64::from(a);
+        let y = c.bounds.y0 + 2 * i64::try_from(b).unwrap_or(0);
+        Rect::from_bounds(x(a0), y, x(a1) + 1, y + 3)
+    };
+    // All rows' span first: most frames none of them is in view.
+    let (mut lo, mut hi, mut any) = (u32::MAX, 0u32, 0u32);
+    let (mut first, mut last) = (usize::MAX, 0usize);
+    for (b, &row) in c.unseen.iter().enumerate().take(ub as usize).filter(|(_, r)| **r != 0) {
+        (lo, hi, any) = (lo.min(row.trailing_zeros()), hi.max(32 - row.leading_zeros()), any | row);
+        (first, last) = (first.min(b), b);
+    }
+    if any == 0 {
+        return None;
+    }
+    let whole = span(first, (1u32 << lo) | (1u32 << (hi - 1)));
+    let whole = Rect::from_bounds(whole.x0, whole.y0, whole.x1(), span(last, 1).y1());
+    if !view.visible(c.key.level, &whole) {
+        return None;
+    }
+    let (mut coarse, mut unseen) = (c.coarse, c.unseen);
+    let mut cleared = false;
+    for b in first..=last {
+        let row = unseen[b];
+        if row != 0 && view.visible(c.key.level, &span(b, row)) {
+            coarse[b] &= !row;
+            unseen[b] = 0;
+            cleared = true;
+        }
+    }
+    if !cleared {
+        return None;
+    }
+    let coarse = stitch::erode(&coarse, ua, ub);
+    for (u, k) in unseen.iter_mut().zip(&coarse) {
+        *u &= k;
+    }
+    Some((coarse, unseen))
 }
 
 /// Keeps the entries of `v` for which `keep` says true (it may change them), in order.

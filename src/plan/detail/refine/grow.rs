@@ -374,12 +374,12 @@ impl Quadtree {
         };
         let eps = at.view.epsilon_px;
         for c in &mut new.cells {
-            let Some((mask, worst)) =
+            let Some((mask, worst, unseen)) =
                 mask::coarse_units(at.view, &mut ask, c.key.level, &c.bounds, (eps, false))
             else {
                 return Ok(Outcome::Budget);
             };
-            (c.coarse, c.coarse_bound, c.masked) = (mask, worst, true);
+            (c.coarse, c.coarse_bound, c.unseen, c.masked) = (mask, worst, unseen, true);
         }
         Ok(out)
     }

@@ -21,7 +21,9 @@ const GROUP_MARGIN: f64 = 1.0 - 1.0e-9;
 /// The units of a cell over `r` (vertices of `level`) drawn as one quad of the next coarser level: those
 /// whose coarser bound meets epsilon (or out of view) and whose neighbours' at their sides does too
 /// ([`stitch::erode`]), with the largest coarser bound read of the ones that meet it (0 if none: what a
-/// later view rescales to see whether the mask still holds). A cell whose corners are not on the coarser
+/// later view rescales to see whether the mask still holds) and the coarse units marked because they were
+/// out of view, whose bound was not read (a later view in which they may be visible draws them fine,
+/// `carry.rs`). A cell whose corners are not on the coarser
 /// lattice has none. `rough` (a moving view): groups are tested with the max pyramid's cap only and down
 /// to 2 x 2 units, never unit by unit (a unit that would meet epsilon alone in a group that misses stays
 /// fine: more triangles, never more error; a still view asks the units again one by one). None: the
@@ -32,16 +34,17 @@ pub(super) fn coarse_units(
     level: u32,
     r: &Rect,
     (eps, rough): (f64, bool),
-) -> Option<(stitch::Mask, f64)> {
+) -> Option<(stitch::Mask, f64, stitch::Mask)> {
     let mut meets: stitch::Mask = [0; stitch::MAX_UNITS as usize];
     let even = r.x0 % 2 == 0 && r.y0 % 2 == 0 && r.w % 2 == 1 && r.h % 2 == 1;
     if !even {
-        return Some((meets, 0.0));
+        return Some((meets, 0.0, meets));
     }
     let (ua, ub) = stitch::units(r);
     let units = (ua.min(stitch::MAX_UNITS), ub.min(stitch::MAX_UNITS));
     let side = units.0.max(units.1).next_power_of_two();
     let mut worst = 0.0f64;
+    let mut unseen: stitch::Mask = [0; stitch::MAX_UNITS as usize];
     ask.grid.begin();
     // The cell's tile, and the cell's first unit in it.
     let q = 2 * ask.etas.side as i64;
@@ -59,9 +62,14 @@ pub(super) fn coarse_units(
         rough,
         meets: &mut meets,
         worst: &mut worst,
+        unseen: &mut unseen,
     };
     g.test(ask, 0, 0, side)?;
-    Some((stitch::erode(&meets, ua, ub), worst))
+    let coarse = stitch::erode(&meets, ua, ub);
+    for (u, c) in unseen.iter_mut().zip(&coarse) {
+        *u &= c;
+    }
+    Some((coarse, worst, unseen))
 }
 
 /// One cell's group tests.
@@ -77,6 +85,8 @@ struct Groups<'a, 'v> {
     rough: bool,
     meets: &'a mut stitch::Mask,
     worst: &'a mut f64,
+    /// The units marked out of view ([`coarse_units`]).
+    unseen: &'a mut stitch::Mask,
 }
 
 impl Groups<'_, '_> {
@@ -138,7 +148,8 @@ impl Groups<'_, '_> {
         let y = |b: u32| self.r.y0 + 2 * i64::from(b);
         let g = Rect::from_bounds(x(a0), y(b0), x(a1) + 1, y(b1) + 1);
         if !self.view.visible(self.level, &g) {
-            self.mark(a0, b0, a1, b1);
+            mark(self.unseen, a0, b0, a1, b1);
+            mark(self.meets, a0, b0, a1, b1);
             return Some(());
         }
         let bx = level0_box(self.level, &g);
@@ -182,15 +193,20 @@ impl Groups<'_, '_> {
         Some(())
     }
 
-    /// Marks units [a0, a1) x [b0, b1) as meeting epsilon one level coarser.
+    /// Marks units [a0, a1) x [b0, b1) as drawn one level coarser.
     fn mark(&mut self, a0: u32, b0: u32, a1: u32, b1: u32) {
-        let bits = if a1 - a0 >= 32 {
-            u32::MAX
-        } else {
-            ((1u32 << (a1 - a0)) - 1) << a0
-        };
-        for row in &mut self.meets[b0 as usize..b1 as usize] {
-            *row |= bits;
-        }
+        mark(self.meets, a0, b0, a1, b1);
+    }
+}
+
+/// Sets the bits of units [a0, a1) x [b0, b1) in `m`.
+fn mark(m: &mut stitch::Mask, a0: u32, b0: u32, a1: u32, b1: u32) {
+    let bits = if a1 - a0 >= 32 {
+        u32::MAX
+    } else {
+        ((1u32 << (a1 - a0)) - 1) << a0
+    };
+    for row in &mut m[b0 as usize..b1 as usize] {
+        *row |= bits;
     }
 }

@@ -110,6 +110,10 @@ pub(super) struct Cell {
     pub(super) coarse: stitch::Mask,
     /// The largest bound of a coarse unit's coarser level in view `view` (0: none).
     coarse_bound: f64,
+    /// Its coarse units marked because they were out of view `view`: their coarser bound was never
+    /// asked, so `coarse_bound` says nothing of them. A later view in which they may be visible draws
+    /// them fine until the cell's units are asked again (`carry.rs`).
+    unseen: stitch::Mask,
     /// Its units were asked, or it is not drawn stitched (a cell made while the camera moves is drawn
     /// whole until they are: `Quadtree::mask_cell`).
     masked: bool,

@@ -54,6 +54,7 @@ pub(super) fn cell_at(at: &Piece, level: u32, r: Rect, bound: f64) -> Cell {
         hidden: false,
         coarse: [0; stitch::MAX_UNITS as usize],
         coarse_bound: 0.0,
+        unseen: [0; stitch::MAX_UNITS as usize],
         masked: !at.shape.stitch,
         view: 0,
         scale: 0.0,

@@ -29,13 +29,14 @@ impl Quadtree {
             grid: &mut self.grid,
             etas: &mut self.etas,
         };
-        let Some((m, worst)) = mask::coarse_units(at.view, &mut ask, c.key.level, &c.bounds, (eps, moved))
+        let Some((m, worst, unseen)) = mask::coarse_units(at.view, &mut ask, c.key.level, &c.bounds, (eps, moved))
         else {
             return false;
         };
         let stitched = Cell {
             coarse: m,
             coarse_bound: worst,
+            unseen,
             masked: true,
             ..c
         };
@@ -120,6 +121,7 @@ impl Quadtree {
             let whole = Cell {
                 coarse: [0; stitch::MAX_UNITS as usize],
                 coarse_bound: 0.0,
+                unseen: [0; stitch::MAX_UNITS as usize],
                 masked: false,
                 ..fresh
             };
@@ -133,10 +135,10 @@ impl Quadtree {
                     &c.bounds,
                     (at.view.epsilon_px, moved),
                 );
-                let Some((m, worst)) = units else {
+                let Some((m, worst, unseen)) = units else {
                     return false;
                 };
-                (fresh.coarse, fresh.coarse_bound, fresh.masked) = (m, worst, true);
+                (fresh.coarse, fresh.coarse_bound, fresh.unseen, fresh.masked) = (m, worst, unseen, true);
             }
         }
         if !fits(&fresh) {
