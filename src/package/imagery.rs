@@ -535,8 +535,20 @@ pub fn cached_imagery(
     let imagery = load()?;
     let (bytes, _) = bake_imagery(&imagery, DEFAULT_QUALITY, key)?;
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, "cannot create folder", e))?;
-    let tmp = path.with_extension(format!("tmp{}", crate::temp_suffix()));
-    std::fs::write(&tmp, &bytes).map_err(|e| Error::io(&tmp, "cannot write", e))?;
-    std::fs::rename(&tmp, &path).map_err(|e| Error::io(&path, "cannot rename into place", e))?;
+    write_package(&path, &bytes)?;
     ImageryPackage::open(&path)
+}
+
+/// Writes an imagery package's `bytes` to `path` through a locked temporary renamed into place
+/// (`crate::temp`): a write killed midway leaves no file at `path`, and the next write into the folder
+/// removes the temporary it left.
+pub fn write_package(path: &Path, bytes: &[u8]) -> Result<()> {
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        crate::temp::sweep(dir);
+    }
+    let tmp =
+        crate::temp::TempFile::create(path.with_extension(format!("tmp{}", crate::temp_suffix())))?;
+    std::io::Write::write_all(&mut &tmp.file, bytes)
+        .map_err(|e| Error::io(&tmp.path, "cannot write", e))?;
+    tmp.persist(path)
 }

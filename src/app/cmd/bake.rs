@@ -10,7 +10,7 @@ use clipsat::package::{self, BakeOptions, CodecKind};
 use clipsat::source::georef::{georef_extent, GeoRef};
 use clipsat::source::imagery::{Extent, Imagery};
 use clipsat::source::RowSource;
-use clipsat::{Error, Result};
+use clipsat::Result;
 use serde_json::json;
 
 use super::TerrainArgs;
@@ -72,10 +72,7 @@ pub(crate) fn run(args: &BakeArgs) -> Result<()> {
         Some(im) => {
             let out = args.out.with_extension("clipsat-imagery");
             let (bytes, r) = bake_imagery(&im, DEFAULT_QUALITY, 0)?;
-            let tmp = out.with_extension(format!("tmp{}", std::process::id()));
-            std::fs::write(&tmp, &bytes).map_err(|e| Error::io(&tmp, "cannot write", e))?;
-            std::fs::rename(&tmp, &out)
-                .map_err(|e| Error::io(&out, "cannot rename into place", e))?;
+            clipsat::package::imagery::write_package(&out, &bytes)?;
             Some((out, r))
         }
         None => None,
