@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 
 use image::ImageDecoder as _;
 
-use super::format::TileEntry;
+use super::format::{Reader, TileEntry};
 use crate::bake::imagery::{level_count, level_sizes, ColorLevel};
 use crate::source::imagery::{Extent, Imagery};
 use crate::{Error, Result};
@@ -216,29 +216,6 @@ impl ImageryHeader {
             levels,
             tiles,
         })
-    }
-}
-
-/// A little-endian cursor that answers `None` past the end.
-struct Reader<'a> {
-    bytes: &'a [u8],
-    at: usize,
-}
-
-impl Reader<'_> {
-    fn take(&mut self, n: usize) -> Option<&[u8]> {
-        let s = self.bytes.get(self.at..self.at.checked_add(n)?)?;
-        self.at += n;
-        Some(s)
-    }
-    fn u32(&mut self) -> Option<u32> {
-        Some(u32::from_le_bytes(self.take(4)?.try_into().ok()?))
-    }
-    fn u64(&mut self) -> Option<u64> {
-        Some(u64::from_le_bytes(self.take(8)?.try_into().ok()?))
-    }
-    fn f64(&mut self) -> Option<f64> {
-        Some(f64::from_le_bytes(self.take(8)?.try_into().ok()?))
     }
 }
 
