@@ -2,6 +2,7 @@
 //! and translate with naga into GLSL ES 3.00 (`#version 300 es`) for every entry point.
 
 use std::collections::BTreeSet;
+use std::sync::OnceLock;
 
 use clipsat::gpu::shaders;
 use naga::back::glsl;
@@ -27,87 +28,70 @@ fn every_shader_file_is_assembled() {
     );
 }
 
+/// Every program parses and validates with no capability beyond the core (GLES 3.0 offers nothing more),
+/// and each entry point translates to `#version 300 es` (a failure panics naming the program).
 #[test]
 fn every_entry_point_translates_to_glsl_es_300() {
-    let mut failures = Vec::new();
-    let mut translated = 0;
-    let all = shaders::sources()
-        .into_iter()
-        .map(|(n, t)| (n.to_string(), t))
-        .chain(shaders::sg_variants());
-    for (name, text) in all {
-        let module = match naga::front::wgsl::parse_str(&text) {
-            Ok(m) => m,
-            Err(e) => {
-                failures.push(format!("{name}: parse: {}", e.emit_to_string(&text)));
-                continue;
-            }
-        };
-        // No capabilities beyond the core: GLES 3.0 offers nothing more.
-        let info =
-            match Validator::new(ValidationFlags::all(), Capabilities::empty()).validate(&module) {
-                Ok(i) => i,
-                Err(e) => {
-                    failures.push(format!("{name}: validate: {}", e.emit_to_string(&text)));
-                    continue;
-                }
-            };
-        let options = glsl::Options {
-            version: glsl::Version::Embedded {
-                version: 300,
-                is_webgl: false,
-            },
-            ..Default::default()
-        };
-        for ep in &module.entry_points {
-            let pipeline = glsl::PipelineOptions {
-                shader_stage: ep.stage,
-                entry_point: ep.name.clone(),
-                multiview: None,
-            };
-            let mut out = String::new();
-            let result = glsl::Writer::new(
-                &mut out,
-                &module,
-                &info,
-                &options,
-                &pipeline,
-                naga::proc::BoundsCheckPolicies::default(),
-            )
-            .and_then(|mut w| w.write());
-            match result {
-                Ok(_) if out.starts_with("#version 300 es") => translated += 1,
-                Ok(_) => failures.push(format!(
-                    "{name}:{}: output does not start with #version 300 es",
-                    ep.name
-                )),
-                Err(e) => failures.push(format!("{name}:{}: GLSL ES 3.00: {e}", ep.name)),
-            }
-        }
+    let texts = glsl_texts(300);
+    for (i, ep, text) in texts {
+        assert!(
+            text.starts_with("#version 300 es"),
+            "{}:{ep}: output does not start with #version 300 es",
+            programs()[*i].0
+        );
     }
-    assert!(failures.is_empty(), "{}", failures.join("\n"));
     assert!(
-        translated >= 2,
+        texts.len() >= 2,
         "expected at least the brute-force vertex and fragment entry points"
     );
 }
 
+/// A program as the renderer assembles it: its name, naga's module and its validation info.
+pub(crate) type Program = (String, naga::Module, naga::valid::ModuleInfo);
+
 /// Every program as the renderer assembles it: the plain files, every SG variant and the benchmark's
-/// omissions, parsed and validated.
-pub(crate) fn programs() -> Vec<(String, naga::Module, naga::valid::ModuleInfo)> {
-    shaders::sources()
-        .into_iter()
-        .map(|(n, t)| (n.to_string(), t))
-        .chain(shaders::sg_variants())
-        .map(|(name, text)| {
-            let module = naga::front::wgsl::parse_str(&text)
-                .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(&text)));
-            let info = Validator::new(ValidationFlags::all(), Capabilities::empty())
-                .validate(&module)
-                .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(&text)));
-            (name, module, info)
-        })
-        .collect()
+/// omissions, parsed and validated once for the whole test binary (unoptimised naga takes seconds over
+/// them; five tests read them).
+pub(crate) fn programs() -> &'static [Program] {
+    static PROGRAMS: OnceLock<Vec<Program>> = OnceLock::new();
+    PROGRAMS.get_or_init(|| {
+        shaders::sources()
+            .into_iter()
+            .map(|(n, t)| (n.to_string(), t))
+            .chain(shaders::sg_variants())
+            .map(|(name, text)| {
+                let module = naga::front::wgsl::parse_str(&text)
+                    .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(&text)));
+                let info = Validator::new(ValidationFlags::all(), Capabilities::empty())
+                    .validate(&module)
+                    .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(&text)));
+                (name, module, info)
+            })
+            .collect()
+    })
+}
+
+/// The GLSL ES texts of every program's entry points for `#version {version} es` (300 or 320), in
+/// [`programs`]' order, written once for the test binary: (program index, entry point, text).
+pub(crate) fn glsl_texts(version: u16) -> &'static [(usize, String, String)] {
+    static ES300: OnceLock<Vec<(usize, String, String)>> = OnceLock::new();
+    static ES320: OnceLock<Vec<(usize, String, String)>> = OnceLock::new();
+    let cell = match version {
+        300 => &ES300,
+        320 => &ES320,
+        _ => panic!("#version {version} es is not one a device gets"),
+    };
+    cell.get_or_init(|| {
+        programs()
+            .iter()
+            .enumerate()
+            .flat_map(|(i, (_, module, info))| {
+                glsl_es(module, info, version)
+                    .into_iter()
+                    .map(move |(ep, text)| (i, ep, text))
+            })
+            .collect()
+    })
 }
 
 /// The GLSL ES text of every entry point of `module` for `#version {version} es`, with the writer flags
@@ -159,30 +143,29 @@ pub(crate) fn glsl_es(
 #[test]
 fn glsl_es_declares_highp_everywhere() {
     let mut checked = 0;
-    for (name, module, info) in programs() {
-        for version in [300, 320] {
-            for (ep, text) in glsl_es(&module, &info, version) {
-                let at = format!("{name}:{ep} (#version {version} es)");
-                assert!(text.starts_with(&format!("#version {version} es")), "{at}");
-                assert!(
-                    text.contains("precision highp float;"),
-                    "{at}: no highp float"
-                );
-                assert!(text.contains("precision highp int;"), "{at}: no highp int");
-                for line in text.lines().filter(|l| l.contains("sampler")) {
-                    let uniform =
-                        line.trim_start().starts_with("uniform ") || line.contains(") uniform ");
-                    if uniform {
-                        assert!(line.contains(" highp "), "{at}: {line}");
-                    }
+    for version in [300, 320] {
+        for (i, ep, text) in glsl_texts(version) {
+            let name = &programs()[*i].0;
+            let at = format!("{name}:{ep} (#version {version} es)");
+            assert!(text.starts_with(&format!("#version {version} es")), "{at}");
+            assert!(
+                text.contains("precision highp float;"),
+                "{at}: no highp float"
+            );
+            assert!(text.contains("precision highp int;"), "{at}: no highp int");
+            for line in text.lines().filter(|l| l.contains("sampler")) {
+                let uniform =
+                    line.trim_start().starts_with("uniform ") || line.contains(") uniform ");
+                if uniform {
+                    assert!(line.contains(" highp "), "{at}: {line}");
                 }
-                // No lowp or mediump anywhere.
-                assert!(
-                    !text.contains("lowp") && !text.contains("mediump"),
-                    "{at}: reduced precision"
-                );
-                checked += 1;
             }
+            // No lowp or mediump anywhere.
+            assert!(
+                !text.contains("lowp") && !text.contains("mediump"),
+                "{at}: reduced precision"
+            );
+            checked += 1;
         }
     }
     assert!(checked > 100, "{checked} entry points");
@@ -251,7 +234,7 @@ fn unclamped_float_to_int(module: &naga::Module, info: &naga::valid::ModuleInfo)
 fn float_to_int_conversions_are_clamped() {
     let mut bad = Vec::new();
     for (name, module, info) in programs() {
-        for b in unclamped_float_to_int(&module, &info) {
+        for b in unclamped_float_to_int(module, info) {
             bad.push(format!("{name}: {b}"));
         }
     }
@@ -380,7 +363,7 @@ fn derivatives_after_discard(module: &naga::Module) -> Vec<String> {
 fn derivatives_come_before_any_discard() {
     let mut bad = Vec::new();
     for (name, module, _) in programs() {
-        for b in derivatives_after_discard(&module) {
+        for b in derivatives_after_discard(module) {
             bad.push(format!("{name}: {b}"));
         }
     }

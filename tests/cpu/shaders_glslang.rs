@@ -10,7 +10,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use super::shaders_glsl::{glsl_es, programs};
+use super::shaders_glsl::{glsl_texts, programs};
 
 const GLSLANG: &str = "glslangValidator";
 
@@ -46,18 +46,17 @@ fn every_glsl_es_program_passes_the_reference_compiler() {
     let mut seen = HashMap::new();
     let mut files: Vec<(PathBuf, String)> = Vec::new();
     let mut programs_checked = 0;
-    for (name, module, info) in programs() {
-        for version in [300u16, 320] {
-            for (entry, text) in glsl_es(&module, &info, version) {
-                programs_checked += 1;
-                let label = format!("{name}:{entry} (#version {version} es)");
-                if seen.insert(text.clone(), label.clone()).is_some() {
-                    continue;
-                }
-                let file = dir.join(format!("{}.{}", files.len(), stage(&module, &entry)));
-                std::fs::write(&file, &text).expect("write the program");
-                files.push((file, label));
+    for version in [300u16, 320] {
+        for (i, entry, text) in glsl_texts(version) {
+            let (name, module, _) = &programs()[*i];
+            programs_checked += 1;
+            let label = format!("{name}:{entry} (#version {version} es)");
+            if seen.insert(text.clone(), label.clone()).is_some() {
+                continue;
             }
+            let file = dir.join(format!("{}.{}", files.len(), stage(module, entry)));
+            std::fs::write(&file, text).expect("write the program");
+            files.push((file, label));
         }
     }
     let chunks: Vec<&[(PathBuf, String)]> = files.chunks(BATCH).collect();
