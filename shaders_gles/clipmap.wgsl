@@ -455,7 +455,20 @@ fn vs_main(@location(0) v: vec4<u32>, cell: PoolCellIn) -> VsOut {
 fn plain_colour(v: VsOut, rate: vec2<f32>) -> vec4<f32> {
     let shaded = basic_shade(v.height, v.normal, length(v.rel), globals.shading);
     // debug_view.wgsl: the level-colour and wireframe views (the normal view returns `shaded`).
-    return vec4<f32>(debug_view(shaded, v.rel, v.normal, rate), 1.0);
+    return target_colour(vec4<f32>(debug_view(shaded, v.rel, v.normal, rate), 1.0));
+}
+
+// What a fragment writes for the colour target. The shading computes display-encoded colour (gamma 2.2,
+// what a linear-format target stores as it is). An sRGB target encodes what it is given with sRGB's curve
+// (globals.shading.sun_dir.w = 1): write the linear value whose encoding is that colour, so that both
+// targets store the same bytes and blending in an sRGB target works in linear light.
+fn target_colour(c: vec4<f32>) -> vec4<f32> {
+    if (globals.shading.sun_dir.w == 0.0) {
+        return c;
+    }
+    let lo = c.rgb / 12.92;
+    let hi = pow((c.rgb + vec3<f32>(0.055)) / 1.055, vec3<f32>(2.4));
+    return vec4<f32>(select(hi, lo, c.rgb <= vec3<f32>(0.04045)), c.a);
 }
 
 // Such blocks inside the data's border: no discard, so hidden fragments can be rejected before shading.
@@ -483,7 +496,7 @@ fn fs_plain(v: VsOut) -> @location(0) vec4<f32> {
 fn ring_data_colour(v: VsOut, rate: vec2<f32>) -> vec4<f32> {
     let d = ring_data_inputs(v);
     let shaded = basic_shade(d.x, d.yzw, length(v.rel), globals.shading);
-    return vec4<f32>(debug_view(shaded, v.rel, v.normal, rate), 1.0);
+    return target_colour(vec4<f32>(debug_view(shaded, v.rel, v.normal, rate), 1.0));
 }
 
 // What ring_data_colour shades with: x the height, yzw the normal.

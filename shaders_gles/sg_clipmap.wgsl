@@ -124,7 +124,7 @@ fn sg_colour(v: VsOut, w: f32) -> vec4<f32> {
     }
     // sg_fog.wgsl, or the pass-through of sg_no_fog.wgsl in variants without fog.
     let colour = sg_fog(sg_shade(r.xyz, normalize(-v.rel), sg_scene), length(v.rel));
-    return vec4<f32>(pow(clamp(colour, vec3<f32>(0.0), vec3<f32>(1.0)), vec3<f32>(1.0 / 2.2)), 1.0);
+    return target_colour(vec4<f32>(pow(clamp(colour, vec3<f32>(0.0), vec3<f32>(1.0)), vec3<f32>(1.0 / 2.2)), 1.0));
 }
 
 // Blocks. The skirt test (through_side, which walks the rings) is a separate program for skirt draws,

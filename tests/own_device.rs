@@ -7,6 +7,11 @@
 //! Its own test binary: the example's wgpu GL instance closes the process's EGL display when it drops,
 //! which other GPU tests running beside it in one process would not survive.
 
+#![expect(
+    clippy::duplicate_mod,
+    reason = "both examples load their shared wgpu helpers (examples/support)"
+)]
+
 use std::path::Path;
 use std::process::Command;
 
@@ -24,6 +29,7 @@ const SIZES: [(u32, u32); 2] = [(320, 180), (200, 200)];
 
 #[test]
 fn own_device_matches_clipsat_render_through_a_resize() {
+    let _one = ONE_INSTANCE.lock().unwrap_or_else(|e| e.into_inner());
     // Under `.ci/run`'s Vulkan passes (`WGPU_VALIDATION=1 WGPU_DEBUG=1`, `CLIPSAT_VALIDATION_LOG`) the
     // example's own instance asks for the validation layer, whose reports reach the run's file.
     clipsat::gpu::validation::install_from_env();
@@ -121,4 +127,99 @@ fn own_device_example_uses_five_root_types() {
         types.iter().all(|t| !t.contains("::")),
         "root types only: {types:?}"
     );
+}
+
+#[expect(
+    dead_code,
+    reason = "the example's main is not called here, only its render"
+)]
+#[path = "../examples/engine.rs"]
+mod engine;
+
+/// One wgpu GL instance at a time in this process (each closes the EGL display when it drops).
+static ONE_INSTANCE: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+/// Terrain pixels (neither frame is the sky) of two frames: the mean and largest difference of the
+/// largest channel in levels of 255, the share of pixels past 2 levels, and the pixels compared.
+fn difference(a: &[u8], b: &[u8], sky: [u8; 3]) -> (f64, u8, f64, usize) {
+    let near_sky = |p: &[u8]| (0..3).all(|c| p[c].abs_diff(sky[c]) <= 1);
+    let (mut sum, mut max, mut past, mut n) = (0u64, 0u8, 0usize, 0usize);
+    for (p, q) in a.chunks_exact(4).zip(b.chunks_exact(4)) {
+        if near_sky(p) && near_sky(q) {
+            continue;
+        }
+        let d = (0..3).map(|c| p[c].abs_diff(q[c])).max().unwrap_or(0);
+        sum += u64::from(d);
+        max = max.max(d);
+        past += usize::from(d > 2);
+        n += 1;
+    }
+    (
+        sum as f64 / n.max(1) as f64,
+        max,
+        past as f64 / n.max(1) as f64,
+        n,
+    )
+}
+
+/// The engine's frame in each of the four combinations of depth (conventional, reverse-Z with an
+/// infinite far plane) and colour target (linear, sRGB), and with the depth formats an engine's pass
+/// uses, draws the same image as conventional depth into a linear target, within the frame twin's
+/// tolerance (`twin::frame`: a mean of at most 1 level, at most 1 % of the pixels past 2).
+#[test]
+fn depth_conventions_and_colour_targets_draw_the_same_image() {
+    let _one = ONE_INSTANCE.lock().unwrap_or_else(|e| e.into_inner());
+    clipsat::gpu::validation::install_from_env();
+    let cache = Path::new(env!("CARGO_TARGET_TMPDIR")).join("own_device_cache");
+    let size = (240, 135);
+    let base = engine::Setup {
+        reverse_z: false,
+        srgb: false,
+        depth: wgpu::TextureFormat::Depth32Float,
+        marker: false,
+    };
+    let ((_, _, want), camera) = engine::render(&cache, size, base, None).expect("engine frame");
+    let sky = [161, 194, 230];
+    let mut setups = Vec::new();
+    for reverse_z in [false, true] {
+        for srgb in [false, true] {
+            setups.push(engine::Setup {
+                reverse_z,
+                srgb,
+                ..base
+            });
+        }
+    }
+    for depth in [
+        wgpu::TextureFormat::Depth24Plus,
+        wgpu::TextureFormat::Depth24PlusStencil8,
+    ] {
+        setups.push(engine::Setup {
+            depth,
+            reverse_z: true,
+            srgb: true,
+            ..base
+        });
+    }
+    let mut report = Vec::new();
+    for setup in setups {
+        let ((_, _, got), c) = engine::render(&cache, size, setup, None).expect("engine frame");
+        assert_eq!(
+            c.eye(),
+            camera.eye(),
+            "{setup:?}: the same eye from the matrices"
+        );
+        let (mean, max, past, n) = difference(&want, &got, sky);
+        report.push(format!(
+            "{setup:?}: mean {mean:.3}, max {max}, past 2: {past:.4} of {n}"
+        ));
+        assert!(n > 10_000, "{setup:?}: {n} terrain pixels");
+        assert!(
+            mean <= 1.0 && past <= 0.01,
+            "{setup:?} against conventional depth into a linear target: mean {mean:.3} levels, \
+             max {max}, {:.2} % past 2 levels",
+            past * 100.0
+        );
+    }
+    println!("{}", report.join("\n"));
 }

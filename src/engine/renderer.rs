@@ -19,10 +19,17 @@ use super::setup;
 /// life. The default is basic shading with distance LOD into `Rgba8Unorm` / `Depth32Float`.
 #[derive(Clone, Copy, Debug)]
 pub struct RenderOptions<'a> {
-    /// The colour attachment's format in the caller's pass.
+    /// The colour attachment's format in the caller's pass. The terrain's colours are display-encoded
+    /// (gamma 2.2): a linear-format target (`Rgba8Unorm`, `Bgra8Unorm`) stores them as they are; an sRGB
+    /// target (`*Srgb`) is given the linear values whose sRGB encoding they are, so both store the same
+    /// bytes (within one level of rounding).
     pub color_format: wgpu::TextureFormat,
-    /// The depth attachment's format (the terrain depth-tests with `Less`).
+    /// The depth attachment's format: `Depth32Float`, `Depth24Plus` or `Depth24PlusStencil8` (the
+    /// terrain leaves the stencil alone).
     pub depth_format: wgpu::TextureFormat,
+    /// Reverse-Z: the terrain depth-tests with `Greater` and the caller clears depth to 0; otherwise
+    /// `Less`, cleared to 1. Every frame's camera must agree ([`Camera::with_reverse_z`]).
+    pub reverse_z: bool,
     /// The pass's sample count.
     pub sample_count: u32,
     /// SAT LOD at this screen-space error bound, pixels: each block takes the coarsest level whose
@@ -41,6 +48,7 @@ impl Default for RenderOptions<'_> {
         Self {
             color_format: wgpu::TextureFormat::Rgba8Unorm,
             depth_format: wgpu::TextureFormat::Depth32Float,
+            reverse_z: false,
             sample_count: 1,
             sat_lod_px: None,
             sg_scene: None,
@@ -125,6 +133,8 @@ pub struct TerrainRenderer {
     params: PlanParams,
     /// Draped imagery's colour rings ([`crate::TerrainOptions::imagery`]).
     imagery: Option<ColorRings>,
+    /// The depth convention of the pipelines ([`RenderOptions::reverse_z`]).
+    reverse_z: bool,
 }
 
 impl TerrainRenderer {
@@ -171,8 +181,9 @@ impl TerrainRenderer {
             None => Clipmap::new(&stand_in, profile, ClipmapOptions::default())?,
         };
         let lod = match options.sat_lod_px {
-            Some(px) => {
-                let mut lod = setup::sat_lod(
+            // The bound itself is a per-frame parameter (`params` below, [`Self::set_sat_lod_px`]).
+            Some(_) => {
+                let lod = setup::sat_lod(
                     &stand_in,
                     profile,
                     &clipmap,
@@ -180,7 +191,6 @@ impl TerrainRenderer {
                     options.sg_scene.is_some(),
                     options.progress,
                 )?;
-                lod.set_epsilon_px(f64::from(px));
                 LodSetup::new(LodMode::SatConservative, Some(lod))?
             }
             None => LodSetup::Distance,
@@ -223,6 +233,7 @@ impl TerrainRenderer {
             &RendererOptions {
                 color_format: options.color_format,
                 depth_format: options.depth_format,
+                reverse_z: options.reverse_z,
                 sample_count: options.sample_count,
                 shading,
                 ..RendererOptions::default()
@@ -256,7 +267,31 @@ impl TerrainRenderer {
                 ..PlanParams::default()
             },
             imagery: imagery.take(),
+            reverse_z: options.reverse_z,
         })
+    }
+
+    /// Refuses a camera whose depth convention is not the pipelines', or whose projection's aspect is not
+    /// the viewport's.
+    fn check_camera(&self, camera: &Camera, viewport: (u32, u32)) -> Result<()> {
+        let c = &camera.0;
+        if c.reverse_z != self.reverse_z {
+            return Err(Error::camera(format!(
+                "the camera's depth is {}, the renderer's {} (RenderOptions::reverse_z)",
+                if c.reverse_z { "reverse-Z" } else { "conventional" },
+                if self.reverse_z { "reverse-Z" } else { "conventional" },
+            )));
+        }
+        if let Some(a) = c.aspect {
+            let v = f64::from(viewport.0) / f64::from(viewport.1.max(1));
+            if (a / v - 1.0).abs() > 1e-3 {
+                return Err(Error::camera(format!(
+                    "the projection's aspect {a:.4} is not the viewport's {v:.4} ({} x {})",
+                    viewport.0, viewport.1
+                )));
+            }
+        }
+        Ok(())
     }
 
     /// Fills the clipmap (and, with SAT LOD, the detail pool) for `camera` in a `viewport` of (width,
@@ -269,6 +304,7 @@ impl TerrainRenderer {
         camera: &Camera,
         viewport: (u32, u32),
     ) -> Result<u32> {
+        self.check_camera(camera, viewport)?;
         let eye = camera.0.eye;
         self.params.viewport = Some(viewport);
         let mut frames = self.clipmap.fill_at(eye, setup::MAX_FILL_FRAMES)?;
@@ -310,6 +346,7 @@ impl TerrainRenderer {
         camera: &Camera,
         viewport: (u32, u32),
     ) -> Result<FrameStats> {
+        self.check_camera(camera, viewport)?;
         let frame = self.clipmap.update(camera.0.eye)?;
         let (samples_updated, stale_levels) = (frame.samples_updated, frame.stale_levels);
         self.params.viewport = Some(viewport);
@@ -345,6 +382,31 @@ impl TerrainRenderer {
     /// formats given at construction); sets its own pipelines and bindings.
     pub fn render(&self, pass: &mut wgpu::RenderPass<'_>) {
         self.renderer.render(pass);
+    }
+
+    /// Sets SAT LOD's screen-space error bound, pixels, from the next frame on (no rebuild): the bound
+    /// a frame is drawn within, traded against triangles and plan time. Refused for a renderer built
+    /// with distance LOD ([`RenderOptions::sat_lod_px`] None) and for a bound that is not positive.
+    pub fn set_sat_lod_px(&mut self, px: f32) -> Result<()> {
+        if self.planner.lod().is_none() {
+            return Err(Error::Invalid {
+                what: "TerrainRenderer::set_sat_lod_px".into(),
+                reason: "the renderer draws distance LOD (RenderOptions::sat_lod_px was None)".into(),
+            });
+        }
+        if !(px.is_finite() && px > 0.0) {
+            return Err(Error::Invalid {
+                what: "TerrainRenderer::set_sat_lod_px".into(),
+                reason: format!("{px} px is not a positive error bound"),
+            });
+        }
+        self.params.epsilon_px = Some(px);
+        Ok(())
+    }
+
+    /// SAT LOD's screen-space error bound, pixels (None: distance LOD).
+    pub fn sat_lod_px(&self) -> Option<f32> {
+        self.params.epsilon_px
     }
 
     /// The terrain's name ([`Terrain::name`]).

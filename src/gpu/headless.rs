@@ -181,6 +181,7 @@ impl<'g> Offscreen<'g> {
                 &RendererOptions {
                     color_format: COLOR_FORMAT,
                     depth_format: DEPTH_FORMAT,
+                    reverse_z: false,
                     sample_count: 1,
                     shading: options.shading,
                     debug: options.debug,

@@ -21,12 +21,21 @@ pub struct Camera {
     pub eye: DVec3,
     /// The point looked at, metres.
     pub target: DVec3,
+    /// Which way is up on the screen: the camera's up is this direction made perpendicular to the look
+    /// direction (world +z for a look-at camera; any other for roll or a look straight down).
+    pub up: DVec3,
     /// Vertical field of view, degrees.
     pub fov_y_deg: f64,
     /// Near plane, metres.
     pub near: f64,
-    /// Far plane, metres.
+    /// Far plane, metres; infinite for an infinite far plane.
     pub far: f64,
+    /// Reverse-Z: depth 1 at the near plane and 0 at the far one (or at infinity), compared with
+    /// `Greater` and cleared to 0. Otherwise depth 0 at the near plane and 1 at the far one.
+    pub reverse_z: bool,
+    /// The width-to-height ratio of a projection given by the caller ([`Camera::from_matrices`]), which a
+    /// viewport must match; None: the viewport's own.
+    pub aspect: Option<f64>,
 }
 
 impl Camera {
@@ -48,20 +57,132 @@ impl Camera {
         }
         if dir.normalize().cross(DVec3::Z).length() < 1e-9 {
             return Err(Error::camera(
-                "looking straight up or down: the view has no defined 'up'",
+                "looking straight up or down with world +z as up: give the camera another up \
+                 direction (Camera::with_up)",
             ));
         }
-        if !(fov_y_deg.is_finite() && fov_y_deg > 1.0 && fov_y_deg < 179.0) {
-            return Err(Error::camera(format!(
-                "field of view {fov_y_deg} deg is not in (1, 179)"
-            )));
-        }
+        check_fov(fov_y_deg)?;
         Ok(Self {
             eye,
             target,
+            up: DVec3::Z,
             fov_y_deg,
             near: 1.0,
             far: 1.0e6,
+            reverse_z: false,
+            aspect: None,
+        })
+    }
+
+    /// The same camera with `up` as the screen's up direction (rolled, or looking straight down with
+    /// north or any other horizontal direction up): finite, and not along the look direction.
+    pub fn with_up(mut self, up: DVec3) -> Result<Self> {
+        if !(up.is_finite() && up.length() > 1e-12) {
+            return Err(Error::camera(format!("up direction {up} is not a direction")));
+        }
+        if self.forward().cross(up.normalize()).length() < 1e-9 {
+            return Err(Error::camera(format!(
+                "up direction {up} lies along the look direction: the view has no defined up"
+            )));
+        }
+        self.up = up.normalize();
+        Ok(self)
+    }
+
+    /// The same camera with reverse-Z depth ([`Camera::reverse_z`]) on or off.
+    pub fn with_reverse_z(mut self, reverse_z: bool) -> Self {
+        self.reverse_z = reverse_z;
+        self
+    }
+
+    /// The camera of a view matrix (world to view, right-handed, looking down -z, rigid: a rotation and a
+    /// translation) and a perspective projection into wgpu's 0..1 depth, symmetric, with a finite or
+    /// infinite far plane, conventional or reverse-Z: what glam's `perspective_rh`,
+    /// `perspective_infinite_rh` and `perspective_infinite_reverse_rh` (and `perspective_rh` with the
+    /// planes swapped) build. Anything else is refused with what differs.
+    pub fn from_matrices(view: DMat4, proj: DMat4) -> Result<Self> {
+        if !(view.is_finite() && proj.is_finite()) {
+            return Err(Error::camera("a view or projection matrix is not finite"));
+        }
+        let r = glam::DMat3::from_mat4(view);
+        let rigid = (r * r.transpose() - glam::DMat3::IDENTITY)
+            .to_cols_array()
+            .iter()
+            .all(|e| e.abs() < 1e-6)
+            && (r.determinant() - 1.0).abs() < 1e-6
+            && (view.row(3) - glam::DVec4::W).length() < 1e-12;
+        if !rigid {
+            return Err(Error::camera(
+                "the view matrix is not a rotation and a translation (scale, shear or projection)",
+            ));
+        }
+        let inv = view.inverse();
+        let eye = inv.w_axis.truncate();
+        let fwd = -inv.z_axis.truncate().normalize();
+        let up = inv.y_axis.truncate().normalize();
+        let (f, fx) = (proj.y_axis.y, proj.x_axis.x);
+        let (a, b) = (proj.z_axis.z, proj.w_axis.z);
+        let zero = [
+            proj.x_axis.y, proj.x_axis.z, proj.x_axis.w, proj.y_axis.x, proj.y_axis.z, proj.y_axis.w,
+            proj.z_axis.x, proj.z_axis.y, proj.w_axis.x, proj.w_axis.y, proj.w_axis.w,
+        ];
+        let perspective = f > 0.0
+            && fx > 0.0
+            && (proj.z_axis.w + 1.0).abs() < 1e-12
+            && zero.iter().all(|e| e.abs() < 1e-12 * f.max(1.0));
+        if !perspective {
+            return Err(Error::camera(
+                "the projection is not a symmetric right-handed perspective into 0..1 depth",
+            ));
+        }
+        // Depth at distance d in front of the eye: z = -a + b / d (docs/engine.md "Depth").
+        let (near, far, reverse_z) = if b > 0.0 {
+            // 1 at the near plane, 0 at the far one (a = 0: infinitely far).
+            (b / (1.0 + a), if a.abs() < 1e-12 { f64::INFINITY } else { b / a }, true)
+        } else if b < 0.0 && a < 0.0 {
+            // 0 at the near plane, 1 at the far one (a = -1: infinitely far).
+            (b / a, if (a + 1.0).abs() < 1e-12 { f64::INFINITY } else { b / (1.0 + a) }, false)
+        } else {
+            return Err(Error::camera("the projection's depth terms give no near plane"));
+        };
+        let fov = 2.0 * (1.0 / f).atan().to_degrees();
+        check_fov(fov)?;
+        let mut cam = Self {
+            eye,
+            target: eye + fwd,
+            up,
+            fov_y_deg: fov,
+            near: 1.0,
+            far: 2.0,
+            reverse_z,
+            aspect: Some(f / fx),
+        };
+        cam = cam.with_clip(near, far)?;
+        Ok(cam)
+    }
+
+    /// The same camera in the terrain's frame, for a camera given in the caller's world where the terrain
+    /// is placed by `terrain_to_world` (rigid: a rotation, such as z up to y up, and a translation).
+    pub fn in_terrain_frame(self, terrain_to_world: DMat4) -> Result<Self> {
+        let r = glam::DMat3::from_mat4(terrain_to_world);
+        let rigid = terrain_to_world.is_finite()
+            && (r * r.transpose() - glam::DMat3::IDENTITY)
+                .to_cols_array()
+                .iter()
+                .all(|e| e.abs() < 1e-6)
+            && (r.determinant() - 1.0).abs() < 1e-6
+            && (terrain_to_world.row(3) - glam::DVec4::W).length() < 1e-12;
+        if !rigid {
+            return Err(Error::camera(
+                "the terrain's placement is not a rotation and a translation",
+            ));
+        }
+        let inv = terrain_to_world.inverse();
+        Ok(Self {
+            eye: inv.transform_point3(self.eye),
+            target: inv.transform_point3(self.target),
+            up: inv.transform_vector3(self.up).normalize(),
+            ..self
         })
     }
 
@@ -107,9 +228,9 @@ impl Camera {
         Self::new(eye, target, 60.0)?.with_clip((far * 1e-5).max(1e-3), far)
     }
 
-    /// Sets the clip planes (metres); `near` must be positive and below `far`.
+    /// Sets the clip planes (metres); `near` must be positive and below `far`, which may be infinite.
     pub fn with_clip(mut self, near: f64, far: f64) -> Result<Self> {
-        if !(near.is_finite() && far.is_finite() && near > 0.0 && far > near) {
+        if !(near.is_finite() && !far.is_nan() && near > 0.0 && far > near) {
             return Err(Error::camera(format!(
                 "clip planes near {near} m, far {far} m: need 0 < near < far"
             )));
@@ -124,13 +245,49 @@ impl Camera {
         (self.target - self.eye).normalize()
     }
 
+    /// The camera's right and up, unit vectors: right is forward x up, up is right x forward.
+    pub fn basis(&self) -> (DVec3, DVec3) {
+        let fwd = self.forward();
+        let right = fwd.cross(self.up).normalize();
+        (right, right.cross(fwd))
+    }
+
+    /// The view matrix for positions relative to the eye (world - eye).
+    pub fn view_relative(&self) -> DMat4 {
+        DMat4::look_to_rh(DVec3::ZERO, self.forward(), self.up)
+    }
+
+    /// The view matrix, world to view (right-handed, looking down -z).
+    pub fn view(&self) -> DMat4 {
+        DMat4::look_to_rh(self.eye, self.forward(), self.up)
+    }
+
+    /// The projection into wgpu's 0..1 depth: conventional or reverse-Z, with a finite or infinite far
+    /// plane, at the caller's aspect when it gave one, else `aspect`.
+    pub fn projection(&self, aspect: f64) -> DMat4 {
+        let (fov, aspect) = (self.fov_y_deg.to_radians(), self.aspect.unwrap_or(aspect));
+        match (self.reverse_z, self.far.is_finite()) {
+            (false, true) => DMat4::perspective_rh(fov, aspect, self.near, self.far),
+            (false, false) => DMat4::perspective_infinite_rh(fov, aspect, self.near),
+            (true, true) => DMat4::perspective_rh(fov, aspect, self.far, self.near),
+            (true, false) => DMat4::perspective_infinite_reverse_rh(fov, aspect, self.near),
+        }
+    }
+
+    /// The conventional-depth projection of the same frustum (for its planes: [`crate::plan::cull`]).
+    pub fn projection_conventional(&self, aspect: f64) -> DMat4 {
+        Self {
+            reverse_z: false,
+            ..*self
+        }
+        .projection(aspect)
+    }
+
     /// View-projection for positions given relative to the eye (world - eye), with wgpu's 0..1 depth.
     ///
     /// Translating by the eye in f64 before the f32 cast is what keeps far-from-origin terrain jitter-free.
     pub fn view_proj_relative(&self, aspect: f64) -> Mat4 {
-        let view = DMat4::look_to_rh(DVec3::ZERO, self.forward(), DVec3::Z);
-        let proj = DMat4::perspective_rh(self.fov_y_deg.to_radians(), aspect, self.near, self.far);
-        (proj * view).as_mat4()
+        (self.projection(aspect) * self.view_relative()).as_mat4()
     }
 
     /// Pixels per metre of a segment seen face-on at distance `dist` on the screen's axis, viewport
@@ -145,15 +302,15 @@ impl Camera {
     /// (docs/design.md "SAT LOD" 5).
     pub fn vertical_scale(&self, view: (u32, u32)) -> VerticalScale {
         let fwd = self.forward();
-        // look_to_rh with up +Z: the camera's right is horizontal, its up is right x forward.
-        let right = fwd.cross(DVec3::Z).normalize();
-        let up = right.cross(fwd);
+        let (right, up) = self.basis();
         let ty = (self.fov_y_deg.to_radians() * 0.5).tan();
-        let tx = ty * f64::from(view.0) / f64::from(view.1.max(1));
+        let tx = ty * self
+            .aspect
+            .unwrap_or(f64::from(view.0) / f64::from(view.1.max(1)));
         // |n| / q_z = g(s, t) at image point (s, t) = (q_x, q_y) / q_z is convex: largest at a corner.
         let max_slope = [(-tx, -ty), (tx, -ty), (-tx, ty), (tx, ty)]
             .iter()
-            .map(|&(s, t)| slope_at(up.z, fwd.z, s, t))
+            .map(|&(s, t)| slope_at(right.z, up.z, fwd.z, s, t))
             .fold(0.0, f64::max);
         VerticalScale {
             focal_px: f64::from(view.1) / (2.0 * ty),
@@ -170,9 +327,9 @@ impl Camera {
 /// The true projection of a vertical segment (docs/design.md "SAT LOD" 5): how many pixels a point moves on
 /// the screen when its height is off by e.
 ///
-/// A point q (camera space: x right, y up, z depth) and q + t v, v the world's up (v = (0, v_y, v_z):
-/// the camera has no roll), project f q_xy / q_z apart by f t (q_z v_xy - q_xy v_z) / (q_z (q_z + t v_z)),
-/// f the focal length in pixels. The numerator n has |n| / q_z = g(s, t) = |(s v_z, v_y - t v_z)| at the
+/// A point q (camera space: x right, y up, z depth) and q + t v, v the world's up (v = (v_x, v_y, v_z);
+/// v_x = 0 without roll), project f q_xy / q_z apart by f t (q_z v_xy - q_xy v_z) / (q_z (q_z + t v_z)),
+/// f the focal length in pixels. The numerator n has |n| / q_z = g(s, t) = |(v_x - s v_z, v_y - t v_z)| at the
 /// point's image-plane position (s, t) = (q_x, q_y) / q_z, a convex function of it. The longer of the two
 /// directions (t = +e or -e) is f e |n| / (q_z (q_z - e |v_z|)) = f e g(s, t) / (q_z - e |v_z|). On the
 /// screen's axis of a camera pitched by phi this is about f e cos(phi) / q_z; off the axis it exceeds
@@ -243,8 +400,15 @@ impl VerticalScale {
     pub fn parts(&self, rel: DVec3) -> (f64, f64) {
         let qz = self.fwd.dot(rel).max(self.near);
         let (qx, qy) = (self.right.dot(rel), self.up.dot(rel));
-        let (vy, vz) = (self.up.z, self.fwd.z);
-        let n = (qx * qx * vz * vz + (qz * vy - qy * vz).powi(2)).sqrt();
+        let (vx, vy, vz) = (self.right.z, self.up.z, self.fwd.z);
+        // An unrolled camera has v_x = 0 exactly: its term is written as it always was, so that its
+        // plans stay the same bit for bit.
+        let nx2 = if vx == 0.0 {
+            qx * qx * vz * vz
+        } else {
+            (qz * vx - qx * vz).powi(2)
+        };
+        let n = (nx2 + (qz * vy - qy * vz).powi(2)).sqrt();
         (self.focal_px * n / (qz * qz), vz.abs() / qz)
     }
 
@@ -276,6 +440,7 @@ impl VerticalScale {
         Corner {
             qz,
             slope: slope_at(
+                self.right.z,
                 self.up.z,
                 self.fwd.z,
                 self.right.dot(q) * inv,
@@ -306,10 +471,11 @@ impl VerticalScale {
     }
 }
 
-/// |n| / q_z = |(s v_z, v_y - t v_z)| at image-plane position (s, t) ([`VerticalScale`]).
-fn slope_at(vy: f64, vz: f64, s: f64, t: f64) -> f64 {
-    // Not hypot: bounded terms, and libm's hypot was a seventh of a SAT LOD flight's plan time.
-    let (a, b) = (s * vz, vy - t * vz);
+/// |n| / q_z = |(v_x - s v_z, v_y - t v_z)| at image-plane position (s, t) ([`VerticalScale`]).
+fn slope_at(vx: f64, vy: f64, vz: f64, s: f64, t: f64) -> f64 {
+    // Not hypot: bounded terms, and libm's hypot was a seventh of a SAT LOD flight's plan time. The
+    // square of -s v_z equals that of v_x - s v_z bit for bit when v_x = 0 (an unrolled camera).
+    let (a, b) = (vx - s * vz, vy - t * vz);
     (a * a + b * b).sqrt()
 }
 
@@ -322,6 +488,17 @@ pub fn px_of_parts(s: f64, c: f64, e: f64) -> f64 {
         e * s / den
     } else {
         f64::INFINITY
+    }
+}
+
+/// Refuses a vertical field of view outside (1, 179) degrees.
+fn check_fov(fov_y_deg: f64) -> Result<()> {
+    if fov_y_deg.is_finite() && fov_y_deg > 1.0 && fov_y_deg < 179.0 {
+        Ok(())
+    } else {
+        Err(Error::camera(format!(
+            "field of view {fov_y_deg} deg is not in (1, 179)"
+        )))
     }
 }
 
@@ -364,4 +541,76 @@ mod tests {
             Some(DVec3::new(1.0, 2.0, 3.0))
         );
     }
+
+    /// The matrices a camera returns give back the same camera, in each depth convention, rolled or
+    /// looking straight down.
+    #[test]
+    fn matrices_round_trip() {
+        let eye = DVec3::new(100.0, -50.0, 800.0);
+        let cams = [
+            Camera::new(eye, DVec3::new(900.0, 400.0, 10.0), 50.0).expect("camera"),
+            Camera::new(eye, DVec3::new(900.0, 400.0, 10.0), 50.0)
+                .and_then(|c| c.with_up(DVec3::new(0.3, 0.0, 1.0)))
+                .expect("rolled"),
+            Camera::new(eye, eye + DVec3::X, 70.0)
+                .expect("camera")
+                .with_clip(0.5, f64::INFINITY)
+                .expect("infinite"),
+        ];
+        let down = Camera {
+            target: eye - DVec3::Z,
+            ..cams[0]
+        };
+        assert!(down.with_up(DVec3::Z).is_err(), "up along the look");
+        let down = down.with_up(DVec3::Y).expect("straight down, north up");
+        for cam in cams.into_iter().chain([down]) {
+            for reverse_z in [false, true] {
+                let c = cam.with_reverse_z(reverse_z);
+                let back = Camera::from_matrices(c.view(), c.projection(1.5)).expect("matrices");
+                let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * a.abs().max(1.0) || a == b;
+                assert!((back.eye - c.eye).length() < 1e-9, "{back:?}");
+                assert!((back.forward() - c.forward()).length() < 1e-12);
+                assert!((back.basis().1 - c.basis().1).length() < 1e-12);
+                assert!(close(back.fov_y_deg, c.fov_y_deg), "{back:?} {c:?}");
+                assert!(close(back.near, c.near) && close(back.far, c.far), "{back:?} {c:?}");
+                assert_eq!(back.reverse_z, reverse_z);
+                assert!(close(back.aspect.unwrap_or(0.0), 1.5));
+            }
+        }
+        let scaled = DMat4::from_scale(DVec3::splat(2.0)) * cams_view(eye);
+        assert!(Camera::from_matrices(scaled, DMat4::perspective_rh(1.0, 1.0, 1.0, 10.0)).is_err());
+        let ortho = DMat4::orthographic_rh(-1.0, 1.0, -1.0, 1.0, 1.0, 10.0);
+        assert!(Camera::from_matrices(cams_view(eye), ortho).is_err());
+    }
+
+    fn cams_view(eye: DVec3) -> DMat4 {
+        DMat4::look_to_rh(eye, DVec3::X, DVec3::Z)
+    }
+
+    /// A rolled camera's vertical scale is the projected length of a vertical segment, measured by
+    /// projecting its two ends.
+    #[test]
+    fn rolled_vertical_scale_is_the_projected_length() {
+        let eye = DVec3::new(0.0, 0.0, 500.0);
+        let base = Camera::new(eye, DVec3::new(2000.0, 800.0, 0.0), 60.0).expect("camera");
+        let view = (640, 360);
+        for up in [DVec3::Z, DVec3::new(0.4, -0.2, 1.0), DVec3::new(1.0, 0.0, 0.2)] {
+            let c = base.with_up(up).expect("up");
+            let s = c.vertical_scale(view);
+            let m = c.projection(640.0 / 360.0) * c.view_relative();
+            let px = |p: DVec3| {
+                let q = m * p.extend(1.0);
+                DVec3::new(q.x / q.w * 320.0, q.y / q.w * 180.0, 0.0)
+            };
+            for p in [DVec3::new(1500.0, 700.0, -400.0), DVec3::new(900.0, -100.0, -480.0)] {
+                let e = 0.5;
+                let measured = (px(p + DVec3::Z * e) - px(p))
+                    .length()
+                    .max((px(p - DVec3::Z * e) - px(p)).length());
+                let got = s.px(p, e);
+                assert!((got / measured - 1.0).abs() < 1e-6, "{up}: {got} against {measured}");
+            }
+        }
+    }
+
 }

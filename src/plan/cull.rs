@@ -3,7 +3,7 @@
 //! misses the view frustum are dropped (GC section 6: view-frustum culling per block). Pure CPU and
 //! allocation-free: the list is a fixed-capacity [`DrawList`] bounded by the profile's `max_draws`.
 
-use glam::{DMat4, DVec3, DVec4};
+use glam::{DVec3, DVec4};
 
 use crate::plan::clipmap::Clipmap;
 use crate::plan::frame::Rect;
@@ -185,14 +185,9 @@ impl Frustum {
     /// The frustum of `camera` (positions relative to the eye), in f64: Gribb and Hartmann's plane
     /// extraction from the view-projection rows.
     pub fn new(camera: &Camera, aspect: f64) -> Self {
-        let view = DMat4::look_to_rh(DVec3::ZERO, camera.forward(), DVec3::Z);
-        let proj = DMat4::perspective_rh(
-            camera.fov_y_deg.to_radians(),
-            aspect,
-            camera.near,
-            camera.far,
-        );
-        let m = proj * view;
+        // Conventional depth whatever the camera's: its planes are the same. With an infinite far plane
+        // the last row is (0, 0, 0, near): it culls nothing.
+        let m = camera.projection_conventional(aspect) * camera.view_relative();
         let r = |i: usize| m.row(i);
         Self {
             planes: [

@@ -11,7 +11,8 @@ pub struct BasicShading {
     /// x: height (m) where the land ramp starts, y: where it ends, z: fog density (1/m), w: the hill
     /// shading's z-factor ([`z_factor`]).
     pub ramp_fog: [f32; 4],
-    /// xyz: unit vector toward the sun (x east, y north, z up), w: unused.
+    /// xyz: unit vector toward the sun (x east, y north, z up), w: the colour target's encoding, set by the
+    /// renderer (0: the shaders write display-encoded colour; 1: an sRGB target, which encodes it).
     pub sun_dir: [f32; 4],
     /// rgb: fog colour (linear light: the display-encoded colour ^ 2.2, decoded once here rather than per
     /// pixel), a: unused.

@@ -103,14 +103,14 @@ pub(crate) struct FlyArgs {
 struct Row {
     /// Wall time of `Planner::plan`, nanoseconds (measured in the run; the only clock in `fly`).
     plan_ns: u64,
-    /// The CPU time this thread spent in it (None where the platform has no thread clock): the same
-    /// less the time the scheduler gave other processes, on a loaded machine.
+    /// The CPU time this thread spent in it (None without a thread clock): less the time others took.
     plan_cpu_ns: Option<u64>,
     /// Screen-space bounds the plan evaluated (its work, the same on every machine).
     bound_evaluations: u64,
     samples_updated: u32,
     stale_levels: u32,
     disabled_levels: u32,
+    /// Triangles drawn: the plan's (SAT LOD's selection, the pool, culling), not the rings' count.
     triangles: u32,
 }
 
@@ -385,7 +385,7 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
             samples_updated: frame.samples_updated,
             stale_levels: frame.stale_levels,
             disabled_levels: frame.disabled_levels,
-            triangles: frame.triangles,
+            triangles: u32::try_from(plan.stats().triangles).unwrap_or(u32::MAX),
         });
         if let Some((p, w)) = &mut csv {
             let last = rows.last().copied();

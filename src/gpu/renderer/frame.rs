@@ -106,7 +106,10 @@ impl Renderer {
         stats.upload_bytes = stats.upload_samples * 8;
         self.synced = Some(index);
         self.prepare_detail(queue, clipmap, plan, &mut stats)?;
-        queue.write_buffer(&self.globals, 0, bytemuck::bytes_of(plan.globals()));
+        // The plan's globals with the colour target's encoding, which the plan does not know.
+        let mut globals = *plan.globals();
+        globals.shading.sun_dir[3] = self.targets.encoding();
+        queue.write_buffer(&self.globals, 0, bytemuck::bytes_of(&globals));
         let slots = plan.slot_bytes();
         if !slots.is_empty() {
             queue.write_buffer(&self.draw_slots, 0, slots);

@@ -80,8 +80,11 @@ pub enum Shading<'a> {
 pub struct RendererOptions<'a> {
     /// The colour attachment's format in the caller's pass.
     pub color_format: wgpu::TextureFormat,
-    /// The depth attachment's format (the terrain depth-tests with `Less`).
+    /// The depth attachment's format.
     pub depth_format: wgpu::TextureFormat,
+    /// Reverse-Z: the terrain depth-tests with `Greater` (the pass cleared to 0); otherwise `Less`
+    /// (cleared to 1). Each frame's camera must use the same convention.
+    pub reverse_z: bool,
     /// The pass's sample count.
     pub sample_count: u32,
     /// The shading variant.
@@ -95,6 +98,7 @@ impl Default for RendererOptions<'_> {
         Self {
             color_format: wgpu::TextureFormat::Rgba8Unorm,
             depth_format: wgpu::TextureFormat::Depth32Float,
+            reverse_z: false,
             sample_count: 1,
             shading: Shading::Basic,
             debug: DebugView::Normal,
@@ -506,6 +510,8 @@ impl Renderer {
 struct Targets {
     color: wgpu::TextureFormat,
     depth: wgpu::TextureFormat,
+    /// The depth test: `Greater` for reverse-Z, else `Less`.
+    compare: wgpu::CompareFunction,
     samples: u32,
 }
 
@@ -514,7 +520,22 @@ impl Targets {
         Self {
             color: o.color_format,
             depth: o.depth_format,
+            compare: if o.reverse_z {
+                wgpu::CompareFunction::Greater
+            } else {
+                wgpu::CompareFunction::Less
+            },
             samples: o.sample_count,
+        }
+    }
+
+    /// What the shaders write for this colour target (`target_colour` in `shaders_gles/clipmap.wgsl`):
+    /// 1 for an sRGB format, which encodes what it is given, else 0.
+    fn encoding(&self) -> f32 {
+        if self.color.is_srgb() {
+            1.0
+        } else {
+            0.0
         }
     }
 }
@@ -604,7 +625,7 @@ fn pipeline_to(
             depth_stencil: Some(wgpu::DepthStencilState {
                 format: targets.depth,
                 depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Less),
+                depth_compare: Some(targets.compare),
                 stencil: Default::default(),
                 bias: Default::default(),
             }),

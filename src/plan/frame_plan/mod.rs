@@ -359,7 +359,9 @@ const _: () = {
 #[derive(Clone, Debug)]
 pub struct Planner {
     lod: LodSetup,
-    default_epsilon: f64,
+    /// The profile's `view.epsilon_px`: a frame's bound when its [`PlanParams::epsilon_px`] gives none.
+    /// The one place a frame's epsilon comes from is [`PlanParams`]; the selector takes it each frame.
+    profile_epsilon: f64,
     n: u32,
     size: u32,
     block_quads: u32,
@@ -441,13 +443,9 @@ impl Planner {
             reason = "the level-0 spacing as an f32 metre offset"
         )]
         let skirt_floor = lo - (0.5 * (hi - lo)).max(10.0 * clipmap.g0() as f32);
-        let default_epsilon = match &lod {
-            LodSetup::Sat(_, l) => l.epsilon_px(),
-            LodSetup::Distance => f64::from(profile.view.epsilon_px),
-        };
         Ok(Self {
             lod,
-            default_epsilon,
+            profile_epsilon: f64::from(profile.view.epsilon_px),
             n: c.n,
             size: profile.clip_size(),
             block_quads,
@@ -610,7 +608,7 @@ impl Planner {
         let evaluated = self.lod().map_or(0, Lod::evaluations);
         let sat = match &mut self.lod {
             LodSetup::Sat(mode, lod) => {
-                lod.set_epsilon_px(params.epsilon_px.map_or(self.default_epsilon, f64::from));
+                lod.set_epsilon_px(params.epsilon_px.map_or(self.profile_epsilon, f64::from));
                 lod.set_view(view);
                 lod.select(frame, camera, *mode, &mut out.lod)?;
                 true

@@ -91,7 +91,7 @@ impl Planner {
         let frustum = cull::Frustum::new(camera, dp.aspect);
         let epsilon_px = self
             .lod()
-            .map_or(self.default_epsilon, crate::plan::lod::Lod::epsilon_px);
+            .map_or(self.profile_epsilon, crate::plan::lod::Lod::epsilon_px);
         let view = self.detail_view(clipmap, camera, &frustum, epsilon_px);
         let base_draws = u32::try_from(out.draws.len()).expect("draws <= MAX_DRAWS");
         let base_triangles = self.triangles(&out.draws, &[]);
