@@ -103,12 +103,10 @@ pub(crate) fn render(
     };
     let profile = Profile::load("gles3-low")?;
     let terrain = Terrain::procedural(1, 257, 30.0, Some(cache))?;
-    let options = RenderOptions {
-        color_format,
-        depth_format: setup.depth,
-        reverse_z: setup.reverse_z,
-        ..RenderOptions::default()
-    };
+    let options = RenderOptions::default()
+        .color_format(color_format)
+        .depth_format(setup.depth)
+        .reverse_z(setup.reverse_z);
     let mut renderer = TerrainRenderer::new(&device, &queue, terrain, &profile, &options)?;
 
     // The engine's matrices, in its world; clipsat's camera in the terrain's frame.

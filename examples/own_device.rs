@@ -61,12 +61,10 @@ pub(crate) fn render(
     let profile = Profile::load("gles3-low")?;
     let terrain = Terrain::procedural(1, 257, 30.0, Some(cache))?;
     let camera = terrain.default_camera()?;
-    let options = RenderOptions {
-        color_format: COLOR,
-        depth_format: DEPTH,
-        sat_lod_px: Some(1.0),
-        ..RenderOptions::default()
-    };
+    let options = RenderOptions::default()
+        .color_format(COLOR)
+        .depth_format(DEPTH)
+        .sat_lod_px(1.0);
     let mut terrain = TerrainRenderer::new(&device, &queue, terrain, &profile, &options)?;
 
     let mut frames = Vec::new();

@@ -20,7 +20,7 @@
 //! let profile = Profile::load("gles3-mid")?;
 //! let terrain = Terrain::open("N57E011.hgt", Some(std::path::Path::new("cache")))?;
 //! let camera = terrain.default_camera()?;
-//! let options = RenderOptions { sat_lod_px: Some(1.0), ..RenderOptions::default() };
+//! let options = RenderOptions::default().sat_lod_px(1.0);
 //! let mut renderer = TerrainRenderer::new(device, queue, terrain, &profile, &options)?;
 //! // Per frame:
 //! renderer.prepare(queue, &camera, (1920, 1080))?;

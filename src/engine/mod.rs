@@ -7,6 +7,7 @@
 //! frame. The viewport is passed each frame, so a resize rebuilds nothing.
 
 mod camera;
+mod options;
 mod profile;
 mod renderer;
 pub mod setup;

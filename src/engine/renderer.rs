@@ -18,6 +18,7 @@ use super::setup;
 /// What a [`TerrainRenderer`] is built with: the caller's target formats, and the choices fixed for its
 /// life. The default is basic shading with distance LOD into `Rgba8Unorm` / `Depth32Float`.
 #[derive(Clone, Copy, Debug)]
+#[non_exhaustive]
 pub struct RenderOptions<'a> {
     /// The colour attachment's format in the caller's pass. The terrain's colours are display-encoded
     /// (gamma 2.2): a linear-format target (`Rgba8Unorm`, `Bgra8Unorm`) stores them as they are; an sRGB

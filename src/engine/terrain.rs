@@ -20,6 +20,7 @@ const STAND_IN_SAMPLES: u64 = 1 << 20;
 
 /// How to open a terrain.
 #[derive(Clone, Debug, Default)]
+#[non_exhaustive]
 pub struct TerrainOptions<'a> {
     /// The folder that keeps what is baked once per terrain: the package a plain file streams from, the
     /// SAT LOD tables and SG's shading tables. None: a plain file is loaded whole into memory, and the

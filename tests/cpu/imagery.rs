@@ -544,10 +544,7 @@ fn geotiff_imagery_is_placed_by_its_georeference() {
     assert_eq!(e, Extent::new(0.0, 150.0, 300.0, 300.0).expect("extent"));
     let terrain = clipsat::Terrain::open_with(
         &heights,
-        &clipsat::TerrainOptions {
-            imagery: Some(image.clone()),
-            ..clipsat::TerrainOptions::default()
-        },
+        &clipsat::TerrainOptions::default().imagery(image.clone()),
     )
     .expect("terrain");
     assert_eq!(terrain.imagery().expect("imagery").header().extent, e);
@@ -594,14 +591,9 @@ fn geotiff_imagery_is_placed_by_its_georeference() {
         e.to_string().contains("32612") && e.to_string().contains("32611"),
         "{e}"
     );
-    let e = clipsat::Terrain::open_with(
-        &heights,
-        &clipsat::TerrainOptions {
-            imagery: Some(other),
-            ..clipsat::TerrainOptions::default()
-        },
-    )
-    .expect_err("another coordinate system");
+    let e =
+        clipsat::Terrain::open_with(&heights, &clipsat::TerrainOptions::default().imagery(other))
+            .expect_err("another coordinate system");
     assert!(
         matches!(
             e,

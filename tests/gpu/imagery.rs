@@ -390,16 +390,14 @@ fn the_embedding_api_drapes_imagery() {
     let gpu = gpu();
     let profile = clipsat::Profile::load("gles3-low").expect("profile");
     let open = |imagery: Option<&Path>| {
-        clipsat::Terrain::open_with(
-            &heights,
-            &clipsat::TerrainOptions {
-                cache_dir: Some(dir.join("cache")),
-                spacing_m: Some(20.0),
-                imagery: imagery.map(Path::to_path_buf),
-                ..clipsat::TerrainOptions::default()
-            },
-        )
-        .expect("terrain")
+        let options = clipsat::TerrainOptions::default()
+            .cache_dir(dir.join("cache"))
+            .spacing_m(20.0);
+        let options = match imagery {
+            Some(path) => options.imagery(path),
+            None => options,
+        };
+        clipsat::Terrain::open_with(&heights, &options).expect("terrain")
     };
     let options = clipsat::RenderOptions::default();
     let run = |imagery: Option<&Path>| {
