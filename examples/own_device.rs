@@ -163,7 +163,7 @@ fn own_pipeline(device: &wgpu::Device) -> wgpu::RenderPipeline {
 }
 
 /// A render target of ours; the colour one can be copied out.
-fn target(
+pub(crate) fn target(
     device: &wgpu::Device,
     format: wgpu::TextureFormat,
     width: u32,
@@ -191,7 +191,7 @@ fn target(
 }
 
 /// Our pass: sky-coloured clear, depth cleared to 1.
-fn begin_pass<'e>(
+pub(crate) fn begin_pass<'e>(
     encoder: &'e mut wgpu::CommandEncoder,
     color: &wgpu::Texture,
     depth: &wgpu::Texture,
@@ -222,7 +222,7 @@ fn begin_pass<'e>(
 }
 
 /// The colour target's pixels, tightly packed (wgpu pads rows to 256 bytes).
-fn read_back(
+pub(crate) fn read_back(
     device: &wgpu::Device,
     queue: &wgpu::Queue,
     color: &wgpu::Texture,

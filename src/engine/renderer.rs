@@ -15,6 +15,8 @@ use crate::{Camera, Error, Profile, Result, Terrain};
 
 use super::setup;
 
+mod recover;
+
 /// What a [`TerrainRenderer`] is built with: the caller's target formats, and the choices fixed for its
 /// life. The default is basic shading with distance LOD into `Rgba8Unorm` / `Depth32Float`.
 #[derive(Clone, Copy, Debug)]
@@ -125,6 +127,9 @@ pub struct TerrainRenderer {
     params: PlanParams,
     /// Draped imagery's colour rings ([`crate::TerrainOptions::imagery`]).
     imagery: Option<ColorRings>,
+    /// The caller's device the GPU objects live on (a handle): its error scopes catch each frame's
+    /// errors ([`TerrainRenderer::prepare`]); [`TerrainRenderer::rebuild`] replaces it.
+    device: wgpu::Device,
 }
 
 impl TerrainRenderer {
@@ -256,6 +261,7 @@ impl TerrainRenderer {
                 ..PlanParams::default()
             },
             imagery: imagery.take(),
+            device: device.clone(),
         })
     }
 
@@ -277,7 +283,7 @@ impl TerrainRenderer {
             let mut settled = None;
             for f in 0..setup::MAX_FILL_FRAMES {
                 let s = rings.update(eye.x, eye.y)?;
-                self.renderer.prepare_imagery(queue, rings, (eye.x, eye.y))?;
+                recover::scoped_imagery(&self.device, &self.renderer, queue, rings, (eye.x, eye.y))?;
                 if s.stale_levels == 0 && settled.is_none() {
                     settled = Some(f);
                 }
@@ -291,7 +297,13 @@ impl TerrainRenderer {
                 frames += 1;
                 self.planner
                     .plan(&self.clipmap, &camera.0, &self.params, &mut self.plan)?;
-                self.renderer.prepare(queue, &self.clipmap, &self.plan)?;
+                recover::scoped_prepare(
+                    &self.device,
+                    &mut self.renderer,
+                    queue,
+                    &self.clipmap,
+                    &self.plan,
+                )?;
                 let wrote = self.plan.stats().detail_uploads;
                 if setup::pool_step(&mut self.clipmap, eye, &self.plan, wrote)? {
                     break;
@@ -317,13 +329,19 @@ impl TerrainRenderer {
             .plan(&self.clipmap, &camera.0, &self.params, &mut self.plan)?;
         // Pool tiles waiting for a streamed package's decode: the next update's, after the rings.
         self.clipmap.request_samples(&self.plan.detail().wanted);
-        self.renderer.prepare(queue, &self.clipmap, &self.plan)?;
+        recover::scoped_prepare(
+            &self.device,
+            &mut self.renderer,
+            queue,
+            &self.clipmap,
+            &self.plan,
+        )?;
         // Draped imagery: its rings' update and uploads, their hash folded into the plan's.
         let mut plan_hash = self.plan.hash();
         if let Some(rings) = &mut self.imagery {
             let eye = camera.0.eye;
             let c = rings.update(eye.x, eye.y)?;
-            self.renderer.prepare_imagery(queue, rings, (eye.x, eye.y))?;
+            recover::scoped_imagery(&self.device, &self.renderer, queue, rings, (eye.x, eye.y))?;
             let mut h = crate::hash::Hash64::new();
             h.write_u64(plan_hash);
             h.write_u64(c.hash);

@@ -1,0 +1,358 @@
+//! A lost device, through the public API on a caller's own device: a 30-frame flight over the streamed
+//! procedural terrain loses its device at frame 10 (`wgpu::Device::destroy`, reported to the caller's
+//! device-lost callback), and the same `TerrainRenderer` is rebuilt on a new device and flies on. Every
+//! frame after the loss has the same plan hash and the same image bytes as an uninterrupted flight, for
+//! distance LOD with basic shading and for SAT LOD with SG shading; the rebuild bakes nothing (the cache
+//! folder is unchanged) and decodes no package tile (the tile cache's counters are unchanged by it, and
+//! equal the uninterrupted flight's at the end). Prints the rebuild's cost against
+//! `TerrainRenderer::new`'s with the package and tables already in the cache folder, and where each
+//! spends its GPU time.
+//!
+//! Also: a frame's GPU error comes back as `Error::Gpu` through clipsat's error scopes, and a frame on a
+//! lost device is no error and no panic.
+//!
+//! Its own test binary: it makes and drops its own wgpu devices (see tests/own_device.rs). Run it with
+//! `cargo test --test lost_device -- --nocapture` to see the timings.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU32, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use clipsat::gpu::renderer::ObjectKind;
+use clipsat::{Camera, Profile, RenderOptions, Terrain, TerrainRenderer};
+
+#[expect(
+    dead_code,
+    reason = "only the example's targets, pass and read-back are used here"
+)]
+#[path = "../examples/own_device.rs"]
+mod own_device;
+
+const COLOR: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
+const SIZE: (u32, u32) = (160, 120);
+const FRAMES: u64 = 30;
+const LOST_AT: u64 = 10;
+
+/// The wgpu instance and adapter kept for the test's devices: the GL backend on the GLES 3.0 limits (or
+/// Vulkan with `CLIPSAT_GPU=vulkan`), as `examples/own_device.rs` makes them. Both devices of a flight
+/// come from one adapter (a wgpu GL instance dropped beside a live one would close its EGL display).
+struct Adapter {
+    _instance: wgpu::Instance,
+    adapter: wgpu::Adapter,
+}
+
+impl Adapter {
+    fn new() -> Self {
+        let vulkan = std::env::var("CLIPSAT_GPU").is_ok_and(|v| v.trim() == "vulkan");
+        if !vulkan && std::env::var_os("MESA_GLES_VERSION_OVERRIDE").is_none() {
+            std::env::set_var("MESA_GLES_VERSION_OVERRIDE", "3.0");
+        }
+        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
+            backends: if vulkan {
+                wgpu::Backends::VULKAN
+            } else {
+                wgpu::Backends::GL
+            },
+            flags: wgpu::InstanceFlags::empty().with_env(),
+            ..wgpu::InstanceDescriptor::new_without_display_handle()
+        });
+        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+            power_preference: wgpu::PowerPreference::None,
+            force_fallback_adapter: false,
+            compatible_surface: None,
+            apply_limit_buckets: false,
+        }))
+        .expect("an adapter");
+        Self {
+            _instance: instance,
+            adapter,
+        }
+    }
+
+    /// A new device and its queue.
+    fn device(&self) -> (wgpu::Device, wgpu::Queue) {
+        pollster::block_on(self.adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("lost_device test"),
+            required_features: wgpu::Features::empty(),
+            required_limits: wgpu::Limits::downlevel_webgl2_defaults(),
+            experimental_features: wgpu::ExperimentalFeatures::disabled(),
+            memory_hints: wgpu::MemoryHints::MemoryUsage,
+            trace: wgpu::Trace::Off,
+        }))
+        .expect("a device")
+    }
+}
+
+/// One flight's choices.
+struct Case {
+    name: &'static str,
+    profile: &'static str,
+    sat_lod_px: Option<f32>,
+    sg_scene: Option<&'static str>,
+}
+
+/// What a flight gave: per frame its plan hash and image bytes, the tile cache's counters at the end,
+/// and (interrupted) the costs of `new` and of the rebuild.
+struct Flown {
+    frames: Vec<(u64, Vec<u8>)>,
+    decoded: u64,
+    new: Duration,
+    rebuild: Option<Rebuild>,
+}
+
+struct Rebuild {
+    took: Duration,
+    /// The first prepare after it: the rings, pool tiles and SG tables re-sent in full.
+    prepare: Duration,
+    /// Creation times of the rebuild's render pipelines and shader modules, and of `new`'s.
+    pipelines: Duration,
+    modules: Duration,
+    new_pipelines: Duration,
+    new_modules: Duration,
+}
+
+/// The camera of frame `f`: the terrain's default camera moved 45 m a frame along x and 20 along y.
+fn camera(start: &Camera, f: u64) -> Camera {
+    let step = [45.0 * f as f64, 20.0 * f as f64, 0.0];
+    let [ex, ey, ez] = start.eye();
+    let [tx, ty, tz] = start.target();
+    Camera::look_at(
+        [ex + step[0], ey + step[1], ez],
+        [tx + step[0], ty + step[1], tz],
+        60.0,
+    )
+    .expect("camera")
+}
+
+/// Every file of `dir` (recursively) with its size and modification time.
+fn listing(dir: &Path) -> Vec<(PathBuf, u64, std::time::SystemTime)> {
+    let mut out = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).expect("cache folder") {
+            let e = e.expect("entry");
+            let meta = e.metadata().expect("metadata");
+            if meta.is_dir() {
+                stack.push(e.path());
+            } else {
+                out.push((e.path(), meta.len(), meta.modified().expect("mtime")));
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+/// Flies `case` for [`FRAMES`] frames; with `lose`, destroys the device after frame `LOST_AT - 1` and
+/// rebuilds the renderer on a new one.
+fn fly(adapter: &Adapter, cache: &Path, case: &Case, lose: bool) -> Flown {
+    let (mut device, mut queue) = adapter.device();
+    let lost = Arc::new(AtomicU32::new(u32::MAX));
+    let flag = Arc::clone(&lost);
+    // The engine's callback: clipsat sets none.
+    device.set_device_lost_callback(move |reason, _| {
+        flag.store(reason as u32, Ordering::SeqCst);
+    });
+    let profile = Profile::load(case.profile).expect("profile");
+    let terrain = Terrain::procedural(1, 257, 30.0, Some(cache)).expect("terrain");
+    let start = terrain.default_camera().expect("camera");
+    let options = RenderOptions {
+        color_format: COLOR,
+        sat_lod_px: case.sat_lod_px,
+        sg_scene: case.sg_scene,
+        ..RenderOptions::default()
+    };
+    let t = Instant::now();
+    let mut renderer =
+        TerrainRenderer::new(&device, &queue, terrain, &profile, &options).expect("renderer");
+    let new = t.elapsed();
+    let new_ledger = renderer.gpu_ledger().clone();
+    let mut frames = Vec::new();
+    let mut rebuild = None;
+    for f in 0..FRAMES {
+        let mut prepare_after = None;
+        if lose && f == LOST_AT {
+            device.destroy();
+            let _ = device.poll(wgpu::PollType::Poll);
+            assert_eq!(
+                lost.load(Ordering::SeqCst),
+                wgpu::DeviceLostReason::Destroyed as u32,
+                "{}: the device-lost callback",
+                case.name
+            );
+            // A new device, and the renderer's GPU side rebuilt on it.
+            (device, queue) = adapter.device();
+            let folder = listing(cache);
+            let before = renderer.tile_cache_stats().expect("a streamed terrain");
+            let t = Instant::now();
+            renderer.rebuild(&device, &queue).expect("rebuild");
+            let took = t.elapsed();
+            assert_eq!(listing(cache), folder, "{}: the rebuild baked", case.name);
+            let after = renderer.tile_cache_stats().expect("a streamed terrain");
+            assert_eq!(
+                (after.decoded, after.hits),
+                (before.decoded, before.hits),
+                "{}: the rebuild read the package",
+                case.name
+            );
+            let l = renderer.gpu_ledger();
+            rebuild = Some(Rebuild {
+                took,
+                prepare: Duration::ZERO,
+                pipelines: l.creation_time(ObjectKind::RenderPipeline),
+                modules: l.creation_time(ObjectKind::ShaderModule),
+                new_pipelines: new_ledger.creation_time(ObjectKind::RenderPipeline),
+                new_modules: new_ledger.creation_time(ObjectKind::ShaderModule),
+            });
+            prepare_after = Some(Instant::now());
+        }
+        let stats = renderer
+            .prepare(&queue, &camera(&start, f), SIZE)
+            .expect("prepare");
+        if let (Some(t), Some(r)) = (prepare_after, rebuild.as_mut()) {
+            r.prepare = t.elapsed();
+        }
+        let color = own_device::target(&device, COLOR, SIZE.0, SIZE.1, true);
+        let depth = own_device::target(
+            &device,
+            wgpu::TextureFormat::Depth32Float,
+            SIZE.0,
+            SIZE.1,
+            false,
+        );
+        let mut encoder = device.create_command_encoder(&Default::default());
+        {
+            let mut pass = own_device::begin_pass(&mut encoder, &color, &depth);
+            renderer.render(&mut pass);
+        }
+        queue.submit([encoder.finish()]);
+        let rgba = own_device::read_back(&device, &queue, &color).expect("read-back");
+        frames.push((stats.plan_hash, rgba));
+    }
+    let decoded = renderer.tile_cache_stats().expect("streamed").decoded;
+    Flown {
+        frames,
+        decoded,
+        new,
+        rebuild,
+    }
+}
+
+fn ms(d: Duration) -> f64 {
+    d.as_secs_f64() * 1e3
+}
+
+#[test]
+fn a_lost_device_is_rebuilt_and_the_flight_goes_on_unchanged() {
+    let adapter = Adapter::new();
+    let cases = [
+        Case {
+            name: "distance LOD, basic shading",
+            profile: "gles3-low",
+            sat_lod_px: None,
+            sg_scene: None,
+        },
+        Case {
+            name: "SAT LOD 1 px, SG shading (noon)",
+            profile: "gles3-mid",
+            sat_lod_px: Some(1.0),
+            sg_scene: Some("noon"),
+        },
+    ];
+    for case in &cases {
+        let cache = Path::new(env!("CARGO_TARGET_TMPDIR")).join("lost_device_cache");
+        // The uninterrupted flight first: it bakes the package and tables on first use, so `new` of the
+        // interrupted one finds them in the cache folder.
+        let whole = fly(&adapter, &cache, case, false);
+        let lost = fly(&adapter, &cache, case, true);
+        for (f, (a, b)) in whole.frames.iter().zip(&lost.frames).enumerate() {
+            assert_eq!(a.0, b.0, "{}: frame {f}'s plan hash", case.name);
+            assert!(a.1 == b.1, "{}: frame {f}'s image differs", case.name);
+        }
+        assert!(
+            whole.frames.windows(2).any(|w| w[0].1 != w[1].1),
+            "{}: the flight's frames should change",
+            case.name
+        );
+        assert_eq!(
+            lost.decoded, whole.decoded,
+            "{}: package tiles decoded over the flight",
+            case.name
+        );
+        let r = lost.rebuild.expect("rebuilt");
+        println!(
+            "{}: TerrainRenderer::new {:.1} ms (package and tables cached; its pipelines {:.1} ms, \
+             shader modules {:.1} ms), rebuild {:.1} ms (pipelines {:.1} ms, shader modules {:.1} ms): \
+             ratio {:.2}; the next prepare (full re-upload) {:.1} ms",
+            case.name,
+            ms(lost.new),
+            ms(r.new_pipelines),
+            ms(r.new_modules),
+            ms(r.took),
+            ms(r.pipelines),
+            ms(r.modules),
+            r.took.as_secs_f64() / lost.new.as_secs_f64(),
+            ms(r.prepare),
+        );
+    }
+}
+
+#[test]
+fn a_gpu_error_is_returned_and_a_lost_device_is_no_panic() {
+    let adapter = Adapter::new();
+    let (device, queue) = adapter.device();
+    // The engine's handler: clipsat's error scopes take the errors of its own work before it sees them.
+    device.on_uncaptured_error(Arc::new(|e| panic!("uncaptured: {e}")));
+    let caught = clipsat::gpu::scope::scoped(&device, "a misaligned buffer", || {
+        let _ = device.create_buffer(&wgpu::BufferDescriptor {
+            label: None,
+            size: 3,
+            usage: wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: true,
+        });
+        Ok(())
+    });
+    assert!(
+        matches!(
+            &caught,
+            Err(clipsat::Error::Gpu {
+                source: Some(_),
+                ..
+            })
+        ),
+        "{caught:?}"
+    );
+    // A lost device: frames are no error and no panic (wgpu drops the lost device's errors).
+    let profile = Profile::load("gles3-low").expect("profile");
+    let terrain = Terrain::procedural(1, 65, 30.0, None).expect("terrain");
+    let camera = terrain.default_camera().expect("camera");
+    let mut renderer =
+        TerrainRenderer::new(&device, &queue, terrain, &profile, &Default::default())
+            .expect("renderer");
+    renderer.prepare(&queue, &camera, SIZE).expect("a frame");
+    device.destroy();
+    renderer
+        .prepare(&queue, &camera, SIZE)
+        .expect("a frame on a lost device");
+    let color = own_device::target(&device, COLOR, SIZE.0, SIZE.1, true);
+    let depth = own_device::target(
+        &device,
+        wgpu::TextureFormat::Depth32Float,
+        SIZE.0,
+        SIZE.1,
+        false,
+    );
+    let mut encoder = device.create_command_encoder(&Default::default());
+    {
+        let mut pass = own_device::begin_pass(&mut encoder, &color, &depth);
+        renderer.render(&mut pass);
+    }
+    queue.submit([encoder.finish()]);
+    // And it is rebuilt on a new device.
+    let (device, queue) = adapter.device();
+    renderer.rebuild(&device, &queue).expect("rebuild");
+    renderer
+        .prepare(&queue, &camera, SIZE)
+        .expect("a frame after");
+}
