@@ -316,6 +316,11 @@ impl TerrainRenderer {
     /// One frame seen from `camera` in a viewport of `viewport` (width, height) pixels: the clipmap's
     /// update under the budget, the plan, and its uploads through `queue`. Then record it with
     /// [`TerrainRenderer::render`]. A new viewport size (a resize) needs nothing else.
+    ///
+    /// The uploads run inside wgpu error scopes on the renderer's device: a wgpu error of them
+    /// (validation, out of memory, internal) is [`Error::Gpu`], with wgpu's error as its source, and never
+    /// reaches the device's uncaptured-error handler, which stays the caller's. On a lost device wgpu
+    /// reports no error (see [`TerrainRenderer::rebuild`]).
     pub fn prepare(
         &mut self,
         queue: &wgpu::Queue,
@@ -361,6 +366,13 @@ impl TerrainRenderer {
 
     /// Records the prepared frame into the caller's pass (its colour and depth attachments of the
     /// formats given at construction); sets its own pipelines and bindings.
+    ///
+    /// The caller's pass is the caller's to validate: wgpu reports an error of the recorded draws when
+    /// the caller finishes its command encoder (a few at the recording call), to the error scopes open
+    /// then, else to the device's uncaptured-error handler (wgpu's default one panics). To have them as
+    /// values, push error scopes (validation, out of memory) before the pass and pop them after
+    /// `CommandEncoder::finish` and `Queue::submit`, or set a handler with
+    /// [`wgpu::Device::on_uncaptured_error`].
     pub fn render(&self, pass: &mut wgpu::RenderPass<'_>) {
         self.renderer.render(pass);
     }
