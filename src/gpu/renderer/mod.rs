@@ -178,6 +178,17 @@ impl Renderer {
         options: &RendererOptions<'_>,
         profile: &Profile,
     ) -> Result<Self> {
+        Self::build(device, queue, options, profile, None)
+    }
+
+    /// [`Renderer::new`], with the SG scene's sky table given (`rebuild.rs`) instead of integrated.
+    fn build(
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        options: &RendererOptions<'_>,
+        profile: &Profile,
+        sky: Option<&SkyTable>,
+    ) -> Result<Self> {
         profile.validate(&profile.name)?;
         let c = &profile.clipmap;
         crate::plan::frame_plan::check_draw_capacity(profile)?;
@@ -359,6 +370,7 @@ impl Renderer {
                 s,
                 [&group0_layout, &group1_layout],
                 &targets,
+                sky,
             )?),
         };
         Ok(Self {

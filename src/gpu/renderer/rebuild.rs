@@ -14,8 +14,8 @@ impl Renderer {
     }
 
     /// A renderer like this one on `device` (a new device, this one's being lost): the same profile,
-    /// target formats, sample count, debug view and shading (the SG scene and tables from the CPU bake
-    /// this renderer keeps, the sky table integrated again), draped imagery's objects when this one has
+    /// target formats, sample count, debug view and shading (the SG scene, its sky table and the level
+    /// tables' CPU bake, all kept by this renderer), draped imagery's objects when this one has
     /// them, and the same SG effects and switches. Creates every GPU object again, as
     /// [`Renderer::new`] does; its textures hold nothing yet: it knows no frame, so the next
     /// [`Renderer::prepare`] sends every ring, pool tile and SG table texel of the plan in full. This
@@ -39,7 +39,9 @@ impl Renderer {
             shading,
             debug: self.debug,
         };
-        let mut new = Renderer::new(device, queue, &options, &self.profile)?;
+        // The sky table is the scene's, kept: integrating it again is most of the CPU work.
+        let sky = self.sg.as_ref().map(|sg| &sg.sky);
+        let mut new = Renderer::build(device, queue, &options, &self.profile, sky)?;
         // Imagery before the effects: its SG programs are of the variant drawn when it was enabled.
         if let Some(i) = &self.imagery {
             new.enable_imagery(device, i.ring, i.levels)?;
