@@ -19,7 +19,8 @@ impl TerrainRenderer {
     /// next [`TerrainRenderer::prepare`] then uploads the rings, the pool's tiles and the SG tables in
     /// full from their CPU copies, so frames go on as if the device had not been lost: the same plans
     /// and images. Draped imagery is the exception: its colour rings keep no CPU copy, so they refill from
-    /// the imagery's tile cache under the profile's per-frame budget and fade in again.
+    /// the imagery's tile cache under the profile's per-frame budget and fade in again
+    /// ([`TerrainRenderer::warm_up`] fills them before the next frame).
     ///
     /// How to notice the loss: wgpu reports it to the callback set with
     /// [`wgpu::Device::set_device_lost_callback`], which belongs to the engine (clipsat sets none), with
