@@ -22,6 +22,11 @@ impl TerrainRenderer {
     /// the imagery's tile cache under the profile's per-frame budget and fade in again
     /// ([`TerrainRenderer::warm_up`] fills them before the next frame).
     ///
+    /// With SAT LOD on a streamed terrain, the detail pool's tiles are sent again from the package tiles
+    /// the tile cache holds, as they were when first filled: one whose package tiles the cache has evicted
+    /// since then cannot be sent without reading the package, and the `prepare` fails with
+    /// [`crate::Error::Invalid`] naming it.
+    ///
     /// How to notice the loss: wgpu reports it to the callback set with
     /// [`wgpu::Device::set_device_lost_callback`], which belongs to the engine (clipsat sets none), with
     /// [`wgpu::DeviceLostReason::Unknown`] for a lost context (`Destroyed` after
