@@ -13,19 +13,16 @@ impl TerrainRenderer {
     /// Builds the renderer's GPU side again on `device` and `queue` after the device it was built on was
     /// lost (an Android app sent to the background loses its GL context; the engine makes a new device
     /// when it comes back), from the state it keeps in CPU memory. Nothing is baked and nothing is read
-    /// from the terrain's package or cache folder: the clipmap's rings, the detail pool, the SAT LOD
-    /// tables, SG's shading tables and the plan stay as they are, and the buffers, textures and
-    /// pipelines are created again (shader compilation and pipeline creation are most of the cost). The
-    /// next [`TerrainRenderer::prepare`] then uploads the rings, the pool's tiles and the SG tables in
-    /// full from their CPU copies, so frames go on as if the device had not been lost: the same plans
-    /// and images. Draped imagery is the exception: its colour rings keep no CPU copy, so they refill from
+    /// from the terrain's cache folder: the clipmap's rings, the detail pool, the SAT LOD tables, SG's
+    /// shading tables and the plan stay as they are, and the buffers, textures and pipelines are created
+    /// again (shader compilation and pipeline creation are most of the cost). The detail pool's tiles are
+    /// sent again now, from the package tiles the tile cache holds (with SAT LOD on a streamed terrain, a
+    /// pool tile whose package tiles the cache has evicted since it was filled is decoded again: the only
+    /// package reads of a rebuild). The next [`TerrainRenderer::prepare`] then uploads the rings and the
+    /// SG tables in full from their CPU copies, so frames go on as if the device had not been lost: the
+    /// same plans and images. Draped imagery is the exception: its colour rings keep no CPU copy, so they refill from
     /// the imagery's tile cache under the profile's per-frame budget and fade in again
     /// ([`TerrainRenderer::warm_up`] fills them before the next frame).
-    ///
-    /// With SAT LOD on a streamed terrain, the detail pool's tiles are sent again from the package tiles
-    /// the tile cache holds, as they were when first filled: one whose package tiles the cache has evicted
-    /// since then cannot be sent without reading the package, and the `prepare` fails with
-    /// [`crate::Error::Invalid`] naming it.
     ///
     /// How to notice the loss: wgpu reports it to the callback set with
     /// [`wgpu::Device::set_device_lost_callback`], which belongs to the engine (clipsat sets none), with
@@ -39,11 +36,15 @@ impl TerrainRenderer {
     /// be rebuilt again on another device.
     pub fn rebuild(&mut self, device: &wgpu::Device, queue: &wgpu::Queue) -> Result<()> {
         check_limits(&device.limits(), self.renderer.profile())?;
-        let renderer = scoped(
+        let mut renderer = scoped(
             device,
             "rebuilding the terrain renderer on a new device",
             || self.renderer.rebuild(device, queue),
         )?;
+        // The detail pool's tiles, now: the next plan's pool uploads follow on from them.
+        scoped(device, "sending the detail pool again", || {
+            renderer.resend_detail(queue, &mut self.clipmap, &self.plan)
+        })?;
         self.renderer = renderer;
         self.device = device.clone();
         if let Some(rings) = &mut self.imagery {

@@ -3,9 +3,13 @@
 //! formats, the SG scene and its CPU bake. Nothing is baked or read from a package; the new textures are
 //! empty until the next [`Renderer::prepare`] re-sends every ring, pool tile and SG table texel in full.
 
+use super::frame::write_detail_tile;
 use super::{Renderer, RendererOptions, SgShading, Shading};
+use crate::plan::clipmap::Clipmap;
+use crate::plan::detail::fill_tile;
+use crate::plan::frame_plan::FramePlan;
 use crate::profile::Profile;
-use crate::Result;
+use crate::{Error, Result};
 
 impl Renderer {
     /// The profile it was built for.
@@ -55,5 +59,41 @@ impl Renderer {
         }
         new.sg_enabled = self.sg_enabled;
         Ok(new)
+    }
+
+    /// Sends every tile the detail pool holds after `plan` (the last plan prepared, on the lost device)
+    /// from `clipmap`'s source, so that the next plan's pool uploads follow on. A tile whose package tiles
+    /// a streamed terrain's cache has evicted since it was filled is decoded again first, past the frame's
+    /// budget, one tile at a time (the only package reads of a rebuild). Returns the tiles that needed
+    /// it. Refused if the cache cannot hold even one tile's package tiles.
+    pub fn resend_detail(
+        &mut self,
+        queue: &wgpu::Queue,
+        clipmap: &mut Clipmap,
+        plan: &FramePlan,
+    ) -> Result<u32> {
+        let d = plan.detail();
+        let quads = self.detail_quads;
+        let mut decoded = 0;
+        for (slot, key) in (0u32..).zip(&d.resident) {
+            let Some(key) = key else { continue };
+            if !fill_tile(&*clipmap, key, quads, &mut self.detail_staging) {
+                let ready = clipmap.decode_now(key.level, &key.samples(quads))?
+                    && fill_tile(&*clipmap, key, quads, &mut self.detail_staging);
+                if !ready {
+                    return Err(Error::Invalid {
+                        what: "detail pool tile".into(),
+                        reason: format!(
+                            "level {} cell ({}, {}): the tile cache cannot hold its package tiles",
+                            key.level, key.cx, key.cy
+                        ),
+                    });
+                }
+                decoded += 1;
+            }
+            write_detail_tile(queue, &self.detail, self.detail_atlas, &self.detail_staging, slot);
+        }
+        self.detail_synced = Some(d.seq);
+        Ok(decoded)
     }
 }
