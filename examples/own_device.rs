@@ -19,7 +19,7 @@ use clipsat::{Profile, RenderOptions, Terrain, TerrainRenderer};
 
 #[path = "support/mod.rs"]
 mod support;
-use support::{own_device, read_back, target};
+pub(crate) use support::{own_device, read_back, target};
 
 type Error = Box<dyn std::error::Error>;
 
@@ -129,7 +129,7 @@ fn own_pipeline(device: &wgpu::Device) -> wgpu::RenderPipeline {
 }
 
 /// Our pass: sky-coloured clear, depth cleared to 1.
-fn begin_pass<'e>(
+pub(crate) fn begin_pass<'e>(
     encoder: &'e mut wgpu::CommandEncoder,
     color: &wgpu::Texture,
     depth: &wgpu::Texture,

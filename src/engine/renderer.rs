@@ -15,6 +15,8 @@ use crate::{Camera, Error, Profile, Result, Terrain};
 
 use super::setup;
 
+mod recover;
+
 /// What a [`TerrainRenderer`] is built with: the caller's target formats, and the choices fixed for its
 /// life. The default is basic shading with distance LOD into `Rgba8Unorm` / `Depth32Float`.
 #[derive(Clone, Copy, Debug)]
@@ -136,6 +138,9 @@ pub struct TerrainRenderer {
     imagery: Option<ColorRings>,
     /// The depth convention of the pipelines ([`RenderOptions::reverse_z`]).
     reverse_z: bool,
+    /// The caller's device the GPU objects live on (a handle): its error scopes catch each frame's
+    /// errors ([`TerrainRenderer::prepare`]); [`TerrainRenderer::rebuild`] replaces it.
+    device: wgpu::Device,
 }
 
 impl TerrainRenderer {
@@ -269,6 +274,7 @@ impl TerrainRenderer {
             },
             imagery: imagery.take(),
             reverse_z: options.reverse_z,
+            device: device.clone(),
         })
     }
 
@@ -314,7 +320,7 @@ impl TerrainRenderer {
             let mut settled = None;
             for f in 0..setup::MAX_FILL_FRAMES {
                 let s = rings.update(eye.x, eye.y)?;
-                self.renderer.prepare_imagery(queue, rings, (eye.x, eye.y))?;
+                recover::scoped_imagery(&self.device, &self.renderer, queue, rings, (eye.x, eye.y))?;
                 if s.stale_levels == 0 && settled.is_none() {
                     settled = Some(f);
                 }
@@ -328,7 +334,13 @@ impl TerrainRenderer {
                 frames += 1;
                 self.planner
                     .plan(&self.clipmap, &camera.0, &self.params, &mut self.plan)?;
-                self.renderer.prepare(queue, &self.clipmap, &self.plan)?;
+                recover::scoped_prepare(
+                    &self.device,
+                    &mut self.renderer,
+                    queue,
+                    &self.clipmap,
+                    &self.plan,
+                )?;
                 let wrote = self.plan.stats().detail_uploads;
                 if setup::pool_step(&mut self.clipmap, eye, &self.plan, wrote)? {
                     break;
@@ -341,6 +353,11 @@ impl TerrainRenderer {
     /// One frame seen from `camera` in a viewport of `viewport` (width, height) pixels: the clipmap's
     /// update under the budget, the plan, and its uploads through `queue`. Then record it with
     /// [`TerrainRenderer::render`]. A new viewport size (a resize) needs nothing else.
+    ///
+    /// The uploads run inside wgpu error scopes on the renderer's device: a wgpu error of them
+    /// (validation, out of memory, internal) is [`Error::Gpu`], with wgpu's error as its source, and never
+    /// reaches the device's uncaptured-error handler, which stays the caller's. On a lost device wgpu
+    /// reports no error (see [`TerrainRenderer::rebuild`]).
     pub fn prepare(
         &mut self,
         queue: &wgpu::Queue,
@@ -355,13 +372,19 @@ impl TerrainRenderer {
             .plan(&self.clipmap, &camera.0, &self.params, &mut self.plan)?;
         // Pool tiles waiting for a streamed package's decode: the next update's, after the rings.
         self.clipmap.request_samples(&self.plan.detail().wanted);
-        self.renderer.prepare(queue, &self.clipmap, &self.plan)?;
+        recover::scoped_prepare(
+            &self.device,
+            &mut self.renderer,
+            queue,
+            &self.clipmap,
+            &self.plan,
+        )?;
         // Draped imagery: its rings' update and uploads, their hash folded into the plan's.
         let mut plan_hash = self.plan.hash();
         if let Some(rings) = &mut self.imagery {
             let eye = camera.0.eye;
             let c = rings.update(eye.x, eye.y)?;
-            self.renderer.prepare_imagery(queue, rings, (eye.x, eye.y))?;
+            recover::scoped_imagery(&self.device, &self.renderer, queue, rings, (eye.x, eye.y))?;
             let mut h = crate::hash::Hash64::new();
             h.write_u64(plan_hash);
             h.write_u64(c.hash);
@@ -381,6 +404,13 @@ impl TerrainRenderer {
 
     /// Records the prepared frame into the caller's pass (its colour and depth attachments of the
     /// formats given at construction); sets its own pipelines and bindings.
+    ///
+    /// The caller's pass is the caller's to validate: wgpu reports an error of the recorded draws when
+    /// the caller finishes its command encoder (a few at the recording call), to the error scopes open
+    /// then, else to the device's uncaptured-error handler (wgpu's default one panics). To have them as
+    /// values, push error scopes (validation, out of memory) before the pass and pop them after
+    /// `CommandEncoder::finish` and `Queue::submit`, or set a handler with
+    /// [`wgpu::Device::on_uncaptured_error`].
     pub fn render(&self, pass: &mut wgpu::RenderPass<'_>) {
         self.renderer.render(pass);
     }

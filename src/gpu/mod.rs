@@ -17,6 +17,7 @@ pub mod headless;
 pub mod readback;
 pub mod renderer;
 pub mod sat_textures;
+pub mod scope;
 #[cfg(feature = "internals")]
 pub mod sg_probe;
 pub mod shaders;

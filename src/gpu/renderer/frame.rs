@@ -161,26 +161,7 @@ impl Renderer {
                     ),
                 });
             }
-            let (z, x, y) = atlas.place(slot);
-            queue.write_texture(
-                wgpu::TexelCopyTextureInfo {
-                    texture: &self.detail,
-                    mip_level: 0,
-                    origin: wgpu::Origin3d { x, y, z },
-                    aspect: wgpu::TextureAspect::All,
-                },
-                bytemuck::cast_slice(&self.detail_staging),
-                wgpu::TexelCopyBufferLayout {
-                    offset: 0,
-                    bytes_per_row: Some(side * 8),
-                    rows_per_image: Some(side),
-                },
-                wgpu::Extent3d {
-                    width: side,
-                    height: side,
-                    depth_or_array_layers: 1,
-                },
-            );
+            write_detail_tile(queue, &self.detail, atlas, &self.detail_staging, slot);
             let samples = u64::from(side) * u64::from(side);
             stats.uploads += 1;
             stats.upload_samples += samples;
@@ -290,6 +271,38 @@ impl Renderer {
         self.synced = None;
         self.detail_synced = None;
     }
+}
+
+/// Writes `staging` (one detail tile's texels, filled by [`crate::plan::detail::fill_tile`]) into
+/// `slot` of the pool's texture `detail`, placed by `atlas`.
+pub(super) fn write_detail_tile(
+    queue: &wgpu::Queue,
+    detail: &wgpu::Texture,
+    atlas: crate::profile::DetailAtlas,
+    staging: &[[f32; 2]],
+    slot: u32,
+) {
+    let side = atlas.side;
+    let (z, x, y) = atlas.place(slot);
+    queue.write_texture(
+        wgpu::TexelCopyTextureInfo {
+            texture: detail,
+            mip_level: 0,
+            origin: wgpu::Origin3d { x, y, z },
+            aspect: wgpu::TextureAspect::All,
+        },
+        bytemuck::cast_slice(staging),
+        wgpu::TexelCopyBufferLayout {
+            offset: 0,
+            bytes_per_row: Some(side * 8),
+            rows_per_image: Some(side),
+        },
+        wgpu::Extent3d {
+            width: side,
+            height: side,
+            depth_or_array_layers: 1,
+        },
+    );
 }
 
 /// The programs a probe draws a prepared frame with: one per [`FragmentPath`], and the SG block and skirt

@@ -28,8 +28,8 @@ pub(super) struct ImageryState {
     pub(super) pipelines: [wgpu::RenderPipeline; FRAGMENT_PATHS],
     /// Under SG shading: the SG variant drawn with imagery and its programs (group 3).
     pub(super) sg: Option<(SgVariant, SgPrograms)>,
-    ring: u32,
-    levels: u32,
+    pub(super) ring: u32,
+    pub(super) levels: u32,
 }
 
 impl Renderer {

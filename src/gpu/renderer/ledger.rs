@@ -36,13 +36,27 @@ pub struct LedgerEntry {
     pub bytes: u64,
 }
 
-/// Every GPU object the renderer created and the bytes each holds; only [`Ledgered`] writes it.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
+/// Kinds of [`ObjectKind`].
+const KINDS: usize = 9;
+
+/// Every GPU object the renderer created and the bytes each holds; only [`Ledgered`] writes it. Two
+/// ledgers are equal when they list the same objects (their creation times aside).
+#[derive(Clone, Debug, Default)]
 pub struct Ledger {
     entries: Vec<LedgerEntry>,
     /// Objects created with their contents, each copied in through a staging buffer of wgpu's own.
     staged: usize,
+    /// Nanoseconds spent creating objects, by kind ([`ObjectKind`] as an index).
+    nanos: [u64; KINDS],
 }
+
+impl PartialEq for Ledger {
+    fn eq(&self, other: &Self) -> bool {
+        self.entries == other.entries && self.staged == other.staged
+    }
+}
+
+impl Eq for Ledger {}
 
 impl Ledger {
     fn note(&mut self, label: &'static str, kind: ObjectKind, bytes: u64) {
@@ -73,6 +87,16 @@ impl Ledger {
     pub fn extend(&mut self, other: &Ledger) {
         self.entries.extend_from_slice(&other.entries);
         self.staged += other.staged;
+        for (a, b) in self.nanos.iter_mut().zip(other.nanos) {
+            *a += b;
+        }
+    }
+
+    /// Wall time spent creating the objects of `kind` (the device's calls; for a render pipeline on GL
+    /// that is the shaders' translation, compilation and linking, for a shader module WGSL's parsing and
+    /// validation).
+    pub fn creation_time(&self, kind: ObjectKind) -> std::time::Duration {
+        std::time::Duration::from_nanos(self.nanos[kind as usize])
     }
 
     /// Objects created with their contents ([`Ledgered::buffer_init`], [`Ledgered::texture_with_data`]):
@@ -142,7 +166,7 @@ impl<'d> Ledgered<'d> {
             label: Some(label),
             ..desc.clone()
         };
-        self.device.create_texture(&desc)
+        self.timed(ObjectKind::Texture, |d| d.create_texture(&desc))
     }
 
     /// wgpu itself makes one view per mip level and layer of a 2D render-attachment texture, to clear it
@@ -169,7 +193,7 @@ impl<'d> Ledgered<'d> {
             label: Some(label),
             ..desc.clone()
         };
-        texture.create_view(&desc)
+        self.timed(ObjectKind::TextureView, |_| texture.create_view(&desc))
     }
 
     /// An uninitialised buffer.
@@ -180,11 +204,13 @@ impl<'d> Ledgered<'d> {
         usage: wgpu::BufferUsages,
     ) -> wgpu::Buffer {
         self.note(label, ObjectKind::Buffer, size);
-        self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some(label),
-            size,
-            usage,
-            mapped_at_creation: false,
+        self.timed(ObjectKind::Buffer, |d| {
+            d.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size,
+                usage,
+                mapped_at_creation: false,
+            })
         })
     }
 
@@ -198,12 +224,13 @@ impl<'d> Ledgered<'d> {
         use wgpu::util::DeviceExt;
         self.note(label, ObjectKind::Buffer, contents.len() as u64);
         self.ledger.staged += 1;
-        self.device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        self.timed(ObjectKind::Buffer, |d| {
+            d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some(label),
                 contents,
                 usage,
             })
+        })
     }
 
     /// A texture holding `data` (one mip level, layers in order).
@@ -222,12 +249,14 @@ impl<'d> Ledgered<'d> {
             label: Some(label),
             ..desc.clone()
         };
-        self.device.create_texture_with_data(
-            queue,
-            &desc,
-            wgpu::util::TextureDataOrder::LayerMajor,
-            data,
-        )
+        self.timed(ObjectKind::Texture, |d| {
+            d.create_texture_with_data(
+                queue,
+                &desc,
+                wgpu::util::TextureDataOrder::LayerMajor,
+                data,
+            )
+        })
     }
 
     /// A bind group layout.
@@ -237,11 +266,12 @@ impl<'d> Ledgered<'d> {
         entries: &[wgpu::BindGroupLayoutEntry],
     ) -> wgpu::BindGroupLayout {
         self.note(label, ObjectKind::BindGroupLayout, 0);
-        self.device
-            .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        self.timed(ObjectKind::BindGroupLayout, |d| {
+            d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                 label: Some(label),
                 entries,
             })
+        })
     }
 
     /// A bind group.
@@ -252,10 +282,12 @@ impl<'d> Ledgered<'d> {
         entries: &[wgpu::BindGroupEntry<'_>],
     ) -> wgpu::BindGroup {
         self.note(label, ObjectKind::BindGroup, 0);
-        self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some(label),
-            layout,
-            entries,
+        self.timed(ObjectKind::BindGroup, |d| {
+            d.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some(label),
+                layout,
+                entries,
+            })
         })
     }
 
@@ -266,20 +298,23 @@ impl<'d> Ledgered<'d> {
         desc: &wgpu::SamplerDescriptor<'_>,
     ) -> wgpu::Sampler {
         self.note(label, ObjectKind::Sampler, 0);
-        self.device.create_sampler(&wgpu::SamplerDescriptor {
-            label: Some(label),
-            ..desc.clone()
+        self.timed(ObjectKind::Sampler, |d| {
+            d.create_sampler(&wgpu::SamplerDescriptor {
+                label: Some(label),
+                ..desc.clone()
+            })
         })
     }
 
     /// A WGSL shader module.
     pub fn shader_module(&mut self, label: &'static str, wgsl: String) -> wgpu::ShaderModule {
         self.note(label, ObjectKind::ShaderModule, 0);
-        self.device
-            .create_shader_module(wgpu::ShaderModuleDescriptor {
+        self.timed(ObjectKind::ShaderModule, |d| {
+            d.create_shader_module(wgpu::ShaderModuleDescriptor {
                 label: Some(label),
                 source: wgpu::ShaderSource::Wgsl(wgsl.into()),
             })
+        })
     }
 
     /// A pipeline layout.
@@ -289,12 +324,13 @@ impl<'d> Ledgered<'d> {
         bind_group_layouts: &[Option<&wgpu::BindGroupLayout>],
     ) -> wgpu::PipelineLayout {
         self.note(label, ObjectKind::PipelineLayout, 0);
-        self.device
-            .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        self.timed(ObjectKind::PipelineLayout, |d| {
+            d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
                 label: Some(label),
                 bind_group_layouts,
                 immediate_size: 0,
             })
+        })
     }
 
     /// A render pipeline.
@@ -308,11 +344,20 @@ impl<'d> Ledgered<'d> {
             label: Some(label),
             ..desc.clone()
         };
-        self.device.create_render_pipeline(&desc)
+        self.timed(ObjectKind::RenderPipeline, |d| d.create_render_pipeline(&desc))
     }
 
     fn note(&mut self, label: &'static str, kind: ObjectKind, bytes: u64) {
         self.ledger.note(label, kind, bytes);
+    }
+
+    /// `create()`'s result, its wall time added to `kind`'s.
+    fn timed<T>(&mut self, kind: ObjectKind, create: impl FnOnce(&wgpu::Device) -> T) -> T {
+        let t = std::time::Instant::now();
+        let out = create(self.device);
+        let spent = u64::try_from(t.elapsed().as_nanos()).unwrap_or(u64::MAX);
+        self.ledger.nanos[kind as usize] = self.ledger.nanos[kind as usize].saturating_add(spent);
+        out
     }
 }
 

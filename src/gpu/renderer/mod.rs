@@ -21,13 +21,15 @@
 //!
 //! Files: this one holds the type and its set-up; `frame.rs` prepare and render; `sg.rs` the SG shading
 //! variant, `sg_tables.rs` its per-level tables; `imagery.rs` draped imagery's colour rings and programs;
-//! `ledger.rs` the object ledger and [`Ledgered`]; `probe.rs` the vertex-probe test instrument.
+//! `ledger.rs` the object ledger and [`Ledgered`]; `rebuild.rs` the renderer made again on a new device
+//! after a lost one; `probe.rs` the vertex-probe test instrument.
 
 mod frame;
 mod imagery;
 mod ledger;
 #[cfg(feature = "internals")]
 mod probe;
+mod rebuild;
 mod sg;
 mod sg_tables;
 #[cfg(feature = "internals")]
@@ -164,6 +166,8 @@ pub struct Renderer {
     synced: Option<u64>,
     /// The prepared plan's draws, copied by [`Renderer::prepare`] (allocated once).
     prepared: Box<heapless::Vec<PlannedDraw, MAX_DRAWS>>,
+    /// The profile it was built for, kept for [`Renderer::rebuild`].
+    profile: Profile,
 }
 
 impl Renderer {
@@ -177,6 +181,17 @@ impl Renderer {
         queue: &wgpu::Queue,
         options: &RendererOptions<'_>,
         profile: &Profile,
+    ) -> Result<Self> {
+        Self::build(device, queue, options, profile, None)
+    }
+
+    /// [`Renderer::new`], with the SG scene's sky table given (`rebuild.rs`) instead of integrated.
+    fn build(
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        options: &RendererOptions<'_>,
+        profile: &Profile,
+        sky: Option<&SkyTable>,
     ) -> Result<Self> {
         profile.validate(&profile.name)?;
         let c = &profile.clipmap;
@@ -359,6 +374,7 @@ impl Renderer {
                 s,
                 [&group0_layout, &group1_layout],
                 &targets,
+                sky,
             )?),
         };
         Ok(Self {
@@ -394,6 +410,7 @@ impl Renderer {
             max_draws,
             synced: None,
             prepared: Box::default(),
+            profile: profile.clone(),
         })
     }
 

@@ -119,8 +119,8 @@ pub(super) fn programs(
 
 impl SgState {
     /// Bakes nothing of the terrain: creates the per-level tables (filled by each prepare from `s.bake`)
-    /// and the scene's sky table (integrated here, once), and makes the group-2 layout, group and
-    /// pipelines.
+    /// and the scene's sky table (integrated here, once, unless `sky` is the scene's already: a rebuild
+    /// on a new device), and makes the group-2 layout, group and pipelines.
     pub(super) fn new(
         dev: &mut Ledgered<'_>,
         queue: &wgpu::Queue,
@@ -128,6 +128,7 @@ impl SgState {
         s: &SgShading<'_>,
         layouts: [&wgpu::BindGroupLayout; 2],
         targets: &Targets,
+        sky: Option<&SkyTable>,
     ) -> Result<Self> {
         let bake = s.bake;
         let mut scene = s.scene.clone();
@@ -143,7 +144,10 @@ impl SgState {
             fog: needs.fog,
             omit: s.omit,
         };
-        let sky_table = SkyTable::new(&scene, s.patches);
+        let sky_table = match sky {
+            Some(t) => t.clone(),
+            None => SkyTable::new(&scene, s.patches),
+        };
         let tables = SgTables::new(dev, profile, bake, variant.visibility, &scene, &sky_table)?;
         let mut u = SgSceneUniform::new(&scene, bake.azimuths())?;
         // The sun count in z is the scene's (SgSceneUniform::new).

@@ -127,6 +127,11 @@ impl SgTables {
         &self.normal
     }
 
+    /// The CPU bake the tables are filled from (kept for a rebuild on a new device).
+    pub(super) fn bake(&self) -> &ShadingBake {
+        &self.bake
+    }
+
     /// The light table (with visibility).
     pub(super) fn light(&self) -> Option<&wgpu::Texture> {
         self.light.as_ref()

@@ -79,6 +79,18 @@ impl Clipmap {
         let _ = self.requests.extend_from_slice(&requests[..n]);
     }
 
+    /// Makes samples `rect` of data level `k` readable now with the next coarser level's under them (what
+    /// a detail pool tile reads), decoding whatever the tile cache lacks past any budget, after a new
+    /// cache frame (the tiles pinned so far are let go): a detail pool tile sent again after a lost
+    /// device, whose package tiles were evicted since it was filled. `Ok(false)`: the cache cannot hold
+    /// them.
+    pub fn decode_now(&mut self, k: u32, rect: &Rect) -> crate::Result<bool> {
+        self.source.begin_frame();
+        let mut budget = u64::MAX;
+        self.source
+            .ensure_bands(k, std::slice::from_ref(rect), &mut budget)
+    }
+
     /// Whether samples `rect` of pyramid level `k` are readable now (streamed: their tiles resident).
     pub fn source_ready(&self, k: u32, rect: &Rect) -> bool {
         self.source.rect_ready(k, rect)
