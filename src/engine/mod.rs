@@ -8,11 +8,14 @@
 
 mod camera;
 mod profile;
+mod query;
+mod query_state;
 mod renderer;
 pub mod setup;
 mod terrain;
 
 pub use camera::Camera;
 pub use profile::Profile;
+pub use query::RayHit;
 pub use renderer::{FrameStats, RenderOptions, TerrainRenderer};
 pub use terrain::{Terrain, TerrainOptions};

@@ -117,14 +117,17 @@ pub struct TerrainRenderer {
     /// The terrain's name in reports.
     name: String,
     /// The whole grid, or a streamed terrain's coarse stand-in (the clipmap holds its package).
-    stand_in: crate::source::Heightmap,
-    clipmap: Clipmap,
+    pub(super) stand_in: crate::source::Heightmap,
+    pub(super) clipmap: Clipmap,
     planner: Planner,
-    plan: FramePlan,
+    pub(super) plan: FramePlan,
     renderer: Renderer,
     params: PlanParams,
     /// Draped imagery's colour rings ([`crate::TerrainOptions::imagery`]).
     imagery: Option<ColorRings>,
+    /// The exact queries' state (`engine/query.rs`) and the block side m of the profile.
+    pub(super) queries: super::query_state::Queries,
+    pub(super) block_quads: u32,
 }
 
 impl TerrainRenderer {
@@ -170,6 +173,7 @@ impl TerrainRenderer {
             Some(p) => Clipmap::streamed(p, profile, ClipmapOptions::default())?,
             None => Clipmap::new(&stand_in, profile, ClipmapOptions::default())?,
         };
+        let queries = super::query_state::Queries::new(&clipmap, &stand_in, profile)?;
         let lod = match options.sat_lod_px {
             Some(px) => {
                 let mut lod = setup::sat_lod(
@@ -256,6 +260,8 @@ impl TerrainRenderer {
                 ..PlanParams::default()
             },
             imagery: imagery.take(),
+            queries,
+            block_quads: profile.block_m(),
         })
     }
 
@@ -350,11 +356,6 @@ impl TerrainRenderer {
     /// The terrain's name ([`Terrain::name`]).
     pub fn terrain_name(&self) -> &str {
         &self.name
-    }
-
-    /// The height of the terrain under world (x, y), metres ([`Terrain::height_at`]).
-    pub fn height_at(&self, x: f64, y: f64) -> f32 {
-        self.stand_in.height_at_world(x, y)
     }
 
     /// The height of the surface drawn under the camera's eye, metres (None before the rings reach it):

@@ -14,6 +14,7 @@ mod lod;
 mod package;
 mod plan_time;
 mod profiles;
+mod query;
 mod sat;
 mod scene;
 mod sg_numerics;
