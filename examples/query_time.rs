@@ -4,7 +4,7 @@
 //! procedural terrain, 1025^2 at 30 m) baked into a package in a temp folder, then 10^4 heights and 10^4
 //! rays in a 256 x 256-sample window around its centre, timed one by one after a pass that made the
 //! window's tiles resident: through the query cache of gles3-mid's query share (streamed), and over the
-//! grid held whole (resident). The rays start 200 m above the highest sample over the window's centre and
+//! grid held whole (resident); then heights in tiles not resident (each decodes its tile). The rays start 200 m above the highest sample over the window's centre and
 //! aim at random ground points of the window, as picking under a cursor does. Prints p50, p99 and the
 //! largest, microseconds.
 
@@ -151,6 +151,31 @@ fn main() {
     );
     measure("streamed", &mut tiles, c, spacing);
     println!("           {:?}", tiles.stats());
+    // Misses: a fresh cache, one height in each of up to 64 level-0 tiles, each decoding its tile (and,
+    // the first in a region, the coarser tiles its prediction reads).
+    let mut cold = QueryTiles::new(Package::open(&path).expect("package"), share, "gles3-mid")
+        .expect("query cache");
+    let mut times = Vec::new();
+    'tiles: for ty in 0..hm.height().div_ceil(64) {
+        for tx in 0..hm.width().div_ceil(64) {
+            if times.len() == 64 {
+                break 'tiles;
+            }
+            let (u, v) = (
+                f64::from((tx * 64 + 32).min(hm.width() - 1)),
+                f64::from((ty * 64 + 32).min(hm.height() - 1)),
+            );
+            let t = Instant::now();
+            cold.begin();
+            let _ = query::height(&mut cold, u, v).expect("height");
+            times.push(t.elapsed().as_secs_f64() * 1e6);
+        }
+    }
+    let (p50, p99, max) = percentiles(&mut times);
+    println!(
+        "streamed   height_at, each in a tile not resident: p50 {p50:6.1} us  p99 {p99:6.1} us  max {max:8.1} us ({} tiles)",
+        times.len()
+    );
     let ranges = GridRanges::new(&hm);
     let mut held = ResidentGrid {
         grid: &hm,

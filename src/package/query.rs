@@ -292,6 +292,30 @@ impl Level0 for QueryTiles {
         self.cache.begin_frame();
     }
 
+    /// Two row reads of one tile where the cell lies inside it (most cells), else four samples.
+    #[inline]
+    fn corners(&mut self, i: u32, j: u32) -> Result<[f64; 4]> {
+        let (w, h) = self.size();
+        let t = self.cache.package().header().tile;
+        if i + 1 < w && j + 1 < h && i % t + 1 < t && j % t + 1 < t {
+            if let (Some((x0, r0)), Some((_, r1))) = (
+                self.cache.row_segment(0, i, j),
+                self.cache.row_segment(0, i, j + 1),
+            ) {
+                let a = (i - x0) as usize;
+                let p = self.cache.package();
+                let m = |k: i32| f64::from(p.metres(k));
+                return Ok([m(r0[a]), m(r0[a + 1]), m(r1[a]), m(r1[a + 1])]);
+            }
+        }
+        Ok([
+            f64::from(self.sample(i, j)?),
+            f64::from(self.sample(i + 1, j)?),
+            f64::from(self.sample(i, j + 1)?),
+            f64::from(self.sample(i + 1, j + 1)?),
+        ])
+    }
+
     fn tile_range(&mut self, tx: u32, ty: u32) -> Result<(f64, f64)> {
         let at = ty as usize * self.tiles_x as usize + tx as usize;
         let known = *self.ranges.get(at).ok_or_else(|| Error::Invalid {
