@@ -121,10 +121,9 @@ impl TerrainRenderer {
 
     /// The height of the surface drawn in the last prepared frame at world (x, y), metres: the level
     /// each block, pool cell or stitched unit there was drawn at (the highest where pieces meet), as the
-    /// vertex shader places it; None where nothing was drawn, or before the first frame. With distance
-    /// LOD (no `sat_lod_px`) the rings' transition morph is not applied: in the outer tenth of each ring
-    /// the drawn surface lies between this and the coarser ring's. A streamed terrain answers where the
-    /// rings' tile cache still holds the samples (it decodes nothing; None otherwise).
+    /// vertex shader places it, with distance LOD's transition morph in each ring's outer tenth; None
+    /// where nothing was drawn, or before the first frame. A streamed terrain answers where the rings or
+    /// their tile cache hold the samples (it decodes nothing; None otherwise).
     ///
     /// Cost: a pass over the frame's draw list (a few hundred entries) and a few sample reads; nothing
     /// is allocated.

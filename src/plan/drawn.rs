@@ -3,8 +3,10 @@
 //! a streamed terrain's cached tiles, through [`Clipmap::data_height`]). The hole measurement
 //! (`measure/holes.rs`) traces rays against it; `TerrainRenderer::drawn_height_at` answers with it.
 
-use crate::plan::clipmap::Clipmap;
+use crate::plan::clipmap::{morph_alpha, Clipmap};
+use crate::plan::cull::DrawKind;
 use crate::plan::detail::stitch;
+use crate::plan::frame::Rect;
 use crate::plan::frame_plan::FramePlan;
 
 /// The drawn surface above a level-0 lattice point ([`drawn_height`]).
@@ -24,7 +26,9 @@ pub enum Drawn {
 /// Each block or pool cell is its level's piecewise-linear surface of the data pyramid, split along the
 /// (i, j)-(i+1, j+1) diagonal, as `clipmap.wgsl` draws it (SAT LOD draws do not morph; a pool tile holds
 /// its level's pyramid samples), and a stitched cell its units' surface ([`stitch::height`]), read
-/// through [`Clipmap::data_height`]: the resident pyramid, or a streamed terrain's tile cache.
+/// through [`Clipmap::data_height`]: the resident pyramid, or a streamed terrain's tile cache. With GC
+/// 6.2's morph on (distance LOD), a ring block's vertices take the ring's (z, z_c) texels blended by
+/// their [`morph_alpha`], as the vertex shader does.
 #[expect(
     clippy::cast_possible_truncation,
     clippy::cast_precision_loss,
@@ -45,7 +49,14 @@ pub fn drawn_height(
             _ => h,
         });
     };
-    for d in plan.draws().iter().filter(|d| d.kind.surface()) {
+    // GC 6.2's morph (distance LOD's ring blocks; SAT LOD and pool cells never morph).
+    let morph = plan.globals().params[0];
+    for (idx, d) in plan
+        .draws()
+        .iter()
+        .enumerate()
+        .filter(|(_, d)| d.kind.surface())
+    {
         let c = d.covered(block_quads);
         let f = f64::from(1u32 << d.fine);
         let inside = u >= c.x0 as f64 * f
@@ -96,7 +107,39 @@ pub fn drawn_height(
         }
         let (i, j) = (x.floor() as i64, y.floor() as i64);
         let (fx, fy) = (x - i as f64, y - j as f64);
-        let z = |a: i64, b: i64| clipmap.data_height(k, a, b).map(f64::from);
+        let morphed = (morph != 0.0 && d.kind == DrawKind::Block).then(|| {
+            (
+                plan.draw_uniform(idx),
+                clipmap.frame().levels[d.level as usize].active,
+            )
+        });
+        let z = |a: i64, b: i64| match &morphed {
+            // The vertex shader's height: the ring's (z, z_c) texel blended by the vertex's alpha,
+            // in f32 as `twin::clipmap::cpu_vertex` computes it.
+            Some((du, active)) => {
+                let [z, zc] = clipmap.ring(d.level).get(a, b);
+                let rel = Rect {
+                    x0: 0,
+                    y0: 0,
+                    w: active.w,
+                    h: active.h,
+                };
+                #[expect(
+                    clippy::cast_sign_loss,
+                    reason = "n is stored exactly as a positive f32"
+                )]
+                let n = du.morph_w[1] as u32;
+                let alpha = morph_alpha(
+                    (a - active.x0) as f32,
+                    (b - active.y0) as f32,
+                    [du.morph[0], du.morph[1]],
+                    &rel,
+                    n,
+                ) * morph;
+                Some(f64::from((1.0 - alpha) * z + alpha * zc))
+            }
+            None => clipmap.data_height(k, a, b).map(f64::from),
+        };
         let (Some(z00), Some(z10), Some(z11), Some(z01)) =
             (z(i, j), z(i + 1, j), z(i + 1, j + 1), z(i, j + 1))
         else {

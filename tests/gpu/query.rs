@@ -1,7 +1,8 @@
 //! The embedding API's queries on a renderer: `height_at` bit for bit against the bilinear
 //! interpolation of the package's decoded level 0 (streamed) or of the heights given (held whole),
 //! `raycast` against the stage's own walk over that grid, and `drawn_height_at` against the surface
-//! drawn under the eye (`surface_height`).
+//! drawn under the eye (`surface_height`) and, with distance LOD's morph, free of steps along lines out
+//! from the eye.
 
 use clipsat::package::query::{self, GridRanges, Level0, ResidentGrid};
 use clipsat::package::ray::{self, GridRay};
@@ -154,6 +155,38 @@ fn renderer_queries_read_the_full_resolution_data_and_the_drawn_surface() {
     let surface = f64::from(r.surface_height(&cam).expect("surface"));
     assert!((under - surface).abs() < 1e-3, "{under} vs {surface}");
     assert_eq!(r.drawn_height_at(-1.0e6, 0.0), None);
+    // With distance LOD the rings morph toward the coarser ring over their outer tenth, so the drawn
+    // surface has no step where rings meet: along lines out from the eye, every rise over 1/64 of a
+    // sample is within what the data's own slope and the morph's ramp allow (a step would not shrink
+    // with the distance walked).
+    let (mut worst_drawn, mut worst_data, mut some) = (0.0f64, 0.0f64, 0u32);
+    for a in 0..8 {
+        let (dx, dy) = (
+            f64::from(a).mul_add(0.785, 0.3).cos(),
+            f64::from(a).mul_add(0.785, 0.3).sin(),
+        );
+        let mut prev: Option<(f64, f64)> = None;
+        for k in 0..6400 {
+            let t = f64::from(k) * 30.0 / 64.0;
+            let (x, y) = (eye[0] + t * dx, eye[1] + t * dy);
+            let cur = r
+                .drawn_height_at(x, y)
+                .zip(r.height_at(x, y).expect("height"));
+            some += u32::from(cur.is_some());
+            if let (Some((d0, h0)), Some((d1, h1))) = (prev, cur) {
+                worst_drawn = worst_drawn.max((d1 - d0).abs());
+                worst_data = worst_data.max((h1 - h0).abs());
+            }
+            prev = cur;
+        }
+    }
+    eprintln!(
+        "drawn surface: largest rise {worst_drawn} m over 1/64 of a sample, data {worst_data} m ({some} points)"
+    );
+    assert!(
+        worst_drawn > 0.0 && worst_drawn <= 2.0 * worst_data,
+        "{worst_drawn} vs {worst_data}"
+    );
 
     let hm = decoded;
     let held = Terrain::from_heights(
