@@ -37,9 +37,10 @@ impl TerrainRenderer {
     /// Cost: a held terrain reads four samples (tens of nanoseconds). A streamed one reads them through
     /// a small tile cache of its own, allocated with the renderer from the profile's CPU budget (its
     /// query share): a query whose tile is resident costs about as much; a miss decodes the tile and the
-    /// coarser tiles its prediction reads (about a millisecond for a 64^2 tile and its parents). Nothing
-    /// is allocated per query. Errors: a damaged tile ([`Error::Format`]), or a profile whose query share
-    /// cannot hold the package's decode ([`Error::Invalid`]).
+    /// coarser tiles its prediction reads (a few hundred microseconds for a 64^2 tile, a few
+    /// milliseconds when those must be decoded too). Nothing is allocated per query. Errors: a damaged
+    /// tile ([`Error::Format`]), or a profile whose query share cannot hold the package's decode
+    /// ([`Error::Invalid`]).
     pub fn height_at(&mut self, x: f64, y: f64) -> Result<Option<f64>> {
         let grid = &self.stand_in;
         match &mut self.queries {
