@@ -4,7 +4,7 @@
 //!
 //! The default run takes the procedural terrain (257^2, streamed through a package in a temp folder and
 //! held whole) and Puget Sound 1k where the shared data has it. `cargo test --test cpu query:: --
-//! --ignored` adds the other shared terrains.
+//! --ignored` adds the other seven shared terrains.
 
 use std::path::PathBuf;
 
@@ -349,15 +349,18 @@ fn query_puget_sound_heights_and_rays_are_exact() {
     }
 }
 
-/// `cargo test --test cpu query:: -- --ignored` (about a minute).
+/// `cargo test --test cpu query:: -- --ignored` (about 30 s).
 #[test]
-#[ignore = "bakes four more shared terrains"]
+#[ignore = "bakes seven more shared terrains"]
 fn query_shared_heights_and_rays_are_exact() {
     for (name, spacing) in [
         ("srtm_bigtujunga30m_utm11.tif", None),
         ("n07_w006_3arc_v2.tif", None),
         ("lidar_pkg_dem_1m_400x400.tif", None),
         ("aletsch_200m.tif", None),
+        ("srtm_bigtujunga30m_utm11_u16dm.png", Some(30.0)),
+        ("n07_w006_3arc_v2_u16dm.png", Some(92.0)),
+        ("N57E011.hgt", None),
     ] {
         if let Some(hm) = shared(name, spacing) {
             check_terrain(name, &hm);
