@@ -3,6 +3,7 @@
 //! layout of wgpu's own test suite). Run one module with `cargo test --test cpu clipmap::`.
 
 mod clipmap;
+mod drawn;
 mod flight;
 mod fly_paths;
 mod fragment;
