@@ -95,7 +95,7 @@ mod temp;
 pub mod twin;
 
 pub use engine::{
-    Camera, FrameStats, Profile, RenderOptions, Terrain, TerrainOptions, TerrainRenderer,
+    Camera, FrameStats, Profile, RayHit, RenderOptions, Terrain, TerrainOptions, TerrainRenderer,
 };
 pub use error::{BoxError, Error, Param, Result};
 pub use progress::{Progress, ProgressReport};

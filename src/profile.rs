@@ -98,6 +98,11 @@ pub struct CpuSplit {
     pub rings: u64,
     /// What is left for the package tile cache (header, tile map, decoder scratch and tile slots).
     pub tile_cache: u64,
+    /// The exact queries' own tile cache and tile ranges ([`QUERY_SHARE`] of what the rings leave, at
+    /// most [`QUERY_MAX_BYTES`];
+    /// `package::query`): a streamed terrain's full-resolution heights and rays, read apart from the rings'
+    /// cache so a query changes no frame.
+    pub queries: u64,
     /// The most of the SAT LOD tables' mapped pages held resident ([`LOD_TABLES_SHARE`] of what the
     /// rings leave; `bake::mapped`): the tables' queries trim their map once their pages would pass it.
     pub lod_tables: u64,
@@ -132,6 +137,14 @@ pub const SHADING_SHARE: u64 = 2;
 /// [`MIN_TILE_CACHE_BYTES`]); the tile cache gets the rest. Frames that draw no SG shading give the tables
 /// the SG inputs' share too ([`CpuSplit::lod_tables_with`]: 38.8 MiB on gles3-mid).
 pub const LOD_TABLES_SHARE: u64 = 8;
+
+/// The part of `budget.cpu_memory_bytes` left after the rings that the exact queries' tile cache holds
+/// (1/16, at most [`QUERY_MAX_BYTES`]: 3.9 MiB on gles3-mid, about 230 tiles of 64^2 samples; less where
+/// that would leave the tile cache under [`MIN_TILE_CACHE_BYTES`]), taken from the tile cache's part.
+pub const QUERY_SHARE: u64 = 16;
+
+/// The most the exact queries' tile cache holds: 8 MiB (about 500 tiles of 64^2 samples).
+pub const QUERY_MAX_BYTES: u64 = 8 << 20;
 
 /// The smallest tile cache a profile may leave: 1 MiB (about 60 tiles of 64^2 samples).
 pub const MIN_TILE_CACHE_BYTES: u64 = 1 << 20;
@@ -518,7 +531,7 @@ impl Profile {
     }
 
     /// How `budget.cpu_memory_bytes` is split between the rings' CPU copy, the LOD tables' pages, the SG
-    /// shading inputs and the tile cache (a validated profile never saturates).
+    /// shading inputs, the exact queries' cache and the tile cache (a validated profile never saturates).
     pub fn cpu_split(&self) -> CpuSplit {
         let s = u64::from(self.clip_size());
         let rings = s
@@ -536,9 +549,15 @@ impl Profile {
         } else {
             0
         };
+        let queries = (rest / QUERY_SHARE).min(QUERY_MAX_BYTES).min(
+            rest.saturating_sub(lod_tables)
+                .saturating_sub(shading)
+                .saturating_sub(MIN_TILE_CACHE_BYTES),
+        );
         CpuSplit {
             rings,
-            tile_cache: rest - lod_tables - shading,
+            tile_cache: rest - lod_tables - shading - queries,
+            queries,
             lod_tables,
             shading,
         }

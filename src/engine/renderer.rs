@@ -128,10 +128,10 @@ pub struct TerrainRenderer {
     /// The terrain's name in reports.
     name: String,
     /// The whole grid, or a streamed terrain's coarse stand-in (the clipmap holds its package).
-    stand_in: crate::source::Heightmap,
-    clipmap: Clipmap,
+    pub(super) stand_in: crate::source::Heightmap,
+    pub(super) clipmap: Clipmap,
     planner: Planner,
-    plan: FramePlan,
+    pub(super) plan: FramePlan,
     renderer: Renderer,
     params: PlanParams,
     /// Draped imagery's colour rings ([`crate::TerrainOptions::imagery`]).
@@ -141,6 +141,9 @@ pub struct TerrainRenderer {
     /// The caller's device the GPU objects live on (a handle): its error scopes catch each frame's
     /// errors ([`TerrainRenderer::prepare`]); [`TerrainRenderer::rebuild`] replaces it.
     device: wgpu::Device,
+    /// The exact queries' state (`engine/query.rs`) and the block side m of the profile.
+    pub(super) queries: super::query_state::Queries,
+    pub(super) block_quads: u32,
 }
 
 impl TerrainRenderer {
@@ -186,6 +189,7 @@ impl TerrainRenderer {
             Some(p) => Clipmap::streamed(p, profile, ClipmapOptions::default())?,
             None => Clipmap::new(&stand_in, profile, ClipmapOptions::default())?,
         };
+        let queries = super::query_state::Queries::new(&clipmap, &stand_in, profile)?;
         let lod = match options.sat_lod_px {
             // The bound itself is a per-frame parameter (`params` below, [`Self::set_sat_lod_px`]).
             Some(_) => {
@@ -275,6 +279,8 @@ impl TerrainRenderer {
             imagery: imagery.take(),
             reverse_z: options.reverse_z,
             device: device.clone(),
+            queries,
+            block_quads: profile.block_m(),
         })
     }
 
@@ -443,11 +449,6 @@ impl TerrainRenderer {
     /// The terrain's name ([`Terrain::name`]).
     pub fn terrain_name(&self) -> &str {
         &self.name
-    }
-
-    /// The height of the terrain under world (x, y), metres ([`Terrain::height_at`]).
-    pub fn height_at(&self, x: f64, y: f64) -> f32 {
-        self.stand_in.height_at_world(x, y)
     }
 
     /// The height of the surface drawn under the camera's eye, metres (None before the rings reach it):

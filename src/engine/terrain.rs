@@ -167,9 +167,11 @@ impl Terrain {
         }
     }
 
-    /// The height under world (x, y), metres, bilinear: from the whole grid, or from a streamed
-    /// terrain's coarse stand-in (its rough shape: keep a camera clear of it with a margin).
-    pub fn height_at(&self, x: f64, y: f64) -> f32 {
+    /// The height under world (x, y), metres, bilinear and clamped at the border: from the whole grid, or
+    /// from a streamed terrain's coarse stand-in of at most 1 Mi samples (its rough shape: keep a camera
+    /// clear of it with a margin). The data's own height at full resolution is
+    /// [`crate::TerrainRenderer::height_at`].
+    pub fn coarse_height_at(&self, x: f64, y: f64) -> f32 {
         self.stand_in.height_at_world(x, y)
     }
 

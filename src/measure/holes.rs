@@ -14,117 +14,12 @@ use glam::{DMat4, DVec3, DVec4, Mat4};
 use crate::gpu::readback::Image;
 use crate::plan::camera::Camera;
 use crate::plan::clipmap::Clipmap;
-use crate::plan::detail::stitch;
+pub use crate::plan::drawn::{drawn_height, Drawn};
 use crate::plan::frame_plan::FramePlan;
 
 /// Most candidates [`hole_pixels`] traces (each trace walks the whole view ray); past it, an evenly
 /// spaced sample of this many is traced and the holes are scaled to all candidates.
 pub const MAX_TRACED: u64 = 4096;
-
-/// The drawn surface above a level-0 lattice point ([`drawn_height`]).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Drawn {
-    /// The highest height drawn there, metres.
-    Height(f64),
-    /// No block or pool cell draws the point.
-    Nothing,
-    /// A sample the drawn surface needs is not readable: a streamed terrain whose tile has left the
-    /// cache (a measurement never decodes).
-    Unread,
-}
-
-/// The height of the surface `draws` draw at level-0 lattice point (u, v) (fractional), the highest where
-/// several blocks meet there (their skirts close the step between them).
-/// Each block or pool cell is its level's piecewise-linear surface of the data pyramid, split along the
-/// (i, j)-(i+1, j+1) diagonal, as `clipmap.wgsl` draws it (SAT LOD draws do not morph; a pool tile holds
-/// its level's pyramid samples), and a stitched cell its units' surface ([`stitch::height`]), read
-/// through [`Clipmap::data_height`]: the resident pyramid, or a streamed terrain's tile cache.
-#[expect(
-    clippy::cast_possible_truncation,
-    clippy::cast_precision_loss,
-    reason = "lattice cells of points in the view, far below 2^53"
-)]
-pub fn drawn_height(
-    clipmap: &Clipmap,
-    plan: &FramePlan,
-    block_quads: u32,
-    u: f64,
-    v: f64,
-) -> Drawn {
-    let synth = clipmap.synth_levels();
-    let mut best = Drawn::Nothing;
-    let mut keep = |h: f64| {
-        best = Drawn::Height(match best {
-            Drawn::Height(b) => b.max(h),
-            _ => h,
-        });
-    };
-    for d in plan.draws().iter().filter(|d| d.kind.surface()) {
-        let c = d.covered(block_quads);
-        let f = f64::from(1u32 << d.fine);
-        let inside = u >= c.x0 as f64 * f
-            && u <= (c.x1() - 1) as f64 * f
-            && v >= c.y0 as f64 * f
-            && v <= (c.y1() - 1) as f64 * f;
-        let Some(k) = d.level.checked_sub(synth).filter(|_| inside) else {
-            continue;
-        };
-        let s = f64::from(1u32 << d.level);
-        let (x, y) = (u / s, v / s);
-        if d.stitch != 0 {
-            // A stitched cell: the unit under the point, through the stitch rule.
-            let mask = &plan.detail().masks[usize::from(d.stitch) - 1];
-            let (ua, ub) = stitch::units(&d.bounds);
-            let a = (((x - c.x0 as f64) / 2.0).floor() as i64).clamp(0, i64::from(ua) - 1);
-            let b = (((y - c.y0 as f64) / 2.0).floor() as i64).clamp(0, i64::from(ub) - 1);
-            let (ux, uy) = (c.x0 + 2 * a, c.y0 + 2 * b);
-            let mut zs = [[0.0f64; 3]; 3];
-            let mut zcs = [[0.0f64; 3]; 3];
-            for j in 0..3 {
-                for i in 0..3 {
-                    let (p, q) = (ux + i as i64, uy + j as i64);
-                    let Some(z) = clipmap.data_height(k, p, q) else {
-                        return Drawn::Unread;
-                    };
-                    zs[j][i] = f64::from(z);
-                    if i % 2 == 0 && j % 2 == 0 {
-                        let Some(zc) = clipmap.data_height(k + 1, p >> 1, q >> 1) else {
-                            return Drawn::Unread;
-                        };
-                        zcs[j][i] = f64::from(zc);
-                    }
-                }
-            }
-            let h = stitch::height(
-                stitch::unit_flags(mask, ua, ub, a, b),
-                stitch::coarse(mask, ua, ub, a, b),
-                &|i, j| zs[j as usize][i as usize],
-                &|i, j| zcs[j as usize][i as usize],
-                x - ux as f64,
-                y - uy as f64,
-            );
-            if let Some(h) = h {
-                keep(h);
-            }
-            continue;
-        }
-        let (i, j) = (x.floor() as i64, y.floor() as i64);
-        let (fx, fy) = (x - i as f64, y - j as f64);
-        let z = |a: i64, b: i64| clipmap.data_height(k, a, b).map(f64::from);
-        let (Some(z00), Some(z10), Some(z11), Some(z01)) =
-            (z(i, j), z(i + 1, j), z(i + 1, j + 1), z(i, j + 1))
-        else {
-            return Drawn::Unread;
-        };
-        let h = if fx >= fy {
-            z00 + fx * (z10 - z00) + fy * (z11 - z10)
-        } else {
-            z00 + fx * (z11 - z01) + fy * (z01 - z00)
-        };
-        keep(h);
-    }
-    best
-}
 
 /// Whether the view ray through pixel (x, y) of a `view`-sized frame planned as `plan` passes below the
 /// surface its draws draw while inside the data (inset as `outside_data` insets the border cut), having

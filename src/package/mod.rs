@@ -11,6 +11,8 @@
 //! - [`lod_tiles`]: the SAT LOD records' tiles (two bytes a cell of each data level).
 //! - [`read`]: validated reading through a memory map; damaged files are errors naming the tile.
 //! - [`cache`]: the tile cache allocated once from `budget.cpu_memory_bytes`, decoding under a sample budget.
+//! - [`query`]: exact queries of level 0's bilinear surface (a held grid, or the package through a query
+//!   cache of its own); [`ray`]: a ray's first hit on it, walked tile by tile, then cell by cell.
 //! - [`imagery`](mod@imagery): the imagery package, the colour pyramid in JPEG tiles beside a terrain
 //!   package; [`imagery_cache`] its tile cache, allocated once, decoding under a texel budget.
 
@@ -24,7 +26,9 @@ mod levels;
 pub mod lod_tiles;
 pub mod planes;
 pub mod predict;
+pub mod query;
 pub mod rans;
+pub mod ray;
 pub mod read;
 mod spill;
 pub mod write;

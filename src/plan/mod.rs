@@ -12,6 +12,7 @@
 //! - [`fragment`]: which fragment program each draw needs (the cheapest that gives the same pixels);
 //! - [`uniforms`]: the packed `#[repr(C)]` uniforms each draw needs;
 //! - [`uploads`]: which ring rectangles the GPU copy still lacks (the union over skipped frames);
+//! - [`drawn`]: the CPU twin of the surface a plan draws, the height at a point;
 //! - [`frame_plan`]: all of the above for one frame as a value, the [`frame_plan::FramePlan`] the GPU
 //!   stage uploads and draws;
 //! - [`mesh`]: the static block meshes (built once at start-up) the draws index;
@@ -25,6 +26,7 @@ pub mod color_rings;
 pub mod constraints;
 pub mod cull;
 pub mod detail;
+pub mod drawn;
 pub mod flight;
 pub mod fragment;
 pub mod frame;

@@ -6,5 +6,6 @@ mod counting_alloc;
 
 mod color;
 mod plan;
+mod query;
 mod stream;
 mod update;

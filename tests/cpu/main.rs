@@ -3,6 +3,7 @@
 //! layout of wgpu's own test suite). Run one module with `cargo test --test cpu clipmap::`.
 
 mod clipmap;
+mod drawn;
 mod flight;
 mod fly_paths;
 mod fragment;
@@ -14,6 +15,7 @@ mod lod;
 mod package;
 mod plan_time;
 mod profiles;
+mod query;
 mod sat;
 mod scene;
 mod sg_numerics;

@@ -218,7 +218,7 @@ fn cpu_split_fills_the_budget_and_lends_the_shading_share_to_the_tables() {
         let p = Profile::load(name).expect("shipped profile");
         let s = p.cpu_split();
         assert_eq!(
-            s.rings + s.tile_cache + s.lod_tables + s.shading,
+            s.rings + s.tile_cache + s.queries + s.lod_tables + s.shading,
             p.budget.cpu_memory_bytes,
             "{name}: {s:?}"
         );

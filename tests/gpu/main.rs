@@ -13,6 +13,7 @@ mod far_origin;
 mod gpu_smoke;
 mod imagery;
 mod profile_props;
+mod query;
 mod render_clipmap;
 mod render_debug;
 mod render_goldens;

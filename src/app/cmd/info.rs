@@ -127,13 +127,13 @@ pub(crate) fn run(args: &InfoArgs) -> Result<()> {
         clipsat::bake::default_cache_dir().display()
     );
     outln!(
-        "profile     GPU memory needed / budget    coarsest ring span   CPU budget: rings + tile cache + LOD tables + SG inputs   \
+        "profile     GPU memory needed / budget    coarsest ring span   CPU budget: rings + tile cache + queries + LOD tables + SG inputs   \
          detail pool                 SG tables (+ visibility)"
     );
     for p in &profiles {
         let mib = |v: &serde_json::Value| v.as_f64().unwrap_or(0.0) / 1048576.0;
         outln!(
-            "{:<11} {:>9.2} MiB / {:>7.1} MiB    {:>8.1} km          {:>6.1} MiB: {:.2} + {:.2} + {:.2} + {:.2} MiB   \
+            "{:<11} {:>9.2} MiB / {:>7.1} MiB    {:>8.1} km          {:>6.1} MiB: {:.2} + {:.2} + {:.2} + {:.2} + {:.2} MiB   \
              {} tiles of {}^2 ({:.2} MiB)   {:.2} MiB ({:.2} MiB)",
             p["profile"].as_str().unwrap_or("?"),
             mib(&p["gpu_bytes"]),
@@ -142,6 +142,7 @@ pub(crate) fn run(args: &InfoArgs) -> Result<()> {
             mib(&p["cpu_budget_bytes"]),
             mib(&p["cpu_split"]["rings"]),
             mib(&p["cpu_split"]["tile_cache"]),
+            mib(&p["cpu_split"]["queries"]),
             mib(&p["cpu_split"]["lod_tables"]),
             mib(&p["cpu_split"]["shading"]),
             p["detail_tiles"],
