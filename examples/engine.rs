@@ -27,7 +27,10 @@ type Error = Box<dyn std::error::Error>;
 /// linear value.
 const SKY: [f64; 3] = [0.63, 0.76, 0.90];
 
-/// The marker: an octahedron `MARKER_M` metres across, its vertices relative to its centre.
+/// The marker's half-diagonal, metres: an octahedron |x| + |y| + |z| <= `MARKER_M` about its centre.
+pub(crate) const MARKER_M: f64 = 250.0;
+
+/// The marker: an octahedron, its vertices on the engine world's axes from its centre (`centre.w` away).
 const MARKER_WGSL: &str = "
 struct U { view_proj: mat4x4<f32>, centre: vec4<f32> };
 @group(0) @binding(0) var<uniform> u: U;
@@ -69,8 +72,8 @@ pub(crate) fn terrain_to_world() -> DMat4 {
 /// and down, with a little roll.
 pub(crate) fn engine_view() -> DMat4 {
     let place = terrain_to_world();
-    let eye = place.transform_point3(DVec3::new(1500.0, 1200.0, 2600.0));
-    let target = place.transform_point3(DVec3::new(4200.0, 4800.0, 300.0));
+    let eye = place.transform_point3(DVec3::new(900.0, 300.0, 3300.0));
+    let target = place.transform_point3(DVec3::new(2700.0, 2700.0, 1100.0));
     let up = place.transform_vector3(DVec3::new(0.1, 0.0, 1.0));
     DMat4::look_at_rh(eye, target, up)
 }
@@ -86,27 +89,36 @@ pub(crate) fn engine_projection(size: (u32, u32), reverse_z: bool) -> DMat4 {
     }
 }
 
-/// Draws the procedural terrain (257 x 257 samples, 30 m apart, cached in `cache`) as the engine sets
-/// up its frame, with the marker at `marker` (terrain frame, metres) when the setup asks for it. Returns
-/// the frame, and the camera clipsat drew with.
+/// What [`render`] drew: the frame, the camera clipsat drew with (terrain frame), the renderer (for its
+/// queries), and the marker's centre (terrain frame) when it was drawn.
+pub(crate) struct Frame {
+    pub pixels: Pixels,
+    pub camera: Camera,
+    pub renderer: TerrainRenderer,
+    pub marker: Option<[f64; 3]>,
+}
+
+/// Draws the procedural terrain (257 x 257 samples, 30 m apart, cached in `cache`) on `gles3-mid` with
+/// SAT LOD at a 1 px bound (met in this view), as the engine sets up its frame; with `setup.marker`, the marker where the ray under the
+/// screen's centre meets the terrain (`TerrainRenderer::raycast`).
 pub(crate) fn render(
     cache: &std::path::Path,
     size: (u32, u32),
     setup: Setup,
-    marker: Option<[f64; 3]>,
-) -> Result<(Pixels, Camera), Error> {
+) -> Result<Frame, Error> {
     let (device, queue) = own_device()?;
     let color_format = if setup.srgb {
         wgpu::TextureFormat::Rgba8UnormSrgb
     } else {
         wgpu::TextureFormat::Rgba8Unorm
     };
-    let profile = Profile::load("gles3-low")?;
+    let profile = Profile::load("gles3-mid")?;
     let terrain = Terrain::procedural(1, 257, 30.0, Some(cache))?;
     let options = RenderOptions::default()
         .color_format(color_format)
         .depth_format(setup.depth)
-        .reverse_z(setup.reverse_z);
+        .reverse_z(setup.reverse_z)
+        .sat_lod_px(1.0);
     let mut renderer = TerrainRenderer::new(&device, &queue, terrain, &profile, &options)?;
 
     // The engine's matrices, in its world; clipsat's camera in the terrain's frame.
@@ -118,21 +130,28 @@ pub(crate) fn render(
 
     let color = target(&device, color_format, size.0, size.1, true);
     let depth = target(&device, setup.depth, size.0, size.1, false);
-    let marker_draw = match (setup.marker, marker) {
-        (true, Some(at)) => {
-            // The marker with the engine's own view-projection, in its world, 40 m across.
-            let centre = terrain_to_world().transform_point3(DVec3::from(at));
-            Some(MarkerDraw::new(
-                &device,
-                &queue,
-                color_format,
-                setup,
-                (proj * view).as_mat4(),
-                centre.as_vec3().extend(20.0).to_array(),
-            ))
-        }
-        _ => None,
+    // The ray under the screen's centre: from the eye along the look direction, in the terrain's frame.
+    let (eye, target) = (camera.eye(), camera.target());
+    let look = [target[0] - eye[0], target[1] - eye[1], target[2] - eye[2]];
+    let hit = if setup.marker {
+        renderer.raycast(eye, look, 1.0e6)?
+    } else {
+        None
     };
+    let marker_draw = hit.map(|h| {
+        // The marker with the engine's own view-projection, in its own world.
+        let centre = terrain_to_world().transform_point3(DVec3::from(h.point));
+        #[expect(clippy::cast_possible_truncation, reason = "metres as f32")]
+        let r = MARKER_M as f32;
+        MarkerDraw::new(
+            &device,
+            &queue,
+            color_format,
+            setup,
+            (proj * view).as_mat4(),
+            centre.as_vec3().extend(r).to_array(),
+        )
+    });
     let sky = if setup.srgb {
         SKY.map(srgb_to_linear)
     } else {
@@ -182,7 +201,12 @@ pub(crate) fn render(
     }
     queue.submit([encoder.finish()]);
     let rgba = read_back(&device, &queue, &color)?;
-    Ok(((size.0, size.1, rgba), camera))
+    Ok(Frame {
+        pixels: (size.0, size.1, rgba),
+        camera,
+        renderer,
+        marker: hit.map(|h| h.point),
+    })
 }
 
 /// sRGB's decoding of a display-encoded value.
@@ -283,16 +307,22 @@ fn main() -> std::process::ExitCode {
     let run = || -> Result<(), Error> {
         std::fs::create_dir_all("out")?;
         let size = (640, 360);
-        let marker = None;
-        let ((w, h, rgba), _) = render(std::path::Path::new("out/cache"), size, setup, marker)?;
+        let mut frame = render(std::path::Path::new("out/cache"), size, setup)?;
+        let (w, h, rgba) = &frame.pixels;
         image::save_buffer(
             "out/engine.png",
-            &rgba,
-            w,
-            h,
+            rgba,
+            *w,
+            *h,
             image::ExtendedColorType::Rgba8,
         )?;
-        println!("out/engine.png");
+        let [ex, ey, ez] = frame.camera.eye();
+        println!("out/engine.png, seen from ({ex:.0}, {ey:.0}, {ez:.0}) m in the terrain's frame");
+        if let Some([x, y, z]) = frame.marker {
+            // The data's height under the hit: the ray query and the height query agree.
+            let ground = frame.renderer.height_at(x, y)?.unwrap_or(f64::NAN);
+            println!("the marker at ({x:.1}, {y:.1}, {z:.2}) m; the terrain's height there {ground:.2} m");
+        }
         Ok(())
     };
     match run() {

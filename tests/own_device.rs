@@ -109,7 +109,18 @@ fn own_device_matches_clipsat_render_through_a_resize() {
 /// the example's one `use clipsat::{..}` line, and no other `clipsat::` path.
 #[test]
 fn own_device_example_uses_five_root_types() {
-    let text = include_str!("../examples/own_device.rs");
+    root_types(include_str!("../examples/own_device.rs"), 5);
+}
+
+/// The engine's example (its camera, reverse-Z, sRGB, a mesh of its own and a ray query) names at most
+/// six.
+#[test]
+fn engine_example_uses_six_root_types() {
+    root_types(include_str!("../examples/engine.rs"), 6);
+}
+
+/// `text`'s one `use clipsat::{..}` line names at most `most` root types, and no other `clipsat::` path.
+fn root_types(text: &str, most: usize) {
     let code: Vec<&str> = text
         .lines()
         .filter(|l| !l.trim_start().starts_with("//"))
@@ -122,7 +133,11 @@ fn own_device_example_uses_five_root_types() {
         .and_then(|l| l.strip_suffix("};"))
         .unwrap_or_else(|| panic!("a root import: {}", uses[0]));
     let types: Vec<&str> = list.split(',').map(str::trim).collect();
-    assert!(types.len() <= 5, "{} clipsat types: {types:?}", types.len());
+    assert!(
+        types.len() <= most,
+        "{} clipsat types: {types:?}",
+        types.len()
+    );
     assert!(
         types.iter().all(|t| !t.contains("::")),
         "root types only: {types:?}"
@@ -178,7 +193,11 @@ fn depth_conventions_and_colour_targets_draw_the_same_image() {
         depth: wgpu::TextureFormat::Depth32Float,
         marker: false,
     };
-    let ((_, _, want), camera) = engine::render(&cache, size, base, None).expect("engine frame");
+    let engine::Frame {
+        pixels: (_, _, want),
+        camera,
+        ..
+    } = engine::render(&cache, size, base).expect("engine frame");
     let sky = [161, 194, 230];
     let mut setups = Vec::new();
     for reverse_z in [false, true] {
@@ -203,7 +222,11 @@ fn depth_conventions_and_colour_targets_draw_the_same_image() {
     }
     let mut report = Vec::new();
     for setup in setups {
-        let ((_, _, got), c) = engine::render(&cache, size, setup, None).expect("engine frame");
+        let engine::Frame {
+            pixels: (_, _, got),
+            camera: c,
+            ..
+        } = engine::render(&cache, size, setup).expect("engine frame");
         assert_eq!(
             c.eye(),
             camera.eye(),
@@ -222,4 +245,127 @@ fn depth_conventions_and_colour_targets_draw_the_same_image() {
         );
     }
     println!("{}", report.join("\n"));
+}
+
+/// The entry distance of the ray `o + t d` into the octahedron |p - c|_1 <= r (the marker; it is the same
+/// set in the terrain's frame as in the engine's y-up world, the rotation between them taking axes to
+/// axes): the slab method over its eight faces.
+fn octahedron_entry(o: glam::DVec3, d: glam::DVec3, c: glam::DVec3, r: f64) -> Option<f64> {
+    let (mut enter, mut exit) = (0.0f64, f64::INFINITY);
+    for f in 0..8 {
+        let sign = |bit: u32| if f & bit == 0 { 1.0 } else { -1.0 };
+        let n = glam::DVec3::new(sign(1), sign(2), sign(4));
+        // n . (o + t d - c) <= r
+        let (a, b) = (n.dot(d), r - n.dot(o - c));
+        if a.abs() < 1e-15 {
+            if b < 0.0 {
+                return None;
+            }
+        } else if a > 0.0 {
+            exit = exit.min(b / a);
+        } else {
+            enter = enter.max(b / a);
+        }
+    }
+    (enter <= exit).then_some(enter)
+}
+
+/// The example's marker, drawn by the engine in the same pass with shared reverse-Z depth into an sRGB
+/// target, shows exactly where the CPU's ray test says the terrain does not hide it: for each pixel, the
+/// ray through its centre meets the marker (an octahedron, exactly) before or after the terrain
+/// (`TerrainRenderer::raycast`, the data's bilinear surface). Pixels within one pixel of a change of
+/// that classification (the marker's silhouette and the terrain's line across it) are left out: there
+/// the drawn surface, within SAT LOD's 1 px bound of the data, may fall either side.
+#[test]
+fn the_marker_is_hidden_exactly_where_the_terrain_is_in_front() {
+    let _one = ONE_INSTANCE.lock().unwrap_or_else(|e| e.into_inner());
+    clipsat::gpu::validation::install_from_env();
+    let cache = Path::new(env!("CARGO_TARGET_TMPDIR")).join("own_device_cache");
+    let size = (480, 270);
+    let setup = engine::Setup {
+        reverse_z: true,
+        srgb: true,
+        depth: wgpu::TextureFormat::Depth32Float,
+        marker: true,
+    };
+    let mut frame = engine::render(&cache, size, setup).expect("engine frame");
+    let centre = glam::DVec3::from(frame.marker.expect("the centre ray meets the terrain"));
+    let m = glam::DMat4::from_cols_array_2d(&frame.camera.projection_matrix(size))
+        * glam::DMat4::from_cols_array_2d(&frame.camera.view_matrix());
+    let inv = m.inverse();
+    let eye = glam::DVec3::from(frame.camera.eye());
+    let (w, h) = size;
+    // 0: the ray misses the marker; 1: it meets the marker first; 2: the terrain first.
+    let mut class = vec![0u8; (w * h) as usize];
+    for py in 0..h {
+        for px in 0..w {
+            let x = 2.0 * (f64::from(px) + 0.5) / f64::from(w) - 1.0;
+            let y = 1.0 - 2.0 * (f64::from(py) + 0.5) / f64::from(h);
+            let p = inv.project_point3(glam::DVec3::new(x, y, 0.5));
+            let d = (p - eye).normalize();
+            let Some(t) = octahedron_entry(eye, d, centre, engine::MARKER_M) else {
+                continue;
+            };
+            let hidden = frame
+                .renderer
+                .raycast(eye.to_array(), d.to_array(), t)
+                .expect("raycast")
+                .is_some();
+            class[(py * w + px) as usize] = if hidden { 2 } else { 1 };
+        }
+    }
+    let (_, _, rgba) = &frame.pixels;
+    // The marker's colour (1, 0.5, 0) as an sRGB target stores it.
+    let orange = |i: usize| {
+        let p = &rgba[i * 4..i * 4 + 3];
+        p[0] >= 253 && p[1].abs_diff(188) <= 2 && p[2] <= 2
+    };
+    let (mut checked, mut shown, mut hidden, mut wrong) = (0, 0, 0, Vec::new());
+    for py in 1..h - 1 {
+        for px in 1..w - 1 {
+            let i = (py * w + px) as usize;
+            let c = class[i];
+            let uniform = (-1i32..=1).all(|dy| {
+                (-1i32..=1).all(|dx| {
+                    let j = ((py as i32 + dy) * w as i32 + px as i32 + dx) as usize;
+                    class[j] == c
+                })
+            });
+            if c == 0 || !uniform {
+                continue;
+            }
+            checked += 1;
+            match (c, orange(i)) {
+                (1, true) => shown += 1,
+                (2, false) => hidden += 1,
+                _ => wrong.push((px, py, c)),
+            }
+        }
+    }
+    println!(
+        "marker pixels checked {checked}: shown {shown}, hidden {hidden}, wrong {}",
+        wrong.len()
+    );
+    assert!(
+        shown > 50 && hidden > 50,
+        "shown {shown}, hidden {hidden}: the view no longer tests both"
+    );
+    for &(px, py, _) in &wrong {
+        for dy in -3i32..=3 {
+            let row: String = (-3i32..=3)
+                .map(|dx| {
+                    let j = ((py as i32 + dy) * w as i32 + px as i32 + dx) as usize;
+                    let o = if orange(j) { "o" } else { "." };
+                    format!("{}{o} ", class[j])
+                })
+                .collect();
+            println!("{row}");
+        }
+    }
+    assert!(
+        wrong.is_empty(),
+        "{} pixels differ from the ray test: {:?}",
+        wrong.len(),
+        &wrong[..wrong.len().min(20)]
+    );
 }
