@@ -110,6 +110,32 @@ impl Terrain {
         Ok(terrain)
     }
 
+    /// Bakes `path` into a package in `options.cache_dir` (and its imagery, when `options.imagery` names
+    /// one, into an imagery package there), reporting through `options.progress`, and returns the
+    /// package's path: the explicit step an engine runs on a worker thread before its first frame (or
+    /// at install time). A terrain baked once is not baked again: `bake` then, and
+    /// [`Terrain::open_with`] with the same options, find the package and return at once (a package is
+    /// mapped, its header checked and a coarse level of at most 1 Mi samples decoded; its tiles are
+    /// checked as they are read). A `.clipsat` package is returned as it is. Refused without a cache
+    /// folder, or with `resident` set.
+    pub fn bake(path: impl AsRef<Path>, options: &TerrainOptions<'_>) -> Result<PathBuf> {
+        if options.cache_dir.is_none() || options.resident {
+            return Err(Error::Invalid {
+                what: "Terrain::bake".into(),
+                reason: "a bake needs TerrainOptions::cache_dir, and a streamed terrain (not resident)"
+                    .into(),
+            });
+        }
+        let terrain = Self::open_with(path, options)?;
+        terrain
+            .package
+            .map(|p| p.path().to_path_buf())
+            .ok_or_else(|| Error::Invalid {
+                what: "Terrain::bake".into(),
+                reason: "the terrain was not baked into a package".into(),
+            })
+    }
+
     /// The built-in procedural terrain: `size` x `size` samples (2^k + 1, 3 ..= 16385) `spacing_m` metres
     /// apart; the same seed gives the same terrain bit for bit. With a `cache_dir` it is baked into a
     /// package there on first use and streamed, as a file would be.

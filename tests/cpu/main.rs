@@ -2,6 +2,7 @@
 //! translation). One binary instead of one per file, so `cargo test` links wgpu once for all of them (the
 //! layout of wgpu's own test suite). Run one module with `cargo test --test cpu clipmap::`.
 
+mod bake_step;
 mod clipmap;
 mod drawn;
 mod flight;
