@@ -43,7 +43,7 @@
 //!   -> plan/    per frame, CPU, pure, allocation-free: budgeted clipmap update -> per-block LOD
 //!               -> frustum cull -> draw list, packed uniforms -> plan hash
 //!   -> gpu/     wgpu on the GLES 3.0 floor (the only stage that touches wgpu): upload, draw, shade
-//! engine/   the embedding API above, over the stages
+//! engine/   the embedding API above, over the stages (it takes the caller's device, queue and pass)
 //! ```
 //!
 //! The stages' own modules are the internal API of the `clipsat` binary and the tests: public only with

@@ -107,7 +107,7 @@ pub struct CpuSplit {
     /// rings leave; `bake::mapped`): the tables' queries trim their map once their pages would pass it.
     pub lod_tables: u64,
     /// The SG shading inputs ([`SHADING_SHARE`] of what the rings leave, on a profile that allows SG;
-    /// `gpu/sat_textures.rs`): their grid is the finest pyramid level whose tables fit it.
+    /// `package/shading_sats.rs`): their grid is the finest pyramid level whose tables fit it.
     pub shading: u64,
 }
 
@@ -128,7 +128,7 @@ impl CpuSplit {
 /// profile that allows SG: 1/2 (31.0 MiB on gles3-mid, 123.7 MiB on desktop; less where that would leave
 /// the tile cache under [`MIN_TILE_CACHE_BYTES`]). Half, because that is the least that keeps the shared
 /// terrains (at most 1201^2) shaded at their full resolution: gles3-mid's normal SAT of 1201^2 takes
-/// 28.9 MiB, desktop's normal and 16 horizon SATs 117.1 MiB (`sat_textures::grid_bytes`). Larger terrains
+/// 28.9 MiB, desktop's normal and 16 horizon SATs 117.1 MiB (`shading_sats::grid_bytes`). Larger terrains
 /// are shaded on a coarser level of a fixed size (1025^2 from 4097^2 on, on both).
 pub const SHADING_SHARE: u64 = 2;
 

@@ -141,7 +141,7 @@ pub fn bake(hm: &Heightmap, azimuths: u32, max_samples: f64) -> Result<Horizons>
 
 /// The `out.len()` = D horizon angles of texel (x, y), azimuth k at 2 pi k / D, marching out to
 /// `max_samples` samples: one texel of [`bake`], for bakes that stream their output (the shading
-/// tables, `gpu/sat_textures.rs`).
+/// tables, `package/shading_sats.rs`).
 pub fn texel_horizons(hm: &Heightmap, x: u32, y: u32, max_samples: f64, out: &mut [f32]) {
     #[expect(clippy::cast_precision_loss, reason = "D <= MAX_AZIMUTHS")]
     let d = out.len() as f64;

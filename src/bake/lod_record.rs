@@ -1,6 +1,6 @@
 //! Stage 1, bake: the compact per-cell record of a data level's SAT LOD tables, the one
 //! definition every path builds its tables from (the resident bake [`LevelTables::build_level`], the
-//! streamed bake [`crate::bake::lod_stream`], and the package's table tiles).
+//! streamed bake [`crate::package::lod_stream`], and the package's table tiles).
 //!
 //! # The record
 //!

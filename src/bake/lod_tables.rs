@@ -146,7 +146,7 @@ pub fn sample_error(pyramid: &Pyramid, k: u32, x: i64, y: i64) -> f32 {
 }
 
 /// [`sample_error`] from level k's heights `z(i, j)` (metres, clamped as [`Pyramid::at`] clamps) and
-/// the data height `h0` at (x, y): the one formula, so a streamed bake ([`crate::bake::lod_stream`])
+/// the data height `h0` at (x, y): the one formula, so a streamed bake ([`crate::package::lod_stream`])
 /// computes the same f32 bits as one over a resident pyramid.
 #[inline]
 #[expect(

@@ -4,8 +4,6 @@
 //! - [`sat`]: summed-area tables in exact fixed point;
 //! - [`lod_tables`]: the SAT LOD error maps, their SATs and max pyramids (docs/design.md "SAT LOD");
 //! - [`lod_record`]: the compact per-cell records every path builds the tables from;
-//! - [`lod_stream`]: the same tables of a package baked out of core, straight into the cache file;
-//! - [`lod_package`]: the records in the package: baked into it, and read back into the cache file;
 //! - [`horizon`]: horizon angles for SG visibility (SAT paper section 5);
 //! - [`imagery`](mod@imagery): the imagery's colour pyramid (GC section 3, "additional images");
 //! - this file: the LOD tables' disk cache, keyed by a content hash.
@@ -33,9 +31,7 @@
 
 pub mod horizon;
 pub mod imagery;
-pub mod lod_package;
 pub mod lod_record;
-pub mod lod_stream;
 pub mod lod_tables;
 pub mod mapped;
 pub mod pyramid;
@@ -144,84 +140,9 @@ pub fn bake_lod(
     )
 }
 
-/// The cache key of a package's tables: its header (dimensions, spacing, quantum, and every tile's
-/// offset and CRC-32, so any change to its heights) and the parameters.
-pub fn package_cache_key(package: &crate::package::Package, params: &BakeParams) -> u64 {
-    let mut h = Hash64::new();
-    h.write_u32(FORMAT_VERSION);
-    h.write_bytes(b"package");
-    h.write_bytes(&package.header().to_bytes());
-    h.write_u32(params.p);
-    let h0 = package.header();
-    h.write_u32(Sat::max_frac_bits(
-        u64::from(h0.width) * u64::from(h0.height),
-    ));
-    h.write_u32(params.levels);
-    h.write_u32(params.synth_levels);
-    h.write_u64(params.g0.to_bits());
-    h.finish()
-}
-
-/// The LOD tables of a streamed package, read through the cache file's map. On a miss they are baked out
-/// of core ([`lod_stream`]: the package read a band of tiles at a time, the file written row by row, the
-/// same bytes as a bake from the decoded pyramid), then mapped; a hit decodes nothing and copies no table
-/// into memory. When the cache file cannot be written, the tables are baked in memory from the decoded
-/// package instead (outcome [`CacheOutcome::NotCached`]).
-pub fn bake_lod_package(
-    package: &crate::package::Package,
-    params: &BakeParams,
-    dir: &Path,
-    progress: Progress<'_>,
-) -> Result<(LodTables, CacheOutcome)> {
-    let (lo, hi) = package.header().range;
-    if !(hi - lo).is_finite() {
-        return Err(Error::terrain(format!(
-            "heights span {lo:e} .. {hi:e} m, a range too large for f32 arithmetic (it overflows); \
-             scale them down, or use distance LOD"
-        )));
-    }
-    let key = package_cache_key(package, params);
-    let path = cache_path(dir, key);
-    let refused = match read_cached(&path, key, params) {
-        Some(Ok(t)) => return Ok((t, CacheOutcome::Hit)),
-        Some(Err(reason)) => Some(reason),
-        None => None,
-    };
-    // A miss: first the temporaries a killed bake left in the cache folder (`crate::temp`).
-    crate::temp::sweep(dir);
-    // The package's own records when they cover the profile (no error computed), else the heights.
-    let baked = if lod_package::records_cover(package, params) {
-        lod_package::tables_from_records(package, params, key, &path)
-    } else {
-        lod_stream::bake_to_file(package, params, key, &path, progress)
-    };
-    match baked {
-        Ok(()) => {}
-        // The cache file could not be written (not the package read): bake in memory.
-        Err(e @ Error::Io { .. }) if !matches!(&e, Error::Io { path: p, .. } if p == package.path()) =>
-        {
-            let pyramid = package.to_pyramid()?;
-            crate::bake::lod_tables::check_height_range(&pyramid)?;
-            let tables = bake_uncached(&pyramid, params, progress)?;
-            return Ok((tables, CacheOutcome::NotCached(e.to_string())));
-        }
-        Err(e) => return Err(e),
-    }
-    let tables = match read_cached(&path, key, params) {
-        Some(Ok(t)) => t,
-        Some(Err(reason)) => return Err(Error::format(&path, reason)),
-        None => return Err(Error::format(&path, "the LOD tables just written are gone")),
-    };
-    let outcome = match refused {
-        Some(r) => CacheOutcome::Rebaked(r),
-        None => CacheOutcome::Baked,
-    };
-    Ok((tables, outcome))
-}
-
 /// The tables of the cache file at `path` read through a map: None when there is no file, the reason
 /// when it is refused.
-fn read_cached(
+pub(crate) fn read_cached(
     path: &Path,
     key: u64,
     params: &BakeParams,

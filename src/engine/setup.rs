@@ -7,7 +7,7 @@ use glam::DVec3;
 
 use crate::bake::horizon::DEFAULT_AZIMUTHS;
 use crate::bake::{self, lod_tables, BakeParams};
-use crate::gpu::sat_textures::ShadingBake;
+use crate::package::shading_sats::ShadingBake;
 use crate::package::Package;
 use crate::plan::clipmap::Clipmap;
 use crate::plan::frame_plan::FramePlan;
@@ -52,7 +52,7 @@ pub fn sat_lod(
         g0: clipmap.g0(),
     };
     let tables = match (clipmap.tile_cache(), cache) {
-        (Some(c), Some(dir)) => bake::bake_lod_package(c.package(), &params, dir, progress)?.0,
+        (Some(c), Some(dir)) => crate::package::lod_cache::bake_lod_package(c.package(), &params, dir, progress)?.0,
         (Some(_), None) => {
             return Err(Error::Invalid {
                 what: "TerrainOptions::cache_dir".into(),

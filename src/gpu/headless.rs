@@ -9,7 +9,7 @@
 use crate::bake::horizon::DEFAULT_AZIMUTHS;
 use crate::gpu::readback::Image;
 use crate::gpu::renderer::{Ledger, Ledgered, PrepareStats, Renderer, RendererOptions, Shading};
-use crate::gpu::sat_textures::ShadingBake;
+use crate::package::shading_sats::ShadingBake;
 use crate::gpu::Gpu;
 use crate::plan::clipmap::Clipmap;
 use crate::plan::cull::{self, DrawList, DrawStats};

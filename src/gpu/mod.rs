@@ -1,4 +1,6 @@
-//! Stage 3, the GPU: wgpu on the OpenGL ES 3.0 floor. Only this module touches wgpu.
+//! Stage 3, the GPU: wgpu on the OpenGL ES 3.0 floor. The only stage that touches wgpu; beside it, the
+//! embedding API (`engine/`) takes the caller's device, queue, formats and pass, and the viewer
+//! (`app/cmd/view/`) its window's surface.
 //!
 //! Every device is created with [`wgpu::Limits::downlevel_webgl2_defaults`] (2048^2 textures, no compute,
 //! no storage buffers): the GLES 3.0 floor everything must fit. [`GpuMode`] picks how the GL context is
@@ -16,7 +18,6 @@ pub mod floor;
 pub mod headless;
 pub mod readback;
 pub mod renderer;
-pub mod sat_textures;
 pub mod scope;
 #[cfg(feature = "internals")]
 pub mod sg_probe;

@@ -22,7 +22,7 @@
 //! ([`crate::bake::lod_record`]) for data levels lod_derived + 1 ..= lod_levels under exponent lod_p, in
 //! tiles of lod_tile x lod_tile cells, after the height tiles; data levels 1 ..= lod_derived keep only
 //! their E, their records derived from the heights when the tables are built
-//! ([`crate::bake::lod_package`]). Version 3 added lod_derived and codes a record tile's max and mean
+//! ([`crate::package::lod_bake`]). Version 3 added lod_derived and codes a record tile's max and mean
 //! codes as two streams; version 4 (this one) predicts each height from the coarser level and its decoded
 //! neighbours with per-level weights, quantises with a per-level step, and adds the rANS codec. An older
 //! package is refused with a request to bake it again, never misread.

@@ -8,7 +8,11 @@
 //!   byte planes of [`planes`] under zstd or lz4 (`docs/package-codec.md`).
 //! - [`write`](mod@write): `clipsat bake`, source rows -> coded pyramid, out of core (the levels spilled
 //!   to temporary files by `spill`, coded coarse to fine by `levels`).
-//! - [`lod_tiles`]: the SAT LOD records' tiles (two bytes a cell of each data level).
+//! - [`lod_tiles`]: the SAT LOD records' tiles (two bytes a cell of each data level); [`lod_bake`] the
+//!   records baked into the package and read back into the LOD tables' cache file; [`lod_stream`] the
+//!   same tables baked out of core from the heights; [`lod_cache`] the package's tables through the cache.
+//! - [`shading_sats`]: SG's shading SATs (normals, horizons), baked from a level of the package (or a
+//!   held grid) within the profile's shading share, and their cache file.
 //! - [`read`]: validated reading through a memory map; damaged files are errors naming the tile.
 //! - [`cache`]: the tile cache allocated once from `budget.cpu_memory_bytes`, decoding under a sample budget.
 //! - [`query`]: exact queries of level 0's bilinear surface (a held grid, or the package through a query
@@ -23,6 +27,9 @@ pub mod imagery;
 pub mod imagery_cache;
 pub mod kind;
 mod levels;
+pub mod lod_bake;
+pub mod lod_cache;
+pub mod lod_stream;
 pub mod lod_tiles;
 pub mod planes;
 pub mod predict;
@@ -30,6 +37,7 @@ pub mod query;
 pub mod rans;
 pub mod ray;
 pub mod read;
+pub mod shading_sats;
 mod spill;
 pub mod write;
 

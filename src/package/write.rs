@@ -335,7 +335,7 @@ fn folder_of(path: &Path) -> &Path {
 }
 
 /// Adds the SAT LOD records to the package just written at `heights` (a temporary name of `out`):
-/// computed out of core from it ([`crate::bake::lod_package::bake_records`], each level's tiles spooled
+/// computed out of core from it ([`crate::package::lod_bake::bake_records`], each level's tiles spooled
 /// beside `out`), then the file is written again with the records' table in its header (the height
 /// tiles' offsets moved by the header's growth, their bytes copied as they are) and the record tiles
 /// after the height tiles, to another temporary file, returned for the caller to rename into place.
@@ -346,7 +346,7 @@ fn add_lod_records(
     opts: &BakeOptions,
     progress: Progress<'_>,
 ) -> Result<((u64, u64), TempFile)> {
-    use crate::bake::lod_package::{spool_levels, RECORD_LEVELS};
+    use crate::package::lod_bake::{spool_levels, RECORD_LEVELS};
     use crate::bake::lod_tables::P;
     let pkg = super::read::Package::open(heights)?;
     let suffix = crate::temp_suffix();
@@ -378,7 +378,7 @@ fn rewrite_with_records(
     tmp: &Path,
     old: Header,
     file_len: u64,
-    spooled: &[crate::bake::lod_package::SpooledLevel],
+    spooled: &[crate::package::lod_bake::SpooledLevel],
 ) -> Result<(u64, u64)> {
     use std::io::{Read, Seek};
     let old_len = old.byte_len() as u64;
@@ -390,7 +390,7 @@ fn rewrite_with_records(
         crate::bake::lod_tables::P,
         levels,
         header.tile,
-        crate::bake::lod_package::DERIVED_LEVELS,
+        crate::package::lod_bake::DERIVED_LEVELS,
     );
     for (lv, sp) in idx.levels.iter_mut().zip(spooled) {
         lv.e_max = sp.e_max;

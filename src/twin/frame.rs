@@ -16,7 +16,7 @@ use glam::{Vec3, Vec4};
 
 use crate::gpu::readback::Image;
 use crate::gpu::renderer::ProbedFrame;
-use crate::gpu::sat_textures::ShadingBake;
+use crate::package::shading_sats::ShadingBake;
 use crate::plan::clipmap::Clipmap;
 use crate::plan::uniforms::Globals;
 use crate::shading::basic::BasicShading;

@@ -293,10 +293,10 @@ pub fn sg_taps(globals: &Globals, data_spacing: f32, rel: [f32; 2], w: f32) -> O
 
 /// The SG inputs at `taps`: r as the shader blends it from the normal table, and the D horizon angles
 /// blended the same way (as sines rounded to f16, handed back as the arcsines of the blend), each texel
-/// [`crate::gpu::sat_textures::ShadingBake::level_texel`] of its lattice sample. The shader itself
+/// [`crate::package::shading_sats::ShadingBake::level_texel`] of its lattice sample. The shader itself
 /// blends the light table's texels instead of the horizons ([`sg_light`]).
 pub fn sg_inputs(
-    bake: &crate::gpu::sat_textures::ShadingBake,
+    bake: &crate::package::shading_sats::ShadingBake,
     clipmap: &Clipmap,
     taps: &SgTaps,
 ) -> (glam::Vec3, heapless::Vec<f32, 16>) {
@@ -337,10 +337,10 @@ pub fn sg_inputs(
 /// The CPU twin of `sg_colour`'s light-table read (with visibility, `shaders_gles/sg_visibility.wgsl`):
 /// the bilinear blend over `taps`' four texels of what the light table holds at each (rgb: the diffuse
 /// radiance, a: the horizon's mean sine; [`crate::shading::TexelLighting::texel`] of the texel's
-/// [`crate::gpu::sat_textures::ShadingBake::level_texel`], rounded to f16), and of the normal table's w
+/// [`crate::package::shading_sats::ShadingBake::level_texel`], rounded to f16), and of the normal table's w
 /// (the horizon's sine toward the first sun, f32).
 pub fn sg_light(
-    bake: &crate::gpu::sat_textures::ShadingBake,
+    bake: &crate::package::shading_sats::ShadingBake,
     clipmap: &Clipmap,
     taps: &SgTaps,
     lighting: &crate::shading::TexelLighting,

@@ -161,7 +161,8 @@ fn fly_from(cm: &mut Clipmap, range: std::ops::Range<u32>, budget: u32, hashes: 
 #[test]
 fn sat_lod_streams_from_mapped_tables_without_allocating() {
     use clipsat::bake::lod_tables::{LodTables, P};
-    use clipsat::bake::{bake_lod_package, BakeParams, CacheOutcome};
+    use clipsat::bake::{BakeParams, CacheOutcome};
+    use clipsat::package::lod_cache::bake_lod_package;
     use clipsat::plan::frame_plan::{LodSetup, PlanParams, Planner};
     use clipsat::plan::lod::{Lod, LodFrame, LodMode};
 
@@ -246,7 +247,8 @@ fn sat_lod_streams_from_mapped_tables_without_allocating() {
 #[test]
 fn detail_pool_streams_within_budget_without_allocating() {
     use clipsat::bake::lod_tables::P;
-    use clipsat::bake::{bake_lod_package, BakeParams};
+    use clipsat::bake::BakeParams;
+    use clipsat::package::lod_cache::bake_lod_package;
     use clipsat::plan::detail::fill_tile;
     use clipsat::plan::frame_plan::{LodSetup, PlanParams, Planner};
     use clipsat::plan::lod::{Lod, LodMode};

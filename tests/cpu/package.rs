@@ -259,7 +259,7 @@ fn damaged_packages_are_errors_naming_the_tile() {
         assert!(p.to_heightmap().is_ok(), "the heights are intact");
         let dir = path.with_extension(format!("lod{k}"));
         let _ = std::fs::remove_dir_all(&dir);
-        let reason = format_reason(clipsat::bake::bake_lod_package(
+        let reason = format_reason(clipsat::package::lod_cache::bake_lod_package(
             &p,
             &params,
             &dir,
@@ -631,7 +631,7 @@ fn raw_files_bake_streamed_as_loaded() {
     }
 }
 
-/// The SAT LOD tables of a package, built from the records the package stores (`bake::lod_package`), or
+/// The SAT LOD tables of a package, built from the records the package stores (`package::lod_bake`), or
 /// baked out of core from the heights of a package without them (`bake::lod_stream`: bands of tiles,
 /// rows written in place), are the bytes of the cache file baked from the decoded pyramid in memory, but
 /// for the key (a package's tables are keyed by its header, a terrain's by its heights) and so the
@@ -666,11 +666,11 @@ fn lod_tables_baked_out_of_core_match_the_resident_bake() {
         let dir = out.with_extension("lod");
         let _ = std::fs::remove_dir_all(&dir);
         let (streamed, o) =
-            bake::bake_lod_package(&pkg, &params, &dir, clipsat::Progress::default())
+            package::lod_cache::bake_lod_package(&pkg, &params, &dir, clipsat::Progress::default())
                 .expect("streamed");
         assert_eq!(o, CacheOutcome::Baked, "{name}");
         assert!(streamed.is_mapped(), "{name}: read back through the map");
-        let file = bake::cache_path(&dir, bake::package_cache_key(&pkg, &params));
+        let file = bake::cache_path(&dir, package::lod_cache::package_cache_key(&pkg, &params));
         let a = std::fs::read(&file).expect("streamed file");
         // In memory from the decoded package, written by the resident path.
         let (terrain, pyramid) = (
@@ -710,16 +710,20 @@ fn lod_tables_baked_out_of_core_match_the_resident_bake() {
         assert!(plain_pkg.header().lod.is_none() && pkg.header().lod.is_some());
         let dir_c = out.with_extension("lodc");
         let _ = std::fs::remove_dir_all(&dir_c);
-        let (from_heights, _) =
-            bake::bake_lod_package(&plain_pkg, &params, &dir_c, clipsat::Progress::default())
-                .expect("from heights");
+        let (from_heights, _) = package::lod_cache::bake_lod_package(
+            &plain_pkg,
+            &params,
+            &dir_c,
+            clipsat::Progress::default(),
+        )
+        .expect("from heights");
         assert_eq!(
             from_heights, resident,
             "{name}: tables from the heights differ"
         );
         let c = std::fs::read(bake::cache_path(
             &dir_c,
-            bake::package_cache_key(&plain_pkg, &params),
+            package::lod_cache::package_cache_key(&plain_pkg, &params),
         ))
         .expect("file from the heights");
         assert!(
@@ -729,7 +733,8 @@ fn lod_tables_baked_out_of_core_match_the_resident_bake() {
         let _ = std::fs::remove_dir_all(&dir_c);
         let _ = std::fs::remove_file(&plain);
         let (hit, o) =
-            bake::bake_lod_package(&pkg, &params, &dir, clipsat::Progress::default()).expect("hit");
+            package::lod_cache::bake_lod_package(&pkg, &params, &dir, clipsat::Progress::default())
+                .expect("hit");
         assert_eq!(o, CacheOutcome::Hit, "{name}");
         assert_eq!(hit, resident, "{name}");
         drop(hit);
@@ -738,8 +743,9 @@ fn lod_tables_baked_out_of_core_match_the_resident_bake() {
         let mid = bad.len() / 2;
         bad[mid] ^= 0x40;
         std::fs::write(&file, &bad).expect("damage");
-        let (again, o) = bake::bake_lod_package(&pkg, &params, &dir, clipsat::Progress::default())
-            .expect("rebake");
+        let (again, o) =
+            package::lod_cache::bake_lod_package(&pkg, &params, &dir, clipsat::Progress::default())
+                .expect("rebake");
         assert!(
             matches!(&o, CacheOutcome::Rebaked(r) if r.contains("checksum")),
             "{name}: {o:?}"

@@ -546,7 +546,7 @@ fn vmf_cosine_matches_dense_integration() {
 /// small for any level is an error.
 #[test]
 fn shading_bake_from_a_package() {
-    use clipsat::gpu::sat_textures::{grid_bytes, ShadingBake};
+    use clipsat::package::shading_sats::{grid_bytes, ShadingBake};
     use clipsat::package::{self, BakeOptions, Package};
     use clipsat::shading::scene::Needs;
     let hm =

@@ -6,9 +6,9 @@ use crate::render_support;
 
 use clipsat::bake::horizon;
 use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen};
-use clipsat::gpu::sat_textures::{ShadingBake, MAX_BOX_SIDE};
 use clipsat::gpu::sg_probe::{shade_gpu, ProbeCase};
 use clipsat::gpu::shaders::{self, SgVariant};
+use clipsat::package::shading_sats::{ShadingBake, MAX_BOX_SIDE};
 use clipsat::shading::scene::{Needs, Scene};
 use clipsat::shading::{self, Inputs, Patches};
 use glam::Vec3;
@@ -154,7 +154,7 @@ fn sat_texture_box_means_match_brute_force() {
 #[test]
 fn terrain_larger_than_the_shading_share_uses_a_pyramid_level() {
     let hm = render_support::terraces();
-    let bytes = clipsat::gpu::sat_textures::grid_bytes(199, 199, 0);
+    let bytes = clipsat::package::shading_sats::grid_bytes(199, 199, 0);
     let bake = ShadingBake::bake(
         &hm,
         &Needs::default(),
@@ -686,7 +686,7 @@ fn sg_gpu_bytes_do_not_depend_on_the_terrain_size() {
             &hm,
             &evening.needs(),
             clipsat::bake::horizon::DEFAULT_AZIMUTHS,
-            clipsat::gpu::sat_textures::grid_bytes(129, 129, 16),
+            clipsat::package::shading_sats::grid_bytes(129, 129, 16),
             clipsat::Progress::default(),
         )
         .expect("bake");

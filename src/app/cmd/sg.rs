@@ -13,7 +13,7 @@ use clipsat::bake::horizon;
 use clipsat::engine::setup;
 use clipsat::gpu::readback::Image;
 use clipsat::gpu::renderer::{SgShading, Shading};
-use clipsat::gpu::sat_textures::ShadingBake;
+use clipsat::package::shading_sats::ShadingBake;
 use clipsat::plan::camera::Camera;
 use clipsat::profile::Profile;
 use clipsat::shading::scene::{self, Scene};
@@ -349,7 +349,7 @@ pub(crate) fn reference_at(
 }
 
 fn crate_box_side() -> u32 {
-    clipsat::gpu::sat_textures::MAX_BOX_SIDE
+    clipsat::package::shading_sats::MAX_BOX_SIDE
 }
 
 impl Reference {

@@ -375,7 +375,6 @@ mod tests {
             .filter(|p| p.file_name().is_some_and(|n| n != "ledger.rs"))
             .collect();
         files.push(root.join("headless.rs"));
-        files.push(root.join("sat_textures.rs"));
         assert!(files.len() >= 6, "{files:?}");
         let mut found = Vec::new();
         for f in &files {

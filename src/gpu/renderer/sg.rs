@@ -5,7 +5,7 @@ use super::sg_tables::SgTables;
 #[cfg(feature = "internals")]
 use super::pipeline_to;
 use super::{array_entry, terrain_pipeline, Ledger, Ledgered, Targets};
-use crate::gpu::sat_textures::ShadingBake;
+use crate::package::shading_sats::ShadingBake;
 use crate::gpu::shaders::{self, SgOmit, SgSceneUniform, SgVariant};
 use crate::profile::{SG_SKY_LAYERS, SG_SKY_SIDE};
 use crate::shading::scene::{Effects, Scene};

@@ -28,7 +28,7 @@
 //! `budget.gpu_memory_bytes`; their bytes are [`Profile::sg_table_bytes`] for any terrain.
 
 use super::{array_texture, Ledgered, READ_BACK};
-use crate::gpu::sat_textures::ShadingBake;
+use crate::package::shading_sats::ShadingBake;
 use crate::plan::clipmap::Clipmap;
 use crate::plan::frame::Upload;
 use crate::shading::scene::Scene;

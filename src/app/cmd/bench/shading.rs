@@ -7,9 +7,9 @@ use std::time::Instant;
 use clap::Args;
 use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen, OffscreenOptions};
 use clipsat::gpu::renderer::{SgShading, Shading};
-use clipsat::gpu::sat_textures::ShadingBake;
 use clipsat::gpu::shaders::SgOmit;
 use clipsat::gpu::Gpu;
+use clipsat::package::shading_sats::ShadingBake;
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::profile::Profile;
 use clipsat::shading::scene::{Needs, Scene};
@@ -321,7 +321,7 @@ pub(crate) fn measure_shading(
     base.fog = None;
     // The grid the bench always measured on (a 2048-texel side at most), whatever the profile's shading
     // share: it compares the shading model, not the budget.
-    let max_side = clipsat::gpu::sat_textures::grid_bytes(
+    let max_side = clipsat::package::shading_sats::grid_bytes(
         2047,
         2047,
         clipsat::bake::horizon::DEFAULT_AZIMUTHS,
@@ -460,7 +460,7 @@ pub(crate) fn measure_breakdown(
     profile.view.height = h;
     // The grid the bench always measured on (a 2048-texel side at most), whatever the profile's shading
     // share: it compares the shading model, not the budget.
-    let max_side = clipsat::gpu::sat_textures::grid_bytes(
+    let max_side = clipsat::package::shading_sats::grid_bytes(
         2047,
         2047,
         clipsat::bake::horizon::DEFAULT_AZIMUTHS,

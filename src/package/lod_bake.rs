@@ -2,7 +2,7 @@
 //! defines, in the package itself.
 //!
 //! - [`bake_records`]: `clipsat bake` computes them out of core from the package it has just written
-//!   ([`crate::bake::lod_stream`]'s two sweeps: the package read a band of tiles at a time), each level's finished
+//!   ([`crate::package::lod_stream`]'s two sweeps: the package read a band of tiles at a time), each level's finished
 //!   tile rows coded ([`crate::package::lod_tiles`]) and spooled to a file beside the package, which the
 //!   writer then appends.
 //!   Data levels 1 ..= [`DERIVED_LEVELS`] keep only their E: their records are not stored (format 3).
@@ -16,7 +16,7 @@ use std::fs::File;
 use std::path::{Path, PathBuf};
 
 use crate::bake::lod_record::Coder;
-use crate::bake::lod_stream::{lay_out_file, write_tables, Level, Sweep};
+use crate::package::lod_stream::{lay_out_file, write_tables, Level, Sweep};
 use crate::bake::sat::Sat;
 use crate::bake::BakeParams;
 use crate::package::codec::{Decoder, Encoder};
@@ -55,7 +55,7 @@ pub struct SpooledLevel {
 
 /// The records of data levels 1 ..= `levels` of `package` (exponent `p`) in record tiles of `tile`
 /// cells coded with `codec`, each level's spooled to a file named after `spool` (removed by the caller;
-/// removed here on an error). Out of core: [`crate::bake::lod_stream`]'s band sweeps, O(width) per level.
+/// removed here on an error). Out of core: [`crate::package::lod_stream`]'s band sweeps, O(width) per level.
 ///
 /// Errors: the package's I/O and damaged tiles, a non-finite error (naming its sample), the spools' I/O.
 pub fn bake_records(
@@ -298,7 +298,7 @@ fn level_from_records(
     Ok(())
 }
 
-/// The records' tiles of every level, for [`crate::bake::lod_stream`]'s callers that report them.
+/// The records' tiles of every level, for [`crate::package::lod_stream`]'s callers that report them.
 pub fn record_bytes(levels: &[SpooledLevel]) -> u64 {
     levels
         .iter()

@@ -1,4 +1,4 @@
-//! Stage 1, the bake: the shading SATs - the normal SAT and the horizon SATs (SAT paper section 5,
+//! Stage 1b, baked from the package (or a held grid): the shading SATs - the normal SAT and the horizon SATs (SAT paper section 5,
 //! algorithm 2) - kept in CPU memory only. The renderer never uploads them: it fills fixed per-level
 //! tables of the clipmap's ring size from them ([`ShadingBake::level_texel`], `gpu/renderer/sg_tables.rs`),
 //! so its GPU memory does not grow with the terrain (docs/design.md "Memory model").
