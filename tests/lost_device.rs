@@ -2,10 +2,11 @@
 //! procedural terrain loses its device at frame 10 (`wgpu::Device::destroy`, reported to the caller's
 //! device-lost callback), and the same `TerrainRenderer` is rebuilt on a new device and flies on. Every
 //! frame after the loss has the same plan hash and the same image bytes as an uninterrupted flight, for
-//! distance LOD with basic shading and for SAT LOD with SG shading; the rebuild bakes nothing (the cache
-//! folder is unchanged) and decodes no package tile (the tile cache's counters are unchanged by it, and
-//! equal the uninterrupted flight's at the end). With draped imagery, a warm-up after the rebuild draws
-//! the frame drawn before the loss.
+//! distance LOD with basic shading, for SAT LOD with SG shading, and with draped imagery whose rings are
+//! still filling when the device is lost; the rebuild bakes nothing (the cache folder is unchanged) and
+//! decodes no package tile (the tile cache's counters are unchanged by it, and equal the uninterrupted
+//! flight's at the end; the imagery's rings are decoded again from its package, outside its tile cache).
+//! With draped imagery, a warm-up after the rebuild also draws the frame drawn before the loss.
 //!
 //! Also: a GPU error of clipsat's work comes back as `Error::Gpu` through its error scopes, and a frame
 //! on a lost device is no error and no panic. `rebuild_cost_against_new` (ignored, a measurement) times
@@ -92,6 +93,8 @@ struct Case {
     profile: &'static str,
     sat_lod_px: Option<f32>,
     sg_scene: Option<&'static str>,
+    /// Drape an image (a gradient and a checkerboard) on the terrain.
+    imagery: bool,
 }
 
 /// What a flight gave: per frame its plan hash and image bytes, the tile cache's counters at the end,
@@ -179,8 +182,17 @@ fn fly(adapter: &Adapter, cache: &Path, case: &Case, lose: bool) -> Flown {
         flag.store(reason as u32, Ordering::SeqCst);
     });
     let profile = profile(case.profile);
-    let terrain = Terrain::procedural(1, 257, 30.0, Some(cache)).expect("terrain");
+    let mut terrain = Terrain::procedural(1, 257, 30.0, Some(cache)).expect("terrain");
     let start = terrain.default_camera().expect("camera");
+    if case.imagery {
+        terrain = Terrain::open_with(
+            package_in(cache),
+            &clipsat::TerrainOptions::default()
+                .cache_dir(cache)
+                .imagery(imagery_png(cache)),
+        )
+        .expect("terrain with imagery");
+    }
     let mut options = RenderOptions::default().color_format(COLOR);
     options.sat_lod_px = case.sat_lod_px;
     options.sg_scene = case.sg_scene;
@@ -245,6 +257,33 @@ fn fly(adapter: &Adapter, cache: &Path, case: &Case, lose: bool) -> Flown {
     }
 }
 
+/// The procedural terrain's package in the cache folder (baked by its first open).
+fn package_in(cache: &Path) -> PathBuf {
+    std::fs::read_dir(cache)
+        .expect("cache folder")
+        .map(|e| e.expect("entry").path())
+        .find(|p| p.extension().is_some_and(|e| e == "clipsat"))
+        .expect("the package in the cache folder")
+}
+
+/// A 256 x 256 gradient and checkerboard to drape, written beside the cache folder.
+fn imagery_png(cache: &Path) -> PathBuf {
+    let path = cache.with_extension("imagery.png");
+    if path.exists() {
+        return path;
+    }
+    image::RgbImage::from_fn(256, 256, |x, y| {
+        image::Rgb([
+            u8::try_from(x).expect("a byte"),
+            u8::try_from(y).expect("a byte"),
+            if (x / 32 + y / 32) % 2 == 0 { 255 } else { 0 },
+        ])
+    })
+    .save(&path)
+    .expect("imagery.png");
+    path
+}
+
 fn ms(d: Duration) -> f64 {
     d.as_secs_f64() * 1e3
 }
@@ -258,12 +297,22 @@ fn a_lost_device_is_rebuilt_and_the_flight_goes_on_unchanged() {
             profile: "gles3-low",
             sat_lod_px: None,
             sg_scene: None,
+            imagery: false,
         },
         Case {
             name: "SAT LOD 1 px, SG shading (noon)",
             profile: "gles3-low+sg",
             sat_lod_px: Some(1.0),
             sg_scene: Some("noon"),
+            imagery: false,
+        },
+        // The loss at frame 10 falls while the colour rings are still filling from cold.
+        Case {
+            name: "distance LOD, basic shading, draped imagery",
+            profile: "gles3-low",
+            sat_lod_px: None,
+            sg_scene: None,
+            imagery: true,
         },
     ];
     for case in &cases {
@@ -371,12 +420,14 @@ fn rebuild_cost_against_new() {
             profile: "gles3-low",
             sat_lod_px: None,
             sg_scene: None,
+            imagery: false,
         },
         Case {
             name: "gles3-mid, SAT LOD 1 px, SG shading (noon)",
             profile: "gles3-mid",
             sat_lod_px: Some(1.0),
             sg_scene: Some("noon"),
+            imagery: false,
         },
     ];
     const RUNS: usize = 7;

@@ -507,8 +507,75 @@ impl ColorRings {
         u
     }
 
-    /// Forgets what the rings hold (a new texture, as after the renderer is built again): the next
-    /// updates write every texel again, under the budget, and the rings fade in anew.
+    /// Every texel the rings' texture holds, for a texture made again after a lost device
+    /// (`TerrainRenderer::rebuild`): each level's held region, and what its unfinished write has written
+    /// (the tiles before its first pending rectangle's current one, and that tile's rows before its
+    /// current row). Each piece goes to `write` as an upload of RGBA8 rows, in ring coordinates. The
+    /// tiles are decoded from the package into buffers of this call, not through the tile cache, so the
+    /// rings' state and the cache's, which the next frames depend on, are unchanged: those frames are
+    /// the same as without the loss. Allocates (a tile and a piece, once): it runs once per rebuild.
+    pub fn restore(&self, mut write: impl FnMut(&ColorUpload, &[u8]) -> Result<()>) -> Result<()> {
+        let package = self.cache.package();
+        let tile = i64::from(package.header().tile);
+        let ring = i64::from(self.budget.ring);
+        let side = usize::try_from(tile).unwrap_or(0);
+        let mut rgb = vec![0u8; side * side * 3];
+        let mut rgba = Vec::with_capacity(side * side * 4);
+        for (level, l) in self.levels.iter().enumerate() {
+            // (rectangle, tiles written whole, rows of the next tile written)
+            let mut parts: heapless::Vec<(TexRect, i64, i64), 2> = heapless::Vec::new();
+            let _ = parts.push((l.held, i64::MAX, 0));
+            if let Some(p) = l.pending.first() {
+                let _ = parts.push((p.rect, i64::from(p.tile), p.row));
+            }
+            for (r, whole, rows_next) in parts {
+                if r.is_empty() {
+                    continue;
+                }
+                let (tx0, ty0) = (r.x0.div_euclid(tile), r.y0.div_euclid(tile));
+                let tiles_x = (r.x0 + r.w - 1).div_euclid(tile) - tx0 + 1;
+                let tiles_y = (r.y0 + r.h - 1).div_euclid(tile) - ty0 + 1;
+                for t in 0..(tiles_x * tiles_y).min(whole.saturating_add(1)) {
+                    let (tx, ty) = (tx0 + t % tiles_x, ty0 + t / tiles_x);
+                    let part = r.intersect(&TexRect { x0: tx * tile, y0: ty * tile, w: tile, h: tile });
+                    let rows = if t < whole { part.h } else { rows_next.min(part.h) };
+                    if part.is_empty() || rows <= 0 {
+                        continue;
+                    }
+                    let (tw, _) = package.decode_tile(
+                        level,
+                        u32::try_from(tx).unwrap_or(u32::MAX),
+                        u32::try_from(ty).unwrap_or(u32::MAX),
+                        &mut rgb,
+                    )?;
+                    let band = TexRect { x0: part.x0, y0: part.y0, w: part.w, h: rows };
+                    for piece in wrap_pieces(&band, ring) {
+                        rgba.clear();
+                        for yy in piece.y0..piece.y0 + piece.h {
+                            for xx in piece.x0..piece.x0 + piece.w {
+                                let (lx, ly) = (xx - tx * tile, yy - ty * tile);
+                                let i = usize::try_from((ly * i64::from(tw) + lx) * 3).unwrap_or(0);
+                                rgba.extend_from_slice(&[rgb[i], rgb[i + 1], rgb[i + 2], 255]);
+                            }
+                        }
+                        let upload = ColorUpload {
+                            level: u32::try_from(level).unwrap_or(u32::MAX),
+                            x: u32::try_from(piece.x0.rem_euclid(ring)).unwrap_or(0),
+                            y: u32::try_from(piece.y0.rem_euclid(ring)).unwrap_or(0),
+                            w: u32::try_from(piece.w).unwrap_or(0),
+                            h: u32::try_from(piece.h).unwrap_or(0),
+                            offset: 0,
+                        };
+                        write(&upload, &rgba)?;
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Forgets what the rings hold (a new texture): the next updates write every texel again, under the
+    /// budget, and the rings fade in anew.
     pub fn reset(&mut self) {
         for l in &mut self.levels {
             *l = Level::default();

@@ -20,9 +20,9 @@ impl TerrainRenderer {
     /// pool tile whose package tiles the cache has evicted since it was filled is decoded again: the only
     /// package reads of a rebuild). The next [`TerrainRenderer::prepare`] then uploads the rings and the
     /// SG tables in full from their CPU copies, so frames go on as if the device had not been lost: the
-    /// same plans and images. Draped imagery is the exception: its colour rings keep no CPU copy, so they refill from
-    /// the imagery's tile cache under the profile's per-frame budget and fade in again
-    /// ([`TerrainRenderer::warm_up`] fills them before the next frame).
+    /// same plans and images. Draped imagery's colour rings keep no CPU copy of their texels: every texel
+    /// they hold is decoded again from the imagery package now (its tiles under the rings, outside the
+    /// frame's budget and the tile cache, whose state the next frames depend on).
     ///
     /// How to notice the loss: wgpu reports it to the callback set with
     /// [`wgpu::Device::set_device_lost_callback`], which belongs to the engine (clipsat sets none), with
@@ -45,11 +45,14 @@ impl TerrainRenderer {
         scoped(device, "sending the detail pool again", || {
             renderer.resend_detail(queue, &mut self.clipmap, &self.plan)
         })?;
+        // Draped imagery's rings, now: every texel they hold, decoded again from the imagery package.
+        if let Some(rings) = &self.imagery {
+            scoped(device, "sending the imagery's rings again", || {
+                renderer.restore_imagery(queue, rings)
+            })?;
+        }
         self.renderer = renderer;
         self.device = device.clone();
-        if let Some(rings) = &mut self.imagery {
-            rings.reset();
-        }
         Ok(())
     }
 

@@ -8,7 +8,7 @@
 use super::sg::{programs, SgPrograms};
 use super::{array_texture, terrain_pipeline, Ledgered, Renderer, FRAGMENT_ENTRIES};
 use crate::gpu::shaders::{self, SgVariant};
-use crate::plan::color_rings::{ColorRings, ImageryUniform};
+use crate::plan::color_rings::{ColorRings, ColorUpload, ImageryUniform};
 use crate::plan::fragment::FRAGMENT_PATHS;
 use crate::{Error, Result};
 
@@ -223,31 +223,50 @@ impl Renderer {
         }
         for u in rings.uploads() {
             let bytes = u.w as usize * u.h as usize * 4;
-            queue.write_texture(
-                wgpu::TexelCopyTextureInfo {
-                    texture: &state.texture,
-                    mip_level: 0,
-                    origin: wgpu::Origin3d {
-                        x: u.x,
-                        y: u.y,
-                        z: u.level,
-                    },
-                    aspect: wgpu::TextureAspect::All,
-                },
-                &rings.staging()[u.offset..u.offset + bytes],
-                wgpu::TexelCopyBufferLayout {
-                    offset: 0,
-                    bytes_per_row: Some(u.w * 4),
-                    rows_per_image: Some(u.h),
-                },
-                wgpu::Extent3d {
-                    width: u.w,
-                    height: u.h,
-                    depth_or_array_layers: 1,
-                },
-            );
+            write_colour(queue, &state.texture, u, &rings.staging()[u.offset..u.offset + bytes]);
         }
         queue.write_buffer(&state.uniform, 0, bytemuck::bytes_of(&rings.uniform(x, y)));
         Ok(())
+    }
+}
+
+/// One colour upload: `u.w x u.h` RGBA8 texels, rows packed, at (u.x, u.y) of layer `u.level`.
+fn write_colour(queue: &wgpu::Queue, texture: &wgpu::Texture, u: &ColorUpload, rgba: &[u8]) {
+    queue.write_texture(
+        wgpu::TexelCopyTextureInfo {
+            texture,
+            mip_level: 0,
+            origin: wgpu::Origin3d {
+                x: u.x,
+                y: u.y,
+                z: u.level,
+            },
+            aspect: wgpu::TextureAspect::All,
+        },
+        rgba,
+        wgpu::TexelCopyBufferLayout {
+            offset: 0,
+            bytes_per_row: Some(u.w * 4),
+            rows_per_image: Some(u.h),
+        },
+        wgpu::Extent3d {
+            width: u.w,
+            height: u.h,
+            depth_or_array_layers: 1,
+        },
+    );
+}
+
+impl Renderer {
+    /// Writes every texel `rings` hold into a texture made again ([`ColorRings::restore`]), after a lost
+    /// device: the frames after it draw what they would have.
+    pub fn restore_imagery(&self, queue: &wgpu::Queue, rings: &ColorRings) -> Result<()> {
+        let Some(state) = &self.imagery else {
+            return Ok(());
+        };
+        rings.restore(|u, rgba| {
+            write_colour(queue, &state.texture, u, rgba);
+            Ok(())
+        })
     }
 }
