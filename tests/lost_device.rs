@@ -16,6 +16,11 @@
 //!
 //! Its own test binary: it makes and drops its own wgpu devices (see tests/own_device.rs).
 
+#![expect(
+    clippy::duplicate_mod,
+    reason = "the example and this test both load the examples' shared wgpu helpers (examples/support)"
+)]
+
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::Arc;
@@ -30,6 +35,10 @@ use clipsat::{Camera, Profile, RenderOptions, Terrain, TerrainRenderer};
 )]
 #[path = "../examples/own_device.rs"]
 mod own_device;
+
+#[expect(dead_code, reason = "only the adapter and its devices are used here")]
+#[path = "../examples/support/mod.rs"]
+mod support;
 
 const COLOR: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 const SIZE: (u32, u32) = (160, 120);
@@ -46,26 +55,7 @@ struct Adapter {
 
 impl Adapter {
     fn new() -> Self {
-        let vulkan = std::env::var("CLIPSAT_GPU").is_ok_and(|v| v.trim() == "vulkan");
-        if !vulkan && std::env::var_os("MESA_GLES_VERSION_OVERRIDE").is_none() {
-            std::env::set_var("MESA_GLES_VERSION_OVERRIDE", "3.0");
-        }
-        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
-            backends: if vulkan {
-                wgpu::Backends::VULKAN
-            } else {
-                wgpu::Backends::GL
-            },
-            flags: wgpu::InstanceFlags::empty().with_env(),
-            ..wgpu::InstanceDescriptor::new_without_display_handle()
-        });
-        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
-            power_preference: wgpu::PowerPreference::None,
-            force_fallback_adapter: false,
-            compatible_surface: None,
-            apply_limit_buckets: false,
-        }))
-        .expect("an adapter");
+        let (instance, adapter) = support::own_adapter().expect("an adapter");
         Self {
             _instance: instance,
             adapter,
@@ -74,16 +64,27 @@ impl Adapter {
 
     /// A new device and its queue.
     fn device(&self) -> (wgpu::Device, wgpu::Queue) {
-        pollster::block_on(self.adapter.request_device(&wgpu::DeviceDescriptor {
-            label: Some("lost_device test"),
-            required_features: wgpu::Features::empty(),
-            required_limits: wgpu::Limits::downlevel_webgl2_defaults(),
-            experimental_features: wgpu::ExperimentalFeatures::disabled(),
-            memory_hints: wgpu::MemoryHints::MemoryUsage,
-            trace: wgpu::Trace::Off,
-        }))
-        .expect("a device")
+        support::device_on(&self.adapter).expect("a device")
     }
+}
+
+/// Records `renderer`'s prepared frame into a pass of new targets on `device` and submits it.
+fn draw(renderer: &TerrainRenderer, device: &wgpu::Device, queue: &wgpu::Queue) -> wgpu::Texture {
+    let color = own_device::target(device, COLOR, SIZE.0, SIZE.1, true);
+    let depth = own_device::target(
+        device,
+        wgpu::TextureFormat::Depth32Float,
+        SIZE.0,
+        SIZE.1,
+        false,
+    );
+    let mut encoder = device.create_command_encoder(&Default::default());
+    {
+        let mut pass = own_device::begin_pass(&mut encoder, &color, &depth);
+        renderer.render(&mut pass);
+    }
+    queue.submit([encoder.finish()]);
+    color
 }
 
 /// One flight's choices.
@@ -232,20 +233,7 @@ fn fly(adapter: &Adapter, cache: &Path, case: &Case, lose: bool) -> Flown {
         if let Some(t) = prepare_after {
             resend = Some(t.elapsed());
         }
-        let color = own_device::target(&device, COLOR, SIZE.0, SIZE.1, true);
-        let depth = own_device::target(
-            &device,
-            wgpu::TextureFormat::Depth32Float,
-            SIZE.0,
-            SIZE.1,
-            false,
-        );
-        let mut encoder = device.create_command_encoder(&Default::default());
-        {
-            let mut pass = own_device::begin_pass(&mut encoder, &color, &depth);
-            renderer.render(&mut pass);
-        }
-        queue.submit([encoder.finish()]);
+        let color = draw(&renderer, &device, &queue);
         let rgba = own_device::read_back(&device, &queue, &color).expect("read-back");
         frames.push((stats.plan_hash, rgba));
     }
@@ -382,20 +370,7 @@ fn a_gpu_error_is_returned_and_a_lost_device_is_no_panic() {
     renderer
         .prepare(&queue, &camera, SIZE)
         .expect("a frame on a lost device");
-    let color = own_device::target(&device, COLOR, SIZE.0, SIZE.1, true);
-    let depth = own_device::target(
-        &device,
-        wgpu::TextureFormat::Depth32Float,
-        SIZE.0,
-        SIZE.1,
-        false,
-    );
-    let mut encoder = device.create_command_encoder(&Default::default());
-    {
-        let mut pass = own_device::begin_pass(&mut encoder, &color, &depth);
-        renderer.render(&mut pass);
-    }
-    queue.submit([encoder.finish()]);
+    draw(&renderer, &device, &queue);
     // And it is rebuilt on a new device.
     let (device, queue) = adapter.device();
     renderer.rebuild(&device, &queue).expect("rebuild");
@@ -548,30 +523,17 @@ fn imagery_refills_after_a_rebuild() {
     let mut renderer =
         TerrainRenderer::new(&device, &queue, terrain, &profile("gles3-low"), &options)
             .expect("renderer");
-    let draw = |renderer: &mut TerrainRenderer, device: &wgpu::Device, queue: &wgpu::Queue| {
+    let frame = |renderer: &mut TerrainRenderer, device: &wgpu::Device, queue: &wgpu::Queue| {
         renderer.warm_up(queue, &camera, SIZE).expect("warm-up");
         renderer.prepare(queue, &camera, SIZE).expect("prepare");
-        let color = own_device::target(device, COLOR, SIZE.0, SIZE.1, true);
-        let depth = own_device::target(
-            device,
-            wgpu::TextureFormat::Depth32Float,
-            SIZE.0,
-            SIZE.1,
-            false,
-        );
-        let mut encoder = device.create_command_encoder(&Default::default());
-        {
-            let mut pass = own_device::begin_pass(&mut encoder, &color, &depth);
-            renderer.render(&mut pass);
-        }
-        queue.submit([encoder.finish()]);
+        let color = draw(renderer, device, queue);
         own_device::read_back(device, queue, &color).expect("read-back")
     };
-    let before = draw(&mut renderer, &device, &queue);
+    let before = frame(&mut renderer, &device, &queue);
     device.destroy();
     let (device, queue) = adapter.device();
     renderer.rebuild(&device, &queue).expect("rebuild");
-    let after = draw(&mut renderer, &device, &queue);
+    let after = frame(&mut renderer, &device, &queue);
     assert!(
         before == after,
         "the frame after the rebuild and warm-up differs"
@@ -584,7 +546,7 @@ fn imagery_refills_after_a_rebuild() {
     .expect("terrain");
     let mut plain = TerrainRenderer::new(&device, &queue, plain, &profile("gles3-low"), &options)
         .expect("renderer");
-    let plain = draw(&mut plain, &device, &queue);
+    let plain = frame(&mut plain, &device, &queue);
     let differ = plain
         .chunks_exact(4)
         .zip(after.chunks_exact(4))

@@ -8,6 +8,13 @@ type Error = Box<dyn std::error::Error>;
 /// `vulkan` feature). On GL Mesa is asked for exactly OpenGL ES 3.0, as `clipsat render --gpu gl` asks,
 /// so both see the same driver.
 pub(crate) fn own_device() -> Result<(wgpu::Device, wgpu::Queue), Error> {
+    let (_instance, adapter) = own_adapter()?;
+    device_on(&adapter)
+}
+
+/// The instance and adapter [`own_device`] takes its device from (keep the instance while the adapter
+/// is used: a wgpu GL instance dropped beside a live one closes the process's EGL display).
+pub(crate) fn own_adapter() -> Result<(wgpu::Instance, wgpu::Adapter), Error> {
     let vulkan = std::env::var("CLIPSAT_GPU").is_ok_and(|v| v.trim() == "vulkan");
     if !vulkan && std::env::var_os("MESA_GLES_VERSION_OVERRIDE").is_none() {
         std::env::set_var("MESA_GLES_VERSION_OVERRIDE", "3.0");
@@ -27,6 +34,11 @@ pub(crate) fn own_device() -> Result<(wgpu::Device, wgpu::Queue), Error> {
         compatible_surface: None,
         apply_limit_buckets: false,
     }))?;
+    Ok((instance, adapter))
+}
+
+/// A device of `adapter` on the GLES 3.0 / WebGL2 limits, and its queue.
+pub(crate) fn device_on(adapter: &wgpu::Adapter) -> Result<(wgpu::Device, wgpu::Queue), Error> {
     Ok(pollster::block_on(adapter.request_device(
         &wgpu::DeviceDescriptor {
             label: Some("own device"),
