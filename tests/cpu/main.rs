@@ -24,3 +24,22 @@ mod shaders_glsl;
 mod shaders_glslang;
 mod shading;
 mod sources;
+
+/// A shared terrain, or `None` (with a printed reason) when the data is missing outside CI.
+pub(crate) fn shared(name: &str, spacing: Option<f32>) -> Option<clipsat::source::Heightmap> {
+    let path = clipsat::data_dir().join(name);
+    if !path.is_file() {
+        let msg = format!("shared data file {} is missing", path.display());
+        assert!(
+            std::env::var("CI").as_deref() != Ok("true"),
+            "{msg} (CI=true requires it; set CLIPSAT_DATA)"
+        );
+        eprintln!("skipping: {msg}");
+        return None;
+    }
+    let opts = clipsat::source::LoadOptions {
+        spacing,
+        ..clipsat::source::LoadOptions::default()
+    };
+    Some(clipsat::source::load(&path, &opts).unwrap_or_else(|e| panic!("{name}: {e}")))
+}

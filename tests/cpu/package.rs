@@ -13,6 +13,8 @@ use clipsat::source::Heightmap;
 use clipsat::source::{self, LoadOptions};
 use clipsat::Error;
 
+use super::shared;
+
 /// Every shared terrain, with the spacing a PNG needs and the default bound the bake must pick.
 const SHARED: [(&str, Option<f32>, f64); 8] = [
     ("ps_height_1k.png", Some(160.0), 0.05),
@@ -28,25 +30,6 @@ const SHARED: [(&str, Option<f32>, f64); 8] = [
     ),
     ("aletsch_200m.tif", None, package::write::FLOAT_MAX_ERROR),
 ];
-
-/// A shared terrain, or `None` (with a printed reason) when the data is missing outside CI.
-fn shared(name: &str, spacing: Option<f32>) -> Option<Heightmap> {
-    let path = clipsat::data_dir().join(name);
-    if !path.is_file() {
-        let msg = format!("shared data file {} is missing", path.display());
-        assert!(
-            std::env::var("CI").as_deref() != Ok("true"),
-            "{msg} (CI=true requires it; set CLIPSAT_DATA)"
-        );
-        eprintln!("skipping: {msg}");
-        return None;
-    }
-    let opts = LoadOptions {
-        spacing,
-        ..LoadOptions::default()
-    };
-    Some(source::load(&path, &opts).unwrap_or_else(|e| panic!("{name}: {e}")))
-}
 
 fn temp(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("clipsat-package-{}", std::process::id()));

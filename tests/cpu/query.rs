@@ -12,7 +12,9 @@ use clipsat::package::query::{self, GridRanges, Level0, QueryTiles, ResidentGrid
 use clipsat::package::ray::{self, GridRay};
 use clipsat::package::{self, BakeOptions, Package};
 use clipsat::source::procedural::{self, ProceduralParams};
-use clipsat::source::{self, Heightmap, LoadOptions};
+use clipsat::source::Heightmap;
+
+use super::shared;
 
 /// Points and rays per terrain.
 const N: usize = 10_000;
@@ -321,25 +323,6 @@ fn query_procedural_heights_and_rays_are_exact() {
         "procedural 257",
         &procedural::generate(&p).expect("procedural"),
     );
-}
-
-/// A shared terrain, or None (printed) when the data is missing outside CI.
-fn shared(name: &str, spacing: Option<f32>) -> Option<Heightmap> {
-    let path = clipsat::data_dir().join(name);
-    if !path.is_file() {
-        let msg = format!("shared data file {} is missing", path.display());
-        assert!(
-            std::env::var("CI").as_deref() != Ok("true"),
-            "{msg} (CI=true requires it; set CLIPSAT_DATA)"
-        );
-        eprintln!("skipping: {msg}");
-        return None;
-    }
-    let opts = LoadOptions {
-        spacing,
-        ..LoadOptions::default()
-    };
-    Some(source::load(&path, &opts).unwrap_or_else(|e| panic!("{name}: {e}")))
 }
 
 #[test]
