@@ -21,5 +21,5 @@ mod terrain;
 pub use camera::Camera;
 pub use profile::Profile;
 pub use query::RayHit;
-pub use renderer::{FrameStats, RenderOptions, TerrainRenderer};
+pub use renderer::{FrameOptions, FrameStats, RenderOptions, TerrainRenderer};
 pub use terrain::{Terrain, TerrainOptions};
