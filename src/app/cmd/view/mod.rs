@@ -363,6 +363,7 @@ impl App<'_> {
         let size = p.window.inner_size();
         self.context = Some((p.context.clone(), p.gles30));
         self.applied = p.renderer.frame_options();
+        self.mask_effects();
         self.window = Some(p);
         self.resize(size.width, size.height);
         Ok(())
@@ -509,6 +510,15 @@ impl App<'_> {
         Ok(())
     }
 
+    /// The keys' SG effects within those of the renderer just built (the scene's own): a start or a key
+    /// 1 does not ask for an effect the scene leaves out.
+    fn mask_effects(&mut self) {
+        let (a, s) = (self.applied, &mut self.state.shading);
+        s.visibility &= a.visibility;
+        s.specular &= a.specular;
+        s.fog &= a.fog;
+    }
+
     /// The keys' switches back to what the renderer draws.
     fn take_back(&mut self) {
         let a = self.applied;
@@ -547,12 +557,9 @@ impl App<'_> {
                 self.sg_built = true;
                 if let Some(p) = self.window.as_ref() {
                     // The new renderer's options: the scene's effects, to be set from the keys next.
-                    let fresh = p.renderer.frame_options();
-                    self.state.shading.visibility &= fresh.visibility;
-                    self.state.shading.specular &= fresh.specular;
-                    self.state.shading.fog &= fresh.fog;
-                    self.applied = fresh;
+                    self.applied = p.renderer.frame_options();
                 }
+                self.mask_effects();
                 Ok(())
             }
             Err(e) if matches!(e, Error::Invalid { .. } | Error::Config { .. }) => {
