@@ -40,10 +40,12 @@ pub struct RenderOptions<'a> {
     pub sample_count: u32,
     /// SAT LOD at this screen-space error bound, pixels: each block takes the coarsest level whose
     /// conservative error bound stays under it, refined from a detail pool where the rings are too coarse.
-    /// None: each ring at its own level (distance LOD).
+    /// None: each ring at its own level (distance LOD). The first frame's mode: another is set between
+    /// frames with [`TerrainRenderer::set_frame_options`] ([`crate::FrameOptions::lod`]).
     pub sat_lod_px: Option<f32>,
     /// SG shading of a scene: a shipped name (`noon`, `evening`, `overcast`) or a scene TOML file. None:
-    /// basic shading.
+    /// basic shading only. With a scene, SG and its effects (within the scene's) are switched between
+    /// frames with [`TerrainRenderer::set_frame_options`].
     pub sg_scene: Option<&'a str>,
     /// Where the set-up's bakes (SAT LOD tables, SG tables) report their progress.
     pub progress: Progress<'a>,
