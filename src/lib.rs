@@ -94,11 +94,14 @@ mod temp;
 #[cfg(feature = "internals")]
 pub mod twin;
 
+pub use bake::lod_tables::LodMode;
 pub use engine::{
-    Camera, FrameStats, Profile, RayHit, RenderOptions, Terrain, TerrainOptions, TerrainRenderer,
+    Camera, FrameOptions, FrameStats, Profile, RayHit, RenderOptions, Terrain, TerrainOptions,
+    TerrainRenderer,
 };
 pub use error::{BoxError, Error, Param, Result};
 pub use progress::{Progress, ProgressReport};
+pub use shading::debug_view::DebugView;
 
 /// The README's Rust blocks, compiled as doctests: its embedding example stays true to the API.
 #[cfg(doctest)]

@@ -2,7 +2,8 @@
 //! render pass, through a resize, with the public API only. Without the example's own draw, each frame's
 //! image hash equals `clipsat render --gpu gl` of the same view at that size (with `CLIPSAT_GPU=vulkan`,
 //! both on wgpu's Vulkan backend); with it, the orange triangle shows in the top-left corner and nothing
-//! else changes.
+//! else changes. Also: `FrameOptions` switched between frames on one renderer (a SAT mode, a debug view,
+//! culling off) and back draw the first frame's pixels again.
 //!
 //! Its own test binary: the example's wgpu GL instance closes the process's EGL display when it drops,
 //! which other GPU tests running beside it in one process would not survive.
@@ -368,4 +369,86 @@ fn the_marker_is_hidden_exactly_where_the_terrain_is_in_front() {
         wrong.len(),
         &wrong[..wrong.len().min(20)]
     );
+}
+
+/// The per-frame options through the public API, on one renderer: a SAT mode and a debug view change
+/// the frame, culling off draws more, switching back draws the first frame's pixels again, and a switch
+/// the renderer cannot make is refused with nothing changed.
+#[test]
+fn frame_options_switch_between_frames_and_back() {
+    use clipsat::{DebugView, Error, FrameStats, LodMode, RenderOptions, Terrain, TerrainRenderer};
+    let _one = ONE_INSTANCE.lock().unwrap_or_else(|e| e.into_inner());
+    let cache = Path::new(env!("CARGO_TARGET_TMPDIR")).join("own_device_cache");
+    let (device, queue) = own_device::own_device().expect("own device");
+    let profile = clipsat::Profile::load("gles3-low").expect("shipped profile");
+    let terrain = Terrain::procedural(1, 257, 30.0, Some(&cache)).expect("terrain");
+    let camera = terrain.default_camera().expect("camera");
+    let options = RenderOptions::default();
+    let mut r =
+        TerrainRenderer::new(&device, &queue, terrain, &profile, &options).expect("renderer");
+    let (w, h) = (160, 120);
+    let color = own_device::target(&device, options.color_format, w, h, true);
+    let depth = own_device::target(&device, options.depth_format, w, h, false);
+    let frame = |r: &mut TerrainRenderer| -> (FrameStats, Vec<u8>) {
+        r.warm_up(&queue, &camera, (w, h)).expect("warm-up");
+        let stats = r.prepare(&queue, &camera, (w, h)).expect("prepare");
+        let mut encoder = device.create_command_encoder(&Default::default());
+        {
+            let mut pass = own_device::begin_pass(&mut encoder, &color, &depth);
+            r.render(&mut pass);
+        }
+        queue.submit([encoder.finish()]);
+        let image = own_device::read_back(&device, &queue, &color).expect("read-back");
+        (stats, image)
+    };
+    let first = r.frame_options();
+    assert_eq!(
+        (first.lod, first.debug, first.sg, first.morph, first.cull),
+        (LodMode::Distance, DebugView::Normal, false, true, true)
+    );
+    assert_eq!(r.sat_lod_px(), None);
+    let (base, base_image) = frame(&mut r);
+
+    let mut o = first;
+    o.lod = LodMode::SatConservative;
+    r.set_frame_options(&queue, o).expect("a SAT mode");
+    assert!(r.sat_lod_px().is_some(), "the profile's bound");
+    r.set_sat_lod_px(4.0).expect("a bound");
+    let (sat, sat_image) = frame(&mut r);
+    assert_ne!(sat.triangles, base.triangles, "SAT LOD drew the rings");
+    assert_ne!(sat_image, base_image);
+
+    o.lod = LodMode::Distance;
+    o.debug = DebugView::Levels;
+    r.set_frame_options(&queue, o).expect("the level view");
+    assert!(r.set_sat_lod_px(1.0).is_err(), "distance LOD has no bound");
+    let (levels, levels_image) = frame(&mut r);
+    assert_eq!(levels.triangles, base.triangles);
+    assert_ne!(levels_image, base_image, "the level view drew the shading");
+
+    o.debug = DebugView::Normal;
+    o.cull = false;
+    r.set_frame_options(&queue, o).expect("culling off");
+    let (unculled, _) = frame(&mut r);
+    assert!(unculled.triangles > base.triangles, "culling off culled");
+
+    o.cull = true;
+    r.set_frame_options(&queue, o)
+        .expect("back to the first options");
+    assert_eq!(r.frame_options(), first);
+    let (again, again_image) = frame(&mut r);
+    assert_eq!(again.triangles, base.triangles);
+    assert!(
+        again_image == base_image,
+        "back to the first options: another image"
+    );
+
+    // SG on a renderer built without a scene: refused, nothing changed.
+    let mut sg = first;
+    sg.sg = true;
+    assert!(matches!(
+        r.set_frame_options(&queue, sg),
+        Err(Error::Invalid { .. })
+    ));
+    assert_eq!(r.frame_options(), first);
 }

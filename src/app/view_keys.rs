@@ -1,15 +1,11 @@
 //! The interactive viewer's state (`clipsat view`): held keys, mouse motion and toggle keys in; a camera
-//! and the renderer's [`FrameOptions`] out. Pure and windowless, so it is tested without a display; the
-//! window (src/app/cmd/view.rs) only maps winit events onto [`Move`] and [`Action`].
+//! and the renderer's [`FrameOptions`] out, public types of the library. Pure and windowless, so it is
+//! tested without a display; the window (`src/app/cmd/view/`) only maps winit events onto [`Move`] and
+//! [`Action`].
 
 use glam::DVec3;
 
-use clipsat::gpu::headless::FrameOptions;
-use clipsat::plan::camera::Camera;
-use clipsat::plan::lod::LodMode;
-use clipsat::shading::debug_view::DebugView;
-use clipsat::shading::scene::Scene;
-use clipsat::Result;
+use clipsat::{Camera, DebugView, FrameOptions, LodMode, Result};
 
 /// A key held for flight.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -91,61 +87,6 @@ pub(crate) struct ShadingSwitches {
     pub(crate) fog: bool,
 }
 
-impl ShadingSwitches {
-    /// The scene's own effects, with SG on or off.
-    pub(crate) fn from_scene(scene: &Scene, sg: bool) -> Self {
-        Self {
-            sg,
-            visibility: scene.effects.visibility,
-            specular: scene.effects.specular,
-            fog: scene.effects.fog,
-        }
-    }
-
-    /// Whether every effect switched on here is on in `built` too (SG itself aside).
-    pub(crate) fn within(&self, built: &Self) -> bool {
-        (!self.visibility || built.visibility)
-            && (!self.specular || built.specular)
-            && (!self.fog || built.fog)
-    }
-
-    /// These switches with every effect of `other` on as well (SG as here).
-    pub(crate) fn union(&self, other: &Self) -> Self {
-        Self {
-            sg: self.sg,
-            visibility: self.visibility || other.visibility,
-            specular: self.specular || other.specular,
-            fog: self.fog || other.fog,
-        }
-    }
-
-    /// One line for the log: `basic`, or `sg` and each effect on or off.
-    pub(crate) fn label(&self) -> String {
-        if !self.sg {
-            return "off".to_string();
-        }
-        format!(
-            "on (vis {}, spec {}, fog {})",
-            on_off(self.visibility),
-            on_off(self.specular),
-            on_off(self.fog)
-        )
-    }
-
-    /// `scene` with its effects set to these switches, or None for basic shading. Fog stays off in a
-    /// scene that gives no fog parameters.
-    pub(crate) fn apply(&self, scene: &Scene) -> Option<Scene> {
-        if !self.sg {
-            return None;
-        }
-        let mut s = scene.clone();
-        s.effects.visibility = self.visibility;
-        s.effects.specular = self.specular;
-        s.effects.fog = self.fog && s.fog.is_some();
-        Some(s)
-    }
-}
-
 /// The viewer's whole state.
 #[derive(Clone, Debug, PartialEq)]
 pub(crate) struct ViewState {
@@ -186,16 +127,25 @@ impl ViewState {
     /// Turn rate of the arrow keys, radians per second.
     pub(crate) const TURN_RATE: f64 = 1.2;
 
-    /// Starts at `camera`, flying `speed` m/s, with the SAT LOD bound `epsilon_px`.
-    pub(crate) fn new(camera: &Camera, speed: f64, epsilon_px: f32) -> Self {
-        let f = camera.forward();
+    /// Starts at `eye` looking along `forward` (a unit vector) through a vertical field of view of
+    /// `fov_y_deg` degrees and clip planes `near_far`, flying `speed` m/s, with the SAT LOD bound
+    /// `epsilon_px`.
+    pub(crate) fn new(
+        eye: DVec3,
+        forward: DVec3,
+        fov_y_deg: f64,
+        near_far: (f64, f64),
+        speed: f64,
+        epsilon_px: f32,
+    ) -> Self {
+        let f = forward;
         let pitch = f.z.clamp(-1.0, 1.0).asin();
         Self {
-            eye: camera.eye,
+            eye,
             yaw: f.y.atan2(f.x),
             pitch: pitch.clamp(-Self::MAX_PITCH, Self::MAX_PITCH),
-            fov_y_deg: camera.fov_y_deg,
-            near_far: (camera.near, camera.far),
+            fov_y_deg,
+            near_far,
             speed,
             mouse_sensitivity: 0.003,
             lod: LodMode::Distance,
@@ -303,19 +253,27 @@ impl ViewState {
 
     /// The camera of this state.
     pub(crate) fn camera(&self) -> Result<Camera> {
-        Camera::new(self.eye, self.eye + self.forward(), self.fov_y_deg)?
-            .with_clip(self.near_far.0, self.near_far.1)
+        Camera::look_at(
+            self.eye.to_array(),
+            (self.eye + self.forward()).to_array(),
+            self.fov_y_deg,
+        )?
+        .with_clip(self.near_far.0, self.near_far.1)
     }
 
-    /// The per-frame options for this state (the LOD mode, debug view and shading are the renderer's,
-    /// fixed when it is built).
-    pub(crate) fn frame_options(&self) -> FrameOptions {
-        FrameOptions {
-            morph: self.morph,
-            cull: self.cull,
-            epsilon_px: Some(self.epsilon_px),
-            ..FrameOptions::default()
-        }
+    /// `base` (the renderer's options) with this state's LOD mode, morph, culling, debug view and
+    /// shading switches; the error bound is [`ViewState::epsilon_px`], set apart.
+    pub(crate) fn frame_options(&self, base: FrameOptions) -> FrameOptions {
+        let mut o = base;
+        o.lod = self.lod;
+        o.morph = self.morph;
+        o.cull = self.cull;
+        o.debug = self.debug;
+        o.sg = self.shading.sg;
+        o.visibility = self.shading.visibility;
+        o.specular = self.shading.specular;
+        o.fog = self.shading.fog;
+        o
     }
 
     /// One line describing the toggles, for the stats overlay.
@@ -359,13 +317,14 @@ mod tests {
     use super::*;
 
     fn state() -> ViewState {
-        let cam = Camera::new(
+        ViewState::new(
             DVec3::new(0.0, 0.0, 100.0),
-            DVec3::new(100.0, 0.0, 100.0),
+            DVec3::X,
             60.0,
+            (1.0, 1e6),
+            10.0,
+            1.0,
         )
-        .expect("camera");
-        ViewState::new(&cam, 10.0, 1.0)
     }
 
     fn close(a: DVec3, b: DVec3) -> bool {
@@ -377,8 +336,9 @@ mod tests {
         let s = state();
         assert!(close(s.forward(), DVec3::X));
         let c = s.camera().expect("camera");
-        assert!(close(c.forward(), DVec3::X));
-        assert!(close(c.eye, DVec3::new(0.0, 0.0, 100.0)));
+        let (eye, target) = (DVec3::from(c.eye()), DVec3::from(c.target()));
+        assert!(close((target - eye).normalize(), DVec3::X));
+        assert!(close(eye, DVec3::new(0.0, 0.0, 100.0)));
     }
 
     #[test]
@@ -468,35 +428,24 @@ mod tests {
         s.action(Action::ToggleMorph);
         s.action(Action::ToggleCull);
         s.action(Action::CycleDebug);
-        let o = s.frame_options();
+        let o = s.frame_options(FrameOptions::default());
         assert_eq!(
-            (s.lod, o.epsilon_px, o.morph, o.cull, s.debug),
-            (LodMode::Sat, Some(0.8), false, false, DebugView::Levels)
+            (o.lod, s.epsilon_px, o.morph, o.cull, o.debug),
+            (LodMode::Sat, 0.8, false, false, DebugView::Levels)
         );
         assert!(s.describe().contains("view levels"), "{}", s.describe());
         assert_eq!(s.describe_shading(), "shading basic");
-        let scene = Scene::load("evening").expect("shipped scene");
-        s.shading = ShadingSwitches::from_scene(&scene, false);
-        assert_eq!(s.shading.apply(&scene), None, "basic shading has no scene");
+        assert!(!o.sg, "basic shading");
         s.action(Action::Toggle(Shading::Sg));
-        assert_eq!(s.shading.apply(&scene).as_ref(), Some(&scene));
         s.action(Action::Toggle(Shading::Visibility));
         s.action(Action::Toggle(Shading::Specular));
-        let applied = s.shading.apply(&scene).expect("sg on");
-        assert!(!applied.effects.visibility && !applied.effects.specular && applied.effects.fog);
-        assert!(!applied.needs().bake_horizons && !applied.needs().specular_code);
+        let o = s.frame_options(FrameOptions::default());
+        assert!(o.sg && !o.visibility && !o.specular && o.fog);
         assert_eq!(
             s.describe_shading(),
             "shading sg  vis off  spec off  fog on"
         );
-    }
-
-    #[test]
-    fn fog_needs_the_scenes_parameters() {
-        let noon = Scene::load("noon").expect("shipped scene");
-        let mut sw = ShadingSwitches::from_scene(&noon, true);
-        sw.fog = true;
-        let applied = sw.apply(&noon).expect("sg on");
-        assert_eq!(applied.effects.fog, noon.fog.is_some());
+        s.action(Action::Toggle(Shading::Fog));
+        assert!(!s.frame_options(FrameOptions::default()).fog);
     }
 }

@@ -49,7 +49,10 @@ pub const P: u32 = 4;
 const DOWN: f64 = 1.0 - 1.0 / (1u64 << 36) as f64;
 const UP: f64 = 1.0 + 1.0 / (1u64 << 36) as f64;
 
-/// How a block's object-space error is judged.
+/// How each block of the terrain chooses its level ([`crate::FrameOptions::lod`]): by its ring
+/// (distance LOD), or, in the SAT modes, the coarsest level whose screen-space error bound stays under
+/// [`crate::TerrainRenderer::set_sat_lod_px`], with the block's object-space error judged as each mode
+/// says.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum LodMode {
     /// No SAT: every block is drawn at its own ring's level (plain geometry clipmap).
@@ -57,7 +60,7 @@ pub enum LodMode {
     /// The SFAMF estimate M = E (mean (e/E)^p)^(1/p), never above the true max (the SAT paper's choice).
     Sat,
     /// min(E, N^(1/p) M, C): never below the true max. C is the max pyramid's value over the at most
-    /// 2 x 2 coarse cells covering the block ([`RangeMax::max_coarse`], O(1)): each of the three is an
+    /// 2 x 2 coarse cells covering the block (`RangeMax::max_coarse`, O(1)): each of the three is an
     /// upper bound, and C is the tight one where the error is spread over the block (there N^(1/p) M is
     /// up to N^(1/p) = 5.7 times the max for p = 4 and a 32 x 32 block).
     SatConservative,
@@ -67,8 +70,10 @@ pub enum LodMode {
 
 impl LodMode {
     /// The names [`LodMode::from_str`] accepts.
+    #[doc(hidden)]
     pub const NAMES: [&'static str; 4] = ["distance", "sat", "sat-conservative", "exact"];
     /// Every mode, in the order of [`LodMode::NAMES`].
+    #[doc(hidden)]
     pub const ALL: [LodMode; 4] = [
         LodMode::Distance,
         LodMode::Sat,

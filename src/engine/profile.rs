@@ -33,4 +33,9 @@ impl Profile {
     pub fn get(&self) -> &profile::Profile {
         &self.0
     }
+
+    /// The stages' profile as the public one (a shipped profile the binary changed, such as its viewport).
+    pub fn from_stages(profile: profile::Profile) -> Self {
+        Self(profile)
+    }
 }

@@ -15,7 +15,10 @@ use crate::{Camera, Error, Profile, Result, Terrain};
 
 use super::setup;
 
+mod frame_options;
 mod recover;
+
+pub use frame_options::FrameOptions;
 
 /// What a [`TerrainRenderer`] is built with: the caller's target formats, and the choices fixed for its
 /// life. The default is basic shading with distance LOD into `Rgba8Unorm` / `Depth32Float`.
@@ -37,10 +40,12 @@ pub struct RenderOptions<'a> {
     pub sample_count: u32,
     /// SAT LOD at this screen-space error bound, pixels: each block takes the coarsest level whose
     /// conservative error bound stays under it, refined from a detail pool where the rings are too coarse.
-    /// None: each ring at its own level (distance LOD).
+    /// None: each ring at its own level (distance LOD). The first frame's mode: another is set between
+    /// frames with [`TerrainRenderer::set_frame_options`] ([`crate::FrameOptions::lod`]).
     pub sat_lod_px: Option<f32>,
     /// SG shading of a scene: a shipped name (`noon`, `evening`, `overcast`) or a scene TOML file. None:
-    /// basic shading.
+    /// basic shading only. With a scene, SG and its effects (within the scene's) are switched between
+    /// frames with [`TerrainRenderer::set_frame_options`].
     pub sg_scene: Option<&'a str>,
     /// Where the set-up's bakes (SAT LOD tables, SG tables) report their progress.
     pub progress: Progress<'a>,
@@ -144,6 +149,16 @@ pub struct TerrainRenderer {
     /// The exact queries' state (`engine/query.rs`) and the block side m of the profile.
     pub(super) queries: super::query_state::Queries,
     pub(super) block_quads: u32,
+    /// What the frames draw ([`TerrainRenderer::set_frame_options`]).
+    frame: FrameOptions,
+    /// The SG scene's effects the renderer was built with (None: basic shading only).
+    sg_effects: Option<crate::shading::scene::Effects>,
+    /// Whether that scene gives fog parameters ([`FrameOptions::fog`] has no effect without them).
+    sg_fog: bool,
+    /// The SAT LOD tables, once loaded, kept while distance LOD is drawn.
+    lod_tables: Option<crate::plan::lod::Lod>,
+    /// The terrain's cache folder, where a SAT mode set later bakes its tables.
+    cache: Option<std::path::PathBuf>,
 }
 
 impl TerrainRenderer {
@@ -265,6 +280,13 @@ impl TerrainRenderer {
             });
         }
         let renderer = renderer?;
+        let lod_mode = if options.sat_lod_px.is_some() {
+            LodMode::SatConservative
+        } else {
+            LodMode::Distance
+        };
+        let sg_effects = sg.as_ref().map(|(scene, _)| scene.effects);
+        let sg_fog = sg.as_ref().is_some_and(|(scene, _)| scene.fog.is_some());
         Ok(Self {
             name,
             stand_in,
@@ -281,6 +303,11 @@ impl TerrainRenderer {
             device: device.clone(),
             queries,
             block_quads: profile.block_m(),
+            frame: FrameOptions::initial(lod_mode, sg_effects),
+            sg_effects,
+            sg_fog,
+            lod_tables: None,
+            cache,
         })
     }
 
@@ -422,13 +449,13 @@ impl TerrainRenderer {
     }
 
     /// Sets SAT LOD's screen-space error bound, pixels, from the next frame on (no rebuild): the bound
-    /// a frame is drawn within, traded against triangles and plan time. Refused for a renderer built
-    /// with distance LOD ([`RenderOptions::sat_lod_px`] None) and for a bound that is not positive.
+    /// a frame is drawn within, traded against triangles and plan time. Refused while the renderer draws
+    /// distance LOD ([`FrameOptions::lod`]) and for a bound that is not positive.
     pub fn set_sat_lod_px(&mut self, px: f32) -> Result<()> {
         if self.planner.lod().is_none() {
             return Err(Error::Invalid {
                 what: "TerrainRenderer::set_sat_lod_px".into(),
-                reason: "the renderer draws distance LOD (RenderOptions::sat_lod_px was None)".into(),
+                reason: "the renderer draws distance LOD (FrameOptions::lod)".into(),
             });
         }
         if !(px.is_finite() && px > 0.0) {
@@ -441,9 +468,15 @@ impl TerrainRenderer {
         Ok(())
     }
 
-    /// SAT LOD's screen-space error bound, pixels (None: distance LOD).
+    /// SAT LOD's screen-space error bound, pixels (None: distance LOD). A SAT mode set with
+    /// [`TerrainRenderer::set_frame_options`] on a renderer built with distance LOD draws at the
+    /// profile's bound until one is set.
     pub fn sat_lod_px(&self) -> Option<f32> {
-        self.params.epsilon_px
+        self.planner.lod().map(|_| {
+            self.params
+                .epsilon_px
+                .unwrap_or(self.renderer.profile().view.epsilon_px)
+        })
     }
 
     /// The terrain's name ([`Terrain::name`]).

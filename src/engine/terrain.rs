@@ -185,6 +185,14 @@ impl Terrain {
         }
     }
 
+    /// The distance between neighbouring samples of the data, metres (x and y alike).
+    pub fn spacing_m(&self) -> f32 {
+        match &self.package {
+            Some(p) => p.header().spacing,
+            None => self.stand_in.spacing(),
+        }
+    }
+
     /// The lowest and highest height, metres.
     pub fn height_range(&self) -> (f32, f32) {
         match &self.package {

@@ -574,14 +574,6 @@ impl ColorRings {
         Ok(())
     }
 
-    /// Forgets what the rings hold (a new texture): the next updates write every texel again, under the
-    /// budget, and the rings fade in anew.
-    pub fn reset(&mut self) {
-        for l in &mut self.levels {
-            *l = Level::default();
-        }
-    }
-
     /// The ring side, texels.
     pub fn ring(&self) -> u32 {
         self.budget.ring

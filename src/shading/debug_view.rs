@@ -11,13 +11,15 @@ use std::str::FromStr;
 
 use crate::Error;
 
-/// What the clipmap renderer's fragment shader shows.
+/// What the terrain's fragment shader shows: the shading, or a debug view of the LOD
+/// ([`crate::FrameOptions::debug`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum DebugView {
     /// The normal shading (the frame hashes and goldens).
     #[default]
     Normal,
-    /// Blocks coloured by their drawn level ([`LEVEL_COLOURS`]), lit by a plain Lambert factor.
+    /// Blocks coloured by their drawn level (twelve hues, the last repeated past level 11), lit by a plain
+    /// Lambert factor.
     Levels,
     /// Lattice lines in the level colours over the dimmed normal shading.
     Wireframe,
@@ -25,9 +27,11 @@ pub enum DebugView {
 
 impl DebugView {
     /// Every view, in the order `clipsat view` cycles them.
+    #[doc(hidden)]
     pub const ALL: [DebugView; 3] = [DebugView::Normal, DebugView::Levels, DebugView::Wireframe];
 
     /// The shader's `DEBUG_VIEW` constant.
+    #[doc(hidden)]
     pub fn code(self) -> u32 {
         match self {
             DebugView::Normal => 0,

@@ -21,6 +21,8 @@ pub(crate) mod sg;
 pub(crate) mod tune_p;
 #[cfg(feature = "view")]
 pub(crate) mod view;
+#[cfg(feature = "view")]
+pub(crate) mod view_setup;
 
 use args::{arg_error, Size};
 use clap::{Args, ValueEnum};

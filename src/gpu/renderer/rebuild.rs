@@ -9,6 +9,7 @@ use crate::plan::clipmap::Clipmap;
 use crate::plan::detail::fill_tile;
 use crate::plan::frame_plan::FramePlan;
 use crate::profile::Profile;
+use crate::shading::debug_view::DebugView;
 use crate::{Error, Result};
 
 impl Renderer {
@@ -25,6 +26,17 @@ impl Renderer {
     /// [`Renderer::prepare`] sends every ring, pool tile and SG table texel of the plan in full. This
     /// renderer is left as it was (drop it).
     pub fn rebuild(&self, device: &wgpu::Device, queue: &wgpu::Queue) -> Result<Renderer> {
+        self.rebuild_with(device, queue, self.debug)
+    }
+
+    /// [`Renderer::rebuild`] with another debug view (the debug view is fixed per renderer: it is part of
+    /// every program).
+    pub fn rebuild_with(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        debug: DebugView,
+    ) -> Result<Renderer> {
         let shading = match &self.sg {
             // The scene as drawn: visibility as bound, fog as fitted (both idempotent in SgState::new).
             Some(sg) => Shading::Sg(SgShading {
@@ -42,7 +54,7 @@ impl Renderer {
             reverse_z: self.targets.compare == wgpu::CompareFunction::Greater,
             sample_count: self.targets.samples,
             shading,
-            debug: self.debug,
+            debug,
         };
         // The sky table is the scene's, kept: integrating it again is most of the CPU work.
         let sky = self.sg.as_ref().map(|sg| &sg.sky);

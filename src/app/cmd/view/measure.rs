@@ -2,28 +2,17 @@
 //! `render` path timed in the same run at the same size, camera and options.
 //!
 //! The headless path is what the view did per frame before it presented through a surface: update, plan,
-//! draw into the offscreen target of the strict context, read the image back and hash it
-//! ([`render_frame`]). The old view then also scaled that image into a softbuffer window, so the ratio
-//! of the two is a lower bound of what presenting without read-back saves.
+//! draw into the offscreen target of the strict context, read the image back and hash it. The old view
+//! then also scaled that image into a softbuffer window, so the ratio of the two is a lower bound of
+//! what presenting without read-back saves. That path is drawn through the stages, a test instrument
+//! outside the public API, by `app/cmd/view_setup.rs` ([`time_headless`]); this file only keeps the
+//! times.
 
-use std::time::Instant;
-
-use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen, OffscreenOptions};
-use clipsat::gpu::{Gpu, GpuMode};
-use clipsat::package::{Package, TileCache};
-use clipsat::plan::camera::Camera;
-use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
-use clipsat::plan::frame_plan::LodSetup;
-use clipsat::plan::lod::LodMode;
-use clipsat::profile::Profile;
-use clipsat::shading::debug_view::DebugView;
-use clipsat::source::Heightmap;
 use clipsat::Result;
 use serde_json::json;
 
-use super::super::args::arg_error;
-use super::super::render::lod_for;
-use super::super::sg::{self, SgChoice};
+use super::super::args::{arg_error, GpuArg};
+use super::super::view_setup::{time_headless, HeadlessView};
 
 /// Frame times of one path, ms.
 #[derive(Clone, Copy, Debug)]
@@ -88,76 +77,23 @@ pub(super) struct Headless {
     pub(super) times: Times,
 }
 
-/// What the view drew, for [`headless`] to draw the same.
-pub(super) struct Same<'a> {
-    /// The terrain, or a streamed terrain's coarse stand-in.
-    pub(super) hm: &'a Heightmap,
-    /// The package the view streamed, streamed again here.
-    pub(super) package: Option<&'a std::path::Path>,
-    /// The profile with the window's size as its viewport.
-    pub(super) profile: &'a Profile,
-    pub(super) camera: &'a Camera,
-    pub(super) opts: &'a FrameOptions,
-    pub(super) lod: LodMode,
-    pub(super) debug: DebugView,
-    /// The SG choice when the view drew SG shading.
-    pub(super) sg: Option<&'a SgChoice>,
-}
-
-/// Renders `frames` frames of the same view headless (a fresh context of `mode`, as `clipsat render`
+/// Renders `frames` frames of the same view headless (a fresh context of `gpu`, as `clipsat render`
 /// makes) after filling the clipmap as `render` does, and times each.
-pub(super) fn headless(same: &Same<'_>, mode: GpuMode, frames: u32) -> Result<Headless> {
-    let gpu = Gpu::new(mode)?;
-    let mut clipmap = match same.package {
-        Some(p) => Clipmap::streamed(Package::open(p)?, same.profile, ClipmapOptions::default())?,
-        None => Clipmap::new(same.hm, same.profile, ClipmapOptions::default())?,
-    };
-    // As `render`: update until nothing is stale or pending at the eye (bounded).
-    clipmap.fill_at(same.camera.eye, 10_000)?;
-    let lod = if same.lod == LodMode::Distance {
-        None
-    } else {
-        Some(lod_for(same.hm, same.profile, &clipmap, true, true)?)
-    };
-    let baked = same
-        .sg
-        .map(|c| {
-            c.bake(
-                same.profile,
-                same.hm,
-                clipmap.tile_cache().map(TileCache::package),
-            )
-        })
-        .transpose()?;
-    let mut r = Offscreen::new(
-        &gpu,
-        same.profile,
-        &clipmap,
-        OffscreenOptions {
-            lod: LodSetup::new(same.lod, lod)?,
-            shading: sg::shading(same.sg, baked.as_ref()),
-            debug: same.debug,
-        },
-    )?;
+pub(super) fn headless(view: &HeadlessView<'_>, gpu: GpuArg, frames: u32) -> Result<Headless> {
     let mut ms = Vec::with_capacity(frames as usize);
     let mut cpu_after_first = None;
-    for _ in 0..frames {
-        let t = Instant::now();
-        clipmap.update(same.camera.eye)?;
-        render_frame(&mut r, &clipmap, same.camera, same.opts)?;
-        ms.push(t.elapsed().as_secs_f64() * 1e3);
+    let context = time_headless(view, gpu, frames, |t| {
+        ms.push(t);
         if ms.len() == 1 {
             cpu_after_first = cpu_ms();
         }
-    }
-    let cpu = per_frame(cpu_after_first, cpu_ms(), ms.len() - 1);
-    let times = Times::of(ms[0], &ms[1..], cpu)
+    })?;
+    let cpu = per_frame(cpu_after_first, cpu_ms(), ms.len().saturating_sub(1));
+    let times = ms
+        .split_first()
+        .and_then(|(first, rest)| Times::of(*first, rest, cpu))
         .ok_or_else(|| arg_error("--frames", "needs at least 2 frames to time"))?;
-    let report = gpu.report();
-    Ok(Headless {
-        context: format!("{}, {}", report.gl_version, report.name),
-        times,
-    })
+    Ok(Headless { context, times })
 }
 
 /// CPU ms per frame between two [`cpu_ms`] readings `frames` frames apart.

@@ -1,40 +1,26 @@
-//! `clipsat view`: an interactive fly-through window (winit), the front end of the whole pipeline.
+//! `clipsat view`: an interactive fly-through window (winit), a caller of the public API.
 //!
-//! Each frame runs exactly what the frame hashes are made of: the clipmap update under the budget, the
-//! frame plan, then the embeddable [`clipsat::gpu::renderer::Renderer`] drawing into the render pass of
-//! the window's own wgpu surface ([`present`]). The view is a caller of the library like
-//! `examples/own_device.rs`: it makes its instance (wgpu's GL backend on the X11 display through EGL,
-//! OpenGL ES 3.0 where Mesa gives it), the surface, device and depth target itself, and nothing is read
-//! back. The context it got is printed on stdout and shown, with the stats line, in the window title.
+//! The view draws like `examples/own_device.rs`: a [`clipsat::TerrainRenderer`] built on the window's own
+//! wgpu device, `prepare` with the frame's [`clipsat::Camera`] and viewport, `render` into the surface's
+//! pass ([`present`]). It makes its instance (wgpu's GL backend on the X11 display through EGL, OpenGL
+//! ES 3.0 where Mesa gives it), the surface, device and depth target itself, and nothing is read back.
+//! Its keys are the renderer's per-frame options ([`clipsat::FrameOptions`],
+//! `TerrainRenderer::set_sat_lod_px`); key 1 on a renderer built without SG builds it again with the
+//! scene. The context it got is printed on stdout and shown, with the stats line, in the window title.
 //! `--frames N` draws N frames without input and times them against the headless `render` path in the
-//! same run ([`measure`]).
-//! The input -> camera state machine is [`crate::app::view_keys::ViewState`]; this file only maps winit events.
+//! same run ([`measure`]; that path, a test instrument, is drawn through the stages by
+//! `app/cmd/view_setup.rs`). The input -> camera state machine is
+//! [`crate::app::view_keys::ViewState`]; this file only maps winit events.
 
 mod measure;
 mod present;
 
 use std::time::{Duration, Instant};
 
-use crate::app::cmd::args::arg_error;
-use crate::app::view_keys::{Action, Move, Shading, ShadingSwitches, ViewState};
+use crate::app::view_keys::{Action, Move, Shading, ViewState};
 use clap::Args;
-use clipsat::bake::horizon::DEFAULT_AZIMUTHS;
-use clipsat::gpu::renderer::{self as gpu_renderer, RendererOptions, SgShading};
-use clipsat::gpu::shaders::SgOmit;
-use clipsat::gpu::GpuMode;
-use clipsat::package::shading_sats::ShadingBake;
-use clipsat::plan::camera::parse_vec3;
-use clipsat::plan::camera::Camera;
-use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
-use clipsat::plan::frame_plan::{FramePlan, LodSetup, PlanParams, Planner};
-use clipsat::plan::lod::Lod;
-use clipsat::plan::lod::LodMode;
-use clipsat::profile::Profile;
-use clipsat::shading::debug_view::DebugView;
-use clipsat::shading::scene::Scene;
-use clipsat::shading::Patches;
-use clipsat::source::Heightmap;
-use clipsat::{Error, Result};
+use clipsat::{DebugView, Error, FrameOptions, LodMode, Profile, RenderOptions, Result, Terrain};
+use glam::DVec3;
 use serde_json::json;
 use winit::application::ApplicationHandler;
 use winit::event::{ElementState, MouseButton, WindowEvent};
@@ -42,11 +28,10 @@ use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop};
 use winit::keyboard::{KeyCode, PhysicalKey};
 use winit::window::WindowId;
 
-use super::args::{pixel_size, DebugArg, GpuArgs, LodArgs, Size, StreamArgs};
-use super::render::lod_for;
+use super::args::{pixel_size, DebugArg, GpuArg, GpuArgs, LodArgs, Size, StreamArgs};
 use super::sg::ShadingArgs;
+use super::view_setup::{self, HeadlessSg, HeadlessView};
 use super::{ProfileArgs, TerrainArgs};
-use clipsat::plan::color_rings::ColorRings;
 use measure::{round2, Times};
 use present::{window_error, Presented, Presenter};
 
@@ -91,110 +76,74 @@ pub(crate) struct ViewArgs {
 /// Frame times kept for the closing summary.
 const FRAME_LOG: usize = 1 << 16;
 
+/// The sky the frame is cleared to (the colour `clipsat render` clears to).
+const SKY: [f64; 4] = [0.63, 0.76, 0.90, 1.0];
+
+/// The scene key 1 switches to when the view started with the basic shading.
+const DEFAULT_SCENE: &str = "noon";
+
 /// The keys, printed at start.
 const HELP: &str = "keys: WASD fly, E/space up, Q/C down, shift fast, arrows or left-drag look, \
 L lod mode, [ ] epsilon, M morph, K cull, V view (normal/levels/wireframe), \
 1 basic/SG shading, 2 visibility, 3 specular, 4 fog, Esc quit";
 
 pub(crate) fn run(args: &ViewArgs) -> Result<()> {
-    let mode = args.gpu.mode();
-    let lod = args.lod.mode();
-    let debug = DebugView::from(args.debug);
-    let epsilon = args.lod.epsilon;
-    let mut profile = args.profile.load()?;
-    if let Some(s) = args.size {
-        (profile.view.width, profile.view.height) = s.pair();
-    }
-    if args.shading.reference {
-        return Err(arg_error(
-            "--reference",
-            "applies to render and fly, not view",
-        ));
-    }
-    // The terrain streams through the profile's tile cache by default (a plain source baked into the
-    // cache on first use), as `render` streams it: the camera and the ground under it come from the
-    // package's coarse stand-in. --resident loads it whole.
-    let (terrain_name, hm, package, imagery) =
-        super::render::open_terrain(&args.terrain, args.stream.streams(None)?, true)?;
-    // Draped imagery's colour rings, their CPU share taken from the budget before the heights'.
-    let imagery = match imagery {
-        Some(p) => {
-            super::imagery::check_profile(&mut profile)?;
-            Some(ColorRings::new(p, &profile.imagery)?)
-        }
-        None => None,
-    };
-    // The data's own spacing (the stand-in's is coarser): the eye's clearance above the ground.
-    let spacing = package
-        .as_ref()
-        .map_or_else(|| hm.spacing(), |p| p.header().spacing);
-    let mut camera = Camera::default_for(&hm)?;
-    if let Some(text) = &args.camera {
-        let eye = parse_vec3("--camera", text)?;
-        camera = Camera::new(eye, eye + camera.forward(), camera.fov_y_deg)?
-            .with_clip(camera.near, camera.far)?;
-    }
-    camera.fov_y_deg = f64::from(profile.view.fov_y_deg);
-    let (ex, ey) = hm.extent_m();
+    let mode = args.gpu.gpu;
+    let start = view_setup::start(
+        &args.profile,
+        args.size,
+        &args.terrain,
+        &args.stream,
+        &args.shading,
+        args.camera.as_deref(),
+    )?;
+    let epsilon = args.lod.epsilon.unwrap_or(start.epsilon_px);
+    let (ex, ey) = start.extent_m;
     let speed = args.speed.unwrap_or(0.05 * ex.max(ey)).max(1e-3);
-    let mut state = ViewState::new(&camera, speed, epsilon.unwrap_or(profile.view.epsilon_px));
-    state.lod = lod;
-    state.debug = debug;
-    // Key 1 switches SG on and off, so the scene is loaded either way (checked against the profile when
-    // SG is first switched on).
-    let sg = args.shading.choice(&profile)?;
-    let (scene, patches) = match &sg {
-        Some(c) => {
-            state.shading = ShadingSwitches::from_scene(&c.scene, true);
-            state.shading.visibility &= c.shadows;
-            (c.scene.clone(), c.patches)
-        }
-        None => {
-            let scene = Scene::load("noon")?;
-            state.shading = ShadingSwitches::from_scene(&scene, false);
-            (scene, Patches::default())
-        }
-    };
-
-    let clipmap = match package {
-        Some(p) => Clipmap::streamed(p, &profile, ClipmapOptions::default())?,
-        None => Clipmap::new(&hm, &profile, ClipmapOptions::default())?,
-    };
-    let streamed = clipmap.tile_cache().is_some();
-    let planner = Planner::new(&profile, &clipmap, LodSetup::Distance)?;
-    let plan = planner.new_plan();
-    // The renderer starts with the basic shading.
-    let applied = ShadingSwitches {
-        sg: false,
-        ..state.shading
-    };
+    let (eye, target) = (DVec3::from(start.eye), DVec3::from(start.target));
+    let mut state = ViewState::new(
+        eye,
+        (target - eye).normalize_or(DVec3::X),
+        start.fov_y_deg,
+        start.near_far,
+        speed,
+        epsilon,
+    );
+    state.lod = args.lod.mode();
+    state.debug = DebugView::from(args.debug);
+    state.shading.sg = start.sg.is_some();
+    let shadows = start.sg.as_ref().is_none_or(|(_, shadows)| *shadows);
+    state.shading.visibility &= shadows;
+    let terrain_name = start.terrain.name().to_string();
+    let streamed = start.terrain.is_streamed();
     // Before the event loop, its threads and any GL context: Mesa reads these once.
     present::ask_for_gles(mode);
     let event_loop = EventLoop::new().map_err(|e| window_error("cannot open the event loop", e))?;
     event_loop.set_control_flow(ControlFlow::Poll);
     let instance = present::instance(mode, &event_loop);
-    eprintln!("clipsat view: {terrain_name}, profile {}", profile.name);
+    eprintln!(
+        "clipsat view: {terrain_name}, profile {}",
+        start.profile.name()
+    );
     if args.frames.is_none() {
         eprintln!("{HELP}");
     }
     let mut app = App {
-        hm: &hm,
-        profile: profile.clone(),
+        args,
+        profile: start.profile.clone(),
+        size: start.size,
         mode,
-        json: args.json,
         instance,
-        clipmap,
-        planner,
-        plan,
-        built: (LodMode::Distance, DebugView::Normal),
-        lod: None,
+        terrain: Some(start.terrain),
+        scene: start
+            .sg
+            .as_ref()
+            .map_or_else(|| DEFAULT_SCENE.to_string(), |(s, _)| s.clone()),
+        sg_built: start.sg.is_some(),
+        sat_loaded: false,
+        applied: FrameOptions::default(),
         state,
-        scene,
-        patches,
-        bake: None,
-        applied,
-        sg_built: None,
-        clearance: (2.0 * f64::from(spacing)).max(30.0),
+        clearance: (2.0 * f64::from(start.spacing_m)).max(30.0),
         window: None,
         context: None,
         drag: None,
@@ -209,7 +158,6 @@ pub(crate) fn run(args: &ViewArgs) -> Result<()> {
         last_ms: 0.0,
         titled: None,
         error: None,
-        imagery,
     };
     event_loop
         .run_app(&mut app)
@@ -223,10 +171,6 @@ pub(crate) fn run(args: &ViewArgs) -> Result<()> {
         .take()
         .map_or((0, 0), |p| (p.config.width, p.config.height));
     let (context, gles30) = app.context.clone().unwrap_or_default();
-    let package = app
-        .clipmap
-        .tile_cache()
-        .map(|c| c.package().path().to_path_buf());
     // With --frames, time the frames from the first one that found the clipmap filled (the others paid
     // the fill under the budget); interactively, every frame after the first.
     let from = match args.frames {
@@ -246,22 +190,28 @@ pub(crate) fn run(args: &ViewArgs) -> Result<()> {
         .and_then(|&first| Times::of(first, &app.frame_ms[from..], cpu));
     let headless = match args.frames {
         Some(n) if width > 0 => {
-            profile.view.width = width;
-            profile.view.height = height;
-            let camera = app.state.camera()?;
-            let opts = app.state.frame_options();
+            let s = &app.state;
+            let o = app.applied;
             eprintln!("clipsat view: timing {n} frames of the headless render path at {width}x{height}...");
-            let same = measure::Same {
-                hm: &hm,
-                package: package.as_deref(),
-                profile: &profile,
-                camera: &camera,
-                opts: &opts,
-                lod: app.state.lod,
-                debug: app.state.debug,
-                sg: sg.as_ref().filter(|_| app.applied.sg),
+            let view = HeadlessView {
+                terrain: &args.terrain,
+                stream: &args.stream,
+                profile: &args.profile,
+                size: (width, height),
+                eye: s.eye.to_array(),
+                target: (s.eye + s.forward()).to_array(),
+                fov_y_deg: s.fov_y_deg,
+                near_far: s.near_far,
+                options: o,
+                epsilon_px: s.epsilon_px,
+                sg: o.sg.then_some(HeadlessSg {
+                    scene: &app.scene,
+                    visibility: o.visibility,
+                    specular: o.specular,
+                    fog: o.fog,
+                }),
             };
-            Some(measure::headless(&same, mode, n)?)
+            Some(measure::headless(&view, mode, n)?)
         }
         _ => None,
     };
@@ -278,7 +228,7 @@ pub(crate) fn run(args: &ViewArgs) -> Result<()> {
         super::print_json(&json!({
             "terrain": terrain_name,
             "streamed": streamed,
-            "profile": profile.name,
+            "profile": app.profile.name(),
             "width": width,
             "height": height,
             "frames": app.frames,
@@ -322,33 +272,24 @@ fn cpu_text(cpu: Option<f64>) -> String {
 }
 
 struct App<'a> {
-    hm: &'a Heightmap,
-    /// The profile; its viewport follows the window's size.
+    args: &'a ViewArgs,
+    /// The profile (the renderer sizes everything from it; the window's size is each frame's viewport).
     profile: Profile,
-    mode: GpuMode,
-    /// `--json`: the summary is JSON.
-    json: bool,
+    /// The window's first size.
+    size: (u32, u32),
+    mode: GpuArg,
     instance: wgpu::Instance,
-    clipmap: Clipmap,
-    planner: Planner,
-    /// The frame plan, reused every frame.
-    plan: FramePlan,
-    /// The LOD mode and debug view the renderer was built with.
-    built: (LodMode, DebugView),
-    /// The SAT LOD tables, loaded when a SAT mode is first chosen.
-    lod: Option<Lod>,
+    /// The terrain, until the window's renderer takes it.
+    terrain: Option<Terrain>,
+    /// The SG scene: the one drawn, or the one key 1 switches to.
+    scene: String,
+    /// Whether the renderer was built with the SG scene (else key 1 builds it again with it).
+    sg_built: bool,
+    /// Whether a SAT mode was drawn yet (its tables are loaded then, once).
+    sat_loaded: bool,
+    /// The frame options the renderer draws with.
+    applied: FrameOptions,
     state: ViewState,
-    /// The SG scene the shading switches apply to, and its patch count.
-    scene: Scene,
-    patches: Patches,
-    /// The shading SATs, baked when SG is first switched on (again if visibility is switched on later).
-    bake: Option<ShadingBake>,
-    /// The switches the renderer is set up for.
-    applied: ShadingSwitches,
-    /// The effects (with `sg` on) the renderer's SG tables were built for, if it has them: the basic/SG
-    /// key and the effect keys within these then only switch it (`Renderer::set_sg_enabled`,
-    /// `Renderer::set_sg_effects`), creating no table.
-    sg_built: Option<ShadingSwitches>,
     clearance: f64,
     window: Option<Presenter>,
     /// The window's GL context (GL_VERSION, GL_RENDERER) and whether it is OpenGL ES 3.0.
@@ -374,8 +315,6 @@ struct App<'a> {
     titled: Option<Instant>,
     /// The first error, returned when the event loop ends.
     error: Option<Error>,
-    /// Draped imagery's colour rings (`--imagery`).
-    imagery: Option<ColorRings>,
 }
 
 impl App<'_> {
@@ -384,15 +323,35 @@ impl App<'_> {
         event_loop.exit();
     }
 
+    /// The options the renderer is built with: SG with the scene when `sg`, SAT LOD at the state's bound
+    /// when a SAT mode is drawn.
+    fn render_options(&self, sg: bool) -> RenderOptions<'_> {
+        render_options(sg.then_some(self.scene.as_str()), &self.state)
+    }
+
     fn open(&mut self, event_loop: &ActiveEventLoop) -> Result<()> {
-        let mut p = Presenter::open(&self.instance, event_loop, &self.profile, self.mode)?;
+        let Some(terrain) = self.terrain.take() else {
+            return Ok(());
+        };
+        if self.state.lod != LodMode::Distance {
+            eprintln!("clipsat view: loading the SAT LOD tables (baked once, then cached)...");
+            self.sat_loaded = true;
+        }
+        let options = self.render_options(self.sg_built);
+        let p = Presenter::open(
+            &self.instance,
+            event_loop,
+            self.size,
+            self.mode,
+            (terrain, &self.profile, options),
+        )?;
         let kind = if p.gles30 {
             "OpenGL ES 3.0"
         } else {
             "not OpenGL ES 3.0"
         };
         // On stdout unless the summary is JSON (stdout is then one JSON document).
-        if self.json {
+        if self.args.json {
             eprintln!("clipsat view: context {} ({kind})", p.context);
         } else {
             outln!("clipsat view: context {} ({kind})", p.context);
@@ -403,15 +362,15 @@ impl App<'_> {
         );
         let size = p.window.inner_size();
         self.context = Some((p.context.clone(), p.gles30));
-        if let Some(rings) = &mut self.imagery {
-            p.enable_imagery(rings)?;
-        }
+        self.applied = p.renderer.frame_options();
+        self.mask_effects();
         self.window = Some(p);
         self.resize(size.width, size.height);
         Ok(())
     }
 
-    /// The window's new size: the surface, the depth target and the planner's aspect follow.
+    /// The window's new size: the surface and the depth target follow (the renderer takes each frame's
+    /// viewport, nothing is rebuilt).
     fn resize(&mut self, width: u32, height: u32) {
         let Some(p) = self.window.as_mut() else {
             return;
@@ -422,50 +381,35 @@ impl App<'_> {
         if (p.config.width, p.config.height) != (width, height) {
             p.resize(width, height);
         }
-        // The next plans' viewport (nothing is rebuilt).
-        (self.profile.view.width, self.profile.view.height) = (width, height);
     }
 
-    /// One frame: fly, update the clipmap, plan, prepare, draw into the surface's pass, present.
+    /// One frame: fly, set the keys' options, prepare (update, plan, uploads), draw into the surface's
+    /// pass, present.
     fn frame(&mut self, event_loop: &ActiveEventLoop) -> Result<()> {
         let t0 = Instant::now();
         let dt = self.last.map_or(0.0, |t| (t0 - t).as_secs_f64().min(0.25));
         self.last = Some(t0);
         self.state.step(dt);
-        // The drawn surface under the eye (it can lie above the data while coarse rings fill), else the data.
-        let eye = self.state.eye;
-        let ground = self.clipmap.surface_height(eye).map_or_else(
-            || f64::from(self.hm.height_at_world(eye.x, eye.y)),
-            f64::from,
-        );
-        self.state.keep_above(ground, self.clearance);
-        let camera = self.state.camera()?;
-        let frame = self.clipmap.update(camera.eye)?;
-        let (samples, stale) = (frame.samples_updated, frame.stale_levels);
-        if self.state.lod != LodMode::Distance && self.lod.is_none() {
-            eprintln!("clipsat view: loading the SAT LOD tables (baked once, then cached)...");
-            // SG may be switched on while the view runs: the tables keep to their own share.
-            self.lod = Some(lod_for(self.hm, &self.profile, &self.clipmap, true, true)?);
-        }
-        self.sync_shading()?;
-        let opts = self.state.frame_options();
-        let params = PlanParams {
-            viewport: Some((self.profile.view.width, self.profile.view.height)),
-            ..opts.plan_params()
-        };
-        self.planner
-            .plan(&self.clipmap, &camera, &params, &mut self.plan)?;
-        self.clipmap.request_samples(&self.plan.detail().wanted);
+        self.sync_options()?;
         let Some(p) = self.window.as_mut() else {
             return Ok(());
         };
-        if let Some(rings) = &mut self.imagery {
-            rings.update(camera.eye.x, camera.eye.y)?;
-            p.prepare_imagery(rings, (camera.eye.x, camera.eye.y))?;
+        // The drawn surface under the eye (it can lie above the data while coarse rings fill), else the
+        // data's height there.
+        let eye = self.state.eye;
+        let ground = match p.renderer.surface_height(&self.state.camera()?) {
+            Some(z) => Some(f64::from(z)),
+            None => p.renderer.height_at(eye.x, eye.y)?,
+        };
+        if let Some(ground) = ground {
+            self.state.keep_above(ground, self.clearance);
         }
-        if let Presented::Skipped = p.draw(&self.clipmap, &self.plan, opts.clear)? {
-            return Ok(());
-        }
+        let camera = self.state.camera()?;
+        let stats = match p.draw(&camera, SKY)? {
+            Presented::Shown(stats) => stats,
+            Presented::Skipped => return Ok(()),
+        };
+        let (samples, stale) = (stats.samples_updated, stats.stale_levels);
         // The previous frame's whole time (this one's is not known until it is presented).
         let ms = if self.frames == 0 {
             t0.elapsed().as_secs_f64() * 1e3
@@ -479,7 +423,7 @@ impl App<'_> {
         {
             let title = format!(
                 "clipsat view | tri {} samples {} stale {} {:.1} ms | {} | {} | {}",
-                self.plan.stats().triangles,
+                stats.triangles,
                 samples,
                 stale,
                 ms,
@@ -511,143 +455,148 @@ impl App<'_> {
         Ok(())
     }
 
-    /// Sets the renderer up for the shading switches when a key changed them: bake what the scene now
-    /// needs (once, through the cache), bind and compile its variant. A switch to effects the profile
-    /// does not allow is refused with the reason, and the switches go back to what is drawn.
-    fn sync_shading(&mut self) -> Result<()> {
-        let want = self.state.shading;
-        let built = (self.state.lod, self.state.debug);
-        if want == self.applied && built == self.built {
-            return Ok(());
+    /// Gives the renderer the options the keys changed: SAT LOD's bound, and the frame options (a switch;
+    /// a new LOD mode or debug view makes the renderer's GPU side again). SG on a renderer built without
+    /// it builds the renderer again with the scene (the terrain opened again: a package already baked
+    /// opens at once). A switch the renderer refuses (an effect the scene lacks, a scene the profile does
+    /// not allow) is printed with the reason, and the keys go back to what is drawn.
+    fn sync_options(&mut self) -> Result<()> {
+        if self.state.shading.sg && !self.sg_built {
+            self.build_sg()?;
         }
-        if self.window.is_none() {
-            return Ok(());
-        }
-        // SG on or off, and effects within those the renderer's SG tables were built for: a switch, not a
-        // rebuild (the SG tables are created once, never again on a toggle).
-        // Fog without the scene's parameters is no effect (`ShadingSwitches::apply`).
-        let effective = ShadingSwitches {
-            fog: want.fog && self.scene.fog.is_some(),
-            ..want
-        };
-        if built == self.built && self.sg_built.is_some_and(|b| effective.within(&b)) {
-            if let Some(p) = self.window.as_mut() {
-                if let Some(scene) = want.apply(&self.scene) {
-                    p.set_sg_effects(scene.effects)?;
-                }
-                p.renderer.set_sg_enabled(want.sg);
-            }
-            eprintln!(
-                "clipsat view: SG shading {} (switched: nothing baked, no table created)",
-                effective.label()
-            );
-            self.applied = want;
-            return Ok(());
-        }
-        let lod = LodSetup::new(self.state.lod, self.lod.clone())?;
-        match want.apply(&self.scene) {
-            None => {
-                self.rebuild(lod, gpu_renderer::Shading::Basic)?;
-                self.sg_built = None;
-            }
-            Some(wanted) => {
-                if let Err(e) = wanted.check_profile(&wanted.name, &self.profile) {
-                    // Refuse the key, keep what is drawn.
-                    eprintln!("clipsat view: switch refused: {e}");
-                    self.state.shading = self.applied;
-                    return Ok(());
-                }
-                // Built for the scene's own effects too (as far as the profile allows), so that the
-                // effect keys switch within them afterwards instead of building again.
-                let union = want.union(&ShadingSwitches::from_scene(&self.scene, true));
-                let scene = union
-                    .apply(&self.scene)
-                    .filter(|s| s.check_profile(&s.name, &self.profile).is_ok())
-                    .unwrap_or_else(|| wanted.clone());
-                let needs = scene.needs();
-                let stale = self
-                    .bake
-                    .as_ref()
-                    .is_none_or(|b| needs.bake_horizons && b.azimuths() == 0);
-                if stale {
-                    eprintln!(
-                        "clipsat view: baking the shading SATs for `{}`...",
-                        scene.name
-                    );
-                    // A streamed terrain's from the package level that fits the shading share.
-                    let (max_bytes, dir) = (
-                        self.profile.cpu_split().shading,
-                        clipsat::bake::default_cache_dir(),
-                    );
-                    crate::app::progress::bars!(true, bars, report, progress);
-                    let (bake, outcome) = match self.clipmap.tile_cache() {
-                        Some(c) => ShadingBake::bake_package_cached(
-                            c.package(),
-                            &needs,
-                            DEFAULT_AZIMUTHS,
-                            max_bytes,
-                            &dir,
-                            progress,
-                        )?,
-                        None => ShadingBake::bake_cached(
-                            self.hm,
-                            &needs,
-                            DEFAULT_AZIMUTHS,
-                            max_bytes,
-                            &dir,
-                            progress,
-                        )?,
-                    };
-                    eprintln!("clipsat view: shading SATs {outcome:?}");
-                    self.bake = Some(bake);
-                }
-                let bake = self.bake.take();
-                let built = match &bake {
-                    Some(b) => self.rebuild(
-                        lod,
-                        gpu_renderer::Shading::Sg(SgShading {
-                            scene: &scene,
-                            patches: self.patches,
-                            bake: b,
-                            omit: SgOmit::None,
-                        }),
-                    ),
-                    None => Ok(()),
-                };
-                self.bake = bake;
-                built?;
-                if let Some(p) = self.window.as_mut() {
-                    p.set_sg_effects(wanted.effects)?;
-                }
-                self.sg_built = Some(ShadingSwitches::from_scene(&scene, true));
-            }
-        }
-        self.applied = want;
-        self.built = (self.state.lod, self.state.debug);
-        Ok(())
-    }
-
-    /// Builds the planner and renderer again for a new LOD mode, debug view or shading (they are fixed
-    /// per renderer; a window size is only the plans' viewport).
-    fn rebuild(&mut self, lod: LodSetup, shading: gpu_renderer::Shading<'_>) -> Result<()> {
+        let want = self.state.frame_options(self.applied);
         let Some(p) = self.window.as_mut() else {
             return Ok(());
         };
-        self.planner = Planner::new(&self.profile, &self.clipmap, lod)?;
-        self.plan = self.planner.new_plan();
-        p.rebuild(
-            RendererOptions {
-                shading,
-                debug: self.state.debug,
-                ..RendererOptions::default()
-            },
-            &self.profile,
-        )?;
-        match &mut self.imagery {
-            Some(rings) => p.enable_imagery(rings),
+        if want != self.applied {
+            if want.lod != LodMode::Distance && !self.sat_loaded {
+                eprintln!("clipsat view: loading the SAT LOD tables (baked once, then cached)...");
+                self.sat_loaded = true;
+            }
+            let set = p.set_frame_options(want);
+            let drawn = p.renderer.frame_options();
+            match set {
+                Ok(()) => {
+                    // Switches of the SG shading a renderer was built with (a basic renderer has none).
+                    if self.sg_built
+                        && (want.sg, want.visibility, want.specular, want.fog)
+                            != (
+                                self.applied.sg,
+                                self.applied.visibility,
+                                self.applied.specular,
+                                self.applied.fog,
+                            )
+                    {
+                        eprintln!(
+                            "clipsat view: SG shading {} (switched: nothing baked, no table created)",
+                            sg_label(&drawn)
+                        );
+                    }
+                    self.applied = want;
+                }
+                Err(e @ Error::Invalid { .. }) => {
+                    eprintln!("clipsat view: switch refused: {e}");
+                    self.take_back();
+                }
+                Err(e) => return Err(e),
+            }
+        }
+        let eps = self.state.epsilon_px;
+        if let Some(p) = self.window.as_mut() {
+            if self.applied.lod != LodMode::Distance && p.renderer.sat_lod_px() != Some(eps) {
+                p.renderer.set_sat_lod_px(eps)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// The keys' SG effects within those of the renderer just built (the scene's own): a start or a key
+    /// 1 does not ask for an effect the scene leaves out.
+    fn mask_effects(&mut self) {
+        let (a, s) = (self.applied, &mut self.state.shading);
+        s.visibility &= a.visibility;
+        s.specular &= a.specular;
+        s.fog &= a.fog;
+    }
+
+    /// The keys' switches back to what the renderer draws.
+    fn take_back(&mut self) {
+        let a = self.applied;
+        let s = &mut self.state;
+        (s.lod, s.morph, s.cull, s.debug) = (a.lod, a.morph, a.cull, a.debug);
+        (
+            s.shading.sg,
+            s.shading.visibility,
+            s.shading.specular,
+            s.shading.fog,
+        ) = (a.sg, a.visibility, a.specular, a.fog);
+    }
+
+    /// Builds the renderer again with the SG scene (key 1 on a renderer built with the basic shading),
+    /// the other options carried over. Refused (the profile does not allow the scene): the renderer
+    /// drawn is kept and the key goes back.
+    fn build_sg(&mut self) -> Result<()> {
+        if self.window.is_none() {
+            return Ok(());
+        }
+        eprintln!(
+            "clipsat view: baking the shading SATs for `{}` (once, then cached), the renderer built again with them...",
+            self.scene
+        );
+        let terrain = self
+            .args
+            .terrain
+            .open(self.args.stream.streams(None)?, true)?;
+        let options = render_options(Some(self.scene.as_str()), &self.state);
+        let built = match self.window.as_mut() {
+            Some(p) => p.rebuild(terrain, &self.profile, options),
             None => Ok(()),
+        };
+        match built {
+            Ok(()) => {
+                self.sg_built = true;
+                if let Some(p) = self.window.as_ref() {
+                    // The new renderer's options: the scene's effects, to be set from the keys next.
+                    self.applied = p.renderer.frame_options();
+                }
+                self.mask_effects();
+                Ok(())
+            }
+            Err(e) if matches!(e, Error::Invalid { .. } | Error::Config { .. }) => {
+                eprintln!("clipsat view: switch refused: {e}");
+                self.state.shading.sg = false;
+                Ok(())
+            }
+            Err(e) => Err(e),
         }
     }
+}
+
+/// The options a renderer is built with: SG with `scene`, SAT LOD at the state's bound when a SAT mode
+/// is drawn (its other options are set after, [`App::sync_options`]).
+fn render_options<'a>(scene: Option<&'a str>, state: &ViewState) -> RenderOptions<'a> {
+    let mut o = RenderOptions::default();
+    if let Some(scene) = scene {
+        o = o.sg_scene(scene);
+    }
+    if state.lod != LodMode::Distance {
+        o = o.sat_lod_px(state.epsilon_px);
+    }
+    o
+}
+
+/// The SG switches drawn, for the log: `off`, or `on` and each effect on or off.
+fn sg_label(o: &FrameOptions) -> String {
+    let on_off = |b: bool| if b { "on" } else { "off" };
+    if !o.sg {
+        return "off".to_string();
+    }
+    format!(
+        "on (vis {}, spec {}, fog {})",
+        on_off(o.visibility),
+        on_off(o.specular),
+        on_off(o.fog)
+    )
 }
 
 fn flight_key(code: KeyCode) -> Option<Move> {

@@ -1,5 +1,5 @@
-//! `clipsat view`, stage 3 on the window: the wgpu instance on the X11 display, the window's surface, the
-//! device on that surface's adapter, the depth target and the embeddable [`Renderer`] drawing into the
+//! `clipsat view`, the window's GPU side: the wgpu instance on the X11 display, the window's surface, the
+//! device on that surface's adapter, the depth target and the public [`TerrainRenderer`] drawing into the
 //! surface's pass. Nothing is read back: each frame is presented by the GL backend (a framebuffer blit and
 //! `eglSwapBuffers`).
 //!
@@ -11,10 +11,10 @@
 
 use std::sync::Arc;
 
-use clipsat::gpu::renderer::{Renderer, RendererOptions};
-use clipsat::gpu::GpuMode;
-use clipsat::profile::Profile;
-use clipsat::{Error, Result};
+use crate::app::cmd::args::GpuArg;
+use clipsat::{
+    Camera, Error, FrameStats, Profile, RenderOptions, Result, Terrain, TerrainRenderer,
+};
 use winit::dpi::PhysicalSize;
 use winit::event_loop::{ActiveEventLoop, EventLoop};
 use winit::window::Window;
@@ -36,10 +36,10 @@ pub(super) fn window_error(what: &str, e: impl Into<clipsat::BoxError>) -> Error
     }
 }
 
-/// Asks Mesa for a GLES 3.0 window context unless `mode` is [`GpuMode::Gl`]. Call before anything
+/// Asks Mesa for a GLES 3.0 window context unless `mode` is [`GpuArg::Gl`]. Call before anything
 /// creates a GL context in this process (Mesa reads the variables once) and before threads start.
-pub(super) fn ask_for_gles(mode: GpuMode) {
-    if mode == GpuMode::Gl {
+pub(super) fn ask_for_gles(mode: GpuArg) {
+    if mode == GpuArg::Gl {
         return;
     }
     for (var, value) in GLES_ONLY {
@@ -51,19 +51,19 @@ pub(super) fn ask_for_gles(mode: GpuMode) {
 
 /// wgpu's GL backend on the event loop's X11 display, through EGL: the instance needs the display to
 /// make window surfaces.
-pub(super) fn instance(mode: GpuMode, event_loop: &EventLoop<()>) -> wgpu::Instance {
+pub(super) fn instance(mode: GpuArg, event_loop: &EventLoop<()>) -> wgpu::Instance {
     let mut desc = wgpu::InstanceDescriptor::new_with_display_handle(Box::new(
         event_loop.owned_display_handle(),
     ));
     desc.backends = wgpu::Backends::GL;
-    if mode != GpuMode::Gl {
+    if mode != GpuArg::Gl {
         desc.backend_options.gl.gles_minor_version = wgpu::Gles3MinorVersion::Version0;
     }
     wgpu::Instance::new(desc.with_env())
 }
 
-/// The window, its wgpu surface, the device on that surface's adapter, the depth target and the renderer:
-/// everything that exists only once the window does.
+/// The window, its wgpu surface, the device on that surface's adapter, the depth target and the terrain
+/// renderer: everything that exists only once the window does.
 pub(super) struct Presenter {
     pub(super) window: Arc<Window>,
     surface: wgpu::Surface<'static>,
@@ -71,7 +71,7 @@ pub(super) struct Presenter {
     device: wgpu::Device,
     queue: wgpu::Queue,
     depth: wgpu::TextureView,
-    pub(super) renderer: Renderer,
+    pub(super) renderer: TerrainRenderer,
     /// The context wgpu got: GL_VERSION (`OpenGL ES 3.0 Mesa ...` or a desktop version) and GL_RENDERER.
     pub(super) context: String,
     /// Whether that is exactly OpenGL ES 3.0.
@@ -80,22 +80,24 @@ pub(super) struct Presenter {
 
 /// What happened to one frame.
 pub(super) enum Presented {
-    Shown,
+    Shown(FrameStats),
     /// The surface had no frame to give (occluded, timed out, or reconfigured after being lost).
     Skipped,
 }
 
 impl Presenter {
-    /// Opens the window, its surface on `instance`, an adapter able to present to it and a device with the
-    /// GLES 3.0 downlevel limits. `--gpu strict` refuses any context but OpenGL ES 3.0; `auto` says so
-    /// and goes on.
+    /// Opens the window of `size` pixels, its surface on `instance`, an adapter able to present to it and
+    /// a device with the GLES 3.0 downlevel limits, and builds the terrain renderer on it with
+    /// `options` (the surface's formats set here). `--gpu strict` refuses any context but OpenGL ES 3.0;
+    /// `auto` says so and goes on.
     pub(super) fn open(
         instance: &wgpu::Instance,
         event_loop: &ActiveEventLoop,
-        profile: &Profile,
-        mode: GpuMode,
+        size: (u32, u32),
+        mode: GpuArg,
+        terrain: (Terrain, &Profile, RenderOptions<'_>),
     ) -> Result<Self> {
-        let (w, h) = (profile.view.width, profile.view.height);
+        let (w, h) = size;
         let attrs = Window::default_attributes()
             .with_title("clipsat view")
             .with_inner_size(PhysicalSize::new(w, h));
@@ -116,7 +118,7 @@ impl Presenter {
         .map_err(|e| Error::NoAdapter {
             reason: format!(
                 "wgpu GL backend on the window ({})",
-                if mode == GpuMode::Gl {
+                if mode == GpuArg::Gl {
                     "wgpu's own GL context"
                 } else {
                     "OpenGL ES 3.0 asked for; `--gpu gl` takes what wgpu picks"
@@ -128,7 +130,7 @@ impl Presenter {
         let gles30 = info.driver_info.starts_with("OpenGL ES 3.0");
         let context = format!("{}, {}", info.driver_info, info.name);
         match mode {
-            GpuMode::Strict if !gles30 => {
+            GpuArg::Strict if !gles30 => {
                 return Err(Error::NoAdapter {
                     reason: format!(
                         "--gpu strict: the window's context is `{context}`, not OpenGL ES 3.0 \
@@ -137,7 +139,7 @@ impl Presenter {
                     source: None,
                 })
             }
-            GpuMode::Auto if !gles30 => eprintln!(
+            GpuArg::Auto if !gles30 => eprintln!(
                 "clipsat view: no OpenGL ES 3.0 context on this display; drawing on `{context}` \
                  instead (--gpu strict refuses it)"
             ),
@@ -179,16 +181,9 @@ impl Presenter {
         };
         surface.configure(&device, &config);
         let depth = depth_view(&device, &config);
-        let renderer = Renderer::new(
-            &device,
-            &queue,
-            &RendererOptions {
-                color_format: format,
-                depth_format: DEPTH_FORMAT,
-                ..RendererOptions::default()
-            },
-            profile,
-        )?;
+        let (terrain, profile, options) = terrain;
+        let options = options.color_format(format).depth_format(DEPTH_FORMAT);
+        let renderer = TerrainRenderer::new(&device, &queue, terrain, profile, &options)?;
         // Without a window manager (Xvfb) nothing else gives the window the keyboard.
         window.focus_window();
         Ok(Self {
@@ -212,63 +207,32 @@ impl Presenter {
         self.depth = depth_view(&self.device, &self.config);
     }
 
-    /// A new renderer on this device for the surface's formats (a new LOD mode, debug view or shading).
+    /// A new terrain renderer on this device for the surface's formats (a terrain opened again, with
+    /// `options`), in place of the one drawn.
     pub(super) fn rebuild(
         &mut self,
-        options: RendererOptions<'_>,
+        terrain: Terrain,
         profile: &Profile,
+        options: RenderOptions<'_>,
     ) -> Result<()> {
-        self.renderer = Renderer::new(
-            &self.device,
-            &self.queue,
-            &RendererOptions {
-                color_format: self.config.format,
-                depth_format: DEPTH_FORMAT,
-                sample_count: 1,
-                ..options
-            },
-            profile,
-        )?;
+        let options = options
+            .color_format(self.config.format)
+            .depth_format(DEPTH_FORMAT);
+        self.renderer =
+            TerrainRenderer::new(&self.device, &self.queue, terrain, profile, &options)?;
         Ok(())
     }
 
-    /// Sets up draped imagery on this renderer (after each build: a new renderer's colour rings start
-    /// empty, so `rings` write every texel again, fading in).
-    pub(super) fn enable_imagery(
-        &mut self,
-        rings: &mut clipsat::plan::color_rings::ColorRings,
-    ) -> Result<()> {
-        rings.reset();
-        self.renderer
-            .enable_imagery(&self.device, rings.ring(), rings.level_count())
+    /// Sets the renderer's frame options (`TerrainRenderer::set_frame_options`).
+    pub(super) fn set_frame_options(&mut self, options: clipsat::FrameOptions) -> Result<()> {
+        self.renderer.set_frame_options(&self.queue, options)
     }
 
-    /// Uploads the colour rings' writes of their last update, with the eye at world (x, y).
-    pub(super) fn prepare_imagery(
-        &self,
-        rings: &clipsat::plan::color_rings::ColorRings,
-        eye: (f64, f64),
-    ) -> Result<()> {
-        self.renderer.prepare_imagery(&self.queue, rings, eye)
-    }
-
-    /// Switches the renderer's SG effects within those it was built for (`Renderer::set_sg_effects`).
-    pub(super) fn set_sg_effects(
-        &mut self,
-        effects: clipsat::shading::scene::Effects,
-    ) -> Result<()> {
-        self.renderer.set_sg_effects(&self.device, effects)
-    }
-
-    /// Uploads `plan`, clears the surface's next frame to `clear`, draws the terrain into that pass and
-    /// presents it.
-    pub(super) fn draw(
-        &mut self,
-        clipmap: &clipsat::plan::clipmap::Clipmap,
-        plan: &clipsat::plan::frame_plan::FramePlan,
-        clear: [f64; 4],
-    ) -> Result<Presented> {
-        self.renderer.prepare(&self.queue, clipmap, plan)?;
+    /// Prepares the frame of `camera`, clears the surface's next frame to `clear`, draws the terrain
+    /// into that pass and presents it.
+    pub(super) fn draw(&mut self, camera: &Camera, clear: [f64; 4]) -> Result<Presented> {
+        let viewport = (self.config.width, self.config.height);
+        let stats = self.renderer.prepare(&self.queue, camera, viewport)?;
         let target = match self.surface.get_current_texture() {
             wgpu::CurrentSurfaceTexture::Success(t)
             | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
@@ -293,13 +257,36 @@ impl Presenter {
                 label: Some("clipsat view frame"),
             });
         {
-            let mut pass =
-                clipsat::gpu::clear_pass(&mut encoder, "clipsat view", &view, &self.depth, clear);
+            let [r, g, b, a] = clear;
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("clipsat view"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color { r, g, b, a }),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                // Conventional depth (the renderer's default): cleared to 1.
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &self.depth,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(1.0),
+                        store: wgpu::StoreOp::Discard,
+                    }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
             self.renderer.render(&mut pass);
         }
         self.queue.submit([encoder.finish()]);
         self.queue.present(target);
-        Ok(Presented::Shown)
+        Ok(Presented::Shown(stats))
     }
 }
 
