@@ -217,13 +217,13 @@ impl Param {
             Self::Tile => "BakeOptions::tile",
             Self::Codec => "BakeOptions::codec",
             Self::SynthLevels => "ClipmapOptions::synth_levels",
-            Self::Spacing => "LoadOptions::spacing",
+            Self::Spacing => "TerrainOptions::spacing_m",
             Self::RawLayout => "LoadOptions::raw",
             Self::PngEncoding => "LoadOptions::png_encoding",
-            Self::MaxSamples => "LoadOptions::max_samples",
-            Self::Nodata => "LoadOptions::nodata",
-            Self::ImageryExtent => "ImageryOptions::extent",
-            Self::MaxImageryTexels => "ImageryOptions::max_texels",
+            Self::MaxSamples => "TerrainOptions::max_samples",
+            Self::Nodata => "TerrainOptions::nodata",
+            Self::ImageryExtent => "TerrainOptions::imagery_extent",
+            Self::MaxImageryTexels => "TerrainOptions::max_imagery_texels",
         }
     }
 }
@@ -337,16 +337,16 @@ fn nan_hint(path: &std::path::Path, value: f32) -> &'static str {
     match ext.as_deref() {
         _ if !value.is_nan() => "",
         Some("tif" | "tiff") => {
-            " (if NaN marks voids, give NaN as `LoadOptions::nodata`, or declare NaN the file's nodata value \
+            " (if NaN marks voids, give NaN as `TerrainOptions::nodata`, or declare NaN the file's nodata value \
              as GDAL's `gdal_edit.py -a_nodata nan FILE` does, and they are filled from their neighbours)"
         }
         Some("asc") => {
-            " (if NaN marks voids, give NaN as `LoadOptions::nodata`, or write `NODATA_value nan` in the \
+            " (if NaN marks voids, give NaN as `TerrainOptions::nodata`, or write `NODATA_value nan` in the \
              header, and they are filled from their neighbours)"
         }
         Some("png") => "",
         _ => {
-            " (if NaN marks voids, give NaN as `LoadOptions::nodata`, and they are filled from their \
+            " (if NaN marks voids, give NaN as `TerrainOptions::nodata`, and they are filled from their \
              neighbours)"
         }
     }

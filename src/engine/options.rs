@@ -108,6 +108,20 @@ impl<'a> TerrainOptions<'a> {
         self
     }
 
+    /// The most samples a terrain file may declare ([`TerrainOptions::max_samples`]).
+    #[must_use]
+    pub fn max_samples(mut self, samples: u64) -> Self {
+        self.max_samples = Some(samples);
+        self
+    }
+
+    /// The most texels an imagery file may declare ([`TerrainOptions::max_imagery_texels`]).
+    #[must_use]
+    pub fn max_imagery_texels(mut self, texels: u64) -> Self {
+        self.max_imagery_texels = Some(texels);
+        self
+    }
+
     /// An image to drape on the terrain ([`TerrainOptions::imagery`]).
     #[must_use]
     pub fn imagery(mut self, path: impl Into<PathBuf>) -> Self {

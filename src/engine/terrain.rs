@@ -43,6 +43,12 @@ pub struct TerrainOptions<'a> {
     /// is dropped), baked into an imagery package (a colour pyramid in JPEG tiles) in the cache folder on
     /// first use, or an imagery package as `clipsat bake` writes it.
     pub imagery: Option<PathBuf>,
+    /// The most samples a terrain file may declare before it is refused ([`crate::Error::TooLarge`],
+    /// before anything is allocated); None: 2^30 (4 GiB of f32 heights).
+    pub max_samples: Option<u64>,
+    /// The most texels an imagery file may declare before it is refused (before anything is allocated);
+    /// None: the default limit.
+    pub max_imagery_texels: Option<u64>,
     /// Where the imagery lies, (west, south, east, north) metres in the terrain's frame (x east, y north,
     /// the south-west sample at the origin); `None`: the height grid's extent, corner sample to corner
     /// sample. Texels are areas: texel (i, j) of W x H covers 1/W of the width and 1/H of the height.
@@ -87,6 +93,9 @@ impl Terrain {
             height_scale: options.height_scale,
             height_offset: options.height_offset,
             nodata: options.nodata,
+            max_samples: options
+                .max_samples
+                .unwrap_or(LoadOptions::default().max_samples),
             ..LoadOptions::default()
         };
         let mut terrain = Self::open_spec(
@@ -103,7 +112,9 @@ impl Terrain {
                 .transpose()?;
             let opts = ImageryOptions {
                 extent,
-                ..ImageryOptions::default()
+                max_texels: options
+                    .max_imagery_texels
+                    .unwrap_or(ImageryOptions::default().max_texels),
             };
             terrain.attach_imagery(imagery, &opts)?;
         }

@@ -73,3 +73,36 @@ fn a_bake_on_a_worker_thread_is_found_by_the_next_open() {
     )
     .is_err());
 }
+
+/// A file over the limit is refused before anything is allocated, and the error names the public option
+/// that raises the limit (`TerrainOptions::max_samples`), which then opens it.
+#[test]
+fn a_terrain_over_the_limit_names_the_option_that_raises_it() {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("bake_step_limit");
+    std::fs::create_dir_all(&dir).expect("scratch folder");
+    let png = dir.join("heights.png");
+    image::GrayImage::from_fn(64, 64, |x, y| {
+        image::Luma([u8::try_from(x + y).unwrap_or(0)])
+    })
+    .save(&png)
+    .expect("write the PNG");
+    let e = Terrain::open_with(&png, &TerrainOptions::default().max_samples(1000))
+        .expect_err("4096 samples over a limit of 1000");
+    assert!(
+        matches!(
+            e,
+            clipsat::Error::TooLarge {
+                limit: 1000,
+                samples: 4096,
+                ..
+            }
+        ),
+        "{e:?}"
+    );
+    assert!(
+        e.to_string().contains("`TerrainOptions::max_samples`"),
+        "{e}"
+    );
+    let t = Terrain::open_with(&png, &TerrainOptions::default().max_samples(4096)).expect("open");
+    assert_eq!(t.size(), (64, 64));
+}

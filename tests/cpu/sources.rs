@@ -575,7 +575,7 @@ fn tiff_nodata_filled_and_geographic_spacing() {
     assert!((hm.spacing() - 92.16).abs() < 0.05, "{}", hm.spacing());
 
     let p = f32_tiff(&dir, "nospacing.tif", 4, 4, &data, false);
-    assert_format(load(&p), "LoadOptions::spacing");
+    assert_format(load(&p), "TerrainOptions::spacing_m");
     let opts = LoadOptions {
         spacing: Some(5.0),
         ..LoadOptions::default()
@@ -1172,7 +1172,7 @@ fn nodata_option_marks_voids() {
     let p = write(&dir, "nan.tif", &tif);
     let e = load(&p).expect_err("NaN without a nodata value");
     assert!(
-        e.to_string().contains("NaN as `LoadOptions::nodata`"),
+        e.to_string().contains("NaN as `TerrainOptions::nodata`"),
         "{e}"
     );
     let hm = source::load(&p, &with(f64::NAN)).unwrap();
