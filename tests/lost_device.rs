@@ -107,25 +107,6 @@ struct Flown {
     resend: Option<Duration>,
 }
 
-/// The time the ledger's objects took to create, all kinds.
-fn objects_time(l: &clipsat::gpu::renderer::Ledger) -> Duration {
-    use ObjectKind::*;
-    [
-        Buffer,
-        Texture,
-        TextureView,
-        ShaderModule,
-        BindGroupLayout,
-        BindGroup,
-        PipelineLayout,
-        RenderPipeline,
-        Sampler,
-    ]
-    .into_iter()
-    .map(|k| l.creation_time(k))
-    .sum()
-}
-
 /// The camera of frame `f`: the terrain's default camera moved 45 m a frame along x and 20 along y.
 fn camera(start: &Camera, f: u64) -> Camera {
     let step = [45.0 * f as f64, 20.0 * f as f64, 0.0];
@@ -434,7 +415,7 @@ fn rebuild_cost_against_new() {
                 let l = r.gpu_ledger();
                 best_new = (
                     took,
-                    objects_time(l),
+                    l.total_creation_time(),
                     l.creation_time(ObjectKind::RenderPipeline),
                     l.creation_time(ObjectKind::ShaderModule),
                 );
@@ -447,7 +428,7 @@ fn rebuild_cost_against_new() {
                 let l = renderer.gpu_ledger();
                 best_rebuild = (
                     took,
-                    objects_time(l),
+                    l.total_creation_time(),
                     l.creation_time(ObjectKind::RenderPipeline),
                     l.creation_time(ObjectKind::ShaderModule),
                 );

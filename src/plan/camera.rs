@@ -104,14 +104,7 @@ impl Camera {
         if !(view.is_finite() && proj.is_finite()) {
             return Err(Error::camera("a view or projection matrix is not finite"));
         }
-        let r = glam::DMat3::from_mat4(view);
-        let rigid = (r * r.transpose() - glam::DMat3::IDENTITY)
-            .to_cols_array()
-            .iter()
-            .all(|e| e.abs() < 1e-6)
-            && (r.determinant() - 1.0).abs() < 1e-6
-            && (view.row(3) - glam::DVec4::W).length() < 1e-12;
-        if !rigid {
+        if !rigid(view) {
             return Err(Error::camera(
                 "the view matrix is not a rotation and a translation (scale, shear or projection)",
             ));
@@ -164,15 +157,7 @@ impl Camera {
     /// The same camera in the terrain's frame, for a camera given in the caller's world where the terrain
     /// is placed by `terrain_to_world` (rigid: a rotation, such as z up to y up, and a translation).
     pub fn in_terrain_frame(self, terrain_to_world: DMat4) -> Result<Self> {
-        let r = glam::DMat3::from_mat4(terrain_to_world);
-        let rigid = terrain_to_world.is_finite()
-            && (r * r.transpose() - glam::DMat3::IDENTITY)
-                .to_cols_array()
-                .iter()
-                .all(|e| e.abs() < 1e-6)
-            && (r.determinant() - 1.0).abs() < 1e-6
-            && (terrain_to_world.row(3) - glam::DVec4::W).length() < 1e-12;
-        if !rigid {
+        if !(terrain_to_world.is_finite() && rigid(terrain_to_world)) {
             return Err(Error::camera(
                 "the terrain's placement is not a rotation and a translation",
             ));
@@ -489,6 +474,18 @@ pub fn px_of_parts(s: f64, c: f64, e: f64) -> f64 {
     } else {
         f64::INFINITY
     }
+}
+
+/// Whether `m` is a rotation and a translation (no scale, shear, reflection or projection), within
+/// rounding.
+fn rigid(m: DMat4) -> bool {
+    let r = glam::DMat3::from_mat4(m);
+    (r * r.transpose() - glam::DMat3::IDENTITY)
+        .to_cols_array()
+        .iter()
+        .all(|e| e.abs() < 1e-6)
+        && (r.determinant() - 1.0).abs() < 1e-6
+        && (m.row(3) - glam::DVec4::W).length() < 1e-12
 }
 
 /// Refuses a vertical field of view outside (1, 179) degrees.

@@ -99,6 +99,11 @@ impl Ledger {
         std::time::Duration::from_nanos(self.nanos[kind as usize])
     }
 
+    /// [`Ledger::creation_time`] of every kind together.
+    pub fn total_creation_time(&self) -> std::time::Duration {
+        std::time::Duration::from_nanos(self.nanos.iter().fold(0u64, |a, &n| a.saturating_add(n)))
+    }
+
     /// Objects created with their contents ([`Ledgered::buffer_init`], [`Ledgered::texture_with_data`]):
     /// wgpu copies each in through a staging buffer of its own until the queue next runs. wgpu's live
     /// buffer counter counts those on some backends (Vulkan, GL with `GL_EXT_buffer_storage`: NVIDIA, Mesa's
