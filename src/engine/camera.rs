@@ -94,4 +94,9 @@ impl Camera {
     pub fn get(&self) -> &camera::Camera {
         &self.0
     }
+
+    /// The public camera of a stages' camera (already checked when it was built).
+    pub fn from_stage(camera: camera::Camera) -> Self {
+        Self(camera)
+    }
 }

@@ -23,4 +23,6 @@ pub use camera::Camera;
 pub use profile::Profile;
 pub use query::RayHit;
 pub use renderer::{FrameOptions, FrameStats, RenderOptions, TerrainRenderer};
+#[cfg(feature = "internals")]
+pub use renderer::Stages;
 pub use terrain::{Terrain, TerrainOptions};

@@ -16,9 +16,13 @@ use crate::{Camera, Error, Profile, Result, Terrain};
 use super::setup;
 
 mod frame_options;
+#[cfg(feature = "internals")]
+mod instrument;
 mod recover;
 
 pub use frame_options::FrameOptions;
+#[cfg(feature = "internals")]
+pub use instrument::Stages;
 
 /// What a [`TerrainRenderer`] is built with: the caller's target formats, and the choices fixed for its
 /// life. The default is basic shading with distance LOD into `Rgba8Unorm` / `Depth32Float`.
@@ -49,6 +53,10 @@ pub struct RenderOptions<'a> {
     pub sg_scene: Option<&'a str>,
     /// Where the set-up's bakes (SAT LOD tables, SG tables) report their progress.
     pub progress: Progress<'a>,
+    /// SG's patches per lobe (a measurement's choice, `RenderOptions::sg_instrument`).
+    pub(crate) sg_patches: Patches,
+    /// Whether SG's visibility is baked and drawn (off: the scene's visibility dropped, no horizons).
+    pub(crate) sg_shadows: bool,
 }
 
 impl Default for RenderOptions<'_> {
@@ -61,6 +69,8 @@ impl Default for RenderOptions<'_> {
             sat_lod_px: None,
             sg_scene: None,
             progress: Progress::default(),
+            sg_patches: Patches::default(),
+            sg_shadows: true,
         }
     }
 }
@@ -159,6 +169,8 @@ pub struct TerrainRenderer {
     lod_tables: Option<crate::plan::lod::Lod>,
     /// The terrain's cache folder, where a SAT mode set later bakes its tables.
     cache: Option<std::path::PathBuf>,
+    /// The last frame's plan time, nanoseconds (a measurement's, `TerrainRenderer::stages`).
+    plan_ns: u64,
 }
 
 impl TerrainRenderer {
@@ -222,14 +234,15 @@ impl TerrainRenderer {
         };
         let sg = match options.sg_scene {
             Some(name) => {
-                let scene = Scene::load(name)?;
+                let mut scene = Scene::load(name)?;
+                scene.effects.visibility &= options.sg_shadows;
                 scene.check_profile(name, profile)?;
                 Some(setup::sg_tables(
                     profile,
                     &stand_in,
                     clipmap.tile_cache().map(crate::package::TileCache::package),
                     &scene,
-                    true,
+                    options.sg_shadows,
                     cache.as_deref(),
                     options.progress,
                 )?)
@@ -239,7 +252,7 @@ impl TerrainRenderer {
         let shading = match &sg {
             Some((scene, bake)) => Shading::Sg(SgShading {
                 scene,
-                patches: Patches::default(),
+                patches: options.sg_patches,
                 bake,
                 omit: SgOmit::None,
             }),
@@ -308,6 +321,7 @@ impl TerrainRenderer {
             sg_fog,
             lod_tables: None,
             cache,
+            plan_ns: 0,
         })
     }
 
@@ -401,8 +415,10 @@ impl TerrainRenderer {
         let frame = self.clipmap.update(camera.0.eye)?;
         let (samples_updated, stale_levels) = (frame.samples_updated, frame.stale_levels);
         self.params.viewport = Some(viewport);
+        let t = std::time::Instant::now();
         self.planner
             .plan(&self.clipmap, &camera.0, &self.params, &mut self.plan)?;
+        self.plan_ns = u64::try_from(t.elapsed().as_nanos()).unwrap_or(u64::MAX);
         // Pool tiles waiting for a streamed package's decode: the next update's, after the rings.
         self.clipmap.request_samples(&self.plan.detail().wanted);
         recover::scoped_prepare(

@@ -396,6 +396,11 @@ impl Terrain {
         Self::open_spec(spec, load, cache_dir, resident, progress)
     }
 
+    /// The whole grid, or a streamed terrain's coarse stand-in.
+    pub fn heights(&self) -> &Heightmap {
+        &self.stand_in
+    }
+
     /// The parts: name, stand-in (or the whole grid), the package streamed.
     pub fn parts(self) -> (String, Heightmap, Option<Package>) {
         self.into_parts()

@@ -143,15 +143,12 @@ pub fn sg_bake(
     Ok((scene, bake))
 }
 
-/// The headless renderer; see the module doc. Borrows the [`Gpu`] it lives on.
+/// Offscreen colour (RGBA8) and depth (32-bit float) targets of one size on a [`Gpu`], and the buffer
+/// their colour is read back through: what a headless frame is drawn into, by the stages ([`Offscreen`])
+/// or by a [`crate::TerrainRenderer`] (`clipsat render`). Created once; a frame allocates nothing.
 #[derive(Debug)]
-pub struct Offscreen<'g> {
+pub struct Targets<'g> {
     gpu: &'g Gpu,
-    renderer: Renderer,
-    planner: Planner,
-    plan: FramePlan,
-    /// The renderer's objects, then the targets'.
-    ledger: Ledger,
     color: wgpu::Texture,
     color_view: wgpu::TextureView,
     depth_view: wgpu::TextureView,
@@ -159,35 +156,15 @@ pub struct Offscreen<'g> {
     padded_row: u32,
     width: u32,
     height: u32,
+    /// The targets and the read-back buffer.
+    ledger: Ledger,
 }
 
-impl<'g> Offscreen<'g> {
-    /// A renderer for `profile` (viewport `profile.view`) and `clipmap`'s terrain on `gpu`, with its
-    /// targets; everything is created here, nothing per frame.
-    pub fn new(
-        gpu: &'g Gpu,
-        profile: &Profile,
-        clipmap: &Clipmap,
-        options: OffscreenOptions<'_>,
-    ) -> Result<Self> {
-        let planner = Planner::new(profile, clipmap, options.lod)?;
-        let plan = planner.new_plan();
-        let (width, height) = (profile.view.width, profile.view.height);
+impl<'g> Targets<'g> {
+    /// Targets of `width` x `height` pixels on `gpu`, in the formats [`Offscreen`]'s renderer draws.
+    pub fn new(gpu: &'g Gpu, width: u32, height: u32) -> Result<Self> {
         let padded_row = (width * 4).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
-        gpu.scoped("clipmap renderer set-up", || {
-            let renderer = Renderer::new(
-                gpu.device(),
-                gpu.queue(),
-                &RendererOptions {
-                    color_format: COLOR_FORMAT,
-                    depth_format: DEPTH_FORMAT,
-                    reverse_z: false,
-                    sample_count: 1,
-                    shading: options.shading,
-                    debug: options.debug,
-                },
-                profile,
-            )?;
+        gpu.scoped("offscreen targets", || {
             let mut dev = Ledgered::new(gpu.device());
             let target = |format, usage| crate::gpu::render_target(width, height, format, usage);
             let color = dev.texture(
@@ -208,14 +185,8 @@ impl<'g> Offscreen<'g> {
                 u64::from(padded_row) * u64::from(height),
                 wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
             );
-            let mut ledger = renderer.ledger().clone();
-            ledger.extend(dev.ledger());
             Ok(Self {
                 gpu,
-                renderer,
-                planner,
-                plan,
-                ledger,
                 color,
                 color_view,
                 depth_view,
@@ -223,7 +194,149 @@ impl<'g> Offscreen<'g> {
                 padded_row,
                 width,
                 height,
+                ledger: dev.ledger().clone(),
             })
+        })
+    }
+
+    /// The colour target's format.
+    pub fn color_format(&self) -> wgpu::TextureFormat {
+        COLOR_FORMAT
+    }
+
+    /// The depth target's format (conventional depth, cleared to 1).
+    pub fn depth_format(&self) -> wgpu::TextureFormat {
+        DEPTH_FORMAT
+    }
+
+    /// (width, height), pixels.
+    pub fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+
+    /// The targets' objects.
+    pub fn ledger(&self) -> &Ledger {
+        &self.ledger
+    }
+
+    /// One pass into the targets, cleared to `clear` (display-encoded RGBA) and depth 1, recorded by
+    /// `record` and submitted, inside the [`Gpu`]'s error scopes.
+    pub fn draw(
+        &self,
+        label: &str,
+        clear: [f64; 4],
+        record: impl FnOnce(&mut wgpu::RenderPass<'_>),
+    ) -> Result<()> {
+        let gpu = self.gpu;
+        gpu.scoped(label, || {
+            let mut encoder = gpu
+                .device()
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) });
+            {
+                let mut pass = crate::gpu::clear_pass(
+                    &mut encoder,
+                    label,
+                    &self.color_view,
+                    &self.depth_view,
+                    clear,
+                );
+                record(&mut pass);
+            }
+            gpu.queue().submit([encoder.finish()]);
+            Ok(())
+        })
+    }
+
+    /// Reads the colour target back (into the preallocated buffer) as a tight RGBA8 image.
+    pub fn read_image(&self) -> Result<Image> {
+        let gpu = self.gpu;
+        gpu.scoped("clipmap readback", || {
+            let mut encoder =
+                gpu.device()
+                    .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                        label: Some("clipmap readback"),
+                    });
+            encoder.copy_texture_to_buffer(
+                self.color.as_image_copy(),
+                wgpu::TexelCopyBufferInfo {
+                    buffer: &self.readback,
+                    layout: wgpu::TexelCopyBufferLayout {
+                        offset: 0,
+                        bytes_per_row: Some(self.padded_row),
+                        rows_per_image: Some(self.height),
+                    },
+                },
+                self.color.size(),
+            );
+            gpu.queue().submit([encoder.finish()]);
+            Ok(())
+        })?;
+        let rows =
+            crate::gpu::readback::map_rows(gpu, &self.readback, self.padded_row, self.width * 4)?;
+        Ok(Image {
+            width: self.width,
+            height: self.height,
+            rgba: rows,
+        })
+    }
+}
+
+impl Drop for Targets<'_> {
+    fn drop(&mut self) {
+        // Its objects are GL objects of this Gpu's context: make it current before they go.
+        self.gpu.bind();
+    }
+}
+
+/// The headless renderer; see the module doc. Borrows the [`Gpu`] it lives on.
+#[derive(Debug)]
+pub struct Offscreen<'g> {
+    gpu: &'g Gpu,
+    renderer: Renderer,
+    planner: Planner,
+    plan: FramePlan,
+    /// The renderer's objects, then the targets'.
+    ledger: Ledger,
+    targets: Targets<'g>,
+}
+
+impl<'g> Offscreen<'g> {
+    /// A renderer for `profile` (viewport `profile.view`) and `clipmap`'s terrain on `gpu`, with its
+    /// targets; everything is created here, nothing per frame.
+    pub fn new(
+        gpu: &'g Gpu,
+        profile: &Profile,
+        clipmap: &Clipmap,
+        options: OffscreenOptions<'_>,
+    ) -> Result<Self> {
+        let planner = Planner::new(profile, clipmap, options.lod)?;
+        let plan = planner.new_plan();
+        let (width, height) = (profile.view.width, profile.view.height);
+        let renderer = gpu.scoped("clipmap renderer set-up", || {
+            Renderer::new(
+                gpu.device(),
+                gpu.queue(),
+                &RendererOptions {
+                    color_format: COLOR_FORMAT,
+                    depth_format: DEPTH_FORMAT,
+                    reverse_z: false,
+                    sample_count: 1,
+                    shading: options.shading,
+                    debug: options.debug,
+                },
+                profile,
+            )
+        })?;
+        let targets = Targets::new(gpu, width, height)?;
+        let mut ledger = renderer.ledger().clone();
+        ledger.extend(targets.ledger());
+        Ok(Self {
+            gpu,
+            renderer,
+            planner,
+            plan,
+            ledger,
+            targets,
         })
     }
 
@@ -324,7 +437,7 @@ impl<'g> Offscreen<'g> {
 
     /// Image size, pixels.
     pub fn size(&self) -> (u32, u32) {
-        (self.width, self.height)
+        self.targets.size()
     }
 
     /// The basic shading parameters (the brute-force reference of the same terrain uses the same).
@@ -355,26 +468,11 @@ impl<'g> Offscreen<'g> {
             .plan(clipmap, camera, &opts.plan_params(), &mut self.plan)?;
         let plan_ns = u64::try_from(t.elapsed().as_nanos()).unwrap_or(u64::MAX);
         let gpu = self.gpu;
-        let up: PrepareStats = gpu.scoped("clipmap frame", || {
-            let up = self.renderer.prepare(gpu.queue(), clipmap, &self.plan)?;
-            let mut encoder =
-                gpu.device()
-                    .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                        label: Some("clipmap frame"),
-                    });
-            {
-                let mut pass = crate::gpu::clear_pass(
-                    &mut encoder,
-                    "clipmap",
-                    &self.color_view,
-                    &self.depth_view,
-                    opts.clear,
-                );
-                self.renderer.render(&mut pass);
-            }
-            gpu.queue().submit([encoder.finish()]);
-            Ok(up)
-        })?;
+        let up: PrepareStats =
+            gpu.scoped("clipmap frame", || self.renderer.prepare(gpu.queue(), clipmap, &self.plan))?;
+        let renderer = &self.renderer;
+        self.targets
+            .draw("clipmap", opts.clear, |pass| renderer.render(pass))?;
         let p = self.plan.stats();
         Ok(FrameStats {
             draws: p.draws,
@@ -415,35 +513,7 @@ impl<'g> Offscreen<'g> {
 
     /// Reads the colour target back (into the preallocated buffer) as a tight RGBA8 image.
     pub fn read_image(&self) -> Result<Image> {
-        let gpu = self.gpu;
-        gpu.scoped("clipmap readback", || {
-            let mut encoder =
-                gpu.device()
-                    .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                        label: Some("clipmap readback"),
-                    });
-            encoder.copy_texture_to_buffer(
-                self.color.as_image_copy(),
-                wgpu::TexelCopyBufferInfo {
-                    buffer: &self.readback,
-                    layout: wgpu::TexelCopyBufferLayout {
-                        offset: 0,
-                        bytes_per_row: Some(self.padded_row),
-                        rows_per_image: Some(self.height),
-                    },
-                },
-                self.color.size(),
-            );
-            gpu.queue().submit([encoder.finish()]);
-            Ok(())
-        })?;
-        let rows =
-            crate::gpu::readback::map_rows(gpu, &self.readback, self.padded_row, self.width * 4)?;
-        Ok(Image {
-            width: self.width,
-            height: self.height,
-            rgba: rows,
-        })
+        self.targets.read_image()
     }
 
     /// Diagnostic (allocates a buffer per level, outside the ledger; not for the frame loop): every layer

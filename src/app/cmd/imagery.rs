@@ -1,17 +1,12 @@
 //! Application (CLI): what an imagery package holds, in words and as JSON, for `info`, `bake`, `render`
 //! and `fly`.
 
-use clipsat::gpu::renderer::Renderer;
-use clipsat::gpu::Gpu;
 use clipsat::package::imagery::ImageryPackage;
-use clipsat::plan::color_rings::{ColorRings, FADE_FRAMES};
+use clipsat::plan::color_rings::ColorRings;
 use clipsat::profile::Profile;
 use clipsat::Result;
 use glam::DVec3;
 use serde_json::json;
-
-/// Most frames [`fill_rings`] updates the colour rings at a still camera.
-pub(crate) const MAX_FILL_FRAMES: u64 = 256;
 
 /// The profile with draped imagery (`engine::setup::imagery_profile`): the feature allowed, the colour
 /// rings within the GPU budget, the imagery's CPU share taken out of the budget the heights split.
@@ -20,38 +15,11 @@ pub(crate) fn check_profile(profile: &mut Profile) -> Result<()> {
     Ok(())
 }
 
-/// The colour rings of `package` for `profile`, set up in `renderer` and filled at a still camera at
-/// `eye` (updated and uploaded until no ring is stale and the last has faded in, at most
-/// [`MAX_FILL_FRAMES`] frames); with the frames it took.
-pub(crate) fn fill_rings(
-    package: ImageryPackage,
-    profile: &Profile,
-    renderer: &mut Renderer,
-    gpu: &Gpu,
-    eye: DVec3,
-) -> Result<(ColorRings, u64)> {
-    let mut rings = ColorRings::new(package, &profile.imagery)?;
-    renderer.enable_imagery(gpu.device(), rings.ring(), rings.level_count())?;
-    let mut frames = 0u64;
-    let mut settled = None;
-    // Until every ring is whole, then while the last ones fade in.
-    while frames < MAX_FILL_FRAMES && settled.is_none_or(|s| frames < s + FADE_FRAMES) {
-        frames += 1;
-        let s = rings.update(eye.x, eye.y)?;
-        renderer.prepare_imagery(gpu.queue(), &rings, (eye.x, eye.y))?;
-        if s.stale_levels == 0 && settled.is_none() {
-            settled = Some(frames);
-        }
-    }
-    Ok((rings, frames))
-}
-
 /// The colour rings as JSON: the package, the rings and the last update.
-pub(crate) fn rings_json(rings: &ColorRings, fill_frames: u64) -> serde_json::Value {
+pub(crate) fn rings_json(rings: &ColorRings) -> serde_json::Value {
     let mut v = imagery_json(rings.package());
     v["rings"] = json!(rings.level_count());
     v["ring_side"] = json!(rings.ring());
-    v["fill_frames"] = json!(fill_frames);
     v["cpu_bytes"] = json!(rings.cpu_bytes());
     v["last_update"] = json!(rings.stats());
     v["hash"] = json!(clipsat::hash::hex(rings.stats().hash));

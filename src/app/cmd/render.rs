@@ -1,8 +1,12 @@
 //! `clipsat render`: one frame, offscreen, to a PNG.
 //!
-//! By default it draws the geometry clipmap (`clipsat::gpu::renderer`): the clipmap is updated until the budget
-//! has filled every level at the camera, then rendered, and rendered once more against a magenta clear to
-//! count crack pixels. `--brute` draws the brute-force full-resolution grid (the ground truth) instead.
+//! By default it draws the geometry clipmap the way an engine does, through the public API: a
+//! [`TerrainRenderer`] on the strict context's device, warmed up at the camera (the rings, the colour
+//! rings and the detail pool filled under the update budget), then one frame prepared and rendered into
+//! offscreen targets, and rendered once more against a magenta clear to count crack pixels. The
+//! measurements (cracks, screen error, oracles, the SG reference) read the renderer's stages
+//! ([`TerrainRenderer::stages`], a test instrument). `--brute` draws the brute-force full-resolution grid
+//! (the ground truth) instead.
 
 use std::time::Instant;
 
@@ -10,20 +14,19 @@ use clap::Args;
 use clipsat::bake;
 use clipsat::engine::setup;
 use clipsat::gpu::brute::BruteForce;
-use clipsat::gpu::headless::{render_frame, FrameOptions, Offscreen, OffscreenOptions};
+use clipsat::gpu::headless::Targets;
 use clipsat::gpu::Gpu;
 use clipsat::measure;
 use clipsat::package::imagery::ImageryPackage;
 use clipsat::package::Package;
 use clipsat::plan::camera::parse_vec3;
 use clipsat::plan::camera::Camera;
-use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
-use clipsat::plan::frame_plan::LodSetup;
+use clipsat::plan::clipmap::Clipmap;
 use clipsat::plan::lod::{Lod, LodMode};
 use clipsat::profile::Profile;
 use clipsat::shading::debug_view::DebugView;
 use clipsat::source::Heightmap;
-use clipsat::{hash, Result};
+use clipsat::{hash, RenderOptions, Result, TerrainRenderer};
 use glam::DVec3;
 use serde_json::json;
 
@@ -162,8 +165,8 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
     .into_iter()
     .find_map(|(on, flag)| on.then_some(flag));
     let stream = args.stream.streams(needs_all)?;
-    let (terrain_name, hm, package, imagery) = open_terrain(&args.terrain, stream, !args.json)?;
-    let camera = camera(args, &hm, f64::from(profile.view.fov_y_deg))?;
+    let terrain = args.terrain.open(stream, !args.json)?;
+    let camera = camera(args, terrain.heights(), f64::from(profile.view.fov_y_deg))?;
 
     let gpu = Gpu::new(mode)?;
     if args.brute {
@@ -182,8 +185,8 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
         return run_brute(
             args,
             &gpu,
-            &terrain_name,
-            &hm,
+            terrain.name(),
+            terrain.heights(),
             &profile,
             &camera,
             (size_w, size_h),
@@ -192,101 +195,101 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
     let mut profile = profile;
     profile.view.width = size_w;
     profile.view.height = size_h;
-    if imagery.is_some() {
-        super::imagery::check_profile(&mut profile)?;
-    }
+    let terrain_name = terrain.name().to_owned();
+    let streamed = terrain.is_streamed();
+    // The clipmap is drawn the way an engine draws it: a `TerrainRenderer` on this context's device,
+    // into offscreen targets; the measurements below read its stages (test instruments).
     let t0 = Instant::now();
-    let streamed = package.is_some();
-    let mut clipmap = match package {
-        Some(p) => Clipmap::streamed(p, &profile, ClipmapOptions::default())?,
-        None => Clipmap::new(&hm, &profile, ClipmapOptions::default())?,
-    };
-    // Update until no level is stale and nothing is pending at the eye (bounded).
-    let fill_frames = clipmap.fill_at(camera.eye, setup::MAX_FILL_FRAMES)?;
-    // The error maps serve the SAT modes and the measured error of any mode (not measured when streamed:
-    // the measurement needs the whole pyramid).
-    let lod = if lod_mode != LodMode::Distance || (args.json && !streamed) {
-        Some(lod_for(&hm, &profile, &clipmap, sg.is_some(), !args.json)?)
+    let targets = Targets::new(&gpu, size_w, size_h)?;
+    let scene = sg
+        .as_ref()
+        .map(|_| args.shading.scene.clone().unwrap_or_else(|| "noon".into()));
+    crate::app::progress::bars!(!args.json, bars, report, progress);
+    let mut options = RenderOptions::default()
+        .color_format(targets.color_format())
+        .depth_format(targets.depth_format())
+        .progress(progress);
+    if lod_mode != LodMode::Distance {
+        options = options.sat_lod_px(epsilon.unwrap_or(profile.view.epsilon_px));
+    }
+    if let (Some(scene), Some(choice)) = (&scene, &sg) {
+        options = options
+            .sg_scene(scene)
+            .sg_instrument(choice.patches, choice.shadows);
+    }
+    let mut tr = TerrainRenderer::new(
+        gpu.device(),
+        gpu.queue(),
+        terrain,
+        &clipsat::Profile::from_stages(profile.clone()),
+        &options,
+    )?;
+    let mut frame_options = tr.frame_options();
+    frame_options.lod = lod_mode;
+    frame_options.morph = !args.no_morph;
+    frame_options.cull = !args.no_cull;
+    frame_options.debug = debug;
+    if frame_options != tr.frame_options() {
+        tr.set_frame_options(gpu.queue(), frame_options)?;
+    }
+    let viewport = (size_w, size_h);
+    let cam = clipsat::Camera::from_stage(camera);
+    // Filled at the still camera until complete (bounded): the rings, the colour rings and, in the SAT
+    // modes, the detail pool.
+    let fill_frames = tr.warm_up(gpu.queue(), &cam, viewport)?;
+    // The error maps of the measured error in distance mode (not measured when streamed: the measurement
+    // needs the whole pyramid); the SAT modes measure with their own selector.
+    let lod = if lod_mode == LodMode::Distance && args.json && !streamed {
+        let st = tr.stages();
+        Some(lod_for(
+            st.stand_in,
+            &profile,
+            st.clipmap,
+            sg.is_some(),
+            false,
+        )?)
     } else {
         None
     };
-    let package = clipmap
-        .tile_cache()
-        .map(clipsat::package::TileCache::package);
-    let baked = sg
-        .as_ref()
-        .map(|sg| sg.bake(&profile, &hm, package))
-        .transpose()?;
-    let shading = super::sg::shading(sg.as_ref(), baked.as_ref());
-    let mut r = Offscreen::new(
-        &gpu,
-        &profile,
-        &clipmap,
-        OffscreenOptions {
-            lod: LodSetup::new(lod_mode, lod.clone())?,
-            shading,
-            debug,
-        },
-    )?;
-    // Draped imagery: its colour rings filled at the camera (bounded), as the heights were.
-    let rings = imagery
-        .map(|p| super::imagery::fill_rings(p, &profile, r.renderer_mut(), &gpu, camera.eye))
-        .transpose()?;
     let setup_ms = t0.elapsed().as_secs_f64() * 1e3;
-    let opts = FrameOptions {
-        morph: !args.no_morph,
-        cull: !args.no_cull,
-        epsilon_px: epsilon,
-        ..FrameOptions::default()
-    };
-    // SAT modes: let the detail pool fill at the still camera, frame by frame under the update budget
-    // (the rings are settled, so the pool gets all of it), until a frame writes no tile (bounded).
-    let mut pool_frames = 0;
-    if lod_mode != LodMode::Distance {
-        while pool_frames < setup::MAX_POOL_FRAMES {
-            pool_frames += 1;
-            // A streamed package's pool tiles wait for their tiles' decode in the next update.
-            let wrote = r.prepare_only(&clipmap, &camera, &opts)?;
-            if setup::pool_step(&mut clipmap, camera.eye, r.plan(), wrote)? {
-                break;
-            }
-        }
-    }
     let t1 = Instant::now();
-    let frame = render_frame(&mut r, &clipmap, &camera, &opts)?;
+    let stats = tr.prepare(gpu.queue(), &cam, viewport)?;
+    targets.draw("clipmap", clipsat::shading::basic::SKY, |pass| {
+        tr.render(pass);
+    })?;
+    let image = targets.read_image()?;
     let ms = t1.elapsed().as_secs_f64() * 1e3;
-    let loud = render_frame(
-        &mut r,
-        &clipmap,
-        &camera,
-        &FrameOptions {
-            clear: measure::CRACK_CLEAR,
-            ..opts
-        },
-    )?;
+    let image_hash = image.hash();
+    // The same frame against a clear that no shading produces, for the crack count.
+    targets.draw("clipmap, crack clear", measure::CRACK_CLEAR, |pass| {
+        tr.render(pass);
+    })?;
+    let loud = targets.read_image()?;
+    let st = tr.stages();
+    let ps = st.plan.stats();
     // Clear pixels inside a column's silhouette are holes only where the view ray passes below the drawn
     // surface inside the data (`measure::hole_pixels`, through the resident pyramid or, streamed, the
     // tiles the fill left in the cache); the rest see past the terrain's border.
     let holes = measure::hole_pixels(
-        &loud.image,
+        &loud,
         measure::CRACK_CLEAR_RGBA8,
-        r.plan(),
-        &clipmap,
+        st.plan,
+        st.clipmap,
         &camera,
         profile.block_m(),
     );
     let (candidates, crack_pixels) = (holes.candidates, holes.holes);
-    // The measured error of what was drawn (the draw list is the same for both renders above).
-    // The SAT modes measure with the epsilon they drew at (the planner's selector).
-    let lod_used = r.lod().or(lod.as_ref());
+    // The measured error of what was drawn. The SAT modes measure with the epsilon they drew at (the
+    // planner's selector).
+    let lod_used = st.planner.lod().or(lod.as_ref());
     let measured = lod_used
         .filter(|_| !streamed)
-        .map(|l| measure::screen_error(r.plan(), r.size(), &clipmap, &camera, l));
+        .map(|l| measure::screen_error(st.plan, viewport, st.clipmap, &camera, l));
     let oracle = (!args.oracle.is_empty() && !streamed).then(|| {
         measure::oracle(
-            &clipmap,
+            st.clipmap,
             &camera,
-            r.size(),
+            viewport,
             profile.clipmap.levels,
             profile.detail_quads(),
             &args.oracle,
@@ -296,33 +299,37 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
         .filter(|_| args.oracle_bound && !streamed)
         .map(|l| {
             measure::bound_oracle(
-                &clipmap,
+                st.clipmap,
                 &camera,
-                r.size(),
+                viewport,
                 profile.clipmap.levels,
                 profile.detail_quads(),
                 &args.oracle,
                 l,
-                r.planner().lod_mode(),
+                st.planner.lod_mode(),
             )
         });
     ensure_parent(&args.out)?;
-    frame.image.save_png(&args.out)?;
+    image.save_png(&args.out)?;
     let reference = match (&sg, args.shading.reference) {
         (Some(sg), true) => {
-            let reference =
-                super::sg::reference(&hm, &camera, (size_w, size_h), &sg.effective_scene());
-            Some(reference.error(&frame.image, super::sg::sky_rgba8()))
+            let reference = super::sg::reference(
+                st.stand_in,
+                &camera,
+                (size_w, size_h),
+                &sg.effective_scene(),
+            );
+            Some(reference.error(&image, super::sg::sky_rgba8()))
         }
         _ => None,
     };
 
     let report = gpu.report();
-    let cf = clipmap.frame();
+    let cf = st.clipmap.frame();
     // Only on request: the brute-force reference refuses terrains past the GLES 3.0 buffer limits.
     let rmse = if args.ground_truth {
-        let truth = BruteForce::new(&gpu, &hm)?.render(&camera, size_w, size_h)?;
-        measure::image_rmse(&frame.image, &truth.image)
+        let truth = BruteForce::new(&gpu, st.stand_in)?.render(&camera, size_w, size_h)?;
+        measure::image_rmse(&image, &truth.image)
     } else {
         None
     };
@@ -343,10 +350,10 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
             "scene": sg.as_ref().map(|s| s.scene.name.clone()),
             "patches": sg.as_ref().map(|s| s.patches.label()),
             "shadows": sg.as_ref().map(|s| s.shadows && s.scene.effects.visibility),
-            "bound_textures": r.bound_textures(),
-            "baked": r.baked(),
+            "bound_textures": st.renderer.bound_textures(),
+            "baked": st.renderer.baked(),
             // The SG tables' grid: samples per row, rows, and data samples per grid sample.
-            "shading_grid": baked.as_ref().map(|(_, b)| [b.width(), b.height(), b.step()]),
+            "shading_grid": st.renderer.sg_bake().map(|b| [b.width(), b.height(), b.step()]),
             "shading_rmse_vs_reference": reference.map(|e| e.rmse),
             "shading_model_rmse_vs_reference": reference.map(|e| e.model_rmse),
             "shading_max_error_vs_reference": reference.map(|e| e.max),
@@ -365,16 +372,15 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
             "stale_levels": cf.stale_levels,
             "disabled_levels": cf.disabled_levels,
             "levels": levels,
-            "triangles": frame.stats.triangles,
-            "draws": frame.stats.draws,
+            "triangles": stats.triangles,
+            "draws": stats.draws,
             "lod": lod_mode.to_string(),
             "epsilon_px": epsilon_used,
-            "blocks_clamped": frame.stats.blocks_clamped,
-            "blocks_from_pool": frame.stats.blocks_from_pool,
-            "detail_tiles_resident": frame.stats.detail_tiles_resident,
-            "detail_samples_updated": frame.stats.detail_samples_updated,
-            "pool_fill_frames": pool_frames,
-            "pieces_snapped": frame.stats.cull.pieces_snapped,
+            "blocks_clamped": stats.blocks_clamped,
+            "blocks_from_pool": ps.blocks_from_pool,
+            "detail_tiles_resident": ps.detail_tiles_resident,
+            "detail_samples_updated": ps.detail_samples_updated,
+            "pieces_snapped": ps.cull.pieces_snapped,
             "max_screen_error_px": measured.map(|m| m.max_px),
             "max_screen_error_unclamped_px": measured.map(|m| m.max_px_unclamped),
             "screen_error_samples": measured.map(|m| m.samples),
@@ -384,14 +390,14 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
             })),
             "rmse_vs_ground_truth": rmse,
             "oracle": oracle.as_deref().map(oracle_json),
-            "blocks": frame.stats.cull.blocks,
-            "blocks_culled": frame.stats.cull.culled,
-            "skirts": frame.stats.cull.skirts,
-            "morph": opts.morph,
-            "cull": opts.cull,
-            "gpu_bytes": r.ledger().bytes(),
-            "gpu_objects": r.ledger().count(),
-            "image_hash": hash::hex(frame.image_hash),
+            "blocks": ps.cull.blocks,
+            "blocks_culled": ps.cull.culled,
+            "skirts": ps.cull.skirts,
+            "morph": frame_options.morph,
+            "cull": frame_options.cull,
+            "gpu_bytes": st.renderer.ledger().bytes() + targets.ledger().bytes(),
+            "gpu_objects": st.renderer.ledger().count() + targets.ledger().count(),
+            "image_hash": hash::hex(image_hash),
             "crack_pixels": crack_pixels,
 
             "out": args.out.display().to_string(),
@@ -401,7 +407,7 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
         if let (Some(o), serde_json::Value::Object(extra)) = (out.as_object_mut(), shading) {
             o.extend(extra);
             // Outside the literal above, which is at json!'s recursion limit.
-            o.insert("unmet_px".into(), json!(frame.stats.unmet_px));
+            o.insert("unmet_px".into(), json!(stats.unmet_px));
             o.insert(
                 "oracle_bound".into(),
                 json!(oracle_bound.as_deref().map(oracle_json)),
@@ -421,21 +427,16 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
                 json!(candidates - crack_pixels),
             );
             // The frame's plan (LOD selection, the detail pool, culling, uniforms) on the CPU, ms.
-            let plan_us = u32::try_from(frame.stats.plan_ns / 1000).unwrap_or(u32::MAX);
+            let plan_us = u32::try_from(st.plan_ns / 1000).unwrap_or(u32::MAX);
             o.insert("plan_ms".into(), json!(f64::from(plan_us) / 1000.0));
             // Candidates whose rays were traced: all, or an evenly spaced sample past MAX_TRACED.
             o.insert("crack_pixels_traced".into(), json!(holes.traced));
-            o.insert(
-                "detail_tiles_needed".into(),
-                json!(frame.stats.detail_tiles_needed),
-            );
-            o.insert("pool_cells".into(), json!(frame.stats.pool_cells));
+            o.insert("detail_tiles_needed".into(), json!(ps.detail_tiles_needed));
+            o.insert("pool_cells".into(), json!(ps.pool_cells));
             // Draped imagery (`--imagery`): the package and its colour rings.
             o.insert(
                 "imagery".into(),
-                json!(rings
-                    .as_ref()
-                    .map(|(rings, frames)| super::imagery::rings_json(rings, *frames))),
+                json!(st.imagery.map(super::imagery::rings_json)),
             );
         }
         print_json(&out);
@@ -444,18 +445,18 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
             "{}: {size_w}x{size_h}, {} triangles in {} draws (clipmap, {} levels stale), image {}, \
              {crack_pixels} crack pixels, {:.1} ms on {} ({})",
             args.out.display(),
-            frame.stats.triangles,
-            frame.stats.draws,
+            stats.triangles,
+            stats.draws,
             cf.stale_levels,
-            hash::hex(frame.image_hash),
+            hash::hex(image_hash),
             ms,
             report.name,
             report.gl_version,
         );
-        if let Some((rings, frames)) = &rings {
+        if let Some(rings) = st.imagery {
             let s = rings.stats();
             println!(
-                "imagery {} ({} x {} texels): {} colour rings filled in {frames} frames, {} stale",
+                "imagery {} ({} x {} texels): {} colour rings, {} stale",
                 rings.package().path().display(),
                 rings.package().header().width,
                 rings.package().header().height,

@@ -2,25 +2,17 @@
 //!
 //! The window (`app/cmd/view/`) draws through the public API only. This file turns the flags into
 //! public values (a [`clipsat::Profile`] with the window's size, a [`clipsat::Terrain`], the start
-//! camera) and holds the one thing the view measures through the stages: `--frames N` times the
-//! headless path of `clipsat render` (the strict offscreen context, draw, read-back and hash) at the
-//! same view. That path is a test instrument, not part of what an engine embeds.
+//! camera) and times, for `--frames N`, the headless path of `clipsat render` at the same view: the same
+//! [`TerrainRenderer`] drawn into offscreen targets of the strict context, read back and hashed.
 
-use clipsat::gpu::headless::{
-    render_frame, FrameOptions as HeadlessOptions, Offscreen, OffscreenOptions,
-};
+use clipsat::gpu::headless::Targets;
 use clipsat::gpu::{Gpu, GpuMode};
-use clipsat::package::TileCache;
-use clipsat::plan::camera::{parse_vec3, Camera as StageCamera};
-use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
-use clipsat::plan::frame_plan::LodSetup;
-use clipsat::shading::scene::Scene;
+use clipsat::plan::camera::parse_vec3;
 use clipsat::shading::Patches;
-use clipsat::{DebugView, FrameOptions, LodMode, Result, Terrain};
+use clipsat::{Camera, FrameOptions, LodMode, RenderOptions, Result, Terrain, TerrainRenderer};
 
 use super::args::{arg_error, GpuArg, Size, StreamArgs};
-use super::render::{lod_for, open_terrain};
-use super::sg::{self, SgChoice, ShadingArgs};
+use super::sg::ShadingArgs;
 use super::{ProfileArgs, TerrainArgs};
 
 /// The view's start: the profile, its viewport and the terrain opened through the public API.
@@ -138,7 +130,7 @@ pub(crate) struct HeadlessView<'a> {
 }
 
 /// Draws `frames` frames of `view` through `clipsat render`'s headless path (a fresh context of `gpu`,
-/// the clipmap filled at the eye first, as `render` does), calling `each` with every frame's ms
+/// a [`TerrainRenderer`] filled at the eye first, as `render` does), calling `each` with every frame's ms
 /// (update + plan + draw + read-back + hash). Returns the context: GL_VERSION and GL_RENDERER.
 pub(crate) fn time_headless(
     view: &HeadlessView<'_>,
@@ -148,60 +140,44 @@ pub(crate) fn time_headless(
 ) -> Result<String> {
     let mut profile = view.profile.load()?;
     (profile.view.width, profile.view.height) = view.size;
-    let (_, hm, package, _) = open_terrain(view.terrain, view.stream.streams(None)?, false)?;
-    let camera = StageCamera::new(view.eye.into(), view.target.into(), view.fov_y_deg)?
+    let terrain = view.terrain.open(view.stream.streams(None)?, false)?;
+    let camera = Camera::look_at(view.eye, view.target, view.fov_y_deg)?
         .with_clip(view.near_far.0, view.near_far.1)?;
     let gpu = Gpu::new(GpuMode::from(gpu))?;
-    let mut clipmap = match package {
-        Some(p) => Clipmap::streamed(p, &profile, ClipmapOptions::default())?,
-        None => Clipmap::new(&hm, &profile, ClipmapOptions::default())?,
-    };
-    clipmap.fill_at(camera.eye, 10_000)?;
-    let lod_mode: LodMode = view.options.lod;
-    let lod = match lod_mode {
-        LodMode::Distance => None,
-        _ => Some(lod_for(&hm, &profile, &clipmap, true, true)?),
-    };
-    let choice = view
-        .sg
-        .as_ref()
-        .map(|s| -> Result<SgChoice> {
-            let mut scene = Scene::load(s.scene)?;
-            scene.effects.visibility &= s.visibility;
-            scene.effects.specular &= s.specular;
-            scene.effects.fog &= s.fog;
-            Ok(SgChoice {
-                scene,
-                patches: Patches::default(),
-                shadows: s.visibility,
-            })
-        })
-        .transpose()?;
-    let baked = choice
-        .as_ref()
-        .map(|c| c.bake(&profile, &hm, clipmap.tile_cache().map(TileCache::package)))
-        .transpose()?;
-    let debug: DebugView = view.options.debug;
-    let mut r = Offscreen::new(
-        &gpu,
-        &profile,
-        &clipmap,
-        OffscreenOptions {
-            lod: LodSetup::new(lod_mode, lod)?,
-            shading: sg::shading(choice.as_ref(), baked.as_ref()),
-            debug,
-        },
+    let targets = Targets::new(&gpu, view.size.0, view.size.1)?;
+    let mut options = RenderOptions::default()
+        .color_format(targets.color_format())
+        .depth_format(targets.depth_format());
+    if view.options.lod != LodMode::Distance {
+        options = options.sat_lod_px(view.epsilon_px);
+    }
+    if let Some(sg) = &view.sg {
+        options = options.sg_scene(sg.scene);
+    }
+    let mut renderer = TerrainRenderer::new(
+        gpu.device(),
+        gpu.queue(),
+        terrain,
+        &clipsat::Profile::from_stages(profile),
+        &options,
     )?;
-    let opts = HeadlessOptions {
-        morph: view.options.morph,
-        cull: view.options.cull,
-        epsilon_px: Some(view.epsilon_px),
-        ..HeadlessOptions::default()
-    };
+    let mut drawn = view.options;
+    if let Some(sg) = &view.sg {
+        drawn.visibility = sg.visibility;
+        drawn.specular = sg.specular;
+        drawn.fog = sg.fog;
+    }
+    if drawn != renderer.frame_options() {
+        renderer.set_frame_options(gpu.queue(), drawn)?;
+    }
+    renderer.warm_up(gpu.queue(), &camera, view.size)?;
     for _ in 0..frames {
         let t = std::time::Instant::now();
-        clipmap.update(camera.eye)?;
-        render_frame(&mut r, &clipmap, &camera, &opts)?;
+        renderer.prepare(gpu.queue(), &camera, view.size)?;
+        targets.draw("clipmap", clipsat::shading::basic::SKY, |pass| {
+            renderer.render(pass);
+        })?;
+        targets.read_image()?.hash();
         each(t.elapsed().as_secs_f64() * 1e3);
     }
     let report = gpu.report();

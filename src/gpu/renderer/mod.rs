@@ -449,6 +449,11 @@ impl Renderer {
         })
     }
 
+    /// Under SG shading, the shading tables the renderer fills its per-level tables from.
+    pub fn sg_bake(&self) -> Option<&crate::package::shading_sats::ShadingBake> {
+        self.sg.as_ref().map(|s| s.tables.bake())
+    }
+
     /// Rings (array layers) in use.
     pub fn levels(&self) -> u32 {
         self.levels
