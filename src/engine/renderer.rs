@@ -412,15 +412,21 @@ impl TerrainRenderer {
         viewport: (u32, u32),
     ) -> Result<FrameStats> {
         self.check_camera(camera, viewport)?;
-        let frame = self.clipmap.update(camera.0.eye)?;
-        let (samples_updated, stale_levels) = (frame.samples_updated, frame.stale_levels);
         self.params.viewport = Some(viewport);
-        let t = std::time::Instant::now();
-        self.planner
-            .plan(&self.clipmap, &camera.0, &self.params, &mut self.plan)?;
-        self.plan_ns = u64::try_from(t.elapsed().as_nanos()).unwrap_or(u64::MAX);
-        // Pool tiles waiting for a streamed package's decode: the next update's, after the rings.
-        self.clipmap.request_samples(&self.plan.detail().wanted);
+        self.plan_ns = setup::frame_cpu(
+            &mut self.clipmap,
+            &mut self.planner,
+            &camera.0,
+            &self.params,
+            &mut self.plan,
+            |plan| {
+                let t = std::time::Instant::now();
+                plan()?;
+                Ok(u64::try_from(t.elapsed().as_nanos()).unwrap_or(u64::MAX))
+            },
+        )?;
+        let frame = self.clipmap.frame();
+        let (samples_updated, stale_levels) = (frame.samples_updated, frame.stale_levels);
         recover::scoped_prepare(
             &self.device,
             &mut self.renderer,

@@ -10,7 +10,8 @@ use crate::bake::{self, lod_tables, BakeParams};
 use crate::package::shading_sats::ShadingBake;
 use crate::package::Package;
 use crate::plan::clipmap::Clipmap;
-use crate::plan::frame_plan::FramePlan;
+use crate::plan::camera::Camera;
+use crate::plan::frame_plan::{FramePlan, PlanParams, Planner};
 use crate::plan::lod::Lod;
 use crate::profile::Profile;
 use crate::progress::Progress;
@@ -25,6 +26,25 @@ pub const MAX_FILL_FRAMES: u32 = 10_000;
 /// wanted tiles outnumber its slots stops writing once every slot is needed). Each frame refines within
 /// the profile's budget of bound evaluations, so a fine epsilon on a rough terrain takes a few hundred.
 pub const MAX_POOL_FRAMES: u32 = 1024;
+
+/// A frame's CPU side (stage 2), the steps and their order that [`crate::TerrainRenderer::prepare`] runs
+/// before its uploads, and `clipsat fly` and `bench` run without a GPU: the clipmap's budgeted update at
+/// the eye, the plan (run by `time`, which may time it and returns what it measured), then the detail
+/// pool's tiles the plan waits for, requested from the next update (a streamed package decodes them after
+/// the rings).
+pub fn frame_cpu<T>(
+    clipmap: &mut Clipmap,
+    planner: &mut Planner,
+    camera: &Camera,
+    params: &PlanParams,
+    plan: &mut FramePlan,
+    time: impl FnOnce(&mut dyn FnMut() -> Result<()>) -> Result<T>,
+) -> Result<T> {
+    clipmap.update(camera.eye)?;
+    let measured = time(&mut || planner.plan(clipmap, camera, params, plan))?;
+    clipmap.request_samples(&plan.detail().wanted);
+    Ok(measured)
+}
 
 /// The mapped SAT LOD tables faulted in when they are opened: one in this many bytes of their resident
 /// share ([`crate::bake::lod_tables::LodTables::prime`]). Half: the other half is left to the frames'

@@ -7,6 +7,7 @@
 use std::fmt::Write as _;
 use std::time::Instant;
 
+use clipsat::engine::setup;
 use clipsat::measure::screen_error;
 use clipsat::plan::clipmap::{Clipmap, ClipmapOptions};
 use clipsat::plan::flight::{Flight, Path};
@@ -57,21 +58,24 @@ pub(crate) fn percentiles<T: Copy + Ord + Default>(mut v: Vec<T>) -> [T; 3] {
     [at(50), at(99), v.last().copied().unwrap_or_default()]
 }
 
-/// One `Planner::plan` call, timed.
-pub(crate) fn timed_plan(
+/// One frame's CPU side ([`setup::frame_cpu`]: the update, the plan, the pool's requests), its plan
+/// timed: wall and, where the thread has a clock, CPU nanoseconds.
+pub(crate) fn timed_frame(
+    clipmap: &mut Clipmap,
     planner: &mut Planner,
-    clipmap: &Clipmap,
     camera: &clipsat::plan::camera::Camera,
     params: &PlanParams,
     plan: &mut FramePlan,
 ) -> Result<(u64, Option<u64>)> {
-    let (t, cpu) = (Instant::now(), thread_cpu_ns());
-    planner.plan(clipmap, camera, params, plan)?;
-    let wall = u64::try_from(t.elapsed().as_nanos()).unwrap_or(u64::MAX);
-    Ok((
-        wall,
-        thread_cpu_ns().zip(cpu).map(|(b, a)| b.saturating_sub(a)),
-    ))
+    setup::frame_cpu(clipmap, planner, camera, params, plan, |plan| {
+        let (t, cpu) = (Instant::now(), thread_cpu_ns());
+        plan()?;
+        let wall = u64::try_from(t.elapsed().as_nanos()).unwrap_or(u64::MAX);
+        Ok((
+            wall,
+            thread_cpu_ns().zip(cpu).map(|(b, a)| b.saturating_sub(a)),
+        ))
+    })
 }
 
 /// Per jump of a flight (frame 0 counts as one): the frames until the plan settled (no ring stale, no
@@ -196,9 +200,7 @@ pub(crate) fn measure_plan(
         let (mut error, mut settle) = ((0.0f64, 0.0f64), Settling::default());
         for f in 0..frames {
             let camera = flight.camera(f);
-            clipmap.update(camera.eye)?;
-            let (w, c) = timed_plan(&mut planner, &clipmap, &camera, &params, &mut plan)?;
-            clipmap.request_samples(&plan.detail().wanted);
+            let (w, c) = timed_frame(&mut clipmap, &mut planner, &camera, &params, &mut plan)?;
             wall.push(w);
             cpu.push(c);
             evals.push(plan.stats().bound_evaluations);

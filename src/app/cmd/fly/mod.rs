@@ -17,7 +17,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 
 use super::args::{arg_error, flag, pixel_size, GpuArgs, LodArgs, Size, StreamArgs};
-use super::bench::plan::{timed_plan, Settling};
+use super::bench::plan::{timed_frame, Settling};
 use super::hashes::{self, HashFile};
 use super::{ProfileArgs, TerrainArgs};
 
@@ -337,11 +337,9 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
     let mut max_work = 0u32;
     for f in 0..frames {
         let camera = flight.camera(f);
-        clipmap.update(camera.eye)?;
+        // The frame's CPU side as `TerrainRenderer::prepare` runs it: update, plan, the pool's requests.
         let (plan_ns, plan_cpu_ns) =
-            timed_plan(&mut planner, &clipmap, &camera, &plan_params, &mut plan)?;
-        // Pool tiles waiting for a streamed package's decode: the next update's, after the rings.
-        clipmap.request_samples(&plan.detail().wanted);
+            timed_frame(&mut clipmap, &mut planner, &camera, &plan_params, &mut plan)?;
         if let (Some(k), Some(lod)) = (args.error_every, planner.lod()) {
             // Frames K, 2K, ...: frame 0 draws what one update filled (the flight's start).
             if f > 0 && f % k == 0 {
