@@ -6,6 +6,7 @@ use super::{setup, TerrainRenderer};
 use crate::bake::lod_tables::LodMode;
 use crate::gpu::scope::scoped;
 use crate::plan::frame_plan::{LodSetup, Planner};
+use crate::plan::lod::Lod;
 use crate::progress::Progress;
 use crate::shading::debug_view::DebugView;
 use crate::{Error, Result};
@@ -75,20 +76,23 @@ impl TerrainRenderer {
     /// and SG's effects are switches (a set of effects drawn for the first time compiles its programs).
     /// A new LOD mode or debug view makes the GPU side again on the renderer's device, as
     /// [`TerrainRenderer::rebuild`] does (nothing is baked but a SAT mode's tables the first time, and
-    /// the next frame uploads the rings in full). Refused, with nothing changed: SG on a renderer built
-    /// without a scene, an SG effect the scene does not have.
+    /// the next frame uploads the rings in full). Refused: SG on a renderer built without a scene, an SG
+    /// effect the scene does not have. An error, refused or from the GPU (`Error::Gpu`) or the SAT LOD
+    /// tables' bake, changes nothing: the renderer draws as before.
     pub fn set_frame_options(&mut self, queue: &wgpu::Queue, options: FrameOptions) -> Result<()> {
         let invalid = |reason: String| Error::Invalid {
             what: "TerrainRenderer::set_frame_options".into(),
             reason,
         };
-        match self.sg_effects {
+        // Everything that can fail runs first, on new objects; the renderer changes only once all of it
+        // has succeeded, so a refused or failed switch leaves it drawing as before.
+        let effects = match self.sg_effects {
             None if options.sg => {
                 return Err(invalid(
                     "SG shading needs a scene (RenderOptions::sg_scene was None)".into(),
                 ))
             }
-            None => {}
+            None => None,
             Some(built) => {
                 let mut effects = built;
                 // Fog without the scene's parameters draws nothing: no effect, not refused.
@@ -104,24 +108,28 @@ impl TerrainRenderer {
                         return Err(invalid(format!("the SG scene has no {name}")));
                     }
                 }
-                let device = self.device.clone();
-                scoped(&device, "switching the SG effects", || {
-                    self.renderer.set_sg_effects(&device, effects)
-                })?;
-                self.renderer.set_sg_enabled(options.sg);
+                Some(effects)
             }
-        }
+        };
         let old = self.frame;
-        if options.lod != old.lod {
-            self.set_lod_mode(options.lod)?;
-        }
-        if options.lod != old.lod || options.debug != old.debug {
-            let device = self.device.clone();
+        let planner = if options.lod == old.lod {
+            None
+        } else {
+            Some(self.planner_for(options.lod)?)
+        };
+        let device = self.device.clone();
+        let rebuilt = if options.lod != old.lod || options.debug != old.debug {
             let mut renderer = scoped(&device, "switching the LOD mode or debug view", || {
                 self.renderer.rebuild_with(&device, queue, options.debug)
             })?;
+            if let Some(effects) = effects {
+                scoped(&device, "switching the SG effects", || {
+                    renderer.set_sg_effects(&device, effects)
+                })?;
+            }
+            let plan = planner.as_ref().map_or(&self.plan, |(_, plan, _)| plan);
             scoped(&device, "sending the detail pool again", || {
-                renderer.resend_detail(queue, &mut self.clipmap, &self.plan)
+                renderer.resend_detail(queue, &mut self.clipmap, plan)
             })?;
             // Draped imagery's rings into the new texture, as they are (no refill, no fade).
             if let Some(rings) = &self.imagery {
@@ -129,7 +137,25 @@ impl TerrainRenderer {
                     renderer.restore_imagery(queue, rings)
                 })?;
             }
+            Some(renderer)
+        } else {
+            if let Some(effects) = effects {
+                scoped(&device, "switching the SG effects", || {
+                    self.renderer.set_sg_effects(&device, effects)
+                })?;
+            }
+            None
+        };
+        if let Some((planner, plan, tables)) = planner {
+            self.planner = planner;
+            self.plan = plan;
+            self.lod_tables = tables;
+        }
+        if let Some(renderer) = rebuilt {
             self.renderer = renderer;
+        }
+        if effects.is_some() {
+            self.renderer.set_sg_enabled(options.sg);
         }
         self.params.morph = options.morph;
         self.params.cull = options.cull;
@@ -140,16 +166,17 @@ impl TerrainRenderer {
         Ok(())
     }
 
-    /// A new planner for `mode`, the SAT LOD tables loaded the first time a SAT mode needs them.
-    fn set_lod_mode(&mut self, mode: LodMode) -> Result<()> {
-        if let Some(lod) = self.planner.lod() {
-            self.lod_tables = Some(lod.clone());
-        }
-        if mode != LodMode::Distance && self.lod_tables.is_none() {
-            let profile = self.renderer.profile();
-            self.lod_tables = Some(setup::sat_lod(
+    /// A new planner for `mode` and its first plan, with the SAT LOD tables to keep: the ones held, or
+    /// loaded the first time a SAT mode needs them.
+    fn planner_for(
+        &self,
+        mode: LodMode,
+    ) -> Result<(Planner, crate::plan::frame_plan::FramePlan, Option<Lod>)> {
+        let mut tables = self.planner.lod().cloned().or_else(|| self.lod_tables.clone());
+        if mode != LodMode::Distance && tables.is_none() {
+            tables = Some(setup::sat_lod(
                 &self.stand_in,
-                profile,
+                self.renderer.profile(),
                 &self.clipmap,
                 self.cache.as_deref(),
                 self.sg_effects.is_some(),
@@ -158,10 +185,10 @@ impl TerrainRenderer {
         }
         let setup = match mode {
             LodMode::Distance => LodSetup::Distance,
-            m => LodSetup::new(m, self.lod_tables.clone())?,
+            m => LodSetup::new(m, tables.clone())?,
         };
-        self.planner = Planner::new(self.renderer.profile(), &self.clipmap, setup)?;
-        self.plan = self.planner.new_plan();
-        Ok(())
+        let planner = Planner::new(self.renderer.profile(), &self.clipmap, setup)?;
+        let plan = planner.new_plan();
+        Ok((planner, plan, tables))
     }
 }
