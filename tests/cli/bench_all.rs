@@ -58,3 +58,49 @@ fn quick_report_has_every_section_and_its_plots() {
         );
     }
 }
+
+/// `clipsat bench imagery` on a small view: the four configurations drawn through `TerrainRenderer`,
+/// their ms and the two ratios in the JSON; without `--imagery` a one-line refusal.
+#[test]
+fn bench_imagery_reports_both_ratios() {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("cli_bench_imagery");
+    std::fs::create_dir_all(&dir).expect("scratch folder");
+    let png = dir.join("imagery.png");
+    let byte = |v: u32| u8::try_from(v % 256).expect("a byte");
+    image::RgbImage::from_fn(64, 64, |x, y| {
+        image::Rgb([byte(x * 4), byte(y * 4), byte(x + y)])
+    })
+    .save(&png)
+    .expect("save PNG");
+    let run = |extra: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_clipsat"))
+            .args(["bench", "imagery", "--terrain", "procedural:size=129"])
+            .args([
+                "--profile",
+                "gles3-mid",
+                "--size",
+                "160x90",
+                "--frames",
+                "1",
+            ])
+            .args(extra)
+            .env("CLIPSAT_CACHE", super::cache_dir())
+            .output()
+            .expect("run the clipsat binary")
+    };
+    let p = png.display().to_string();
+    let out = run(&["--imagery", &p, "--json"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");
+    assert_eq!(v["p50_ms"].as_array().map(Vec::len), Some(4), "{v}");
+    for ratio in ["basic_imagery_ratio", "sg_imagery_ratio"] {
+        assert!(v[ratio].as_f64().is_some_and(|r| r > 0.0), "{ratio}: {v}");
+    }
+    let refused = run(&[]);
+    assert_eq!(refused.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&refused.stderr).contains("--imagery"));
+}

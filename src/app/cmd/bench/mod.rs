@@ -1,5 +1,5 @@
 //! `clipsat bench`: the measurement subcommands. `lod.rs` measures the LOD stage, `shading.rs` the SG
-//! shading, `memory.rs` the terrain package and resident set, `budget.rs` the update budget against
+//! shading, `imagery.rs` draped imagery's cost through the public renderer, `memory.rs` the terrain package and resident set, `budget.rs` the update budget against
 //! speed, `plan.rs` the plan's time per frame (also `fly`'s), `all.rs` runs them and the GPU memory
 //! measurement into one report; `common.rs` holds what they share. Dependencies go one way: `all` uses
 //! the others, never the reverse.
@@ -7,6 +7,7 @@
 mod all;
 mod budget;
 mod common;
+mod imagery;
 mod lod;
 mod memory;
 pub(crate) mod plan;
@@ -35,12 +36,16 @@ enum BenchWhat {
     /// SG shading: patches {2x4, 4x8, 8x16} x effects {diffuse, +visibility, +specular}: ms per frame
     /// against basic shading, RMSE and max error against the CPU reference.
     Shading(BenchShadingArgs),
+    /// Draped imagery's cost: basic shading and SG, each without and with the terrain's `--imagery`,
+    /// drawn through `TerrainRenderer`: ms per frame and the ratios, measured in the same run.
+    Imagery(imagery::BenchImageryArgs),
 }
 
 pub(crate) fn run(args: &BenchArgs) -> Result<()> {
     match &args.what {
         BenchWhat::Lod(a) => lod::run_lod(a),
         BenchWhat::All(a) => all::run(a),
+        BenchWhat::Imagery(a) => imagery::run(a),
         BenchWhat::Shading(a) => {
             let report = shading::run_shading(a)?;
             if a.json {
