@@ -294,6 +294,12 @@ struct Layout {
 
 /// Places the tiles named by `spec` on one grid ([`Layout`]).
 fn layout(spec: &Path, opts: &LoadOptions) -> Result<Layout> {
+    if let Some(h) = opts.fill_height.filter(|h| !h.is_finite()) {
+        return Err(Error::format(
+            spec,
+            format!("a fill height of {h} m: it must be finite"),
+        ));
+    }
     let (paths, _) = tile_paths(spec)?;
     let metas = paths
         .iter()

@@ -273,6 +273,14 @@ fn bad_mosaics_are_refused() {
         let e = source::load(spec, &LoadOptions::default()).expect_err("load");
         assert!(e.to_string().contains(needle), "{}: {e}", spec.display());
     };
+    let nan_fill = LoadOptions {
+        fill_height: Some(f32::NAN),
+        ..LoadOptions::default()
+    };
+    let e = source::open_rows(&dir.join("tiles"), &nan_fill)
+        .err()
+        .expect("NaN fill");
+    assert!(e.to_string().contains("must be finite"), "{e}");
     std::fs::write(dir.join("tiles/readme.md"), "no tiles here").unwrap();
     refused(&dir.join("tiles"), "no DEM tile");
     refused(&dir.join("tiles/*.hgt"), "matches no file");
