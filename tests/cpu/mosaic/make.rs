@@ -227,7 +227,9 @@ pub(super) fn write_geotiff_tiles(dir: &Path, g: &Grid, side: usize) -> Vec<Path
 /// Writes a 2 x 2 mosaic of SRTM tiles of `side` (1201 or 3601) in `dir/tiles` and the same data merged
 /// into one GeoTIFF, `dir/merged.tif`: the shared tile upsampled to 2 (side - 1) + 1 samples a side over
 /// 2 x 2 degrees, north-west corner at 59 N 11 E. For the measurements in docs/guide.md: run
-/// `CLIPSAT_MOSAIC_OUT=DIR CLIPSAT_MOSAIC_SIDE=3601 cargo test --test cpu mosaic::make_mosaic -- --ignored`.
+/// `CLIPSAT_MOSAIC_OUT=DIR CLIPSAT_MOSAIC_SIDE=3601 cargo test --test cpu mosaic::make::make_mosaic --
+/// --ignored`. `CLIPSAT_MOSAIC_TILES=N` also cuts the same grid into N x N GeoTIFF tiles in
+/// `DIR/tiles-N`.
 #[test]
 #[ignore = "writes a measurement mosaic where CLIPSAT_MOSAIC_OUT says"]
 fn make_mosaic() {
@@ -247,4 +249,10 @@ fn make_mosaic() {
         write_hgt(&tiles, &t);
     }
     write_geotiff(&out.join("merged.tif"), &world, None, 4326);
+    if let Ok(n) = std::env::var("CLIPSAT_MOSAIC_TILES") {
+        let n: usize = n.parse().expect("CLIPSAT_MOSAIC_TILES");
+        let dir = out.join(format!("tiles-{n}"));
+        std::fs::create_dir_all(&dir).expect("mkdir");
+        write_geotiff_tiles(&dir, &world, (world.w - 1) / n + 1);
+    }
 }

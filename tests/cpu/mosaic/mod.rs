@@ -354,3 +354,26 @@ fn terrain_opens_a_folder_of_tiles() {
     let again = clipsat::Terrain::bake(dir.join("tiles/*.tif"), &opts).expect("bake");
     assert!(again.starts_with(&cache));
 }
+
+/// More tiles across than readers stay open ([`source::MAX_OPEN_TILES`]): readers are closed and opened
+/// again band after band, and the mosaic still reads its grid sample for sample.
+#[test]
+fn more_tiles_across_than_open_readers() {
+    let dir = temp_dir("many");
+    let across = source::MAX_OPEN_TILES + 4;
+    let w = 10 * across + 1;
+    let g = Grid {
+        w,
+        h: 31,
+        z: (0..w * 31)
+            .map(|i| i16::try_from(i % 997).unwrap())
+            .collect(),
+        west: 11.0,
+        north: 58.0,
+        step: 1.0 / 3600.0,
+    };
+    let tiles = write_geotiff_tiles(&dir.join("tiles"), &g, 11);
+    assert_eq!(tiles.len(), across * 3);
+    let (_, got) = read_all(&dir.join("tiles"), &LoadOptions::default());
+    assert_eq!(got, as_f32(&g));
+}
