@@ -270,7 +270,9 @@ fn load_format(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
 /// non-interlaced PNG row by row (any of them with voids is loaded whole: they are filled over the whole
 /// grid; a raw file or PNG given [`LoadOptions::nodata`] always is); the other files are
 /// decoded whole by [`load`] (an SRTM tile or a DTED cell is at most 3601^2 samples; an ASCII grid or
-/// an XYZ file is parsed a line at a time into its heights) and read from memory.
+/// an XYZ file is parsed a line at a time into its heights) and read from memory. A mosaic of tiles
+/// ([`is_mosaic`]) is read a band at a time through its tiles, or whole where it has samples with no
+/// data and no [`LoadOptions::fill_height`].
 pub fn open_rows(path: &Path, opts: &LoadOptions) -> Result<Box<dyn RowSource>> {
     let rows = open_format_rows(path, opts)?;
     if !opts.resample_ew {

@@ -2,8 +2,9 @@
 //! most [`MAX_OPEN_TILES`] open tile readers.
 //!
 //! What it holds: the tiles' placements (a path and a few numbers each), and for each open reader its
-//! file, two cached tile rows and, for a GeoTIFF, one decoded row of strips or tiles. The band itself is
-//! the caller's.
+//! file, two cached tile rows and, for a GeoTIFF, one decoded row of strips or tiles (the whole tile for
+//! a tile stored as one strip). A reader is closed once the bands have passed its tile, so the readers
+//! open are those of the tiles across the band. The band itself is the caller's.
 
 use std::path::Path;
 
@@ -232,6 +233,10 @@ impl RowSource for Mosaic {
             self.fill_from(t, y0, out)?;
         }
         let w = self.layout.grid.width as usize;
+        // Bands come top to bottom: a tile above the next band is closed (opened again if asked).
+        let next = u64::from(y0) + (out.len() / w) as u64;
+        let tiles = &self.layout.tiles;
+        self.open.retain(|o| u64::from(tiles[o.tile].row1) >= next);
         if let Some(fill) = self.opts.fill_height {
             out.iter_mut().filter(|v| v.is_nan()).for_each(|v| *v = fill);
         } else if self.refuse {
