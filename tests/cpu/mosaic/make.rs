@@ -167,6 +167,18 @@ pub(super) fn write_hgt(dir: &Path, g: &Grid) -> PathBuf {
 /// tiepoint on sample (0, 0), GDAL nodata `nodata` where given; `epsg` replaces 4326 (a projected code
 /// makes the file say it is projected).
 pub(super) fn write_geotiff(path: &Path, g: &Grid, nodata: Option<i16>, epsg: u16) -> PathBuf {
+    write_geotiff_as(path, g, nodata, epsg, true)
+}
+
+/// [`write_geotiff`], pixel-is-point or (as GDAL writes most DEMs) pixel-is-area with the tiepoint on
+/// the raster's north-west corner, half a step out from sample (0, 0).
+pub(super) fn write_geotiff_as(
+    path: &Path,
+    g: &Grid,
+    nodata: Option<i16>,
+    epsg: u16,
+    point: bool,
+) -> PathBuf {
     use tiff::encoder::{colortype::GrayI16, TiffEncoder};
     use tiff::tags::Tag;
     let file = std::fs::File::create(path).expect("create tiff");
@@ -188,7 +200,7 @@ pub(super) fn write_geotiff(path: &Path, g: &Grid, nodata: Option<i16>, epsg: u1
         1025,
         0,
         1,
-        2,
+        if point { 2 } else { 1 },
         if projected { 3072 } else { 2048 },
         0,
         1,
@@ -204,7 +216,18 @@ pub(super) fn write_geotiff(path: &Path, g: &Grid, nodata: Option<i16>, epsg: u1
     enc_tags
         .write_tag(
             Tag::ModelTiepointTag,
-            &[0.0, 0.0, 0.0, g.west, g.north, 0.0][..],
+            &if point {
+                [0.0, 0.0, 0.0, g.west, g.north, 0.0]
+            } else {
+                [
+                    0.0,
+                    0.0,
+                    0.0,
+                    g.west - g.step / 2.0,
+                    g.north + g.step / 2.0,
+                    0.0,
+                ]
+            }[..],
         )
         .expect("tiepoint");
     if let Some(v) = nodata {

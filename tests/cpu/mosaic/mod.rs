@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use clipsat::package::{self, BakeOptions};
 use clipsat::source::{self, LoadOptions, RowSource};
-use make::{write_geotiff, write_geotiff_tiles, write_hgt, Grid};
+use make::{write_geotiff, write_geotiff_as, write_geotiff_tiles, write_hgt, Grid};
 
 /// A fresh folder under the system temp dir, unique to this test and process; removed on drop.
 struct TempDir(PathBuf);
@@ -375,5 +375,32 @@ fn more_tiles_across_than_open_readers() {
     let tiles = write_geotiff_tiles(&dir.join("tiles"), &g, 11);
     assert_eq!(tiles.len(), across * 3);
     let (_, got) = read_all(&dir.join("tiles"), &LoadOptions::default());
+    assert_eq!(got, as_f32(&g));
+}
+
+/// Pixel-is-area GeoTIFF tiles (the tiepoint on the raster's corner, as GDAL writes most DEMs) are placed
+/// by their sample centres, as pixel-is-point ones are, and may be mixed with them.
+#[test]
+fn pixel_is_area_tiles_place_alike() {
+    let dir = temp_dir("area");
+    let g = Grid {
+        w: 41,
+        h: 41,
+        z: (0..41 * 41).map(|i: i16| i % 41 * 3 - i / 41).collect(),
+        west: 11.25,
+        north: 57.5,
+        step: 1.0 / 3600.0,
+    };
+    for (i, ((x, y), t)) in g.tiles(21).into_iter().enumerate() {
+        write_geotiff_as(
+            &dir.join(format!("tiles/t{x}{y}.tif")),
+            &t,
+            None,
+            4326,
+            i % 2 == 0,
+        );
+    }
+    let (grid, got) = read_all(&dir.join("tiles"), &LoadOptions::default());
+    assert_eq!((grid.width, grid.height), (41, 41));
     assert_eq!(got, as_f32(&g));
 }
