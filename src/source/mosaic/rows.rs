@@ -228,6 +228,9 @@ impl RowSource for Mosaic {
 
     fn read_rows(&mut self, y0: u32, out: &mut [f32]) -> Result<()> {
         check_band(self, y0, out)?;
+        if out.is_empty() {
+            return Ok(());
+        }
         out.fill(f32::NAN);
         for t in 0..self.layout.tiles.len() {
             self.fill_from(t, y0, out)?;

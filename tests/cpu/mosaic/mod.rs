@@ -402,5 +402,9 @@ fn pixel_is_area_tiles_place_alike() {
     }
     let (grid, got) = read_all(&dir.join("tiles"), &LoadOptions::default());
     assert_eq!((grid.width, grid.height), (41, 41));
+    // An empty band is no rows, at either end.
+    let mut rows = source::open_rows(&dir.join("tiles"), &LoadOptions::default()).expect("open");
+    rows.read_rows(0, &mut []).expect("empty band");
+    rows.read_rows(41, &mut []).expect("empty band at the end");
     assert_eq!(got, as_f32(&g));
 }
