@@ -460,7 +460,12 @@ fn cached_package(
     progress: Progress<'_>,
 ) -> Result<Package> {
     let mut h = Hash64::new();
-    h.write_bytes(format!("{spec:?} {load:?}").as_bytes());
+    let mut key = format!("{spec:?} {load:?}");
+    // The packages baked before `fill_height` existed keep their keys: it is named only when set.
+    if load.fill_height.is_none() {
+        key = key.replace(", fill_height: None", "");
+    }
+    h.write_bytes(key.as_bytes());
     if let TerrainSpec::File(path) = spec {
         let stamp = |meta: &std::fs::Metadata, h: &mut Hash64| {
             h.write_u64(meta.len());
