@@ -101,6 +101,13 @@ impl<'a> TerrainOptions<'a> {
         self
     }
 
+    /// The height of a mosaic's samples with no data ([`TerrainOptions::fill_height`]).
+    #[must_use]
+    pub fn fill_height(mut self, metres: f32) -> Self {
+        self.fill_height = Some(metres);
+        self
+    }
+
     /// Where the first bake reports its progress ([`TerrainOptions::progress`]).
     #[must_use]
     pub fn progress(mut self, progress: Progress<'a>) -> Self {

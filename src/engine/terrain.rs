@@ -37,6 +37,10 @@ pub struct TerrainOptions<'a> {
     /// A stored sample value that marks voids (NaN matches NaN), for a file that declares none or
     /// another; voids are filled from their neighbours.
     pub nodata: Option<f64>,
+    /// For a mosaic of tiles (a folder, a `.txt` list or a glob pattern given as the path): the height,
+    /// metres, of samples no tile has data for (missing tiles, voids). None: they are no data, filled from
+    /// their neighbours as a single file's voids are (the mosaic is then read whole to bake).
+    pub fill_height: Option<f32>,
     /// Where the first bake of a plain file reports its progress.
     pub progress: Progress<'a>,
     /// An image to drape on the terrain: a PNG or JPEG (8- or 16-bit grey, RGB, RGBA or palette; alpha
@@ -71,7 +75,9 @@ pub struct Terrain {
 
 impl Terrain {
     /// Opens a terrain file: a `.clipsat` package, or any source clipsat reads (PNG, GeoTIFF, SRTM
-    /// `.hgt`, DTED, ESRI ASCII and binary grids, gridded XYZ), told by its extension or magic number.
+    /// `.hgt`, DTED, ESRI ASCII and binary grids, gridded XYZ), told by its extension or magic number; or
+    /// a mosaic of SRTM `.hgt` and GeoTIFF tiles read as one terrain: a folder of them, a `.txt` list
+    /// (one path a line, relative to the list) or a glob pattern (`tiles/N5*.hgt`).
     /// With a `cache_dir`, a plain file is baked into a package there on first use (keyed by its path,
     /// size, modification time and sidecars) and streamed; without one it is held whole.
     /// [`Terrain::open_with`] takes the other options.
@@ -93,6 +99,7 @@ impl Terrain {
             height_scale: options.height_scale,
             height_offset: options.height_offset,
             nodata: options.nodata,
+            fill_height: options.fill_height,
             max_samples: options
                 .max_samples
                 .unwrap_or(LoadOptions::default().max_samples),
@@ -458,7 +465,12 @@ fn cached_package(
     progress: Progress<'_>,
 ) -> Result<Package> {
     let mut h = Hash64::new();
-    h.write_bytes(format!("{spec:?} {load:?}").as_bytes());
+    let mut key = format!("{spec:?} {load:?}");
+    // The packages baked before `fill_height` existed keep their keys: it is named only when set.
+    if load.fill_height.is_none() {
+        key = key.replace(", fill_height: None", "");
+    }
+    h.write_bytes(key.as_bytes());
     if let TerrainSpec::File(path) = spec {
         let stamp = |meta: &std::fs::Metadata, h: &mut Hash64| {
             h.write_u64(meta.len());
@@ -468,14 +480,20 @@ fn cached_package(
                 .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok());
             h.write_u64(mtime.map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX)));
         };
-        let meta = std::fs::metadata(path).map_err(|e| Error::io(path, "cannot read", e))?;
-        stamp(&meta, &mut h);
-        // The sidecars a loader reads its layout or spacing from (a world file, a .prj, an ESRI .hdr):
-        // editing one bakes again.
-        for ext in ["tfw", "TFW", "tifw", "tiffw", "prj", "hdr"] {
-            match std::fs::metadata(path.with_extension(ext)) {
-                Ok(meta) => stamp(&meta, &mut h),
-                Err(_) => h.write_u64(0),
+        // Each file it reads (a mosaic's tiles and list), and the sidecars a loader reads its layout or
+        // spacing from (a world file, a .prj, an ESRI .hdr): editing one bakes again.
+        let mosaic = source::is_mosaic(path);
+        for file in source::input_files(path)? {
+            let meta = std::fs::metadata(&file).map_err(|e| Error::io(&file, "cannot read", e))?;
+            if mosaic {
+                h.write_bytes(file.display().to_string().as_bytes());
+            }
+            stamp(&meta, &mut h);
+            for ext in ["tfw", "TFW", "tifw", "tiffw", "prj", "hdr"] {
+                match std::fs::metadata(file.with_extension(ext)) {
+                    Ok(meta) => stamp(&meta, &mut h),
+                    Err(_) => h.write_u64(0),
+                }
             }
         }
     }

@@ -35,6 +35,10 @@ pub struct LoadOptions {
     /// compares nodata (a PNG's grey level, or a web-map encoding's decoded metres); NaN matches NaN. Voids
     /// are filled from their neighbours and counted.
     pub nodata: Option<f64>,
+    /// For a mosaic of tiles: the height, metres, that its samples no tile has data for (missing tiles,
+    /// voids) read as. None: they are no data, filled from their neighbours as a single file's voids are
+    /// (the mosaic is then read whole).
+    pub fill_height: Option<f32>,
 }
 
 /// How a PNG's pixels hold heights.
@@ -92,6 +96,7 @@ impl Default for LoadOptions {
             png_encoding: PngEncoding::Grey,
             resample_ew: false,
             nodata: None,
+            fill_height: None,
         }
     }
 }
@@ -121,7 +126,8 @@ pub enum RawFormat {
 pub enum TerrainSpec {
     /// The built-in procedural terrain.
     Procedural(crate::source::procedural::ProceduralParams),
-    /// A file, its format told by extension (and magic number).
+    /// A file, its format told by extension (and magic number), or a mosaic of tiles: a folder, a `.txt`
+    /// list or a glob pattern ([`is_mosaic`]).
     File(PathBuf),
 }
 
@@ -130,6 +136,7 @@ mod bil;
 mod dted;
 mod heightmap;
 mod hgt;
+mod mosaic;
 mod png;
 pub mod georef;
 pub mod imagery;
@@ -140,6 +147,7 @@ mod tiff;
 mod xyz;
 
 pub use heightmap::Heightmap;
+pub use mosaic::MAX_OPEN_TILES;
 pub(crate) use rows::check_band;
 pub use rows::{Resident, RowGrid, RowSource};
 
@@ -193,8 +201,29 @@ pub fn load(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
     })
 }
 
+/// Whether `path` names a mosaic of DEM tiles read as one terrain rather than one file: a folder of
+/// tiles, a `.txt` list of them (one path a line, relative to the list's folder), or a glob pattern
+/// (docs/guide.md "Tile mosaics").
+pub fn is_mosaic(path: &Path) -> bool {
+    mosaic::is_mosaic(path)
+}
+
+/// The files `path` reads: the file itself, or a mosaic's tiles (and its list file): what a cache key
+/// stamps.
+pub fn input_files(path: &Path) -> Result<Vec<PathBuf>> {
+    if !is_mosaic(path) {
+        return Ok(vec![path.to_path_buf()]);
+    }
+    let (mut tiles, list) = mosaic::tile_paths(path)?;
+    tiles.extend(list);
+    Ok(tiles)
+}
+
 /// [`load`] before [`LoadOptions::resample_ew`].
 fn load_format(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
+    if is_mosaic(path) {
+        return mosaic::load(path, opts);
+    }
     let meta = std::fs::metadata(path).map_err(|e| Error::io(path, "cannot read", e))?;
     if !meta.is_file() {
         return Err(Error::format(path, "not a regular file"));
@@ -241,7 +270,9 @@ fn load_format(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
 /// non-interlaced PNG row by row (any of them with voids is loaded whole: they are filled over the whole
 /// grid; a raw file or PNG given [`LoadOptions::nodata`] always is); the other files are
 /// decoded whole by [`load`] (an SRTM tile or a DTED cell is at most 3601^2 samples; an ASCII grid or
-/// an XYZ file is parsed a line at a time into its heights) and read from memory.
+/// an XYZ file is parsed a line at a time into its heights) and read from memory. A mosaic of tiles
+/// ([`is_mosaic`]) is read a band at a time through its tiles, or whole where it has samples with no
+/// data and no [`LoadOptions::fill_height`].
 pub fn open_rows(path: &Path, opts: &LoadOptions) -> Result<Box<dyn RowSource>> {
     let rows = open_format_rows(path, opts)?;
     if !opts.resample_ew {
@@ -255,6 +286,9 @@ pub fn open_rows(path: &Path, opts: &LoadOptions) -> Result<Box<dyn RowSource>> 
 
 /// [`open_rows`] before [`LoadOptions::resample_ew`].
 fn open_format_rows(path: &Path, opts: &LoadOptions) -> Result<Box<dyn RowSource>> {
+    if is_mosaic(path) {
+        return mosaic::open_rows(path, opts);
+    }
     let ext = path
         .extension()
         .and_then(|e| e.to_str())

@@ -191,6 +191,14 @@ pub(super) fn open_rows(
     Ok(Box::new(rows))
 }
 
+/// Opens a TIFF tile of a mosaic to be read a band of rows at a time, its voids read as NaN (the mosaic
+/// decides what a void becomes, `mosaic.rs`).
+pub(super) fn open_tile_rows(path: &Path, opts: &LoadOptions) -> Result<Box<dyn super::RowSource>> {
+    let mut rows = Rows::open(path, opts, &super::read_magic(path)?)?;
+    rows.keep_voids = true;
+    Ok(Box::new(rows))
+}
+
 /// A TIFF read one row of chunks (strips or tiles) at a time; the samples are the ones [`load`] gives.
 struct Rows {
     dec: Decoder<BufReader<std::fs::File>>,
@@ -205,6 +213,8 @@ struct Rows {
     /// The decoded row of chunks `band_row`: `chunk.1` rows of `width` samples (voids NaN).
     band: Vec<f32>,
     band_row: Option<u32>,
+    /// Whether voids are read as NaN (a mosaic's tile, [`open_tile_rows`]) rather than refused.
+    keep_voids: bool,
 }
 
 impl Rows {
@@ -259,6 +269,7 @@ impl Rows {
             chunk_rows: down,
             band: vec![0.0; width as usize * chunk.1.min(height) as usize],
             band_row: None,
+            keep_voids: false,
         })
     }
 
@@ -326,7 +337,7 @@ impl super::RowSource for Rows {
         let w = self.grid.width as usize;
         for (y, row) in (y0..).zip(out.chunks_exact_mut(w)) {
             let cr = y / self.chunk.1;
-            if self.band_row != Some(cr) && self.load_chunk_row(cr)? {
+            if self.band_row != Some(cr) && self.load_chunk_row(cr)? && !self.keep_voids {
                 return Err(Error::format(
                     &self.grid.path,
                     format!("void samples in row {y} (a file with voids is loaded whole)"),

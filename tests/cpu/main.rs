@@ -13,6 +13,7 @@ mod imagery;
 mod imagery_rings;
 mod layering;
 mod lod;
+mod mosaic;
 mod package;
 mod plan_time;
 mod profiles;

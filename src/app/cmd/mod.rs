@@ -36,7 +36,8 @@ use clipsat::{Error, Result};
 /// Options that choose and read a terrain.
 #[derive(Args, Clone, Debug, Default)]
 pub(crate) struct TerrainArgs {
-    /// Terrain file (.png, .tif, .hgt, .asc, .raw/.r16/.f32, a `.clipsat` package) or
+    /// Terrain file (.png, .tif, .hgt, .asc, .raw/.r16/.f32, a `.clipsat` package), a mosaic of .hgt
+    /// and GeoTIFF tiles (a folder, a .txt list of paths, or a quoted glob like 'tiles/N5*.hgt') or
     /// `procedural[:seed=S,size=N,spacing=M]`.
     /// Default: the built-in procedural terrain.
     #[arg(long, value_name = "T")]
@@ -78,6 +79,11 @@ pub(crate) struct TerrainArgs {
     /// grey level, or a web-map encoding's metres).
     #[arg(long, value_name = "V", allow_negative_numbers = true)]
     pub(crate) nodata: Option<f64>,
+    /// For a mosaic of tiles (a folder, a .txt list or a quoted glob pattern as --terrain): the height in
+    /// metres of samples no tile has data for (missing tiles, voids). Default: no data, filled from
+    /// their neighbours (the mosaic is then loaded whole).
+    #[arg(long, value_name = "M", allow_negative_numbers = true)]
+    pub(crate) fill_height: Option<f32>,
     /// Imagery to drape on the terrain: a PNG or JPEG (grey, RGB, RGBA or palette; alpha is dropped), baked
     /// into an imagery package in the cache folder on first use, or an imagery package from `clipsat bake
     /// --imagery`. A plain image spans the height grid's extent, corner sample to corner sample, each
@@ -278,6 +284,7 @@ impl TerrainArgs {
             png_encoding: self.png_encoding.into(),
             resample_ew: self.resample_ew,
             nodata: self.nodata,
+            fill_height: self.fill_height,
         };
         Ok(opts)
     }

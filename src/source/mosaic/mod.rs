@@ -1,0 +1,472 @@
+//! Stage 0, the source: a mosaic of DEM tiles (SRTM `.hgt`, GeoTIFF) named by a folder, a list file or a
+//! glob pattern, placed by their georeference on one grid and read as one terrain (docs/guide.md "Tile
+//! mosaics"). This file names and places the tiles; `rows.rs` reads them a band of rows at a time.
+
+use std::path::{Path, PathBuf};
+
+use super::{
+    check_size, fill_voids, metres_per_degree_latitude, metres_per_degree_longitude, to_f32,
+    Heightmap, LoadOptions, RowGrid, RowSource,
+};
+use crate::source::georef::GeoRef;
+use crate::{Error, Result};
+
+mod rows;
+
+pub(crate) use rows::Mosaic;
+pub use rows::MAX_OPEN_TILES;
+
+/// How far (in steps of the mosaic's grid) a tile's first sample may lie from a grid point and still count
+/// as on it: GeoTIFF georeferences are decimal numbers (a half pixel of 1/3600 degree, say).
+const GRID_TOLERANCE: f64 = 1e-3;
+
+/// The tile formats a mosaic reads, by extension.
+const TILE_EXTENSIONS: [&str; 3] = ["hgt", "tif", "tiff"];
+
+/// Whether `path` names a mosaic rather than one file: a folder, a `.txt` list of tiles, or a glob pattern
+/// (`*`, `?` or `[`) that is not itself the name of a file.
+pub(crate) fn is_mosaic(path: &Path) -> bool {
+    if path.is_dir() {
+        return true;
+    }
+    if path.exists() {
+        return extension(path) == "txt";
+    }
+    path.to_str().is_some_and(|s| s.contains(['*', '?', '[']))
+}
+
+/// The lower-case extension of `path`.
+fn extension(path: &Path) -> String {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .unwrap_or_default()
+}
+
+/// The tiles a mosaic names, in its order: a folder's `.hgt`, `.tif` and `.tiff` files sorted by name (not
+/// its subfolders); a list file's lines (paths relative to the list's folder; blank lines and lines
+/// starting with `#` skipped); a glob pattern's matching files, sorted by name. Also returns the list
+/// file, whose edits change the mosaic too.
+pub(crate) fn tile_paths(spec: &Path) -> Result<(Vec<PathBuf>, Option<PathBuf>)> {
+    let mut tiles = Vec::new();
+    if spec.is_dir() {
+        let entries = std::fs::read_dir(spec).map_err(|e| Error::io(spec, "cannot list", e))?;
+        for entry in entries {
+            let path = entry.map_err(|e| Error::io(spec, "cannot list", e))?.path();
+            if path.is_file() && TILE_EXTENSIONS.contains(&extension(&path).as_str()) {
+                tiles.push(path);
+            }
+        }
+        tiles.sort();
+        if tiles.is_empty() {
+            return Err(Error::format(
+                spec,
+                "a folder of tiles with no DEM tile in it (.hgt, .tif or .tiff files)",
+            ));
+        }
+        return Ok((tiles, None));
+    }
+    if spec.is_file() {
+        let text = std::fs::read_to_string(spec).map_err(|e| Error::io(spec, "cannot read", e))?;
+        let base = spec.parent().unwrap_or(Path::new(""));
+        for line in text.lines().map(str::trim) {
+            if !line.is_empty() && !line.starts_with('#') {
+                tiles.push(base.join(line));
+            }
+        }
+        if tiles.is_empty() {
+            return Err(Error::format(
+                spec,
+                "a list of tiles that names none (one path a line)",
+            ));
+        }
+        return Ok((tiles, Some(spec.to_path_buf())));
+    }
+    let pattern = spec.to_str().unwrap_or_default();
+    let matches = glob::glob(pattern).map_err(|e| {
+        Error::format(spec, format!("not a valid glob pattern of tiles: {e}"))
+    })?;
+    for m in matches {
+        let path = m.map_err(|e| {
+            let path = e.path().to_path_buf();
+            Error::io(path, "cannot read", e.into())
+        })?;
+        if path.is_file() {
+            tiles.push(path);
+        }
+    }
+    tiles.sort();
+    if tiles.is_empty() {
+        return Err(Error::format(
+            spec,
+            "the glob pattern matches no file (no DEM tile to read)",
+        ));
+    }
+    Ok((tiles, None))
+}
+
+/// The coordinate system of a tile: geographic (degrees) or projected, and its EPSG code where known.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Crs {
+    geographic: bool,
+    epsg: Option<u16>,
+}
+
+impl Crs {
+    /// Whether the two may share a mosaic: both geographic or both projected, and the same EPSG code where
+    /// both name one.
+    fn agrees(self, other: Self) -> bool {
+        self.geographic == other.geographic
+            && (self.epsg.is_none() || other.epsg.is_none() || self.epsg == other.epsg)
+    }
+}
+
+impl std::fmt::Display for Crs {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let kind = if self.geographic {
+            "geographic"
+        } else {
+            "projected"
+        };
+        match self.epsg {
+            Some(code) => write!(f, "{kind}, EPSG {code}"),
+            None => write!(f, "{kind}, no EPSG code"),
+        }
+    }
+}
+
+/// One tile as its file places it.
+#[derive(Clone, Debug)]
+struct TileMeta {
+    path: PathBuf,
+    /// An SRTM `.hgt` (else a GeoTIFF).
+    hgt: bool,
+    /// Samples (columns, rows).
+    size: (u32, u32),
+    /// Model units between samples, (east, south).
+    step: (f64, f64),
+    /// The model position of sample (0, 0), the north-west one: (x, y).
+    first: (f64, f64),
+    crs: Crs,
+}
+
+/// GTModelTypeGeoKey: 1 projected, 2 geographic.
+const MODEL_TYPE_KEY: u16 = 1024;
+
+impl TileMeta {
+    fn read(path: &Path) -> Result<Self> {
+        let meta = std::fs::metadata(path).map_err(|e| Error::io(path, "cannot read tile", e))?;
+        if !meta.is_file() {
+            return Err(Error::format(path, "a tile that is not a regular file"));
+        }
+        match extension(path).as_str() {
+            "hgt" => Self::hgt(path, meta.len()),
+            "tif" | "tiff" => Self::geotiff(path),
+            other => Err(Error::format(
+                path,
+                format!("a tile of format `.{other}`: a mosaic reads SRTM .hgt and GeoTIFF tiles"),
+            )),
+        }
+    }
+
+    /// An SRTM tile: 1 degree square, its south-west corner named by the file (`N57E011.hgt`), 1201 or
+    /// 3601 samples a side, sample centres on the degree lines (pixel-is-point).
+    fn hgt(path: &Path, len: u64) -> Result<Self> {
+        let side = match len {
+            2_884_802 => 1201u32,
+            25_934_402 => 3601u32,
+            _ => {
+                return Err(Error::SizeMismatch {
+                    path: path.into(),
+                    actual: len,
+                    expected: "2884802 bytes (SRTM3, 1201 x 1201 int16) or 25934402 bytes \
+                               (SRTM1, 3601 x 3601 int16)"
+                        .into(),
+                })
+            }
+        };
+        let (lat, lon) = hgt_corner(path).ok_or_else(|| {
+            Error::format(
+                path,
+                "an SRTM tile in a mosaic must be named by its south-west corner, like N57E011.hgt",
+            )
+        })?;
+        let step = 1.0 / f64::from(side - 1);
+        Ok(Self {
+            path: path.into(),
+            hgt: true,
+            size: (side, side),
+            step: (step, step),
+            first: (lon, lat + 1.0),
+            crs: Crs {
+                geographic: true,
+                epsg: Some(4326),
+            },
+        })
+    }
+
+    /// A GeoTIFF placed by its ModelPixelScale and ModelTiepoint (pixel-is-area or pixel-is-point).
+    fn geotiff(path: &Path) -> Result<Self> {
+        let geo = GeoRef::read(path).ok_or_else(|| {
+            Error::format(
+                path,
+                "a GeoTIFF tile without a usable georeference (ModelPixelScale and ModelTiepoint, \
+                 north up): a mosaic places its tiles by it",
+            )
+        })?;
+        let geographic = match geo.crs {
+            Some((2048, _)) => true,
+            Some(_) => false,
+            None => model_type(path) == Some(2),
+        };
+        Ok(Self {
+            path: path.into(),
+            hgt: false,
+            size: geo.size,
+            step: geo.scale,
+            first: (
+                geo.corner.0 + 0.5 * geo.scale.0,
+                geo.corner.1 - 0.5 * geo.scale.1,
+            ),
+            crs: Crs {
+                geographic,
+                epsg: geo.crs.map(|(_, code)| code),
+            },
+        })
+    }
+}
+
+/// A TIFF's GTModelTypeGeoKey, where it has one.
+fn model_type(path: &Path) -> Option<u16> {
+    let file = std::fs::File::open(path).ok()?;
+    let mut dec = tiff::decoder::Decoder::new(std::io::BufReader::new(file)).ok()?;
+    let keys = dec
+        .find_tag(tiff::tags::Tag::GeoKeyDirectoryTag)
+        .ok()
+        .flatten()?
+        .into_u16_vec()
+        .ok()?;
+    keys.get(4..)?
+        .chunks_exact(4)
+        .find(|e| e[0] == MODEL_TYPE_KEY && e[1] == 0)
+        .map(|e| e[3])
+}
+
+/// The south-west corner (latitude, longitude) of an SRTM tile named like `N57E011` or
+/// `s12w077.SRTMGL1`, degrees.
+fn hgt_corner(path: &Path) -> Option<(f64, f64)> {
+    let stem = path.file_stem()?.to_str()?;
+    let b = stem.as_bytes();
+    let sign = |c: u8, pos: u8, neg: u8| match c.to_ascii_uppercase() {
+        c if c == pos => Some(1.0),
+        c if c == neg => Some(-1.0),
+        _ => None,
+    };
+    let lat: u8 = stem.get(1..3)?.parse().ok()?;
+    let lon: u16 = stem.get(4..7)?.parse().ok()?;
+    let (lat, lon) = (
+        sign(*b.first()?, b'N', b'S')? * f64::from(lat),
+        sign(*b.get(3)?, b'E', b'W')? * f64::from(lon),
+    );
+    ((-90.0..90.0).contains(&lat) && (-180.0..180.0).contains(&lon)).then_some((lat, lon))
+}
+
+/// A tile placed on the mosaic's grid.
+#[derive(Clone, Debug)]
+struct Placed {
+    meta: TileMeta,
+    /// The grid column and row of its sample (0, 0).
+    col0: u32,
+    row0: u32,
+    /// The last grid column and row it covers (inclusive).
+    col1: u32,
+    row1: u32,
+    /// Grid steps per tile step, (columns, rows): 1 for a tile of the finest spacing.
+    k: (f64, f64),
+}
+
+/// The mosaic's grid and its tiles in the order they are read: the finest first, ties by the order given.
+#[derive(Clone, Debug)]
+struct Layout {
+    grid: RowGrid,
+    tiles: Vec<Placed>,
+}
+
+/// Places the tiles named by `spec` on one grid ([`Layout`]).
+fn layout(spec: &Path, opts: &LoadOptions) -> Result<Layout> {
+    if let Some(h) = opts.fill_height.filter(|h| !h.is_finite()) {
+        return Err(Error::format(
+            spec,
+            format!("a fill height of {h} m: it must be finite"),
+        ));
+    }
+    let (paths, _) = tile_paths(spec)?;
+    let metas = paths
+        .iter()
+        .map(|p| TileMeta::read(p))
+        .collect::<Result<Vec<_>>>()?;
+    let first = &metas[0];
+    for m in &metas[1..] {
+        if !m.crs.agrees(first.crs) {
+            return Err(Error::format(
+                &m.path,
+                format!(
+                    "this tile's coordinate system ({}) is not that of {} ({}): the tiles of a mosaic \
+                     share one; reproject them",
+                    m.crs,
+                    first.path.display(),
+                    first.crs
+                ),
+            ));
+        }
+    }
+    let fine = metas.iter().fold((f64::MAX, f64::MAX), |(x, y), m| {
+        (x.min(m.step.0), y.min(m.step.1))
+    });
+    let west = metas.iter().map(|m| m.first.0).fold(f64::MAX, f64::min);
+    let north = metas.iter().map(|m| m.first.1).fold(f64::MIN, f64::max);
+    let mut tiles = Vec::with_capacity(metas.len());
+    let (mut width, mut height) = (0u64, 0u64);
+    for meta in metas {
+        let on_grid = |offset: f64, step: f64, axis: &str| -> Result<u64> {
+            let at = offset / step;
+            if !at.is_finite() || (at - at.round()).abs() > GRID_TOLERANCE || at > 1e12 {
+                return Err(Error::format(
+                    &meta.path,
+                    format!(
+                        "this tile's first sample lies {:.4} of a step {axis} off the mosaic's grid (the \
+                         finest tile's spacing, {step} units, from its north-west sample): the tiles \
+                         must align to a common grid",
+                        (at - at.round()).abs()
+                    ),
+                ));
+            }
+            #[expect(
+                clippy::cast_possible_truncation,
+                clippy::cast_sign_loss,
+                reason = "a finite, non-negative value under 1e12"
+            )]
+            Ok(at.round() as u64)
+        };
+        let col0 = on_grid(meta.first.0 - west, fine.0, "east")?;
+        let row0 = on_grid(north - meta.first.1, fine.1, "south")?;
+        let k = (meta.step.0 / fine.0, meta.step.1 / fine.1);
+        #[expect(
+            clippy::cast_possible_truncation,
+            clippy::cast_sign_loss,
+            reason = "a finite, non-negative count of steps, checked against the size limit below"
+        )]
+        let span = |n: u32, k: f64| ((f64::from(n - 1) * k + GRID_TOLERANCE).floor()) as u64;
+        if meta.size.0 < 2 || meta.size.1 < 2 {
+            return Err(Error::format(&meta.path, "a tile of fewer than 2 x 2 samples"));
+        }
+        let col1 = col0.saturating_add(span(meta.size.0, k.0));
+        let row1 = row0.saturating_add(span(meta.size.1, k.1));
+        width = width.max(col1.saturating_add(1));
+        height = height.max(row1.saturating_add(1));
+        let narrow = |v: u64| u32::try_from(v).unwrap_or(u32::MAX);
+        tiles.push(Placed {
+            meta,
+            col0: narrow(col0),
+            row0: narrow(row0),
+            col1: narrow(col1),
+            row1: narrow(row1),
+            k,
+        });
+    }
+    check_size(spec, width, height, opts)?;
+    let (width, height) = (u32::try_from(width), u32::try_from(height));
+    let (Ok(width), Ok(height)) = (width, height) else {
+        return Err(Error::format(spec, "a mosaic of more than 2^32 columns or rows"));
+    };
+    // The finest first; a stable sort keeps the order given among equals.
+    #[expect(
+        clippy::cast_possible_truncation,
+        clippy::cast_sign_loss,
+        reason = "a positive ratio of spacings, rounded to compare within 1e-6"
+    )]
+    tiles.sort_by_key(|t| (t.k.0 * t.k.1 * 1e6).round() as u64);
+    let geographic = tiles[0].meta.crs.geographic;
+    let (spacing, ew_spacing) = match opts.spacing {
+        Some(s) => (s, s),
+        // As a GeoTIFF of the merged grid gives them (`tiff.rs`): the meridian and parallel arcs at the
+        // middle row's latitude.
+        None if geographic => {
+            let mid_row = f64::from(height - 1) / 2.0;
+            let lat = (north - mid_row * fine.1).clamp(-90.0, 90.0);
+            (
+                to_f32(fine.1 * metres_per_degree_latitude(lat)),
+                to_f32(fine.0 * metres_per_degree_longitude(lat)),
+            )
+        }
+        None => (to_f32(fine.1), to_f32(fine.0)),
+    };
+    Ok(Layout {
+        grid: RowGrid {
+            width,
+            height,
+            spacing,
+            ew_spacing,
+            origin: (0.0, 0.0),
+            path: spec.to_path_buf(),
+        },
+        tiles,
+    })
+}
+
+/// Opens the mosaic `spec` names to be read a band of rows at a time: out of core where every sample
+/// has data (or [`LoadOptions::fill_height`] gives one); otherwise, its no-data samples are filled from
+/// their neighbours over the whole grid, as a single file's voids are, and it is read whole.
+pub(crate) fn open_rows(spec: &Path, opts: &LoadOptions) -> Result<Box<dyn RowSource>> {
+    let mut mosaic = Mosaic::new(layout(spec, opts)?, opts);
+    if opts.fill_height.is_some() || !mosaic.has_no_data()? {
+        mosaic.refuse_no_data();
+        return Ok(Box::new(mosaic));
+    }
+    Ok(Box::new(super::Resident::new(whole(mosaic)?)))
+}
+
+/// Loads the mosaic `spec` names whole.
+pub(crate) fn load(spec: &Path, opts: &LoadOptions) -> Result<Heightmap> {
+    whole(Mosaic::new(layout(spec, opts)?, opts))
+}
+
+/// Every row of `mosaic`, its no-data samples filled from their neighbours.
+fn whole(mut mosaic: Mosaic) -> Result<Heightmap> {
+    let g = mosaic.grid().clone();
+    let w = g.width as usize;
+    let mut heights = vec![0.0f32; w * g.height as usize];
+    for (i, band) in heights.chunks_mut(w * rows::BAND_ROWS as usize).enumerate() {
+        let y0 = u32::try_from(i).unwrap_or(u32::MAX).saturating_mul(rows::BAND_ROWS);
+        mosaic.read_rows(y0, band)?;
+    }
+    let voids = fill_voids(&g.path, w, &mut heights)?;
+    Ok(
+        Heightmap::new(&g.path, g.width, g.height, g.spacing, heights)?
+            .with_voids_filled(voids)
+            .with_ew_spacing(g.ew_spacing),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn srtm_names() {
+        assert_eq!(hgt_corner(Path::new("a/N57E011.hgt")), Some((57.0, 11.0)));
+        assert_eq!(
+            hgt_corner(Path::new("s12w077.SRTMGL1.hgt")),
+            Some((-12.0, -77.0))
+        );
+        assert_eq!(hgt_corner(Path::new("tile.hgt")), None);
+        assert_eq!(hgt_corner(Path::new("N57X011.hgt")), None);
+    }
+
+    #[test]
+    fn mosaic_names() {
+        assert!(is_mosaic(Path::new("tiles/*.hgt")));
+        assert!(is_mosaic(Path::new("/")));
+        assert!(!is_mosaic(Path::new("no/such/file.hgt")));
+    }
+}

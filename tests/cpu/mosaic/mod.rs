@@ -1,0 +1,410 @@
+//! Stage 0, tile mosaics: tiles cut from the shared SRTM tile (`make.rs`) read back as one terrain, sample
+//! for sample, and baked into the very package the same data merged into one file bakes into; missing
+//! tiles, mixed resolutions, the overlap rule and bad input.
+
+mod make;
+
+use std::path::{Path, PathBuf};
+
+use clipsat::package::{self, BakeOptions};
+use clipsat::source::{self, LoadOptions, RowSource};
+use make::{write_geotiff, write_geotiff_as, write_geotiff_tiles, write_hgt, Grid};
+
+/// A fresh folder under the system temp dir, unique to this test and process; removed on drop.
+struct TempDir(PathBuf);
+
+impl std::ops::Deref for TempDir {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+fn temp_dir(test: &str) -> TempDir {
+    let dir = std::env::temp_dir().join(format!("clipsat-mosaic-{}-{test}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(dir.join("tiles")).expect("create temp dir");
+    TempDir(dir)
+}
+
+/// Every sample of `path` read through the out-of-core reader, and its grid.
+fn read_all(path: &Path, opts: &LoadOptions) -> (source::RowGrid, Vec<f32>) {
+    let mut rows =
+        source::open_rows(path, opts).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let g = rows.grid().clone();
+    let mut out = vec![0.0f32; g.width as usize * g.height as usize];
+    // Bands of 7 rows, so that bands start inside tiles and cross their borders.
+    for (y0, band) in (0..).step_by(7).zip(out.chunks_mut(g.width as usize * 7)) {
+        rows.read_rows(y0, band).expect("read rows");
+    }
+    (g, out)
+}
+
+fn as_f32(g: &Grid) -> Vec<f32> {
+    g.z.iter().map(|&v| f32::from(v)).collect()
+}
+
+/// 2 x 2 SRTM `.hgt` tiles (1201^2 at 3", sharing edge rows) read as one: the 2401^2 grid they were cut
+/// from, sample for sample, through a folder, a list file (in another order) and a glob; the spacing the
+/// merged GeoTIFF gives; the whole load equal to the rows.
+#[test]
+fn hgt_tiles_join_exactly() {
+    let Some(src) = Grid::shared_tile() else {
+        return;
+    };
+    let dir = temp_dir("hgt");
+    let world = src.upsampled(2).placed(11.0, 59.0, 1.0 / 1200.0);
+    let mut names = Vec::new();
+    for (_, t) in world.tiles(1201) {
+        names.push(write_hgt(&dir.join("tiles"), &t));
+    }
+    let merged = write_geotiff(&dir.join("merged.tif"), &world, None, 4326);
+    let opts = LoadOptions::default();
+    let (mg, want) = read_all(&merged, &opts);
+    assert_eq!(want, as_f32(&world));
+
+    let list = dir.join("tiles.txt");
+    let lines: Vec<String> = names
+        .iter()
+        .rev()
+        .map(|p| format!("tiles/{}", p.file_name().unwrap().to_string_lossy()))
+        .collect();
+    std::fs::write(&list, format!("# the four tiles\n{}\n\n", lines.join("\n"))).unwrap();
+    let glob = dir.join("tiles").join("N5*.hgt");
+    for spec in [dir.join("tiles"), list, glob] {
+        assert!(source::is_mosaic(&spec), "{}", spec.display());
+        let (g, got) = read_all(&spec, &opts);
+        assert_eq!((g.width, g.height), (2401, 2401), "{}", spec.display());
+        assert_eq!((g.spacing, g.ew_spacing), (mg.spacing, mg.ew_spacing));
+        assert!(
+            got == want,
+            "{}: the mosaic differs from its source",
+            spec.display()
+        );
+    }
+    let whole = source::load(&dir.join("tiles"), &opts).expect("load");
+    assert_eq!(whole.heights(), &want[..]);
+    assert_eq!(whole.voids_filled(), 0);
+    // Resampled E-W as the merged file is.
+    let ew = LoadOptions {
+        resample_ew: true,
+        ..LoadOptions::default()
+    };
+    let (g, got) = read_all(&dir.join("tiles"), &ew);
+    let (mg, want) = read_all(&merged, &ew);
+    assert_eq!((g.width, g.ew_spacing), (mg.width, mg.ew_spacing));
+    assert!(g.width < 1400, "about cos 58 of 2401 columns: {}", g.width);
+    assert!(got == want);
+}
+
+/// The package baked from 2 x 2 GeoTIFF tiles of 301^2 is byte for byte the package baked from the same
+/// data merged into one GeoTIFF, with and without `resample_ew`.
+#[test]
+fn mosaic_bakes_the_merged_files_package() {
+    let Some(src) = Grid::shared_tile() else {
+        return;
+    };
+    let dir = temp_dir("bake");
+    // The coast, east of the tile's middle, as 1" data.
+    let world = src
+        .crop(600, 300, 601, 601)
+        .placed(11.5, 57.75, 1.0 / 3600.0);
+    write_geotiff_tiles(&dir.join("tiles"), &world, 301);
+    let merged = write_geotiff(&dir.join("merged.tif"), &world, None, 4326);
+    for resample_ew in [false, true] {
+        let opts = LoadOptions {
+            resample_ew,
+            ..LoadOptions::default()
+        };
+        let mut bytes = Vec::new();
+        for (name, path) in [("mosaic", dir.join("tiles")), ("merged", merged.clone())] {
+            let out = dir.join(format!("{name}-{resample_ew}.clipsat"));
+            let mut rows = source::open_rows(&path, &opts).expect("open rows");
+            package::bake_source(
+                &mut *rows,
+                &out,
+                &BakeOptions::default(),
+                Default::default(),
+            )
+            .expect("bake");
+            bytes.push(std::fs::read(&out).expect("read package"));
+        }
+        assert!(
+            bytes[0] == bytes[1],
+            "resample_ew {resample_ew}: the packages differ"
+        );
+    }
+}
+
+/// A missing tile (the sea in SRTM) reads as the fill height where one is given, out of core; by default
+/// it is no data, filled from its neighbours as the merged file's nodata samples are.
+#[test]
+fn missing_tile_reads_as_fill_or_no_data() {
+    let Some(src) = Grid::shared_tile() else {
+        return;
+    };
+    let dir = temp_dir("missing");
+    let world = src
+        .crop(600, 300, 201, 201)
+        .placed(11.5, 57.75, 1.0 / 3600.0);
+    let tiles = write_geotiff_tiles(&dir.join("tiles"), &world, 101);
+    std::fs::remove_file(&tiles[3]).unwrap();
+    let fill = LoadOptions {
+        fill_height: Some(-7.0),
+        ..LoadOptions::default()
+    };
+    let (_, got) = read_all(&dir.join("tiles"), &fill);
+    for y in 0..201 {
+        for x in 0..201 {
+            let want = if x > 100 && y > 100 {
+                -7.0
+            } else {
+                f32::from(world.get(x, y))
+            };
+            assert_eq!(got[y * 201 + x], want, "({x}, {y})");
+        }
+    }
+    // No data: as the merged file with the quadrant marked nodata.
+    let mut holed = world.clone();
+    for y in 101..201 {
+        for x in 101..201 {
+            holed.z[y * 201 + x] = -32768;
+        }
+    }
+    let merged = write_geotiff(&dir.join("merged.tif"), &holed, Some(-32768), 4326);
+    let opts = LoadOptions::default();
+    let (_, got) = read_all(&dir.join("tiles"), &opts);
+    let (_, want) = read_all(&merged, &opts);
+    assert!(got.iter().all(|v| v.is_finite()));
+    assert!(
+        got == want,
+        "the filled mosaic differs from the filled merged file"
+    );
+    let whole = source::load(&dir.join("tiles"), &opts).expect("load");
+    assert_eq!(whole.voids_filled(), 100 * 100);
+}
+
+/// A 3" tile beside 1" ones: the mosaic takes the finest spacing, the 3" tile's samples land exactly and
+/// the samples between are bilinear; where tiles overlap the finest wins, then the first given.
+#[test]
+fn mixed_resolution_and_overlap_rule() {
+    let Some(src) = Grid::shared_tile() else {
+        return;
+    };
+    let dir = temp_dir("mixed");
+    let world = src
+        .crop(600, 300, 121, 121)
+        .placed(11.5, 57.75, 1.0 / 3600.0);
+    let tiles = world.tiles(61);
+    for ((x, y), t) in &tiles {
+        let t = if (*x, *y) == (1, 1) {
+            t.decimated(3)
+        } else {
+            t.clone()
+        };
+        write_geotiff(&dir.join(format!("tiles/t{x}{y}.tif")), &t, None, 4326);
+    }
+    let (g, got) = read_all(&dir.join("tiles"), &LoadOptions::default());
+    assert_eq!((g.width, g.height), (121, 121));
+    let at = |x: usize, y: usize| got[y * 121 + x];
+    let w = |x: usize, y: usize| f32::from(world.get(x, y));
+    // The shared edges come from the 1" neighbours, the 3" tile's own samples exactly.
+    for i in 0..121 {
+        assert_eq!(at(60, i), w(60, i));
+        assert_eq!(at(i, 60), w(i, 60));
+    }
+    for y in (60..121).step_by(3) {
+        for x in (60..121).step_by(3) {
+            assert_eq!(at(x, y), w(x, y), "({x}, {y})");
+        }
+    }
+    // Between them, bilinear: a third of the way east and two thirds south of (63, 63).
+    let (a, b, c, d) = (w(63, 63), w(66, 63), w(63, 66), w(66, 66));
+    let top = f64::from(a) * 2.0 / 3.0 + f64::from(b) / 3.0;
+    let bottom = f64::from(c) * 2.0 / 3.0 + f64::from(d) / 3.0;
+    let want = top / 3.0 + bottom * 2.0 / 3.0;
+    assert!(
+        (f64::from(at(64, 65)) - want).abs() < 1e-3,
+        "{} vs {want}",
+        at(64, 65)
+    );
+
+    // Two 1" tiles covering the same ground with other heights: the first in the list wins.
+    let other = Grid {
+        z: world.z.iter().map(|v| v + 100).collect(),
+        ..world.clone()
+    };
+    let a = write_geotiff(&dir.join("a.tif"), &world, None, 4326);
+    let b = write_geotiff(&dir.join("b.tif"), &other, None, 4326);
+    for (order, want) in [([&a, &b], &world), ([&b, &a], &other)] {
+        let list = dir.join("two.txt");
+        let names: Vec<String> = order.iter().map(|p| p.display().to_string()).collect();
+        std::fs::write(&list, names.join("\n")).unwrap();
+        let (_, got) = read_all(&list, &LoadOptions::default());
+        assert_eq!(got, as_f32(want));
+    }
+}
+
+/// Bad input is refused with a message that names the problem: a folder with no DEM, tiles of another
+/// coordinate system, a tile off the common grid, an unreadable tile, a glob that matches nothing, a
+/// list that names a missing file.
+#[test]
+fn bad_mosaics_are_refused() {
+    let dir = temp_dir("bad");
+    let g = Grid {
+        w: 11,
+        h: 11,
+        z: (0..121).collect(),
+        west: 11.0,
+        north: 58.0,
+        step: 1.0 / 3600.0,
+    };
+    let refused = |spec: &Path, needle: &str| {
+        let e = source::open_rows(spec, &LoadOptions::default())
+            .err()
+            .unwrap_or_else(|| panic!("{}: accepted", spec.display()));
+        assert!(e.to_string().contains(needle), "{}: {e}", spec.display());
+        let e = source::load(spec, &LoadOptions::default()).expect_err("load");
+        assert!(e.to_string().contains(needle), "{}: {e}", spec.display());
+    };
+    let nan_fill = LoadOptions {
+        fill_height: Some(f32::NAN),
+        ..LoadOptions::default()
+    };
+    let e = source::open_rows(&dir.join("tiles"), &nan_fill)
+        .err()
+        .expect("NaN fill");
+    assert!(e.to_string().contains("must be finite"), "{e}");
+    std::fs::write(dir.join("tiles/readme.md"), "no tiles here").unwrap();
+    refused(&dir.join("tiles"), "no DEM tile");
+    refused(&dir.join("tiles/*.hgt"), "matches no file");
+    refused(&dir.join("tiles/[.hgt"), "glob pattern");
+    std::fs::write(dir.join("empty.txt"), "# nothing\n").unwrap();
+    refused(&dir.join("empty.txt"), "names none");
+    std::fs::write(dir.join("missing.txt"), "tiles/nope.tif\n").unwrap();
+    refused(&dir.join("missing.txt"), "cannot read tile");
+
+    let case = |name: &str, tiles: &[(&str, Grid, u16)], needle: &str| {
+        let sub = dir.join(name);
+        std::fs::create_dir_all(&sub).unwrap();
+        for (file, t, epsg) in tiles {
+            write_geotiff(&sub.join(file), t, None, *epsg);
+        }
+        refused(&sub, needle);
+    };
+    let east = g.clone().placed(11.0 + 10.0 / 3600.0, 58.0, g.step);
+    case(
+        "crs",
+        &[("a.tif", g.clone(), 4326), ("b.tif", east.clone(), 32632)],
+        "coordinate system",
+    );
+    case(
+        "crs-code",
+        &[("a.tif", g.clone(), 4326), ("b.tif", east.clone(), 4258)],
+        "EPSG 4258",
+    );
+    let off = g.clone().placed(11.0 + 10.5 / 3600.0, 58.0, g.step);
+    case(
+        "offgrid",
+        &[("a.tif", g.clone(), 4326), ("b.tif", off, 4326)],
+        "common grid",
+    );
+
+    let sub = dir.join("unreadable");
+    std::fs::create_dir_all(&sub).unwrap();
+    write_geotiff(&sub.join("a.tif"), &g, None, 4326);
+    std::fs::write(sub.join("N58E011.hgt"), [0u8; 100]).unwrap();
+    refused(&sub, "25934402 bytes");
+    std::fs::remove_file(sub.join("N58E011.hgt")).unwrap();
+    std::fs::write(sub.join("b.tif"), b"II*\0garbage").unwrap();
+    refused(&sub, "b.tif");
+    std::fs::write(sub.join("b.tif"), b"not a tiff at all").unwrap();
+    refused(&sub, "georeference");
+}
+
+/// `Terrain::open` takes a folder of tiles and bakes it into the cache folder, and `fill_height` through
+/// `TerrainOptions`.
+#[test]
+fn terrain_opens_a_folder_of_tiles() {
+    let dir = temp_dir("terrain");
+    let g = Grid {
+        w: 65,
+        h: 65,
+        z: (0..65 * 65).map(|i: i16| i % 65 + i / 65).collect(),
+        west: 11.0,
+        north: 58.0,
+        step: 1.0 / 3600.0,
+    };
+    let tiles = write_geotiff_tiles(&dir.join("tiles"), &g, 33);
+    std::fs::remove_file(&tiles[0]).unwrap();
+    let cache = dir.join("cache");
+    let opts = clipsat::TerrainOptions::default()
+        .cache_dir(&cache)
+        .fill_height(-1.0);
+    let t = clipsat::Terrain::open_with(dir.join("tiles"), &opts).expect("open");
+    assert!(t.is_streamed());
+    assert_eq!(t.size(), (65, 65));
+    assert_eq!(t.height_range().0, -1.0);
+    let again = clipsat::Terrain::bake(dir.join("tiles/*.tif"), &opts).expect("bake");
+    assert!(again.starts_with(&cache));
+}
+
+/// More tiles across than readers stay open ([`source::MAX_OPEN_TILES`]): readers are closed and opened
+/// again band after band, and the mosaic still reads its grid sample for sample.
+#[test]
+fn more_tiles_across_than_open_readers() {
+    let dir = temp_dir("many");
+    let across = source::MAX_OPEN_TILES + 4;
+    let w = 10 * across + 1;
+    let g = Grid {
+        w,
+        h: 31,
+        z: (0..w * 31)
+            .map(|i| i16::try_from(i % 997).unwrap())
+            .collect(),
+        west: 11.0,
+        north: 58.0,
+        step: 1.0 / 3600.0,
+    };
+    let tiles = write_geotiff_tiles(&dir.join("tiles"), &g, 11);
+    assert_eq!(tiles.len(), across * 3);
+    let (_, got) = read_all(&dir.join("tiles"), &LoadOptions::default());
+    assert_eq!(got, as_f32(&g));
+}
+
+/// Pixel-is-area GeoTIFF tiles (the tiepoint on the raster's corner, as GDAL writes most DEMs) are placed
+/// by their sample centres, as pixel-is-point ones are, and may be mixed with them.
+#[test]
+fn pixel_is_area_tiles_place_alike() {
+    let dir = temp_dir("area");
+    let g = Grid {
+        w: 41,
+        h: 41,
+        z: (0..41 * 41).map(|i: i16| i % 41 * 3 - i / 41).collect(),
+        west: 11.25,
+        north: 57.5,
+        step: 1.0 / 3600.0,
+    };
+    for (i, ((x, y), t)) in g.tiles(21).into_iter().enumerate() {
+        write_geotiff_as(
+            &dir.join(format!("tiles/t{x}{y}.tif")),
+            &t,
+            None,
+            4326,
+            i % 2 == 0,
+        );
+    }
+    let (grid, got) = read_all(&dir.join("tiles"), &LoadOptions::default());
+    assert_eq!((grid.width, grid.height), (41, 41));
+    // An empty band is no rows, at either end.
+    let mut rows = source::open_rows(&dir.join("tiles"), &LoadOptions::default()).expect("open");
+    rows.read_rows(0, &mut []).expect("empty band");
+    rows.read_rows(41, &mut []).expect("empty band at the end");
+    assert_eq!(got, as_f32(&g));
+}
