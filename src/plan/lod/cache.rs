@@ -87,6 +87,9 @@ pub(super) struct Selected {
     pub(super) scale: f64,
     /// The threshold test's value at the wanted level then (at most epsilon; infinite if none met it).
     pub(super) met: f64,
+    /// The wanted level's error capped over the whole block ([`super::Lod::eta_cap`]): view-independent,
+    /// so that its bound in a later view is one product (what holds a block while the camera moves).
+    pub(super) cap: f64,
 }
 
 /// Each block's last selection, by ring and grid cell: a block seen in the same view (camera, viewport,

@@ -429,9 +429,13 @@ impl Lod {
         let kept = self.selected.get(view, ring, cell, &r, levels);
         let mut whole: Option<BoxScale> = None;
         let eps = self.epsilon_px;
-        // Moving: a block whose scale has not changed enough to take it past epsilon (its last bound at
-        // its wanted level, rescaled) or to let it go coarser keeps that level without a bound read.
-        // A new viewport is not a move: every block is tested in it.
+        // Moving: a block keeps its last wanted level without reading the tables while that level's
+        // bound over the whole block, its error capped by the max pyramid (kept with the selection, so
+        // one product in the new view: [`Lod::cap_bound_in`]'s bound), still meets epsilon, and its scale
+        // has not shrunk enough to let it go coarser. Rescaling the last threshold test's value by the
+        // block's change of scale instead is no bound: the sub-box that decided it can change scale
+        // faster than the block (a far block while the view turns). A new viewport is not a move:
+        // every block is tested in it.
         let moving = self.last_view.get() != view && self.last_viewport.get() == self.view;
         let held = match kept {
             Some(_) => None,
@@ -441,9 +445,10 @@ impl Lod {
                 .last(ring, cell, levels)
                 .filter(|e| e.rect == r)
                 .and_then(|e| {
-                    let now = whole.get_or_insert_with(|| self.box_scale(v, bx)).per_metre();
-                    let k = now / e.scale;
-                    (e.scale > 0.0 && k >= 1.0 / KEEP_BAND && e.met * k <= eps).then_some((e, k))
+                    let now = *whole.get_or_insert_with(|| self.box_scale(v, bx));
+                    let k = now.per_metre() / e.scale;
+                    let bound = now.px(e.cap);
+                    (e.scale > 0.0 && k >= 1.0 / KEEP_BAND && bound <= eps).then_some((e, bound))
                 }),
         };
         let mut cut = Split::default();
@@ -509,10 +514,10 @@ impl Lod {
         let (eta, bound) = match (kept, met_at) {
             _ if mode == LodMode::Distance => (0.0, 0.0),
             (Some(e), _) if e.level == level => (e.eta, e.bound),
-            // Held by its scale: its bound then, rescaled (an estimate until it is tested again).
-            (None, _) if held.is_some_and(|(e, _)| e.level == level) => {
-                let (e, k) = held.expect("checked");
-                (e.eta, e.bound * k)
+            // Held: the whole block's capped bound at the level it wanted and is drawn at.
+            (None, _) if held.is_some_and(|(e, _)| e.level == level && e.wanted == level) => {
+                let (e, bound) = held.expect("checked");
+                (e.eta, bound)
             }
             // Drawn at the level the search took: its threshold test's value is a bound (<= epsilon).
             (_, Some((l, t))) if l == level => (self.eta(mode, level, bx).unwrap_or(f64::INFINITY), t),
@@ -534,7 +539,9 @@ impl Lod {
                 Some(e) => e.scale,
                 None => scale_of(self).per_metre(),
             };
+            let cap = self.eta_cap(mode, wanted, bx).unwrap_or(f64::INFINITY);
             self.selected.put(Selected {
+                cap,
                 view,
                 ring,
                 cell,
