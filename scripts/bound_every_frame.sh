@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Whether the reported bound holds on every frame (docs/plan-time.md): `clipsat fly --resident
-# --error-every 1` measures the whole frame's screen error on every frame of the figure-8 (200 frames) and
+# --error-every 1` measures the whole frame's screen error on every frame of the figure-8 (600 frames) and
 # of the teleport flight (a jump every 60 frames, 1 m/frame between, 240 frames) on every shared terrain,
 # sat-conservative at epsilon 1, 2 and 4, gles3-mid at 1920x1080, and compares it with max(epsilon,
 # unmet_px) of the same frame (`--csv`). Per flight: frames measured, the worst ratio measured / bound and
@@ -18,7 +18,7 @@ for t in "${TERRAINS[@]}"; do
   if [ ! -f "$DATA/$name" ]; then echo "skipped $name (missing)" >&2; continue; fi
   for path in figure8 teleport; do
     case $path in
-      figure8) flight=(--frames 200 --path figure8) ;;
+      figure8) flight=(--frames 600 --path figure8) ;;
       teleport) flight=(--frames 240 --path teleport:60 --speed 1) ;;
     esac
     for eps in 1 2 4; do

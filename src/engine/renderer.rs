@@ -125,8 +125,9 @@ pub struct FrameStats {
     /// budgets not yet at hand).
     pub blocks_clamped: u32,
     /// SAT LOD: the largest screen-space error bound, pixels, those blocks are drawn at: what the frame
-    /// misses epsilon by (0 when it meets it everywhere in view). While the camera moves, a bound not asked
-    /// again this frame is its last one rescaled by the block's change of scale. Infinite while a block is
+    /// misses epsilon by (0 when it meets it everywhere in view). While the camera moves, a detail pool
+    /// cell's bound not asked again this frame is its last one rescaled by its block's change of scale (an
+    /// estimate, up to 1/32 past epsilon while moving). Infinite while a block is
     /// drawn at a level past the SAT LOD tables' (just after a jump), whose error is not known.
     pub unmet_px: f32,
     /// The plan's 64-bit hash: the same terrain, profile, options and cameras give the same hashes on
