@@ -49,6 +49,9 @@ pub struct RenderOptions<'a> {
     pub sg_scene: Option<&'a str>,
     /// Where the set-up's bakes (SAT LOD tables, SG tables) report their progress.
     pub progress: Progress<'a>,
+    /// Draped imagery's colour rings in RGBA8 (4 bytes a texel) even where the device has BC or ETC2
+    /// texture compression, whose blocks (0.5 byte a texel) it takes otherwise.
+    pub imagery_rgba8: bool,
 }
 
 impl Default for RenderOptions<'_> {
@@ -61,6 +64,7 @@ impl Default for RenderOptions<'_> {
             sat_lod_px: None,
             sg_scene: None,
             progress: Progress::default(),
+            imagery_rgba8: false,
         }
     }
 }
@@ -197,7 +201,10 @@ impl TerrainRenderer {
             None => profile,
         };
         let mut imagery = imagery
-            .map(|p| ColorRings::new(p, &profile.imagery))
+            .map(|p| {
+                let format = Renderer::imagery_format(device, options.imagery_rgba8);
+                ColorRings::with_format(p, &profile.imagery, format)
+            })
             .transpose()?;
         let (name, stand_in, package) = terrain.into_parts();
         let clipmap = match package {
@@ -267,7 +274,7 @@ impl TerrainRenderer {
         )
         .and_then(|mut r| {
             if let Some(rings) = &imagery {
-                r.enable_imagery(device, rings.ring(), rings.level_count())?;
+                r.enable_imagery(device, rings.ring(), rings.level_count(), rings.format())?;
             }
             Ok(r)
         });

@@ -22,7 +22,9 @@ pub(crate) fn check_profile(profile: &mut Profile) -> Result<()> {
 
 /// The colour rings of `package` for `profile`, set up in `renderer` and filled at a still camera at
 /// `eye` (updated and uploaded until no ring is stale and the last has faded in, at most
-/// [`MAX_FILL_FRAMES`] frames); with the frames it took.
+/// [`MAX_FILL_FRAMES`] frames); with the frames it took. The rings take the device's format
+/// (`Renderer::imagery_format`: BC1, ETC2 RGB8 or RGBA8), RGBA8 when the environment sets
+/// `CLIPSAT_IMAGERY_RGBA8=1`.
 pub(crate) fn fill_rings(
     package: ImageryPackage,
     profile: &Profile,
@@ -30,8 +32,10 @@ pub(crate) fn fill_rings(
     gpu: &Gpu,
     eye: DVec3,
 ) -> Result<(ColorRings, u64)> {
-    let mut rings = ColorRings::new(package, &profile.imagery)?;
-    renderer.enable_imagery(gpu.device(), rings.ring(), rings.level_count())?;
+    let rgba8 = std::env::var_os("CLIPSAT_IMAGERY_RGBA8").is_some_and(|v| v == "1");
+    let format = Renderer::imagery_format(gpu.device(), rgba8);
+    let mut rings = ColorRings::with_format(package, &profile.imagery, format)?;
+    renderer.enable_imagery(gpu.device(), rings.ring(), rings.level_count(), format)?;
     let mut frames = 0u64;
     let mut settled = None;
     // Until every ring is whole, then while the last ones fade in.
@@ -51,6 +55,7 @@ pub(crate) fn rings_json(rings: &ColorRings, fill_frames: u64) -> serde_json::Va
     let mut v = imagery_json(rings.package());
     v["rings"] = json!(rings.level_count());
     v["ring_side"] = json!(rings.ring());
+    v["gpu_format"] = json!(rings.format().name());
     v["fill_frames"] = json!(fill_frames);
     v["cpu_bytes"] = json!(rings.cpu_bytes());
     v["last_update"] = json!(rings.stats());
