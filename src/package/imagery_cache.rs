@@ -70,6 +70,18 @@ impl ImageryCache {
         tile_bytes(format, t, t) + std::mem::size_of::<Slot>() as u64
     }
 
+    /// The least budget a cache for `package` in `format` takes: the tile map, a block format's scratch
+    /// tile and encoder, and one slot.
+    pub fn min_bytes(package: &ImageryPackage, format: ColorFormat) -> u64 {
+        let t = package.header().tile;
+        let scratch = if format.is_block() {
+            3 * u64::from(t) * u64::from(t) + BlockEncoder::new(format, t).bytes()
+        } else {
+            0
+        };
+        4 * package.header().tiles.len() as u64 + scratch + Self::format_slot_bytes(package, format)
+    }
+
     /// A cache of as many slots as `budget` bytes pay for after the tile map (at least 1, at most one a
     /// tile of the package), all allocated now, holding RGB8 tiles (for RGBA8 rings).
     pub fn new(package: ImageryPackage, budget: u64) -> Result<Self> {

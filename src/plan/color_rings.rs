@@ -211,8 +211,9 @@ impl ColorRings {
     }
 
     /// [`ColorRings::new`] in `format`: a block format's tiles are encoded when the cache decodes them,
-    /// and its staging holds `texels_per_frame / 2` bytes of blocks. A block format needs a budget of at
-    /// least four rows of a tile a frame.
+    /// and its staging holds `texels_per_frame / 2` bytes of blocks. A block format that the budget
+    /// cannot hold (a tile cache under [`ImageryCache::min_bytes`], or fewer than four rows of a tile a
+    /// frame) falls back to RGBA8: [`ColorRings::format`] says which the rings took.
     pub fn with_format(
         package: ImageryPackage,
         budget: &ImageryBudget,
@@ -220,17 +221,15 @@ impl ColorRings {
     ) -> Result<Self> {
         budget.validate("imagery budget")?;
         let tile = package.header().tile;
-        if format.is_block() && (budget.texels_per_frame < 4 * tile || !tile.is_multiple_of(4)) {
-            return Err(Error::config(
-                "imagery budget",
-                "imagery.texels_per_frame",
-                format!(
-                    "{} texels a frame do not write four rows of a tile ({tile} texels a row) of {} blocks",
-                    budget.texels_per_frame,
-                    format.name()
-                ),
-            ));
-        }
+        let format = if format.is_block()
+            && (budget.texels_per_frame < 4 * tile
+                || !tile.is_multiple_of(4)
+                || budget.cache_bytes < ImageryCache::min_bytes(&package, format))
+        {
+            ColorFormat::Rgba8
+        } else {
+            format
+        };
         let count = package.header().levels.len().min(budget.levels as usize);
         let cache = ImageryCache::with_format(package, budget.cache_bytes, format)?;
         let mut levels = heapless::Vec::new();

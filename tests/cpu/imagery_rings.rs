@@ -290,6 +290,20 @@ fn block_rings_write_whole_blocks() {
         }
         check(&rings, &mut mirror, "settled", true);
         assert!((0..4).all(|l| !rings.held(l).is_empty()));
+        // A budget that cannot hold the block format keeps RGBA8.
+        for small in [
+            ImageryBudget {
+                cache_bytes: 300_000,
+                ..b
+            },
+            ImageryBudget {
+                texels_per_frame: 1000,
+                ..b
+            },
+        ] {
+            let r = ColorRings::with_format(package(), &small, format).expect("rings");
+            assert_eq!(r.format(), ColorFormat::Rgba8, "{small:?}");
+        }
         let mut again = ColorRings::with_format(package(), &b, format).expect("rings");
         for (i, h) in hashes.iter().enumerate() {
             let (x, y) = eye(u32::try_from(i).expect("frame"));
