@@ -14,7 +14,8 @@ pub const MAX_COLOR_LEVELS: u32 = 12;
 #[serde(deny_unknown_fields)]
 pub struct ImageryBudget {
     /// Texels on a side of each colour ring (a power of two, 64 ..= 2048): the GPU holds
-    /// `ring^2 x levels` RGBA8 texels.
+    /// `ring^2 x levels` texels, RGBA8 (4 bytes) or BC1 / ETC2 RGB8 blocks (0.5 byte) where the device
+    /// has them.
     pub ring: u32,
     /// Colour rings, at most (the image's pyramid may have fewer levels); 1 ..= [`MAX_COLOR_LEVELS`].
     pub levels: u32,
@@ -41,7 +42,8 @@ impl Default for ImageryBudget {
 }
 
 impl ImageryBudget {
-    /// Bytes of GPU memory of the colour rings: `ring^2 x levels` RGBA8 texels.
+    /// Bytes of GPU memory of the colour rings at most: `ring^2 x levels` RGBA8 texels, the format every
+    /// device has (in BC1 or ETC2 RGB8 they take an eighth of it; the ledger counts what was made).
     pub fn gpu_bytes(&self) -> u64 {
         u64::from(self.ring) * u64::from(self.ring) * u64::from(self.levels) * 4
     }

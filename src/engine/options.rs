@@ -56,6 +56,13 @@ impl<'a> RenderOptions<'a> {
         self.progress = progress;
         self
     }
+
+    /// Draped imagery in RGBA8 whatever the device offers ([`RenderOptions::imagery_rgba8`]).
+    #[must_use]
+    pub fn imagery_rgba8(mut self, on: bool) -> Self {
+        self.imagery_rgba8 = on;
+        self
+    }
 }
 
 impl<'a> TerrainOptions<'a> {

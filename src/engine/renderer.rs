@@ -57,6 +57,9 @@ pub struct RenderOptions<'a> {
     pub(crate) sg_patches: Patches,
     /// Whether SG's visibility is baked and drawn (off: the scene's visibility dropped, no horizons).
     pub(crate) sg_shadows: bool,
+    /// Draped imagery's colour rings in RGBA8 (4 bytes a texel) even where the device has BC or ETC2
+    /// texture compression, whose blocks (0.5 byte a texel) it takes otherwise.
+    pub imagery_rgba8: bool,
 }
 
 impl Default for RenderOptions<'_> {
@@ -71,6 +74,7 @@ impl Default for RenderOptions<'_> {
             progress: Progress::default(),
             sg_patches: Patches::default(),
             sg_shadows: true,
+            imagery_rgba8: false,
         }
     }
 }
@@ -210,7 +214,10 @@ impl TerrainRenderer {
             None => profile,
         };
         let mut imagery = imagery
-            .map(|p| ColorRings::new(p, &profile.imagery))
+            .map(|p| {
+                let format = Renderer::imagery_format(device, options.imagery_rgba8);
+                ColorRings::with_format(p, &profile.imagery, format)
+            })
             .transpose()?;
         let (name, stand_in, package) = terrain.into_parts();
         let clipmap = match package {
@@ -281,7 +288,7 @@ impl TerrainRenderer {
         )
         .and_then(|mut r| {
             if let Some(rings) = &imagery {
-                r.enable_imagery(device, rings.ring(), rings.level_count())?;
+                r.enable_imagery(device, rings.ring(), rings.level_count(), rings.format())?;
             }
             Ok(r)
         });

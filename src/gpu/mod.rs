@@ -338,7 +338,10 @@ impl Gpu {
         }
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("clipsat"),
-            required_features: wgpu::Features::empty(),
+            // The texture compression the adapter has, for draped imagery's colour rings (the renderer
+            // uses what a device was created with: `Renderer::imagery_format`); nothing else.
+            required_features: adapter.features()
+                & (wgpu::Features::TEXTURE_COMPRESSION_BC | wgpu::Features::TEXTURE_COMPRESSION_ETC2),
             required_limits: limits,
             experimental_features: wgpu::ExperimentalFeatures::disabled(),
             memory_hints: wgpu::MemoryHints::MemoryUsage,

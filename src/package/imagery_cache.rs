@@ -6,14 +6,20 @@
 //! used this frame), answers `None` and the caller falls back to a coarser level. Eviction is
 //! least-recently-used by frame stamp, so the resident set is the same run to run. The slots' bytes
 //! depend on the budget and the tile side alone, never on the image's size.
+//!
+//! For rings in a block format ([`ColorFormat`]: BC1, ETC2 RGB8) a slot holds the tile's blocks, encoded
+//! right after the JPEG decode into one scratch tile (the decode and the encode are the fetch's cost,
+//! charged in texels as before); the scratch and the encoder's are allocated with the slots and counted
+//! in [`ImageryCache::bytes`].
 
+use super::color_blocks::{tile_bytes, BlockEncoder, ColorFormat};
 use super::imagery::ImageryPackage;
 use crate::{Error, Result};
 
 /// Marks an empty slot or a tile with no slot.
 const NONE: u32 = u32::MAX;
 
-/// One slot: a decoded tile (RGB8) and what it holds.
+/// One slot: a decoded tile (RGB8, or its blocks) and what it holds.
 #[derive(Debug)]
 struct Slot {
     tile: u32,
@@ -40,6 +46,10 @@ pub struct ImageryCacheStats {
 #[derive(Debug)]
 pub struct ImageryCache {
     package: ImageryPackage,
+    format: ColorFormat,
+    /// A tile decoded before it is encoded into a slot's blocks (empty for RGBA8).
+    scratch: Vec<u8>,
+    encoder: BlockEncoder,
     slots: Vec<Slot>,
     /// Tile index -> slot, [`NONE`] where not resident.
     map: Vec<u32>,
@@ -50,16 +60,47 @@ pub struct ImageryCache {
 impl ImageryCache {
     /// Bytes of one slot for `package`: a tile's RGB8 texels and the slot's record.
     pub fn slot_bytes(package: &ImageryPackage) -> u64 {
-        let t = u64::from(package.header().tile);
-        3 * t * t + std::mem::size_of::<Slot>() as u64
+        Self::format_slot_bytes(package, ColorFormat::Rgba8)
+    }
+
+    /// Bytes of one slot for `package` in `format`: a tile (RGB8 texels, or its blocks) and the slot's
+    /// record.
+    pub fn format_slot_bytes(package: &ImageryPackage, format: ColorFormat) -> u64 {
+        let t = package.header().tile;
+        tile_bytes(format, t, t) + std::mem::size_of::<Slot>() as u64
+    }
+
+    /// The least budget a cache for `package` in `format` takes: the tile map, a block format's scratch
+    /// tile and encoder, and one slot.
+    pub fn min_bytes(package: &ImageryPackage, format: ColorFormat) -> u64 {
+        let t = package.header().tile;
+        let scratch = if format.is_block() {
+            3 * u64::from(t) * u64::from(t) + BlockEncoder::new(format, t).bytes()
+        } else {
+            0
+        };
+        4 * package.header().tiles.len() as u64 + scratch + Self::format_slot_bytes(package, format)
     }
 
     /// A cache of as many slots as `budget` bytes pay for after the tile map (at least 1, at most one a
-    /// tile of the package), all allocated now.
+    /// tile of the package), all allocated now, holding RGB8 tiles (for RGBA8 rings).
     pub fn new(package: ImageryPackage, budget: u64) -> Result<Self> {
+        Self::with_format(package, budget, ColorFormat::Rgba8)
+    }
+
+    /// [`ImageryCache::new`] for rings in `format`: a block format's slots hold blocks, and the scratch
+    /// tile and the encoder's come out of `budget` first.
+    pub fn with_format(package: ImageryPackage, budget: u64, format: ColorFormat) -> Result<Self> {
         let tiles = package.header().tiles.len();
-        let map_bytes = 4 * tiles as u64;
-        let slot = Self::slot_bytes(&package);
+        let t = package.header().tile;
+        let encoder = BlockEncoder::new(format, t);
+        let scratch = if format.is_block() {
+            vec![0; 3 * t as usize * t as usize]
+        } else {
+            Vec::new()
+        };
+        let map_bytes = 4 * tiles as u64 + scratch.len() as u64 + encoder.bytes();
+        let slot = Self::format_slot_bytes(&package, format);
         let count = budget.saturating_sub(map_bytes) / slot;
         if count == 0 {
             return Err(Error::Capacity {
@@ -68,16 +109,19 @@ impl ImageryCache {
             });
         }
         let count = usize::try_from(count).unwrap_or(usize::MAX).min(tiles);
-        let side = package.header().tile as usize;
+        let per_slot = usize::try_from(tile_bytes(format, t, t)).unwrap_or(usize::MAX);
         let slots = (0..count)
             .map(|_| Slot {
                 tile: NONE,
                 used: 0,
-                texels: vec![0; 3 * side * side],
+                texels: vec![0; per_slot],
             })
             .collect();
         Ok(Self {
             package,
+            format,
+            scratch,
+            encoder,
             slots,
             map: vec![NONE; tiles],
             frame: 0,
@@ -90,9 +134,18 @@ impl ImageryCache {
         &self.package
     }
 
-    /// Bytes it holds: the slots and the tile map.
+    /// Bytes it holds: the slots, the tile map, and for a block format the scratch tile and the
+    /// encoder's.
     pub fn bytes(&self) -> u64 {
-        self.slots.len() as u64 * Self::slot_bytes(&self.package) + 4 * self.map.len() as u64
+        self.slots.len() as u64 * Self::format_slot_bytes(&self.package, self.format)
+            + 4 * self.map.len() as u64
+            + self.scratch.len() as u64
+            + self.encoder.bytes()
+    }
+
+    /// The format its tiles are held in.
+    pub fn format(&self) -> ColorFormat {
+        self.format
     }
 
     /// Number of slots.
@@ -110,7 +163,7 @@ impl ImageryCache {
         self.frame += 1;
     }
 
-    /// Tile (tx, ty) of `level` as (width, height, RGB8 texels), decoded now when not resident and
+    /// Tile (tx, ty) of `level` as (width, height, RGB8 texels or, for a block format, its blocks), decoded now when not resident and
     /// `budget` (texels left this frame) pays for it (then reduced by its texels); `None` when the budget
     /// or the slots cannot take it. Damage in the package is an error.
     pub fn fetch(
@@ -125,7 +178,7 @@ impl ImageryCache {
         };
         let l = &self.package.header().levels[level];
         let tile = l.first_tile + (ty * l.tiles_x + tx) as usize;
-        let n = w as usize * h as usize * 3;
+        let n = usize::try_from(tile_bytes(self.format, w, h)).unwrap_or(usize::MAX);
         let slot = self.map[tile];
         if slot != NONE {
             self.stats.hits += 1;
@@ -152,7 +205,12 @@ impl ImageryCache {
             self.stats.evictions += 1;
         }
         s.tile = NONE;
-        self.package.decode_tile(level, tx, ty, &mut s.texels)?;
+        if self.format.is_block() {
+            self.package.decode_tile(level, tx, ty, &mut self.scratch)?;
+            self.encoder.encode(&self.scratch, w, h, &mut s.texels[..n])?;
+        } else {
+            self.package.decode_tile(level, tx, ty, &mut s.texels)?;
+        }
         s.tile = u32::try_from(tile).unwrap_or(NONE);
         s.used = self.frame;
         self.map[tile] = u32::try_from(victim).unwrap_or(NONE);

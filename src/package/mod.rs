@@ -22,6 +22,8 @@
 
 pub mod cache;
 pub mod codec;
+pub mod color_blocks;
+pub mod etc1;
 pub mod format;
 pub mod imagery;
 pub mod imagery_cache;

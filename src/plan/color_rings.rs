@@ -9,10 +9,18 @@
 //! upload list and the levels are fixed-capacity. A ring's region is clipped to its level's image, so
 //! the coarsest level (at most 256 texels a side) is held whole; outside the image nothing is drawn
 //! from the rings (the shader keeps the terrain's own albedo).
+//!
+//! In a block format ([`ColorFormat`]: BC1, ETC2 RGB8) every write is whole 4 x 4 blocks: regions start
+//! at multiples of 4 (the [`SNAP`], and the clamp inside the image rounded up to it), a band of rows is
+//! a multiple of 4 rows but at its rectangle's end, the ring, the tiles and the wrap are multiples of 4,
+//! and a piece ending at the image's edge is padded to whole blocks (the tile's last column and row
+//! repeated, written into ring texels outside the held region, never sampled). The texel budget is
+//! charged the padded texels; the staging holds blocks (0.5 byte a texel).
 
 use bytemuck::Zeroable as _;
 
 use crate::hash::Hash64;
+use crate::package::color_blocks::{self, BlockEncoder, ColorFormat};
 use crate::package::imagery::ImageryPackage;
 use crate::package::imagery_cache::ImageryCache;
 use crate::profile::{ImageryBudget, MAX_COLOR_LEVELS};
@@ -97,8 +105,9 @@ impl TexRect {
     }
 }
 
-/// One texture write of the frame: `w x h` RGBA8 texels at (x, y) of ring `level`'s layer, from
-/// `offset` bytes into [`ColorRings::staging`], rows packed (`4 w` bytes a row).
+/// One texture write of the frame: `w x h` texels at (x, y) of ring `level`'s layer, from `offset`
+/// bytes into [`ColorRings::staging`], in the rings' [`ColorFormat`]: RGBA8 rows packed (`4 w` bytes a
+/// row), or whole blocks row-major (x, y, w and h multiples of 4).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ColorUpload {
     /// Ring (layer).
@@ -184,6 +193,7 @@ const _: () = assert!(std::mem::size_of::<ImageryUniform>() == LEVELS * 48 + 16)
 #[derive(Debug)]
 pub struct ColorRings {
     cache: ImageryCache,
+    format: ColorFormat,
     budget: ImageryBudget,
     levels: heapless::Vec<Level, LEVELS>,
     staging: Vec<u8>,
@@ -197,9 +207,31 @@ impl ColorRings {
     /// pyramid's, the tile cache of `budget.cache_bytes` and the staging of `texels_per_frame` RGBA8
     /// texels, all allocated now.
     pub fn new(package: ImageryPackage, budget: &ImageryBudget) -> Result<Self> {
+        Self::with_format(package, budget, ColorFormat::Rgba8)
+    }
+
+    /// [`ColorRings::new`] in `format`: a block format's tiles are encoded when the cache decodes them,
+    /// and its staging holds `texels_per_frame / 2` bytes of blocks. A block format that the budget
+    /// cannot hold (a tile cache under [`ImageryCache::min_bytes`], or fewer than four rows of a tile a
+    /// frame) falls back to RGBA8: [`ColorRings::format`] says which the rings took.
+    pub fn with_format(
+        package: ImageryPackage,
+        budget: &ImageryBudget,
+        format: ColorFormat,
+    ) -> Result<Self> {
         budget.validate("imagery budget")?;
+        let tile = package.header().tile;
+        let format = if format.is_block()
+            && (budget.texels_per_frame < 4 * tile
+                || !tile.is_multiple_of(4)
+                || budget.cache_bytes < ImageryCache::min_bytes(&package, format))
+        {
+            ColorFormat::Rgba8
+        } else {
+            format
+        };
         let count = package.header().levels.len().min(budget.levels as usize);
-        let cache = ImageryCache::new(package, budget.cache_bytes)?;
+        let cache = ImageryCache::with_format(package, budget.cache_bytes, format)?;
         let mut levels = heapless::Vec::new();
         for _ in 0..count {
             levels.push(Level::default()).map_err(|_| Error::Capacity {
@@ -207,11 +239,16 @@ impl ColorRings {
                 capacity: LEVELS,
             })?;
         }
+        let staging = usize::try_from(
+            u64::from(budget.texels_per_frame) * format.bytes_per_16_texels() / 16,
+        )
+        .unwrap_or(usize::MAX);
         Ok(Self {
             cache,
+            format,
             budget: *budget,
             levels,
-            staging: vec![0; budget.texels_per_frame as usize * 4],
+            staging: vec![0; staging],
             uploads: heapless::Vec::new(),
             frame: 0,
             stats: ColorFrameStats::default(),
@@ -243,7 +280,12 @@ impl ColorRings {
         &self.uploads
     }
 
-    /// The frame's texels, RGBA8, as the uploads address them.
+    /// The rings' texel format.
+    pub fn format(&self) -> ColorFormat {
+        self.format
+    }
+
+    /// The frame's texels (RGBA8, or blocks), as the uploads address them.
     pub fn staging(&self) -> &[u8] {
         &self.staging
     }
@@ -263,7 +305,16 @@ impl ColorRings {
         // Kept inside the level where it fits (a level no larger than the ring is held whole and never
         // moves), so that a ring near the image's edge holds as much of it as it can.
         let inside = |c: i64| (c - ring / 2).div_euclid(SNAP) * SNAP;
-        let fit = |v: i64, size: i64| if size <= ring { 0 } else { v.clamp(0, size - ring) };
+        // In a block format the clamp is rounded up to whole blocks: the region may then end at the
+        // image's edge less than `ring` texels on, its padded blocks still inside the ring's span.
+        let b = i64::from(self.format.block());
+        let fit = |v: i64, size: i64| {
+            if size <= ring {
+                0
+            } else {
+                v.clamp(0, (size - ring + b - 1).div_euclid(b) * b)
+            }
+        };
         let x0 = fit(inside(cx), w);
         let y0 = fit(inside(cy), h);
         TexRect { x0, y0, w: ring, h: ring }.intersect(&TexRect { x0: 0, y0: 0, w, h })
@@ -358,9 +409,20 @@ impl ColorRings {
             while t < tiles_x * tiles_y {
                 let (tx, ty) = (tx0 + t % tiles_x, ty0 + t / tiles_x);
                 let part = r.intersect(&TexRect { x0: tx * tile, y0: ty * tile, w: tile, h: tile });
-                let rows_fit = i64::try_from(*texels_left / part.w.unsigned_abs().max(1)).unwrap_or(i64::MAX);
-                let rows = (part.h - row).min(rows_fit);
-                let bytes = usize::try_from(rows * part.w * 4).unwrap_or(usize::MAX);
+                // Padded to whole blocks (RGBA8: as they are); a band short of the part's end is
+                // whole block rows.
+                let b = i64::from(self.format.block());
+                let pad = |v: i64| (v + b - 1).div_euclid(b) * b;
+                let rows_fit = i64::try_from(*texels_left / pad(part.w).unsigned_abs().max(1)).unwrap_or(i64::MAX);
+                let mut rows = (part.h - row).min(rows_fit);
+                if rows < part.h - row {
+                    rows = rows.div_euclid(b) * b;
+                }
+                let charged = pad(part.w) * pad(rows);
+                let bytes = usize::try_from(
+                    self.format.bytes(u32::try_from(part.w).unwrap_or(0), u32::try_from(rows).unwrap_or(0)),
+                )
+                .unwrap_or(usize::MAX);
                 let room = self.uploads.capacity() - self.uploads.len() >= 4
                     && *staged + bytes <= self.staging.len();
                 if rows <= 0 || !room {
@@ -383,32 +445,15 @@ impl ColorRings {
                 let band = TexRect { x0: part.x0, y0: part.y0 + row, w: part.w, h: rows };
                 for piece in wrap_pieces(&band, ring) {
                     let offset = *staged;
-                    for yy in piece.y0..piece.y0 + piece.h {
-                        for xx in piece.x0..piece.x0 + piece.w {
-                            let (lx, ly) = (xx - tx * tile, yy - ty * tile);
-                            let i = usize::try_from((ly * i64::from(tw) + lx) * 3).unwrap_or(0);
-                            self.staging[*staged..*staged + 4].copy_from_slice(&[
-                                texels[i],
-                                texels[i + 1],
-                                texels[i + 2],
-                                255,
-                            ]);
-                            *staged += 4;
-                        }
-                    }
-                    let _ = self.uploads.push(ColorUpload {
-                        level: u32::try_from(level).unwrap_or(u32::MAX),
-                        x: u32::try_from(piece.x0.rem_euclid(ring)).unwrap_or(0),
-                        y: u32::try_from(piece.y0.rem_euclid(ring)).unwrap_or(0),
-                        w: u32::try_from(piece.w).unwrap_or(0),
-                        h: u32::try_from(piece.h).unwrap_or(0),
-                        offset,
-                    });
+                    let (upload, n) =
+                        stage_piece(self.format, level, texels, tw, (tx * tile, ty * tile), &piece, ring, &mut self.staging[offset..]);
+                    *staged += n;
+                    let _ = self.uploads.push(ColorUpload { offset, ..upload });
                 }
                 if self.cache.stats().decoded > decoded {
                     *tiles_left -= 1;
                 }
-                *texels_left -= band.texels();
+                *texels_left -= charged.unsigned_abs();
                 row += rows;
                 if row >= part.h {
                     t += 1;
@@ -510,7 +555,7 @@ impl ColorRings {
     /// Every texel the rings' texture holds, for a texture made again after a lost device
     /// (`TerrainRenderer::rebuild`): each level's held region, and what its unfinished write has written
     /// (the tiles before its first pending rectangle's current one, and that tile's rows before its
-    /// current row). Each piece goes to `write` as an upload of RGBA8 rows, in ring coordinates. The
+    /// current row). Each piece goes to `write` as an upload in the rings' format, in ring coordinates. The
     /// tiles are decoded from the package into buffers of this call, not through the tile cache, so the
     /// rings' state and the cache's, which the next frames depend on, are unchanged: those frames are
     /// the same as without the loss. Allocates (a tile and a piece, once): it runs once per rebuild.
@@ -519,8 +564,12 @@ impl ColorRings {
         let tile = i64::from(package.header().tile);
         let ring = i64::from(self.budget.ring);
         let side = usize::try_from(tile).unwrap_or(0);
+        let t = package.header().tile;
         let mut rgb = vec![0u8; side * side * 3];
-        let mut rgba = Vec::with_capacity(side * side * 4);
+        let block_bytes = if self.format.is_block() { self.format.bytes(t, t) } else { 0 };
+        let mut blocks = vec![0u8; usize::try_from(block_bytes).unwrap_or(0)];
+        let mut encoder = BlockEncoder::new(self.format, t);
+        let mut out = vec![0u8; usize::try_from(self.format.bytes(t, t).max(4 * u64::from(t) * u64::from(t))).unwrap_or(0)];
         for (level, l) in self.levels.iter().enumerate() {
             // (rectangle, tiles written whole, rows of the next tile written)
             let mut parts: heapless::Vec<(TexRect, i64, i64), 2> = heapless::Vec::new();
@@ -542,31 +591,23 @@ impl ColorRings {
                     if part.is_empty() || rows <= 0 {
                         continue;
                     }
-                    let (tw, _) = package.decode_tile(
+                    let (tw, th) = package.decode_tile(
                         level,
                         u32::try_from(tx).unwrap_or(u32::MAX),
                         u32::try_from(ty).unwrap_or(u32::MAX),
                         &mut rgb,
                     )?;
+                    let data = if self.format.is_block() {
+                        let n = usize::try_from(self.format.bytes(tw, th)).unwrap_or(0);
+                        encoder.encode(&rgb, tw, th, &mut blocks[..n])?;
+                        &blocks[..n]
+                    } else {
+                        &rgb[..]
+                    };
                     let band = TexRect { x0: part.x0, y0: part.y0, w: part.w, h: rows };
                     for piece in wrap_pieces(&band, ring) {
-                        rgba.clear();
-                        for yy in piece.y0..piece.y0 + piece.h {
-                            for xx in piece.x0..piece.x0 + piece.w {
-                                let (lx, ly) = (xx - tx * tile, yy - ty * tile);
-                                let i = usize::try_from((ly * i64::from(tw) + lx) * 3).unwrap_or(0);
-                                rgba.extend_from_slice(&[rgb[i], rgb[i + 1], rgb[i + 2], 255]);
-                            }
-                        }
-                        let upload = ColorUpload {
-                            level: u32::try_from(level).unwrap_or(u32::MAX),
-                            x: u32::try_from(piece.x0.rem_euclid(ring)).unwrap_or(0),
-                            y: u32::try_from(piece.y0.rem_euclid(ring)).unwrap_or(0),
-                            w: u32::try_from(piece.w).unwrap_or(0),
-                            h: u32::try_from(piece.h).unwrap_or(0),
-                            offset: 0,
-                        };
-                        write(&upload, &rgba)?;
+                        let (upload, n) = stage_piece(self.format, level, data, tw, (tx * tile, ty * tile), &piece, ring, &mut out);
+                        write(&upload, &out[..n])?;
                     }
                 }
             }
@@ -583,6 +624,39 @@ impl ColorRings {
     pub fn held(&self, level: usize) -> TexRect {
         self.levels.get(level).map_or_else(TexRect::default, |l| l.held)
     }
+}
+
+/// Stages `piece` (level texels, inside the tile at level texel `origin`, `tw` texels wide, held in the
+/// cache's layout `data`) into `out` in `format`; the upload that writes it (offset 0) and its bytes.
+#[expect(clippy::too_many_arguments, reason = "one piece's whole address: a private helper")]
+fn stage_piece(
+    format: ColorFormat,
+    level: usize,
+    data: &[u8],
+    tw: u32,
+    origin: (i64, i64),
+    piece: &TexRect,
+    ring: i64,
+    out: &mut [u8],
+) -> (ColorUpload, usize) {
+    let b = i64::from(format.block());
+    let pad = |v: i64| u32::try_from((v + b - 1).div_euclid(b) * b).unwrap_or(0);
+    let local = (
+        u32::try_from(piece.x0 - origin.0).unwrap_or(0),
+        u32::try_from(piece.y0 - origin.1).unwrap_or(0),
+        u32::try_from(piece.w).unwrap_or(0),
+        u32::try_from(piece.h).unwrap_or(0),
+    );
+    let n = color_blocks::stage(format, data, tw, local, out);
+    let upload = ColorUpload {
+        level: u32::try_from(level).unwrap_or(u32::MAX),
+        x: u32::try_from(piece.x0.rem_euclid(ring)).unwrap_or(0),
+        y: u32::try_from(piece.y0.rem_euclid(ring)).unwrap_or(0),
+        w: pad(piece.w),
+        h: pad(piece.h),
+        offset: 0,
+    };
+    (upload, n)
 }
 
 /// `r` cut where it crosses a multiple of `ring` (the ring's wrap), each way: at most four pieces (`r`

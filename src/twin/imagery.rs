@@ -2,11 +2,14 @@
 //! footprint, in the shader's f32 arithmetic, reading each ring's texels from the imagery package's own
 //! decode of the pyramid (what the rings hold, `tests/cpu/imagery_rings.rs`), filtered as the GPU's
 //! bilinear sampler with repeat is defined to (a driver's own weight precision is within the tolerance).
+//! Rings in a block format (BC1, ETC2 RGB8) are read as the GPU samples them: each tile encoded as the
+//! tile cache encodes it and its blocks decoded (`package::color_blocks`).
 //! The float-to-int conversions panic where GLSL ES 3.00 leaves them undefined (out of range), as the
 //! other twins do.
 
 use glam::{Vec3, Vec4};
 
+use crate::package::color_blocks::{self, BlockEncoder};
 use crate::plan::color_rings::{ColorRings, ImageryUniform, TexRect};
 use crate::Result;
 
@@ -35,6 +38,9 @@ impl ImageryTwin {
         let mut widths = Vec::new();
         let side = h.tile as usize;
         let mut tile = vec![0u8; side * side * 3];
+        let format = rings.format();
+        let mut encoder = BlockEncoder::new(format, h.tile);
+        let mut blocks = vec![0u8; usize::try_from(format.bytes(h.tile, h.tile)).unwrap_or(0)];
         for (level, l) in h
             .levels
             .iter()
@@ -45,6 +51,11 @@ impl ImageryTwin {
             for ty in 0..l.tiles_y {
                 for tx in 0..l.tiles_x {
                     let (tw, th) = p.decode_tile(level, tx, ty, &mut tile)?;
+                    if format.is_block() {
+                        let n = usize::try_from(format.bytes(tw, th)).unwrap_or(0);
+                        encoder.encode(&tile, tw, th, &mut blocks[..n])?;
+                        color_blocks::decode(format, &blocks[..n], tw, th, &mut tile)?;
+                    }
                     for row in 0..th as usize {
                         let dst = ((ty as usize * side + row) * l.width as usize
                             + tx as usize * side)

@@ -44,12 +44,18 @@ pub fn check_frame(
     let mut clipmap = crate::plan::clipmap::Clipmap::new(hm, &profile, Default::default())?;
     clipmap.fill_at(camera.eye, crate::engine::setup::MAX_FILL_FRAMES)?;
     let mut r = Offscreen::new(gpu, &profile, &clipmap, OffscreenOptions::default())?;
-    let mut rings = crate::plan::color_rings::ColorRings::new(
+    let format = crate::gpu::renderer::Renderer::imagery_format(gpu.device(), false);
+    let mut rings = crate::plan::color_rings::ColorRings::with_format(
         ImageryPackage::from_bytes(path, bytes)?,
         &profile.imagery,
+        format,
     )?;
-    r.renderer_mut()
-        .enable_imagery(gpu.device(), rings.ring(), rings.level_count())?;
+    r.renderer_mut().enable_imagery(
+        gpu.device(),
+        rings.ring(),
+        rings.level_count(),
+        rings.format(),
+    )?;
     let (x, y) = (camera.eye.x, camera.eye.y);
     let mut settled = None;
     for frame in 0..256u64 {

@@ -194,3 +194,120 @@ fn a_still_ring_moves_nothing_and_bad_eyes_are_refused() {
     };
     assert!(ColorRings::new(package(), &bad).is_err());
 }
+
+/// Rings in a block format (BC1, ETC2 RGB8) over the same flight: every upload is whole 4 x 4 blocks
+/// inside the ring (x, y, w, h multiples of 4), the texel budget is charged the padded texels, and the
+/// GPU texture as the uploads leave it holds, for every texel of every held region (levels 375 and 188
+/// wide end mid-block), the block the tile cache encodes for it; the staging is 0.5 byte a texel and the
+/// hashes repeat run to run.
+#[test]
+#[expect(
+    clippy::cast_possible_truncation,
+    reason = "texel and tile indices of a test image"
+)]
+fn block_rings_write_whole_blocks() {
+    use clipsat::package::color_blocks::{BlockEncoder, ColorFormat};
+    let b = ImageryBudget {
+        levels: 4,
+        ..budget()
+    };
+    for format in [ColorFormat::Bc1, ColorFormat::Etc2Rgb8] {
+        let pkg = package();
+        // Each tile encoded whole, as the cache encodes it: (level, tx, ty) -> blocks.
+        let mut encoder = BlockEncoder::new(format, 256);
+        let mut tiles = std::collections::HashMap::new();
+        let mut rgb = vec![0u8; 256 * 256 * 3];
+        for (level, l) in pkg.header().levels.iter().enumerate() {
+            for ty in 0..l.tiles_y {
+                for tx in 0..l.tiles_x {
+                    let (tw, th) = pkg.decode_tile(level, tx, ty, &mut rgb).expect("decode");
+                    let mut out = vec![0u8; format.bytes(tw, th) as usize];
+                    encoder.encode(&rgb, tw, th, &mut out).expect("encode");
+                    tiles.insert((level, tx, ty), (tw, out));
+                }
+            }
+        }
+        let mut rings = ColorRings::with_format(pkg, &b, format).expect("rings");
+        assert_eq!(rings.staging().len(), b.texels_per_frame as usize / 2);
+        let ring = 256usize;
+        let layer = (ring / 4) * (ring / 4) * 8;
+        let mut mirror = vec![0u8; 4 * layer];
+        let mut hashes = Vec::new();
+        let check = |rings: &ColorRings, mirror: &mut Vec<u8>, tag: &str, verify: bool| {
+            for u in rings.uploads() {
+                assert!(
+                    [u.x, u.y, u.w, u.h].iter().all(|v| v % 4 == 0)
+                        && u.x + u.w <= 256
+                        && u.y + u.h <= 256,
+                    "{tag}: {u:?}"
+                );
+                let row = u.w as usize / 4 * 8;
+                for by in 0..u.h as usize / 4 {
+                    let src = u.offset + by * row;
+                    let dst = u.level as usize * layer
+                        + ((u.y as usize / 4 + by) * (ring / 4) + u.x as usize / 4) * 8;
+                    mirror[dst..dst + row].copy_from_slice(&rings.staging()[src..src + row]);
+                }
+            }
+            for level in (0..rings.level_count() as usize).filter(|_| verify) {
+                let held = rings.held(level);
+                for j in (held.y0..held.y0 + held.h.max(0)).step_by(4) {
+                    for i in (held.x0..held.x0 + held.w.max(0)).step_by(4) {
+                        let (i, j) = (i as usize, j as usize);
+                        let (tw, blocks) = &tiles[&(level, (i / 256) as u32, (j / 256) as u32)];
+                        let at = ((j % 256) / 4 * (*tw as usize).div_ceil(4) + (i % 256) / 4) * 8;
+                        let m = level * layer + ((j % ring) / 4 * (ring / 4) + (i % ring) / 4) * 8;
+                        assert_eq!(
+                            &mirror[m..m + 8],
+                            &blocks[at..at + 8],
+                            "{tag}: level {level} block at ({i}, {j})"
+                        );
+                    }
+                }
+            }
+        };
+        for i in 0..150 {
+            let (x, y) = eye(i);
+            let s = rings.update(x, y).expect("update");
+            assert!(
+                s.texels <= u64::from(b.texels_per_frame),
+                "frame {i}: {s:?}"
+            );
+            check(
+                &rings,
+                &mut mirror,
+                &format!("{format:?} frame {i}"),
+                i % 10 == 9,
+            );
+            hashes.push(s.hash);
+        }
+        let (x, y) = (2900.0, 100.0);
+        let mut frames = 0;
+        while rings.update(x, y).expect("update").stale_levels > 0 {
+            check(&rings, &mut mirror, "settling", false);
+            frames += 1;
+            assert!(frames < 300, "the rings never settle");
+        }
+        check(&rings, &mut mirror, "settled", true);
+        assert!((0..4).all(|l| !rings.held(l).is_empty()));
+        // A budget that cannot hold the block format keeps RGBA8.
+        for small in [
+            ImageryBudget {
+                cache_bytes: 300_000,
+                ..b
+            },
+            ImageryBudget {
+                texels_per_frame: 1000,
+                ..b
+            },
+        ] {
+            let r = ColorRings::with_format(package(), &small, format).expect("rings");
+            assert_eq!(r.format(), ColorFormat::Rgba8, "{small:?}");
+        }
+        let mut again = ColorRings::with_format(package(), &b, format).expect("rings");
+        for (i, h) in hashes.iter().enumerate() {
+            let (x, y) = eye(u32::try_from(i).expect("frame"));
+            assert_eq!(again.update(x, y).expect("update").hash, *h, "frame {i}");
+        }
+    }
+}

@@ -91,7 +91,12 @@ fn imagery_frame_matches_its_twin() {
     let mut r = Offscreen::new(&gpu, &p, &cm, options()).expect("renderer");
     let mut rings = ColorRings::new(imagery(&hm), &p.imagery).expect("rings");
     r.renderer_mut()
-        .enable_imagery(gpu.device(), rings.ring(), rings.level_count())
+        .enable_imagery(
+            gpu.device(),
+            rings.ring(),
+            rings.level_count(),
+            rings.format(),
+        )
         .expect("imagery");
     // The colour rings and the uniform, nothing else.
     let ring = u64::from(rings.ring());
@@ -173,7 +178,12 @@ fn cost_with_and_without_imagery() {
     let mut rings = ColorRings::new(imagery(&hm), &p.imagery).expect("rings");
     draped
         .renderer_mut()
-        .enable_imagery(gpu.device(), rings.ring(), rings.level_count())
+        .enable_imagery(
+            gpu.device(),
+            rings.ring(),
+            rings.level_count(),
+            rings.format(),
+        )
         .expect("imagery");
     for _ in 0..64 {
         rings.update(cam.eye.x, cam.eye.y).expect("update");
@@ -216,7 +226,12 @@ fn cost_with_and_without_imagery() {
         .expect("sg");
         if imagery {
             r.renderer_mut()
-                .enable_imagery(gpu.device(), rings.ring(), rings.level_count())
+                .enable_imagery(
+                    gpu.device(),
+                    rings.ring(),
+                    rings.level_count(),
+                    rings.format(),
+                )
                 .expect("imagery");
             r.renderer()
                 .prepare_imagery(gpu.queue(), &rings, (cam.eye.x, cam.eye.y))
@@ -275,8 +290,68 @@ fn fidelity_against_a_reference_drape() {
             hm.origin(),
         );
         let src = Imagery::load(&dir.join(image), &grid, &Default::default()).expect("image");
-        // The package's tiles as stored, and at JPEG quality 100 (near the source: the renderer's own loss).
-        for quality in [clipsat::package::imagery::DEFAULT_QUALITY, 100] {
+        // The format's own PSNR on the source image: level 0 encoded in 256^2 tiles and decoded.
+        use clipsat::package::color_blocks::ColorFormat;
+        let features = gpu.device().features();
+        let blocks: Vec<ColorFormat> = [
+            (ColorFormat::Bc1, wgpu::Features::TEXTURE_COMPRESSION_BC),
+            (
+                ColorFormat::Etc2Rgb8,
+                wgpu::Features::TEXTURE_COMPRESSION_ETC2,
+            ),
+        ]
+        .into_iter()
+        .filter(|(_, f)| features.contains(*f))
+        .map(|(c, _)| c)
+        .collect();
+        for &device_format in &blocks {
+            let (w, h) = src.size();
+            let mut enc = clipsat::package::color_blocks::BlockEncoder::new(device_format, 256);
+            let (mut sq, mut rgb, mut back) =
+                (0u64, vec![0u8; 256 * 256 * 3], vec![0u8; 256 * 256 * 3]);
+            let mut blocks = vec![0u8; 256 * 256 / 2];
+            let start = std::time::Instant::now();
+            let mut tiles = 0u32;
+            for ty in (0..h).step_by(256) {
+                for tx in (0..w).step_by(256) {
+                    let (tw, th) = ((w - tx).min(256), (h - ty).min(256));
+                    for j in 0..th {
+                        for i in 0..tw {
+                            let c = src.texel(i64::from(tx + i), i64::from(ty + j));
+                            let at = ((j * tw + i) * 3) as usize;
+                            rgb[at..at + 3].copy_from_slice(&c);
+                        }
+                    }
+                    let n = device_format.bytes(tw, th) as usize;
+                    enc.encode(&rgb, tw, th, &mut blocks[..n]).expect("encode");
+                    tiles += 1;
+                    clipsat::package::color_blocks::decode(
+                        device_format,
+                        &blocks[..n],
+                        tw,
+                        th,
+                        &mut back,
+                    )
+                    .expect("decode");
+                    for (a, b) in rgb[..(tw * th * 3) as usize].iter().zip(&back) {
+                        sq += u64::from(a.abs_diff(*b)).pow(2);
+                    }
+                }
+            }
+            let ms = start.elapsed().as_secs_f64() * 1000.0 / f64::from(tiles);
+            println!(
+                "{image}: {} on the source image: PSNR {:.2} dB ({ms:.2} ms a 256^2 tile, encode and decode)",
+                device_format.name(),
+                clipsat::package::imagery::psnr(sq, u64::from(w * h * 3))
+            );
+        }
+        // The package's tiles as stored in RGBA8 and in each block format the device has, and at JPEG
+        // quality 100 (near the source: the renderer's own loss).
+        let q = clipsat::package::imagery::DEFAULT_QUALITY;
+        let runs = std::iter::once((q, ColorFormat::Rgba8))
+            .chain(blocks.iter().map(|f| (q, *f)))
+            .chain(std::iter::once((100, ColorFormat::Rgba8)));
+        for (quality, format) in runs {
             let (bytes, _) = bake_imagery(&src, quality, 0).expect("bake");
             let pkg = ImageryPackage::from_bytes(Path::new(image), bytes).expect("package");
             let mut p = Profile::load("gles3-mid").expect("profile");
@@ -297,9 +372,14 @@ fn fidelity_against_a_reference_drape() {
                 },
             )
             .expect("renderer");
-            let mut rings = ColorRings::new(pkg, &p.imagery).expect("rings");
+            let mut rings = ColorRings::with_format(pkg, &p.imagery, format).expect("rings");
             r.renderer_mut()
-                .enable_imagery(gpu.device(), rings.ring(), rings.level_count())
+                .enable_imagery(
+                    gpu.device(),
+                    rings.ring(),
+                    rings.level_count(),
+                    rings.format(),
+                )
                 .expect("imagery");
             for _ in 0..64 {
                 rings.update(cam.eye.x, cam.eye.y).expect("update");
@@ -356,8 +436,9 @@ fn fidelity_against_a_reference_drape() {
             }
             let psnr = 10.0 * (255.0f64 * 255.0 / (sq / n as f64)).log10();
             println!(
-            "{image}, tiles at JPEG quality {quality}: PSNR {psnr:.2} dB over {} terrain pixels (1920 x 1080, gles3-mid)",
-            n / 3
+            "{image}, tiles at JPEG quality {quality}, rings in {}: PSNR {psnr:.2} dB over {} terrain pixels (1920 x 1080, gles3-mid)",
+                format.name(),
+                n / 3
         );
         }
     }
@@ -399,8 +480,8 @@ fn the_embedding_api_drapes_imagery() {
         };
         clipsat::Terrain::open_with(&heights, &options).expect("terrain")
     };
-    let options = clipsat::RenderOptions::default();
-    let run = |imagery: Option<&Path>| {
+    let run = |imagery: Option<&Path>, rgba8: bool| {
+        let options = clipsat::RenderOptions::default().imagery_rgba8(rgba8);
         let terrain = open(imagery);
         assert_eq!(terrain.has_imagery(), imagery.is_some());
         let cam = terrain.default_camera().expect("camera");
@@ -417,13 +498,30 @@ fn the_embedding_api_drapes_imagery() {
             .collect();
         (r.gpu_bytes(), hashes)
     };
-    let (plain_bytes, plain) = run(None);
-    let (bytes, draped) = run(Some(&photo));
+    let (plain_bytes, plain) = run(None, false);
+    let (bytes, draped) = run(Some(&photo), true);
     let ring = u64::from(profile.get().imagery.ring);
-    // A 300^2 image has two levels (300, 150): two rings.
+    // A 300^2 image has two levels (300, 150): two rings, RGBA8 when asked for.
     assert_eq!(bytes - plain_bytes, ring * ring * 2 * 4 + 12 * 48 + 16);
     assert_ne!(plain, draped);
-    assert_eq!(run(Some(&photo)).1, draped, "the same hashes run to run");
+    assert_eq!(
+        run(Some(&photo), true).1,
+        draped,
+        "the same hashes run to run"
+    );
+    // The device's own format: 0.5 byte a texel where it has BC or ETC2, the same hashes run to run.
+    let block = clipsat::gpu::renderer::Renderer::imagery_format(gpu.device(), false).is_block();
+    let (bytes, compressed) = run(Some(&photo), false);
+    let per_16 = if block { 8 } else { 64 };
+    assert_eq!(
+        bytes - plain_bytes,
+        ring * ring * 2 * per_16 / 16 + 12 * 48 + 16
+    );
+    assert_eq!(
+        run(Some(&photo), false).1,
+        compressed,
+        "the same hashes run to run"
+    );
 }
 
 /// The exact image hash of an imagery frame on this driver against `tests/goldens/imagery_hashes.txt`
@@ -485,7 +583,12 @@ fn sg_imagery_frame_matches_its_twin() {
     let mut r = Offscreen::with_sg(&gpu, &p, &cm, &hm, &scene, Patches::P4x8, true).expect("sg");
     let mut rings = ColorRings::new(imagery(&hm), &p.imagery).expect("rings");
     r.renderer_mut()
-        .enable_imagery(gpu.device(), rings.ring(), rings.level_count())
+        .enable_imagery(
+            gpu.device(),
+            rings.ring(),
+            rings.level_count(),
+            rings.format(),
+        )
         .expect("imagery");
     let (x, y) = (cam.eye.x, cam.eye.y);
     for _ in 0..40 {
@@ -530,4 +633,98 @@ fn the_selftest_check_passes() {
         report.passes() && report.pixels > 160 * 90 / 3,
         "{report:?}"
     );
+}
+
+/// The colour rings in the device's block formats (BC1 where it has BC, ETC2 RGB8 where it has ETC2;
+/// `Renderer::imagery_format` picks the first): the frame against its twin (which reads the blocks'
+/// decoded colours) within the same tolerance, the rings' GPU bytes 0.5 a texel in the ledger, and the
+/// image and the rings' hashes the same run to run. A device with neither is reported and skipped.
+#[test]
+fn block_format_imagery_matches_its_twin() {
+    use clipsat::gpu::renderer::Renderer;
+    use clipsat::package::color_blocks::ColorFormat;
+    let gpu = gpu();
+    let features = gpu.device().features();
+    println!("adapter features: {:?}", gpu.adapter().features());
+    let chosen = Renderer::imagery_format(gpu.device(), false);
+    let report = gpu.report();
+    println!(
+        "{} ({}): TEXTURE_COMPRESSION_BC {}, TEXTURE_COMPRESSION_ETC2 {}, imagery format {}",
+        report.name,
+        report.driver,
+        features.contains(wgpu::Features::TEXTURE_COMPRESSION_BC),
+        features.contains(wgpu::Features::TEXTURE_COMPRESSION_ETC2),
+        chosen.name()
+    );
+    assert_eq!(
+        Renderer::imagery_format(gpu.device(), true),
+        ColorFormat::Rgba8
+    );
+    let formats = [
+        (ColorFormat::Bc1, wgpu::Features::TEXTURE_COMPRESSION_BC),
+        (
+            ColorFormat::Etc2Rgb8,
+            wgpu::Features::TEXTURE_COMPRESSION_ETC2,
+        ),
+    ];
+    let hm = terrain();
+    let mut p = profile();
+    (p.view.width, p.view.height) = (160, 90);
+    let mut cm = Clipmap::new(&hm, &p, ClipmapOptions::default()).expect("clipmap");
+    let cam = Camera::default_for(&hm).expect("camera");
+    cm.update(cam.eye).expect("update");
+    let opts = FrameOptions::default();
+    let options = || OffscreenOptions {
+        lod: LodSetup::new(LodMode::Distance, None).expect("lod"),
+        shading: Shading::Basic,
+        debug: DebugView::Normal,
+    };
+    let plain_bytes = Offscreen::new(&gpu, &p, &cm, options())
+        .expect("renderer")
+        .renderer()
+        .ledger()
+        .bytes();
+    let (x, y) = (cam.eye.x, cam.eye.y);
+    for (format, _) in formats.iter().filter(|(_, f)| features.contains(*f)) {
+        let run = || {
+            let mut r = Offscreen::new(&gpu, &p, &cm, options()).expect("renderer");
+            let mut rings =
+                ColorRings::with_format(imagery(&hm), &p.imagery, *format).expect("rings");
+            r.renderer_mut()
+                .enable_imagery(gpu.device(), rings.ring(), rings.level_count(), *format)
+                .expect("imagery");
+            let ring = u64::from(rings.ring());
+            assert_eq!(
+                r.renderer().ledger().bytes() - plain_bytes,
+                ring * ring * u64::from(rings.level_count()) / 2 + 12 * 48 + 16,
+                "{format:?}: 0.5 byte a texel"
+            );
+            let mut hash = 0u64;
+            for _ in 0..40 {
+                hash ^= rings.update(x, y).expect("colour update").hash;
+                r.renderer()
+                    .prepare_imagery(gpu.queue(), &rings, (x, y))
+                    .expect("upload");
+            }
+            let probe = ShadingProbe::new(&r).expect("probe");
+            let image = render_frame(&mut r, &cm, &cam, &opts).expect("frame").image;
+            let probed = probe.capture(&r).expect("capture");
+            let twin = ImageryTwin::new(&rings, x, y).expect("twin");
+            let clear = clipsat::twin::border::clear_rgba8(opts.clear);
+            let report = compare_imagery(&image, &probed, clear, &r.shading(), &twin);
+            (report, image.hash(), hash)
+        };
+        let (report, image, rings) = run();
+        println!("{format:?} imagery twin: {report:?}");
+        assert!(report.pixels > 160 * 90 / 3, "{format:?}: {report:?}");
+        assert!(
+            report.passes(),
+            "{format:?}: the imagery frame is not its twin's: {report:?}"
+        );
+        // Run to run, in the format the device takes (the other one's blocks are checked on the CPU).
+        if *format == chosen {
+            let (_, image2, rings2) = run();
+            assert_eq!((image, rings), (image2, rings2), "{format:?}: run to run");
+        }
+    }
 }

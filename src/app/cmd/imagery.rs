@@ -20,6 +20,7 @@ pub(crate) fn rings_json(rings: &ColorRings) -> serde_json::Value {
     let mut v = imagery_json(rings.package());
     v["rings"] = json!(rings.level_count());
     v["ring_side"] = json!(rings.ring());
+    v["gpu_format"] = json!(rings.format().name());
     v["cpu_bytes"] = json!(rings.cpu_bytes());
     v["last_update"] = json!(rings.stats());
     v["hash"] = json!(clipsat::hash::hex(rings.stats().hash));

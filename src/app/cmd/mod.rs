@@ -99,6 +99,11 @@ pub(crate) struct TerrainArgs {
         allow_hyphen_values = true
     )]
     pub(crate) imagery_extent: Option<String>,
+    /// Draw the imagery's colour rings in RGBA8 (4 bytes a texel) even where the device has BC or ETC2
+    /// texture compression, whose blocks (0.5 byte a texel) they take otherwise
+    /// (`RenderOptions::imagery_rgba8`).
+    #[arg(long, requires = "imagery")]
+    pub(crate) imagery_rgba8: bool,
     /// Refuse imagery declaring more texels than this (checked before allocating).
     #[arg(long, value_name = "N", default_value_t = source::imagery::DEFAULT_MAX_IMAGERY_TEXELS)]
     pub(crate) max_imagery_texels: u64,

@@ -208,6 +208,7 @@ pub(crate) fn run(args: &RenderArgs) -> Result<()> {
     let mut options = RenderOptions::default()
         .color_format(targets.color_format())
         .depth_format(targets.depth_format())
+        .imagery_rgba8(args.terrain.imagery_rgba8)
         .progress(progress);
     if lod_mode != LodMode::Distance {
         options = options.sat_lod_px(epsilon.unwrap_or(profile.view.epsilon_px));

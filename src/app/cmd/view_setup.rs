@@ -147,7 +147,8 @@ pub(crate) fn time_headless(
     let targets = Targets::new(&gpu, view.size.0, view.size.1)?;
     let mut options = RenderOptions::default()
         .color_format(targets.color_format())
-        .depth_format(targets.depth_format());
+        .depth_format(targets.depth_format())
+        .imagery_rgba8(view.terrain.imagery_rgba8);
     if view.options.lod != LodMode::Distance {
         options = options.sat_lod_px(view.epsilon_px);
     }

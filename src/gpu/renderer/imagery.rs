@@ -1,5 +1,6 @@
-//! Stage 3, the GPU: draped imagery, the colour clipmap's GPU side (`shaders_gles/imagery.wgsl`): one RGBA8
-//! 2D array texture of `ring^2 x levels` texels, its uniform, a bind group (group 2) and the imagery
+//! Stage 3, the GPU: draped imagery, the colour clipmap's GPU side (`shaders_gles/imagery.wgsl`): one 2D
+//! array texture of `ring^2 x levels` texels (RGBA8, or BC1 / ETC2 RGB8 blocks where the device has them,
+//! [`Renderer::imagery_format`]), its uniform, a bind group (group 2) and the imagery
 //! variant of the four fragment programs. Created once by [`Renderer::enable_imagery`] for a terrain
 //! with imagery (counted in the ledger, [`crate::profile::Profile::imagery_gpu_bytes`]); a renderer
 //! without it creates, binds and compiles none of this. Each frame [`Renderer::prepare_imagery`] writes
@@ -8,12 +9,29 @@
 use super::sg::{programs, SgPrograms};
 use super::{array_texture, terrain_pipeline, Ledgered, Renderer, FRAGMENT_ENTRIES};
 use crate::gpu::shaders::{self, SgVariant};
+use crate::package::color_blocks::ColorFormat;
 use crate::plan::color_rings::{ColorRings, ColorUpload, ImageryUniform};
 use crate::plan::fragment::FRAGMENT_PATHS;
 use crate::{Error, Result};
 
-/// The colour rings' format: RGBA8, filtered bilinearly by the GPU (filterable on GLES 3.0).
-const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
+/// The colour rings' texture format for `format`: all filterable on GLES 3.0, all unorm (no sRGB
+/// decode: the shader decodes the display-encoded colour itself, whatever the format).
+fn texture_format(format: ColorFormat) -> wgpu::TextureFormat {
+    match format {
+        ColorFormat::Rgba8 => wgpu::TextureFormat::Rgba8Unorm,
+        ColorFormat::Bc1 => wgpu::TextureFormat::Bc1RgbaUnorm,
+        ColorFormat::Etc2Rgb8 => wgpu::TextureFormat::Etc2Rgb8Unorm,
+    }
+}
+
+/// The device feature a format needs (none for RGBA8).
+fn feature(format: ColorFormat) -> wgpu::Features {
+    match format {
+        ColorFormat::Rgba8 => wgpu::Features::empty(),
+        ColorFormat::Bc1 => wgpu::Features::TEXTURE_COMPRESSION_BC,
+        ColorFormat::Etc2Rgb8 => wgpu::Features::TEXTURE_COMPRESSION_ETC2,
+    }
+}
 /// Bytes of the imagery uniform.
 const UNIFORM_BYTES: u64 = std::mem::size_of::<ImageryUniform>() as u64;
 
@@ -30,22 +48,56 @@ pub(super) struct ImageryState {
     pub(super) sg: Option<(SgVariant, SgPrograms)>,
     pub(super) ring: u32,
     pub(super) levels: u32,
+    pub(super) format: ColorFormat,
 }
 
 impl Renderer {
-    /// Creates the colour rings (`ring^2 x levels` RGBA8), their uniform, bind group and the imagery
+    /// The colour rings' format on `device`, from the features it was created with (clipsat requests
+    /// none): BC1 where it has `TEXTURE_COMPRESSION_BC` (desktop GPUs), else ETC2 RGB8 where it has
+    /// `TEXTURE_COMPRESSION_ETC2` (GLES 3.0 devices, most mobile ones), else RGBA8; RGBA8 whenever
+    /// `rgba8` is set. The block formats take 0.5 byte a texel, RGBA8 4.
+    pub fn imagery_format(device: &wgpu::Device, rgba8: bool) -> ColorFormat {
+        let has = device.features();
+        if rgba8 {
+            ColorFormat::Rgba8
+        } else if has.contains(feature(ColorFormat::Bc1)) {
+            ColorFormat::Bc1
+        } else if has.contains(feature(ColorFormat::Etc2Rgb8)) {
+            ColorFormat::Etc2Rgb8
+        } else {
+            ColorFormat::Rgba8
+        }
+    }
+
+    /// Creates the colour rings (`ring^2 x levels` texels in `format`), their uniform, bind group and the imagery
     /// programs, once: frames then draw the terrain's albedo from the imagery under basic shading (and
     /// its fog), and under SG shading the diffuse term of the SG variant drawn now scaled by the imagery's
     /// albedo over the scene's k_d (the bind group at 3, after the SG tables'; a variant switched to later
-    /// by [`Renderer::set_sg_effects`] draws without imagery). Refused a second time, or past the
-    /// device's limits.
-    pub fn enable_imagery(&mut self, device: &wgpu::Device, ring: u32, levels: u32) -> Result<()> {
+    /// by [`Renderer::set_sg_effects`] draws without imagery). Refused a second time, past the
+    /// device's limits, or in a format the device lacks.
+    pub fn enable_imagery(
+        &mut self,
+        device: &wgpu::Device,
+        ring: u32,
+        levels: u32,
+        format: ColorFormat,
+    ) -> Result<()> {
         let refuse = |reason: &str| Error::Invalid {
             what: "imagery".into(),
             reason: reason.into(),
         };
         if self.imagery.is_some() {
             return Err(refuse("the renderer's imagery is already set up"));
+        }
+        if !device.features().contains(feature(format)) {
+            return Err(Error::Unsupported {
+                limit: match format {
+                    ColorFormat::Bc1 => "TEXTURE_COMPRESSION_BC",
+                    _ => "TEXTURE_COMPRESSION_ETC2",
+                },
+                needed: 1,
+                available: 0,
+            });
         }
         let limits = device.limits();
         if levels > limits.max_texture_array_layers || levels == 0 {
@@ -65,7 +117,7 @@ impl Renderer {
         let mut dev = Ledgered::new(device);
         let texture = dev.texture(
             "imagery rings",
-            &array_texture(ring, levels, COLOR_FORMAT, wgpu::TextureUsages::COPY_SRC),
+            &array_texture(ring, levels, texture_format(format), wgpu::TextureUsages::COPY_SRC),
         );
         let view = dev.view(
             "imagery rings view",
@@ -181,6 +233,7 @@ impl Renderer {
             sg,
             ring,
             levels,
+            format,
         });
         Ok(())
     }
@@ -209,29 +262,50 @@ impl Renderer {
                 reason: "the renderer has no imagery set up (Renderer::enable_imagery)".into(),
             });
         };
-        if rings.ring() != state.ring || rings.level_count() > state.levels {
+        if rings.ring() != state.ring
+            || rings.level_count() > state.levels
+            || rings.format() != state.format
+        {
             return Err(Error::Invalid {
                 what: "imagery".into(),
                 reason: format!(
-                    "rings of {} x {} levels for a texture of {} x {}",
+                    "rings of {} x {} levels in {} for a texture of {} x {} in {}",
                     rings.ring(),
                     rings.level_count(),
+                    rings.format().name(),
                     state.ring,
-                    state.levels
+                    state.levels,
+                    state.format.name()
                 ),
             });
         }
         for u in rings.uploads() {
-            let bytes = u.w as usize * u.h as usize * 4;
-            write_colour(queue, &state.texture, u, &rings.staging()[u.offset..u.offset + bytes]);
+            let bytes = usize::try_from(state.format.bytes(u.w, u.h)).unwrap_or(usize::MAX);
+            let texels = &rings.staging()[u.offset..u.offset + bytes];
+            write_colour(queue, &state.texture, state.format, u, texels);
         }
         queue.write_buffer(&state.uniform, 0, bytemuck::bytes_of(&rings.uniform(x, y)));
         Ok(())
     }
 }
 
-/// One colour upload: `u.w x u.h` RGBA8 texels, rows packed, at (u.x, u.y) of layer `u.level`.
-fn write_colour(queue: &wgpu::Queue, texture: &wgpu::Texture, u: &ColorUpload, rgba: &[u8]) {
+impl Renderer {
+    /// The colour rings' format, where imagery is set up.
+    pub fn imagery_texture_format(&self) -> Option<ColorFormat> {
+        self.imagery.as_ref().map(|i| i.format)
+    }
+}
+
+/// One colour upload: `u.w x u.h` texels at (u.x, u.y) of layer `u.level`, in `format`'s layout (RGBA8
+/// rows packed, or rows of 4 x 4 blocks: `bytes_per_row` counts a row of blocks, x, y, w and h are
+/// multiples of 4).
+fn write_colour(
+    queue: &wgpu::Queue,
+    texture: &wgpu::Texture,
+    format: ColorFormat,
+    u: &ColorUpload,
+    rgba: &[u8],
+) {
     queue.write_texture(
         wgpu::TexelCopyTextureInfo {
             texture,
@@ -246,8 +320,8 @@ fn write_colour(queue: &wgpu::Queue, texture: &wgpu::Texture, u: &ColorUpload, r
         rgba,
         wgpu::TexelCopyBufferLayout {
             offset: 0,
-            bytes_per_row: Some(u.w * 4),
-            rows_per_image: Some(u.h),
+            bytes_per_row: Some(format.row_bytes(u.w)),
+            rows_per_image: Some(u.h.div_ceil(format.block())),
         },
         wgpu::Extent3d {
             width: u.w,
@@ -265,7 +339,7 @@ impl Renderer {
             return Ok(());
         };
         rings.restore(|u, rgba| {
-            write_colour(queue, &state.texture, u, rgba);
+            write_colour(queue, &state.texture, state.format, u, rgba);
             Ok(())
         })
     }

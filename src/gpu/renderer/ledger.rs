@@ -120,8 +120,10 @@ pub fn texture_bytes(desc: &wgpu::TextureDescriptor<'_>) -> u64 {
         .format
         .block_copy_size(Some(wgpu::TextureAspect::All))
         .unwrap_or(4);
-    u64::from(desc.size.width)
-        * u64::from(desc.size.height)
+    // A block format's size is its blocks' (BC1, ETC2 RGB8: 8 bytes a 4 x 4 block).
+    let (bw, bh) = desc.format.block_dimensions();
+    u64::from(desc.size.width.div_ceil(bw))
+        * u64::from(desc.size.height.div_ceil(bh))
         * u64::from(desc.size.depth_or_array_layers)
         * u64::from(texel)
         * u64::from(desc.sample_count)

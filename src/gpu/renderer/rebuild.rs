@@ -61,7 +61,7 @@ impl Renderer {
         let mut new = Renderer::build(device, queue, &options, &self.profile, sky)?;
         // Imagery before the effects: its SG programs are of the variant drawn when it was enabled.
         if let Some(i) = &self.imagery {
-            new.enable_imagery(device, i.ring, i.levels)?;
+            new.enable_imagery(device, i.ring, i.levels, i.format)?;
         }
         if let Some(sg) = &self.sg {
             let mut effects = sg.scene.effects;

@@ -104,7 +104,8 @@ pub(crate) fn run(args: &BenchImageryArgs) -> Result<()> {
         };
         let mut options = RenderOptions::default()
             .color_format(targets.color_format())
-            .depth_format(targets.depth_format());
+            .depth_format(targets.depth_format())
+            .imagery_rgba8(args.terrain.imagery_rgba8);
         if c.sg {
             options = options.sg_scene(&scene);
         }

@@ -326,7 +326,11 @@ impl App<'_> {
     /// The options the renderer is built with: SG with the scene when `sg`, SAT LOD at the state's bound
     /// when a SAT mode is drawn.
     fn render_options(&self, sg: bool) -> RenderOptions<'_> {
-        render_options(sg.then_some(self.scene.as_str()), &self.state)
+        render_options(
+            sg.then_some(self.scene.as_str()),
+            &self.state,
+            self.args.terrain.imagery_rgba8,
+        )
     }
 
     fn open(&mut self, event_loop: &ActiveEventLoop) -> Result<()> {
@@ -547,7 +551,11 @@ impl App<'_> {
             .args
             .terrain
             .open(self.args.stream.streams(None)?, true)?;
-        let options = render_options(Some(self.scene.as_str()), &self.state);
+        let options = render_options(
+            Some(self.scene.as_str()),
+            &self.state,
+            self.args.terrain.imagery_rgba8,
+        );
         let built = match self.window.as_mut() {
             Some(p) => p.rebuild(terrain, &self.profile, options),
             None => Ok(()),
@@ -573,9 +581,13 @@ impl App<'_> {
 }
 
 /// The options a renderer is built with: SG with `scene`, SAT LOD at the state's bound when a SAT mode
-/// is drawn (its other options are set after, [`App::sync_options`]).
-fn render_options<'a>(scene: Option<&'a str>, state: &ViewState) -> RenderOptions<'a> {
-    let mut o = RenderOptions::default();
+/// is drawn (its other options are set after, [`App::sync_options`]), the imagery in RGBA8 on request.
+fn render_options<'a>(
+    scene: Option<&'a str>,
+    state: &ViewState,
+    imagery_rgba8: bool,
+) -> RenderOptions<'a> {
+    let mut o = RenderOptions::default().imagery_rgba8(imagery_rgba8);
     if let Some(scene) = scene {
         o = o.sg_scene(scene);
     }
