@@ -12,6 +12,22 @@ use crate::source::Heightmap;
 /// SRTM's void marker.
 const VOID: i16 = -32768;
 
+/// An SRTM file's samples a side and sample spacing in arc-seconds, from its length: 1201 (SRTM3, 3") or
+/// 3601 (SRTM1, 1"); any other length is refused.
+pub(super) fn tile_side(path: &Path, len: u64) -> Result<(u32, f64)> {
+    match len {
+        2_884_802 => Ok((1201u32, 3.0)),
+        25_934_402 => Ok((3601u32, 1.0)),
+        _ => Err(Error::SizeMismatch {
+            path: path.into(),
+            actual: len,
+            expected: "2884802 bytes (SRTM3, 1201 x 1201 int16) or 25934402 bytes \
+                       (SRTM1, 3601 x 3601 int16)"
+                .into(),
+        }),
+    }
+}
+
 /// Loads an SRTM tile; the side (1201 for 3", 3601 for 1") follows from the file length.
 ///
 /// Cells are square here, with the N-S spacing: 3 or 1 arc-seconds of meridian arc in metres at the
@@ -20,19 +36,7 @@ const VOID: i16 = -32768;
 /// from the equator is drawn stretched E-W unless [`LoadOptions::resample_ew`]. [`LoadOptions::spacing`]
 /// overrides both. Voids are filled from their neighbours and counted.
 pub(super) fn load(path: &Path, len: u64, opts: &LoadOptions) -> Result<Heightmap> {
-    let (side, arcsec) = match len {
-        2_884_802 => (1201u32, 3.0),
-        25_934_402 => (3601u32, 1.0),
-        _ => {
-            return Err(Error::SizeMismatch {
-                path: path.into(),
-                actual: len,
-                expected: "2884802 bytes (SRTM3, 1201 x 1201 int16) or 25934402 bytes \
-                           (SRTM1, 3601 x 3601 int16)"
-                    .into(),
-            })
-        }
-    };
+    let (side, arcsec) = tile_side(path, len)?;
     check_size(path, side.into(), side.into(), opts)?;
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, "cannot read", e))?;
     if bytes.len() as u64 != len {

@@ -12,11 +12,13 @@ use clipsat::plan::frame_plan::{LodSetup, PlanParams, Planner};
 use clipsat::plan::mesh;
 use clipsat::profile::Profile;
 use clipsat::source::procedural::{generate, ProceduralParams};
+use clipsat::source::Heightmap;
 use clipsat::twin::clipmap::{cpu_detail_vertex, cpu_vertex, CpuVertex};
 use glam::DVec3;
 
-#[test]
-fn drawn_height_is_the_vertex_twins_at_every_morphed_vertex() {
+/// The procedural 257^2 terrain at 30 m on gles3-low, its clipmap filled at an eye 50 m above the highest
+/// sample looking north-east and down: the frame both tests check.
+fn scene() -> (Heightmap, Profile, Clipmap, DVec3, Camera) {
     let hm = generate(&ProceduralParams {
         size: 257,
         spacing: 30.0,
@@ -25,8 +27,6 @@ fn drawn_height_is_the_vertex_twins_at_every_morphed_vertex() {
     .expect("terrain");
     let profile = Profile::load("gles3-low").expect("profile");
     let mut cm = Clipmap::new(&hm, &profile, ClipmapOptions::default()).expect("clipmap");
-    let mut planner = Planner::new(&profile, &cm, LodSetup::Distance).expect("planner");
-    let mut plan = planner.new_plan();
     let extent = f64::from(hm.width() - 1) * f64::from(hm.spacing());
     let (_, hi) = hm.range();
     let eye = DVec3::new(extent * 0.45, extent * 0.55, f64::from(hi) + 50.0);
@@ -34,6 +34,14 @@ fn drawn_height_is_the_vertex_twins_at_every_morphed_vertex() {
         .and_then(|c| c.with_clip(2.0, 6.0e5))
         .expect("camera");
     cm.fill_at(eye, 64).expect("fill");
+    (hm, profile, cm, eye, cam)
+}
+
+#[test]
+fn drawn_height_is_the_vertex_twins_at_every_morphed_vertex() {
+    let (_, profile, cm, eye, cam) = scene();
+    let mut planner = Planner::new(&profile, &cm, LodSetup::Distance).expect("planner");
+    let mut plan = planner.new_plan();
     let params = PlanParams {
         viewport: Some((320, 180)),
         ..PlanParams::default()
@@ -92,21 +100,7 @@ fn drawn_height_is_the_vertex_twins_under_sat_lod() {
     use clipsat::plan::detail::fill_tile;
     use clipsat::plan::lod::{Lod, LodMode};
 
-    let hm = generate(&ProceduralParams {
-        size: 257,
-        spacing: 30.0,
-        ..ProceduralParams::default()
-    })
-    .expect("terrain");
-    let profile = Profile::load("gles3-low").expect("profile");
-    let mut cm = Clipmap::new(&hm, &profile, ClipmapOptions::default()).expect("clipmap");
-    let extent = f64::from(hm.width() - 1) * f64::from(hm.spacing());
-    let (_, hi) = hm.range();
-    let eye = DVec3::new(extent * 0.45, extent * 0.55, f64::from(hi) + 50.0);
-    let cam = Camera::new(eye, eye + DVec3::new(900.0, 400.0, -300.0), 60.0)
-        .and_then(|c| c.with_clip(2.0, 6.0e5))
-        .expect("camera");
-    cm.fill_at(eye, 64).expect("fill");
+    let (hm, profile, mut cm, eye, cam) = scene();
     let tables = LodTables::build(cm.pyramid(), profile.clipmap.levels, 2, |_| {}).expect("tables");
     let lod = Lod::for_clipmap(tables, &profile, &cm, &hm);
     let mut planner = Planner::new(

@@ -172,19 +172,7 @@ impl TileMeta {
     /// An SRTM tile: 1 degree square, its south-west corner named by the file (`N57E011.hgt`), 1201 or
     /// 3601 samples a side, sample centres on the degree lines (pixel-is-point).
     fn hgt(path: &Path, len: u64) -> Result<Self> {
-        let side = match len {
-            2_884_802 => 1201u32,
-            25_934_402 => 3601u32,
-            _ => {
-                return Err(Error::SizeMismatch {
-                    path: path.into(),
-                    actual: len,
-                    expected: "2884802 bytes (SRTM3, 1201 x 1201 int16) or 25934402 bytes \
-                               (SRTM1, 3601 x 3601 int16)"
-                        .into(),
-                })
-            }
-        };
+        let (side, _) = super::hgt::tile_side(path, len)?;
         let (lat, lon) = hgt_corner(path).ok_or_else(|| {
             Error::format(
                 path,
