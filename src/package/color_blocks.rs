@@ -250,3 +250,65 @@ pub fn stage(
     }
     n
 }
+
+/// A block format's own loss on an image ([`round_trip`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct RoundTrip {
+    /// Sum of the squared RGB differences between the image and its decoded blocks.
+    pub squared_error: u64,
+    /// RGB samples compared (3 a texel).
+    pub samples: u64,
+    /// Tiles encoded.
+    pub tiles: u32,
+    /// Seconds the encodes took (not the decodes).
+    pub encode_secs: f64,
+}
+
+impl RoundTrip {
+    /// PSNR over RGB, dB.
+    pub fn psnr(&self) -> f64 {
+        super::imagery::psnr(self.squared_error, self.samples)
+    }
+}
+
+/// A block format's own loss on `src`: its texels encoded in `tile x tile` tiles, as the tile cache
+/// encodes each tile, and decoded again as the GPU samples them. A measurement aid: it allocates its
+/// buffers.
+pub fn round_trip(
+    format: ColorFormat,
+    src: &crate::source::imagery::Imagery,
+    tile: u32,
+) -> Result<RoundTrip> {
+    let (w, h) = src.size();
+    let side = tile as usize;
+    let mut enc = BlockEncoder::new(format, tile);
+    let (mut rgb, mut back) = (vec![0u8; side * side * 3], vec![0u8; side * side * 3]);
+    let mut blocks = vec![0u8; usize::try_from(format.bytes(tile, tile)).unwrap_or(0)];
+    let mut out = RoundTrip {
+        samples: u64::from(w) * u64::from(h) * 3,
+        ..RoundTrip::default()
+    };
+    for ty in (0..h).step_by(side) {
+        for tx in (0..w).step_by(side) {
+            let (tw, th) = ((w - tx).min(tile), (h - ty).min(tile));
+            let texels = tw as usize * th as usize;
+            for j in 0..th {
+                for i in 0..tw {
+                    let at = (j as usize * tw as usize + i as usize) * 3;
+                    rgb[at..at + 3]
+                        .copy_from_slice(&src.texel(i64::from(tx + i), i64::from(ty + j)));
+                }
+            }
+            let n = usize::try_from(format.bytes(tw, th)).unwrap_or(usize::MAX);
+            let start = std::time::Instant::now();
+            enc.encode(&rgb, tw, th, &mut blocks[..n])?;
+            out.encode_secs += start.elapsed().as_secs_f64();
+            out.tiles += 1;
+            decode(format, &blocks[..n], tw, th, &mut back)?;
+            for (a, b) in rgb[..texels * 3].iter().zip(&back) {
+                out.squared_error += u64::from(a.abs_diff(*b)).pow(2);
+            }
+        }
+    }
+    Ok(out)
+}

@@ -612,12 +612,8 @@ fn geotiff_imagery_is_placed_by_its_georeference() {
 /// --ignored --nocapture`.
 #[test]
 #[ignore = "a measurement on the shared data: cargo test --test cpu imagery::block_formats -- --ignored --nocapture"]
-#[expect(
-    clippy::cast_possible_truncation,
-    reason = "tile sizes and byte counts of a 1024^2 image"
-)]
 fn block_formats_on_the_shared_images() {
-    use clipsat::package::color_blocks::{decode, BlockEncoder, ColorFormat};
+    use clipsat::package::color_blocks::{round_trip, ColorFormat};
     for (image, size) in [
         ("imagery/ps_texture_1k.png", 1025),
         ("imagery/gcanyon_color_1024.png", 1200),
@@ -629,38 +625,14 @@ fn block_formats_on_the_shared_images() {
         }
         let grid = Extent::of_grid(size, size, 1.0, (0.0, 0.0));
         let src = Imagery::load(&path, &grid, &ImageryOptions::default()).expect("load");
-        let (w, h) = src.size();
         for format in [ColorFormat::Bc1, ColorFormat::Etc2Rgb8] {
-            let mut enc = BlockEncoder::new(format, 256);
-            let (mut rgb, mut back) = (vec![0u8; 256 * 256 * 3], vec![0u8; 256 * 256 * 3]);
-            let mut blocks = vec![0u8; 256 * 256 / 2];
-            let (mut sq, mut tiles, mut secs) = (0u64, 0u32, 0.0f64);
-            for ty in (0..h).step_by(256) {
-                for tx in (0..w).step_by(256) {
-                    let (tw, th) = ((w - tx).min(256), (h - ty).min(256));
-                    for j in 0..th {
-                        for i in 0..tw {
-                            let c = src.texel(i64::from(tx + i), i64::from(ty + j));
-                            let at = ((j * tw + i) * 3) as usize;
-                            rgb[at..at + 3].copy_from_slice(&c);
-                        }
-                    }
-                    let n = format.bytes(tw, th) as usize;
-                    let start = std::time::Instant::now();
-                    enc.encode(&rgb, tw, th, &mut blocks[..n]).expect("encode");
-                    secs += start.elapsed().as_secs_f64();
-                    tiles += 1;
-                    decode(format, &blocks[..n], tw, th, &mut back).expect("decode");
-                    for (a, b) in rgb[..(tw * th * 3) as usize].iter().zip(&back) {
-                        sq += u64::from(a.abs_diff(*b)).pow(2);
-                    }
-                }
-            }
+            let r = round_trip(format, &src, 256).expect("round trip");
             println!(
-                "{image}: {} {:.2} dB over RGB against the source, 0.5 B/texel on the GPU, {:.1} ms to encode a 256^2 tile ({tiles} tiles)",
+                "{image}: {} {:.2} dB over RGB against the source, 0.5 B/texel on the GPU, {:.1} ms to encode a 256^2 tile ({} tiles)",
                 format.name(),
-                psnr(sq, u64::from(w * h * 3)),
-                secs * 1000.0 / f64::from(tiles)
+                r.psnr(),
+                r.encode_secs * 1000.0 / f64::from(r.tiles),
+                r.tiles
             );
         }
     }

@@ -44,3 +44,30 @@ pub(crate) fn shared(name: &str, spacing: Option<f32>) -> Option<clipsat::source
     };
     Some(clipsat::source::load(&path, &opts).unwrap_or_else(|e| panic!("{name}: {e}")))
 }
+
+/// A fresh folder under the system temp dir, unique to its module, test and process; removed on drop.
+pub(crate) struct TempDir(std::path::PathBuf);
+
+impl TempDir {
+    /// `clipsat-{module}-{pid}-{test}`, emptied and created.
+    pub(crate) fn new(module: &str, test: &str) -> Self {
+        let dir =
+            std::env::temp_dir().join(format!("clipsat-{module}-{}-{test}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("create temp dir");
+        Self(dir)
+    }
+}
+
+impl std::ops::Deref for TempDir {
+    type Target = std::path::Path;
+    fn deref(&self) -> &std::path::Path {
+        &self.0
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}

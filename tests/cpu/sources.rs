@@ -1,6 +1,7 @@
 //! Stage 0, the source: every shared data file loads as its sidecar `.txt` describes, and every kind of
 //! bad input gives its typed error, never a panic.
 
+use crate::TempDir;
 use std::path::{Path, PathBuf};
 
 use clipsat::source::Heightmap;
@@ -187,27 +188,8 @@ fn srtm_hgt() {
 
 // ---- fixtures -----------------------------------------------------------------------------------
 
-/// A fresh folder under the system temp dir, unique to this test and process; removed on drop.
-struct TempDir(PathBuf);
-
-impl std::ops::Deref for TempDir {
-    type Target = Path;
-    fn deref(&self) -> &Path {
-        &self.0
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
 fn temp_dir(test: &str) -> TempDir {
-    let dir = std::env::temp_dir().join(format!("clipsat-sources-{}-{test}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("create temp dir");
-    TempDir(dir)
+    TempDir::new("sources", test)
 }
 
 fn write(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {

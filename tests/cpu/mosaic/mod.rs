@@ -4,33 +4,17 @@
 
 mod make;
 
-use std::path::{Path, PathBuf};
+use crate::TempDir;
+use std::path::Path;
 
 use clipsat::package::{self, BakeOptions};
 use clipsat::source::{self, LoadOptions, RowSource};
 use make::{write_geotiff, write_geotiff_as, write_geotiff_tiles, write_hgt, Grid};
 
-/// A fresh folder under the system temp dir, unique to this test and process; removed on drop.
-struct TempDir(PathBuf);
-
-impl std::ops::Deref for TempDir {
-    type Target = Path;
-    fn deref(&self) -> &Path {
-        &self.0
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
 fn temp_dir(test: &str) -> TempDir {
-    let dir = std::env::temp_dir().join(format!("clipsat-mosaic-{}-{test}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
+    let dir = TempDir::new("mosaic", test);
     std::fs::create_dir_all(dir.join("tiles")).expect("create temp dir");
-    TempDir(dir)
+    dir
 }
 
 /// Every sample of `path` read through the out-of-core reader, and its grid.
