@@ -85,8 +85,6 @@ pub(super) struct Selected {
     pub(super) bound: f64,
     /// The block's scale then, pixels per metre of error ([`crate::plan::camera::BoxScale::per_metre`]).
     pub(super) scale: f64,
-    /// The threshold test's value at the wanted level then (at most epsilon; infinite if none met it).
-    pub(super) met: f64,
     /// The wanted level's error capped over the whole block ([`super::Lod::eta_cap`]): view-independent,
     /// so that its bound in a later view is one product (what holds a block while the camera moves).
     pub(super) cap: f64,

@@ -530,16 +530,13 @@ impl Lod {
             }
         };
         if mode != LodMode::Distance && held.is_none() {
-            let met = match (kept, met_at) {
-                (Some(e), _) => e.met,
-                (None, Some((l, t))) if l == wanted => t,
-                _ => f64::INFINITY,
+            let (scale, cap) = match kept {
+                Some(e) => (e.scale, e.cap),
+                None => (
+                    scale_of(self).per_metre(),
+                    self.eta_cap(mode, wanted, bx).unwrap_or(f64::INFINITY),
+                ),
             };
-            let scale = match kept {
-                Some(e) => e.scale,
-                None => scale_of(self).per_metre(),
-            };
-            let cap = self.eta_cap(mode, wanted, bx).unwrap_or(f64::INFINITY);
             self.selected.put(Selected {
                 cap,
                 view,
@@ -552,7 +549,6 @@ impl Lod {
                 eta,
                 bound,
                 scale,
-                met,
             });
         }
         #[expect(clippy::cast_possible_truncation, reason = "reported in f32")]
