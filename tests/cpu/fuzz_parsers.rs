@@ -1,6 +1,6 @@
 //! Fuzzing in `cargo test`: every parser (PNG, GeoTIFF, .hgt, ASCII grid, raw, profile TOML, scene TOML,
 //! terrain package, imagery PNG/JPEG, imagery package) runs its committed corpus, then random mutations of it for [`DEFAULT_SECS`] seconds
-//! per target (about 6 s of wall time for the file on 2 cores). No input may panic; a crash writes its input to
+//! per target (about 4 s of wall time for the file on 2 cores). No input may panic; a crash writes its input to
 //! `tests/fuzz/artifacts/TARGET/` and fails. The targets are the cargo-fuzz targets' bodies
 //! (`tests/fuzz/fuzz_targets/targets.rs`); the driver is `tests/fuzz/harness.rs`.
 //!
@@ -15,7 +15,7 @@ mod targets;
 use std::time::Duration;
 
 /// Seconds of mutation per target in the default run.
-const DEFAULT_SECS: f64 = 1.5;
+const DEFAULT_SECS: f64 = 0.5;
 
 /// Longest input per target: big enough for every seed plus growth, small enough to stay fast.
 fn max_len(target: &str) -> usize {

@@ -516,7 +516,13 @@ fn ledger_equals_wgpu_live_objects_and_footprint() {
             grown[0],
             ledger[0]
         );
-        let frames = if name == "gles3-low" { 300 } else { 20 };
+        // The long flight looks for objects made per frame, in clipsat's code, the same on every backend;
+        // on Vulkan (two CI passes) the counts and memory above are what the driver changes.
+        let frames = match name {
+            "gles3-low" if !on_vulkan() => 300,
+            "gles3-low" => 60,
+            _ => 20,
+        };
         for i in 0..frames {
             let cam = flight(&hm, i, 90.0, 200.0, None);
             cm.update(cam.eye).expect("update");

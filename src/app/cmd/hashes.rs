@@ -202,14 +202,14 @@ mod fuzz {
         }
     }
 
-    /// 1.5 s by default; `CLIPSAT_FUZZ_SECS=600 cargo test --release --bin clipsat parse_hash_file_fuzz --
+    /// 0.5 s by default; `CLIPSAT_FUZZ_SECS=600 cargo test --release --bin clipsat parse_hash_file_fuzz --
     /// --nocapture` for a long run.
     #[test]
     fn parse_hash_file_fuzz() {
         let secs = std::env::var("CLIPSAT_FUZZ_SECS")
             .ok()
             .and_then(|s| s.parse().ok())
-            .unwrap_or(1.5);
+            .unwrap_or(0.5);
         let r = harness::fuzz(
             "parse_hash_file",
             parse_hash_file,
