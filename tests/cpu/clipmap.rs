@@ -445,16 +445,9 @@ fn update_rejects_non_finite_eye() {
 /// Puget Sound 1k at 160 m: constraints on every frame of an orbit, and every level current at the end.
 #[test]
 fn puget_sound_fly_through() {
-    let path = clipsat::data_dir().join("ps_height_1k.png");
-    if !path.exists() {
-        assert!(
-            std::env::var("CI").as_deref() != Ok("true"),
-            "{} is missing",
-            path.display()
-        );
-        eprintln!("skip: {} is missing", path.display());
+    let Some(path) = crate::shared_file("ps_height_1k.png") else {
         return;
-    }
+    };
     let opts = clipsat::source::LoadOptions {
         spacing: Some(160.0),
         ..Default::default()

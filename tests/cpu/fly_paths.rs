@@ -74,16 +74,7 @@ fn procedural_terrain() -> Heightmap {
 }
 
 fn puget() -> Option<Heightmap> {
-    let path = clipsat::data_dir().join("ps_height_1k.png");
-    if !path.exists() {
-        assert!(
-            std::env::var("CI").as_deref() != Ok("true"),
-            "{} is missing (CI=true)",
-            path.display()
-        );
-        eprintln!("skip: {} is missing", path.display());
-        return None;
-    }
+    let path = crate::shared_file("ps_height_1k.png")?;
     Some(
         source::load(
             &path,

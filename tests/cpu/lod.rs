@@ -718,21 +718,9 @@ fn level_resolution_tables_keep_the_full_resolution_guarantees() {
         ("lidar_pkg_dem_1m_400x400.tif", None),
         ("ps_height_1k.png", Some(160.0f32)),
     ] {
-        let path = clipsat::data_dir().join(name);
-        if !path.is_file() {
-            assert!(
-                std::env::var("CI").as_deref() != Ok("true"),
-                "{} is missing (CI=true)",
-                path.display()
-            );
-            eprintln!("skipping {}: missing", path.display());
+        let Some(hm) = crate::shared(name, spacing) else {
             continue;
-        }
-        let opts = clipsat::source::LoadOptions {
-            spacing,
-            ..Default::default()
         };
-        let hm = clipsat::source::load(&path, &opts).unwrap_or_else(|e| panic!("{name}: {e}"));
         terrains.push((name.to_string(), hm));
     }
     for (name, hm) in &terrains {

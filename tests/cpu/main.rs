@@ -26,18 +26,25 @@ mod shaders_glslang;
 mod shading;
 mod sources;
 
+/// The path of a shared data file, or `None` (with a printed reason) when it is missing outside CI;
+/// under `CI=true` a missing file fails the test.
+pub(crate) fn shared_file(name: &str) -> Option<std::path::PathBuf> {
+    let path = clipsat::data_dir().join(name);
+    if path.is_file() {
+        return Some(path);
+    }
+    let msg = format!("shared data file {} is missing", path.display());
+    assert!(
+        std::env::var("CI").as_deref() != Ok("true"),
+        "{msg} (CI=true requires it; set CLIPSAT_DATA)"
+    );
+    eprintln!("skipping: {msg}");
+    None
+}
+
 /// A shared terrain, or `None` (with a printed reason) when the data is missing outside CI.
 pub(crate) fn shared(name: &str, spacing: Option<f32>) -> Option<clipsat::source::Heightmap> {
-    let path = clipsat::data_dir().join(name);
-    if !path.is_file() {
-        let msg = format!("shared data file {} is missing", path.display());
-        assert!(
-            std::env::var("CI").as_deref() != Ok("true"),
-            "{msg} (CI=true requires it; set CLIPSAT_DATA)"
-        );
-        eprintln!("skipping: {msg}");
-        return None;
-    }
+    let path = shared_file(name)?;
     let opts = clipsat::source::LoadOptions {
         spacing,
         ..clipsat::source::LoadOptions::default()

@@ -256,16 +256,9 @@ fn the_reported_unmet_bound_holds_over_the_measured_error() {
 #[test]
 fn the_reported_bound_holds_where_units_drawn_coarse_out_of_view_come_into_it() {
     let name = "lidar_pkg_dem_1m_400x400.tif";
-    let path = clipsat::data_dir().join(name);
-    if !path.is_file() {
-        assert!(
-            std::env::var("CI").as_deref() != Ok("true"),
-            "{} is missing (CI=true)",
-            path.display()
-        );
-        eprintln!("skipping: {} is missing", path.display());
+    let Some(path) = crate::shared_file(name) else {
         return;
-    }
+    };
     let hm = clipsat::source::load(&path, &clipsat::source::LoadOptions::default())
         .unwrap_or_else(|e| panic!("{name}: {e}"));
     let p = Profile::load("gles3-mid").expect("profile");

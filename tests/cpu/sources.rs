@@ -27,15 +27,7 @@ struct Expect {
 
 /// Loads a shared data file, or `None` (with a printed reason) when it is missing outside CI.
 fn load_shared(name: &str, opts: &LoadOptions) -> Option<Heightmap> {
-    let path = clipsat::data_dir().join(name);
-    if !path.is_file() {
-        let msg = format!("shared data file {} is missing", path.display());
-        if std::env::var("CI").as_deref() == Ok("true") {
-            panic!("{msg} (CI=true requires it; set CLIPSAT_DATA)");
-        }
-        eprintln!("skipping: {msg}");
-        return None;
-    }
+    let path = crate::shared_file(name)?;
     match source::load(&path, opts) {
         Ok(hm) => Some(hm),
         Err(e) => panic!("{name} failed to load: {e}"),

@@ -30,16 +30,8 @@ pub(super) struct Grid {
 impl Grid {
     /// The shared tile `N57E011.hgt`, or `None` (printed) when the data is missing outside CI.
     pub(super) fn shared_tile() -> Option<Grid> {
-        let path = clipsat::data_dir().join("N57E011.hgt");
-        let Ok(bytes) = std::fs::read(&path) else {
-            let msg = format!("shared data file {} is missing", path.display());
-            assert!(
-                std::env::var("CI").as_deref() != Ok("true"),
-                "{msg} (CI=true requires it; set CLIPSAT_DATA)"
-            );
-            eprintln!("skipping: {msg}");
-            return None;
-        };
+        let path = crate::shared_file("N57E011.hgt")?;
+        let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
         let z: Vec<i16> = bytes
             .chunks_exact(2)
             .map(|c| i16::from_be_bytes([c[0], c[1]]))
