@@ -22,27 +22,36 @@ impl ColorLevel {
     /// The next coarser level: each texel the rounded mean of the 2 x 2 texels under it (the last
     /// column or row repeated where a side is odd).
     pub fn coarser(&self) -> ColorLevel {
-        let w = self.width.div_ceil(2).max(1);
-        let h = self.height.div_ceil(2).max(1);
-        let (fw, fh) = (self.width as usize, self.height as usize);
-        let mut texels = vec![0u8; w as usize * h as usize * 3];
-        for y in 0..h as usize {
-            let y0 = (2 * y).min(fh - 1);
-            let y1 = (2 * y + 1).min(fh - 1);
-            for x in 0..w as usize {
-                let x0 = (2 * x).min(fw - 1);
-                let x1 = (2 * x + 1).min(fw - 1);
-                for c in 0..3 {
-                    let at = |xx: usize, yy: usize| u16::from(self.texels[(yy * fw + xx) * 3 + c]);
-                    let sum = at(x0, y0) + at(x1, y0) + at(x0, y1) + at(x1, y1);
-                    texels[(y * w as usize + x) * 3 + c] = u8::try_from((sum + 2) / 4).unwrap_or(255);
-                }
-            }
-        }
+        let mut texels = Vec::new();
+        halve_rows(&self.texels, self.width, self.height, &mut texels);
         ColorLevel {
-            width: w,
-            height: h,
+            width: self.width.div_ceil(2).max(1),
+            height: self.height.div_ceil(2).max(1),
             texels,
+        }
+    }
+}
+
+/// Appends to `out` the coarser rows of a band of `rows` RGB8 rows `width` texels wide: each texel the
+/// rounded mean of the 2 x 2 texels under it, the last column repeated where `width` is odd and the band's
+/// last row where `rows` is odd. A band that starts at an even row of its level and is followed by more
+/// rows has an even count, so halving a level band by band gives [`ColorLevel::coarser`]'s texels.
+pub fn halve_rows(texels: &[u8], width: u32, rows: u32, out: &mut Vec<u8>) {
+    let w = width.div_ceil(2).max(1) as usize;
+    let h = rows.div_ceil(2) as usize;
+    let (fw, fh) = (width as usize, rows as usize);
+    out.reserve(w * h * 3);
+    for y in 0..h {
+        let y0 = (2 * y).min(fh - 1);
+        let y1 = (2 * y + 1).min(fh - 1);
+        for x in 0..w {
+            let x0 = (2 * x).min(fw - 1);
+            let x1 = (2 * x + 1).min(fw - 1);
+            for c in 0..3 {
+                let at = |xx: usize, yy: usize| u16::from(texels[(yy * fw + xx) * 3 + c]);
+                let sum = at(x0, y0) + at(x1, y0) + at(x0, y1) + at(x1, y1);
+                out.push(u8::try_from((sum + 2) / 4).unwrap_or(255));
+            }
         }
     }
 }

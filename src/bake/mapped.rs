@@ -283,6 +283,16 @@ impl<T: bytemuck::Pod> std::fmt::Debug for Grid<T> {
     }
 }
 
+/// Drops the pages a read of bytes `offset .. offset + len` made resident: the aligned windows of
+/// [`PAGE_BYTES`] around them, since a read fault maps the cached pages of its whole window, other tiles'
+/// bytes included, which nothing would drop otherwise. Shared by the packages' tile reads.
+pub(crate) fn drop_read(map: &memmap2::Mmap, offset: usize, len: usize) {
+    let w = usize::try_from(PAGE_BYTES).unwrap_or(usize::MAX);
+    let start = offset - offset % w;
+    let end = offset.saturating_add(len).saturating_add(w - 1) / w * w;
+    drop_resident(map, start, end - start);
+}
+
 /// Drops the pages of `offset .. offset + len` (clamped to the map) from this process's resident set; the
 /// next read faults them back in from the kernel's page cache, unchanged. Best effort: a platform without
 /// the advice keeps the pages. Shared by the LOD tables' map and the package's.

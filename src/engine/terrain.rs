@@ -5,12 +5,13 @@
 use std::path::{Path, PathBuf};
 
 use crate::hash::Hash64;
-use crate::package::imagery::{bake_imagery, cached_imagery, ImageryPackage, DEFAULT_QUALITY};
+use crate::package::imagery::{bake_imagery_rows, cached_imagery, ImageryPackage, DEFAULT_QUALITY};
 use crate::package::{self, Package};
 use crate::progress::Progress;
 use crate::source::procedural::{self, ProceduralParams};
 use crate::source::georef::{georef_extent, GeoRef};
-use crate::source::imagery::{Extent, Imagery, ImageryOptions};
+use crate::source::imagery::{Extent, ImageryOptions};
+use crate::source::imagery_rows::ImageryRows;
 use crate::source::{self, Heightmap, LoadOptions, RowSource, TerrainSpec};
 use crate::{Camera, Error, Param, Result};
 
@@ -123,7 +124,7 @@ impl Terrain {
                     .max_imagery_texels
                     .unwrap_or(ImageryOptions::default().max_texels),
             };
-            terrain.attach_imagery(imagery, &opts)?;
+            terrain.attach_imagery(imagery, &opts, options.progress)?;
         }
         Ok(terrain)
     }
@@ -322,7 +323,12 @@ impl Terrain {
     /// into an imagery package in the cache folder on first use (keyed by the file's path, size and
     /// modification time, `options` and the grid's extent), or in memory without a cache folder. An
     /// imagery package keeps the extent it was baked with, so `options.extent` is refused with one.
-    pub(crate) fn attach_imagery(&mut self, path: &Path, options: &ImageryOptions) -> Result<()> {
+    pub(crate) fn attach_imagery(
+        &mut self,
+        path: &Path,
+        options: &ImageryOptions,
+        progress: Progress<'_>,
+    ) -> Result<()> {
         let grid = self.grid_extent();
         let package = if ImageryPackage::is_imagery_package(path) {
             if options.extent.is_some() {
@@ -356,12 +362,13 @@ impl Terrain {
             };
             let options = &placed;
             let key = imagery_key(path, &grid, options)?;
-            let load = || Imagery::load(path, &grid, options);
+            let open = || ImageryRows::open(path, &grid, options);
             match &self.cache_dir {
-                Some(dir) => cached_imagery(dir, key, load)?,
+                Some(dir) => cached_imagery(dir, key, open, progress)?,
                 None => {
-                    let (bytes, _) = bake_imagery(&load()?, DEFAULT_QUALITY, key)?;
-                    ImageryPackage::from_bytes(path, bytes)?
+                    let mut out = std::io::Cursor::new(Vec::new());
+                    bake_imagery_rows(&mut open()?, DEFAULT_QUALITY, key, false, &mut out, progress)?;
+                    ImageryPackage::from_bytes(path, out.into_inner())?
                 }
             }
         };
@@ -414,9 +421,14 @@ impl Terrain {
     }
 
     /// [`TerrainOptions::imagery`] for a terrain opened by [`Terrain::from_spec`], with every option
-    /// ([`ImageryOptions`]).
-    pub fn with_imagery(mut self, path: &Path, options: &ImageryOptions) -> Result<Self> {
-        self.attach_imagery(path, options)?;
+    /// ([`ImageryOptions`]), a bake's progress reported to `progress`.
+    pub fn with_imagery(
+        mut self,
+        path: &Path,
+        options: &ImageryOptions,
+        progress: Progress<'_>,
+    ) -> Result<Self> {
+        self.attach_imagery(path, options, progress)?;
         Ok(self)
     }
 

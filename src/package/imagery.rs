@@ -15,8 +15,8 @@ use std::path::{Path, PathBuf};
 use image::ImageDecoder as _;
 
 use super::format::{Reader, TileEntry};
-use crate::bake::imagery::{level_count, level_sizes, ColorLevel};
-use crate::source::imagery::{Extent, Imagery};
+use crate::bake::imagery::{level_count, level_sizes};
+use crate::source::imagery::Extent;
 use crate::{Error, Result};
 
 /// The file's first eight bytes.
@@ -95,7 +95,7 @@ impl ImageryHeader {
     }
 
     /// The levels and tile table of a pyramid over `width` x `height` texels, offsets left at 0.
-    fn layout(width: u32, height: u32, tile: u32) -> (Vec<ImageryLevel>, usize) {
+    pub(super) fn layout(width: u32, height: u32, tile: u32) -> (Vec<ImageryLevel>, usize) {
         let mut first_tile = 0;
         let levels = level_sizes(width, height)
             .into_iter()
@@ -114,7 +114,7 @@ impl ImageryHeader {
         (levels, first_tile)
     }
 
-    fn write(&self, out: &mut Vec<u8>) {
+    pub(super) fn write(&self, out: &mut Vec<u8>) {
         let start = out.len();
         out.extend_from_slice(MAGIC);
         for v in [VERSION, self.quality, self.tile, self.width, self.height] {
@@ -238,81 +238,6 @@ pub struct ImageryBakeReport {
     pub psnr_db: f64,
 }
 
-/// Bakes `imagery` into an imagery package in memory: the pyramid coded a level at a time (the finer
-/// level dropped once the coarser is made), `key` recorded in the header.
-pub fn bake_imagery(imagery: &Imagery, quality: u8, key: u64) -> Result<(Vec<u8>, ImageryBakeReport)> {
-    let (width, height) = imagery.size();
-    let (levels, tile_count) = ImageryHeader::layout(width, height, TILE);
-    let mut header = ImageryHeader {
-        quality: u32::from(quality),
-        tile: TILE,
-        width,
-        height,
-        extent: imagery.extent(),
-        key,
-        levels,
-        tiles: vec![TileEntry::default(); tile_count],
-    };
-    let head = header.byte_len();
-    let mut payload = Vec::new();
-    let mut level = ColorLevel {
-        width,
-        height,
-        texels: imagery.texels().to_vec(),
-    };
-    let mut scratch = Vec::new();
-    let mut decoded = Vec::new();
-    let mut sq_err = 0u64;
-    let mut level0_bytes = 0u64;
-    for (li, l) in header.levels.clone().iter().enumerate() {
-        for ty in 0..l.tiles_y {
-            for tx in 0..l.tiles_x {
-                let (tw, th) = tile_size(l, TILE, tx, ty);
-                copy_tile(&level, tx * TILE, ty * TILE, tw, th, &mut scratch);
-                let at = payload.len();
-                image::codecs::jpeg::JpegEncoder::new_with_quality(&mut payload, quality)
-                    .encode(&scratch, tw, th, image::ExtendedColorType::Rgb8)
-                    .map_err(|e| Error::format(imagery.path(), format!("JPEG encoder: {e}")))?;
-                let coded = &payload[at..];
-                let i = l.first_tile + (ty * l.tiles_x + tx) as usize;
-                header.tiles[i] = TileEntry {
-                    offset: (head + at) as u64,
-                    len: u32::try_from(coded.len()).unwrap_or(u32::MAX),
-                    crc: crc32fast::hash(coded),
-                };
-                if li == 0 {
-                    level0_bytes += coded.len() as u64;
-                    decoded.resize(scratch.len(), 0);
-                    decode_jpeg(imagery.path(), coded, tw, th, &mut decoded)?;
-                    sq_err += scratch
-                        .iter()
-                        .zip(&decoded)
-                        .map(|(a, b)| u64::from(a.abs_diff(*b)).pow(2))
-                        .sum::<u64>();
-                }
-            }
-        }
-        if li + 1 < header.levels.len() {
-            level = level.coarser();
-        }
-    }
-    let mut out = Vec::with_capacity(head + payload.len());
-    header.write(&mut out);
-    out.extend_from_slice(&payload);
-    let texels = header.texels();
-    #[expect(clippy::cast_precision_loss, reason = "a ratio for a report")]
-    let report = ImageryBakeReport {
-        bytes: out.len() as u64,
-        texels,
-        levels: u32::try_from(header.levels.len()).unwrap_or(u32::MAX),
-        tiles: u32::try_from(tile_count).unwrap_or(u32::MAX),
-        level0_bytes_per_texel: level0_bytes as f64 / texels as f64,
-        bytes_per_texel: out.len() as f64 / texels as f64,
-        psnr_db: psnr(sq_err, texels * 3),
-    };
-    Ok((out, report))
-}
-
 /// PSNR in dB of a sum of squared 8-bit errors over `n` values (infinite when exact).
 pub fn psnr(sq_err: u64, n: u64) -> f64 {
     #[expect(clippy::cast_precision_loss, reason = "a measurement")]
@@ -328,18 +253,8 @@ fn tile_size(l: &ImageryLevel, tile: u32, tx: u32, ty: u32) -> (u32, u32) {
     )
 }
 
-/// Copies the `w` x `h` texels at (x0, y0) of `level` into `out`.
-fn copy_tile(level: &ColorLevel, x0: u32, y0: u32, w: u32, h: u32, out: &mut Vec<u8>) {
-    out.clear();
-    let stride = level.width as usize * 3;
-    for y in y0..y0 + h {
-        let row = y as usize * stride + x0 as usize * 3;
-        out.extend_from_slice(&level.texels[row..row + w as usize * 3]);
-    }
-}
-
 /// Decodes a JPEG tile of `w` x `h` RGB texels into `out` (`w * h * 3` bytes).
-fn decode_jpeg(path: &Path, coded: &[u8], w: u32, h: u32, out: &mut [u8]) -> Result<()> {
+pub(super) fn decode_jpeg(path: &Path, coded: &[u8], w: u32, h: u32, out: &mut [u8]) -> Result<()> {
     let bad = |e: String| {
         Error::format(
             path,
@@ -391,7 +306,8 @@ impl std::fmt::Debug for ImageryPackage {
 }
 
 impl ImageryPackage {
-    /// Opens and checks the imagery package at `path` (mapped, not read whole).
+    /// Opens and checks the imagery package at `path` (mapped, not read whole; a decoded tile's pages are
+    /// dropped from the resident set).
     pub fn open(path: &Path) -> Result<Self> {
         let file = std::fs::File::open(path).map_err(|e| Error::io(path, "cannot read", e))?;
         // SAFETY: the cache writes packages under a private name and renames them into place, so a
@@ -489,43 +405,14 @@ impl ImageryPackage {
             },
             other => other,
         })?;
+        // The tile's pages leave this process's resident set (they stay in the kernel's page cache), so
+        // a long flight over a large image holds no more of its file than the tile cache's budget.
+        if let Store::Mapped(map) = &self.store {
+            #[expect(clippy::cast_possible_truncation, reason = "within the map, as above")]
+            crate::bake::mapped::drop_read(map, entry.offset as usize, entry.len as usize);
+        }
         Ok((w, h))
     }
 }
 
-/// The imagery package for `imagery` in the cache folder `dir`, named by `key`, baked there on first
-/// use (written under a private name and renamed into place) and opened.
-pub fn cached_imagery(
-    dir: &Path,
-    key: u64,
-    load: impl FnOnce() -> Result<Imagery>,
-) -> Result<ImageryPackage> {
-    let path = dir.join(format!(
-        "imagery-{}-v{VERSION}.clipsat-imagery",
-        crate::hash::hex(key)
-    ));
-    if let Ok(p) = ImageryPackage::open(&path) {
-        if p.header().key == key {
-            return Ok(p);
-        }
-    }
-    let imagery = load()?;
-    let (bytes, _) = bake_imagery(&imagery, DEFAULT_QUALITY, key)?;
-    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, "cannot create folder", e))?;
-    write_package(&path, &bytes)?;
-    ImageryPackage::open(&path)
-}
-
-/// Writes an imagery package's `bytes` to `path` through a locked temporary renamed into place
-/// (`crate::temp`): a write killed midway leaves no file at `path`, and the next write into the folder
-/// removes the temporary it left.
-pub fn write_package(path: &Path, bytes: &[u8]) -> Result<()> {
-    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        crate::temp::sweep(dir);
-    }
-    let tmp =
-        crate::temp::TempFile::create(path.with_extension(format!("tmp{}", crate::temp_suffix())))?;
-    std::io::Write::write_all(&mut &tmp.file, bytes)
-        .map_err(|e| Error::io(&tmp.path, "cannot write", e))?;
-    tmp.persist(path)
-}
+pub use super::imagery_bake::{bake_imagery, bake_imagery_file, bake_imagery_rows, cached_imagery};

@@ -26,6 +26,7 @@ pub mod color_blocks;
 pub mod etc1;
 pub mod format;
 pub mod imagery;
+mod imagery_bake;
 pub mod imagery_cache;
 pub mod kind;
 mod levels;

@@ -123,14 +123,10 @@ impl Package {
         crate::bake::mapped::drop_resident(&self.map, offset, len);
     }
 
-    /// Drops the pages a read of bytes `offset .. offset + len` made resident: the aligned windows
-    /// around them ([`crate::bake::mapped::PAGE_BYTES`]), since a read fault maps the cached pages of its
-    /// whole window, other tiles' bytes included, which no decode would drop otherwise.
+    /// Drops the pages a read of bytes `offset .. offset + len` made resident
+    /// ([`crate::bake::mapped::drop_read`]).
     fn trim_read(&self, offset: usize, len: usize) {
-        let w = usize::try_from(crate::bake::mapped::PAGE_BYTES).unwrap_or(usize::MAX);
-        let start = offset - offset % w;
-        let end = offset.saturating_add(len).saturating_add(w - 1) / w * w;
-        self.trim_range(start, end - start);
+        crate::bake::mapped::drop_read(&self.map, offset, len);
     }
 
     /// Drops the package's mapped pages from this process's resident set (they stay in the kernel's page

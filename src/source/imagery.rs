@@ -9,8 +9,9 @@
 //! the north edge. A plain image spans the height grid's extent, corner sample to corner sample, unless
 //! an extent is given. Alpha is read and dropped: the drape is opaque.
 
-use std::io::BufReader;
 use std::path::{Path, PathBuf};
+
+use super::imagery_rows::ImageryRows;
 
 use crate::{Error, Param, Result};
 
@@ -146,68 +147,20 @@ impl Imagery {
     /// than PNG or JPEG, a declared size over `options.max_texels` (before allocating), fewer than 2 x 2
     /// texels, a truncated or corrupt file, an extent that shares no area with `grid`.
     pub fn load(path: &Path, grid: &Extent, options: &ImageryOptions) -> Result<Self> {
-        if is_tiff(path)? {
-            let (width, height, rgb) = load_tiff(path, options)?;
-            return Self::from_rgb(path, width, height, rgb, grid, options.extent);
-        }
-        let open = || -> Result<image::ImageReader<BufReader<std::fs::File>>> {
-            let reader = image::ImageReader::open(path)
-                .map_err(|e| Error::io(path, "cannot read", e))?
-                .with_guessed_format()
-                .map_err(|e| Error::io(path, "cannot read", e))?;
-            match reader.format() {
-                Some(image::ImageFormat::Png | image::ImageFormat::Jpeg) => Ok(reader),
-                Some(other) => Err(Error::format(
-                    path,
-                    format!("imagery is read from PNG, JPEG or TIFF files, not {other:?}"),
-                )),
-                None => Err(Error::format(
-                    path,
-                    "not a PNG, JPEG or TIFF image (unknown signature)",
-                )),
-            }
-        };
-        let (width, height) = open()?
-            .into_dimensions()
-            .map_err(|e| Error::format(path, format!("cannot read the image header: {}", one_line(&e))))?;
-        let texels = u64::from(width) * u64::from(height);
-        if texels > options.max_texels {
-            return Err(Error::param(
-                Param::MaxImageryTexels,
-                format!(
-                    "{}: declared size {width} x {height} = {texels} texels is over the limit of {} \
-                     texels",
-                    path.display(),
-                    options.max_texels
-                ),
-            ));
-        }
-        check_size(path, width, height)?;
-        let mut reader = open()?;
-        if reader.format() == Some(image::ImageFormat::Jpeg) {
-            check_jpeg_end(path)?;
-        }
-        let mut limits = image::Limits::default();
-        limits.max_image_width = Some(width);
-        limits.max_image_height = Some(height);
-        // The decoded image at 16 bits a channel with alpha, and as much again for the decoder's own.
-        limits.max_alloc = Some(texels.saturating_mul(16));
-        reader.limits(limits);
-        let decoded = reader
-            .decode()
-            .map_err(|e| Error::format(path, format!("cannot decode the image: {}", one_line(&e))))?;
-        if (decoded.width(), decoded.height()) != (width, height) {
-            return Err(Error::format(
-                path,
-                format!(
-                    "the header says {width} x {height} texels, the data {} x {}",
-                    decoded.width(),
-                    decoded.height()
-                ),
-            ));
-        }
-        let rgb = decoded.into_rgb8().into_raw();
-        Self::from_rgb(path, width, height, rgb, grid, options.extent)
+        Self::from_rows(ImageryRows::open(path, grid, options)?)
+    }
+
+    /// The whole image of a reader opened at its first row.
+    pub fn from_rows(rows: ImageryRows) -> Result<Self> {
+        let (texels, rows) = rows.read_all()?;
+        let (width, height) = rows.size();
+        Ok(Self {
+            path: rows.path().to_path_buf(),
+            width,
+            height,
+            texels,
+            extent: rows.extent(),
+        })
     }
 
     /// An image from RGB8 texels in memory (row-major from the north-west corner), placed over `extent`,
@@ -220,37 +173,7 @@ impl Imagery {
         grid: &Extent,
         extent: Option<Extent>,
     ) -> Result<Self> {
-        check_size(path, width, height)?;
-        let expected = u64::from(width) * u64::from(height) * 3;
-        if texels.len() as u64 != expected {
-            return Err(Error::format(
-                path,
-                format!(
-                    "{} bytes given for {width} x {height} RGB texels ({expected})",
-                    texels.len()
-                ),
-            ));
-        }
-        let extent = match extent {
-            Some(e) => Extent::new(e.west, e.south, e.east, e.north)?,
-            None => *grid,
-        };
-        if extent.overlap(grid).is_none() {
-            return Err(Error::param(
-                Param::ImageryExtent,
-                format!(
-                    "{}: the imagery ({extent}) does not overlap the terrain ({grid})",
-                    path.display()
-                ),
-            ));
-        }
-        Ok(Self {
-            path: path.to_path_buf(),
-            width,
-            height,
-            texels,
-            extent,
-        })
+        Self::from_rows(ImageryRows::held(path, width, height, texels, grid, extent)?)
     }
 
     /// The file it was read from.
@@ -295,7 +218,7 @@ impl Imagery {
 /// Refuses a JPEG without an end-of-image marker: the decoder fills a truncated scan with grey instead
 /// of failing, so a cut file is caught here (an entropy-coded 0xFF is stuffed with 0x00, so 0xFF 0xD9
 /// is a marker wherever it appears).
-fn check_jpeg_end(path: &Path) -> Result<()> {
+pub(crate) fn check_jpeg_end(path: &Path) -> Result<()> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, "cannot read", e))?;
     if bytes.windows(2).any(|w| w == [0xFF, 0xD9]) {
         Ok(())
@@ -307,91 +230,13 @@ fn check_jpeg_end(path: &Path) -> Result<()> {
     }
 }
 
-/// Whether `path` starts with a TIFF's magic (`II*\0` or `MM\0*`).
-fn is_tiff(path: &Path) -> Result<bool> {
-    use std::io::Read as _;
-    let mut magic = [0u8; 4];
-    let mut f = std::fs::File::open(path).map_err(|e| Error::io(path, "cannot read", e))?;
-    let n = f
-        .read(&mut magic)
-        .map_err(|e| Error::io(path, "cannot read", e))?;
-    Ok(n == 4 && (magic == *b"II*\0" || magic == *b"MM\0*"))
-}
-
-/// A (Geo)TIFF's texels as RGB8: 8- or 16-bit grey, RGB or RGBA (16 bits rounded to 8, alpha dropped),
-/// its size checked against `options.max_texels` before the image is read.
-fn load_tiff(path: &Path, options: &ImageryOptions) -> Result<(u32, u32, Vec<u8>)> {
-    use tiff::decoder::{DecodingResult, Limits};
-    use tiff::ColorType;
-    let bad = |e: &dyn std::fmt::Display| {
-        Error::format(
-            path,
-            format!("corrupt, truncated or unsupported TIFF: {}", one_line(e)),
-        )
-    };
-    let file = std::fs::File::open(path).map_err(|e| Error::io(path, "cannot read", e))?;
-    let mut dec = tiff::decoder::Decoder::new(BufReader::new(file)).map_err(|e| bad(&e))?;
-    let (width, height) = dec.dimensions().map_err(|e| bad(&e))?;
-    let texels = u64::from(width) * u64::from(height);
-    if texels > options.max_texels {
-        return Err(Error::param(
-            Param::MaxImageryTexels,
-            format!(
-                "{}: declared size {width} x {height} = {texels} texels is over the limit of {} texels",
-                path.display(),
-                options.max_texels
-            ),
-        ));
-    }
-    check_size(path, width, height)?;
-    let channels = match dec.colortype().map_err(|e| bad(&e))? {
-        ColorType::Gray(8 | 16) => 1,
-        ColorType::RGB(8 | 16) => 3,
-        ColorType::RGBA(8 | 16) => 4,
-        other => {
-            return Err(Error::format(
-                path,
-                format!("imagery TIFF is {other:?}: 8- or 16-bit grey, RGB or RGBA are read"),
-            ))
-        }
-    };
-    let mut limits = Limits::default();
-    let bytes = usize::try_from(texels.saturating_mul(8)).unwrap_or(usize::MAX);
-    limits.decoding_buffer_size = bytes.saturating_add(1 << 20);
-    limits.intermediate_buffer_size = limits.decoding_buffer_size;
-    let mut dec = dec.with_limits(limits);
-    let n = usize::try_from(texels).unwrap_or(usize::MAX);
-    let to8: Vec<u8> = match dec.read_image().map_err(|e| bad(&e))? {
-        DecodingResult::U8(v) => v,
-        DecodingResult::U16(v) => v
-            .iter()
-            .map(|&x| u8::try_from((u32::from(x) + 128) / 257).unwrap_or(255))
-            .collect(),
-        _ => return Err(Error::format(path, "imagery TIFF samples are not 8- or 16-bit integers")),
-    };
-    if to8.len() < n * channels {
-        return Err(Error::format(
-            path,
-            format!("the TIFF holds {} samples, {width} x {height} needs {}", to8.len(), n * channels),
-        ));
-    }
-    let mut rgb = Vec::with_capacity(n * 3);
-    for px in to8.chunks_exact(channels).take(n) {
-        match channels {
-            1 => rgb.extend_from_slice(&[px[0], px[0], px[0]]),
-            _ => rgb.extend_from_slice(&px[..3]),
-        }
-    }
-    Ok((width, height, rgb))
-}
-
 /// A decoder's error on one line (some end theirs with a newline).
 pub(crate) fn one_line(e: &dyn std::fmt::Display) -> String {
     e.to_string().split_whitespace().collect::<Vec<_>>().join(" ")
 }
 
 /// Refuses images too small to place: a texel spacing needs two texels each way.
-fn check_size(path: &Path, width: u32, height: u32) -> Result<()> {
+pub(crate) fn check_size(path: &Path, width: u32, height: u32) -> Result<()> {
     if width < 2 || height < 2 {
         return Err(Error::format(
             path,
@@ -399,4 +244,23 @@ fn check_size(path: &Path, width: u32, height: u32) -> Result<()> {
         ));
     }
     Ok(())
+}
+
+/// Where an image lies: `extent`, checked, or the height grid's `grid` without one; refused when it
+/// shares no area with the grid.
+pub(crate) fn place(path: &Path, grid: &Extent, extent: Option<Extent>) -> Result<Extent> {
+    let extent = match extent {
+        Some(e) => Extent::new(e.west, e.south, e.east, e.north)?,
+        None => *grid,
+    };
+    if extent.overlap(grid).is_none() {
+        return Err(Error::param(
+            Param::ImageryExtent,
+            format!(
+                "{}: the imagery ({extent}) does not overlap the terrain ({grid})",
+                path.display()
+            ),
+        ));
+    }
+    Ok(extent)
 }

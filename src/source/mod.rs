@@ -140,6 +140,7 @@ mod mosaic;
 mod png;
 pub mod georef;
 pub mod imagery;
+pub mod imagery_rows;
 pub mod procedural;
 mod raw;
 mod rows;

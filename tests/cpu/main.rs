@@ -10,6 +10,7 @@ mod fly_paths;
 mod fragment;
 mod fuzz_parsers;
 mod imagery;
+mod imagery_bake;
 mod imagery_rings;
 mod layering;
 mod lod;

@@ -5,10 +5,11 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use clap::Args;
-use clipsat::package::imagery::{bake_imagery, DEFAULT_QUALITY};
+use clipsat::package::imagery::{bake_imagery_file, DEFAULT_QUALITY};
 use clipsat::package::{self, BakeOptions, CodecKind};
 use clipsat::source::georef::{georef_extent, GeoRef};
-use clipsat::source::imagery::{Extent, Imagery};
+use clipsat::source::imagery::Extent;
+use clipsat::source::imagery_rows::ImageryRows;
 use clipsat::source::RowSource;
 use clipsat::Result;
 use serde_json::json;
@@ -62,18 +63,23 @@ pub(crate) fn run(args: &BakeArgs) -> Result<()> {
     super::ensure_parent(&args.out)?;
     crate::app::progress::bars!(!args.json, bars, report, progress);
     let start = Instant::now();
-    // Imagery is read and placed first, so that bad imagery writes nothing.
+    // Imagery is opened and placed first, so that imagery refused by its header writes nothing; one found
+    // damaged while it is read takes the terrain's package with it.
     let imagery = match &targs.imagery {
-        Some(path) => Some(load_imagery(&targs, path, &*rows)?),
+        Some(path) => Some(open_imagery(&targs, path, &*rows)?),
         None => None,
     };
     let report = package::bake_source(&mut *rows, &args.out, &opts, progress)?;
     let imagery = match imagery {
-        Some(im) => {
+        Some(mut im) => {
             let out = args.out.with_extension("clipsat-imagery");
-            let (bytes, r) = bake_imagery(&im, DEFAULT_QUALITY, 0)?;
-            clipsat::package::imagery::write_package(&out, &bytes)?;
-            Some((out, r))
+            match bake_imagery_file(&mut im, DEFAULT_QUALITY, 0, true, &out, progress) {
+                Ok(r) => Some((out, r)),
+                Err(e) => {
+                    let _ = std::fs::remove_file(&args.out);
+                    return Err(e);
+                }
+            }
         }
         None => None,
     };
@@ -133,13 +139,13 @@ pub(crate) fn run(args: &BakeArgs) -> Result<()> {
     Ok(())
 }
 
-/// `--imagery` read and placed on the heights `rows` will give: over the grid's extent, corner sample to
+/// `--imagery` opened and placed on the heights `rows` will give: over the grid's extent, corner sample to
 /// corner sample, unless `--imagery-extent` says otherwise.
-fn load_imagery(
+fn open_imagery(
     targs: &TerrainArgs,
     path: &std::path::Path,
     rows: &dyn RowSource,
-) -> Result<Imagery> {
+) -> Result<ImageryRows> {
     let g = rows.grid();
     let grid = Extent::of_grid(g.width, g.height, f64::from(g.spacing), g.origin);
     let mut options = targs.imagery_options()?;
@@ -150,5 +156,5 @@ fn load_imagery(
             options.extent = Some(georef_extent(path, &h, &i, spacing, g.origin)?);
         }
     }
-    Imagery::load(path, &grid, &options)
+    ImageryRows::open(path, &grid, &options)
 }

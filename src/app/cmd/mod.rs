@@ -188,7 +188,7 @@ impl TerrainArgs {
             other => other,
         })?;
         match &self.imagery {
-            Some(path) => terrain.with_imagery(path, &self.imagery_options()?),
+            Some(path) => terrain.with_imagery(path, &self.imagery_options()?, progress),
             None => Ok(terrain),
         }
     }

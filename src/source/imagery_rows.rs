@@ -1,0 +1,485 @@
+//! Stage 0, the source: imagery read a band of rows at a time, as RGB8, for the out-of-core imagery bake
+//! (docs/guide.md "Imagery"). A non-interlaced PNG is read row by row and a TIFF a row of chunks (strips
+//! or tiles, chunky or planar) at a time, so an image far larger than memory bakes in a few bands' worth
+//! of it. A JPEG or an interlaced PNG cannot be read by rows with the decoders at hand: it is decoded whole
+//! (within `ImageryOptions::max_texels`) and handed out by rows. Every path gives the texels
+//! [`Imagery::load`](super::imagery::Imagery::load) holds, which reads through this reader too.
+
+use std::io::BufReader;
+use std::path::{Path, PathBuf};
+
+use super::imagery::{check_jpeg_end, check_size, one_line, place, Extent, ImageryOptions};
+use crate::{Error, Param, Result};
+
+/// An imagery file opened for reading by rows: its size and placement known, its texels not yet read.
+pub struct ImageryRows {
+    path: PathBuf,
+    width: u32,
+    height: u32,
+    extent: Extent,
+    /// The next row [`ImageryRows::read_rows`] gives.
+    next: u32,
+    reader: Reader,
+}
+
+impl std::fmt::Debug for ImageryRows {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ImageryRows")
+            .field("path", &self.path)
+            .field("size", &(self.width, self.height))
+            .field("extent", &self.extent)
+            .field("next", &self.next)
+            .finish_non_exhaustive()
+    }
+}
+
+enum Reader {
+    /// A non-interlaced PNG, expanded to 8 or 16 bits a sample (palette and low depths to 8).
+    Png {
+        reader: Box<png::Reader<BufReader<std::fs::File>>>,
+        channels: usize,
+        wide: bool,
+    },
+    /// A TIFF, a row of chunks decoded into `band` (RGB8) at a time.
+    Tiff(Box<TiffRows>),
+    /// Texels held whole (a JPEG, an interlaced PNG, an image given in memory).
+    Held(Vec<u8>),
+}
+
+/// A TIFF's chunk rows.
+struct TiffRows {
+    dec: tiff::decoder::Decoder<BufReader<std::fs::File>>,
+    /// Chunk size (a strip is the image's width), chunks across, samples a texel.
+    chunk: (u32, u32),
+    across: u32,
+    channels: usize,
+    /// Chunks a plane, where each sample lies in a plane of its own (planar configuration); 0: chunky.
+    plane: u32,
+    /// The decoded row of chunks `band_row`, RGB8.
+    band: Vec<u8>,
+    band_row: Option<u32>,
+}
+
+impl ImageryRows {
+    /// Opens `path` (PNG, JPEG or TIFF) and places it as [`Imagery::load`](super::imagery::Imagery::load)
+    /// does, with its checks: the declared size against `options.max_texels` before anything is
+    /// allocated, at least 2 x 2 texels, an extent that overlaps `grid`. Damage past the header is found
+    /// while the rows are read.
+    pub fn open(path: &Path, grid: &Extent, options: &ImageryOptions) -> Result<Self> {
+        let magic = magic(path)?;
+        let (width, height, reader) = if magic.starts_with(b"II*\0") || magic.starts_with(b"MM\0*") {
+            open_tiff(path, options)?
+        } else if magic.starts_with(b"\x89PNG") {
+            match open_png(path, options)? {
+                Some(opened) => opened,
+                None => decode_whole(path, options, image::ImageFormat::Png)?,
+            }
+        } else if magic.starts_with(&[0xFF, 0xD8, 0xFF]) {
+            check_jpeg_end(path)?;
+            decode_whole(path, options, image::ImageFormat::Jpeg)?
+        } else {
+            return Err(Error::format(
+                path,
+                "not a PNG, JPEG or TIFF image (unknown signature)",
+            ));
+        };
+        Self::placed(path, width, height, reader, grid, options.extent)
+    }
+
+    /// Texels held in memory (RGB8, row-major from the north-west corner), read by rows.
+    pub fn held(
+        path: &Path,
+        width: u32,
+        height: u32,
+        texels: Vec<u8>,
+        grid: &Extent,
+        extent: Option<Extent>,
+    ) -> Result<Self> {
+        check_size(path, width, height)?;
+        let expected = u64::from(width) * u64::from(height) * 3;
+        if texels.len() as u64 != expected {
+            return Err(Error::format(
+                path,
+                format!(
+                    "{} bytes given for {width} x {height} RGB texels ({expected})",
+                    texels.len()
+                ),
+            ));
+        }
+        Self::placed(path, width, height, Reader::Held(texels), grid, extent)
+    }
+
+    fn placed(
+        path: &Path,
+        width: u32,
+        height: u32,
+        reader: Reader,
+        grid: &Extent,
+        extent: Option<Extent>,
+    ) -> Result<Self> {
+        Ok(Self {
+            path: path.to_path_buf(),
+            width,
+            height,
+            extent: place(path, grid, extent)?,
+            next: 0,
+            reader,
+        })
+    }
+
+    /// The file it reads.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Texels (columns, rows).
+    pub fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+
+    /// Where it lies in the terrain's world frame.
+    pub fn extent(&self) -> Extent {
+        self.extent
+    }
+
+    /// Reads the next `out.len() / (3 width)` rows, in order from the north edge, as RGB8. Refused: a
+    /// length that is not whole rows, rows past the last, and a file damaged in the rows it reads.
+    pub fn read_rows(&mut self, out: &mut [u8]) -> Result<()> {
+        let w = self.width as usize * 3;
+        let rows = out.len().checked_div(w).unwrap_or(0);
+        let end = u64::from(self.next) + rows as u64;
+        if rows * w != out.len() || end > u64::from(self.height) {
+            return Err(Error::format(
+                &self.path,
+                format!(
+                    "{} bytes asked from row {}: whole rows of {w} bytes up to row {} are read",
+                    out.len(),
+                    self.next,
+                    self.height
+                ),
+            ));
+        }
+        let y0 = self.next;
+        match &mut self.reader {
+            Reader::Held(texels) => {
+                let at = y0 as usize * w;
+                out.copy_from_slice(&texels[at..at + out.len()]);
+            }
+            Reader::Png {
+                reader,
+                channels,
+                wide,
+            } => {
+                for orow in out.chunks_exact_mut(w) {
+                    let row = reader
+                        .next_row()
+                        .map_err(|e| Error::format(&self.path, format!("corrupt or truncated PNG: {}", one_line(&e))))?
+                        .ok_or_else(|| Error::format(&self.path, "truncated PNG: rows missing"))?;
+                    to_rgb8(&self.path, row.data(), *channels, *wide, orow)?;
+                }
+            }
+            Reader::Tiff(t) => {
+                for (y, orow) in (y0..).zip(out.chunks_exact_mut(w)) {
+                    let cr = y / t.chunk.1;
+                    if t.band_row != Some(cr) {
+                        t.load(&self.path, cr, self.width, self.height)?;
+                    }
+                    let r = (y - cr * t.chunk.1) as usize;
+                    orow.copy_from_slice(&t.band[r * w..(r + 1) * w]);
+                }
+            }
+        }
+        // `end` is at most `height`, a u32.
+        self.next = u32::try_from(end).unwrap_or(self.height);
+        Ok(())
+    }
+
+    /// Every row left, as RGB8 (what [`Imagery`](super::imagery::Imagery) holds).
+    pub fn read_all(mut self) -> Result<(Vec<u8>, Self)> {
+        let w = self.width as usize * 3;
+        let rows = (self.height - self.next) as usize;
+        let mut texels = match std::mem::replace(&mut self.reader, Reader::Held(Vec::new())) {
+            // Held texels are handed over, not copied.
+            Reader::Held(t) if self.next == 0 => {
+                self.next = self.height;
+                t
+            }
+            other => {
+                self.reader = other;
+                Vec::new()
+            }
+        };
+        if texels.is_empty() {
+            texels = vec![0u8; rows * w];
+            self.read_rows(&mut texels)?;
+        }
+        Ok((texels, self))
+    }
+}
+
+/// A file's first bytes.
+fn magic(path: &Path) -> Result<[u8; 8]> {
+    use std::io::Read as _;
+    let mut magic = [0u8; 8];
+    let mut f = std::fs::File::open(path).map_err(|e| Error::io(path, "cannot read", e))?;
+    let mut n = 0;
+    while n < magic.len() {
+        match f.read(&mut magic[n..]) {
+            Ok(0) => break,
+            Ok(k) => n += k,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(Error::io(path, "cannot read", e)),
+        }
+    }
+    Ok(magic)
+}
+
+/// Refuses a declared size past the limit, before anything is allocated.
+fn check_limit(path: &Path, width: u32, height: u32, options: &ImageryOptions) -> Result<()> {
+    let texels = u64::from(width) * u64::from(height);
+    if texels > options.max_texels {
+        return Err(Error::param(
+            Param::MaxImageryTexels,
+            format!(
+                "{}: declared size {width} x {height} = {texels} texels is over the limit of {} texels",
+                path.display(),
+                options.max_texels
+            ),
+        ));
+    }
+    check_size(path, width, height)
+}
+
+/// A PNG's row reader, or `None` for an interlaced PNG (decoded whole instead).
+fn open_png(path: &Path, options: &ImageryOptions) -> Result<Option<(u32, u32, Reader)>> {
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, "cannot read", e))?;
+    let mut decoder = png::Decoder::new(BufReader::new(file));
+    decoder.set_transformations(png::Transformations::EXPAND);
+    let reader = decoder.read_info().map_err(|e| {
+        Error::format(path, format!("cannot read the image header: {}", one_line(&e)))
+    })?;
+    let info = reader.info();
+    let (width, height) = (info.width, info.height);
+    check_limit(path, width, height, options)?;
+    if info.interlaced {
+        return Ok(None);
+    }
+    let (colour, depth) = reader.output_color_type();
+    let channels = match colour {
+        png::ColorType::Grayscale => 1,
+        png::ColorType::GrayscaleAlpha => 2,
+        png::ColorType::Rgb => 3,
+        png::ColorType::Rgba => 4,
+        png::ColorType::Indexed => {
+            return Err(Error::format(path, "PNG palette not expanded"));
+        }
+    };
+    let wide = depth == png::BitDepth::Sixteen;
+    Ok(Some((
+        width,
+        height,
+        Reader::Png {
+            reader: Box::new(reader),
+            channels,
+            wide,
+        },
+    )))
+}
+
+/// A JPEG or an interlaced PNG decoded whole (the decoders read no rows), within the texel limit.
+fn decode_whole(
+    path: &Path,
+    options: &ImageryOptions,
+    format: image::ImageFormat,
+) -> Result<(u32, u32, Reader)> {
+    let open = || -> Result<image::ImageReader<BufReader<std::fs::File>>> {
+        let file = std::fs::File::open(path).map_err(|e| Error::io(path, "cannot read", e))?;
+        Ok(image::ImageReader::with_format(BufReader::new(file), format))
+    };
+    let (width, height) = open()?
+        .into_dimensions()
+        .map_err(|e| Error::format(path, format!("cannot read the image header: {}", one_line(&e))))?;
+    check_limit(path, width, height, options)?;
+    let mut reader = open()?;
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(width);
+    limits.max_image_height = Some(height);
+    // The decoded image at 16 bits a channel with alpha, and as much again for the decoder's own.
+    limits.max_alloc = Some((u64::from(width) * u64::from(height)).saturating_mul(16));
+    reader.limits(limits);
+    let decoded = reader
+        .decode()
+        .map_err(|e| Error::format(path, format!("cannot decode the image: {}", one_line(&e))))?;
+    if (decoded.width(), decoded.height()) != (width, height) {
+        return Err(Error::format(
+            path,
+            format!(
+                "the header says {width} x {height} texels, the data {} x {}",
+                decoded.width(),
+                decoded.height()
+            ),
+        ));
+    }
+    Ok((width, height, Reader::Held(decoded.into_rgb8().into_raw())))
+}
+
+/// A 16-bit sample rounded to 8 bits, as the `image` crate rounds.
+fn to8(v: u16) -> u8 {
+    u8::try_from((u32::from(v) + 128) / 257).unwrap_or(u8::MAX)
+}
+
+/// One row of `channels` samples a texel (grey, grey + alpha, RGB, RGBA; 8 bits, or 16 big-endian) into
+/// RGB8, alpha dropped.
+fn to_rgb8(path: &Path, data: &[u8], channels: usize, wide: bool, out: &mut [u8]) -> Result<()> {
+    let bytes = if wide { 2 } else { 1 };
+    if data.len() < out.len() / 3 * channels * bytes {
+        return Err(Error::format(path, "corrupt PNG: a short row"));
+    }
+    for (i, o) in out.chunks_exact_mut(3).enumerate() {
+        let sample = |c: usize| {
+            let at = (i * channels + c) * bytes;
+            if wide {
+                to8(u16::from_be_bytes([data[at], data[at + 1]]))
+            } else {
+                data[at]
+            }
+        };
+        if channels < 3 {
+            o.fill(sample(0));
+        } else {
+            o.copy_from_slice(&[sample(0), sample(1), sample(2)]);
+        }
+    }
+    Ok(())
+}
+
+/// A TIFF's chunk-row reader: 8- or 16-bit grey, RGB or RGBA, chunky or planar.
+fn open_tiff(path: &Path, options: &ImageryOptions) -> Result<(u32, u32, Reader)> {
+    use tiff::decoder::{ChunkType, Limits};
+    use tiff::ColorType;
+    let bad = |e: &dyn std::fmt::Display| {
+        Error::format(
+            path,
+            format!("corrupt, truncated or unsupported TIFF: {}", one_line(e)),
+        )
+    };
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, "cannot read", e))?;
+    let mut dec = tiff::decoder::Decoder::new(BufReader::new(file)).map_err(|e| bad(&e))?;
+    let (width, height) = dec.dimensions().map_err(|e| bad(&e))?;
+    check_limit(path, width, height, options)?;
+    let channels = match dec.colortype().map_err(|e| bad(&e))? {
+        ColorType::Gray(8 | 16) => 1,
+        ColorType::RGB(8 | 16) => 3,
+        ColorType::RGBA(8 | 16) => 4,
+        other => {
+            return Err(Error::format(
+                path,
+                format!("imagery TIFF is {other:?}: 8- or 16-bit grey, RGB or RGBA are read"),
+            ))
+        }
+    };
+    let chunk = dec.chunk_dimensions();
+    if chunk.0 == 0 || chunk.1 == 0 {
+        return Err(Error::format(path, "TIFF chunks of zero size"));
+    }
+    let count = match dec.get_chunk_type() {
+        ChunkType::Strip => dec.strip_count(),
+        ChunkType::Tile => dec.tile_count(),
+    }
+    .map_err(|e| bad(&e))?;
+    let (across, down) = (width.div_ceil(chunk.0), height.div_ceil(chunk.1));
+    let per_plane = u64::from(across) * u64::from(down);
+    let plane = if u64::from(count) == per_plane {
+        0
+    } else if u64::from(count) == per_plane * channels as u64 {
+        u32::try_from(per_plane).unwrap_or(u32::MAX)
+    } else {
+        return Err(Error::format(
+            path,
+            format!(
+                "TIFF has {count} chunks of {} x {} for {width} x {height} texels",
+                chunk.0, chunk.1
+            ),
+        ));
+    };
+    // One chunk of 16-bit samples with alpha, decoded, and as much again for the decoder.
+    let mut limits = Limits::default();
+    let chunk_bytes = u64::from(chunk.0) * u64::from(chunk.1) * 8;
+    limits.decoding_buffer_size = usize::try_from(chunk_bytes).unwrap_or(usize::MAX).saturating_add(1 << 20);
+    limits.intermediate_buffer_size = limits.decoding_buffer_size;
+    let band = vec![0u8; width as usize * 3 * chunk.1.min(height) as usize];
+    Ok((
+        width,
+        height,
+        Reader::Tiff(Box::new(TiffRows {
+            dec: dec.with_limits(limits),
+            chunk,
+            across,
+            channels,
+            plane,
+            band,
+            band_row: None,
+        })),
+    ))
+}
+
+impl TiffRows {
+    /// Decodes row `cr` of chunks into `band`, RGB8.
+    fn load(&mut self, path: &Path, cr: u32, width: u32, height: u32) -> Result<()> {
+        use tiff::decoder::DecodingResult;
+        let w3 = width as usize * 3;
+        // Planar (RGB or RGBA: one plane each): the alpha plane is not read.
+        let planes: u32 = if self.plane == 0 { 1 } else { 3 };
+        for cx in 0..self.across {
+            let (dw, dh) = (
+                self.chunk.0.min(width - cx * self.chunk.0) as usize,
+                self.chunk.1.min(height - cr * self.chunk.1) as usize,
+            );
+            let x0 = (cx * self.chunk.0) as usize;
+            for p in 0..planes {
+                let index = cr * self.across + cx + self.plane * p;
+                let chunk = self.dec.read_chunk(index).map_err(|e| {
+                    Error::format(
+                        path,
+                        format!("corrupt, truncated or unsupported TIFF: {}", one_line(&e)),
+                    )
+                })?;
+                // Chunky: every sample of a texel here; planar: sample `p` only.
+                let spt = if self.plane == 0 { self.channels } else { 1 };
+                let (len, at): (usize, Box<dyn Fn(usize) -> u8 + '_>) = match &chunk {
+                    DecodingResult::U8(v) => (v.len(), Box::new(|i| v[i])),
+                    DecodingResult::U16(v) => (v.len(), Box::new(|i| to8(v[i]))),
+                    _ => {
+                        return Err(Error::format(
+                            path,
+                            "imagery TIFF samples are not 8- or 16-bit integers",
+                        ))
+                    }
+                };
+                // Tiles at the right and bottom edges may come padded to the full tile.
+                let stride = len.checked_div(dh).unwrap_or(0) / spt;
+                if stride < dw || len < stride * dh * spt {
+                    return Err(Error::format(
+                        path,
+                        format!("TIFF chunk {index} decoded to {len} samples for {dw} x {dh}"),
+                    ));
+                }
+                for r in 0..dh {
+                    let row = &mut self.band[r * w3 + x0 * 3..r * w3 + (x0 + dw) * 3];
+                    for (c, o) in row.chunks_exact_mut(3).enumerate() {
+                        let s = (r * stride + c) * spt;
+                        match (self.plane, self.channels) {
+                            (0, 1) => o.fill(at(s)),
+                            (0, _) => o.copy_from_slice(&[at(s), at(s + 1), at(s + 2)]),
+                            (_, 1) => o.fill(at(s)),
+                            // Planar: sample p is channel p (alpha, p = 3, is dropped).
+                            _ => o[p as usize] = at(s),
+                        }
+                    }
+                }
+            }
+        }
+        self.band_row = Some(cr);
+        Ok(())
+    }
+}
