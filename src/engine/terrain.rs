@@ -346,11 +346,18 @@ impl Terrain {
             let georef = match (options.extent, self.source.as_deref().and_then(GeoRef::read)) {
                 (None, Some(heights)) => match GeoRef::read(path) {
                     Some(image) => {
-                        let (spacing, origin) = match &self.package {
-                            Some(p) => (f64::from(p.header().spacing), p.header().origin),
-                            None => (f64::from(self.stand_in.spacing()), self.stand_in.origin()),
+                        let (spacing, origin, columns) = match &self.package {
+                            Some(p) => {
+                                let h = p.header();
+                                (f64::from(h.spacing), h.origin, h.width)
+                            }
+                            None => (
+                                f64::from(self.stand_in.spacing()),
+                                self.stand_in.origin(),
+                                self.stand_in.width(),
+                            ),
                         };
-                        Some(georef_extent(path, &heights, &image, spacing, origin)?)
+                        Some(georef_extent(path, &heights, &image, spacing, origin, columns)?)
                     }
                     None => None,
                 },

@@ -80,16 +80,19 @@ impl GeoRef {
 }
 
 /// The extent in the terrain's world frame of imagery georeferenced by `image`, over heights
-/// georeferenced by `heights` and drawn `spacing` metres a sample with their south-west sample at
-/// `origin`: model coordinates are mapped through the heights' own grid (sample centres at their pixels'
-/// centres), so a geographic grid maps as it is drawn. Refused when the two name different coordinate
-/// systems.
+/// georeferenced by `heights` and drawn `spacing` metres a sample, `columns` samples a row, with their
+/// south-west sample at `origin`: model coordinates are mapped through the heights' own grid (sample
+/// centres at their pixels' centres), so a geographic grid maps as it is drawn. Where the drawn rows have
+/// other than the file's columns (`--resample-ew`: the file's column c drawn at c (columns - 1) /
+/// (file columns - 1), `source::resample_row`), the E-W mapping follows them. Refused when the two name
+/// different coordinate systems.
 pub fn georef_extent(
     path: &Path,
     heights: &GeoRef,
     image: &GeoRef,
     spacing: f64,
     origin: (f64, f64),
+    columns: u32,
 ) -> Result<Extent> {
     if let (Some(a), Some(b)) = (heights.crs, image.crs) {
         if a != b {
@@ -111,9 +114,15 @@ pub fn georef_extent(
         heights.corner.0 + 0.5 * hsx,
         heights.corner.1 - (f64::from(heights.size.1) - 0.5) * hsy,
     );
+    // Metres a file column is drawn E-W: `spacing`, or the resampled rows' share of it.
+    let ew = if heights.size.0 > 1 && columns > 1 {
+        spacing * f64::from(columns - 1) / f64::from(heights.size.0 - 1)
+    } else {
+        spacing
+    };
     let world = |mx: f64, my: f64| {
         (
-            origin.0 + (mx - sw.0) / hsx * spacing,
+            origin.0 + (mx - sw.0) / hsx * ew,
             origin.1 + (my - sw.1) / hsy * spacing,
         )
     };

@@ -540,7 +540,7 @@ fn geotiff_imagery_is_placed_by_its_georeference() {
         GeoRef::read(&heights).expect("heights"),
         GeoRef::read(&image).expect("image"),
     );
-    let e = georef_extent(&image, &h, &i, 30.0, (0.0, 0.0)).expect("extent");
+    let e = georef_extent(&image, &h, &i, 30.0, (0.0, 0.0), h.size.0).expect("extent");
     assert_eq!(e, Extent::new(0.0, 150.0, 300.0, 300.0).expect("extent"));
     let terrain = clipsat::Terrain::open_with(
         &heights,
@@ -565,6 +565,7 @@ fn geotiff_imagery_is_placed_by_its_georeference() {
         &GeoRef::read(&point).expect("point"),
         30.0,
         (0.0, 0.0),
+        h.size.0,
     )
     .expect("extent");
     assert_eq!(p, Extent::new(-7.5, 157.5, 292.5, 307.5).expect("extent"));
@@ -585,6 +586,7 @@ fn geotiff_imagery_is_placed_by_its_georeference() {
         &GeoRef::read(&other).expect("other"),
         30.0,
         (0.0, 0.0),
+        h.size.0,
     )
     .expect_err("another coordinate system");
     assert!(
@@ -635,5 +637,64 @@ fn block_formats_on_the_shared_images() {
                 r.tiles
             );
         }
+    }
+}
+
+/// A geographic GeoTIFF image over geographic heights drawn with `--resample-ew`: the E-W mapping follows
+/// the resampled rows. 21 x 11 heights at 3" near 60 N have E-W cells about half their N-S ones, so their
+/// rows are drawn with 11 columns; an image from the first sample's centre to the last's covers the drawn
+/// grid corner to corner.
+#[test]
+fn geographic_imagery_follows_resampled_rows() {
+    use clipsat::source::imagery::ImageryOptions;
+    use clipsat::source::{LoadOptions, TerrainSpec};
+    use tiff::encoder::colortype::{Gray32Float, RGB8};
+    let dir = scratch("georef_ew");
+    let wgs84 = [(1024, 2), (1025, 1), (2048, 4326)];
+    let s = 1.0 / 1200.0;
+    let heights = dir.join("heights.tif");
+    geotiff::<Gray32Float>(&heights, 21, 11, &[100.0f32; 231], s, (10.0, 60.0), &wgs84);
+    let image = dir.join("image.tif");
+    let rgb = pattern(20, 10);
+    geotiff::<RGB8>(
+        &image,
+        20,
+        10,
+        &rgb,
+        s,
+        (10.0 + 0.5 * s, 60.0 - 0.5 * s),
+        &wgs84,
+    );
+    let load = LoadOptions {
+        resample_ew: true,
+        ..LoadOptions::default()
+    };
+    let terrain = clipsat::Terrain::from_spec(
+        &TerrainSpec::File(heights),
+        &load,
+        None,
+        true,
+        clipsat::Progress::default(),
+    )
+    .expect("terrain")
+    .with_imagery(
+        &image,
+        &ImageryOptions::default(),
+        clipsat::Progress::default(),
+    )
+    .expect("imagery");
+    let h = terrain.heights();
+    assert_eq!(
+        (h.width(), h.height()),
+        (11, 11),
+        "rows resampled to square cells"
+    );
+    let grid = Extent::of_grid(h.width(), h.height(), f64::from(h.spacing()), h.origin());
+    let e = terrain.imagery().expect("imagery").header().extent;
+    for (got, want) in e.to_array().into_iter().zip(grid.to_array()) {
+        assert!(
+            (got - want).abs() < 1e-6,
+            "{e} against the drawn grid {grid}"
+        );
     }
 }

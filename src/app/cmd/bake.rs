@@ -153,7 +153,7 @@ fn open_imagery(
     if let (None, clipsat::source::TerrainSpec::File(heights)) = (options.extent, targs.spec()?) {
         if let (Some(h), Some(i)) = (GeoRef::read(&heights), GeoRef::read(path)) {
             let spacing = f64::from(g.spacing);
-            options.extent = Some(georef_extent(path, &h, &i, spacing, g.origin)?);
+            options.extent = Some(georef_extent(path, &h, &i, spacing, g.origin, g.width)?);
         }
     }
     ImageryRows::open(path, &grid, &options)
