@@ -78,7 +78,8 @@ impl Terrain {
     /// Opens a terrain file: a `.clipsat` package, or any source clipsat reads (PNG, GeoTIFF, SRTM
     /// `.hgt`, DTED, ESRI ASCII and binary grids, gridded XYZ), told by its extension or magic number; or
     /// a mosaic of SRTM `.hgt` and GeoTIFF tiles read as one terrain: a folder of them, a `.txt` list
-    /// (one path a line, relative to the list) or a glob pattern (`tiles/N5*.hgt`).
+    /// (one path a line, relative to the list), a GDAL `.vrt` mosaic of them or a glob pattern
+    /// (`tiles/N5*.hgt`).
     /// With a `cache_dir`, a plain file is baked into a package there on first use (keyed by its path,
     /// size, modification time and sidecars) and streamed; without one it is held whole.
     /// [`Terrain::open_with`] takes the other options.

@@ -37,7 +37,7 @@ use clipsat::{Error, Result};
 #[derive(Args, Clone, Debug, Default)]
 pub(crate) struct TerrainArgs {
     /// Terrain file (.png, .tif, .hgt, .asc, .raw/.r16/.f32, a `.clipsat` package), a mosaic of .hgt
-    /// and GeoTIFF tiles (a folder, a .txt list of paths, or a quoted glob like 'tiles/N5*.hgt') or
+    /// and GeoTIFF tiles (a folder, a .txt list of paths, a GDAL .vrt, or a quoted glob like 'tiles/N5*.hgt') or
     /// `procedural[:seed=S,size=N,spacing=M]`.
     /// Default: the built-in procedural terrain.
     #[arg(long, value_name = "T")]

@@ -12,6 +12,7 @@ use crate::source::georef::GeoRef;
 use crate::{Error, Result};
 
 mod rows;
+mod vrt;
 
 pub(crate) use rows::Mosaic;
 pub use rows::MAX_OPEN_TILES;
@@ -23,14 +24,14 @@ const GRID_TOLERANCE: f64 = 1e-3;
 /// The tile formats a mosaic reads, by extension.
 const TILE_EXTENSIONS: [&str; 3] = ["hgt", "tif", "tiff"];
 
-/// Whether `path` names a mosaic rather than one file: a folder, a `.txt` list of tiles, or a glob pattern
-/// (`*`, `?` or `[`) that is not itself the name of a file.
+/// Whether `path` names a mosaic rather than one file: a folder, a `.txt` list of tiles, a GDAL `.vrt`
+/// mosaic, or a glob pattern (`*`, `?` or `[`) that is not itself the name of a file.
 pub(crate) fn is_mosaic(path: &Path) -> bool {
     if path.is_dir() {
         return true;
     }
     if path.exists() {
-        return extension(path) == "txt";
+        return matches!(extension(path).as_str(), "txt" | "vrt");
     }
     path.to_str().is_some_and(|s| s.contains(['*', '?', '[']))
 }
@@ -45,10 +46,15 @@ fn extension(path: &Path) -> String {
 
 /// The tiles a mosaic names, in its order: a folder's `.hgt`, `.tif` and `.tiff` files sorted by name (not
 /// its subfolders); a list file's lines (paths relative to the list's folder; blank lines and lines
-/// starting with `#` skipped); a glob pattern's matching files, sorted by name. Also returns the list
-/// file, whose edits change the mosaic too.
+/// starting with `#` skipped); a VRT's sources, last first (`vrt.rs`); a glob pattern's matching files,
+/// sorted by name. Also returns the list file or VRT, whose edits change the mosaic too.
 pub(crate) fn tile_paths(spec: &Path) -> Result<(Vec<PathBuf>, Option<PathBuf>)> {
     let mut tiles = Vec::new();
+    if spec.is_file() && extension(spec) == "vrt" {
+        let v = vrt::Vrt::read(spec)?;
+        let tiles = v.sources.into_iter().map(|s| s.path).collect();
+        return Ok((tiles, Some(spec.to_path_buf())));
+    }
     if spec.is_dir() {
         let entries = std::fs::read_dir(spec).map_err(|e| Error::io(spec, "cannot list", e))?;
         for entry in entries {
@@ -293,6 +299,20 @@ fn layout(spec: &Path, opts: &LoadOptions) -> Result<Layout> {
         .iter()
         .map(|p| TileMeta::read(p))
         .collect::<Result<Vec<_>>>()?;
+    if extension(spec) == "vrt" {
+        // Each source where the VRT puts it is where its own georeference does.
+        let v = vrt::Vrt::read(spec)?;
+        for (i, m) in metas.iter().enumerate() {
+            let (west, north) = (m.first.0 - 0.5 * m.step.0, m.first.1 + 0.5 * m.step.1);
+            let area = [
+                west,
+                north,
+                west + f64::from(m.size.0) * m.step.0,
+                north - f64::from(m.size.1) * m.step.1,
+            ];
+            v.check_placed(spec, i, area, m.step, GRID_TOLERANCE)?;
+        }
+    }
     let first = &metas[0];
     for m in &metas[1..] {
         if !m.crs.agrees(first.crs) {

@@ -392,3 +392,155 @@ fn pixel_is_area_tiles_place_alike() {
     rows.read_rows(41, &mut []).expect("empty band at the end");
     assert_eq!(got, as_f32(&g));
 }
+
+/// A VRT over `tiles` (file, DstRect x and y offsets, size) as `gdalbuildvrt` writes one, with a
+/// `GeoTransform` from `g`'s north-west sample and `extra` inside each source.
+fn write_vrt(path: &Path, g: &Grid, tiles: &[(&str, usize, usize, usize)], extra: &str) {
+    let mut xml = format!(
+        "<VRTDataset rasterXSize=\"{}\" rasterYSize=\"{}\">\n  <SRS>EPSG:4326</SRS>\n  \
+         <GeoTransform> {:.17e}, {:.17e}, 0.0, {:.17e}, 0.0, {:.17e}</GeoTransform>\n  \
+         <VRTRasterBand dataType=\"Int16\" band=\"1\">\n    <NoDataValue>-32768</NoDataValue>\n",
+        g.w,
+        g.h,
+        g.west - g.step / 2.0,
+        g.step,
+        g.north + g.step / 2.0,
+        -g.step
+    );
+    for (file, x, y, side) in tiles {
+        xml += &format!(
+            "    <ComplexSource>\n      <SourceFilename relativeToVRT=\"1\">{file}</SourceFilename>\n      \
+             <SourceBand>1</SourceBand>\n      <SrcRect xOff=\"0\" yOff=\"0\" xSize=\"{side}\" ySize=\"{side}\" />\n      \
+             <DstRect xOff=\"{x}\" yOff=\"{y}\" xSize=\"{side}\" ySize=\"{side}\" />\n{extra}    </ComplexSource>\n"
+        );
+    }
+    xml += "  </VRTRasterBand>\n</VRTDataset>\n";
+    std::fs::write(path, xml).expect("write vrt");
+}
+
+/// A GDAL VRT mosaic reads as its tiles do (and, where tiles of one resolution overlap, the later source
+/// wins, as in GDAL); a VRT that moves, crops, rescales or filters its tiles is refused, naming it.
+#[test]
+fn a_gdal_vrt_reads_as_its_tiles() {
+    let dir = temp_dir("vrt");
+    let g = Grid {
+        w: 21,
+        h: 21,
+        z: (0..441).map(|v| (v * 7 % 1000) as i16).collect(),
+        west: 11.0,
+        north: 58.0,
+        step: 1.0 / 3600.0,
+    };
+    let mut tiles = Vec::new();
+    for ((tx, ty), t) in g.tiles(11) {
+        let name = format!("tile_{tx}_{ty}.tif");
+        write_geotiff_as(&dir.join("tiles").join(&name), &t, None, 4326, false);
+        tiles.push((format!("tiles/{name}"), tx * 10, ty * 10));
+    }
+    let sources: Vec<(&str, usize, usize, usize)> = tiles
+        .iter()
+        .map(|(f, x, y)| (f.as_str(), *x, *y, 11))
+        .collect();
+    let vrt = dir.join("world.vrt");
+    write_vrt(&vrt, &g, &sources, "");
+    assert!(source::is_mosaic(&vrt));
+    let (vg, got) = read_all(&vrt, &LoadOptions::default());
+    let (fg, want) = read_all(&dir.join("tiles"), &LoadOptions::default());
+    assert_eq!((vg.width, vg.height), (21, 21));
+    assert_eq!((vg.spacing, vg.ew_spacing), (fg.spacing, fg.ew_spacing));
+    assert!(
+        got == want && got == as_f32(&g),
+        "the VRT reads as the folder"
+    );
+    assert!(
+        source::input_files(&vrt).expect("inputs").contains(&vrt),
+        "the VRT keys the cache"
+    );
+
+    // Overlap: a second copy of the north-west tile, 1000 m higher, listed last, wins there.
+    let high = Grid {
+        z: g.tiles(11)[0].1.z.iter().map(|v| v + 1000).collect(),
+        ..g.tiles(11)[0].1.clone()
+    };
+    write_geotiff_as(&dir.join("tiles/high.tif"), &high, None, 4326, false);
+    let over = dir.join("over.vrt");
+    let mut with_high = sources.clone();
+    with_high.push(("tiles/high.tif", 0, 0, 11));
+    write_vrt(&over, &g, &with_high, "");
+    let (_, got) = read_all(&over, &LoadOptions::default());
+    assert_eq!(got[0], f32::from(g.z[0] + 1000), "the last source wins");
+    assert_eq!(
+        got[20],
+        f32::from(g.z[20]),
+        "elsewhere the tiles read as before"
+    );
+
+    let refused = |name: &str, needle: &str| {
+        let path = dir.join(name);
+        let e = source::open_rows(&path, &LoadOptions::default())
+            .err()
+            .unwrap_or_else(|| panic!("{name}: accepted"));
+        // The VRT is named, or the tile it names where that is what fails.
+        let named = e.to_string().contains(name) || e.to_string().contains("tile_9_9");
+        assert!(e.to_string().contains(needle) && named, "{name}: {e}");
+    };
+    let mut moved = sources.clone();
+    moved[1].1 += 1;
+    write_vrt(&dir.join("moved.vrt"), &g, &moved, "");
+    refused("moved.vrt", "moves, crops or resamples");
+    write_vrt(
+        &dir.join("scaled.vrt"),
+        &g,
+        &sources,
+        "      <ScaleRatio>2</ScaleRatio>\n",
+    );
+    refused("scaled.vrt", "rescales");
+    let text = std::fs::read_to_string(&vrt).expect("read");
+    let edits = [
+        (
+            "two_bands.vrt",
+            text.replace("</VRTDataset>", "<VRTRasterBand band=\"2\"/></VRTDataset>"),
+            "2 bands",
+        ),
+        (
+            "averaged.vrt",
+            text.replace("ComplexSource>", "AveragedSource>"),
+            "filters or averages",
+        ),
+        (
+            "zip.vrt",
+            text.replace(">tiles/tile_0_0", ">/vsizip/tiles/tile_0_0"),
+            "virtual file system",
+        ),
+        (
+            "missing.vrt",
+            text.replace("tile_1_1", "tile_9_9"),
+            "cannot read tile",
+        ),
+        (
+            "band2.vrt",
+            text.replacen("<SourceBand>1", "<SourceBand>2", 1),
+            "band 2",
+        ),
+        (
+            "crop.vrt",
+            text.replacen("SrcRect xOff=\"0\"", "SrcRect xOff=\"3\"", 1),
+            "cropped",
+        ),
+        (
+            "rotated.vrt",
+            text.replacen(", 0.0, ", ", 0.5, ", 1),
+            "rotated",
+        ),
+        (
+            "warped.vrt",
+            text.replace("<VRTDataset ", "<VRTDataset subClass=\"VRTWarpedDataset\" "),
+            "resamples",
+        ),
+        ("broken.vrt", text[..text.len() / 2].to_string(), "not XML"),
+    ];
+    for (name, body, needle) in edits {
+        std::fs::write(dir.join(name), body).expect("write");
+        refused(name, needle);
+    }
+}
