@@ -52,9 +52,6 @@ pub fn bake_imagery_rows<W: Write + Seek>(
         quality,
         path: &path,
         measure,
-        scratch: Vec::new(),
-        coded: Vec::new(),
-        decoded: Vec::new(),
         sq_err: 0,
         level0_bytes: 0,
     };
@@ -190,15 +187,17 @@ struct Coder<'a, W> {
     quality: u8,
     path: &'a Path,
     measure: bool,
-    scratch: Vec<u8>,
-    coded: Vec<u8>,
-    decoded: Vec<u8>,
     sq_err: u64,
     level0_bytes: u64,
 }
 
+/// One tile coded: its JPEG and, where measured, its squared error against the source.
+type Coded = (Vec<u8>, u64);
+
 impl<W: Write + Seek> Coder<'_, W> {
     /// Codes tile row `ty` of level `l` from `band`, its `rows` rows, and records each tile in `header`.
+    /// The row's tiles are coded on every core (`write::threads`), each thread a run of neighbours, and
+    /// written in order: a tile's JPEG does not depend on which thread made it.
     fn tile_row(
         &mut self,
         header: &mut ImageryHeader,
@@ -208,40 +207,66 @@ impl<W: Write + Seek> Coder<'_, W> {
         rows: u32,
     ) -> Result<()> {
         let level: ImageryLevel = header.levels[l];
-        let stride = level.width as usize * 3;
-        for tx in 0..level.tiles_x {
+        let measure = self.measure && l == 0;
+        let (quality, path) = (self.quality, self.path);
+        let code = |tx: u32, scratch: &mut Vec<u8>, decoded: &mut Vec<u8>| -> Result<Coded> {
             let tw = (level.width - tx * TILE).min(TILE);
-            self.scratch.clear();
+            let stride = level.width as usize * 3;
+            scratch.clear();
             for y in 0..rows as usize {
                 let at = y * stride + (tx * TILE) as usize * 3;
-                self.scratch.extend_from_slice(&band[at..at + tw as usize * 3]);
+                scratch.extend_from_slice(&band[at..at + tw as usize * 3]);
             }
-            self.coded.clear();
-            image::codecs::jpeg::JpegEncoder::new_with_quality(&mut self.coded, self.quality)
-                .encode(&self.scratch, tw, rows, image::ExtendedColorType::Rgb8)
-                .map_err(|e| Error::format(self.path, format!("JPEG encoder: {e}")))?;
+            let mut coded = Vec::new();
+            image::codecs::jpeg::JpegEncoder::new_with_quality(&mut coded, quality)
+                .encode(scratch, tw, rows, image::ExtendedColorType::Rgb8)
+                .map_err(|e| Error::format(path, format!("JPEG encoder: {e}")))?;
+            let mut sq = 0;
+            if measure {
+                decoded.resize(scratch.len(), 0);
+                decode_jpeg(path, &coded, tw, rows, decoded)?;
+                sq = scratch
+                    .iter()
+                    .zip(decoded.iter())
+                    .map(|(a, b)| u64::from(a.abs_diff(*b)).pow(2))
+                    .sum::<u64>();
+            }
+            Ok((coded, sq))
+        };
+        let tiles: Vec<u32> = (0..level.tiles_x).collect();
+        let per = tiles.len().div_ceil(super::write::threads()).max(1);
+        let coded: Vec<Coded> = std::thread::scope(|s| {
+            let handles: Vec<_> = tiles
+                .chunks(per)
+                .map(|run| {
+                    s.spawn(move || {
+                        let (mut scratch, mut decoded) = (Vec::new(), Vec::new());
+                        run.iter()
+                            .map(|&tx| code(tx, &mut scratch, &mut decoded))
+                            .collect::<Result<Vec<_>>>()
+                    })
+                })
+                .collect();
+            let mut all = Vec::with_capacity(tiles.len());
+            for h in handles {
+                all.extend(h.join().expect("an imagery tile encoder thread panicked")?);
+            }
+            Ok::<_, Error>(all)
+        })?;
+        for (tx, (jpeg, sq)) in (0..).zip(coded) {
             self.out
-                .write_all(&self.coded)
+                .write_all(&jpeg)
                 .map_err(|e| Error::io(self.path, "cannot write the imagery package baked from", e))?;
             let i = level.first_tile + (ty * level.tiles_x + tx) as usize;
             header.tiles[i] = TileEntry {
                 offset: self.at,
-                len: u32::try_from(self.coded.len()).unwrap_or(u32::MAX),
-                crc: crc32fast::hash(&self.coded),
+                len: u32::try_from(jpeg.len()).unwrap_or(u32::MAX),
+                crc: crc32fast::hash(&jpeg),
             };
-            self.at += self.coded.len() as u64;
+            self.at += jpeg.len() as u64;
             if l == 0 {
-                self.level0_bytes += self.coded.len() as u64;
-                if self.measure {
-                    self.decoded.resize(self.scratch.len(), 0);
-                    decode_jpeg(self.path, &self.coded, tw, rows, &mut self.decoded)?;
-                    self.sq_err += self
-                        .scratch
-                        .iter()
-                        .zip(&self.decoded)
-                        .map(|(a, b)| u64::from(a.abs_diff(*b)).pow(2))
-                        .sum::<u64>();
-                }
+                self.level0_bytes += jpeg.len() as u64;
+                self.sq_err += sq;
             }
         }
         Ok(())

@@ -460,7 +460,7 @@ fn check_max_error(max_error: f64) -> Result<()> {
 }
 
 /// Threads that compress tiles: a tile's payload does not depend on which encoder made it.
-fn threads() -> usize {
+pub(super) fn threads() -> usize {
     std::thread::available_parallelism()
         .map_or(1, usize::from)
         .min(8)
