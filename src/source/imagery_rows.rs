@@ -265,15 +265,8 @@ fn open_png(path: &Path, options: &ImageryOptions) -> Result<Option<(u32, u32, R
         return Ok(None);
     }
     let (colour, depth) = reader.output_color_type();
-    let channels = match colour {
-        png::ColorType::Grayscale => 1,
-        png::ColorType::GrayscaleAlpha => 2,
-        png::ColorType::Rgb => 3,
-        png::ColorType::Rgba => 4,
-        png::ColorType::Indexed => {
-            return Err(Error::format(path, "PNG palette not expanded"));
-        }
-    };
+    let channels = super::png::channels(colour)
+        .ok_or_else(|| Error::format(path, "PNG palette not expanded"))?;
     let wide = depth == png::BitDepth::Sixteen;
     Ok(Some((
         width,

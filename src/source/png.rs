@@ -240,13 +240,7 @@ impl Rows {
             return None;
         }
         let (colour, depth) = reader.output_color_type();
-        let channels = match colour {
-            png::ColorType::Grayscale => 1,
-            png::ColorType::GrayscaleAlpha => 2,
-            png::ColorType::Rgb => 3,
-            png::ColorType::Rgba => 4,
-            png::ColorType::Indexed => return None,
-        };
+        let channels = channels(colour)?;
         let wide = match depth {
             png::BitDepth::Eight => false,
             png::BitDepth::Sixteen => true,
@@ -332,5 +326,16 @@ impl super::RowSource for Rows {
             self.next = y + 1;
         }
         Ok(())
+    }
+}
+
+/// Samples a texel of a PNG row the reader hands out (expanded: a palette is never handed out).
+pub(super) fn channels(colour: png::ColorType) -> Option<usize> {
+    match colour {
+        png::ColorType::Grayscale => Some(1),
+        png::ColorType::GrayscaleAlpha => Some(2),
+        png::ColorType::Rgb => Some(3),
+        png::ColorType::Rgba => Some(4),
+        png::ColorType::Indexed => None,
     }
 }
