@@ -5,7 +5,8 @@
 use std::path::{Path, PathBuf};
 
 use crate::hash::Hash64;
-use crate::package::imagery::{bake_imagery_rows, cached_imagery, ImageryPackage, DEFAULT_QUALITY};
+use crate::package::imagery::{ImageryPackage, DEFAULT_QUALITY};
+use crate::package::imagery_bake::{bake_imagery_rows, cached_imagery};
 use crate::package::{self, Package};
 use crate::progress::Progress;
 use crate::source::procedural::{self, ProceduralParams};

@@ -322,7 +322,7 @@ impl ImageryPackage {
         })
     }
 
-    /// A package from bytes in memory ([`bake_imagery`]'s), checked as [`ImageryPackage::open`] checks a
+    /// A package from bytes in memory (`imagery_bake::bake_imagery`'s), checked as [`ImageryPackage::open`] checks a
     /// file; `path` names it in errors.
     pub fn from_bytes(path: &Path, bytes: Vec<u8>) -> Result<Self> {
         let header = ImageryHeader::parse(path, &bytes)?;
@@ -414,5 +414,3 @@ impl ImageryPackage {
         Ok((w, h))
     }
 }
-
-pub use super::imagery_bake::{bake_imagery, bake_imagery_file, bake_imagery_rows, cached_imagery};

@@ -124,9 +124,7 @@ pub fn bake_imagery_rows<W: Write + Seek>(
 
 /// Bakes `imagery` into an imagery package in memory, with the PSNR of level 0 measured.
 pub fn bake_imagery(imagery: &Imagery, quality: u8, key: u64) -> Result<(Vec<u8>, ImageryBakeReport)> {
-    let (w, h) = imagery.size();
-    let extent = imagery.extent();
-    let mut rows = ImageryRows::held(imagery.path(), w, h, imagery.texels().to_vec(), &extent, Some(extent))?;
+    let mut rows = ImageryRows::held(imagery.clone());
     let mut out = std::io::Cursor::new(Vec::new());
     let report = bake_imagery_rows(&mut rows, quality, key, true, &mut out, Progress::default())?;
     Ok((out.into_inner(), report))

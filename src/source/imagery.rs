@@ -11,7 +11,6 @@
 
 use std::path::{Path, PathBuf};
 
-use super::imagery_rows::ImageryRows;
 
 use crate::{Error, Param, Result};
 
@@ -142,29 +141,8 @@ pub struct Imagery {
 }
 
 impl Imagery {
-    /// Reads a PNG or JPEG and places it over `options.extent`, or over `grid` (the height grid's
-    /// extent, [`Extent::of_grid`]) without one. Refused, with the file and the reason: a format other
-    /// than PNG or JPEG, a declared size over `options.max_texels` (before allocating), fewer than 2 x 2
-    /// texels, a truncated or corrupt file, an extent that shares no area with `grid`.
-    pub fn load(path: &Path, grid: &Extent, options: &ImageryOptions) -> Result<Self> {
-        Self::from_rows(ImageryRows::open(path, grid, options)?)
-    }
-
-    /// The whole image of a reader opened at its first row.
-    pub fn from_rows(rows: ImageryRows) -> Result<Self> {
-        let (texels, rows) = rows.read_all()?;
-        let (width, height) = rows.size();
-        Ok(Self {
-            path: rows.path().to_path_buf(),
-            width,
-            height,
-            texels,
-            extent: rows.extent(),
-        })
-    }
-
     /// An image from RGB8 texels in memory (row-major from the north-west corner), placed over `extent`,
-    /// or over `grid` without one, with [`Imagery::load`]'s checks.
+    /// or over `grid` without one, with [`Imagery::load`]'s checks (`source::imagery_rows` reads files).
     pub fn from_rgb(
         path: &Path,
         width: u32,
@@ -173,7 +151,29 @@ impl Imagery {
         grid: &Extent,
         extent: Option<Extent>,
     ) -> Result<Self> {
-        Self::from_rows(ImageryRows::held(path, width, height, texels, grid, extent)?)
+        check_size(path, width, height)?;
+        let expected = u64::from(width) * u64::from(height) * 3;
+        if texels.len() as u64 != expected {
+            return Err(Error::format(
+                path,
+                format!(
+                    "{} bytes given for {width} x {height} RGB texels ({expected})",
+                    texels.len()
+                ),
+            ));
+        }
+        Ok(Self {
+            path: path.to_path_buf(),
+            width,
+            height,
+            texels,
+            extent: place(path, grid, extent)?,
+        })
+    }
+
+    /// The RGB8 texels, given up.
+    pub fn into_texels(self) -> Vec<u8> {
+        self.texels
     }
 
     /// The file it was read from.

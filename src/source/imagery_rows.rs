@@ -8,7 +8,7 @@
 use std::io::BufReader;
 use std::path::{Path, PathBuf};
 
-use super::imagery::{check_jpeg_end, check_size, one_line, place, Extent, ImageryOptions};
+use super::imagery::{check_jpeg_end, check_size, one_line, place, Extent, Imagery, ImageryOptions};
 use crate::{Error, Param, Result};
 
 /// An imagery file opened for reading by rows: its size and placement known, its texels not yet read.
@@ -86,27 +86,17 @@ impl ImageryRows {
         Self::placed(path, width, height, reader, grid, options.extent)
     }
 
-    /// Texels held in memory (RGB8, row-major from the north-west corner), read by rows.
-    pub fn held(
-        path: &Path,
-        width: u32,
-        height: u32,
-        texels: Vec<u8>,
-        grid: &Extent,
-        extent: Option<Extent>,
-    ) -> Result<Self> {
-        check_size(path, width, height)?;
-        let expected = u64::from(width) * u64::from(height) * 3;
-        if texels.len() as u64 != expected {
-            return Err(Error::format(
-                path,
-                format!(
-                    "{} bytes given for {width} x {height} RGB texels ({expected})",
-                    texels.len()
-                ),
-            ));
+    /// An image held in memory, read by rows.
+    pub fn held(image: Imagery) -> Self {
+        let (width, height) = image.size();
+        Self {
+            path: image.path().to_path_buf(),
+            width,
+            height,
+            extent: image.extent(),
+            next: 0,
+            reader: Reader::Held(image.into_texels()),
         }
-        Self::placed(path, width, height, Reader::Held(texels), grid, extent)
     }
 
     fn placed(
@@ -474,5 +464,19 @@ impl TiffRows {
         }
         self.band_row = Some(cr);
         Ok(())
+    }
+}
+
+impl Imagery {
+    /// Reads a PNG, JPEG or TIFF whole ([`ImageryRows`]) and places it over `options.extent`, or over
+    /// `grid` (the height grid's extent, [`Extent::of_grid`]) without one. Refused, with the file and the
+    /// reason: another format, a declared size over `options.max_texels` (before allocating), fewer
+    /// than 2 x 2 texels, a truncated or corrupt file, an extent that shares no area with `grid`.
+    pub fn load(path: &Path, grid: &Extent, options: &ImageryOptions) -> Result<Self> {
+        let rows = ImageryRows::open(path, grid, options)?;
+        let (width, height) = rows.size();
+        let extent = rows.extent();
+        let (texels, rows) = rows.read_all()?;
+        Imagery::from_rgb(rows.path(), width, height, texels, &extent, Some(extent))
     }
 }

@@ -15,7 +15,8 @@ pub fn check_frame(
 ) -> Result<(super::frame::TwinReport, crate::gpu::readback::Image)> {
     use crate::gpu::headless::{render_frame, FrameOptions, Offscreen, OffscreenOptions};
     use crate::gpu::renderer::ShadingProbe;
-    use crate::package::imagery::{bake_imagery, ImageryPackage};
+    use crate::package::imagery::ImageryPackage;
+    use crate::package::imagery_bake::bake_imagery;
     use crate::source::imagery::{Extent, Imagery};
     let n = 384u32;
     let mut texels = Vec::with_capacity((n * n * 3) as usize);

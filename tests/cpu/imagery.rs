@@ -7,7 +7,8 @@
 
 use std::path::{Path, PathBuf};
 
-use clipsat::package::imagery::{bake_imagery, psnr, ImageryPackage, DEFAULT_QUALITY};
+use clipsat::package::imagery::{psnr, ImageryPackage, DEFAULT_QUALITY};
+use clipsat::package::imagery_bake::bake_imagery;
 use clipsat::package::imagery_cache::ImageryCache;
 use clipsat::source::imagery::{Extent, Imagery, ImageryOptions};
 use clipsat::{Error, Param};

@@ -5,9 +5,8 @@
 use std::path::Path;
 
 use clipsat::bake::imagery::ColorLevel;
-use clipsat::package::imagery::{
-    bake_imagery, bake_imagery_file, ImageryPackage, DEFAULT_QUALITY, TILE,
-};
+use clipsat::package::imagery::{ImageryPackage, DEFAULT_QUALITY, TILE};
+use clipsat::package::imagery_bake::{bake_imagery, bake_imagery_file};
 use clipsat::source::imagery::{Extent, Imagery, ImageryOptions};
 use clipsat::source::imagery_rows::ImageryRows;
 
@@ -83,15 +82,7 @@ fn the_band_by_band_bake_codes_the_whole_pyramid() {
     // The file bake writes the same bytes, through a temporary renamed into place.
     let dir = TempDir::new("imagery_bake", "bake");
     let out = dir.join("bands.clipsat-imagery");
-    let mut rows = ImageryRows::held(
-        Path::new("<bands>"),
-        w,
-        h,
-        im.texels().to_vec(),
-        &grid,
-        None,
-    )
-    .expect("rows");
+    let mut rows = ImageryRows::held(im.clone());
     let r = bake_imagery_file(
         &mut rows,
         DEFAULT_QUALITY,

@@ -5,7 +5,8 @@
 
 use std::path::Path;
 
-use clipsat::package::imagery::{bake_imagery, ImageryPackage};
+use clipsat::package::imagery::ImageryPackage;
+use clipsat::package::imagery_bake::bake_imagery;
 use clipsat::plan::color_rings::ColorRings;
 use clipsat::profile::ImageryBudget;
 use clipsat::source::imagery::{Extent, Imagery};

@@ -5,7 +5,8 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use clap::Args;
-use clipsat::package::imagery::{bake_imagery_file, DEFAULT_QUALITY};
+use clipsat::package::imagery::DEFAULT_QUALITY;
+use clipsat::package::imagery_bake::bake_imagery_file;
 use clipsat::package::{self, BakeOptions, CodecKind};
 use clipsat::source::georef::{georef_extent, GeoRef};
 use clipsat::source::imagery::Extent;
