@@ -18,12 +18,25 @@ use crate::plan::frame::Rect;
 /// the roundings of the two computations (relative 1e-15).
 const GROUP_MARGIN: f64 = 1.0 - 1.0e-9;
 
+/// What [`coarse_units`] finds of a cell's units.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Units {
+    /// The units drawn one level coarser.
+    pub(super) coarse: stitch::Mask,
+    /// The largest coarser bound read of the ones that meet epsilon (0 if none).
+    pub(super) worst: f64,
+    /// The coarse units marked because they were out of view, whose bound was not read (a later view in
+    /// which they may be visible draws them fine, `carry.rs`).
+    pub(super) unseen: stitch::Mask,
+    /// The largest object-space error (metres) that the bounds of the coarse units in view projected: at
+    /// least each such unit's error one level coarser, view-independent, so that its product with a box's
+    /// scale in a later view bounds them there (`Quadtree::prove`).
+    pub(super) cap: f64,
+}
+
 /// The units of a cell over `r` (vertices of `level`) drawn as one quad of the next coarser level: those
 /// whose coarser bound meets epsilon (or out of view) and whose neighbours' at their sides does too
-/// ([`stitch::erode`]), with the largest coarser bound read of the ones that meet it (0 if none: what a
-/// later view rescales to see whether the mask still holds) and the coarse units marked because they were
-/// out of view, whose bound was not read (a later view in which they may be visible draws them fine,
-/// `carry.rs`). A cell whose corners are not on the coarser
+/// ([`stitch::erode`]), with what [`Units`] says of them. A cell whose corners are not on the coarser
 /// lattice has none. `rough` (a moving view): groups are tested with the max pyramid's cap only and down
 /// to 2 x 2 units, never unit by unit (a unit that would meet epsilon alone in a group that misses stays
 /// fine: more triangles, never more error; a still view asks the units again one by one). None: the
@@ -34,16 +47,21 @@ pub(super) fn coarse_units(
     level: u32,
     r: &Rect,
     (eps, rough): (f64, bool),
-) -> Option<(stitch::Mask, f64, stitch::Mask)> {
+) -> Option<Units> {
     let mut meets: stitch::Mask = [0; stitch::MAX_UNITS as usize];
     let even = r.x0 % 2 == 0 && r.y0 % 2 == 0 && r.w % 2 == 1 && r.h % 2 == 1;
     if !even {
-        return Some((meets, 0.0, meets));
+        return Some(Units {
+            coarse: meets,
+            worst: 0.0,
+            unseen: meets,
+            cap: 0.0,
+        });
     }
     let (ua, ub) = stitch::units(r);
     let units = (ua.min(stitch::MAX_UNITS), ub.min(stitch::MAX_UNITS));
     let side = units.0.max(units.1).next_power_of_two();
-    let mut worst = 0.0f64;
+    let (mut worst, mut cap) = (0.0f64, 0.0f64);
     let mut unseen: stitch::Mask = [0; stitch::MAX_UNITS as usize];
     ask.grid.begin();
     // The cell's tile, and the cell's first unit in it.
@@ -62,6 +80,7 @@ pub(super) fn coarse_units(
         rough,
         meets: &mut meets,
         worst: &mut worst,
+        cap: &mut cap,
         unseen: &mut unseen,
     };
     g.test(ask, 0, 0, side)?;
@@ -69,7 +88,12 @@ pub(super) fn coarse_units(
     for (u, c) in unseen.iter_mut().zip(&coarse) {
         *u &= c;
     }
-    Some((coarse, worst, unseen))
+    Some(Units {
+        coarse,
+        worst,
+        unseen,
+        cap,
+    })
 }
 
 /// One cell's group tests.
@@ -85,6 +109,8 @@ struct Groups<'a, 'v> {
     rough: bool,
     meets: &'a mut stitch::Mask,
     worst: &'a mut f64,
+    /// The largest object-space error the marked units' bounds projected ([`Units::cap`]).
+    cap: &'a mut f64,
     /// The units marked out of view ([`coarse_units`]).
     unseen: &'a mut stitch::Mask,
 }
@@ -160,8 +186,9 @@ impl Groups<'_, '_> {
             let at = (slot, (fa + a0 as usize, fb + b0 as usize));
             let v = ask.unit(self.level + 1, bx, &corners, at)?;
             if v <= self.eps {
-                *self.worst = self.worst.max(v);
-                self.mark(a0, b0, a1, b1);
+                // Its error, read by `unit` and kept: no evaluation.
+                let e = ask.unit_eta(self.level + 1, bx, at)?;
+                self.marked(v, e, (a0, b0, a1, b1));
             }
             return Some(());
         }
@@ -169,8 +196,10 @@ impl Groups<'_, '_> {
         // First the error capped by the max pyramid (no unit read), then by the units' own errors.
         let v = ask.group(self.level + 1, bx, &corners)?;
         if v <= self.eps * GROUP_MARGIN {
-            *self.worst = self.worst.max(v);
-            self.mark(a0, b0, a1, b1);
+            // The error it projected (a table read, no projection).
+            let b = ask.bounds;
+            let e = b.lod.eta_cap(b.mode, self.level + 1, bx).unwrap_or(f64::INFINITY);
+            self.marked(v, e, (a0, b0, a1, b1));
             return Some(());
         }
         if self.rough {
@@ -181,8 +210,7 @@ impl Groups<'_, '_> {
             let cap = self.cap(ask, (a0, b0), (a1, b1))?;
             let v = ask.capped(self.level + 1, bx, &corners, cap)?;
             if v <= self.eps * GROUP_MARGIN {
-                *self.worst = self.worst.max(v);
-                self.mark(a0, b0, a1, b1);
+                self.marked(v, cap, (a0, b0, a1, b1));
                 return Some(());
             }
         }
@@ -191,6 +219,14 @@ impl Groups<'_, '_> {
             self.test(ask, a0 + da, b0 + db, h)?;
         }
         Some(())
+    }
+
+    /// Marks units [a0, a1) x [b0, b1), in view, as drawn one level coarser: their bound `v` projected
+    /// the error `eta`.
+    fn marked(&mut self, v: f64, eta: f64, (a0, b0, a1, b1): (u32, u32, u32, u32)) {
+        *self.worst = self.worst.max(v);
+        *self.cap = self.cap.max(eta);
+        self.mark(a0, b0, a1, b1);
     }
 
     /// Marks units [a0, a1) x [b0, b1) as drawn one level coarser.

@@ -9,6 +9,7 @@ use crate::plan::detail::keymap::KeyMap;
 use crate::plan::detail::{
     stitch, DetailBudget, DetailView, PoolBounds, TileKey, DETAIL_CAPACITY,
 };
+use crate::plan::camera::BoxScale;
 use crate::plan::frame::Rect;
 use crate::plan::lod::{BoundView, LatticeBox, LodFrame, KEEP_BAND, MAX_LOD_BLOCKS};
 use crate::Result;
@@ -39,15 +40,6 @@ const MAX_CELL_GROUPS: usize = 256;
 /// The smallest piece a split cuts a cell into, in quads of the finer level: a part of a cell goes one
 /// level finer only where the coarser level misses epsilon over a piece this small.
 const MIN_SUB_QUADS: u32 = 8;
-
-/// While the camera moves, a stale cell is asked again only when its rescaled bound (or its coarse
-/// units') is past this share of epsilon: the others cannot have passed it yet, to first order.
-const AT_RISK: f64 = 0.9;
-
-/// How far past epsilon a stale bound, rescaled, may be while the camera moves before it counts as missing
-/// it (`Quadtree::limit`): an estimate's margin, not the bound's; a still camera asks every stale bound
-/// again and holds it to epsilon.
-const MOTION_SLACK: f64 = 1.0 / 32.0;
 
 /// No block (an unused entry of the quadtree's block maps).
 const NONE: u16 = u16::MAX;
@@ -85,6 +77,8 @@ pub(super) struct Cand {
     hidden: bool,
     /// Its box's scale in this frame's view, pixels per metre: what its cells' bounds are rescaled by.
     scale: f64,
+    /// The same box's scale whole: what proves its cells' bounds first ([`Quadtree::prove`]).
+    whole: Option<BoxScale>,
 }
 
 /// One square a refined block is drawn with: part of a tile's cell, clipped to the block's piece.
@@ -121,8 +115,16 @@ pub(super) struct Cell {
     view: u32,
     /// Its block's scale then ([`Cand::scale`]).
     scale: f64,
-    /// Drawn within epsilon (or at its block's wanted level) in this frame's view: fresh, or its
-    /// bounds rescaled by its block's change of scale since they were asked.
+    /// Its level's object-space error capped by the max pyramid over its box
+    /// ([`crate::plan::lod::Lod::eta_cap`]), metres: at least the error of every box inside, in any view.
+    cap: f64,
+    /// The largest object-space error its coarse units in view were drawn on ([`mask::Units::cap`]).
+    coarse_cap: f64,
+    /// Where its bounds are stale: this view's bounds of its own level and of its coarse units, from
+    /// `cap` and `coarse_cap` ([`Quadtree::prove`]; 0 where they do not count).
+    proof: (f64, f64),
+    /// Drawn within epsilon (or at its block's wanted level) in this frame's view: by its bounds where
+    /// they are fresh, else by its proven ones (`proof`).
     pub(super) met: bool,
 }
 
@@ -180,6 +182,43 @@ impl Cell {
     /// wanted level or is frozen): drawn whole until they are.
     pub(super) fn waits_for_units(&self, eps: f64) -> bool {
         !self.masked && (self.bound <= eps || self.key.level <= self.wanted || self.frozen)
+    }
+
+    /// The same cell with its units `u` asked ([`mask::coarse_units`]).
+    fn with_units(self, u: &mask::Units) -> Self {
+        Self {
+            coarse: u.coarse,
+            coarse_bound: u.worst,
+            unseen: u.unseen,
+            coarse_cap: u.cap,
+            masked: true,
+            ..self
+        }
+    }
+
+    /// Its bounds of its own level (0 at its block's wanted level: no cell goes finer) and of its coarse
+    /// units, from its object-space caps and a scale `s` of a box holding its own: bounds in `s`'s view.
+    fn proven(&self, s: &BoxScale) -> (f64, f64) {
+        let px = |e: f64| {
+            if e == 0.0 {
+                0.0
+            } else if e.is_finite() {
+                s.px(e)
+            } else {
+                f64::INFINITY
+            }
+        };
+        let own = if self.key.level > self.wanted {
+            px(self.cap)
+        } else {
+            0.0
+        };
+        let coarse = if stitch::any(&self.coarse) {
+            px(self.coarse_cap)
+        } else {
+            0.0
+        };
+        (own, coarse)
     }
 
     /// Triangles it draws: stitched when some unit is coarse, else whole.
@@ -511,8 +550,9 @@ impl Quadtree {
     }
 
     /// A cell's bound in this frame's view: its own when fresh, else rescaled by its block's change of
-    /// scale since it was asked (an estimate: the ranking and the met flag use it until it is asked
-    /// again).
+    /// scale since it was asked. An estimate, not a bound (the sub-box that decides a cell's bound can
+    /// change scale faster than its block): it ranks stale cells, and never says one meets epsilon
+    /// ([`Quadtree::prove`] does).
     fn now(&self, c: &Cell, value: f64) -> f64 {
         if c.view == self.view {
             return value;
@@ -526,38 +566,55 @@ impl Quadtree {
         }
     }
 
-    /// What cell `c`'s bounds are held to now: epsilon where they are fresh; where they are rescaled
-    /// estimates, epsilon and [`MOTION_SLACK`] (a bound just under epsilon would otherwise pass it with
-    /// every step of a camera moving closer and be asked again every frame).
-    fn limit(&self, c: &Cell, eps: f64) -> f64 {
-        if c.view == self.view {
-            eps
-        } else {
-            eps * (1.0 + MOTION_SLACK)
+    /// Proves the stale cells' bounds in this view (`bounds`'s), each [`Cell::proof`]: its caps
+    /// projected with its block's box scale (kept for the frame, one product a cell) or, where that
+    /// misses epsilon, its own box's (a box inside another has a smaller scale, and every estimator's
+    /// error over a box inside the cell is at most the cap: the cell's bound asked again would be at most
+    /// this). What this does not prove is asked again (`upkeep.rs`) or reported (`unmet_px`).
+    pub(super) fn prove(&mut self, bounds: &PoolBounds<'_>, eps: f64) {
+        for j in 0..self.cells.len() {
+            if self.cells[j].view != self.view {
+                let p = self.proof_of(&self.cells[j], bounds, eps);
+                self.cells[j].proof = p;
+            }
         }
     }
 
+    /// [`Quadtree::prove`] of cell `c`.
+    pub(super) fn proof_of(&self, c: &Cell, bounds: &PoolBounds<'_>, eps: f64) -> (f64, f64) {
+        let k = self.cand_of[usize::from(c.block)];
+        let whole = self.cands.get(usize::from(k)).and_then(|d| d.whole);
+        let p = whole.map_or((f64::INFINITY, f64::INFINITY), |s| c.proven(&s));
+        if p.0.max(p.1) <= eps {
+            return p;
+        }
+        let own = c.proven(&bounds.box_scale(level0_box(c.key.level, &c.bounds)));
+        (p.0.min(own.0), p.1.min(own.1))
+    }
+
     /// Whether cell `c` is drawn within epsilon now: its bound (or its block's wanted level) and its coarse
-    /// units', rescaled where stale ([`Quadtree::limit`]).
+    /// units' where they are fresh, else its proven ones ([`Quadtree::prove`]).
     fn meets(&self, c: &Cell, eps: f64) -> bool {
-        let limit = self.limit(c, eps);
-        (self.now(c, c.bound) <= limit || c.key.level <= c.wanted)
-            && self.now(c, c.coarse_bound) <= limit
+        if c.view == self.view {
+            (c.bound <= eps || c.key.level <= c.wanted) && c.coarse_bound <= eps
+        } else {
+            c.proof.0 <= eps && c.proof.1 <= eps
+        }
     }
 
     /// What cell `c` misses epsilon by in this frame's view: 0 when it is drawn within epsilon (its met
-    /// flag), else the largest of its bound and its coarse units' bound, rescaled where stale (the bound
-    /// of its wanted level does not count: no cell goes finer). Infinite where no bound is held.
+    /// flag), else the largest of its bound and its coarse units' bound, proven ones where stale (the
+    /// bound of its wanted level does not count: no cell goes finer). Infinite where no bound is held.
     pub(super) fn unmet_px(&self, c: &Cell) -> f64 {
         if c.met {
             return 0.0;
         }
-        let own = if c.key.level > c.wanted {
-            self.now(c, c.bound)
+        let b = if c.view == self.view {
+            let own = if c.key.level > c.wanted { c.bound } else { 0.0 };
+            own.max(c.coarse_bound)
         } else {
-            0.0
+            c.proof.0.max(c.proof.1)
         };
-        let b = own.max(self.now(c, c.coarse_bound));
         if b > 0.0 {
             b
         } else {
