@@ -9,7 +9,7 @@ use super::ranks;
 use super::upkeep::Ask;
 use super::split::{resolve_ghost, split_block, split_cell, Outcome, Shape};
 use super::{
-    double, level0_box, Cell, GhostKind, Inputs, Quadtree, Scratch, Unit, MAX_CELL_GROUPS,
+    double, level0_box, object_error, quarters, Cell, GhostKind, Inputs, Quadtree, Scratch, Unit, MAX_CELL_GROUPS,
     MAX_DETAIL_CELLS, MAX_GHOSTS, MIN_SUB_QUADS,
 };
 use crate::plan::detail::{cell_quads, DetailBudget, PoolBounds};
@@ -175,10 +175,11 @@ impl Quadtree {
                 self.pending = Some(self.region(unit));
                 return Ok(());
             }
-            // What proves them in later views ([`Quadtree::prove`]): a table read each, no projection.
+            // What proves them in later views ([`Quadtree::prove`]): a table read a quarter, no projection.
             for c in &mut self.new.cells {
-                let bx = level0_box(c.key.level, &c.bounds);
-                c.cap = bounds.lod.eta_cap(bounds.mode, c.key.level, bx).unwrap_or(f64::INFINITY);
+                for (cap, bx) in c.cap.iter_mut().zip(quarters(c.key.level, &c.bounds)) {
+                    *cap = object_error(bounds, c.key.level, bx);
+                }
             }
             let first = self.cells.len() - usize::from(matches!(unit, Unit::Cell(_)));
             self.commit(unit, cost);

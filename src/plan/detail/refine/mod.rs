@@ -11,7 +11,7 @@ use crate::plan::detail::{
 };
 use crate::plan::camera::BoxScale;
 use crate::plan::frame::Rect;
-use crate::plan::lod::{BoundView, LatticeBox, LodFrame, KEEP_BAND, MAX_LOD_BLOCKS};
+use crate::plan::lod::{BoundView, LatticeBox, LodFrame, LodMode, KEEP_BAND, MAX_LOD_BLOCKS};
 use crate::Result;
 
 mod carry;
@@ -115,11 +115,12 @@ pub(super) struct Cell {
     view: u32,
     /// Its block's scale then ([`Cand::scale`]).
     scale: f64,
-    /// Its level's object-space error capped by the max pyramid over its box
-    /// ([`crate::plan::lod::Lod::eta_cap`]), metres: at least the error of every box inside, in any view.
-    cap: f64,
-    /// The largest object-space error its coarse units in view were drawn on ([`mask::Units::cap`]).
-    coarse_cap: f64,
+    /// Per quarter of it ([`quarters`]): its level's object-space error there ([`object_error`]), metres:
+    /// at least every data sample's, in any view.
+    cap: [f64; 4],
+    /// Per quarter: the largest object-space error its coarse units in view there were drawn on
+    /// ([`mask::Units::cap`]).
+    coarse_cap: [f64; 4],
     /// Where its bounds are stale: this view's bounds of its own level and of its coarse units, from
     /// `cap` and `coarse_cap` ([`Quadtree::prove`]; 0 where they do not count).
     proof: (f64, f64),
@@ -197,8 +198,9 @@ impl Cell {
     }
 
     /// Its bounds of its own level (0 at its block's wanted level: no cell goes finer) and of its coarse
-    /// units, from its object-space caps and a scale `s` of a box holding its own: bounds in `s`'s view.
-    fn proven(&self, s: &BoxScale) -> (f64, f64) {
+    /// units over its quarters `q` (a set of them, bits 0..4) from their object-space caps and a scale `s`
+    /// of a box holding them: bounds in `s`'s view.
+    fn proven(&self, s: &BoxScale, q: usize) -> (f64, f64) {
         let px = |e: f64| {
             if e == 0.0 {
                 0.0
@@ -208,13 +210,14 @@ impl Cell {
                 f64::INFINITY
             }
         };
+        let most = |caps: &[f64; 4]| (0..4).filter(|i| q >> i & 1 == 1).fold(0.0f64, |m, i| m.max(caps[i]));
         let own = if self.key.level > self.wanted {
-            px(self.cap)
+            px(most(&self.cap))
         } else {
             0.0
         };
         let coarse = if stitch::any(&self.coarse) {
-            px(self.coarse_cap)
+            px(most(&self.coarse_cap))
         } else {
             0.0
         };
@@ -370,6 +373,43 @@ pub(super) fn level0_box(level: u32, r: &Rect) -> LatticeBox {
         (r.x1() - 1) << level,
         (r.y1() - 1) << level,
     )
+}
+
+/// A cell's quarters, whose caps it keeps ([`Cell::cap`]): its vertices `r` (of `level`) cut in halves
+/// on each axis at the even vertex that leaves every stitched unit (2 x 2 quads from the corner) wholly
+/// in one half, as level-0 lattice boxes, x half first then y half ((0, 0), (1, 0), (0, 1), (1, 1)). A
+/// side of fewer than two units is not cut: both its halves are the whole side.
+pub(super) fn quarters(level: u32, r: &Rect) -> [LatticeBox; 4] {
+    let (ua, ub) = stitch::units(r);
+    let halves = |lo: i64, hi: i64, units: u32| {
+        let mid = lo + 2 * i64::from(units / 2);
+        if units < 2 {
+            [(lo, hi), (lo, hi)]
+        } else {
+            [(lo, mid), (mid, hi)]
+        }
+    };
+    let (xs, ys) = (halves(r.x0, r.x1() - 1, ua), halves(r.y0, r.y1() - 1, ub));
+    let mut out = [(0, 0, 0, 0); 4];
+    for (i, o) in out.iter_mut().enumerate() {
+        let ((x0, x1), (y0, y1)) = (xs[i & 1], ys[i >> 1]);
+        *o = (x0 << level, y0 << level, x1 << level, y1 << level);
+    }
+    out
+}
+
+/// An object-space error (metres) of `level` over `bx` that bounds every data sample's there, in any
+/// view: what a cell keeps per quarter to prove its bound in later views ([`Cell::cap`]). The
+/// conservative and exact modes' own error over the box is such a bound (a p-sum of the samples' errors
+/// is at least their largest); the estimate of `Sat` is not, and takes the max pyramid's cap, at least
+/// every estimate inside the box ([`crate::plan::lod::Lod::eta_cap`]). Infinite where no table holds
+/// the level.
+pub(super) fn object_error(bounds: &PoolBounds<'_>, level: u32, bx: LatticeBox) -> f64 {
+    let e = match bounds.mode {
+        LodMode::SatConservative | LodMode::Exact => bounds.lod.eta_of(bounds.mode, level, bx),
+        LodMode::Sat | LodMode::Distance => bounds.lod.eta_cap(bounds.mode, level, bx),
+    };
+    e.unwrap_or(f64::INFINITY)
 }
 
 /// The same vertices one level finer.
@@ -568,9 +608,10 @@ impl Quadtree {
 
     /// Proves the stale cells' bounds in this view (`bounds`'s), each [`Cell::proof`]: its caps
     /// projected with its block's box scale (kept for the frame, one product a cell) or, where that
-    /// misses epsilon, its own box's (a box inside another has a smaller scale, and every estimator's
-    /// error over a box inside the cell is at most the cap: the cell's bound asked again would be at most
-    /// this). What this does not prove is asked again (`upkeep.rs`) or reported (`unmet_px`).
+    /// misses epsilon, each quarter's with its own box's scale (four box scales: a box inside another has
+    /// a smaller scale, and every estimator's error over a box inside a quarter is at most its cap, so the
+    /// cell's bound asked again would be at most this). What this does not prove is asked again
+    /// (`upkeep.rs`) or reported (`unmet_px`).
     pub(super) fn prove(&mut self, bounds: &PoolBounds<'_>, eps: f64) {
         for j in 0..self.cells.len() {
             if self.cells[j].view != self.view {
@@ -584,12 +625,16 @@ impl Quadtree {
     pub(super) fn proof_of(&self, c: &Cell, bounds: &PoolBounds<'_>, eps: f64) -> (f64, f64) {
         let k = self.cand_of[usize::from(c.block)];
         let whole = self.cands.get(usize::from(k)).and_then(|d| d.whole);
-        let p = whole.map_or((f64::INFINITY, f64::INFINITY), |s| c.proven(&s));
+        let p = whole.map_or((f64::INFINITY, f64::INFINITY), |s| c.proven(&s, 0b1111));
         if p.0.max(p.1) <= eps {
             return p;
         }
-        let own = c.proven(&bounds.box_scale(level0_box(c.key.level, &c.bounds)));
-        (p.0.min(own.0), p.1.min(own.1))
+        let mut q = (0.0f64, 0.0f64);
+        for (i, bx) in quarters(c.key.level, &c.bounds).into_iter().enumerate() {
+            let r = c.proven(&bounds.box_scale(bx), 1 << i);
+            q = (q.0.max(r.0), q.1.max(r.1));
+        }
+        (p.0.min(q.0), p.1.min(q.1))
     }
 
     /// Whether cell `c` is drawn within epsilon now: its bound (or its block's wanted level) and its coarse

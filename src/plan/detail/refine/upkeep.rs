@@ -131,7 +131,7 @@ impl Quadtree {
             let whole = Cell {
                 coarse: [0; stitch::MAX_UNITS as usize],
                 coarse_bound: 0.0,
-                coarse_cap: 0.0,
+                coarse_cap: [0.0; 4],
                 unseen: [0; stitch::MAX_UNITS as usize],
                 masked: false,
                 ..fresh
