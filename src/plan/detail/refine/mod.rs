@@ -9,7 +9,7 @@ use crate::plan::detail::keymap::KeyMap;
 use crate::plan::detail::{
     stitch, DetailBudget, DetailView, PoolBounds, TileKey, DETAIL_CAPACITY,
 };
-use crate::plan::camera::BoxScale;
+use crate::plan::camera::{BoxScale, Corner};
 use crate::plan::frame::Rect;
 use crate::plan::lod::{BoundView, LatticeBox, LodFrame, LodMode, KEEP_BAND, MAX_LOD_BLOCKS};
 use crate::Result;
@@ -398,6 +398,34 @@ pub(super) fn quarters(level: u32, r: &Rect) -> [LatticeBox; 4] {
     out
 }
 
+/// The scales of cell `c`'s quarters ([`quarters`]) in the view of `bounds`, each
+/// [`crate::plan::lod::Lod::box_scale`] bit for bit, from the 3 x 3 lattice points they share, each
+/// projected once (18 corners instead of 32).
+fn quarter_scales(bounds: &PoolBounds<'_>, c: &Cell) -> [BoxScale; 4] {
+    let (lod, v) = (bounds.lod, &bounds.view);
+    let boxes = quarters(c.key.level, &c.bounds);
+    let mut seen = [((i64::MIN, i64::MIN), [Corner::default(); 2]); 9];
+    let mut n = 0;
+    core::array::from_fn(|q| {
+        let (a, y0, b, y1) = boxes[q];
+        let mut k = [Corner::default(); 8];
+        for (i, p) in [(a, y0), (b, y0), (a, y1), (b, y1)].into_iter().enumerate() {
+            let at = match seen[..n].iter().find(|s| s.0 == p) {
+                Some(s) => s.1,
+                None => {
+                    let at = [lod.corner(v, p.0, p.1, false), lod.corner(v, p.0, p.1, true)];
+                    // At most 3 x 3 points: the halves share their cut.
+                    seen[n.min(8)] = (p, at);
+                    n = (n + 1).min(9);
+                    at
+                }
+            };
+            (k[i], k[i + 4]) = (at[0], at[1]);
+        }
+        lod.scale_of_corners(v, (a, y0, b, y1), &k)
+    })
+}
+
 /// An object-space error (metres) of `level` over `bx` that bounds every data sample's there, in any
 /// view: what a cell keeps per quarter to prove its bound in later views ([`Cell::cap`]). The
 /// conservative and exact modes' own error over the box is such a bound (a p-sum of the samples' errors
@@ -630,8 +658,8 @@ impl Quadtree {
             return p;
         }
         let mut q = (0.0f64, 0.0f64);
-        for (i, bx) in quarters(c.key.level, &c.bounds).into_iter().enumerate() {
-            let r = c.proven(&bounds.box_scale(bx), 1 << i);
+        for (i, s) in quarter_scales(bounds, c).iter().enumerate() {
+            let r = c.proven(s, 1 << i);
             q = (q.0.max(r.0), q.1.max(r.1));
         }
         (p.0.min(q.0), p.1.min(q.1))
