@@ -634,11 +634,11 @@ impl Quadtree {
         }
     }
 
-    /// Proves the stale cells' bounds in this view (`bounds`'s), each [`Cell::proof`]: its caps
-    /// projected with its block's box scale (kept for the frame, one product a cell) or, where that
-    /// misses epsilon, each quarter's with its own box's scale (four box scales: a box inside another has
-    /// a smaller scale, and every estimator's error over a box inside a quarter is at most its cap, so the
-    /// cell's bound asked again would be at most this). What this does not prove is asked again
+    /// Proves the stale cells' bounds in this view (`bounds`'s), each [`Cell::proof`]: its quarters'
+    /// errors projected with its block's box scale (kept for the frame, one product a cell) or, where that
+    /// misses epsilon, each with its quarter's own box scale (four box scales). Each quarter's error bounds
+    /// every data sample's there ([`object_error`]) and a box inside another has a smaller scale, so both
+    /// are bounds of what the cell draws in this view. What this does not prove is asked again
     /// (`upkeep.rs`) or reported (`unmet_px`).
     pub(super) fn prove(&mut self, bounds: &PoolBounds<'_>, eps: f64) {
         for j in 0..self.cells.len() {
