@@ -61,7 +61,13 @@ impl PoolBounds<'_> {
     /// How many pixels a metre of error moves a point of `bx` at most, to first order: what a stale
     /// bound is rescaled by.
     pub fn scale(&self, bx: LatticeBox) -> f64 {
-        self.lod.box_scale(&self.view, bx).per_metre()
+        self.box_scale(bx).per_metre()
+    }
+
+    /// The scale of `bx` in this view ([`Lod::box_scale`]): its product with an object-space error over
+    /// the box bounds that error's pixels.
+    pub fn box_scale(&self, bx: LatticeBox) -> crate::plan::camera::BoxScale {
+        self.lod.box_scale(&self.view, bx)
     }
 }
 

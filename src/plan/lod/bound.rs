@@ -114,8 +114,9 @@ impl Lod {
         v.scale.corner(self.rel(v, x, y, z))
     }
 
-    /// The scale of `bx` from its eight corners ([`Lod::corner`]): [`Lod::box_scale`], bit for bit.
-    fn scale_of_corners(&self, v: &BoundView, (a, c, b, d): LatticeBox, corners: &[Corner; 8]) -> BoxScale {
+    /// The scale of `bx` from its eight corners ([`Lod::corner`], in any order): [`Lod::box_scale`], bit
+    /// for bit (boxes that share corners project each once).
+    pub fn scale_of_corners(&self, v: &BoundView, (a, c, b, d): LatticeBox, corners: &[Corner; 8]) -> BoxScale {
         let lo = self.rel(v, a, d, self.z_range.0);
         let hi = self.rel(v, b, c, self.z_range.1);
         v.scale.box_of(corners, DVec3::ZERO.clamp(lo, hi).length())

@@ -3,8 +3,9 @@
 //! takes up where it stopped (a still camera converges to the refinement of one unbounded frame). When
 //! they change, the last frame's quadtrees are the start: a block keeps its cells while it stays clamped
 //! with the same rectangle and hole, a cell that left the view becomes a ghost, a ghost that came into
-//! view is covered first, stale bounds are rescaled by their block's change of scale until asked again,
-//! and blocks are let go, least needed first, until what is kept fits this frame's budgets.
+//! view is covered first, a stale cell counts as meeting epsilon only where its object-space caps
+//! projected in the new view prove it (else it is asked again, or its proven bound reported), and blocks
+//! are let go, least needed first, until what is kept fits this frame's budgets.
 
 use super::{Cand, Ghost, GhostKind, Inputs, Quadtree, NONE};
 use super::{BlockKey, Cell};
@@ -86,6 +87,7 @@ impl Quadtree {
                     frozen: false,
                     hidden: false,
                     scale: 0.0,
+                    whole: None,
                 };
                 for v in [u64::from(c.block), u64::from(c.key.ring), u64::from(c.clamped)] {
                     h.write_u64(v);
@@ -116,6 +118,7 @@ impl Quadtree {
         if new_frustum {
             self.review(at);
         }
+        self.prove(bounds, eps);
         self.recount(at);
         self.shed(at);
         self.debug_check_cover();
@@ -144,21 +147,23 @@ impl Quadtree {
         self.seen_ghosts = self.ghosts.iter().any(|g| g.visible);
     }
 
-    /// Each clamped block's scale in the view of `bounds` ([`Cand::scale`]).
+    /// Each clamped block's scale in the view of `bounds` ([`Cand::scale`], [`Cand::whole`]).
     fn rescale(&mut self, at: &Inputs<'_, '_>, bounds: &PoolBounds<'_>) {
         for k in 0..self.cands.len() {
             let bl = &at.lod.blocks[usize::from(self.cands[k].block)];
-            self.cands[k].scale = bounds.scale(super::level0_box(bl.ring, &bl.rect));
+            let s = bounds.box_scale(super::level0_box(bl.ring, &bl.rect));
+            (self.cands[k].scale, self.cands[k].whole) = (s.per_metre(), Some(s));
         }
     }
 
     /// After a lagging frame's refinement ([`super::Lag`]): moves to this frame's view (`own`). Every bound
-    /// asked so far is now stale, rescaled by its block's change of scale, as after any move.
+    /// asked so far is now stale: what its caps prove in this view holds ([`Quadtree::prove`]).
     pub(super) fn catch_up(&mut self, at: &Inputs<'_, '_>, own: &PoolBounds<'_>) {
         self.view = self.view.wrapping_add(1).max(1);
         self.view_key = own.key;
         self.memo.next();
         self.rescale(at, own);
+        self.prove(own, at.view.epsilon_px);
     }
 
     /// Matches this frame's blocks (`self.next`) with the last frame's by [`BlockKey`]: a match keeps

@@ -6,9 +6,10 @@
 use super::mask;
 use super::memo::Asker;
 use super::ranks;
+use super::upkeep::Ask;
 use super::split::{resolve_ghost, split_block, split_cell, Outcome, Shape};
 use super::{
-    double, level0_box, Cell, GhostKind, Inputs, Quadtree, Scratch, Unit, MAX_CELL_GROUPS,
+    double, level0_box, object_error, quarters, Cell, GhostKind, Inputs, Quadtree, Scratch, Unit, MAX_CELL_GROUPS,
     MAX_DETAIL_CELLS, MAX_GHOSTS, MIN_SUB_QUADS,
 };
 use crate::plan::detail::{cell_quads, DetailBudget, PoolBounds};
@@ -49,7 +50,8 @@ impl Quadtree {
             };
             if let Unit::Cell(j) = unit {
                 if self.cells[j].view != self.view {
-                    if !self.refresh_cell(j, at, bounds, self.lazy()) {
+                    let ask = if self.lazy() { Ask::Whole } else { Ask::Units };
+                    if !self.refresh_cell(j, at, bounds, ask) {
                         self.mid_split = true;
                         self.pending = Some(self.region(unit));
                         return Ok(());
@@ -173,6 +175,12 @@ impl Quadtree {
                 self.pending = Some(self.region(unit));
                 return Ok(());
             }
+            // What proves them in later views ([`Quadtree::prove`]): a table read a quarter, no projection.
+            for c in &mut self.new.cells {
+                for (cap, bx) in c.cap.iter_mut().zip(quarters(c.key.level, &c.bounds)) {
+                    *cap = object_error(bounds, c.key.level, bx);
+                }
+            }
             let first = self.cells.len() - usize::from(matches!(unit, Unit::Cell(_)));
             self.commit(unit, cost);
             // The ranks follow the cells: the split cell's place taken by the last, the new ones after.
@@ -265,14 +273,16 @@ impl Quadtree {
         pick.map(|(_, u)| u)
     }
 
-    /// A cell's rank in [`Quadtree::pick`]: its bound now where it may be split and misses epsilon, else
-    /// minus infinity.
+    /// A cell's rank in [`Quadtree::pick`]: its bound now (rescaled where stale) where it may be split
+    /// and misses epsilon (stale: its caps do not prove its own level meets it, [`Quadtree::prove`]),
+    /// else minus infinity. A stale cell whose rescaled bound meets epsilon but is not proven is asked
+    /// again after the splits (`upkeep.rs`), with its units where they are not proven either.
     pub(super) fn rank(&self, c: &Cell, eps: f64) -> f64 {
-        if c.frozen || c.hidden || c.key.level <= c.wanted {
+        if c.frozen || c.hidden || c.key.level <= c.wanted || (c.view != self.view && c.proof.0 <= eps) {
             return f64::NEG_INFINITY;
         }
         let b = self.now(c, c.bound);
-        if b > self.limit(c, eps) {
+        if b > eps {
             b
         } else {
             f64::NEG_INFINITY
@@ -374,12 +384,10 @@ impl Quadtree {
         };
         let eps = at.view.epsilon_px;
         for c in &mut new.cells {
-            let Some((mask, worst, unseen)) =
-                mask::coarse_units(at.view, &mut ask, c.key.level, &c.bounds, (eps, false))
-            else {
+            let Some(units) = mask::coarse_units(at.view, &mut ask, c.key.level, &c.bounds, (eps, false)) else {
                 return Ok(Outcome::Budget);
             };
-            (c.coarse, c.coarse_bound, c.unseen, c.masked) = (mask, worst, unseen, true);
+            *c = c.with_units(&units);
         }
         Ok(out)
     }

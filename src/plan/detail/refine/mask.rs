@@ -18,12 +18,26 @@ use crate::plan::frame::Rect;
 /// the roundings of the two computations (relative 1e-15).
 const GROUP_MARGIN: f64 = 1.0 - 1.0e-9;
 
+/// What [`coarse_units`] finds of a cell's units.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Units {
+    /// The units drawn one level coarser.
+    pub(super) coarse: stitch::Mask,
+    /// The largest coarser bound read of the ones that meet epsilon (0 if none).
+    pub(super) worst: f64,
+    /// The coarse units marked because they were out of view, whose bound was not read (a later view in
+    /// which they may be visible draws them fine, `carry.rs`).
+    pub(super) unseen: stitch::Mask,
+    /// Per quarter of the cell (`super::quarters`): the largest object-space error (metres) of the coarse
+    /// units in view there one level coarser (a unit's own, or its group's: `super::object_error`),
+    /// view-independent, so that its product with the quarter's scale in a later view bounds them there
+    /// (`Quadtree::prove`).
+    pub(super) cap: [f64; 4],
+}
+
 /// The units of a cell over `r` (vertices of `level`) drawn as one quad of the next coarser level: those
 /// whose coarser bound meets epsilon (or out of view) and whose neighbours' at their sides does too
-/// ([`stitch::erode`]), with the largest coarser bound read of the ones that meet it (0 if none: what a
-/// later view rescales to see whether the mask still holds) and the coarse units marked because they were
-/// out of view, whose bound was not read (a later view in which they may be visible draws them fine,
-/// `carry.rs`). A cell whose corners are not on the coarser
+/// ([`stitch::erode`]), with what [`Units`] says of them. A cell whose corners are not on the coarser
 /// lattice has none. `rough` (a moving view): groups are tested with the max pyramid's cap only and down
 /// to 2 x 2 units, never unit by unit (a unit that would meet epsilon alone in a group that misses stays
 /// fine: more triangles, never more error; a still view asks the units again one by one). None: the
@@ -34,16 +48,21 @@ pub(super) fn coarse_units(
     level: u32,
     r: &Rect,
     (eps, rough): (f64, bool),
-) -> Option<(stitch::Mask, f64, stitch::Mask)> {
+) -> Option<Units> {
     let mut meets: stitch::Mask = [0; stitch::MAX_UNITS as usize];
     let even = r.x0 % 2 == 0 && r.y0 % 2 == 0 && r.w % 2 == 1 && r.h % 2 == 1;
     if !even {
-        return Some((meets, 0.0, meets));
+        return Some(Units {
+            coarse: meets,
+            worst: 0.0,
+            unseen: meets,
+            cap: [0.0; 4],
+        });
     }
     let (ua, ub) = stitch::units(r);
     let units = (ua.min(stitch::MAX_UNITS), ub.min(stitch::MAX_UNITS));
     let side = units.0.max(units.1).next_power_of_two();
-    let mut worst = 0.0f64;
+    let (mut worst, mut cap) = (0.0f64, [0.0f64; 4]);
     let mut unseen: stitch::Mask = [0; stitch::MAX_UNITS as usize];
     ask.grid.begin();
     // The cell's tile, and the cell's first unit in it.
@@ -58,10 +77,12 @@ pub(super) fn coarse_units(
         r,
         eps,
         units,
+        halves: (ua / 2, ub / 2),
         tile: (tile, first),
         rough,
         meets: &mut meets,
         worst: &mut worst,
+        cap: &mut cap,
         unseen: &mut unseen,
     };
     g.test(ask, 0, 0, side)?;
@@ -69,7 +90,12 @@ pub(super) fn coarse_units(
     for (u, c) in unseen.iter_mut().zip(&coarse) {
         *u &= c;
     }
-    Some((coarse, worst, unseen))
+    Some(Units {
+        coarse,
+        worst,
+        unseen,
+        cap,
+    })
 }
 
 /// One cell's group tests.
@@ -85,6 +111,10 @@ struct Groups<'a, 'v> {
     rough: bool,
     meets: &'a mut stitch::Mask,
     worst: &'a mut f64,
+    /// The cell's halves in units (`super::quarters`: 0, not cut).
+    halves: (u32, u32),
+    /// The largest object-space error the marked units' bounds projected, per quarter ([`Units::cap`]).
+    cap: &'a mut [f64; 4],
     /// The units marked out of view ([`coarse_units`]).
     unseen: &'a mut stitch::Mask,
 }
@@ -160,8 +190,9 @@ impl Groups<'_, '_> {
             let at = (slot, (fa + a0 as usize, fb + b0 as usize));
             let v = ask.unit(self.level + 1, bx, &corners, at)?;
             if v <= self.eps {
-                *self.worst = self.worst.max(v);
-                self.mark(a0, b0, a1, b1);
+                // Its error, read by `unit` and kept: no evaluation.
+                let e = ask.unit_eta(self.level + 1, bx, at)?;
+                self.marked(v, e, (a0, b0, a1, b1));
             }
             return Some(());
         }
@@ -169,8 +200,9 @@ impl Groups<'_, '_> {
         // First the error capped by the max pyramid (no unit read), then by the units' own errors.
         let v = ask.group(self.level + 1, bx, &corners)?;
         if v <= self.eps * GROUP_MARGIN {
-            *self.worst = self.worst.max(v);
-            self.mark(a0, b0, a1, b1);
+            // An error that bounds its units' (a table read, no projection): at most the one it projected.
+            let e = super::object_error(ask.bounds, self.level + 1, bx);
+            self.marked(v, e, (a0, b0, a1, b1));
             return Some(());
         }
         if self.rough {
@@ -181,8 +213,7 @@ impl Groups<'_, '_> {
             let cap = self.cap(ask, (a0, b0), (a1, b1))?;
             let v = ask.capped(self.level + 1, bx, &corners, cap)?;
             if v <= self.eps * GROUP_MARGIN {
-                *self.worst = self.worst.max(v);
-                self.mark(a0, b0, a1, b1);
+                self.marked(v, cap, (a0, b0, a1, b1));
                 return Some(());
             }
         }
@@ -191,6 +222,19 @@ impl Groups<'_, '_> {
             self.test(ask, a0 + da, b0 + db, h)?;
         }
         Some(())
+    }
+
+    /// Marks units [a0, a1) x [b0, b1), in view, as drawn one level coarser: their bound `v` projected
+    /// the error `eta`.
+    fn marked(&mut self, v: f64, eta: f64, (a0, b0, a1, b1): (u32, u32, u32, u32)) {
+        *self.worst = self.worst.max(v);
+        let (x, y) = (halves(a0, a1, self.halves.0), halves(b0, b1, self.halves.1));
+        for (i, cap) in self.cap.iter_mut().enumerate() {
+            if x[i & 1] && y[i >> 1] {
+                *cap = cap.max(eta);
+            }
+        }
+        self.mark(a0, b0, a1, b1);
     }
 
     /// Marks units [a0, a1) x [b0, b1) as drawn one level coarser.
@@ -208,5 +252,44 @@ fn mark(m: &mut stitch::Mask, a0: u32, b0: u32, a1: u32, b1: u32) {
     };
     for row in &mut m[b0 as usize..b1 as usize] {
         *row |= bits;
+    }
+}
+
+/// Which halves of a cell's side (`super::quarters`, cut after `h` units; 0: not cut, both halves are the
+/// whole side) hold units [a0, a1): each unit lies wholly in one of those flagged.
+fn halves(a0: u32, a1: u32, h: u32) -> [bool; 2] {
+    [h == 0 || a0 < h, h == 0 || a1 > h]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{halves, stitch};
+    use super::super::quarters;
+    use crate::plan::frame::Rect;
+
+    /// Every unit of a cell lies in a quarter whose coarse cap it is counted in, and the quarters cover
+    /// the cell: what makes a cell's proven bound a bound (`Quadtree::prove`).
+    #[test]
+    fn a_cells_units_lie_in_the_quarters_they_are_counted_in() {
+        for level in [0, 3] {
+            for x0 in [-6i64, 0, 2, 34] {
+                for w in 2..=35u32 {
+                    let r = Rect { x0, y0: 0, w, h: w };
+                    let q = quarters(level, &r);
+                    let (ua, _) = stitch::units(&r);
+                    let (xl, yl) = ((r.x1() - 1) << level, (r.y1() - 1) << level);
+                    assert_eq!((q[0].0, q[1].2, q[0].1, q[2].3), (x0 << level, xl, 0, yl), "{w}");
+                    assert!(q[0].2 >= q[1].0 && q[0].3 >= q[2].1, "{w}: the halves leave a gap");
+                    for a in 0..ua {
+                        let (lo, hi) = ((x0 + 2 * i64::from(a)) << level, (x0 + 2 * i64::from(a) + 2) << level);
+                        let ok = halves(a, a + 1, ua / 2)
+                            .into_iter()
+                            .zip([q[0], q[1]])
+                            .any(|(f, b)| f && b.0 <= lo && hi <= b.2);
+                        assert!(ok, "width {w}, unit {a}: in no half it is counted in");
+                    }
+                }
+            }
+        }
     }
 }

@@ -9,8 +9,9 @@ use crate::plan::detail::keymap::KeyMap;
 use crate::plan::detail::{
     stitch, DetailBudget, DetailView, PoolBounds, TileKey, DETAIL_CAPACITY,
 };
+use crate::plan::camera::{BoxScale, Corner};
 use crate::plan::frame::Rect;
-use crate::plan::lod::{BoundView, LatticeBox, LodFrame, KEEP_BAND, MAX_LOD_BLOCKS};
+use crate::plan::lod::{BoundView, LatticeBox, LodFrame, LodMode, KEEP_BAND, MAX_LOD_BLOCKS};
 use crate::Result;
 
 mod carry;
@@ -39,15 +40,6 @@ const MAX_CELL_GROUPS: usize = 256;
 /// The smallest piece a split cuts a cell into, in quads of the finer level: a part of a cell goes one
 /// level finer only where the coarser level misses epsilon over a piece this small.
 const MIN_SUB_QUADS: u32 = 8;
-
-/// While the camera moves, a stale cell is asked again only when its rescaled bound (or its coarse
-/// units') is past this share of epsilon: the others cannot have passed it yet, to first order.
-const AT_RISK: f64 = 0.9;
-
-/// How far past epsilon a stale bound, rescaled, may be while the camera moves before it counts as missing
-/// it (`Quadtree::limit`): an estimate's margin, not the bound's; a still camera asks every stale bound
-/// again and holds it to epsilon.
-const MOTION_SLACK: f64 = 1.0 / 32.0;
 
 /// No block (an unused entry of the quadtree's block maps).
 const NONE: u16 = u16::MAX;
@@ -85,6 +77,8 @@ pub(super) struct Cand {
     hidden: bool,
     /// Its box's scale in this frame's view, pixels per metre: what its cells' bounds are rescaled by.
     scale: f64,
+    /// The same box's scale whole: what proves its cells' bounds first ([`Quadtree::prove`]).
+    whole: Option<BoxScale>,
 }
 
 /// One square a refined block is drawn with: part of a tile's cell, clipped to the block's piece.
@@ -121,8 +115,17 @@ pub(super) struct Cell {
     view: u32,
     /// Its block's scale then ([`Cand::scale`]).
     scale: f64,
-    /// Drawn within epsilon (or at its block's wanted level) in this frame's view: fresh, or its
-    /// bounds rescaled by its block's change of scale since they were asked.
+    /// Per quarter of it ([`quarters`]): its level's object-space error there ([`object_error`]), metres:
+    /// at least every data sample's, in any view.
+    cap: [f64; 4],
+    /// Per quarter: the largest object-space error its coarse units in view there were drawn on
+    /// ([`mask::Units::cap`]).
+    coarse_cap: [f64; 4],
+    /// Where its bounds are stale: this view's bounds of its own level and of its coarse units, from
+    /// `cap` and `coarse_cap` ([`Quadtree::prove`]; 0 where they do not count).
+    proof: (f64, f64),
+    /// Drawn within epsilon (or at its block's wanted level) in this frame's view: by its bounds where
+    /// they are fresh, else by its proven ones (`proof`).
     pub(super) met: bool,
 }
 
@@ -180,6 +183,45 @@ impl Cell {
     /// wanted level or is frozen): drawn whole until they are.
     pub(super) fn waits_for_units(&self, eps: f64) -> bool {
         !self.masked && (self.bound <= eps || self.key.level <= self.wanted || self.frozen)
+    }
+
+    /// The same cell with its units `u` asked ([`mask::coarse_units`]).
+    fn with_units(self, u: &mask::Units) -> Self {
+        Self {
+            coarse: u.coarse,
+            coarse_bound: u.worst,
+            unseen: u.unseen,
+            coarse_cap: u.cap,
+            masked: true,
+            ..self
+        }
+    }
+
+    /// Its bounds of its own level (0 at its block's wanted level: no cell goes finer) and of its coarse
+    /// units over its quarters `q` (a set of them, bits 0..4) from their object-space caps and a scale `s`
+    /// of a box holding them: bounds in `s`'s view.
+    fn proven(&self, s: &BoxScale, q: usize) -> (f64, f64) {
+        let px = |e: f64| {
+            if e == 0.0 {
+                0.0
+            } else if e.is_finite() {
+                s.px(e)
+            } else {
+                f64::INFINITY
+            }
+        };
+        let most = |caps: &[f64; 4]| (0..4).filter(|i| q >> i & 1 == 1).fold(0.0f64, |m, i| m.max(caps[i]));
+        let own = if self.key.level > self.wanted {
+            px(most(&self.cap))
+        } else {
+            0.0
+        };
+        let coarse = if stitch::any(&self.coarse) {
+            px(most(&self.coarse_cap))
+        } else {
+            0.0
+        };
+        (own, coarse)
     }
 
     /// Triangles it draws: stitched when some unit is coarse, else whole.
@@ -331,6 +373,71 @@ pub(super) fn level0_box(level: u32, r: &Rect) -> LatticeBox {
         (r.x1() - 1) << level,
         (r.y1() - 1) << level,
     )
+}
+
+/// A cell's quarters, whose caps it keeps ([`Cell::cap`]): its vertices `r` (of `level`) cut in halves
+/// on each axis at the even vertex that leaves every stitched unit (2 x 2 quads from the corner) wholly
+/// in one half, as level-0 lattice boxes, x half first then y half ((0, 0), (1, 0), (0, 1), (1, 1)). A
+/// side of fewer than two units is not cut: both its halves are the whole side.
+pub(super) fn quarters(level: u32, r: &Rect) -> [LatticeBox; 4] {
+    let (ua, ub) = stitch::units(r);
+    let halves = |lo: i64, hi: i64, units: u32| {
+        let mid = lo + 2 * i64::from(units / 2);
+        if units < 2 {
+            [(lo, hi), (lo, hi)]
+        } else {
+            [(lo, mid), (mid, hi)]
+        }
+    };
+    let (xs, ys) = (halves(r.x0, r.x1() - 1, ua), halves(r.y0, r.y1() - 1, ub));
+    let mut out = [(0, 0, 0, 0); 4];
+    for (i, o) in out.iter_mut().enumerate() {
+        let ((x0, x1), (y0, y1)) = (xs[i & 1], ys[i >> 1]);
+        *o = (x0 << level, y0 << level, x1 << level, y1 << level);
+    }
+    out
+}
+
+/// The scales of cell `c`'s quarters ([`quarters`]) in the view of `bounds`, each
+/// [`crate::plan::lod::Lod::box_scale`] bit for bit, from the 3 x 3 lattice points they share, each
+/// projected once (18 corners instead of 32).
+fn quarter_scales(bounds: &PoolBounds<'_>, c: &Cell) -> [BoxScale; 4] {
+    let (lod, v) = (bounds.lod, &bounds.view);
+    let boxes = quarters(c.key.level, &c.bounds);
+    let mut seen = [((i64::MIN, i64::MIN), [Corner::default(); 2]); 9];
+    let mut n = 0;
+    core::array::from_fn(|q| {
+        let (a, y0, b, y1) = boxes[q];
+        let mut k = [Corner::default(); 8];
+        for (i, p) in [(a, y0), (b, y0), (a, y1), (b, y1)].into_iter().enumerate() {
+            let at = match seen[..n].iter().find(|s| s.0 == p) {
+                Some(s) => s.1,
+                None => {
+                    let at = [lod.corner(v, p.0, p.1, false), lod.corner(v, p.0, p.1, true)];
+                    // At most 3 x 3 points: the halves share their cut.
+                    seen[n.min(8)] = (p, at);
+                    n = (n + 1).min(9);
+                    at
+                }
+            };
+            (k[i], k[i + 4]) = (at[0], at[1]);
+        }
+        lod.scale_of_corners(v, (a, y0, b, y1), &k)
+    })
+}
+
+/// An object-space error (metres) of `level` over `bx` that bounds every data sample's there, in any
+/// view: what a cell keeps per quarter to prove its bound in later views ([`Cell::cap`]). The
+/// conservative and exact modes' own error over the box is such a bound (a p-sum of the samples' errors
+/// is at least their largest); the estimate of `Sat` is not, and takes the max pyramid's cap, at least
+/// every estimate inside the box ([`crate::plan::lod::Lod::eta_cap`]). Infinite where no table holds
+/// the level.
+pub(super) fn object_error(bounds: &PoolBounds<'_>, level: u32, bx: LatticeBox) -> f64 {
+    let e = match bounds.mode {
+        LodMode::SatConservative | LodMode::Exact => bounds.lod.eta_of(bounds.mode, level, bx),
+        LodMode::Sat | LodMode::Distance => bounds.lod.eta_cap(bounds.mode, level, bx),
+    };
+    e.unwrap_or(f64::INFINITY)
 }
 
 /// The same vertices one level finer.
@@ -511,8 +618,9 @@ impl Quadtree {
     }
 
     /// A cell's bound in this frame's view: its own when fresh, else rescaled by its block's change of
-    /// scale since it was asked (an estimate: the ranking and the met flag use it until it is asked
-    /// again).
+    /// scale since it was asked. An estimate, not a bound (the sub-box that decides a cell's bound can
+    /// change scale faster than its block): it ranks stale cells, and never says one meets epsilon
+    /// ([`Quadtree::prove`] does).
     fn now(&self, c: &Cell, value: f64) -> f64 {
         if c.view == self.view {
             return value;
@@ -526,38 +634,60 @@ impl Quadtree {
         }
     }
 
-    /// What cell `c`'s bounds are held to now: epsilon where they are fresh; where they are rescaled
-    /// estimates, epsilon and [`MOTION_SLACK`] (a bound just under epsilon would otherwise pass it with
-    /// every step of a camera moving closer and be asked again every frame).
-    fn limit(&self, c: &Cell, eps: f64) -> f64 {
-        if c.view == self.view {
-            eps
-        } else {
-            eps * (1.0 + MOTION_SLACK)
+    /// Proves the stale cells' bounds in this view (`bounds`'s), each [`Cell::proof`]: its quarters'
+    /// errors projected with its block's box scale (kept for the frame, one product a cell) or, where that
+    /// misses epsilon, each with its quarter's own box scale (four box scales). Each quarter's error bounds
+    /// every data sample's there ([`object_error`]) and a box inside another has a smaller scale, so both
+    /// are bounds of what the cell draws in this view. What this does not prove is asked again
+    /// (`upkeep.rs`) or reported (`unmet_px`).
+    pub(super) fn prove(&mut self, bounds: &PoolBounds<'_>, eps: f64) {
+        for j in 0..self.cells.len() {
+            if self.cells[j].view != self.view {
+                let p = self.proof_of(&self.cells[j], bounds, eps);
+                self.cells[j].proof = p;
+            }
         }
     }
 
+    /// [`Quadtree::prove`] of cell `c`.
+    pub(super) fn proof_of(&self, c: &Cell, bounds: &PoolBounds<'_>, eps: f64) -> (f64, f64) {
+        let k = self.cand_of[usize::from(c.block)];
+        let whole = self.cands.get(usize::from(k)).and_then(|d| d.whole);
+        let p = whole.map_or((f64::INFINITY, f64::INFINITY), |s| c.proven(&s, 0b1111));
+        if p.0.max(p.1) <= eps {
+            return p;
+        }
+        let mut q = (0.0f64, 0.0f64);
+        for (i, s) in quarter_scales(bounds, c).iter().enumerate() {
+            let r = c.proven(s, 1 << i);
+            q = (q.0.max(r.0), q.1.max(r.1));
+        }
+        (p.0.min(q.0), p.1.min(q.1))
+    }
+
     /// Whether cell `c` is drawn within epsilon now: its bound (or its block's wanted level) and its coarse
-    /// units', rescaled where stale ([`Quadtree::limit`]).
+    /// units' where they are fresh, else its proven ones ([`Quadtree::prove`]).
     fn meets(&self, c: &Cell, eps: f64) -> bool {
-        let limit = self.limit(c, eps);
-        (self.now(c, c.bound) <= limit || c.key.level <= c.wanted)
-            && self.now(c, c.coarse_bound) <= limit
+        if c.view == self.view {
+            (c.bound <= eps || c.key.level <= c.wanted) && c.coarse_bound <= eps
+        } else {
+            c.proof.0 <= eps && c.proof.1 <= eps
+        }
     }
 
     /// What cell `c` misses epsilon by in this frame's view: 0 when it is drawn within epsilon (its met
-    /// flag), else the largest of its bound and its coarse units' bound, rescaled where stale (the bound
-    /// of its wanted level does not count: no cell goes finer). Infinite where no bound is held.
+    /// flag), else the largest of its bound and its coarse units' bound, proven ones where stale (the
+    /// bound of its wanted level does not count: no cell goes finer). Infinite where no bound is held.
     pub(super) fn unmet_px(&self, c: &Cell) -> f64 {
         if c.met {
             return 0.0;
         }
-        let own = if c.key.level > c.wanted {
-            self.now(c, c.bound)
+        let b = if c.view == self.view {
+            let own = if c.key.level > c.wanted { c.bound } else { 0.0 };
+            own.max(c.coarse_bound)
         } else {
-            0.0
+            c.proof.0.max(c.proof.1)
         };
-        let b = own.max(self.now(c, c.coarse_bound));
         if b > 0.0 {
             b
         } else {

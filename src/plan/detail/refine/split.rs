@@ -58,6 +58,9 @@ pub(super) fn cell_at(at: &Piece, level: u32, r: Rect, bound: f64) -> Cell {
         masked: !at.shape.stitch,
         view: 0,
         scale: 0.0,
+        cap: [f64::INFINITY; 4],
+        coarse_cap: [0.0; 4],
+        proof: (f64::INFINITY, f64::INFINITY),
         met: false,
     }
 }
