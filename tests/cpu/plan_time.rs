@@ -256,7 +256,13 @@ fn the_reported_unmet_bound_holds_over_the_measured_error() {
 /// frames, resident, in under a second.
 #[test]
 fn the_reported_bound_holds_where_units_drawn_coarse_out_of_view_come_into_it() {
-    let name = "lidar_pkg_dem_1m_400x400.tif";
+    bound_holds_on_figure8("lidar_pkg_dem_1m_400x400.tif", 2.0, 86..94);
+}
+
+/// Flies the shared terrain `name`'s figure-8 (resident, gles3-mid, 1920 x 1080, 50 m a frame) at
+/// `eps` px up to the last of `frames`, and checks on each of `frames` that the measured whole-frame error
+/// is within the plan's reported bound, max(epsilon, unmet_px).
+fn bound_holds_on_figure8(name: &str, eps: f32, frames: std::ops::Range<u64>) {
     let Some(path) = crate::shared_file(name) else {
         return;
     };
@@ -270,18 +276,17 @@ fn the_reported_bound_holds_where_units_drawn_coarse_out_of_view_come_into_it() 
         .expect("flight")
         .with_fov_y_deg(f64::from(p.view.fov_y_deg));
     let view = (1920, 1080);
-    let eps = 2.0;
     let params = PlanParams {
         epsilon_px: Some(eps),
         viewport: Some(view),
         ..PlanParams::default()
     };
-    for f in 0..94 {
+    for f in 0..frames.end {
         let cam = flight.camera(f);
         cm.update(cam.eye).expect("update");
         planner.plan(&cm, &cam, &params, &mut plan).expect("plan");
         cm.request_samples(&plan.detail().wanted);
-        if f < 86 {
+        if !frames.contains(&f) {
             continue;
         }
         let s = plan.stats();
@@ -290,7 +295,8 @@ fn the_reported_bound_holds_where_units_drawn_coarse_out_of_view_come_into_it() 
         let bound = f64::from(s.unmet_px).max(f64::from(eps));
         assert!(
             measured <= bound,
-            "frame {f}: measured {measured} px past the plan's bound {bound} px ({} blocks clamped)",
+            "{name}, frame {f}: measured {measured} px past the plan's bound {bound} px ({} blocks \
+             clamped)",
             s.blocks_clamped
         );
     }
@@ -305,44 +311,7 @@ fn the_reported_bound_holds_where_units_drawn_coarse_out_of_view_come_into_it() 
 /// its proven bound is reported. The flight's first 383 frames, resident, measured from frame 370.
 #[test]
 fn a_carried_cell_meets_epsilon_only_where_a_bound_proves_it() {
-    let name = "n07_w006_3arc_v2.tif";
-    let Some(path) = crate::shared_file(name) else {
-        return;
-    };
-    let hm = clipsat::source::load(&path, &clipsat::source::LoadOptions::default())
-        .unwrap_or_else(|e| panic!("{name}: {e}"));
-    let p = Profile::load("gles3-mid").expect("profile");
-    let mut cm = Clipmap::new(&hm, &p, ClipmapOptions::default()).expect("clipmap");
-    let mut planner = planner(&hm, &p, &cm);
-    let mut plan = planner.new_plan();
-    let flight = Flight::new(Path::Figure8, 50.0, &hm)
-        .expect("flight")
-        .with_fov_y_deg(f64::from(p.view.fov_y_deg));
-    let view = (1920, 1080);
-    let eps = 1.0;
-    let params = PlanParams {
-        epsilon_px: Some(eps),
-        viewport: Some(view),
-        ..PlanParams::default()
-    };
-    for f in 0..383 {
-        let cam = flight.camera(f);
-        cm.update(cam.eye).expect("update");
-        planner.plan(&cm, &cam, &params, &mut plan).expect("plan");
-        cm.request_samples(&plan.detail().wanted);
-        if f < 370 {
-            continue;
-        }
-        let s = plan.stats();
-        let lod = planner.lod().expect("SAT LOD");
-        let measured = screen_error(&plan, view, &cm, &cam, lod).max_px;
-        let bound = f64::from(s.unmet_px).max(f64::from(eps));
-        assert!(
-            measured <= bound,
-            "frame {f}: measured {measured} px past the plan's bound {bound} px ({} blocks clamped)",
-            s.blocks_clamped
-        );
-    }
+    bound_holds_on_figure8("n07_w006_3arc_v2.tif", 1.0, 370..383);
 }
 
 /// A split that costs more bound evaluations than one frame's budget still ends while the camera moves:
