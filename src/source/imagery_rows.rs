@@ -224,14 +224,28 @@ fn magic(path: &Path) -> Result<[u8; 8]> {
     Ok(magic)
 }
 
-/// Refuses a declared size past the limit, before anything is allocated.
-fn check_limit(path: &Path, width: u32, height: u32, options: &ImageryOptions) -> Result<()> {
+/// Refuses a declared size past the limit, before anything is allocated, saying what a higher limit
+/// would cost: a file read by rows (`streamed`) holds a band of its width, one decoded whole all of it.
+fn check_limit(
+    path: &Path,
+    width: u32,
+    height: u32,
+    options: &ImageryOptions,
+    streamed: bool,
+) -> Result<()> {
     let texels = u64::from(width) * u64::from(height);
     if texels > options.max_texels {
+        let cost = if streamed {
+            "it is read 256 rows at a time, so a higher limit costs memory for its width alone (about \
+             1.5 KB a texel of it)"
+        } else {
+            "it is decoded whole, 3 bytes a texel (a non-interlaced PNG or a TIFF would be read by rows)"
+        };
         return Err(Error::param(
             Param::MaxImageryTexels,
             format!(
-                "{}: declared size {width} x {height} = {texels} texels is over the limit of {} texels",
+                "{}: declared size {width} x {height} = {texels} texels is over the limit of {} \
+                 texels; {cost}",
                 path.display(),
                 options.max_texels
             ),
@@ -250,7 +264,7 @@ fn open_png(path: &Path, options: &ImageryOptions) -> Result<Option<(u32, u32, R
     })?;
     let info = reader.info();
     let (width, height) = (info.width, info.height);
-    check_limit(path, width, height, options)?;
+    check_limit(path, width, height, options, !info.interlaced)?;
     if info.interlaced {
         return Ok(None);
     }
@@ -282,7 +296,7 @@ fn decode_whole(
     let (width, height) = open()?
         .into_dimensions()
         .map_err(|e| Error::format(path, format!("cannot read the image header: {}", one_line(&e))))?;
-    check_limit(path, width, height, options)?;
+    check_limit(path, width, height, options, false)?;
     let mut reader = open()?;
     let mut limits = image::Limits::default();
     limits.max_image_width = Some(width);
@@ -349,7 +363,7 @@ fn open_tiff(path: &Path, options: &ImageryOptions) -> Result<(u32, u32, Reader)
     let file = std::fs::File::open(path).map_err(|e| Error::io(path, "cannot read", e))?;
     let mut dec = tiff::decoder::Decoder::new(BufReader::new(file)).map_err(|e| bad(&e))?;
     let (width, height) = dec.dimensions().map_err(|e| bad(&e))?;
-    check_limit(path, width, height, options)?;
+    check_limit(path, width, height, options, true)?;
     let channels = match dec.colortype().map_err(|e| bad(&e))? {
         ColorType::Gray(8 | 16) => 1,
         ColorType::RGB(8 | 16) => 3,
