@@ -322,8 +322,8 @@ impl ImageryPackage {
         })
     }
 
-    /// A package from bytes in memory (`imagery_bake::bake_imagery`'s), checked as [`ImageryPackage::open`] checks a
-    /// file; `path` names it in errors.
+    /// A package from bytes in memory (`imagery_bake::bake_imagery`'s), checked as
+    /// [`ImageryPackage::open`] checks a file; `path` names it in errors.
     pub fn from_bytes(path: &Path, bytes: Vec<u8>) -> Result<Self> {
         let header = ImageryHeader::parse(path, &bytes)?;
         Ok(Self {

@@ -2,8 +2,8 @@
 //! [`TILE`] rows at a time ([`ImageryRows`]); each level holds one band, which is coded into a row of
 //! JPEG tiles when full and halved into the next coarser level's band (`bake::imagery::halve_rows`, GC
 //! section 3's box-filtered "additional images"). Memory is about two bands of level 0, `2 x 256 x width
-//! x 3` bytes, whatever the image's height: a 16384-texel-wide image bakes in about 25 MB
-//! (docs/guide.md "Imagery"). The tiles land in the file in the order they are finished (levels
+//! x 3` bytes, whatever the image's height: 25 MB for a 16384-texel-wide image (docs/guide.md
+//! "Imagery"). The tiles land in the file in the order they are finished (levels
 //! interleaved); the header, written last at the file's start, says where each lies.
 
 use std::io::{Seek, SeekFrom, Write};

@@ -18,7 +18,8 @@
 //! - [`query`]: exact queries of level 0's bilinear surface (a held grid, or the package through a query
 //!   cache of its own); [`ray`]: a ray's first hit on it, walked tile by tile, then cell by cell.
 //! - [`imagery`](mod@imagery): the imagery package, the colour pyramid in JPEG tiles beside a terrain
-//!   package; [`imagery_bake`] its bake, out of core; [`imagery_cache`] its tile cache, allocated once, decoding under a texel budget.
+//!   package; [`imagery_bake`] its bake, out of core; [`imagery_cache`] its tile cache, allocated once,
+//!   decoding under a texel budget.
 
 pub mod cache;
 pub mod codec;

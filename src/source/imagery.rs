@@ -1,7 +1,6 @@
-//! Stage 0, the source: imagery to drape on the terrain (PNG and JPEG: 8- or 16-bit grey, grey + alpha,
-//! RGB, RGBA or palette; TIFF and GeoTIFF: 8- or 16-bit grey, RGB or RGBA), read into RGB8 texels placed
-//! over an extent of the terrain's world frame. A GeoTIFF's georeference is not read yet: it is placed as
-//! a plain image is.
+//! Stage 0, the source: imagery to drape on the terrain, as RGB8 texels placed over an extent of the
+//! terrain's world frame (`imagery_rows.rs` reads the files: PNG, JPEG, TIFF and GeoTIFF; a GeoTIFF
+//! over GeoTIFF heights is placed by both georeferences, `georef.rs`).
 //!
 //! Placement is pixel-is-area (docs/guide.md "Imagery"): an image of W x H texels over the extent
 //! (west, south, east, north) has texel (i, j) cover x in [west + i dx, west + (i + 1) dx] and y in
@@ -10,7 +9,6 @@
 //! an extent is given. Alpha is read and dropped: the drape is opaque.
 
 use std::path::{Path, PathBuf};
-
 
 use crate::{Error, Param, Result};
 

@@ -184,26 +184,15 @@ impl ImageryRows {
         Ok(())
     }
 
-    /// Every row left, as RGB8 (what [`Imagery`](super::imagery::Imagery) holds).
-    pub fn read_all(mut self) -> Result<(Vec<u8>, Self)> {
-        let w = self.width as usize * 3;
-        let rows = (self.height - self.next) as usize;
-        let mut texels = match std::mem::replace(&mut self.reader, Reader::Held(Vec::new())) {
-            // Held texels are handed over, not copied.
-            Reader::Held(t) if self.next == 0 => {
-                self.next = self.height;
-                t
-            }
-            other => {
-                self.reader = other;
-                Vec::new()
-            }
-        };
-        if texels.is_empty() {
-            texels = vec![0u8; rows * w];
-            self.read_rows(&mut texels)?;
+    /// Every row left, as RGB8 (what [`Imagery`] holds); texels held from the start are handed over,
+    /// not copied.
+    pub fn read_all(mut self) -> Result<Vec<u8>> {
+        if let (Reader::Held(texels), 0) = (&mut self.reader, self.next) {
+            return Ok(std::mem::take(texels));
         }
-        Ok((texels, self))
+        let mut texels = vec![0u8; (self.height - self.next) as usize * self.width as usize * 3];
+        self.read_rows(&mut texels)?;
+        Ok(texels)
     }
 }
 
@@ -468,7 +457,6 @@ impl TiffRows {
                         match (self.plane, self.channels) {
                             (0, 1) => o.fill(at(s)),
                             (0, _) => o.copy_from_slice(&[at(s), at(s + 1), at(s + 2)]),
-                            (_, 1) => o.fill(at(s)),
                             // Planar: sample p is channel p (alpha, p = 3, is dropped).
                             _ => o[p as usize] = at(s),
                         }
@@ -488,9 +476,7 @@ impl Imagery {
     /// than 2 x 2 texels, a truncated or corrupt file, an extent that shares no area with `grid`.
     pub fn load(path: &Path, grid: &Extent, options: &ImageryOptions) -> Result<Self> {
         let rows = ImageryRows::open(path, grid, options)?;
-        let (width, height) = rows.size();
-        let extent = rows.extent();
-        let (texels, rows) = rows.read_all()?;
-        Imagery::from_rgb(rows.path(), width, height, texels, &extent, Some(extent))
+        let ((width, height), extent) = (rows.size(), rows.extent());
+        Imagery::from_rgb(path, width, height, rows.read_all()?, &extent, Some(extent))
     }
 }
