@@ -209,6 +209,120 @@ fn fit_tile(fit: &mut Fit, u: &[i64], t: &[f64], step: u32, (tw, th): (usize, us
     }
 }
 
+/// One thread's working set for the closed-loop pass: its predictor and scratch, made once per bake, and
+/// the symbols, contexts and reconstruction of its share of a tile row, tile after tile.
+struct Worker {
+    predictor: Predictor,
+    scratch: TileScratch,
+    u: Vec<i64>,
+    tv: Vec<f64>,
+    /// The tile columns of the row it coded last.
+    tiles: std::ops::Range<u32>,
+    syms: Vec<i32>,
+    ctxs: Vec<u8>,
+    rec: Vec<i32>,
+    counts: Counts,
+}
+
+impl Worker {
+    fn new(tile: u32) -> Self {
+        Self {
+            predictor: Predictor::new(tile + 2 * U_BORDER_U32),
+            scratch: TileScratch::new(tile),
+            u: Vec::new(),
+            tv: Vec::new(),
+            tiles: 0..0,
+            syms: Vec::new(),
+            ctxs: Vec::new(),
+            rec: Vec::new(),
+            counts: Counts::default(),
+        }
+    }
+}
+
+/// One tile row of a level in the closed-loop pass: what every tile of it reads.
+struct TileRow<'a> {
+    header: &'a Header,
+    lk: usize,
+    ty: u32,
+    y0: u32,
+    th: usize,
+    /// The row's source rows, the level's width each.
+    band: &'a [f32],
+    coarse: Option<&'a CoarseRows>,
+    quant: Quantiser,
+    model: &'a LevelModel,
+}
+
+impl TileRow<'_> {
+    /// Quantises the row's tiles in closed loop, each worker a run of adjacent tiles (a tile reads only the
+    /// coarser level and its own values, so its symbols do not depend on which worker made them); the
+    /// first error in tile order.
+    fn code(&self, workers: &mut [Worker]) -> Result<()> {
+        let tiles = self.header.levels[self.lk].tiles_x;
+        let count = u32::try_from(workers.len()).unwrap_or(u32::MAX).max(1);
+        let per = tiles.div_ceil(count).max(1);
+        for (i, wk) in (0u32..).zip(workers.iter_mut()) {
+            let a = i.saturating_mul(per).min(tiles);
+            wk.tiles = a..a.saturating_add(per).min(tiles);
+        }
+        if workers.iter().filter(|wk| !wk.tiles.is_empty()).count() <= 1 {
+            return workers.iter_mut().try_for_each(|wk| self.code_run(wk));
+        }
+        std::thread::scope(|s| {
+            let handles: Vec<_> = workers
+                .iter_mut()
+                .map(|wk| s.spawn(move || self.code_run(wk)))
+                .collect();
+            handles
+                .into_iter()
+                .map(|h| h.join().expect("a tile coding thread panicked"))
+                .collect::<Result<Vec<()>>>()
+                .map(drop)
+        })
+    }
+
+    /// The worker's run of tiles, in order.
+    fn code_run(&self, wk: &mut Worker) -> Result<()> {
+        let (lk, ty, thu) = (self.lk, self.ty, self.th);
+        let w = self.header.levels[lk].width as usize;
+        wk.syms.clear();
+        wk.ctxs.clear();
+        wk.rec.clear();
+        for tx in wk.tiles.clone() {
+            let (x0, _, tw, _) = self.header.tile_rect(lk, tx, ty);
+            let tw = tw as usize;
+            u_tile(&mut wk.predictor, self.coarse, (x0, self.y0), (tw, thu), &mut wk.u);
+            wk.tv.clear();
+            for r in 0..thu {
+                let row = &self.band[r * w + x0 as usize..r * w + x0 as usize + tw];
+                wk.tv.extend(row.iter().map(|&h| self.quant.target(lk, h)));
+            }
+            let (at, nn) = (wk.syms.len(), tw * thu);
+            wk.syms.resize(at + nn, 0);
+            wk.ctxs.resize(at + nn, 0);
+            wk.rec.resize(at + nn, 0);
+            codec::quantise(
+                self.model,
+                &wk.u,
+                (tw, thu),
+                &wk.tv,
+                &mut wk.scratch,
+                (&mut wk.syms[at..], &mut wk.ctxs[at..]),
+                &mut wk.rec[at..],
+            )
+            .map_err(|e| {
+                Error::param(
+                    Param::MaxError,
+                    format!("{} m: level {lk} tile ({tx}, {ty}): {e}", self.header.max_error),
+                )
+            })?;
+            codec::count(&mut wk.counts, &wk.syms[at..], &wk.ctxs[at..]);
+        }
+        Ok(())
+    }
+}
+
 /// Codes every level of `spilled` as `header` lays it out, with the residual steps `steps` (finest
 /// first), keeping temporary files beside `near`.
 pub(super) fn code_levels(
@@ -225,11 +339,9 @@ pub(super) fn code_levels(
         "the header's levels follow the spilled pyramid"
     );
     let tile = header.tile;
-    let t = tile as usize;
     let mut predictor = Predictor::new(tile + 2 * U_BORDER_U32);
-    let mut scratch = TileScratch::new(tile);
     let (mut band, mut u, mut tv) = (Vec::new(), Vec::new(), Vec::new());
-    let (mut syms, mut rec, mut ctxs) = (vec![0i32; t * t], vec![0i32; t * t], vec![0u8; t * t]);
+    let mut workers: Vec<Worker> = (0..super::write::threads()).map(|_| Worker::new(tile)).collect();
     let mut coarse = CoarseRows {
         rows: Vec::new(),
         first: 0,
@@ -288,7 +400,7 @@ pub(super) fn code_levels(
             step: steps[lk],
             weights: fit.weights(),
         };
-        // Pass 2: closed loop, symbols and reconstruction.
+        // Pass 2: closed loop, symbols and reconstruction, the tiles of a row shared among the workers.
         let tmp = |what: &str| {
             TempFile::create(near.with_extension(format!("{what}{lk}.tmp{}", crate::temp_suffix())))
         };
@@ -306,45 +418,34 @@ pub(super) fn code_levels(
                 if let (Some(f), Some(cd)) = (recon_prev.as_mut(), cdims) {
                     coarse_rows(f, cd, (y0, th), &mut coarse)?;
                 }
+                let row = TileRow {
+                    header,
+                    lk,
+                    ty,
+                    y0,
+                    th: thu,
+                    band: &band,
+                    coarse: cdims.map(|_| &coarse),
+                    quant,
+                    model: &model,
+                };
+                row.code(&mut workers)?;
+                // The tiles in order, as one thread would have written them.
                 rows_out.resize(thu * w, 0i32);
-                for tx in 0..dims.tiles_x {
-                    let (x0, _, tw, _) = header.tile_rect(lk, tx, ty);
-                    let tw = tw as usize;
-                    u_tile(
-                        &mut predictor,
-                        cdims.map(|_| &coarse),
-                        (x0, y0),
-                        (tw, thu),
-                        &mut u,
-                    );
-                    tv.clear();
-                    for r in 0..thu {
-                        let row = &band[r * w + x0 as usize..r * w + x0 as usize + tw];
-                        tv.extend(row.iter().map(|&h| quant.target(lk, h)));
-                    }
-                    let nn = tw * thu;
-                    codec::quantise(
-                        &model,
-                        &u,
-                        (tw, thu),
-                        &tv,
-                        &mut scratch,
-                        (&mut syms[..nn], &mut ctxs[..nn]),
-                        &mut rec[..nn],
-                    )
-                    .map_err(|e| {
-                        Error::param(
-                            Param::MaxError,
-                            format!("{} m: level {lk} tile ({tx}, {ty}): {e}", header.max_error),
-                        )
-                    })?;
-                    codec::count(&mut coded.counts, &syms[..nn], &ctxs[..nn]);
-                    sw.write_all(bytemuck::cast_slice(&syms[..nn]))
-                        .and_then(|()| sw.write_all(&ctxs[..nn]))
-                        .map_err(io(&sym_file.path))?;
-                    for r in 0..thu {
-                        let at = r * w + x0 as usize;
-                        rows_out[at..at + tw].copy_from_slice(&rec[r * tw..(r + 1) * tw]);
+                for wk in &workers {
+                    let mut at = 0;
+                    for tx in wk.tiles.clone() {
+                        let (x0, _, tw, _) = header.tile_rect(lk, tx, ty);
+                        let (tw, nn) = (tw as usize, tw as usize * thu);
+                        let (syms, ctxs) = (&wk.syms[at..at + nn], &wk.ctxs[at..at + nn]);
+                        sw.write_all(bytemuck::cast_slice(syms))
+                            .and_then(|()| sw.write_all(ctxs))
+                            .map_err(io(&sym_file.path))?;
+                        for r in 0..thu {
+                            let o = r * w + x0 as usize;
+                            rows_out[o..o + tw].copy_from_slice(&wk.rec[at + r * tw..at + (r + 1) * tw]);
+                        }
+                        at += nn;
                     }
                 }
                 rw.write_all(bytemuck::cast_slice(&rows_out))
@@ -368,6 +469,14 @@ pub(super) fn code_levels(
         coded.models[lk] = model;
         files[lk] = Some(sym_file);
         recon_prev = Some(recon_file);
+    }
+    // Integer counts: their sum does not depend on which worker counted a tile.
+    for wk in &workers {
+        for (all, one) in coded.counts.0.iter_mut().zip(&wk.counts.0) {
+            for (a, b) in all.iter_mut().zip(one) {
+                *a += b;
+            }
+        }
     }
     coded.syms = files.into_iter().flatten().collect();
     Ok(coded)
