@@ -351,6 +351,118 @@ impl TileCache {
         Ok(true)
     }
 
+    /// [`TileCache::ensure_rect`] with no budget and one decoder per thread, for the LOD tables' bake: the
+    /// coarser tiles the rectangle's prediction reads first, then its missing tiles decoded in parallel, a
+    /// run of adjacent tiles per decoder (a tile's samples do not depend on which decoder made them, and
+    /// each reads only the coarser level, resident before any starts). `Ok(false)` when the slots cannot
+    /// hold them, as there; damage is the first damaged tile's error in tile order.
+    pub fn ensure_rect_parallel(
+        &mut self,
+        level: usize,
+        rect: (i64, i64, i64, i64),
+        decoders: &mut [TileDecoder],
+    ) -> Result<bool> {
+        let (tx0, tx1, ty0, ty1) = self.tile_span(level, rect);
+        let mut jobs = Vec::new();
+        for ty in ty0..=ty1 {
+            for tx in tx0..=tx1 {
+                let idx = self.index(level, tx, ty);
+                match self.map[idx] {
+                    NONE => jobs.push((idx, tx, ty, NONE, Vec::new())),
+                    s => {
+                        self.slots[s as usize].used = self.frame;
+                        self.stats.hits += 1;
+                    }
+                }
+            }
+        }
+        if jobs.is_empty() {
+            return Ok(true);
+        }
+        let h = self.package.header();
+        if level + 1 < h.levels.len() {
+            let (x0, y0, _, _) = h.tile_rect(level, tx0, ty0);
+            let (x1, y1, w1, h1) = h.tile_rect(level, tx1, ty1);
+            let coarse = super::read::coarse_rect((x0, y0), (x1 + w1 - x0, y1 + h1 - y0));
+            if !self.ensure_rect_parallel(level + 1, coarse, decoders)? {
+                return Ok(false);
+            }
+        }
+        // Each tile's slot, reserved (stamped, holding the tile) but not mapped until it is decoded.
+        for job in &mut jobs {
+            let Some(slot) = self.victim() else {
+                self.release(&mut jobs);
+                self.stats.refused += 1;
+                return Ok(false);
+            };
+            let old = self.slots[slot].tile;
+            if old != NONE {
+                self.map[old as usize] = NONE;
+                self.stats.evictions += 1;
+            }
+            let s = &mut self.slots[slot];
+            s.tile = u32::try_from(job.0).expect("tile indices fit u32 (the map is sized by them)");
+            s.used = self.frame;
+            job.3 = u32::try_from(slot).expect("slot counts fit u32");
+            job.4 = std::mem::take(&mut s.data);
+        }
+        let per = jobs.len().div_ceil(decoders.len().max(1));
+        let result = {
+            let (package, map, slots) = (&self.package, &self.map, &self.slots);
+            let run = |chunk: &mut [(usize, u32, u32, u32, Vec<i32>)], dec: &mut TileDecoder| {
+                chunk.iter_mut().try_for_each(|(_, tx, ty, _, data)| {
+                    let coarse = |a: i64, b: i64| -> i64 {
+                        let k = units_in(package, map, slots, level + 1, a, b)
+                            .expect("the coarser tiles were made resident before decoding");
+                        i64::from(k)
+                    };
+                    package.decode_tile(dec, level, (*tx, *ty), coarse, data)
+                })
+            };
+            if per >= jobs.len() {
+                decoders.first_mut().map_or(Ok(()), |dec| run(&mut jobs, dec))
+            } else {
+                std::thread::scope(|sc| {
+                    let handles: Vec<_> = jobs
+                        .chunks_mut(per)
+                        .zip(decoders.iter_mut())
+                        .map(|(chunk, dec)| sc.spawn(move || run(chunk, dec)))
+                        .collect();
+                    handles
+                        .into_iter()
+                        .map(|h| h.join().expect("a tile decoding thread panicked"))
+                        .collect::<Result<Vec<()>>>()
+                        .map(drop)
+                })
+            }
+        };
+        if let Err(e) = result {
+            self.release(&mut jobs);
+            return Err(e);
+        }
+        for (idx, tx, ty, slot, data) in jobs {
+            let (_, _, tw, th) = self.package.header().tile_rect(level, tx, ty);
+            let cost = u64::from(tw) * u64::from(th);
+            self.slots[slot as usize].data = data;
+            self.map[idx] = slot;
+            self.stats.decoded += 1;
+            self.stats.decoded_samples += cost;
+        }
+        Ok(true)
+    }
+
+    /// Gives reserved slots back empty, with their buffers.
+    fn release(&mut self, jobs: &mut [(usize, u32, u32, u32, Vec<i32>)]) {
+        for (_, _, _, slot, data) in jobs.iter_mut() {
+            if *slot != NONE {
+                let s = &mut self.slots[*slot as usize];
+                s.data = std::mem::take(data);
+                s.tile = NONE;
+                s.used = 0;
+            }
+        }
+    }
+
     /// The least recently used slot not used this frame (empty slots first, lowest index on ties).
     fn victim(&self) -> Option<usize> {
         let mut best: Option<(u64, usize)> = None;

@@ -232,7 +232,7 @@ impl<W: Write + Seek> Coder<'_, W> {
             Ok((coded, sq))
         };
         let tiles: Vec<u32> = (0..level.tiles_x).collect();
-        let per = tiles.len().div_ceil(super::write::threads()).max(1);
+        let per = tiles.len().div_ceil(super::threads()).max(1);
         let coded: Vec<Coded> = std::thread::scope(|s| {
             let handles: Vec<_> = tiles
                 .chunks(per)

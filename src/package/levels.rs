@@ -222,6 +222,17 @@ struct Worker {
     ctxs: Vec<u8>,
     rec: Vec<i32>,
     counts: Counts,
+    /// The reconstruction's errors against the source over its run.
+    errors: RunErrors,
+}
+
+/// A run of tiles' errors against the source: each tile's sum of squares (metres^2), the largest error
+/// (metres), and the lowest and highest reconstructed value (quanta).
+#[derive(Default)]
+struct RunErrors {
+    sq: Vec<f64>,
+    worst: f64,
+    lo_hi: (i32, i32),
 }
 
 impl Worker {
@@ -236,6 +247,7 @@ impl Worker {
             ctxs: Vec::new(),
             rec: Vec::new(),
             counts: Counts::default(),
+            errors: RunErrors::default(),
         }
     }
 }
@@ -289,6 +301,9 @@ impl TileRow<'_> {
         wk.syms.clear();
         wk.ctxs.clear();
         wk.rec.clear();
+        wk.errors.sq.clear();
+        wk.errors.worst = 0.0;
+        wk.errors.lo_hi = (i32::MAX, i32::MIN);
         for tx in wk.tiles.clone() {
             let (x0, _, tw, _) = self.header.tile_rect(lk, tx, ty);
             let tw = tw as usize;
@@ -318,6 +333,20 @@ impl TileRow<'_> {
                 )
             })?;
             codec::count(&mut wk.counts, &wk.syms[at..], &wk.ctxs[at..]);
+            let mut sq = 0.0;
+            for (r, rec) in wk.rec[at..].chunks_exact(tw).enumerate() {
+                let src = &self.band[r * w + x0 as usize..r * w + x0 as usize + tw];
+                for (&k, &h) in rec.iter().zip(src) {
+                    #[expect(clippy::cast_possible_truncation, reason = "heights are f32")]
+                    let dec = (f64::from(k) * self.quant.q) as f32;
+                    let e = f64::from(dec) - f64::from(h);
+                    sq += e * e;
+                    let er = &mut wk.errors;
+                    er.worst = er.worst.max(e.abs());
+                    er.lo_hi = (er.lo_hi.0.min(k), er.lo_hi.1.max(k));
+                }
+            }
+            wk.errors.sq.push(sq);
         }
         Ok(())
     }
@@ -341,7 +370,7 @@ pub(super) fn code_levels(
     let tile = header.tile;
     let mut predictor = Predictor::new(tile + 2 * U_BORDER_U32);
     let (mut band, mut u, mut tv) = (Vec::new(), Vec::new(), Vec::new());
-    let mut workers: Vec<Worker> = (0..super::write::threads()).map(|_| Worker::new(tile)).collect();
+    let mut workers: Vec<Worker> = (0..super::threads()).map(|_| Worker::new(tile)).collect();
     let mut coarse = CoarseRows {
         rows: Vec::new(),
         first: 0,
@@ -450,16 +479,15 @@ pub(super) fn code_levels(
                 }
                 rw.write_all(bytemuck::cast_slice(&rows_out))
                     .map_err(io(&recon_file.path))?;
-                for (&k, &src) in rows_out.iter().zip(&band) {
-                    #[expect(clippy::cast_possible_truncation, reason = "heights are f32")]
-                    let dec = (f64::from(k) * quant.q) as f32;
-                    let e = f64::from(dec) - f64::from(src);
+                for wk in &workers {
+                    let e = &wk.errors;
                     if lk == 0 {
-                        coded.lo_hi = (coded.lo_hi.0.min(k), coded.lo_hi.1.max(k));
-                        coded.sq += e * e;
-                        coded.worst = coded.worst.max(e.abs());
+                        coded.lo_hi = (coded.lo_hi.0.min(e.lo_hi.0), coded.lo_hi.1.max(e.lo_hi.1));
+                        // Tile by tile in tile order, whatever the number of workers.
+                        coded.sq = e.sq.iter().fold(coded.sq, |a, &b| a + b);
+                        coded.worst = coded.worst.max(e.worst);
                     } else {
-                        coded.worst_coarse = coded.worst_coarse.max(e.abs());
+                        coded.worst_coarse = coded.worst_coarse.max(e.worst);
                     }
                 }
             }

@@ -29,6 +29,7 @@ use crate::bake::lod_tables::{bad_error, closed_count, error_from, RangeMax};
 use crate::bake::sat::{pow_unit, Sat};
 use crate::bake::{BakeParams, FORMAT_VERSION, MAGIC};
 use crate::package::lod_tiles::RecordRows;
+use crate::package::read::TileDecoder;
 use crate::package::{CacheSplit, Package, TileCache};
 use crate::progress::{Meter, Progress};
 use crate::{Error, Result};
@@ -430,6 +431,8 @@ fn write_at(file: &File, offset: u64, bytes: &[u8]) -> std::io::Result<()> {
 /// The two sweeps' state over a package: its band cache, the levels and one band of level-0 heights.
 pub(super) struct Sweep<'p> {
     pub(super) cache: TileCache,
+    /// One tile decoder per thread, for the bands' tiles.
+    decoders: Vec<TileDecoder>,
     pub(super) levels: Vec<Level>,
     h0: Vec<f32>,
     pub(super) meter: Meter<'p>,
@@ -458,6 +461,9 @@ impl<'p> Sweep<'p> {
                 "the package changed while its LOD tables were baked",
             ));
         }
+        let decoders = (0..super::threads())
+            .map(|_| reopened.tile_decoder())
+            .collect::<Result<Vec<_>>>()?;
         let per_row: u64 = header.levels.iter().map(|l| u64::from(l.tiles_x)).sum();
         let slots = 4 * per_row + crate::package::cache::MIN_SLOTS * u64::from(last + 1);
         let cache = TileCache::new(
@@ -468,6 +474,7 @@ impl<'p> Sweep<'p> {
         let bands = height.div_ceil(header.tile);
         Ok(Self {
             cache,
+            decoders,
             levels: ks.map(|k| Level::new(k, width, p)).collect(),
             h0: Vec::new(),
             meter: progress.task("baking LOD tables, bands", 2 * u64::from(bands)),
@@ -523,6 +530,7 @@ impl<'p> Sweep<'p> {
         for band in 0..self.bands {
             let (y0, y1) = load_band(
                 &mut self.cache,
+                &mut self.decoders,
                 &mut self.levels,
                 &mut self.h0,
                 band,
@@ -658,6 +666,7 @@ fn band_row(h0: &[f32], width: u32, r: u32) -> &[f32] {
 /// mapped pages; returns the band's data rows.
 fn load_band(
     cache: &mut TileCache,
+    decoders: &mut [TileDecoder],
     levels: &mut [Level],
     h0: &mut Vec<f32>,
     band: u32,
@@ -668,11 +677,10 @@ fn load_band(
     let y0 = band * t;
     let y1 = (y0 + t).min(header.height);
     cache.begin_frame();
-    let mut budget = u64::MAX;
-    let mut all = cache.ensure_rect(
+    let mut all = cache.ensure_rect_parallel(
         0,
         (0, i64::from(y0), i64::from(width), i64::from(y1)),
-        &mut budget,
+        decoders,
     )?;
     for lv in levels.iter() {
         let (level, rect) = if lv.k <= last {
@@ -684,7 +692,7 @@ fn load_band(
             let d = header.levels[last as usize];
             (last, (0, 0, i64::from(d.width), i64::from(d.height)))
         };
-        all &= cache.ensure_rect(level as usize, rect, &mut budget)?;
+        all &= cache.ensure_rect_parallel(level as usize, rect, decoders)?;
     }
     assert!(
         all,

@@ -51,3 +51,11 @@ pub use read::{is_package, Package, TileDecoder};
 pub use write::{
     bake, bake_source, cached, default_max_error, BakeOptions, BakeReport, LevelBytes,
 };
+
+/// Threads a bake codes and decodes tiles on, the process's cores (its CPU affinity) up to 8: every tile
+/// is coded or decoded from the same inputs whichever thread does it, so nothing baked depends on it.
+pub(crate) fn threads() -> usize {
+    std::thread::available_parallelism()
+        .map_or(1, usize::from)
+        .min(8)
+}

@@ -168,7 +168,7 @@ pub fn bake_source(
             format!("{} is not an even size in 4..=4096", opts.tile),
         ));
     }
-    let mut encoders = (0..threads())
+    let mut encoders = (0..super::threads())
         .map(|_| Encoder::new(opts.codec, opts.zstd_level))
         .collect::<std::io::Result<Vec<_>>>()
         .map_err(|e| Error::io(out, "cannot start the tile encoder", e))?;
@@ -457,13 +457,6 @@ fn check_max_error(max_error: f64) -> Result<()> {
             format!("{max_error} m must be finite and positive"),
         ))
     }
-}
-
-/// Threads that compress tiles: a tile's payload does not depend on which encoder made it.
-pub(super) fn threads() -> usize {
-    std::thread::available_parallelism()
-        .map_or(1, usize::from)
-        .min(8)
 }
 
 /// The residual symbols of the package `header` describes for `terrain` (its quantum and each level's
