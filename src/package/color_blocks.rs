@@ -164,7 +164,7 @@ impl BlockEncoder {
                         }
                     }
                     let at = (by * w.div_ceil(4) + bx) * 8;
-                    out[at..at + 8].copy_from_slice(&super::etc1::encode_block(&px));
+                    out[at..at + 8].copy_from_slice(&super::etc2::encode_block(&px));
                 }
             }
             return Ok(());
