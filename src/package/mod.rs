@@ -26,6 +26,7 @@ pub mod codec;
 pub mod color_blocks;
 pub mod etc2;
 mod etc2_planar;
+mod etc2_th;
 pub mod format;
 pub mod imagery;
 pub mod imagery_bake;
