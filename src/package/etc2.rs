@@ -17,7 +17,8 @@
 //! added in this order: the search past the mean colours 0.17-0.25 dB, the planar mode 0.03-0.20 dB,
 //! the T and H modes 1.24-1.99 dB (`docs/guide.md` has the totals).
 
-use super::{etc2_planar, etc2_th};
+use super::etc2_planar::{self, clamp, Texels};
+use super::etc2_th;
 
 /// The modifier tables (the smaller and larger magnitude of each; the four values are +a, +b, -a, -b).
 const TABLES: [[i32; 2]; 8] = [
@@ -30,9 +31,6 @@ const TABLES: [[i32; 2]; 8] = [
     [33, 106],
     [47, 183],
 ];
-
-/// A block's texels, `[y * 4 + x]`, RGB.
-pub(super) type Texels = [[i32; 3]; 16];
 
 /// The fits a half's search makes before its neighbours: its mean colour's, then least-squares steps.
 const LS_TRIES: usize = 2;
@@ -59,17 +57,6 @@ struct Fit {
 /// A quantised channel expanded to 8 bits (its high bits repeated below it).
 fn expand(q: i32, bits: u32) -> i32 {
     (q << (8 - bits)) | (q >> (2 * bits - 8))
-}
-
-/// `v` clamped to `lo..=hi` (`Ord::clamp` stays a call in the test profile: see above).
-pub(super) fn clamp(v: i32, lo: i32, hi: i32) -> i32 {
-    if v < lo {
-        lo
-    } else if v > hi {
-        hi
-    } else {
-        v
-    }
 }
 
 /// The nearest `bits`-bit value to an eighth of `sum8` (clamped to 0..=255).

@@ -4,7 +4,19 @@
 //! the block's texels, its three values quantised, then every combination within one step of them, the
 //! one leaving the least squared error (ties to the first tried). Integer arithmetic throughout.
 
-use super::etc2::{clamp, Texels};
+/// A block's texels, `[y * 4 + x]`, RGB (the encoder's modules share it, and `clamp`, from here).
+pub(super) type Texels = [[i32; 3]; 16];
+
+/// `v` clamped to `lo..=hi` (`Ord::clamp` stays a call in the test profile: see `etc2.rs`).
+pub(super) fn clamp(v: i32, lo: i32, hi: i32) -> i32 {
+    if v < lo {
+        lo
+    } else if v > hi {
+        hi
+    } else {
+        v
+    }
+}
 
 /// Bits of each channel's three values: R 6, G 7, B 6.
 const BITS: [u32; 3] = [6, 7, 6];
@@ -13,9 +25,9 @@ const BITS: [u32; 3] = [6, 7, 6];
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub(super) struct Planar {
     /// `q[channel]` = [O, H, V], in the channel's bits.
-    pub q: [[i32; 3]; 3],
+    pub(super) q: [[i32; 3]; 3],
     /// Squared RGB error against the texels the block was fitted to.
-    pub err: u32,
+    pub(super) err: u32,
 }
 
 /// A quantised value expanded to 8 bits (its high bits repeated below it).

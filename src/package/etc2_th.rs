@@ -6,7 +6,7 @@
 //! taken away; every distance of the eight is tried, each texel taking its nearest paint. Integer
 //! arithmetic throughout.
 
-use super::etc2::{clamp, Texels};
+use super::etc2_planar::{clamp, Texels};
 
 /// The distances of T and H modes (OpenGL ES 3.0, table C.8).
 const DISTANCES: [i32; 8] = [3, 6, 11, 16, 23, 32, 41, 64];
