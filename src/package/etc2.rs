@@ -15,7 +15,7 @@
 //! table. Differential mode pairs the halves' RGB555 colours kept (each better than the one before it)
 //! whose difference fits its 3-bit delta, the pair leaving the least error. On the two shared images,
 //! added in this order: the search past the mean colours 0.17-0.25 dB, the planar mode 0.03-0.20 dB,
-//! the T and H modes 1.24-1.99 dB (`docs/guide.md` has the totals).
+//! the T and H modes 1.30-2.05 dB (`docs/guide.md` has the totals).
 
 use super::etc2_planar::{self, clamp, Texels};
 use super::etc2_th;

@@ -3,8 +3,9 @@
 //! in two by a two-means clustering (seeded by the texels at the ends of the channel with the widest
 //! range, two rounds), each group's rounded mean quantised; T mode paints one colour as it is and the
 //! other with a distance added and taken away (both ways round), H mode both with the distance added and
-//! taken away; every distance of the eight is tried, each texel taking its nearest paint. Integer
-//! arithmetic throughout.
+//! taken away; every distance of the eight is tried, each texel taking its nearest paint. The best's
+//! colours are then moved to the least-squares ones under its paints (each colour's texels' mean less
+//! their paints' offsets) and every distance tried again. Integer arithmetic throughout.
 
 use super::etc2_planar::{clamp, Texels};
 
@@ -130,16 +131,18 @@ fn clusters(texels: &Texels) -> [[i32; 3]; 2] {
 pub(super) fn fit(texels: &Texels, limit: u32) -> Option<TwoColours> {
     let [a, b] = clusters(texels);
     let mut best: Option<TwoColours> = None;
-    let mut limit = limit;
+    // Searched under no limit of its own, so that a block first past `limit` can still be refined below
+    // it.
+    let mut least = u32::MAX;
     // T mode either way round, then H mode (whose distance's lowest bit is the colours' order, so an
     // even one needs two different colours).
     for (h, colours) in [(false, [a, b]), (false, [b, a]), (true, [a, b])] {
         let mut distance = 0;
         while distance < DISTANCES.len() {
             if !(h && a == b && distance % 2 == 0) {
-                let (err, paints) = nearest(texels, &paints(h, colours, distance), limit);
-                if err < limit {
-                    limit = err;
+                let (err, paints) = nearest(texels, &paints(h, colours, distance), least);
+                if err < least {
+                    least = err;
                     best = Some(TwoColours {
                         h,
                         colours,
@@ -152,7 +155,66 @@ pub(super) fn fit(texels: &Texels, limit: u32) -> Option<TwoColours> {
             distance += 1;
         }
     }
-    best
+    // Then the best's colours moved to the least-squares ones under the paints chosen (each colour's
+    // texels' mean less their paints' offsets), under every distance.
+    if let Some(b) = best {
+        let colours = refined(texels, &b);
+        let mut distance = 0;
+        while colours != b.colours && distance < DISTANCES.len() {
+            if !(b.h && colours[0] == colours[1] && distance % 2 == 0) {
+                let (err, paints) = nearest(texels, &paints(b.h, colours, distance), least);
+                if err < least {
+                    least = err;
+                    best = Some(TwoColours {
+                        h: b.h,
+                        colours,
+                        distance,
+                        paints,
+                        err,
+                    });
+                }
+            }
+            distance += 1;
+        }
+    }
+    best.filter(|b| b.err < limit)
+}
+
+/// The RGB444 colours nearest the least-squares ones under `b`'s paints: each colour the mean of its
+/// texels less their paints' offsets from it (a colour with no texel kept).
+fn refined(texels: &Texels, b: &TwoColours) -> [[i32; 3]; 2] {
+    let d = DISTANCES[b.distance];
+    // Each paint's colour and its offset from it: T: A, B + d, B, B - d; H: A + d, A - d, B + d, B - d.
+    let (of, offset) = if b.h {
+        ([0, 0, 1, 1], [d, -d, d, -d])
+    } else {
+        ([0, 1, 1, 1], [0, d, 0, -d])
+    };
+    let mut sums = [[0; 3]; 2];
+    let mut counts = [0; 2];
+    let mut i = 0;
+    while i < 16 {
+        let (m, t) = (b.paints[i], texels[i]);
+        let c = of[m];
+        sums[c] = [
+            sums[c][0] + t[0] - offset[m],
+            sums[c][1] + t[1] - offset[m],
+            sums[c][2] + t[2] - offset[m],
+        ];
+        counts[c] += 1;
+        i += 1;
+    }
+    let mut out = b.colours;
+    let mut c = 0;
+    while c < 2 {
+        let n = counts[c];
+        if n > 0 {
+            let q = |s: i32| (30 * clamp(s, 0, 255 * n) + 255 * n) / (2 * 255 * n);
+            out[c] = [q(sums[c][0]), q(sums[c][1]), q(sums[c][2])];
+        }
+        c += 1;
+    }
+    out
 }
 
 impl TwoColours {
