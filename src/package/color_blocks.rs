@@ -1,8 +1,8 @@
 //! Stage 1b, the package: the colour rings' texel formats on the GPU, and a decoded imagery tile encoded
 //! into them. RGBA8 (4 bytes a texel) everywhere; BC1 or ETC2 RGB8 (8 bytes a 4 x 4 block, 0.5 byte a
 //! texel) where the device has them. A tile is encoded once, when the tile cache decodes it
-//! (`imagery_cache.rs`): BC1 by Intel's ISPC texture compressor (`intel_tex_2`), ETC2 RGB8 as ETC1
-//! blocks (its first modes, which every ETC2 decoder reads) by `etc1.rs`; the CPU twin reads the blocks
+//! (`imagery_cache.rs`): BC1 by Intel's ISPC texture compressor (`intel_tex_2`), ETC2 RGB8 by `etc2.rs`
+//! (all its modes: ETC1's individual and differential, planar, T and H); the CPU twin reads the blocks
 //! back through `texture2ddecoder`, so it sees the colours the GPU samples. A tile whose side is not a
 //! multiple of 4 (the image's last column or row of tiles) is encoded with its last column and row
 //! repeated to whole blocks: those texels are written into the ring but never sampled. BC1 encodes every
@@ -26,7 +26,7 @@ pub enum ColorFormat {
     Rgba8,
     /// BC1 (DXT1) without alpha, 8 bytes a 4 x 4 block: devices with BC texture compression.
     Bc1,
-    /// ETC2 RGB8, 8 bytes a 4 x 4 block (ETC1 blocks): devices with ETC2 (core in GLES 3.0).
+    /// ETC2 RGB8, 8 bytes a 4 x 4 block: devices with ETC2 (core in GLES 3.0).
     Etc2Rgb8,
 }
 
@@ -164,7 +164,7 @@ impl BlockEncoder {
                         }
                     }
                     let at = (by * w.div_ceil(4) + bx) * 8;
-                    out[at..at + 8].copy_from_slice(&super::etc1::encode_block(&px));
+                    out[at..at + 8].copy_from_slice(&super::etc2::encode_block(&px));
                 }
             }
             return Ok(());

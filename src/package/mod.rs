@@ -24,7 +24,9 @@
 pub mod cache;
 pub mod codec;
 pub mod color_blocks;
-pub mod etc1;
+pub mod etc2;
+mod etc2_planar;
+mod etc2_th;
 pub mod format;
 pub mod imagery;
 pub mod imagery_bake;
