@@ -11,6 +11,14 @@
 //! right after the JPEG decode into one scratch tile (the decode and the encode are the fetch's cost,
 //! charged in texels as before); the scratch and the encoder's are allocated with the slots and counted
 //! in [`ImageryCache::bytes`].
+//!
+//! A residual tile (`imagery.rs`: even levels but the coarsest) is its parent's upsample plus the
+//! decoded residual, so it needs its parent tile's RGB8: a small fixed LRU of [`PARENT_SLOTS`] parent
+//! tiles, allocated with the slots and counted in [`ImageryCache::bytes`] and
+//! [`ImageryCache::min_bytes`], keeps them (a parent already held in an RGB8 slot is copied, not decoded
+//! again). A parent's decode is charged like any tile's and counted in the stats; when the budget pays for
+//! the parent but not the child, the parent stays and the fetch answers `None`: the next frame's fetch
+//! finds it and decodes the child, so a budget of one tile a frame still makes progress.
 
 use super::color_blocks::{tile_bytes, BlockEncoder, ColorFormat};
 use super::imagery::ImageryPackage;
@@ -18,6 +26,12 @@ use crate::{Error, Result};
 
 /// Marks an empty slot or a tile with no slot.
 const NONE: u32 = u32::MAX;
+
+/// Parent tiles kept for residual tiles. A ring's leading edge crosses at most `ring / tile + 1` tiles
+/// of its level, under at most `ring / (2 tile) + 1` parents each side: 2 for rings of up to two tiles
+/// (`gles3-low`, `gles3-mid`), 3 for `desktop`'s four; 4 keep one edge's parents and a corner's with
+/// room to spare, and the rings fill coarse to fine, so most parents are copied from an RGB8 slot.
+pub const PARENT_SLOTS: usize = 4;
 
 /// One slot: a decoded tile (RGB8, or its blocks) and what it holds.
 #[derive(Debug)]
@@ -40,6 +54,8 @@ pub struct ImageryCacheStats {
     pub evictions: u64,
     /// Fetches refused: over the budget or no free slot.
     pub refused: u64,
+    /// Parent tiles decoded for residual tiles (counted in `decoded` too).
+    pub parents: u64,
 }
 
 /// The decoded colour tiles of one imagery package, in a fixed number of slots.
@@ -51,6 +67,9 @@ pub struct ImageryCache {
     scratch: Vec<u8>,
     encoder: BlockEncoder,
     slots: Vec<Slot>,
+    /// Parent tiles (RGB8) of residual tiles, least recently used first out; empty for a package without
+    /// residual levels.
+    parents: Vec<Slot>,
     /// Tile index -> slot, [`NONE`] where not resident.
     map: Vec<u32>,
     frame: u64,
@@ -71,7 +90,7 @@ impl ImageryCache {
     }
 
     /// The least budget a cache for `package` in `format` takes: the tile map, a block format's scratch
-    /// tile and encoder, and one slot.
+    /// tile and encoder, the parent tiles of a package with residual levels, and one slot.
     pub fn min_bytes(package: &ImageryPackage, format: ColorFormat) -> u64 {
         let t = package.header().tile;
         let scratch = if format.is_block() {
@@ -79,7 +98,20 @@ impl ImageryCache {
         } else {
             0
         };
-        4 * package.header().tiles.len() as u64 + scratch + Self::format_slot_bytes(package, format)
+        4 * package.header().tiles.len() as u64
+            + scratch
+            + Self::parent_bytes(package)
+            + Self::format_slot_bytes(package, format)
+    }
+
+    /// Bytes of the parent tiles a cache for `package` keeps: [`PARENT_SLOTS`] RGB8 tiles where it has
+    /// residual levels, else none.
+    pub fn parent_bytes(package: &ImageryPackage) -> u64 {
+        if package.header().has_residuals() {
+            PARENT_SLOTS as u64 * Self::slot_bytes(package)
+        } else {
+            0
+        }
     }
 
     /// A cache of as many slots as `budget` bytes pay for after the tile map (at least 1, at most one a
@@ -99,7 +131,8 @@ impl ImageryCache {
         } else {
             Vec::new()
         };
-        let map_bytes = 4 * tiles as u64 + scratch.len() as u64 + encoder.bytes();
+        let map_bytes =
+            4 * tiles as u64 + scratch.len() as u64 + encoder.bytes() + Self::parent_bytes(&package);
         let slot = Self::format_slot_bytes(&package, format);
         let count = budget.saturating_sub(map_bytes) / slot;
         if count == 0 {
@@ -117,12 +150,21 @@ impl ImageryCache {
                 texels: vec![0; per_slot],
             })
             .collect();
+        let parent_count = if package.header().has_residuals() { PARENT_SLOTS } else { 0 };
+        let parents = (0..parent_count)
+            .map(|_| Slot {
+                tile: NONE,
+                used: 0,
+                texels: vec![0; 3 * t as usize * t as usize],
+            })
+            .collect();
         Ok(Self {
             package,
             format,
             scratch,
             encoder,
             slots,
+            parents,
             map: vec![NONE; tiles],
             frame: 0,
             stats: ImageryCacheStats::default(),
@@ -134,10 +176,11 @@ impl ImageryCache {
         &self.package
     }
 
-    /// Bytes it holds: the slots, the tile map, and for a block format the scratch tile and the
-    /// encoder's.
+    /// Bytes it holds: the slots, the parent tiles, the tile map, and for a block format the scratch
+    /// tile and the encoder's.
     pub fn bytes(&self) -> u64 {
         self.slots.len() as u64 * Self::format_slot_bytes(&self.package, self.format)
+            + self.parents.len() as u64 * Self::slot_bytes(&self.package)
             + 4 * self.map.len() as u64
             + self.scratch.len() as u64
             + self.encoder.bytes()
@@ -163,15 +206,30 @@ impl ImageryCache {
         self.frame += 1;
     }
 
-    /// Tile (tx, ty) of `level` as (width, height, RGB8 texels or, for a block format, its blocks), decoded now when not resident and
-    /// `budget` (texels left this frame) pays for it (then reduced by its texels); `None` when the budget
-    /// or the slots cannot take it. Damage in the package is an error.
+    /// Tile (tx, ty) of `level` as (width, height, RGB8 texels or, for a block format, its blocks),
+    /// decoded now when not resident and `budget` (texels left this frame) pays for it (then reduced by
+    /// its texels, and by its parent's where a residual tile's parent is decoded too); `None` when the
+    /// budget or the slots cannot take it. Damage in the package is an error.
     pub fn fetch(
         &mut self,
         level: usize,
         tx: u32,
         ty: u32,
         budget: &mut u64,
+    ) -> Result<Option<(u32, u32, &[u8])>> {
+        let mut decodes = u32::MAX;
+        self.fetch_counted(level, tx, ty, budget, &mut decodes)
+    }
+
+    /// [`ImageryCache::fetch`] under a budget of `decodes` JPEG decodes as well (reduced by each, a
+    /// residual tile's parent's included): the colour rings' tiles a frame.
+    pub fn fetch_counted(
+        &mut self,
+        level: usize,
+        tx: u32,
+        ty: u32,
+        budget: &mut u64,
+        decodes: &mut u32,
     ) -> Result<Option<(u32, u32, &[u8])>> {
         let Some((w, h)) = self.package.tile_size(level, tx, ty) else {
             return Ok(None);
@@ -195,28 +253,95 @@ impl ImageryCache {
             .filter(|(_, s)| s.tile == NONE || s.used < self.frame)
             .min_by_key(|(i, s)| (s.tile != NONE, s.used, *i))
             .map(|(i, _)| i);
-        let (Some(victim), true) = (victim, texels <= *budget) else {
+        let Some(victim) = victim else {
             self.stats.refused += 1;
             return Ok(None);
         };
+        let parent = match self.package.parent_of(level, tx, ty) {
+            Some((pl, ptx, pty)) => match self.parent(pl, ptx, pty, budget, decodes)? {
+                Some(p) => Some(p),
+                None => {
+                    self.stats.refused += 1;
+                    return Ok(None);
+                }
+            },
+            None => None,
+        };
+        if texels > *budget || *decodes == 0 {
+            // A parent decoded now stays for the next frame's fetch.
+            self.stats.refused += 1;
+            return Ok(None);
+        }
         let s = &mut self.slots[victim];
         if s.tile != NONE {
             self.map[s.tile as usize] = NONE;
             self.stats.evictions += 1;
         }
         s.tile = NONE;
+        let rgb = if self.format.is_block() { &mut self.scratch } else { &mut s.texels };
+        self.package.decode_tile(level, tx, ty, rgb)?;
+        if let Some(p) = parent {
+            self.package.add_prediction(level, tx, ty, &self.parents[p].texels, rgb)?;
+        }
         if self.format.is_block() {
-            self.package.decode_tile(level, tx, ty, &mut self.scratch)?;
             self.encoder.encode(&self.scratch, w, h, &mut s.texels[..n])?;
-        } else {
-            self.package.decode_tile(level, tx, ty, &mut s.texels)?;
         }
         s.tile = u32::try_from(tile).unwrap_or(NONE);
         s.used = self.frame;
         self.map[tile] = u32::try_from(victim).unwrap_or(NONE);
         *budget -= texels;
+        *decodes -= 1;
         self.stats.decoded += 1;
         self.stats.decoded_texels += texels;
         Ok(Some((w, h, &s.texels[..n])))
+    }
+
+    /// The parent slot holding tile (ptx, pty) of level `pl` (RGB8), made resident when `budget` and
+    /// `decodes` pay for its decode (an RGB8 slot holding it is copied, free); `None` when they cannot.
+    fn parent(
+        &mut self,
+        pl: usize,
+        ptx: u32,
+        pty: u32,
+        budget: &mut u64,
+        decodes: &mut u32,
+    ) -> Result<Option<usize>> {
+        let l = &self.package.header().levels[pl];
+        let tile = u32::try_from(l.first_tile + (pty * l.tiles_x + ptx) as usize).unwrap_or(NONE);
+        if let Some(i) = self.parents.iter().position(|p| p.tile == tile) {
+            self.parents[i].used = self.frame;
+            return Ok(Some(i));
+        }
+        let Some((w, h)) = self.package.tile_size(pl, ptx, pty) else {
+            return Ok(None);
+        };
+        // Least recently used (by frame, then slot): the same parents stay run to run.
+        let Some(i) = (0..self.parents.len()).min_by_key(|&i| {
+            let p = &self.parents[i];
+            (p.tile != NONE, p.used, i)
+        }) else {
+            return Ok(None);
+        };
+        let n = 3 * w as usize * h as usize;
+        let held = self.map[tile as usize];
+        let p = &mut self.parents[i];
+        if held != NONE && !self.format.is_block() {
+            p.texels[..n].copy_from_slice(&self.slots[held as usize].texels[..n]);
+        } else {
+            let texels = u64::from(w) * u64::from(h);
+            if texels > *budget || *decodes == 0 {
+                return Ok(None);
+            }
+            p.tile = NONE;
+            self.package.decode_tile(pl, ptx, pty, &mut p.texels)?;
+            *budget -= texels;
+            *decodes -= 1;
+            self.stats.decoded += 1;
+            self.stats.decoded_texels += texels;
+            self.stats.parents += 1;
+        }
+        p.tile = tile;
+        p.used = self.frame;
+        Ok(Some(i))
     }
 }

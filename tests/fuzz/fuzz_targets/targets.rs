@@ -345,12 +345,13 @@ pub(crate) fn load_imagery_package(data: &[u8]) -> String {
         .and_then(|p| {
             let h = p.header().clone();
             let mut tile = vec![0u8; 3 * h.tile as usize * h.tile as usize];
+            let mut parent = tile.clone();
             let mut decoded = 0;
             if h.texels() <= 1 << 21 {
                 for (level, l) in h.levels.iter().enumerate() {
                     for ty in 0..l.tiles_y {
                         for tx in 0..l.tiles_x {
-                            p.decode_tile(level, tx, ty, &mut tile)?;
+                            p.decode_texels(level, tx, ty, &mut tile, &mut parent)?;
                             decoded += 1;
                         }
                     }
