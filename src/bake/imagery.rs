@@ -107,8 +107,8 @@ pub struct Parent<'a> {
 #[inline]
 pub fn up_at(p: &Parent<'_>, x: u32, y: u32, c: usize) -> i32 {
     let (i, j) = ((x / 2).min(p.width - 1), (y / 2).min(p.height - 1));
-    let i2 = if x % 2 == 0 { i.saturating_sub(1) } else { (i + 1).min(p.width - 1) };
-    let j2 = if y % 2 == 0 { j.saturating_sub(1) } else { (j + 1).min(p.height - 1) };
+    let i2 = if x.is_multiple_of(2) { i.saturating_sub(1) } else { (i + 1).min(p.width - 1) };
+    let j2 = if y.is_multiple_of(2) { j.saturating_sub(1) } else { (j + 1).min(p.height - 1) };
     let at = |xx: u32, yy: u32| i32::from(p.texels[(yy as usize * p.stride + xx as usize) * 3 + c]);
     (9 * at(i, j) + 3 * at(i2, j) + 3 * at(i, j2) + at(i2, j2) + 8) >> 4
 }
@@ -201,7 +201,7 @@ mod tests {
         let row: Vec<i32> = (0..8).map(|x| up_at(&p, x, 3, 0)).collect();
         assert_eq!(row, vec![8, 12, 20, 28, 36, 44, 52, 56]);
         // Residuals against the prediction invert exactly where nothing clamps.
-        let mut t: Vec<u8> = (0..8 * 8 * 3).map(|v| (v * 7 % 60 + 40) as u8).collect();
+        let mut t: Vec<u8> = (0..8 * 8 * 3u8).map(|v| v % 60 + 40).collect();
         let src = t.clone();
         to_residual(&p, 0, 0, 8, 8, &mut t);
         from_residual(&p, 0, 0, 8, 8, &mut t);

@@ -5,8 +5,8 @@
 //! full, and decoded again where the level below is a residual of it; a residual level holds two tile
 //! rows, which wait for the row of parent tiles above them to be coded and decoded, then are coded as
 //! residuals against it (closed loop: the prediction is the parent as the runtime decodes it). Memory is
-//! about three and a half bands of level 0, `3.5 x 256 x width x 3` bytes, whatever the image's height:
-//! 44 MB for a 16384-texel-wide image (docs/guide.md "The imagery package"). The tiles land in the file
+//! the bands, about 2.9 KB per texel of level 0's width (512 rows of level 0, a band and its decoded copy
+//! of level 1, and so on up), whatever the image's height: 47 MB for a 16384-texel-wide image (docs/guide.md "The imagery package"). The tiles land in the file
 //! in the order they are finished (levels interleaved); the header, written last at the file's start,
 //! says where each lies.
 

@@ -317,6 +317,20 @@ fn pyramid_bakes_into_checked_tiles() {
         let e = cache.fetch(0, 0, 0, &mut budget).expect_err("damage");
         assert!(e.to_string().contains(name), "{name}: {e}");
     }
+    // An older format (version 1: every level whole) is refused, to be baked again; level kinds that do
+    // not alternate are refused.
+    let mut old = bytes.clone();
+    old[8..12].copy_from_slice(&1u32.to_le_bytes());
+    let e = ImageryPackage::from_bytes(Path::new("<old>"), old).expect_err("version 1");
+    assert!(
+        e.to_string().contains("version 1") && e.to_string().contains("bake it again"),
+        "{e}"
+    );
+    let mut kinds = bytes.clone();
+    // Level 0's kind: after the fixed header (72 bytes) and its width and height.
+    kinds[80..84].copy_from_slice(&0u32.to_le_bytes());
+    let e = ImageryPackage::from_bytes(Path::new("<kinds>"), kinds).expect_err("kinds");
+    assert!(e.to_string().contains("level kinds"), "{e}");
     let mut head_damage = bytes.clone();
     head_damage[30] ^= 1;
     let e = ImageryPackage::from_bytes(Path::new("<damaged>"), head_damage).expect_err("header");
@@ -381,19 +395,31 @@ fn cache_is_bounded_by_its_budget() {
     // same parent takes one decode. A parent held in an RGB8 slot is copied, not decoded.
     cache.begin_frame();
     let mut decodes = 1;
-    assert!(cache.fetch_counted(0, 2, 2, &mut budget, &mut decodes).expect("fetch").is_none());
+    assert!(cache
+        .fetch_counted(0, 2, 2, &mut budget, &mut decodes)
+        .expect("fetch")
+        .is_none());
     assert_eq!((decodes, cache.stats().parents), (0, 1));
     cache.begin_frame();
     let mut decodes = 1;
-    assert!(cache.fetch_counted(0, 2, 2, &mut budget, &mut decodes).expect("fetch").is_some());
+    assert!(cache
+        .fetch_counted(0, 2, 2, &mut budget, &mut decodes)
+        .expect("fetch")
+        .is_some());
     assert_eq!(decodes, 0);
     cache.begin_frame();
     let mut decodes = 1;
-    assert!(cache.fetch_counted(0, 3, 2, &mut budget, &mut decodes).expect("fetch").is_some());
+    assert!(cache
+        .fetch_counted(0, 3, 2, &mut budget, &mut decodes)
+        .expect("fetch")
+        .is_some());
     cache.begin_frame();
     let mut decodes = 2;
     assert!(cache.fetch(1, 0, 0, &mut budget).expect("fetch").is_some());
-    assert!(cache.fetch_counted(0, 0, 0, &mut budget, &mut decodes).expect("fetch").is_some());
+    assert!(cache
+        .fetch_counted(0, 0, 0, &mut budget, &mut decodes)
+        .expect("fetch")
+        .is_some());
     assert_eq!(decodes, 1, "the parent copied from its slot");
     let s = cache.stats();
     assert_eq!((s.parents, s.decoded), (1, 8), "{s:?}");

@@ -8,8 +8,8 @@ use std::path::Path;
 
 use clipsat::bake::imagery::ColorLevel;
 use clipsat::package::imagery::{encode_jpeg, psnr, ImageryPackage, DEFAULT_QUALITY, TILE};
-use clipsat::package::imagery_cache::ImageryCache;
 use clipsat::package::imagery_bake::{bake_imagery, bake_imagery_file};
+use clipsat::package::imagery_cache::ImageryCache;
 use clipsat::source::imagery::{Extent, Imagery, ImageryOptions};
 use clipsat::source::imagery_rows::ImageryRows;
 
@@ -38,10 +38,22 @@ fn texels(w: u32, h: u32) -> Vec<u8> {
 /// The residual tiles' prediction as a straightforward reference: the parent tile's texel under
 /// (x, y) of its doubled tile, with its nearest neighbours toward (x, y), weighted 9, 3, 3, 1 (sixteenths,
 /// rounded), neighbours past the parent tile's border clamped to it.
+#[expect(
+    clippy::cast_possible_truncation,
+    reason = "a rounded mean of 8-bit values"
+)]
 fn reference_up(parent: &[u8], pw: u32, ph: u32, x: u32, y: u32, c: usize) -> i32 {
     let (i, j) = (x / 2, y / 2);
-    let ni = if x % 2 == 1 { (i + 1).min(pw - 1) } else { i.max(1) - 1 };
-    let nj = if y % 2 == 1 { (j + 1).min(ph - 1) } else { j.max(1) - 1 };
+    let ni = if x % 2 == 1 {
+        (i + 1).min(pw - 1)
+    } else {
+        i.max(1) - 1
+    };
+    let nj = if y % 2 == 1 {
+        (j + 1).min(ph - 1)
+    } else {
+        j.max(1) - 1
+    };
     let v = |a: u32, b: u32| f64::from(parent[((b * pw + a) * 3) as usize + c]);
     let sum = 9.0 * v(i, j) + 3.0 * v(ni, j) + 3.0 * v(i, nj) + v(ni, nj);
     (sum / 16.0 + 0.5).floor() as i32
@@ -82,7 +94,11 @@ fn the_band_by_band_bake_codes_the_whole_pyramid() {
     for li in (0..header.levels.len()).rev() {
         let l = header.levels[li];
         let level = &levels[li];
-        assert_eq!((l.width, l.height), (level.width, level.height), "level {li}");
+        assert_eq!(
+            (l.width, l.height),
+            (level.width, level.height),
+            "level {li}"
+        );
         for ty in 0..l.tiles_y {
             for tx in 0..l.tiles_x {
                 let (tw, th) = (
@@ -125,7 +141,10 @@ fn the_band_by_band_bake_codes_the_whole_pyramid() {
                 let at = usize::try_from(e.offset).expect("offset");
                 let stored = &bytes[at..at + e.len as usize];
                 assert!(stored == jpeg.as_slice(), "level {li} tile ({tx}, {ty})");
-                let mut decoded = image::load_from_memory(&jpeg).expect("decode").to_rgb8().into_raw();
+                let mut decoded = image::load_from_memory(&jpeg)
+                    .expect("decode")
+                    .to_rgb8()
+                    .into_raw();
                 if l.residual {
                     for (d, p) in decoded.iter_mut().zip(&predicted) {
                         *d = (p + i32::from(*d) - 128).clamp(0, 255) as u8;
@@ -171,7 +190,10 @@ fn the_band_by_band_bake_codes_the_whole_pyramid() {
             }
         }
     }
-    assert!((psnr(sq, u64::from(w * h * 3)) - report.psnr_db).abs() < 1e-9, "{report:?}");
+    assert!(
+        (psnr(sq, u64::from(w * h * 3)) - report.psnr_db).abs() < 1e-9,
+        "{report:?}"
+    );
     assert!(cache.stats().parents >= 1, "{:?}", cache.stats());
     // The file bake writes the same bytes, through a temporary renamed into place.
     let dir = TempDir::new("imagery_bake", "bake");
