@@ -27,10 +27,11 @@ use crate::{Error, Result};
 /// Marks an empty slot or a tile with no slot.
 const NONE: u32 = u32::MAX;
 
-/// Parent tiles kept for residual tiles. A ring's leading edge crosses at most `ring / tile + 1` tiles
-/// of its level, under at most `ring / (2 tile) + 1` parents each side: 2 for rings of up to two tiles
-/// (`gles3-low`, `gles3-mid`), 3 for `desktop`'s four; 4 keep one edge's parents and a corner's with
-/// room to spare, and the rings fill coarse to fine, so most parents are copied from an RGB8 slot.
+/// Parent tiles kept for residual tiles. A ring's leading edge (`ring` texels long) crosses at most
+/// `ring / tile + 1` tiles of its level, which lie under at most `ceil(ring / (2 tile)) + 1` parent
+/// tiles: 2 for `gles3-low`'s and `gles3-mid`'s rings (256, 512), 3 for `desktop`'s (1024); 4 hold an
+/// edge's parents and the next one a diagonal move brings. The rings fill coarse to fine, so a parent is
+/// usually in an RGB8 slot already and is copied, not decoded.
 pub const PARENT_SLOTS: usize = 4;
 
 /// One slot: a decoded tile (RGB8, or its blocks) and what it holds.
@@ -114,8 +115,9 @@ impl ImageryCache {
         }
     }
 
-    /// A cache of as many slots as `budget` bytes pay for after the tile map (at least 1, at most one a
-    /// tile of the package), all allocated now, holding RGB8 tiles (for RGBA8 rings).
+    /// A cache of as many slots as `budget` bytes pay for after the tile map and the parent tiles (at
+    /// least 1, at most one a tile of the package), all allocated now, holding RGB8 tiles (for RGBA8
+    /// rings).
     pub fn new(package: ImageryPackage, budget: u64) -> Result<Self> {
         Self::with_format(package, budget, ColorFormat::Rgba8)
     }
