@@ -13,12 +13,14 @@
 //! in [`ImageryCache::bytes`].
 //!
 //! A residual tile (`imagery.rs`: even levels but the coarsest) is its parent's upsample plus the
-//! decoded residual, so it needs its parent tile's RGB8: a small fixed LRU of [`PARENT_SLOTS`] parent
-//! tiles, allocated with the slots and counted in [`ImageryCache::bytes`] and
-//! [`ImageryCache::min_bytes`], keeps them (a parent already held in an RGB8 slot is copied, not decoded
-//! again). A parent's decode is charged like any tile's and counted in the stats; when the budget pays for
-//! the parent but not the child, the parent stays and the fetch answers `None`: the next frame's fetch
-//! finds it and decodes the child, so a budget of one tile a frame still makes progress.
+//! decoded residual, so it needs its parent tile's RGB8. Where the slots hold RGB8 (RGBA8 rings) the
+//! parent is a tile of the cache like any other, decoded into a slot of the same LRU (it is a tile of
+//! the next coarser ring too) and kept from eviction for the frame. Where they hold blocks, a small fixed
+//! LRU of [`PARENT_SLOTS`] RGB8 parent tiles keeps them, allocated with the slots and counted in
+//! [`ImageryCache::bytes`] and [`ImageryCache::min_bytes`]. A parent's decode is charged like any
+//! tile's and counted in the stats; when the budget pays for the parent but not the child, the parent
+//! stays and the fetch answers `None`: the next frame's fetch finds it and decodes the child, so a
+//! budget of one tile a frame still makes progress.
 
 use super::color_blocks::{tile_bytes, BlockEncoder, ColorFormat};
 use super::imagery::ImageryPackage;
@@ -27,12 +29,21 @@ use crate::{Error, Result};
 /// Marks an empty slot or a tile with no slot.
 const NONE: u32 = u32::MAX;
 
-/// Parent tiles kept for residual tiles. A ring's leading edge (`ring` texels long) crosses at most
-/// `ring / tile + 1` tiles of its level, which lie under at most `ceil(ring / (2 tile)) + 1` parent
-/// tiles: 2 for `gles3-low`'s and `gles3-mid`'s rings (256, 512), 3 for `desktop`'s (1024); 4 hold an
-/// edge's parents and the next one a diagonal move brings. The rings fill coarse to fine, so a parent is
-/// usually in an RGB8 slot already and is copied, not decoded.
+/// Parent tiles kept for residual tiles where the slots hold blocks. A ring's leading edge (`ring`
+/// texels long) crosses at most `ring / tile + 1` tiles of its level, which lie under at most
+/// `ceil(ring / (2 tile)) + 1` parent tiles: 2 for `gles3-low`'s and `gles3-mid`'s rings (256, 512), 3
+/// for `desktop`'s (1024); 4 hold an edge's parents and the next one a diagonal move brings. Where the
+/// slots hold RGB8 the parents share them instead: on `gles3-low` (10 slots) four more RGB8 tiles would
+/// take four slots, and a flight over a 16384^2 image found its rings stale in 1979 frames of 2000
+/// instead of 1218 (docs/guide.md "The colour rings").
 pub const PARENT_SLOTS: usize = 4;
+
+/// Where a residual tile's parent is held: a slot of the cache (RGB8 slots) or the parent LRU.
+#[derive(Clone, Copy)]
+enum ParentAt {
+    Slot(usize),
+    Kept(usize),
+}
 
 /// One slot: a decoded tile (RGB8, or its blocks) and what it holds.
 #[derive(Debug)]
@@ -69,7 +80,7 @@ pub struct ImageryCache {
     encoder: BlockEncoder,
     slots: Vec<Slot>,
     /// Parent tiles (RGB8) of residual tiles, least recently used first out; empty for a package without
-    /// residual levels.
+    /// residual levels and where the slots hold RGB8 (the parents are tiles of the slots).
     parents: Vec<Slot>,
     /// Tile index -> slot, [`NONE`] where not resident.
     map: Vec<u32>,
@@ -91,7 +102,8 @@ impl ImageryCache {
     }
 
     /// The least budget a cache for `package` in `format` takes: the tile map, a block format's scratch
-    /// tile and encoder, the parent tiles of a package with residual levels, and one slot.
+    /// tile and encoder, the parent tiles of a package with residual levels in blocks, and the fewest
+    /// slots ([`ImageryCache::min_slots`]).
     pub fn min_bytes(package: &ImageryPackage, format: ColorFormat) -> u64 {
         let t = package.header().tile;
         let scratch = if format.is_block() {
@@ -101,29 +113,39 @@ impl ImageryCache {
         };
         4 * package.header().tiles.len() as u64
             + scratch
-            + Self::parent_bytes(package)
-            + Self::format_slot_bytes(package, format)
+            + Self::parent_bytes(package, format)
+            + Self::min_slots(package, format) * Self::format_slot_bytes(package, format)
     }
 
-    /// Bytes of the parent tiles a cache for `package` keeps: [`PARENT_SLOTS`] RGB8 tiles where it has
-    /// residual levels, else none.
-    pub fn parent_bytes(package: &ImageryPackage) -> u64 {
-        if package.header().has_residuals() {
+    /// The fewest slots a cache takes: one, or two where a residual tile's parent shares the slots
+    /// (RGB8 slots), so that a parent and its child fit in one frame.
+    pub fn min_slots(package: &ImageryPackage, format: ColorFormat) -> u64 {
+        if package.header().has_residuals() && !format.is_block() {
+            2
+        } else {
+            1
+        }
+    }
+
+    /// Bytes of the parent LRU a cache for `package` in `format` keeps: [`PARENT_SLOTS`] RGB8 tiles
+    /// where it has residual levels and its slots hold blocks, else none.
+    pub fn parent_bytes(package: &ImageryPackage, format: ColorFormat) -> u64 {
+        if package.header().has_residuals() && format.is_block() {
             PARENT_SLOTS as u64 * Self::slot_bytes(package)
         } else {
             0
         }
     }
 
-    /// A cache of as many slots as `budget` bytes pay for after the tile map and the parent tiles (at
-    /// least 1, at most one a tile of the package), all allocated now, holding RGB8 tiles (for RGBA8
-    /// rings).
+    /// A cache of as many slots as `budget` bytes pay for after the tile map (at least
+    /// [`ImageryCache::min_slots`], at most one a tile of the package), all allocated now, holding RGB8
+    /// tiles (for RGBA8 rings).
     pub fn new(package: ImageryPackage, budget: u64) -> Result<Self> {
         Self::with_format(package, budget, ColorFormat::Rgba8)
     }
 
     /// [`ImageryCache::new`] for rings in `format`: a block format's slots hold blocks, and the scratch
-    /// tile and the encoder's come out of `budget` first.
+    /// tile, the encoder's and the parent LRU come out of `budget` first.
     pub fn with_format(package: ImageryPackage, budget: u64, format: ColorFormat) -> Result<Self> {
         let tiles = package.header().tiles.len();
         let t = package.header().tile;
@@ -133,11 +155,13 @@ impl ImageryCache {
         } else {
             Vec::new()
         };
-        let map_bytes =
-            4 * tiles as u64 + scratch.len() as u64 + encoder.bytes() + Self::parent_bytes(&package);
+        let map_bytes = 4 * tiles as u64
+            + scratch.len() as u64
+            + encoder.bytes()
+            + Self::parent_bytes(&package, format);
         let slot = Self::format_slot_bytes(&package, format);
         let count = budget.saturating_sub(map_bytes) / slot;
-        if count == 0 {
+        if count < Self::min_slots(&package, format) {
             return Err(Error::Capacity {
                 what: "imagery tile cache (slots in the profile's imagery share)",
                 capacity: 0,
@@ -152,7 +176,11 @@ impl ImageryCache {
                 texels: vec![0; per_slot],
             })
             .collect();
-        let parent_count = if package.header().has_residuals() { PARENT_SLOTS } else { 0 };
+        let parent_count = if Self::parent_bytes(&package, format) > 0 {
+            PARENT_SLOTS
+        } else {
+            0
+        };
         let parents = (0..parent_count)
             .map(|_| Slot {
                 tile: NONE,
@@ -247,18 +275,7 @@ impl ImageryCache {
             return Ok(Some((w, h, &s.texels[..n])));
         }
         let texels = u64::from(w) * u64::from(h);
-        // Least recently used, never one used this frame.
-        let victim = self
-            .slots
-            .iter()
-            .enumerate()
-            .filter(|(_, s)| s.tile == NONE || s.used < self.frame)
-            .min_by_key(|(i, s)| (s.tile != NONE, s.used, *i))
-            .map(|(i, _)| i);
-        let Some(victim) = victim else {
-            self.stats.refused += 1;
-            return Ok(None);
-        };
+        // The parent first: where it shares the slots it is kept from this fetch's eviction.
         let parent = match self.package.parent_of(level, tx, ty) {
             Some((pl, ptx, pty)) => match self.parent(pl, ptx, pty, budget, decodes)? {
                 Some(p) => Some(p),
@@ -268,6 +285,10 @@ impl ImageryCache {
                 }
             },
             None => None,
+        };
+        let Some(victim) = self.victim() else {
+            self.stats.refused += 1;
+            return Ok(None);
         };
         if texels > *budget || *decodes == 0 {
             // A parent decoded now stays for the next frame's fetch.
@@ -280,14 +301,22 @@ impl ImageryCache {
             self.stats.evictions += 1;
         }
         s.tile = NONE;
-        let rgb = if self.format.is_block() { &mut self.scratch } else { &mut s.texels };
-        self.package.decode_tile(level, tx, ty, rgb)?;
-        if let Some(p) = parent {
-            self.package.add_prediction(level, tx, ty, &self.parents[p].texels, rgb)?;
-        }
-        if self.format.is_block() {
-            self.encoder.encode(&self.scratch, w, h, &mut s.texels[..n])?;
-        }
+        // The slot's texels are taken out while the parent (perhaps another slot) is read, and put back
+        // before any error returns; taking a Vec allocates nothing.
+        let mut out = std::mem::take(&mut s.texels);
+        let parent_rgb = parent.map(|p| match p {
+            ParentAt::Slot(i) => &self.slots[i].texels[..],
+            ParentAt::Kept(i) => &self.parents[i].texels[..],
+        });
+        let decoded = if self.format.is_block() {
+            decode_child(&self.package, (level, tx, ty), parent_rgb, &mut self.scratch)
+                .and_then(|()| self.encoder.encode(&self.scratch, w, h, &mut out[..n]))
+        } else {
+            decode_child(&self.package, (level, tx, ty), parent_rgb, &mut out)
+        };
+        let s = &mut self.slots[victim];
+        s.texels = out;
+        decoded?;
         s.tile = u32::try_from(tile).unwrap_or(NONE);
         s.used = self.frame;
         self.map[tile] = u32::try_from(victim).unwrap_or(NONE);
@@ -298,8 +327,19 @@ impl ImageryCache {
         Ok(Some((w, h, &s.texels[..n])))
     }
 
-    /// The parent slot holding tile (ptx, pty) of level `pl` (RGB8), made resident when `budget` and
-    /// `decodes` pay for its decode (an RGB8 slot holding it is copied, free); `None` when they cannot.
+    /// The slot to decode into: least recently used, never one used this frame.
+    fn victim(&self) -> Option<usize> {
+        self.slots
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| s.tile == NONE || s.used < self.frame)
+            .min_by_key(|(i, s)| (s.tile != NONE, s.used, *i))
+            .map(|(i, _)| i)
+    }
+
+    /// Where tile (ptx, pty) of level `pl`, a residual tile's parent, is held as RGB8, made resident when
+    /// `budget` and `decodes` pay for its decode (and, in RGB8 slots, a slot is free this frame); `None`
+    /// when they cannot. A parent in the slots is marked used this frame, so the child's fetch keeps it.
     fn parent(
         &mut self,
         pl: usize,
@@ -307,43 +347,76 @@ impl ImageryCache {
         pty: u32,
         budget: &mut u64,
         decodes: &mut u32,
-    ) -> Result<Option<usize>> {
+    ) -> Result<Option<ParentAt>> {
         let l = &self.package.header().levels[pl];
         let tile = u32::try_from(l.first_tile + (pty * l.tiles_x + ptx) as usize).unwrap_or(NONE);
-        if let Some(i) = self.parents.iter().position(|p| p.tile == tile) {
-            self.parents[i].used = self.frame;
-            return Ok(Some(i));
-        }
         let Some((w, h)) = self.package.tile_size(pl, ptx, pty) else {
             return Ok(None);
         };
-        // Least recently used (by frame, then slot): the same parents stay run to run.
-        let Some(i) = (0..self.parents.len()).min_by_key(|&i| {
-            let p = &self.parents[i];
-            (p.tile != NONE, p.used, i)
-        }) else {
+        let texels = u64::from(w) * u64::from(h);
+        let shared = !self.format.is_block();
+        if shared {
+            let held = self.map[tile as usize];
+            if held != NONE {
+                self.slots[held as usize].used = self.frame;
+                return Ok(Some(ParentAt::Slot(held as usize)));
+            }
+        } else if let Some(i) = self.parents.iter().position(|p| p.tile == tile) {
+            self.parents[i].used = self.frame;
+            return Ok(Some(ParentAt::Kept(i)));
+        }
+        // Least recently used (by frame, then slot), never a slot used this frame: the same parents
+        // stay run to run.
+        let place = if shared {
+            self.victim()
+        } else {
+            (0..self.parents.len()).min_by_key(|&i| {
+                let p = &self.parents[i];
+                (p.tile != NONE, p.used, i)
+            })
+        };
+        let Some(i) = place else {
             return Ok(None);
         };
-        let n = 3 * w as usize * h as usize;
-        let held = self.map[tile as usize];
-        let p = &mut self.parents[i];
-        if held != NONE && !self.format.is_block() {
-            p.texels[..n].copy_from_slice(&self.slots[held as usize].texels[..n]);
-        } else {
-            let texels = u64::from(w) * u64::from(h);
-            if texels > *budget || *decodes == 0 {
-                return Ok(None);
-            }
-            p.tile = NONE;
-            self.package.decode_tile(pl, ptx, pty, &mut p.texels)?;
-            *budget -= texels;
-            *decodes -= 1;
-            self.stats.decoded += 1;
-            self.stats.decoded_texels += texels;
-            self.stats.parents += 1;
+        if texels > *budget || *decodes == 0 {
+            return Ok(None);
         }
+        let p = if shared { &mut self.slots[i] } else { &mut self.parents[i] };
+        if shared && p.tile != NONE {
+            self.map[p.tile as usize] = NONE;
+            self.stats.evictions += 1;
+        }
+        p.tile = NONE;
+        self.package.decode_tile(pl, ptx, pty, &mut p.texels)?;
         p.tile = tile;
         p.used = self.frame;
-        Ok(Some(i))
+        if shared {
+            self.map[tile as usize] = u32::try_from(i).unwrap_or(NONE);
+        }
+        *budget -= texels;
+        *decodes -= 1;
+        self.stats.decoded += 1;
+        self.stats.decoded_texels += texels;
+        self.stats.parents += 1;
+        Ok(Some(if shared {
+            ParentAt::Slot(i)
+        } else {
+            ParentAt::Kept(i)
+        }))
     }
+}
+
+/// Decodes tile (level, tx, ty) into `rgb` as the level's texels: a residual tile's prediction from
+/// `parent` (its parent tile's RGB8) added.
+fn decode_child(
+    package: &ImageryPackage,
+    (level, tx, ty): (usize, u32, u32),
+    parent: Option<&[u8]>,
+    rgb: &mut [u8],
+) -> Result<()> {
+    package.decode_tile(level, tx, ty, rgb)?;
+    if let Some(p) = parent {
+        package.add_prediction(level, tx, ty, p, rgb)?;
+    }
+    Ok(())
 }

@@ -301,7 +301,7 @@ fn block_rings_write_whole_blocks() {
         // A budget that cannot hold the block format keeps RGBA8.
         for small in [
             ImageryBudget {
-                cache_bytes: 300_000 + ImageryCache::parent_bytes(&package()),
+                cache_bytes: 300_000 + ImageryCache::parent_bytes(&package(), format),
                 ..b
             },
             ImageryBudget {
