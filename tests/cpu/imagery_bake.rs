@@ -7,7 +7,9 @@
 use std::path::Path;
 
 use clipsat::bake::imagery::ColorLevel;
-use clipsat::package::imagery::{encode_jpeg, psnr, ImageryPackage, DEFAULT_QUALITY, TILE};
+use clipsat::package::imagery::{
+    encode_jpeg, psnr, ImageryBakeReport, ImageryPackage, DEFAULT_QUALITY, TILE,
+};
 use clipsat::package::imagery_bake::{bake_imagery, bake_imagery_file};
 use clipsat::package::imagery_cache::ImageryCache;
 use clipsat::source::imagery::{Extent, Imagery, ImageryOptions};
@@ -65,19 +67,50 @@ fn reference_up(parent: &[u8], pw: u32, ph: u32, x: u32, y: u32, c: usize) -> i3
 /// that reconstruction, bit for bit.
 #[test]
 fn the_band_by_band_bake_codes_the_whole_pyramid() {
+    // 1030 x 1100: four levels; level 0 (residual) in bands of 512, 512 and 76 rows, level 2 (258 x 275,
+    // residual of level 3) in one band of 275 rows, two tile rows.
+    baked_as_the_reference(1030, 1100, 4);
     // 600 x 530: three levels; level 0 (residual) ends in a band of 18 rows, level 1 (300 x 265) in one
     // of 9, and level 2 (150 x 133) takes a band of 128 rows and one of 5.
-    let (w, h) = (600u32, 530u32);
+    let (im, bytes, report) = baked_as_the_reference(600, 530, 3);
+    // The file bake writes the same bytes, through a temporary renamed into place.
+    let dir = TempDir::new("imagery_bake", "bake");
+    let out = dir.join("bands.clipsat-imagery");
+    let mut rows = ImageryRows::held(im.clone());
+    let r = bake_imagery_file(
+        &mut rows,
+        DEFAULT_QUALITY,
+        7,
+        true,
+        &out,
+        clipsat::Progress::default(),
+    )
+    .expect("file bake");
+    assert_eq!(std::fs::read(&out).expect("read"), bytes);
+    assert_eq!(r, report);
+    assert_eq!(
+        std::fs::read_dir(&*dir).expect("list").count(),
+        1,
+        "no temporary left"
+    );
+}
+
+/// Bakes a `w` x `h` image of `levels` levels and checks it against the reference; returns the image,
+/// the package and the report.
+fn baked_as_the_reference(w: u32, h: u32, levels: u32) -> (Imagery, Vec<u8>, ImageryBakeReport) {
     let grid = Extent::of_grid(w, h, 1.0, (0.0, 0.0));
     let im =
         Imagery::from_rgb(Path::new("<bands>"), w, h, texels(w, h), &grid, None).expect("image");
     let (bytes, report) = bake_imagery(&im, DEFAULT_QUALITY, 7).expect("bake");
-    assert_eq!(report.levels, 3);
+    assert_eq!(report.levels, levels);
     let package = ImageryPackage::from_bytes(Path::new("<bands>"), bytes.clone()).expect("package");
     let header = package.header().clone();
+    // Even levels but the coarsest are residuals.
     assert_eq!(
         header.levels.iter().map(|l| l.residual).collect::<Vec<_>>(),
-        vec![true, false, false]
+        (0..levels)
+            .map(|l| l % 2 == 0 && l + 1 < levels)
+            .collect::<Vec<_>>()
     );
     let mut levels = vec![ColorLevel {
         width: w,
@@ -195,26 +228,7 @@ fn the_band_by_band_bake_codes_the_whole_pyramid() {
         "{report:?}"
     );
     assert!(cache.stats().parents >= 1, "{:?}", cache.stats());
-    // The file bake writes the same bytes, through a temporary renamed into place.
-    let dir = TempDir::new("imagery_bake", "bake");
-    let out = dir.join("bands.clipsat-imagery");
-    let mut rows = ImageryRows::held(im.clone());
-    let r = bake_imagery_file(
-        &mut rows,
-        DEFAULT_QUALITY,
-        7,
-        true,
-        &out,
-        clipsat::Progress::default(),
-    )
-    .expect("file bake");
-    assert_eq!(std::fs::read(&out).expect("read"), bytes);
-    assert_eq!(r, report);
-    assert_eq!(
-        std::fs::read_dir(&*dir).expect("list").count(),
-        1,
-        "no temporary left"
-    );
+    (im, bytes, report)
 }
 
 /// A file read in bands of 7 rows gives the texels of the whole read, for PNG (8 and 16 bits), JPEG and
