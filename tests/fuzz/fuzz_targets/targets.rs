@@ -338,7 +338,7 @@ pub(crate) fn load_imagery(data: &[u8]) -> String {
 }
 
 /// An imagery package (`package::imagery`) from bytes: the header checked, then every tile of a small
-/// one decoded (CRCs and JPEG).
+/// one decoded (CRCs and JPEG; a residual tile with its parent).
 pub(crate) fn load_imagery_package(data: &[u8]) -> String {
     use clipsat::package::imagery::ImageryPackage;
     let r = ImageryPackage::from_bytes(std::path::Path::new("x.clipsat-imagery"), data.to_vec())
