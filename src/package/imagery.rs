@@ -1,13 +1,21 @@
 //! Stage 1b, the package: the imagery package, a companion of the terrain package that holds the colour
-//! pyramid (`bake::imagery`) in tiles, each coded as a baseline JPEG (4:4:4, quality
-//! [`DEFAULT_QUALITY`]) with a CRC-32, behind a checksummed header. The format was chosen by
-//! measurement (docs/guide.md "Imagery"): per-tile 4:4:4 JPEG at quality 80 takes fewer bytes per texel
-//! than a whole-image JPEG at quality 90 (4:2:0) at a higher PSNR, on both shared images.
+//! pyramid (`bake::imagery`) in tiles, each coded as a baseline JPEG (4:4:4, optimised Huffman tables,
+//! quality [`DEFAULT_QUALITY`]) with a CRC-32, behind a checksummed header.
+//!
+//! The levels alternate: odd levels and the coarsest are stored whole ("intra"); every other even level
+//! is stored as a residual against the level above, a Laplacian pyramid (Burt & Adelson 1983) closed on
+//! the decoded parent like GC's compressed pyramid (Losasso & Hoppe 2004, section 7): a tile holds
+//! `clamp(texel - up(parent) + 128, 0, 255)`, where `up` is the integer bilinear upsample of the one
+//! decoded parent tile above it (`bake::imagery::up_at`). A residual tile so costs at most two JPEG
+//! decodes, and the bake stays one pass (`imagery_bake.rs`). The format was chosen by measurement
+//! (docs/guide.md "The imagery package"): quality 75 takes about a tenth fewer bytes per texel than a
+//! whole-image JPEG at quality 90 (4:2:0), all levels counted, at half a dB more, on both shared images.
 //!
 //! Layout, little-endian: magic `CSIMAGE\0`, version (u32), quality (u32), tile side (u32), level-0
 //! width and height (u32), extent (4 x f64: west, south, east, north), source key (u64), level count
-//! (u32), each level's width and height (u32), each tile's offset (u64), length and CRC-32 (u32),
-//! levels finest first and tiles row-major; then the header's CRC-32 (u32); then the tiles.
+//! (u32), each level's width, height and kind (u32: 0 whole, 1 residual), each tile's offset (u64),
+//! length and CRC-32 (u32), levels finest first and tiles row-major; then the header's CRC-32 (u32);
+//! then the tiles.
 
 use std::io::Cursor;
 use std::path::{Path, PathBuf};
@@ -15,22 +23,24 @@ use std::path::{Path, PathBuf};
 use image::ImageDecoder as _;
 
 use super::format::{Reader, TileEntry};
-use crate::bake::imagery::{level_count, level_sizes};
+use crate::bake::imagery::{from_residual, level_count, level_sizes, Parent};
 use crate::source::imagery::Extent;
 use crate::{Error, Result};
 
 /// The file's first eight bytes.
 pub const MAGIC: &[u8; 8] = b"CSIMAGE\0";
-/// The format version this build writes and reads.
-pub const VERSION: u32 = 1;
+/// The format version this build writes and reads (1: every level whole, quality 80).
+pub const VERSION: u32 = 2;
 /// Texels on a side of a tile.
 pub const TILE: u32 = 256;
-/// The JPEG quality of the tiles (4:4:4): the measured choice, see the module's notes.
-pub const DEFAULT_QUALITY: u8 = 80;
+/// The JPEG quality of the tiles (4:4:4), whole and residual: the measured choice, see the module's notes.
+pub const DEFAULT_QUALITY: u8 = 75;
 /// Bytes before the per-level table.
 const FIXED: usize = 8 + 4 + 4 + 4 + 4 + 4 + 4 * 8 + 8 + 4;
 /// Bytes of one tile entry.
 const TILE_ENTRY: usize = 16;
+/// Bytes of one level's entry: width, height, kind.
+const LEVEL_ENTRY: usize = 12;
 
 /// One level of the pyramid in the package.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -45,6 +55,8 @@ pub struct ImageryLevel {
     pub tiles_y: u32,
     /// Index of the level's first tile in the tile table.
     pub first_tile: usize,
+    /// Stored as residuals against the next coarser level (which is stored whole).
+    pub residual: bool,
 }
 
 /// An imagery package's header.
@@ -71,7 +83,7 @@ pub struct ImageryHeader {
 impl ImageryHeader {
     /// Bytes of the header, its CRC included.
     pub fn byte_len(&self) -> usize {
-        FIXED + 8 * self.levels.len() + TILE_ENTRY * self.tiles.len() + 4
+        FIXED + LEVEL_ENTRY * self.levels.len() + TILE_ENTRY * self.tiles.len() + 4
     }
 
     /// Metres per texel of `level` (east-west, north-south): level 0's doubled per level.
@@ -94,18 +106,28 @@ impl ImageryHeader {
         self.tiles.iter().map(|t| u64::from(t.len)).sum()
     }
 
-    /// The levels and tile table of a pyramid over `width` x `height` texels, offsets left at 0.
+    /// Whether any level is stored as residuals.
+    pub fn has_residuals(&self) -> bool {
+        self.levels.iter().any(|l| l.residual)
+    }
+
+    /// The levels and tile table of a pyramid over `width` x `height` texels, offsets left at 0: even
+    /// levels but the coarsest are residuals.
     pub(super) fn layout(width: u32, height: u32, tile: u32) -> (Vec<ImageryLevel>, usize) {
         let mut first_tile = 0;
-        let levels = level_sizes(width, height)
+        let sizes = level_sizes(width, height);
+        let count = sizes.len();
+        let levels = sizes
             .into_iter()
-            .map(|(w, h)| {
+            .enumerate()
+            .map(|(i, (w, h))| {
                 let l = ImageryLevel {
                     width: w,
                     height: h,
                     tiles_x: w.div_ceil(tile),
                     tiles_y: h.div_ceil(tile),
                     first_tile,
+                    residual: i % 2 == 0 && i + 1 < count,
                 };
                 first_tile += l.tiles_x as usize * l.tiles_y as usize;
                 l
@@ -129,6 +151,7 @@ impl ImageryHeader {
         for l in &self.levels {
             out.extend_from_slice(&l.width.to_le_bytes());
             out.extend_from_slice(&l.height.to_le_bytes());
+            out.extend_from_slice(&u32::from(l.residual).to_le_bytes());
         }
         for t in &self.tiles {
             out.extend_from_slice(&t.offset.to_le_bytes());
@@ -177,12 +200,18 @@ impl ImageryHeader {
         }
         let (levels, tile_count) = Self::layout(width, height, tile);
         for l in &levels {
-            let (w, h) = (r.u32(), r.u32());
+            let (w, h, kind) = (r.u32(), r.u32(), r.u32());
             if (w, h) != (Some(l.width), Some(l.height)) {
                 return Err(bad("level sizes do not follow the pyramid".into()));
             }
+            // A residual level's parent is stored whole, so a tile takes at most two decodes.
+            if kind != Some(u32::from(l.residual)) {
+                return Err(bad(
+                    "level kinds do not alternate as this build reads them".into(),
+                ));
+            }
         }
-        let table_end = FIXED + 8 * levels.len() + TILE_ENTRY * tile_count + 4;
+        let table_end = FIXED + LEVEL_ENTRY * levels.len() + TILE_ENTRY * tile_count + 4;
         if bytes.len() < table_end {
             return Err(bad(format!(
                 "truncated: {} bytes, the header alone takes {table_end}",
@@ -251,6 +280,22 @@ fn tile_size(l: &ImageryLevel, tile: u32, tx: u32, ty: u32) -> (u32, u32) {
         (l.width - tx * tile).min(tile),
         (l.height - ty * tile).min(tile),
     )
+}
+
+/// Codes `w` x `h` RGB8 texels (packed rows) as a baseline JPEG at `quality`: 4:4:4, Huffman tables
+/// optimised for the tile (the `jpeg-encoder` crate; measured in docs/guide.md "The imagery package").
+pub fn encode_jpeg(path: &Path, texels: &[u8], w: u32, h: u32, quality: u8) -> Result<Vec<u8>> {
+    let bad = |e: String| Error::format(path, format!("JPEG encoder: {e}"));
+    let (Ok(w16), Ok(h16)) = (u16::try_from(w), u16::try_from(h)) else {
+        return Err(bad(format!("a tile of {w} x {h} texels")));
+    };
+    let mut coded = Vec::new();
+    let mut e = jpeg_encoder::Encoder::new(&mut coded, quality);
+    e.set_sampling_factor(jpeg_encoder::SamplingFactor::F_1_1);
+    e.set_optimized_huffman_tables(true);
+    e.encode(texels, w16, h16, jpeg_encoder::ColorType::Rgb)
+        .map_err(|err| bad(err.to_string()))?;
+    Ok(coded)
 }
 
 /// Decodes a JPEG tile of `w` x `h` RGB texels into `out` (`w * h * 3` bytes).
@@ -369,8 +414,58 @@ impl ImageryPackage {
         (tx < l.tiles_x && ty < l.tiles_y).then(|| tile_size(l, self.header.tile, tx, ty))
     }
 
-    /// Decodes tile (tx, ty) of `level` into `out` (RGB8, row-major, at least `w * h * 3` bytes) after
-    /// checking its CRC; returns its size. Damage is an error naming the tile.
+    /// The tile a residual tile (tx, ty) of `level` is predicted from: (level + 1, tx / 2, ty / 2);
+    /// `None` for a tile stored whole.
+    pub fn parent_of(&self, level: usize, tx: u32, ty: u32) -> Option<(usize, u32, u32)> {
+        let l = self.header.levels.get(level)?;
+        l.residual.then_some((level + 1, tx / 2, ty / 2))
+    }
+
+    /// Turns the decoded residuals of tile (tx, ty) of a residual `level` in `texels` (RGB8, its
+    /// `w * h * 3` bytes) into the level's texels, predicted from `parent` (its parent tile's RGB8 as
+    /// decoded, [`ImageryPackage::parent_of`]).
+    pub fn add_prediction(&self, level: usize, tx: u32, ty: u32, parent: &[u8], texels: &mut [u8]) -> Result<()> {
+        let Some(((pl, ptx, pty), (w, h))) = self.parent_of(level, tx, ty).zip(self.tile_size(level, tx, ty)) else {
+            return Err(Error::Invalid {
+                what: format!("imagery tile {level}/{tx}/{ty}"),
+                reason: "not a residual tile of the package".into(),
+            });
+        };
+        let Some((pw, ph)) = self.tile_size(pl, ptx, pty) else {
+            return Err(Error::format(&self.path, format!("imagery tile {level}/{tx}/{ty}: no parent tile")));
+        };
+        let (n, pn) = (w as usize * h as usize * 3, pw as usize * ph as usize * 3);
+        let (Some(texels), Some(parent)) = (texels.get_mut(..n), parent.get(..pn)) else {
+            return Err(Error::Capacity { what: "imagery tile buffer", capacity: texels.len().min(parent.len()) });
+        };
+        let t = self.header.tile;
+        let p = Parent { texels: parent, stride: pw as usize, width: pw, height: ph };
+        from_residual(&p, (tx % 2) * t, (ty % 2) * t, w, h, texels);
+        Ok(())
+    }
+
+    /// Decodes tile (tx, ty) of `level` into the level's texels (RGB8, as [`ImageryPackage::decode_tile`]):
+    /// a residual tile's parent decoded into `parent` (a tile's RGB8 bytes) and the prediction added. For
+    /// whole decodes outside the tile cache (a rebuilt texture, the CPU twin, the tests).
+    pub fn decode_texels(
+        &self,
+        level: usize,
+        tx: u32,
+        ty: u32,
+        out: &mut [u8],
+        parent: &mut [u8],
+    ) -> Result<(u32, u32)> {
+        let size = self.decode_tile(level, tx, ty, out)?;
+        if let Some((pl, ptx, pty)) = self.parent_of(level, tx, ty) {
+            self.decode_tile(pl, ptx, pty, parent)?;
+            self.add_prediction(level, tx, ty, parent, out)?;
+        }
+        Ok(size)
+    }
+
+    /// Decodes tile (tx, ty) of `level` as stored (a residual level's residuals) into `out` (RGB8,
+    /// row-major, at least `w * h * 3` bytes) after checking its CRC; returns its size. Damage is an
+    /// error naming the tile.
     pub fn decode_tile(&self, level: usize, tx: u32, ty: u32, out: &mut [u8]) -> Result<(u32, u32)> {
         let Some((w, h)) = self.tile_size(level, tx, ty) else {
             return Err(Error::Invalid {

@@ -1,19 +1,24 @@
 //! Stage 1b, the package: the imagery package baked out of core. The source is read a band of
-//! [`TILE`] rows at a time ([`ImageryRows`]); each level holds one band, which is coded into a row of
-//! JPEG tiles when full and halved into the next coarser level's band (`bake::imagery::halve_rows`, GC
-//! section 3's box-filtered "additional images"). Memory is about two bands of level 0, `2 x 256 x width
-//! x 3` bytes, whatever the image's height: 25 MB for a 16384-texel-wide image (docs/guide.md
-//! "Imagery"). The tiles land in the file in the order they are finished (levels
-//! interleaved); the header, written last at the file's start, says where each lies.
+//! [`TILE`] rows at a time ([`ImageryRows`]); each level's rows are halved into the next coarser
+//! level's band as they arrive (`bake::imagery::halve_rows`, GC section 3's box-filtered "additional
+//! images"). A level stored whole is coded into a row of JPEG tiles when its band of [`TILE`] rows is
+//! full, and decoded again where the level below is a residual of it; a residual level holds two tile
+//! rows, which wait for the row of parent tiles above them to be coded and decoded, then are coded as
+//! residuals against it (closed loop: the prediction is the parent as the runtime decodes it). Memory is
+//! the bands, about 2.9 KB per texel of level 0's width (512 rows of level 0, a band and its decoded copy
+//! of level 1, and so on up), whatever the image's height: 47 MB for a 16384-texel-wide image (docs/guide.md "The imagery package"). The tiles land in the file
+//! in the order they are finished (levels interleaved); the header, written last at the file's start,
+//! says where each lies.
 
 use std::io::{Seek, SeekFrom, Write};
 use std::path::Path;
 
 use super::format::TileEntry;
 use super::imagery::{
-    decode_jpeg, psnr, ImageryBakeReport, ImageryHeader, ImageryLevel, ImageryPackage, TILE, VERSION,
+    decode_jpeg, encode_jpeg, psnr, ImageryBakeReport, ImageryHeader, ImageryLevel, ImageryPackage,
+    TILE, VERSION,
 };
-use crate::bake::imagery::halve_rows;
+use crate::bake::imagery::{from_residual, halve_rows, to_residual, Parent};
 use crate::progress::Progress;
 use crate::source::imagery::Imagery;
 use crate::source::imagery_rows::ImageryRows;
@@ -32,7 +37,7 @@ pub fn bake_imagery_rows<W: Write + Seek>(
 ) -> Result<ImageryBakeReport> {
     let (width, height) = rows.size();
     let (levels, tile_count) = ImageryHeader::layout(width, height, TILE);
-    let mut header = ImageryHeader {
+    let header = ImageryHeader {
         quality: u32::from(quality),
         tile: TILE,
         width,
@@ -46,53 +51,52 @@ pub fn bake_imagery_rows<W: Write + Seek>(
     let write_err = |e: std::io::Error| Error::io(&path, "cannot write the imagery package baked from", e);
     let head = header.byte_len() as u64;
     out.seek(SeekFrom::Start(head)).map_err(write_err)?;
-    let mut coder = Coder {
-        out,
-        at: head,
-        quality,
-        path: &path,
-        measure,
-        sq_err: 0,
-        level0_bytes: 0,
-    };
-    // One band per level and the rows of each level coded so far.
-    let mut bands: Vec<Vec<u8>> = header
+    let count = header.levels.len();
+    // One band per level (two tile rows for a residual level: they wait for their parents' tile row),
+    // and a whole level's band as decoded where the level below is a residual of it.
+    let bands = header
         .levels
         .iter()
-        .map(|l| Vec::with_capacity(TILE as usize * l.width as usize * 3))
+        .map(|l| {
+            let rows = if l.residual { 2 * TILE } else { TILE };
+            Vec::with_capacity(rows as usize * l.width as usize * 3)
+        })
         .collect();
-    let mut done = vec![0u32; header.levels.len()];
+    let decoded = (0..count)
+        .map(|l| {
+            let child = l > 0 && header.levels[l - 1].residual;
+            let rows = if child { TILE as usize } else { 0 };
+            Vec::with_capacity(rows * header.levels[l].width as usize * 3)
+        })
+        .collect();
+    let mut bake = Bake {
+        coder: Coder {
+            out,
+            at: head,
+            quality,
+            path: &path,
+            measure,
+            sq_err: 0,
+            level0_bytes: 0,
+        },
+        header,
+        bands,
+        decoded,
+        done: vec![0; count],
+    };
+    let mut read = 0;
     let mut meter = progress.task("baking imagery", u64::from(height));
-    while done[0] < height {
-        let n = TILE.min(height - done[0]);
-        bands[0].resize(n as usize * width as usize * 3, 0);
-        rows.read_rows(&mut bands[0])?;
-        // Code the band, halve it into the next level, and go on down while that level's band is full.
-        let mut l = 0;
-        loop {
-            let level = header.levels[l];
-            // At most TILE rows.
-            let band_rows = u32::try_from(bands[l].len() / (level.width as usize * 3)).unwrap_or(TILE);
-            coder.tile_row(&mut header, l, done[l] / TILE, &bands[l], band_rows)?;
-            done[l] += band_rows;
-            if l + 1 == bands.len() {
-                break;
-            }
-            let (fine, coarse) = bands.split_at_mut(l + 1);
-            halve_rows(&fine[l], level.width, band_rows, &mut coarse[0]);
-            fine[l].clear();
-            let next = header.levels[l + 1];
-            let next_rows = coarse[0].len() / (next.width as usize * 3);
-            let full = next_rows == TILE as usize
-                || done[l + 1] as usize + next_rows == next.height as usize;
-            if !full {
-                break;
-            }
-            l += 1;
-        }
+    while read < height {
+        let n = TILE.min(height - read);
+        let start = bake.bands[0].len();
+        bake.bands[0].resize(start + n as usize * width as usize * 3, 0);
+        rows.read_rows(&mut bake.bands[0][start..])?;
+        read += n;
+        bake.arrived(0, start)?;
         meter.inc(u64::from(n));
     }
     meter.finish();
+    let Bake { coder, header, .. } = bake;
     let mut bytes = Vec::with_capacity(header.byte_len());
     header.write(&mut bytes);
     let Coder {
@@ -177,6 +181,67 @@ pub fn cached_imagery(
     ImageryPackage::open(&path)
 }
 
+/// The bake's state: the levels' bands of rows not yet coded, the decoded band of each level a
+/// residual level is predicted from, and the rows of each level coded so far.
+struct Bake<'a, W> {
+    coder: Coder<'a, W>,
+    header: ImageryHeader,
+    bands: Vec<Vec<u8>>,
+    decoded: Vec<Vec<u8>>,
+    done: Vec<u32>,
+}
+
+impl<W: Write + Seek> Bake<'_, W> {
+    /// Rows of level `l` have arrived at the end of its band, from byte `start` on: an even count but
+    /// at the level's end, so halving them alone gives the coarser level's rows. Codes what is complete.
+    fn arrived(&mut self, l: usize, start: usize) -> Result<()> {
+        let level = self.header.levels[l];
+        let stride = level.width as usize * 3;
+        let band_rows = u32::try_from(self.bands[l].len() / stride).unwrap_or(u32::MAX);
+        let at_end = self.done[l] + band_rows == level.height;
+        if level.residual {
+            // The new rows' means go up now; the band is coded once its parents' tile row is.
+            let new_rows = u32::try_from((self.bands[l].len() - start) / stride).unwrap_or(0);
+            let parent_start = self.bands[l + 1].len();
+            let (fine, coarse) = self.bands.split_at_mut(l + 1);
+            halve_rows(&fine[l][start..], level.width, new_rows, &mut coarse[0]);
+            self.arrived(l + 1, parent_start)?;
+            if band_rows == 2 * TILE || at_end {
+                let first = band_rows.min(TILE);
+                let ty = self.done[l] / TILE;
+                let (head, tail) = self.bands[l].split_at(first as usize * stride);
+                let parent = (&self.decoded[l + 1][..], self.header.levels[l + 1].width);
+                self.coder.tile_row(&mut self.header, l, ty, head, first, Some((parent, 0)), None)?;
+                if band_rows > first {
+                    let rows = band_rows - first;
+                    let below = Some((parent, TILE));
+                    self.coder.tile_row(&mut self.header, l, ty + 1, tail, rows, below, None)?;
+                }
+                self.done[l] += band_rows;
+                self.bands[l].clear();
+            }
+            return Ok(());
+        }
+        if band_rows < TILE && !at_end {
+            return Ok(());
+        }
+        let keep = (l > 0 && self.header.levels[l - 1].residual).then_some(&mut self.decoded[l]);
+        let ty = self.done[l] / TILE;
+        self.coder.tile_row(&mut self.header, l, ty, &self.bands[l], band_rows, None, keep)?;
+        self.done[l] += band_rows;
+        if l + 1 < self.bands.len() {
+            let parent_start = self.bands[l + 1].len();
+            let (fine, coarse) = self.bands.split_at_mut(l + 1);
+            halve_rows(&fine[l], level.width, band_rows, &mut coarse[0]);
+            self.bands[l].clear();
+            self.arrived(l + 1, parent_start)?;
+        } else {
+            self.bands[l].clear();
+        }
+        Ok(())
+    }
+}
+
 /// Codes rows of tiles into the package.
 struct Coder<'a, W> {
     out: &'a mut W,
@@ -189,13 +254,20 @@ struct Coder<'a, W> {
     level0_bytes: u64,
 }
 
-/// One tile coded: its JPEG and, where measured, its squared error against the source.
-type Coded = (Vec<u8>, u64);
+/// One tile coded: its JPEG, where measured its squared error against the source, and where kept its
+/// texels as decoded.
+type Coded = (Vec<u8>, u64, Vec<u8>);
+
+/// A residual tile row's parents: the decoded band of the level above (RGB8), its width in texels, and
+/// the row of the doubled parent tiles the tile row starts at (0 or [`TILE`]).
+type Parents<'a> = Option<((&'a [u8], u32), u32)>;
 
 impl<W: Write + Seek> Coder<'_, W> {
-    /// Codes tile row `ty` of level `l` from `band`, its `rows` rows, and records each tile in `header`.
-    /// The row's tiles are coded on every core (`write::threads`), each thread a run of neighbours, and
-    /// written in order: a tile's JPEG does not depend on which thread made it.
+    /// Codes tile row `ty` of level `l` from `band`, its `rows` rows (as residuals against `parents`
+    /// where given), and records each tile in `header`; with `keep`, the row's texels as decoded land
+    /// there. The row's tiles are coded on every core (`package::threads`), each thread a run of
+    /// neighbours, and written in order: a tile's JPEG does not depend on which thread made it.
+    #[expect(clippy::too_many_arguments, reason = "one tile row's inputs, all used")]
     fn tile_row(
         &mut self,
         header: &mut ImageryHeader,
@@ -203,33 +275,59 @@ impl<W: Write + Seek> Coder<'_, W> {
         ty: u32,
         band: &[u8],
         rows: u32,
+        parents: Parents<'_>,
+        keep: Option<&mut Vec<u8>>,
     ) -> Result<()> {
         let level: ImageryLevel = header.levels[l];
         let measure = self.measure && l == 0;
+        let keeping = keep.is_some();
         let (quality, path) = (self.quality, self.path);
-        let code = |tx: u32, scratch: &mut Vec<u8>, decoded: &mut Vec<u8>| -> Result<Coded> {
+        let stride = level.width as usize * 3;
+        let code = |tx: u32, scratch: &mut Vec<u8>| -> Result<Coded> {
             let tw = (level.width - tx * TILE).min(TILE);
-            let stride = level.width as usize * 3;
             scratch.clear();
             for y in 0..rows as usize {
                 let at = y * stride + (tx * TILE) as usize * 3;
                 scratch.extend_from_slice(&band[at..at + tw as usize * 3]);
             }
-            let mut coded = Vec::new();
-            image::codecs::jpeg::JpegEncoder::new_with_quality(&mut coded, quality)
-                .encode(scratch, tw, rows, image::ExtendedColorType::Rgb8)
-                .map_err(|e| Error::format(path, format!("JPEG encoder: {e}")))?;
-            let mut sq = 0;
-            if measure {
-                decoded.resize(scratch.len(), 0);
-                decode_jpeg(path, &coded, tw, rows, decoded)?;
-                sq = scratch
-                    .iter()
-                    .zip(decoded.iter())
-                    .map(|(a, b)| u64::from(a.abs_diff(*b)).pow(2))
-                    .sum::<u64>();
+            // The parent tile (tx / 2) within the decoded band above, and this tile's place in its
+            // upsample.
+            let parent = parents.map(|((texels, width), oy)| {
+                let px = tx / 2 * TILE;
+                let p = Parent {
+                    texels: &texels[px as usize * 3..],
+                    stride: width as usize,
+                    width: (width - px).min(TILE),
+                    height: u32::try_from(texels.len() / (width as usize * 3)).unwrap_or(0),
+                };
+                (p, (tx % 2) * TILE, oy)
+            });
+            if let Some((p, ox, oy)) = &parent {
+                to_residual(p, *ox, *oy, tw, rows, scratch);
             }
-            Ok((coded, sq))
+            let coded = encode_jpeg(path, scratch, tw, rows, quality)?;
+            let (mut sq, mut decoded) = (0, Vec::new());
+            if measure || keeping {
+                decoded.resize(scratch.len(), 0);
+                decode_jpeg(path, &coded, tw, rows, &mut decoded)?;
+                if let Some((p, ox, oy)) = &parent {
+                    from_residual(p, *ox, *oy, tw, rows, &mut decoded);
+                }
+            }
+            if measure {
+                for (y, got) in decoded.chunks_exact(tw as usize * 3).enumerate() {
+                    let at = y * stride + (tx * TILE) as usize * 3;
+                    sq += band[at..at + got.len()]
+                        .iter()
+                        .zip(got)
+                        .map(|(a, b)| u64::from(a.abs_diff(*b)).pow(2))
+                        .sum::<u64>();
+                }
+            }
+            if !keeping {
+                decoded = Vec::new();
+            }
+            Ok((coded, sq, decoded))
         };
         let tiles: Vec<u32> = (0..level.tiles_x).collect();
         let per = tiles.len().div_ceil(super::threads()).max(1);
@@ -238,9 +336,9 @@ impl<W: Write + Seek> Coder<'_, W> {
                 .chunks(per)
                 .map(|run| {
                     s.spawn(move || {
-                        let (mut scratch, mut decoded) = (Vec::new(), Vec::new());
+                        let mut scratch = Vec::new();
                         run.iter()
-                            .map(|&tx| code(tx, &mut scratch, &mut decoded))
+                            .map(|&tx| code(tx, &mut scratch))
                             .collect::<Result<Vec<_>>>()
                     })
                 })
@@ -251,7 +349,12 @@ impl<W: Write + Seek> Coder<'_, W> {
             }
             Ok::<_, Error>(all)
         })?;
-        for (tx, (jpeg, sq)) in (0..).zip(coded) {
+        let mut keep = keep;
+        if let Some(k) = keep.as_deref_mut() {
+            k.clear();
+            k.resize(rows as usize * stride, 0);
+        }
+        for (tx, (jpeg, sq, decoded)) in (0..).zip(coded) {
             self.out
                 .write_all(&jpeg)
                 .map_err(|e| Error::io(self.path, "cannot write the imagery package baked from", e))?;
@@ -265,6 +368,13 @@ impl<W: Write + Seek> Coder<'_, W> {
             if l == 0 {
                 self.level0_bytes += jpeg.len() as u64;
                 self.sq_err += sq;
+            }
+            if let Some(k) = keep.as_deref_mut() {
+                let row = decoded.len() / rows.max(1) as usize;
+                for (y, got) in decoded.chunks_exact(row.max(1)).enumerate() {
+                    let at = y * stride + (tx * TILE) as usize * 3;
+                    k[at..at + got.len()].copy_from_slice(got);
+                }
             }
         }
         Ok(())

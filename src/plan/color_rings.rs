@@ -429,14 +429,14 @@ impl ColorRings {
                     self.save(level, t, row);
                     return Ok(());
                 }
-                let decoded = self.cache.stats().decoded;
                 let (ux, uy) = (
                     u32::try_from(tx).unwrap_or(u32::MAX),
                     u32::try_from(ty).unwrap_or(u32::MAX),
                 );
-                // A resident tile costs nothing; a decode needs one of the frame's tiles.
-                let mut decode = if *tiles_left > 0 { u64::MAX } else { 0 };
-                let resident = self.cache.fetch(level, ux, uy, &mut decode)?;
+                // A resident tile costs nothing; each decode (a residual tile's parent's too) takes one
+                // of the frame's tiles.
+                let mut decode = u64::MAX;
+                let resident = self.cache.fetch_counted(level, ux, uy, &mut decode, tiles_left)?;
                 let Some((tw, _, texels)) = resident else {
                     self.save(level, t, row);
                     return Ok(());
@@ -449,9 +449,6 @@ impl ColorRings {
                         stage_piece(self.format, level, texels, tw, (tx * tile, ty * tile), &piece, ring, &mut self.staging[offset..]);
                     *staged += n;
                     let _ = self.uploads.push(ColorUpload { offset, ..upload });
-                }
-                if self.cache.stats().decoded > decoded {
-                    *tiles_left -= 1;
                 }
                 *texels_left -= charged.unsigned_abs();
                 row += rows;
@@ -566,6 +563,7 @@ impl ColorRings {
         let side = usize::try_from(tile).unwrap_or(0);
         let t = package.header().tile;
         let mut rgb = vec![0u8; side * side * 3];
+        let mut parent = vec![0u8; side * side * 3];
         let block_bytes = if self.format.is_block() { self.format.bytes(t, t) } else { 0 };
         let mut blocks = vec![0u8; usize::try_from(block_bytes).unwrap_or(0)];
         let mut encoder = BlockEncoder::new(self.format, t);
@@ -591,11 +589,12 @@ impl ColorRings {
                     if part.is_empty() || rows <= 0 {
                         continue;
                     }
-                    let (tw, th) = package.decode_tile(
+                    let (tw, th) = package.decode_texels(
                         level,
                         u32::try_from(tx).unwrap_or(u32::MAX),
                         u32::try_from(ty).unwrap_or(u32::MAX),
                         &mut rgb,
+                        &mut parent,
                     )?;
                     let data = if self.format.is_block() {
                         let n = usize::try_from(self.format.bytes(tw, th)).unwrap_or(0);

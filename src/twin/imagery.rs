@@ -38,6 +38,7 @@ impl ImageryTwin {
         let mut widths = Vec::new();
         let side = h.tile as usize;
         let mut tile = vec![0u8; side * side * 3];
+        let mut parent = vec![0u8; side * side * 3];
         let format = rings.format();
         let mut encoder = BlockEncoder::new(format, h.tile);
         let mut blocks = vec![0u8; usize::try_from(format.bytes(h.tile, h.tile)).unwrap_or(0)];
@@ -50,7 +51,7 @@ impl ImageryTwin {
             let mut texels = vec![0u8; l.width as usize * l.height as usize * 3];
             for ty in 0..l.tiles_y {
                 for tx in 0..l.tiles_x {
-                    let (tw, th) = p.decode_tile(level, tx, ty, &mut tile)?;
+                    let (tw, th) = p.decode_texels(level, tx, ty, &mut tile, &mut parent)?;
                     if format.is_block() {
                         let n = usize::try_from(format.bytes(tw, th)).unwrap_or(0);
                         encoder.encode(&tile, tw, th, &mut blocks[..n])?;

@@ -134,6 +134,13 @@ fn bake_writes_the_imagery_package_and_info_describes_it() {
         i["levels"][1]["texel_spacing_m"],
         serde_json::json!([25.6, 38.4])
     );
+    // Level 0 is stored as residuals of level 1, which is stored whole; the plain text says so too.
+    assert_eq!(i["levels"][0]["stored"], "residual of the level above");
+    assert_eq!(i["levels"][1]["stored"], "whole");
+    let r = clipsat(&["info", &companion.display().to_string()]);
+    assert!(r.status.success(), "{}", stderr(&r));
+    let text = String::from_utf8_lossy(&r.stdout);
+    assert!(text.contains("levels 0 stored as residuals"), "{text}");
 }
 
 #[test]

@@ -7,6 +7,7 @@
 
 use std::path::{Path, PathBuf};
 
+use clipsat::package::color_blocks::ColorFormat;
 use clipsat::package::imagery::{psnr, ImageryPackage, DEFAULT_QUALITY};
 use clipsat::package::imagery_bake::bake_imagery;
 use clipsat::package::imagery_cache::ImageryCache;
@@ -299,11 +300,38 @@ fn pyramid_bakes_into_checked_tiles() {
     let first = header.tiles[0];
     let mut tile_damage = bytes.clone();
     tile_damage[usize::try_from(first.offset).expect("offset") + 40] ^= 1;
-    let pkg = ImageryPackage::from_bytes(Path::new("<damaged>"), tile_damage).expect("header ok");
+    let pkg =
+        ImageryPackage::from_bytes(Path::new("<damaged>"), tile_damage.clone()).expect("header ok");
     let e = pkg
         .decode_tile(0, 0, 0, &mut vec![0; 256 * 256 * 3])
         .expect_err("tile damage");
     assert!(e.to_string().contains("tile 0/0/0: checksum"), "{e}");
+    // A residual tile through the cache: damage in it or in its parent is an error naming that tile.
+    let parent = header.tiles[header.levels[1].first_tile];
+    let mut parent_damage = bytes.clone();
+    parent_damage[usize::try_from(parent.offset).expect("offset") + 40] ^= 1;
+    for (damaged, name) in [(tile_damage, "tile 0/0/0"), (parent_damage, "tile 1/0/0")] {
+        let pkg = ImageryPackage::from_bytes(Path::new("<damaged>"), damaged).expect("header ok");
+        let mut cache = ImageryCache::new(pkg, 64 << 20).expect("cache");
+        cache.begin_frame();
+        let mut budget = u64::MAX;
+        let e = cache.fetch(0, 0, 0, &mut budget).expect_err("damage");
+        assert!(e.to_string().contains(name), "{name}: {e}");
+    }
+    // An older format (version 1: every level whole) is refused, to be baked again; level kinds that do
+    // not alternate are refused.
+    let mut old = bytes.clone();
+    old[8..12].copy_from_slice(&1u32.to_le_bytes());
+    let e = ImageryPackage::from_bytes(Path::new("<old>"), old).expect_err("version 1");
+    assert!(
+        e.to_string().contains("version 1") && e.to_string().contains("bake it again"),
+        "{e}"
+    );
+    let mut kinds = bytes.clone();
+    // Level 0's kind: after the fixed header (72 bytes) and its width and height.
+    kinds[80..84].copy_from_slice(&0u32.to_le_bytes());
+    let e = ImageryPackage::from_bytes(Path::new("<kinds>"), kinds).expect_err("kinds");
+    assert!(e.to_string().contains("level kinds"), "{e}");
     let mut head_damage = bytes.clone();
     head_damage[30] ^= 1;
     let e = ImageryPackage::from_bytes(Path::new("<damaged>"), head_damage).expect_err("header");
@@ -335,29 +363,69 @@ fn cache_is_bounded_by_its_budget() {
     let (bytes, _) = bake_imagery(&im, 50, 1).expect("bake");
     let pkg = ImageryPackage::from_bytes(Path::new("<baked>"), bytes).expect("package");
     let tiles = pkg.header().tiles.len() as u64;
+    // Level 0 is stored as residuals of level 1 (512 x 300, 2 x 2 tiles, stored whole): in RGB8 slots a
+    // parent shares the slots (two at least, a parent and its child); in blocks the cache keeps a
+    // parent LRU of its own, counted in its bytes.
+    assert!(pkg.header().levels[0].residual && !pkg.header().levels[1].residual);
+    assert_eq!(ImageryCache::parent_bytes(&pkg, ColorFormat::Rgba8), 0);
+    assert_eq!(ImageryCache::min_slots(&pkg, ColorFormat::Rgba8), 2);
+    assert!(ImageryCache::parent_bytes(&pkg, ColorFormat::Bc1) > 0);
     let budget = 2 * ImageryCache::slot_bytes(&pkg) + 4 * tiles;
     let mut cache = ImageryCache::new(pkg, budget).expect("cache");
     assert_eq!(cache.slot_count(), 2);
     assert!(cache.bytes() <= budget);
     cache.begin_frame();
     let mut budget = 256 * 256 + 10;
-    assert!(cache.fetch(0, 0, 0, &mut budget).expect("fetch").is_some());
+    assert!(cache.fetch(1, 0, 0, &mut budget).expect("fetch").is_some());
     assert_eq!(budget, 10);
     assert!(
-        cache.fetch(0, 1, 0, &mut budget).expect("fetch").is_none(),
+        cache.fetch(1, 1, 0, &mut budget).expect("fetch").is_none(),
         "over the texel budget"
     );
     let mut budget = u64::MAX;
-    assert!(cache.fetch(0, 1, 0, &mut budget).expect("fetch").is_some());
+    assert!(cache.fetch(1, 1, 0, &mut budget).expect("fetch").is_some());
     assert!(
-        cache.fetch(0, 2, 0, &mut budget).expect("fetch").is_none(),
+        cache.fetch(1, 0, 1, &mut budget).expect("fetch").is_none(),
         "both slots used this frame"
     );
     cache.begin_frame();
-    assert!(cache.fetch(0, 1, 0, &mut budget).expect("fetch").is_some());
-    assert!(cache.fetch(0, 2, 0, &mut budget).expect("fetch").is_some());
+    assert!(cache.fetch(1, 1, 0, &mut budget).expect("fetch").is_some());
+    assert!(cache.fetch(1, 0, 1, &mut budget).expect("fetch").is_some());
     let s = cache.stats();
     assert_eq!((s.decoded, s.hits, s.evictions, s.refused), (3, 1, 1, 2));
+    // One decode a frame (gles3-low's tiles_per_frame): a residual tile whose parent is not held takes
+    // the parent this frame and answers None, and the next frame decodes it; its neighbour under the
+    // same parent takes one decode. A parent already in a slot is not decoded again.
+    cache.begin_frame();
+    let mut decodes = 1;
+    assert!(cache
+        .fetch_counted(0, 2, 2, &mut budget, &mut decodes)
+        .expect("fetch")
+        .is_none());
+    assert_eq!((decodes, cache.stats().parents), (0, 1));
+    cache.begin_frame();
+    let mut decodes = 1;
+    assert!(cache
+        .fetch_counted(0, 2, 2, &mut budget, &mut decodes)
+        .expect("fetch")
+        .is_some());
+    assert_eq!(decodes, 0);
+    cache.begin_frame();
+    let mut decodes = 1;
+    assert!(cache
+        .fetch_counted(0, 3, 2, &mut budget, &mut decodes)
+        .expect("fetch")
+        .is_some());
+    cache.begin_frame();
+    let mut decodes = 2;
+    assert!(cache.fetch(1, 0, 0, &mut budget).expect("fetch").is_some());
+    assert!(cache
+        .fetch_counted(0, 0, 0, &mut budget, &mut decodes)
+        .expect("fetch")
+        .is_some());
+    assert_eq!(decodes, 1, "the parent read from its slot");
+    let s = cache.stats();
+    assert_eq!((s.parents, s.decoded), (1, 8), "{s:?}");
     // Not even one slot: refused when built.
     let pkg = ImageryPackage::from_bytes(
         Path::new("<baked>"),
@@ -370,9 +438,10 @@ fn cache_is_bounded_by_its_budget() {
     ));
 }
 
-/// The shared images baked: level 0 takes at most the bytes a texel of a whole-image JPEG at quality 90
-/// (4:2:0, libjpeg) at a PSNR at least as high (the figures: Puget Sound 0.411 B at 29.9 dB,
-/// Grand Canyon 0.255 B at 36.2 dB).
+/// The shared images baked: the whole package (every level, per level-0 texel) takes at most 95 % of the
+/// bytes a texel of a whole-image JPEG at quality 90 (4:2:0, libjpeg), level 0 at a PSNR at least 0.25
+/// dB higher (the figures: Puget Sound 0.411 B at 29.93 dB, Grand Canyon 0.255 B at 36.19 dB;
+/// measured: 0.371 B at 30.45 dB and 0.226 B at 36.71 dB, docs/guide.md "The imagery package").
 #[test]
 #[ignore = "about 30 s in a debug build: cargo test --test cpu imagery:: -- --ignored"]
 fn shared_images_beat_jpeg_q90() {
@@ -382,14 +451,14 @@ fn shared_images_beat_jpeg_q90() {
             "ps_height_1k.png",
             1025,
             0.411,
-            29.9,
+            29.93,
         ),
         (
             "imagery/gcanyon_color_1024.png",
             "imagery/gcanyon_elev_1200.png",
             1200,
             0.255,
-            36.2,
+            36.19,
         ),
     ] {
         let path = clipsat::data_dir().join(image);
@@ -406,8 +475,8 @@ fn shared_images_beat_jpeg_q90() {
         let im = Imagery::load(&path, &grid, &ImageryOptions::default()).expect("load");
         let (_, r) = bake_imagery(&im, DEFAULT_QUALITY, 0).expect("bake");
         eprintln!("{image}: {r:?}");
-        assert!(r.level0_bytes_per_texel <= jpeg_bytes, "{image}: {r:?}");
-        assert!(r.psnr_db >= jpeg_db, "{image}: {r:?}");
+        assert!(r.bytes_per_texel <= 0.95 * jpeg_bytes, "{image}: {r:?}");
+        assert!(r.psnr_db >= jpeg_db + 0.25, "{image}: {r:?}");
     }
 }
 

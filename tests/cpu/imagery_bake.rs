@@ -1,12 +1,17 @@
 //! Imagery's out-of-core bake (stages 0 and 1b): a reader's bands of rows give the whole image's texels
 //! in every format, and the package baked band by band holds, tile for tile, the JPEG of the pyramid
-//! made whole in memory (`ColorLevel::coarser`), for sizes that end bands and tiles mid-way.
+//! made whole in memory (`ColorLevel::coarser`; residual levels against a reference reconstruction of
+//! the level above), for sizes that end bands and tiles mid-way, and the cache hands out that
+//! reconstruction.
 
 use std::path::Path;
 
 use clipsat::bake::imagery::ColorLevel;
-use clipsat::package::imagery::{ImageryPackage, DEFAULT_QUALITY, TILE};
+use clipsat::package::imagery::{
+    encode_jpeg, psnr, ImageryBakeReport, ImageryPackage, DEFAULT_QUALITY, TILE,
+};
 use clipsat::package::imagery_bake::{bake_imagery, bake_imagery_file};
+use clipsat::package::imagery_cache::ImageryCache;
 use clipsat::source::imagery::{Extent, Imagery, ImageryOptions};
 use clipsat::source::imagery_rows::ImageryRows;
 
@@ -32,53 +37,42 @@ fn texels(w: u32, h: u32) -> Vec<u8> {
     v
 }
 
-/// Every tile of the package equals the JPEG of the same tile of the pyramid made whole in memory.
+/// The residual tiles' prediction as a straightforward reference: the parent tile's texel under
+/// (x, y) of its doubled tile, with its nearest neighbours toward (x, y), weighted 9, 3, 3, 1 (sixteenths,
+/// rounded), neighbours past the parent tile's border clamped to it.
+#[expect(
+    clippy::cast_possible_truncation,
+    reason = "a rounded mean of 8-bit values"
+)]
+fn reference_up(parent: &[u8], pw: u32, ph: u32, x: u32, y: u32, c: usize) -> i32 {
+    let (i, j) = (x / 2, y / 2);
+    let ni = if x % 2 == 1 {
+        (i + 1).min(pw - 1)
+    } else {
+        i.max(1) - 1
+    };
+    let nj = if y % 2 == 1 {
+        (j + 1).min(ph - 1)
+    } else {
+        j.max(1) - 1
+    };
+    let v = |a: u32, b: u32| f64::from(parent[((b * pw + a) * 3) as usize + c]);
+    let sum = 9.0 * v(i, j) + 3.0 * v(ni, j) + 3.0 * v(i, nj) + v(ni, nj);
+    (sum / 16.0 + 0.5).floor() as i32
+}
+
+/// Every tile of the package equals the JPEG of the same tile of the pyramid made whole in memory
+/// (`ColorLevel::coarser`): odd levels and the coarsest as they are, the other even levels as residuals
+/// against the reference reconstruction of the level above; and every tile the cache hands out equals
+/// that reconstruction, bit for bit.
 #[test]
 fn the_band_by_band_bake_codes_the_whole_pyramid() {
-    // 600 x 530: three levels; level 0 ends in a band of 18 rows, level 1 (300 x 265) in one of 9, and
-    // level 2 (150 x 133) takes a band of 128 rows and one of 5.
-    let (w, h) = (600u32, 530u32);
-    let grid = Extent::of_grid(w, h, 1.0, (0.0, 0.0));
-    let im =
-        Imagery::from_rgb(Path::new("<bands>"), w, h, texels(w, h), &grid, None).expect("image");
-    let (bytes, report) = bake_imagery(&im, DEFAULT_QUALITY, 7).expect("bake");
-    assert_eq!(report.levels, 3);
-    let package = ImageryPackage::from_bytes(Path::new("<bands>"), bytes.clone()).expect("package");
-    let header = package.header();
-    let mut level = ColorLevel {
-        width: w,
-        height: h,
-        texels: im.texels().to_vec(),
-    };
-    for (li, l) in header.levels.iter().enumerate() {
-        assert_eq!(
-            (l.width, l.height),
-            (level.width, level.height),
-            "level {li}"
-        );
-        for ty in 0..l.tiles_y {
-            for tx in 0..l.tiles_x {
-                let (tw, th) = (
-                    (l.width - tx * TILE).min(TILE),
-                    (l.height - ty * TILE).min(TILE),
-                );
-                let mut tile = Vec::new();
-                for y in ty * TILE..ty * TILE + th {
-                    let at = ((y * l.width + tx * TILE) * 3) as usize;
-                    tile.extend_from_slice(&level.texels[at..at + (tw * 3) as usize]);
-                }
-                let mut jpeg = Vec::new();
-                image::codecs::jpeg::JpegEncoder::new_with_quality(&mut jpeg, DEFAULT_QUALITY)
-                    .encode(&tile, tw, th, image::ExtendedColorType::Rgb8)
-                    .expect("encode");
-                let e = header.tiles[l.first_tile + (ty * l.tiles_x + tx) as usize];
-                let at = usize::try_from(e.offset).expect("offset");
-                let stored = &bytes[at..at + e.len as usize];
-                assert!(stored == jpeg.as_slice(), "level {li} tile ({tx}, {ty})");
-            }
-        }
-        level = level.coarser();
-    }
+    // 1030 x 1100: four levels; level 0 (residual) in bands of 512, 512 and 76 rows, level 2 (258 x 275,
+    // residual of level 3) in one band of 275 rows, two tile rows.
+    baked_as_the_reference(1030, 1100, 4);
+    // 600 x 530: three levels; level 0 (residual) ends in a band of 18 rows, level 1 (300 x 265) in one
+    // of 9, and level 2 (150 x 133) takes a band of 128 rows and one of 5.
+    let (im, bytes, report) = baked_as_the_reference(600, 530, 3);
     // The file bake writes the same bytes, through a temporary renamed into place.
     let dir = TempDir::new("imagery_bake", "bake");
     let out = dir.join("bands.clipsat-imagery");
@@ -99,6 +93,142 @@ fn the_band_by_band_bake_codes_the_whole_pyramid() {
         1,
         "no temporary left"
     );
+}
+
+/// Bakes a `w` x `h` image of `levels` levels and checks it against the reference; returns the image,
+/// the package and the report.
+fn baked_as_the_reference(w: u32, h: u32, levels: u32) -> (Imagery, Vec<u8>, ImageryBakeReport) {
+    let grid = Extent::of_grid(w, h, 1.0, (0.0, 0.0));
+    let im =
+        Imagery::from_rgb(Path::new("<bands>"), w, h, texels(w, h), &grid, None).expect("image");
+    let (bytes, report) = bake_imagery(&im, DEFAULT_QUALITY, 7).expect("bake");
+    assert_eq!(report.levels, levels);
+    let package = ImageryPackage::from_bytes(Path::new("<bands>"), bytes.clone()).expect("package");
+    let header = package.header().clone();
+    // Even levels but the coarsest are residuals.
+    assert_eq!(
+        header.levels.iter().map(|l| l.residual).collect::<Vec<_>>(),
+        (0..levels)
+            .map(|l| l % 2 == 0 && l + 1 < levels)
+            .collect::<Vec<_>>()
+    );
+    let mut levels = vec![ColorLevel {
+        width: w,
+        height: h,
+        texels: im.texels().to_vec(),
+    }];
+    for _ in 1..header.levels.len() {
+        let next = levels[levels.len() - 1].coarser();
+        levels.push(next);
+    }
+    let jpeg_path = Path::new("<reference>");
+    // The reference reconstruction of each level, coarsest first.
+    let mut recon: Vec<Vec<u8>> = levels.iter().map(|l| vec![0; l.texels.len()]).collect();
+    for li in (0..header.levels.len()).rev() {
+        let l = header.levels[li];
+        let level = &levels[li];
+        assert_eq!(
+            (l.width, l.height),
+            (level.width, level.height),
+            "level {li}"
+        );
+        for ty in 0..l.tiles_y {
+            for tx in 0..l.tiles_x {
+                let (tw, th) = (
+                    (l.width - tx * TILE).min(TILE),
+                    (l.height - ty * TILE).min(TILE),
+                );
+                let mut tile = Vec::new();
+                for y in ty * TILE..ty * TILE + th {
+                    let at = ((y * l.width + tx * TILE) * 3) as usize;
+                    tile.extend_from_slice(&level.texels[at..at + (tw * 3) as usize]);
+                }
+                // The parent tile as reconstructed, and each texel's prediction from it.
+                let mut predicted = vec![0i32; tile.len()];
+                if l.residual {
+                    let p = header.levels[li + 1];
+                    let (ptx, pty) = (tx / 2, ty / 2);
+                    let (pw, ph) = (
+                        (p.width - ptx * TILE).min(TILE),
+                        (p.height - pty * TILE).min(TILE),
+                    );
+                    let mut parent = Vec::new();
+                    for y in pty * TILE..pty * TILE + ph {
+                        let at = ((y * p.width + ptx * TILE) * 3) as usize;
+                        parent.extend_from_slice(&recon[li + 1][at..at + (pw * 3) as usize]);
+                    }
+                    for y in 0..th {
+                        for x in 0..tw {
+                            for c in 0..3 {
+                                let (ux, uy) = ((tx % 2) * TILE + x, (ty % 2) * TILE + y);
+                                let at = ((y * tw + x) * 3) as usize + c;
+                                predicted[at] = reference_up(&parent, pw, ph, ux, uy, c);
+                                let r = i32::from(tile[at]) - predicted[at] + 128;
+                                tile[at] = r.clamp(0, 255) as u8;
+                            }
+                        }
+                    }
+                }
+                let jpeg = encode_jpeg(jpeg_path, &tile, tw, th, DEFAULT_QUALITY).expect("encode");
+                let e = header.tiles[l.first_tile + (ty * l.tiles_x + tx) as usize];
+                let at = usize::try_from(e.offset).expect("offset");
+                let stored = &bytes[at..at + e.len as usize];
+                assert!(stored == jpeg.as_slice(), "level {li} tile ({tx}, {ty})");
+                let mut decoded = image::load_from_memory(&jpeg)
+                    .expect("decode")
+                    .to_rgb8()
+                    .into_raw();
+                if l.residual {
+                    for (d, p) in decoded.iter_mut().zip(&predicted) {
+                        *d = (p + i32::from(*d) - 128).clamp(0, 255) as u8;
+                    }
+                }
+                for y in 0..th {
+                    let at = (((ty * TILE + y) * l.width + tx * TILE) * 3) as usize;
+                    let row = (y * tw * 3) as usize;
+                    recon[li][at..at + (tw * 3) as usize]
+                        .copy_from_slice(&decoded[row..row + (tw * 3) as usize]);
+                }
+            }
+        }
+    }
+    // The cache's tiles, finest first (each residual tile decodes its parent), are the reference's.
+    let mut cache = ImageryCache::new(package, 64 << 20).expect("cache");
+    cache.begin_frame();
+    let mut budget = u64::MAX;
+    let mut sq = 0u64;
+    for (li, l) in header.levels.iter().enumerate() {
+        for ty in 0..l.tiles_y {
+            for tx in 0..l.tiles_x {
+                let (tw, th, got) = cache
+                    .fetch(li, tx, ty, &mut budget)
+                    .expect("fetch")
+                    .expect("resident");
+                for y in 0..th {
+                    let at = (((ty * TILE + y) * l.width + tx * TILE) * 3) as usize;
+                    let row = (y * tw * 3) as usize;
+                    let want = &recon[li][at..at + (tw * 3) as usize];
+                    assert!(
+                        &got[row..row + (tw * 3) as usize] == want,
+                        "level {li} tile ({tx}, {ty}) row {y}"
+                    );
+                    if li == 0 {
+                        sq += want
+                            .iter()
+                            .zip(&levels[0].texels[at..])
+                            .map(|(a, b)| u64::from(a.abs_diff(*b)).pow(2))
+                            .sum::<u64>();
+                    }
+                }
+            }
+        }
+    }
+    assert!(
+        (psnr(sq, u64::from(w * h * 3)) - report.psnr_db).abs() < 1e-9,
+        "{report:?}"
+    );
+    assert!(cache.stats().parents >= 1, "{:?}", cache.stats());
+    (im, bytes, report)
 }
 
 /// A file read in bands of 7 rows gives the texels of the whole read, for PNG (8 and 16 bits), JPEG and

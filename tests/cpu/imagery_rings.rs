@@ -7,6 +7,7 @@ use std::path::Path;
 
 use clipsat::package::imagery::ImageryPackage;
 use clipsat::package::imagery_bake::bake_imagery;
+use clipsat::package::imagery_cache::ImageryCache;
 use clipsat::plan::color_rings::ColorRings;
 use clipsat::profile::ImageryBudget;
 use clipsat::source::imagery::{Extent, Imagery};
@@ -92,11 +93,14 @@ fn decode_all(p: &ImageryPackage) -> Vec<Vec<u8>> {
     let h = p.header();
     let mut out = Vec::new();
     let mut tile = vec![0u8; 256 * 256 * 3];
+    let mut parent = tile.clone();
     for (level, l) in h.levels.iter().enumerate() {
         let mut texels = vec![0u8; l.width as usize * l.height as usize * 3];
         for ty in 0..l.tiles_y {
             for tx in 0..l.tiles_x {
-                let (tw, th) = p.decode_tile(level, tx, ty, &mut tile).expect("decode");
+                let (tw, th) = p
+                    .decode_texels(level, tx, ty, &mut tile, &mut parent)
+                    .expect("decode");
                 for y in 0..th as usize {
                     let dst = ((ty as usize * 256 + y) * l.width as usize + tx as usize * 256) * 3;
                     texels[dst..dst + tw as usize * 3]
@@ -218,10 +222,13 @@ fn block_rings_write_whole_blocks() {
         let mut encoder = BlockEncoder::new(format, 256);
         let mut tiles = std::collections::HashMap::new();
         let mut rgb = vec![0u8; 256 * 256 * 3];
+        let mut parent = rgb.clone();
         for (level, l) in pkg.header().levels.iter().enumerate() {
             for ty in 0..l.tiles_y {
                 for tx in 0..l.tiles_x {
-                    let (tw, th) = pkg.decode_tile(level, tx, ty, &mut rgb).expect("decode");
+                    let (tw, th) = pkg
+                        .decode_texels(level, tx, ty, &mut rgb, &mut parent)
+                        .expect("decode");
                     let mut out = vec![0u8; format.bytes(tw, th) as usize];
                     encoder.encode(&rgb, tw, th, &mut out).expect("encode");
                     tiles.insert((level, tx, ty), (tw, out));
@@ -294,7 +301,7 @@ fn block_rings_write_whole_blocks() {
         // A budget that cannot hold the block format keeps RGBA8.
         for small in [
             ImageryBudget {
-                cache_bytes: 300_000,
+                cache_bytes: 300_000 + ImageryCache::parent_bytes(&package(), format),
                 ..b
             },
             ImageryBudget {

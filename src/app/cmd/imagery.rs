@@ -41,6 +41,7 @@ pub(crate) fn imagery_json(p: &ImageryPackage) -> serde_json::Value {
                 "height": l.height,
                 "tiles": l.tiles_x * l.tiles_y,
                 "texel_spacing_m": [sx, sy],
+                "stored": if l.residual { "residual of the level above" } else { "whole" },
             })
         })
         .collect();
@@ -49,7 +50,7 @@ pub(crate) fn imagery_json(p: &ImageryPackage) -> serde_json::Value {
     json!({
         "file": p.path().display().to_string(),
         "format": format!("clipsat imagery package v{}", clipsat::package::imagery::VERSION),
-        "codec": format!("JPEG 4:4:4 quality {}", h.quality),
+        "codec": format!("JPEG 4:4:4 quality {}, even levels as residuals of the level above", h.quality),
         "width": h.width,
         "height": h.height,
         "extent_m": h.extent.to_array(),
@@ -82,6 +83,16 @@ pub(crate) fn print_imagery(p: &ImageryPackage) {
         h.quality,
         p.len()
     );
+    let residual: Vec<String> = (0..h.levels.len())
+        .filter(|&i| h.levels[i].residual)
+        .map(|i| i.to_string())
+        .collect();
+    if !residual.is_empty() {
+        outln!(
+            "residual  levels {} stored as residuals of the level above (alternating pyramid)",
+            residual.join(", ")
+        );
+    }
 }
 
 /// `fly --imagery`: the colour rings flown with the heights, on the CPU: each frame updates them at the

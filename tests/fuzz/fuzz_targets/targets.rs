@@ -338,19 +338,20 @@ pub(crate) fn load_imagery(data: &[u8]) -> String {
 }
 
 /// An imagery package (`package::imagery`) from bytes: the header checked, then every tile of a small
-/// one decoded (CRCs and JPEG).
+/// one decoded (CRCs and JPEG; a residual tile with its parent).
 pub(crate) fn load_imagery_package(data: &[u8]) -> String {
     use clipsat::package::imagery::ImageryPackage;
     let r = ImageryPackage::from_bytes(std::path::Path::new("x.clipsat-imagery"), data.to_vec())
         .and_then(|p| {
             let h = p.header().clone();
             let mut tile = vec![0u8; 3 * h.tile as usize * h.tile as usize];
+            let mut parent = tile.clone();
             let mut decoded = 0;
             if h.texels() <= 1 << 21 {
                 for (level, l) in h.levels.iter().enumerate() {
                     for ty in 0..l.tiles_y {
                         for tx in 0..l.tiles_x {
-                            p.decode_tile(level, tx, ty, &mut tile)?;
+                            p.decode_texels(level, tx, ty, &mut tile, &mut parent)?;
                             decoded += 1;
                         }
                     }
