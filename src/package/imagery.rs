@@ -1,6 +1,7 @@
 //! Stage 1b, the package: the imagery package, a companion of the terrain package that holds the colour
 //! pyramid (`bake::imagery`) in tiles, each coded as a baseline JPEG (4:4:4, optimised Huffman tables,
-//! quality [`DEFAULT_QUALITY`]) with a CRC-32, behind a checksummed header.
+//! quality [`DEFAULT_QUALITY`] for residual tiles and [`whole_quality`] of it for whole ones) with a
+//! CRC-32, behind a checksummed header.
 //!
 //! The levels alternate: odd levels and the coarsest are stored whole ("intra"); every other even level
 //! is stored as a residual against the level above, a Laplacian pyramid (Burt & Adelson 1983) closed on
@@ -8,7 +9,7 @@
 //! `clamp(texel - up(parent) + 128, 0, 255)`, where `up` is the integer bilinear upsample of the one
 //! decoded parent tile above it (`bake::imagery::up_at`). A residual tile so costs at most two JPEG
 //! decodes, and the bake stays one pass (`imagery_bake.rs`). The format was chosen by measurement
-//! (docs/guide.md "The imagery package"): quality 75 takes about a tenth fewer bytes per texel than a
+//! (docs/guide.md "The imagery package"): qualities 75 and 80 take 7-8 % fewer bytes per texel than a
 //! whole-image JPEG at quality 90 (4:2:0), all levels counted, at half a dB more, on both shared images.
 //!
 //! Layout, little-endian: magic `CSIMAGE\0`, version (u32), quality (u32), tile side (u32), level-0
@@ -33,8 +34,16 @@ pub const MAGIC: &[u8; 8] = b"CSIMAGE\0";
 pub const VERSION: u32 = 2;
 /// Texels on a side of a tile.
 pub const TILE: u32 = 256;
-/// The JPEG quality of the tiles (4:4:4), whole and residual: the measured choice, see the module's notes.
+/// The JPEG quality of the residual tiles (4:4:4): the measured choice, see the module's notes.
 pub const DEFAULT_QUALITY: u8 = 75;
+/// How much higher the whole levels' quality is than the residuals': a whole level is drawn and also
+/// predicts the level below it, so its bits pay twice (docs/guide.md "Imagery").
+pub const WHOLE_QUALITY_STEP: u8 = 5;
+
+/// The quality of the whole levels' tiles for residual tiles at `quality`.
+pub fn whole_quality(quality: u8) -> u8 {
+    quality.saturating_add(WHOLE_QUALITY_STEP).min(100)
+}
 /// Bytes before the per-level table.
 const FIXED: usize = 8 + 4 + 4 + 4 + 4 + 4 + 4 * 8 + 8 + 4;
 /// Bytes of one tile entry.
@@ -62,7 +71,7 @@ pub struct ImageryLevel {
 /// An imagery package's header.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ImageryHeader {
-    /// JPEG quality of the tiles.
+    /// JPEG quality of the residual tiles (the whole ones' is [`whole_quality`] of it).
     pub quality: u32,
     /// Tile side, texels.
     pub tile: u32,

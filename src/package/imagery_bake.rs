@@ -305,7 +305,12 @@ impl<W: Write + Seek> Coder<'_, W> {
             if let Some((p, ox, oy)) = &parent {
                 to_residual(p, *ox, *oy, tw, rows, scratch);
             }
-            let coded = encode_jpeg(path, scratch, tw, rows, quality)?;
+            let q = if parent.is_some() {
+                quality
+            } else {
+                super::imagery::whole_quality(quality)
+            };
+            let coded = encode_jpeg(path, scratch, tw, rows, q)?;
             let (mut sq, mut decoded) = (0, Vec::new());
             if measure || keeping {
                 decoded.resize(scratch.len(), 0);

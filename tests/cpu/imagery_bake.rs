@@ -8,7 +8,7 @@ use std::path::Path;
 
 use clipsat::bake::imagery::ColorLevel;
 use clipsat::package::imagery::{
-    encode_jpeg, psnr, ImageryBakeReport, ImageryPackage, DEFAULT_QUALITY, TILE,
+    encode_jpeg, psnr, whole_quality, ImageryBakeReport, ImageryPackage, DEFAULT_QUALITY, TILE,
 };
 use clipsat::package::imagery_bake::{bake_imagery, bake_imagery_file};
 use clipsat::package::imagery_cache::ImageryCache;
@@ -169,7 +169,13 @@ fn baked_as_the_reference(w: u32, h: u32, levels: u32) -> (Imagery, Vec<u8>, Ima
                         }
                     }
                 }
-                let jpeg = encode_jpeg(jpeg_path, &tile, tw, th, DEFAULT_QUALITY).expect("encode");
+                // Residuals at the package's quality, whole levels a step above it.
+                let quality = if l.residual {
+                    DEFAULT_QUALITY
+                } else {
+                    whole_quality(DEFAULT_QUALITY)
+                };
+                let jpeg = encode_jpeg(jpeg_path, &tile, tw, th, quality).expect("encode");
                 let e = header.tiles[l.first_tile + (ty * l.tiles_x + tx) as usize];
                 let at = usize::try_from(e.offset).expect("offset");
                 let stored = &bytes[at..at + e.len as usize];

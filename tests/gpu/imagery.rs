@@ -406,7 +406,8 @@ fn fidelity_against_a_reference_drape() {
             }
             let psnr = 10.0 * (255.0f64 * 255.0 / (sq / n as f64)).log10();
             println!(
-            "{image}, tiles at JPEG quality {quality}, rings in {}: PSNR {psnr:.2} dB over {} terrain pixels (1920 x 1080, gles3-mid)",
+            "{image}, tiles at JPEG quality {quality} (whole levels {}), rings in {}: PSNR {psnr:.2} dB over {} terrain pixels (1920 x 1080, gles3-mid)",
+                clipsat::package::imagery::whole_quality(quality),
                 format.name(),
                 n / 3
         );

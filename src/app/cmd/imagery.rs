@@ -1,7 +1,7 @@
 //! Application (CLI): what an imagery package holds, in words and as JSON, for `info`, `bake`, `render`
 //! and `fly`.
 
-use clipsat::package::imagery::ImageryPackage;
+use clipsat::package::imagery::{whole_quality, ImageryPackage};
 use clipsat::plan::color_rings::ColorRings;
 use clipsat::profile::Profile;
 use clipsat::Result;
@@ -50,7 +50,11 @@ pub(crate) fn imagery_json(p: &ImageryPackage) -> serde_json::Value {
     json!({
         "file": p.path().display().to_string(),
         "format": format!("clipsat imagery package v{}", clipsat::package::imagery::VERSION),
-        "codec": format!("JPEG 4:4:4 quality {}, even levels as residuals of the level above", h.quality),
+        "codec": format!(
+            "JPEG 4:4:4 quality {} (whole levels {}), even levels as residuals of the level above",
+            h.quality,
+            whole_quality(q8(h.quality))
+        ),
         "width": h.width,
         "height": h.height,
         "extent_m": h.extent.to_array(),
@@ -60,6 +64,11 @@ pub(crate) fn imagery_json(p: &ImageryPackage) -> serde_json::Value {
         "bytes": p.len(),
         "bytes_per_texel": per_texel,
     })
+}
+
+/// A header's quality as the encoder's (it is at most 100 in a package this build baked).
+fn q8(q: u32) -> u8 {
+    u8::try_from(q).unwrap_or(u8::MAX)
 }
 
 /// The imagery package in a few lines, as `clipsat info` prints it.
@@ -76,11 +85,12 @@ pub(crate) fn print_imagery(p: &ImageryPackage) {
     #[expect(clippy::cast_precision_loss, reason = "a ratio for a report")]
     let per_texel = p.len() as f64 / h.texels() as f64;
     outln!(
-        "stored    {} levels, {} tiles of {}^2, JPEG 4:4:4 quality {}, {} bytes ({per_texel:.3} B/texel)",
+        "stored    {} levels, {} tiles of {}^2, JPEG 4:4:4 quality {} (whole levels {}), {} bytes ({per_texel:.3} B/texel)",
         h.levels.len(),
         h.tiles.len(),
         h.tile,
         h.quality,
+        whole_quality(q8(h.quality)),
         p.len()
     );
     let residual: Vec<String> = (0..h.levels.len())
