@@ -729,12 +729,18 @@ fn par_levels(
     if threads == 1 || levels.len() <= 1 {
         return levels.iter_mut().try_for_each(|l| f(l));
     }
-    let per = levels.len().div_ceil(threads);
+    // Dealt round-robin: a finer level codes more cells than a coarser one, so runs of adjacent levels
+    // would leave one thread the heavier half.
+    let mut shares: Vec<Vec<&mut Level>> = (0..threads.min(levels.len())).map(|_| Vec::new()).collect();
+    let n = shares.len();
+    for (i, l) in levels.iter_mut().enumerate() {
+        shares[i % n].push(&mut **l);
+    }
     let f = &f;
     std::thread::scope(|s| {
-        let handles: Vec<_> = levels
-            .chunks_mut(per)
-            .map(|chunk| s.spawn(move || chunk.iter_mut().try_for_each(|l| f(l))))
+        let handles: Vec<_> = shares
+            .into_iter()
+            .map(|mut share| s.spawn(move || share.iter_mut().try_for_each(|l| f(l))))
             .collect();
         handles
             .into_iter()
