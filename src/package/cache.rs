@@ -323,11 +323,7 @@ impl TileCache {
             self.stats.refused += 1;
             return Ok(false);
         };
-        let old = self.slots[slot].tile;
-        if old != NONE {
-            self.map[old as usize] = NONE;
-            self.stats.evictions += 1;
-        }
+        self.unmap(slot);
         let mut data = std::mem::take(&mut self.slots[slot].data);
         let result = {
             let (package, map, slots) = (&self.package, &self.map, &self.slots);
@@ -395,11 +391,7 @@ impl TileCache {
                 self.stats.refused += 1;
                 return Ok(false);
             };
-            let old = self.slots[slot].tile;
-            if old != NONE {
-                self.map[old as usize] = NONE;
-                self.stats.evictions += 1;
-            }
+            self.unmap(slot);
             let s = &mut self.slots[slot];
             s.tile = u32::try_from(job.0).expect("tile indices fit u32 (the map is sized by them)");
             s.used = self.frame;
@@ -449,6 +441,15 @@ impl TileCache {
             self.stats.decoded_samples += cost;
         }
         Ok(true)
+    }
+
+    /// Evicts the tile `slot` holds, if any: it is no longer resident.
+    fn unmap(&mut self, slot: usize) {
+        let old = self.slots[slot].tile;
+        if old != NONE {
+            self.map[old as usize] = NONE;
+            self.stats.evictions += 1;
+        }
     }
 
     /// Gives reserved slots back empty, with their buffers.
