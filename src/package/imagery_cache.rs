@@ -295,12 +295,8 @@ impl ImageryCache {
             self.stats.refused += 1;
             return Ok(None);
         }
+        self.unmap(victim);
         let s = &mut self.slots[victim];
-        if s.tile != NONE {
-            self.map[s.tile as usize] = NONE;
-            self.stats.evictions += 1;
-        }
-        s.tile = NONE;
         // The slot's texels are taken out while the parent (perhaps another slot) is read, and put back
         // before any error returns; taking a Vec allocates nothing.
         let mut out = std::mem::take(&mut s.texels);
@@ -325,6 +321,16 @@ impl ImageryCache {
         self.stats.decoded += 1;
         self.stats.decoded_texels += texels;
         Ok(Some((w, h, &s.texels[..n])))
+    }
+
+    /// Empties slot `i`: the tile it held, if any, is evicted.
+    fn unmap(&mut self, i: usize) {
+        let s = &mut self.slots[i];
+        if s.tile != NONE {
+            self.map[s.tile as usize] = NONE;
+            self.stats.evictions += 1;
+        }
+        s.tile = NONE;
     }
 
     /// The slot to decode into: least recently used, never one used this frame.
@@ -381,11 +387,10 @@ impl ImageryCache {
         if texels > *budget || *decodes == 0 {
             return Ok(None);
         }
-        let p = if shared { &mut self.slots[i] } else { &mut self.parents[i] };
-        if shared && p.tile != NONE {
-            self.map[p.tile as usize] = NONE;
-            self.stats.evictions += 1;
+        if shared {
+            self.unmap(i);
         }
+        let p = if shared { &mut self.slots[i] } else { &mut self.parents[i] };
         p.tile = NONE;
         self.package.decode_tile(pl, ptx, pty, &mut p.texels)?;
         p.tile = tile;
