@@ -3,16 +3,25 @@
 // imagery compiles and binds none of this.
 //
 // Ring l holds texels of pyramid level l at toroidal addresses (texel (i, j) at (i mod S, j mod S)), in
-// one RGBA8 2D array texture sampled bilinearly with wrapping (the sampler's repeat mode is the
-// toroidal addressing; the CPU twin, `clipsat::twin::imagery`, filters as GLES 3.0 defines it). A pixel's level follows its footprint (texture clipmaps, Tanner et
-// al. 1998; docs/design.md "Imagery and tiles"): lod = log2(footprint / level 0's spacing), the pixel
-// blends level floor(lod) with the next by the fraction. A ring that does not hold the pixel hands it to
+// one 2D array texture (RGBA8, BC1 or ETC2 RGB8) sampled bilinearly with wrapping (the sampler's repeat
+// mode is the toroidal addressing; the CPU twin, `clipsat::twin::imagery`, filters as GLES 3.0 defines
+// it). A pixel's level follows its footprint (texture clipmaps, Tanner et al. 1998; docs/design.md
+// "Imagery and tiles"): lod = log2(footprint / level 0's spacing), the pixel blends level floor(lod) with
+// the next over the upper half of the fraction (IMAGERY_BLEND). A ring that does not hold the pixel hands it to
 // the next coarser ring, over IMAGERY_BORDER texels at its held region's border, so no seam shows where
 // a ring ends, and a ring that has just become whole fades in over a few frames. Outside every ring
 // (past the image) the terrain keeps its own albedo.
 
 // Texels over which a ring's held region fades into the next coarser ring at its border.
 const IMAGERY_BORDER: f32 = 4.0;
+
+// The part of a level's footprint range (log2, 0 to 1) over which a pixel blends it with the next
+// coarser level: the upper half. Below it the pixel takes its level alone, one ring sampled, as
+// "brilinear" filtering does; the blend still runs from 0 to 1, so nothing jumps. Against a reference
+// that averages the source over each pixel's footprint it is also the closer filter: full-range blending
+// weighs the coarser level in from where the finer one alone is near the footprint, and blurs
+// (docs/measurements.md, "Imagery's cost").
+const IMAGERY_BLEND: f32 = 0.5;
 
 // Mirrors `clipsat::plan::color_rings::ImageryUniform`.
 struct ImageryLevel {
@@ -55,13 +64,19 @@ fn imagery_sample(l: i32, rel: vec2<f32>) -> vec4<f32> {
     let hi = (lv.held.zw - 0.5) - t;
     let d = min(min(lo.x, lo.y), min(hi.x, hi.y));
     let w = clamp(d / IMAGERY_BORDER, 0.0, 1.0) * lv.fade.x;
-    if (w <= 0.0) {
-        return vec4<f32>(0.0);
-    }
-    // The eye's texel modulo the ring plus the offset, over the ring: the sampler wraps it.
+    // The eye's texel modulo the ring plus the offset, over the ring: the sampler wraps it. Sampled
+    // whatever w is (a weight of 0 zeroes it): a software rasteriser runs both sides of a branch anyway.
     let uv = (lv.eye.xy + t) / f32(imagery.info.y);
     let c = textureSampleLevel(imagery_rings, imagery_sampler, uv, l, 0.0);
     return vec4<f32>(c.rgb * w, w);
+}
+
+// x^2.2 on [0, 1] (the imagery's display encoding decoded, as the basic ramp's stops are): x^2 (a + b
+// sqrt(x) + (1 - a - b) x), fitted minimax in display space, exact at 0 and 1, monotonic, and within 0.2
+// of an 8-bit code of x when encoded again (^1/2.2). pow costs a software rasteriser a log and an exp a
+// channel, a third of what the imagery adds to a basic frame on llvmpipe.
+fn imagery_decode(x: vec3<f32>) -> vec3<f32> {
+    return x * x * (0.3783 + 0.8759 * sqrt(x) - 0.2542 * x);
 }
 
 // The albedo of a pixel at `rel` whose terrain albedo is `base` (linear light): the imagery's colour,
@@ -70,25 +85,24 @@ fn imagery_albedo(rel: vec2<f32>, base: vec3<f32>) -> vec3<f32> {
     let n = imagery.info.x;
     let lod = clamp(log2(max(imagery_fp * imagery.levels[0].eye.z, 1.0e-6)), 0.0, f32(n - 1));
     let l0 = i32(lod);
-    let t = lod - f32(l0);
+    let t = clamp((lod - f32(l0) - (1.0 - IMAGERY_BLEND)) / IMAGERY_BLEND, 0.0, 1.0);
     // Fine to coarse, front to back: a is ring l0 over the coarser rings, b ring l0 + 1 over those
-    // coarser than it, each ring sampled once; a pixel stops once both are whole (most take two rings).
+    // coarser than it, each ring sampled once; a pixel stops once a is whole and b is (or is not
+    // blended: t = 0), so most take one ring or two.
     var a = vec4<f32>(0.0);
     var b = vec4<f32>(0.0);
     for (var l = l0; l < n; l = l + 1) {
         let s = imagery_sample(l, rel);
         a = a + (1.0 - a.a) * s;
-        if (l > l0) {
-            b = b + (1.0 - b.a) * s;
-        }
-        if (a.a >= 1.0 && b.a >= 1.0) {
+        b = b + select(0.0, 1.0 - b.a, l > l0) * s;
+        if (a.a >= 1.0 && (b.a >= 1.0 || t <= 0.0)) {
             break;
         }
     }
     let c = a;
     let coarse = b;
     let m = select(c, mix(c, coarse, t), l0 + 1 < n);
-    let img = pow(m.rgb / max(m.a, 1.0e-6), vec3<f32>(2.2));
+    let img = imagery_decode(m.rgb / max(m.a, 1.0e-6));
     return mix(base, img, m.a);
 }
 

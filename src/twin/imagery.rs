@@ -17,6 +17,16 @@ use crate::Result;
 /// held region fades into the next coarser ring.
 pub const BORDER: f32 = 4.0;
 
+/// [`IMAGERY_BLEND`](../../../shaders_gles/imagery.wgsl) of the shader: the upper part of a level's
+/// footprint range (log2) over which a pixel blends it with the next coarser level.
+pub const BLEND: f32 = 0.5;
+
+/// `imagery_decode`: x^2.2 on [0, 1] as the shader computes it, x^2 (a + b sqrt(x) + (1 - a - b) x),
+/// within 0.2 of an 8-bit code of x once encoded again.
+pub fn decode(x: f32) -> f32 {
+    x * x * (0.3783 + 0.8759 * x.sqrt() - 0.2542 * x)
+}
+
 /// What the imagery program reads: its uniform, each ring's held region (absolute texels) and each
 /// level's decoded texels (RGB8, row-major).
 #[derive(Clone, Debug)]
@@ -151,7 +161,7 @@ impl ImageryTwin {
             reason = "clamped to [0, n - 1] above"
         )]
         let l0 = lod as i32;
-        let t = lod - l0 as f32;
+        let t = ((lod - l0 as f32 - (1.0 - BLEND)) / BLEND).clamp(0.0, 1.0);
         let mut c = Vec4::ZERO;
         let mut coarse = Vec4::ZERO;
         for l in l0..n {
@@ -160,7 +170,7 @@ impl ImageryTwin {
             if l > l0 {
                 coarse += (1.0 - coarse.w) * s;
             }
-            if c.w >= 1.0 && coarse.w >= 1.0 {
+            if c.w >= 1.0 && (coarse.w >= 1.0 || t <= 0.0) {
                 break;
             }
         }
@@ -170,7 +180,7 @@ impl ImageryTwin {
             c
         };
         let rgb = m.truncate() / m.w.max(1.0e-6);
-        let img = Vec3::new(rgb.x.powf(2.2), rgb.y.powf(2.2), rgb.z.powf(2.2));
+        let img = Vec3::new(decode(rgb.x), decode(rgb.y), decode(rgb.z));
         base * (1.0 - m.w) + img * m.w
     }
 }
