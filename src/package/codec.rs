@@ -399,7 +399,8 @@ pub fn quantise(
         let at = j * tw + i;
         #[expect(clippy::cast_precision_loss, reason = "|p| <= 2^30 is exact in f64")]
         let e = (t[at] - p as f64) / step;
-        let s = e.round();
+        // f64::round is a libm call on the x86-64 baseline; the sign of a zero does not matter here.
+        let s = super::spill::round_half_away(e);
         if s.is_nan() || s.abs() >= f64::from(i32::MAX) {
             return Err(format!("a residual of {e} steps does not fit a symbol"));
         }

@@ -61,7 +61,7 @@ pub(super) fn on_lattice(h: f32, q: f64) -> bool {
 /// `x.round()`, bit for bit but the sign of a zero, without the libm call that `f64::round` is on the
 /// x86-64 baseline (no SSE4.1): the bake tests every source sample against two lattices, and the calls
 /// were 3 % of a bake's time, all of it on the thread that reads the source.
-fn round_half_away(x: f64) -> f64 {
+pub(super) fn round_half_away(x: f64) -> f64 {
     // Past 2^52 every f64 is an integer (and a NaN or infinity is returned as it is).
     if x.abs() >= 4_503_599_627_370_496.0 || !x.is_finite() {
         return x;
