@@ -5,8 +5,8 @@
 // Ring l holds texels of pyramid level l at toroidal addresses (texel (i, j) at (i mod S, j mod S)), in
 // one 2D array texture (RGBA8, BC1 or ETC2 RGB8) sampled bilinearly with wrapping (the sampler's repeat
 // mode is the toroidal addressing; the CPU twin, `clipsat::twin::imagery`, filters as GLES 3.0 defines
-// it). A pixel's level follows its footprint (texture clipmaps, Tanner et al. 1998; docs/design.md
-// "Imagery and tiles"): lod = log2(footprint / level 0's spacing), the pixel blends level floor(lod) with
+// it). A pixel's level follows its footprint (texture clipmaps, Tanner et al. 1998; docs/guide.md
+// "Imagery: --imagery"): lod = log2(footprint / level 0's spacing), the pixel blends level floor(lod) with
 // the next over the upper half of the fraction (IMAGERY_BLEND). A ring that does not hold the pixel hands it to
 // the next coarser ring, over IMAGERY_BORDER texels at its held region's border, so no seam shows where
 // a ring ends, and a ring that has just become whole fades in over a few frames. Outside every ring
