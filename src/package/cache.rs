@@ -420,11 +420,7 @@ impl TileCache {
                         .zip(decoders.iter_mut())
                         .map(|(chunk, dec)| sc.spawn(move || run(chunk, dec)))
                         .collect();
-                    handles
-                        .into_iter()
-                        .map(|h| h.join().expect("a tile decoding thread panicked"))
-                        .collect::<Result<Vec<()>>>()
-                        .map(drop)
+                    super::join_in_order(handles, "a tile decoding thread panicked")
                 })
             }
         };

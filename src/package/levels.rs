@@ -286,11 +286,7 @@ impl TileRow<'_> {
                 .iter_mut()
                 .map(|wk| s.spawn(move || self.code_run(wk)))
                 .collect();
-            handles
-                .into_iter()
-                .map(|h| h.join().expect("a tile coding thread panicked"))
-                .collect::<Result<Vec<()>>>()
-                .map(drop)
+            super::join_in_order(handles, "a tile coding thread panicked")
         })
     }
 

@@ -61,3 +61,17 @@ pub(crate) fn threads() -> usize {
         .map_or(1, usize::from)
         .min(8)
 }
+
+/// Joins a bake's scoped workers in the order they were spawned: the first error in that order, so a
+/// bake reports the same tile whichever thread finished first. A worker panics only on a broken
+/// invariant, and `what` says which workers it was.
+pub(crate) fn join_in_order(
+    handles: Vec<std::thread::ScopedJoinHandle<'_, crate::Result<()>>>,
+    what: &str,
+) -> crate::Result<()> {
+    handles
+        .into_iter()
+        .map(|h| h.join().unwrap_or_else(|_| panic!("{what}")))
+        .collect::<crate::Result<Vec<()>>>()
+        .map(drop)
+}

@@ -122,6 +122,19 @@ fn baked_as_the_reference(w: u32, h: u32, levels: u32) -> (Imagery, Vec<u8>, Ima
         levels.push(next);
     }
     let jpeg_path = Path::new("<reference>");
+    // Tile (tx, ty) of a level `width` x `height` texels (RGB8): its size and texels, row by row.
+    let crop = |texels: &[u8], width: u32, height: u32, tx: u32, ty: u32| {
+        let (tw, th) = (
+            (width - tx * TILE).min(TILE),
+            (height - ty * TILE).min(TILE),
+        );
+        let mut tile = Vec::new();
+        for y in ty * TILE..ty * TILE + th {
+            let at = ((y * width + tx * TILE) * 3) as usize;
+            tile.extend_from_slice(&texels[at..at + (tw * 3) as usize]);
+        }
+        (tw, th, tile)
+    };
     // The reference reconstruction of each level, coarsest first.
     let mut recon: Vec<Vec<u8>> = levels.iter().map(|l| vec![0; l.texels.len()]).collect();
     for li in (0..header.levels.len()).rev() {
@@ -134,29 +147,12 @@ fn baked_as_the_reference(w: u32, h: u32, levels: u32) -> (Imagery, Vec<u8>, Ima
         );
         for ty in 0..l.tiles_y {
             for tx in 0..l.tiles_x {
-                let (tw, th) = (
-                    (l.width - tx * TILE).min(TILE),
-                    (l.height - ty * TILE).min(TILE),
-                );
-                let mut tile = Vec::new();
-                for y in ty * TILE..ty * TILE + th {
-                    let at = ((y * l.width + tx * TILE) * 3) as usize;
-                    tile.extend_from_slice(&level.texels[at..at + (tw * 3) as usize]);
-                }
+                let (tw, th, mut tile) = crop(&level.texels, l.width, l.height, tx, ty);
                 // The parent tile as reconstructed, and each texel's prediction from it.
                 let mut predicted = vec![0i32; tile.len()];
                 if l.residual {
                     let p = header.levels[li + 1];
-                    let (ptx, pty) = (tx / 2, ty / 2);
-                    let (pw, ph) = (
-                        (p.width - ptx * TILE).min(TILE),
-                        (p.height - pty * TILE).min(TILE),
-                    );
-                    let mut parent = Vec::new();
-                    for y in pty * TILE..pty * TILE + ph {
-                        let at = ((y * p.width + ptx * TILE) * 3) as usize;
-                        parent.extend_from_slice(&recon[li + 1][at..at + (pw * 3) as usize]);
-                    }
+                    let (pw, ph, parent) = crop(&recon[li + 1], p.width, p.height, tx / 2, ty / 2);
                     for y in 0..th {
                         for x in 0..tw {
                             for c in 0..3 {
