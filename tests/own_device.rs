@@ -201,14 +201,13 @@ fn depth_conventions_and_colour_targets_draw_the_same_image() {
     } = engine::render(&cache, size, base).expect("engine frame");
     let sky = [161, 194, 230];
     let mut setups = Vec::new();
-    for reverse_z in [false, true] {
-        for srgb in [false, true] {
-            setups.push(engine::Setup {
-                reverse_z,
-                srgb,
-                ..base
-            });
-        }
+    // Every combination but the base's own (drawn above).
+    for (reverse_z, srgb) in [(false, true), (true, false), (true, true)] {
+        setups.push(engine::Setup {
+            reverse_z,
+            srgb,
+            ..base
+        });
     }
     for depth in [
         wgpu::TextureFormat::Depth24Plus,
