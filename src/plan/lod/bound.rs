@@ -29,7 +29,15 @@ pub(super) struct Split {
     ys: heapless::Vec<i64, { SPLIT + 1 }>,
     /// Each sub-box's scale and box (x0, y0, x1, y1).
     subs: heapless::Vec<(BoxScale, [i64; 4]), { SPLIT * SPLIT }>,
+    /// What the last bound read through this cut ([`Lod::bound_deep`]) knows of each sub-box's error at
+    /// its level: the sub-box's own where it was read, else the whole box's (which bounds it too).
+    pub(super) etas: SubErrors,
 }
+
+/// Upper bounds of a level's object-space error over each sub-box of a block's cut, in the cut's order:
+/// view-independent, so a later view bounds the block at that level from them and the sub-boxes' new
+/// scales alone ([`Lod::held_bound`]).
+pub(super) type SubErrors = [f64; SPLIT * SPLIT];
 
 impl Lod {
     /// What the bounds of a frame seen from `camera` share (in this selector's viewport).
@@ -234,7 +242,7 @@ impl Lod {
         (a, c, b, d): LatticeBox,
         level: u32,
         cached: &'s mut Split,
-    ) -> &'s Split {
+    ) -> &'s mut Split {
         let (xs, ys) = (split_points(a, b, level), split_points(c, d, level));
         if cached.xs == xs && cached.ys == ys && !cached.subs.is_empty() {
             return cached;
@@ -294,6 +302,10 @@ impl Lod {
         let Some(eta) = self.eta(mode, level, bx) else {
             return f64::INFINITY;
         };
+        let mut cut = cut;
+        if let Some(k) = cut.as_deref_mut() {
+            k.etas = [eta; SPLIT * SPLIT];
+        }
         if eta == 0.0 || mode == LodMode::Distance {
             return 0.0;
         }
@@ -311,6 +323,7 @@ impl Lod {
         }
         let mut own = Split::default();
         let split = self.split(v, bx, level, cut.unwrap_or(&mut own));
+        let mut etas = [eta; SPLIT * SPLIT];
         // Sub-boxes by their cap first: a sub-box's bound is at most its bound for the whole box's error
         // (which bounds its samples too; the bound grows with the error), so once that is below the
         // largest bound so far its own error need not be read.
@@ -330,6 +343,7 @@ impl Lod {
                 return f64::NAN;
             }
             let sub = self.eta(mode, level, sub_box).unwrap_or(eta).min(eta);
+            etas[i] = sub;
             let mut val = bs.px(sub);
             if val > limit && val <= DEEP_RATIO * limit && depth > 0 {
                 // Over the threshold: cut this sub-box again (each of its parts bounds its own samples,
@@ -342,7 +356,31 @@ impl Lod {
             }
             worst = worst.max(val);
         }
+        split.etas = etas;
         worst.min(whole)
+    }
+
+    /// The bound of a block `bx` at `level` in the view `v` from what an earlier view's threshold test
+    /// read of its sub-boxes' errors there (`etas`, in the order of the block's cut at `level`): the
+    /// largest sub-box's error times its scale now, at most one evaluation's work (no table is read).
+    /// Every sample of the block lies in a sub-box whose error bounds its own, so it is an upper bound
+    /// of the block's projected error, as the split bound is; the errors being the same in every view,
+    /// only the scales change.
+    pub(super) fn held_bound(
+        &self,
+        v: &BoundView,
+        level: u32,
+        bx: LatticeBox,
+        etas: &SubErrors,
+        cut: &mut Split,
+    ) -> f64 {
+        let split = self.split(v, bx, level, cut);
+        split
+            .subs
+            .iter()
+            .zip(etas)
+            .map(|((bs, _), &e)| bs.px(e))
+            .fold(0.0, |m, p| if p.is_nan() { f64::INFINITY } else { m.max(p) })
     }
 }
 

@@ -63,8 +63,12 @@ impl EtaCache {
     }
 }
 
-/// Entries of [`SelectCache`] (a power of two; a frame has at most 36 blocks a level).
-const SELECT_SLOTS: usize = 1 << 11;
+/// Grid cells per side of one ring's share of [`SelectCache`]: a ring's active region meets at most 6
+/// consecutive cells per side ([`super::max_blocks_per_frame`]), so cells taken modulo 8 never collide.
+const SELECT_SIDE: usize = 8;
+
+/// Entries of [`SelectCache`]: one per ring and grid cell modulo [`SELECT_SIDE`].
+const SELECT_SLOTS: usize = crate::plan::frame::MAX_LEVELS * SELECT_SIDE * SELECT_SIDE;
 
 /// One block's selection in one view: what [`super::Lod::select`] computed for it.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -88,6 +92,10 @@ pub(super) struct Selected {
     /// The wanted level's error capped over the whole block ([`super::Lod::eta_cap`]): view-independent,
     /// so that its bound in a later view is one product (what holds a block while the camera moves).
     pub(super) cap: f64,
+    /// The wanted level's error over each sub-box of the block's cut, as its threshold test read them
+    /// (each capped by `cap`; `cap` throughout where the test did not meet epsilon at that level): what
+    /// holds a block whose whole-block bound no longer meets epsilon ([`super::Lod::held_bound`]).
+    pub(super) subs: super::bound::SubErrors,
 }
 
 /// Each block's last selection, by ring and grid cell: a block seen in the same view (camera, viewport,
@@ -105,11 +113,16 @@ impl Default for SelectCache {
 }
 
 impl SelectCache {
-    /// The entry of the block in cell `cell` (its column and row in the ring's block grid) of `ring`.
+    /// The entry of the block in cell `cell` (its column and row in the ring's block grid) of `ring`:
+    /// the cell's column and row modulo [`SELECT_SIDE`], so the blocks of one frame never evict each
+    /// other (a hashed slot let a frame's 200 blocks evict about 20 of theirs each frame, each then
+    /// searched from the coarsest level again).
     fn slot(&self, ring: u32, cell: (i64, i64)) -> &Cell<Selected> {
-        #[expect(clippy::cast_sign_loss, reason = "hash mixing: only the bits matter")]
-        let h = slot_hash(&[u64::from(ring), cell.0 as u64, cell.1 as u64]);
-        &self.0[usize::try_from(h).unwrap_or(0) & (SELECT_SLOTS - 1)]
+        let side = SELECT_SIDE as i64;
+        #[expect(clippy::cast_possible_truncation, reason = "rem_euclid of a small positive modulus")]
+        let (x, y) = (cell.0.rem_euclid(side) as usize, cell.1.rem_euclid(side) as usize);
+        let r = ring as usize % crate::plan::frame::MAX_LEVELS;
+        &self.0[(r * SELECT_SIDE + y) * SELECT_SIDE + x]
     }
 
     /// Block (`ring`, `rect`, in grid cell `cell`)'s selection in view `view` with `levels` levels, if
@@ -160,4 +173,36 @@ pub(super) fn view_key(
     h.write_u32(view.1);
     h.write_u32(mode as u32);
     h.finish() | 1
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every block of a frame keeps its entry: the cells of any 6 x 6 window of every ring (at any
+    /// offset, negative ones included) take distinct slots, so a frame's blocks never evict each other.
+    #[test]
+    fn a_frames_blocks_never_evict_each_other() {
+        let cache = SelectCache::default();
+        for (ox, oy) in [(0i64, 0i64), (-3, 5), (1_000_003, -77), (-8, -8)] {
+            let cells = |ring: u32| {
+                (0..6i64).flat_map(move |j| (0..6i64).map(move |i| (ring, (ox + i, oy + j))))
+            };
+            let all = || (0..crate::plan::frame::MAX_LEVELS as u32).flat_map(cells);
+            for (ring, cell) in all() {
+                cache.put(Selected {
+                    view: 1,
+                    ring,
+                    cell,
+                    levels: 9,
+                    wanted: ring,
+                    ..Selected::default()
+                });
+            }
+            for (ring, cell) in all() {
+                let e = cache.last(ring, cell, 9).expect("kept");
+                assert_eq!((e.ring, e.cell, e.wanted), (ring, cell, ring));
+            }
+        }
+    }
 }

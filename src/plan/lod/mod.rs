@@ -21,7 +21,7 @@ use crate::{Error, Result};
 mod bound;
 mod cache;
 pub use bound::{BoundView, LatticeBox};
-use bound::Split;
+use bound::{Split, SubErrors};
 use cache::{EtaCache, SelectCache, Selected};
 
 /// Capacity of a frame's block list; the profile's `max_draws` is the limit actually enforced.
@@ -437,6 +437,7 @@ impl Lod {
         // faster than the block (a far block while the view turns). A new viewport is not a move:
         // every block is tested in it.
         let moving = self.last_view.get() != view && self.last_viewport.get() == self.view;
+        let mut cut = Split::default();
         let held = match kept {
             Some(_) => None,
             None if !moving || mode == LodMode::Distance => None,
@@ -447,19 +448,29 @@ impl Lod {
                 .and_then(|e| {
                     let now = *whole.get_or_insert_with(|| self.box_scale(v, bx));
                     let k = now.per_metre() / e.scale;
-                    let bound = now.px(e.cap);
-                    (e.scale > 0.0 && k >= 1.0 / KEEP_BAND && bound <= eps).then_some((e, bound))
+                    if !(e.scale > 0.0 && k >= 1.0 / KEEP_BAND) {
+                        return None;
+                    }
+                    // The whole block's capped bound first (one product), then its sub-boxes' errors
+                    // at their new scales (no table read).
+                    let mut bound = now.px(e.cap);
+                    if !(bound <= eps) {
+                        bound = bound.min(self.held_bound(v, e.wanted, bx, &e.subs, &mut cut));
+                    }
+                    (bound <= eps).then_some((e, bound))
                 }),
         };
-        let mut cut = Split::default();
         let mut scale_of = |lod: &Self| *whole.get_or_insert_with(|| lod.box_scale(v, bx));
         // The threshold test of one level, and the value of the last one that met epsilon.
         let mut met_at: Option<(u32, f64)> = None;
+        // The sub-boxes' errors the last test that met epsilon read (kept with the selection).
+        let mut met_subs: SubErrors = [f64::INFINITY; SPLIT * SPLIT];
         let mut test = |lod: &Self, level: u32| -> bool {
             let s = scale_of(lod);
             let t = lod.bound_deep(v, mode, level, bx, eps, SPLIT_DEPTH, Some(s), Some(&mut cut));
             if t <= eps {
                 met_at = Some((level, t));
+                met_subs = cut.etas;
             }
             t <= eps
         };
@@ -530,12 +541,16 @@ impl Lod {
             }
         };
         if mode != LodMode::Distance && held.is_none() {
-            let (scale, cap) = match kept {
-                Some(e) => (e.scale, e.cap),
-                None => (
-                    scale_of(self).per_metre(),
-                    self.eta_cap(mode, wanted, bx).unwrap_or(f64::INFINITY),
-                ),
+            let (scale, cap, subs) = match kept {
+                Some(e) => (e.scale, e.cap, e.subs),
+                None => {
+                    let cap = self.eta_cap(mode, wanted, bx).unwrap_or(f64::INFINITY);
+                    let subs = match met_at {
+                        Some((l, _)) if l == wanted => met_subs.map(|e| e.min(cap)),
+                        _ => [cap; SPLIT * SPLIT],
+                    };
+                    (scale_of(self).per_metre(), cap, subs)
+                }
             };
             self.selected.put(Selected {
                 cap,
@@ -549,6 +564,7 @@ impl Lod {
                 eta,
                 bound,
                 scale,
+                subs,
             });
         }
         #[expect(clippy::cast_possible_truncation, reason = "reported in f32")]
