@@ -188,7 +188,7 @@ mod tests {
             let cells = |ring: u32| {
                 (0..6i64).flat_map(move |j| (0..6i64).map(move |i| (ring, (ox + i, oy + j))))
             };
-            let all = || (0..crate::plan::frame::MAX_LEVELS as u32).flat_map(cells);
+            let all = || (0..crate::profile::MAX_LEVELS).flat_map(cells);
             for (ring, cell) in all() {
                 cache.put(Selected {
                     view: 1,

@@ -454,7 +454,7 @@ impl Lod {
                     // The whole block's capped bound first (one product), then its sub-boxes' errors
                     // at their new scales (no table read).
                     let mut bound = now.px(e.cap);
-                    if !(bound <= eps) {
+                    if bound > eps || bound.is_nan() {
                         bound = bound.min(self.held_bound(v, e.wanted, bx, &e.subs, &mut cut));
                     }
                     (bound <= eps).then_some((e, bound))
