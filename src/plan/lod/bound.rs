@@ -5,7 +5,7 @@
 
 use glam::DVec3;
 
-use super::{Lod, LodMode, DEEP_RATIO, SPLIT, SPLIT_DEPTH};
+use super::{Lod, LodMode, SubErrors, DEEP_RATIO, SPLIT, SPLIT_DEPTH};
 use crate::plan::camera::{BoxScale, Camera, Corner, VerticalScale};
 
 /// What every bound of one frame shares: how its camera projects vertical segments in its viewport
@@ -34,10 +34,6 @@ pub(super) struct Split {
     pub(super) etas: SubErrors,
 }
 
-/// Upper bounds of a level's object-space error over each sub-box of a block's cut, in the cut's order:
-/// view-independent, so a later view bounds the block at that level from them and the sub-boxes' new
-/// scales alone ([`Lod::held_bound`]).
-pub(super) type SubErrors = [f64; SPLIT * SPLIT];
 
 impl Lod {
     /// What the bounds of a frame seen from `camera` share (in this selector's viewport).

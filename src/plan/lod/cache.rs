@@ -95,7 +95,7 @@ pub(super) struct Selected {
     /// The wanted level's error over each sub-box of the block's cut, as its threshold test read them
     /// (each capped by `cap`; `cap` throughout where the test did not meet epsilon at that level): what
     /// holds a block whose whole-block bound no longer meets epsilon ([`super::Lod::held_bound`]).
-    pub(super) subs: super::bound::SubErrors,
+    pub(super) subs: super::SubErrors,
 }
 
 /// Each block's last selection, by ring and grid cell: a block seen in the same view (camera, viewport,

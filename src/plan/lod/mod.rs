@@ -21,7 +21,7 @@ use crate::{Error, Result};
 mod bound;
 mod cache;
 pub use bound::{BoundView, LatticeBox};
-use bound::{Split, SubErrors};
+use bound::Split;
 use cache::{EtaCache, SelectCache, Selected};
 
 /// Capacity of a frame's block list; the profile's `max_draws` is the limit actually enforced.
@@ -587,6 +587,11 @@ pub const KEEP_BAND: f64 = 1.125;
 
 /// Sub-boxes per side [`Lod::box_bound_px`] splits a box into (on the tested level's lattice).
 pub const SPLIT: usize = 4;
+
+/// Upper bounds of a level's object-space error over each sub-box of a block's cut, in the cut's order:
+/// view-independent, so a later view bounds the block at that level from them and the sub-boxes' new
+/// scales alone (`Lod::held_bound`).
+type SubErrors = [f64; SPLIT * SPLIT];
 
 /// How many more times the threshold test (the selection's, at epsilon) cuts a sub-box whose bound
 /// exceeds epsilon into [`SPLIT`] x [`SPLIT`] parts: 4 x 4, then 16 x 16 and 64 x 64 where needed (a
