@@ -4,57 +4,22 @@
 Gabriel Mountains, decimetres) mirrored about its edges until it fills 3601 x 3601 samples, written as an
 SRTM `.hgt` (big-endian int16 metres, rounded), so every sample is real steep 30 m terrain and the mirror
 lines add no seam. Name the output like an SRTM tile (`N34W119.hgt`) so that it reads as one.
-Standard library only.
+Standard library only (`png_rows.py` beside it).
 Usage: scripts/steep_tile.py IN_U16.png METRES_PER_UNIT OUT.hgt   (Big Tujunga's PNG: 0.1)"""
+import os
 import struct
 import sys
-import zlib
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from png_rows import read_rows  # noqa: E402
 
 SIDE = 3601
 
 
-def chunks(data):
-    at = 8
-    while at < len(data):
-        (n,) = struct.unpack(">I", data[at:at + 4])
-        yield data[at + 4:at + 8], data[at + 8:at + 8 + n]
-        at += 12 + n
-
-
 def read_grey16(path):
     """The PNG's rows as lists of unsigned 16-bit values (16-bit grey, non-interlaced only)."""
-    data = open(path, "rb").read()
-    if data[:8] != b"\x89PNG\r\n\x1a\n":
-        sys.exit(f"{path}: not a PNG")
-    idat, w, h = b"", 0, 0
-    for kind, body in chunks(data):
-        if kind == b"IHDR":
-            w, h, depth, colour, _, _, interlace = struct.unpack(">IIBBBBB", body)
-            if (depth, colour, interlace) != (16, 0, 0):
-                sys.exit(f"{path}: 16-bit grey, non-interlaced PNGs only")
-        elif kind == b"IDAT":
-            idat += body
-    raw = zlib.decompress(idat)
-    bpp, stride, rows, prev = 2, w * 2, [], bytearray(w * 2)
-    for y in range(h):
-        f = raw[y * (stride + 1)]
-        line = bytearray(raw[y * (stride + 1) + 1:(y + 1) * (stride + 1)])
-        for i in range(stride):
-            a = line[i - bpp] if i >= bpp else 0
-            b, c = prev[i], (prev[i - bpp] if i >= bpp else 0)
-            if f == 1:
-                line[i] = (line[i] + a) & 255
-            elif f == 2:
-                line[i] = (line[i] + b) & 255
-            elif f == 3:
-                line[i] = (line[i] + (a + b) // 2) & 255
-            elif f == 4:
-                p = a + b - c
-                pa, pb, pc = abs(p - a), abs(p - b), abs(p - c)
-                line[i] = (line[i] + (a if pa <= pb and pa <= pc else b if pb <= pc else c)) & 255
-        rows.append(list(struct.unpack(f">{w}H", bytes(line))))
-        prev = line
-    return w, h, rows
+    w, h, rows = read_rows(path, 16, 0, 2)
+    return w, h, [list(struct.unpack(f">{w}H", r)) for r in rows]
 
 
 def mirrored(n, m):

@@ -2,51 +2,17 @@
 """A large test image from a small one: an 8-bit RGB, non-interlaced PNG with every texel repeated K x K,
 written row by row (docs/measurements.md, "Imagery's out-of-core bake and memory"). Standard library only.
 Usage: scripts/upsample_png.py IN.png K OUT.png"""
+import os
 import struct
 import sys
 import zlib
 
-
-def chunks(data):
-    at = 8
-    while at < len(data):
-        (n,) = struct.unpack(">I", data[at:at + 4])
-        yield data[at + 4:at + 8], data[at + 8:at + 8 + n]
-        at += 12 + n
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from png_rows import read_rows  # noqa: E402
 
 
 def read_rgb8(path):
-    data = open(path, "rb").read()
-    if data[:8] != b"\x89PNG\r\n\x1a\n":
-        sys.exit(f"{path}: not a PNG")
-    idat = b""
-    for kind, body in chunks(data):
-        if kind == b"IHDR":
-            w, h, depth, colour, _, _, interlace = struct.unpack(">IIBBBBB", body)
-            if (depth, colour, interlace) != (8, 2, 0):
-                sys.exit(f"{path}: 8-bit RGB, non-interlaced PNGs only")
-        elif kind == b"IDAT":
-            idat += body
-    raw = zlib.decompress(idat)
-    stride, rows, prev = w * 3, [], bytearray(w * 3)
-    for y in range(h):
-        f, line = raw[y * (stride + 1)], bytearray(raw[y * (stride + 1) + 1:(y + 1) * (stride + 1)])
-        for i in range(stride):
-            a = line[i - 3] if i >= 3 else 0
-            b, c = prev[i], (prev[i - 3] if i >= 3 else 0)
-            if f == 1:
-                line[i] = (line[i] + a) & 255
-            elif f == 2:
-                line[i] = (line[i] + b) & 255
-            elif f == 3:
-                line[i] = (line[i] + (a + b) // 2) & 255
-            elif f == 4:
-                p = a + b - c
-                pa, pb, pc = abs(p - a), abs(p - b), abs(p - c)
-                line[i] = (line[i] + (a if pa <= pb and pa <= pc else b if pb <= pc else c)) & 255
-        rows.append(bytes(line))
-        prev = line
-    return w, h, rows
+    return read_rows(path, 8, 2, 3)
 
 
 def chunk(kind, body):
