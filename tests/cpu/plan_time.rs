@@ -396,6 +396,8 @@ fn a_new_viewport_tests_kept_blocks_again() {
 /// gles3-mid, 1920 x 1080) at 1, 2 and 4 px; per leg: the bound at the leg's frame 30, the unbounded
 /// refinement's at that camera, and the first frame of the leg within 5 % of the latter. A measurement:
 /// `cargo test --release --test cpu plan_time::teleport_goal -- --ignored --nocapture` (minutes).
+/// `CLIPSAT_TELEPORT_EXTRA` adds terrains outside the shared folder (`;`-separated paths, a tile mosaic's
+/// folder among them, read with missing samples at 0 m).
 #[test]
 #[ignore = "a measurement over the shared terrains (minutes)"]
 #[expect(clippy::cast_possible_truncation, reason = "frame numbers under 240")]
@@ -415,12 +417,21 @@ fn teleport_goal() {
         "| terrain | epsilon | leg | bound at frame 30 | unbounded | first frame within 5 % |"
     );
     println!("|---|---|---|---|---|---|");
-    for (name, spacing) in terrains {
-        let Some(path) = crate::shared_file(name) else {
-            continue;
-        };
+    let extra = std::env::var("CLIPSAT_TELEPORT_EXTRA").unwrap_or_default();
+    let shared = terrains
+        .into_iter()
+        .filter_map(|(name, spacing)| Some((crate::shared_file(name)?, spacing, None)));
+    let others = extra
+        .split(';')
+        .filter(|p| !p.is_empty())
+        .map(|p| (std::path::PathBuf::from(p), None, Some(0.0)));
+    for (path, spacing, fill_height) in shared.chain(others) {
+        let name = path
+            .file_name()
+            .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
         let load = clipsat::source::LoadOptions {
             spacing,
+            fill_height,
             ..clipsat::source::LoadOptions::default()
         };
         let hm = clipsat::source::load(&path, &load).unwrap_or_else(|e| panic!("{name}: {e}"));
