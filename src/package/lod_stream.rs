@@ -55,9 +55,8 @@ pub(super) struct Level {
     pub(super) cw: u32,
     pub(super) ch: u32,
     pub(super) sw: u32,
-    /// The errors of the current row, and its closed cells' maxima.
-    errs: Vec<f32>,
-    rowmax: Vec<f32>,
+    /// The band's rows' shares of the work that reads only the band ([`RowOut`]), one per data row.
+    outs: Vec<RowOut>,
     /// The current closed cell row and its maxima so far.
     pub(super) cur: u32,
     pub(super) acc: Vec<f32>,
@@ -105,8 +104,7 @@ impl Level {
             cw: 0,
             ch: 0,
             sw: 0,
-            errs: Vec::new(),
-            rowmax: Vec::new(),
+            outs: Vec::new(),
             cur: 0,
             acc: Vec::new(),
             sums: Vec::new(),
@@ -145,8 +143,6 @@ impl Level {
         let sh = height.div_ceil(1 << s);
         self.q = Sat::max_frac_bits(u64::from(width) * u64::from(height));
         self.inv = 1.0 / f64::from(self.e_max);
-        self.errs = vec![0.0; width as usize];
-        self.rowmax = vec![0.0; self.cw as usize];
         self.acc = vec![0.0; self.cw as usize];
         self.sums = vec![0; self.sw as usize];
         self.sat_row = vec![0; self.sw as usize];
@@ -194,79 +190,62 @@ impl Level {
         }
     }
 
-    /// Sample errors of data row `y` (level-0 heights `h0`) into `out`, or the first non-finite one.
-    fn row_errors(&self, h0: &[f32], y: u32, out: &mut [f32]) -> Option<(u32, u32, f32)> {
-        let j = i64::from(y >> self.ke);
-        let base = usize::try_from(j - self.j0).expect("the band holds row j") * self.row_len;
-        let (r0, r1) = self.band[base..base + 2 * self.row_len].split_at(self.row_len);
-        let z = |a: i64, b: i64| {
-            let a = usize::try_from(a).expect("a level-k column, 0 or more");
-            if b == j {
-                r0[a]
-            } else {
-                r1[a]
-            }
-        };
-        for (x, (o, &h)) in (0u32..).zip(out.iter_mut().zip(h0)) {
-            let e = error_from(z, f64::from(h), self.ke, i64::from(x), i64::from(y));
-            if !(e.is_finite() && e >= 0.0) {
-                return Some((x, y, e));
-            }
-            *o = e;
+    /// What the rows' work reads of the level: its band and its cells.
+    fn view(&self) -> RowView<'_> {
+        RowView {
+            band: &self.band,
+            j0: self.j0,
+            row_len: self.row_len,
+            ke: self.ke,
+            s: self.s,
+            cw: self.cw,
+            sw: self.sw,
+            p: self.p,
+            q: self.q,
+            inv: self.inv,
         }
-        None
     }
 
-    /// Sweep 1 over one data row: E and the first bad error.
-    fn sweep_max(&mut self, h0: &[f32], y: u32, scratch: &mut Vec<f32>) {
-        if self.bad.is_some() {
-            return;
+    /// Sweep 1 over the band's rows (from its first): E and the first bad error, in row order.
+    fn sweep_max(&mut self, outs: &[RowOut]) {
+        for o in outs {
+            if self.bad.is_some() {
+                return;
+            }
+            if o.bad.is_some() {
+                self.bad = o.bad;
+                return;
+            }
+            // Errors are finite and >= +0 (an absolute value), so the maximum is the same in any order.
+            self.e_max = self.e_max.max(o.e_max);
         }
-        scratch.resize(h0.len(), 0.0);
-        if let Some(b) = self.row_errors(h0, y, scratch) {
-            self.bad = Some(b);
-            return;
-        }
-        self.e_max = scratch.iter().copied().fold(self.e_max, f32::max);
     }
 
-    /// Sweep 2 over one data row (`height` rows in all): cell maxima and sums, finished rows written.
+    /// Sweep 2 over one data row (`height` rows in all) from its cells' maxima and sums (`out`): finished
+    /// rows written.
     fn sweep_tables(
         &mut self,
         file: Option<&File>,
-        h0: &[f32],
+        out: &RowOut,
         y: u32,
         height: u32,
     ) -> std::io::Result<()> {
-        let mut errs = std::mem::take(&mut self.errs);
-        let bad = self.row_errors(h0, y, &mut errs);
-        assert!(bad.is_none(), "sweep 1 refused every bad error");
         let (s, mask) = (self.s, (1u32 << self.s) - 1);
-        // The closed cells' maxima of this row: sample x lies in cell x >> s and, on a lattice line, in
-        // the one before (as LevelTables::build_level).
-        self.rowmax.fill(0.0);
-        for (x, &e) in (0u32..).zip(errs.iter()) {
-            let c = (x >> s) as usize;
-            if let Some(m) = self.rowmax.get_mut(c) {
-                *m = m.max(e);
-            }
-            if c > 0 && x & mask == 0 {
-                self.rowmax[c - 1] = self.rowmax[c - 1].max(e);
-            }
-            let v = pow_unit(f64::from(e) * self.inv, self.p).min(1.0);
-            self.sums[c] = self.sums[c].wrapping_add(Sat::quantise_up(v, self.q, x, y));
+        // Wrapping sums: the row's partial sums added at once are the same as sample by sample.
+        for (sum, &v) in self.sums.iter_mut().zip(&out.sums) {
+            *sum = sum.wrapping_add(v);
         }
-        self.errs = errs;
+        let rowmax = &out.rowmax;
         // Closed cell row `cur` covers rows cur 2^s ..= (cur + 1) 2^s: a row on the lattice ends it.
         if y >> s == self.cur + 1 {
-            fold_max(&mut self.acc, &self.rowmax);
+            fold_max(&mut self.acc, rowmax);
             self.close_row(file)?;
             self.cur += 1;
-            self.acc.copy_from_slice(&self.rowmax);
+            self.acc.copy_from_slice(rowmax);
         } else if y == 0 {
-            self.acc.copy_from_slice(&self.rowmax);
+            self.acc.copy_from_slice(rowmax);
         } else {
-            fold_max(&mut self.acc, &self.rowmax);
+            fold_max(&mut self.acc, rowmax);
         }
         if y + 1 == height && self.cur < self.ch {
             self.close_row(file)?;
@@ -398,6 +377,89 @@ impl Level {
     }
 }
 
+/// One data row's share of a level's work that reads only the level's band and the row, done for every
+/// level's rows of a band in parallel ([`par_rows`]): sweep 1's largest error and first bad one, sweep
+/// 2's closed cells' maxima and half-open cells' sums over the row.
+#[derive(Default)]
+struct RowOut {
+    e_max: f32,
+    bad: Option<(u32, u32, f32)>,
+    rowmax: Vec<f32>,
+    sums: Vec<u64>,
+}
+
+/// What a data row's work reads of a level ([`Level::view`]).
+#[derive(Clone, Copy)]
+struct RowView<'a> {
+    band: &'a [f64],
+    j0: i64,
+    row_len: usize,
+    ke: u32,
+    s: u32,
+    cw: u32,
+    sw: u32,
+    p: u32,
+    q: u32,
+    inv: f64,
+}
+
+impl RowView<'_> {
+    /// Sample errors of data row `y` (level-0 heights `h0`) into `out`, or the first non-finite one.
+    fn row_errors(&self, h0: &[f32], y: u32, out: &mut [f32]) -> Option<(u32, u32, f32)> {
+        let j = i64::from(y >> self.ke);
+        let base = usize::try_from(j - self.j0).expect("the band holds row j") * self.row_len;
+        let (r0, r1) = self.band[base..base + 2 * self.row_len].split_at(self.row_len);
+        let z = |a: i64, b: i64| {
+            let a = usize::try_from(a).expect("a level-k column, 0 or more");
+            if b == j {
+                r0[a]
+            } else {
+                r1[a]
+            }
+        };
+        for (x, (o, &h)) in (0u32..).zip(out.iter_mut().zip(h0)) {
+            let e = error_from(z, f64::from(h), self.ke, i64::from(x), i64::from(y));
+            if !(e.is_finite() && e >= 0.0) {
+                return Some((x, y, e));
+            }
+            *o = e;
+        }
+        None
+    }
+
+    /// Sweep 1's share of row `y`: its largest error, or its first bad one.
+    fn row_max(&self, h0: &[f32], y: u32, errs: &mut Vec<f32>, out: &mut RowOut) {
+        errs.resize(h0.len(), 0.0);
+        out.bad = self.row_errors(h0, y, errs);
+        out.e_max = errs.iter().copied().fold(0.0, f32::max);
+    }
+
+    /// Sweep 2's share of row `y`: the closed cells' maxima of the row (sample x lies in cell x >> s
+    /// and, on a lattice line, in the one before, as `LevelTables::build_level`) and the half-open
+    /// cells' sums of its quantised (e/E)^p.
+    fn row_cells(&self, h0: &[f32], y: u32, errs: &mut Vec<f32>, out: &mut RowOut) {
+        errs.resize(h0.len(), 0.0);
+        let bad = self.row_errors(h0, y, errs);
+        assert!(bad.is_none(), "sweep 1 refused every bad error");
+        let (s, mask) = (self.s, (1u32 << self.s) - 1);
+        out.rowmax.clear();
+        out.rowmax.resize(self.cw as usize, 0.0);
+        out.sums.clear();
+        out.sums.resize(self.sw as usize, 0);
+        for (x, &e) in (0u32..).zip(errs.iter()) {
+            let c = (x >> s) as usize;
+            if let Some(m) = out.rowmax.get_mut(c) {
+                *m = m.max(e);
+            }
+            if c > 0 && x & mask == 0 {
+                out.rowmax[c - 1] = out.rowmax[c - 1].max(e);
+            }
+            let v = pow_unit(f64::from(e) * self.inv, self.p).min(1.0);
+            out.sums[c] = out.sums[c].wrapping_add(Sat::quantise_up(v, self.q, x, y));
+        }
+    }
+}
+
 fn fold_max(acc: &mut [f32], row: &[f32]) {
     for (a, &v) in acc.iter_mut().zip(row) {
         *a = a.max(v);
@@ -487,15 +549,12 @@ impl<'p> Sweep<'p> {
 
     /// Sweep 1: every level's E; the first non-finite error is an [`Error::Terrain`] naming its sample.
     pub(super) fn sweep_e(&mut self) -> Result<()> {
-        let width = self.width;
         let what = self.cache.package().path().to_path_buf();
         self.sweep_bands(
             |_| true,
-            |lv, h0, y0, y1| {
-                let mut scratch = Vec::new();
-                for y in y0..y1 {
-                    lv.sweep_max(band_row(h0, width, y - y0), y, &mut scratch);
-                }
+            |v: &RowView<'_>, h0: &[f32], y, errs: &mut Vec<f32>, out: &mut RowOut| v.row_max(h0, y, errs, out),
+            |lv, outs, _| {
+                lv.sweep_max(outs);
                 Ok(())
             },
             |e| Error::io(&what, "cannot bake", e),
@@ -508,23 +567,28 @@ impl<'p> Sweep<'p> {
 
     /// Sweep 2 over the levels with tables, each data row handed to [`Level::sweep_tables`] with `file`.
     pub(super) fn sweep_tables(&mut self, file: Option<&File>, what: &Path) -> Result<()> {
-        let (width, height) = (self.width, self.height);
+        let height = self.height;
         self.sweep_bands(
             Level::has_tables,
-            |lv, h0, y0, y1| {
-                (y0..y1)
-                    .try_for_each(|y| lv.sweep_tables(file, band_row(h0, width, y - y0), y, height))
+            |v: &RowView<'_>, h0: &[f32], y, errs: &mut Vec<f32>, out: &mut RowOut| v.row_cells(h0, y, errs, out),
+            |lv, outs, y0| {
+                (y0..)
+                    .zip(outs)
+                    .try_for_each(|(y, out)| lv.sweep_tables(file, out, y, height))
             },
             |e| Error::io(what, "cannot write", e),
         )
     }
 
-    /// One pass over the terrain a band of level-0 tile rows at a time: each band decoded once, then
-    /// `rows(level, band heights, y0, y1)` for every level `pick` takes, the levels in parallel.
+    /// One pass over the terrain a band of level-0 tile rows at a time: each band decoded once, then for
+    /// every level `pick` takes, `row(level, row heights, y, scratch, out)` for each of the band's rows
+    /// (every level's rows shared among the cores, [`par_rows`]), then `fold(level, outs, y0)` over them
+    /// in order (the levels shared among the cores).
     fn sweep_bands(
         &mut self,
         pick: impl Fn(&Level) -> bool,
-        rows: impl Fn(&mut Level, &[f32], u32, u32) -> std::io::Result<()> + Sync,
+        row: impl Fn(&RowView<'_>, &[f32], u32, &mut Vec<f32>, &mut RowOut) + Sync,
+        fold: impl Fn(&mut Level, &[RowOut], u32) -> std::io::Result<()> + Sync,
         err: impl Fn(std::io::Error) -> Error,
     ) -> Result<()> {
         for band in 0..self.bands {
@@ -538,7 +602,14 @@ impl<'p> Sweep<'p> {
             )?;
             let h0 = &self.h0;
             let mut picked: Vec<&mut Level> = self.levels.iter_mut().filter(|l| pick(l)).collect();
-            par_levels(&mut picked, |lv| rows(lv, h0, y0, y1)).map_err(&err)?;
+            par_rows(&mut picked, (h0, self.width), (y0, y1), &row);
+            par_levels(&mut picked, |lv| {
+                let outs = std::mem::take(&mut lv.outs);
+                let r = fold(lv, &outs, y0);
+                lv.outs = outs;
+                r
+            })
+            .map_err(&err)?;
             self.meter.inc(1);
         }
         Ok(())
@@ -715,6 +786,66 @@ fn load_band(
     }
     cache.package().trim();
     Ok((y0, y1))
+}
+
+/// Data rows a job of [`par_rows`] takes of one level.
+const JOB_ROWS: usize = 8;
+
+/// Runs `f` over every data row `y0 .. y1` of every level into the level's [`RowOut`]s, the levels' rows
+/// dealt in runs of [`JOB_ROWS`] among the cores: every row costs about the same at every level (an
+/// error a sample), so the cores are loaded evenly whatever the number of levels, and each row's result
+/// depends on the row alone.
+fn par_rows(
+    levels: &mut [&mut Level],
+    (h0, width): (&[f32], u32),
+    (y0, y1): (u32, u32),
+    f: &(impl Fn(&RowView<'_>, &[f32], u32, &mut Vec<f32>, &mut RowOut) + Sync),
+) {
+    let rows = (y1 - y0) as usize;
+    let mut outs: Vec<Vec<RowOut>> = levels
+        .iter_mut()
+        .map(|lv| {
+            let mut o = std::mem::take(&mut lv.outs);
+            o.resize_with(rows, RowOut::default);
+            o
+        })
+        .collect();
+    {
+        let views: Vec<RowView<'_>> = levels.iter().map(|lv| lv.view()).collect();
+        let mut jobs: Vec<(RowView<'_>, u32, &mut [RowOut])> = Vec::new();
+        for (view, o) in views.iter().zip(outs.iter_mut()) {
+            for (first, chunk) in (y0..).step_by(JOB_ROWS).zip(o.chunks_mut(JOB_ROWS)) {
+                jobs.push((*view, first, chunk));
+            }
+        }
+        let run = |share: Vec<(RowView<'_>, u32, &mut [RowOut])>| {
+            let mut errs = Vec::new();
+            for (view, first, chunk) in share {
+                for (y, out) in (first..).zip(chunk.iter_mut()) {
+                    f(&view, band_row(h0, width, y - y0), y, &mut errs, out);
+                }
+            }
+        };
+        let threads = super::threads().min(jobs.len());
+        if threads <= 1 {
+            run(jobs);
+        } else {
+            // Dealt round-robin, so that each core gets rows of every level.
+            let mut shares: Vec<Vec<_>> = (0..threads).map(|_| Vec::new()).collect();
+            for (i, job) in jobs.into_iter().enumerate() {
+                shares[i % threads].push(job);
+            }
+            let run = &run;
+            std::thread::scope(|s| {
+                for share in shares {
+                    s.spawn(move || run(share));
+                }
+            });
+        }
+    }
+    for (lv, o) in levels.iter_mut().zip(outs) {
+        lv.outs = o;
+    }
 }
 
 /// Runs `f` over every level, the levels shared among the cores (each level's state is its own, so the
