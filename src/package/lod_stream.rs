@@ -8,17 +8,20 @@
 //!
 //! - the package is read one band of level-0 tile rows at a time through a [`TileCache`] sized by the
 //!   terrain's width (the band's tiles, the coarser tiles their prediction reads, and the level-k rows
-//!   the band's errors read), and its mapped pages are dropped after each band;
+//!   the band's errors read), and its mapped pages are dropped every 16 MiB of it read (estimated);
 //! - two sweeps over the bands: the first finds every level's E (and refuses a non-finite error, naming
 //!   its sample); the second computes each sample's error once more for every level, folds it into the
 //!   closed cells' maxima and the half-open cells' sums of the current cell row, and writes each finished
 //!   row where it lies in the file (the layout is known once every E is): a SAT row is the previous SAT
 //!   row plus the row's running sum, and each max-pyramid row is written as soon as its two finer rows are;
-//! - levels are shared among the cores within a band (each level's state is its own);
+//! - within a band, every level's rows are shared among the cores in runs of rows (a row's errors,
+//!   closed cells' maxima and half-open cells' sums read only the band), then each level folds its rows
+//!   in order (its state is its own), the levels shared among the cores;
 //! - last, the CRC-32 trailer over the file read back in chunks, and the rename into place.
 //!
-//! Memory: O(width) per level (a few rows), plus the tile cache and one band of level-0 heights; nothing
-//! grows with the terrain's height, and nothing terrain-sized is held.
+//! Memory: O(width) per level (a few rows, and a band's rows of cells), plus the tile cache, one band of
+//! level-0 heights and at most about 16 MiB of the package's mapped pages; nothing grows with the
+//! terrain's height, and nothing terrain-sized is held.
 
 use std::fs::File;
 use std::path::Path;
@@ -33,6 +36,10 @@ use crate::package::read::TileDecoder;
 use crate::package::{CacheSplit, Package, TileCache};
 use crate::progress::{Meter, Progress};
 use crate::{Error, Result};
+
+/// The package's bytes (an estimate: its size over the bands) the sweeps read between two drops of its
+/// mapped pages ([`Package::trim`]).
+const TRIM_BYTES: u64 = 16 << 20;
 
 /// Bytes read at a time for the trailing checksum.
 const CRC_CHUNK: usize = 4 << 20;
@@ -502,6 +509,9 @@ pub(super) struct Sweep<'p> {
     pub(super) height: u32,
     bands: u32,
     last: u32,
+    /// The package's bytes a band reads on average, and those read since its pages were last dropped.
+    band_bytes: u64,
+    untrimmed: u64,
 }
 
 impl<'p> Sweep<'p> {
@@ -544,6 +554,8 @@ impl<'p> Sweep<'p> {
             height,
             bands,
             last,
+            band_bytes: package.file_bytes().div_ceil(u64::from(bands.max(1))),
+            untrimmed: 0,
         })
     }
 
@@ -600,6 +612,14 @@ impl<'p> Sweep<'p> {
                 band,
                 self.last,
             )?;
+            // The package's mapped pages are dropped once the bands since the last time read about
+            // TRIM_BYTES of it, and after the last band: dropping them costs every core a TLB flush, too
+            // much for each band of a small package, and the pages held stay under a fixed bound.
+            self.untrimmed += self.band_bytes;
+            if self.untrimmed >= TRIM_BYTES || band + 1 == self.bands {
+                self.cache.package().trim();
+                self.untrimmed = 0;
+            }
             let h0 = &self.h0;
             let mut picked: Vec<&mut Level> = self.levels.iter_mut().filter(|l| pick(l)).collect();
             par_rows(&mut picked, (h0, self.width), (y0, y1), &row);
@@ -733,8 +753,8 @@ fn band_row(h0: &[f32], width: u32, r: u32) -> &[f32] {
 }
 
 /// Makes band `band`'s tiles resident (level-0 tile row `band`, and each level's rows its errors read),
-/// copies its level-0 heights into `h0` and each level's rows into its state, and drops the package's
-/// mapped pages; returns the band's data rows.
+/// and copies its level-0 heights into `h0` and each level's rows into its state; returns the band's
+/// data rows.
 fn load_band(
     cache: &mut TileCache,
     decoders: &mut [TileDecoder],
@@ -784,7 +804,6 @@ fn load_band(
     for lv in levels.iter_mut() {
         lv.load_band(cache, last, y0, y1);
     }
-    cache.package().trim();
     Ok((y0, y1))
 }
 
