@@ -569,7 +569,8 @@ impl<'p> Sweep<'p> {
                 lv.sweep_max(outs);
                 Ok(())
             },
-            |e| Error::io(&what, "cannot bake", e),
+            // A row's maximum folded into E: too little to share.
+            (false, |e| Error::io(&what, "cannot bake", e)),
         )?;
         if let Some((x, y, e)) = self.levels.iter().find_map(|l| l.bad) {
             return Err(bad_error(x as usize, y as usize, e));
@@ -588,20 +589,20 @@ impl<'p> Sweep<'p> {
                     .zip(outs)
                     .try_for_each(|(y, out)| lv.sweep_tables(file, out, y, height))
             },
-            |e| Error::io(what, "cannot write", e),
+            (true, |e| Error::io(what, "cannot write", e)),
         )
     }
 
     /// One pass over the terrain a band of level-0 tile rows at a time: each band decoded once, then for
     /// every level `pick` takes, `row(level, row heights, y, scratch, out)` for each of the band's rows
     /// (every level's rows shared among the cores, [`par_rows`]), then `fold(level, outs, y0)` over them
-    /// in order (the levels shared among the cores).
+    /// in order (the levels shared among the cores if `parallel`; `err` makes its errors).
     fn sweep_bands(
         &mut self,
         pick: impl Fn(&Level) -> bool,
         row: impl Fn(&RowView<'_>, &[f32], u32, &mut Vec<f32>, &mut RowOut) + Sync,
         fold: impl Fn(&mut Level, &[RowOut], u32) -> std::io::Result<()> + Sync,
-        err: impl Fn(std::io::Error) -> Error,
+        (parallel, err): (bool, impl Fn(std::io::Error) -> Error),
     ) -> Result<()> {
         for band in 0..self.bands {
             let (y0, y1) = load_band(
@@ -623,12 +624,17 @@ impl<'p> Sweep<'p> {
             let h0 = &self.h0;
             let mut picked: Vec<&mut Level> = self.levels.iter_mut().filter(|l| pick(l)).collect();
             par_rows(&mut picked, (h0, self.width), (y0, y1), &row);
-            par_levels(&mut picked, |lv| {
+            let fold_one = |lv: &mut Level| {
                 let outs = std::mem::take(&mut lv.outs);
                 let r = fold(lv, &outs, y0);
                 lv.outs = outs;
                 r
-            })
+            };
+            if parallel {
+                par_levels(&mut picked, fold_one)
+            } else {
+                picked.iter_mut().try_for_each(|lv| fold_one(lv))
+            }
             .map_err(&err)?;
             self.meter.inc(1);
         }
@@ -879,18 +885,27 @@ fn par_levels(
     if threads == 1 || levels.len() <= 1 {
         return levels.iter_mut().try_for_each(|l| f(l));
     }
-    // Dealt round-robin: a finer level codes more cells than a coarser one, so runs of adjacent levels
-    // would leave one thread the heavier half.
-    let mut shares: Vec<Vec<&mut Level>> = (0..threads.min(levels.len())).map(|_| Vec::new()).collect();
-    let n = shares.len();
-    for (i, l) in levels.iter_mut().enumerate() {
-        shares[i % n].push(&mut **l);
+    // A level's work is about its cells (a finer level codes four times those of the next coarser one,
+    // so the finest of them can weigh as much as all the others): the costliest first, each to the
+    // least loaded thread.
+    let cost = |l: &Level| u64::from(l.cw) + u64::from(l.sw) + 64;
+    let mut order: Vec<&mut Level> = levels.iter_mut().map(|l| &mut **l).collect();
+    order.sort_by_key(|l| std::cmp::Reverse(cost(l)));
+    let n = threads.min(order.len());
+    let mut shares: Vec<(u64, Vec<&mut Level>)> = (0..n).map(|_| (0, Vec::new())).collect();
+    for l in order {
+        let least = shares
+            .iter_mut()
+            .min_by_key(|(load, _)| *load)
+            .expect("at least one share");
+        least.0 += cost(l);
+        least.1.push(l);
     }
     let f = &f;
     std::thread::scope(|s| {
         let handles: Vec<_> = shares
             .into_iter()
-            .map(|mut share| s.spawn(move || share.iter_mut().try_for_each(|l| f(l))))
+            .map(|(_, mut share)| s.spawn(move || share.iter_mut().try_for_each(|l| f(l))))
             .collect();
         handles
             .into_iter()
