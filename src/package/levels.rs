@@ -317,9 +317,9 @@ struct TileRow<'a> {
 
 impl TileRow<'_> {
     /// Quantises the row's tiles in closed loop, each worker a run of adjacent tiles (a tile reads only the
-    /// coarser level and its own values, so its symbols do not depend on which worker made them); the
-    /// first error in tile order.
-    fn code(&self, workers: &mut [Worker]) -> Result<()> {
+    /// coarser level and its own values, so its symbols do not depend on which worker made them): the
+    /// first error in tile order, and what `beside` returns, run on this thread meanwhile.
+    fn code<T>(&self, workers: &mut [Worker], beside: impl FnOnce() -> T) -> (Result<()>, T) {
         let tiles = self.header.levels[self.lk].tiles_x;
         let count = u32::try_from(workers.len()).unwrap_or(u32::MAX).max(1);
         let per = tiles.div_ceil(count).max(1);
@@ -328,14 +328,19 @@ impl TileRow<'_> {
             wk.tiles = a..a.saturating_add(per).min(tiles);
         }
         if workers.iter().filter(|wk| !wk.tiles.is_empty()).count() <= 1 {
-            return workers.iter_mut().try_for_each(|wk| self.code_run(wk));
+            let b = beside();
+            return (workers.iter_mut().try_for_each(|wk| self.code_run(wk)), b);
         }
         std::thread::scope(|s| {
             let handles: Vec<_> = workers
                 .iter_mut()
                 .map(|wk| s.spawn(move || self.code_run(wk)))
                 .collect();
-            super::join_in_order(handles, "a tile coding thread panicked")
+            let b = beside();
+            (
+                super::join_in_order(handles, "a tile coding thread panicked"),
+                b,
+            )
         })
     }
 
@@ -413,14 +418,15 @@ pub(super) fn code_levels(
         "the header's levels follow the spilled pyramid"
     );
     let tile = header.tile;
-    let mut band = Vec::new();
+    let (mut band, mut band_next) = (Vec::new(), Vec::new());
     let mut workers: Vec<Worker> = (0..super::threads()).map(|_| Worker::new(tile)).collect();
-    let mut coarse = CoarseRows {
+    let new_coarse = || CoarseRows {
         rows: Vec::new(),
         first: 0,
         width: 0,
         height: 0,
     };
+    let (mut coarse, mut coarse_next) = (new_coarse(), new_coarse());
     let mut coded = Coded {
         models: vec![LevelModel::plain(1); n],
         syms: Vec::with_capacity(n),
@@ -495,15 +501,33 @@ pub(super) fn code_levels(
         {
             let mut rw = BufWriter::with_capacity(1 << 16, &recon_file.file);
             let mut sw = BufWriter::with_capacity(1 << 16, &sym_file.file);
-            let mut rows_out = Vec::new();
+            // The row coded last, waiting to be written: its reconstruction, and its tiles' symbols then
+            // contexts in tile order.
+            let (mut rows_out, mut syms_out) = (Vec::<i32>::new(), Vec::<u8>::new());
+            let mut write = |rows_out: &[i32], syms_out: &[u8]| -> Result<()> {
+                sw.write_all(syms_out).map_err(io(&sym_file.path))?;
+                rw.write_all(bytemuck::cast_slice(rows_out))
+                    .map_err(io(&recon_file.path))
+            };
+            let mut read = |ty: u32, band: &mut Vec<f32>, coarse: &mut CoarseRows| -> Result<()> {
+                let (y0, th) = rows_of(ty);
+                band.resize(th as usize * w, 0.0f32);
+                spilled.read_rows(lk, y0, band)?;
+                if let (Some(f), Some(cd)) = (recon_prev.as_mut(), cdims) {
+                    coarse_rows(f, cd, (y0, th), coarse)?;
+                }
+                Ok(())
+            };
+            // Row ty + 1 is read and row ty - 1 written on this thread while the workers code row ty;
+            // errors are reported in the order one thread doing them in turn would meet them.
+            let mut read_next = read(0, &mut band, &mut coarse);
             for ty in 0..dims.tiles_y {
+                if let Err(e) = std::mem::replace(&mut read_next, Ok(())) {
+                    write(&rows_out, &syms_out)?;
+                    return Err(e);
+                }
                 let (y0, th) = rows_of(ty);
                 let thu = th as usize;
-                band.resize(thu * w, 0.0f32);
-                spilled.read_rows(lk, y0, &mut band)?;
-                if let (Some(f), Some(cd)) = (recon_prev.as_mut(), cdims) {
-                    coarse_rows(f, cd, (y0, th), &mut coarse)?;
-                }
                 let row = TileRow {
                     header,
                     lk,
@@ -515,18 +539,28 @@ pub(super) fn code_levels(
                     quant,
                     model: &model,
                 };
-                row.code(&mut workers)?;
+                let (coded_row, (wrote, read_row)) = row.code(&mut workers, || {
+                    let wrote = write(&rows_out, &syms_out);
+                    let read_row = if ty + 1 < dims.tiles_y {
+                        read(ty + 1, &mut band_next, &mut coarse_next)
+                    } else {
+                        Ok(())
+                    };
+                    (wrote, read_row)
+                });
+                wrote?;
+                coded_row?;
+                read_next = read_row;
                 // The tiles in order, as one thread would have written them.
                 rows_out.resize(thu * w, 0i32);
+                syms_out.clear();
                 for wk in &workers {
                     let mut at = 0;
                     for tx in wk.tiles.clone() {
                         let (x0, _, tw, _) = header.tile_rect(lk, tx, ty);
                         let (tw, nn) = (tw as usize, tw as usize * thu);
-                        let (syms, ctxs) = (&wk.syms[at..at + nn], &wk.ctxs[at..at + nn]);
-                        sw.write_all(bytemuck::cast_slice(syms))
-                            .and_then(|()| sw.write_all(ctxs))
-                            .map_err(io(&sym_file.path))?;
+                        syms_out.extend_from_slice(bytemuck::cast_slice(&wk.syms[at..at + nn]));
+                        syms_out.extend_from_slice(&wk.ctxs[at..at + nn]);
                         for r in 0..thu {
                             let o = r * w + x0 as usize;
                             rows_out[o..o + tw].copy_from_slice(&wk.rec[at + r * tw..at + (r + 1) * tw]);
@@ -534,8 +568,6 @@ pub(super) fn code_levels(
                         at += nn;
                     }
                 }
-                rw.write_all(bytemuck::cast_slice(&rows_out))
-                    .map_err(io(&recon_file.path))?;
                 for wk in &workers {
                     let e = &wk.errors;
                     if lk == 0 {
@@ -547,7 +579,11 @@ pub(super) fn code_levels(
                         coded.worst_coarse = coded.worst_coarse.max(e.worst);
                     }
                 }
+                std::mem::swap(&mut band, &mut band_next);
+                std::mem::swap(&mut coarse, &mut coarse_next);
             }
+            write(&rows_out, &syms_out)?;
+            drop(write);
             rw.flush().map_err(io(&recon_file.path))?;
             sw.flush().map_err(io(&sym_file.path))?;
         }
