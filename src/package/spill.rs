@@ -80,19 +80,17 @@ pub(super) fn round_half_away(x: f64) -> f64 {
     }
 }
 
-/// The source's bands as the checking thread sees them: every sample finite, the range and lattices so
-/// far, and the levels fed row by row.
+/// What the source's samples so far say: all finite, their range, and the lattices they sit on.
 struct Checked {
     path: std::path::PathBuf,
     width: u32,
     range: (f32, f32),
     lattice: [bool; 2],
-    levels: Vec<Level>,
 }
 
 impl Checked {
-    /// Band `band` (whole rows from `y0`): checked sample by sample in row order (the first non-finite one
-    /// is the error), then each row fed to the pyramid.
+    /// Band `band` (whole rows from `y0`), checked sample by sample in row order: the first non-finite one
+    /// is the error.
     fn band(&mut self, y0: u32, band: &[f32]) -> Result<()> {
         for (y, row) in (y0..).zip(band.chunks_exact(self.width as usize)) {
             for (x, &v) in (0u32..).zip(row) {
@@ -112,7 +110,6 @@ impl Checked {
                     }
                 }
             }
-            feed(&mut self.levels, 0, y, row)?;
         }
         Ok(())
     }
@@ -179,20 +176,21 @@ impl Spilled {
             width: w,
             range: (f32::INFINITY, f32::NEG_INFINITY),
             lattice: [true; 2],
-            levels,
         };
         meter.set_total(u64::from(h));
-        // The source is read on this thread while a second one checks and filters the band read before
+        // The source is read and checked on this thread while a second one filters the band read before
         // (the reader need not be Send); bands go over in order and come back to be refilled.
         let band_len = w as usize * BAND_ROWS.min(h) as usize;
         let (to_work, work_in) = std::sync::mpsc::sync_channel::<(u32, Vec<f32>)>(1);
         let (to_read, read_in) = std::sync::mpsc::channel::<Vec<f32>>();
         let (read, worked) = std::thread::scope(|s| {
-            let work = &mut checked;
+            let levels = &mut levels;
             // Moved in, so that the reader's waits end when the worker stops.
             let worker = s.spawn(move || {
                 for (y0, band) in work_in {
-                    work.band(y0, &band)?;
+                    for (y, row) in (y0..).zip(band.chunks_exact(w as usize)) {
+                        feed(levels, 0, y, row)?;
+                    }
                     // The reader may have stopped (an error): then the band is not wanted back.
                     let _ = to_read.send(band);
                 }
@@ -214,7 +212,10 @@ impl Spilled {
                 };
                 let rows = BAND_ROWS.min(h - y0);
                 band.resize(rows as usize * w as usize, 0.0);
-                if let Err(e) = src.read_rows(y0, &mut band) {
+                if let Err(e) = src
+                    .read_rows(y0, &mut band)
+                    .and_then(|()| checked.band(y0, &band))
+                {
                     break Err(e);
                 }
                 if to_work.send((y0, band)).is_err() {
@@ -226,18 +227,13 @@ impl Spilled {
             drop(to_work);
             let worked = worker
                 .join()
-                .unwrap_or_else(|_| panic!("the source's checking thread panicked"));
+                .unwrap_or_else(|_| panic!("the pyramid's filtering thread panicked"));
             (read, worked)
         });
         // The worker's error first: it is in a band read before the reader's.
         worked?;
         read?;
-        let Checked {
-            range,
-            lattice,
-            levels,
-            ..
-        } = checked;
+        let Checked { range, lattice, .. } = checked;
         let mut done = Vec::with_capacity(levels.len());
         for l in levels {
             assert_eq!(l.next, l.height, "every row of every level was produced");
