@@ -190,10 +190,32 @@ impl Level {
         let (j0, j1) = (i64::from(y0 >> self.ke), i64::from((y1 - 1) >> self.ke) + 1);
         self.j0 = j0;
         self.band.clear();
-        for b in j0..=j1 {
-            for a in 0..self.row_len as i64 {
-                self.band.push(Self::height(cache, last, self.k, a, b));
+        if self.k > last {
+            for b in j0..=j1 {
+                for a in 0..self.row_len as i64 {
+                    self.band.push(Self::height(cache, last, self.k, a, b));
+                }
             }
+            return;
+        }
+        // A data level: whole tile rows at a time, clamped to its edges as `Self::height` reads them.
+        let level = self.k as usize;
+        let d = cache.package().header().levels[level];
+        for b in j0..=j1 {
+            let y = u32::try_from(b.clamp(0, i64::from(d.height) - 1)).expect("clamped into the level");
+            let start = self.band.len();
+            let mut x = 0;
+            while x < d.width && self.band.len() - start < self.row_len {
+                let (_, seg) = cache
+                    .row_segment(level, x, y)
+                    .expect("the band's tiles were made resident before reading them");
+                let seg = &seg[..seg.len().min(self.row_len - (self.band.len() - start))];
+                self.band
+                    .extend(seg.iter().map(|&v| f64::from(cache.package().metres(v))));
+                x += u32::try_from(seg.len()).expect("a tile row fits u32");
+            }
+            let edge = self.band[self.band.len() - 1];
+            self.band.resize(start + self.row_len, edge);
         }
     }
 
