@@ -630,21 +630,38 @@ impl Coded {
             let file = &mut self.syms[lk];
             file.file.seek(SeekFrom::Start(0)).map_err(io(&file.path))?;
             let mut rd = BufReader::with_capacity(1 << 16, &file.file);
-            let mut tiles: Vec<(Vec<i32>, Vec<u8>)> = Vec::new();
-            for ty in 0..dims.tiles_y {
-                tiles.clear();
-                for tx in 0..dims.tiles_x {
+            let path = &file.path;
+            // Tile row ty's symbols, read into the buffers of the row before last.
+            let mut read = |ty: u32, tiles: &mut Vec<(Vec<i32>, Vec<u8>)>| -> Result<()> {
+                tiles.resize_with(dims.tiles_x as usize, Default::default);
+                for (tx, (s, c)) in (0..dims.tiles_x).zip(tiles.iter_mut()) {
                     let (_, _, tw, th) = header.tile_rect(lk, tx, ty);
                     let n = tw as usize * th as usize;
-                    let (mut s, mut c) = (vec![0i32; n], vec![0u8; n]);
-                    rd.read_exact(bytemuck::cast_slice_mut(&mut s))
-                        .and_then(|()| rd.read_exact(&mut c))
-                        .map_err(io(&file.path))?;
-                    tiles.push((s, c));
+                    s.resize(n, 0);
+                    c.resize(n, 0);
+                    rd.read_exact(bytemuck::cast_slice_mut(s))
+                        .and_then(|()| rd.read_exact(c))
+                        .map_err(io(path))?;
                 }
-                let payloads = encode_row(tables, encoders, &tiles)
-                    .map_err(|e| Error::io(&file.path, "cannot compress a tile", e))?;
+                Ok(())
+            };
+            let (mut tiles, mut next) = (Vec::new(), Vec::new());
+            read(0, &mut tiles)?;
+            // The next row is read on this thread while the row is coded; errors in the order one
+            // thread doing them in turn would meet them.
+            for ty in 0..dims.tiles_y {
+                let (payloads, read_next) = encode_row(tables, encoders, &tiles, || {
+                    if ty + 1 < dims.tiles_y {
+                        read(ty + 1, &mut next)
+                    } else {
+                        Ok(())
+                    }
+                });
+                let payloads =
+                    payloads.map_err(|e| Error::io(path, "cannot compress a tile", e))?;
                 f(lk, ty, &payloads)?;
+                read_next?;
+                std::mem::swap(&mut tiles, &mut next);
             }
         }
         Ok(())
@@ -677,12 +694,14 @@ impl Coded {
     }
 }
 
-/// A tile row's payloads, in order, coded in parallel (a payload does not depend on which thread made it).
-fn encode_row(
+/// A tile row's payloads, in order, coded in parallel (a payload does not depend on which thread made it),
+/// and what `beside` returns, run on this thread meanwhile.
+fn encode_row<T>(
     tables: Option<&Tables>,
     encoders: &mut [Encoder],
     tiles: &[(Vec<i32>, Vec<u8>)],
-) -> std::io::Result<Vec<Vec<u8>>> {
+    beside: impl FnOnce() -> T,
+) -> (std::io::Result<Vec<Vec<u8>>>, T) {
     let per = tiles.len().div_ceil(encoders.len()).max(1);
     std::thread::scope(|s| {
         let handles: Vec<_> = tiles
@@ -700,11 +719,15 @@ fn encode_row(
                 })
             })
             .collect();
-        let mut all = Vec::with_capacity(tiles.len());
-        for h in handles {
-            all.extend(h.join().expect("a tile encoder thread panicked")?);
-        }
-        Ok(all)
+        let b = beside();
+        let all = (|| {
+            let mut all = Vec::with_capacity(tiles.len());
+            for h in handles {
+                all.extend(h.join().expect("a tile encoder thread panicked")?);
+            }
+            Ok(all)
+        })();
+        (all, b)
     })
 }
 
