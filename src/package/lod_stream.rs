@@ -28,14 +28,17 @@ use std::path::Path;
 
 
 use crate::bake::lod_record::Coder;
-use crate::bake::lod_tables::{bad_error, closed_count, error_from, RangeMax};
-use crate::bake::sat::{pow_unit, Sat};
+use crate::bake::lod_tables::{bad_error, closed_count, RangeMax};
+use crate::bake::sat::Sat;
 use crate::bake::{BakeParams, FORMAT_VERSION, MAGIC};
 use crate::package::lod_tiles::RecordRows;
 use crate::package::read::TileDecoder;
 use crate::package::{CacheSplit, Package, TileCache};
 use crate::progress::{Meter, Progress};
 use crate::{Error, Result};
+
+mod rows;
+use rows::{par_rows, RowOut, RowView};
 
 /// The package's bytes (an estimate: its size over the bands) the sweeps read between two drops of its
 /// mapped pages ([`Package::trim`]).
@@ -406,89 +409,6 @@ impl Level {
     }
 }
 
-/// One data row's share of a level's work that reads only the level's band and the row, done for every
-/// level's rows of a band in parallel ([`par_rows`]): sweep 1's largest error and first bad one, sweep
-/// 2's closed cells' maxima and half-open cells' sums over the row.
-#[derive(Default)]
-struct RowOut {
-    e_max: f32,
-    bad: Option<(u32, u32, f32)>,
-    rowmax: Vec<f32>,
-    sums: Vec<u64>,
-}
-
-/// What a data row's work reads of a level ([`Level::view`]).
-#[derive(Clone, Copy)]
-struct RowView<'a> {
-    band: &'a [f64],
-    j0: i64,
-    row_len: usize,
-    ke: u32,
-    s: u32,
-    cw: u32,
-    sw: u32,
-    p: u32,
-    q: u32,
-    inv: f64,
-}
-
-impl RowView<'_> {
-    /// Sample errors of data row `y` (level-0 heights `h0`) into `out`, or the first non-finite one.
-    fn row_errors(&self, h0: &[f32], y: u32, out: &mut [f32]) -> Option<(u32, u32, f32)> {
-        let j = i64::from(y >> self.ke);
-        let base = usize::try_from(j - self.j0).expect("the band holds row j") * self.row_len;
-        let (r0, r1) = self.band[base..base + 2 * self.row_len].split_at(self.row_len);
-        let z = |a: i64, b: i64| {
-            let a = usize::try_from(a).expect("a level-k column, 0 or more");
-            if b == j {
-                r0[a]
-            } else {
-                r1[a]
-            }
-        };
-        for (x, (o, &h)) in (0u32..).zip(out.iter_mut().zip(h0)) {
-            let e = error_from(z, f64::from(h), self.ke, i64::from(x), i64::from(y));
-            if !(e.is_finite() && e >= 0.0) {
-                return Some((x, y, e));
-            }
-            *o = e;
-        }
-        None
-    }
-
-    /// Sweep 1's share of row `y`: its largest error, or its first bad one.
-    fn row_max(&self, h0: &[f32], y: u32, errs: &mut Vec<f32>, out: &mut RowOut) {
-        errs.resize(h0.len(), 0.0);
-        out.bad = self.row_errors(h0, y, errs);
-        out.e_max = errs.iter().copied().fold(0.0, f32::max);
-    }
-
-    /// Sweep 2's share of row `y`: the closed cells' maxima of the row (sample x lies in cell x >> s
-    /// and, on a lattice line, in the one before, as `LevelTables::build_level`) and the half-open
-    /// cells' sums of its quantised (e/E)^p.
-    fn row_cells(&self, h0: &[f32], y: u32, errs: &mut Vec<f32>, out: &mut RowOut) {
-        errs.resize(h0.len(), 0.0);
-        let bad = self.row_errors(h0, y, errs);
-        assert!(bad.is_none(), "sweep 1 refused every bad error");
-        let (s, mask) = (self.s, (1u32 << self.s) - 1);
-        out.rowmax.clear();
-        out.rowmax.resize(self.cw as usize, 0.0);
-        out.sums.clear();
-        out.sums.resize(self.sw as usize, 0);
-        for (x, &e) in (0u32..).zip(errs.iter()) {
-            let c = (x >> s) as usize;
-            if let Some(m) = out.rowmax.get_mut(c) {
-                *m = m.max(e);
-            }
-            if c > 0 && x & mask == 0 {
-                out.rowmax[c - 1] = out.rowmax[c - 1].max(e);
-            }
-            let v = pow_unit(f64::from(e) * self.inv, self.p).min(1.0);
-            out.sums[c] = out.sums[c].wrapping_add(Sat::quantise_up(v, self.q, x, y));
-        }
-    }
-}
-
 fn fold_max(acc: &mut [f32], row: &[f32]) {
     for (a, &v) in acc.iter_mut().zip(row) {
         *a = a.max(v);
@@ -645,7 +565,17 @@ impl<'p> Sweep<'p> {
             }
             let h0 = &self.h0;
             let mut picked: Vec<&mut Level> = self.levels.iter_mut().filter(|l| pick(l)).collect();
-            par_rows(&mut picked, (h0, self.width), (y0, y1), &row);
+            let mut outs: Vec<Vec<RowOut>> =
+                picked.iter_mut().map(|lv| std::mem::take(&mut lv.outs)).collect();
+            par_rows(
+                picked.iter().map(|lv| lv.view()).zip(outs.iter_mut()).collect(),
+                (h0, self.width),
+                (y0, y1),
+                &row,
+            );
+            for (lv, o) in picked.iter_mut().zip(outs) {
+                lv.outs = o;
+            }
             let fold_one = |lv: &mut Level| {
                 let outs = std::mem::take(&mut lv.outs);
                 let r = fold(lv, &outs, y0);
@@ -774,12 +704,6 @@ pub(super) fn write_tables(
     write_at(&file, body, &u64::from(crc.finalize()).to_le_bytes()).map_err(io)
 }
 
-/// Row `r` of a band of level-0 heights `width` wide.
-fn band_row(h0: &[f32], width: u32, r: u32) -> &[f32] {
-    let w = width as usize;
-    &h0[r as usize * w..(r as usize + 1) * w]
-}
-
 /// Makes band `band`'s tiles resident (level-0 tile row `band`, and each level's rows its errors read),
 /// and copies its level-0 heights into `h0` and each level's rows into its state; returns the band's
 /// data rows.
@@ -833,66 +757,6 @@ fn load_band(
         lv.load_band(cache, last, y0, y1);
     }
     Ok((y0, y1))
-}
-
-/// Data rows a job of [`par_rows`] takes of one level.
-const JOB_ROWS: usize = 8;
-
-/// Runs `f` over every data row `y0 .. y1` of every level into the level's [`RowOut`]s, the levels' rows
-/// dealt in runs of [`JOB_ROWS`] among the cores: every row costs about the same at every level (an
-/// error a sample), so the cores are loaded evenly whatever the number of levels, and each row's result
-/// depends on the row alone.
-fn par_rows(
-    levels: &mut [&mut Level],
-    (h0, width): (&[f32], u32),
-    (y0, y1): (u32, u32),
-    f: &(impl Fn(&RowView<'_>, &[f32], u32, &mut Vec<f32>, &mut RowOut) + Sync),
-) {
-    let rows = (y1 - y0) as usize;
-    let mut outs: Vec<Vec<RowOut>> = levels
-        .iter_mut()
-        .map(|lv| {
-            let mut o = std::mem::take(&mut lv.outs);
-            o.resize_with(rows, RowOut::default);
-            o
-        })
-        .collect();
-    {
-        let views: Vec<RowView<'_>> = levels.iter().map(|lv| lv.view()).collect();
-        let mut jobs: Vec<(RowView<'_>, u32, &mut [RowOut])> = Vec::new();
-        for (view, o) in views.iter().zip(outs.iter_mut()) {
-            for (first, chunk) in (y0..).step_by(JOB_ROWS).zip(o.chunks_mut(JOB_ROWS)) {
-                jobs.push((*view, first, chunk));
-            }
-        }
-        let run = |share: Vec<(RowView<'_>, u32, &mut [RowOut])>| {
-            let mut errs = Vec::new();
-            for (view, first, chunk) in share {
-                for (y, out) in (first..).zip(chunk.iter_mut()) {
-                    f(&view, band_row(h0, width, y - y0), y, &mut errs, out);
-                }
-            }
-        };
-        let threads = super::threads().min(jobs.len());
-        if threads <= 1 {
-            run(jobs);
-        } else {
-            // Dealt round-robin, so that each core gets rows of every level.
-            let mut shares: Vec<Vec<_>> = (0..threads).map(|_| Vec::new()).collect();
-            for (i, job) in jobs.into_iter().enumerate() {
-                shares[i % threads].push(job);
-            }
-            let run = &run;
-            std::thread::scope(|s| {
-                for share in shares {
-                    s.spawn(move || run(share));
-                }
-            });
-        }
-    }
-    for (lv, o) in levels.iter_mut().zip(outs) {
-        lv.outs = o;
-    }
 }
 
 /// Runs `f` over every level, the levels shared among the cores (each level's state is its own, so the

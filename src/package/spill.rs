@@ -357,6 +357,23 @@ mod tests {
     }
 
     #[test]
+    fn integers_are_on_both_lattices() {
+        // `integral` stands for the two lattice tests on every integer up to 2^24 (checked here over a
+        // range of them and at the largest), and never says yes to anything else.
+        let ends = (16_777_216 - 100_000..=16_777_216).chain(0..=300_000);
+        for i in ends {
+            #[expect(clippy::cast_precision_loss, reason = "test values up to 2^24, exact")]
+            for v in [i as f32, -(i as f32)] {
+                assert!(integral(v), "{v}");
+                assert!(on_lattice(v, 1.0) && on_lattice(v, 0.1), "{v}");
+            }
+        }
+        for v in [0.5f32, -0.1, 1e-30, 16_777_218.0, f32::NAN, f32::INFINITY, 3.000_000_2] {
+            assert!(!integral(v), "{v}");
+        }
+    }
+
+    #[test]
     fn spilled_levels_are_the_pyramid_bit_for_bit() {
         for (w, h) in [(2, 2), (5, 3), (67, 130), (129, 129), (200, 77)] {
             let heights: Vec<f32> = (0..w * h)
