@@ -583,7 +583,6 @@ pub(super) fn code_levels(
                 std::mem::swap(&mut coarse, &mut coarse_next);
             }
             write(&rows_out, &syms_out)?;
-            drop(write);
             rw.flush().map_err(io(&recon_file.path))?;
             sw.flush().map_err(io(&sym_file.path))?;
         }
