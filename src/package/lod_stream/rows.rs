@@ -97,10 +97,10 @@ pub(super) fn band_row(h0: &[f32], width: u32, r: u32) -> &[f32] {
 /// Data rows a job of [`par_rows`] takes of one level.
 const JOB_ROWS: usize = 8;
 
-/// Runs `f` over every data row `y0 .. y1` of every level into the level's [`RowOut`]s, the levels' rows
-/// dealt in runs of [`JOB_ROWS`] among the cores: every row costs about the same at every level (an
-/// error a sample), so the cores are loaded evenly whatever the number of levels, and each row's result
-/// depends on the row alone.
+/// Runs `f` over every data row `y0 .. y1` of every level into the level's [`RowOut`]s, the band's rows
+/// dealt in runs of [`JOB_ROWS`] among the cores, each run at every level: every row costs about the same
+/// at every level (an error a sample), so the cores are loaded evenly whatever the number of levels, and
+/// each row's result depends on the row alone.
 pub(super) fn par_rows(
     levels: Vec<(RowView<'_>, &mut Vec<RowOut>)>,
     (h0, width): (&[f32], u32),
@@ -108,12 +108,22 @@ pub(super) fn par_rows(
     f: &(impl Fn(&RowView<'_>, &[f32], u32, &mut Vec<f32>, &mut RowOut) + Sync),
 ) {
     let rows = (y1 - y0) as usize;
+    let chunks = rows.div_ceil(JOB_ROWS);
+    let mut per_level: Vec<_> = levels
+        .into_iter()
+        .map(|(view, o)| {
+            o.resize_with(rows, RowOut::default);
+            (y0..)
+                .step_by(JOB_ROWS)
+                .zip(o.chunks_mut(JOB_ROWS))
+                .map(move |(first, chunk)| (view, first, chunk))
+        })
+        .collect();
+    // Run by run of rows, every level's share of a run after the other: a core reads its runs of the
+    // band's heights once for all the levels, from its own cache.
     let mut jobs: Vec<(RowView<'_>, u32, &mut [RowOut])> = Vec::new();
-    for (view, o) in levels {
-        o.resize_with(rows, RowOut::default);
-        for (first, chunk) in (y0..).step_by(JOB_ROWS).zip(o.chunks_mut(JOB_ROWS)) {
-            jobs.push((view, first, chunk));
-        }
+    for _ in 0..chunks {
+        jobs.extend(per_level.iter_mut().filter_map(Iterator::next));
     }
     {
         let run = |share: Vec<(RowView<'_>, u32, &mut [RowOut])>| {
@@ -128,10 +138,13 @@ pub(super) fn par_rows(
         if threads <= 1 {
             run(jobs);
         } else {
-            // Dealt round-robin, so that each core gets rows of every level.
-            let mut shares: Vec<Vec<_>> = (0..threads).map(|_| Vec::new()).collect();
+            // Each core a run of the band's rows at every level (so the same work each, and its own
+            // heights): jobs come a run of rows at a time.
+            let per_run = jobs.len().div_ceil(chunks.max(1));
+            let runs = threads.min(chunks).max(1);
+            let mut shares: Vec<Vec<_>> = (0..runs).map(|_| Vec::new()).collect();
             for (i, job) in jobs.into_iter().enumerate() {
-                shares[i % threads].push(job);
+                shares[(i / per_run) * runs / chunks.max(1)].push(job);
             }
             let run = &run;
             std::thread::scope(|s| {
