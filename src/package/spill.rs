@@ -93,29 +93,18 @@ impl Checked {
     /// is the error.
     fn band(&mut self, y0: u32, band: &[f32]) -> Result<()> {
         for (y, row) in (y0..).zip(band.chunks_exact(self.width as usize)) {
-            // Whole-row tests without a branch a sample (they vectorise); the sample-by-sample scans only
-            // where one fails.
-            if !row.iter().fold(true, |ok, v| ok & v.is_finite()) {
-                let (x, &value) = (0u32..)
-                    .zip(row)
-                    .find(|(_, v)| !v.is_finite())
-                    .expect("a row that is not all finite has a non-finite sample");
-                return Err(Error::NonFinite {
-                    path: self.path.clone(),
-                    x,
-                    y,
-                    value,
-                });
-            }
-            self.range = row
-                .iter()
-                .fold(self.range, |(lo, hi), &v| (lo.min(v), hi.max(v)));
-            // An integer is on both lattices (`integral`), so only the others are tested; the verdicts
-            // are all-or-nothing, so their order does not matter.
-            if (self.lattice[0] || self.lattice[1])
-                && !row.iter().fold(true, |ok, &v| ok & integral(v))
-            {
-                for &v in row.iter().filter(|&&v| !integral(v)) {
+            for (x, &v) in (0u32..).zip(row) {
+                if !v.is_finite() {
+                    return Err(Error::NonFinite {
+                        path: self.path.clone(),
+                        x,
+                        y,
+                        value: v,
+                    });
+                }
+                self.range = (self.range.0.min(v), self.range.1.max(v));
+                // An integer is on both lattices (`integral`), so only the others are tested.
+                if (self.lattice[0] || self.lattice[1]) && !integral(v) {
                     for (ok, q) in self.lattice.iter_mut().zip([1.0, 0.1]) {
                         *ok = *ok && on_lattice(v, q);
                     }
