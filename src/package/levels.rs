@@ -153,7 +153,15 @@ fn u_tile(
 /// targets instead of the reconstruction. With a step over 1 the neighbours are the targets rounded to
 /// the step's grid, so the weights are fitted to neighbours as noisy as the decoder's (fitted on exact
 /// neighbours they amplify the quantisation noise: N57E011 at 2 m cost 0.074 B/sample, 0.057 this way).
-fn fit_tile(fit: &mut Fit, u: &[i64], t: &[f64], step: u32, (tw, th): (usize, usize)) {
+/// Only the samples whose parity (x & 1) + 2 (y & 1) is set in `parities` are added.
+fn fit_tile(
+    fit: &mut Fit,
+    u: &[i64],
+    t: &[f64],
+    step: u32,
+    (tw, th): (usize, usize),
+    parities: u8,
+) {
     let s = f64::from(step.max(1));
     let near = |v: f64| if step > 1 { (v / s).round() * s } else { v };
     let uw = tw + 2 * U_BORDER;
@@ -170,7 +178,19 @@ fn fit_tile(fit: &mut Fit, u: &[i64], t: &[f64], step: u32, (tw, th): (usize, us
     #[expect(clippy::cast_possible_wrap, reason = "tile sides are at most 4096")]
     let (tw64, th64) = (tw as i64, th as i64);
     for j in 0..th64 {
+        if parities & (0b11 << (2 * (j & 1))) == 0 {
+            continue;
+        }
         for i in 0..tw64 {
+            #[expect(
+                clippy::cast_sign_loss,
+                clippy::cast_possible_truncation,
+                reason = "a parity"
+            )]
+            let par = ((i & 1) | ((j & 1) << 1)) as usize;
+            if parities & (1 << par) == 0 {
+                continue;
+            }
             let r = |di: i32, dj: i32| -> f64 {
                 let (ii, jj) = (i + i64::from(di), j + i64::from(dj));
                 if ii < 0 || jj < 0 || ii >= tw64 || jj >= th64 {
@@ -198,12 +218,6 @@ fn fit_tile(fit: &mut Fit, u: &[i64], t: &[f64], step: u32, (tw, th): (usize, us
                 reason = "inside the tile"
             )]
             let at = j as usize * tw + i as usize;
-            #[expect(
-                clippy::cast_sign_loss,
-                clippy::cast_possible_truncation,
-                reason = "a parity"
-            )]
-            let par = ((i & 1) | ((j & 1) << 1)) as usize;
             fit.add(par, &f, t[at] - u0);
         }
     }
@@ -224,6 +238,8 @@ struct Worker {
     counts: Counts,
     /// The reconstruction's errors against the source over its run.
     errors: RunErrors,
+    /// Pass 1: the sums of the parities it fits.
+    fit: Fit,
 }
 
 /// A run of tiles' errors against the source: each tile's sum of squares (metres^2), the largest error
@@ -248,6 +264,39 @@ impl Worker {
             rec: Vec::new(),
             counts: Counts::default(),
             errors: RunErrors::default(),
+            fit: Fit::default(),
+        }
+    }
+}
+
+/// One sampled tile row of a level in the fitting pass: what every tile of it reads.
+struct FitRow<'a> {
+    header: &'a Header,
+    lk: usize,
+    y0: u32,
+    th: usize,
+    /// The row's source rows, the level's width each.
+    band: &'a [f32],
+    coarse: Option<&'a CoarseRows>,
+    quant: Quantiser,
+    step: u32,
+}
+
+impl FitRow<'_> {
+    /// Adds the row's samples of the parities in `parities` to the worker's fit, tile by tile in order.
+    fn fit(&self, wk: &mut Worker, parities: u8) {
+        let (lk, thu) = (self.lk, self.th);
+        let w = self.header.levels[lk].width as usize;
+        for tx in 0..self.header.levels[lk].tiles_x {
+            let (x0, _, tw, _) = self.header.tile_rect(lk, tx, 0);
+            let tw = tw as usize;
+            u_tile(&mut wk.predictor, self.coarse, (x0, self.y0), (tw, thu), &mut wk.u);
+            wk.tv.clear();
+            for r in 0..thu {
+                let row = &self.band[r * w + x0 as usize..r * w + x0 as usize + tw];
+                wk.tv.extend(row.iter().map(|&h| self.quant.target(lk, h)));
+            }
+            fit_tile(&mut wk.fit, &wk.u, &wk.tv, self.step, (tw, thu), parities);
         }
     }
 }
@@ -268,9 +317,9 @@ struct TileRow<'a> {
 
 impl TileRow<'_> {
     /// Quantises the row's tiles in closed loop, each worker a run of adjacent tiles (a tile reads only the
-    /// coarser level and its own values, so its symbols do not depend on which worker made them); the
-    /// first error in tile order.
-    fn code(&self, workers: &mut [Worker]) -> Result<()> {
+    /// coarser level and its own values, so its symbols do not depend on which worker made them): the
+    /// first error in tile order, and what `beside` returns, run on this thread meanwhile.
+    fn code<T>(&self, workers: &mut [Worker], beside: impl FnOnce() -> T) -> (Result<()>, T) {
         let tiles = self.header.levels[self.lk].tiles_x;
         let count = u32::try_from(workers.len()).unwrap_or(u32::MAX).max(1);
         let per = tiles.div_ceil(count).max(1);
@@ -279,14 +328,19 @@ impl TileRow<'_> {
             wk.tiles = a..a.saturating_add(per).min(tiles);
         }
         if workers.iter().filter(|wk| !wk.tiles.is_empty()).count() <= 1 {
-            return workers.iter_mut().try_for_each(|wk| self.code_run(wk));
+            let b = beside();
+            return (workers.iter_mut().try_for_each(|wk| self.code_run(wk)), b);
         }
         std::thread::scope(|s| {
             let handles: Vec<_> = workers
                 .iter_mut()
                 .map(|wk| s.spawn(move || self.code_run(wk)))
                 .collect();
-            super::join_in_order(handles, "a tile coding thread panicked")
+            let b = beside();
+            (
+                super::join_in_order(handles, "a tile coding thread panicked"),
+                b,
+            )
         })
     }
 
@@ -364,15 +418,15 @@ pub(super) fn code_levels(
         "the header's levels follow the spilled pyramid"
     );
     let tile = header.tile;
-    let mut predictor = Predictor::new(tile + 2 * U_BORDER_U32);
-    let (mut band, mut u, mut tv) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut band, mut band_next) = (Vec::new(), Vec::new());
     let mut workers: Vec<Worker> = (0..super::threads()).map(|_| Worker::new(tile)).collect();
-    let mut coarse = CoarseRows {
+    let new_coarse = || CoarseRows {
         rows: Vec::new(),
         first: 0,
         width: 0,
         height: 0,
     };
+    let (mut coarse, mut coarse_next) = (new_coarse(), new_coarse());
     let mut coded = Coded {
         models: vec![LevelModel::plain(1); n],
         syms: Vec::with_capacity(n),
@@ -392,10 +446,15 @@ pub(super) fn code_levels(
             let (_, y0, _, th) = header.tile_rect(lk, 0, ty);
             (y0, th)
         };
-        // Pass 1: the weights.
+        // Pass 1: the weights. Each fitting thread sums the samples of its own parities in the order one
+        // thread would, so the sums (and the weights) do not depend on the number of threads.
+        let fitters = workers.len().clamp(1, 4);
+        let owner = |par: usize| par * fitters / 4;
+        for wk in &mut workers {
+            wk.fit = Fit::default();
+        }
         let stride = (u64::from(dims.width) * u64::from(dims.height)).div_ceil(FIT_SAMPLES);
         let stride = u32::try_from(stride).unwrap_or(u32::MAX).max(1);
-        let mut fit = Fit::default();
         for ty in (0..dims.tiles_y).step_by(stride as usize) {
             let (y0, th) = rows_of(ty);
             band.resize(th as usize * w, 0.0f32);
@@ -403,23 +462,31 @@ pub(super) fn code_levels(
             if let (Some(f), Some(cd)) = (recon_prev.as_mut(), cdims) {
                 coarse_rows(f, cd, (y0, th), &mut coarse)?;
             }
-            for tx in 0..dims.tiles_x {
-                let (x0, _, tw, _) = header.tile_rect(lk, tx, ty);
-                let (tw, thu) = (tw as usize, th as usize);
-                u_tile(
-                    &mut predictor,
-                    cdims.map(|_| &coarse),
-                    (x0, y0),
-                    (tw, thu),
-                    &mut u,
-                );
-                tv.clear();
-                for r in 0..thu {
-                    let row = &band[r * w + x0 as usize..r * w + x0 as usize + tw];
-                    tv.extend(row.iter().map(|&h| quant.target(lk, h)));
-                }
-                fit_tile(&mut fit, &u, &tv, steps[lk], (tw, thu));
+            let row = FitRow {
+                header,
+                lk,
+                y0,
+                th: th as usize,
+                band: &band,
+                coarse: cdims.map(|_| &coarse),
+                quant,
+                step: steps[lk],
+            };
+            let mine = |t: usize| -> u8 { (0..4).filter(|&p| owner(p) == t).map(|p| 1u8 << p).sum() };
+            if fitters == 1 {
+                row.fit(&mut workers[0], 0b1111);
+            } else {
+                std::thread::scope(|s| {
+                    for (t, wk) in workers[..fitters].iter_mut().enumerate() {
+                        let row = &row;
+                        s.spawn(move || row.fit(wk, mine(t)));
+                    }
+                });
             }
+        }
+        let mut fit = Fit::default();
+        for par in 0..4 {
+            fit.take_parity(&workers[owner(par)].fit, par);
         }
         let model = LevelModel {
             step: steps[lk],
@@ -434,15 +501,33 @@ pub(super) fn code_levels(
         {
             let mut rw = BufWriter::with_capacity(1 << 16, &recon_file.file);
             let mut sw = BufWriter::with_capacity(1 << 16, &sym_file.file);
-            let mut rows_out = Vec::new();
+            // The row coded last, waiting to be written: its reconstruction, and its tiles' symbols then
+            // contexts in tile order.
+            let (mut rows_out, mut syms_out) = (Vec::<i32>::new(), Vec::<u8>::new());
+            let mut write = |rows_out: &[i32], syms_out: &[u8]| -> Result<()> {
+                sw.write_all(syms_out).map_err(io(&sym_file.path))?;
+                rw.write_all(bytemuck::cast_slice(rows_out))
+                    .map_err(io(&recon_file.path))
+            };
+            let mut read = |ty: u32, band: &mut Vec<f32>, coarse: &mut CoarseRows| -> Result<()> {
+                let (y0, th) = rows_of(ty);
+                band.resize(th as usize * w, 0.0f32);
+                spilled.read_rows(lk, y0, band)?;
+                if let (Some(f), Some(cd)) = (recon_prev.as_mut(), cdims) {
+                    coarse_rows(f, cd, (y0, th), coarse)?;
+                }
+                Ok(())
+            };
+            // Row ty + 1 is read and row ty - 1 written on this thread while the workers code row ty;
+            // errors are reported in the order one thread doing them in turn would meet them.
+            let mut read_next = read(0, &mut band, &mut coarse);
             for ty in 0..dims.tiles_y {
+                if let Err(e) = std::mem::replace(&mut read_next, Ok(())) {
+                    write(&rows_out, &syms_out)?;
+                    return Err(e);
+                }
                 let (y0, th) = rows_of(ty);
                 let thu = th as usize;
-                band.resize(thu * w, 0.0f32);
-                spilled.read_rows(lk, y0, &mut band)?;
-                if let (Some(f), Some(cd)) = (recon_prev.as_mut(), cdims) {
-                    coarse_rows(f, cd, (y0, th), &mut coarse)?;
-                }
                 let row = TileRow {
                     header,
                     lk,
@@ -454,18 +539,28 @@ pub(super) fn code_levels(
                     quant,
                     model: &model,
                 };
-                row.code(&mut workers)?;
+                let (coded_row, (wrote, read_row)) = row.code(&mut workers, || {
+                    let wrote = write(&rows_out, &syms_out);
+                    let read_row = if ty + 1 < dims.tiles_y {
+                        read(ty + 1, &mut band_next, &mut coarse_next)
+                    } else {
+                        Ok(())
+                    };
+                    (wrote, read_row)
+                });
+                wrote?;
+                coded_row?;
+                read_next = read_row;
                 // The tiles in order, as one thread would have written them.
                 rows_out.resize(thu * w, 0i32);
+                syms_out.clear();
                 for wk in &workers {
                     let mut at = 0;
                     for tx in wk.tiles.clone() {
                         let (x0, _, tw, _) = header.tile_rect(lk, tx, ty);
                         let (tw, nn) = (tw as usize, tw as usize * thu);
-                        let (syms, ctxs) = (&wk.syms[at..at + nn], &wk.ctxs[at..at + nn]);
-                        sw.write_all(bytemuck::cast_slice(syms))
-                            .and_then(|()| sw.write_all(ctxs))
-                            .map_err(io(&sym_file.path))?;
+                        syms_out.extend_from_slice(bytemuck::cast_slice(&wk.syms[at..at + nn]));
+                        syms_out.extend_from_slice(&wk.ctxs[at..at + nn]);
                         for r in 0..thu {
                             let o = r * w + x0 as usize;
                             rows_out[o..o + tw].copy_from_slice(&wk.rec[at + r * tw..at + (r + 1) * tw]);
@@ -473,8 +568,6 @@ pub(super) fn code_levels(
                         at += nn;
                     }
                 }
-                rw.write_all(bytemuck::cast_slice(&rows_out))
-                    .map_err(io(&recon_file.path))?;
                 for wk in &workers {
                     let e = &wk.errors;
                     if lk == 0 {
@@ -486,7 +579,10 @@ pub(super) fn code_levels(
                         coded.worst_coarse = coded.worst_coarse.max(e.worst);
                     }
                 }
+                std::mem::swap(&mut band, &mut band_next);
+                std::mem::swap(&mut coarse, &mut coarse_next);
             }
+            write(&rows_out, &syms_out)?;
             rw.flush().map_err(io(&recon_file.path))?;
             sw.flush().map_err(io(&sym_file.path))?;
         }
@@ -533,21 +629,38 @@ impl Coded {
             let file = &mut self.syms[lk];
             file.file.seek(SeekFrom::Start(0)).map_err(io(&file.path))?;
             let mut rd = BufReader::with_capacity(1 << 16, &file.file);
-            let mut tiles: Vec<(Vec<i32>, Vec<u8>)> = Vec::new();
-            for ty in 0..dims.tiles_y {
-                tiles.clear();
-                for tx in 0..dims.tiles_x {
+            let path = &file.path;
+            // Tile row ty's symbols, read into the buffers of the row before last.
+            let mut read = |ty: u32, tiles: &mut Vec<(Vec<i32>, Vec<u8>)>| -> Result<()> {
+                tiles.resize_with(dims.tiles_x as usize, Default::default);
+                for (tx, (s, c)) in (0..dims.tiles_x).zip(tiles.iter_mut()) {
                     let (_, _, tw, th) = header.tile_rect(lk, tx, ty);
                     let n = tw as usize * th as usize;
-                    let (mut s, mut c) = (vec![0i32; n], vec![0u8; n]);
-                    rd.read_exact(bytemuck::cast_slice_mut(&mut s))
-                        .and_then(|()| rd.read_exact(&mut c))
-                        .map_err(io(&file.path))?;
-                    tiles.push((s, c));
+                    s.resize(n, 0);
+                    c.resize(n, 0);
+                    rd.read_exact(bytemuck::cast_slice_mut(s))
+                        .and_then(|()| rd.read_exact(c))
+                        .map_err(io(path))?;
                 }
-                let payloads = encode_row(tables, encoders, &tiles)
-                    .map_err(|e| Error::io(&file.path, "cannot compress a tile", e))?;
+                Ok(())
+            };
+            let (mut tiles, mut next) = (Vec::new(), Vec::new());
+            read(0, &mut tiles)?;
+            // The next row is read on this thread while the row is coded; errors in the order one
+            // thread doing them in turn would meet them.
+            for ty in 0..dims.tiles_y {
+                let (payloads, read_next) = encode_row(tables, encoders, &tiles, || {
+                    if ty + 1 < dims.tiles_y {
+                        read(ty + 1, &mut next)
+                    } else {
+                        Ok(())
+                    }
+                });
+                let payloads =
+                    payloads.map_err(|e| Error::io(path, "cannot compress a tile", e))?;
                 f(lk, ty, &payloads)?;
+                read_next?;
+                std::mem::swap(&mut tiles, &mut next);
             }
         }
         Ok(())
@@ -580,12 +693,14 @@ impl Coded {
     }
 }
 
-/// A tile row's payloads, in order, coded in parallel (a payload does not depend on which thread made it).
-fn encode_row(
+/// A tile row's payloads, in order, coded in parallel (a payload does not depend on which thread made it),
+/// and what `beside` returns, run on this thread meanwhile.
+fn encode_row<T>(
     tables: Option<&Tables>,
     encoders: &mut [Encoder],
     tiles: &[(Vec<i32>, Vec<u8>)],
-) -> std::io::Result<Vec<Vec<u8>>> {
+    beside: impl FnOnce() -> T,
+) -> (std::io::Result<Vec<Vec<u8>>>, T) {
     let per = tiles.len().div_ceil(encoders.len()).max(1);
     std::thread::scope(|s| {
         let handles: Vec<_> = tiles
@@ -603,11 +718,15 @@ fn encode_row(
                 })
             })
             .collect();
-        let mut all = Vec::with_capacity(tiles.len());
-        for h in handles {
-            all.extend(h.join().expect("a tile encoder thread panicked")?);
-        }
-        Ok(all)
+        let b = beside();
+        let all = (|| {
+            let mut all = Vec::with_capacity(tiles.len());
+            for h in handles {
+                all.extend(h.join().expect("a tile encoder thread panicked")?);
+            }
+            Ok(all)
+        })();
+        (all, b)
     })
 }
 

@@ -8,31 +8,41 @@
 //!
 //! - the package is read one band of level-0 tile rows at a time through a [`TileCache`] sized by the
 //!   terrain's width (the band's tiles, the coarser tiles their prediction reads, and the level-k rows
-//!   the band's errors read), and its mapped pages are dropped after each band;
+//!   the band's errors read), and its mapped pages are dropped every 16 MiB of it read (estimated);
 //! - two sweeps over the bands: the first finds every level's E (and refuses a non-finite error, naming
 //!   its sample); the second computes each sample's error once more for every level, folds it into the
 //!   closed cells' maxima and the half-open cells' sums of the current cell row, and writes each finished
 //!   row where it lies in the file (the layout is known once every E is): a SAT row is the previous SAT
 //!   row plus the row's running sum, and each max-pyramid row is written as soon as its two finer rows are;
-//! - levels are shared among the cores within a band (each level's state is its own);
+//! - within a band, every level's rows are shared among the cores in runs of rows (a row's errors,
+//!   closed cells' maxima and half-open cells' sums read only the band), then each level folds its rows
+//!   in order (its state is its own), the levels shared among the cores;
 //! - last, the CRC-32 trailer over the file read back in chunks, and the rename into place.
 //!
-//! Memory: O(width) per level (a few rows), plus the tile cache and one band of level-0 heights; nothing
-//! grows with the terrain's height, and nothing terrain-sized is held.
+//! Memory: O(width) per level (a few rows, and a band's rows of cells), plus the tile cache, one band of
+//! level-0 heights and at most about 16 MiB of the package's mapped pages; nothing grows with the
+//! terrain's height, and nothing terrain-sized is held.
 
 use std::fs::File;
 use std::path::Path;
 
 
 use crate::bake::lod_record::Coder;
-use crate::bake::lod_tables::{bad_error, closed_count, error_from, RangeMax};
-use crate::bake::sat::{pow_unit, Sat};
+use crate::bake::lod_tables::{bad_error, closed_count, RangeMax};
+use crate::bake::sat::Sat;
 use crate::bake::{BakeParams, FORMAT_VERSION, MAGIC};
 use crate::package::lod_tiles::RecordRows;
 use crate::package::read::TileDecoder;
 use crate::package::{CacheSplit, Package, TileCache};
 use crate::progress::{Meter, Progress};
 use crate::{Error, Result};
+
+mod rows;
+use rows::{par_rows, RowOut, RowView};
+
+/// The package's bytes (an estimate: its size over the bands) the sweeps read between two drops of its
+/// mapped pages ([`Package::trim`]).
+const TRIM_BYTES: u64 = 16 << 20;
 
 /// Bytes read at a time for the trailing checksum.
 const CRC_CHUNK: usize = 4 << 20;
@@ -55,9 +65,8 @@ pub(super) struct Level {
     pub(super) cw: u32,
     pub(super) ch: u32,
     pub(super) sw: u32,
-    /// The errors of the current row, and its closed cells' maxima.
-    errs: Vec<f32>,
-    rowmax: Vec<f32>,
+    /// The band's rows' shares of the work that reads only the band ([`RowOut`]), one per data row.
+    outs: Vec<RowOut>,
     /// The current closed cell row and its maxima so far.
     pub(super) cur: u32,
     pub(super) acc: Vec<f32>,
@@ -105,8 +114,7 @@ impl Level {
             cw: 0,
             ch: 0,
             sw: 0,
-            errs: Vec::new(),
-            rowmax: Vec::new(),
+            outs: Vec::new(),
             cur: 0,
             acc: Vec::new(),
             sums: Vec::new(),
@@ -145,8 +153,6 @@ impl Level {
         let sh = height.div_ceil(1 << s);
         self.q = Sat::max_frac_bits(u64::from(width) * u64::from(height));
         self.inv = 1.0 / f64::from(self.e_max);
-        self.errs = vec![0.0; width as usize];
-        self.rowmax = vec![0.0; self.cw as usize];
         self.acc = vec![0.0; self.cw as usize];
         self.sums = vec![0; self.sw as usize];
         self.sat_row = vec![0; self.sw as usize];
@@ -187,86 +193,91 @@ impl Level {
         let (j0, j1) = (i64::from(y0 >> self.ke), i64::from((y1 - 1) >> self.ke) + 1);
         self.j0 = j0;
         self.band.clear();
+        if self.k > last {
+            for b in j0..=j1 {
+                for a in 0..self.row_len as i64 {
+                    self.band.push(Self::height(cache, last, self.k, a, b));
+                }
+            }
+            return;
+        }
+        // A data level: whole tile rows at a time, clamped to its edges as `Self::height` reads them.
+        let level = self.k as usize;
+        let d = cache.package().header().levels[level];
         for b in j0..=j1 {
-            for a in 0..self.row_len as i64 {
-                self.band.push(Self::height(cache, last, self.k, a, b));
+            let y = u32::try_from(b.clamp(0, i64::from(d.height) - 1)).expect("clamped into the level");
+            let start = self.band.len();
+            let mut x = 0;
+            while x < d.width && self.band.len() - start < self.row_len {
+                let (_, seg) = cache
+                    .row_segment(level, x, y)
+                    .expect("the band's tiles were made resident before reading them");
+                let seg = &seg[..seg.len().min(self.row_len - (self.band.len() - start))];
+                self.band
+                    .extend(seg.iter().map(|&v| f64::from(cache.package().metres(v))));
+                x += u32::try_from(seg.len()).expect("a tile row fits u32");
             }
+            let edge = self.band[self.band.len() - 1];
+            self.band.resize(start + self.row_len, edge);
         }
     }
 
-    /// Sample errors of data row `y` (level-0 heights `h0`) into `out`, or the first non-finite one.
-    fn row_errors(&self, h0: &[f32], y: u32, out: &mut [f32]) -> Option<(u32, u32, f32)> {
-        let j = i64::from(y >> self.ke);
-        let base = usize::try_from(j - self.j0).expect("the band holds row j") * self.row_len;
-        let (r0, r1) = self.band[base..base + 2 * self.row_len].split_at(self.row_len);
-        let z = |a: i64, b: i64| {
-            let a = usize::try_from(a).expect("a level-k column, 0 or more");
-            if b == j {
-                r0[a]
-            } else {
-                r1[a]
-            }
-        };
-        for (x, (o, &h)) in (0u32..).zip(out.iter_mut().zip(h0)) {
-            let e = error_from(z, f64::from(h), self.ke, i64::from(x), i64::from(y));
-            if !(e.is_finite() && e >= 0.0) {
-                return Some((x, y, e));
-            }
-            *o = e;
+    /// What the rows' work reads of the level: its band and its cells.
+    fn view(&self) -> RowView<'_> {
+        RowView {
+            band: &self.band,
+            j0: self.j0,
+            row_len: self.row_len,
+            ke: self.ke,
+            s: self.s,
+            cw: self.cw,
+            sw: self.sw,
+            p: self.p,
+            q: self.q,
+            inv: self.inv,
         }
-        None
     }
 
-    /// Sweep 1 over one data row: E and the first bad error.
-    fn sweep_max(&mut self, h0: &[f32], y: u32, scratch: &mut Vec<f32>) {
-        if self.bad.is_some() {
-            return;
+    /// Sweep 1 over the band's rows (from its first): E and the first bad error, in row order.
+    fn sweep_max(&mut self, outs: &[RowOut]) {
+        for o in outs {
+            if self.bad.is_some() {
+                return;
+            }
+            if o.bad.is_some() {
+                self.bad = o.bad;
+                return;
+            }
+            // Errors are finite and >= +0 (an absolute value), so the maximum is the same in any order.
+            self.e_max = self.e_max.max(o.e_max);
         }
-        scratch.resize(h0.len(), 0.0);
-        if let Some(b) = self.row_errors(h0, y, scratch) {
-            self.bad = Some(b);
-            return;
-        }
-        self.e_max = scratch.iter().copied().fold(self.e_max, f32::max);
     }
 
-    /// Sweep 2 over one data row (`height` rows in all): cell maxima and sums, finished rows written.
+    /// Sweep 2 over one data row (`height` rows in all) from its cells' maxima and sums (`out`): finished
+    /// rows written.
     fn sweep_tables(
         &mut self,
         file: Option<&File>,
-        h0: &[f32],
+        out: &RowOut,
         y: u32,
         height: u32,
     ) -> std::io::Result<()> {
-        let mut errs = std::mem::take(&mut self.errs);
-        let bad = self.row_errors(h0, y, &mut errs);
-        assert!(bad.is_none(), "sweep 1 refused every bad error");
         let (s, mask) = (self.s, (1u32 << self.s) - 1);
-        // The closed cells' maxima of this row: sample x lies in cell x >> s and, on a lattice line, in
-        // the one before (as LevelTables::build_level).
-        self.rowmax.fill(0.0);
-        for (x, &e) in (0u32..).zip(errs.iter()) {
-            let c = (x >> s) as usize;
-            if let Some(m) = self.rowmax.get_mut(c) {
-                *m = m.max(e);
-            }
-            if c > 0 && x & mask == 0 {
-                self.rowmax[c - 1] = self.rowmax[c - 1].max(e);
-            }
-            let v = pow_unit(f64::from(e) * self.inv, self.p).min(1.0);
-            self.sums[c] = self.sums[c].wrapping_add(Sat::quantise_up(v, self.q, x, y));
+        // Wrapping sums: the row's partial sums added at once are the same as sample by sample.
+        for (sum, &v) in self.sums.iter_mut().zip(&out.sums) {
+            *sum = sum.wrapping_add(v);
         }
-        self.errs = errs;
+        let rowmax = &out.rowmax;
         // Closed cell row `cur` covers rows cur 2^s ..= (cur + 1) 2^s: a row on the lattice ends it.
         if y >> s == self.cur + 1 {
-            fold_max(&mut self.acc, &self.rowmax);
+            fold_max(&mut self.acc, rowmax);
             self.close_row(file)?;
             self.cur += 1;
-            self.acc.copy_from_slice(&self.rowmax);
+            self.acc.copy_from_slice(rowmax);
         } else if y == 0 {
-            self.acc.copy_from_slice(&self.rowmax);
+            self.acc.copy_from_slice(rowmax);
         } else {
-            fold_max(&mut self.acc, &self.rowmax);
+            fold_max(&mut self.acc, rowmax);
         }
         if y + 1 == height && self.cur < self.ch {
             self.close_row(file)?;
@@ -440,6 +451,9 @@ pub(super) struct Sweep<'p> {
     pub(super) height: u32,
     bands: u32,
     last: u32,
+    /// The package's bytes a band reads on average, and those read since its pages were last dropped.
+    band_bytes: u64,
+    untrimmed: u64,
 }
 
 impl<'p> Sweep<'p> {
@@ -482,23 +496,23 @@ impl<'p> Sweep<'p> {
             height,
             bands,
             last,
+            band_bytes: package.file_bytes().div_ceil(u64::from(bands.max(1))),
+            untrimmed: 0,
         })
     }
 
     /// Sweep 1: every level's E; the first non-finite error is an [`Error::Terrain`] naming its sample.
     pub(super) fn sweep_e(&mut self) -> Result<()> {
-        let width = self.width;
         let what = self.cache.package().path().to_path_buf();
         self.sweep_bands(
             |_| true,
-            |lv, h0, y0, y1| {
-                let mut scratch = Vec::new();
-                for y in y0..y1 {
-                    lv.sweep_max(band_row(h0, width, y - y0), y, &mut scratch);
-                }
+            |v: &RowView<'_>, h0: &[f32], y, errs: &mut Vec<f32>, out: &mut RowOut| v.row_max(h0, y, errs, out),
+            |lv, outs, _| {
+                lv.sweep_max(outs);
                 Ok(())
             },
-            |e| Error::io(&what, "cannot bake", e),
+            // A row's maximum folded into E: too little to share.
+            (false, |e| Error::io(&what, "cannot bake", e)),
         )?;
         if let Some((x, y, e)) = self.levels.iter().find_map(|l| l.bad) {
             return Err(bad_error(x as usize, y as usize, e));
@@ -508,24 +522,29 @@ impl<'p> Sweep<'p> {
 
     /// Sweep 2 over the levels with tables, each data row handed to [`Level::sweep_tables`] with `file`.
     pub(super) fn sweep_tables(&mut self, file: Option<&File>, what: &Path) -> Result<()> {
-        let (width, height) = (self.width, self.height);
+        let height = self.height;
         self.sweep_bands(
             Level::has_tables,
-            |lv, h0, y0, y1| {
-                (y0..y1)
-                    .try_for_each(|y| lv.sweep_tables(file, band_row(h0, width, y - y0), y, height))
+            |v: &RowView<'_>, h0: &[f32], y, errs: &mut Vec<f32>, out: &mut RowOut| v.row_cells(h0, y, errs, out),
+            |lv, outs, y0| {
+                (y0..)
+                    .zip(outs)
+                    .try_for_each(|(y, out)| lv.sweep_tables(file, out, y, height))
             },
-            |e| Error::io(what, "cannot write", e),
+            (true, |e| Error::io(what, "cannot write", e)),
         )
     }
 
-    /// One pass over the terrain a band of level-0 tile rows at a time: each band decoded once, then
-    /// `rows(level, band heights, y0, y1)` for every level `pick` takes, the levels in parallel.
+    /// One pass over the terrain a band of level-0 tile rows at a time: each band decoded once, then for
+    /// every level `pick` takes, `row(level, row heights, y, scratch, out)` for each of the band's rows
+    /// (every level's rows shared among the cores, [`par_rows`]), then `fold(level, outs, y0)` over them
+    /// in order (the levels shared among the cores if `parallel`; `err` makes its errors).
     fn sweep_bands(
         &mut self,
         pick: impl Fn(&Level) -> bool,
-        rows: impl Fn(&mut Level, &[f32], u32, u32) -> std::io::Result<()> + Sync,
-        err: impl Fn(std::io::Error) -> Error,
+        row: impl Fn(&RowView<'_>, &[f32], u32, &mut Vec<f32>, &mut RowOut) + Sync,
+        fold: impl Fn(&mut Level, &[RowOut], u32) -> std::io::Result<()> + Sync,
+        (parallel, err): (bool, impl Fn(std::io::Error) -> Error),
     ) -> Result<()> {
         for band in 0..self.bands {
             let (y0, y1) = load_band(
@@ -536,9 +555,39 @@ impl<'p> Sweep<'p> {
                 band,
                 self.last,
             )?;
+            // The package's mapped pages are dropped once the bands since the last time read about
+            // TRIM_BYTES of it, and after the last band: dropping them costs every core a TLB flush, too
+            // much for each band of a small package, and the pages held stay under a fixed bound.
+            self.untrimmed += self.band_bytes;
+            if self.untrimmed >= TRIM_BYTES || band + 1 == self.bands {
+                self.cache.package().trim();
+                self.untrimmed = 0;
+            }
             let h0 = &self.h0;
             let mut picked: Vec<&mut Level> = self.levels.iter_mut().filter(|l| pick(l)).collect();
-            par_levels(&mut picked, |lv| rows(lv, h0, y0, y1)).map_err(&err)?;
+            let mut outs: Vec<Vec<RowOut>> =
+                picked.iter_mut().map(|lv| std::mem::take(&mut lv.outs)).collect();
+            par_rows(
+                picked.iter().map(|lv| lv.view()).zip(outs.iter_mut()).collect(),
+                (h0, self.width),
+                (y0, y1),
+                &row,
+            );
+            for (lv, o) in picked.iter_mut().zip(outs) {
+                lv.outs = o;
+            }
+            let fold_one = |lv: &mut Level| {
+                let outs = std::mem::take(&mut lv.outs);
+                let r = fold(lv, &outs, y0);
+                lv.outs = outs;
+                r
+            };
+            if parallel {
+                par_levels(&mut picked, fold_one)
+            } else {
+                picked.iter_mut().try_for_each(|lv| fold_one(lv))
+            }
+            .map_err(&err)?;
             self.meter.inc(1);
         }
         Ok(())
@@ -655,15 +704,9 @@ pub(super) fn write_tables(
     write_at(&file, body, &u64::from(crc.finalize()).to_le_bytes()).map_err(io)
 }
 
-/// Row `r` of a band of level-0 heights `width` wide.
-fn band_row(h0: &[f32], width: u32, r: u32) -> &[f32] {
-    let w = width as usize;
-    &h0[r as usize * w..(r as usize + 1) * w]
-}
-
 /// Makes band `band`'s tiles resident (level-0 tile row `band`, and each level's rows its errors read),
-/// copies its level-0 heights into `h0` and each level's rows into its state, and drops the package's
-/// mapped pages; returns the band's data rows.
+/// and copies its level-0 heights into `h0` and each level's rows into its state; returns the band's
+/// data rows.
 fn load_band(
     cache: &mut TileCache,
     decoders: &mut [TileDecoder],
@@ -713,7 +756,6 @@ fn load_band(
     for lv in levels.iter_mut() {
         lv.load_band(cache, last, y0, y1);
     }
-    cache.package().trim();
     Ok((y0, y1))
 }
 
@@ -729,18 +771,27 @@ fn par_levels(
     if threads == 1 || levels.len() <= 1 {
         return levels.iter_mut().try_for_each(|l| f(l));
     }
-    // Dealt round-robin: a finer level codes more cells than a coarser one, so runs of adjacent levels
-    // would leave one thread the heavier half.
-    let mut shares: Vec<Vec<&mut Level>> = (0..threads.min(levels.len())).map(|_| Vec::new()).collect();
-    let n = shares.len();
-    for (i, l) in levels.iter_mut().enumerate() {
-        shares[i % n].push(&mut **l);
+    // A level's work is about its cells (a finer level codes four times those of the next coarser one,
+    // so the finest of them can weigh as much as all the others): the costliest first, each to the
+    // least loaded thread.
+    let cost = |l: &Level| u64::from(l.cw) + u64::from(l.sw) + 64;
+    let mut order: Vec<&mut Level> = levels.iter_mut().map(|l| &mut **l).collect();
+    order.sort_by_key(|l| std::cmp::Reverse(cost(l)));
+    let n = threads.min(order.len());
+    let mut shares: Vec<(u64, Vec<&mut Level>)> = (0..n).map(|_| (0, Vec::new())).collect();
+    for l in order {
+        let least = shares
+            .iter_mut()
+            .min_by_key(|(load, _)| *load)
+            .expect("at least one share");
+        least.0 += cost(l);
+        least.1.push(l);
     }
     let f = &f;
     std::thread::scope(|s| {
         let handles: Vec<_> = shares
             .into_iter()
-            .map(|mut share| s.spawn(move || share.iter_mut().try_for_each(|l| f(l))))
+            .map(|(_, mut share)| s.spawn(move || share.iter_mut().try_for_each(|l| f(l))))
             .collect();
         handles
             .into_iter()

@@ -109,6 +109,14 @@ impl Fit {
         self.n[par] += 1;
     }
 
+    /// Parity `par`'s sums taken from `other`: a thread that fitted that parity alone, over the same
+    /// samples in the same order, made the same sums.
+    pub fn take_parity(&mut self, other: &Self, par: usize) {
+        self.ata[par] = other.ata[par];
+        self.atb[par] = other.atb[par];
+        self.n[par] = other.n[par];
+    }
+
     /// The fitted weights (ridge-regularised normal equations, Gaussian elimination with partial
     /// pivoting), rounded to fixed point and clamped to i16; a parity with too few samples or a singular
     /// system keeps U alone.

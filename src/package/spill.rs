@@ -80,6 +80,60 @@ pub(super) fn round_half_away(x: f64) -> f64 {
     }
 }
 
+/// What the source's samples so far say: all finite, their range, and the lattices they sit on.
+struct Checked {
+    path: std::path::PathBuf,
+    width: u32,
+    range: (f32, f32),
+    lattice: [bool; 2],
+}
+
+impl Checked {
+    /// Band `band` (whole rows from `y0`), checked sample by sample in row order: the first non-finite one
+    /// is the error.
+    fn band(&mut self, y0: u32, band: &[f32]) -> Result<()> {
+        for (y, row) in (y0..).zip(band.chunks_exact(self.width as usize)) {
+            for (x, &v) in (0u32..).zip(row) {
+                if !v.is_finite() {
+                    return Err(Error::NonFinite {
+                        path: self.path.clone(),
+                        x,
+                        y,
+                        value: v,
+                    });
+                }
+                self.range = (self.range.0.min(v), self.range.1.max(v));
+                // An integer is on both lattices (`integral`), so only the others are tested.
+                if (self.lattice[0] || self.lattice[1]) && !integral(v) {
+                    for (ok, q) in self.lattice.iter_mut().zip([1.0, 0.1]) {
+                        *ok = *ok && on_lattice(v, q);
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Whether `h` is an integer of at most 2^24 in magnitude, which [`on_lattice`] finds on both lattices
+/// (a conversion instead of its two divisions and roundings). For q = 1, round(h) = h and back = h. For
+/// q = 0.1, h / 0.1 lies within 3e-8 of the integer 10 h (|10 h| <= 1.7e8; 0.1 is 1 + 5.6e-17 times
+/// one tenth, plus one rounding), so k = 10 h; k 0.1 lies within 2e-16 |h| of h, so it rounds to the f32
+/// h itself (its neighbours are 2^-24 |h| away at least) and the difference is 0.
+fn integral(h: f32) -> bool {
+    #[expect(
+        clippy::cast_possible_truncation,
+        reason = "|h| <= 2^24: the conversion is exact for an integer, and truncates any other"
+    )]
+    let i = h as i32;
+    #[expect(
+        clippy::cast_precision_loss,
+        reason = "|i| <= 2^24 is exact in f32"
+    )]
+    let back = i as f32;
+    h.abs() <= 16_777_216.0 && back == h
+}
+
 impl Spilled {
     /// Reads `src` top to bottom and spills every level, advancing `meter` by source rows.
     pub(super) fn build(
@@ -117,36 +171,69 @@ impl Spilled {
                 row: vec![0.0; lw as usize],
             });
         }
-        let mut range = (f32::INFINITY, f32::NEG_INFINITY);
-        let mut lattice = [true; 2];
-        let mut band = vec![0.0f32; w as usize * BAND_ROWS.min(h) as usize];
+        let mut checked = Checked {
+            path: src.path().to_path_buf(),
+            width: w,
+            range: (f32::INFINITY, f32::NEG_INFINITY),
+            lattice: [true; 2],
+        };
         meter.set_total(u64::from(h));
-        let mut y0 = 0;
-        while y0 < h {
-            let rows = BAND_ROWS.min(h - y0);
-            let band = &mut band[..rows as usize * w as usize];
-            src.read_rows(y0, band)?;
-            for (r, row) in band.chunks_exact(w as usize).enumerate() {
-                let y = y0 + u32::try_from(r).expect("a band has at most BAND_ROWS rows");
-                for (x, &v) in row.iter().enumerate() {
-                    if !v.is_finite() {
-                        return Err(Error::NonFinite {
-                            path: src.path().into(),
-                            x: u32::try_from(x).unwrap_or(u32::MAX),
-                            y,
-                            value: v,
-                        });
+        // The source is read and checked on this thread while a second one filters the band read before
+        // (the reader need not be Send); bands go over in order and come back to be refilled.
+        let band_len = w as usize * BAND_ROWS.min(h) as usize;
+        let (to_work, work_in) = std::sync::mpsc::sync_channel::<(u32, Vec<f32>)>(1);
+        let (to_read, read_in) = std::sync::mpsc::channel::<Vec<f32>>();
+        let (read, worked) = std::thread::scope(|s| {
+            let levels = &mut levels;
+            // Moved in, so that the reader's waits end when the worker stops.
+            let worker = s.spawn(move || {
+                for (y0, band) in work_in {
+                    for (y, row) in (y0..).zip(band.chunks_exact(w as usize)) {
+                        feed(levels, 0, y, row)?;
                     }
-                    range = (range.0.min(v), range.1.max(v));
-                    for (ok, q) in lattice.iter_mut().zip([1.0, 0.1]) {
-                        *ok = *ok && on_lattice(v, q);
-                    }
+                    // The reader may have stopped (an error): then the band is not wanted back.
+                    let _ = to_read.send(band);
                 }
-                feed(&mut levels, 0, y, row)?;
-            }
-            y0 += rows;
-            meter.inc(u64::from(rows));
-        }
+                Ok(())
+            });
+            let mut spare = vec![vec![0.0f32; band_len]; 2];
+            let mut y0 = 0;
+            let read = loop {
+                if y0 >= h {
+                    break Ok(());
+                }
+                let mut band = match spare.pop() {
+                    Some(b) => b,
+                    // The worker stopped (its error is reported below) or returns the band it is done with.
+                    None => match read_in.recv() {
+                        Ok(b) => b,
+                        Err(_) => break Ok(()),
+                    },
+                };
+                let rows = BAND_ROWS.min(h - y0);
+                band.resize(rows as usize * w as usize, 0.0);
+                if let Err(e) = src
+                    .read_rows(y0, &mut band)
+                    .and_then(|()| checked.band(y0, &band))
+                {
+                    break Err(e);
+                }
+                if to_work.send((y0, band)).is_err() {
+                    break Ok(());
+                }
+                y0 += rows;
+                meter.inc(u64::from(rows));
+            };
+            drop(to_work);
+            let worked = worker
+                .join()
+                .unwrap_or_else(|_| panic!("the pyramid's filtering thread panicked"));
+            (read, worked)
+        });
+        // The worker's error first: it is in a band read before the reader's.
+        worked?;
+        read?;
+        let Checked { range, lattice, .. } = checked;
         let mut done = Vec::with_capacity(levels.len());
         for l in levels {
             assert_eq!(l.next, l.height, "every row of every level was produced");
@@ -266,6 +353,23 @@ mod tests {
         for v in cases {
             let (a, b) = (super::round_half_away(v), v.round());
             assert!(a == b, "{v}: {a} against {b}");
+        }
+    }
+
+    #[test]
+    fn integers_are_on_both_lattices() {
+        // `integral` stands for the two lattice tests on every integer up to 2^24 (checked here over a
+        // range of them and at the largest), and never says yes to anything else.
+        let ends = (16_777_216 - 100_000..=16_777_216).chain(0..=300_000);
+        for i in ends {
+            #[expect(clippy::cast_precision_loss, reason = "test values up to 2^24, exact")]
+            for v in [i as f32, -(i as f32)] {
+                assert!(integral(v), "{v}");
+                assert!(on_lattice(v, 1.0) && on_lattice(v, 0.1), "{v}");
+            }
+        }
+        for v in [0.5f32, -0.1, 1e-30, 16_777_218.0, f32::NAN, f32::INFINITY, 3.000_000_2] {
+            assert!(!integral(v), "{v}");
         }
     }
 
