@@ -476,7 +476,7 @@ impl<'p> Sweep<'p> {
             ));
         }
         let decoders = (0..super::threads())
-            .map(|_| reopened.tile_decoder())
+            .map(|_| reopened.tile_decoder().map(TileDecoder::sweeping))
             .collect::<Result<Vec<_>>>()?;
         let per_row: u64 = header.levels.iter().map(|l| u64::from(l.tiles_x)).sum();
         let slots = 4 * per_row + crate::package::cache::MIN_SLOTS * u64::from(last + 1);
