@@ -269,8 +269,8 @@ impl Worker {
     }
 }
 
-/// One sampled tile row of a level in the fitting pass: what every tile of it reads.
-struct FitRow<'a> {
+/// One tile row of a level: what every tile of it reads, in the fitting pass and in the closed loop.
+struct RowInputs<'a> {
     header: &'a Header,
     lk: usize,
     y0: u32,
@@ -279,39 +279,38 @@ struct FitRow<'a> {
     band: &'a [f32],
     coarse: Option<&'a CoarseRows>,
     quant: Quantiser,
-    step: u32,
 }
 
-impl FitRow<'_> {
-    /// Adds the row's samples of the parities in `parities` to the worker's fit, tile by tile in order.
-    fn fit(&self, wk: &mut Worker, parities: u8) {
+impl RowInputs<'_> {
+    /// Tile `tx` of the row into the worker: its prediction U (`wk.u`) and its samples' targets (`wk.tv`);
+    /// returns the tile's first column and width.
+    fn tile(&self, wk: &mut Worker, tx: u32) -> (u32, usize) {
         let (lk, thu) = (self.lk, self.th);
         let w = self.header.levels[lk].width as usize;
-        for tx in 0..self.header.levels[lk].tiles_x {
-            let (x0, _, tw, _) = self.header.tile_rect(lk, tx, 0);
-            let tw = tw as usize;
-            u_tile(&mut wk.predictor, self.coarse, (x0, self.y0), (tw, thu), &mut wk.u);
-            wk.tv.clear();
-            for r in 0..thu {
-                let row = &self.band[r * w + x0 as usize..r * w + x0 as usize + tw];
-                wk.tv.extend(row.iter().map(|&h| self.quant.target(lk, h)));
-            }
-            fit_tile(&mut wk.fit, &wk.u, &wk.tv, self.step, (tw, thu), parities);
+        let (x0, _, tw, _) = self.header.tile_rect(lk, tx, 0);
+        let tw = tw as usize;
+        u_tile(&mut wk.predictor, self.coarse, (x0, self.y0), (tw, thu), &mut wk.u);
+        wk.tv.clear();
+        for r in 0..thu {
+            let row = &self.band[r * w + x0 as usize..r * w + x0 as usize + tw];
+            wk.tv.extend(row.iter().map(|&h| self.quant.target(lk, h)));
+        }
+        (x0, tw)
+    }
+
+    /// Adds the row's samples of the parities in `parities` to the worker's fit, tile by tile in order.
+    fn fit(&self, wk: &mut Worker, step: u32, parities: u8) {
+        for tx in 0..self.header.levels[self.lk].tiles_x {
+            let (_, tw) = self.tile(wk, tx);
+            fit_tile(&mut wk.fit, &wk.u, &wk.tv, step, (tw, self.th), parities);
         }
     }
 }
 
-/// One tile row of a level in the closed-loop pass: what every tile of it reads.
+/// One tile row of a level in the closed-loop pass: its inputs, its row number and the level's model.
 struct TileRow<'a> {
-    header: &'a Header,
-    lk: usize,
+    inputs: RowInputs<'a>,
     ty: u32,
-    y0: u32,
-    th: usize,
-    /// The row's source rows, the level's width each.
-    band: &'a [f32],
-    coarse: Option<&'a CoarseRows>,
-    quant: Quantiser,
     model: &'a LevelModel,
 }
 
@@ -320,7 +319,7 @@ impl TileRow<'_> {
     /// coarser level and its own values, so its symbols do not depend on which worker made them): the
     /// first error in tile order, and what `beside` returns, run on this thread meanwhile.
     fn code<T>(&self, workers: &mut [Worker], beside: impl FnOnce() -> T) -> (Result<()>, T) {
-        let tiles = self.header.levels[self.lk].tiles_x;
+        let tiles = self.inputs.header.levels[self.inputs.lk].tiles_x;
         let count = u32::try_from(workers.len()).unwrap_or(u32::MAX).max(1);
         let per = tiles.div_ceil(count).max(1);
         for (i, wk) in (0u32..).zip(workers.iter_mut()) {
@@ -346,8 +345,9 @@ impl TileRow<'_> {
 
     /// The worker's run of tiles, in order.
     fn code_run(&self, wk: &mut Worker) -> Result<()> {
-        let (lk, ty, thu) = (self.lk, self.ty, self.th);
-        let w = self.header.levels[lk].width as usize;
+        let row = &self.inputs;
+        let (lk, ty, thu) = (row.lk, self.ty, row.th);
+        let w = row.header.levels[lk].width as usize;
         wk.syms.clear();
         wk.ctxs.clear();
         wk.rec.clear();
@@ -355,14 +355,7 @@ impl TileRow<'_> {
         wk.errors.worst = 0.0;
         wk.errors.lo_hi = (i32::MAX, i32::MIN);
         for tx in wk.tiles.clone() {
-            let (x0, _, tw, _) = self.header.tile_rect(lk, tx, ty);
-            let tw = tw as usize;
-            u_tile(&mut wk.predictor, self.coarse, (x0, self.y0), (tw, thu), &mut wk.u);
-            wk.tv.clear();
-            for r in 0..thu {
-                let row = &self.band[r * w + x0 as usize..r * w + x0 as usize + tw];
-                wk.tv.extend(row.iter().map(|&h| self.quant.target(lk, h)));
-            }
+            let (x0, tw) = row.tile(wk, tx);
             let (at, nn) = (wk.syms.len(), tw * thu);
             wk.syms.resize(at + nn, 0);
             wk.ctxs.resize(at + nn, 0);
@@ -379,16 +372,16 @@ impl TileRow<'_> {
             .map_err(|e| {
                 Error::param(
                     Param::MaxError,
-                    format!("{} m: level {lk} tile ({tx}, {ty}): {e}", self.header.max_error),
+                    format!("{} m: level {lk} tile ({tx}, {ty}): {e}", row.header.max_error),
                 )
             })?;
             codec::count(&mut wk.counts, &wk.syms[at..], &wk.ctxs[at..]);
             let mut sq = 0.0;
             for (r, rec) in wk.rec[at..].chunks_exact(tw).enumerate() {
-                let src = &self.band[r * w + x0 as usize..r * w + x0 as usize + tw];
+                let src = &row.band[r * w + x0 as usize..r * w + x0 as usize + tw];
                 for (&k, &h) in rec.iter().zip(src) {
                     #[expect(clippy::cast_possible_truncation, reason = "heights are f32")]
-                    let dec = (f64::from(k) * self.quant.q) as f32;
+                    let dec = (f64::from(k) * row.quant.q) as f32;
                     let e = f64::from(dec) - f64::from(h);
                     sq += e * e;
                     let er = &mut wk.errors;
@@ -462,7 +455,7 @@ pub(super) fn code_levels(
             if let (Some(f), Some(cd)) = (recon_prev.as_mut(), cdims) {
                 coarse_rows(f, cd, (y0, th), &mut coarse)?;
             }
-            let row = FitRow {
+            let row = RowInputs {
                 header,
                 lk,
                 y0,
@@ -470,16 +463,16 @@ pub(super) fn code_levels(
                 band: &band,
                 coarse: cdims.map(|_| &coarse),
                 quant,
-                step: steps[lk],
             };
+            let step = steps[lk];
             let mine = |t: usize| -> u8 { (0..4).filter(|&p| owner(p) == t).map(|p| 1u8 << p).sum() };
             if fitters == 1 {
-                row.fit(&mut workers[0], 0b1111);
+                row.fit(&mut workers[0], step, 0b1111);
             } else {
                 std::thread::scope(|s| {
                     for (t, wk) in workers[..fitters].iter_mut().enumerate() {
                         let row = &row;
-                        s.spawn(move || row.fit(wk, mine(t)));
+                        s.spawn(move || row.fit(wk, step, mine(t)));
                     }
                 });
             }
@@ -529,14 +522,16 @@ pub(super) fn code_levels(
                 let (y0, th) = rows_of(ty);
                 let thu = th as usize;
                 let row = TileRow {
-                    header,
-                    lk,
+                    inputs: RowInputs {
+                        header,
+                        lk,
+                        y0,
+                        th: thu,
+                        band: &band,
+                        coarse: cdims.map(|_| &coarse),
+                        quant,
+                    },
                     ty,
-                    y0,
-                    th: thu,
-                    band: &band,
-                    coarse: cdims.map(|_| &coarse),
-                    quant,
                     model: &model,
                 };
                 let (coded_row, (wrote, read_row)) = row.code(&mut workers, || {

@@ -34,7 +34,6 @@ pub(super) struct Split {
     pub(super) etas: SubErrors,
 }
 
-
 impl Lod {
     /// What the bounds of a frame seen from `camera` share (in this selector's viewport).
     pub fn bound_view(&self, camera: &Camera) -> BoundView {
@@ -319,7 +318,7 @@ impl Lod {
         }
         let mut own = Split::default();
         let split = self.split(v, bx, level, cut.unwrap_or(&mut own));
-        let mut etas = [eta; SPLIT * SPLIT];
+        split.etas = [eta; SPLIT * SPLIT];
         // Sub-boxes by their cap first: a sub-box's bound is at most its bound for the whole box's error
         // (which bounds its samples too; the bound grows with the error), so once that is below the
         // largest bound so far its own error need not be read.
@@ -339,7 +338,7 @@ impl Lod {
                 return f64::NAN;
             }
             let sub = self.eta(mode, level, sub_box).unwrap_or(eta).min(eta);
-            etas[i] = sub;
+            split.etas[i] = sub;
             let mut val = bs.px(sub);
             if val > limit && val <= DEEP_RATIO * limit && depth > 0 {
                 // Over the threshold: cut this sub-box again (each of its parts bounds its own samples,
@@ -352,13 +351,12 @@ impl Lod {
             }
             worst = worst.max(val);
         }
-        split.etas = etas;
         worst.min(whole)
     }
 
     /// The bound of a block `bx` at `level` in the view `v` from what an earlier view's threshold test
     /// read of its sub-boxes' errors there (`etas`, in the order of the block's cut at `level`): the
-    /// largest sub-box's error times its scale now, at most one evaluation's work (no table is read).
+    /// largest sub-box's error times its scale now, the cut's scales and no table read.
     /// Every sample of the block lies in a sub-box whose error bounds its own, so it is an upper bound
     /// of the block's projected error, as the split bound is; the errors being the same in every view,
     /// only the scales change.
