@@ -231,6 +231,27 @@ impl<T: bytemuck::Pod> Grid<T> {
         }
     }
 
+    /// Calls `f` on the values `index .. index + len` in runs that each lie in one 64 KiB window of the
+    /// map, each window counted ([`Mapping::touch`]) just before its run is read, as [`Grid::touch`] of
+    /// every value would (one run for an owned grid).
+    pub fn for_each_run(&self, index: usize, len: usize, mut f: impl FnMut(&[T])) {
+        let values = &self[index..index + len];
+        let Store::Mapped { map, offset, .. } = &self.store else {
+            f(values);
+            return;
+        };
+        let size = std::mem::size_of::<T>();
+        let mut at = 0;
+        while at < len {
+            let byte = offset + (index + at) * size;
+            map.touch(byte);
+            let window_end = ((byte >> PAGE_SHIFT) + 1) << PAGE_SHIFT;
+            let n = ((window_end - byte).div_ceil(size)).min(len - at);
+            f(&values[at..at + n]);
+            at += n;
+        }
+    }
+
     /// The byte range (offset, length) of the map the values live in (None for an owned grid).
     pub fn mapped_range(&self) -> Option<(usize, usize)> {
         match &self.store {
@@ -370,6 +391,19 @@ mod tests {
             "a trim starts the count again"
         );
         assert_eq!(&*g2, &big[..]);
+        // Runs: every value once, in order, each run in one window, each window counted as touched.
+        map2.trim();
+        let mut seen = Vec::new();
+        g2.for_each_run(per_page - 3, per_page + 5, |run| {
+            assert!(run.len() <= per_page);
+            seen.extend_from_slice(run);
+        });
+        assert_eq!(seen, &big[per_page - 3..2 * per_page + 2]);
+        assert_eq!(
+            map2.resident_stats().forced_trims,
+            2,
+            "the runs' three windows pass the limit of two: one trim"
+        );
         drop(g2);
         assert_eq!(&*g, &values[..]);
         Grid::owned(values.clone()).touch(7);

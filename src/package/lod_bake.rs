@@ -199,7 +199,7 @@ pub fn tables_from_records(
     for lv in &mut levels {
         lv.e_max = lod.level(lv.k).map_or(0.0, |l| l.e_max);
     }
-    let (head, flags, body) = lay_out_file(&mut levels, p, width, height, key);
+    let layout = lay_out_file(&mut levels, p, width, height, key);
     let mut levels_stored = levels.split_off(derived as usize);
     if let Some(sw) = sweep.as_mut() {
         sw.levels = levels;
@@ -208,7 +208,7 @@ pub fn tables_from_records(
     let tmp = guard.path.clone();
     let q = Sat::max_frac_bits(u64::from(width) * u64::from(height));
     let tile = lod.tile();
-    let written = write_tables(&tmp, &head, &flags, body, |file| {
+    let written = write_tables(&tmp, &layout, |file| {
         if let Some(sw) = sweep.as_mut() {
             sw.sweep_tables(Some(file), &tmp)?;
         }

@@ -1,5 +1,5 @@
 //! Stage 1, bake: a package's SAT LOD tables baked out of core, straight into the LOD cache
-//! file ([`crate::bake`], format 4), without decoding the whole pyramid.
+//! file ([`crate::bake`], format 5), without decoding the whole pyramid.
 //!
 //! The tables are those of [`crate::bake::lod_tables::LevelTables::build_level`] (data level k at level k's resolution: the closed
 //! cells' maximum error, its max pyramid, and the SAT of the half-open cells' quantised (e/E)^p), and the
@@ -30,22 +30,22 @@ use std::path::Path;
 use crate::bake::lod_record::Coder;
 use crate::bake::lod_tables::{bad_error, closed_count, RangeMax};
 use crate::bake::sat::Sat;
-use crate::bake::{BakeParams, FORMAT_VERSION, MAGIC};
+use crate::bake::BakeParams;
 use crate::package::lod_tiles::RecordRows;
 use crate::package::read::TileDecoder;
 use crate::package::{CacheSplit, Package, TileCache};
 use crate::progress::{Meter, Progress};
 use crate::{Error, Result};
 
+mod file;
 mod rows;
+use file::write_at;
+pub(super) use file::{lay_out_file, write_tables};
 use rows::{par_rows, RowOut, RowView};
 
 /// The package's bytes (an estimate: its size over the bands) the sweeps read between two drops of its
 /// mapped pages ([`Package::trim`]).
 const TRIM_BYTES: u64 = 16 << 20;
-
-/// Bytes read at a time for the trailing checksum.
-const CRC_CHUNK: usize = 4 << 20;
 
 /// One data level's streaming state (k >= 1).
 pub(super) struct Level {
@@ -76,6 +76,8 @@ pub(super) struct Level {
     /// Max pyramid: level sizes, byte offsets, and each coarser level's pending row.
     dims: Vec<(u32, u32)>,
     max_off: Vec<u64>,
+    /// Where the finest max-pyramid level's columns lie ([`file::write_columns`]).
+    col_off: u64,
     pend: Vec<Vec<f32>>,
     sat_off: u64,
     /// The SFAMF exponent, quantum bits and 1 / E.
@@ -121,6 +123,7 @@ impl Level {
             sat_row: Vec::new(),
             dims: Vec::new(),
             max_off: Vec::new(),
+            col_off: 0,
             pend: Vec::new(),
             sat_off: 0,
             p,
@@ -171,7 +174,8 @@ impl Level {
             at += u64::from(w) * u64::from(h) * 4;
             self.pend.push(vec![0.0; w as usize]);
         }
-        at
+        self.col_off = at;
+        at + u64::from(self.cw) * u64::from(self.ch) * 4
     }
 
     /// Level k's height at (a, b) as [`crate::bake::pyramid::Pyramid::at`] reads it, from the cache.
@@ -415,30 +419,6 @@ fn fold_max(acc: &mut [f32], row: &[f32]) {
     }
 }
 
-/// Writes `bytes` at byte `offset` of `file` (positioned: the levels' rows land in any order).
-fn write_at(file: &File, offset: u64, bytes: &[u8]) -> std::io::Result<()> {
-    #[cfg(unix)]
-    {
-        std::os::unix::fs::FileExt::write_all_at(file, bytes, offset)
-    }
-    #[cfg(windows)]
-    {
-        let mut done = 0usize;
-        while done < bytes.len() {
-            let n = std::os::windows::fs::FileExt::seek_write(
-                file,
-                &bytes[done..],
-                offset + done as u64,
-            )?;
-            if n == 0 {
-                return Err(std::io::ErrorKind::WriteZero.into());
-            }
-            done += n;
-        }
-        Ok(())
-    }
-}
-
 /// The two sweeps' state over a package: its band cache, the levels and one band of level-0 heights.
 pub(super) struct Sweep<'p> {
     pub(super) cache: TileCache,
@@ -611,11 +591,11 @@ pub(crate) fn bake_to_file(
     let n = params.data_levels();
     let mut sw = Sweep::new(package, params.p, 1..n, progress)?;
     sw.sweep_e()?;
-    let (head, flags, body) = lay_out_file(&mut sw.levels, params.p, sw.width, sw.height, key);
+    let layout = lay_out_file(&mut sw.levels, params.p, sw.width, sw.height, key);
     let guard = crate::temp::TempFile::create(path.with_extension(format!("tmp{}", crate::temp_suffix())))?;
     let tmp = guard.path.clone();
     // Sweep 2: the tables, each finished row written in place.
-    let written = write_tables(&tmp, &head, &flags, body, |file| {
+    let written = write_tables(&tmp, &layout, |file| {
         sw.sweep_tables(Some(file), &tmp)
     });
     sw.meter.finish();
@@ -624,84 +604,6 @@ pub(crate) fn bake_to_file(
         return Err(e);
     }
     guard.persist(path)
-}
-
-/// Each level's E and has-tables flag, as bytes, at their offsets in the cache file.
-pub(super) type Flags = Vec<(u64, Vec<u8>)>;
-
-/// The cache file's layout once every level's E (so its has-tables flag) is known: the header, each
-/// level's E and flag (at their offsets), and the body's length; each level with tables is laid out.
-pub(super) fn lay_out_file(
-    levels: &mut [Level],
-    p: u32,
-    width: u32,
-    height: u32,
-    key: u64,
-) -> (Vec<u8>, Flags, u64) {
-    let n = u32::try_from(levels.len() + 1).expect("levels fit u32");
-    let mut head = Vec::new();
-    head.extend_from_slice(MAGIC);
-    head.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
-    head.extend_from_slice(&key.to_le_bytes());
-    let frac = Sat::max_frac_bits(u64::from(width) * u64::from(height));
-    for w in [p, width, height, n, frac] {
-        head.extend_from_slice(&w.to_le_bytes());
-    }
-    // Data level 0 has no error.
-    head.extend_from_slice(&0f32.to_le_bytes());
-    head.extend_from_slice(&0u32.to_le_bytes());
-    let mut at = head.len() as u64;
-    let mut flags = Vec::new();
-    for lv in levels.iter_mut() {
-        let mut b = lv.e_max.to_le_bytes().to_vec();
-        b.extend_from_slice(&u32::from(lv.has_tables()).to_le_bytes());
-        flags.push((at, b));
-        at += 8;
-        if lv.has_tables() {
-            at = lv.lay_out(width, height, at);
-        }
-    }
-    (head, flags, at.next_multiple_of(8))
-}
-
-/// Creates `tmp` `body` + 8 bytes long (zeros: every padding), writes the header and the levels' flags,
-/// runs `tables`, then appends the CRC-32 of the body read back in chunks.
-pub(super) fn write_tables(
-    tmp: &Path,
-    head: &[u8],
-    flags: &[(u64, Vec<u8>)],
-    body: u64,
-    tables: impl FnOnce(&File) -> Result<()>,
-) -> Result<()> {
-    use std::io::Read;
-    if let Some(dir) = tmp.parent() {
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, "cannot create folder", e))?;
-    }
-    let io = |e| Error::io(tmp, "cannot write", e);
-    let file = std::fs::OpenOptions::new()
-        .read(true)
-        .write(true)
-        .create(true)
-        .truncate(true)
-        .open(tmp)
-        .map_err(io)?;
-    file.set_len(body + 8).map_err(io)?;
-    write_at(&file, 0, head).map_err(io)?;
-    for (at, b) in flags {
-        write_at(&file, *at, b).map_err(io)?;
-    }
-    tables(&file)?;
-    let mut crc = crc32fast::Hasher::new();
-    let mut buf = vec![0u8; CRC_CHUNK];
-    let mut reader = std::io::BufReader::new(&file).take(body);
-    loop {
-        let got = reader.read(&mut buf).map_err(io)?;
-        if got == 0 {
-            break;
-        }
-        crc.update(&buf[..got]);
-    }
-    write_at(&file, body, &u64::from(crc.finalize()).to_le_bytes()).map_err(io)
 }
 
 /// Makes band `band`'s tiles resident (level-0 tile row `band`, and each level's rows its errors read),
