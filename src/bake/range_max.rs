@@ -20,6 +20,12 @@ pub struct RangeMax {
     columns: Option<Grid<f32>>,
 }
 
+/// A column of the finest level spanning at most this many 64 KiB windows of its rows is read from the
+/// rows, whose windows other reads near it share: read from the columns, the steep 1" tile's flights
+/// (docs/plan-time.md) held more distinct windows and forced 2-3 trims of the tables' share instead of
+/// 0-1 at a span of 0, 1-2 at 2, and as before at 8.
+const COLUMN_SPAN_WINDOWS: u64 = 8;
+
 /// The levels are the pyramid; the columns only a copy of the finest one, laid out for reading.
 impl PartialEq for RangeMax {
     fn eq(&self, other: &Self) -> bool {
@@ -110,13 +116,17 @@ impl RangeMax {
 
     /// The maximum of `m` and the finest level's cells (x, y0 .. y1), read from the columns where held.
     fn column_max(&self, m: f32, x: u32, y0: u32, y1: u32) -> f32 {
-        let Some(cols) = &self.columns else {
-            let (w, g) = (self.dims[0].0 as usize, &self.levels[0]);
-            return (y0..y1).fold(m, |m, y| {
-                let i = y as usize * w + x as usize;
-                g.touch(i);
-                m.max(g[i])
-            });
+        let (w, g) = (self.dims[0].0 as usize, &self.levels[0]);
+        let rows_bytes = (y1 - y0) as u64 * w as u64 * 4;
+        let cols = match &self.columns {
+            Some(cols) if rows_bytes > COLUMN_SPAN_WINDOWS * crate::bake::mapped::PAGE_BYTES => cols,
+            _ => {
+                return (y0..y1).fold(m, |m, y| {
+                    let i = y as usize * w + x as usize;
+                    g.touch(i);
+                    m.max(g[i])
+                });
+            }
         };
         let start = x as usize * self.dims[0].1 as usize + y0 as usize;
         let mut m = m;
