@@ -252,20 +252,50 @@ impl RangeMax {
 mod tests {
     use super::*;
 
-    /// The columns change no answer: every box of a grid whose sides are not powers of two, one cell wide
-    /// and high included, gives the same maximum with and without them, and the same as a scan.
-    #[test]
-    fn columns_give_the_same_maxima() {
-        let (w, h) = (13u32, 9u32);
+    /// A grid of `w` x `h` pseudo-random errors.
+    fn grid(w: u32, h: u32) -> Vec<f32> {
         let mut state = 0x2545_f491_4f6c_dd1du64;
-        let values: Vec<f32> = (0..w * h)
+        (0..w * h)
             .map(|_| {
                 state ^= state << 13;
                 state ^= state >> 7;
                 state ^= state << 17;
                 (state >> 40) as f32 / 1024.0
             })
-            .collect();
+            .collect()
+    }
+
+    /// The maximum over a box by a scan.
+    fn scan(values: &[f32], w: u32, (x0, y0, x1, y1): (u32, u32, u32, u32)) -> f32 {
+        (y0..y1)
+            .flat_map(|y| (x0..x1).map(move |x| (x, y)))
+            .fold(0.0f32, |m, (x, y)| m.max(values[(y * w + x) as usize]))
+    }
+
+    /// A grid wide and tall enough that a column spans more than [`COLUMN_SPAN_WINDOWS`] windows of
+    /// its rows, so the columns are read: the same maxima as the rows and a scan.
+    #[test]
+    fn long_columns_are_read_from_the_columns_alike() {
+        let (w, h) = (1031u32, 300u32);
+        assert!(u64::from(h) * u64::from(w) * 4 > COLUMN_SPAN_WINDOWS * crate::bake::mapped::PAGE_BYTES);
+        let values = grid(w, h);
+        let rows = RangeMax::build(w, h, values.clone());
+        let both = rows
+            .clone()
+            .with_columns(Grid::owned(rows.column_major().collect()))
+            .expect("the finest level's size");
+        for bx in [(0, 0, 1, h), (5, 3, 6, h - 1), (w - 1, 0, w, h), (7, 1, 900, 299), (2, 0, 3, 40)] {
+            assert_eq!(rows.max(bx.0, bx.1, bx.2, bx.3), scan(&values, w, bx), "{bx:?}");
+            assert_eq!(both.max(bx.0, bx.1, bx.2, bx.3), scan(&values, w, bx), "{bx:?}");
+        }
+    }
+
+    /// The columns change no answer: every box of a grid whose sides are not powers of two, one cell wide
+    /// and high included, gives the same maximum with and without them, and the same as a scan.
+    #[test]
+    fn columns_give_the_same_maxima() {
+        let (w, h) = (13u32, 9u32);
+        let values = grid(w, h);
         let rows = RangeMax::build(w, h, values.clone());
         let cols: Vec<f32> = rows.column_major().collect();
         let both = rows
@@ -278,9 +308,7 @@ mod tests {
             for y1 in y0 + 1..=h {
                 for x0 in 0..w {
                     for x1 in x0 + 1..=w {
-                        let scan = (y0..y1)
-                            .flat_map(|y| (x0..x1).map(move |x| (x, y)))
-                            .fold(0.0f32, |m, (x, y)| m.max(values[(y * w + x) as usize]));
+                        let scan = scan(&values, w, (x0, y0, x1, y1));
                         assert_eq!(rows.max(x0, y0, x1, y1), scan);
                         assert_eq!(both.max(x0, y0, x1, y1), scan, "({x0}, {y0}) .. ({x1}, {y1})");
                     }
