@@ -17,10 +17,10 @@
 //!
 //! Layout, little-endian: magic `CSATLOD1`, version, key, p, width, height, levels, quantum bits; per level
 //! k E_L (f32), a has-tables flag, then (if set) zero padding to a multiple of 8 bytes, the SAT (u64 per
-//! entry), every level of the max pyramid over the closed cells' maximum errors (f32 per cell, finest
-//! first), and the finest of them again column by column (f32, value (x, y) at x h + y: a query one
-//! cell wide reads one run, [`RangeMax::with_columns`]), at level k's resolution ([`LevelTables`]: cells
-//! of 2^k samples); zero padding to a multiple of 8; last, the CRC-32 of every byte before it (as a u64). A file whose magic, version, key, sizes or
+//! entry) and every level of the max pyramid over the closed cells' maximum errors (f32 per cell, finest
+//! first), at level k's resolution ([`LevelTables`]: cells of 2^k samples); then, for each level with
+//! tables, the finest max-pyramid level again column by column (f32, value (x, y) at x h + y: a query
+//! one cell wide reads one run, [`RangeMax::with_columns`]); zero padding to a multiple of 8; last, the CRC-32 of every byte before it (as a u64). A file whose magic, version, key, sizes or
 //! checksum do not match is rebaked and overwritten, never trusted and never a panic. Files are written to
 //! a temporary name and renamed, so a killed bake leaves no half file under the real name, and a file
 //! another process has mapped is never rewritten in place.
@@ -276,10 +276,12 @@ fn encode(t: &LodTables, key: u64) -> Vec<u8> {
                         out.extend_from_slice(&v.to_le_bytes());
                     }
                 }
-                for v in max.column_major() {
-                    out.extend_from_slice(&v.to_le_bytes());
-                }
             }
+        }
+    }
+    for (_, max) in t.levels.iter().filter_map(LevelTables::tables) {
+        for v in max.column_major() {
+            out.extend_from_slice(&v.to_le_bytes());
         }
     }
     pad8(&mut out);
@@ -391,24 +393,36 @@ fn decode(map: &Mapping, key: u64, params: &BakeParams) -> std::result::Result<L
                 if !(e_max.is_finite() && e_max > 0.0) {
                     return Err("error map values out of range".into());
                 }
-                let columns = grid::<f32>(map, &mut r, cw as usize * ch as usize)?;
-                // The finest maxima bound every query's exact answer: check them and their columns (a
-                // pass over a quarter of the level's cells or fewer each), trimming as the checksum
-                // pass did.
-                if !in_range(map, &maxima[0], e_max) || !in_range(map, &columns, e_max) {
+                // The finest maxima bound every query's exact answer: check them (a pass over a quarter
+                // of the level's cells or fewer), trimming as the checksum pass did.
+                if !in_range(map, &maxima[0], e_max) {
                     return Err("error map values out of range".into());
                 }
                 let sat =
                     Sat::from_grid(width, height, cell, frac, sat).map_err(|e| e.to_string())?;
-                let max = RangeMax::from_levels(cw, ch, maxima)
-                    .and_then(|m| m.with_columns(columns))
-                    .ok_or("bad max pyramid sizes")?;
+                let max = RangeMax::from_levels(cw, ch, maxima).ok_or("bad max pyramid sizes")?;
                 Some((sat, max))
             }
             _ => return Err(format!("bad has-tables flag {has}")),
         };
         let shift = if tables.is_some() { shift } else { 0 };
-        out.push(LevelTables::from_parts(e_max, shift, tables));
+        out.push((e_max, shift, tables));
+    }
+    // Each level's finest maxima again, column by column, checked as the rows are.
+    let mut levels_out = Vec::with_capacity(out.len());
+    for (e_max, shift, tables) in out {
+        let tables = match tables {
+            None => None,
+            Some((sat, max)) => {
+                let (cw, ch) = max.size();
+                let columns = grid::<f32>(map, &mut r, cw as usize * ch as usize)?;
+                if !in_range(map, &columns, e_max) {
+                    return Err("error map values out of range".into());
+                }
+                Some((sat, max.with_columns(columns).ok_or("bad max pyramid sizes")?))
+            }
+        };
+        levels_out.push(LevelTables::from_parts(e_max, shift, tables));
     }
     r.take(r.at.next_multiple_of(8) - r.at)?;
     if !r.done() {
@@ -418,7 +432,7 @@ fn decode(map: &Mapping, key: u64, params: &BakeParams) -> std::result::Result<L
         p,
         width,
         height,
-        levels: out,
+        levels: levels_out,
         mapping: Some(map.clone()),
     })
 }

@@ -76,8 +76,6 @@ pub(super) struct Level {
     /// Max pyramid: level sizes, byte offsets, and each coarser level's pending row.
     dims: Vec<(u32, u32)>,
     max_off: Vec<u64>,
-    /// Where the finest max-pyramid level's columns lie ([`file::write_columns`]).
-    col_off: u64,
     pend: Vec<Vec<f32>>,
     sat_off: u64,
     /// The SFAMF exponent, quantum bits and 1 / E.
@@ -123,7 +121,6 @@ impl Level {
             sat_row: Vec::new(),
             dims: Vec::new(),
             max_off: Vec::new(),
-            col_off: 0,
             pend: Vec::new(),
             sat_off: 0,
             p,
@@ -174,8 +171,7 @@ impl Level {
             at += u64::from(w) * u64::from(h) * 4;
             self.pend.push(vec![0.0; w as usize]);
         }
-        self.col_off = at;
-        at + u64::from(self.cw) * u64::from(self.ch) * 4
+        at
     }
 
     /// Level k's height at (a, b) as [`crate::bake::pyramid::Pyramid::at`] reads it, from the cache.

@@ -65,13 +65,17 @@ pub(crate) fn lay_out_file(
         at += 8;
         if lv.has_tables() {
             at = lv.lay_out(width, height, at);
-            columns.push(Columns {
-                rows_at: lv.max_off[0],
-                columns_at: lv.col_off,
-                width: lv.cw,
-                height: lv.ch,
-            });
         }
+    }
+    // The columns after every level, so the levels lie where format 4 put them.
+    for lv in levels.iter().filter(|l| l.has_tables()) {
+        columns.push(Columns {
+            rows_at: lv.max_off[0],
+            columns_at: at,
+            width: lv.cw,
+            height: lv.ch,
+        });
+        at += u64::from(lv.cw) * u64::from(lv.ch) * 4;
     }
     FileLayout {
         head,
