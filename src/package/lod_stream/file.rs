@@ -93,7 +93,7 @@ pub(crate) fn write_tables(
     layout: &FileLayout,
     tables: impl FnOnce(&File) -> Result<()>,
 ) -> Result<()> {
-    use std::io::Read;
+    use std::io::{Read, Seek};
     if let Some(dir) = tmp.parent() {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, "cannot create folder", e))?;
     }
@@ -114,6 +114,8 @@ pub(crate) fn write_tables(
     for c in &layout.columns {
         write_columns(&file, c).map_err(io)?;
     }
+    // From the start: Windows' positioned reads and writes move the file's cursor.
+    (&file).seek(std::io::SeekFrom::Start(0)).map_err(io)?;
     let mut crc = crc32fast::Hasher::new();
     let mut buf = vec![0u8; CRC_CHUNK];
     let mut reader = std::io::BufReader::new(&file).take(layout.body);
