@@ -99,8 +99,13 @@ pub enum CacheOutcome {
 
 /// The cache key of a terrain and parameters.
 pub fn cache_key(terrain: &Heightmap, params: &BakeParams) -> u64 {
+    cache_key_of_version(terrain, params, FORMAT_VERSION)
+}
+
+/// [`cache_key`] as format `version` made it.
+fn cache_key_of_version(terrain: &Heightmap, params: &BakeParams, version: u32) -> u64 {
     let mut h = Hash64::new();
-    h.write_u32(FORMAT_VERSION);
+    h.write_u32(version);
     h.write_u32(terrain.width());
     h.write_u32(terrain.height());
     h.write_f32(terrain.spacing());
@@ -120,6 +125,15 @@ pub fn cache_path(dir: &Path, key: u64) -> PathBuf {
     dir.join(format!("lod-{}.bin", hex(key)))
 }
 
+/// Removes the same tables' file of the last format (its key from `key_of` the version), refused now: a
+/// format change does not leave every terrain's old tables in the cache folder. Best effort: a file
+/// another process holds stays.
+pub(crate) fn remove_last_format(dir: &Path, key_of: impl Fn(u32) -> u64) {
+    if let Some(v) = FORMAT_VERSION.checked_sub(1).filter(|&v| v > 0) {
+        let _ = std::fs::remove_file(cache_path(dir, key_of(v)));
+    }
+}
+
 /// The LOD tables of `terrain`: read from `dir`'s cache when a valid file is there, else baked (reporting to
 /// `progress`) and written.
 pub fn bake_lod(
@@ -132,13 +146,17 @@ pub fn bake_lod(
     // Before the cache: a table cached by an older build must not let an unusable terrain through.
     crate::bake::lod_tables::check_height_range(pyramid)?;
     let key = cache_key(terrain, params);
-    bake_lod_keyed(
+    let baked = bake_lod_keyed(
         key,
         || Ok(std::borrow::Cow::Borrowed(pyramid)),
         params,
         dir,
         progress,
-    )
+    )?;
+    if matches!(baked.1, CacheOutcome::Baked | CacheOutcome::Rebaked(_)) {
+        remove_last_format(dir, |v| cache_key_of_version(terrain, params, v));
+    }
+    Ok(baked)
 }
 
 /// The tables of the cache file at `path` read through a map: None when there is no file, the reason
@@ -470,4 +488,37 @@ fn in_range(map: &Mapping, g: &Grid<f32>, e_max: f32) -> bool {
         }
         ok
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A bake under this format removes the same tables' file of the last format, and no other file.
+    #[test]
+    fn a_bake_removes_the_last_formats_file() {
+        let heights: Vec<f32> = (0..33 * 17).map(|i| (i * 7 % 31) as f32).collect();
+        let hm = Heightmap::new(Path::new("test"), 33, 17, 10.0, heights).expect("terrain");
+        let params = BakeParams {
+            p: 8,
+            levels: 4,
+            synth_levels: 0,
+            g0: 10.0,
+        };
+        let dir = std::env::temp_dir().join(format!("clipsat-last-format-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("folder");
+        let last = cache_path(&dir, cache_key_of_version(&hm, &params, FORMAT_VERSION - 1));
+        let other = dir.join("lod-0000000000000001.bin");
+        for f in [&last, &other] {
+            std::fs::write(f, b"an older file").expect("write");
+        }
+        let pyramid = Pyramid::build(&hm);
+        let (_, outcome) = bake_lod(&hm, &pyramid, &params, &dir, Progress::default()).expect("bake");
+        assert_eq!(outcome, CacheOutcome::Baked);
+        assert!(!last.exists(), "the last format's file is removed");
+        assert!(other.exists(), "another file stays");
+        assert!(cache_path(&dir, cache_key(&hm, &params)).exists());
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 }

@@ -7,7 +7,9 @@ use std::path::Path;
 
 use crate::bake::lod_tables::LodTables;
 use crate::bake::sat::Sat;
-use crate::bake::{bake_uncached, cache_path, read_cached, BakeParams, CacheOutcome, FORMAT_VERSION};
+use crate::bake::{
+    bake_uncached, cache_path, read_cached, remove_last_format, BakeParams, CacheOutcome, FORMAT_VERSION,
+};
 use crate::hash::Hash64;
 use crate::progress::Progress;
 use crate::{Error, Result};
@@ -17,8 +19,13 @@ use super::{lod_bake, lod_stream};
 /// The cache key of a package's tables: its header (dimensions, spacing, quantum, and every tile's
 /// offset and CRC-32, so any change to its heights) and the parameters.
 pub fn package_cache_key(package: &super::Package, params: &BakeParams) -> u64 {
+    key_of_version(package, params, FORMAT_VERSION)
+}
+
+/// [`package_cache_key`] as format `version` made it.
+fn key_of_version(package: &super::Package, params: &BakeParams, version: u32) -> u64 {
     let mut h = Hash64::new();
-    h.write_u32(FORMAT_VERSION);
+    h.write_u32(version);
     h.write_bytes(b"package");
     h.write_bytes(&package.header().to_bytes());
     h.write_u32(params.p);
@@ -82,6 +89,7 @@ pub fn bake_lod_package(
         Some(Err(reason)) => return Err(Error::format(&path, reason)),
         None => return Err(Error::format(&path, "the LOD tables just written are gone")),
     };
+    remove_last_format(dir, |v| key_of_version(package, params, v));
     let outcome = match refused {
         Some(r) => CacheOutcome::Rebaked(r),
         None => CacheOutcome::Baked,
