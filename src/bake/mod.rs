@@ -20,14 +20,15 @@
 //! entry) and every level of the max pyramid over the closed cells' maximum errors (f32 per cell, finest
 //! first), at level k's resolution ([`LevelTables`]: cells of 2^k samples); then, for each level with
 //! tables, the finest max-pyramid level again column by column (f32, value (x, y) at x h + y: a query
-//! one cell wide reads one run, [`RangeMax::with_columns`]); zero padding to a multiple of 8; last, the CRC-32 of every byte before it (as a u64). A file whose magic, version, key, sizes or
+//! one cell wide reads one run, [`RangeMax::with_columns`]); zero padding to a multiple of 8; last, the
+//! CRC-32 of every byte before it (as a u64). A file whose magic, version, key, sizes or
 //! checksum do not match is rebaked and overwritten, never trusted and never a panic. Files are written to
 //! a temporary name and renamed, so a killed bake leaves no half file under the real name, and a file
 //! another process has mapped is never rewritten in place.
 //!
 //! A valid file is read through a read-only memory map ([`mapped`]): the tables borrow their ranges of it,
-//! so a large terrain's tables (about 6 B per sample: 300 MB for a 7201^2 mosaic) are never copied into memory, and the selector
-//! trims the pages it touched once per frame ([`LodTables::trim`]). Tables baked in this process stay in
+//! so a large terrain's tables (about 6 B per sample: 300 MB for a 7201^2 mosaic) are never copied into
+//! memory, and the selector trims the pages it touched once per frame ([`LodTables::trim`]). Tables baked in this process stay in
 //! memory; [`bake_lod_mapped`] re-reads them from the file it wrote.
 
 pub mod horizon;

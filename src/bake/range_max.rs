@@ -21,9 +21,9 @@ pub struct RangeMax {
 }
 
 /// A column of the finest level spanning at most this many 64 KiB windows of its rows is read from the
-/// rows, whose windows other reads near it share: read from the columns, the steep 1" tile's flights
-/// (docs/plan-time.md) held more distinct windows and forced 2-3 trims of the tables' share instead of
-/// 0-1 at a span of 0, 1-2 at 2, and as before at 8.
+/// rows, whose windows other reads near it share. Read from the columns at any length, the steep 1" tile's
+/// flights (docs/plan-time.md) held more distinct windows and forced 2-3 trims of the tables' share where
+/// the rows forced 0-1; past 2 windows, 1-2; past 8, as with the rows.
 const COLUMN_SPAN_WINDOWS: u64 = 8;
 
 /// The levels are the pyramid; the columns only a copy of the finest one, laid out for reading.
@@ -217,21 +217,17 @@ impl RangeMax {
                 }
                 break;
             }
-            // The finest level's columns are read from the columns where held ([`RangeMax::column_max`]).
+            // The finest level's columns from the columns where held ([`RangeMax::column_max`]).
+            let column = |m: f32, x: u32| match k {
+                0 => self.column_max(m, x, y0, y1),
+                _ => (y0..y1).fold(m, |m, y| m.max(at(x, y))),
+            };
             if x0 & 1 == 1 {
-                if k == 0 {
-                    m = self.column_max(m, x0, y0, y1);
-                } else {
-                    (y0..y1).for_each(|y| m = m.max(at(x0, y)));
-                }
+                m = column(m, x0);
                 x0 += 1;
             }
             if x1 & 1 == 1 && x1 > x0 {
-                if k == 0 {
-                    m = self.column_max(m, x1 - 1, y0, y1);
-                } else {
-                    (y0..y1).for_each(|y| m = m.max(at(x1 - 1, y)));
-                }
+                m = column(m, x1 - 1);
                 x1 -= 1;
             }
             if y0 & 1 == 1 {
