@@ -61,6 +61,8 @@ pub(super) struct Coded {
     pub(super) worst_coarse: f64,
     /// Lowest and highest reconstructed level-0 value, quanta.
     lo_hi: (i32, i32),
+    /// Level 0's reconstruction, kept to be removed with the rest ([`super::spill::Removing`]).
+    _recon: Option<TempFile>,
 }
 
 fn io(path: &Path) -> impl Fn(std::io::Error) -> Error + '_ {
@@ -435,6 +437,7 @@ pub(super) fn code_levels(
         worst: 0.0,
         worst_coarse: 0.0,
         lo_hi: (i32::MAX, i32::MIN),
+        _recon: None,
     };
     let mut files: Vec<Option<TempFile>> = (0..n).map(|_| None).collect();
     let mut recon_prev: Option<TempFile> = None;
@@ -600,6 +603,7 @@ pub(super) fn code_levels(
         }
     }
     coded.syms = files.into_iter().flatten().collect();
+    coded._recon = recon_prev;
     Ok(coded)
 }
 
