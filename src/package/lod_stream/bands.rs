@@ -2,10 +2,11 @@
 //! resident and its rows copied out of the cache, its rows' work shared among the cores, and the levels'
 //! fold of the band before it on a thread of its own meanwhile.
 //!
-//! A level's fold (its cells' rows closed, coded and written in order) reads only the rows' results, so
-//! band b - 1 is folded while band b is decoded, copied and worked: a core is not left idle while one
-//! thread copies a band out of the cache or folds the finest level, and each level still folds its rows
-//! in order, so nothing baked depends on the thread count.
+//! A level's fold (its cells' rows closed, coded and written in order) reads only the rows' results, and
+//! the rows' work only the band's copied rows, so band b - 1 is folded and band b + 1 decoded and copied
+//! while band b's rows are worked: a core is not left idle while one thread copies a band out of the
+//! cache, decodes its last tile or folds the finest level, and each level still folds its rows in order,
+//! so nothing baked depends on the thread count.
 
 use super::rows::{par_rows, RowOut, RowView};
 use super::{Level, Sweep, TRIM_BYTES};
@@ -27,8 +28,9 @@ impl Sweep<'_> {
     /// One pass over the terrain a band of level-0 tile rows at a time: each band decoded once, then for
     /// every level `pick` takes, `row(level, row heights, y, scratch, out)` for each of the band's rows
     /// (every level's rows shared among the cores, [`par_rows`]), then `fold(level, outs, y0)` over them
-    /// in order, level after level on a thread of its own while the next band is loaded and worked
-    /// (`err` makes its errors). Errors come in the order one thread doing it all in turn meets them.
+    /// in order, level after level on a thread of its own while the next band is worked and the one after
+    /// it loaded (`err` makes its errors). Errors come in the order one thread doing it all in turn meets
+    /// them.
     pub(super) fn sweep_bands(
         &mut self,
         pick: impl Fn(&Level) -> bool,
@@ -54,14 +56,38 @@ impl Sweep<'_> {
         // which the fold changes meanwhile.
         let shapes: Vec<(u32, RowView<'static>)> =
             picked.iter().map(|l| (l.k, l.shape())).collect();
-        let mut band = Band::default();
-        band.levels.resize_with(shapes.len(), Default::default);
+        let new_band = || {
+            let mut b = Band::default();
+            b.levels.resize_with(shapes.len(), Default::default);
+            b
+        };
+        // The band whose rows are worked, and the next one, loaded meanwhile.
+        let (mut band, mut next) = (new_band(), new_band());
+        let mut load = |b: u32, band: &mut Band| -> Result<()> {
+            load_band(cache, decoders, &shapes, b, last, band)?;
+            // The package's mapped pages are dropped once the bands since the last time read about
+            // TRIM_BYTES of it, and after the last band: dropping them costs every core a TLB flush, too
+            // much for each band of a small package, and the pages held stay under a fixed bound.
+            *untrimmed += *band_bytes;
+            if *untrimmed >= TRIM_BYTES || b + 1 == bands {
+                cache.package().trim();
+                *untrimmed = 0;
+            }
+            Ok(())
+        };
         // The rows' results of the band being worked, and of the one being folded.
         let mut outs: Vec<Vec<RowOut>> = shapes.iter().map(|_| Vec::new()).collect();
         let mut folding: Vec<Vec<RowOut>> = shapes.iter().map(|_| Vec::new()).collect();
-        let mut to_fold = None;
-        for b in 0..=bands {
-            let (folded, loaded) = std::thread::scope(|s| {
+        let mut loaded = (bands > 0).then(|| load(0, &mut band));
+        let (mut b, mut to_fold) = (0, None);
+        loop {
+            // Band b's rows are worked (if it loaded) while band b - 1 is folded and band b + 1 loaded.
+            let (work, failed) = match loaded.take() {
+                Some(Ok(())) => (true, None),
+                Some(Err(e)) => (false, Some(e)),
+                None => (false, None),
+            };
+            let (folded, next_loaded) = std::thread::scope(|s| {
                 let side = to_fold.map(|y0| {
                     let (picked, folding, fold) = (&mut picked, &folding, &fold);
                     s.spawn(move || {
@@ -71,17 +97,7 @@ impl Sweep<'_> {
                             .try_for_each(|(lv, o)| fold(lv, o, y0))
                     })
                 });
-                let loaded = (b < bands).then(|| -> Result<()> {
-                    load_band(cache, decoders, &shapes, b, last, &mut band)?;
-                    // The package's mapped pages are dropped once the bands since the last time read
-                    // about TRIM_BYTES of it, and after the last band: dropping them costs every core a
-                    // TLB flush, too much for each band of a small package, and the pages held stay
-                    // under a fixed bound.
-                    *untrimmed += *band_bytes;
-                    if *untrimmed >= TRIM_BYTES || b + 1 == bands {
-                        cache.package().trim();
-                        *untrimmed = 0;
-                    }
+                let next_loaded = if work {
                     let views = shapes.iter().zip(&band.levels).map(|(&(_, shape), (rows, j0))| {
                         RowView {
                             band: rows,
@@ -89,30 +105,39 @@ impl Sweep<'_> {
                             ..shape
                         }
                     });
+                    let (next, load) = (&mut next, &mut load);
                     par_rows(
                         views.zip(outs.iter_mut()).collect(),
                         (&band.h0, width),
                         (band.y0, band.y1),
                         &row,
-                    );
-                    Ok(())
-                });
+                        || (b + 1 < bands).then(|| load(b + 1, next)),
+                    )
+                } else {
+                    None
+                };
                 let folded = side.map(|h| {
                     h.join()
                         .unwrap_or_else(|_| panic!("a LOD table level's fold panicked"))
                 });
-                (folded, loaded)
+                (folded, next_loaded)
             });
-            // The band before first: its fold comes before this band's work in band order.
+            // In band order: band b - 1's fold, then band b's load (its rows cannot fail).
             if let Some(folded) = folded {
                 folded.map_err(&err)?;
                 meter.inc(1);
             }
-            if let Some(loaded) = loaded {
-                loaded?;
-                to_fold = Some(band.y0);
-                std::mem::swap(&mut outs, &mut folding);
+            if let Some(e) = failed {
+                return Err(e);
             }
+            if !work {
+                break;
+            }
+            to_fold = Some(band.y0);
+            std::mem::swap(&mut outs, &mut folding);
+            std::mem::swap(&mut band, &mut next);
+            loaded = next_loaded;
+            b += 1;
         }
         Ok(())
     }

@@ -102,12 +102,14 @@ const JOB_ROWS: usize = 8;
 /// ([`crate::package::deal`]): the cores finish together even while the fold of the band before takes
 /// a share of one of them, and each row's result depends on the row alone. The jobs come a run of rows
 /// at a time, every level's share of it in turn, so a core reads the same heights from its own cache.
-pub(super) fn par_rows(
+/// Returns what `beside` returns, run on this thread meanwhile.
+pub(super) fn par_rows<T>(
     levels: Vec<(RowView<'_>, &mut Vec<RowOut>)>,
     (h0, width): (&[f32], u32),
     (y0, y1): (u32, u32),
     f: &(impl Fn(&RowView<'_>, &[f32], u32, &mut Vec<f32>, &mut RowOut) + Sync),
-) {
+    beside: impl FnOnce() -> T,
+) -> T {
     let rows = (y1 - y0) as usize;
     let chunks = rows.div_ceil(JOB_ROWS);
     let mut per_level: Vec<_> = levels
@@ -134,7 +136,8 @@ pub(super) fn par_rows(
         Ok::<(), std::convert::Infallible>(())
     };
     let what = "a LOD table row thread panicked";
-    let (Ok(()), ()) = crate::package::deal::deal(&mut jobs, &mut scratch, run, || (), what);
+    let (Ok(()), b) = crate::package::deal::deal(&mut jobs, &mut scratch, run, beside, what);
+    b
 }
 
 /// A job of [`par_rows`]: a level, the first of a run of rows, and the rows' results.
