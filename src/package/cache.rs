@@ -348,10 +348,11 @@ impl TileCache {
     }
 
     /// [`TileCache::ensure_rect`] with no budget and one decoder per thread, for the LOD tables' bake: the
-    /// coarser tiles the rectangle's prediction reads first, then its missing tiles decoded in parallel, a
-    /// run of adjacent tiles per decoder (a tile's samples do not depend on which decoder made them, and
-    /// each reads only the coarser level, resident before any starts). `Ok(false)` when the slots cannot
-    /// hold them, as there; damage is the first damaged tile's error in tile order.
+    /// coarser tiles the rectangle's prediction reads first, then its missing tiles decoded in parallel,
+    /// each decoder taking the next tile as it comes free ([`super::deal`]: a tile's samples do not depend
+    /// on which decoder made them, and each reads only the coarser level, resident before any starts).
+    /// `Ok(false)` when the slots cannot hold them, as there; damage is the first damaged tile's error in
+    /// tile order.
     pub fn ensure_rect_parallel(
         &mut self,
         level: usize,
@@ -398,31 +399,17 @@ impl TileCache {
             job.3 = u32::try_from(slot).expect("slot counts fit u32");
             job.4 = std::mem::take(&mut s.data);
         }
-        let per = jobs.len().div_ceil(decoders.len().max(1));
         let result = {
             let (package, map, slots) = (&self.package, &self.map, &self.slots);
-            let run = |chunk: &mut [(usize, u32, u32, u32, Vec<i32>)], dec: &mut TileDecoder| {
-                chunk.iter_mut().try_for_each(|(_, tx, ty, _, data)| {
-                    let coarse = |a: i64, b: i64| -> i64 {
-                        let k = units_in(package, map, slots, level + 1, a, b)
-                            .expect("the coarser tiles were made resident before decoding");
-                        i64::from(k)
-                    };
-                    package.decode_tile(dec, level, (*tx, *ty), coarse, data)
-                })
+            let decode = |dec: &mut TileDecoder, _: usize, job: &mut (usize, u32, u32, u32, Vec<i32>)| {
+                let coarse = |a: i64, b: i64| -> i64 {
+                    let k = units_in(package, map, slots, level + 1, a, b)
+                        .expect("the coarser tiles were made resident before decoding");
+                    i64::from(k)
+                };
+                package.decode_tile(dec, level, (job.1, job.2), coarse, &mut job.4)
             };
-            if per >= jobs.len() {
-                decoders.first_mut().map_or(Ok(()), |dec| run(&mut jobs, dec))
-            } else {
-                std::thread::scope(|sc| {
-                    let handles: Vec<_> = jobs
-                        .chunks_mut(per)
-                        .zip(decoders.iter_mut())
-                        .map(|(chunk, dec)| sc.spawn(move || run(chunk, dec)))
-                        .collect();
-                    super::join_in_order(handles, "a tile decoding thread panicked")
-                })
-            }
+            super::deal::deal(&mut jobs, decoders, decode, || (), "a tile decoding thread panicked").0
         };
         if let Err(e) = result {
             self.release(&mut jobs);

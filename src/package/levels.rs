@@ -61,6 +61,8 @@ pub(super) struct Coded {
     pub(super) worst_coarse: f64,
     /// Lowest and highest reconstructed level-0 value, quanta.
     lo_hi: (i32, i32),
+    /// Level 0's reconstruction, kept to be removed with the rest ([`super::spill::Removing`]).
+    _recon: Option<TempFile>,
 }
 
 fn io(path: &Path) -> impl Fn(std::io::Error) -> Error + '_ {
@@ -224,41 +226,40 @@ fn fit_tile(
 }
 
 /// One thread's working set for the closed-loop pass: its predictor and scratch, made once per bake, and
-/// the symbols, contexts and reconstruction of its share of a tile row, tile after tile.
+/// the symbols, contexts and reconstruction of the tiles of a row it took, tile after tile.
 struct Worker {
+    /// Its place among the workers.
+    id: usize,
     predictor: Predictor,
     scratch: TileScratch,
     u: Vec<i64>,
     tv: Vec<f64>,
-    /// The tile columns of the row it coded last.
-    tiles: std::ops::Range<u32>,
     syms: Vec<i32>,
     ctxs: Vec<u8>,
     rec: Vec<i32>,
     counts: Counts,
-    /// The reconstruction's errors against the source over its run.
+    /// The reconstruction's errors against the source over the row's tiles it took.
     errors: RunErrors,
     /// Pass 1: the sums of the parities it fits.
     fit: Fit,
 }
 
-/// A run of tiles' errors against the source: each tile's sum of squares (metres^2), the largest error
-/// (metres), and the lowest and highest reconstructed value (quanta).
+/// Tiles' errors against the source: the largest error (metres), and the lowest and highest
+/// reconstructed value (quanta).
 #[derive(Default)]
 struct RunErrors {
-    sq: Vec<f64>,
     worst: f64,
     lo_hi: (i32, i32),
 }
 
 impl Worker {
-    fn new(tile: u32) -> Self {
+    fn new(id: usize, tile: u32) -> Self {
         Self {
+            id,
             predictor: Predictor::new(tile + 2 * U_BORDER_U32),
             scratch: TileScratch::new(tile),
             u: Vec::new(),
             tv: Vec::new(),
-            tiles: 0..0,
             syms: Vec::new(),
             ctxs: Vec::new(),
             rec: Vec::new(),
@@ -314,83 +315,90 @@ struct TileRow<'a> {
     model: &'a LevelModel,
 }
 
+/// Where a tile of the row being coded went: the worker that coded it, where its values start in that
+/// worker's buffers, and its sum of squared errors (metres^2).
+#[derive(Clone, Copy, Default)]
+struct TileSlot {
+    worker: usize,
+    at: usize,
+    sq: f64,
+}
+
 impl TileRow<'_> {
-    /// Quantises the row's tiles in closed loop, each worker a run of adjacent tiles (a tile reads only the
-    /// coarser level and its own values, so its symbols do not depend on which worker made them): the
-    /// first error in tile order, and what `beside` returns, run on this thread meanwhile.
-    fn code<T>(&self, workers: &mut [Worker], beside: impl FnOnce() -> T) -> (Result<()>, T) {
+    /// Quantises the row's tiles in closed loop, each worker taking the next tile as it comes free
+    /// ([`super::deal`]: a tile reads only the coarser level and its own values, so its symbols do not
+    /// depend on which worker made them), each tile's slot in `slots` saying where it went: the first error
+    /// in tile order, and what `beside` returns, run on this thread meanwhile.
+    fn code<T>(
+        &self,
+        workers: &mut [Worker],
+        slots: &mut Vec<TileSlot>,
+        beside: impl FnOnce() -> T,
+    ) -> (Result<()>, T) {
         let tiles = self.inputs.header.levels[self.inputs.lk].tiles_x;
-        let count = u32::try_from(workers.len()).unwrap_or(u32::MAX).max(1);
-        let per = tiles.div_ceil(count).max(1);
-        for (i, wk) in (0u32..).zip(workers.iter_mut()) {
-            let a = i.saturating_mul(per).min(tiles);
-            wk.tiles = a..a.saturating_add(per).min(tiles);
+        slots.clear();
+        slots.resize(tiles as usize, TileSlot::default());
+        for wk in workers.iter_mut() {
+            wk.syms.clear();
+            wk.ctxs.clear();
+            wk.rec.clear();
+            wk.errors.worst = 0.0;
+            wk.errors.lo_hi = (i32::MAX, i32::MIN);
         }
-        if workers.iter().filter(|wk| !wk.tiles.is_empty()).count() <= 1 {
-            let b = beside();
-            return (workers.iter_mut().try_for_each(|wk| self.code_run(wk)), b);
-        }
-        std::thread::scope(|s| {
-            let handles: Vec<_> = workers
-                .iter_mut()
-                .map(|wk| s.spawn(move || self.code_run(wk)))
-                .collect();
-            let b = beside();
-            (
-                super::join_in_order(handles, "a tile coding thread panicked"),
-                b,
-            )
-        })
+        super::deal::deal(
+            slots,
+            workers,
+            |wk, tx, slot| self.code_tile(wk, tx, slot),
+            beside,
+            "a tile coding thread panicked",
+        )
     }
 
-    /// The worker's run of tiles, in order.
-    fn code_run(&self, wk: &mut Worker) -> Result<()> {
+    /// Tile `tx` of the row, appended to the worker's buffers; `slot` says where.
+    fn code_tile(&self, wk: &mut Worker, tx: usize, slot: &mut TileSlot) -> Result<()> {
         let row = &self.inputs;
         let (lk, ty, thu) = (row.lk, self.ty, row.th);
         let w = row.header.levels[lk].width as usize;
-        wk.syms.clear();
-        wk.ctxs.clear();
-        wk.rec.clear();
-        wk.errors.sq.clear();
-        wk.errors.worst = 0.0;
-        wk.errors.lo_hi = (i32::MAX, i32::MIN);
-        for tx in wk.tiles.clone() {
-            let (x0, tw) = row.tile(wk, tx);
-            let (at, nn) = (wk.syms.len(), tw * thu);
-            wk.syms.resize(at + nn, 0);
-            wk.ctxs.resize(at + nn, 0);
-            wk.rec.resize(at + nn, 0);
-            codec::quantise(
-                self.model,
-                &wk.u,
-                (tw, thu),
-                &wk.tv,
-                &mut wk.scratch,
-                (&mut wk.syms[at..], &mut wk.ctxs[at..]),
-                &mut wk.rec[at..],
+        let tx = u32::try_from(tx).expect("tile columns fit u32");
+        let (x0, tw) = row.tile(wk, tx);
+        let (at, nn) = (wk.syms.len(), tw * thu);
+        wk.syms.resize(at + nn, 0);
+        wk.ctxs.resize(at + nn, 0);
+        wk.rec.resize(at + nn, 0);
+        codec::quantise(
+            self.model,
+            &wk.u,
+            (tw, thu),
+            &wk.tv,
+            &mut wk.scratch,
+            (&mut wk.syms[at..], &mut wk.ctxs[at..]),
+            &mut wk.rec[at..],
+        )
+        .map_err(|e| {
+            Error::param(
+                Param::MaxError,
+                format!("{} m: level {lk} tile ({tx}, {ty}): {e}", row.header.max_error),
             )
-            .map_err(|e| {
-                Error::param(
-                    Param::MaxError,
-                    format!("{} m: level {lk} tile ({tx}, {ty}): {e}", row.header.max_error),
-                )
-            })?;
-            codec::count(&mut wk.counts, &wk.syms[at..], &wk.ctxs[at..]);
-            let mut sq = 0.0;
-            for (r, rec) in wk.rec[at..].chunks_exact(tw).enumerate() {
-                let src = &row.band[r * w + x0 as usize..r * w + x0 as usize + tw];
-                for (&k, &h) in rec.iter().zip(src) {
-                    #[expect(clippy::cast_possible_truncation, reason = "heights are f32")]
-                    let dec = (f64::from(k) * row.quant.q) as f32;
-                    let e = f64::from(dec) - f64::from(h);
-                    sq += e * e;
-                    let er = &mut wk.errors;
-                    er.worst = er.worst.max(e.abs());
-                    er.lo_hi = (er.lo_hi.0.min(k), er.lo_hi.1.max(k));
-                }
+        })?;
+        codec::count(&mut wk.counts, &wk.syms[at..], &wk.ctxs[at..]);
+        let mut sq = 0.0;
+        for (r, rec) in wk.rec[at..].chunks_exact(tw).enumerate() {
+            let src = &row.band[r * w + x0 as usize..r * w + x0 as usize + tw];
+            for (&k, &h) in rec.iter().zip(src) {
+                #[expect(clippy::cast_possible_truncation, reason = "heights are f32")]
+                let dec = (f64::from(k) * row.quant.q) as f32;
+                let e = f64::from(dec) - f64::from(h);
+                sq += e * e;
+                let er = &mut wk.errors;
+                er.worst = er.worst.max(e.abs());
+                er.lo_hi = (er.lo_hi.0.min(k), er.lo_hi.1.max(k));
             }
-            wk.errors.sq.push(sq);
         }
+        *slot = TileSlot {
+            worker: wk.id,
+            at,
+            sq,
+        };
         Ok(())
     }
 }
@@ -412,7 +420,8 @@ pub(super) fn code_levels(
     );
     let tile = header.tile;
     let (mut band, mut band_next) = (Vec::new(), Vec::new());
-    let mut workers: Vec<Worker> = (0..super::threads()).map(|_| Worker::new(tile)).collect();
+    let mut slots = Vec::new();
+    let mut workers: Vec<Worker> = (0..super::threads()).map(|id| Worker::new(id, tile)).collect();
     let new_coarse = || CoarseRows {
         rows: Vec::new(),
         first: 0,
@@ -428,6 +437,7 @@ pub(super) fn code_levels(
         worst: 0.0,
         worst_coarse: 0.0,
         lo_hi: (i32::MAX, i32::MIN),
+        _recon: None,
     };
     let mut files: Vec<Option<TempFile>> = (0..n).map(|_| None).collect();
     let mut recon_prev: Option<TempFile> = None;
@@ -534,7 +544,7 @@ pub(super) fn code_levels(
                     ty,
                     model: &model,
                 };
-                let (coded_row, (wrote, read_row)) = row.code(&mut workers, || {
+                let (coded_row, (wrote, read_row)) = row.code(&mut workers, &mut slots, || {
                     let wrote = write(&rows_out, &syms_out);
                     let read_row = if ty + 1 < dims.tiles_y {
                         read(ty + 1, &mut band_next, &mut coarse_next)
@@ -549,30 +559,29 @@ pub(super) fn code_levels(
                 // The tiles in order, as one thread would have written them.
                 rows_out.resize(thu * w, 0i32);
                 syms_out.clear();
-                for wk in &workers {
-                    let mut at = 0;
-                    for tx in wk.tiles.clone() {
-                        let (x0, _, tw, _) = header.tile_rect(lk, tx, ty);
-                        let (tw, nn) = (tw as usize, tw as usize * thu);
-                        syms_out.extend_from_slice(bytemuck::cast_slice(&wk.syms[at..at + nn]));
-                        syms_out.extend_from_slice(&wk.ctxs[at..at + nn]);
-                        for r in 0..thu {
-                            let o = r * w + x0 as usize;
-                            rows_out[o..o + tw].copy_from_slice(&wk.rec[at + r * tw..at + (r + 1) * tw]);
-                        }
-                        at += nn;
+                for (tx, slot) in (0u32..).zip(&slots) {
+                    let (wk, at) = (&workers[slot.worker], slot.at);
+                    let (x0, _, tw, _) = header.tile_rect(lk, tx, ty);
+                    let (tw, nn) = (tw as usize, tw as usize * thu);
+                    syms_out.extend_from_slice(bytemuck::cast_slice(&wk.syms[at..at + nn]));
+                    syms_out.extend_from_slice(&wk.ctxs[at..at + nn]);
+                    for r in 0..thu {
+                        let o = r * w + x0 as usize;
+                        rows_out[o..o + tw].copy_from_slice(&wk.rec[at + r * tw..at + (r + 1) * tw]);
                     }
                 }
                 for wk in &workers {
                     let e = &wk.errors;
                     if lk == 0 {
                         coded.lo_hi = (coded.lo_hi.0.min(e.lo_hi.0), coded.lo_hi.1.max(e.lo_hi.1));
-                        // Tile by tile in tile order, whatever the number of workers.
-                        coded.sq = e.sq.iter().fold(coded.sq, |a, &b| a + b);
                         coded.worst = coded.worst.max(e.worst);
                     } else {
                         coded.worst_coarse = coded.worst_coarse.max(e.worst);
                     }
+                }
+                if lk == 0 {
+                    // Tile by tile in tile order, whatever the number of workers.
+                    coded.sq = slots.iter().fold(coded.sq, |a, t| a + t.sq);
                 }
                 std::mem::swap(&mut band, &mut band_next);
                 std::mem::swap(&mut coarse, &mut coarse_next);
@@ -594,6 +603,7 @@ pub(super) fn code_levels(
         }
     }
     coded.syms = files.into_iter().flatten().collect();
+    coded._recon = recon_prev;
     Ok(coded)
 }
 
@@ -688,41 +698,32 @@ impl Coded {
     }
 }
 
-/// A tile row's payloads, in order, coded in parallel (a payload does not depend on which thread made it),
-/// and what `beside` returns, run on this thread meanwhile.
+/// A tile row's payloads, in order, coded in parallel (each encoder taking the next tile as it comes
+/// free, [`super::deal`]: a payload does not depend on which thread made it), and what `beside` returns,
+/// run on this thread meanwhile.
 fn encode_row<T>(
     tables: Option<&Tables>,
     encoders: &mut [Encoder],
     tiles: &[(Vec<i32>, Vec<u8>)],
     beside: impl FnOnce() -> T,
 ) -> (std::io::Result<Vec<Vec<u8>>>, T) {
-    let per = tiles.len().div_ceil(encoders.len()).max(1);
-    std::thread::scope(|s| {
-        let handles: Vec<_> = tiles
-            .chunks(per)
-            .zip(encoders.iter_mut())
-            .map(|(chunk, enc)| {
-                s.spawn(move || {
-                    chunk
-                        .iter()
-                        .map(|(syms, ctxs)| match tables {
-                            Some(t) => Ok(codec::encode_rans(t, syms, ctxs)),
-                            None => codec::encode_planes(enc, syms),
-                        })
-                        .collect::<std::io::Result<Vec<_>>>()
-                })
-            })
-            .collect();
-        let b = beside();
-        let all = (|| {
-            let mut all = Vec::with_capacity(tiles.len());
-            for h in handles {
-                all.extend(h.join().expect("a tile encoder thread panicked")?);
-            }
-            Ok(all)
-        })();
-        (all, b)
-    })
+    let mut payloads = vec![Vec::new(); tiles.len()];
+    let encode = |enc: &mut Encoder, i: usize, out: &mut Vec<u8>| {
+        let (syms, ctxs) = &tiles[i];
+        *out = match tables {
+            Some(t) => codec::encode_rans(t, syms, ctxs),
+            None => codec::encode_planes(enc, syms)?,
+        };
+        Ok(())
+    };
+    let (r, b) = super::deal::deal(
+        &mut payloads,
+        encoders,
+        encode,
+        beside,
+        "a tile encoder thread panicked",
+    );
+    (r.map(|()| payloads), b)
 }
 
 /// The residual steps of each level, finest first: level 0 on its lattice gets the odd step 2N + 1 with

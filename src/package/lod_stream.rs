@@ -16,7 +16,8 @@
 //!   row plus the row's running sum, and each max-pyramid row is written as soon as its two finer rows are;
 //! - within a band, every level's rows are shared among the cores in runs of rows (a row's errors,
 //!   closed cells' maxima and half-open cells' sums read only the band), then each level folds its rows
-//!   in order (its state is its own), the levels shared among the cores;
+//!   in order (its state is its own), on a thread of its own while the next band is loaded and its rows
+//!   worked (`bands`);
 //! - last, the CRC-32 trailer over the file read back in chunks, and the rename into place.
 //!
 //! Memory: O(width) per level (a few rows, and a band's rows of cells), plus the tile cache, one band of
@@ -37,11 +38,12 @@ use crate::package::{CacheSplit, Package, TileCache};
 use crate::progress::{Meter, Progress};
 use crate::{Error, Result};
 
+mod bands;
 mod file;
 mod rows;
 use file::write_at;
 pub(super) use file::{lay_out_file, write_tables};
-use rows::{par_rows, RowOut, RowView};
+use rows::{RowOut, RowView};
 
 /// The package's bytes (an estimate: its size over the bands) the sweeps read between two drops of its
 /// mapped pages ([`Package::trim`]).
@@ -55,9 +57,6 @@ pub(super) struct Level {
     ke: u32,
     /// Values per level-k row buffer: level-k samples 0 ..= ((width - 1) >> ke) + 1.
     row_len: usize,
-    /// The band's level-k rows `j0 ..` (row_len values each, metres as f64, clamped as `Pyramid::at`).
-    band: Vec<f64>,
-    j0: i64,
     /// E, and the first non-finite error met (sweep 1).
     pub(super) e_max: f32,
     bad: Option<(u32, u32, f32)>,
@@ -65,8 +64,6 @@ pub(super) struct Level {
     pub(super) cw: u32,
     pub(super) ch: u32,
     pub(super) sw: u32,
-    /// The band's rows' shares of the work that reads only the band ([`RowOut`]), one per data row.
-    outs: Vec<RowOut>,
     /// The current closed cell row and its maxima so far.
     pub(super) cur: u32,
     pub(super) acc: Vec<f32>,
@@ -107,14 +104,11 @@ impl Level {
             s: k.min(30),
             ke,
             row_len: ((width - 1) >> ke) as usize + 2,
-            band: Vec::new(),
-            j0: 0,
             e_max: 0.0,
             bad: None,
             cw: 0,
             ch: 0,
             sw: 0,
-            outs: Vec::new(),
             cur: 0,
             acc: Vec::new(),
             sums: Vec::new(),
@@ -174,59 +168,12 @@ impl Level {
         at
     }
 
-    /// Level k's height at (a, b) as [`crate::bake::pyramid::Pyramid::at`] reads it, from the cache.
-    fn height(cache: &TileCache, last: u32, k: u32, a: i64, b: i64) -> f64 {
-        let (level, a, b) = if k <= last {
-            (k, a, b)
-        } else {
-            let s = (k - last).min(40);
-            (last, a.saturating_mul(1 << s), b.saturating_mul(1 << s))
-        };
-        let h = cache
-            .height(level as usize, a, b)
-            .expect("the band's tiles were made resident before reading them");
-        f64::from(h)
-    }
-
-    /// Copies the level-k rows band rows `y0 .. y1` read (j = y >> ke and j + 1) out of the cache.
-    fn load_band(&mut self, cache: &TileCache, last: u32, y0: u32, y1: u32) {
-        let (j0, j1) = (i64::from(y0 >> self.ke), i64::from((y1 - 1) >> self.ke) + 1);
-        self.j0 = j0;
-        self.band.clear();
-        if self.k > last {
-            for b in j0..=j1 {
-                for a in 0..self.row_len as i64 {
-                    self.band.push(Self::height(cache, last, self.k, a, b));
-                }
-            }
-            return;
-        }
-        // A data level: whole tile rows at a time, clamped to its edges as `Self::height` reads them.
-        let level = self.k as usize;
-        let d = cache.package().header().levels[level];
-        for b in j0..=j1 {
-            let y = u32::try_from(b.clamp(0, i64::from(d.height) - 1)).expect("clamped into the level");
-            let start = self.band.len();
-            let mut x = 0;
-            while x < d.width && self.band.len() - start < self.row_len {
-                let (_, seg) = cache
-                    .row_segment(level, x, y)
-                    .expect("the band's tiles were made resident before reading them");
-                let seg = &seg[..seg.len().min(self.row_len - (self.band.len() - start))];
-                self.band
-                    .extend(seg.iter().map(|&v| f64::from(cache.package().metres(v))));
-                x += u32::try_from(seg.len()).expect("a tile row fits u32");
-            }
-            let edge = self.band[self.band.len() - 1];
-            self.band.resize(start + self.row_len, edge);
-        }
-    }
-
-    /// What the rows' work reads of the level: its band and its cells.
-    fn view(&self) -> RowView<'_> {
+    /// What the rows' work reads of the level but its band: its shifts, cells and constants (fixed for a
+    /// sweep), the band left empty.
+    fn shape(&self) -> RowView<'static> {
         RowView {
-            band: &self.band,
-            j0: self.j0,
+            band: &[],
+            j0: 0,
             row_len: self.row_len,
             ke: self.ke,
             s: self.s,
@@ -415,13 +362,12 @@ fn fold_max(acc: &mut [f32], row: &[f32]) {
     }
 }
 
-/// The two sweeps' state over a package: its band cache, the levels and one band of level-0 heights.
+/// The two sweeps' state over a package: its band cache and decoders, and the levels.
 pub(super) struct Sweep<'p> {
     pub(super) cache: TileCache,
     /// One tile decoder per thread, for the bands' tiles.
     decoders: Vec<TileDecoder>,
     pub(super) levels: Vec<Level>,
-    h0: Vec<f32>,
     pub(super) meter: Meter<'p>,
     pub(super) width: u32,
     pub(super) height: u32,
@@ -466,7 +412,6 @@ impl<'p> Sweep<'p> {
             cache,
             decoders,
             levels: ks.map(|k| Level::new(k, width, p)).collect(),
-            h0: Vec::new(),
             meter: progress.task("baking LOD tables, bands", 2 * u64::from(bands)),
             width,
             height,
@@ -487,8 +432,7 @@ impl<'p> Sweep<'p> {
                 lv.sweep_max(outs);
                 Ok(())
             },
-            // A row's maximum folded into E: too little to share.
-            (false, |e| Error::io(&what, "cannot bake", e)),
+            |e| Error::io(&what, "cannot bake", e),
         )?;
         if let Some((x, y, e)) = self.levels.iter().find_map(|l| l.bad) {
             return Err(bad_error(x as usize, y as usize, e));
@@ -507,67 +451,10 @@ impl<'p> Sweep<'p> {
                     .zip(outs)
                     .try_for_each(|(y, out)| lv.sweep_tables(file, out, y, height))
             },
-            (true, |e| Error::io(what, "cannot write", e)),
+            |e| Error::io(what, "cannot write", e),
         )
     }
 
-    /// One pass over the terrain a band of level-0 tile rows at a time: each band decoded once, then for
-    /// every level `pick` takes, `row(level, row heights, y, scratch, out)` for each of the band's rows
-    /// (every level's rows shared among the cores, [`par_rows`]), then `fold(level, outs, y0)` over them
-    /// in order (the levels shared among the cores if `parallel`; `err` makes its errors).
-    fn sweep_bands(
-        &mut self,
-        pick: impl Fn(&Level) -> bool,
-        row: impl Fn(&RowView<'_>, &[f32], u32, &mut Vec<f32>, &mut RowOut) + Sync,
-        fold: impl Fn(&mut Level, &[RowOut], u32) -> std::io::Result<()> + Sync,
-        (parallel, err): (bool, impl Fn(std::io::Error) -> Error),
-    ) -> Result<()> {
-        for band in 0..self.bands {
-            let (y0, y1) = load_band(
-                &mut self.cache,
-                &mut self.decoders,
-                &mut self.levels,
-                &mut self.h0,
-                band,
-                self.last,
-            )?;
-            // The package's mapped pages are dropped once the bands since the last time read about
-            // TRIM_BYTES of it, and after the last band: dropping them costs every core a TLB flush, too
-            // much for each band of a small package, and the pages held stay under a fixed bound.
-            self.untrimmed += self.band_bytes;
-            if self.untrimmed >= TRIM_BYTES || band + 1 == self.bands {
-                self.cache.package().trim();
-                self.untrimmed = 0;
-            }
-            let h0 = &self.h0;
-            let mut picked: Vec<&mut Level> = self.levels.iter_mut().filter(|l| pick(l)).collect();
-            let mut outs: Vec<Vec<RowOut>> =
-                picked.iter_mut().map(|lv| std::mem::take(&mut lv.outs)).collect();
-            par_rows(
-                picked.iter().map(|lv| lv.view()).zip(outs.iter_mut()).collect(),
-                (h0, self.width),
-                (y0, y1),
-                &row,
-            );
-            for (lv, o) in picked.iter_mut().zip(outs) {
-                lv.outs = o;
-            }
-            let fold_one = |lv: &mut Level| {
-                let outs = std::mem::take(&mut lv.outs);
-                let r = fold(lv, &outs, y0);
-                lv.outs = outs;
-                r
-            };
-            if parallel {
-                par_levels(&mut picked, fold_one)
-            } else {
-                picked.iter_mut().try_for_each(|lv| fold_one(lv))
-            }
-            .map_err(&err)?;
-            self.meter.inc(1);
-        }
-        Ok(())
-    }
 }
 
 /// Bakes `package`'s LOD tables for `params` into the cache file `path` under `key` (written to a
@@ -602,97 +489,3 @@ pub(crate) fn bake_to_file(
     guard.persist(path)
 }
 
-/// Makes band `band`'s tiles resident (level-0 tile row `band`, and each level's rows its errors read),
-/// and copies its level-0 heights into `h0` and each level's rows into its state; returns the band's
-/// data rows.
-fn load_band(
-    cache: &mut TileCache,
-    decoders: &mut [TileDecoder],
-    levels: &mut [Level],
-    h0: &mut Vec<f32>,
-    band: u32,
-    last: u32,
-) -> Result<(u32, u32)> {
-    let header = cache.package().header().clone();
-    let (width, t) = (header.width, header.tile);
-    let y0 = band * t;
-    let y1 = (y0 + t).min(header.height);
-    cache.begin_frame();
-    let mut all = cache.ensure_rect_parallel(
-        0,
-        (0, i64::from(y0), i64::from(width), i64::from(y1)),
-        decoders,
-    )?;
-    for lv in levels.iter() {
-        let (level, rect) = if lv.k <= last {
-            let d = header.levels[lv.k as usize];
-            let j0 = i64::from(y0 >> lv.ke);
-            let j1 = i64::from((y1 - 1) >> lv.ke) + 2;
-            (lv.k, (0, j0, i64::from(d.width), j1))
-        } else {
-            let d = header.levels[last as usize];
-            (last, (0, 0, i64::from(d.width), i64::from(d.height)))
-        };
-        all &= cache.ensure_rect_parallel(level as usize, rect, decoders)?;
-    }
-    assert!(
-        all,
-        "the bake's tile cache holds a band's tiles (sized from the widths)"
-    );
-    h0.clear();
-    for y in y0..y1 {
-        let mut x = 0;
-        while x < width {
-            let (x0, seg) = cache
-                .row_segment(0, x, y)
-                .expect("the band's level-0 tiles are resident");
-            debug_assert_eq!(x0, x);
-            h0.extend(seg.iter().map(|&v| cache.package().metres(v)));
-            x += u32::try_from(seg.len()).expect("a tile row fits u32");
-        }
-    }
-    for lv in levels.iter_mut() {
-        lv.load_band(cache, last, y0, y1);
-    }
-    Ok((y0, y1))
-}
-
-/// Runs `f` over every level, the levels shared among the cores (each level's state is its own, so the
-/// result does not depend on the thread count).
-fn par_levels(
-    levels: &mut [&mut Level],
-    f: impl Fn(&mut Level) -> std::io::Result<()> + Sync,
-) -> std::io::Result<()> {
-    let threads = std::thread::available_parallelism()
-        .map_or(1, usize::from)
-        .clamp(1, 16);
-    if threads == 1 || levels.len() <= 1 {
-        return levels.iter_mut().try_for_each(|l| f(l));
-    }
-    // A level's work is about its cells (a finer level codes four times those of the next coarser one,
-    // so the finest of them can weigh as much as all the others): the costliest first, each to the
-    // least loaded thread.
-    let cost = |l: &Level| u64::from(l.cw) + u64::from(l.sw) + 64;
-    let mut order: Vec<&mut Level> = levels.iter_mut().map(|l| &mut **l).collect();
-    order.sort_by_key(|l| std::cmp::Reverse(cost(l)));
-    let n = threads.min(order.len());
-    let mut shares: Vec<(u64, Vec<&mut Level>)> = (0..n).map(|_| (0, Vec::new())).collect();
-    for l in order {
-        let least = shares
-            .iter_mut()
-            .min_by_key(|(load, _)| *load)
-            .expect("at least one share");
-        least.0 += cost(l);
-        least.1.push(l);
-    }
-    let f = &f;
-    std::thread::scope(|s| {
-        let handles: Vec<_> = shares
-            .into_iter()
-            .map(|(_, mut share)| s.spawn(move || share.iter_mut().try_for_each(|l| f(l))))
-            .collect();
-        handles
-            .into_iter()
-            .try_for_each(|h| h.join().expect("a LOD table level panicked"))
-    })
-}

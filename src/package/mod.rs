@@ -24,6 +24,7 @@
 pub mod cache;
 pub mod codec;
 pub mod color_blocks;
+mod deal;
 pub mod etc2;
 mod etc2_planar;
 mod etc2_th;
@@ -60,18 +61,4 @@ pub(crate) fn threads() -> usize {
     std::thread::available_parallelism()
         .map_or(1, usize::from)
         .min(8)
-}
-
-/// Joins a bake's scoped workers in the order they were spawned: the first error in that order, so a
-/// bake reports the same tile whichever thread finished first. A worker panics only on a broken
-/// invariant, and `what` says which workers it was.
-pub(crate) fn join_in_order(
-    handles: Vec<std::thread::ScopedJoinHandle<'_, crate::Result<()>>>,
-    what: &str,
-) -> crate::Result<()> {
-    handles
-        .into_iter()
-        .map(|h| h.join().unwrap_or_else(|_| panic!("{what}")))
-        .collect::<crate::Result<Vec<()>>>()
-        .map(drop)
 }

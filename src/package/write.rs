@@ -14,7 +14,7 @@ use std::path::Path;
 use super::codec::Encoder;
 use super::format::{CodecKind, Header, TileEntry};
 use super::levels::{self, Quantiser};
-use super::spill::{on_lattice, Spilled, TempFile};
+use super::spill::{on_lattice, Removing, Spilled, TempFile};
 use crate::progress::Progress;
 use crate::source::{Resident, RowSource};
 use crate::{Error, Param, Result};
@@ -225,7 +225,8 @@ pub fn bake_source(
     header.max_error = max_error;
     let steps = levels::steps(header.levels.len(), quant, max_error);
     let mut coded = levels::code_levels(&mut spilled, &header, quant, &steps, out)?;
-    drop(spilled);
+    let mut removing = Removing::default();
+    removing.beside(spilled);
     // The decoded level 0's range.
     header.range = coded.range(q);
     header.models.clone_from(&coded.models);
@@ -260,7 +261,7 @@ pub fn bake_source(
         Ok(())
     })?;
     let (sq, worst, coarse_worst) = (coded.sq, coded.worst, coded.worst_coarse);
-    drop(coded);
+    removing.beside(coded);
     header.tiles = table;
     let samples = header.samples();
     #[expect(clippy::cast_precision_loss, reason = "ratios for reports")]

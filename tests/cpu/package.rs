@@ -218,6 +218,24 @@ fn damaged_packages_are_errors_naming_the_tile() {
             let reason = format_reason(p.to_heightmap());
             let name = format!("level {level} tile ({}, {})", t.0, t.1);
             assert!(reason.contains(&name), "{reason} should name {name}");
+            // The LOD tables' sweeps over the heights (band by band, a band decoded while the one
+            // before is worked) name the same tile.
+            let dir = path.with_extension("lod-heights");
+            let _ = std::fs::remove_dir_all(&dir);
+            let params = clipsat::bake::BakeParams {
+                p: 8,
+                levels: 6,
+                synth_levels: 0,
+                g0: 10.0,
+            };
+            let reason = format_reason(clipsat::package::lod_cache::bake_lod_package(
+                &p,
+                &params,
+                &dir,
+                clipsat::Progress::default(),
+            ));
+            assert!(reason.contains(&name), "{reason} should name {name}");
+            let _ = std::fs::remove_dir_all(&dir);
         }
     }
     // A flipped byte in a SAT LOD table tile: the heights decode; the tables' build names the tile.

@@ -97,16 +97,19 @@ pub(super) fn band_row(h0: &[f32], width: u32, r: u32) -> &[f32] {
 /// Data rows a job of [`par_rows`] takes of one level.
 const JOB_ROWS: usize = 8;
 
-/// Runs `f` over every data row `y0 .. y1` of every level into the level's [`RowOut`]s, the band's rows
-/// dealt in runs of [`JOB_ROWS`] among the cores, each run at every level: every row costs about the same
-/// at every level (an error a sample), so the cores are loaded evenly whatever the number of levels, and
-/// each row's result depends on the row alone.
-pub(super) fn par_rows(
+/// Runs `f` over every data row `y0 .. y1` of every level into the level's [`RowOut`]s, in jobs of a run
+/// of [`JOB_ROWS`] rows of one level, each core taking the next job as it comes free
+/// ([`crate::package::deal`]): the cores finish together even while the fold of the band before takes
+/// a share of one of them, and each row's result depends on the row alone. The jobs come a run of rows
+/// at a time, every level's share of it in turn, so a core reads the same heights from its own cache.
+/// Returns what `beside` returns, run on this thread meanwhile.
+pub(super) fn par_rows<T>(
     levels: Vec<(RowView<'_>, &mut Vec<RowOut>)>,
     (h0, width): (&[f32], u32),
     (y0, y1): (u32, u32),
     f: &(impl Fn(&RowView<'_>, &[f32], u32, &mut Vec<f32>, &mut RowOut) + Sync),
-) {
+    beside: impl FnOnce() -> T,
+) -> T {
     let rows = (y1 - y0) as usize;
     let chunks = rows.div_ceil(JOB_ROWS);
     let mut per_level: Vec<_> = levels
@@ -119,39 +122,23 @@ pub(super) fn par_rows(
                 .map(move |(first, chunk)| (view, first, chunk))
         })
         .collect();
-    // Run by run of rows, every level's share of a run after the other: a core reads its runs of the
-    // band's heights once for all the levels, from its own cache.
-    let mut jobs: Vec<(RowView<'_>, u32, &mut [RowOut])> = Vec::new();
+    let mut jobs: Vec<Job<'_, '_>> = Vec::new();
     for _ in 0..chunks {
         jobs.extend(per_level.iter_mut().filter_map(Iterator::next));
     }
-    {
-        let run = |share: Vec<(RowView<'_>, u32, &mut [RowOut])>| {
-            let mut errs = Vec::new();
-            for (view, first, chunk) in share {
-                for (y, out) in (first..).zip(chunk.iter_mut()) {
-                    f(&view, band_row(h0, width, y - y0), y, &mut errs, out);
-                }
-            }
-        };
-        let threads = crate::package::threads().min(jobs.len());
-        if threads <= 1 {
-            run(jobs);
-        } else {
-            // Each core a run of the band's rows at every level (so the same work each, and its own
-            // heights): jobs come a run of rows at a time.
-            let per_run = jobs.len().div_ceil(chunks.max(1));
-            let runs = threads.min(chunks).max(1);
-            let mut shares: Vec<Vec<_>> = (0..runs).map(|_| Vec::new()).collect();
-            for (i, job) in jobs.into_iter().enumerate() {
-                shares[(i / per_run) * runs / chunks.max(1)].push(job);
-            }
-            let run = &run;
-            std::thread::scope(|s| {
-                for share in shares {
-                    s.spawn(move || run(share));
-                }
-            });
+    // Each worker's errors of a row, reused from job to job.
+    let mut scratch: Vec<Vec<f32>> = (0..crate::package::threads()).map(|_| Vec::new()).collect();
+    let run = |errs: &mut Vec<f32>, _: usize, job: &mut Job<'_, '_>| {
+        let (view, first, chunk) = job;
+        for (y, out) in (*first..).zip(chunk.iter_mut()) {
+            f(view, band_row(h0, width, y - y0), y, errs, out);
         }
-    }
+        Ok::<(), std::convert::Infallible>(())
+    };
+    let what = "a LOD table row thread panicked";
+    let (Ok(()), b) = crate::package::deal::deal(&mut jobs, &mut scratch, run, beside, what);
+    b
 }
+
+/// A job of [`par_rows`]: a level, the first of a run of rows, and the rows' results.
+type Job<'v, 'o> = (RowView<'v>, u32, &'o mut [RowOut]);
