@@ -28,8 +28,9 @@
 //!
 //! A valid file is read through a read-only memory map ([`mapped`]): the tables borrow their ranges of it,
 //! so a large terrain's tables (about 6 B per sample: 300 MB for a 7201^2 mosaic) are never copied into
-//! memory, and the selector trims the pages it touched once per frame ([`LodTables::trim`]). Tables baked in this process stay in
-//! memory; [`bake_lod_mapped`] re-reads them from the file it wrote.
+//! memory, and the pages the queries touch are held within the profile's share
+//! ([`LodTables::limit_resident`]). Tables baked in this process stay in memory; [`bake_lod_mapped`]
+//! re-reads them from the file it wrote.
 
 pub mod horizon;
 pub mod imagery;

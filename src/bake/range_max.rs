@@ -286,8 +286,9 @@ mod tests {
         }
     }
 
-    /// The columns change no answer: every box of a grid whose sides are not powers of two, one cell wide
-    /// and high included, gives the same maximum with and without them, and the same as a scan.
+    /// Every box of a grid whose sides are not powers of two, one cell wide and high included, gives a
+    /// scan's maximum, with the columns held and without. Its columns are too short to be read from them
+    /// ([`COLUMN_SPAN_WINDOWS`]): the rows answer; the next test reads the columns.
     #[test]
     fn columns_give_the_same_maxima() {
         let (w, h) = (13u32, 9u32);

@@ -349,7 +349,7 @@ impl TileCache {
 
     /// [`TileCache::ensure_rect`] with no budget and one decoder per thread, for the LOD tables' bake: the
     /// coarser tiles the rectangle's prediction reads first, then its missing tiles decoded in parallel,
-    /// each decoder taking the next tile as it comes free ([`super::deal`]: a tile's samples do not depend
+    /// each decoder taking the next tile as it comes free (`package::deal`: a tile's samples do not depend
     /// on which decoder made them, and each reads only the coarser level, resident before any starts).
     /// `Ok(false)` when the slots cannot hold them, as there; damage is the first damaged tile's error in
     /// tile order.
