@@ -355,7 +355,15 @@ fn level_surface(l: i32, rel: vec2<f32>) -> DataSurface {
     let gx = mix(mix(z10 - zw0, ze0 - z00, f.x), mix(z11 - zw1, ze1 - z01, f.x), f.y);
     let gy = mix(mix(zn0 - z01, zn1 - z11, f.x), mix(z00 - zs0, z10 - zs1, f.x), f.y);
     out.found = true;
-    out.height = mix(mix(z00, z10, f.x), mix(z01, z11, f.x), f.y);
+    // The height on the drawn triangles (split along the (i, j)-(i+1, j+1) diagonal, as the mesh and the
+    // SAT LOD error tables): a bilinear height differs from the drawn surface by up to a quarter of the
+    // cell's twist, so a block shaded from the vertices beside one shaded from here showed a step, and
+    // the ramp's water line (0 m beside 1 m, as SRTM coasts) filled whole cells: a staircase coast.
+    var dz = vec2<f32>(z11 - z01, z01 - z00);
+    if (f.x >= f.y) {
+        dz = vec2<f32>(z10 - z00, z11 - z10);
+    }
+    out.height = z00 + f.x * dz.x + f.y * dz.y;
     out.normal = vec3<f32>(-gx / (2.0 * g), -gy / (2.0 * g), 1.0);
     // Cells to the margin, on the nearer side of either axis.
     let room = min(u - vec2<f32>(1.0), vec2<f32>(lv.tex.zw) - vec2<f32>(2.0) - u);

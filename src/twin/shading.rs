@@ -14,7 +14,7 @@ use crate::profile::MAX_LEVELS;
 pub struct DataSurface {
     /// The finest ring whose clip region holds the point with a one-sample margin.
     pub level: u32,
-    /// Bilinear height (m).
+    /// Height (m) on the level's drawn triangles (each cell split along its (i, j)-(i+1, j+1) diagonal).
     pub height: f32,
     /// (-dz/dx, -dz/dy, 1): central differences at the cell's corners, bilinearly blended.
     pub normal: [f32; 3],
@@ -213,13 +213,19 @@ fn level_surface(
         mix(z00 - z(0, 2), z10 - z(1, 2), f[0]),
         f[1],
     );
+    // The drawn triangles' height (shaders_gles/clipmap.wgsl `level_surface` says why).
+    let (dzx, dzy) = if f[0] >= f[1] {
+        (z10 - z00, z11 - z10)
+    } else {
+        (z11 - z01, z01 - z00)
+    };
     let room_x = (u[0] - 1.0).min(lv.tex[2] as f32 - 2.0 - u[0]);
     let room_y = (u[1] - 1.0).min(lv.tex[3] as f32 - 2.0 - u[1]);
     let weight = (room_x.min(room_y) / DATA_BLEND).clamp(0.0, 1.0);
     Some((
         DataSurface {
             level: l as u32,
-            height: mix(mix(z00, z10, f[0]), mix(z01, z11, f[0]), f[1]),
+            height: z00 + f[0] * dzx + f[1] * dzy,
             normal: [-gx / (2.0 * g), -gy / (2.0 * g), 1.0],
             weight,
         },

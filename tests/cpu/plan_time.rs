@@ -397,7 +397,8 @@ fn a_new_viewport_tests_kept_blocks_again() {
 /// refinement's at that camera, and the first frame of the leg within 5 % of the latter. A measurement:
 /// `cargo test --release --test cpu plan_time::teleport_goal -- --ignored --nocapture` (minutes).
 /// `CLIPSAT_TELEPORT_EXTRA` adds terrains outside the shared folder (`;`-separated paths, a tile mosaic's
-/// folder among them, read with missing samples at 0 m).
+/// folder among them, read with missing samples at 0 m). `CLIPSAT_TELEPORT_ONLY` keeps the terrains whose
+/// path contains one of its `,`-separated parts (`ps_height,bigtujunga`).
 #[test]
 #[ignore = "a measurement over the shared terrains (minutes)"]
 #[expect(clippy::cast_possible_truncation, reason = "frame numbers under 240")]
@@ -425,7 +426,11 @@ fn teleport_goal() {
         .split(';')
         .filter(|p| !p.is_empty())
         .map(|p| (std::path::PathBuf::from(p), None, Some(0.0)));
+    let only = std::env::var("CLIPSAT_TELEPORT_ONLY").unwrap_or_default();
     for (path, spacing, fill_height) in shared.chain(others) {
+        if !only.is_empty() && !only.split(',').any(|o| path.to_string_lossy().contains(o)) {
+            continue;
+        }
         let name = path
             .file_name()
             .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
