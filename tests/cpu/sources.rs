@@ -547,6 +547,25 @@ fn tiff_nodata_filled_and_geographic_spacing() {
     assert!(hm.heights().iter().all(|h| (0.0..16.0).contains(h)));
     // 1/1200 degree of latitude near 7.99 N is about 92.16 m.
     assert!((hm.spacing() - 92.16).abs() < 0.05, "{}", hm.spacing());
+    // Pixel-is-area: the north-west sample's centre half a pixel in from the tiepoint's corner.
+    let g = hm.geo().expect("a geographic GeoTIFF");
+    let px = 1.0 / 1200.0;
+    assert!(
+        (g.north - (8.0 - 0.5 * px)).abs() < 1e-12 && (g.west - (-6.0 + 0.5 * px)).abs() < 1e-12
+    );
+    assert!(
+        (g.south - (8.0 - 3.5 * px)).abs() < 1e-12
+            && (g.frame_lat - (8.0 - 2.0 * px)).abs() < 1e-12
+    );
+    let five = LoadOptions {
+        spacing: Some(5.0),
+        ..LoadOptions::default()
+    };
+    assert_eq!(
+        source::load(&p, &five).unwrap().geo(),
+        None,
+        "metres given by hand"
+    );
 
     let p = f32_tiff(&dir, "nospacing.tif", 4, 4, &data, false);
     assert_format(load(&p), "TerrainOptions::spacing_m");
@@ -732,6 +751,17 @@ fn geographic_grids_resample_to_square_cells() {
     );
     if let Some(hm) = load_shared("N57E011.hgt", &LoadOptions::default()) {
         assert!((hm.ew_spacing() - 50.0).abs() < 0.1, "{}", hm.ew_spacing());
+        // Placed by its name: sample rows on 57 and 58 N, its metres taken at 57.5 N.
+        let g = hm.geo().expect("an SRTM tile named by its corner");
+        for (a, b) in [
+            (g.south, 57.0),
+            (g.north, 58.0),
+            (g.west, 11.0),
+            (g.east, 12.0),
+            (g.frame_lat, 57.5),
+        ] {
+            assert!((a - b).abs() < 1e-9, "{g:?}");
+        }
     }
 }
 
@@ -768,7 +798,11 @@ fn ascii_grids() {
     assert_format(load(&no_prj), "under 1 cm");
     let with_prj = write(&dir, "geo.asc", deg);
     write(&dir, "geo.prj", br#"GEOGCS["WGS 84",DATUM["WGS_1984"]]"#);
-    let s = load(&with_prj).unwrap().spacing();
+    let hm = load(&with_prj).unwrap();
+    let s = hm.spacing();
+    let g = hm.geo().expect("a grid in degrees");
+    assert_eq!((g.west, g.south), (10.0, 46.5));
+    assert!((g.north - (46.5 + 0.000833333333)).abs() < 1e-12);
     assert!(
         (s - 92.6).abs() < 0.1,
         "3 arc-seconds of latitude at 46.5 N: {s} m"
@@ -1037,6 +1071,13 @@ fn dted_cells() {
         (hm.spacing() - 92.84).abs() < 0.05,
         "{} m N-S",
         hm.spacing()
+    );
+    // The origin is the south-west sample: 60 N, 10 E; 2 rows of 3" north of it.
+    let g = hm.geo().expect("a DTED cell is in degrees");
+    assert_eq!((g.south, g.west), (60.0, 10.0));
+    assert!(
+        (g.north - (60.0 + 6.0 / 3600.0)).abs() < 1e-12
+            && (g.east - (10.0 + 6.0 / 3600.0)).abs() < 1e-12
     );
     // 6 arc-seconds of longitude at 60 N are about as long as 3 of latitude.
     assert!(
