@@ -937,12 +937,15 @@ fn esri_binary_grids() {
         &dir,
         "geo.bil",
         &[0, 1, 0, 2, 0, 3, 0, 4],
-        b"BYTEORDER M\nNROWS 2\nNCOLS 2\nNBITS 16\nULYMAP 34.5\nXDIM 0.000277777777778\nYDIM 0.000277777777778\n",
+        b"BYTEORDER M\nNROWS 2\nNCOLS 2\nNBITS 16\nULXMAP -118\nULYMAP 34.5\nXDIM 0.000277777777778\nYDIM 0.000277777777778\n",
     );
     assert_format(load(&p), "under 1 cm");
     write(&dir, "geo.prj", br#"GEOGCS["WGS 84",DATUM["WGS_1984"]]"#);
     let hm = load(&p).unwrap();
     assert!((hm.spacing() - 30.8).abs() < 0.1, "{} m", hm.spacing());
+    let g = hm.geo().expect("a grid in degrees");
+    assert_eq!((g.north, g.west), (34.5, -118.0));
+    assert!((g.south - (34.5 - 0.000277777777778)).abs() < 1e-12);
     assert!(
         hm.ew_spacing() < hm.spacing() * 0.83,
         "{} m E-W",
@@ -1124,6 +1127,20 @@ fn xyz_grids() {
     // North row first; the void is the mean of its neighbours 1 (west), 3 (east) and 5 (south).
     assert_eq!(hm.heights(), &[1.0, 3.0, 3.0, 4.0, 5.0, 6.0]);
     assert_eq!(hm.voids_filled(), 1);
+    assert_eq!(hm.geo(), None, "in metres");
+    // In degrees (a geographic .prj): the points are the sample centres.
+    write(&dir, "deg.prj", br#"GEOGCS["WGS 84",DATUM["WGS_1984"]]"#);
+    let deg = load(&write(
+        &dir,
+        "deg.xyz",
+        b"10 46 1\n10.5 46 2\n10 46.5 3\n10.5 46.5 4\n",
+    ))
+    .unwrap();
+    let g = deg.geo().expect("a grid in degrees");
+    assert_eq!(
+        (g.west, g.east, g.south, g.north, g.frame_lat),
+        (10.0, 10.5, 46.0, 46.5, 46.25)
+    );
     // Coordinates rounded in the text still find the grid: 1/3 m steps written to the millimetre over 400
     // columns, north row first.
     let mut t = String::new();
