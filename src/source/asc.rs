@@ -6,7 +6,7 @@ use std::path::Path;
 
 use super::{
     check_size, fill_voids, metres_per_degree_latitude, metres_per_degree_longitude, to_f32,
-    LoadOptions,
+    GeoExtent, LoadOptions,
 };
 use crate::{Error, Result};
 use crate::source::Heightmap;
@@ -16,6 +16,8 @@ use crate::source::Heightmap;
 struct Header {
     ncols: Option<u64>,
     nrows: Option<u64>,
+    /// West edge (`xllcorner`) or west column's centre (`xllcenter`), in the grid's units.
+    xll: Option<(f64, bool)>,
     /// South edge (`yllcorner`) or south row's centre (`yllcenter`), in the grid's units.
     yll: Option<(f64, bool)>,
     cellsize: Option<f64>,
@@ -84,9 +86,8 @@ pub(super) fn load(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
         match key.to_ascii_lowercase().as_str() {
             "ncols" => h.ncols = Some(count()?),
             "nrows" => h.nrows = Some(count()?),
-            "xllcorner" | "xllcenter" => {
-                num()?;
-            }
+            "xllcorner" => h.xll = Some((num()?, false)),
+            "xllcenter" => h.xll = Some((num()?, true)),
             "yllcorner" => h.yll = Some((num()?, false)),
             "yllcenter" => h.yll = Some((num()?, true)),
             "cellsize" => h.cellsize = Some(num()?),
@@ -184,9 +185,11 @@ pub(super) fn load(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
         u32::try_from(width).map_err(|_| Error::format(path, "ncols does not fit 32 bits"))?,
         u32::try_from(height).map_err(|_| Error::format(path, "nrows does not fit 32 bits"))?,
     );
+    let cells = (h.dx.or(h.cellsize).unwrap_or(cell), cell);
     Ok(Heightmap::new(path, w, hh, spacing, heights)?
         .with_voids_filled(filled)
-        .with_ew_spacing(ew))
+        .with_ew_spacing(ew)
+        .with_geo(geo_extent(path, cells, (h.xll, h.yll), (w, hh))))
 }
 
 /// Reads the next line of `reader` into `line` (replacing it) and counts it; false at the end.
@@ -204,6 +207,39 @@ pub(super) fn next_line(
     Ok(n > 0)
 }
 
+/// A grid's west or south edge, or (`true`) the centre of its first sample that way, in its units.
+pub(super) type Edge = Option<(f64, bool)>;
+
+/// Whether a `.prj`'s WKT is geographic: `GEOGCS` or `GEOGCRS` with no projection.
+fn geographic_wkt(wkt: &str) -> bool {
+    let wkt = wkt.to_ascii_uppercase();
+    (wkt.contains("GEOGCS") || wkt.contains("GEOGCRS"))
+        && !wkt.contains("PROJCS")
+        && !wkt.contains("PROJCRS")
+}
+
+/// Where a `size` (columns, rows) grid of cell sizes `(dx, dy)` lies, degrees, where a `.prj` beside
+/// `path` is geographic (as [`spacing`] reads it): `ll` is its west and south edges, or (`true`) its
+/// south-west sample's centre; None without them.
+pub(super) fn geo_extent(
+    path: &Path,
+    (dx, dy): (f64, f64),
+    ll: (Edge, Edge),
+    size: (u32, u32),
+) -> Option<GeoExtent> {
+    let (Some(x), Some(y)) = ll else {
+        return None;
+    };
+    let prj = std::fs::read_to_string(path.with_extension("prj")).ok()?;
+    if !geographic_wkt(&prj) {
+        return None;
+    }
+    let centre = |(v, at_centre): (f64, bool), d: f64| if at_centre { v } else { v + 0.5 * d };
+    let (west, south) = (centre(x, dx), centre(y, dy));
+    let north = south + dy * f64::from(size.1.saturating_sub(1));
+    GeoExtent::of_grid((west, north), (dx, dy), size)
+}
+
 /// The (N-S, E-W) spacing in metres from the cell sizes `(dx, dy)`: in degrees (of meridian arc and of
 /// the parallel at the grid's centre) where a `.prj` beside the file is geographic.
 pub(super) fn spacing(
@@ -213,12 +249,7 @@ pub(super) fn spacing(
     rows: u64,
 ) -> Result<(f32, f32)> {
     let prj = std::fs::read_to_string(path.with_extension("prj")).ok();
-    let geographic = prj.as_deref().is_some_and(|wkt| {
-        let wkt = wkt.to_ascii_uppercase();
-        (wkt.contains("GEOGCS") || wkt.contains("GEOGCRS"))
-            && !wkt.contains("PROJCS")
-            && !wkt.contains("PROJCRS")
-    });
+    let geographic = prj.as_deref().is_some_and(geographic_wkt);
     #[expect(clippy::cast_precision_loss, reason = "a row count, far below 2^53")]
     let rows = rows as f64;
     if geographic {

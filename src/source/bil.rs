@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use super::{check_size, fill_voids, height, LoadOptions, RowGrid};
+use super::{check_size, fill_voids, height, GeoExtent, LoadOptions, RowGrid};
 use crate::{Error, Result};
 use crate::source::Heightmap;
 
@@ -45,10 +45,13 @@ struct Keys {
     totalrowbytes: Option<String>,
     nodata: Option<String>,
     /// GridFloat's lower-left corner and cell size.
+    xllcorner: Option<String>,
+    xllcenter: Option<String>,
     yllcorner: Option<String>,
     yllcenter: Option<String>,
     cellsize: Option<String>,
     /// BIL's upper-left sample centre and cell sizes.
+    ulxmap: Option<String>,
     ulymap: Option<String>,
     xdim: Option<String>,
     ydim: Option<String>,
@@ -86,9 +89,12 @@ fn read_keys(path: &Path) -> Result<Keys> {
             "skipbytes" => &mut k.skipbytes,
             "totalrowbytes" => &mut k.totalrowbytes,
             "nodata" | "nodata_value" => &mut k.nodata,
+            "xllcorner" => &mut k.xllcorner,
+            "xllcenter" => &mut k.xllcenter,
             "yllcorner" => &mut k.yllcorner,
             "yllcenter" => &mut k.yllcenter,
             "cellsize" => &mut k.cellsize,
+            "ulxmap" => &mut k.ulxmap,
             "ulymap" => &mut k.ulymap,
             "xdim" => &mut k.xdim,
             "ydim" => &mut k.ydim,
@@ -262,14 +268,27 @@ fn layout(path: &Path, len: u64, k: &Keys, opts: &LoadOptions) -> Result<Layout>
 }
 
 /// The (N-S, E-W) spacing: [`LoadOptions::spacing`], else the header's cell sizes (in degrees where a
-/// `.prj` says the grid is geographic, as for ASCII grids).
-fn spacing(path: &Path, k: &Keys, rows: u32, opts: &LoadOptions) -> Result<(f32, f32)> {
+/// `.prj` says the grid is geographic, as for ASCII grids); and then where the grid lies, degrees.
+fn spacing(
+    path: &Path,
+    k: &Keys,
+    (cols, rows): (u32, u32),
+    opts: &LoadOptions,
+) -> Result<(f32, f32, Option<GeoExtent>)> {
     if let Some(s) = opts.spacing {
-        return Ok((s, s));
+        return Ok((s, s, None));
     }
     let num =
         |key: &str, v: &Option<String>| v.as_deref().map(|v| number(path, key, v)).transpose();
-    let (dx, dy, yll) = if let Some(c) = num("cellsize", &k.cellsize)? {
+    let (dx, dy, xll, yll) = if let Some(c) = num("cellsize", &k.cellsize)? {
+        let xll = match (
+            num("xllcorner", &k.xllcorner)?,
+            num("xllcenter", &k.xllcenter)?,
+        ) {
+            (Some(x), _) => Some((x, false)),
+            (None, Some(x)) => Some((x, true)),
+            (None, None) => None,
+        };
         let yll = match (
             num("yllcorner", &k.yllcorner)?,
             num("yllcenter", &k.yllcenter)?,
@@ -278,7 +297,7 @@ fn spacing(path: &Path, k: &Keys, rows: u32, opts: &LoadOptions) -> Result<(f32,
             (None, Some(y)) => Some((y, true)),
             (None, None) => None,
         };
-        (c, c, yll)
+        (c, c, xll, yll)
     } else {
         let (Some(dx), Some(dy)) = (num("xdim", &k.xdim)?, num("ydim", &k.ydim)?) else {
             return Err(Error::format(
@@ -289,7 +308,8 @@ fn spacing(path: &Path, k: &Keys, rows: u32, opts: &LoadOptions) -> Result<(f32,
         };
         // ULYMAP is the north-west sample's centre: the south row's centre lies rows - 1 cells south.
         let yll = num("ulymap", &k.ulymap)?.map(|y| (y - f64::from(rows - 1) * dy, true));
-        (dx, dy, yll)
+        let xll = num("ulxmap", &k.ulxmap)?.map(|x| (x, true));
+        (dx, dy, xll, yll)
     };
     if !(dy.is_finite() && dy > 0.0 && dx.is_finite() && dx > 0.0) {
         return Err(Error::format(
@@ -297,7 +317,9 @@ fn spacing(path: &Path, k: &Keys, rows: u32, opts: &LoadOptions) -> Result<(f32,
             format!("cell size {dx} x {dy} is not positive"),
         ));
     }
-    super::asc::spacing(path, (dx, dy), yll, u64::from(rows))
+    let (ns, ew) = super::asc::spacing(path, (dx, dy), yll, u64::from(rows))?;
+    let geo = super::asc::geo_extent(path, (dx, dy), (xll, yll), (cols, rows));
+    Ok((ns, ew, geo))
 }
 
 /// An ESRI binary grid read a band of rows at a time by positioned reads (the out-of-core bake's
@@ -309,13 +331,16 @@ pub(super) struct Rows {
     scale: f64,
     offset: f64,
     bytes: Vec<u8>,
+    /// Where a grid in degrees lies.
+    geo: Option<GeoExtent>,
 }
 
 impl Rows {
     pub(super) fn open(path: &Path, len: u64, opts: &LoadOptions) -> Result<Self> {
         let keys = read_keys(path)?;
         let layout = layout(path, len, &keys, opts)?;
-        let (spacing, ew_spacing) = spacing(path, &keys, layout.height, opts)?;
+        let (spacing, ew_spacing, geo) =
+            spacing(path, &keys, (layout.width, layout.height), opts)?;
         let file = std::fs::File::open(path).map_err(|e| Error::io(path, "cannot open", e))?;
         Ok(Self {
             file,
@@ -331,6 +356,7 @@ impl Rows {
             scale: opts.height_scale.map_or(1.0, f64::from),
             offset: f64::from(opts.height_offset),
             bytes: Vec::new(),
+            geo,
         })
     }
 
@@ -407,7 +433,8 @@ pub(super) fn load(path: &Path, len: u64, opts: &LoadOptions) -> Result<Heightma
     Ok(
         Heightmap::new(path, rows.grid.width, h, rows.grid.spacing, heights)?
             .with_voids_filled(filled)
-            .with_ew_spacing(rows.grid.ew_spacing),
+            .with_ew_spacing(rows.grid.ew_spacing)
+            .with_geo(rows.geo),
     )
 }
 

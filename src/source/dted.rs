@@ -102,8 +102,8 @@ pub(super) fn load(path: &Path, len: u64, opts: &LoadOptions) -> Result<Heightma
             "damaged DTED cell: the DSI and ACC records are not where the standard puts them",
         ));
     }
-    // The longitude only checks the header: the cell is placed at the origin like every source.
-    angle(path, &head, 4, "longitude of origin")?;
+    // The cell is placed at the origin like every source; its longitude is reported (`GeoExtent`).
+    let lon0 = angle(path, &head, 4, "longitude of origin")?;
     let lat0 = angle(path, &head, 12, "latitude of origin")?;
     let lon_int = number(path, &head, 20, 4, "longitude interval")?;
     let lat_int = number(path, &head, 24, 4, "latitude interval")?;
@@ -180,7 +180,12 @@ pub(super) fn load(path: &Path, len: u64, opts: &LoadOptions) -> Result<Heightma
             )
         }
     };
+    let (dlat, dlon) = (f64::from(lat_int) / 36_000.0, f64::from(lon_int) / 36_000.0);
+    // The origin is the south-west sample.
+    let north = lat0 + f64::from(rows - 1) * dlat;
+    let geo = super::GeoExtent::of_grid((lon0, north), (dlon, dlat), (cols, rows));
     Ok(Heightmap::new(path, cols, rows, spacing, heights)?
         .with_voids_filled(filled)
-        .with_ew_spacing(ew))
+        .with_ew_spacing(ew)
+        .with_geo(geo))
 }

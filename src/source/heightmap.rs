@@ -2,6 +2,7 @@
 
 use std::path::Path;
 
+use super::GeoExtent;
 use crate::{Error, Result};
 
 /// Most samples [`Heightmap::typical_range`] reads.
@@ -24,6 +25,8 @@ pub struct Heightmap {
     voids_filled: u64,
     /// World position (x east, y north, metres) of the south-west corner sample; (0, 0) unless placed.
     origin: (f64, f64),
+    /// Where a grid read in degrees lies on the globe (None for projected and plain-image sources).
+    geo: Option<GeoExtent>,
 }
 
 impl Heightmap {
@@ -76,7 +79,21 @@ impl Heightmap {
             heights,
             voids_filled: 0,
             origin: (0.0, 0.0),
+            geo: None,
         })
+    }
+
+    /// Records where a grid read in degrees lies on the globe ([`Heightmap::geo`]).
+    #[must_use]
+    pub fn with_geo(mut self, geo: Option<GeoExtent>) -> Self {
+        self.geo = geo;
+        self
+    }
+
+    /// Where the grid lies on the globe, for a source in degrees whose metres the loader took at its
+    /// middle row (not with [`crate::source::LoadOptions::spacing`]); None otherwise.
+    pub fn geo(&self) -> Option<&GeoExtent> {
+        self.geo.as_ref()
     }
 
     /// Records the source's E-W spacing, metres ([`Heightmap::ew_spacing`]); a value that is not finite

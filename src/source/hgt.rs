@@ -64,9 +64,14 @@ pub(super) fn load(path: &Path, len: u64, opts: &LoadOptions) -> Result<Heightma
             to_f32(metres_per_degree_longitude(lat) * arcsec / 3600.0),
         ),
     };
+    // Placed by its name alone (without one, where it lies is unknown).
+    let step = 1.0 / f64::from(side - 1);
+    let geo = super::geo::hgt_corner(path)
+        .and_then(|(s, w)| super::GeoExtent::of_grid((w, s + 1.0), (step, step), (side, side)));
     Ok(Heightmap::new(path, side, side, spacing, heights)?
         .with_voids_filled(voids)
-        .with_ew_spacing(ew))
+        .with_ew_spacing(ew)
+        .with_geo(geo))
 }
 
 /// The south edge latitude of a tile named like `N57E011` or `s12w077`, degrees.

@@ -134,6 +134,7 @@ pub enum TerrainSpec {
 mod asc;
 mod bil;
 mod dted;
+pub mod geo;
 mod heightmap;
 mod hgt;
 mod mosaic;
@@ -147,6 +148,7 @@ mod rows;
 mod tiff;
 mod xyz;
 
+pub use geo::GeoExtent;
 pub use heightmap::Heightmap;
 pub use mosaic::MAX_OPEN_TILES;
 pub(crate) use rows::check_band;
@@ -194,7 +196,11 @@ impl TerrainSpec {
 /// [`LoadOptions::spacing`] gives it, is [`DEFAULT_SPACING_M`] for PNG and raw files; a GeoTIFF without
 /// georeferencing needs `--spacing`.
 pub fn load(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
-    let hm = load_format(path, opts)?;
+    let mut hm = load_format(path, opts)?;
+    if opts.spacing.is_some() {
+        // Metres the caller gave are not the frame a geographic extent's numbers describe.
+        hm = hm.with_geo(None);
+    }
     Ok(if opts.resample_ew {
         resample_ew(hm)?
     } else {
@@ -240,7 +246,7 @@ fn load_format(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
     let magic = read_magic(path)?;
     match ext.as_str() {
         "png" => png::load(path, opts, &magic),
-        "tif" | "tiff" => tiff::load(path, opts, &magic),
+        "tif" | "tiff" => Ok(tiff::load(path, opts, &magic)?.with_geo(geotiff_extent(path))),
         "hgt" => hgt::load(path, meta.len(), opts),
         "asc" => asc::load(path, opts),
         "flt" | "bil" => bil::load(path, meta.len(), opts),
@@ -248,7 +254,9 @@ fn load_format(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
         "xyz" => xyz::load(path, opts),
         "raw" | "r16" | "f32" => raw::load(path, meta.len(), opts),
         _ if magic.starts_with(&png::MAGIC) => png::load(path, opts, &magic),
-        _ if tiff::has_magic(&magic) => tiff::load(path, opts, &magic),
+        _ if tiff::has_magic(&magic) => {
+            Ok(tiff::load(path, opts, &magic)?.with_geo(geotiff_extent(path)))
+        }
         _ if magic.starts_with(dted::MAGIC) => dted::load(path, meta.len(), opts),
         // A package is opened before any source (by its magic number): one named so without it is damaged.
         "clipsat" => Err(Error::format(
@@ -264,6 +272,17 @@ fn load_format(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
             ),
         )),
     }
+}
+
+/// The extent of a GeoTIFF whose GTModelTypeGeoKey says geographic (as the TIFF loader reads its
+/// spacing in degrees then), placed by its ModelPixelScale and ModelTiepoint; None otherwise.
+fn geotiff_extent(path: &Path) -> Option<GeoExtent> {
+    if mosaic::model_type(path) != Some(2) {
+        return None;
+    }
+    let g = georef::GeoRef::read(path)?;
+    let first = (g.corner.0 + 0.5 * g.scale.0, g.corner.1 - 0.5 * g.scale.1);
+    geo::GeoExtent::of_grid(first, g.scale, g.size)
 }
 
 /// Opens a terrain file to be read a band of rows at a time (the out-of-core bake's source): a raw file
@@ -556,7 +575,8 @@ fn resample_ew(hm: Heightmap) -> Result<Heightmap> {
         Heightmap::new(Path::new("<resampled>"), w2, hm.height(), hm.spacing(), out)?
             .with_voids_filled(hm.voids_filled())
             .with_ew_spacing(ew)
-            .with_origin(x, y),
+            .with_origin(x, y)
+            .with_geo(hm.geo().copied()),
     )
 }
 

@@ -150,13 +150,11 @@ pub(super) fn load(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
         None => super::asc::spacing(path, (dx, dy), Some((y0, true)), h)?,
     };
     let err = |_| Error::format(path, "the grid does not fit 32 bits a side");
-    Ok(Heightmap::new(
-        path,
-        u32::try_from(w).map_err(err)?,
-        u32::try_from(h).map_err(err)?,
-        spacing,
-        heights,
-    )?
-    .with_voids_filled(voids)
-    .with_ew_spacing(ew))
+    let size = (u32::try_from(w).map_err(err)?, u32::try_from(h).map_err(err)?);
+    // The points are sample centres.
+    let ll = (Some((x0, true)), Some((y0, true)));
+    Ok(Heightmap::new(path, size.0, size.1, spacing, heights)?
+        .with_voids_filled(voids)
+        .with_ew_spacing(ew)
+        .with_geo(super::asc::geo_extent(path, (dx, dy), ll, size)))
 }

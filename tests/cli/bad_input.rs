@@ -482,3 +482,42 @@ fn errors_name_flags_not_library_fields() {
         );
     }
 }
+
+/// `info --plot-projection` on a terrain that is not in degrees (the procedural one, a grid in metres) is
+/// refused, naming the flag, and writes nothing; on a grid in degrees (an ASCII grid with a geographic
+/// `.prj`, 2 x 2 samples) `info` prints its frame's distortion and the plot is written.
+#[test]
+fn plot_projection_needs_a_terrain_in_degrees() {
+    let dir = scratch("projection");
+    let png = dir.join("p.png");
+    let out = png.to_string_lossy();
+    let metres = dir.join("m.asc");
+    std::fs::write(&metres, b"ncols 2\nnrows 2\ncellsize 5\n1 2\n3 4\n").expect("write fixture");
+    let m = metres.to_string_lossy();
+    for terrain in ["procedural:size=65", &*m] {
+        let r = clipsat(&["info", "--terrain", terrain, "--plot-projection", &out]);
+        assert_refused(&r, "argument `--plot-projection`", terrain);
+        assert!(!png.exists(), "{terrain}: wrote {out}");
+    }
+    // 1 degree cells from 57 to 59 N: the frame is taken at 58 N.
+    let deg = dir.join("g.asc");
+    std::fs::write(
+        &deg,
+        b"ncols 2\nnrows 3\nxllcenter 11\nyllcenter 57\ncellsize 1\n1 2\n3 4\n5 6\n",
+    )
+    .expect("write fixture");
+    std::fs::write(dir.join("g.prj"), br#"GEOGCS["WGS 84",DATUM["WGS_1984"]]"#).expect("write prj");
+    let d = deg.to_string_lossy();
+    let r = clipsat(&["info", "--terrain", &d, "--plot-projection", &out]);
+    assert_eq!(r.status.code(), Some(0), "{}", stderr(&r));
+    let text = String::from_utf8_lossy(&r.stdout);
+    assert!(
+        text.contains(
+            "projection equirectangular about 58.000 N (the middle row): E-W lengths -2.70 % at the \
+             south edge (57.000 N), +2.88 % at the north edge (59.000 N); N-S within 0.016 %"
+        ),
+        "{text}"
+    );
+    let bytes = std::fs::read(&png).expect("the plot is written");
+    assert!(bytes.starts_with(b"\x89PNG"));
+}

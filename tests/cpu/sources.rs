@@ -547,6 +547,25 @@ fn tiff_nodata_filled_and_geographic_spacing() {
     assert!(hm.heights().iter().all(|h| (0.0..16.0).contains(h)));
     // 1/1200 degree of latitude near 7.99 N is about 92.16 m.
     assert!((hm.spacing() - 92.16).abs() < 0.05, "{}", hm.spacing());
+    // Pixel-is-area: the north-west sample's centre half a pixel in from the tiepoint's corner.
+    let g = hm.geo().expect("a geographic GeoTIFF");
+    let px = 1.0 / 1200.0;
+    assert!(
+        (g.north - (8.0 - 0.5 * px)).abs() < 1e-12 && (g.west - (-6.0 + 0.5 * px)).abs() < 1e-12
+    );
+    assert!(
+        (g.south - (8.0 - 3.5 * px)).abs() < 1e-12
+            && (g.frame_lat - (8.0 - 2.0 * px)).abs() < 1e-12
+    );
+    let five = LoadOptions {
+        spacing: Some(5.0),
+        ..LoadOptions::default()
+    };
+    assert_eq!(
+        source::load(&p, &five).unwrap().geo(),
+        None,
+        "metres given by hand"
+    );
 
     let p = f32_tiff(&dir, "nospacing.tif", 4, 4, &data, false);
     assert_format(load(&p), "TerrainOptions::spacing_m");
@@ -732,6 +751,17 @@ fn geographic_grids_resample_to_square_cells() {
     );
     if let Some(hm) = load_shared("N57E011.hgt", &LoadOptions::default()) {
         assert!((hm.ew_spacing() - 50.0).abs() < 0.1, "{}", hm.ew_spacing());
+        // Placed by its name: sample rows on 57 and 58 N, its metres taken at 57.5 N.
+        let g = hm.geo().expect("an SRTM tile named by its corner");
+        for (a, b) in [
+            (g.south, 57.0),
+            (g.north, 58.0),
+            (g.west, 11.0),
+            (g.east, 12.0),
+            (g.frame_lat, 57.5),
+        ] {
+            assert!((a - b).abs() < 1e-9, "{g:?}");
+        }
     }
 }
 
@@ -768,7 +798,11 @@ fn ascii_grids() {
     assert_format(load(&no_prj), "under 1 cm");
     let with_prj = write(&dir, "geo.asc", deg);
     write(&dir, "geo.prj", br#"GEOGCS["WGS 84",DATUM["WGS_1984"]]"#);
-    let s = load(&with_prj).unwrap().spacing();
+    let hm = load(&with_prj).unwrap();
+    let s = hm.spacing();
+    let g = hm.geo().expect("a grid in degrees");
+    assert_eq!((g.west, g.south), (10.0, 46.5));
+    assert!((g.north - (46.5 + 0.000833333333)).abs() < 1e-12);
     assert!(
         (s - 92.6).abs() < 0.1,
         "3 arc-seconds of latitude at 46.5 N: {s} m"
@@ -903,12 +937,15 @@ fn esri_binary_grids() {
         &dir,
         "geo.bil",
         &[0, 1, 0, 2, 0, 3, 0, 4],
-        b"BYTEORDER M\nNROWS 2\nNCOLS 2\nNBITS 16\nULYMAP 34.5\nXDIM 0.000277777777778\nYDIM 0.000277777777778\n",
+        b"BYTEORDER M\nNROWS 2\nNCOLS 2\nNBITS 16\nULXMAP -118\nULYMAP 34.5\nXDIM 0.000277777777778\nYDIM 0.000277777777778\n",
     );
     assert_format(load(&p), "under 1 cm");
     write(&dir, "geo.prj", br#"GEOGCS["WGS 84",DATUM["WGS_1984"]]"#);
     let hm = load(&p).unwrap();
     assert!((hm.spacing() - 30.8).abs() < 0.1, "{} m", hm.spacing());
+    let g = hm.geo().expect("a grid in degrees");
+    assert_eq!((g.north, g.west), (34.5, -118.0));
+    assert!((g.south - (34.5 - 0.000277777777778)).abs() < 1e-12);
     assert!(
         hm.ew_spacing() < hm.spacing() * 0.83,
         "{} m E-W",
@@ -1038,6 +1075,13 @@ fn dted_cells() {
         "{} m N-S",
         hm.spacing()
     );
+    // The origin is the south-west sample: 60 N, 10 E; 2 rows of 3" north of it.
+    let g = hm.geo().expect("a DTED cell is in degrees");
+    assert_eq!((g.south, g.west), (60.0, 10.0));
+    assert!(
+        (g.north - (60.0 + 6.0 / 3600.0)).abs() < 1e-12
+            && (g.east - (10.0 + 6.0 / 3600.0)).abs() < 1e-12
+    );
     // 6 arc-seconds of longitude at 60 N are about as long as 3 of latitude.
     assert!(
         (hm.ew_spacing() / hm.spacing() - 1.0).abs() < 0.01,
@@ -1083,6 +1127,20 @@ fn xyz_grids() {
     // North row first; the void is the mean of its neighbours 1 (west), 3 (east) and 5 (south).
     assert_eq!(hm.heights(), &[1.0, 3.0, 3.0, 4.0, 5.0, 6.0]);
     assert_eq!(hm.voids_filled(), 1);
+    assert_eq!(hm.geo(), None, "in metres");
+    // In degrees (a geographic .prj): the points are the sample centres.
+    write(&dir, "deg.prj", br#"GEOGCS["WGS 84",DATUM["WGS_1984"]]"#);
+    let deg = load(&write(
+        &dir,
+        "deg.xyz",
+        b"10 46 1\n10.5 46 2\n10 46.5 3\n10.5 46.5 4\n",
+    ))
+    .unwrap();
+    let g = deg.geo().expect("a grid in degrees");
+    assert_eq!(
+        (g.west, g.east, g.south, g.north, g.frame_lat),
+        (10.0, 10.5, 46.0, 46.5, 46.25)
+    );
     // Coordinates rounded in the text still find the grid: 1/3 m steps written to the millimetre over 400
     // columns, north row first.
     let mut t = String::new();

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use super::{
     check_size, fill_voids, metres_per_degree_latitude, metres_per_degree_longitude, to_f32,
-    Heightmap, LoadOptions, RowGrid, RowSource,
+    GeoExtent, Heightmap, LoadOptions, RowGrid, RowSource,
 };
 use crate::source::georef::GeoRef;
 use crate::{Error, Result};
@@ -179,7 +179,7 @@ impl TileMeta {
     /// 3601 samples a side, sample centres on the degree lines (pixel-is-point).
     fn hgt(path: &Path, len: u64) -> Result<Self> {
         let (side, _) = super::hgt::tile_side(path, len)?;
-        let (lat, lon) = hgt_corner(path).ok_or_else(|| {
+        let (lat, lon) = super::geo::hgt_corner(path).ok_or_else(|| {
             Error::format(
                 path,
                 "an SRTM tile in a mosaic must be named by its south-west corner, like N57E011.hgt",
@@ -231,7 +231,7 @@ impl TileMeta {
 }
 
 /// A TIFF's GTModelTypeGeoKey, where it has one.
-fn model_type(path: &Path) -> Option<u16> {
+pub(super) fn model_type(path: &Path) -> Option<u16> {
     let file = std::fs::File::open(path).ok()?;
     let mut dec = tiff::decoder::Decoder::new(std::io::BufReader::new(file)).ok()?;
     let keys = dec
@@ -244,25 +244,6 @@ fn model_type(path: &Path) -> Option<u16> {
         .chunks_exact(4)
         .find(|e| e[0] == MODEL_TYPE_KEY && e[1] == 0)
         .map(|e| e[3])
-}
-
-/// The south-west corner (latitude, longitude) of an SRTM tile named like `N57E011` or
-/// `s12w077.SRTMGL1`, degrees.
-fn hgt_corner(path: &Path) -> Option<(f64, f64)> {
-    let stem = path.file_stem()?.to_str()?;
-    let b = stem.as_bytes();
-    let sign = |c: u8, pos: u8, neg: u8| match c.to_ascii_uppercase() {
-        c if c == pos => Some(1.0),
-        c if c == neg => Some(-1.0),
-        _ => None,
-    };
-    let lat: u8 = stem.get(1..3)?.parse().ok()?;
-    let lon: u16 = stem.get(4..7)?.parse().ok()?;
-    let (lat, lon) = (
-        sign(*b.first()?, b'N', b'S')? * f64::from(lat),
-        sign(*b.get(3)?, b'E', b'W')? * f64::from(lon),
-    );
-    ((-90.0..90.0).contains(&lat) && (-180.0..180.0).contains(&lon)).then_some((lat, lon))
 }
 
 /// A tile placed on the mosaic's grid.
@@ -284,6 +265,8 @@ struct Placed {
 struct Layout {
     grid: RowGrid,
     tiles: Vec<Placed>,
+    /// Where a geographic mosaic lies on the globe.
+    geo: Option<GeoExtent>,
 }
 
 /// Places the tiles named by `spec` on one grid ([`Layout`]).
@@ -409,7 +392,13 @@ fn layout(spec: &Path, opts: &LoadOptions) -> Result<Layout> {
         }
         None => (to_f32(fine.1), to_f32(fine.0)),
     };
+    let geo = if geographic {
+        GeoExtent::of_grid((west, north), fine, (width, height))
+    } else {
+        None
+    };
     Ok(Layout {
+        geo,
         grid: RowGrid {
             width,
             height,
@@ -436,7 +425,9 @@ pub(crate) fn open_rows(spec: &Path, opts: &LoadOptions) -> Result<Box<dyn RowSo
 
 /// Loads the mosaic `spec` names whole.
 pub(crate) fn load(spec: &Path, opts: &LoadOptions) -> Result<Heightmap> {
-    whole(Mosaic::new(layout(spec, opts)?, opts))
+    let layout = layout(spec, opts)?;
+    let geo = layout.geo;
+    Ok(whole(Mosaic::new(layout, opts))?.with_geo(geo))
 }
 
 /// Every row of `mosaic`, its no-data samples filled from their neighbours.
@@ -459,17 +450,6 @@ fn whole(mut mosaic: Mosaic) -> Result<Heightmap> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn srtm_names() {
-        assert_eq!(hgt_corner(Path::new("a/N57E011.hgt")), Some((57.0, 11.0)));
-        assert_eq!(
-            hgt_corner(Path::new("s12w077.SRTMGL1.hgt")),
-            Some((-12.0, -77.0))
-        );
-        assert_eq!(hgt_corner(Path::new("tile.hgt")), None);
-        assert_eq!(hgt_corner(Path::new("N57X011.hgt")), None);
-    }
 
     #[test]
     fn mosaic_names() {

@@ -75,6 +75,25 @@ fn hgt_tiles_join_exactly() {
     let whole = source::load(&dir.join("tiles"), &opts).expect("load");
     assert_eq!(whole.heights(), &want[..]);
     assert_eq!(whole.voids_filled(), 0);
+    // Where it lies and the latitude its metres are taken at, as the merged file says.
+    let geo = *whole.geo().expect("a mosaic in degrees");
+    let merged_geo = *source::load(&merged, &opts)
+        .unwrap()
+        .geo()
+        .expect("a GeoTIFF in degrees");
+    for (a, b) in [
+        (geo.south, 57.0),
+        (geo.north, 59.0),
+        (geo.west, 11.0),
+        (geo.east, 13.0),
+        (geo.frame_lat, 58.0),
+        (merged_geo.south, 57.0),
+        (merged_geo.north, 59.0),
+        (merged_geo.west, 11.0),
+        (merged_geo.frame_lat, 58.0),
+    ] {
+        assert!((a - b).abs() < 1e-9, "{geo:?} {merged_geo:?}");
+    }
     // Resampled E-W as the merged file is.
     let ew = LoadOptions {
         resample_ew: true,
@@ -85,6 +104,18 @@ fn hgt_tiles_join_exactly() {
     assert_eq!((g.width, g.ew_spacing), (mg.width, mg.ew_spacing));
     assert!(g.width < 1400, "about cos 58 of 2401 columns: {}", g.width);
     assert!(got == want);
+    // Resampling keeps the extent; metres given by hand leave none.
+    let resampled = source::load(&dir.join("tiles"), &ew).unwrap();
+    assert_eq!(resampled.geo(), Some(&geo));
+    let by_hand = LoadOptions {
+        spacing: Some(30.0),
+        fill_height: Some(0.0),
+        ..LoadOptions::default()
+    };
+    assert_eq!(
+        source::load(&dir.join("tiles"), &by_hand).unwrap().geo(),
+        None
+    );
 }
 
 /// The package baked from 2 x 2 GeoTIFF tiles of 301^2 is byte for byte the package baked from the same

@@ -9,6 +9,8 @@ use serde_json::json;
 
 use super::TerrainArgs;
 
+mod projection;
+
 #[derive(Args, Debug)]
 pub(crate) struct InfoArgs {
     /// Terrain file or `procedural[:...]` (same as --terrain).
@@ -19,6 +21,11 @@ pub(crate) struct InfoArgs {
     /// Print a machine-readable summary on stdout.
     #[arg(long)]
     json: bool,
+    /// For a terrain in degrees (an SRTM tile, a geographic GeoTIFF or grid, a mosaic of them): write a
+    /// PNG plot of how far the one metric frame it is drawn in is from true lengths, E-W and N-S, across
+    /// its latitudes (and, for scale, E-W for the same extent elsewhere). Refused for other terrains.
+    #[arg(long, value_name = "FILE.png")]
+    plot_projection: Option<std::path::PathBuf>,
 }
 
 pub(crate) fn run(args: &InfoArgs) -> Result<()> {
@@ -30,6 +37,7 @@ pub(crate) fn run(args: &InfoArgs) -> Result<()> {
     if let Some(t) = targs.terrain.as_deref() {
         let path = std::path::Path::new(t);
         if ImageryPackage::is_imagery_package(path) {
+            refuse_plot(args, "an imagery package")?;
             let p = ImageryPackage::open(path)?;
             if args.json {
                 super::print_json(&super::imagery::imagery_json(&p));
@@ -45,12 +53,19 @@ pub(crate) fn run(args: &InfoArgs) -> Result<()> {
         None => None,
     };
     if let Some(pkg) = targs.package()? {
+        refuse_plot(args, "a package, in metres already")?;
         if let (Some(p), false) = (&imagery, args.json) {
             super::imagery::print_imagery(p);
         }
         return package_info(&pkg, args.json);
     }
     let (name, hm) = targs.load()?;
+    if let Some(out) = &args.plot_projection {
+        let geo = hm.geo().ok_or_else(|| {
+            not_geographic("in metres (projected, a plain image, or given `--spacing`)")
+        })?;
+        projection::plot(geo, out)?;
+    }
     let (lo, hi) = hm.range();
     let (ex, ey) = hm.extent_m();
     let mut profiles = Vec::new();
@@ -92,6 +107,7 @@ pub(crate) fn run(args: &InfoArgs) -> Result<()> {
             "voids_filled": hm.voids_filled(),
             "ew_spacing_m": hm.ew_spacing(),
             "ew_stretch": hm.ew_stretch(),
+            "geographic": hm.geo().map(projection::json),
             "profiles": profiles,
             "imagery": imagery.as_ref().map(super::imagery::imagery_json),
         }));
@@ -114,6 +130,9 @@ pub(crate) fn run(args: &InfoArgs) -> Result<()> {
             hm.spacing(),
             hm.ew_stretch()
         );
+    }
+    if let Some(g) = hm.geo() {
+        projection::print(g, hm.ew_stretch());
     }
     outln!("heights   {lo:.1} .. {hi:.1} m");
     outln!("voids     {} filled", hm.voids_filled());
@@ -153,6 +172,25 @@ pub(crate) fn run(args: &InfoArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// Refuses `--plot-projection` for `what`, a terrain that is not in degrees.
+fn refuse_plot(args: &InfoArgs, what: &str) -> Result<()> {
+    match args.plot_projection {
+        Some(_) => Err(not_geographic(what)),
+        None => Ok(()),
+    }
+}
+
+fn not_geographic(what: &str) -> clipsat::Error {
+    super::args::arg_error(
+        "--plot-projection",
+        format!(
+            "the terrain is {what}: only a terrain in degrees (an SRTM .hgt named like N57E011, a \
+             geographic GeoTIFF, grid or DTED cell, a mosaic of them) is drawn in an equirectangular \
+             frame; nothing written"
+        ),
+    )
 }
 
 /// `clipsat info` on a package: its header, read without decoding, and how each shipped profile's
