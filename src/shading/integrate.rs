@@ -8,7 +8,7 @@ use glam::Vec3;
 use crate::bake::horizon;
 use crate::shading::sg::{self, Sg, Vmf};
 
-/// How finely [`shade`] splits each product lobe: M theta bands x N phi sectors of its local frame.
+/// How finely [`shade`](fn@crate::shading::shade) splits each product lobe: M theta bands x N phi sectors of its local frame.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Patches {
     /// 2 x 4: the cheapest.
