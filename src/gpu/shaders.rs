@@ -65,7 +65,7 @@ pub fn clipmap_view(view: DebugView) -> String {
 }
 
 /// The clipmap renderer's program with draped imagery (`imagery.wgsl`, group 2): `clipmap.wgsl` with
-/// [`IMAGERY_EDITS`], normal view. Built only for a terrain with imagery.
+/// `IMAGERY_EDITS`, normal view. Built only for a terrain with imagery.
 pub fn clipmap_imagery() -> String {
     let mut body = CLIPMAP_WGSL.to_string();
     for (from, to) in IMAGERY_EDITS {
@@ -95,7 +95,7 @@ const SG_IMAGERY_EDITS: [(&str, &str); 3] = [
     ),
 ];
 
-/// SG variant `v` with draped imagery ([`SG_IMAGERY_EDITS`]; `imagery.wgsl` bound at group 3, after the
+/// SG variant `v` with draped imagery (`SG_IMAGERY_EDITS`; `imagery.wgsl` bound at group 3, after the
 /// SG tables' group 2). Built only for a terrain with imagery under SG shading.
 pub fn sg_clipmap_imagery(v: SgVariant) -> String {
     let mut text = sg_clipmap(v);

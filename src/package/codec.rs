@@ -458,8 +458,8 @@ pub enum Entropy<'a> {
 /// Decodes a tile: `u` is U with its border, `out` receives the tw x th reconstructed heights. The reason
 /// on failure: a payload that does not decode to exactly the tile's symbols, or a height out of range.
 ///
-/// Two passes, the symbols ([`rans_symbols`], or the byte planes) and then the heights
-/// ([`reconstruct`]), compute what [`walk`] computes for the encoder. Each serial loop is short, with no
+/// Two passes, the symbols (`rans_symbols`, or the byte planes) and then the heights
+/// (`reconstruct`), compute what `walk` computes for the encoder. Each serial loop is short, with no
 /// error path per token (one lean loop doing both measured the same; two are simpler to read).
 pub fn decode(
     model: &LevelModel,

@@ -148,13 +148,40 @@ fn mismatched_truncated_missing_and_garbage_files_are_refused() {
         assert_refused(&out, &file, key);
         assert!(stderr(&out).contains(key), "{key}: {}", stderr(&out));
     }
-    // --synth-levels loads the terrain whole (synthesis needs the resident pyramid): a resident run
-    // against the file of a streamed one, refused naming that first.
-    let out = go(&run(&["--synth-levels", "1", "--check", &f]));
+    // The plan's viewport (SAT LOD measures pixels) and the profile's values are the run's too: another
+    // size, or a profile file that keeps the shipped name with another budget, is another run.
+    let out = go(&run(&["--size", "640x360", "--check", &f]));
+    assert_refused(&out, &file, "viewport");
+    assert!(stderr(&out).contains("viewport="), "{}", stderr(&out));
+    let shipped = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("profiles/gles3-low.toml"),
+    )
+    .expect("the shipped profile");
+    let toml = dir.join("gles3-low.toml");
+    std::fs::write(
+        &toml,
+        shipped.replacen(
+            "update_samples_per_frame = 8160",
+            "update_samples_per_frame = 8000",
+            1,
+        ),
+    )
+    .expect("write");
+    let mut a = run(&["--check", &f]);
+    a.iter_mut()
+        .filter(|s| *s == "gles3-low")
+        .for_each(|s| *s = toml.to_string_lossy().into_owned());
+    let out = go(&a);
+    assert_refused(&out, &file, "profile_hash");
+    assert!(stderr(&out).contains("profile_hash="), "{}", stderr(&out));
+    // A resident run against the file of a streamed one, refused naming that first.
+    let out = go(&run(&["--resident", "--check", &f]));
     assert_refused(&out, &file, "streamed");
     assert!(stderr(&out).contains("streamed=true"), "{}", stderr(&out));
-    let out = go(&run(&["--synth-levels", "1", "--resident", "--check", &f]));
-    assert_refused(&out, &file, "streamed");
+    // gles3-low affords no synthesised rings.
+    let out = go(&run(&["--synth-levels", "1", "--check", &f]));
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("synthesis"), "{}", stderr(&out));
 
     let cases: Vec<(&str, Vec<u8>)> = vec![
         (

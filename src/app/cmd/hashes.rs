@@ -160,6 +160,17 @@ impl HashFile {
     }
 }
 
+/// A content hash of a profile's values (its JSON form: every field, floats written shortest round-trip).
+pub(crate) fn profile_hash(profile: &clipsat::profile::Profile) -> Result<String> {
+    let json = serde_json::to_string(profile).map_err(|e| Error::Invalid {
+        what: format!("profile {}", profile.name),
+        reason: format!("cannot be written as JSON: {e}"),
+    })?;
+    let mut h = clipsat::hash::Hash64::new();
+    h.write_bytes(json.as_bytes());
+    Ok(hex(h.finish()))
+}
+
 /// A content hash of a terrain: dimensions, spacing and every height's bits.
 pub(crate) fn terrain_hash(hm: &clipsat::source::Heightmap) -> String {
     let mut h = clipsat::hash::Hash64::new();

@@ -36,8 +36,9 @@ use clipsat::{Error, Result};
 /// Options that choose and read a terrain.
 #[derive(Args, Clone, Debug, Default)]
 pub(crate) struct TerrainArgs {
-    /// Terrain file (.png, .tif, .hgt, .asc, .raw/.r16/.f32, a `.clipsat` package), a mosaic of .hgt
-    /// and GeoTIFF tiles (a folder, a .txt list of paths, a GDAL .vrt, or a quoted glob like 'tiles/N5*.hgt') or
+    /// Terrain file (.png, .tif, .hgt, DTED .dt0/.dt1/.dt2, ESRI .asc and .flt/.bil grids, gridded .xyz,
+    /// .raw/.r16/.f32, a `.clipsat` package), a mosaic of .hgt and GeoTIFF tiles (a folder, a .txt list
+    /// of paths, a GDAL .vrt, or a quoted glob like 'tiles/N5*.hgt') or
     /// `procedural[:seed=S,size=N,spacing=M]`.
     /// Default: the built-in procedural terrain.
     #[arg(long, value_name = "T")]
@@ -69,7 +70,8 @@ pub(crate) struct TerrainArgs {
     /// -10000 + (R 65536 + G 256 + B) 0.1 m) or terrarium (R 256 + G + B / 256 - 32768 m).
     #[arg(long, value_name = "ENCODING", value_enum, default_value_t = PngEncodingArg::Grey)]
     pub(crate) png_encoding: PngEncodingArg,
-    /// Draw a geographic grid (an SRTM .hgt, a GeoTIFF or ASCII grid in degrees) to scale: resample each
+    /// Draw a geographic grid (an SRTM .hgt, a DTED cell, a GeoTIFF, ASCII or binary grid in degrees, a
+    /// mosaic of them) to scale: resample each
     /// row to square cells of its N-S spacing. Without it such a grid is drawn with square cells,
     /// stretched E-W by its N-S / E-W spacing (`clipsat info` shows it: 1.86x at 57.5 N).
     #[arg(long)]
@@ -84,7 +86,8 @@ pub(crate) struct TerrainArgs {
     /// their neighbours (the mosaic is then loaded whole).
     #[arg(long, value_name = "M", allow_negative_numbers = true)]
     pub(crate) fill_height: Option<f32>,
-    /// Imagery to drape on the terrain: a PNG or JPEG (grey, RGB, RGBA or palette; alpha is dropped), baked
+    /// Imagery to drape on the terrain: a PNG, JPEG, TIFF or GeoTIFF (grey, RGB, RGBA or palette; alpha is
+    /// dropped; a GeoTIFF over georeferenced heights is placed by both georeferences), baked
     /// into an imagery package in the cache folder on first use, or an imagery package from `clipsat bake
     /// --imagery`. A plain image spans the height grid's extent, corner sample to corner sample, each
     /// texel an area (see --imagery-extent).

@@ -43,10 +43,12 @@ pub(crate) struct RenderArgs {
     #[command(flatten)]
     shading: ShadingArgs,
     /// Eye position X,Y,Z in metres (x east, y north, z up; the south-west sample is at 0,0).
-    /// Default: outside the south-west corner, above the highest peak.
+    /// Default: south of the terrain, 0.45 of its longer side from the point looked at, 28 degrees above
+    /// it, looking north (12 degrees east of north), and at least 5 % of that side above the highest peak.
     #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
     camera: Option<String>,
-    /// The point looked at, X,Y,Z in metres. Default: past the terrain's centre, toward the north-east.
+    /// The point looked at, X,Y,Z in metres. Default: midway across the terrain, 0.6 of the way north, a
+    /// third of the way up its relief.
     #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
     look_at: Option<String>,
     /// Vertical field of view in degrees. Default: the profile's.

@@ -144,6 +144,16 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
             ));
         }
     }
+    // Synthesised rings are a feature the profile affords or not, whatever the shading.
+    if args.synth_levels > 0 && !profile.allows(clipsat::profile::Feature::Synthesis) {
+        return Err(arg_error(
+            "--synth-levels",
+            format!(
+                "profile `{}` does not allow shading feature \"synthesis\" (it allows {:?})",
+                profile.name, profile.shading.features
+            ),
+        ));
+    }
     let opts = ClipmapOptions {
         synth_levels: args.synth_levels,
     };
@@ -297,6 +307,16 @@ pub(crate) fn run(args: &FlyArgs) -> Result<()> {
         ("streamed", streamed.to_string()),
         ("terrain_hash", hashes::terrain_hash(&hm)),
         ("profile", profile.name.clone()),
+        // The profile's values (a TOML may keep a shipped profile's name) and the plan's viewport (SAT
+        // LOD measures its pixels): either changes the plans, so a file of another is another run.
+        ("profile_hash", hashes::profile_hash(&profile)?),
+        (
+            "viewport",
+            format!(
+                "{}x{}",
+                render_profile.view.width, render_profile.view.height
+            ),
+        ),
         ("path", path.to_string()),
         ("speed", args.speed.to_string()),
         ("frames", frames.to_string()),
