@@ -171,6 +171,25 @@ pub(crate) fn run(args: &InfoArgs) -> Result<()> {
             mib(&p["sg_visibility_bytes"]),
         );
     }
+    if imagery.is_some() {
+        // What the drape adds to each profile's need above: its rings on the GPU, and its cache taken
+        // from the CPU budget before the rest is split (`engine::setup`).
+        for p in &profiles {
+            let name = p["profile"].as_str().unwrap_or("?");
+            let mib = |v: &serde_json::Value| v.as_f64().unwrap_or(0.0) / 1048576.0;
+            match p["imagery_cpu_bytes"].as_f64() {
+                Some(cpu) => outln!(
+                    "{name:<11} with imagery: colour rings {:.2} MiB more GPU memory ({:.2} of {:.1} MiB), \
+                     its tile cache and staging {:.2} MiB taken from the CPU budget before the split above",
+                    mib(&p["imagery_gpu_bytes"]),
+                    mib(&p["gpu_bytes"]) + mib(&p["imagery_gpu_bytes"]),
+                    mib(&p["gpu_budget_bytes"]),
+                    cpu / 1048576.0,
+                ),
+                None => outln!("{name:<11} with imagery: not allowed (no shading feature \"imagery\")"),
+            }
+        }
+    }
     Ok(())
 }
 
