@@ -145,6 +145,7 @@ pub mod procedural;
 mod raw;
 mod rows;
 mod tiff;
+mod tiff_jpeg;
 mod xyz;
 
 pub use heightmap::Heightmap;
