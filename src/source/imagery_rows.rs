@@ -400,6 +400,19 @@ fn open_tiff(path: &Path, options: &ImageryOptions) -> Result<(u32, u32, Reader)
     if chunk.0 == 0 || chunk.1 == 0 {
         return Err(Error::format(path, "TIFF chunks of zero size"));
     }
+    // A tile may pass the image's edge (a small image in one tile), but not by more than a usual tile:
+    // one chunk is decoded at a time, and its size, not the image's, would bound it.
+    let most = |side: u32| side.max(4096).next_multiple_of(16);
+    if chunk.0 > most(width) || chunk.1.min(height) > most(height) {
+        return Err(Error::format(
+            path,
+            format!(
+                "TIFF tiles of {} x {} for {width} x {height} texels; tile it again, for example with \
+                 `gdal_translate -co TILED=YES -co COMPRESS=DEFLATE IN OUT.tif`",
+                chunk.0, chunk.1
+            ),
+        ));
+    }
     let count = match dec.get_chunk_type() {
         ChunkType::Strip => dec.strip_count(),
         ChunkType::Tile => dec.tile_count(),
@@ -458,13 +471,13 @@ impl TiffRows {
             let x0 = (cx * self.chunk.0) as usize;
             if let Some(jpeg) = &mut self.jpeg {
                 // A whole tile, or a strip (the last one may be cut to the image).
-                let (cw, ch, texels) =
-                    jpeg.decode(path, cr * self.across + cx, u64::from(self.chunk.0) * u64::from(self.chunk.1))?;
+                let index = cr * self.across + cx;
+                let (cw, ch, texels) = jpeg.decode(path, index, self.chunk)?;
                 let cw = cw as usize;
                 if cw < dw || (ch as usize) < dh {
                     return Err(Error::format(
                         path,
-                        format!("TIFF chunk {} is a JPEG of {cw} x {ch} for {dw} x {dh} texels", cr * self.across + cx),
+                        format!("TIFF chunk {index} is a JPEG of {cw} x {ch} for {dw} x {dh} texels"),
                     ));
                 }
                 for r in 0..dh {

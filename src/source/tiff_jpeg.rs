@@ -103,13 +103,13 @@ impl JpegChunks {
 
     /// Decodes chunk `index` as RGB8: its (width, height) as coded and its texels. Refused: a chunk past
     /// the file's end, one that is not a whole JPEG stream (no start or end-of-image marker: a cut
-    /// stream decodes to grey rather than failing), one the decoder refuses or that decodes to more than
-    /// `max_texels`.
+    /// stream decodes to grey rather than failing), one the decoder refuses, and one whose header declares
+    /// more than `most` (the chunk's size), before anything is allocated for it.
     pub(super) fn decode(
         &mut self,
         path: &Path,
         index: u32,
-        max_texels: u64,
+        most: (u32, u32),
     ) -> Result<(u32, u32, Vec<u8>)> {
         let i = index as usize;
         let (Some(&offset), Some(&count)) = (self.offsets.get(i), self.counts.get(i)) else {
@@ -153,10 +153,13 @@ impl JpegChunks {
         let mut decoder = image::codecs::jpeg::JpegDecoder::new(std::io::Cursor::new(stream))
             .map_err(|e| bad(&e))?;
         let (w, h) = image::ImageDecoder::dimensions(&decoder);
-        if u64::from(w) * u64::from(h) > max_texels {
+        if w > most.0 || h > most.1 {
             return Err(Error::format(
                 path,
-                format!("TIFF chunk {index} is a JPEG of {w} x {h}, more than the image"),
+                format!(
+                    "corrupt TIFF: chunk {index} is a JPEG of {w} x {h}, larger than its {} x {}",
+                    most.0, most.1
+                ),
             ));
         }
         let mut limits = image::Limits::default();

@@ -1,6 +1,7 @@
 //! Stage 0, the source: TIFF encodings that real heights and orthophotos come in and the `tiff` crate's
 //! encoder does not write (tiles, JPEG compression, a palette), built here byte by byte: tiled LZW with
-//! padded edge tiles, JPEG-in-TIFF YCbCr tiles, BigTIFF imagery, and a palette TIFF refused clearly.
+//! padded edge tiles, JPEG-in-TIFF tiles (YCbCr, grey; one declaring more than its tile refused), BigTIFF
+//! imagery, and a palette TIFF refused with how to expand it.
 
 use std::path::Path;
 
@@ -235,6 +236,21 @@ fn jpeg_tiff_imagery_is_read() {
     let im = imagery(&path).unwrap_or_else(|e| panic!("{e}"));
     let [g, ..] = im.texel(7, 3);
     assert!(g.abs_diff(44) <= 3, "grey texel {g}, expected about 44");
+
+    // A tile whose JPEG declares more than the tile: refused before it is decoded.
+    let path = dir.join("big_jpeg_tile.tif");
+    let mut coded = Vec::new();
+    jpeg_encoder::Encoder::new(&mut coded, 90)
+        .encode(&[128u8; 64 * 64], 64, 64, jpeg_encoder::ColorType::Luma)
+        .expect("JPEG");
+    tiled_tiff(&path, (16, 16), 16, &shorts, &[coded]);
+    match imagery(&path) {
+        Err(Error::Format { path: p, reason }) => {
+            assert_eq!(p, path);
+            assert!(reason.contains("larger than its 16 x 16"), "{reason}");
+        }
+        other => panic!("an oversized JPEG tile gave {other:?}"),
+    }
 }
 
 /// A colour-mapped TIFF is refused with how to expand it; a BigTIFF is read like a TIFF.
