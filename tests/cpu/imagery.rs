@@ -548,7 +548,7 @@ fn tiff_imagery_is_read() {
 
 /// Writes a GeoTIFF of `w` x `h` with a pixel scale `s`, a tiepoint of pixel (0, 0) at `tie` and the
 /// GeoKeys `keys` (entries of key, 0, 1, value).
-fn geotiff<C: tiff::encoder::colortype::ColorType>(
+pub(crate) fn geotiff<C: tiff::encoder::colortype::ColorType>(
     path: &Path,
     w: u32,
     h: u32,

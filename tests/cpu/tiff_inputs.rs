@@ -297,3 +297,43 @@ fn palette_tiff_is_refused_and_bigtiff_read() {
     let im = imagery(&path).unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(im.texels(), rgb.as_slice());
 }
+
+/// A user-defined projection (GDAL's ProjectedCSTypeGeoKey 32767: an Albers or Lambert grid without an
+/// EPSG code) names the geographic system it is based on too, and is projected all the same: two such
+/// tiles make a mosaic in metres (they had been read as degrees, 3350 km a sample and 0 m E-W), and
+/// geographic imagery over them is refused as another kind of system (it had been placed as if its
+/// degrees were metres, then refused as missing the terrain).
+#[test]
+fn user_defined_projection_is_projected() {
+    use crate::imagery::geotiff;
+    use clipsat::source::georef::{georef_extent, GeoRef};
+    use tiff::encoder::colortype::{Gray16, RGB8};
+    let dir = TempDir::new("tiff_inputs", "albers");
+    let tiles = dir.join("tiles");
+    std::fs::create_dir_all(&tiles).expect("tiles folder");
+    let albers = [(1024, 1), (1025, 1), (3072, 32767), (2048, 4269)];
+    let z: Vec<u16> = (100..120).collect();
+    let (a, b) = (tiles.join("a.tif"), tiles.join("b.tif"));
+    geotiff::<Gray16>(&a, 5, 4, &z, 30.0, (-2.0e6, 2.5e6), &albers);
+    geotiff::<Gray16>(&b, 5, 4, &z, 30.0, (-2.0e6 + 120.0, 2.5e6), &albers);
+    let hm = source::load(&tiles, &LoadOptions::default()).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!((hm.width(), hm.height()), (9, 4));
+    assert_eq!((hm.spacing(), hm.ew_spacing()), (30.0, 30.0));
+    let heights = GeoRef::read(&a).expect("a georeference");
+    assert_eq!((heights.crs, heights.geographic), (None, Some(false)));
+    let image = dir.join("degrees.tif");
+    let geographic = [(1024, 2), (1025, 1), (2048, 4269)];
+    geotiff::<RGB8>(&image, 4, 4, &[9; 48], 0.001, (-100.0, 40.0), &geographic);
+    let degrees = GeoRef::read(&image).expect("a georeference");
+    assert_eq!(
+        (degrees.crs, degrees.geographic),
+        (Some((2048, 4269)), Some(true))
+    );
+    let e = georef_extent(&image, &heights, &degrees, 30.0, (0.0, 0.0), 5)
+        .expect_err("degrees over metres");
+    assert!(
+        e.to_string()
+            .contains("geographic (degrees) and the heights' projected"),
+        "{e}"
+    );
+}
