@@ -396,6 +396,20 @@ fn open_tiff(path: &Path, options: &ImageryOptions) -> Result<(u32, u32, Reader)
             ))
         }
     };
+    // tiff 0.11 drops samples past the colour's (RGB and a near-infrared band, as NAIP has, not an alpha)
+    // before undoing a horizontal predictor, which it then undoes at the wrong stride: garbage colours.
+    let mut short = |tag| dec.find_tag(tag).ok().flatten().and_then(|v| v.into_u16().ok());
+    let samples = short(tiff::tags::Tag::SamplesPerPixel).unwrap_or(1);
+    if jpeg.is_none() && short(tiff::tags::Tag::Predictor) == Some(2) && usize::from(samples) > channels {
+        return Err(Error::format(
+            path,
+            format!(
+                "imagery TIFF of {samples} bands with a horizontal predictor, which the TIFF decoder \
+                 misreads past the {channels} colour bands; keep those bands, for example with \
+                 `gdal_translate -b 1 -b 2 -b 3 -co COMPRESS=DEFLATE IN OUT.tif`"
+            ),
+        ));
+    }
     let chunk = dec.chunk_dimensions();
     if chunk.0 == 0 || chunk.1 == 0 {
         return Err(Error::format(path, "TIFF chunks of zero size"));

@@ -337,3 +337,49 @@ fn user_defined_projection_is_projected() {
         "{e}"
     );
 }
+
+/// Four bands with a horizontal predictor: with an alpha band they are read (alpha dropped); with a band
+/// past the colour that is not alpha (NAIP's near-infrared), tiff 0.11 undoes the predictor at the wrong
+/// stride, so the file is refused with how to keep the colour bands, rather than drawn as garbage.
+#[test]
+fn four_bands_with_a_predictor() {
+    let dir = TempDir::new("tiff_inputs", "bands");
+    let (w, h) = (20u32, 16u32);
+    let rgbn = |x: u32, y: u32| -> Vec<u8> {
+        let byte = |v: u32| u8::try_from(v % 256).expect("a byte");
+        vec![byte(x * 9), byte(y * 13), byte(x * y), 200]
+    };
+    // Horizontal differencing, sample by sample, along each row of a tile.
+    let predict = |raw: &[u8]| -> Vec<u8> {
+        let mut out = raw.to_vec();
+        for row in out.chunks_mut(16 * 4) {
+            for i in (4..row.len()).rev() {
+                row[i] = row[i].wrapping_sub(row[i - 4]);
+            }
+        }
+        out
+    };
+    let chunks = tiles((w, h), 16, 4, &rgbn, &predict);
+    let want: Vec<u8> = (0..h)
+        .flat_map(|y| (0..w).flat_map(move |x| rgbn(x, y)[..3].to_vec()))
+        .collect();
+    for (extra, readable) in [(2u16, true), (0, false)] {
+        let path = dir.join(format!("rgb_extra{extra}.tif"));
+        let shorts: [(u16, &[u16]); 6] = [
+            (258, &[8, 8, 8, 8]),
+            (259, &[1]),
+            (262, &[2]),
+            (277, &[4]),
+            (317, &[2]),
+            (338, &[extra]),
+        ];
+        tiled_tiff(&path, (w, h), 16, &shorts, &chunks);
+        match (imagery(&path), readable) {
+            (Ok(im), true) => assert_eq!(im.texels(), want.as_slice()),
+            (Err(Error::Format { reason, .. }), false) => {
+                assert!(reason.contains("-b 1 -b 2 -b 3"), "{reason}");
+            }
+            (other, _) => panic!("ExtraSamples {extra} gave {other:?}"),
+        }
+    }
+}
