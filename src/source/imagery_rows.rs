@@ -345,7 +345,7 @@ fn to_rgb8(path: &Path, data: &[u8], channels: usize, wide: bool, out: &mut [u8]
 
 /// A TIFF's chunk-row reader: 8- or 16-bit grey, RGB or RGBA, chunky or planar.
 fn open_tiff(path: &Path, options: &ImageryOptions) -> Result<(u32, u32, Reader)> {
-    use tiff::decoder::{ChunkType, Limits};
+    use tiff::decoder::Limits;
     use tiff::ColorType;
     let bad = |e: &dyn std::fmt::Display| {
         Error::format(
@@ -427,11 +427,7 @@ fn open_tiff(path: &Path, options: &ImageryOptions) -> Result<(u32, u32, Reader)
             ),
         ));
     }
-    let count = match dec.get_chunk_type() {
-        ChunkType::Strip => dec.strip_count(),
-        ChunkType::Tile => dec.tile_count(),
-    }
-    .map_err(|e| bad(&e))?;
+    let count = super::tiff::chunk_count(&mut dec).map_err(|e| bad(&e))?;
     let (across, down) = (width.div_ceil(chunk.0), height.div_ceil(chunk.1));
     let per_plane = u64::from(across) * u64::from(down);
     let plane = if u64::from(count) == per_plane {

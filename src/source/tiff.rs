@@ -24,21 +24,39 @@ pub(super) fn has_magic(magic: &[u8]) -> bool {
     )
 }
 
-/// Decodes chunk `index` (a strip or tile) with its rows `row_samples` samples of `bits` apart: a chunk's
+/// Decodes chunk `index` (a strip or tile) with its rows `row_samples` samples of `bits` apart: a tile's
 /// full stored width, so a tile at the right edge comes with its padding, for the caller to crop. Asked
 /// for the data's width alone, tiff 0.11 skips each row's padding through a reader that an LZW stream can
-/// end short in (image-rs/image-tiff#395: "no lzw end code found" on valid tiled files).
+/// end short in (image-rs/image-tiff#395: "no lzw end code found" on valid tiled files). A strip has no
+/// padding, and is read as it is (its rows per strip may be TIFF's default 2^32 - 1, which a stored
+/// stride would overflow).
 pub(super) fn read_chunk_stored<R: std::io::Read + std::io::Seek>(
     dec: &mut Decoder<R>,
     index: u32,
     row_samples: u32,
     bits: u8,
 ) -> tiff::TiffResult<DecodingResult> {
+    if dec.get_chunk_type() == tiff::decoder::ChunkType::Strip {
+        return dec.read_chunk(index);
+    }
     let row_bytes = (u64::from(row_samples) * u64::from(bits)).div_ceil(8);
     let row_bytes = usize::try_from(row_bytes).map_err(|_| tiff::TiffError::LimitsExceeded)?;
     let mut out = DecodingResult::U8(Vec::new());
     dec.read_chunk_to_buffer(&mut out, index, row_bytes)?;
     Ok(out)
+}
+
+/// The chunks (strips or tiles, of every plane) the file holds: its offsets. `Decoder::strip_count`
+/// overflows on TIFF's default rows per strip, 2^32 - 1, which a writer that leaves the tag out gives.
+pub(super) fn chunk_count<R: std::io::Read + std::io::Seek>(
+    dec: &mut Decoder<R>,
+) -> tiff::TiffResult<u32> {
+    let tag = match dec.get_chunk_type() {
+        tiff::decoder::ChunkType::Strip => Tag::StripOffsets,
+        tiff::decoder::ChunkType::Tile => Tag::TileOffsets,
+    };
+    let offsets = dec.get_tag(tag)?.into_u64_vec()?;
+    u32::try_from(offsets.len()).map_err(|_| tiff::TiffError::IntSizeError)
 }
 
 /// GTModelTypeGeoKey: 1 projected, 2 geographic (degrees).
@@ -205,11 +223,7 @@ impl Rows {
         let chunk = dec.chunk_dimensions();
         let mut dec = dec;
         let bits = dec.colortype().map_err(|e| corrupt(path, &e))?.bit_depth();
-        let count = match dec.get_chunk_type() {
-            tiff::decoder::ChunkType::Strip => dec.strip_count(),
-            tiff::decoder::ChunkType::Tile => dec.tile_count(),
-        }
-        .map_err(|e| corrupt(path, &e))?;
+        let count = chunk_count(&mut dec).map_err(|e| corrupt(path, &e))?;
         if chunk.0 == 0 || chunk.1 == 0 {
             return Err(Error::format(path, "TIFF chunks of zero size"));
         }

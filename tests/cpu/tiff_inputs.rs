@@ -15,8 +15,20 @@ use crate::TempDir;
 /// stored), with the SHORT tags `shorts` (BitsPerSample, Compression, Photometric, SamplesPerPixel...).
 fn tiled_tiff(
     path: &Path,
-    (w, h): (u32, u32),
+    size: (u32, u32),
     tile: u32,
+    shorts: &[(u16, &[u16])],
+    chunks: &[Vec<u8>],
+) {
+    chunked_tiff(path, size, Some(tile), shorts, chunks);
+}
+
+/// Writes a little-endian TIFF of chunks: tiles of `tile`^2, or without a tile size one strip of TIFF's
+/// default rows per strip, 2^32 - 1 (the tag's value when a writer leaves it out).
+fn chunked_tiff(
+    path: &Path,
+    (w, h): (u32, u32),
+    tile: Option<u32>,
     shorts: &[(u16, &[u16])],
     chunks: &[Vec<u8>],
 ) {
@@ -37,14 +49,21 @@ fn tiled_tiff(
         .collect();
     let n = u32::try_from(chunks.len()).expect("a few tiles");
     // (tag, type, count, value bytes): type 3 SHORT, 4 LONG.
-    let mut tags: Vec<(u16, u16, u32, Vec<u8>)> = vec![
-        (256, 4, 1, longs(&[w])),
-        (257, 4, 1, longs(&[h])),
-        (322, 4, 1, longs(&[tile])),
-        (323, 4, 1, longs(&[tile])),
-        (324, 4, n, longs(&offsets)),
-        (325, 4, n, longs(&counts)),
-    ];
+    let mut tags: Vec<(u16, u16, u32, Vec<u8>)> =
+        vec![(256, 4, 1, longs(&[w])), (257, 4, 1, longs(&[h]))];
+    match tile {
+        Some(tile) => tags.extend([
+            (322, 4, 1, longs(&[tile])),
+            (323, 4, 1, longs(&[tile])),
+            (324, 4, n, longs(&offsets)),
+            (325, 4, n, longs(&counts)),
+        ]),
+        None => tags.extend([
+            (273, 4, n, longs(&offsets)),
+            (278, 4, 1, longs(&[u32::MAX])),
+            (279, 4, n, longs(&counts)),
+        ]),
+    }
     for (tag, values) in shorts {
         let bytes = values.iter().flat_map(|x| x.to_le_bytes()).collect();
         tags.push((
@@ -382,4 +401,44 @@ fn four_bands_with_a_predictor() {
             (other, _) => panic!("ExtraSamples {extra} gave {other:?}"),
         }
     }
+}
+
+/// One strip of TIFF's default rows per strip (2^32 - 1, the RowsPerStrip tag's value when a writer
+/// leaves it out), LZW-coded: heights whole and by rows, and imagery, are read.
+#[test]
+fn one_strip_of_default_rows_is_read() {
+    let dir = TempDir::new("tiff_inputs", "one_strip");
+    let (w, h) = (7u32, 5u32);
+    let heights: Vec<i16> = (0..35).map(|i| i * 3 - 20).collect();
+    let raw: Vec<u8> = heights.iter().flat_map(|v| v.to_le_bytes()).collect();
+    let path = dir.join("heights.tif");
+    let shorts: [(u16, &[u16]); 5] = [
+        (258, &[16]),
+        (259, &[5]),
+        (262, &[1]),
+        (277, &[1]),
+        (339, &[2]),
+    ];
+    chunked_tiff(&path, (w, h), None, &shorts, &[lzw(&raw)]);
+    let opts = LoadOptions {
+        spacing: Some(10.0),
+        ..LoadOptions::default()
+    };
+    let want: Vec<f32> = heights.iter().map(|&v| f32::from(v)).collect();
+    let hm = source::load(&path, &opts).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(hm.heights(), want.as_slice());
+    let mut rows = source::open_rows(&path, &opts).unwrap_or_else(|e| panic!("{e}"));
+    let mut got = vec![0.0f32; want.len()];
+    rows.read_rows(0, &mut got)
+        .unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(got, want);
+
+    let rgb: Vec<u8> = (0..w * h * 3)
+        .map(|i| u8::try_from(i).expect("a byte"))
+        .collect();
+    let path = dir.join("imagery.tif");
+    let shorts: [(u16, &[u16]); 4] = [(258, &[8, 8, 8]), (259, &[5]), (262, &[2]), (277, &[3])];
+    chunked_tiff(&path, (w, h), None, &shorts, &[lzw(&rgb)]);
+    let im = imagery(&path).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(im.texels(), rgb.as_slice());
 }
