@@ -363,23 +363,24 @@ fn open_tiff(path: &Path, options: &ImageryOptions) -> Result<(u32, u32, Reader)
         ColorType::RGB(8)
     } else {
         dec.colortype().map_err(|e| {
-        // tiff 0.11 refuses colour-mapped files outright (PhotometricInterpretation 3).
-        let palette = dec
-            .find_tag(tiff::tags::Tag::PhotometricInterpretation)
-            .ok()
-            .flatten()
-            .and_then(|v| v.into_u16().ok())
-            == Some(3);
-        if palette {
-            Error::format(
-                path,
-                "imagery TIFF is colour-mapped (a palette), which is not read; expand it to RGB, \
-                 for example with `gdal_translate -expand rgb -co COMPRESS=DEFLATE IN OUT.tif`",
-            )
-        } else {
-            bad(&e)
-        }
-    })?
+            // tiff 0.11 refuses colour-mapped files outright (PhotometricInterpretation 3).
+            let palette = dec
+                .find_tag(tiff::tags::Tag::PhotometricInterpretation)
+                .ok()
+                .flatten()
+                .and_then(|v| v.into_u16().ok())
+                == Some(3);
+            if palette {
+                Error::format(
+                    path,
+                    "imagery TIFF is colour-mapped (a palette), which is not read; expand it to \
+                     RGB, for example with `gdal_translate -expand rgb -co COMPRESS=DEFLATE IN \
+                     OUT.tif`",
+                )
+            } else {
+                bad(&e)
+            }
+        })?
     };
     let channels = match colour {
         ColorType::Gray(8 | 16) => 1,
@@ -389,9 +390,9 @@ fn open_tiff(path: &Path, options: &ImageryOptions) -> Result<(u32, u32, Reader)
             return Err(Error::format(
                 path,
                 format!(
-                    "imagery TIFF is {other:?}: 8- or 16-bit grey, RGB or RGBA (or JPEG-compressed) are read; \
-                     convert it, for example with `gdal_translate -ot Byte -expand rgb -co \
-                     COMPRESS=DEFLATE IN OUT.tif` (after `-scale` for float samples)"
+                    "imagery TIFF is {other:?}: 8- or 16-bit grey, RGB or RGBA (or JPEG-compressed) \
+                     are read; convert it, for example with `gdal_translate -ot Byte -expand rgb \
+                     -co COMPRESS=DEFLATE IN OUT.tif` (after `-scale` for float samples)"
                 ),
             ))
         }
@@ -532,7 +533,7 @@ impl TiffRows {
                         let s = (r * stride + c) * spt;
                         match (self.plane, self.channels) {
                             (0, 1) => o.fill(at(s)),
-                                            (0, _) => o.copy_from_slice(&[at(s), at(s + 1), at(s + 2)]),
+                            (0, _) => o.copy_from_slice(&[at(s), at(s + 1), at(s + 2)]),
                             // Planar: sample p is channel p (alpha, p = 3, is dropped).
                             _ => o[p as usize] = at(s),
                         }

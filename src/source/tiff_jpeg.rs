@@ -131,7 +131,10 @@ impl JpegChunks {
         if !whole(&chunk) {
             return Err(Error::format(
                 path,
-                format!("corrupt TIFF: chunk {index} is not a whole JPEG stream (start or end marker missing)"),
+                format!(
+                    "corrupt TIFF: chunk {index} is not a whole JPEG stream (start or end marker \
+                     missing)"
+                ),
             ));
         }
         let stream = match &self.tables {
