@@ -344,8 +344,9 @@ impl Terrain {
             }
             ImageryPackage::open(path)?
         } else {
-            // A GeoTIFF over GeoTIFF heights: placed by both georeferences (unless an extent is given).
-            let georef = match (options.extent, self.source.as_deref().and_then(GeoRef::read)) {
+            // A GeoTIFF over georeferenced heights (a GeoTIFF, an `.hgt` tile, a mosaic): placed by both
+            // georeferences (unless an extent is given).
+            let georef = match (options.extent, self.source.as_deref().and_then(source::heights_georef)) {
                 (None, Some(heights)) => match GeoRef::read(path) {
                     Some(image) => {
                         let (spacing, origin, columns) = match &self.package {

@@ -13,8 +13,12 @@ use crate::{Error, Param, Result};
 
 /// GTRasterTypeGeoKey: 1 pixel-is-area (the default), 2 pixel-is-point.
 const RASTER_TYPE_KEY: u16 = 1025;
+/// GTModelTypeGeoKey: 1 projected, 2 geographic.
+const MODEL_TYPE_KEY: u16 = 1024;
 /// GeographicTypeGeoKey and ProjectedCSTypeGeoKey: the coordinate system's EPSG code.
-const CRS_KEYS: [u16; 2] = [2048, 3072];
+const GEOGRAPHIC_KEY: u16 = 2048;
+const PROJECTED_KEY: u16 = 3072;
+const CRS_KEYS: [u16; 2] = [GEOGRAPHIC_KEY, PROJECTED_KEY];
 
 /// Where a TIFF's pixels lie in its model space.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -25,8 +29,12 @@ pub struct GeoRef {
     pub scale: (f64, f64),
     /// The model position of pixel corner (0, 0), (x, y): the tiepoint moved to the raster's corner.
     pub corner: (f64, f64),
-    /// The coordinate system's key and EPSG code (projected, else geographic), where the file names one.
+    /// The coordinate system's key and EPSG code (projected, else geographic), where the file names one:
+    /// a projected file's own projection, never the geographic system a user-defined projection (GDAL's
+    /// 32767, an Albers or Lambert grid without an EPSG code) is based on.
     pub crs: Option<(u16, u16)>,
+    /// Whether the model is geographic (GTModelTypeGeoKey 2) or projected (1), where the file says.
+    pub geographic: Option<bool>,
 }
 
 impl GeoRef {
@@ -66,15 +74,23 @@ impl GeoRef {
         if !(corner.0.is_finite() && corner.1.is_finite()) {
             return None;
         }
-        let crs = CRS_KEYS
-            .iter()
-            .rev()
-            .find_map(|&k| key(k).filter(|&v| v != 0 && v != 32767).map(|v| (k, v)));
+        let named = |k: u16| key(k).filter(|&v| v != 0 && v != 32767).map(|v| (k, v));
+        let geographic = match key(MODEL_TYPE_KEY) {
+            Some(1) => Some(false),
+            Some(2) => Some(true),
+            _ => None,
+        };
+        let crs = match geographic {
+            Some(false) => named(PROJECTED_KEY),
+            Some(true) => named(GEOGRAPHIC_KEY),
+            None => CRS_KEYS.iter().rev().find_map(|&k| named(k)),
+        };
         Some(Self {
             size,
             scale: (sx, sy),
             corner,
             crs,
+            geographic,
         })
     }
 }
@@ -104,6 +120,20 @@ pub fn georef_extent(
                     path.display(),
                     b.1,
                     a.1
+                ),
+            ));
+        }
+    }
+    if let (Some(h), Some(i)) = (heights.geographic, image.geographic) {
+        if h != i {
+            let kind = |g: bool| if g { "geographic (degrees)" } else { "projected" };
+            return Err(Error::param(
+                Param::ImageryExtent,
+                format!(
+                    "{}: the imagery's georeference is {} and the heights' {}; reproject one of them",
+                    path.display(),
+                    kind(i),
+                    kind(h)
                 ),
             ));
         }

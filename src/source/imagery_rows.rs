@@ -53,6 +53,10 @@ struct TiffRows {
     chunk: (u32, u32),
     across: u32,
     channels: usize,
+    /// A JPEG-compressed TIFF's chunks, decoded by the JPEG decoder rather than the TIFF one.
+    jpeg: Option<super::tiff_jpeg::JpegChunks>,
+    /// Bits a sample, 8 or 16.
+    bits: u8,
     /// Chunks a plane, where each sample lies in a plane of its own (planar configuration); 0: chunky.
     plane: u32,
     /// The decoded row of chunks `band_row`, RGB8.
@@ -67,7 +71,7 @@ impl ImageryRows {
     /// while the rows are read.
     pub fn open(path: &Path, grid: &Extent, options: &ImageryOptions) -> Result<Self> {
         let magic = magic(path)?;
-        let (width, height, reader) = if magic.starts_with(b"II*\0") || magic.starts_with(b"MM\0*") {
+        let (width, height, reader) = if super::tiff::has_magic(&magic) {
             open_tiff(path, options)?
         } else if magic.starts_with(b"\x89PNG") {
             match open_png(path, options)? {
@@ -341,7 +345,7 @@ fn to_rgb8(path: &Path, data: &[u8], channels: usize, wide: bool, out: &mut [u8]
 
 /// A TIFF's chunk-row reader: 8- or 16-bit grey, RGB or RGBA, chunky or planar.
 fn open_tiff(path: &Path, options: &ImageryOptions) -> Result<(u32, u32, Reader)> {
-    use tiff::decoder::{ChunkType, Limits};
+    use tiff::decoder::Limits;
     use tiff::ColorType;
     let bad = |e: &dyn std::fmt::Display| {
         Error::format(
@@ -353,26 +357,78 @@ fn open_tiff(path: &Path, options: &ImageryOptions) -> Result<(u32, u32, Reader)
     let mut dec = tiff::decoder::Decoder::new(BufReader::new(file)).map_err(|e| bad(&e))?;
     let (width, height) = dec.dimensions().map_err(|e| bad(&e))?;
     check_limit(path, width, height, options, true)?;
-    let channels = match dec.colortype().map_err(|e| bad(&e))? {
+    let jpeg = super::tiff_jpeg::JpegChunks::read(path, &mut dec)?;
+    // A JPEG stream says itself what colour it holds (`tiff_jpeg.rs`): 8 bits, made RGB.
+    let colour = if jpeg.is_some() {
+        ColorType::RGB(8)
+    } else {
+        dec.colortype().map_err(|e| {
+            // tiff 0.11 refuses colour-mapped files outright (PhotometricInterpretation 3).
+            let palette = dec
+                .find_tag(tiff::tags::Tag::PhotometricInterpretation)
+                .ok()
+                .flatten()
+                .and_then(|v| v.into_u16().ok())
+                == Some(3);
+            if palette {
+                Error::format(
+                    path,
+                    "imagery TIFF is colour-mapped (a palette), which is not read; expand it to \
+                     RGB, for example with `gdal_translate -expand rgb -co COMPRESS=DEFLATE IN \
+                     OUT.tif`",
+                )
+            } else {
+                bad(&e)
+            }
+        })?
+    };
+    let channels = match colour {
         ColorType::Gray(8 | 16) => 1,
         ColorType::RGB(8 | 16) => 3,
         ColorType::RGBA(8 | 16) => 4,
         other => {
             return Err(Error::format(
                 path,
-                format!("imagery TIFF is {other:?}: 8- or 16-bit grey, RGB or RGBA are read"),
+                format!(
+                    "imagery TIFF is {other:?}: 8- or 16-bit grey, RGB or RGBA (or JPEG-compressed) \
+                     are read; convert it, for example with `gdal_translate -ot Byte -expand rgb \
+                     -co COMPRESS=DEFLATE IN OUT.tif` (after `-scale` for float samples)"
+                ),
             ))
         }
     };
+    // tiff 0.11 drops samples past the colour's (RGB and a near-infrared band, as NAIP has, not an alpha)
+    // before undoing a horizontal predictor, which it then undoes at the wrong stride: garbage colours.
+    let mut short = |tag| dec.find_tag(tag).ok().flatten().and_then(|v| v.into_u16().ok());
+    let samples = short(tiff::tags::Tag::SamplesPerPixel).unwrap_or(1);
+    if jpeg.is_none() && short(tiff::tags::Tag::Predictor) == Some(2) && usize::from(samples) > channels {
+        return Err(Error::format(
+            path,
+            format!(
+                "imagery TIFF of {samples} bands with a horizontal predictor, which the TIFF decoder \
+                 misreads past the {channels} colour bands; keep those bands, for example with \
+                 `gdal_translate -b 1 -b 2 -b 3 -co COMPRESS=DEFLATE IN OUT.tif`"
+            ),
+        ));
+    }
     let chunk = dec.chunk_dimensions();
     if chunk.0 == 0 || chunk.1 == 0 {
         return Err(Error::format(path, "TIFF chunks of zero size"));
     }
-    let count = match dec.get_chunk_type() {
-        ChunkType::Strip => dec.strip_count(),
-        ChunkType::Tile => dec.tile_count(),
+    // A tile may pass the image's edge (a small image in one tile), but not by more than a usual tile:
+    // one chunk is decoded at a time, and its size, not the image's, would bound it.
+    let most = |side: u32| side.max(4096).next_multiple_of(16);
+    if chunk.0 > most(width) || chunk.1.min(height) > most(height) {
+        return Err(Error::format(
+            path,
+            format!(
+                "TIFF tiles of {} x {} for {width} x {height} texels; tile it again, for example with \
+                 `gdal_translate -co TILED=YES -co COMPRESS=DEFLATE IN OUT.tif`",
+                chunk.0, chunk.1
+            ),
+        ));
     }
-    .map_err(|e| bad(&e))?;
+    let count = super::tiff::chunk_count(&mut dec).map_err(|e| bad(&e))?;
     let (across, down) = (width.div_ceil(chunk.0), height.div_ceil(chunk.1));
     let per_plane = u64::from(across) * u64::from(down);
     let plane = if u64::from(count) == per_plane {
@@ -402,6 +458,8 @@ fn open_tiff(path: &Path, options: &ImageryOptions) -> Result<(u32, u32, Reader)
             chunk,
             across,
             channels,
+            jpeg,
+            bits: colour.bit_depth(),
             plane,
             band,
             band_row: None,
@@ -422,16 +480,35 @@ impl TiffRows {
                 self.chunk.1.min(height - cr * self.chunk.1) as usize,
             );
             let x0 = (cx * self.chunk.0) as usize;
+            if let Some(jpeg) = &mut self.jpeg {
+                // A whole tile, or a strip (the last one may be cut to the image).
+                let index = cr * self.across + cx;
+                let (cw, ch, texels) = jpeg.decode(path, index, self.chunk)?;
+                let cw = cw as usize;
+                if cw < dw || (ch as usize) < dh {
+                    return Err(Error::format(
+                        path,
+                        format!("TIFF chunk {index} is a JPEG of {cw} x {ch} for {dw} x {dh} texels"),
+                    ));
+                }
+                for r in 0..dh {
+                    self.band[r * w3 + x0 * 3..r * w3 + (x0 + dw) * 3]
+                        .copy_from_slice(&texels[r * cw * 3..(r * cw + dw) * 3]);
+                }
+                continue;
+            }
             for p in 0..planes {
                 let index = cr * self.across + cx + self.plane * p;
-                let chunk = self.dec.read_chunk(index).map_err(|e| {
-                    Error::format(
-                        path,
-                        format!("corrupt, truncated or unsupported TIFF: {}", one_line(&e)),
-                    )
-                })?;
                 // Chunky: every sample of a texel here; planar: sample `p` only.
                 let spt = if self.plane == 0 { self.channels } else { 1 };
+                let row_samples = self.chunk.0.saturating_mul(u32::try_from(spt).unwrap_or(u32::MAX));
+                let chunk = super::tiff::read_chunk_stored(&mut self.dec, index, row_samples, self.bits)
+                    .map_err(|e| {
+                        Error::format(
+                            path,
+                            format!("corrupt, truncated or unsupported TIFF: {}", one_line(&e)),
+                        )
+                    })?;
                 let (len, at): (usize, Box<dyn Fn(usize) -> u8 + '_>) = match &chunk {
                     DecodingResult::U8(v) => (v.len(), Box::new(|i| v[i])),
                     DecodingResult::U16(v) => (v.len(), Box::new(|i| to8(v[i]))),
@@ -442,9 +519,9 @@ impl TiffRows {
                         ))
                     }
                 };
-                // Tiles at the right and bottom edges may come padded to the full tile.
-                let stride = len.checked_div(dh).unwrap_or(0) / spt;
-                if stride < dw || len < stride * dh * spt {
+                // Rows are the chunk's stored width apart (`read_chunk_stored`); the last may be cut.
+                let stride = self.chunk.0 as usize;
+                if len < (stride * (dh - 1) + dw) * spt {
                     return Err(Error::format(
                         path,
                         format!("TIFF chunk {index} decoded to {len} samples for {dw} x {dh}"),

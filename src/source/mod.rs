@@ -8,6 +8,21 @@ use std::path::{Path, PathBuf};
 
 use crate::{Error, Result};
 
+/// The georeference of the heights at `path`, for placing GeoTIFF imagery by it (docs/guide.md
+/// "Imagery"): a GeoTIFF's own tags, an SRTM `.hgt` tile's from its name and size, a tile mosaic's grid;
+/// `None` for heights without one (PNG, raw, a package, a procedural terrain).
+pub fn heights_georef(path: &Path) -> Option<georef::GeoRef> {
+    let hgt = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("hgt"));
+    if hgt || mosaic::is_mosaic(path) {
+        mosaic::georef(path)
+    } else {
+        georef::GeoRef::read(path)
+    }
+}
+
 /// How to read a terrain file. The defaults suit the common elevation formats as their files come.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LoadOptions {
@@ -146,6 +161,7 @@ pub mod procedural;
 mod raw;
 mod rows;
 mod tiff;
+mod tiff_jpeg;
 mod xyz;
 
 pub use geo::GeoExtent;

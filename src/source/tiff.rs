@@ -24,6 +24,41 @@ pub(super) fn has_magic(magic: &[u8]) -> bool {
     )
 }
 
+/// Decodes chunk `index` (a strip or tile) with its rows `row_samples` samples of `bits` apart: a tile's
+/// full stored width, so a tile at the right edge comes with its padding, for the caller to crop. Asked
+/// for the data's width alone, tiff 0.11 skips each row's padding through a reader that an LZW stream can
+/// end short in (image-rs/image-tiff#395: "no lzw end code found" on valid tiled files). A strip has no
+/// padding, and is read as it is (its rows per strip may be TIFF's default 2^32 - 1, which a stored
+/// stride would overflow).
+pub(super) fn read_chunk_stored<R: std::io::Read + std::io::Seek>(
+    dec: &mut Decoder<R>,
+    index: u32,
+    row_samples: u32,
+    bits: u8,
+) -> tiff::TiffResult<DecodingResult> {
+    if dec.get_chunk_type() == tiff::decoder::ChunkType::Strip {
+        return dec.read_chunk(index);
+    }
+    let row_bytes = (u64::from(row_samples) * u64::from(bits)).div_ceil(8);
+    let row_bytes = usize::try_from(row_bytes).map_err(|_| tiff::TiffError::LimitsExceeded)?;
+    let mut out = DecodingResult::U8(Vec::new());
+    dec.read_chunk_to_buffer(&mut out, index, row_bytes)?;
+    Ok(out)
+}
+
+/// The chunks (strips or tiles, of every plane) the file holds: its offsets. `Decoder::strip_count`
+/// overflows on TIFF's default rows per strip, 2^32 - 1, which a writer that leaves the tag out gives.
+pub(super) fn chunk_count<R: std::io::Read + std::io::Seek>(
+    dec: &mut Decoder<R>,
+) -> tiff::TiffResult<u32> {
+    let tag = match dec.get_chunk_type() {
+        tiff::decoder::ChunkType::Strip => Tag::StripOffsets,
+        tiff::decoder::ChunkType::Tile => Tag::TileOffsets,
+    };
+    let offsets = dec.get_tag(tag)?.into_u64_vec()?;
+    u32::try_from(offsets.len()).map_err(|_| tiff::TiffError::IntSizeError)
+}
+
 /// GTModelTypeGeoKey: 1 projected, 2 geographic (degrees).
 const GT_MODEL_TYPE_GEO_KEY: u16 = 1024;
 const MODEL_TYPE_GEOGRAPHIC: u16 = 2;
@@ -36,45 +71,23 @@ const MODEL_TYPE_GEOGRAPHIC: u16 = 2;
 /// (from the tie point). Cells are taken as square with the N-S spacing. With none of these the load fails
 /// and asks for `--spacing`. GDAL_NODATA samples are voids: filled from their neighbours and counted.
 pub(super) fn load(path: &Path, opts: &LoadOptions, magic: &[u8]) -> Result<Heightmap> {
-    let Opened {
-        mut dec,
-        width,
-        height,
-        samples,
-        nodata,
-        geo,
-    } = open(path, opts, magic)?;
-    let image = dec.read_image().map_err(|e| corrupt(path, &e))?;
-
-    let scale = opts.height_scale.map_or(1.0, f64::from);
-    let offset = f64::from(opts.height_offset);
-    let is_void = |v: f64| super::is_nodata(nodata, v);
-    let w = width as usize;
-    let mut heights: Vec<f32> = match image {
-        DecodingResult::I16(v) => convert(path, w, &v, f64::from, is_void, scale, offset)?,
-        DecodingResult::U16(v) => convert(path, w, &v, f64::from, is_void, scale, offset)?,
-        DecodingResult::I32(v) => convert(path, w, &v, f64::from, is_void, scale, offset)?,
-        DecodingResult::U8(v) => convert(path, w, &v, f64::from, is_void, scale, offset)?,
-        DecodingResult::F32(v) => convert(path, w, &v, f64::from, is_void, scale, offset)?,
-        DecodingResult::F64(v) => convert(path, w, &v, |s| s, is_void, scale, offset)?,
-        DecodingResult::U32(v) => convert(path, w, &v, f64::from, is_void, scale, offset)?,
-        DecodingResult::I8(v) => convert(path, w, &v, f64::from, is_void, scale, offset)?,
-        DecodingResult::F16(v) => convert(path, w, &v, f64::from, is_void, scale, offset)?,
-        other => return Err(unsupported(path, &other)),
+    // Decoded a row of chunks at a time, as the bake reads it ([`Rows`]), voids as NaN; the spacing is
+    // looked for after the samples, so a sample's error comes first.
+    let samples_first = LoadOptions {
+        spacing: Some(opts.spacing.unwrap_or(1.0)),
+        ..opts.clone()
     };
-    if heights.len() != samples {
-        return Err(Error::format(
-            path,
-            format!(
-                "TIFF decoded to {} samples for {width} x {height}",
-                heights.len()
-            ),
-        ));
-    }
+    let mut rows = Rows::open(path, &samples_first, magic)?;
+    rows.keep_voids = true;
+    let (width, height) = (rows.grid.width, rows.grid.height);
+    let w = width as usize;
+    // `check_size` bounded width x height when the file was opened.
+    let mut heights = vec![0.0f32; w * height as usize];
+    super::RowSource::read_rows(&mut rows, 0, &mut heights)?;
     let voids = fill_voids(path, w, &mut heights)?;
     let (spacing, ew) = match opts.spacing {
         Some(s) => (s, s),
-        None => geo.spacing(path, height)?,
+        None => GeoTags::read(&mut rows.dec).spacing(path, height)?,
     };
     Ok(Heightmap::new(path, width, height, spacing, heights)?
         .with_voids_filled(voids)
@@ -86,7 +99,6 @@ struct Opened {
     dec: Decoder<BufReader<std::fs::File>>,
     width: u32,
     height: u32,
-    samples: usize,
     nodata: Option<f64>,
     geo: GeoTags,
 }
@@ -129,30 +141,9 @@ fn open(path: &Path, opts: &LoadOptions, magic: &[u8]) -> Result<Opened> {
         dec,
         width,
         height,
-        samples,
         nodata,
         geo,
     })
-}
-
-/// Converts samples to metres, voids to NaN (for [`fill_voids`]); a non-finite sample that is not a
-/// void is refused here, since filling would otherwise spread it.
-fn convert<T: Copy>(
-    path: &Path,
-    width: usize,
-    src: &[T],
-    to_f64: impl Fn(T) -> f64,
-    is_void: impl Fn(f64) -> bool,
-    scale: f64,
-    offset: f64,
-) -> Result<Vec<f32>> {
-    src.iter()
-        .enumerate()
-        .map(|(i, &s)| {
-            let v = to_f64(s);
-            height(path, v, is_void(v), scale, offset, (i % width, i / width))
-        })
-        .collect()
 }
 
 /// The refusal of a sample type no elevation data uses.
@@ -176,11 +167,7 @@ pub(super) fn open_rows(
     opts: &LoadOptions,
     magic: &[u8],
 ) -> Result<Box<dyn super::RowSource>> {
-    // A layout the chunk reader does not take (a strip taller than 2^32 rows minus the image, say) is
-    // read whole, as `load` reads it.
-    let Ok(mut rows) = Rows::open(path, opts, magic) else {
-        return Ok(Box::new(super::Resident::new(load(path, opts, magic)?)));
-    };
+    let mut rows = Rows::open(path, opts, magic)?;
     if rows.nodata.is_some() {
         for cr in 0..rows.chunk_rows {
             if rows.load_chunk_row(cr)? {
@@ -215,6 +202,8 @@ struct Rows {
     band_row: Option<u32>,
     /// Whether voids are read as NaN (a mosaic's tile, [`open_tile_rows`]) rather than refused.
     keep_voids: bool,
+    /// Bits a sample.
+    bits: u8,
 }
 
 impl Rows {
@@ -233,11 +222,8 @@ impl Rows {
         };
         let chunk = dec.chunk_dimensions();
         let mut dec = dec;
-        let count = match dec.get_chunk_type() {
-            tiff::decoder::ChunkType::Strip => dec.strip_count(),
-            tiff::decoder::ChunkType::Tile => dec.tile_count(),
-        }
-        .map_err(|e| corrupt(path, &e))?;
+        let bits = dec.colortype().map_err(|e| corrupt(path, &e))?.bit_depth();
+        let count = chunk_count(&mut dec).map_err(|e| corrupt(path, &e))?;
         if chunk.0 == 0 || chunk.1 == 0 {
             return Err(Error::format(path, "TIFF chunks of zero size"));
         }
@@ -270,6 +256,7 @@ impl Rows {
             band: vec![0.0; width as usize * chunk.1.min(height) as usize],
             band_row: None,
             keep_voids: false,
+            bits,
         })
     }
 
@@ -283,16 +270,14 @@ impl Rows {
                 self.chunk.0.min(self.grid.width - cx * self.chunk.0) as usize,
                 self.chunk.1.min(self.grid.height - cr * self.chunk.1) as usize,
             );
-            let chunk = self
-                .dec
-                .read_chunk(index)
+            let chunk = read_chunk_stored(&mut self.dec, index, self.chunk.0, self.bits)
                 .map_err(|e| corrupt(&self.grid.path, &e))?;
+            let stride = self.chunk.0 as usize;
             let (x0, y0) = ((cx * self.chunk.0) as usize, (cr * self.chunk.1) as usize);
             let (nodata, scale, offset) = (self.nodata, self.scale, self.offset);
             let mut put = |len: usize, at: &dyn Fn(usize) -> f64| -> Result<()> {
-                // Tiles at the right and bottom edges may come padded to the full tile.
-                let stride = len.checked_div(dh).unwrap_or(0);
-                if stride < dw || len < stride * dh {
+                // Rows are the chunk's stored width apart (`read_chunk_stored`); the last may be cut.
+                if stride < dw || len < stride * (dh - 1) + dw {
                     return Err(Error::format(
                         &self.grid.path,
                         format!("TIFF chunk {index} decoded to {len} samples for {dw} x {dh}"),

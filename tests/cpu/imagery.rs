@@ -548,7 +548,7 @@ fn tiff_imagery_is_read() {
 
 /// Writes a GeoTIFF of `w` x `h` with a pixel scale `s`, a tiepoint of pixel (0, 0) at `tie` and the
 /// GeoKeys `keys` (entries of key, 0, 1, value).
-fn geotiff<C: tiff::encoder::colortype::ColorType>(
+pub(crate) fn geotiff<C: tiff::encoder::colortype::ColorType>(
     path: &Path,
     w: u32,
     h: u32,
@@ -766,5 +766,43 @@ fn geographic_imagery_follows_resampled_rows() {
             (got - want).abs() < 1e-6,
             "{e} against the drawn grid {grid}"
         );
+    }
+}
+
+/// GeoTIFF imagery over SRTM `.hgt` heights, one tile or a mosaic of them, is placed by georeference: the
+/// tiles' grid from their names (samples on whole 3" lines from the named corner, EPSG 4326) mapped as the
+/// heights are drawn. It had been stretched over the whole terrain as a plain image.
+#[test]
+fn geotiff_imagery_is_placed_over_hgt_tiles() {
+    use clipsat::source::georef::georef_extent;
+    use clipsat::source::heights_georef;
+    let dir = scratch("hgt_georef");
+    let tile: Vec<u8> = std::iter::repeat_n(100i16.to_be_bytes(), 1201 * 1201)
+        .flatten()
+        .collect();
+    std::fs::write(dir.join("N46E008.hgt"), &tile).expect("write");
+    std::fs::write(dir.join("N46E009.hgt"), &tile).expect("write");
+    let one = heights_georef(&dir.join("N46E008.hgt")).expect("a tile's georeference");
+    let all = heights_georef(&dir).expect("a mosaic's georeference");
+    let step = 1.0 / 1200.0;
+    for (h, width) in [(&one, 1201), (&all, 2401)] {
+        assert_eq!(h.size, (width, 1201));
+        assert_eq!(h.scale, (step, step));
+        assert!((h.corner.0 - (8.0 - step / 2.0)).abs() < 1e-12, "{h:?}");
+        assert!((h.corner.1 - (47.0 + step / 2.0)).abs() < 1e-12, "{h:?}");
+        assert_eq!((h.crs, h.geographic), (Some((2048, 4326)), Some(true)));
+    }
+    // A 4 x 4 image of 3" texels, its north-west corner 200" east and 150" south of the tile's.
+    let image = dir.join("image.tif");
+    let keys = [(1024, 2), (1025, 1), (2048, 4326)];
+    let tie = (8.0 + 200.0 / 3600.0, 46.5 - 150.0 / 3600.0);
+    geotiff::<tiff::encoder::colortype::RGB8>(&image, 4, 4, &[50; 48], step, tie, &keys);
+    let i = clipsat::source::georef::GeoRef::read(&image).expect("a georeference");
+    for (h, width) in [(&one, 1201), (&all, 2401)] {
+        let e = georef_extent(&image, h, &i, 90.0, (0.0, 0.0), width).expect("placed");
+        let want = [6000.0, 49140.0, 6360.0, 49500.0];
+        for (got, want) in e.to_array().iter().zip(want) {
+            assert!((got - want).abs() < 1e-6, "{e} against {want:?}");
+        }
     }
 }

@@ -26,6 +26,7 @@ mod shaders_glsl;
 mod shaders_glslang;
 mod shading;
 mod sources;
+mod tiff_inputs;
 
 /// The path of a shared data file, or `None` (with a printed reason) when it is missing outside CI;
 /// under `CI=true` a missing file fails the test.

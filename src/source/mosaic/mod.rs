@@ -411,6 +411,35 @@ fn layout(spec: &Path, opts: &LoadOptions) -> Result<Layout> {
     })
 }
 
+/// The georeference of heights that are a tile mosaic or one SRTM `.hgt` tile, for placing GeoTIFF imagery
+/// by it (`source::heights_georef`): the mosaic's grid (its finest spacing from its north-west sample) or
+/// the tile's, in the tiles' coordinate system. `None` where the heights cannot be placed (a tile not named
+/// by its corner, a mosaic refused).
+pub(crate) fn georef(spec: &Path) -> Option<GeoRef> {
+    let (size, step, first, crs) = if is_mosaic(spec) {
+        let l = layout(spec, &LoadOptions::default()).ok()?;
+        let step = l.tiles.iter().fold((f64::MAX, f64::MAX), |(x, y), t| {
+            (x.min(t.meta.step.0), y.min(t.meta.step.1))
+        });
+        let west = l.tiles.iter().map(|t| t.meta.first.0).fold(f64::MAX, f64::min);
+        let north = l.tiles.iter().map(|t| t.meta.first.1).fold(f64::MIN, f64::max);
+        let crs = l.tiles.first()?.meta.crs;
+        ((l.grid.width, l.grid.height), step, (west, north), crs)
+    } else {
+        let m = TileMeta::read(spec).ok()?;
+        (m.size, m.step, m.first, m.crs)
+    };
+    // GeographicTypeGeoKey or ProjectedCSTypeGeoKey, as `GeoRef::read` names them.
+    let key = if crs.geographic { 2048 } else { 3072 };
+    Some(GeoRef {
+        size,
+        scale: step,
+        corner: (first.0 - 0.5 * step.0, first.1 + 0.5 * step.1),
+        crs: crs.epsg.map(|code| (key, code)),
+        geographic: Some(crs.geographic),
+    })
+}
+
 /// Opens the mosaic `spec` names to be read a band of rows at a time: out of core where every sample
 /// has data (or [`LoadOptions::fill_height`] gives one); otherwise, its no-data samples are filled from
 /// their neighbours over the whole grid, as a single file's voids are, and it is read whole.
