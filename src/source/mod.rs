@@ -382,12 +382,12 @@ fn check_size(path: &Path, width: u64, height: u64, opts: &LoadOptions) -> Resul
 }
 
 /// `n` zeroed height samples for `path`, or [`Error::Io`] (out of memory) where the allocator cannot give
-/// them: a `--max-samples` raised past this machine's memory is refused with the file named, not
-/// aborted on.
+/// them: a [`LoadOptions::max_samples`] raised past this machine's memory is refused with the file named,
+/// not aborted on.
 pub(crate) fn zeroed_samples(path: &Path, n: usize) -> Result<Vec<f32>> {
     let mut heights = Vec::new();
     heights.try_reserve_exact(n).map_err(|_| {
-        let bytes = u128::try_from(n).unwrap_or(u128::MAX) * 4;
+        let bytes = u128::try_from(n).unwrap_or(u128::MAX).saturating_mul(4);
         Error::io(
             path,
             "cannot hold its heights in memory",
