@@ -217,10 +217,12 @@ fn clip_vertex(v: vec4<u32>) -> TerrainVertex {
 // The rings reach far past a small terrain, where the edge-clamped heights would draw as streaks: every
 // level is cut at the same vertical planes, the data's border, as the brute-force reference ends there.
 // The cut is inset by a few f32 ulps of the extent, so a skirt hanging exactly on the border (a SAT LOD
-// tile edge on lattice line 0) is cut away whole rather than speckled by rounding.
+// tile edge on lattice line 0) is cut away whole rather than speckled by rounding, plus 2 cm, or a
+// ten-thousandth of the data's narrower side on a terrain under 200 m across (`border_inset_m`).
 fn outside_data(rel: vec2<f32>) -> bool {
     let e = globals.extent;
-    let tol = 0.02 + 4.0e-6 * max(max(abs(e.x), abs(e.y)), max(abs(e.z), abs(e.w)));
+    let inset = clamp(1.0e-4 * min(e.z - e.x, e.w - e.y), 0.0, 0.02);
+    let tol = inset + 4.0e-6 * max(max(abs(e.x), abs(e.y)), max(abs(e.z), abs(e.w)));
     return any(rel < e.xy + vec2<f32>(tol)) || any(rel > e.zw - vec2<f32>(tol));
 }
 

@@ -51,7 +51,8 @@ pub fn ray_below_drawn_surface(
     let b = inv * DVec4::new(nx, ny, 1.0, 1.0);
     let (a, b): (DVec3, DVec3) = (a.truncate() / a.w, b.truncate() / b.w);
     let e = g.extent.map(f64::from);
-    let tol = 0.02 + 4.0e-6 * e.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let tol = crate::plan::fragment::border_inset_m(e)
+        + 4.0e-6 * e.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     let (lo, hi) = ([e[0] + tol, e[1] + tol], [e[2] - tol, e[3] - tol]);
     let (eu, ev) = clipmap.eye_lattice(camera.eye);
     let g0 = clipmap.g0();

@@ -185,7 +185,7 @@ impl Camera {
         let (ex, ey) = hm.extent_m();
         let (lo, hi) = hm.range();
         let (lo, hi) = (f64::from(lo), f64::from(hi));
-        let size = ex.max(ey).max(1e-3);
+        let size = ex.max(ey);
         let (ox, oy) = hm.origin();
         let o = DVec3::new(ox, oy, 0.0);
         // Outliers that stretch the range far past the typical relief (an untagged void 30 km down, a
@@ -210,7 +210,9 @@ impl Camera {
             .map(|&(x, y)| (o + DVec3::new(x, y, lo) - eye).length())
             .fold(0.0, f64::max)
             * 1.5;
-        Self::new(eye, target, 60.0)?.with_clip((far * 1e-5).max(1e-3), far)
+        // The near plane: 1 mm, or a hundredth of the far one on a terrain a few centimetres across,
+        // where 1 mm would lie past the far plane or in front of the whole view.
+        Self::new(eye, target, 60.0)?.with_clip((far * 1e-5).max(1e-3).min(far * 1e-2), far)
     }
 
     /// Sets the clip planes (metres); `near` must be positive and below `far`, which may be infinite.
@@ -545,6 +547,24 @@ mod tests {
             parse_vec3("eye", "1, 2,3").ok(),
             Some(DVec3::new(1.0, 2.0, 3.0))
         );
+    }
+
+    /// A terrain a fraction of a millimetre across still gets a default view with its near plane in
+    /// front of its far one (the 1 mm near plane lay past it).
+    #[test]
+    fn default_view_of_a_tiny_terrain() {
+        for spacing in [1.0e-6, 1.0e-4, 30.0] {
+            let hm = crate::source::Heightmap::new(
+                std::path::Path::new("<tiny>"),
+                3,
+                3,
+                spacing,
+                vec![0.0, 1.0e-6, 0.0, 2.0e-6, 0.0, 1.0e-6, 0.0, 0.0, 0.0],
+            )
+            .expect("heights");
+            let cam = Camera::default_for(&hm).expect("a default view");
+            assert!(cam.near > 0.0 && cam.near < cam.far, "{spacing}: {cam:?}");
+        }
     }
 
     /// The matrices a camera returns give back the same camera, in each depth convention, rolled or

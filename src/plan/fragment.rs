@@ -61,6 +61,15 @@ pub struct FragmentPaths {
 /// their level so rounding can only make a draw take the ring-data program, never the plain one wrongly.
 const SLACK_CELLS: f64 = 0.5;
 
+/// The fixed part of `outside_data`'s inset of the data's border (`clipmap.wgsl`), metres, for the data's
+/// eye-relative extent `extent` (x min, y min, x max, y max): 2 cm, or a ten-thousandth of the data's
+/// narrower side where that is less (a terrain under 200 m across), so that a terrain of centimetre or
+/// finer spacing keeps its border samples and is drawn at all. The shader adds 4e-6 of the extent's
+/// largest coordinate for f32 rounding.
+pub fn border_inset_m(extent: [f64; 4]) -> f64 {
+    (1.0e-4 * (extent[2] - extent[0]).min(extent[3] - extent[1])).clamp(0.0, 0.02)
+}
+
 impl FragmentPaths {
     /// The rings of `clipmap`'s last frame seen from the eye at level-0 lattice point `eye`; `morph`: the
     /// plan morphs (GC 6.2), so the finer data fades with each ring's alpha. The data spans level-0
@@ -80,7 +89,8 @@ impl FragmentPaths {
         // outside_data's inset (m) plus f32 rounding of eye-relative positions, generously, in lattice
         // units.
         let far = extent.iter().fold(0.0f64, |m, e| m.max(e.abs()));
-        let inset = (0.02 + 4.0e-6 * far + 1.0e-5 * far + 1.0e-3) / clipmap.g0() + 0.01;
+        let inset =
+            (border_inset_m(extent) + 4.0e-6 * far + 1.0e-5 * far + 1.0e-3) / clipmap.g0() + 0.01;
         let interior = (
             [inset, data_lattice.0 - inset],
             [inset, data_lattice.1 - inset],
@@ -171,5 +181,21 @@ impl FragmentPaths {
             }
         }
         plain
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::border_inset_m;
+
+    /// 2 cm on a terrain 200 m or more across (the shared terrains' frames keep their hashes), a
+    /// ten-thousandth of the narrower side below: a tenth of a cell on a 0.1 mm grid of 1000 samples.
+    #[test]
+    fn border_inset_scales_with_a_small_terrain() {
+        assert_eq!(border_inset_m([-5.0, -300.0, 395.0, 100.0]), 0.02);
+        assert_eq!(border_inset_m([-1.0e5, -1.0e5, 1.0e5, 1.0e5]), 0.02);
+        let tiny = border_inset_m([-0.05, -0.01, 0.05, 0.09]);
+        assert!((tiny - 1.0e-5).abs() < 1.0e-12, "{tiny}");
+        assert!(border_inset_m([0.0, 0.0, 30.0, 29_970.0]) < 0.0031, "a 2-sample wide strip");
     }
 }

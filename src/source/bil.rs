@@ -427,7 +427,7 @@ pub(super) fn load(path: &Path, len: u64, opts: &LoadOptions) -> Result<Heightma
     use super::RowSource;
     let mut rows = Rows::open(path, len, opts)?;
     let (w, h) = (rows.layout.width as usize, rows.layout.height);
-    let mut heights = vec![0.0f32; w * h as usize];
+    let mut heights = super::zeroed_samples(path, w * h as usize)?;
     rows.read_rows(0, &mut heights)?;
     let filled = fill_voids(path, w, &mut heights)?;
     Ok(

@@ -132,7 +132,7 @@ pub(super) fn load(path: &Path, len: u64, opts: &LoadOptions) -> Result<Heightma
         });
     }
     let (w, h) = (cols as usize, rows as usize);
-    let mut heights = vec![0.0f32; w * h];
+    let mut heights = super::zeroed_samples(path, w * h)?;
     let (scale, offset) = (
         opts.height_scale.map_or(1.0, f64::from),
         f64::from(opts.height_offset),

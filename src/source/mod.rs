@@ -212,6 +212,7 @@ impl TerrainSpec {
 /// [`LoadOptions::spacing`] gives it, is [`DEFAULT_SPACING_M`] for PNG and raw files; a GeoTIFF without
 /// georeferencing needs `--spacing`.
 pub fn load(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
+    check_scale(path, opts)?;
     let mut hm = load_format(path, opts)?;
     if opts.spacing.is_some() {
         // Metres the caller gave are not the frame a geographic extent's numbers describe.
@@ -310,6 +311,7 @@ fn geotiff_extent(path: &Path) -> Option<GeoExtent> {
 /// ([`is_mosaic`]) is read a band at a time through its tiles, or whole where it has samples with no
 /// data and no [`LoadOptions::fill_height`].
 pub fn open_rows(path: &Path, opts: &LoadOptions) -> Result<Box<dyn RowSource>> {
+    check_scale(path, opts)?;
     let rows = open_format_rows(path, opts)?;
     if !opts.resample_ew {
         return Ok(rows);
@@ -359,6 +361,23 @@ fn open_format_rows(path: &Path, opts: &LoadOptions) -> Result<Box<dyn RowSource
 /// Spacing assumed for PNG and raw files when [`LoadOptions::spacing`] is not given, metres.
 pub const DEFAULT_SPACING_M: f32 = 30.0;
 
+/// Refuses a height scale, offset or fill height that is not finite: every sample would read NaN (and be
+/// taken for a void) or infinite.
+fn check_scale(path: &Path, opts: &LoadOptions) -> Result<()> {
+    let given = [
+        ("height scale", opts.height_scale),
+        ("height offset", Some(opts.height_offset)),
+        ("fill height", opts.fill_height),
+    ];
+    match given.iter().find(|(_, v)| v.is_some_and(|v| !v.is_finite())) {
+        Some((what, Some(v))) => Err(Error::format(
+            path,
+            format!("{what} {v}: must be finite"),
+        )),
+        _ => Ok(()),
+    }
+}
+
 /// The first (up to) 8 bytes of a file, for magic-number checks.
 fn read_magic(path: &Path) -> Result<Vec<u8>> {
     use std::io::Read;
@@ -395,6 +414,26 @@ fn check_size(path: &Path, width: u64, height: u64, opts: &LoadOptions) -> Resul
         samples,
         limit: opts.max_samples,
     })
+}
+
+/// `n` zeroed height samples for `path`, or [`Error::Io`] (out of memory) where the allocator cannot give
+/// them: a [`LoadOptions::max_samples`] raised past this machine's memory is refused with the file named,
+/// not aborted on.
+pub(crate) fn zeroed_samples(path: &Path, n: usize) -> Result<Vec<f32>> {
+    let mut heights = Vec::new();
+    heights.try_reserve_exact(n).map_err(|_| {
+        let bytes = u128::try_from(n).unwrap_or(u128::MAX).saturating_mul(4);
+        Error::io(
+            path,
+            "cannot hold its heights in memory",
+            std::io::Error::new(
+                std::io::ErrorKind::OutOfMemory,
+                format!("{n} samples ({bytes} bytes) do not fit"),
+            ),
+        )
+    })?;
+    heights.resize(n, 0.0);
+    Ok(heights)
 }
 
 /// Rounds metres to the f32 a [`Heightmap`] holds; out-of-range values become infinite and are refused
@@ -578,7 +617,7 @@ fn resample_ew(hm: Heightmap) -> Result<Heightmap> {
         return Ok(hm);
     };
     let (w, h) = (hm.width() as usize, hm.height() as usize);
-    let mut out = vec![0.0f32; w2 as usize * h];
+    let mut out = zeroed_samples(Path::new("<resampled>"), w2 as usize * h)?;
     for (src, dst) in hm
         .heights()
         .chunks_exact(w)
@@ -666,5 +705,14 @@ mod tests {
         // 1 degree of latitude: 110574 m at the equator, 111694 m at the poles.
         assert!((metres_per_degree_latitude(0.0) - 110_574.3).abs() < 1.0);
         assert!((metres_per_degree_latitude(90.0) - 111_693.9).abs() < 1.0);
+    }
+
+    #[test]
+    fn samples_past_memory_are_an_error() {
+        // More bytes than any allocator gives: an error naming the file, not an abort.
+        let err = zeroed_samples(Path::new("big.hgt"), usize::MAX / 2).unwrap_err();
+        assert!(matches!(err, Error::Io { .. }), "{err}");
+        assert!(err.to_string().starts_with("big.hgt: cannot hold"), "{err}");
+        assert_eq!(zeroed_samples(Path::new("s"), 3).ok(), Some(vec![0.0; 3]));
     }
 }

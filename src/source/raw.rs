@@ -14,7 +14,7 @@ use crate::source::Heightmap;
 pub(super) fn load(path: &Path, len: u64, opts: &LoadOptions) -> Result<Heightmap> {
     let mut rows = Rows::open(path, len, opts)?;
     let (w, h) = (rows.layout.width, rows.layout.height);
-    let mut heights = vec![0.0f32; w as usize * h as usize];
+    let mut heights = super::zeroed_samples(path, w as usize * h as usize)?;
     rows.read_rows(0, &mut heights)?;
     let filled = if opts.nodata.is_some() {
         super::fill_voids(path, w as usize, &mut heights)?

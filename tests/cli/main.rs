@@ -8,6 +8,7 @@ mod bench_all;
 mod cross_driver;
 mod determinism;
 mod fly;
+mod hard_terrains;
 mod hash;
 mod imagery;
 mod render_json;

@@ -20,7 +20,8 @@ const SAMPLES: u32 = 9;
 
 /// `outside_data` of `clipmap.wgsl`, in its f32 arithmetic.
 fn outside_data(e: [f32; 4], rel: [f32; 2]) -> bool {
-    let tol = 0.02 + 4.0e-6 * e.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+    let inset = (1.0e-4 * (e[2] - e[0]).min(e[3] - e[1])).clamp(0.0, 0.02);
+    let tol = inset + 4.0e-6 * e.iter().fold(0.0f32, |m, v| m.max(v.abs()));
     rel[0] < e[0] + tol || rel[1] < e[1] + tol || rel[0] > e[2] - tol || rel[1] > e[3] - tol
 }
 

@@ -463,7 +463,7 @@ pub(crate) fn load(spec: &Path, opts: &LoadOptions) -> Result<Heightmap> {
 fn whole(mut mosaic: Mosaic) -> Result<Heightmap> {
     let g = mosaic.grid().clone();
     let w = g.width as usize;
-    let mut heights = vec![0.0f32; w * g.height as usize];
+    let mut heights = super::zeroed_samples(&g.path, w * g.height as usize)?;
     for (i, band) in heights.chunks_mut(w * rows::BAND_ROWS as usize).enumerate() {
         let y0 = u32::try_from(i).unwrap_or(u32::MAX).saturating_mul(rows::BAND_ROWS);
         mosaic.read_rows(y0, band)?;
