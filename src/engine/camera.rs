@@ -20,7 +20,8 @@ pub struct Camera(pub(crate) camera::Camera);
 
 impl Camera {
     /// A camera at `eye` looking at `target`, with a vertical field of view of `fov_y_deg` degrees and
-    /// clip planes at 1 m and 1000 km.
+    /// clip planes at 1 m and 1000 km. The screen's up is world +z, or north (+y) for a look straight
+    /// down or up ([`Camera::with_up`] sets another).
     pub fn look_at(eye: [f64; 3], target: [f64; 3], fov_y_deg: f64) -> Result<Self> {
         camera::Camera::new(DVec3::from(eye), DVec3::from(target), fov_y_deg).map(Self)
     }

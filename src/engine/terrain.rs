@@ -344,10 +344,11 @@ impl Terrain {
             }
             ImageryPackage::open(path)?
         } else {
-            // A GeoTIFF over georeferenced heights (a GeoTIFF, an `.hgt` tile, a mosaic): placed by both
+            // A GeoTIFF, or an image with a world file, over georeferenced heights (a GeoTIFF, an `.hgt`
+            // tile, a mosaic): placed by both
             // georeferences (unless an extent is given).
             let georef = match (options.extent, self.source.as_deref().and_then(source::heights_georef)) {
-                (None, Some(heights)) => match GeoRef::read(path) {
+                (None, Some(heights)) => match GeoRef::of_imagery(path)? {
                     Some(image) => {
                         let (spacing, origin, columns) = match &self.package {
                             Some(p) => {

@@ -22,7 +22,8 @@ pub struct Camera {
     /// The point looked at, metres.
     pub target: DVec3,
     /// Which way is up on the screen: the camera's up is this direction made perpendicular to the look
-    /// direction (world +z for a look-at camera; any other for roll or a look straight down).
+    /// direction (world +z for a look-at camera, north (+y) for one looking straight down or up; any
+    /// other for roll).
     pub up: DVec3,
     /// Vertical field of view, degrees.
     pub fov_y_deg: f64,
@@ -55,17 +56,18 @@ impl Camera {
                 "look direction has zero length (eye and look-at coincide)",
             ));
         }
-        if dir.normalize().cross(DVec3::Z).length() < 1e-9 {
-            return Err(Error::camera(
-                "looking straight up or down with world +z as up: give the camera another up \
-                 direction (Camera::with_up)",
-            ));
-        }
+        // World +z is the screen's up, except looking straight down or up, where it has no direction on
+        // the screen: north (+y) is up there, as on a map (`with_up` sets another).
+        let up = if dir.normalize().cross(DVec3::Z).length() < 1e-9 {
+            DVec3::Y
+        } else {
+            DVec3::Z
+        };
         check_fov(fov_y_deg)?;
         Ok(Self {
             eye,
             target,
-            up: DVec3::Z,
+            up,
             fov_y_deg,
             near: 1.0,
             far: 1.0e6,
@@ -538,7 +540,8 @@ mod tests {
         assert!(Camera::new(DVec3::new(f64::NAN, 0.0, 0.0), DVec3::X, 60.0).is_err());
         assert!(Camera::new(z, DVec3::new(0.0, f64::INFINITY, 0.0), 60.0).is_err());
         assert!(Camera::new(z, z, 60.0).is_err());
-        assert!(Camera::new(z, DVec3::Z, 60.0).is_err());
+        // Straight up (or down): north is the screen's up, not refused.
+        assert_eq!(Camera::new(z, DVec3::Z, 60.0).map(|c| c.up).ok(), Some(DVec3::Y));
         assert!(Camera::new(z, DVec3::X, 0.0).is_err());
         assert!(Camera::new(z, DVec3::X, 60.0).is_ok());
         assert!(parse_vec3("eye", "1,2").is_err());
@@ -582,12 +585,10 @@ mod tests {
                 .with_clip(0.5, f64::INFINITY)
                 .expect("infinite"),
         ];
-        let down = Camera {
-            target: eye - DVec3::Z,
-            ..cams[0]
-        };
+        let down = Camera::new(eye, eye - 500.0 * DVec3::Z, 60.0).expect("straight down, north up");
+        assert_eq!(down.up, DVec3::Y);
         assert!(down.with_up(DVec3::Z).is_err(), "up along the look");
-        let down = down.with_up(DVec3::Y).expect("straight down, north up");
+        let down = down.with_up(DVec3::X).expect("straight down, east up");
         for cam in cams.into_iter().chain([down]) {
             for reverse_z in [false, true] {
                 let c = cam.with_reverse_z(reverse_z);

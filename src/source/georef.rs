@@ -1,6 +1,6 @@
 //! Stage 0, the source: a (Geo)TIFF's georeference (ModelPixelScale, ModelTiepoint and the GeoKeys that
-//! name its coordinate system and raster type), for placing draped imagery against the heights' own
-//! georeference (docs/guide.md "Imagery").
+//! name its coordinate system and raster type), or an image's world file, for placing draped imagery
+//! against the heights' own georeference (docs/guide.md "Imagery").
 
 use std::io::BufReader;
 use std::path::Path;
@@ -92,6 +92,92 @@ impl GeoRef {
             crs,
             geographic,
         })
+    }
+}
+
+/// The sidecar names a world file of `path` may have, in the order looked for: the extension's first and
+/// last letters and `w` (`.jgw`, `.pgw`, `.tfw`), the extension and `w` (`.jpgw`, `.tifw`), `.wld`.
+fn world_file_names(path: &Path) -> Vec<std::path::PathBuf> {
+    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or_default();
+    let mut names = Vec::with_capacity(3);
+    let mut chars = ext.chars();
+    if let (Some(a), Some(b)) = (chars.next(), ext.chars().last()) {
+        if ext.len() >= 2 {
+            names.push(path.with_extension(format!("{a}{b}w")));
+        }
+        names.push(path.with_extension(format!("{ext}w")));
+    }
+    names.push(path.with_extension("wld"));
+    names
+}
+
+/// An image's georeference from its world file (an ESRI `.jgw`, `.pgw`, `.tfw` or `.wld`: six numbers,
+/// x and y pixel size, the two rotation terms, the centre of the north-west pixel), where it has one,
+/// and its coordinate system's kind from a `.prj` beside it (WKT: `GEOGCS`/`GEOGCRS` geographic,
+/// `PROJCS`/`PROJCRS` projected). `size` is the image's pixels. A world file that cannot be read as
+/// six numbers, or that rotates or mirrors the image, is an error naming it.
+fn world_file(path: &Path, size: (u32, u32)) -> Result<Option<GeoRef>> {
+    let Some(wf) = world_file_names(path).into_iter().find(|p| p.is_file()) else {
+        return Ok(None);
+    };
+    let text = std::fs::read_to_string(&wf).map_err(|e| Error::io(&wf, "cannot read", e))?;
+    let v: Vec<f64> = text
+        .split_whitespace()
+        .map(str::parse::<f64>)
+        .collect::<std::result::Result<_, _>>()
+        .map_err(|_| Error::format(&wf, "a world file holds six numbers, one a line"))?;
+    let [a, d, b, e, c, f] = v[..] else {
+        return Err(Error::format(
+            &wf,
+            format!("a world file holds six numbers, this one {}", v.len()),
+        ));
+    };
+    if !v.iter().all(|x| x.is_finite()) || b != 0.0 || d != 0.0 || a <= 0.0 || e >= 0.0 {
+        return Err(Error::format(
+            &wf,
+            format!(
+                "rotates or mirrors the image (x size {a}, rotations {d} and {b}, y size {e}): only \
+                 north-up images are placed; warp it north up (gdalwarp)"
+            ),
+        ));
+    }
+    let prj = std::fs::read_to_string(path.with_extension("prj")).unwrap_or_default();
+    let head = prj.trim_start();
+    let geographic = if head.starts_with("GEOGCS") || head.starts_with("GEOGCRS") {
+        Some(true)
+    } else if head.starts_with("PROJCS") || head.starts_with("PROJCRS") {
+        Some(false)
+    } else {
+        None
+    };
+    Ok(Some(GeoRef {
+        size,
+        scale: (a, -e),
+        // (c, f) is the north-west pixel's centre; its corner is half a pixel west and north.
+        corner: (c - 0.5 * a, f - 0.5 * e),
+        crs: None,
+        geographic,
+    }))
+}
+
+impl GeoRef {
+    /// An imagery file's georeference: its GeoTIFF tags ([`GeoRef::read`]), else its world file (a JPEG,
+    /// PNG or TIFF orthophoto's `.jgw`, `.pgw`, `.tfw` or `.wld`, in the heights' coordinate system unless a
+    /// `.prj` beside it says geographic or projected otherwise), else `None`. A damaged world file is an
+    /// error.
+    pub fn of_imagery(path: &Path) -> Result<Option<Self>> {
+        if let Some(g) = Self::read(path) {
+            return Ok(Some(g));
+        }
+        if world_file_names(path).iter().all(|p| !p.is_file()) {
+            return Ok(None);
+        }
+        let size = image::ImageReader::open(path)
+            .and_then(image::ImageReader::with_guessed_format)
+            .map_err(|e| Error::io(path, "cannot read", e))?
+            .into_dimensions()
+            .map_err(|e| Error::format(path, format!("cannot read the image header: {e}")))?;
+        world_file(path, size)
     }
 }
 

@@ -678,6 +678,85 @@ fn geotiff_imagery_is_placed_by_its_georeference() {
     );
 }
 
+/// A PNG or JPEG orthophoto with a world file (`.pgw`, `.jgw`, `.wld`) over GeoTIFF heights is placed by
+/// it as a GeoTIFF image would be: the heights and image of `geotiff_imagery_is_placed_by_its_georeference`
+/// (20 x 10 texels at 15 m from the west sample's centre over the northern half: (0, 150, 300, 300) m),
+/// the world file naming the north-west pixel's centre. A rotated or unreadable world file is refused,
+/// naming it; a `.prj` saying geographic over projected heights is refused as another kind of system.
+#[test]
+fn world_files_place_plain_images() {
+    use clipsat::source::georef::GeoRef;
+    use tiff::encoder::colortype::Gray32Float;
+    let dir = scratch("world_file");
+    let utm = [(1024, 1), (1025, 1), (3072, 32611)];
+    let heights = dir.join("heights.tif");
+    geotiff::<Gray32Float>(
+        &heights,
+        11,
+        11,
+        &[100.0f32; 121],
+        30.0,
+        (500_000.0, 4_000_300.0),
+        &utm,
+    );
+    let world = "15.0\n0.0\n0.0\n-15.0\n500022.5\n4000277.5\n";
+    let want = Extent::new(0.0, 150.0, 300.0, 300.0).expect("extent");
+    for (name, sidecar, color) in [
+        ("photo.png", "photo.pgw", image::ColorType::Rgb8),
+        ("photo.jpg", "photo.jgw", image::ColorType::Rgb8),
+        ("other.png", "other.wld", image::ColorType::L8),
+    ] {
+        let image = save(&dir, name, 20, 10, color);
+        assert!(GeoRef::of_imagery(&image)
+            .expect("no world file yet")
+            .is_none());
+        std::fs::write(dir.join(sidecar), world).expect("world file");
+        let g = GeoRef::of_imagery(&image)
+            .expect("read")
+            .expect("a georeference");
+        assert_eq!(
+            (g.size, g.scale, g.corner),
+            ((20, 10), (15.0, 15.0), (500_015.0, 4_000_285.0))
+        );
+        let terrain = clipsat::Terrain::open_with(
+            &heights,
+            &clipsat::TerrainOptions::default().imagery(image.clone()),
+        )
+        .expect("terrain");
+        assert_eq!(
+            terrain.imagery().expect("imagery").header().extent,
+            want,
+            "{name}"
+        );
+    }
+    let image = save(&dir, "bad.png", 20, 10, image::ColorType::Rgb8);
+    for (text, what) in [
+        ("15.0\n0.5\n0.0\n-15.0\n500022.5\n4000277.5\n", "rotates"),
+        ("15.0\n0.0\n0.0\n", "six numbers"),
+        (
+            "15.0\n0.0\nzero\n-15.0\n500022.5\n4000277.5\n",
+            "six numbers",
+        ),
+    ] {
+        std::fs::write(dir.join("bad.pgw"), text).expect("world file");
+        let e = GeoRef::of_imagery(&image).expect_err(what);
+        assert!(
+            e.to_string().contains("bad.pgw") && e.to_string().contains(what),
+            "{e}"
+        );
+    }
+    std::fs::write(dir.join("bad.pgw"), world).expect("world file");
+    std::fs::write(
+        dir.join("bad.prj"),
+        "GEOGCS[\"WGS 84\",DATUM[\"WGS_1984\"]]",
+    )
+    .expect("prj");
+    let e =
+        clipsat::Terrain::open_with(&heights, &clipsat::TerrainOptions::default().imagery(image))
+            .expect_err("geographic over projected");
+    assert!(e.to_string().contains("geographic"), "{e}");
+}
+
 /// The colour rings' block formats on the shared images (a measurement): each format's own PSNR over RGB
 /// against the source (level 0 encoded in 256^2 tiles as the tile cache encodes them, decoded as the
 /// twin decodes them), and the encode time a tile. `cargo test --test cpu imagery::block_formats --

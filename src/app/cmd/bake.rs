@@ -150,12 +150,13 @@ fn open_imagery(
     let g = rows.grid();
     let grid = Extent::of_grid(g.width, g.height, f64::from(g.spacing), g.origin);
     let mut options = targs.imagery_options()?;
-    // A GeoTIFF over georeferenced heights (a GeoTIFF, an `.hgt` tile, a mosaic): placed by both
+    // A GeoTIFF, or an image with a world file, over georeferenced heights (a GeoTIFF, an `.hgt` tile, a
+    // mosaic): placed by both
     // georeferences (unless an extent is given).
     if let (None, clipsat::source::TerrainSpec::File(heights)) = (options.extent, targs.spec()?) {
         if let (Some(h), Some(i)) = (
             clipsat::source::heights_georef(&heights),
-            GeoRef::read(path),
+            GeoRef::of_imagery(path)?,
         ) {
             let spacing = f64::from(g.spacing);
             options.extent = Some(georef_extent(path, &h, &i, spacing, g.origin, g.width)?);
