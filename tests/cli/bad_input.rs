@@ -203,7 +203,6 @@ fn render_refuses_bad_cameras_and_survives_odd_ones() {
         ("0,inf,500", "1000,1000,0", "not finite"),
         ("0,0,500", "-inf,1000,0", "not finite"),
         ("100,200,300", "100,200,300", "zero length"),
-        ("100,200,300", "100,200,-50", "straight"),
         ("1,2", "100,200,300", "--camera"),
         ("1,2,x", "100,200,300", "--camera"),
     ];
@@ -219,6 +218,8 @@ fn render_refuses_bad_cameras_and_survives_odd_ones() {
         ("1900,1900,0", "3000,3000,0"),
         ("1900,1900,-3000", "3000,3000,-2900"),
         ("1900,1900,1e6", "1901,1950,0"),
+        // Straight down: north up.
+        ("100,200,300", "100,200,-50"),
     ];
     for (eye, at) in accepted {
         let mut a = base.to_vec();
