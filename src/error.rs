@@ -192,11 +192,13 @@ pub enum Param {
     ImageryExtent,
     /// The most texels an imagery file may declare.
     MaxImageryTexels,
+    /// The imagery's sample values drawn black and white ([`crate::TerrainOptions::imagery_range`]).
+    ImageryRange,
 }
 
 impl Param {
     /// Every parameter, so a caller that maps them (the binary to its flags) can check it maps all.
-    pub const ALL: [Param; 11] = [
+    pub const ALL: [Param; 12] = [
         Self::MaxError,
         Self::Tile,
         Self::Codec,
@@ -208,6 +210,7 @@ impl Param {
         Self::Nodata,
         Self::ImageryExtent,
         Self::MaxImageryTexels,
+        Self::ImageryRange,
     ];
 
     /// The option's name in the library, `Struct::field`; messages quote it in backticks.
@@ -224,6 +227,7 @@ impl Param {
             Self::Nodata => "TerrainOptions::nodata",
             Self::ImageryExtent => "TerrainOptions::imagery_extent",
             Self::MaxImageryTexels => "TerrainOptions::max_imagery_texels",
+            Self::ImageryRange => "TerrainOptions::imagery_range",
         }
     }
 }

@@ -726,7 +726,7 @@ impl Profile {
 
 /// `layers` array layers, plus the spare one wgpu's GL backend needs where it would take the texture
 /// for a plain 2D texture (one layer) or a cube map (a multiple of 6): [`Profile::height_layers`].
-fn with_gl_spare_layer(layers: u32) -> u32 {
+pub(crate) fn with_gl_spare_layer(layers: u32) -> u32 {
     if layers == 1 || layers.is_multiple_of(6) {
         layers.saturating_add(1)
     } else {

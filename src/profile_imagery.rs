@@ -42,10 +42,19 @@ impl Default for ImageryBudget {
 }
 
 impl ImageryBudget {
-    /// Bytes of GPU memory of the colour rings at most: `ring^2 x levels` RGBA8 texels, the format every
-    /// device has (in BC1 or ETC2 RGB8 they take an eighth of it; the ledger counts what was made).
+    /// Bytes of GPU memory of the colour rings at most: `ring^2 x layers` RGBA8 texels, the format every
+    /// device has (in BC1 or ETC2 RGB8 they take an eighth of it; the ledger counts what was made), with
+    /// one layer a level and the GL backend's spare ([`ImageryBudget::layers`]).
     pub fn gpu_bytes(&self) -> u64 {
-        u64::from(self.ring) * u64::from(self.ring) * u64::from(self.levels) * 4
+        u64::from(self.ring) * u64::from(self.ring) * u64::from(Self::layers(self.levels)) * 4
+    }
+
+    /// Layers of the rings' array texture for `levels` colour levels: one a level, and one more where
+    /// that makes 1 or a multiple of 6, which wgpu's GL backend would make a plain 2D texture or a cube
+    /// map (sampled as an array, it read as one grey: an image of one level, at most 256 texels a side,
+    /// or of six, 4097 to 8192, on every GL device), as [`crate::profile::Profile::height_layers`] does.
+    pub fn layers(levels: u32) -> u32 {
+        crate::profile::with_gl_spare_layer(levels)
     }
 
     /// Bytes of CPU memory: the tile cache and the upload staging.
@@ -91,5 +100,18 @@ impl ImageryBudget {
             );
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::ImageryBudget;
+
+    /// One layer a level, and a spare where wgpu's GL backend would take 1 layer for a plain 2D texture
+    /// or a multiple of 6 for a cube map.
+    #[test]
+    fn ring_layers_avoid_gl_s_special_counts() {
+        let layers: Vec<u32> = (1..=13).map(ImageryBudget::layers).collect();
+        assert_eq!(layers, [2, 2, 3, 4, 5, 7, 7, 8, 9, 10, 11, 13, 13]);
     }
 }

@@ -149,6 +149,13 @@ impl<'a> TerrainOptions<'a> {
         self.imagery_extent = Some(extent);
         self
     }
+
+    /// The imagery's sample values drawn black and white ([`TerrainOptions::imagery_range`]).
+    #[must_use]
+    pub fn imagery_range(mut self, low: f64, high: f64) -> Self {
+        self.imagery_range = Some((low, high));
+        self
+    }
 }
 
 // What an engine moves to a worker thread: a terrain opened or baked there, and the renderer itself.

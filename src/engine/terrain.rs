@@ -59,6 +59,10 @@ pub struct TerrainOptions<'a> {
     /// the south-west sample at the origin); `None`: the height grid's extent, corner sample to corner
     /// sample. Texels are areas: texel (i, j) of W x H covers 1/W of the width and 1/H of the height.
     pub imagery_extent: Option<[f64; 4]>,
+    /// The imagery's stored sample values drawn black and white, (low, high), mapped linearly onto 0 to
+    /// 255 (for 12-bit or reflectance values in a 16-bit file, which would draw nearly black); None: 8-bit
+    /// samples as they are, 16-bit ones rounded to 8 bits.
+    pub imagery_range: Option<(f64, f64)>,
 }
 
 /// A terrain ready to draw: a package streamed through the profile's tile cache, or a height grid held
@@ -125,6 +129,10 @@ impl Terrain {
                 max_texels: options
                     .max_imagery_texels
                     .unwrap_or(ImageryOptions::default().max_texels),
+                range: options
+                    .imagery_range
+                    .map(crate::source::imagery::check_range)
+                    .transpose()?,
             };
             terrain.attach_imagery(imagery, &opts, options.progress)?;
         }
@@ -467,7 +475,9 @@ fn source_file(spec: &TerrainSpec) -> Option<PathBuf> {
 fn imagery_key(path: &Path, grid: &Extent, options: &ImageryOptions) -> Result<u64> {
     let meta = std::fs::metadata(path).map_err(|e| Error::io(path, "cannot read", e))?;
     let mut h = Hash64::new();
-    h.write_bytes(format!("imagery {} {options:?} {grid:?} q{DEFAULT_QUALITY}", path.display()).as_bytes());
+    // Images drawn with their own levels keep the keys they had before a range could be given.
+    let options = format!("{options:?}").replace(", range: None", "");
+    h.write_bytes(format!("imagery {} {options} {grid:?} q{DEFAULT_QUALITY}", path.display()).as_bytes());
     h.write_u64(u64::from(crate::package::imagery::VERSION));
     h.write_u64(meta.len());
     let mtime = meta

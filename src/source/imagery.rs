@@ -117,6 +117,23 @@ pub struct ImageryOptions {
     pub extent: Option<Extent>,
     /// Most texels the file may declare; checked before allocating.
     pub max_texels: u64,
+    /// The stored sample values drawn black and white, (low, high): samples between map linearly onto 0
+    /// to 255, those outside are clamped. For imagery whose samples fill little of their type's range
+    /// (12-bit or reflectance values in a 16-bit file). `None`: 8-bit samples as they are, 16-bit ones
+    /// rounded to 8 bits.
+    pub range: Option<(f64, f64)>,
+}
+
+/// `range` as [`ImageryOptions::range`] takes it: finite, 0 <= low < high <= 65535.
+pub fn check_range((lo, hi): (f64, f64)) -> Result<(f64, f64)> {
+    if lo.is_finite() && hi.is_finite() && 0.0 <= lo && lo < hi && hi <= 65535.0 {
+        Ok((lo, hi))
+    } else {
+        Err(Error::param(
+            crate::Param::ImageryRange,
+            format!("{lo} to {hi}: give 0 <= low < high <= 65535, in the image's sample values"),
+        ))
+    }
 }
 
 impl Default for ImageryOptions {
@@ -124,6 +141,7 @@ impl Default for ImageryOptions {
         Self {
             extent: None,
             max_texels: DEFAULT_MAX_IMAGERY_TEXELS,
+            range: None,
         }
     }
 }

@@ -39,6 +39,7 @@ enum Reader {
         reader: Box<png::Reader<BufReader<std::fs::File>>>,
         channels: usize,
         wide: bool,
+        levels: Levels,
     },
     /// A TIFF, a row of chunks decoded into `band` (RGB8) at a time.
     Tiff(Box<TiffRows>),
@@ -57,6 +58,8 @@ struct TiffRows {
     jpeg: Option<super::tiff_jpeg::JpegChunks>,
     /// Bits a sample, 8 or 16.
     bits: u8,
+    /// How its samples become 8-bit colour.
+    levels: Levels,
     /// Chunks a plane, where each sample lies in a plane of its own (planar configuration); 0: chunky.
     plane: u32,
     /// The decoded row of chunks `band_row`, RGB8.
@@ -163,13 +166,14 @@ impl ImageryRows {
                 reader,
                 channels,
                 wide,
+                levels,
             } => {
                 for orow in out.chunks_exact_mut(w) {
                     let row = reader
                         .next_row()
                         .map_err(|e| Error::format(&self.path, format!("corrupt or truncated PNG: {}", one_line(&e))))?
                         .ok_or_else(|| Error::format(&self.path, "truncated PNG: rows missing"))?;
-                    to_rgb8(&self.path, row.data(), *channels, *wide, orow)?;
+                    to_rgb8(&self.path, row.data(), (*channels, *wide), levels, orow)?;
                 }
             }
             Reader::Tiff(t) => {
@@ -265,6 +269,7 @@ fn open_png(path: &Path, options: &ImageryOptions) -> Result<Option<(u32, u32, R
     let channels = super::png::channels(colour)
         .ok_or_else(|| Error::format(path, "PNG palette not expanded"))?;
     let wide = depth == png::BitDepth::Sixteen;
+    let levels = Levels::new(path, options.range, wide)?;
     Ok(Some((
         width,
         height,
@@ -272,6 +277,7 @@ fn open_png(path: &Path, options: &ImageryOptions) -> Result<Option<(u32, u32, R
             reader: Box::new(reader),
             channels,
             wide,
+            levels,
         },
     )))
 }
@@ -310,7 +316,87 @@ fn decode_whole(
             ),
         ));
     }
-    Ok((width, height, Reader::Held(decoded.into_rgb8().into_raw())))
+    let texels = match options.range {
+        None => decoded.into_rgb8().into_raw(),
+        Some(_) => {
+            // Through the table of the file's own sample depth.
+            let wide = decoded.color().bytes_per_pixel() > decoded.color().channel_count();
+            let levels = Levels::new(path, options.range, wide)?;
+            if wide {
+                decoded.into_rgb16().into_raw().into_iter().map(|v| levels.map(v)).collect()
+            } else {
+                let mut t = decoded.into_rgb8().into_raw();
+                levels.apply8(&mut t);
+                t
+            }
+        }
+    };
+    Ok((width, height, Reader::Held(texels)))
+}
+
+/// How stored samples become 8-bit colour: [`ImageryOptions::range`] mapped linearly onto 0..255 (a
+/// table of the file's sample values), or without one 8-bit samples as they are and 16-bit ones rounded
+/// to 8 bits.
+struct Levels {
+    wide: bool,
+    table: Option<Box<[u8]>>,
+}
+
+impl Levels {
+    /// The levels of a file of 16-bit (`wide`) or 8-bit samples; a range past what its samples hold is
+    /// refused, naming the file.
+    fn new(path: &Path, range: Option<(f64, f64)>, wide: bool) -> Result<Self> {
+        let top = if wide { 65535.0 } else { 255.0 };
+        let table = match range {
+            None => None,
+            Some((lo, hi)) => {
+                if hi > top {
+                    return Err(Error::param(
+                        Param::ImageryRange,
+                        format!(
+                            "{}: holds {} samples (0 to {top}); the range {lo} to {hi} passes them",
+                            path.display(),
+                            if wide { "16-bit" } else { "8-bit" }
+                        ),
+                    ));
+                }
+                let n: u32 = if wide { 65536 } else { 256 };
+                Some(
+                    (0..n)
+                        .map(|v| {
+                            let t = ((f64::from(v) - lo) / (hi - lo)).clamp(0.0, 1.0);
+                            #[expect(
+                                clippy::cast_possible_truncation,
+                                clippy::cast_sign_loss,
+                                reason = "rounded within 0..=255"
+                            )]
+                            let b = (t * 255.0).round() as u8;
+                            b
+                        })
+                        .collect(),
+                )
+            }
+        };
+        Ok(Self { wide, table })
+    }
+
+    /// Sample `v` (8-bit files: 0..=255) as 8 bits.
+    fn map(&self, v: u16) -> u8 {
+        match &self.table {
+            Some(t) => t[usize::from(v).min(t.len() - 1)],
+            None if self.wide => to8(v),
+            None => u8::try_from(v).unwrap_or(u8::MAX),
+        }
+    }
+
+    /// 8-bit samples mapped in place (nothing to do without a range).
+    fn apply8(&self, bytes: &mut [u8]) {
+        if let Some(t) = &self.table {
+            for b in bytes {
+                *b = t[usize::from(*b)];
+            }
+        }
+    }
 }
 
 /// A 16-bit sample rounded to 8 bits, as the `image` crate rounds.
@@ -318,9 +404,15 @@ fn to8(v: u16) -> u8 {
     u8::try_from((u32::from(v) + 128) / 257).unwrap_or(u8::MAX)
 }
 
-/// One row of `channels` samples a texel (grey, grey + alpha, RGB, RGBA; 8 bits, or 16 big-endian) into
-/// RGB8, alpha dropped.
-fn to_rgb8(path: &Path, data: &[u8], channels: usize, wide: bool, out: &mut [u8]) -> Result<()> {
+/// One row of `channels` samples a texel (grey, grey + alpha, RGB, RGBA; 8 bits, or 16 big-endian:
+/// `wide`) into RGB8 through `levels`, alpha dropped.
+fn to_rgb8(
+    path: &Path,
+    data: &[u8],
+    (channels, wide): (usize, bool),
+    levels: &Levels,
+    out: &mut [u8],
+) -> Result<()> {
     let bytes = if wide { 2 } else { 1 };
     if data.len() < out.len() / 3 * channels * bytes {
         return Err(Error::format(path, "corrupt PNG: a short row"));
@@ -329,9 +421,9 @@ fn to_rgb8(path: &Path, data: &[u8], channels: usize, wide: bool, out: &mut [u8]
         let sample = |c: usize| {
             let at = (i * channels + c) * bytes;
             if wide {
-                to8(u16::from_be_bytes([data[at], data[at + 1]]))
+                levels.map(u16::from_be_bytes([data[at], data[at + 1]]))
             } else {
-                data[at]
+                levels.map(u16::from(data[at]))
             }
         };
         if channels < 3 {
@@ -450,6 +542,8 @@ fn open_tiff(path: &Path, options: &ImageryOptions) -> Result<(u32, u32, Reader)
     limits.decoding_buffer_size = usize::try_from(chunk_bytes).unwrap_or(usize::MAX).saturating_add(1 << 20);
     limits.intermediate_buffer_size = limits.decoding_buffer_size;
     let band = vec![0u8; width as usize * 3 * chunk.1.min(height) as usize];
+    // A JPEG-compressed TIFF decodes to 8-bit samples.
+    let levels = Levels::new(path, options.range, colour.bit_depth() > 8 && jpeg.is_none())?;
     Ok((
         width,
         height,
@@ -460,6 +554,7 @@ fn open_tiff(path: &Path, options: &ImageryOptions) -> Result<(u32, u32, Reader)
             channels,
             jpeg,
             bits: colour.bit_depth(),
+            levels,
             plane,
             band,
             band_row: None,
@@ -492,8 +587,9 @@ impl TiffRows {
                     ));
                 }
                 for r in 0..dh {
-                    self.band[r * w3 + x0 * 3..r * w3 + (x0 + dw) * 3]
-                        .copy_from_slice(&texels[r * cw * 3..(r * cw + dw) * 3]);
+                    let row = &mut self.band[r * w3 + x0 * 3..r * w3 + (x0 + dw) * 3];
+                    row.copy_from_slice(&texels[r * cw * 3..(r * cw + dw) * 3]);
+                    self.levels.apply8(row);
                 }
                 continue;
             }
@@ -510,8 +606,8 @@ impl TiffRows {
                         )
                     })?;
                 let (len, at): (usize, Box<dyn Fn(usize) -> u8 + '_>) = match &chunk {
-                    DecodingResult::U8(v) => (v.len(), Box::new(|i| v[i])),
-                    DecodingResult::U16(v) => (v.len(), Box::new(|i| to8(v[i]))),
+                    DecodingResult::U8(v) => (v.len(), Box::new(|i| self.levels.map(u16::from(v[i])))),
+                    DecodingResult::U16(v) => (v.len(), Box::new(|i| self.levels.map(v[i]))),
                     _ => {
                         return Err(Error::format(
                             path,

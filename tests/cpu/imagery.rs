@@ -757,6 +757,53 @@ fn world_files_place_plain_images() {
     assert!(e.to_string().contains("geographic"), "{e}");
 }
 
+/// `ImageryOptions::range` maps stored samples linearly onto 0..255: a 16-bit image of 12-bit values draws
+/// nearly black without it (4095 rounds to 16) and whole with 0..4095; 8-bit files take it in their own
+/// values; a range past the file's samples, or not 0 <= low < high <= 65535, is refused.
+#[test]
+fn imagery_range_maps_samples() {
+    let dir = scratch("range");
+    let (w, h) = (16u32, 4u32);
+    let grey: Vec<u16> = (0..w * h)
+        .map(|i| u16::try_from(i % w * 273).expect("12 bits"))
+        .collect();
+    let wide = dir.join("wide.png");
+    image::ImageBuffer::<image::Luma<u16>, _>::from_raw(w, h, grey)
+        .expect("image")
+        .save(&wide)
+        .expect("save");
+    let narrow = save(&dir, "narrow.png", w, h, image::ColorType::L8);
+    let load_with = |p: &Path, range| {
+        Imagery::load(
+            p,
+            &grid(),
+            &ImageryOptions {
+                range,
+                ..ImageryOptions::default()
+            },
+        )
+    };
+    let max = |t: Vec<u8>| t.into_iter().max().expect("texels");
+    let plain = load_with(&wide, None).expect("plain").into_texels();
+    assert_eq!(max(plain), 16);
+    let stretched = load_with(&wide, Some((0.0, 4095.0)))
+        .expect("range")
+        .into_texels();
+    assert_eq!((stretched[0], stretched[3 * 15]), (0, 255));
+    let n = load_with(&narrow, Some((0.0, 255.0)))
+        .expect("identity")
+        .into_texels();
+    assert_eq!(n, load_with(&narrow, None).expect("plain").into_texels());
+    let e = load_with(&narrow, Some((0.0, 4095.0))).expect_err("past 8 bits");
+    assert!(e.to_string().contains("8-bit"), "{e}");
+    for bad in [(5.0, 5.0), (-1.0, 10.0), (0.0, 70000.0), (f64::NAN, 1.0)] {
+        assert!(
+            clipsat::source::imagery::check_range(bad).is_err(),
+            "{bad:?}"
+        );
+    }
+}
+
 /// The colour rings' block formats on the shared images (a measurement): each format's own PSNR over RGB
 /// against the source (level 0 encoded in 256^2 tiles as the tile cache encodes them, decoded as the
 /// twin decodes them), and the encode time a tile. `cargo test --test cpu imagery::block_formats --

@@ -283,6 +283,7 @@ pub(crate) fn flag_of(param: Param) -> Option<&'static str> {
         Param::Nodata => "`--nodata V`",
         Param::ImageryExtent => "`--imagery-extent W,S,E,N`",
         Param::MaxImageryTexels => "`--max-imagery-texels`",
+        Param::ImageryRange => "`--imagery-range LO,HI`",
         _ => return None,
     })
 }

@@ -110,6 +110,11 @@ pub(crate) struct TerrainArgs {
     /// Refuse imagery declaring more texels than this (checked before allocating).
     #[arg(long, value_name = "N", default_value_t = source::imagery::DEFAULT_MAX_IMAGERY_TEXELS)]
     pub(crate) max_imagery_texels: u64,
+    /// The imagery's stored sample values drawn black and white, LO,HI: mapped linearly onto 0..255, for
+    /// imagery whose samples fill little of their type (12-bit or reflectance values in a 16-bit file,
+    /// which draw nearly black otherwise). Default: 8-bit samples as they are, 16-bit rounded to 8 bits.
+    #[arg(long, value_name = "LO,HI", requires = "imagery")]
+    pub(crate) imagery_range: Option<String>,
 }
 
 /// `--png-encoding`, the command line's name for [`source::PngEncoding`].
@@ -205,6 +210,22 @@ impl TerrainArgs {
                 .map(source::imagery::Extent::parse)
                 .transpose()?,
             max_texels: self.max_imagery_texels,
+            range: self
+                .imagery_range
+                .as_deref()
+                .map(|t| {
+                    let v: Vec<f64> = t.split(',').filter_map(|x| x.trim().parse().ok()).collect();
+                    match v[..] {
+                        [lo, hi] if t.split(',').count() == 2 => {
+                            source::imagery::check_range((lo, hi))
+                        }
+                        _ => Err(Error::param(
+                            clipsat::Param::ImageryRange,
+                            format!("`{t}` is not two numbers LO,HI"),
+                        )),
+                    }
+                })
+                .transpose()?,
         })
     }
 

@@ -1,6 +1,7 @@
 //! Stage 3, the GPU: draped imagery, the colour clipmap's GPU side (`shaders_gles/imagery.wgsl`): one 2D
-//! array texture of `ring^2 x levels` texels (RGBA8, or BC1 / ETC2 RGB8 blocks where the device has them,
-//! [`Renderer::imagery_format`]), its uniform, a bind group (group 2) and the imagery
+//! array texture of `ring^2 x layers` texels (a layer a level, and GL's spare:
+//! `ImageryBudget::layers`), RGBA8, or BC1 / ETC2 RGB8 blocks where the device has them
+//! ([`Renderer::imagery_format`]), its uniform, a bind group (group 2) and the imagery
 //! variant of the four fragment programs. Created once by [`Renderer::enable_imagery`] for a terrain
 //! with imagery (counted in the ledger, [`crate::profile::Profile::imagery_gpu_bytes`]); a renderer
 //! without it creates, binds and compiles none of this. Each frame [`Renderer::prepare_imagery`] writes
@@ -69,7 +70,7 @@ impl Renderer {
         }
     }
 
-    /// Creates the colour rings (`ring^2 x levels` texels in `format`), their uniform, bind group and the imagery
+    /// Creates the colour rings (`ring^2 x layers` texels in `format`), their uniform, bind group and the imagery
     /// programs, once: frames then draw the terrain's albedo from the imagery under basic shading (and
     /// its fog), and under SG shading the diffuse term of the SG variant drawn now scaled by the imagery's
     /// albedo over the scene's k_d (the bind group at 3, after the SG tables'; a variant switched to later
@@ -100,10 +101,11 @@ impl Renderer {
             });
         }
         let limits = device.limits();
-        if levels > limits.max_texture_array_layers || levels == 0 {
+        let layers = crate::profile::ImageryBudget::layers(levels);
+        if layers > limits.max_texture_array_layers || levels == 0 {
             return Err(Error::Unsupported {
                 limit: "max_texture_array_layers",
-                needed: u64::from(levels),
+                needed: u64::from(layers),
                 available: u64::from(limits.max_texture_array_layers),
             });
         }
@@ -117,7 +119,7 @@ impl Renderer {
         let mut dev = Ledgered::new(device);
         let texture = dev.texture(
             "imagery rings",
-            &array_texture(ring, levels, texture_format(format), wgpu::TextureUsages::COPY_SRC),
+            &array_texture(ring, layers, texture_format(format), wgpu::TextureUsages::COPY_SRC),
         );
         let view = dev.view(
             "imagery rings view",
