@@ -8,6 +8,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 pub use crate::profile_imagery::{ImageryBudget, MAX_COLOR_LEVELS};
+use crate::profile_imagery::with_gl_spare_layer;
 use crate::{Error, Result};
 
 /// The profiles shipped in `profiles/`, by name, with their TOML text.
@@ -724,15 +725,6 @@ impl Profile {
     }
 }
 
-/// `layers` array layers, plus the spare one wgpu's GL backend needs where it would take the texture
-/// for a plain 2D texture (one layer) or a cube map (a multiple of 6): [`Profile::height_layers`].
-pub(crate) fn with_gl_spare_layer(layers: u32) -> u32 {
-    if layers == 1 || layers.is_multiple_of(6) {
-        layers.saturating_add(1)
-    } else {
-        layers
-    }
-}
 
 /// A TOML parse error as [`Error::Config`]: the key written where the error points (mistyped values), or
 /// else the field toml's message names (missing, unknown keys), with line and column.

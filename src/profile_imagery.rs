@@ -54,7 +54,7 @@ impl ImageryBudget {
     /// map (sampled as an array, it read as one grey: an image of one level, at most 256 texels a side,
     /// or of six, 4097 to 8192, on every GL device), as [`crate::profile::Profile::height_layers`] does.
     pub fn layers(levels: u32) -> u32 {
-        crate::profile::with_gl_spare_layer(levels)
+        with_gl_spare_layer(levels)
     }
 
     /// Bytes of CPU memory: the tile cache and the upload staging.
@@ -100,6 +100,17 @@ impl ImageryBudget {
             );
         }
         Ok(())
+    }
+}
+
+/// `layers` array layers, plus the spare one wgpu's GL backend needs where it would take the texture
+/// for a plain 2D texture (one layer) or a cube map (a multiple of 6): the height rings', the detail
+/// pool's and the colour rings' layers ([`crate::profile::Profile::height_layers`]).
+pub(crate) fn with_gl_spare_layer(layers: u32) -> u32 {
+    if layers == 1 || layers.is_multiple_of(6) {
+        layers.saturating_add(1)
+    } else {
+        layers
     }
 }
 
