@@ -583,6 +583,22 @@ pub(crate) fn geotiff<C: tiff::encoder::colortype::ColorType>(
     img.write_data(data).expect("data");
 }
 
+/// 11 x 11 GeoTIFF heights at 30 m, flat, in `dir`: their north-west pixel's corner at (500000, 4000300)
+/// in the system the GeoKeys `keys` name, so their south-west sample's centre is 15 m in from it.
+fn utm_heights(dir: &Path, keys: &[(u16, u16)]) -> PathBuf {
+    let heights = dir.join("heights.tif");
+    geotiff::<tiff::encoder::colortype::Gray32Float>(
+        &heights,
+        11,
+        11,
+        &[100.0f32; 121],
+        30.0,
+        (500_000.0, 4_000_300.0),
+        keys,
+    );
+    heights
+}
+
 /// A GeoTIFF image over GeoTIFF heights is placed by both georeferences: 11 x 11 heights at 30 m whose
 /// south-west sample centre is the world's origin, a 20 x 10 image at 15 m covering their northern half
 /// from the west sample's centre, so (0, 150, 300, 300) m; through the library (`TerrainOptions`) too. A
@@ -590,19 +606,10 @@ pub(crate) fn geotiff<C: tiff::encoder::colortype::ColorType>(
 #[test]
 fn geotiff_imagery_is_placed_by_its_georeference() {
     use clipsat::source::georef::{georef_extent, GeoRef};
-    use tiff::encoder::colortype::{Gray32Float, RGB8};
+    use tiff::encoder::colortype::RGB8;
     let dir = scratch("georef");
     let utm = [(1024, 1), (1025, 1), (3072, 32611)];
-    let heights = dir.join("heights.tif");
-    geotiff::<Gray32Float>(
-        &heights,
-        11,
-        11,
-        &[100.0f32; 121],
-        30.0,
-        (500_000.0, 4_000_300.0),
-        &utm,
-    );
+    let heights = utm_heights(&dir, &utm);
     let image = dir.join("image.tif");
     let rgb = pattern(20, 10);
     geotiff::<RGB8>(&image, 20, 10, &rgb, 15.0, (500_015.0, 4_000_285.0), &utm);
@@ -686,19 +693,9 @@ fn geotiff_imagery_is_placed_by_its_georeference() {
 #[test]
 fn world_files_place_plain_images() {
     use clipsat::source::georef::GeoRef;
-    use tiff::encoder::colortype::Gray32Float;
     let dir = scratch("world_file");
     let utm = [(1024, 1), (1025, 1), (3072, 32611)];
-    let heights = dir.join("heights.tif");
-    geotiff::<Gray32Float>(
-        &heights,
-        11,
-        11,
-        &[100.0f32; 121],
-        30.0,
-        (500_000.0, 4_000_300.0),
-        &utm,
-    );
+    let heights = utm_heights(&dir, &utm);
     let world = "15.0\n0.0\n0.0\n-15.0\n500022.5\n4000277.5\n";
     let want = Extent::new(0.0, 150.0, 300.0, 300.0).expect("extent");
     for (name, sidecar, color) in [

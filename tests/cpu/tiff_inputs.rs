@@ -190,13 +190,7 @@ fn tiled_lzw_with_padded_edge_tiles_is_read() {
     let want: Vec<f32> = (0..h)
         .flat_map(|y| (0..w).map(move |x| f32::from(height(x, y))))
         .collect();
-    let hm = source::load(&path, &opts).unwrap_or_else(|e| panic!("{e}"));
-    assert_eq!(hm.heights(), want.as_slice());
-    let mut rows = source::open_rows(&path, &opts).unwrap_or_else(|e| panic!("{e}"));
-    let mut got = vec![0.0f32; want.len()];
-    rows.read_rows(0, &mut got)
-        .unwrap_or_else(|e| panic!("{e}"));
-    assert_eq!(got, want);
+    assert_heights(&path, &opts, &want);
 }
 
 /// JPEG-compressed TIFF imagery, as orthophotos and COGs come: YCbCr 4:2:0 tiles (the JFIF streams a
@@ -425,13 +419,7 @@ fn one_strip_of_default_rows_is_read() {
         ..LoadOptions::default()
     };
     let want: Vec<f32> = heights.iter().map(|&v| f32::from(v)).collect();
-    let hm = source::load(&path, &opts).unwrap_or_else(|e| panic!("{e}"));
-    assert_eq!(hm.heights(), want.as_slice());
-    let mut rows = source::open_rows(&path, &opts).unwrap_or_else(|e| panic!("{e}"));
-    let mut got = vec![0.0f32; want.len()];
-    rows.read_rows(0, &mut got)
-        .unwrap_or_else(|e| panic!("{e}"));
-    assert_eq!(got, want);
+    assert_heights(&path, &opts, &want);
 
     let rgb: Vec<u8> = (0..w * h * 3)
         .map(|i| u8::try_from(i).expect("a byte"))
@@ -441,4 +429,15 @@ fn one_strip_of_default_rows_is_read() {
     chunked_tiff(&path, (w, h), None, &shorts, &[lzw(&rgb)]);
     let im = imagery(&path).unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(im.texels(), rgb.as_slice());
+}
+
+/// The heights `path` gives, loaded whole and read by rows: both `want`.
+fn assert_heights(path: &Path, opts: &LoadOptions, want: &[f32]) {
+    let hm = source::load(path, opts).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(hm.heights(), want);
+    let mut rows = source::open_rows(path, opts).unwrap_or_else(|e| panic!("{e}"));
+    let mut got = vec![0.0f32; want.len()];
+    rows.read_rows(0, &mut got)
+        .unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(got, want);
 }
