@@ -232,6 +232,12 @@ pub fn is_mosaic(path: &Path) -> bool {
     mosaic::is_mosaic(path)
 }
 
+/// Where a mosaic lies on the globe, from its tiles' headers (None: projected tiles); what
+/// [`Heightmap::geo`] of the loaded mosaic says, without loading it.
+pub fn mosaic_geo(path: &Path, opts: &LoadOptions) -> Result<Option<GeoExtent>> {
+    mosaic::geo(path, opts)
+}
+
 /// The files `path` reads: the file itself, or a mosaic's tiles (and its list file): what a cache key
 /// stamps.
 pub fn input_files(path: &Path) -> Result<Vec<PathBuf>> {

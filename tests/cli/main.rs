@@ -11,6 +11,7 @@ mod fly;
 mod hard_terrains;
 mod hash;
 mod imagery;
+mod mosaic_info;
 mod render_json;
 mod stream_rss;
 mod view_xvfb;

@@ -452,6 +452,12 @@ pub(crate) fn open_rows(spec: &Path, opts: &LoadOptions) -> Result<Box<dyn RowSo
     Ok(Box::new(super::Resident::new(whole(mosaic)?)))
 }
 
+/// Where the mosaic `spec` names lies on the globe (None: tiles in a projected system), from its tiles'
+/// headers alone.
+pub(crate) fn geo(spec: &Path, opts: &LoadOptions) -> Result<Option<GeoExtent>> {
+    Ok(layout(spec, opts)?.geo)
+}
+
 /// Loads the mosaic `spec` names whole.
 pub(crate) fn load(spec: &Path, opts: &LoadOptions) -> Result<Heightmap> {
     let layout = layout(spec, opts)?;

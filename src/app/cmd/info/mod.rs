@@ -59,7 +59,7 @@ pub(crate) fn run(args: &InfoArgs) -> Result<()> {
         }
         return package_info(&pkg, args.json);
     }
-    let (name, hm) = targs.load()?;
+    let (name, hm) = Summary::of(&targs)?;
     if let Some(out) = &args.plot_projection {
         let geo = hm.geo().ok_or_else(|| {
             not_geographic("in metres (projected, a plain image, or given `--spacing`)")
@@ -306,4 +306,106 @@ fn package_info(pkg: &clipsat::package::Package, as_json: bool) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// What `info` shows of a terrain: a loaded one's, or, for a tile mosaic that streams (every sample has
+/// data or `--fill-height` gives one), what a pass over its rows finds, a band at a time, so that a
+/// mosaic of any size is described in the memory of a few bands (loaded whole, a 2 x 2 mosaic of 1"
+/// tiles holds 207 MB).
+struct Summary {
+    width: u32,
+    height: u32,
+    spacing: f32,
+    ew_spacing: f32,
+    range: (f32, f32),
+    voids_filled: u64,
+    geo: Option<clipsat::source::GeoExtent>,
+}
+
+impl Summary {
+    fn of(targs: &super::TerrainArgs) -> Result<(String, Self)> {
+        if let clipsat::source::TerrainSpec::File(path) = targs.spec()? {
+            let opts = targs.load_options()?;
+            if clipsat::source::is_mosaic(&path) && opts.fill_height.is_some() {
+                let mut rows = clipsat::source::open_rows(&path, &opts)?;
+                let g = rows.grid().clone();
+                let w = g.width as usize;
+                let band_rows = (4 << 20) / (4 * w).max(1) + 1;
+                let mut band = vec![0.0f32; w * band_rows.min(g.height as usize)];
+                let mut range = (f32::INFINITY, f32::NEG_INFINITY);
+                let mut y = 0u32;
+                while y < g.height {
+                    let n = (g.height - y).min(u32::try_from(band_rows).unwrap_or(u32::MAX));
+                    let part = &mut band[..w * n as usize];
+                    rows.read_rows(y, part)?;
+                    range = part
+                        .iter()
+                        .fold(range, |(lo, hi), &h| (lo.min(h), hi.max(h)));
+                    y += n;
+                }
+                let summary = Self {
+                    width: g.width,
+                    height: g.height,
+                    spacing: g.spacing,
+                    ew_spacing: g.ew_spacing,
+                    range,
+                    voids_filled: 0,
+                    geo: clipsat::source::mosaic_geo(&path, &opts)?,
+                };
+                return Ok((path.display().to_string(), summary));
+            }
+        }
+        let (name, hm) = targs.load()?;
+        let summary = Self {
+            width: hm.width(),
+            height: hm.height(),
+            spacing: hm.spacing(),
+            ew_spacing: hm.ew_spacing(),
+            range: hm.range(),
+            voids_filled: hm.voids_filled(),
+            geo: hm.geo().copied(),
+        };
+        Ok((name, summary))
+    }
+
+    fn width(&self) -> u32 {
+        self.width
+    }
+
+    fn height(&self) -> u32 {
+        self.height
+    }
+
+    fn spacing(&self) -> f32 {
+        self.spacing
+    }
+
+    fn ew_spacing(&self) -> f32 {
+        self.ew_spacing
+    }
+
+    fn range(&self) -> (f32, f32) {
+        self.range
+    }
+
+    fn voids_filled(&self) -> u64 {
+        self.voids_filled
+    }
+
+    fn geo(&self) -> Option<&clipsat::source::GeoExtent> {
+        self.geo.as_ref()
+    }
+
+    /// As [`clipsat::source::Heightmap::ew_stretch`].
+    fn ew_stretch(&self) -> f64 {
+        f64::from(self.spacing) / f64::from(self.ew_spacing)
+    }
+
+    /// As [`clipsat::source::Heightmap::extent_m`].
+    fn extent_m(&self) -> (f64, f64) {
+        (
+            f64::from(self.width - 1) * f64::from(self.spacing),
+            f64::from(self.height - 1) * f64::from(self.spacing),
+        )
+    }
 }
