@@ -100,8 +100,7 @@ impl GeoRef {
 fn world_file_names(path: &Path) -> Vec<std::path::PathBuf> {
     let ext = path.extension().and_then(|e| e.to_str()).unwrap_or_default();
     let mut names = Vec::with_capacity(3);
-    let mut chars = ext.chars();
-    if let (Some(a), Some(b)) = (chars.next(), ext.chars().last()) {
+    if let (Some(a), Some(b)) = (ext.chars().next(), ext.chars().last()) {
         if ext.len() >= 2 {
             names.push(path.with_extension(format!("{a}{b}w")));
         }
@@ -111,30 +110,31 @@ fn world_file_names(path: &Path) -> Vec<std::path::PathBuf> {
     names
 }
 
-/// An image's georeference from its world file (an ESRI `.jgw`, `.pgw`, `.tfw` or `.wld`: six numbers,
-/// x and y pixel size, the two rotation terms, the centre of the north-west pixel), where it has one,
-/// and its coordinate system's kind from a `.prj` beside it (WKT: `GEOGCS`/`GEOGCRS` geographic,
-/// `PROJCS`/`PROJCRS` projected). `size` is the image's pixels. A world file that cannot be read as
-/// six numbers, or that rotates or mirrors the image, is an error naming it.
-fn world_file(path: &Path, size: (u32, u32)) -> Result<Option<GeoRef>> {
-    let Some(wf) = world_file_names(path).into_iter().find(|p| p.is_file()) else {
-        return Ok(None);
-    };
-    let text = std::fs::read_to_string(&wf).map_err(|e| Error::io(&wf, "cannot read", e))?;
+/// The six numbers of the ESRI world file `wf` (`.tfw`, `.jgw`, `.pgw`, `.wld`), one a line: x pixel size,
+/// the two rotation terms, y pixel size (negative: rows run south), and the x and y of the north-west
+/// pixel's centre. Not six numbers is an error naming the file.
+pub(crate) fn world_file_numbers(wf: &Path) -> Result<[f64; 6]> {
+    let text = std::fs::read_to_string(wf).map_err(|e| Error::io(wf, "cannot read world file", e))?;
     let v: Vec<f64> = text
         .split_whitespace()
         .map(str::parse::<f64>)
         .collect::<std::result::Result<_, _>>()
-        .map_err(|_| Error::format(&wf, "a world file holds six numbers, one a line"))?;
-    let [a, d, b, e, c, f] = v[..] else {
-        return Err(Error::format(
-            &wf,
-            format!("a world file holds six numbers, this one {}", v.len()),
-        ));
-    };
+        .map_err(|_| Error::format(wf, "a world file holds six numbers, one a line"))?;
+    <[f64; 6]>::try_from(v.as_slice()).map_err(|_| {
+        Error::format(wf, format!("a world file holds six numbers, this one {}", v.len()))
+    })
+}
+
+/// An image's georeference from its world file `wf` ([`world_file_numbers`]) and its coordinate
+/// system's kind from a `.prj` beside the image `path` (WKT: `GEOGCS`/`GEOGCRS` geographic,
+/// `PROJCS`/`PROJCRS` projected). `size` is the image's pixels. A world file that rotates or mirrors
+/// the image is an error naming it.
+fn world_file(path: &Path, wf: &Path, size: (u32, u32)) -> Result<GeoRef> {
+    let v = world_file_numbers(wf)?;
+    let [a, d, b, e, c, f] = v;
     if !v.iter().all(|x| x.is_finite()) || b != 0.0 || d != 0.0 || a <= 0.0 || e >= 0.0 {
         return Err(Error::format(
-            &wf,
+            wf,
             format!(
                 "rotates or mirrors the image (x size {a}, rotations {d} and {b}, y size {e}): only \
                  north-up images are placed; warp it north up (gdalwarp)"
@@ -150,14 +150,14 @@ fn world_file(path: &Path, size: (u32, u32)) -> Result<Option<GeoRef>> {
     } else {
         None
     };
-    Ok(Some(GeoRef {
+    Ok(GeoRef {
         size,
         scale: (a, -e),
         // (c, f) is the north-west pixel's centre; its corner is half a pixel west and north.
         corner: (c - 0.5 * a, f - 0.5 * e),
         crs: None,
         geographic,
-    }))
+    })
 }
 
 impl GeoRef {
@@ -169,15 +169,15 @@ impl GeoRef {
         if let Some(g) = Self::read(path) {
             return Ok(Some(g));
         }
-        if world_file_names(path).iter().all(|p| !p.is_file()) {
+        let Some(wf) = world_file_names(path).into_iter().find(|p| p.is_file()) else {
             return Ok(None);
-        }
+        };
         let size = image::ImageReader::open(path)
             .and_then(image::ImageReader::with_guessed_format)
             .map_err(|e| Error::io(path, "cannot read", e))?
             .into_dimensions()
             .map_err(|e| Error::format(path, format!("cannot read the image header: {e}")))?;
-        world_file(path, size)
+        world_file(path, &wf, size).map(Some)
     }
 }
 

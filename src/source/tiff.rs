@@ -404,19 +404,7 @@ impl GeoTags {
         let mid_row = f64::from(rows - 1) / 2.0;
         // (N-S pixel size, latitude of the grid's middle row if geographic, E-W pixel size)
         let found: Option<(f64, f64, f64)> = if let Some(tfw) = &self.world_file {
-            let text = std::fs::read_to_string(tfw)
-                .map_err(|e| Error::io(tfw.clone(), "cannot read world file", e))?;
-            let nums: Vec<f64> = text
-                .split_whitespace()
-                .map(str::parse)
-                .collect::<Result<_, _>>()
-                .map_err(|_| Error::format(tfw.clone(), "world file line is not a number"))?;
-            if nums.len() != 6 {
-                return Err(Error::format(
-                    tfw.clone(),
-                    format!("world file has {} numbers, expected 6", nums.len()),
-                ));
-            }
+            let nums = super::georef::world_file_numbers(tfw)?;
             // Lines: x size, rotation, rotation, y size (negative), x and y of the first pixel's centre.
             Some((
                 nums[3].abs(),
