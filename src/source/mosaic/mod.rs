@@ -278,7 +278,7 @@ fn layout(spec: &Path, opts: &LoadOptions) -> Result<Layout> {
         ));
     }
     let (paths, _) = tile_paths(spec)?;
-    let metas = paths
+    let mut metas = paths
         .iter()
         .map(|p| TileMeta::read(p))
         .collect::<Result<Vec<_>>>()?;
@@ -310,6 +310,9 @@ fn layout(spec: &Path, opts: &LoadOptions) -> Result<Layout> {
                 ),
             ));
         }
+    }
+    if metas[0].crs.geographic {
+        unwrap_longitudes(&mut metas);
     }
     let fine = metas.iter().fold((f64::MAX, f64::MAX), |(x, y), m| {
         (x.min(m.step.0), y.min(m.step.1))
@@ -409,6 +412,47 @@ fn layout(spec: &Path, opts: &LoadOptions) -> Result<Layout> {
         },
         tiles,
     })
+}
+
+/// Moves geographic tiles by whole turns of longitude so that the mosaic is cut where the globe has the
+/// widest band of longitudes without a tile: tiles on both sides of the antimeridian (`N00E179.hgt` and
+/// `N00W180.hgt`) lie side by side, 2 degrees wide rather than 360, their longitudes running on past 180
+/// east. Tiles given in 0..360 degrees join those given in -180..180 alike. A mosaic that the cut leaves
+/// as given (the widest empty band is the one across the antimeridian) is not moved at all.
+fn unwrap_longitudes(metas: &mut [TileMeta]) {
+    // Each tile's sample columns as an interval of longitude from its west sample, that in 0..360.
+    let mut spans: Vec<(f64, f64)> = metas
+        .iter()
+        .map(|m| {
+            let a = m.first.0.rem_euclid(360.0);
+            (a, a + m.step.0 * f64::from(m.size.0.saturating_sub(1)))
+        })
+        .collect();
+    spans.sort_by(|x, y| x.0.total_cmp(&y.0));
+    let Some(&(first, _)) = spans.first() else {
+        return;
+    };
+    // The widest gap between the intervals in order, the one from the last round to the first included.
+    let reach = spans.iter().map(|s| s.1).fold(f64::MIN, f64::max);
+    let (mut west, mut widest) = (first, first + 360.0 - reach);
+    let mut end = f64::MIN;
+    for &(a, b) in &spans {
+        if end > f64::MIN && a - end > widest {
+            (west, widest) = (a, a - end);
+        }
+        end = end.max(b);
+    }
+    // West of the cut in -180..180.
+    if west >= 180.0 {
+        west -= 360.0;
+    }
+    for m in metas {
+        let lon = west + (m.first.0 - west).rem_euclid(360.0);
+        let turns = ((lon - m.first.0) / 360.0).round();
+        if turns != 0.0 {
+            m.first.0 += turns * 360.0;
+        }
+    }
 }
 
 /// The georeference of heights that are a tile mosaic or one SRTM `.hgt` tile, for placing GeoTIFF imagery
