@@ -8,7 +8,7 @@
 
 use std::path::Path;
 
-use super::Layout;
+use super::{Layout, GRID_TOLERANCE};
 use crate::source::rows::{check_band, read_exact_at};
 use crate::source::{is_nodata, LoadOptions, RowGrid, RowSource};
 use crate::{Error, Result};
@@ -32,6 +32,9 @@ pub(crate) struct Mosaic {
     clock: u64,
     /// Whether no-data samples are an error (a mosaic streamed once found to have none).
     refuse: bool,
+    /// For each tile coarser E-W than the grid across the band being read: its east sample column's
+    /// values at the band's rows (NaN off the tile), for the seam past it ([`Mosaic::join_seams`]).
+    east: Vec<(usize, Vec<f32>)>,
 }
 
 /// An open tile reader and the two tile rows it read last.
@@ -50,6 +53,7 @@ impl Mosaic {
             open: Vec::new(),
             clock: 0,
             refuse: false,
+            east: Vec::new(),
         }
     }
 
@@ -134,6 +138,9 @@ impl Mosaic {
         let slot = self.reader(t)?;
         let open = &mut self.open[slot];
         let (tw, th) = p.meta.size;
+        // The east sample column of a tile coarser E-W than the grid lies inside the grid's last step
+        // before the next tile (`join_seams`).
+        let mut east = (p.k.0 > 1.0 + GRID_TOLERANCE).then(|| vec![f32::NAN; rows as usize]);
         for y in first..=last {
             let row = &mut out[(y - y0) as usize * w..(y - y0 + 1) as usize * w];
             let cols = &mut row[p.col0 as usize..=p.col1 as usize];
@@ -155,6 +162,9 @@ impl Mosaic {
             };
             let top = &open.rows[a].1;
             let bottom = b.map(|b| open.rows[b].1.as_slice());
+            if let Some(east) = east.as_mut() {
+                east[(y - y0) as usize] = bilinear(top, bottom, (tw - 1) as usize, 0.0, fr);
+            }
             for (x, dst) in cols.iter_mut().enumerate() {
                 if !dst.is_nan() {
                     continue;
@@ -164,7 +174,51 @@ impl Mosaic {
                 *dst = bilinear(top, bottom, c0 as usize, fc, fr);
             }
         }
+        if let Some(east) = east {
+            self.east.push((t, east));
+        }
         Ok(())
+    }
+
+    /// Fills the seams east of tiles coarser E-W than the grid that do not share their east column with
+    /// the next tile (Copernicus DEM tiles of 2400 columns a degree beside ones of 3600, each starting on
+    /// its degree line): the grid's columns between such a tile's east sample and the next tile's first
+    /// one, linear between the two, where no tile has data there. Without it they were no data, a column
+    /// of `fill_height` (a trench of 0 m along every tile's east edge) or of filled voids.
+    fn join_seams(&mut self, out: &mut [f32]) {
+        let w = self.layout.grid.width as usize;
+        for (t, east) in self.east.drain(..) {
+            let p = &self.layout.tiles[t];
+            let last = f64::from(p.col0) + f64::from(p.meta.size.0 - 1) * p.k.0;
+            let next = last + p.k.0;
+            // The column where the tile's next sample would lie: the next tile's first one, where the
+            // tiles abut on the grid.
+            #[expect(
+                clippy::cast_possible_truncation,
+                clippy::cast_sign_loss,
+                reason = "a non-negative column, at most the grid's width"
+            )]
+            let cn = (next.round() as usize).min(w);
+            let abuts = (next - next.round()).abs() <= GRID_TOLERANCE && cn < w;
+            for (row, &e) in out.chunks_exact_mut(w).zip(&east) {
+                // No next sample (the mosaic's east edge, a missing tile, a void): the tile's east
+                // sample where its own pixel reaches, half its step past it, as nearest would.
+                let right = if abuts { row[cn] } else { f32::NAN };
+                if e.is_nan() {
+                    continue;
+                }
+                let gap = row.iter_mut().enumerate().take(cn).skip(p.col1 as usize + 1);
+                for (c, v) in gap.filter(|(_, v)| v.is_nan()) {
+                    #[expect(clippy::cast_precision_loss, reason = "a column below 2^32")]
+                    let f = (c as f64 - last) / p.k.0;
+                    if !right.is_nan() {
+                        *v = crate::source::to_f32(f64::from(e) * (1.0 - f) + f64::from(right) * f);
+                    } else if f <= 0.5 + GRID_TOLERANCE {
+                        *v = e;
+                    }
+                }
+            }
+        }
     }
 }
 
@@ -232,9 +286,11 @@ impl RowSource for Mosaic {
             return Ok(());
         }
         out.fill(f32::NAN);
+        self.east.clear();
         for t in 0..self.layout.tiles.len() {
             self.fill_from(t, y0, out)?;
         }
+        self.join_seams(out);
         let w = self.layout.grid.width as usize;
         // Bands come top to bottom: a tile above the next band is closed (opened again if asked).
         let next = u64::from(y0) + (out.len() / w) as u64;

@@ -1,8 +1,54 @@
-//! Stage 0, tile mosaics laid out as real tile sets are: SRTM tiles on both sides of the antimeridian.
+//! Stage 0, tile mosaics laid out as real tile sets are: SRTM tiles on both sides of the antimeridian,
+//! and Copernicus DEM tiles (each starting on its degree line, not sharing edge rows or columns with its
+//! neighbours, 2400 columns a degree from 50 to 60 degrees of latitude beside 3600 below).
+
+use std::path::Path;
 
 use super::make::{write_geotiff, write_hgt, Grid};
 use super::{read_all, temp_dir};
 use clipsat::source::{self, LoadOptions, RowSource};
+
+/// A north-up f32 GeoTIFF as a Copernicus DEM tile is: geographic (EPSG 4326), pixel-is-point, its
+/// north-west sample on (`lon`, `lat`), `cols` x `rows` samples `1 / cols` and `1 / rows` degrees apart
+/// over one degree, heights `z(lon, lat)`.
+fn copernicus_tile(
+    path: &Path,
+    (lon, lat): (f64, f64),
+    (cols, rows): (u32, u32),
+    z: fn(f64, f64) -> f32,
+) {
+    use tiff::encoder::colortype::Gray32Float;
+    use tiff::tags::Tag;
+    let (dx, dy) = (1.0 / f64::from(cols), 1.0 / f64::from(rows));
+    let data: Vec<f32> = (0..rows)
+        .flat_map(|r| (0..cols).map(move |c| (c, r)))
+        .map(|(c, r)| z(lon + f64::from(c) * dx, lat - f64::from(r) * dy))
+        .collect();
+    let file = std::fs::File::create(path).expect("create tile");
+    let mut enc = tiff::encoder::TiffEncoder::new(file).expect("encoder");
+    let mut img = enc.new_image::<Gray32Float>(cols, rows).expect("image");
+    img.encoder()
+        .write_tag(Tag::ModelPixelScaleTag, &[dx, dy, 0.0][..])
+        .expect("scale");
+    img.encoder()
+        .write_tag(Tag::ModelTiepointTag, &[0.0, 0.0, 0.0, lon, lat, 0.0][..])
+        .expect("tiepoint");
+    // Geographic model, pixel-is-point, WGS 84.
+    let keys: [u16; 16] = [1, 1, 0, 3, 1024, 0, 1, 2, 1025, 0, 1, 2, 2048, 0, 1, 4326];
+    img.encoder()
+        .write_tag(Tag::GeoKeyDirectoryTag, &keys[..])
+        .expect("geokeys");
+    img.write_data(&data).expect("data");
+}
+
+/// Heights rising 360 m a degree east from 100 m at 8 E.
+#[expect(
+    clippy::cast_possible_truncation,
+    reason = "heights of a few hundred metres"
+)]
+fn plane(lon: f64, _lat: f64) -> f32 {
+    (100.0 + 360.0 * (lon - 8.0)) as f32
+}
 
 /// SRTM tiles east and west of the antimeridian (`n00e179.hgt`, `N00W180.hgt`, the names in either case)
 /// lie side by side, 2 degrees wide from 179 E to 179 W: the mosaic had been 360 degrees wide, 432001 x
@@ -56,4 +102,49 @@ fn tiles_across_the_antimeridian_lie_side_by_side() {
     assert_eq!((g.width, g.height), (17, 9));
     let want: Vec<f32> = world.z.iter().map(|&v| f32::from(v)).collect();
     assert_eq!(got, want);
+}
+
+/// Copernicus DEM tiles (here 36 rows a degree, and 36 or 24 columns: the 3600 and 2400 of GLO-30 at a
+/// hundredth) start on their degree lines and do not share edge samples. Above 50 N the coarser E-W
+/// tiles end 1.5 grid steps short of the next tile, and the grid column between was no data: with
+/// `fill_height` 0 a trench of 0 m along every such tile's east edge, and at the mosaic's east edge. The
+/// column between two tiles is now linear between them, and the one at the east edge (inside the last
+/// sample's pixel) is that sample; heights planar in longitude read back as the plane.
+#[test]
+fn copernicus_tiles_join_without_a_seam() {
+    let dir = temp_dir("copernicus");
+    for (lat, cols) in [(50.0, 36), (51.0, 24)] {
+        for lon in [8.0, 9.0] {
+            let name = format!(
+                "Copernicus_DSM_COG_10_N{:02}_00_E{:03}_00_DEM.tif",
+                lat - 1.0,
+                lon
+            );
+            copernicus_tile(&dir.join("tiles").join(name), (lon, lat), (cols, 36), plane);
+        }
+    }
+    let opts = LoadOptions {
+        fill_height: Some(-1000.0),
+        ..LoadOptions::default()
+    };
+    let (g, got) = read_all(&dir.join("tiles"), &opts);
+    assert_eq!((g.width, g.height), (72, 72));
+    for (r, row) in (0u32..).zip(got.chunks_exact(72)) {
+        for (c, &v) in (0u32..).zip(row) {
+            let lon = if r < 36 && c == 71 {
+                // The north-east tile's last sample, 9 + 23/24 E.
+                9.0 + 23.0 / 24.0
+            } else {
+                8.0 + f64::from(c) / 36.0
+            };
+            assert!(
+                (f64::from(v) - f64::from(plane(lon, 0.0))).abs() < 1e-3,
+                "sample ({c}, {r}): {v}, the plane {}",
+                plane(lon, 0.0)
+            );
+        }
+    }
+    // By default nothing is left to fill.
+    let whole = source::load(&dir.join("tiles"), &LoadOptions::default()).expect("load");
+    assert_eq!(whole.voids_filled(), 0);
 }
