@@ -282,9 +282,13 @@ fn layout(spec: &Path, opts: &LoadOptions) -> Result<Layout> {
         .iter()
         .map(|p| TileMeta::read(p))
         .collect::<Result<Vec<_>>>()?;
-    if extension(spec) == "vrt" {
+    let vrt = if extension(spec) == "vrt" {
+        Some(vrt::Vrt::read(spec)?)
+    } else {
+        None
+    };
+    if let Some(v) = &vrt {
         // Each source where the VRT puts it is where its own georeference does.
-        let v = vrt::Vrt::read(spec)?;
         for (i, m) in metas.iter().enumerate() {
             let (west, north) = (m.first.0 - 0.5 * m.step.0, m.first.1 + 0.5 * m.step.1);
             let area = [
@@ -317,6 +321,9 @@ fn layout(spec: &Path, opts: &LoadOptions) -> Result<Layout> {
     let fine = metas.iter().fold((f64::MAX, f64::MAX), |(x, y), m| {
         (x.min(m.step.0), y.min(m.step.1))
     });
+    if let Some(v) = &vrt {
+        v.check_resolution(spec, fine, GRID_TOLERANCE)?;
+    }
     let west = metas.iter().map(|m| m.first.0).fold(f64::MAX, f64::min);
     let north = metas.iter().map(|m| m.first.1).fold(f64::MIN, f64::max);
     let mut tiles = Vec::with_capacity(metas.len());

@@ -148,3 +148,54 @@ fn copernicus_tiles_join_without_a_seam() {
     let whole = source::load(&dir.join("tiles"), &LoadOptions::default()).expect("load");
     assert_eq!(whole.voids_filled(), 0);
 }
+
+/// A VRT over two Copernicus-style tiles (36 samples a degree) with `res` degrees a pixel, as
+/// `gdalbuildvrt` writes one (pixel-is-point tiles: each pixel's corner half a step west and north of
+/// its sample).
+fn copernicus_vrt(dir: &Path, res: f64) -> std::path::PathBuf {
+    let half = 0.5 / 36.0;
+    let n = 36.0 / (res * 36.0);
+    let mut xml = format!(
+        "<VRTDataset rasterXSize=\"{}\" rasterYSize=\"{n}\">\n  <GeoTransform> {:e}, {res:e}, 0.0, {:e}, \
+         0.0, {:e}</GeoTransform>\n  <VRTRasterBand dataType=\"Float32\" band=\"1\">\n",
+        2.0 * n,
+        8.0 - half,
+        50.0 + half,
+        -res
+    );
+    for (i, lon) in [8, 9].into_iter().enumerate() {
+        xml += &format!(
+            "    <ComplexSource>\n      <SourceFilename relativeToVRT=\"1\">tiles/N49E00{lon}.tif\
+             </SourceFilename>\n      <SourceBand>1</SourceBand>\n      <SrcRect xOff=\"0\" yOff=\"0\" \
+             xSize=\"36\" ySize=\"36\" />\n      <DstRect xOff=\"{}\" yOff=\"0\" xSize=\"{n}\" \
+             ySize=\"{n}\" />\n    </ComplexSource>\n",
+            i as f64 * n
+        );
+    }
+    xml += "  </VRTRasterBand>\n</VRTDataset>\n";
+    let path = dir.join(format!("res-{}.vrt", (1.0 / res).round()));
+    std::fs::write(&path, xml).expect("write vrt");
+    path
+}
+
+/// A GDAL VRT built at another resolution than its tiles' (`gdalbuildvrt -tr`, or its default
+/// `-resolution average` over tiles of two spacings) is one GDAL reads resampled: it had been read at
+/// the tiles' own spacing all the same (72 x 36 samples for a VRT of 36 x 18 pixels), as the guide
+/// said it is not; it is refused with how to build it. Built at the tiles' resolution it is read.
+#[test]
+fn a_vrt_at_another_resolution_is_refused() {
+    let dir = temp_dir("copernicus_vrt");
+    for lon in [8.0, 9.0] {
+        let name = format!("N49E00{lon}.tif");
+        copernicus_tile(&dir.join("tiles").join(name), (lon, 50.0), (36, 36), plane);
+    }
+    let coarse = copernicus_vrt(&dir, 2.0 / 36.0);
+    let err = source::open_rows(&coarse, &LoadOptions::default())
+        .err()
+        .expect("a resampling VRT is refused")
+        .to_string();
+    assert!(err.contains("-resolution highest"), "{err}");
+    assert!(err.contains("res-18.vrt"), "{err}");
+    let (g, _) = read_all(&copernicus_vrt(&dir, 1.0 / 36.0), &LoadOptions::default());
+    assert_eq!((g.width, g.height), (72, 36));
+}
