@@ -199,3 +199,52 @@ fn a_vrt_at_another_resolution_is_refused() {
     let (g, _) = read_all(&copernicus_vrt(&dir, 1.0 / 36.0), &LoadOptions::default());
     assert_eq!((g.width, g.height), (72, 36));
 }
+
+/// Geographic imagery given in -180..180 degrees (`179.9 W .. 179.1 W`) over the mosaic of
+/// `N00E179.hgt` and `N00W180.hgt`, whose longitudes run on past 180 E, is placed where it lies: 1.1 to
+/// 1.9 degrees east of the mosaic's west column. It had been placed a turn away, 39685 km west of the
+/// terrain, and refused as not overlapping it.
+#[test]
+fn imagery_over_the_antimeridian_is_placed_where_it_lies() {
+    use clipsat::source::georef::{georef_extent, GeoRef};
+    let dir = temp_dir("antimeridian_imagery");
+    let tiles = dir.join("tiles");
+    for west in [179.0, -180.0] {
+        let flat = Grid {
+            w: 1201,
+            h: 1201,
+            z: vec![7; 1201 * 1201],
+            west,
+            north: 1.0,
+            step: 1.0 / 1200.0,
+        };
+        write_hgt(&tiles, &flat);
+    }
+    let heights = source::heights_georef(&tiles).expect("the mosaic's georeference");
+    let image = GeoRef {
+        size: (200, 200),
+        scale: (0.004, 0.004),
+        corner: (-179.9, 0.9),
+        crs: None,
+        geographic: Some(true),
+    };
+    // 100 m a grid step, the south-west sample at the origin.
+    let e = georef_extent(
+        &dir.join("image.png"),
+        &heights,
+        &image,
+        100.0,
+        (0.0, 0.0),
+        2401,
+    )
+    .expect("placed");
+    let metres = |degrees: f64| degrees * 1200.0 * 100.0;
+    for (got, want) in [
+        (e.west, metres(1.1)),
+        (e.east, metres(1.9)),
+        (e.south, metres(0.1)),
+        (e.north, metres(0.9)),
+    ] {
+        assert!((got - want).abs() < 1e-3, "{e:?}");
+    }
+}
