@@ -183,43 +183,139 @@ impl Mosaic {
     /// Fills the seams east of tiles coarser E-W than the grid that do not share their east column with
     /// the next tile (Copernicus DEM tiles of 2400 columns a degree beside ones of 3600, each starting on
     /// its degree line): the grid's columns between such a tile's east sample and the next tile's first
-    /// one, linear between the two, where no tile has data there. Without it they were no data, a column
-    /// of `fill_height` (a trench of 0 m along every tile's east edge) or of filled voids.
+    /// one, linear between the two, where no tile has data there; with no next sample (the mosaic's
+    /// east edge, a missing tile), the tile's east sample up to where its next one would lie. Without
+    /// it they were no data, a column of `fill_height` (a trench of 0 m along every tile's east edge) or
+    /// of filled voids.
     fn join_seams(&mut self, out: &mut [f32]) {
         let w = self.layout.grid.width as usize;
         for (t, east) in self.east.drain(..) {
             let p = &self.layout.tiles[t];
             let last = f64::from(p.col0) + f64::from(p.meta.size.0 - 1) * p.k.0;
-            let next = last + p.k.0;
-            // The column where the tile's next sample would lie: the next tile's first one, where the
-            // tiles abut on the grid.
-            #[expect(
-                clippy::cast_possible_truncation,
-                clippy::cast_sign_loss,
-                reason = "a non-negative column, at most the grid's width"
-            )]
-            let cn = (next.round() as usize).min(w);
-            let abuts = (next - next.round()).abs() <= GRID_TOLERANCE && cn < w;
+            let (cn, end) = past(last, p.k.0, self.layout.grid.width);
             for (row, &e) in out.chunks_exact_mut(w).zip(&east) {
                 // No next sample (the mosaic's east edge, a missing tile, a void): the tile's east
-                // sample where its own pixel reaches, half its step past it, as nearest would.
-                let right = if abuts { row[cn] } else { f32::NAN };
+                // sample, up to where its next one would lie.
+                let right = cn.map_or(f32::NAN, |cn| row[cn]);
                 if e.is_nan() {
                     continue;
                 }
-                let gap = row.iter_mut().enumerate().take(cn).skip(p.col1 as usize + 1);
+                let gap = row.iter_mut().enumerate().take(end).skip(p.col1 as usize + 1);
                 for (c, v) in gap.filter(|(_, v)| v.is_nan()) {
                     #[expect(clippy::cast_precision_loss, reason = "a column below 2^32")]
                     let f = (c as f64 - last) / p.k.0;
-                    if !right.is_nan() {
-                        *v = crate::source::to_f32(f64::from(e) * (1.0 - f) + f64::from(right) * f);
-                    } else if f <= 0.5 + GRID_TOLERANCE {
-                        *v = e;
-                    }
+                    *v = lerp(e, right, f);
                 }
             }
         }
     }
+
+    /// As [`Mosaic::join_seams`] down the columns: fills the rows south of tiles coarser N-S than the
+    /// grid that share no edge row with the tile below (a Copernicus GLO-90 tile, 1200 rows a degree,
+    /// among GLO-30 ones of 3600), linear between the tile's south row and the grid's row where its next
+    /// one would lie (read for it), and the few samples past both its east and south samples linear
+    /// along their row between the samples either side.
+    fn join_rows(&mut self, y0: u32, out: &mut [f32]) -> Result<()> {
+        let (w, h) = (self.layout.grid.width as usize, self.layout.grid.height);
+        let band_end = u64::from(y0) + (out.len() / w) as u64;
+        for t in 0..self.layout.tiles.len() {
+            let p = &self.layout.tiles[t];
+            if p.k.1 <= 1.0 + GRID_TOLERANCE {
+                continue;
+            }
+            let last = f64::from(p.row0) + f64::from(p.meta.size.1 - 1) * p.k.1;
+            let (rn, end) = past(last, p.k.1, h);
+            let first = u64::from(y0).max(u64::from(p.row1) + 1);
+            let end = band_end.min(end as u64);
+            if first >= end {
+                continue;
+            }
+            let p = p.clone();
+            let (tw, th) = p.meta.size;
+            let slot = self.reader(t)?;
+            let i = self.open[slot].row(th - 1, None)?;
+            let south = self.open[slot].rows[i].1.clone();
+            let below = match rn {
+                Some(rn) => {
+                    let mut row = vec![f32::NAN; w];
+                    self.raw_row(u32::try_from(rn).unwrap_or(u32::MAX), &mut row)?;
+                    row
+                }
+                None => Vec::new(),
+            };
+            let (cn, cend) = past(
+                f64::from(p.col0) + f64::from(tw - 1) * p.k.0,
+                p.k.0,
+                self.layout.grid.width,
+            );
+            for y in first..end {
+                #[expect(clippy::cast_precision_loss, reason = "a row below 2^32")]
+                let f = (y as f64 - last) / p.k.1;
+                #[expect(clippy::cast_possible_truncation, reason = "a row of the band")]
+                let row = &mut out[(y - u64::from(y0)) as usize * w..][..w];
+                for (x, c) in (p.col0 as usize..=p.col1 as usize).enumerate() {
+                    if row[c].is_nan() {
+                        #[expect(clippy::cast_precision_loss, reason = "a column below 2^32")]
+                        let (c0, fc) = split(x as f64 / p.k.0, tw);
+                        let top = bilinear(&south, None, c0 as usize, fc, 0.0);
+                        row[c] = lerp(top, below.get(c).copied().unwrap_or(f32::NAN), f);
+                    }
+                }
+                // The corner: between the tile's last column and the next sample east.
+                let left = row[p.col1 as usize];
+                let right = cn.map_or(f32::NAN, |cn| row[cn]);
+                #[expect(clippy::cast_precision_loss, reason = "a column below 2^32")]
+                let span = cn.map_or(1.0, |cn| (cn - p.col1 as usize) as f64);
+                let corner = row.iter_mut().enumerate().take(cend).skip(p.col1 as usize + 1);
+                for (c, v) in corner.filter(|(_, v)| v.is_nan()) {
+                    #[expect(clippy::cast_precision_loss, reason = "a column below 2^32")]
+                    let fc = (c - p.col1 as usize) as f64 / span;
+                    *v = lerp(left, right, fc);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Grid row `y` as the tiles and the E-W seams give it (no N-S seam, no fill height): the row below
+    /// a seam, read for it.
+    fn raw_row(&mut self, y: u32, row: &mut [f32]) -> Result<()> {
+        row.fill(f32::NAN);
+        self.east.clear();
+        for t in 0..self.layout.tiles.len() {
+            self.fill_from(t, y, row)?;
+        }
+        self.join_seams(row);
+        Ok(())
+    }
+}
+
+/// Where the sample after a coarse tile's last one (at grid position `last`, `k` grid steps a tile
+/// step) would lie on an axis of `n` grid points: its grid index, where it lies on one inside the grid
+/// (the next tile's first sample, where tiles abut), and the end (exclusive) of the grid points before
+/// it.
+fn past(last: f64, k: f64, n: u32) -> (Option<usize>, usize) {
+    let next = last + k;
+    #[expect(
+        clippy::cast_possible_truncation,
+        clippy::cast_sign_loss,
+        reason = "a non-negative grid position, at most the grid's size"
+    )]
+    let at = |v: f64| (v as usize).min(n as usize);
+    let on = (next - next.round()).abs() <= GRID_TOLERANCE && next.round() < f64::from(n);
+    if on {
+        (Some(at(next.round())), at(next.round()))
+    } else {
+        (None, at((next - GRID_TOLERANCE).ceil()))
+    }
+}
+
+/// `a` and `b` weighed `1 - f` and `f`; `a` where `b` is no data, NaN where `a` is.
+fn lerp(a: f32, b: f32, f: f64) -> f32 {
+    if b.is_nan() {
+        return a;
+    }
+    crate::source::to_f32(f64::from(a) * (1.0 - f) + f64::from(b) * f)
 }
 
 /// `t` split into a whole tile step below `n - 1` and the fraction past it.
@@ -291,6 +387,7 @@ impl RowSource for Mosaic {
             self.fill_from(t, y0, out)?;
         }
         self.join_seams(out);
+        self.join_rows(y0, out)?;
         let w = self.layout.grid.width as usize;
         // Bands come top to bottom: a tile above the next band is closed (opened again if asked).
         let next = u64::from(y0) + (out.len() / w) as u64;

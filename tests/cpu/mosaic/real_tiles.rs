@@ -248,3 +248,50 @@ fn imagery_over_the_antimeridian_is_placed_where_it_lies() {
         assert!((got - want).abs() < 1e-3, "{e:?}");
     }
 }
+
+/// Heights rising 360 m a degree east and 720 m a degree north from 100 m at 8 E, 48 N.
+#[expect(
+    clippy::cast_possible_truncation,
+    reason = "heights of a few thousand metres"
+)]
+fn slope(lon: f64, lat: f64) -> f32 {
+    (100.0 + 360.0 * (lon - 8.0) + 720.0 * (lat - 48.0)) as f32
+}
+
+/// A GLO-90 tile (here 12 samples a degree each way) among GLO-30 ones (36): it ends 3 grid steps short
+/// of the next tile both ways, east and south. The two grid rows below it had been no data (with
+/// `fill_height` -1000 m, a trench along its south edge); they, its east columns and the corner between
+/// are now linear between the tiles, so heights planar in longitude and latitude read back as the plane.
+#[test]
+fn a_coarser_tile_joins_the_tiles_east_and_south() {
+    let dir = temp_dir("glo90");
+    for (lat, lon, side) in [
+        (50.0, 8.0, 12),
+        (50.0, 9.0, 36),
+        (49.0, 8.0, 36),
+        (49.0, 9.0, 36),
+    ] {
+        let name = format!("N{}E00{lon}.tif", lat - 1.0);
+        copernicus_tile(
+            &dir.join("tiles").join(name),
+            (lon, lat),
+            (side, side),
+            slope,
+        );
+    }
+    let opts = LoadOptions {
+        fill_height: Some(-1000.0),
+        ..LoadOptions::default()
+    };
+    let (g, got) = read_all(&dir.join("tiles"), &opts);
+    assert_eq!((g.width, g.height), (72, 72));
+    for (r, row) in (0u32..).zip(got.chunks_exact(72)) {
+        for (c, &v) in (0u32..).zip(row) {
+            let want = slope(8.0 + f64::from(c) / 36.0, 50.0 - f64::from(r) / 36.0);
+            assert!(
+                (v - want).abs() < 1e-2,
+                "sample ({c}, {r}): {v}, the plane {want}"
+            );
+        }
+    }
+}
