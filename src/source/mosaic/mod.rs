@@ -67,7 +67,10 @@ pub(crate) fn tile_paths(spec: &Path) -> Result<(Vec<PathBuf>, Option<PathBuf>)>
         if tiles.is_empty() {
             return Err(Error::format(
                 spec,
-                "a folder of tiles with no DEM tile in it (.hgt, .tif or .tiff files)",
+                format!(
+                    "a folder of tiles with no DEM tile in it (.hgt, .tif or .tiff files){}",
+                    empty_folder_hint(spec)
+                ),
             ));
         }
         return Ok((tiles, None));
@@ -109,6 +112,39 @@ pub(crate) fn tile_paths(spec: &Path) -> Result<(Vec<PathBuf>, Option<PathBuf>)>
         ));
     }
     Ok((tiles, None))
+}
+
+/// What to do with a folder that holds no tile itself: where its subfolders do (`N00W001.SRTMGL1.hgt/`
+/// as unzipping each download into a folder of its name gives), the glob that names them; where it
+/// holds zip files, to unzip them. Empty where neither.
+fn empty_folder_hint(dir: &Path) -> String {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return String::new();
+    };
+    let (mut zips, mut nested) = (0usize, None);
+    for path in entries.filter_map(|e| e.ok().map(|e| e.path())) {
+        if path.is_file() && extension(&path) == "zip" {
+            zips += 1;
+        } else if path.is_dir() && nested.is_none() {
+            let inner = std::fs::read_dir(&path).into_iter().flatten().filter_map(|e| e.ok());
+            nested = inner
+                .map(|e| e.path())
+                .find(|p| p.is_file() && TILE_EXTENSIONS.contains(&extension(p).as_str()));
+        }
+    }
+    if let Some(tile) = nested {
+        let ext = extension(&tile);
+        return format!(
+            "; its subfolders hold tiles (like {}), which a folder does not read: give them as a quoted \
+             glob, '{}'",
+            tile.display(),
+            dir.join("*").join(format!("*.{ext}")).display()
+        );
+    }
+    if zips > 0 {
+        return format!("; it holds {zips} zip file(s), which are not read: unzip them into it");
+    }
+    String::new()
 }
 
 /// The coordinate system of a tile: geographic (degrees) or projected, and its EPSG code where known.

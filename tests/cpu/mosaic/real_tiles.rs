@@ -295,3 +295,44 @@ fn a_coarser_tile_joins_the_tiles_east_and_south() {
         }
     }
 }
+
+/// SRTM downloads come zipped (`N00W001.SRTMGL1.hgt.zip`); unzipped each into a folder of its name, the
+/// tiles are one level down, and a folder of such folders was refused as holding no tile and nothing
+/// more. The refusal now gives the glob that reads them (which does), and for a folder of zip files says
+/// to unzip them.
+#[test]
+fn a_folder_of_unzipped_folders_names_the_glob() {
+    let dir = temp_dir("unzipped");
+    let tiles = dir.join("tiles");
+    let inner = tiles.join("N00W001.SRTMGL3.hgt.zip");
+    std::fs::create_dir_all(&inner).expect("mkdir");
+    let flat = Grid {
+        w: 1201,
+        h: 1201,
+        z: vec![3; 1201 * 1201],
+        west: -1.0,
+        north: 1.0,
+        step: 1.0 / 1200.0,
+    };
+    write_hgt(&inner, &flat);
+    let err = source::open_rows(&tiles, &LoadOptions::default())
+        .err()
+        .expect("a folder without tiles of its own is refused")
+        .to_string();
+    let glob = tiles.join("*").join("*.hgt");
+    assert!(err.contains(&format!("'{}'", glob.display())), "{err}");
+    let rows = source::open_rows(&glob, &LoadOptions::default()).expect("the glob reads them");
+    assert_eq!(rows.grid().width, 1201);
+
+    let zips = dir.join("zips");
+    std::fs::create_dir_all(&zips).expect("mkdir");
+    std::fs::write(zips.join("N00W001.SRTMGL1.hgt.zip"), b"PK").expect("write");
+    let err = source::open_rows(&zips, &LoadOptions::default())
+        .err()
+        .expect("a folder of zip files is refused")
+        .to_string();
+    assert!(
+        err.contains("1 zip file(s), which are not read: unzip them"),
+        "{err}"
+    );
+}
