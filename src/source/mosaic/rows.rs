@@ -183,31 +183,30 @@ impl Mosaic {
     /// Fills the seams east of tiles coarser E-W than the grid that do not share their east column with
     /// the next tile (Copernicus DEM tiles of 2400 columns a degree beside ones of 3600, each starting on
     /// its degree line): the grid's columns between such a tile's east sample and the next tile's first
-    /// one, linear between the two, where no tile has data there; with no next sample (the mosaic's
-    /// east edge, a missing tile), the tile's east sample up to where its next one would lie. Without
-    /// it they were no data, a column of `fill_height` (a trench of 0 m along every tile's east edge) or
-    /// of filled voids.
-    fn join_seams(&mut self, out: &mut [f32]) {
+    /// one, linear between the two, where no tile's box reaches ([`seam`]: with no next sample, the
+    /// tile's east sample within its pixel). Without it they were no data, a column of `fill_height` (a
+    /// trench of 0 m along every tile's east edge) or of filled voids.
+    fn join_seams(&mut self, y0: u32, out: &mut [f32]) {
         let w = self.layout.grid.width as usize;
-        for (t, east) in self.east.drain(..) {
-            let p = &self.layout.tiles[t];
+        let rows = u32::try_from(out.len() / w).unwrap_or(u32::MAX);
+        let east = std::mem::take(&mut self.east);
+        for (t, east) in &east {
+            let p = &self.layout.tiles[*t];
             let last = f64::from(p.col0) + f64::from(p.meta.size.0 - 1) * p.k.0;
             let (cn, end) = past(last, p.k.0, self.layout.grid.width);
-            for (row, &e) in out.chunks_exact_mut(w).zip(&east) {
-                // No next sample (the mosaic's east edge, a missing tile, a void): the tile's east
-                // sample, up to where its next one would lie.
+            let boxes = self.others(*t, (p.col1 + 1, to_u32(end)), (y0, y0 + rows));
+            for ((row, &e), y) in out.chunks_exact_mut(w).zip(east).zip(y0..) {
                 let right = cn.map_or(f32::NAN, |cn| row[cn]);
-                if e.is_nan() {
-                    continue;
-                }
                 let gap = row.iter_mut().enumerate().take(end).skip(p.col1 as usize + 1);
-                for (c, v) in gap.filter(|(_, v)| v.is_nan()) {
+                for (c, v) in gap.filter(|(c, v)| v.is_nan() && !inside(&boxes, to_u32(*c), y)) {
                     #[expect(clippy::cast_precision_loss, reason = "a column below 2^32")]
                     let f = (c as f64 - last) / p.k.0;
-                    *v = lerp(e, right, f);
+                    *v = seam(e, right, f);
                 }
             }
         }
+        self.east = east;
+        self.east.clear();
     }
 
     /// As [`Mosaic::join_seams`] down the columns: fills the rows south of tiles coarser N-S than the
@@ -217,7 +216,7 @@ impl Mosaic {
     /// along their row between the samples either side.
     fn join_rows(&mut self, y0: u32, out: &mut [f32]) -> Result<()> {
         let (w, h) = (self.layout.grid.width as usize, self.layout.grid.height);
-        let band_end = u64::from(y0) + (out.len() / w) as u64;
+        let band_end = y0.saturating_add(u32::try_from(out.len() / w).unwrap_or(u32::MAX));
         for t in 0..self.layout.tiles.len() {
             let p = &self.layout.tiles[t];
             if p.k.1 <= 1.0 + GRID_TOLERANCE {
@@ -225,56 +224,66 @@ impl Mosaic {
             }
             let last = f64::from(p.row0) + f64::from(p.meta.size.1 - 1) * p.k.1;
             let (rn, end) = past(last, p.k.1, h);
-            let first = u64::from(y0).max(u64::from(p.row1) + 1);
-            let end = band_end.min(end as u64);
+            let (first, end) = (y0.max(p.row1 + 1), band_end.min(to_u32(end)));
             if first >= end {
                 continue;
             }
             let p = p.clone();
             let (tw, th) = p.meta.size;
+            let lastc = f64::from(p.col0) + f64::from(tw - 1) * p.k.0;
+            let (cn, cend) = past(lastc, p.k.0, self.layout.grid.width);
+            let boxes = self.others(t, (p.col0, to_u32(cend)), (first, end));
             let slot = self.reader(t)?;
             let i = self.open[slot].row(th - 1, None)?;
             let south = self.open[slot].rows[i].1.clone();
-            let below = match rn {
-                Some(rn) => {
-                    let mut row = vec![f32::NAN; w];
-                    self.raw_row(u32::try_from(rn).unwrap_or(u32::MAX), &mut row)?;
-                    row
-                }
-                None => Vec::new(),
-            };
-            let (cn, cend) = past(
-                f64::from(p.col0) + f64::from(tw - 1) * p.k.0,
-                p.k.0,
-                self.layout.grid.width,
-            );
+            let mut below = vec![f32::NAN; w];
+            if let Some(rn) = rn {
+                self.raw_row(to_u32(rn), &mut below)?;
+            }
             for y in first..end {
-                #[expect(clippy::cast_precision_loss, reason = "a row below 2^32")]
-                let f = (y as f64 - last) / p.k.1;
-                #[expect(clippy::cast_possible_truncation, reason = "a row of the band")]
-                let row = &mut out[(y - u64::from(y0)) as usize * w..][..w];
+                let f = (f64::from(y) - last) / p.k.1;
+                let row = &mut out[(y - y0) as usize * w..][..w];
+                let free = |c: usize, v: f32| v.is_nan() && !inside(&boxes, to_u32(c), y);
                 for (x, c) in (p.col0 as usize..=p.col1 as usize).enumerate() {
-                    if row[c].is_nan() {
+                    if free(c, row[c]) {
                         #[expect(clippy::cast_precision_loss, reason = "a column below 2^32")]
                         let (c0, fc) = split(x as f64 / p.k.0, tw);
                         let top = bilinear(&south, None, c0 as usize, fc, 0.0);
-                        row[c] = lerp(top, below.get(c).copied().unwrap_or(f32::NAN), f);
+                        row[c] = seam(top, below[c], f);
                     }
                 }
-                // The corner: between the tile's last column and the next sample east.
+                // The corner past both: along the row, between the tile's last column and the next
+                // sample east.
                 let left = row[p.col1 as usize];
                 let right = cn.map_or(f32::NAN, |cn| row[cn]);
                 #[expect(clippy::cast_precision_loss, reason = "a column below 2^32")]
                 let span = cn.map_or(1.0, |cn| (cn - p.col1 as usize) as f64);
                 let corner = row.iter_mut().enumerate().take(cend).skip(p.col1 as usize + 1);
-                for (c, v) in corner.filter(|(_, v)| v.is_nan()) {
+                for (c, v) in corner.filter(|(c, v)| free(*c, **v)) {
                     #[expect(clippy::cast_precision_loss, reason = "a column below 2^32")]
-                    let fc = (c - p.col1 as usize) as f64 / span;
-                    *v = lerp(left, right, fc);
+                    let (fc, fe) = ((c - p.col1 as usize) as f64 / span, (c as f64 - lastc) / p.k.0);
+                    *v = if right.is_nan() {
+                        seam(left, right, fe)
+                    } else {
+                        seam(left, right, fc)
+                    };
                 }
             }
         }
         Ok(())
+    }
+
+    /// The boxes (first and last column, first and last row) of the tiles other than `t` that reach
+    /// into columns `cols` and rows `rows` (half-open): a sample inside one is that tile's, a void of it
+    /// where it has no data, not a seam.
+    fn others(&self, t: usize, cols: (u32, u32), rows: (u32, u32)) -> Vec<[u32; 4]> {
+        let tiles = self.layout.tiles.iter().enumerate();
+        tiles
+            .filter(|(i, o)| {
+                *i != t && o.col0 < cols.1 && o.col1 >= cols.0 && o.row0 < rows.1 && o.row1 >= rows.0
+            })
+            .map(|(_, o)| [o.col0, o.col1, o.row0, o.row1])
+            .collect()
     }
 
     /// Grid row `y` as the tiles and the E-W seams give it (no N-S seam, no fill height): the row below
@@ -285,8 +294,34 @@ impl Mosaic {
         for t in 0..self.layout.tiles.len() {
             self.fill_from(t, y, row)?;
         }
-        self.join_seams(row);
+        self.join_seams(y, row);
         Ok(())
+    }
+}
+
+/// Whether grid sample (`c`, `y`) lies in one of `boxes` ([`Mosaic::others`]).
+fn inside(boxes: &[[u32; 4]], c: u32, y: u32) -> bool {
+    boxes
+        .iter()
+        .any(|b| (b[0]..=b[1]).contains(&c) && (b[2]..=b[3]).contains(&y))
+}
+
+/// `v` as a grid index, which is below 2^32.
+fn to_u32(v: usize) -> u32 {
+    u32::try_from(v).unwrap_or(u32::MAX)
+}
+
+/// A seam's sample `f` of the way from a tile's edge sample `a` to the next sample `b`: linear between
+/// them; with no next sample (NaN: the mosaic's edge, a missing tile, a void), `a` inside its pixel
+/// (half its step past it), else no data.
+fn seam(a: f32, b: f32, f: f64) -> f32 {
+    if !b.is_nan() {
+        return crate::source::to_f32(f64::from(a) * (1.0 - f) + f64::from(b) * f);
+    }
+    if f <= 0.5 + GRID_TOLERANCE {
+        a
+    } else {
+        f32::NAN
     }
 }
 
@@ -308,14 +343,6 @@ fn past(last: f64, k: f64, n: u32) -> (Option<usize>, usize) {
     } else {
         (None, at((next - GRID_TOLERANCE).ceil()))
     }
-}
-
-/// `a` and `b` weighed `1 - f` and `f`; `a` where `b` is no data, NaN where `a` is.
-fn lerp(a: f32, b: f32, f: f64) -> f32 {
-    if b.is_nan() {
-        return a;
-    }
-    crate::source::to_f32(f64::from(a) * (1.0 - f) + f64::from(b) * f)
 }
 
 /// `t` split into a whole tile step below `n - 1` and the fraction past it.
@@ -386,7 +413,7 @@ impl RowSource for Mosaic {
         for t in 0..self.layout.tiles.len() {
             self.fill_from(t, y0, out)?;
         }
-        self.join_seams(out);
+        self.join_seams(y0, out);
         self.join_rows(y0, out)?;
         let w = self.layout.grid.width as usize;
         // Bands come top to bottom: a tile above the next band is closed (opened again if asked).

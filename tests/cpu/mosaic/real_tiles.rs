@@ -262,8 +262,40 @@ fn slope(lon: f64, lat: f64) -> f32 {
 /// of the next tile both ways, east and south. The two grid rows below it had been no data (with
 /// `fill_height` -1000 m, a trench along its south edge); they, its east columns and the corner between
 /// are now linear between the tiles, so heights planar in longitude and latitude read back as the plane.
+/// At the mosaic's south edge (the tile south-west), the row inside its south samples' pixels takes
+/// them, and the row past them is no data.
 #[test]
 fn a_coarser_tile_joins_the_tiles_east_and_south() {
+    let dir = temp_dir("glo90_edge");
+    for (lat, lon, side) in [
+        (50.0, 8.0, 36),
+        (50.0, 9.0, 36),
+        (49.0, 8.0, 12),
+        (49.0, 9.0, 36),
+    ] {
+        let name = format!("N{}E00{lon}.tif", lat - 1.0);
+        copernicus_tile(
+            &dir.join("tiles").join(name),
+            (lon, lat),
+            (side, side),
+            slope,
+        );
+    }
+    let opts = LoadOptions {
+        fill_height: Some(-1000.0),
+        ..LoadOptions::default()
+    };
+    let (_, got) = read_all(&dir.join("tiles"), &opts);
+    for c in 0..33u32 {
+        // The tile's south samples lie at 48 + 1/12 N.
+        let south = slope(8.0 + f64::from(c) / 36.0, 48.0 + 3.0 / 36.0);
+        assert!(
+            (got[70 * 72 + c as usize] - south).abs() < 1e-2,
+            "column {c}"
+        );
+        assert_eq!(got[71 * 72 + c as usize], -1000.0, "column {c}");
+    }
+
     let dir = temp_dir("glo90");
     for (lat, lon, side) in [
         (50.0, 8.0, 12),
