@@ -116,14 +116,14 @@ pub(crate) fn tile_paths(spec: &Path) -> Result<(Vec<PathBuf>, Option<PathBuf>)>
 
 /// What to do with a folder that holds no tile itself: where its subfolders do (`N00W001.SRTMGL1.hgt/`
 /// as unzipping each download into a folder of its name gives), the glob that names them; where it
-/// holds zip files, to unzip them. Empty where neither.
+/// holds zip or gzip files (`N00W001.hgt.gz`), to unpack them. Empty where neither.
 fn empty_folder_hint(dir: &Path) -> String {
     let Ok(entries) = std::fs::read_dir(dir) else {
         return String::new();
     };
     let (mut zips, mut nested) = (0usize, None);
     for path in entries.filter_map(|e| e.ok().map(|e| e.path())) {
-        if path.is_file() && extension(&path) == "zip" {
+        if path.is_file() && matches!(extension(&path).as_str(), "zip" | "gz") {
             zips += 1;
         } else if path.is_dir() && nested.is_none() {
             let inner = std::fs::read_dir(&path).into_iter().flatten().filter_map(|e| e.ok());
@@ -142,7 +142,9 @@ fn empty_folder_hint(dir: &Path) -> String {
         );
     }
     if zips > 0 {
-        return format!("; it holds {zips} zip file(s), which are not read: unzip them into it");
+        return format!(
+            "; it holds {zips} compressed file(s) (.zip, .gz), which are not read: unpack them into it"
+        );
     }
     String::new()
 }

@@ -330,8 +330,8 @@ fn a_coarser_tile_joins_the_tiles_east_and_south() {
 
 /// SRTM downloads come zipped (`N00W001.SRTMGL1.hgt.zip`); unzipped each into a folder of its name, the
 /// tiles are one level down, and a folder of such folders was refused as holding no tile and nothing
-/// more. The refusal now gives the glob that reads them (which does), and for a folder of zip files says
-/// to unzip them.
+/// more. The refusal now gives the glob that reads them (which does), and for a folder of zip (or
+/// gzip) files says to unpack them.
 #[test]
 fn a_folder_of_unzipped_folders_names_the_glob() {
     let dir = temp_dir("unzipped");
@@ -364,7 +364,7 @@ fn a_folder_of_unzipped_folders_names_the_glob() {
         .expect("a folder of zip files is refused")
         .to_string();
     assert!(
-        err.contains("1 zip file(s), which are not read: unzip them"),
+        err.contains("1 compressed file(s) (.zip, .gz), which are not read: unpack them"),
         "{err}"
     );
 }
