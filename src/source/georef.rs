@@ -229,7 +229,19 @@ pub fn georef_extent(
     // antimeridian (a mosaic's longitudes run on past 180 E there), or given in 0..360, is moved by the
     // turns that bring its middle nearest the heights'.
     let mut image = *image;
-    if heights.geographic == Some(true) && image.geographic != Some(false) {
+    let (west, north) = image.corner;
+    let (east, south) = (
+        west + f64::from(image.size.0) * image.scale.0,
+        north - f64::from(image.size.1) * image.scale.1,
+    );
+    // An image that does not say what it is (a world file without a .prj) only where its numbers can
+    // be degrees: a projected one stays where its metres put it.
+    let degrees = (-540.0..=540.0).contains(&west)
+        && (-540.0..=540.0).contains(&east)
+        && (-90.0..=90.0).contains(&south)
+        && (-90.0..=90.0).contains(&north);
+    let geographic = image.geographic.unwrap_or(degrees);
+    if heights.geographic == Some(true) && geographic {
         let middle = |g: &GeoRef| g.corner.0 + 0.5 * f64::from(g.size.0) * g.scale.0;
         let turns = ((middle(heights) - middle(&image)) / 360.0).round();
         if turns.is_finite() && turns != 0.0 {

@@ -194,7 +194,8 @@ impl Mosaic {
             let p = &self.layout.tiles[*t];
             let last = f64::from(p.col0) + f64::from(p.meta.size.0 - 1) * p.k.0;
             let (cn, end) = past(last, p.k.0, self.layout.grid.width);
-            let boxes = self.others(*t, (p.col1 + 1, to_u32(end)), (y0, y0 + rows));
+            let cols = (p.col1.saturating_add(1), to_u32(end));
+            let boxes = self.others(*t, cols, (y0, y0.saturating_add(rows)));
             for ((row, &e), y) in out.chunks_exact_mut(w).zip(east).zip(y0..) {
                 let right = cn.map_or(f32::NAN, |cn| row[cn]);
                 let gap = row.iter_mut().enumerate().take(end).skip(p.col1 as usize + 1);
@@ -224,7 +225,7 @@ impl Mosaic {
             }
             let last = f64::from(p.row0) + f64::from(p.meta.size.1 - 1) * p.k.1;
             let (rn, end) = past(last, p.k.1, h);
-            let (first, end) = (y0.max(p.row1 + 1), band_end.min(to_u32(end)));
+            let (first, end) = (y0.max(p.row1.saturating_add(1)), band_end.min(to_u32(end)));
             if first >= end {
                 continue;
             }

@@ -368,3 +368,48 @@ fn a_folder_of_unzipped_folders_names_the_glob() {
         "{err}"
     );
 }
+
+/// An image that does not say whether it is geographic (a world file without a `.prj`) is moved by
+/// turns of longitude only where its numbers can be degrees: a projected one (metres) over the same
+/// heights stays where its numbers put it, off the terrain, and is not moved onto it.
+#[test]
+fn imagery_in_metres_is_not_moved_by_turns() {
+    use clipsat::source::georef::{georef_extent, GeoRef};
+    let dir = temp_dir("antimeridian_metres");
+    let tiles = dir.join("tiles");
+    let flat = Grid {
+        w: 1201,
+        h: 1201,
+        z: vec![7; 1201 * 1201],
+        west: 179.0,
+        north: 1.0,
+        step: 1.0 / 1200.0,
+    };
+    write_hgt(&tiles, &flat);
+    let heights = source::heights_georef(&tiles).expect("the mosaic's georeference");
+    let mut image = GeoRef {
+        size: (100, 100),
+        scale: (30.0, 30.0),
+        corner: (500_000.0, 5_000_000.0),
+        crs: None,
+        geographic: None,
+    };
+    let at = |image: &GeoRef| {
+        georef_extent(
+            &dir.join("image.png"),
+            &heights,
+            image,
+            100.0,
+            (0.0, 0.0),
+            1201,
+        )
+        .expect("an extent")
+        .west
+    };
+    let west = at(&image);
+    assert!(west > 1e9, "{west}");
+    // The same numbers as degrees would be moved: 539.5 E is 179.5 E.
+    image.corner = (539.5, 0.9);
+    image.scale = (0.001, 0.001);
+    assert!((at(&image) - 0.5 * 1200.0 * 100.0).abs() < 1e-3);
+}
