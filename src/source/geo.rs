@@ -17,7 +17,8 @@ pub struct GeoExtent {
     pub south: f64,
     /// Longitude of column 0's samples.
     pub west: f64,
-    /// Longitude of the last column's samples.
+    /// Longitude of the last column's samples: past 180 for a grid across the antimeridian (a mosaic of
+    /// `N00E179.hgt` and `N00W180.hgt` runs from 179 to 181), so that it is always east of `west`.
     pub east: f64,
     /// Latitude of the metric frame: the middle row's.
     pub frame_lat: f64,

@@ -187,7 +187,8 @@ impl GeoRef {
 /// centres at their pixels' centres), so a geographic grid maps as it is drawn. Where the drawn rows have
 /// other than the file's columns (`--resample-ew`: the file's column c drawn at c (columns - 1) /
 /// (file columns - 1), `source::resample_row`), the E-W mapping follows them. Refused when the two name
-/// different coordinate systems.
+/// different coordinate systems. Geographic imagery a whole turn of longitude from the heights (given
+/// in -180..180 over a mosaic across the antimeridian, or in 0..360) is placed where it lies on the globe.
 pub fn georef_extent(
     path: &Path,
     heights: &GeoRef,
@@ -222,6 +223,29 @@ pub fn georef_extent(
                     kind(h)
                 ),
             ));
+        }
+    }
+    // Longitudes a whole turn apart are one place: imagery given in -180..180 over heights across the
+    // antimeridian (a mosaic's longitudes run on past 180 E there), or given in 0..360, is moved by the
+    // turns that bring its middle nearest the heights'.
+    let mut image = *image;
+    let (west, north) = image.corner;
+    let (east, south) = (
+        west + f64::from(image.size.0) * image.scale.0,
+        north - f64::from(image.size.1) * image.scale.1,
+    );
+    // An image that does not say what it is (a world file without a .prj) only where its numbers can
+    // be degrees: a projected one stays where its metres put it.
+    let degrees = (-540.0..=540.0).contains(&west)
+        && (-540.0..=540.0).contains(&east)
+        && (-90.0..=90.0).contains(&south)
+        && (-90.0..=90.0).contains(&north);
+    let geographic = image.geographic.unwrap_or(degrees);
+    if heights.geographic == Some(true) && geographic {
+        let middle = |g: &GeoRef| g.corner.0 + 0.5 * f64::from(g.size.0) * g.scale.0;
+        let turns = ((middle(heights) - middle(&image)) / 360.0).round();
+        if turns.is_finite() && turns != 0.0 {
+            image.corner.0 += turns * 360.0;
         }
     }
     let (hsx, hsy) = heights.scale;

@@ -12,6 +12,7 @@ mod hard_terrains;
 mod hash;
 mod imagery;
 mod mosaic_info;
+mod real_tiles;
 mod render_json;
 mod stream_rss;
 mod view_xvfb;

@@ -67,7 +67,10 @@ pub(crate) fn tile_paths(spec: &Path) -> Result<(Vec<PathBuf>, Option<PathBuf>)>
         if tiles.is_empty() {
             return Err(Error::format(
                 spec,
-                "a folder of tiles with no DEM tile in it (.hgt, .tif or .tiff files)",
+                format!(
+                    "a folder of tiles with no DEM tile in it (.hgt, .tif or .tiff files){}",
+                    empty_folder_hint(spec)
+                ),
             ));
         }
         return Ok((tiles, None));
@@ -109,6 +112,41 @@ pub(crate) fn tile_paths(spec: &Path) -> Result<(Vec<PathBuf>, Option<PathBuf>)>
         ));
     }
     Ok((tiles, None))
+}
+
+/// What to do with a folder that holds no tile itself: where its subfolders do (`N00W001.SRTMGL1.hgt/`
+/// as unzipping each download into a folder of its name gives), the glob that names them; where it
+/// holds zip or gzip files (`N00W001.hgt.gz`), to unpack them. Empty where neither.
+fn empty_folder_hint(dir: &Path) -> String {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return String::new();
+    };
+    let (mut zips, mut nested) = (0usize, None);
+    for path in entries.filter_map(|e| e.ok().map(|e| e.path())) {
+        if path.is_file() && matches!(extension(&path).as_str(), "zip" | "gz") {
+            zips += 1;
+        } else if path.is_dir() && nested.is_none() {
+            let inner = std::fs::read_dir(&path).into_iter().flatten().filter_map(|e| e.ok());
+            nested = inner
+                .map(|e| e.path())
+                .find(|p| p.is_file() && TILE_EXTENSIONS.contains(&extension(p).as_str()));
+        }
+    }
+    if let Some(tile) = nested {
+        let ext = extension(&tile);
+        return format!(
+            "; its subfolders hold tiles (like {}), which a folder does not read: give them as a quoted \
+             glob, '{}'",
+            tile.display(),
+            dir.join("*").join(format!("*.{ext}")).display()
+        );
+    }
+    if zips > 0 {
+        return format!(
+            "; it holds {zips} compressed file(s) (.zip, .gz), which are not read: unpack them into it"
+        );
+    }
+    String::new()
 }
 
 /// The coordinate system of a tile: geographic (degrees) or projected, and its EPSG code where known.
@@ -278,13 +316,17 @@ fn layout(spec: &Path, opts: &LoadOptions) -> Result<Layout> {
         ));
     }
     let (paths, _) = tile_paths(spec)?;
-    let metas = paths
+    let mut metas = paths
         .iter()
         .map(|p| TileMeta::read(p))
         .collect::<Result<Vec<_>>>()?;
-    if extension(spec) == "vrt" {
+    let vrt = if extension(spec) == "vrt" {
+        Some(vrt::Vrt::read(spec)?)
+    } else {
+        None
+    };
+    if let Some(v) = &vrt {
         // Each source where the VRT puts it is where its own georeference does.
-        let v = vrt::Vrt::read(spec)?;
         for (i, m) in metas.iter().enumerate() {
             let (west, north) = (m.first.0 - 0.5 * m.step.0, m.first.1 + 0.5 * m.step.1);
             let area = [
@@ -311,9 +353,15 @@ fn layout(spec: &Path, opts: &LoadOptions) -> Result<Layout> {
             ));
         }
     }
+    if metas[0].crs.geographic {
+        unwrap_longitudes(&mut metas);
+    }
     let fine = metas.iter().fold((f64::MAX, f64::MAX), |(x, y), m| {
         (x.min(m.step.0), y.min(m.step.1))
     });
+    if let Some(v) = &vrt {
+        v.check_resolution(spec, fine, GRID_TOLERANCE)?;
+    }
     let west = metas.iter().map(|m| m.first.0).fold(f64::MAX, f64::min);
     let north = metas.iter().map(|m| m.first.1).fold(f64::MIN, f64::max);
     let mut tiles = Vec::with_capacity(metas.len());
@@ -409,6 +457,47 @@ fn layout(spec: &Path, opts: &LoadOptions) -> Result<Layout> {
         },
         tiles,
     })
+}
+
+/// Moves geographic tiles by whole turns of longitude so that the mosaic is cut where the globe has the
+/// widest band of longitudes without a tile: tiles on both sides of the antimeridian (`N00E179.hgt` and
+/// `N00W180.hgt`) lie side by side, 2 degrees wide rather than 360, their longitudes running on past 180
+/// east. Tiles given in 0..360 degrees join those given in -180..180 alike. A mosaic that the cut leaves
+/// as given (the widest empty band is the one across the antimeridian) is not moved at all.
+fn unwrap_longitudes(metas: &mut [TileMeta]) {
+    // Each tile's sample columns as an interval of longitude from its west sample, that in 0..360.
+    let mut spans: Vec<(f64, f64)> = metas
+        .iter()
+        .map(|m| {
+            let a = m.first.0.rem_euclid(360.0);
+            (a, a + m.step.0 * f64::from(m.size.0.saturating_sub(1)))
+        })
+        .collect();
+    spans.sort_by(|x, y| x.0.total_cmp(&y.0));
+    let Some(&(first, _)) = spans.first() else {
+        return;
+    };
+    // The widest gap between the intervals in order, the one from the last round to the first included.
+    let reach = spans.iter().map(|s| s.1).fold(f64::MIN, f64::max);
+    let (mut west, mut widest) = (first, first + 360.0 - reach);
+    let mut end = f64::MIN;
+    for &(a, b) in &spans {
+        if end > f64::MIN && a - end > widest {
+            (west, widest) = (a, a - end);
+        }
+        end = end.max(b);
+    }
+    // West of the cut in -180..180.
+    if west >= 180.0 {
+        west -= 360.0;
+    }
+    for m in metas {
+        let lon = west + (m.first.0 - west).rem_euclid(360.0);
+        let turns = ((lon - m.first.0) / 360.0).round();
+        if turns != 0.0 {
+            m.first.0 += turns * 360.0;
+        }
+    }
 }
 
 /// The georeference of heights that are a tile mosaic or one SRTM `.hgt` tile, for placing GeoTIFF imagery

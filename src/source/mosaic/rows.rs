@@ -8,7 +8,7 @@
 
 use std::path::Path;
 
-use super::Layout;
+use super::{Layout, GRID_TOLERANCE};
 use crate::source::rows::{check_band, read_exact_at};
 use crate::source::{is_nodata, LoadOptions, RowGrid, RowSource};
 use crate::{Error, Result};
@@ -32,6 +32,9 @@ pub(crate) struct Mosaic {
     clock: u64,
     /// Whether no-data samples are an error (a mosaic streamed once found to have none).
     refuse: bool,
+    /// For each tile coarser E-W than the grid across the band being read: its east sample column's
+    /// values at the band's rows (NaN off the tile), for the seam past it ([`Mosaic::join_seams`]).
+    east: Vec<(usize, Vec<f32>)>,
 }
 
 /// An open tile reader and the two tile rows it read last.
@@ -50,6 +53,7 @@ impl Mosaic {
             open: Vec::new(),
             clock: 0,
             refuse: false,
+            east: Vec::new(),
         }
     }
 
@@ -134,6 +138,9 @@ impl Mosaic {
         let slot = self.reader(t)?;
         let open = &mut self.open[slot];
         let (tw, th) = p.meta.size;
+        // The east sample column of a tile coarser E-W than the grid lies inside the grid's last step
+        // before the next tile (`join_seams`).
+        let mut east = (p.k.0 > 1.0 + GRID_TOLERANCE).then(|| vec![f32::NAN; rows as usize]);
         for y in first..=last {
             let row = &mut out[(y - y0) as usize * w..(y - y0 + 1) as usize * w];
             let cols = &mut row[p.col0 as usize..=p.col1 as usize];
@@ -155,6 +162,9 @@ impl Mosaic {
             };
             let top = &open.rows[a].1;
             let bottom = b.map(|b| open.rows[b].1.as_slice());
+            if let Some(east) = east.as_mut() {
+                east[(y - y0) as usize] = bilinear(top, bottom, (tw - 1) as usize, 0.0, fr);
+            }
             for (x, dst) in cols.iter_mut().enumerate() {
                 if !dst.is_nan() {
                     continue;
@@ -164,7 +174,175 @@ impl Mosaic {
                 *dst = bilinear(top, bottom, c0 as usize, fc, fr);
             }
         }
+        if let Some(east) = east {
+            self.east.push((t, east));
+        }
         Ok(())
+    }
+
+    /// Fills the seams east of tiles coarser E-W than the grid that do not share their east column with
+    /// the next tile (Copernicus DEM tiles of 2400 columns a degree beside ones of 3600, each starting on
+    /// its degree line): the grid's columns between such a tile's east sample and the next tile's first
+    /// one, linear between the two, where no tile's box reaches ([`seam`]: with no next sample, the
+    /// tile's east sample within its pixel). Without it they were no data, a column of `fill_height` (a
+    /// trench of 0 m along every tile's east edge) or of filled voids.
+    fn join_seams(&mut self, y0: u32, out: &mut [f32]) {
+        let w = self.layout.grid.width as usize;
+        let rows = u32::try_from(out.len() / w).unwrap_or(u32::MAX);
+        let east = std::mem::take(&mut self.east);
+        for (t, east) in &east {
+            let p = &self.layout.tiles[*t];
+            let last = f64::from(p.col0) + f64::from(p.meta.size.0 - 1) * p.k.0;
+            let (cn, end) = past(last, p.k.0, self.layout.grid.width);
+            let cols = (p.col1.saturating_add(1), to_u32(end));
+            let boxes = self.others(*t, cols, (y0, y0.saturating_add(rows)));
+            for ((row, &e), y) in out.chunks_exact_mut(w).zip(east).zip(y0..) {
+                let right = cn.map_or(f32::NAN, |cn| row[cn]);
+                let gap = row.iter_mut().enumerate().take(end).skip(p.col1 as usize + 1);
+                for (c, v) in gap.filter(|(c, v)| v.is_nan() && !inside(&boxes, to_u32(*c), y)) {
+                    #[expect(clippy::cast_precision_loss, reason = "a column below 2^32")]
+                    let f = (c as f64 - last) / p.k.0;
+                    *v = seam(e, right, f);
+                }
+            }
+        }
+        self.east = east;
+        self.east.clear();
+    }
+
+    /// As [`Mosaic::join_seams`] down the columns: fills the rows south of tiles coarser N-S than the
+    /// grid that share no edge row with the tile below (a Copernicus GLO-90 tile, 1200 rows a degree,
+    /// among GLO-30 ones of 3600), linear between the tile's south row and the grid's row where its next
+    /// one would lie (read for it), and the few samples past both its east and south samples linear
+    /// along their row between the samples either side.
+    fn join_rows(&mut self, y0: u32, out: &mut [f32]) -> Result<()> {
+        let (w, h) = (self.layout.grid.width as usize, self.layout.grid.height);
+        let band_end = y0.saturating_add(u32::try_from(out.len() / w).unwrap_or(u32::MAX));
+        for t in 0..self.layout.tiles.len() {
+            let p = &self.layout.tiles[t];
+            if p.k.1 <= 1.0 + GRID_TOLERANCE {
+                continue;
+            }
+            let last = f64::from(p.row0) + f64::from(p.meta.size.1 - 1) * p.k.1;
+            let (rn, end) = past(last, p.k.1, h);
+            let (first, end) = (y0.max(p.row1.saturating_add(1)), band_end.min(to_u32(end)));
+            if first >= end {
+                continue;
+            }
+            let p = p.clone();
+            let (tw, th) = p.meta.size;
+            let lastc = f64::from(p.col0) + f64::from(tw - 1) * p.k.0;
+            let (cn, cend) = past(lastc, p.k.0, self.layout.grid.width);
+            let boxes = self.others(t, (p.col0, to_u32(cend)), (first, end));
+            let slot = self.reader(t)?;
+            let i = self.open[slot].row(th - 1, None)?;
+            let south = self.open[slot].rows[i].1.clone();
+            let mut below = vec![f32::NAN; w];
+            if let Some(rn) = rn {
+                self.raw_row(to_u32(rn), &mut below)?;
+            }
+            for y in first..end {
+                let f = (f64::from(y) - last) / p.k.1;
+                let row = &mut out[(y - y0) as usize * w..][..w];
+                let free = |c: usize, v: f32| v.is_nan() && !inside(&boxes, to_u32(c), y);
+                for (x, c) in (p.col0 as usize..=p.col1 as usize).enumerate() {
+                    if free(c, row[c]) {
+                        #[expect(clippy::cast_precision_loss, reason = "a column below 2^32")]
+                        let (c0, fc) = split(x as f64 / p.k.0, tw);
+                        let top = bilinear(&south, None, c0 as usize, fc, 0.0);
+                        row[c] = seam(top, below[c], f);
+                    }
+                }
+                // The corner past both: along the row, between the tile's last column and the next
+                // sample east.
+                let left = row[p.col1 as usize];
+                let right = cn.map_or(f32::NAN, |cn| row[cn]);
+                #[expect(clippy::cast_precision_loss, reason = "a column below 2^32")]
+                let span = cn.map_or(1.0, |cn| (cn - p.col1 as usize) as f64);
+                let corner = row.iter_mut().enumerate().take(cend).skip(p.col1 as usize + 1);
+                for (c, v) in corner.filter(|(c, v)| free(*c, **v)) {
+                    #[expect(clippy::cast_precision_loss, reason = "a column below 2^32")]
+                    let (fc, fe) = ((c - p.col1 as usize) as f64 / span, (c as f64 - lastc) / p.k.0);
+                    *v = if right.is_nan() {
+                        seam(left, right, fe)
+                    } else {
+                        seam(left, right, fc)
+                    };
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The boxes (first and last column, first and last row) of the tiles other than `t` that reach
+    /// into columns `cols` and rows `rows` (half-open): a sample inside one is that tile's, a void of it
+    /// where it has no data, not a seam.
+    fn others(&self, t: usize, cols: (u32, u32), rows: (u32, u32)) -> Vec<[u32; 4]> {
+        let tiles = self.layout.tiles.iter().enumerate();
+        tiles
+            .filter(|(i, o)| {
+                *i != t && o.col0 < cols.1 && o.col1 >= cols.0 && o.row0 < rows.1 && o.row1 >= rows.0
+            })
+            .map(|(_, o)| [o.col0, o.col1, o.row0, o.row1])
+            .collect()
+    }
+
+    /// Grid row `y` as the tiles and the E-W seams give it (no N-S seam, no fill height): the row below
+    /// a seam, read for it.
+    fn raw_row(&mut self, y: u32, row: &mut [f32]) -> Result<()> {
+        row.fill(f32::NAN);
+        self.east.clear();
+        for t in 0..self.layout.tiles.len() {
+            self.fill_from(t, y, row)?;
+        }
+        self.join_seams(y, row);
+        Ok(())
+    }
+}
+
+/// Whether grid sample (`c`, `y`) lies in one of `boxes` ([`Mosaic::others`]).
+fn inside(boxes: &[[u32; 4]], c: u32, y: u32) -> bool {
+    boxes
+        .iter()
+        .any(|b| (b[0]..=b[1]).contains(&c) && (b[2]..=b[3]).contains(&y))
+}
+
+/// `v` as a grid index, which is below 2^32.
+fn to_u32(v: usize) -> u32 {
+    u32::try_from(v).unwrap_or(u32::MAX)
+}
+
+/// A seam's sample `f` of the way from a tile's edge sample `a` to the next sample `b`: linear between
+/// them; with no next sample (NaN: the mosaic's edge, a missing tile, a void), `a` inside its pixel
+/// (half its step past it), else no data.
+fn seam(a: f32, b: f32, f: f64) -> f32 {
+    if !b.is_nan() {
+        return crate::source::to_f32(f64::from(a) * (1.0 - f) + f64::from(b) * f);
+    }
+    if f <= 0.5 + GRID_TOLERANCE {
+        a
+    } else {
+        f32::NAN
+    }
+}
+
+/// Where the sample after a coarse tile's last one (at grid position `last`, `k` grid steps a tile
+/// step) would lie on an axis of `n` grid points: its grid index, where it lies on one inside the grid
+/// (the next tile's first sample, where tiles abut), and the end (exclusive) of the grid points before
+/// it.
+fn past(last: f64, k: f64, n: u32) -> (Option<usize>, usize) {
+    let next = last + k;
+    #[expect(
+        clippy::cast_possible_truncation,
+        clippy::cast_sign_loss,
+        reason = "a non-negative grid position, at most the grid's size"
+    )]
+    let at = |v: f64| (v as usize).min(n as usize);
+    let on = (next - next.round()).abs() <= GRID_TOLERANCE && next.round() < f64::from(n);
+    if on {
+        (Some(at(next.round())), at(next.round()))
+    } else {
+        (None, at((next - GRID_TOLERANCE).ceil()))
     }
 }
 
@@ -232,9 +410,12 @@ impl RowSource for Mosaic {
             return Ok(());
         }
         out.fill(f32::NAN);
+        self.east.clear();
         for t in 0..self.layout.tiles.len() {
             self.fill_from(t, y0, out)?;
         }
+        self.join_seams(y0, out);
+        self.join_rows(y0, out)?;
         let w = self.layout.grid.width as usize;
         // Bands come top to bottom: a tile above the next band is closed (opened again if asked).
         let next = u64::from(y0) + (out.len() / w) as u64;

@@ -168,6 +168,34 @@ impl Vrt {
     }
 }
 
+impl Vrt {
+    /// Checks that the VRT's pixels are the mosaic's grid, `fine` (the finest tile's step, x and y),
+    /// within `tolerance` of a step: a VRT built at another resolution (`gdalbuildvrt -tr`, or its
+    /// default `-resolution average` over tiles of two spacings) is one GDAL reads resampled, so it is
+    /// refused with how to build one that is not.
+    pub(super) fn check_resolution(
+        &self,
+        vrt: &Path,
+        fine: (f64, f64),
+        tolerance: f64,
+    ) -> Result<()> {
+        let (x, y) = (self.transform[1], -self.transform[5]);
+        if (x - fine.0).abs() > tolerance * fine.0 || (y - fine.1).abs() > tolerance * fine.1 {
+            return Err(Error::format(
+                vrt,
+                format!(
+                    "GDAL VRT: its pixels are {x} x {y} units, its finest tile's samples {} x {} apart: \
+                     GDAL reads it resampled, and a mosaic reads its tiles as they are; build it at \
+                     the tiles' own resolution (`gdalbuildvrt -resolution highest`, no `-tr`), or give \
+                     the tiles' folder",
+                    fine.0, fine.1
+                ),
+            ));
+        }
+        Ok(())
+    }
+}
+
 /// The text of `node`'s first child element named `tag`.
 fn child_text<'a>(node: roxmltree::Node<'a, '_>, tag: &str) -> Option<&'a str> {
     node.children().find(|c| c.has_tag_name(tag)).and_then(|c| c.text())

@@ -3,6 +3,7 @@
 //! tiles, mixed resolutions, the overlap rule and bad input.
 
 mod make;
+mod real_tiles;
 
 use crate::TempDir;
 use std::path::Path;

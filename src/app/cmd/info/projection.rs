@@ -24,8 +24,9 @@ fn lat_text(lat: f64) -> String {
     format!("{:.3} {}", lat.abs(), if lat < 0.0 { 'S' } else { 'N' })
 }
 
-/// `11.000 E`, `77.000 W`.
+/// `11.000 E`, `77.000 W`; a mosaic across the antimeridian runs on past 180 E, and 181 is `179.000 W`.
 fn lon_text(lon: f64) -> String {
+    let lon = (lon + 180.0).rem_euclid(360.0) - 180.0;
     format!("{:.3} {}", lon.abs(), if lon < 0.0 { 'W' } else { 'E' })
 }
 
