@@ -489,19 +489,46 @@ fn imagery_key(path: &Path, grid: &Extent, options: &ImageryOptions) -> Result<u
 }
 
 /// The package of a plain source in `dir`, baked there on first use ([`package::cached`]) and found by
-/// later runs without reading the source: keyed by what `spec` names, `load`'s options and, for a
-/// file, its size and modification time and those of the sidecars its loader reads.
+/// later runs without reading the source: keyed by what `spec` names, `load`'s options, the readers'
+/// revision ([`source::READ_REVISION`]) and, for a file, its size and modification time and those of the
+/// sidecars its loader reads.
 fn cached_package(
     spec: &TerrainSpec,
     load: &LoadOptions,
     dir: &Path,
     progress: Progress<'_>,
 ) -> Result<Package> {
+    let key = package_key(spec, load, source::READ_REVISION)?;
+    let (path, baked) = package::cached(
+        dir,
+        key,
+        || -> Result<Box<dyn RowSource>> {
+            Ok(match spec {
+                TerrainSpec::Procedural(p) => Box::new(procedural::Rows::new(p)?),
+                TerrainSpec::File(path) => source::open_rows(path, load)?,
+            })
+        },
+        progress,
+    )?;
+    // The same source's package from the last readers' revision is stale now: drop it, so the cache
+    // folder does not keep one per revision (best effort, as for older formats).
+    if let Some(last) = source::READ_REVISION.checked_sub(1).filter(|_| baked) {
+        let old = package_key(spec, load, last)?;
+        let _ = std::fs::remove_file(package::write::cached_file(dir, old, package::format::VERSION));
+    }
+    Package::open(&path)
+}
+
+/// [`cached_package`]'s key for the readers' revision `revision` (0: before revisions were counted).
+fn package_key(spec: &TerrainSpec, load: &LoadOptions, revision: u32) -> Result<u64> {
     let mut h = Hash64::new();
     let mut key = format!("{spec:?} {load:?}");
     // The packages baked before `fill_height` existed keep their keys: it is named only when set.
     if load.fill_height.is_none() {
         key = key.replace(", fill_height: None", "");
+    }
+    if revision > 0 {
+        key.push_str(&format!(" readers r{revision}"));
     }
     h.write_bytes(key.as_bytes());
     if let TerrainSpec::File(path) = spec {
@@ -530,16 +557,34 @@ fn cached_package(
             }
         }
     }
-    let (path, _) = package::cached(
-        dir,
-        h.finish(),
-        || -> Result<Box<dyn RowSource>> {
-            Ok(match spec {
-                TerrainSpec::Procedural(p) => Box::new(procedural::Rows::new(p)?),
-                TerrainSpec::File(path) => source::open_rows(path, load)?,
-            })
-        },
-        progress,
-    )?;
-    Package::open(&path)
+    Ok(h.finish())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A package cached under the last readers' revision is not found by this one: the source is baked
+    /// again under a new key and the stale file removed.
+    #[test]
+    fn a_package_of_the_last_readers_revision_is_baked_again_and_dropped() {
+        let dir = std::env::temp_dir().join(format!("clipsat-readers-rev-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("scratch folder");
+        let spec = TerrainSpec::Procedural(ProceduralParams {
+            size: 33,
+            ..ProceduralParams::default()
+        });
+        let load = LoadOptions::default();
+        let now = package_key(&spec, &load, source::READ_REVISION).expect("key");
+        let last = package_key(&spec, &load, source::READ_REVISION - 1).expect("key");
+        assert_ne!(now, last);
+        let stale = package::write::cached_file(&dir, last, package::format::VERSION);
+        std::fs::write(&stale, b"a package of the last revision").expect("stale file");
+        let pkg = cached_package(&spec, &load, &dir, Progress::default()).expect("package");
+        assert_eq!(pkg.header().width, 33);
+        assert!(!stale.exists(), "the last revision's package is dropped");
+        assert!(package::write::cached_file(&dir, now, package::format::VERSION).exists());
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 }

@@ -486,6 +486,11 @@ pub fn residual_tiles(
     Ok((coded.sq, coded.worst))
 }
 
+/// The file [`cached`] keeps the package of `key` in, in format `version`.
+pub(crate) fn cached_file(dir: &Path, key: u64, version: u32) -> std::path::PathBuf {
+    dir.join(format!("terrain-{}-v{version}.clipsat", crate::hash::hex(key)))
+}
+
 /// The package of a plain source in the cache folder `dir`, baked with the default options on first use:
 /// `terrain-<key>.clipsat`, `key` naming the source (the caller hashes what identifies it: its path,
 /// size, modification time and load options, or a procedural terrain's parameters) so that a later run
@@ -499,7 +504,7 @@ pub fn cached<S: RowSource + ?Sized>(
     load: impl FnOnce() -> Result<Box<S>>,
     progress: Progress<'_>,
 ) -> Result<(std::path::PathBuf, bool)> {
-    let named = |v: u32| dir.join(format!("terrain-{}-v{v}.clipsat", crate::hash::hex(key)));
+    let named = |v: u32| cached_file(dir, key, v);
     let path = named(super::format::VERSION);
     crate::temp::sweep(dir);
     if super::read::Package::open(&path).is_ok() {

@@ -97,6 +97,12 @@ impl fmt::Display for PngEncoding {
     }
 }
 
+/// The readers' revision: raised whenever a reader gives other samples or another placement for the
+/// same files (a mosaic's seams, a georeference, a resampling), so that packages baked from a file by an
+/// earlier reader are baked again rather than found in the cache (their keys include it). 1: the
+/// antimeridian, Copernicus and GLO-90 mosaic joins.
+pub const READ_REVISION: u32 = 1;
+
 /// Default [`LoadOptions::max_samples`]: 2^30 samples, 4 GiB of f32 heights.
 pub const DEFAULT_MAX_SAMPLES: u64 = 1 << 30;
 
