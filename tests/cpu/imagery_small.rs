@@ -58,3 +58,82 @@ fn uniform_images_come_back_uniform() {
         }
     }
 }
+
+/// The drape reaches the image's own edge. A ring handed a pixel to the next coarser one over 4 texels
+/// inside its held region's border, the image's edge included, where no coarser ring holds anything:
+/// the outer 4.5 texels of the coarsest ring took the terrain's colour (a 2 x 2 image was drawn at an
+/// eighth of its colour at most, a 16 x 16 land-cover map lost more than half its area). Now the
+/// imagery's weight is whole up to the image's edge and nothing past it, in every ring, the taps kept
+/// on the edge texels (a clamp-to-edge filter), and the edge cut at the image's extent over a pixel's
+/// footprint.
+#[test]
+fn the_drape_reaches_the_image_edge() {
+    use clipsat::plan::color_rings::ColorRings;
+    use clipsat::profile::ImageryBudget;
+    use clipsat::twin::imagery::{decode, ImageryTwin};
+    use glam::Vec3;
+
+    let budget = ImageryBudget {
+        ring: 256,
+        levels: 3,
+        texels_per_frame: 1 << 20,
+        tiles_per_frame: 8,
+        cache_bytes: 8 * (3 * 256 * 256 + 64) + 4 * 64,
+    };
+    // (image side, texels): a one-level 16 x 16, a 2 x 2, and a 600 x 600 of 3 levels (the rings over
+    // its edge are clamped inside the image).
+    for n in [16u32, 2, 600] {
+        let rgb = [200u8, 40, 20];
+        let texels = rgb.repeat((n * n) as usize);
+        let grid = Extent::new(0.0, 0.0, 6000.0, 6000.0).expect("extent");
+        let im = Imagery::from_rgb(Path::new("<edge>"), n, n, texels, &grid, None).expect("image");
+        let (bytes, _) = bake_imagery(&im, 90, 1).expect("bake");
+        let p = ImageryPackage::from_bytes(Path::new("<edge>"), bytes).expect("package");
+        let mut rings = ColorRings::new(p, &budget).expect("rings");
+        // The eye near the south-west corner; 40 frames: every ring whole and faded in.
+        let (x, y) = (300.0f32, 400.0f32);
+        for _ in 0..40 {
+            rings.update(f64::from(x), f64::from(y)).expect("update");
+        }
+        let twin = ImageryTwin::new(&rings, f64::from(x), f64::from(y)).expect("twin");
+        let base = Vec3::new(0.1, 0.5, 0.1);
+        let want = Vec3::new(
+            decode(f32::from(rgb[0]) / 255.0),
+            decode(f32::from(rgb[1]) / 255.0),
+            decode(f32::from(rgb[2]) / 255.0),
+        );
+        let texel = 6000.0 / n as f32;
+        // Points inside the image by a footprint from each edge (the cut is smoothed over half of one),
+        // near the eye and far from it; footprints of a metre (level 0) and of a texel.
+        for fp in [1.0f32, texel] {
+            let d = fp;
+            for (px, py) in [
+                (d, 3000.0),
+                (3000.0, d),
+                (6000.0 - d, 3000.0),
+                (3000.0, 6000.0 - d),
+                (d, d),
+            ] {
+                let rel = [px - x, py - y];
+                let got = twin.albedo(rel, fp, base);
+                assert!(
+                    (got - want).abs().max_element() < 0.02,
+                    "{n}^2 image at ({px}, {py}), footprint {fp}: albedo {got} for {want}"
+                );
+            }
+        }
+        // Past the edge by a footprint: the terrain's own colour.
+        for (px, py) in [
+            (-2.0, 400.0),
+            (300.0, -2.0),
+            (6002.0, 400.0),
+            (300.0, 6002.0),
+        ] {
+            let got = twin.albedo([px - x, py - y], 1.0, base);
+            assert!(
+                (got - base).abs().max_element() < 1e-6,
+                "{n}^2: ({px}, {py}) drew {got}"
+            );
+        }
+    }
+}
