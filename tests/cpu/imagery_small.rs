@@ -5,7 +5,7 @@
 use std::path::Path;
 
 use clipsat::package::imagery::ImageryPackage;
-use clipsat::package::imagery_bake::bake_imagery;
+use clipsat::package::imagery_bake::{bake_imagery, bake_imagery_rows};
 use clipsat::source::imagery::{Extent, Imagery};
 
 /// A uniform image of `w` x `h` texels of `rgb`, baked at quality 75 and every tile of every level
@@ -136,4 +136,103 @@ fn the_drape_reaches_the_image_edge() {
             );
         }
     }
+}
+
+/// A fresh scratch folder for one test.
+fn scratch(name: &str) -> std::path::PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join("imagery_small")
+        .join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("scratch folder");
+    dir
+}
+
+/// The file's texel (linear, centres aligned, clamped at the ends) that a side of `n` texels cut `k`
+/// ways samples at resampled texel `i`: `values` interpolated.
+fn expected(values: &[u8], k: usize, i: usize) -> f64 {
+    let s = ((i as f64 + 0.5) / k as f64 - 0.5).max(0.0);
+    let j = (0..values.len())
+        .rev()
+        .find(|&j| j as f64 <= s)
+        .unwrap_or(0);
+    let f = s - j as f64;
+    let next = f64::from(values[(j + 1).min(values.len() - 1)]);
+    f64::from(values[j]) * (1.0 - f) + next * f
+}
+
+/// An image whose texels are 16 times longer one way than the other over its extent (4 x 64 or 64 x 4
+/// over a square) is read as it is, and baked with its long texels cut into 16: 64 x 64 near-square texels, linear between
+/// the file's texel centres. Its rings had held only their short span of the fine axis, and the pixels
+/// past it took coarser rings, 2^l times the file's texel on the coarse axis: a 257 x 4099 marker image
+/// over a square terrain rendered 3.35 levels from the 1024^2 same-layout image on average (5477 pixels
+/// past 16 levels), 0.53 (312) once near-square. Texels under twice as long one way are read as they are.
+#[test]
+fn long_texels_are_cut_near_square() {
+    use clipsat::source::imagery::ImageryOptions;
+    use clipsat::source::imagery_rows::ImageryRows;
+
+    let dir = scratch("long_texels");
+    let grid = Extent::new(0.0, 0.0, 640.0, 640.0).expect("extent");
+    let values = [0u8, 160, 80, 240];
+    for (w, h) in [(4u32, 64u32), (64, 4)] {
+        let img = image::RgbImage::from_fn(w, h, |x, y| {
+            let v = values[(if w == 4 { x } else { y }) as usize];
+            image::Rgb([v, 255 - v, 7])
+        });
+        let path = dir.join(format!("long_{w}x{h}.png"));
+        img.save(&path).expect("png");
+        // Read as it is, and baked near-square.
+        let im = Imagery::load(&path, &grid, &ImageryOptions::default()).expect("load");
+        assert_eq!(im.size(), (w, h));
+        let mut rows = ImageryRows::open(&path, &grid, &ImageryOptions::default()).expect("open");
+        let mut package = std::io::Cursor::new(Vec::new());
+        bake_imagery_rows(
+            &mut rows,
+            75,
+            1,
+            false,
+            &mut package,
+            clipsat::Progress::default(),
+        )
+        .expect("bake");
+        let p =
+            ImageryPackage::from_bytes(Path::new("<long>"), package.into_inner()).expect("package");
+        assert_eq!((p.header().width, p.header().height), (64, 64), "{w} x {h}");
+        let mut rows = ImageryRows::open(&path, &grid, &ImageryOptions::default()).expect("open");
+        rows.near_square();
+        assert_eq!(rows.size(), (64, 64), "{w} x {h}");
+        let texels = rows.read_all().expect("rows");
+        for y in 0..64usize {
+            for x in 0..64usize {
+                let i = if w == 4 { x } else { y };
+                let want = expected(&values, 16, i);
+                let got = &texels[(y * 64 + x) * 3..(y * 64 + x) * 3 + 3];
+                assert!(
+                    (f64::from(got[0]) - want).abs() <= 0.5 + 1e-9
+                        && (f64::from(got[1]) - (255.0 - want)).abs() <= 0.5 + 1e-9
+                        && got[2] == 7,
+                    "{w} x {h} at ({x}, {y}): {got:?} for {want}"
+                );
+            }
+        }
+        // Within the texel limit only: 4 x 64 = 256 texels may not become 4096.
+        let tight = ImageryOptions {
+            max_texels: 1024,
+            ..ImageryOptions::default()
+        };
+        let mut rows = ImageryRows::open(&path, &grid, &tight).expect("open");
+        rows.near_square();
+        assert_eq!(
+            rows.size(),
+            (64.min(w * 4), 64.min(h * 4)),
+            "{w} x {h} capped"
+        );
+    }
+    // 3001 x 1777 over a square: texels 1.69 times longer N-S, read as they are.
+    let path = dir.join("odd.png");
+    image::RgbImage::new(3001, 1777).save(&path).expect("png");
+    let mut rows = ImageryRows::open(&path, &grid, &ImageryOptions::default()).expect("open");
+    rows.near_square();
+    assert_eq!(rows.size(), (3001, 1777));
 }
