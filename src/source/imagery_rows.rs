@@ -348,9 +348,19 @@ fn decode_whole(
     // The decoded image at 16 bits a channel with alpha, and as much again for the decoder's own.
     limits.max_alloc = Some((u64::from(width) * u64::from(height)).saturating_mul(16));
     reader.limits(limits);
-    let decoded = reader
-        .decode()
-        .map_err(|e| Error::format(path, format!("cannot decode the image: {}", one_line(&e))))?;
+    let undecodable =
+        |e: image::ImageError| Error::format(path, format!("cannot decode the image: {}", one_line(&e)));
+    let mut decoder = reader.into_decoder().map_err(undecodable)?;
+    // A JPEG's EXIF orientation: its texels as every viewer shows them (a camera's or an editor's JPEG
+    // stores them rotated or mirrored and says so), not as stored; but for one placed by a world file,
+    // which describes the texels as stored (GDAL reads them so).
+    let georeferenced = || matches!(super::georef::GeoRef::of_imagery(path), Ok(Some(_)));
+    let orientation = if format == image::ImageFormat::Jpeg && !georeferenced() {
+        image::ImageDecoder::orientation(&mut decoder).unwrap_or(image::metadata::Orientation::NoTransforms)
+    } else {
+        image::metadata::Orientation::NoTransforms
+    };
+    let mut decoded = image::DynamicImage::from_decoder(decoder).map_err(undecodable)?;
     if (decoded.width(), decoded.height()) != (width, height) {
         return Err(Error::format(
             path,
@@ -361,6 +371,8 @@ fn decode_whole(
             ),
         ));
     }
+    decoded.apply_orientation(orientation);
+    let (width, height) = (decoded.width(), decoded.height());
     let texels = match options.range {
         None => decoded.into_rgb8().into_raw(),
         Some(_) => {

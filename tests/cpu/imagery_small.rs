@@ -236,3 +236,67 @@ fn long_texels_are_cut_near_square() {
     rows.near_square();
     assert_eq!(rows.size(), (3001, 1777));
 }
+
+/// A texel (column, row) as shown and its colour.
+type Shown = ((i64, i64), [u8; 3]);
+
+/// A JPEG of `w` x `h` stored texels (`rgb` of each), with an EXIF APP1 naming `orientation`.
+fn jpeg_with_orientation(path: &Path, w: u16, h: u16, rgb: &[u8], orientation: u16) {
+    // "Exif\0\0", a little-endian TIFF header, one IFD of one entry: Orientation (0x0112), SHORT, 1.
+    let mut exif = b"Exif\0\0II*\0".to_vec();
+    exif.extend_from_slice(&8u32.to_le_bytes());
+    exif.extend_from_slice(&1u16.to_le_bytes());
+    exif.extend_from_slice(&0x0112u16.to_le_bytes());
+    exif.extend_from_slice(&3u16.to_le_bytes());
+    exif.extend_from_slice(&1u32.to_le_bytes());
+    exif.extend_from_slice(&orientation.to_le_bytes());
+    exif.extend_from_slice(&[0, 0, 0, 0, 0, 0]);
+    let mut e = jpeg_encoder::Encoder::new_file(path, 95).expect("jpeg file");
+    e.add_app_segment(1, exif).expect("exif");
+    e.encode(rgb, w, h, jpeg_encoder::ColorType::Rgb)
+        .expect("encode");
+}
+
+/// A JPEG is read as viewers show it: its EXIF orientation applied. A marker image stored upside down
+/// with Orientation 3, as cameras and editors write them, was draped upside down (its magenta dot at
+/// (7661, 7699) m for (2560, 2560)); one stored on its side with Orientation 6 was draped on its side.
+#[test]
+fn jpeg_exif_orientation_is_applied() {
+    use clipsat::source::imagery::ImageryOptions;
+
+    let dir = scratch("exif");
+    let grid = Extent::new(0.0, 0.0, 640.0, 640.0).expect("extent");
+    let (red, blue) = ([230u8, 20, 20], [20u8, 20, 230]);
+    // Stored 16 x 8: the left half red, the right half blue.
+    let stored: Vec<u8> = (0..8)
+        .flat_map(|_| (0..16).flat_map(|x| if x < 8 { red } else { blue }))
+        .collect();
+    let near = |got: [u8; 3], want: [u8; 3]| got.iter().zip(want).all(|(a, b)| a.abs_diff(b) <= 24);
+    // (orientation, size as shown, (texel, colour) pairs as shown).
+    let cases: [(u16, (u32, u32), [Shown; 2]); 3] = [
+        (1, (16, 8), [((0, 0), red), ((15, 0), blue)]),
+        // 180 degrees: left and right swap.
+        (3, (16, 8), [((0, 0), blue), ((15, 7), red)]),
+        // 90 degrees clockwise: the stored left half is shown on top.
+        (6, (8, 16), [((0, 0), red), ((7, 15), blue)]),
+    ];
+    for (orientation, size, texels) in cases {
+        let path = dir.join(format!("o{orientation}.jpg"));
+        jpeg_with_orientation(&path, 16, 8, &stored, orientation);
+        let im = Imagery::load(&path, &grid, &ImageryOptions::default()).expect("load");
+        assert_eq!(im.size(), size, "orientation {orientation}");
+        for ((x, y), want) in texels {
+            let got = im.texel(x, y);
+            assert!(
+                near(got, want),
+                "orientation {orientation}: ({x}, {y}) is {got:?}, not {want:?}"
+            );
+        }
+    }
+    // Placed by a world file, which describes the texels as stored (GDAL's reading): kept so.
+    let path = dir.join("placed.jpg");
+    jpeg_with_orientation(&path, 16, 8, &stored, 3);
+    std::fs::write(dir.join("placed.jgw"), "40\n0\n0\n-40\n20\n620\n").expect("world file");
+    let im = Imagery::load(&path, &grid, &ImageryOptions::default()).expect("load");
+    assert!(near(im.texel(0, 0), red), "{:?}", im.texel(0, 0));
+}
