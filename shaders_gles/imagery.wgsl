@@ -23,6 +23,9 @@ const IMAGERY_BORDER: f32 = 4.0;
 // (docs/measurements.md, "Imagery's cost").
 const IMAGERY_BLEND: f32 = 0.5;
 
+// How far inside a ring's held region its taps are kept, texels: half a texel and a 256th.
+const IMAGERY_TAP_IN: f32 = 0.50390625;
+
 // Mirrors `clipsat::plan::color_rings::ImageryUniform`.
 struct ImageryLevel {
     // xy: the eye's texel (column, row from the north-west corner) modulo the ring; zw: texels per metre
@@ -32,12 +35,17 @@ struct ImageryLevel {
     held: vec4<f32>,
     // x: the ring's fade-in weight, 0 to 1; yzw: unused.
     fade: vec4<f32>,
+    // The region of the ring's weight relative to the eye, texels: `held` with each side on the level's
+    // own edge (the image's) moved far out, so the ring stays whole up to the image's edge.
+    inner: vec4<f32>,
 }
 
 struct Imagery {
     levels: array<ImageryLevel, 12>,
     // x: rings in use; y: ring side S (a power of two); zw: unused.
     info: vec4<i32>,
+    // The image's extent relative to the eye, metres: west, south, east, north.
+    image: vec4<f32>,
 }
 
 @group(2) @binding(0) var<uniform> imagery: Imagery;
@@ -54,19 +62,25 @@ fn imagery_footprint(rel: vec3<f32>) -> f32 {
 }
 
 // Ring l's colour at `rel` (m from the eye), bilinear, premultiplied: alpha is the ring's weight there, 0
-// outside its held region, rising over IMAGERY_BORDER texels inside it, times its fade-in.
+// outside its held region, rising over IMAGERY_BORDER texels inside it (inside `inner`: not at the
+// image's edge), times its fade-in.
 fn imagery_sample(l: i32, rel: vec2<f32>) -> vec4<f32> {
     let lv = imagery.levels[l];
     // Texels from the eye: columns east, rows south.
     let t = vec2<f32>(rel.x * lv.eye.z, -rel.y * lv.eye.w);
     // Inside by at least half a texel: the four taps are held.
-    let lo = t - (lv.held.xy + 0.5);
-    let hi = (lv.held.zw - 0.5) - t;
+    let lo = t - (lv.inner.xy + 0.5);
+    let hi = (lv.inner.zw - 0.5) - t;
     let d = min(min(lo.x, lo.y), min(hi.x, hi.y));
     let w = clamp(d / IMAGERY_BORDER, 0.0, 1.0) * lv.fade.x;
+    // The taps kept on held texels, as a clamp-to-edge sampler keeps them on the image (at the image's
+    // edge, where the weight stays whole): a texel coordinate at least half a texel (and a 256th, the
+    // filter's weight precision, against f32 rounding) inside. max then min, not clamp: an empty held
+    // region's bounds cross.
+    let tc = min(max(t, lv.held.xy + IMAGERY_TAP_IN), lv.held.zw - IMAGERY_TAP_IN);
     // The eye's texel modulo the ring plus the offset, over the ring: the sampler wraps it. Sampled
     // whatever w is (a weight of 0 zeroes it): a software rasteriser runs both sides of a branch anyway.
-    let uv = (lv.eye.xy + t) / f32(imagery.info.y);
+    let uv = (lv.eye.xy + tc) / f32(imagery.info.y);
     let c = textureSampleLevel(imagery_rings, imagery_sampler, uv, l, 0.0);
     return vec4<f32>(c.rgb * w, w);
 }
@@ -103,7 +117,11 @@ fn imagery_albedo(rel: vec2<f32>, base: vec3<f32>) -> vec3<f32> {
     let coarse = b;
     let m = select(c, mix(c, coarse, t), l0 + 1 < n);
     let img = imagery_decode(m.rgb / max(m.a, 1.0e-6));
-    return mix(base, img, m.a);
+    // The image's own edge, cut at its extent (pixel-is-area) and smoothed over the pixel's footprint.
+    let im = imagery.image;
+    let inside = min(min(rel.x - im.x, rel.y - im.y), min(im.z - rel.x, im.w - rel.y));
+    let cover = clamp(inside / max(imagery_fp, 1.0e-6) + 0.5, 0.0, 1.0);
+    return mix(base, img, m.a * cover);
 }
 
 // basic_shade (basic_shading.wgsl) with the imagery's albedo: the same light and fog, in the same

@@ -292,8 +292,91 @@ fn tile_size(l: &ImageryLevel, tile: u32, tx: u32, ty: u32) -> (u32, u32) {
 }
 
 /// Codes `w` x `h` RGB8 texels (packed rows) as a baseline JPEG at `quality`: 4:4:4, Huffman tables
-/// optimised for the tile (the `jpeg-encoder` crate; measured in docs/guide.md "The imagery package").
+/// optimised for the tile (the `jpeg-encoder` crate; measured in docs/guide.md "The imagery package"),
+/// checked by decoding it as the runtime does ([`decode_jpeg`], zune-jpeg): where a block's mean colour
+/// comes back more than [`BLOCK_MEAN_SLACK`] levels from the texels', the tile is coded again with the
+/// standard tables. zune-jpeg 0.5 misreads some streams of optimised tables whose blocks are nearly all
+/// one colour: a uniform tile of 9 to 176 texels a side, and a uniform residual tile, decoded from its
+/// second or a later row of blocks on as (133, 0, 0) for (220, 30, 30), which other decoders read right
+/// (land-cover classes, water, a scene's no-data collar; `tests/cpu/imagery_small.rs`).
 pub fn encode_jpeg(path: &Path, texels: &[u8], w: u32, h: u32, quality: u8) -> Result<Vec<u8>> {
+    if texels.len() as u64 != u64::from(w) * u64::from(h) * 3 {
+        return Err(Error::format(
+            path,
+            format!("JPEG encoder: {} bytes for {w} x {h} RGB texels", texels.len()),
+        ));
+    }
+    let coded = encode_jpeg_tables(path, texels, w, h, quality, true)?;
+    let mut decoded = vec![0u8; texels.len()];
+    if decode_jpeg(path, &coded, w, h, &mut decoded).is_ok()
+        && max_block_mean_error(texels, &decoded, w, h) <= BLOCK_MEAN_SLACK
+    {
+        return Ok(coded);
+    }
+    let coded = encode_jpeg_tables(path, texels, w, h, quality, false)?;
+    decode_jpeg(path, &coded, w, h, &mut decoded)?;
+    let off = max_block_mean_error(texels, &decoded, w, h);
+    if off > BLOCK_MEAN_SLACK {
+        return Err(Error::format(
+            path,
+            format!(
+                "imagery tile of {w} x {h}: the JPEG decoder reads a block {off} levels from what was \
+                 coded, with optimised and with standard Huffman tables"
+            ),
+        ));
+    }
+    Ok(coded)
+}
+
+/// Names how a package's texels are read and coded, in the cache key of a package baked from a file
+/// (`engine::terrain`): packages baked before [`encode_jpeg`] checked its tiles against the decoder,
+/// before a JPEG's EXIF orientation was applied, or before long texels were cut near-square
+/// (`source::imagery_stretch`), are baked again.
+pub(crate) const TILE_CODER: &str = "tiles checked by decoding; EXIF orientation; near-square texels";
+
+/// Levels by which an 8 x 8 block's mean colour may come back from [`encode_jpeg`]'s check: the DC
+/// term's quantisation moves it by under a level at the qualities used (steps of 8 to 9 at quality 75, to
+/// 4 at 100 where the whole levels are coded 5 steps above) and clamping the ringing of a hard edge
+/// moves it by a few; a misread stream moved it by 87 (`tests/cpu/imagery_small.rs`). A block past it
+/// only costs the tile its optimised tables.
+const BLOCK_MEAN_SLACK: u32 = 16;
+
+/// The largest difference, in levels, between the mean colours (per channel) of an 8 x 8 block (cut at
+/// the tile's edge) of `a` and `b`, two `w` x `h` RGB8 images.
+fn max_block_mean_error(a: &[u8], b: &[u8], w: u32, h: u32) -> u32 {
+    let (w, h) = (w as usize, h as usize);
+    let mut worst = 0u32;
+    for by in (0..h).step_by(8) {
+        for bx in (0..w).step_by(8) {
+            let mut sums = [0i64; 3];
+            let mut n = 0i64;
+            for y in by..(by + 8).min(h) {
+                for x in bx..(bx + 8).min(w) {
+                    let at = (y * w + x) * 3;
+                    for (c, sum) in sums.iter_mut().enumerate() {
+                        *sum += i64::from(a[at + c]) - i64::from(b[at + c]);
+                    }
+                    n += 1;
+                }
+            }
+            for sum in sums {
+                let off = u32::try_from(sum.unsigned_abs().div_ceil(n.unsigned_abs().max(1))).unwrap_or(u32::MAX);
+                worst = worst.max(off);
+            }
+        }
+    }
+    worst
+}
+
+/// [`encode_jpeg`]'s coding, with Huffman tables optimised for the tile or the standard ones.
+fn encode_jpeg_tables(
+    path: &Path,
+    texels: &[u8],
+    w: u32,
+    h: u32,
+    quality: u8,
+    optimised: bool,
+) -> Result<Vec<u8>> {
     let bad = |e: String| Error::format(path, format!("JPEG encoder: {e}"));
     let (Ok(w16), Ok(h16)) = (u16::try_from(w), u16::try_from(h)) else {
         return Err(bad(format!("a tile of {w} x {h} texels")));
@@ -301,7 +384,7 @@ pub fn encode_jpeg(path: &Path, texels: &[u8], w: u32, h: u32, quality: u8) -> R
     let mut coded = Vec::new();
     let mut e = jpeg_encoder::Encoder::new(&mut coded, quality);
     e.set_sampling_factor(jpeg_encoder::SamplingFactor::F_1_1);
-    e.set_optimized_huffman_tables(true);
+    e.set_optimized_huffman_tables(optimised);
     e.encode(texels, w16, h16, jpeg_encoder::ColorType::Rgb)
         .map_err(|err| bad(err.to_string()))?;
     Ok(coded)

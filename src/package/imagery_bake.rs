@@ -26,7 +26,9 @@ use crate::{Error, Result};
 
 /// Bakes what `rows` reads (from its first row) into an imagery package written to `out` at its
 /// current position 0: tiles coded at JPEG `quality`, `key` recorded in the header. With `measure`,
-/// level 0's tiles are decoded again for the report's PSNR against the source.
+/// level 0's tiles are decoded again for the report's PSNR against the source. An image whose texels
+/// are at least twice as long one way as the other is baked with near-square texels
+/// ([`ImageryRows::near_square`]): the colour rings are square in texels.
 pub fn bake_imagery_rows<W: Write + Seek>(
     rows: &mut ImageryRows,
     quality: u8,
@@ -35,6 +37,7 @@ pub fn bake_imagery_rows<W: Write + Seek>(
     out: &mut W,
     progress: Progress<'_>,
 ) -> Result<ImageryBakeReport> {
+    rows.near_square();
     let (width, height) = rows.size();
     let (levels, tile_count) = ImageryHeader::layout(width, height, TILE);
     let header = ImageryHeader {

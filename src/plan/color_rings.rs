@@ -34,6 +34,9 @@ pub const MAX_COLOR_UPLOADS: usize = 256;
 pub const SNAP: i64 = 16;
 /// Frames over which a level that has just become whole fades in (its blend weight rises linearly).
 pub const FADE_FRAMES: u64 = 16;
+/// Texels by which [`ColorLevelView::inner`] moves a side of the held region that lies on the level's
+/// edge: past any pixel that the ring's weight could reach (the shader's border fade is 4 texels).
+pub const IMAGE_EDGE_OUT: f64 = 65536.0;
 /// Capacity of the fixed collections of levels.
 const LEVELS: usize = MAX_COLOR_LEVELS as usize;
 
@@ -168,7 +171,14 @@ pub struct ColorLevelView {
     /// coordinate of the eye, times the ring.
     pub eye_mod: [f32; 2],
     /// The held region relative to the eye, in texels: (x0, y0, x1, y1); empty (x1 <= x0) when none.
+    /// The shader's taps are clamped inside it (half a texel in, as a clamp-to-edge sampler reads).
     pub held: [f32; 4],
+    /// The region over which the ring's weight is computed, relative to the eye, in texels: `held`, with
+    /// each side that lies on the level's own edge moved [`IMAGE_EDGE_OUT`] texels out. A ring hands a
+    /// pixel to the next coarser ring over its border inside the image, never at the image's edge
+    /// (where there is no coarser texel to hand it to: the terrain's colour showed through the outer 4.5
+    /// texels of the coarsest ring); the image's edge is cut by [`ImageryUniform::image`].
+    pub inner: [f32; 4],
     /// Texels per metre, (east-west, north-south).
     pub per_m: [f32; 2],
     /// The level's blend weight, rising from 0 to 1 over [`FADE_FRAMES`] after it became whole.
@@ -177,17 +187,23 @@ pub struct ColorLevelView {
 
 /// The imagery program's uniform (`Imagery` in `shaders_gles/imagery.wgsl`): per ring (finest first) the
 /// eye's texel modulo the ring and the texels per metre, the held region relative to the eye, the
-/// fade-in weight; then the rings in use and the ring side.
+/// fade-in weight, the region of the ring's weight; then the rings in use and the ring side, and the
+/// image's extent relative to the eye.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct ImageryUniform {
-    /// Per ring: `eye` (xy, and texels per metre in zw), `held`, `fade` (x).
-    pub levels: [[[f32; 4]; 3]; LEVELS],
+    /// Per ring: `eye` (xy, and texels per metre in zw), `held`, `fade` (x), `inner`
+    /// ([`ColorLevelView`]).
+    pub levels: [[[f32; 4]; 4]; LEVELS],
     /// x: rings in use; y: the ring side; zw: unused.
     pub info: [i32; 4],
+    /// The image's extent relative to the eye, metres: (west, south, east, north) minus the eye's
+    /// (x, y, x, y). Outside it the terrain keeps its own colour, whatever a coarser level's texels
+    /// (which reach past an odd side) hold.
+    pub image: [f32; 4],
 }
 
-const _: () = assert!(std::mem::size_of::<ImageryUniform>() == LEVELS * 48 + 16);
+const _: () = assert!(std::mem::size_of::<ImageryUniform>() == LEVELS * 64 + 32);
 
 /// The colour clipmap: rings, tile cache, the frame's writes.
 #[derive(Debug)]
@@ -495,6 +511,7 @@ impl ColorRings {
     pub fn views(&self, x: f64, y: f64) -> [ColorLevelView; LEVELS] {
         let none = ColorLevelView {
             held: [0.0, 0.0, -1.0, -1.0],
+            inner: [0.0, 0.0, -1.0, -1.0],
             ..ColorLevelView::default()
         };
         let mut out = [none; LEVELS];
@@ -503,6 +520,9 @@ impl ColorRings {
             let (ex, ey) = self.eye_texel(level, x, y);
             let (sx, sy) = self.package().header().texel_spacing(level);
             let held = l.held;
+            let size = &self.package().header().levels[level];
+            // A side on the level's own edge: the image's edge, where the ring's weight stays whole.
+            let out_at = |on_edge: bool| if on_edge { IMAGE_EDGE_OUT } else { 0.0 };
             #[expect(clippy::cast_possible_truncation, reason = "f32 uniforms, near the eye")]
             {
                 v.eye_mod = [ex.rem_euclid(ring) as f32, ey.rem_euclid(ring) as f32];
@@ -515,6 +535,20 @@ impl ColorRings {
                         (held.y0 as f64 - ey) as f32,
                         ((held.x0 + held.w) as f64 - ex) as f32,
                         ((held.y0 + held.h) as f64 - ey) as f32,
+                    ]
+                };
+                v.inner = if held.is_empty() {
+                    v.held
+                } else {
+                    [
+                        (held.x0 as f64 - ex - out_at(held.x0 <= 0)) as f32,
+                        (held.y0 as f64 - ey - out_at(held.y0 <= 0)) as f32,
+                        ((held.x0 + held.w) as f64 - ex
+                            + out_at(held.x0 + held.w >= i64::from(size.width)))
+                            as f32,
+                        ((held.y0 + held.h) as f64 - ey
+                            + out_at(held.y0 + held.h >= i64::from(size.height)))
+                            as f32,
                     ]
                 };
             }
@@ -538,6 +572,17 @@ impl ColorRings {
                 [v.eye_mod[0], v.eye_mod[1], v.per_m[0], v.per_m[1]],
                 v.held,
                 [v.fade, 0.0, 0.0, 0.0],
+                v.inner,
+            ];
+        }
+        let e = self.package().header().extent;
+        #[expect(clippy::cast_possible_truncation, reason = "f32 uniforms, relative to the eye")]
+        {
+            u.image = [
+                (e.west - x) as f32,
+                (e.south - y) as f32,
+                (e.east - x) as f32,
+                (e.north - y) as f32,
             ];
         }
         u.info = [

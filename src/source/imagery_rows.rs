@@ -17,9 +17,14 @@ pub struct ImageryRows {
     width: u32,
     height: u32,
     extent: Extent,
-    /// The next row [`ImageryRows::read_rows`] gives.
+    /// The next row of the file [`ImageryRows::read_rows`] reads.
     next: u32,
     reader: Reader,
+    /// Texels made near-square: the file's rows or columns resampled (`Stretch`), where its texels are
+    /// at least twice as long one way as the other over its extent.
+    stretch: Option<Box<super::imagery_stretch::Stretch>>,
+    /// The texel limit it was opened under, which a stretch keeps to.
+    max_texels: u64,
 }
 
 impl std::fmt::Debug for ImageryRows {
@@ -29,6 +34,7 @@ impl std::fmt::Debug for ImageryRows {
             .field("size", &(self.width, self.height))
             .field("extent", &self.extent)
             .field("next", &self.next)
+            .field("stretched", &self.stretch.as_ref().map(|s| s.size()))
             .finish_non_exhaustive()
     }
 }
@@ -90,7 +96,9 @@ impl ImageryRows {
                 "not a PNG, JPEG or TIFF image (unknown signature)",
             ));
         };
-        Self::placed(path, width, height, reader, grid, options.extent)
+        let mut rows = Self::placed(path, width, height, reader, grid, options.extent)?;
+        rows.max_texels = options.max_texels;
+        Ok(rows)
     }
 
     /// An image held in memory, read by rows.
@@ -103,6 +111,8 @@ impl ImageryRows {
             extent: image.extent(),
             next: 0,
             reader: Reader::Held(image.into_texels()),
+            stretch: None,
+            max_texels: super::imagery::DEFAULT_MAX_IMAGERY_TEXELS,
         }
     }
 
@@ -121,6 +131,8 @@ impl ImageryRows {
             extent: place(path, grid, extent)?,
             next: 0,
             reader,
+            stretch: None,
+            max_texels: super::imagery::DEFAULT_MAX_IMAGERY_TEXELS,
         })
     }
 
@@ -129,9 +141,11 @@ impl ImageryRows {
         &self.path
     }
 
-    /// Texels (columns, rows).
+    /// Texels (columns, rows) it gives: the file's, or after [`ImageryRows::near_square`] where its
+    /// texels are at least twice as long one way as the other over its extent, the file's with the long
+    /// side's texels cut into the nearest whole factor.
     pub fn size(&self) -> (u32, u32) {
-        (self.width, self.height)
+        self.stretch.as_ref().map_or((self.width, self.height), |s| s.size())
     }
 
     /// Where it lies in the terrain's world frame.
@@ -139,9 +153,36 @@ impl ImageryRows {
         self.extent
     }
 
-    /// Reads the next `out.len() / (3 width)` rows, in order from the north edge, as RGB8. Refused: a
-    /// length that is not whole rows, rows past the last, and a file damaged in the rows it reads.
+    /// From here on, reads the image with near-square texels where its texels are at least twice as
+    /// long one way as the other over its extent (`imagery_stretch.rs`), within the texel limit it was
+    /// opened under: what the imagery bake reads, for the colour rings. Before any row is read;
+    /// [`ImageryRows::size`] then gives the new size.
+    pub fn near_square(&mut self) {
+        if self.next == 0 && self.stretch.is_none() {
+            self.stretch = super::imagery_stretch::Stretch::new(
+                self.width,
+                self.height,
+                &self.extent,
+                self.max_texels,
+            );
+        }
+    }
+
+    /// Reads the next `out.len() / (3 width)` rows of [`ImageryRows::size`], in order from the north
+    /// edge, as RGB8. Refused: a length that is not whole rows, rows past the last, and a file damaged in
+    /// the rows it reads.
     pub fn read_rows(&mut self, out: &mut [u8]) -> Result<()> {
+        let Some(mut st) = self.stretch.take() else {
+            return self.read_file_rows(out);
+        };
+        let (path, file) = (self.path.clone(), (self.width, self.height));
+        let done = st.read(&path, file, out, &mut |rows| self.read_file_rows(rows));
+        self.stretch = Some(st);
+        done
+    }
+
+    /// The file's next `out.len() / (3 width)` rows, as RGB8.
+    fn read_file_rows(&mut self, out: &mut [u8]) -> Result<()> {
         let w = self.width as usize * 3;
         let rows = out.len().checked_div(w).unwrap_or(0);
         let end = u64::from(self.next) + rows as u64;
@@ -195,10 +236,14 @@ impl ImageryRows {
     /// Every row left, as RGB8 (what [`Imagery`] holds); texels held from the start are handed over,
     /// not copied.
     pub fn read_all(mut self) -> Result<Vec<u8>> {
-        if let (Reader::Held(texels), 0) = (&mut self.reader, self.next) {
+        if let (Reader::Held(texels), 0, None) = (&mut self.reader, self.next, &self.stretch) {
             return Ok(std::mem::take(texels));
         }
-        let mut texels = vec![0u8; (self.height - self.next) as usize * self.width as usize * 3];
+        let ((width, height), next) = match &self.stretch {
+            Some(st) => (st.size(), st.next()),
+            None => ((self.width, self.height), self.next),
+        };
+        let mut texels = vec![0u8; (height - next) as usize * width as usize * 3];
         self.read_rows(&mut texels)?;
         Ok(texels)
     }
@@ -303,9 +348,19 @@ fn decode_whole(
     // The decoded image at 16 bits a channel with alpha, and as much again for the decoder's own.
     limits.max_alloc = Some((u64::from(width) * u64::from(height)).saturating_mul(16));
     reader.limits(limits);
-    let decoded = reader
-        .decode()
-        .map_err(|e| Error::format(path, format!("cannot decode the image: {}", one_line(&e))))?;
+    let undecodable =
+        |e: image::ImageError| Error::format(path, format!("cannot decode the image: {}", one_line(&e)));
+    let mut decoder = reader.into_decoder().map_err(undecodable)?;
+    // A JPEG's EXIF orientation: its texels as every viewer shows them (a camera's or an editor's JPEG
+    // stores them rotated or mirrored and says so), not as stored; but for one placed by a world file,
+    // which describes the texels as stored (GDAL reads them so).
+    let georeferenced = || matches!(super::georef::GeoRef::of_imagery(path), Ok(Some(_)));
+    let orientation = if format == image::ImageFormat::Jpeg && !georeferenced() {
+        image::ImageDecoder::orientation(&mut decoder).unwrap_or(image::metadata::Orientation::NoTransforms)
+    } else {
+        image::metadata::Orientation::NoTransforms
+    };
+    let mut decoded = image::DynamicImage::from_decoder(decoder).map_err(undecodable)?;
     if (decoded.width(), decoded.height()) != (width, height) {
         return Err(Error::format(
             path,
@@ -316,6 +371,8 @@ fn decode_whole(
             ),
         ));
     }
+    decoded.apply_orientation(orientation);
+    let (width, height) = (decoded.width(), decoded.height());
     let texels = match options.range {
         None => decoded.into_rgb8().into_raw(),
         Some(_) => {

@@ -163,6 +163,7 @@ mod png;
 pub mod georef;
 pub mod imagery;
 pub mod imagery_rows;
+mod imagery_stretch;
 pub mod procedural;
 mod raw;
 mod rows;

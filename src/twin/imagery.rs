@@ -21,6 +21,10 @@ pub const BORDER: f32 = 4.0;
 /// footprint range (log2) over which a pixel blends it with the next coarser level.
 pub const BLEND: f32 = 0.5;
 
+/// `IMAGERY_TAP_IN` of the shader: how far inside a ring's held region its taps are kept, texels (half a
+/// texel and a 256th).
+pub const TAP_IN: f32 = 0.503_906_25;
+
 /// `imagery_decode`: x^2.2 on [0, 1] as the shader computes it, x^2 (a + b sqrt(x) + (1 - a - b) x),
 /// within 0.2 of an 8-bit code of x once encoded again.
 pub fn decode(x: f32) -> f32 {
@@ -122,10 +126,10 @@ impl ImageryTwin {
 
     /// `imagery_sample`: ring `l`'s premultiplied colour at `rel` (m from the eye).
     fn sample(&self, l: usize, rel: [f32; 2]) -> Vec4 {
-        let [eye, held, fade] = self.uniform.levels[l];
+        let [eye, held, fade, inner] = self.uniform.levels[l];
         let t = [rel[0] * eye[2], -rel[1] * eye[3]];
-        let lo = [t[0] - (held[0] + 0.5), t[1] - (held[1] + 0.5)];
-        let hi = [(held[2] - 0.5) - t[0], (held[3] - 0.5) - t[1]];
+        let lo = [t[0] - (inner[0] + 0.5), t[1] - (inner[1] + 0.5)];
+        let hi = [(inner[2] - 0.5) - t[0], (inner[3] - 0.5) - t[1]];
         let d = lo[0].min(lo[1]).min(hi[0].min(hi[1]));
         let w = (d / BORDER).clamp(0.0, 1.0) * fade[0];
         if w.is_nan() || w <= 0.0 {
@@ -133,8 +137,13 @@ impl ImageryTwin {
         }
         // The sampler's bilinear filter (GLES 3.0 section 3.8.10): u = uv size - 1/2, taps at floor(u)
         // and the next, weights its fraction, each wrapped.
+        // The taps kept on held texels (max then min, as the shader).
+        let tc = [
+            t[0].max(held[0] + TAP_IN).min(held[2] - TAP_IN),
+            t[1].max(held[1] + TAP_IN).min(held[3] - TAP_IN),
+        ];
         let ring = self.ring as f32;
-        let uv = [(eye[0] + t[0]) / ring, (eye[1] + t[1]) / ring];
+        let uv = [(eye[0] + tc[0]) / ring, (eye[1] + tc[1]) / ring];
         let u = [uv[0] * ring - 0.5, uv[1] * ring - 0.5];
         let b = [u[0].floor(), u[1].floor()];
         let f = [u[0] - b[0], u[1] - b[1]];
@@ -181,7 +190,14 @@ impl ImageryTwin {
         };
         let rgb = m.truncate() / m.w.max(1.0e-6);
         let img = Vec3::new(decode(rgb.x), decode(rgb.y), decode(rgb.z));
-        base * (1.0 - m.w) + img * m.w
+        // The image's edge, smoothed over the footprint.
+        let im = self.uniform.image;
+        let inside = (rel[0] - im[0])
+            .min(rel[1] - im[1])
+            .min((im[2] - rel[0]).min(im[3] - rel[1]));
+        let cover = (inside / fp.max(1.0e-6) + 0.5).clamp(0.0, 1.0);
+        let a = m.w * cover;
+        base * (1.0 - a) + img * a
     }
 }
 

@@ -12,6 +12,7 @@ mod fuzz_parsers;
 mod imagery;
 mod imagery_bake;
 mod imagery_rings;
+mod imagery_small;
 mod layering;
 mod lod;
 mod mosaic;

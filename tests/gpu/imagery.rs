@@ -85,6 +85,14 @@ fn a_one_level_image_is_drawn() {
     imagery_frame_check(200, None);
 }
 
+/// Images of one level, 16 and 32 texels a side, against the twin: drawn whole up to the image's edge
+/// (their outer 4.5 texels had taken the terrain's colour; `tests/cpu/imagery_small.rs`).
+#[test]
+fn small_images_are_drawn() {
+    imagery_frame_check(16, None);
+    imagery_frame_check(32, None);
+}
+
 fn imagery_frame_check(n: u32, golden_view: Option<&str>) {
     let gpu = gpu();
     let hm = terrain();
@@ -120,7 +128,7 @@ fn imagery_frame_check(n: u32, golden_view: Option<&str>) {
     let layers = u64::from(clipsat::profile::ImageryBudget::layers(rings.level_count()));
     assert_eq!(
         r.renderer().ledger().bytes() - plain_bytes,
-        ring * ring * layers * 4 + 12 * 48 + 16
+        ring * ring * layers * 4 + 12 * 64 + 32
     );
     assert!(layers * ring * ring * 4 <= p.imagery_gpu_bytes());
     let (x, y) = (cam.eye.x, cam.eye.y);
@@ -492,7 +500,7 @@ fn the_embedding_api_drapes_imagery() {
     let (bytes, draped) = run(Some(&photo), true);
     let ring = u64::from(profile.get().imagery.ring);
     // A 300^2 image has two levels (300, 150): two rings, RGBA8 when asked for.
-    assert_eq!(bytes - plain_bytes, ring * ring * 2 * 4 + 12 * 48 + 16);
+    assert_eq!(bytes - plain_bytes, ring * ring * 2 * 4 + 12 * 64 + 32);
     assert_ne!(plain, draped);
     assert_eq!(
         run(Some(&photo), true).1,
@@ -505,7 +513,7 @@ fn the_embedding_api_drapes_imagery() {
     let per_16 = if block { 8 } else { 64 };
     assert_eq!(
         bytes - plain_bytes,
-        ring * ring * 2 * per_16 / 16 + 12 * 48 + 16
+        ring * ring * 2 * per_16 / 16 + 12 * 64 + 32
     );
     assert_eq!(
         run(Some(&photo), false).1,
@@ -686,7 +694,7 @@ fn block_format_imagery_matches_its_twin() {
             let ring = u64::from(rings.ring());
             assert_eq!(
                 r.renderer().ledger().bytes() - plain_bytes,
-                ring * ring * u64::from(rings.level_count()) / 2 + 12 * 48 + 16,
+                ring * ring * u64::from(rings.level_count()) / 2 + 12 * 64 + 32,
                 "{format:?}: 0.5 byte a texel"
             );
             let mut hash = 0u64;
