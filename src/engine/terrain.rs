@@ -471,7 +471,7 @@ fn source_file(spec: &TerrainSpec) -> Option<PathBuf> {
 }
 
 /// The cache key of an image draped on a grid of `grid`'s extent with `options`: the file's path, size
-/// and modification time, the extent and the format version.
+/// and modification time, the extent, the format version, the tile coder and the readers' revision.
 fn imagery_key(path: &Path, grid: &Extent, options: &ImageryOptions) -> Result<u64> {
     let meta = std::fs::metadata(path).map_err(|e| Error::io(path, "cannot read", e))?;
     let mut h = Hash64::new();
@@ -482,6 +482,7 @@ fn imagery_key(path: &Path, grid: &Extent, options: &ImageryOptions) -> Result<u
     // How the texels are read and coded (`TILE_CODER`): a package baked before may hold tiles the
     // decoder misreads, a JPEG upside down or long texels, so it is baked again.
     h.write_bytes(crate::package::imagery::TILE_CODER.as_bytes());
+    h.write_u32(source::READ_REVISION);
     h.write_u64(meta.len());
     let mtime = meta
         .modified()

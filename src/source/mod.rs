@@ -99,8 +99,9 @@ impl fmt::Display for PngEncoding {
 
 /// The readers' revision: raised whenever a reader gives other samples or another placement for the
 /// same files (a mosaic's seams, a georeference, a resampling), so that packages baked from a file by an
-/// earlier reader are baked again rather than found in the cache (their keys include it). 1: the
-/// antimeridian, Copernicus and GLO-90 mosaic joins.
+/// earlier reader are baked again rather than found in the cache (the keys of heights' and imagery's
+/// packages include it). 1: the antimeridian, Copernicus and GLO-90 mosaic joins, imagery's EXIF
+/// orientation and long texels.
 pub const READ_REVISION: u32 = 1;
 
 /// Default [`LoadOptions::max_samples`]: 2^30 samples, 4 GiB of f32 heights.
