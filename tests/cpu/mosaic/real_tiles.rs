@@ -6,6 +6,7 @@ use std::path::Path;
 
 use super::make::{write_geotiff, write_hgt, Grid};
 use super::{read_all, temp_dir};
+use crate::TempDir;
 use clipsat::source::{self, LoadOptions, RowSource};
 
 /// A north-up f32 GeoTIFF as a Copernicus DEM tile is: geographic (EPSG 4326), pixel-is-point, its
@@ -264,15 +265,14 @@ fn slope(lon: f64, lat: f64) -> f32 {
 /// are now linear between the tiles, so heights planar in longitude and latitude read back as the plane.
 /// At the mosaic's south edge (the tile south-west), the row inside its south samples' pixels takes
 /// them, and the row past them is no data.
-#[test]
-fn a_coarser_tile_joins_the_tiles_east_and_south() {
-    let dir = temp_dir("glo90_edge");
-    for (lat, lon, side) in [
-        (50.0, 8.0, 36),
-        (50.0, 9.0, 36),
-        (49.0, 8.0, 12),
-        (49.0, 9.0, 36),
-    ] {
+/// Four square Copernicus-style tiles of `slope` in `tiles/` of a new folder named `name`: 49-50 N by
+/// 8-10 E, `sides` samples a degree, north-west, north-east, south-west, south-east.
+fn square_tiles(name: &str, sides: [u32; 4]) -> TempDir {
+    let dir = temp_dir(name);
+    for ((lat, lon), side) in [(50.0, 8.0), (50.0, 9.0), (49.0, 8.0), (49.0, 9.0)]
+        .into_iter()
+        .zip(sides)
+    {
         let name = format!("N{}E00{lon}.tif", lat - 1.0);
         copernicus_tile(
             &dir.join("tiles").join(name),
@@ -281,6 +281,12 @@ fn a_coarser_tile_joins_the_tiles_east_and_south() {
             slope,
         );
     }
+    dir
+}
+
+#[test]
+fn a_coarser_tile_joins_the_tiles_east_and_south() {
+    let dir = square_tiles("glo90_edge", [36, 36, 12, 36]);
     let opts = LoadOptions {
         fill_height: Some(-1000.0),
         ..LoadOptions::default()
@@ -296,21 +302,7 @@ fn a_coarser_tile_joins_the_tiles_east_and_south() {
         assert_eq!(got[71 * 72 + c as usize], -1000.0, "column {c}");
     }
 
-    let dir = temp_dir("glo90");
-    for (lat, lon, side) in [
-        (50.0, 8.0, 12),
-        (50.0, 9.0, 36),
-        (49.0, 8.0, 36),
-        (49.0, 9.0, 36),
-    ] {
-        let name = format!("N{}E00{lon}.tif", lat - 1.0);
-        copernicus_tile(
-            &dir.join("tiles").join(name),
-            (lon, lat),
-            (side, side),
-            slope,
-        );
-    }
+    let dir = square_tiles("glo90", [12, 36, 36, 36]);
     let opts = LoadOptions {
         fill_height: Some(-1000.0),
         ..LoadOptions::default()
