@@ -203,7 +203,8 @@ pub fn georef_extent(
                 Param::ImageryExtent,
                 format!(
                     "{}: the imagery's georeference is in another coordinate system (EPSG {}) than \
-                     the heights' (EPSG {}); reproject one of them",
+                     the heights' (EPSG {}); reproject one of them, or place the image by this option, \
+                     in the heights' metres",
                     path.display(),
                     b.1,
                     a.1
@@ -217,7 +218,8 @@ pub fn georef_extent(
             return Err(Error::param(
                 Param::ImageryExtent,
                 format!(
-                    "{}: the imagery's georeference is {} and the heights' {}; reproject one of them",
+                    "{}: the imagery's georeference is {} and the heights' {}; reproject one of them, \
+                     or place the image by this option, in the heights' metres",
                     path.display(),
                     kind(i),
                     kind(h)
