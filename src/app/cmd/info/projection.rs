@@ -30,9 +30,10 @@ fn lon_text(lon: f64) -> String {
     format!("{:.3} {}", lon.abs(), if lon < 0.0 { 'W' } else { 'E' })
 }
 
-/// A length error as a signed percentage.
+/// A length error as a signed percentage, to 0.01 %: one that rounds to zero is "+0.00 %", not "-0.00 %".
 fn percent(e: f64) -> String {
-    format!("{:+.2} %", e * 100.0)
+    let p = (e * 10_000.0).round() / 100.0;
+    format!("{:+.2} %", if p == 0.0 { 0.0 } else { p })
 }
 
 /// The text lines: where the terrain lies, and its frame's distortion at the edges. `stretch` is
@@ -142,4 +143,17 @@ pub(super) fn plot(g: &GeoExtent, out: &Path) -> Result<()> {
         series,
     }
     .write_png(out, PLOT_SIZE.0, PLOT_SIZE.1)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::percent;
+
+    #[test]
+    fn an_error_that_rounds_to_zero_has_no_minus_sign() {
+        assert_eq!(percent(-1.0e-7), "+0.00 %");
+        assert_eq!(percent(-0.0), "+0.00 %");
+        assert_eq!(percent(-0.027), "-2.70 %");
+        assert_eq!(percent(0.0288), "+2.88 %");
+    }
 }
