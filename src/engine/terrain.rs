@@ -479,8 +479,8 @@ fn imagery_key(path: &Path, grid: &Extent, options: &ImageryOptions) -> Result<u
     let options = format!("{options:?}").replace(", range: None", "");
     h.write_bytes(format!("imagery {} {options} {grid:?} q{DEFAULT_QUALITY}", path.display()).as_bytes());
     h.write_u64(u64::from(crate::package::imagery::VERSION));
-    // How the texels are read and coded (`TILE_CODER`): a package baked before may hold tiles the
-    // decoder misreads, a JPEG upside down or long texels, so it is baked again.
+    // How the tiles are coded and the file read: a package baked before may hold tiles the decoder
+    // misreads, a JPEG upside down or long texels, so it is baked again.
     h.write_bytes(crate::package::imagery::TILE_CODER.as_bytes());
     h.write_u32(source::READ_REVISION);
     h.write_u64(meta.len());

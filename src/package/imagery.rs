@@ -328,11 +328,10 @@ pub fn encode_jpeg(path: &Path, texels: &[u8], w: u32, h: u32, quality: u8) -> R
     Ok(coded)
 }
 
-/// Names how a package's texels are read and coded, in the cache key of a package baked from a file
-/// (`engine::terrain`): packages baked before [`encode_jpeg`] checked its tiles against the decoder,
-/// before a JPEG's EXIF orientation was applied, or before long texels were cut near-square
-/// (`source::imagery_stretch`), are baked again.
-pub(crate) const TILE_CODER: &str = "tiles checked by decoding; EXIF orientation; near-square texels";
+/// Names how a package's tiles are coded, in the cache key of a package baked from a file
+/// (`engine::terrain`): packages baked before [`encode_jpeg`] checked its tiles against the decoder are
+/// baked again. (How the file is read is `source::READ_REVISION`, in the same key.)
+pub(crate) const TILE_CODER: &str = "tiles checked by decoding";
 
 /// Levels by which an 8 x 8 block's mean colour may come back from [`encode_jpeg`]'s check: the DC
 /// term's quantisation moves it by under a level at the qualities used (steps of 8 to 9 at quality 75, to

@@ -166,9 +166,7 @@ impl Vrt {
         }
         Ok(())
     }
-}
 
-impl Vrt {
     /// Checks that the VRT's pixels are the mosaic's grid, `fine` (the finest tile's step, x and y),
     /// within `tolerance` of a step: a VRT built at another resolution (`gdalbuildvrt -tr`, or its
     /// default `-resolution average` over tiles of two spacings) is one GDAL reads resampled, so it is
