@@ -155,6 +155,17 @@ impl Pyramid {
     }
 }
 
+/// The next coarser level of a `width` x `height` level (row-major), as [`Pyramid::build`] filters it:
+/// its size and heights (a package set's top, built from its parts' coarsest level).
+pub fn coarser(width: u32, height: u32, heights: Vec<f32>) -> (u32, u32, Vec<f32>) {
+    let next = downsample(&PyramidLevel {
+        width,
+        height,
+        heights,
+    });
+    (next.width, next.height, next.heights)
+}
+
 /// D: level k -> level k+1, separable binomial filter at the even samples, clamped at the edges.
 #[expect(
     clippy::cast_possible_truncation,

@@ -40,8 +40,12 @@ use crate::{Error, Result};
 /// The first 8 bytes of every package.
 pub const MAGIC: [u8; 8] = *b"CLIPSAT\0";
 
-/// The format version this build reads and writes.
+/// The format version this build reads and writes for a whole package.
 pub const VERSION: u32 = 4;
+
+/// The format version of a package set's part ([`Header::part`]): version 4 and a `part u32` after
+/// `levels`. A whole package is still written as version 4, byte for byte as before.
+pub const PART_VERSION: u32 = 5;
 
 /// Most record levels a header may list (data levels 1 ..= this; a profile has at most 16 levels).
 pub const MAX_LOD_LEVELS: u32 = 40;
@@ -116,6 +120,11 @@ pub struct Header {
     pub models: Vec<LevelModel>,
     /// The rANS tables (the `rans` codec only).
     pub tables: Option<Tables>,
+    /// 0 for a whole package. A package set's part ([`super::set`]) stores this many levels, the finest
+    /// ones, the last coded with U = 0 (the set's top package holds the coarser ones), and U reads the
+    /// coarser level short of its last row and column: those lie on the next part's edge, which the set
+    /// takes from that part.
+    pub part: u32,
 }
 
 /// Where a package's SAT LOD records lie ([`super::lod_tiles`]).
@@ -246,7 +255,41 @@ impl Header {
             lod: None,
             models,
             tables: None,
+            part: 0,
         }
+    }
+
+    /// A part's header ([`Header::part`]): the finest `levels` levels of [`Header::new`]'s.
+    #[expect(clippy::too_many_arguments, reason = "Header::new's geometry and the part's levels")]
+    pub fn new_part(
+        width: u32,
+        height: u32,
+        spacing: f32,
+        origin: (f64, f64),
+        quantum: f64,
+        codec: CodecKind,
+        tile: u32,
+        levels: u32,
+    ) -> Self {
+        let mut h = Self::new(width, height, spacing, origin, quantum, codec, tile);
+        let keep = (levels as usize).clamp(1, h.levels.len());
+        let tiles = h.levels.get(keep).map_or(h.tiles.len(), |l| l.first_tile);
+        h.levels.truncate(keep);
+        h.models.truncate(keep);
+        h.tiles.truncate(tiles);
+        h.part = u32::try_from(keep).expect("under 32 levels");
+        h
+    }
+
+    /// The largest coarse sample U may read in each axis for a tile of `level` (the coarser level's last
+    /// index, or one short of it in a part).
+    pub fn u_reach(&self, level: usize) -> (i64, i64) {
+        let c = &self.levels[level + 1];
+        let short = i64::from(self.part > 0);
+        (
+            (i64::from(c.width) - 1 - short).max(0),
+            (i64::from(c.height) - 1 - short).max(0),
+        )
     }
 
     /// Bytes the header takes in the file, including its checksum.
@@ -257,6 +300,7 @@ impl Header {
             .map_or(0, |l| 4 * l.levels.len() + TILE_ENTRY * l.tiles.len());
         let tables = self.tables.as_ref().map_or(0, Tables::byte_len);
         FIXED
+            + if self.part > 0 { 4 } else { 0 }
             + LEVEL_ENTRY * self.levels.len()
             + 4
             + tables
@@ -287,7 +331,8 @@ impl Header {
     pub fn to_bytes(&self) -> Vec<u8> {
         let mut b = Vec::with_capacity(self.byte_len());
         b.extend_from_slice(&MAGIC);
-        b.extend_from_slice(&VERSION.to_le_bytes());
+        let version = if self.part > 0 { PART_VERSION } else { VERSION };
+        b.extend_from_slice(&version.to_le_bytes());
         let len = u32::try_from(self.byte_len()).expect("a header over 4 GiB is refused at bake");
         b.extend_from_slice(&len.to_le_bytes());
         b.extend_from_slice(&self.width.to_le_bytes());
@@ -304,6 +349,9 @@ impl Header {
         let nl =
             u32::try_from(self.levels.len()).expect("a u32 side halves to 4 in under 32 levels");
         b.extend_from_slice(&nl.to_le_bytes());
+        if self.part > 0 {
+            b.extend_from_slice(&self.part.to_le_bytes());
+        }
         for (l, m) in self.levels.iter().zip(&self.models) {
             b.extend_from_slice(&l.width.to_le_bytes());
             b.extend_from_slice(&l.height.to_le_bytes());
@@ -362,7 +410,7 @@ impl Header {
             return Err(bad("not a clipsat package (bad magic)".into()));
         }
         let version = r.u32().ok_or_else(|| bad("truncated".into()))?;
-        if version != VERSION {
+        if version != VERSION && version != PART_VERSION {
             let again = if version < VERSION {
                 " (an older package format): bake it again with `clipsat bake`"
             } else {
@@ -398,6 +446,15 @@ impl Header {
         let code = r.u32().ok_or_else(trunc)?;
         let tile = r.u32().ok_or_else(trunc)?;
         let nl = r.u32().ok_or_else(trunc)?;
+        let part = if version == PART_VERSION {
+            let p = r.u32().ok_or_else(trunc)?;
+            if p == 0 || p != nl {
+                return Err(bad(format!("a part of {p} levels lists {nl}")));
+            }
+            p
+        } else {
+            0
+        };
         if width < 2 || height < 2 {
             return Err(bad(format!(
                 "{width} x {height} samples: need at least 2 x 2"
@@ -424,7 +481,10 @@ impl Header {
                 "tile side {tile} is not an even size in 4..=4096"
             )));
         }
-        let sizes = level_sizes(width, height);
+        let mut sizes = level_sizes(width, height);
+        if part > 0 && (part as usize) < sizes.len() {
+            sizes.truncate(part as usize);
+        }
         if nl as usize != sizes.len() {
             return Err(bad(format!(
                 "{nl} levels, a {width} x {height} pyramid has {}",
@@ -511,7 +571,11 @@ impl Header {
                 "header length {len}, a {width} x {height} package in {tile}-sample tiles needs {need}"
             )));
         }
-        let mut h = Self::new(width, height, spacing, origin, quantum, codec, tile);
+        let mut h = if part > 0 {
+            Self::new_part(width, height, spacing, origin, quantum, codec, tile, part)
+        } else {
+            Self::new(width, height, spacing, origin, quantum, codec, tile)
+        };
         h.max_error = max_error;
         h.range = range;
         h.models = models;

@@ -75,6 +75,8 @@ struct CoarseRows {
     first: i64,
     width: i64,
     height: i64,
+    /// The last column and row U reads ([`Header::u_reach`]).
+    reach: (i64, i64),
 }
 
 impl CoarseRows {
@@ -88,8 +90,8 @@ impl CoarseRows {
             reason = "clamped into the level and the band read"
         )]
         let (x, y, w) = (
-            a.clamp(0, self.width - 1) as usize,
-            (b.clamp(0, self.height - 1) - self.first) as usize,
+            a.clamp(0, self.reach.0) as usize,
+            (b.clamp(0, self.reach.1) - self.first) as usize,
             self.width as usize,
         );
         i64::from(self.rows[y * w + x])
@@ -124,6 +126,7 @@ fn coarse_rows(
     out.first = a;
     out.width = i64::from(w);
     out.height = i64::from(h);
+    out.reach = (i64::from(w) - 1, i64::from(h) - 1);
     Ok(())
 }
 
@@ -413,10 +416,9 @@ pub(super) fn code_levels(
     near: &Path,
 ) -> Result<Coded> {
     let n = header.levels.len();
-    assert_eq!(
-        spilled.len(),
-        n,
-        "the header's levels follow the spilled pyramid"
+    assert!(
+        spilled.len() >= n,
+        "the header's levels are the spilled pyramid's finest"
     );
     let tile = header.tile;
     let (mut band, mut band_next) = (Vec::new(), Vec::new());
@@ -427,6 +429,7 @@ pub(super) fn code_levels(
         first: 0,
         width: 0,
         height: 0,
+        reach: (0, 0),
     };
     let (mut coarse, mut coarse_next) = (new_coarse(), new_coarse());
     let mut coded = Coded {
@@ -464,6 +467,7 @@ pub(super) fn code_levels(
             spilled.read_rows(lk, y0, &mut band)?;
             if let (Some(f), Some(cd)) = (recon_prev.as_mut(), cdims) {
                 coarse_rows(f, cd, (y0, th), &mut coarse)?;
+                coarse.reach = header.u_reach(lk);
             }
             let row = RowInputs {
                 header,
@@ -518,6 +522,7 @@ pub(super) fn code_levels(
                 spilled.read_rows(lk, y0, band)?;
                 if let (Some(f), Some(cd)) = (recon_prev.as_mut(), cdims) {
                     coarse_rows(f, cd, (y0, th), coarse)?;
+                    coarse.reach = header.u_reach(lk);
                 }
                 Ok(())
             };

@@ -44,6 +44,8 @@ pub mod query;
 pub mod rans;
 pub mod ray;
 pub mod read;
+pub mod set;
+pub mod set_bake;
 pub mod shading_sats;
 mod spill;
 pub mod write;

@@ -19,6 +19,9 @@ pub struct Package {
     map: memmap2::Mmap,
     /// The rANS tables' lookup form (the `rans` codec).
     tables: Option<DecodeTables>,
+    /// A package set's parts and top ([`super::set`]): `header` is then the whole terrain's, and `map`
+    /// the index file's.
+    set: Option<Box<super::set::Parts>>,
 }
 
 impl std::fmt::Debug for Package {
@@ -76,8 +79,12 @@ pub fn coarse_rect((x0, y0): (u32, u32), (tw, th): (u32, u32)) -> (i64, i64, i64
     )
 }
 
-/// True when `path` starts with the package magic (so any extension works, `.clipsat` by convention).
+/// True when `path` starts with the package magic (so any extension works, `.clipsat` by convention), or
+/// is a package set's index or its folder ([`super::set`]).
 pub fn is_package(path: &Path) -> bool {
+    if super::set::is_set(path) {
+        return true;
+    }
     use std::io::Read;
     let mut magic = [0u8; 8];
     std::fs::File::open(path)
@@ -86,8 +93,23 @@ pub fn is_package(path: &Path) -> bool {
 }
 
 impl Package {
-    /// Maps and validates the package at `path`.
+    /// Maps and validates the package at `path`, or opens the package set whose index (or folder) it is.
     pub fn open(path: &Path) -> Result<Self> {
+        if super::set::is_set(path) {
+            let (header, parts) = super::set::Parts::open(path)?;
+            let index = super::set::index_path(path);
+            let file = std::fs::File::open(&index).map_err(|e| Error::io(&index, "cannot open", e))?;
+            // SAFETY: as below, a read-only private map.
+            let map = unsafe { memmap2::Mmap::map(&file) }
+                .map_err(|e| Error::io(&index, "cannot map", e))?;
+            return Ok(Self {
+                path: path.to_path_buf(),
+                header,
+                map,
+                tables: None,
+                set: Some(Box::new(parts)),
+            });
+        }
         let file = std::fs::File::open(path).map_err(|e| Error::io(path, "cannot open", e))?;
         let len = file
             .metadata()
@@ -110,6 +132,7 @@ impl Package {
             header,
             map,
             tables,
+            set: None,
         })
     }
 
@@ -125,7 +148,15 @@ impl Package {
 
     /// Bytes of the file.
     pub fn file_bytes(&self) -> u64 {
-        self.map.len() as u64
+        self.set
+            .as_ref()
+            .map_or(self.map.len() as u64, |s| s.file_bytes())
+    }
+
+    /// Bytes a package set's parts add to one package's decoding state (their lookup tables); 0 for a
+    /// package.
+    pub fn set_bytes(&self) -> u64 {
+        self.set.as_ref().map_or(0, |s| s.extra_bytes())
     }
 
     /// Drops the mapped pages of bytes `offset .. offset + len` from this process's resident set
@@ -144,6 +175,9 @@ impl Package {
     /// cache; the next read faults them back in, unchanged): a reader that sweeps the whole file, such as
     /// the LOD tables' bake, calls it as it goes so the file's pages do not add up. Best effort.
     pub fn trim(&self) {
+        if let Some(s) = &self.set {
+            s.trim();
+        }
         self.trim_range(0, self.map.len());
     }
 
@@ -165,6 +199,21 @@ impl Package {
     /// coarser level's reconstructed heights from `coarse` (clamped to that level by the caller; it reads
     /// the coarse samples of [`coarse_rect`]; never called for the coarsest level). Allocation-free.
     pub fn decode_tile(
+        &self,
+        scratch: &mut TileDecoder,
+        level: usize,
+        (tx, ty): (u32, u32),
+        coarse: impl Fn(i64, i64) -> i64,
+        out: &mut [i32],
+    ) -> Result<()> {
+        match &self.set {
+            Some(s) => s.decode_tile(scratch, level, (tx, ty), coarse, out),
+            None => self.decode_own(scratch, level, (tx, ty), coarse, out),
+        }
+    }
+
+    /// [`Package::decode_tile`] of this file's own tiles (a set's part or top, or a package).
+    pub(super) fn decode_own(
         &self,
         scratch: &mut TileDecoder,
         level: usize,
@@ -201,9 +250,14 @@ impl Package {
             u.fill(0);
         } else {
             let b = U_BORDER as i64;
-            scratch
-                .predictor
-                .predict(coarse, (i64::from(x0) - b, i64::from(y0) - b), (uw, uh), u);
+            // A part's U stops short of the coarser level's last row and column (Header::part).
+            let (rx, ry) = self.header.u_reach(level);
+            scratch.predictor.predict(
+                |i, j| coarse(i.min(rx), j.min(ry)),
+                (i64::from(x0) - b, i64::from(y0) - b),
+                (uw, uh),
+                u,
+            );
         }
         let entropy = match &self.tables {
             Some(t) => Entropy::Rans(t),

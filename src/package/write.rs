@@ -51,6 +51,12 @@ pub struct BakeOptions {
     /// Whether to store the SAT LOD records (on by default). Without them a package still
     /// works: its LOD tables are computed from the heights on first use.
     pub lod_tables: bool,
+    /// 0: a whole package. Else a package set's part of this many levels ([`Header::part`]), without
+    /// SAT LOD records (a set's tables are computed from its heights).
+    pub part: u32,
+    /// The quantum and whether level 0 is on its lattice, when a package set fixes them for all its
+    /// parts; `None`: from the source and the bound.
+    pub quantum: Option<(f64, bool)>,
 }
 
 impl Default for BakeOptions {
@@ -61,6 +67,8 @@ impl Default for BakeOptions {
             tile: DEFAULT_TILE,
             zstd_level: DEFAULT_ZSTD_LEVEL,
             lod_tables: true,
+            part: 0,
+            quantum: None,
         }
     }
 }
@@ -84,6 +92,8 @@ pub struct BakeReport {
     pub bytes_per_sample: f64,
     /// The quantum q, metres (the unit of the stored integers).
     pub quantum: f64,
+    /// Whether level 0 was stored on the quantum's lattice (the source's own integers).
+    pub lattice: bool,
     /// The bound asked for, metres.
     pub max_error_bound: f64,
     /// Largest |decoded - filtered height| over the coarser levels, metres (within the bound too).
@@ -190,7 +200,10 @@ pub fn bake_source(
     check_max_error(max_error)?;
     // The quantum: the source's own lattice where the bound allows it (near-lossless steps over it), else
     // twice the bound (real-valued data, rounded once).
-    let quant = [1.0, 0.1]
+    let quant = if let Some((q, lattice)) = opts.quantum {
+        Quantiser { q, lattice }
+    } else {
+        [1.0, 0.1]
         .into_iter()
         .zip(spilled.on_lattice)
         .find(|&(q, ok)| ok && q * 0.5 <= max_error * (1.0 + 1e-9))
@@ -200,7 +213,8 @@ pub fn bake_source(
                 lattice: false,
             },
             |(q, _)| Quantiser { q, lattice: true },
-        );
+        )
+    };
     let q = quant.q;
     let (lo, hi) = spilled.range;
     let units = f64::from(lo.abs().max(hi.abs())) / q;
@@ -213,15 +227,28 @@ pub fn bake_source(
             ),
         ));
     }
-    let mut header = Header::new(
-        src.width(),
-        src.height(),
-        src.spacing(),
-        src.origin(),
-        q,
-        opts.codec,
-        opts.tile,
-    );
+    let mut header = if opts.part > 0 {
+        Header::new_part(
+            src.width(),
+            src.height(),
+            src.spacing(),
+            src.origin(),
+            q,
+            opts.codec,
+            opts.tile,
+            opts.part,
+        )
+    } else {
+        Header::new(
+            src.width(),
+            src.height(),
+            src.spacing(),
+            src.origin(),
+            q,
+            opts.codec,
+            opts.tile,
+        )
+    };
     header.max_error = max_error;
     let steps = levels::steps(header.levels.len(), quant, max_error);
     let mut coded = levels::code_levels(&mut spilled, &header, quant, &steps, out)?;
@@ -297,7 +324,7 @@ pub fn bake_source(
         .map_err(|e| Error::io(out, "cannot write", e))?;
     meter.finish();
     drop(file);
-    let (bytes, lod_bytes) = if opts.lod_tables {
+    let (bytes, lod_bytes) = if opts.lod_tables && opts.part == 0 {
         let (lod, whole) = add_lod_records(&heights.path, out, opts, progress)?;
         whole.persist(out)?;
         (offset + lod.0, lod.1)
@@ -315,6 +342,7 @@ pub fn bake_source(
         samples,
         bytes_per_sample: bytes as f64 / samples as f64,
         quantum: q,
+        lattice: quant.lattice,
         max_error_bound: max_error,
         coarse_max_error: coarse_worst,
         rms_error: (sq / samples as f64).sqrt(),

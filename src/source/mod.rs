@@ -246,6 +246,10 @@ pub fn mosaic_geo(path: &Path, opts: &LoadOptions) -> Result<Option<GeoExtent>> 
     mosaic::geo(path, opts)
 }
 
+/// A tile mosaic's grid and its tiles' rectangles on it, and a rectangle of it read alone: a package
+/// set's cells (`package::set_bake`).
+pub(crate) use mosaic::{cells as mosaic_cells, window as mosaic_window};
+
 /// The files `path` reads: the file itself, or a mosaic's tiles (and its list file): what a cache key
 /// stamps.
 pub fn input_files(path: &Path) -> Result<Vec<PathBuf>> {

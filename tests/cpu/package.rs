@@ -858,6 +858,7 @@ fn every_level_is_within_the_bound() {
                     tile: 32,
                     zstd_level: 3,
                     lod_tables: false,
+                    ..BakeOptions::default()
                 };
                 let r = bake(hm, &out, &opts);
                 let pkg = Package::open(&out).expect("open");

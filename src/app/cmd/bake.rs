@@ -25,8 +25,28 @@ pub(crate) struct BakeArgs {
     #[command(flatten)]
     terrain: TerrainArgs,
     /// The package to write (`.clipsat` by convention).
-    #[arg(long, value_name = "FILE")]
-    out: PathBuf,
+    #[arg(
+        long,
+        value_name = "FILE",
+        required_unless_present = "parts",
+        conflicts_with = "parts"
+    )]
+    out: Option<PathBuf>,
+    /// Bake a tile mosaic as a package set in DIR instead of one package: each cell of the tiles'
+    /// lattice its own part, baked apart (parts whose tiles have not changed are kept), then a top
+    /// package and the index `DIR/clipsat-set.toml`, which `--terrain DIR` opens.
+    #[arg(long, value_name = "DIR")]
+    parts: Option<PathBuf>,
+    /// With --parts: bake cell N's part alone (no top, no index), for a cluster's map step.
+    #[arg(long, value_name = "N", requires = "parts", conflicts_with = "finish")]
+    cell: Option<usize>,
+    /// With --parts: bake the top and write the index, every part baked already (a cluster's last step).
+    #[arg(long, requires = "parts")]
+    finish: bool,
+    /// With --parts: print the set's cells (their count, rectangles, tiles and part files) as JSON and
+    /// bake nothing.
+    #[arg(long, requires = "parts")]
+    list_cells: bool,
     /// Largest absolute height error, metres. Default: half the source's own step (0.5 m for integer
     /// metres, 0.05 m for decimetres), or 0.005 m for float sources.
     #[arg(long, value_name = "M")]
@@ -53,6 +73,12 @@ pub(crate) fn run(args: &BakeArgs) -> Result<()> {
     if let Some(t) = &args.terrain_pos {
         targs.terrain = Some(t.clone());
     }
+    if let Some(dir) = &args.parts {
+        return run_parts(args, &targs, dir);
+    }
+    let Some(out) = &args.out else {
+        return Err(invalid("give --out FILE or --parts DIR"));
+    };
     let (name, mut rows) = targs.rows()?;
     let opts = BakeOptions {
         max_error: args.max_error,
@@ -60,8 +86,9 @@ pub(crate) fn run(args: &BakeArgs) -> Result<()> {
         tile: args.tile,
         zstd_level: args.zstd_level,
         lod_tables: !args.no_lod_tables,
+        ..BakeOptions::default()
     };
-    super::ensure_parent(&args.out)?;
+    super::ensure_parent(out)?;
     crate::app::progress::bars!(!args.json, bars, report, progress);
     let start = Instant::now();
     // Imagery is opened and placed first, so that imagery refused by its header writes nothing; one found
@@ -70,14 +97,14 @@ pub(crate) fn run(args: &BakeArgs) -> Result<()> {
         Some(path) => Some(open_imagery(&targs, path, &*rows)?),
         None => None,
     };
-    let report = package::bake_source(&mut *rows, &args.out, &opts, progress)?;
+    let report = package::bake_source(&mut *rows, out, &opts, progress)?;
     let imagery = match imagery {
         Some(mut im) => {
-            let out = args.out.with_extension("clipsat-imagery");
-            match bake_imagery_file(&mut im, DEFAULT_QUALITY, 0, true, &out, progress) {
-                Ok(r) => Some((out, r)),
+            let im_out = out.with_extension("clipsat-imagery");
+            match bake_imagery_file(&mut im, DEFAULT_QUALITY, 0, true, &im_out, progress) {
+                Ok(r) => Some((im_out, r)),
                 Err(e) => {
-                    let _ = std::fs::remove_file(&args.out);
+                    let _ = std::fs::remove_file(out);
                     return Err(e);
                 }
             }
@@ -93,13 +120,13 @@ pub(crate) fn run(args: &BakeArgs) -> Result<()> {
             v["imagery"] = i;
         }
         v["terrain"] = json!(name);
-        v["out"] = json!(args.out.display().to_string());
+        v["out"] = json!(out.display().to_string());
         v["seconds"] = json!(seconds);
         super::print_json(&v);
         return Ok(());
     }
     outln!("terrain      {name}");
-    outln!("package      {}", args.out.display());
+    outln!("package      {}", out.display());
     outln!(
         "size         {} bytes, {:.4} bytes/sample ({} samples, {} levels, {} tiles of {}^2, {})",
         report.bytes,
@@ -136,6 +163,112 @@ pub(crate) fn run(args: &BakeArgs) -> Result<()> {
             r.psnr_db
         );
     }
+    outln!("time         {seconds:.2} s");
+    Ok(())
+}
+
+/// A refused combination of `bake`'s options.
+fn invalid(reason: &str) -> clipsat::Error {
+    clipsat::Error::Invalid {
+        what: "clipsat bake".into(),
+        reason: reason.into(),
+    }
+}
+
+/// `clipsat bake --parts DIR`: the tile mosaic as a package set (`package::set_bake`).
+fn run_parts(args: &BakeArgs, targs: &TerrainArgs, dir: &std::path::Path) -> Result<()> {
+    use clipsat::package::set_bake;
+    let spec = match targs.spec()? {
+        clipsat::source::TerrainSpec::File(p) if clipsat::source::is_mosaic(&p) => p,
+        _ => return Err(invalid(
+            "--parts bakes a tile mosaic (a folder, list, glob or VRT of tiles) as a package set",
+        )),
+    };
+    if targs.imagery.is_some() {
+        return Err(invalid(
+            "--parts bakes heights alone: bake the imagery with a whole package (--out), or drape it \
+             when the set is drawn (--imagery)",
+        ));
+    }
+    let load = targs.load_options()?;
+    let opts = BakeOptions {
+        max_error: args.max_error,
+        codec: CodecKind::parse(&args.codec)?,
+        tile: args.tile,
+        zstd_level: args.zstd_level,
+        lod_tables: false,
+        ..BakeOptions::default()
+    };
+    crate::app::progress::bars!(!args.json, bars, report, progress);
+    let start = Instant::now();
+    let mut plan = set_bake::plan(&spec, &load, &opts, dir)?;
+    if args.list_cells {
+        let cells: Vec<_> = plan
+            .cells
+            .iter()
+            .zip(&plan.index.parts)
+            .enumerate()
+            .map(|(n, (c, p))| {
+                json!({"cell": n, "rect": c, "part": p.file, "tiles": p.sources,
+                       "baked": plan.part_stands(n)})
+            })
+            .collect();
+        super::print_json(&json!({"cells": cells.len(), "tile": plan.index.tile,
+            "part_levels": plan.index.part_levels, "list": cells}));
+        return Ok(());
+    }
+    let (what, v) = if let Some(n) = args.cell {
+        let r = set_bake::bake_cell(&plan, n, progress)?;
+        (
+            format!(
+                "cell {n}: {} ({} bytes)",
+                plan.part_path(n).display(),
+                r.bytes
+            ),
+            json!({"cell": n, "part": plan.part_path(n).display().to_string(), "bytes": r.bytes}),
+        )
+    } else if args.finish {
+        let (bytes, removed) = set_bake::finish(&mut plan, progress)?;
+        (
+            format!(
+                "{} parts and the top: {bytes} bytes ({removed} stale files removed)",
+                plan.cells.len()
+            ),
+            json!({"cells": plan.cells.len(), "bytes": bytes, "removed": removed}),
+        )
+    } else {
+        let r = set_bake::bake_set(&spec, &load, &opts, dir, progress)?;
+        (
+            format!(
+                "{} cells, {} baked ({} kept), {} bytes; tiles of {}^2, {} levels a part ({} stale files removed)",
+                r.cells,
+                r.baked,
+                r.cells - r.baked,
+                r.bytes,
+                r.tile,
+                r.part_levels,
+                r.removed
+            ),
+            serde_json::to_value(&r).unwrap_or_default(),
+        )
+    };
+    let seconds = start.elapsed().as_secs_f64();
+    if args.json {
+        let mut v = v;
+        v["set"] = json!(dir
+            .join(clipsat::package::set::INDEX_NAME)
+            .display()
+            .to_string());
+        v["seconds"] = json!(seconds);
+        super::print_json(&v);
+        return Ok(());
+    }
+    outln!("terrain      {}", spec.display());
+    outln!(
+        "set          {}",
+        dir.join(clipsat::package::set::INDEX_NAME).display()
+    );
+    outln!("baked        {what}");
     outln!("time         {seconds:.2} s");
     Ok(())
 }

@@ -291,7 +291,7 @@ impl TerrainArgs {
     }
 
     /// How to read a terrain file, from these options.
-    fn load_options(&self) -> Result<LoadOptions> {
+    pub(crate) fn load_options(&self) -> Result<LoadOptions> {
         let raw = match (&self.raw_size, &self.raw_format) {
             (None, None) => None,
             (Some(size), format) => Some(RawLayout {

@@ -554,6 +554,92 @@ pub(crate) fn load(spec: &Path, opts: &LoadOptions) -> Result<Heightmap> {
     Ok(whole(Mosaic::new(layout, opts))?.with_geo(geo))
 }
 
+/// A tile mosaic's grid and each tile's rectangle on it (first and last column and row, inclusive), in
+/// the order the mosaic reads them: the cells of a package set (`package::set_bake`).
+pub(crate) fn cells(spec: &Path, opts: &LoadOptions) -> Result<(RowGrid, Vec<(PathBuf, [u32; 4])>)> {
+    let l = layout(spec, opts)?;
+    let tiles = l
+        .tiles
+        .iter()
+        .map(|t| (t.meta.path.clone(), [t.col0, t.row0, t.col1, t.row1]))
+        .collect();
+    Ok((l.grid, tiles))
+}
+
+/// The grid rectangle `[x0, y0, x1, y1]` (inclusive) of the mosaic `spec`, read from the tiles `sources`
+/// alone (all that reach it where `None`); samples with no data are [`LoadOptions::fill_height`], or
+/// filled from their neighbours inside the rectangle (as one file's voids are). The last column and row,
+/// where none of the sources reaches them (tiles that abut rather than share their edges), repeat the
+/// ones before: a package set's cell reads its own tiles alone.
+pub(crate) fn window(
+    spec: &Path,
+    opts: &LoadOptions,
+    [x0, y0, x1, y1]: [u32; 4],
+    sources: Option<&[PathBuf]>,
+) -> Result<Heightmap> {
+    let mut l = layout(spec, opts)?;
+    if x1 >= l.grid.width || y1 >= l.grid.height || x0 >= x1 || y0 >= y1 {
+        return Err(Error::format(
+            spec,
+            format!("no rectangle {x0}..={x1} x {y0}..={y1} in the grid"),
+        ));
+    }
+    l.tiles.retain(|t| {
+        t.col0 <= x1
+            && t.col1 >= x0
+            && t.row0 <= y1
+            && t.row1 >= y0
+            && sources.is_none_or(|s| s.contains(&t.meta.path))
+    });
+    let reach = |x: u32, y: u32| {
+        l.tiles
+            .iter()
+            .any(|t| t.col0 <= x && x <= t.col1 && t.row0 <= y && y <= t.row1)
+    };
+    let edge_x: Vec<bool> = (y0..=y1).map(|y| !reach(x1, y)).collect();
+    let edge_y: Vec<bool> = (x0..=x1).map(|x| !reach(x, y1)).collect();
+    let g = l.grid.clone();
+    let mut mosaic = Mosaic::new(l, opts);
+    let (gw, w, h) = (
+        g.width as usize,
+        (x1 - x0 + 1) as usize,
+        (y1 - y0 + 1) as usize,
+    );
+    let mut heights = super::zeroed_samples(&g.path, w * h)?;
+    let mut band = vec![0f32; gw * rows::BAND_ROWS as usize];
+    let mut y = y0;
+    while y <= y1 {
+        let n = rows::BAND_ROWS.min(y1 - y + 1);
+        let band = &mut band[..gw * n as usize];
+        mosaic.read_rows(y, band)?;
+        for (r, row) in band.chunks_exact(gw).enumerate() {
+            let at = ((y - y0) as usize + r) * w;
+            heights[at..at + w].copy_from_slice(&row[x0 as usize..=x1 as usize]);
+        }
+        y += n;
+    }
+    for (r, &far) in edge_x.iter().enumerate() {
+        if far {
+            heights[r * w + w - 1] = heights[r * w + w - 2];
+        }
+    }
+    for (c, &far) in edge_y.iter().enumerate() {
+        if far {
+            heights[(h - 1) * w + c] = heights[(h - 2) * w + c];
+        }
+    }
+    let voids = if heights.iter().any(|v| v.is_nan()) {
+        fill_voids(&g.path, w, &mut heights)?
+    } else {
+        0
+    };
+    Ok(
+        Heightmap::new(&g.path, x1 - x0 + 1, y1 - y0 + 1, g.spacing, heights)?
+            .with_voids_filled(voids)
+            .with_ew_spacing(g.ew_spacing),
+    )
+}
+
 /// Every row of `mosaic`, its no-data samples filled from their neighbours.
 fn whole(mut mosaic: Mosaic) -> Result<Heightmap> {
     let g = mosaic.grid().clone();

@@ -4,6 +4,7 @@
 
 mod make;
 mod real_tiles;
+mod set;
 
 use crate::TempDir;
 use std::path::Path;

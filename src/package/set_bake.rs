@@ -1,0 +1,402 @@
+//! Stage 1b, the package: a package set's bake (`clipsat bake --parts DIR`, `docs/guide.md` "Package
+//! sets"). The input tiles' lattice is cut into cells, one a tile for SRTM-like tiles; each cell is baked
+//! into its own part from the tiles that reach it alone ([`bake_cell`], any order, on any machine), then
+//! the top from the parts' level K and the index ([`finish`]). A part's file name holds its key (what it
+//! was baked from and how), so a bake again skips the parts whose key stands: a changed, added or removed
+//! tile bakes its cells again, and the top.
+
+use std::path::{Path, PathBuf};
+
+use super::set::{Index, PartEntry, INDEX_FORMAT, INDEX_NAME};
+use super::write::{bake, source_quantum, BakeOptions, BakeReport, FLOAT_MAX_ERROR};
+use super::Package;
+use crate::hash::{hex, Hash64};
+use crate::progress::Progress;
+use crate::source::{Heightmap, LoadOptions};
+use crate::{Error, Result};
+
+/// Most levels a part holds below the top: a level-K tile covers 2^K tiles of level 0 a side, and a cell's
+/// origin must be a whole number of them.
+pub const MAX_K: u32 = 4;
+
+/// Tile sides a set may choose, when the cells' size does not allow the one asked for.
+const TILE_RANGE: (u32, u32) = (16, 256);
+
+/// What a set's bake does: the cells, their sources and keys, and the parameters all parts share.
+#[derive(Clone, Debug)]
+pub struct SetPlan {
+    /// The tiles as given (a folder, list, glob or VRT).
+    pub spec: PathBuf,
+    /// The set's folder.
+    pub dir: PathBuf,
+    /// How the tiles are read.
+    pub load: LoadOptions,
+    /// The bake options every part and the top use (tile, codec, bound, quantum).
+    pub opts: BakeOptions,
+    /// The index, its parts' files and keys filled in.
+    pub index: Index,
+    /// Each cell's grid rectangle, (x0, y0, x1, y1) inclusive, row-major like the index's parts.
+    pub cells: Vec<[u32; 4]>,
+}
+
+/// What [`bake_set`] did.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct SetReport {
+    /// Cells in the set.
+    pub cells: usize,
+    /// Cells baked this time (the others' parts stood).
+    pub baked: usize,
+    /// Parts removed (stale keys).
+    pub removed: usize,
+    /// Bytes of every part and the top.
+    pub bytes: u64,
+    /// Tile side and levels per part the set chose.
+    pub tile: u32,
+    /// Levels each part holds.
+    pub part_levels: u32,
+}
+
+/// Plans the set of the tile mosaic `spec` in `dir`: the cells, the tile side and levels per part, the
+/// quantum (from the first cell's samples, as one file's bake chooses it), and each part's key.
+pub fn plan(spec: &Path, load: &LoadOptions, opts: &BakeOptions, dir: &Path) -> Result<SetPlan> {
+    if load.resample_ew {
+        return Err(Error::format(
+            spec,
+            "a package set keeps the tiles' grid: --resample-ew resamples the whole mosaic's rows, \
+             so bake the mosaic into one package for it (without --parts)",
+        ));
+    }
+    let (grid, tiles) = crate::source::mosaic_cells(spec, load)?;
+    let mut columns: Vec<u32> = tiles.iter().map(|t| t.1[0]).collect();
+    let mut rows: Vec<u32> = tiles.iter().map(|t| t.1[1]).collect();
+    for v in [&mut columns, &mut rows] {
+        v.sort_unstable();
+        v.dedup();
+    }
+    // Tiles' first samples at 0 on both axes: the grid starts at the north-west-most sample.
+    let g = columns
+        .iter()
+        .chain(&rows)
+        .filter(|&&s| s > 0)
+        .fold(0u32, |a, &b| gcd(a, b));
+    let (tile, k) = choose_tile(g, opts.tile, grid.width.min(grid.height)).ok_or_else(|| {
+        Error::format(
+            spec,
+            format!(
+                "its tiles start every {g} samples, which no tile side from {} to {} times 2^k (k from \
+                 1 to {MAX_K}) divides: a package set needs cells a whole number of level-k tiles; \
+                 bake the mosaic into one package instead (without --parts)",
+                TILE_RANGE.0, TILE_RANGE.1
+            ),
+        )
+    })?;
+    let mut index = Index {
+        format: INDEX_FORMAT,
+        width: grid.width,
+        height: grid.height,
+        spacing: grid.spacing,
+        origin: grid.origin,
+        tile,
+        part_levels: k + 1,
+        quantum: 0.0,
+        lattice: false,
+        max_error: 0.0,
+        codec: opts.codec.name().to_string(),
+        columns,
+        rows,
+        top: String::new(),
+        parts: Vec::new(),
+    };
+    let cells: Vec<[u32; 4]> = (0..index.rows.len())
+        .flat_map(|j| (0..index.columns.len()).map(move |i| (i, j)))
+        .map(|(i, j)| {
+            let (x0, y0, x1, y1) = index.cell(i, j);
+            [x0, y0, x1, y1]
+        })
+        .collect();
+    // Each cell's part must hold K + 1 levels: at least 2^K + 1 samples a side.
+    if let Some(c) = cells
+        .iter()
+        .find(|c| c[2] - c[0] < 1 << k || c[3] - c[1] < 1 << k)
+    {
+        return Err(Error::format(
+            spec,
+            format!(
+                "a cell of {} x {} samples is too small for parts of {} levels",
+                c[2] - c[0] + 1,
+                c[3] - c[1] + 1,
+                k + 1
+            ),
+        ));
+    }
+    // The quantum and bound, from the first cell as one file's bake would choose them from its samples.
+    let first = crate::source::mosaic_window(spec, load, cells[0], None)?;
+    let max_error = opts
+        .max_error
+        .unwrap_or_else(|| source_quantum(&first).map_or(FLOAT_MAX_ERROR, |q| q * 0.5));
+    let (q, lattice) = match source_quantum(&first) {
+        Some(q) if q * 0.5 <= max_error * (1.0 + 1e-9) => (q, true),
+        _ => (2.0 * max_error, false),
+    };
+    index.quantum = q;
+    index.lattice = lattice;
+    index.max_error = max_error;
+    let part_opts = BakeOptions {
+        max_error: Some(max_error),
+        tile,
+        part: k + 1,
+        quantum: Some((q, lattice)),
+        lod_tables: false,
+        ..opts.clone()
+    };
+    let (last_x, last_y) = (grid.width - 1, grid.height - 1);
+    for c in &cells {
+        // The tiles inside the cell: its last column and row are the next cell's first, and its first
+        // the last of a tile to the west or north that shares its edge, which the cell does not read.
+        let ex = if c[2] == last_x { c[2] } else { c[2] - 1 };
+        let ey = if c[3] == last_y { c[3] } else { c[3] - 1 };
+        let sources: Vec<PathBuf> = tiles
+            .iter()
+            .filter(|(_, r)| r[0] <= ex && r[2] > c[0] && r[1] <= ey && r[3] > c[1])
+            .map(|(p, _)| p.clone())
+            .collect();
+        let key = cell_key(&index, &part_opts, load, *c, &sources)?;
+        index.parts.push(PartEntry {
+            file: format!("part-{}-{}-{key}.clipsat", c[0], c[1]),
+            key,
+            sources: sources.iter().map(|p| p.display().to_string()).collect(),
+        });
+    }
+    Ok(SetPlan {
+        spec: spec.to_path_buf(),
+        dir: dir.to_path_buf(),
+        load: load.clone(),
+        opts: part_opts,
+        index,
+        cells,
+    })
+}
+
+/// The greatest common divisor.
+fn gcd(a: u32, b: u32) -> u32 {
+    if b == 0 {
+        a
+    } else {
+        gcd(b, a % b)
+    }
+}
+
+/// The tile side and K for cells that start every `g` samples (0: one cell a side): the largest K up
+/// to [`MAX_K`] for which an even side in [`TILE_RANGE`] divides g / 2^K, that side the nearest to
+/// `asked`; K also leaves the top a level over the grid's `side`.
+fn choose_tile(g: u32, asked: u32, side: u32) -> Option<(u32, u32)> {
+    for k in (1..=MAX_K).rev() {
+        if u64::from(asked) << (k + 2) >= u64::from(side) {
+            continue;
+        }
+        if g == 0 {
+            return Some((asked, k));
+        }
+        if !g.is_multiple_of(1 << k) {
+            continue;
+        }
+        let m = g >> k;
+        let best = (TILE_RANGE.0..=TILE_RANGE.1.min(m))
+            .filter(|t| t % 2 == 0 && m.is_multiple_of(*t))
+            .min_by_key(|t| t.abs_diff(asked));
+        if let Some(t) = best {
+            return Some((t, k));
+        }
+    }
+    None
+}
+
+/// A part's key: the set's parameters, the cell, and each source's path, size and modification time.
+fn cell_key(
+    index: &Index,
+    opts: &BakeOptions,
+    load: &LoadOptions,
+    cell: [u32; 4],
+    sources: &[PathBuf],
+) -> Result<String> {
+    let mut h = Hash64::new();
+    h.write_bytes(
+        format!(
+            "set {INDEX_FORMAT} readers r{} grid {} x {} spacing {} tile {} levels {} quantum {} {} \
+             bound {} codec {} zstd {} fill {:?} cell {cell:?}",
+            crate::source::READ_REVISION,
+            index.width,
+            index.height,
+            index.spacing,
+            opts.tile,
+            opts.part,
+            index.quantum,
+            index.lattice,
+            index.max_error,
+            opts.codec.name(),
+            opts.zstd_level,
+            load.fill_height,
+        )
+        .as_bytes(),
+    );
+    for s in sources {
+        let meta = std::fs::metadata(s).map_err(|e| Error::io(s, "cannot read", e))?;
+        h.write_bytes(s.display().to_string().as_bytes());
+        h.write_u64(meta.len());
+        let mtime = meta
+            .modified()
+            .ok()
+            .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok());
+        h.write_u64(mtime.map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX)));
+    }
+    Ok(hex(h.finish()))
+}
+
+impl SetPlan {
+    /// The part file of cell `n`.
+    pub fn part_path(&self, n: usize) -> PathBuf {
+        self.dir.join(&self.index.parts[n].file)
+    }
+
+    /// Whether cell `n`'s part is there and opens as that part.
+    pub fn part_stands(&self, n: usize) -> bool {
+        Package::open(&self.part_path(n)).is_ok_and(|p| p.header().part == self.opts.part)
+    }
+}
+
+/// Bakes cell `n` of the plan into its part (the tiles that reach the cell read alone), whether or not
+/// one stands.
+pub fn bake_cell(plan: &SetPlan, n: usize, progress: Progress<'_>) -> Result<BakeReport> {
+    let cell = *plan.cells.get(n).ok_or_else(|| {
+        Error::terrain(format!(
+            "no cell {n}: the set has {} cells (0 to {})",
+            plan.cells.len(),
+            plan.cells.len().saturating_sub(1)
+        ))
+    })?;
+    std::fs::create_dir_all(&plan.dir).map_err(|e| Error::io(&plan.dir, "cannot create", e))?;
+    let sources: Vec<PathBuf> = plan.index.parts[n]
+        .sources
+        .iter()
+        .map(PathBuf::from)
+        .collect();
+    let hm = crate::source::mosaic_window(&plan.spec, &plan.load, cell, Some(&sources))?;
+    bake(&hm, &plan.part_path(n), &plan.opts, progress)
+}
+
+/// Bakes the top from the parts' level K, writes the index and removes the parts and tops of the folder
+/// that the index does not name. Every part must stand. Returns the set's bytes and the files removed.
+pub fn finish(plan: &mut SetPlan, progress: Progress<'_>) -> Result<(u64, usize)> {
+    let idx = &plan.index;
+    let k = idx.part_levels as usize - 1;
+    let missing: Vec<usize> = (0..plan.cells.len())
+        .filter(|&n| !plan.part_stands(n))
+        .collect();
+    if let Some(&n) = missing.first() {
+        return Err(Error::format(
+            &plan.part_path(n),
+            format!(
+                "{} of {} parts are not baked (the first: cell {n}); bake them first",
+                missing.len(),
+                plan.cells.len()
+            ),
+        ));
+    }
+    // Level K of the whole grid, each sample the part's whose cell it starts (the last column and row
+    // the last cell's).
+    let level = super::format::level_sizes(idx.width, idx.height)[k];
+    let (w, h) = (level.0 as usize, level.1 as usize);
+    let mut heights = vec![0f32; w * h];
+    let (nc, nr) = (idx.columns.len(), idx.rows.len());
+    let mut top_key = Hash64::new();
+    for (n, cell) in plan.cells.iter().enumerate() {
+        let (i, j) = (n % nc, n / nc);
+        let part = Package::open(&plan.part_path(n))?;
+        top_key.write_bytes(idx.parts[n].key.as_bytes());
+        let units = part.decode_level(k)?;
+        let d = part.header().levels[k];
+        let (pw, ph) = (d.width as usize, d.height as usize);
+        // A cell's last column and row are the next cell's first.
+        let own_w = if i + 1 < nc { pw - 1 } else { pw };
+        let own_h = if j + 1 < nr { ph - 1 } else { ph };
+        let (x0, y0) = ((cell[0] >> k) as usize, (cell[1] >> k) as usize);
+        for y in 0..own_h {
+            for x in 0..own_w {
+                heights[(y0 + y) * w + x0 + x] = part.metres(units[y * pw + x]);
+            }
+        }
+    }
+    // Level K + 1, the top's level 0, filtered from level K as one package's pyramid is.
+    let (tw, th, heights) = crate::bake::pyramid::coarser(level.0, level.1, heights);
+    let top_file = format!("top-{}.clipsat", hex(top_key.finish()));
+    let top_path = plan.dir.join(&top_file);
+    let top_opts = BakeOptions {
+        part: 0,
+        quantum: Some((idx.quantum, false)),
+        ..plan.opts.clone()
+    };
+    if Package::open(&top_path).is_err() {
+        let scale = f64::from(2u32 << k);
+        #[expect(clippy::cast_possible_truncation, reason = "a spacing in metres")]
+        let spacing = (f64::from(idx.spacing) * scale) as f32;
+        let hm = Heightmap::new(&top_path, tw, th, spacing, heights)?
+            .with_origin(idx.origin.0, idx.origin.1);
+        bake(&hm, &top_path, &top_opts, progress)?;
+    }
+    plan.index.top = top_file;
+    let text = plan.index.to_text()?;
+    let index_path = plan.dir.join(INDEX_NAME);
+    let tmp = plan.dir.join(format!("{INDEX_NAME}.tmp{}", crate::temp_suffix()));
+    std::fs::write(&tmp, text)
+        .and_then(|()| std::fs::rename(&tmp, &index_path))
+        .map_err(|e| Error::io(&index_path, "cannot write", e))?;
+    // The parts and tops of earlier bakes that the index does not name.
+    let named: Vec<&str> = plan
+        .index
+        .parts
+        .iter()
+        .map(|p| p.file.as_str())
+        .chain(std::iter::once(plan.index.top.as_str()))
+        .collect();
+    let mut removed = 0;
+    if let Ok(entries) = std::fs::read_dir(&plan.dir) {
+        for e in entries.filter_map(std::result::Result::ok) {
+            let name = e.file_name().to_string_lossy().to_string();
+            let ours = (name.starts_with("part-") || name.starts_with("top-"))
+                && name.ends_with(".clipsat");
+            if ours && !named.contains(&name.as_str()) && std::fs::remove_file(e.path()).is_ok() {
+                removed += 1;
+            }
+        }
+    }
+    let bytes = Package::open(&index_path)?.file_bytes();
+    Ok((bytes, removed))
+}
+
+/// Bakes the set of the tile mosaic `spec` into `dir`: every cell whose part does not stand (in the
+/// order of the index), then [`finish`].
+pub fn bake_set(
+    spec: &Path,
+    load: &LoadOptions,
+    opts: &BakeOptions,
+    dir: &Path,
+    progress: Progress<'_>,
+) -> Result<SetReport> {
+    let mut plan = plan(spec, load, opts, dir)?;
+    let mut baked = 0;
+    for n in 0..plan.cells.len() {
+        if !plan.part_stands(n) {
+            bake_cell(&plan, n, progress)?;
+            baked += 1;
+        }
+    }
+    let (bytes, removed) = finish(&mut plan, progress)?;
+    Ok(SetReport {
+        cells: plan.cells.len(),
+        baked,
+        removed,
+        bytes,
+        tile: plan.index.tile,
+        part_levels: plan.index.part_levels,
+    })
+}

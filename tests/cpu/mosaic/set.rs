@@ -1,0 +1,200 @@
+//! Stage 1b, package sets: a tile mosaic baked as one part a tile and a top (`package::set_bake`), read
+//! back as one package: level 0 exactly the mosaic's, the coarser levels within the bound of the one
+//! package's away from the cells' borders, a bake again that re-bakes only a changed tile's cell, and a
+//! cell-by-cell bake (a cluster's) that writes the same files.
+
+use std::path::Path;
+
+use super::make::{write_geotiff_tiles, Grid};
+use super::{read_all, temp_dir};
+use clipsat::package::{self, set_bake, BakeOptions, Package};
+use clipsat::source::{self, LoadOptions};
+
+/// Every file of a set's folder, by name, and its bytes.
+fn files(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    let mut v: Vec<_> = std::fs::read_dir(dir)
+        .expect("read set folder")
+        .map(|e| {
+            let e = e.expect("entry");
+            (
+                e.file_name().to_string_lossy().to_string(),
+                std::fs::read(e.path()).expect("read"),
+            )
+        })
+        .collect();
+    v.sort();
+    v
+}
+
+#[test]
+fn a_package_set_reads_as_its_mosaic() {
+    let Some(src) = Grid::shared_tile() else {
+        return;
+    };
+    let dir = temp_dir("set");
+    // 2 x 2 GeoTIFF tiles of 513^2 sharing their edges, 1" data around the coast.
+    let world = src
+        .upsampled(2)
+        .crop(700, 400, 1025, 1025)
+        .placed(11.25, 57.8, 1.0 / 3600.0);
+    write_geotiff_tiles(&dir.join("tiles"), &world, 513);
+    let tiles = dir.join("tiles");
+    let load = LoadOptions::default();
+    let set = dir.join("set");
+    let report = set_bake::bake_set(
+        &tiles,
+        &load,
+        &BakeOptions::default(),
+        &set,
+        Default::default(),
+    )
+    .expect("bake the set");
+    assert_eq!((report.cells, report.baked, report.removed), (4, 4, 0));
+    assert_eq!((report.tile, report.part_levels), (64, 3));
+
+    // Level 0 is the mosaic's, sample for sample (integer heights are stored losslessly).
+    let pkg = Package::open(&set).expect("open the set");
+    assert!(package::is_package(&set));
+    let h = pkg.header();
+    assert_eq!((h.width, h.height), (1025, 1025));
+    let (_, want) = read_all(&tiles, &load);
+    let got: Vec<f32> = pkg
+        .decode_level0()
+        .expect("decode")
+        .into_iter()
+        .map(|k| pkg.metres(k))
+        .collect();
+    assert!(got == want, "the set's level 0 differs from its mosaic");
+
+    // The coarser levels against the one package of the same mosaic: within both bounds and the
+    // filter's share of them away from the cells' borders (where a part's levels are filtered from its
+    // own cell alone).
+    let whole = dir.join("whole.clipsat");
+    let mut rows = source::open_rows(&tiles, &load).expect("rows");
+    package::bake_source(
+        &mut *rows,
+        &whole,
+        &BakeOptions {
+            lod_tables: false,
+            ..BakeOptions::default()
+        },
+        Default::default(),
+    )
+    .expect("bake one package");
+    let one = Package::open(&whole).expect("open");
+    assert_eq!(one.header().levels.len(), h.levels.len());
+    for l in 1..h.levels.len() {
+        let (a, b) = (
+            pkg.decode_level(l).expect("set level"),
+            one.decode_level(l).expect("package level"),
+        );
+        let d = h.levels[l];
+        // Cells start every 512 samples: 512 >> l at this level.
+        let border = 512 >> l;
+        let mut worst = 0i32;
+        for y in 0..d.height as usize {
+            for x in 0..d.width as usize {
+                let near = |v: usize| border > 0 && (v % border < 3 || border - v % border < 3);
+                if l <= 2 && (near(x) || near(y)) {
+                    continue;
+                }
+                let i = y * d.width as usize + x;
+                worst = worst.max((a[i] - b[i]).abs());
+            }
+        }
+        assert!(worst <= 2, "level {l}: {worst} m from the one package's");
+    }
+
+    // A bake again keeps every part; a changed tile bakes its own cell again and the top, and no other.
+    let again = set_bake::bake_set(
+        &tiles,
+        &load,
+        &BakeOptions::default(),
+        &set,
+        Default::default(),
+    )
+    .expect("bake again");
+    assert_eq!((again.baked, again.removed), (0, 0));
+    let before = files(&set);
+    let (_, mut changed) = world
+        .tiles(513)
+        .into_iter()
+        .find(|(at, _)| *at == (1, 0))
+        .expect("tile (1, 0)");
+    for v in &mut changed.z[1000..1100] {
+        *v += 7;
+    }
+    super::make::write_geotiff(&tiles.join("tile_1_0.tif"), &changed, None, 4326);
+    let third = set_bake::bake_set(
+        &tiles,
+        &load,
+        &BakeOptions::default(),
+        &set,
+        Default::default(),
+    )
+    .expect("bake after a change");
+    assert_eq!(
+        (third.baked, third.removed),
+        (1, 2),
+        "one part and the top replaced"
+    );
+    let after = files(&set);
+    let kept = before.iter().filter(|f| after.contains(f)).count();
+    assert_eq!(kept, 3, "the three other parts kept, byte for byte");
+
+    // A cluster's way: every cell on its own, then the top and index: the same files.
+    let cells = dir.join("cells");
+    let mut plan = set_bake::plan(&tiles, &load, &BakeOptions::default(), &cells).expect("plan");
+    for n in (0..plan.cells.len()).rev() {
+        set_bake::bake_cell(&plan, n, Default::default()).expect("bake a cell");
+    }
+    set_bake::finish(&mut plan, Default::default()).expect("finish");
+    assert!(
+        files(&cells) == after,
+        "a cell-by-cell bake wrote other files"
+    );
+
+    // Damage is named: a part missing, a part of another set.
+    let part = set.join(&plan.index.parts[0].file);
+    std::fs::remove_file(&part).expect("remove a part");
+    let err = Package::open(&set).expect_err("a part missing").to_string();
+    assert!(err.contains(&plan.index.parts[0].file), "{err}");
+    let mut plan2 = set_bake::plan(&tiles, &load, &BakeOptions::default(), &set).expect("plan");
+    let err = set_bake::finish(&mut plan2, Default::default())
+        .expect_err("finish with a part missing")
+        .to_string();
+    assert!(err.contains("1 of 4 parts are not baked"), "{err}");
+}
+
+/// Tiles whose starts no tile side and level divide, and `--resample-ew`, are refused with what to do.
+#[test]
+fn a_set_refuses_what_it_cannot_cut() {
+    let Some(src) = Grid::shared_tile() else {
+        return;
+    };
+    let dir = temp_dir("set-refused");
+    let world = src.crop(0, 0, 203, 203).placed(11.0, 58.0, 1.0 / 3600.0);
+    write_geotiff_tiles(&dir.join("tiles"), &world, 102);
+    let err = set_bake::plan(
+        &dir.join("tiles"),
+        &LoadOptions::default(),
+        &BakeOptions::default(),
+        &dir.join("set"),
+    )
+    .expect_err("tiles every 101 samples")
+    .to_string();
+    assert!(err.contains("bake the mosaic into one package"), "{err}");
+    let ew = LoadOptions {
+        resample_ew: true,
+        ..LoadOptions::default()
+    };
+    let err = set_bake::plan(
+        &dir.join("tiles"),
+        &ew,
+        &BakeOptions::default(),
+        &dir.join("set"),
+    )
+    .expect_err("resample_ew")
+    .to_string();
+    assert!(err.contains("--resample-ew"), "{err}");
+}
