@@ -96,7 +96,12 @@ fn head_bytes(header: &super::format::Header) -> u64 {
     } else {
         0
     };
-    header.byte_len() as u64 + 16 * header.tiles.len() as u64 + tables
+    header.byte_len() as u64 + 16 * header.tiles.len() as u64 + tables + header.set_bytes
+}
+
+/// [`head_bytes`] of a set's part or top: what its open file holds (`Header::set_bytes`).
+pub(super) fn file_head_bytes(header: &super::format::Header) -> u64 {
+    head_bytes(header)
 }
 
 /// The resident tiles of one package, in a fixed number of slots.

@@ -125,6 +125,9 @@ pub struct Header {
     /// coarser level short of its last row and column: those lie on the next part's edge, which the set
     /// takes from that part.
     pub part: u32,
+    /// Bytes a package set's open parts and top hold beyond this header (their headers, tile tables and
+    /// rANS lookup tables), for memory budgets; 0 for one file. Not stored.
+    pub set_bytes: u64,
 }
 
 /// Where a package's SAT LOD records lie ([`super::lod_tiles`]).
@@ -256,6 +259,7 @@ impl Header {
             models,
             tables: None,
             part: 0,
+            set_bytes: 0,
         }
     }
 

@@ -153,11 +153,6 @@ impl Package {
             .map_or(self.map.len() as u64, |s| s.file_bytes())
     }
 
-    /// Bytes a package set's parts add to one package's decoding state (their lookup tables); 0 for a
-    /// package.
-    pub fn set_bytes(&self) -> u64 {
-        self.set.as_ref().map_or(0, |s| s.extra_bytes())
-    }
 
     /// Drops the mapped pages of bytes `offset .. offset + len` from this process's resident set
     /// ([`Package::trim`]). Best effort.

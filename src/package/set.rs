@@ -258,6 +258,11 @@ impl Parts {
             parts.push(p);
         }
         world.max_error = index.max_error;
+        world.set_bytes = parts
+            .iter()
+            .chain(std::iter::once(&top))
+            .map(|p| super::cache::file_head_bytes(p.header()))
+            .sum();
         world.range = range;
         world.models = (0..world.levels.len())
             .map(|l| {
@@ -356,11 +361,5 @@ impl Parts {
         for p in self.parts.iter().chain(std::iter::once(&self.top)) {
             p.trim();
         }
-    }
-
-    /// Bytes the open files' lookup tables take beyond one package's (for memory budgets).
-    pub(super) fn extra_bytes(&self) -> u64 {
-        let tables = u64::from(self.top.header().tables.is_some()) * super::rans::DecodeTables::BYTES;
-        tables * self.parts.len() as u64
     }
 }
