@@ -60,7 +60,23 @@ pub use write::{
 /// Threads a bake codes and decodes tiles on, the process's cores (its CPU affinity) up to 8: every tile
 /// is coded or decoded from the same inputs whichever thread does it, so nothing baked depends on it.
 pub(crate) fn threads() -> usize {
+    if ONE_THREAD.with(std::cell::Cell::get) {
+        return 1;
+    }
     std::thread::available_parallelism()
         .map_or(1, usize::from)
         .min(8)
+}
+
+thread_local! {
+    /// Set while this thread bakes one of several packages that run side by side ([`one_thread`]).
+    static ONE_THREAD: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+/// Runs `f` with [`threads`] at 1 on this thread: a package set's cells baked a cell a core.
+pub(crate) fn one_thread<R>(f: impl FnOnce() -> R) -> R {
+    ONE_THREAD.with(|c| c.set(true));
+    let r = f();
+    ONE_THREAD.with(|c| c.set(false));
+    r
 }

@@ -101,6 +101,7 @@ pub fn plan(spec: &Path, load: &LoadOptions, opts: &BakeOptions, dir: &Path) -> 
         quantum: 0.0,
         lattice: false,
         max_error: 0.0,
+        quantum_key: String::new(),
         codec: opts.codec.name().to_string(),
         columns,
         rows,
@@ -129,18 +130,36 @@ pub fn plan(spec: &Path, load: &LoadOptions, opts: &BakeOptions, dir: &Path) -> 
             ),
         ));
     }
-    // The quantum and bound, from the first cell as one file's bake would choose them from its samples.
-    let first = crate::source::mosaic_window(spec, load, cells[0], None)?;
-    let max_error = opts
-        .max_error
-        .unwrap_or_else(|| source_quantum(&first).map_or(FLOAT_MAX_ERROR, |q| q * 0.5));
-    let (q, lattice) = match source_quantum(&first) {
-        Some(q) if q * 0.5 <= max_error * (1.0 + 1e-9) => (q, true),
-        _ => (2.0 * max_error, false),
+    // The quantum and bound, from the first cell as one file's bake would choose them from its samples
+    // (or from the index of the bake before, where the first cell's tiles and the options are the same).
+    let first_sources = cell_sources(&tiles, cells[0], (grid.width - 1, grid.height - 1));
+    let quantum_key = {
+        let mut h = Hash64::new();
+        h.write_bytes(format!("{:?} {:?} {}", opts.max_error, load, crate::source::READ_REVISION).as_bytes());
+        stamp(&mut h, &first_sources)?;
+        hex(h.finish())
+    };
+    let before = Index::read(&dir.join(INDEX_NAME))
+        .ok()
+        .filter(|b| b.quantum_key == quantum_key);
+    let (q, lattice, max_error) = match before {
+        Some(b) => (b.quantum, b.lattice, b.max_error),
+        None => {
+            let first = crate::source::mosaic_window(spec, load, cells[0], Some(&first_sources))?;
+            let quantum = source_quantum(&first);
+            let max_error = opts
+                .max_error
+                .unwrap_or_else(|| quantum.map_or(FLOAT_MAX_ERROR, |q| q * 0.5));
+            match quantum {
+                Some(q) if q * 0.5 <= max_error * (1.0 + 1e-9) => (q, true, max_error),
+                _ => (2.0 * max_error, false, max_error),
+            }
+        }
     };
     index.quantum = q;
     index.lattice = lattice;
     index.max_error = max_error;
+    index.quantum_key = quantum_key;
     let part_opts = BakeOptions {
         max_error: Some(max_error),
         tile,
@@ -149,17 +168,8 @@ pub fn plan(spec: &Path, load: &LoadOptions, opts: &BakeOptions, dir: &Path) -> 
         lod_tables: false,
         ..opts.clone()
     };
-    let (last_x, last_y) = (grid.width - 1, grid.height - 1);
     for c in &cells {
-        // The tiles inside the cell: its last column and row are the next cell's first, and its first
-        // the last of a tile to the west or north that shares its edge, which the cell does not read.
-        let ex = if c[2] == last_x { c[2] } else { c[2] - 1 };
-        let ey = if c[3] == last_y { c[3] } else { c[3] - 1 };
-        let sources: Vec<PathBuf> = tiles
-            .iter()
-            .filter(|(_, r)| r[0] <= ex && r[2] > c[0] && r[1] <= ey && r[3] > c[1])
-            .map(|(p, _)| p.clone())
-            .collect();
+        let sources = cell_sources(&tiles, *c, (grid.width - 1, grid.height - 1));
         let key = cell_key(&index, &part_opts, load, *c, &sources)?;
         index.parts.push(PartEntry {
             file: format!("part-{}-{}-{key}.clipsat", c[0], c[1]),
@@ -175,6 +185,34 @@ pub fn plan(spec: &Path, load: &LoadOptions, opts: &BakeOptions, dir: &Path) -> 
         index,
         cells,
     })
+}
+
+/// The tiles inside cell `c`: its last column and row are the next cell's first (unless `last`, the
+/// grid's), and its first the last of a tile to the west or north that shares its edge, which the cell
+/// does not read.
+fn cell_sources(tiles: &[(PathBuf, [u32; 4])], c: [u32; 4], last: (u32, u32)) -> Vec<PathBuf> {
+    let ex = if c[2] == last.0 { c[2] } else { c[2] - 1 };
+    let ey = if c[3] == last.1 { c[3] } else { c[3] - 1 };
+    tiles
+        .iter()
+        .filter(|(_, r)| r[0] <= ex && r[2] > c[0] && r[1] <= ey && r[3] > c[1])
+        .map(|(p, _)| p.clone())
+        .collect()
+}
+
+/// Each file's path, size and modification time into `h`.
+fn stamp(h: &mut Hash64, sources: &[PathBuf]) -> Result<()> {
+    for s in sources {
+        let meta = std::fs::metadata(s).map_err(|e| Error::io(s, "cannot read", e))?;
+        h.write_bytes(s.display().to_string().as_bytes());
+        h.write_u64(meta.len());
+        let mtime = meta
+            .modified()
+            .ok()
+            .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok());
+        h.write_u64(mtime.map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX)));
+    }
+    Ok(())
 }
 
 /// The greatest common divisor.
@@ -239,16 +277,7 @@ fn cell_key(
         )
         .as_bytes(),
     );
-    for s in sources {
-        let meta = std::fs::metadata(s).map_err(|e| Error::io(s, "cannot read", e))?;
-        h.write_bytes(s.display().to_string().as_bytes());
-        h.write_u64(meta.len());
-        let mtime = meta
-            .modified()
-            .ok()
-            .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok());
-        h.write_u64(mtime.map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX)));
-    }
+    stamp(&mut h, sources)?;
     Ok(hex(h.finish()))
 }
 
@@ -258,9 +287,10 @@ impl SetPlan {
         self.dir.join(&self.index.parts[n].file)
     }
 
-    /// Whether cell `n`'s part is there and opens as that part.
+    /// Whether cell `n`'s part is there (a bake writes it whole or not at all, under a name that holds
+    /// its key; the set's open checks it in full).
     pub fn part_stands(&self, n: usize) -> bool {
-        Package::open(&self.part_path(n)).is_ok_and(|p| p.header().part == self.opts.part)
+        super::is_package(&self.part_path(n))
     }
 }
 
@@ -282,6 +312,92 @@ pub fn bake_cell(plan: &SetPlan, n: usize, progress: Progress<'_>) -> Result<Bak
         .collect();
     let hm = crate::source::mosaic_window(&plan.spec, &plan.load, cell, Some(&sources))?;
     bake(&hm, &plan.part_path(n), &plan.opts, progress)
+}
+
+/// Bakes the cells `todo`: one alone on every core, several a cell a core (each thread taking the next
+/// cell as it comes free; a part's bytes do not depend on its threads). Returns the error of the first
+/// failing cell in `todo`'s order.
+fn bake_cells(plan: &SetPlan, todo: &[usize], progress: Progress<'_>) -> Result<()> {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    let workers = super::threads().min(todo.len());
+    if workers <= 1 {
+        for &n in todo {
+            bake_cell(plan, n, progress)?;
+        }
+        return Ok(());
+    }
+    let next = AtomicUsize::new(0);
+    let done = AtomicUsize::new(0);
+    let failed = std::sync::Mutex::new(None::<(usize, Error)>);
+    let mut meter = progress.task("baking the package set: cells", todo.len() as u64);
+    std::thread::scope(|s| {
+        let work = || loop {
+            let i = next.fetch_add(1, Ordering::Relaxed);
+            let stop = failed
+                .lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner)
+                .is_some();
+            if i >= todo.len() || stop {
+                break;
+            }
+            match super::one_thread(|| bake_cell(plan, todo[i], Progress::default())) {
+                Ok(_) => {
+                    done.fetch_add(1, Ordering::Relaxed);
+                }
+                Err(e) => {
+                    let mut f = failed
+                        .lock()
+                        .unwrap_or_else(std::sync::PoisonError::into_inner);
+                    if f.as_ref().is_none_or(|(j, _)| i < *j) {
+                        *f = Some((i, e));
+                    }
+                }
+            }
+        };
+        let handles: Vec<_> = (0..workers)
+            .map(|_| {
+                std::thread::Builder::new()
+                    .name("clipsat-set-cell".into())
+                    .spawn_scoped(s, work)
+            })
+            .collect();
+        let mut seen = 0;
+        while handles
+            .iter()
+            .any(|h| h.as_ref().is_ok_and(|h| !h.is_finished()))
+        {
+            let d = done.load(Ordering::Relaxed);
+            if d > seen {
+                meter.inc((d - seen) as u64);
+                seen = d;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(50));
+        }
+        for h in handles {
+            match h {
+                Ok(h) => {
+                    if h.join().is_err() {
+                        panic!("a package set's cell thread panicked");
+                    }
+                }
+                Err(e) => {
+                    // No thread to run on: this one bakes what is left.
+                    let _ = e;
+                    work();
+                }
+            }
+        }
+    });
+    match failed
+        .into_inner()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+    {
+        Some((_, e)) => Err(e),
+        None => {
+            meter.finish();
+            Ok(())
+        }
+    }
 }
 
 /// Bakes the top from the parts' level K, writes the index and removes the parts and tops of the folder
@@ -369,7 +485,11 @@ pub fn finish(plan: &mut SetPlan, progress: Progress<'_>) -> Result<(u64, usize)
             }
         }
     }
-    let bytes = Package::open(&index_path)?.file_bytes();
+    let bytes = named
+        .iter()
+        .filter_map(|f| std::fs::metadata(plan.dir.join(f)).ok())
+        .map(|m| m.len())
+        .sum();
     Ok((bytes, removed))
 }
 
@@ -383,13 +503,11 @@ pub fn bake_set(
     progress: Progress<'_>,
 ) -> Result<SetReport> {
     let mut plan = plan(spec, load, opts, dir)?;
-    let mut baked = 0;
-    for n in 0..plan.cells.len() {
-        if !plan.part_stands(n) {
-            bake_cell(&plan, n, progress)?;
-            baked += 1;
-        }
-    }
+    let todo: Vec<usize> = (0..plan.cells.len())
+        .filter(|&n| !plan.part_stands(n))
+        .collect();
+    bake_cells(&plan, &todo, progress)?;
+    let baked = todo.len();
     let (bytes, removed) = finish(&mut plan, progress)?;
     Ok(SetReport {
         cells: plan.cells.len(),

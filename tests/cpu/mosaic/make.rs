@@ -244,7 +244,8 @@ pub(super) fn write_geotiff_tiles(dir: &Path, g: &Grid, side: usize) -> Vec<Path
 /// 2 x 2 degrees, north-west corner at 59 N 11 E. For the measurements in docs/guide.md: run
 /// `CLIPSAT_MOSAIC_OUT=DIR CLIPSAT_MOSAIC_SIDE=3601 cargo test --test cpu mosaic::make::make_mosaic --
 /// --ignored`. `CLIPSAT_MOSAIC_TILES=N` also cuts the same grid into N x N GeoTIFF tiles in
-/// `DIR/tiles-N`.
+/// `DIR/tiles-N`. `CLIPSAT_MOSAIC_GRID=N` makes N x N SRTM tiles instead of 2 x 2 (the tile upsampled N
+/// (side - 1) / 1200 times).
 #[test]
 #[ignore = "writes a measurement mosaic where CLIPSAT_MOSAIC_OUT says"]
 fn make_mosaic() {
@@ -255,15 +256,22 @@ fn make_mosaic() {
     let Some(src) = Grid::shared_tile() else {
         return;
     };
-    let world = src
-        .upsampled((2 * (side - 1)) / 1200)
-        .placed(11.0, 59.0, 1.0 / (side - 1) as f64);
+    let grid: usize = std::env::var("CLIPSAT_MOSAIC_GRID")
+        .map_or(Ok(2), |s| s.parse())
+        .expect("CLIPSAT_MOSAIC_GRID");
+    let world = src.upsampled((grid * (side - 1)) / 1200).placed(
+        11.0,
+        57.0 + grid as f64,
+        1.0 / (side - 1) as f64,
+    );
     let tiles = out.join("tiles");
     std::fs::create_dir_all(&tiles).expect("mkdir");
     for (_, t) in world.tiles(side) {
         write_hgt(&tiles, &t);
     }
-    write_geotiff(&out.join("merged.tif"), &world, None, 4326);
+    if grid == 2 {
+        write_geotiff(&out.join("merged.tif"), &world, None, 4326);
+    }
     if let Ok(n) = std::env::var("CLIPSAT_MOSAIC_TILES") {
         let n: usize = n.parse().expect("CLIPSAT_MOSAIC_TILES");
         let dir = out.join(format!("tiles-{n}"));
