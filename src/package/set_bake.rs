@@ -410,7 +410,7 @@ pub fn finish(plan: &mut SetPlan, progress: Progress<'_>) -> Result<(u64, usize)
         .collect();
     if let Some(&n) = missing.first() {
         return Err(Error::format(
-            &plan.part_path(n),
+            plan.part_path(n),
             format!(
                 "{} of {} parts are not baked (the first: cell {n}); bake them first",
                 missing.len(),

@@ -554,9 +554,12 @@ pub(crate) fn load(spec: &Path, opts: &LoadOptions) -> Result<Heightmap> {
     Ok(whole(Mosaic::new(layout, opts))?.with_geo(geo))
 }
 
+/// A tile's file and its rectangle on the mosaic's grid: first and last column and row, inclusive.
+pub(crate) type TileRect = (PathBuf, [u32; 4]);
+
 /// A tile mosaic's grid and each tile's rectangle on it (first and last column and row, inclusive), in
 /// the order the mosaic reads them: the cells of a package set (`package::set_bake`).
-pub(crate) fn cells(spec: &Path, opts: &LoadOptions) -> Result<(RowGrid, Vec<(PathBuf, [u32; 4])>)> {
+pub(crate) fn cells(spec: &Path, opts: &LoadOptions) -> Result<(RowGrid, Vec<TileRect>)> {
     let l = layout(spec, opts)?;
     let tiles = l
         .tiles
