@@ -3,6 +3,7 @@
 //! module with `cargo test --test cli fly::`.
 
 mod bad_input;
+mod bake_cluster;
 mod bake_killed;
 mod bench_all;
 mod cross_driver;
