@@ -77,6 +77,35 @@ fn clipsat_env(args: &[&str], env: &[(&str, &str)]) -> Output {
     out
 }
 
+/// A geographic (EPSG 4326) f32 GeoTIFF tile of `n` x `n` samples, pixel-is-point, its north-west sample
+/// at (`lon`, `lat`), `step` degrees apart, heights from `z`.
+fn geotiff_tile(
+    path: &Path,
+    n: u32,
+    (lon, lat): (f64, f64),
+    step: f64,
+    z: impl Fn(u32, u32) -> f32,
+) {
+    use tiff::encoder::colortype::Gray32Float;
+    use tiff::tags::Tag;
+    let data: Vec<f32> = (0..n * n).map(|i| z(i % n, i / n)).collect();
+    let mut file = std::fs::File::create(path).expect("create");
+    let mut enc = tiff::encoder::TiffEncoder::new(&mut file).expect("encoder");
+    let mut img = enc.new_image::<Gray32Float>(n, n).expect("image");
+    img.encoder()
+        .write_tag(Tag::ModelPixelScaleTag, &[step, step, 0.0][..])
+        .expect("scale");
+    img.encoder()
+        .write_tag(Tag::ModelTiepointTag, &[0.0, 0.0, 0.0, lon, lat, 0.0][..])
+        .expect("tiepoint");
+    // Geographic model, pixel-is-point, WGS 84.
+    let keys: [u16; 16] = [1, 1, 0, 3, 1024, 0, 1, 2, 1025, 0, 1, 2, 2048, 0, 1, 4326];
+    img.encoder()
+        .write_tag(Tag::GeoKeyDirectoryTag, &keys[..])
+        .expect("geokeys");
+    img.write_data(&data).expect("data");
+}
+
 /// A fresh, empty folder `group/name` under the target's test scratch space, for one test's outputs.
 fn scratch_in(group: &str, name: &str) -> PathBuf {
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))

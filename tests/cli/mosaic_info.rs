@@ -2,32 +2,7 @@
 //! a band at a time, rather than loading it whole: the same size, spacing, height range and geographic
 //! extent as the mosaic loaded whole.
 
-use std::path::Path;
-
-use super::{clipsat, scratch_in};
-
-/// A geographic (EPSG 4326) f32 GeoTIFF tile of `n` x `n` samples, pixel-is-point, its north-west sample
-/// at (`lon`, `lat`), `step` degrees apart, heights from `z`.
-fn tile(path: &Path, n: u32, (lon, lat): (f64, f64), step: f64, z: impl Fn(u32, u32) -> f32) {
-    use tiff::encoder::colortype::Gray32Float;
-    use tiff::tags::Tag;
-    let data: Vec<f32> = (0..n * n).map(|i| z(i % n, i / n)).collect();
-    let mut file = std::fs::File::create(path).expect("create");
-    let mut enc = tiff::encoder::TiffEncoder::new(&mut file).expect("encoder");
-    let mut img = enc.new_image::<Gray32Float>(n, n).expect("image");
-    img.encoder()
-        .write_tag(Tag::ModelPixelScaleTag, &[step, step, 0.0][..])
-        .expect("scale");
-    img.encoder()
-        .write_tag(Tag::ModelTiepointTag, &[0.0, 0.0, 0.0, lon, lat, 0.0][..])
-        .expect("tiepoint");
-    // Geographic model, pixel-is-point, WGS 84.
-    let keys: [u16; 16] = [1, 1, 0, 3, 1024, 0, 1, 2, 1025, 0, 1, 2, 2048, 0, 1, 4326];
-    img.encoder()
-        .write_tag(Tag::GeoKeyDirectoryTag, &keys[..])
-        .expect("geokeys");
-    img.write_data(&data).expect("data");
-}
+use super::{clipsat, geotiff_tile as tile, scratch_in};
 
 #[test]
 fn info_streams_a_mosaic_with_the_loaded_figures() {
