@@ -16,10 +16,10 @@ use super::read::{Package, TileDecoder};
 use crate::{Error, Result};
 
 /// The index file's name in a set's folder.
-pub const INDEX_NAME: &str = "clipsat-set.toml";
+pub const INDEX_NAME: &str = crate::source::georef::SET_INDEX_NAME;
 
 /// The index file's first line, which tells a set's index from any other file.
-pub const MAGIC_LINE: &str = "# clipsat package set";
+pub const MAGIC_LINE: &str = crate::source::georef::SET_INDEX_MAGIC;
 
 /// The index format this build reads and writes.
 pub const INDEX_FORMAT: u32 = 1;
@@ -59,6 +59,9 @@ pub struct Index {
     pub rows: Vec<u32>,
     /// The top package's file, relative to the index.
     pub top: String,
+    /// The tiles' georeference over the whole grid (for imagery placed by its own), if they had one.
+    #[serde(default)]
+    pub georef: Option<crate::source::georef::GeoRef>,
     /// Every part, row-major (`rows.len()` rows of `columns.len()`).
     pub parts: Vec<PartEntry>,
 }
@@ -126,16 +129,7 @@ impl Index {
 
 /// Whether `path` is a set's index, or a folder that holds one.
 pub fn is_set(path: &Path) -> bool {
-    let file = if path.is_dir() {
-        path.join(INDEX_NAME)
-    } else {
-        path.to_path_buf()
-    };
-    use std::io::Read;
-    let mut head = [0u8; MAGIC_LINE.len()];
-    std::fs::File::open(&file)
-        .and_then(|mut f| f.read_exact(&mut head))
-        .is_ok_and(|()| head == MAGIC_LINE.as_bytes())
+    crate::source::georef::set_index(path).is_some()
 }
 
 /// The index file of the set at `path` (the file, or its folder's index).

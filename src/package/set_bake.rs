@@ -106,6 +106,7 @@ pub fn plan(spec: &Path, load: &LoadOptions, opts: &BakeOptions, dir: &Path) -> 
         columns,
         rows,
         top: String::new(),
+        georef: crate::source::heights_georef(spec),
         parts: Vec::new(),
     };
     let cells: Vec<[u32; 4]> = (0..index.rows.len())

@@ -21,7 +21,7 @@ const PROJECTED_KEY: u16 = 3072;
 const CRS_KEYS: [u16; 2] = [GEOGRAPHIC_KEY, PROJECTED_KEY];
 
 /// Where a TIFF's pixels lie in its model space.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct GeoRef {
     /// Pixels (columns, rows).
     pub size: (u32, u32),
@@ -37,7 +37,38 @@ pub struct GeoRef {
     pub geographic: Option<bool>,
 }
 
+/// The index file's name in a package set's folder (`package::set`), which keeps the georeference of the
+/// tiles it was baked from (its `georef` table) for placing imagery over the set.
+pub const SET_INDEX_NAME: &str = "clipsat-set.toml";
+
+/// The first line of a package set's index.
+pub const SET_INDEX_MAGIC: &str = "# clipsat package set";
+
+/// A package set's index file for `path` (the file, or the folder that holds it), if it is one.
+pub fn set_index(path: &Path) -> Option<std::path::PathBuf> {
+    let file = if path.is_dir() {
+        path.join(SET_INDEX_NAME)
+    } else {
+        path.to_path_buf()
+    };
+    use std::io::Read;
+    let mut head = [0u8; SET_INDEX_MAGIC.len()];
+    std::fs::File::open(&file)
+        .and_then(|mut f| f.read_exact(&mut head))
+        .is_ok_and(|()| head == SET_INDEX_MAGIC.as_bytes())
+        .then_some(file)
+}
+
 impl GeoRef {
+    /// The georeference a package set's index keeps (`None` where its tiles had none).
+    pub fn of_set(path: &Path) -> Option<Self> {
+        #[derive(serde::Deserialize)]
+        struct Only {
+            georef: Option<GeoRef>,
+        }
+        let text = std::fs::read_to_string(set_index(path)?).ok()?;
+        toml::from_str::<Only>(&text).ok()?.georef
+    }
     /// The georeference of the TIFF at `path`, or `None` for a file that is not a TIFF or has no
     /// ModelPixelScale and ModelTiepoint (a rotated or unusable one is `None` too).
     pub fn read(path: &Path) -> Option<Self> {

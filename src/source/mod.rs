@@ -16,7 +16,9 @@ pub fn heights_georef(path: &Path) -> Option<georef::GeoRef> {
         .extension()
         .and_then(|e| e.to_str())
         .is_some_and(|e| e.eq_ignore_ascii_case("hgt"));
-    if hgt || mosaic::is_mosaic(path) {
+    if georef::set_index(path).is_some() {
+        georef::GeoRef::of_set(path)
+    } else if hgt || mosaic::is_mosaic(path) {
         mosaic::georef(path)
     } else {
         georef::GeoRef::read(path)

@@ -65,6 +65,9 @@ fn a_package_set_reads_as_its_mosaic() {
         .map(|k| pkg.metres(k))
         .collect();
     assert!(got == want, "the set's level 0 differs from its mosaic");
+    // Imagery over the set is placed by the tiles' georeference, which the index keeps.
+    assert_eq!(source::heights_georef(&set), source::heights_georef(&tiles));
+    assert!(source::heights_georef(&set).is_some());
 
     // The coarser levels against the one package of the same mosaic: within both bounds and the
     // filter's share of them away from the cells' borders (where a part's levels are filtered from its
