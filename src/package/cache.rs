@@ -89,19 +89,9 @@ impl CacheSplit {
     }
 }
 
-/// The parsed header, its tile table and the rANS tables' lookup form.
+/// The parsed header, its tile table and the rANS tables' lookup form ([`super::format::Header::resident_bytes`]).
 fn head_bytes(header: &super::format::Header) -> u64 {
-    let tables = if header.tables.is_some() {
-        super::rans::DecodeTables::BYTES
-    } else {
-        0
-    };
-    header.byte_len() as u64 + 16 * header.tiles.len() as u64 + tables + header.set_bytes
-}
-
-/// [`head_bytes`] of a set's part or top: what its open file holds (`Header::set_bytes`).
-pub(super) fn file_head_bytes(header: &super::format::Header) -> u64 {
-    head_bytes(header)
+    header.resident_bytes()
 }
 
 /// The resident tiles of one package, in a fixed number of slots.

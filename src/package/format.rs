@@ -314,6 +314,17 @@ impl Header {
             + 4
     }
 
+    /// Bytes an open package holds for this header: the header, its parsed tile table, the rANS tables'
+    /// lookup form, and a set's parts ([`Header::set_bytes`]).
+    pub fn resident_bytes(&self) -> u64 {
+        let tables = if self.tables.is_some() {
+            super::rans::DecodeTables::BYTES
+        } else {
+            0
+        };
+        self.byte_len() as u64 + 16 * self.tiles.len() as u64 + tables + self.set_bytes
+    }
+
     /// Bytes of the height tiles' payloads (the pyramid).
     pub fn pyramid_bytes(&self) -> u64 {
         self.tiles.iter().map(|t| u64::from(t.len)).sum()

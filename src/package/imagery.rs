@@ -293,8 +293,8 @@ fn tile_size(l: &ImageryLevel, tile: u32, tx: u32, ty: u32) -> (u32, u32) {
 
 /// Codes `w` x `h` RGB8 texels (packed rows) as a baseline JPEG at `quality`: 4:4:4, Huffman tables
 /// optimised for the tile (the `jpeg-encoder` crate; measured in docs/guide.md "The imagery package"),
-/// checked by decoding it as the runtime does ([`decode_jpeg`], zune-jpeg): where a block's mean colour
-/// comes back more than [`BLOCK_MEAN_SLACK`] levels from the texels', the tile is coded again with the
+/// checked by decoding it as the runtime does (`decode_jpeg`, zune-jpeg): where a block's mean colour
+/// comes back more than `BLOCK_MEAN_SLACK` levels from the texels', the tile is coded again with the
 /// standard tables. zune-jpeg 0.5 misreads some streams of optimised tables whose blocks are nearly all
 /// one colour: a uniform tile of 9 to 176 texels a side, and a uniform residual tile, decoded from its
 /// second or a later row of blocks on as (133, 0, 0) for (220, 30, 30), which other decoders read right

@@ -7,8 +7,10 @@
 use std::path::{Path, PathBuf};
 
 use super::codec::{self, Decoder, Entropy, Predictor, TileScratch, U_BORDER};
-use super::format::Header;
+use super::format::{CodecKind, Header};
+use super::predict::LevelModel;
 use super::rans::DecodeTables;
+use super::set::{index_path, Index};
 use crate::source::Heightmap;
 use crate::{Error, Result};
 
@@ -21,7 +23,7 @@ pub struct Package {
     tables: Option<DecodeTables>,
     /// A package set's parts and top ([`super::set`]): `header` is then the whole terrain's, and `map`
     /// the index file's.
-    set: Option<Box<super::set::Parts>>,
+    set: Option<Box<Parts>>,
 }
 
 impl std::fmt::Debug for Package {
@@ -96,7 +98,7 @@ impl Package {
     /// Maps and validates the package at `path`, or opens the package set whose index (or folder) it is.
     pub fn open(path: &Path) -> Result<Self> {
         if super::set::is_set(path) {
-            let (header, parts) = super::set::Parts::open(path)?;
+            let (header, parts) = Parts::open(path)?;
             let index = super::set::index_path(path);
             let file = std::fs::File::open(&index).map_err(|e| Error::io(&index, "cannot open", e))?;
             // SAFETY: as below, a read-only private map.
@@ -430,5 +432,228 @@ impl Package {
             Heightmap::new(&self.path, h.width, h.height, h.spacing, heights)?
                 .with_origin(h.origin.0, h.origin.1),
         )
+    }
+}
+
+// A package set's parts, read as one package ([`super::set`]): here beside `Package`, which holds them.
+
+/// An open set: its parts and top, and where each level's tiles are.
+pub(super) struct Parts {
+    /// Levels the parts hold (K + 1).
+    part_levels: usize,
+    /// Part column starts and part row starts, grid samples.
+    columns: Vec<u32>,
+    rows: Vec<u32>,
+    tile: u32,
+    parts: Vec<Package>,
+    top: Package,
+}
+
+/// Where a tile of the set lies.
+enum Route {
+    /// Tile (tx, ty) of part `p`, whose origin at the coarser level is (cx, cy).
+    Part {
+        p: usize,
+        tile: (u32, u32),
+        coarse: (i64, i64),
+    },
+    /// The top's level.
+    Top(usize),
+}
+
+impl Parts {
+    /// Opens the set at `path` (an index or its folder): every part and the top, checked against the
+    /// index and each other. Returns the whole terrain's header and the parts.
+    pub(super) fn open(path: &Path) -> Result<(Header, Self)> {
+        let index_file = index_path(path);
+        let index = Index::read(&index_file)?;
+        let dir = index_file.parent().unwrap_or(Path::new("."));
+        let bad = |reason: String| Error::format(&index_file, format!("package set: {reason}"));
+        let codec = CodecKind::parse(&index.codec)?;
+        let mut world = Header::new(
+            index.width,
+            index.height,
+            index.spacing,
+            index.origin,
+            index.quantum,
+            codec,
+            index.tile,
+        );
+        let k = index.part_levels as usize - 1;
+        if k + 1 >= world.levels.len() {
+            return Err(bad(format!(
+                "parts of {} levels leave no level to a top over {} levels",
+                index.part_levels,
+                world.levels.len()
+            )));
+        }
+        let level_tile = u64::from(index.tile) << k;
+        for &s in index.columns.iter().chain(&index.rows) {
+            if u64::from(s) % level_tile != 0 {
+                return Err(bad(format!(
+                    "a part starts at {s}, not a multiple of {level_tile} (a level-{k} tile)"
+                )));
+            }
+        }
+        let top = Package::open(&dir.join(&index.top))?;
+        let kd = world.levels[k + 1];
+        let th = top.header();
+        if (th.width, th.height) != (kd.width, kd.height)
+            || th.levels.len() + k + 1 != world.levels.len()
+            || th.tile != index.tile
+            || th.codec != codec
+            || th.quantum.to_bits() != index.quantum.to_bits()
+            || th.part != 0
+        {
+            return Err(Error::format(
+                top.path(),
+                format!(
+                    "not this set's top: {} x {} in {} levels of {}-sample tiles, the set's level {} is \
+                     {} x {} (bake the set again)",
+                    th.width,
+                    th.height,
+                    th.levels.len(),
+                    th.tile,
+                    k + 1,
+                    kd.width,
+                    kd.height
+                ),
+            ));
+        }
+        let mut parts = Vec::with_capacity(index.parts.len());
+        let mut range = (f32::INFINITY, f32::NEG_INFINITY);
+        for (n, entry) in index.parts.iter().enumerate() {
+            let (i, j) = (n % index.columns.len(), n / index.columns.len());
+            let (x0, y0, x1, y1) = index.cell(i, j);
+            let p = Package::open(&dir.join(&entry.file))?;
+            let h = p.header();
+            if (h.width, h.height) != (x1 - x0 + 1, y1 - y0 + 1)
+                || h.part != index.part_levels
+                || h.tile != index.tile
+                || h.codec != codec
+                || h.quantum.to_bits() != index.quantum.to_bits()
+            {
+                return Err(Error::format(
+                    p.path(),
+                    format!(
+                        "not part ({i}, {j}) of this set: {} x {} samples, {} levels (part {}), expected \
+                         {} x {}, {} levels (bake the set again)",
+                        h.width,
+                        h.height,
+                        h.levels.len(),
+                        h.part,
+                        x1 - x0 + 1,
+                        y1 - y0 + 1,
+                        index.part_levels
+                    ),
+                ));
+            }
+            range = (range.0.min(h.range.0), range.1.max(h.range.1));
+            parts.push(p);
+        }
+        world.max_error = index.max_error;
+        world.set_bytes = parts
+            .iter()
+            .chain(std::iter::once(&top))
+            .map(|p| p.header().resident_bytes())
+            .sum();
+        world.range = range;
+        world.models = (0..world.levels.len())
+            .map(|l| {
+                if l <= k {
+                    LevelModel::plain(parts[0].header().models[l].step)
+                } else {
+                    th.models[l - k - 1].clone()
+                }
+            })
+            .collect();
+        let set = Self {
+            part_levels: k + 1,
+            columns: index.columns,
+            rows: index.rows,
+            tile: index.tile,
+            parts,
+            top,
+        };
+        for (l, d) in world.levels.clone().iter().enumerate() {
+            for ty in 0..d.tiles_y {
+                for tx in 0..d.tiles_x {
+                    let entry = match set.route(l, tx, ty) {
+                        Route::Part { p, tile, .. } => set.parts[p].header().tile(l, tile.0, tile.1),
+                        Route::Top(j) => set.top.header().tile(j, tx, ty),
+                    };
+                    world.tiles[d.first_tile + (ty * d.tiles_x + tx) as usize] = entry
+                        .ok_or_else(|| bad(format!("level {l} tile ({tx}, {ty}) is in no part")))?;
+                }
+            }
+        }
+        Ok((world, set))
+    }
+
+    /// The part or top level that holds tile (tx, ty) of `level`.
+    fn route(&self, level: usize, tx: u32, ty: u32) -> Route {
+        if level >= self.part_levels {
+            return Route::Top(level - self.part_levels);
+        }
+        let t = u64::from(self.tile) << level;
+        // The last part whose first tile is at or before the tile's.
+        let find = |starts: &[u32], at: u32| {
+            starts
+                .partition_point(|&s| u64::from(s) / t <= u64::from(at))
+                .saturating_sub(1)
+        };
+        let (i, j) = (find(&self.columns, tx), find(&self.rows, ty));
+        #[expect(clippy::cast_possible_truncation, reason = "a tile index under the level's")]
+        let (fx, fy) = (
+            (u64::from(self.columns[i]) / t) as u32,
+            (u64::from(self.rows[j]) / t) as u32,
+        );
+        let shift = level + 1;
+        Route::Part {
+            p: j * self.columns.len() + i,
+            tile: (tx - fx, ty - fy),
+            coarse: (
+                i64::from(self.columns[i] >> shift),
+                i64::from(self.rows[j] >> shift),
+            ),
+        }
+    }
+
+    /// [`Package::decode_tile`] of the set: the tile decoded by its part (its coarser level read from
+    /// the whole terrain's, at the part's place) or by the top.
+    pub(super) fn decode_tile(
+        &self,
+        scratch: &mut TileDecoder,
+        level: usize,
+        (tx, ty): (u32, u32),
+        coarse: impl Fn(i64, i64) -> i64,
+        out: &mut [i32],
+    ) -> Result<()> {
+        match self.route(level, tx, ty) {
+            Route::Top(j) => self.top.decode_own(scratch, j, (tx, ty), coarse, out),
+            Route::Part { p, tile, coarse: (cx, cy) } => self.parts[p].decode_own(
+                scratch,
+                level,
+                tile,
+                |i, j| coarse(cx + i.max(0), cy + j.max(0)),
+                out,
+            ),
+        }
+    }
+
+    /// Bytes of every file of the set.
+    pub(super) fn file_bytes(&self) -> u64 {
+        self.parts
+            .iter()
+            .chain(std::iter::once(&self.top))
+            .map(Package::file_bytes)
+            .sum()
+    }
+
+    /// [`Package::trim`] of every file.
+    pub(super) fn trim(&self) {
+        for p in self.parts.iter().chain(std::iter::once(&self.top)) {
+            p.trim();
+        }
     }
 }

@@ -62,8 +62,8 @@ pub fn plan(spec: &Path, load: &LoadOptions, opts: &BakeOptions, dir: &Path) -> 
     if load.resample_ew {
         return Err(Error::format(
             spec,
-            "a package set keeps the tiles' grid: --resample-ew resamples the whole mosaic's rows, \
-             so bake the mosaic into one package for it (without --parts)",
+            "a package set keeps the tiles' grid, and resampling the rows east-west resamples the whole \
+             mosaic's: bake the mosaic into one package for it",
         ));
     }
     let (grid, tiles) = crate::source::mosaic_cells(spec, load)?;
@@ -85,7 +85,7 @@ pub fn plan(spec: &Path, load: &LoadOptions, opts: &BakeOptions, dir: &Path) -> 
             format!(
                 "its tiles start every {g} samples, which no tile side from {} to {} times 2^k (k from \
                  1 to {MAX_K}) divides: a package set needs cells a whole number of level-k tiles; \
-                 bake the mosaic into one package instead (without --parts)",
+                 bake the mosaic into one package instead",
                 TILE_RANGE.0, TILE_RANGE.1
             ),
         )

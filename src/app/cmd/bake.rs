@@ -191,6 +191,12 @@ fn run_parts(args: &BakeArgs, targs: &TerrainArgs, dir: &std::path::Path) -> Res
         ));
     }
     let load = targs.load_options()?;
+    if load.resample_ew {
+        return Err(invalid(
+            "--resample-ew resamples the whole mosaic's rows, and a package set keeps the tiles' grid: \
+             bake one package for it (--out)",
+        ));
+    }
     let opts = BakeOptions {
         max_error: args.max_error,
         codec: CodecKind::parse(&args.codec)?,

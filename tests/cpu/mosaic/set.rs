@@ -199,5 +199,5 @@ fn a_set_refuses_what_it_cannot_cut() {
     )
     .expect_err("resample_ew")
     .to_string();
-    assert!(err.contains("--resample-ew"), "{err}");
+    assert!(err.contains("resampling the rows east-west"), "{err}");
 }
