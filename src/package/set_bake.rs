@@ -305,6 +305,16 @@ pub fn bake_cell(plan: &SetPlan, n: usize, progress: Progress<'_>) -> Result<Bak
             plan.cells.len().saturating_sub(1)
         ))
     })?;
+    if plan.index.parts[n].sources.is_empty() && plan.load.fill_height.is_none() {
+        return Err(Error::format(
+            &plan.spec,
+            format!(
+                "no tile covers cell {n} (grid columns {} to {}, rows {} to {}): a package set reads a \
+                 missing tile's cell as the fill height, and none is given",
+                cell[0], cell[2], cell[1], cell[3]
+            ),
+        ));
+    }
     std::fs::create_dir_all(&plan.dir).map_err(|e| Error::io(&plan.dir, "cannot create", e))?;
     let sources: Vec<PathBuf> = plan.index.parts[n]
         .sources

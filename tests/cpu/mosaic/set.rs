@@ -169,6 +169,53 @@ fn a_package_set_reads_as_its_mosaic() {
     assert!(err.contains("1 of 4 parts are not baked"), "{err}");
 }
 
+/// A missing tile's cell (the sea in SRTM) is the fill height, and refused without one.
+#[test]
+fn a_set_fills_a_missing_tile() {
+    let Some(src) = Grid::shared_tile() else {
+        return;
+    };
+    let dir = temp_dir("set-missing");
+    let world = src
+        .upsampled(2)
+        .crop(700, 400, 1025, 1025)
+        .placed(11.25, 57.8, 1.0 / 3600.0);
+    let paths = write_geotiff_tiles(&dir.join("tiles"), &world, 513);
+    std::fs::remove_file(&paths[3]).expect("remove the south-east tile");
+    let tiles = dir.join("tiles");
+    let set = dir.join("set");
+    let err = set_bake::bake_set(
+        &tiles,
+        &LoadOptions::default(),
+        &BakeOptions::default(),
+        &set,
+        Default::default(),
+    )
+    .expect_err("a cell without a tile or a fill height")
+    .to_string();
+    assert!(err.contains("no tile covers cell 3"), "{err}");
+    let fill = LoadOptions {
+        fill_height: Some(-5.0),
+        ..LoadOptions::default()
+    };
+    set_bake::bake_set(
+        &tiles,
+        &fill,
+        &BakeOptions::default(),
+        &set,
+        Default::default(),
+    )
+    .expect("bake with a fill height");
+    let pkg = Package::open(&set).expect("open");
+    let level0 = pkg.decode_level0().expect("decode");
+    // The south-east cell's inside (off its shared edges) is the fill height.
+    let at = |x: usize, y: usize| pkg.metres(level0[y * 1025 + x]);
+    assert_eq!(at(800, 800), -5.0);
+    assert_eq!(at(1024, 1024), -5.0);
+    let (_, want) = read_all(&tiles, &fill);
+    assert_eq!(at(100, 900), want[900 * 1025 + 100]);
+}
+
 /// Tiles whose starts no tile side and level divide, and `--resample-ew`, are refused with what to do.
 #[test]
 fn a_set_refuses_what_it_cannot_cut() {
