@@ -397,7 +397,7 @@ fn a_new_viewport_tests_kept_blocks_again() {
 /// refinement's at that camera, and the first frame of the leg within 5 % of the latter. A measurement:
 /// `cargo test --release --test cpu plan_time::teleport_goal -- --ignored --nocapture` (minutes).
 /// `CLIPSAT_TELEPORT_EXTRA` adds terrains outside the shared folder (`;`-separated paths, a tile mosaic's
-/// folder among them, read with missing samples at 0 m). `CLIPSAT_TELEPORT_ONLY` keeps the terrains whose
+/// folder among them, read with missing samples at 0 m, or a package or package set, decoded). `CLIPSAT_TELEPORT_ONLY` keeps the terrains whose
 /// path contains one of its `,`-separated parts (`ps_height,bigtujunga`).
 #[test]
 #[ignore = "a measurement over the shared terrains (minutes)"]
@@ -439,7 +439,13 @@ fn teleport_goal() {
             fill_height,
             ..clipsat::source::LoadOptions::default()
         };
-        let hm = clipsat::source::load(&path, &load).unwrap_or_else(|e| panic!("{name}: {e}"));
+        // A package or package set (its decoded level 0), or a source.
+        let hm = if clipsat::package::is_package(&path) {
+            clipsat::package::Package::open(&path).and_then(|p| p.to_heightmap())
+        } else {
+            clipsat::source::load(&path, &load)
+        }
+        .unwrap_or_else(|e| panic!("{name}: {e}"));
         let p = Profile::load("gles3-mid").expect("profile");
         let flight = Flight::new(Path::Teleport { every: 60 }, 1.0, &hm).expect("flight");
         for eps in [1.0f32, 2.0, 4.0] {
