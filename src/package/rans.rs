@@ -280,14 +280,26 @@ impl DecodeTables {
     pub fn new(t: &Tables) -> Self {
         // Fixed sizes: a context masked to CONTEXTS - 1 and a slot masked to M - 1 index them with no
         // bounds check in the decoder's loop.
-        let mut slot: Box<[[u8; M as usize]; CONTEXTS]> = vec![[0u8; M as usize]; CONTEXTS]
+        let slot: Box<[[u8; M as usize]; CONTEXTS]> = vec![[0u8; M as usize]; CONTEXTS]
             .into_boxed_slice()
             .try_into()
             .expect("CONTEXTS rows");
-        let mut fc: Box<[[u32; 256]; CONTEXTS]> = vec![[0u32; 256]; CONTEXTS]
+        let fc: Box<[[u32; 256]; CONTEXTS]> = vec![[0u32; 256]; CONTEXTS]
             .into_boxed_slice()
             .try_into()
             .expect("CONTEXTS rows");
+        let slot: Box<[[u8; M as usize]; CONTEXTS]> = slot;
+        let mut d = Self { slot, fc };
+        d.fill(t);
+        d
+    }
+
+    /// These tables made `t`'s, in place (allocates nothing: a package set's parts share a few).
+    pub fn fill(&mut self, t: &Tables) {
+        let (slot, fc) = (&mut self.slot, &mut self.fc);
+        for row in fc.iter_mut() {
+            row.fill(0);
+        }
         for (ctx, f) in t.freq.iter().enumerate() {
             let mut c = 0usize;
             for (tok, &fr) in f.iter().enumerate() {
@@ -298,7 +310,6 @@ impl DecodeTables {
                 c += usize::from(fr);
             }
         }
-        Self { slot, fc }
     }
 }
 

@@ -97,6 +97,12 @@ pub fn is_package(path: &Path) -> bool {
 impl Package {
     /// Maps and validates the package at `path`, or opens the package set whose index (or folder) it is.
     pub fn open(path: &Path) -> Result<Self> {
+        Self::open_with(path, true)
+    }
+
+    /// [`Package::open`]; `lookup`: whether to build the rANS tables' lookup form (a set's parts share a
+    /// few instead, `Parts::lookups`).
+    fn open_with(path: &Path, lookup: bool) -> Result<Self> {
         if super::set::is_set(path) {
             let (header, parts) = Parts::open(path)?;
             let index = super::set::index_path(path);
@@ -128,7 +134,11 @@ impl Package {
             ));
         }
         let header = Header::parse(path, &map, len)?;
-        let tables = header.tables.as_ref().map(DecodeTables::new);
+        let tables = header
+            .tables
+            .as_ref()
+            .filter(|_| lookup)
+            .map(DecodeTables::new);
         Ok(Self {
             path: path.to_path_buf(),
             header,
@@ -209,9 +219,23 @@ impl Package {
         }
     }
 
-    /// [`Package::decode_tile`] of this file's own tiles (a set's part or top, or a package).
+    /// [`Package::decode_tile`] of this file's own tiles (a set's top, or a package).
     pub(super) fn decode_own(
         &self,
+        scratch: &mut TileDecoder,
+        level: usize,
+        tile: (u32, u32),
+        coarse: impl Fn(i64, i64) -> i64,
+        out: &mut [i32],
+    ) -> Result<()> {
+        self.decode_with(self.tables.as_ref(), scratch, level, tile, coarse, out)
+    }
+
+    /// [`Package::decode_own`] with the rANS tables' lookup form `tables` (this file's own, or one a set
+    /// shares among its parts).
+    fn decode_with(
+        &self,
+        tables: Option<&DecodeTables>,
         scratch: &mut TileDecoder,
         level: usize,
         (tx, ty): (u32, u32),
@@ -256,9 +280,10 @@ impl Package {
                 u,
             );
         }
-        let entropy = match &self.tables {
-            Some(t) => Entropy::Rans(t),
-            None => Entropy::Planes(&mut scratch.decoder),
+        let entropy = match (tables, self.header.tables.is_some()) {
+            (Some(t), _) => Entropy::Rans(t),
+            (None, false) => Entropy::Planes(&mut scratch.decoder),
+            (None, true) => unreachable!("a rans package decodes with its tables' lookup form"),
         };
         let decoded = codec::decode(
             &self.header.models[level],
@@ -447,6 +472,23 @@ pub(super) struct Parts {
     tile: u32,
     parts: Vec<Package>,
     top: Package,
+    /// The rANS tables' lookup form of the parts decoded last, [`LOOKUPS`] of them made at open and
+    /// filled in place for the part a decode needs (`rans` sets; empty otherwise): a part's own would
+    /// take 164 KiB each, 64 MiB for 400 parts.
+    lookups: Vec<std::sync::Mutex<Lookup>>,
+    /// Stamps the lookups' uses, for the least recently used.
+    clock: std::sync::atomic::AtomicU64,
+}
+
+/// How many parts' lookup tables a set holds at once: a decoding thread's each and a few more (the tiles
+/// a frame decodes lie in a few parts).
+const LOOKUPS: usize = 12;
+
+/// One shared lookup form: which part's tables it holds and when it was last used.
+struct Lookup {
+    part: Option<usize>,
+    used: u64,
+    tables: DecodeTables,
 }
 
 /// Where a tile of the set lies.
@@ -525,7 +567,7 @@ impl Parts {
         for (n, entry) in index.parts.iter().enumerate() {
             let (i, j) = (n % index.columns.len(), n / index.columns.len());
             let (x0, y0, x1, y1) = index.cell(i, j);
-            let p = Package::open(&dir.join(&entry.file))?;
+            let p = Package::open_with(&dir.join(&entry.file), false)?;
             let h = p.header();
             if (h.width, h.height) != (x1 - x0 + 1, y1 - y0 + 1)
                 || h.part != index.part_levels
@@ -552,11 +594,26 @@ impl Parts {
             parts.push(p);
         }
         world.max_error = index.max_error;
-        world.set_bytes = parts
-            .iter()
-            .chain(std::iter::once(&top))
-            .map(|p| p.header().resident_bytes())
-            .sum();
+        // Each part's header and tile table, the top, and the shared lookups (not a part's own).
+        let lookups: Vec<_> = match top.header().tables.as_ref() {
+            Some(t) => (0..LOOKUPS)
+                .map(|_| {
+                    std::sync::Mutex::new(Lookup {
+                        part: None,
+                        used: 0,
+                        tables: DecodeTables::new(t),
+                    })
+                })
+                .collect(),
+            None => Vec::new(),
+        };
+        let own = |p: &Package| {
+            let h = p.header();
+            h.resident_bytes() - u64::from(h.tables.is_some()) * DecodeTables::BYTES
+        };
+        world.set_bytes = parts.iter().map(own).sum::<u64>()
+            + top.header().resident_bytes()
+            + lookups.len() as u64 * DecodeTables::BYTES;
         world.range = range;
         world.models = (0..world.levels.len())
             .map(|l| {
@@ -574,6 +631,8 @@ impl Parts {
             tile: index.tile,
             parts,
             top,
+            lookups,
+            clock: std::sync::atomic::AtomicU64::new(0),
         };
         for (l, d) in world.levels.clone().iter().enumerate() {
             for ty in 0..d.tiles_y {
@@ -631,14 +690,61 @@ impl Parts {
     ) -> Result<()> {
         match self.route(level, tx, ty) {
             Route::Top(j) => self.top.decode_own(scratch, j, (tx, ty), coarse, out),
-            Route::Part { p, tile, coarse: (cx, cy) } => self.parts[p].decode_own(
-                scratch,
-                level,
+            Route::Part {
+                p,
                 tile,
-                |i, j| coarse(cx + i.max(0), cy + j.max(0)),
-                out,
-            ),
+                coarse: (cx, cy),
+            } => {
+                let part = &self.parts[p];
+                let coarse = |i: i64, j: i64| coarse(cx + i.max(0), cy + j.max(0));
+                match part.header().tables.as_ref() {
+                    None => part.decode_with(None, scratch, level, tile, coarse, out),
+                    Some(t) => {
+                        let lookup = self.lookup(p, t);
+                        part.decode_with(Some(&lookup.tables), scratch, level, tile, coarse, out)
+                    }
+                }
+            }
         }
+    }
+
+    /// A shared lookup holding part `p`'s tables `t`, locked for the caller: one that holds them already
+    /// and is free, else the free one used least recently, filled with them (in place), else (every one
+    /// busy) the one `p` falls to, once free.
+    fn lookup(&self, p: usize, t: &super::rans::Tables) -> std::sync::MutexGuard<'_, Lookup> {
+        use std::sync::atomic::Ordering;
+        use std::sync::{PoisonError, TryLockError};
+        let now = self.clock.fetch_add(1, Ordering::Relaxed);
+        fn try_lock(m: &std::sync::Mutex<Lookup>) -> Option<std::sync::MutexGuard<'_, Lookup>> {
+            match m.try_lock() {
+                Ok(g) => Some(g),
+                Err(TryLockError::Poisoned(e)) => Some(e.into_inner()),
+                Err(TryLockError::WouldBlock) => None,
+            }
+        }
+        let mut best: Option<std::sync::MutexGuard<'_, Lookup>> = None;
+        for m in &self.lookups {
+            let Some(g) = try_lock(m) else { continue };
+            if g.part == Some(p) {
+                let mut g = g;
+                g.used = now;
+                return g;
+            }
+            if best.as_ref().is_none_or(|b| g.used < b.used) {
+                best = Some(g);
+            }
+        }
+        let mut g = best.unwrap_or_else(|| {
+            self.lookups[p % self.lookups.len()]
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+        });
+        if g.part != Some(p) {
+            g.tables.fill(t);
+            g.part = Some(p);
+        }
+        g.used = now;
+        g
     }
 
     /// Bytes of every file of the set.

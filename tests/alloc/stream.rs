@@ -355,3 +355,94 @@ fn detail_pool_streams_within_budget_without_allocating() {
     assert_eq!(first, second, "plan hashes differ between runs");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The test terrain as 4 x 4 projected GeoTIFF tiles of 257^2 sharing their edges, in `DIR-PID/tiles`,
+/// baked as a package set in `DIR-PID/set` (16 parts: more than the set's shared rANS lookups, so a
+/// flight fills them again as it goes): (that folder, the set).
+fn baked_set(dir: &str) -> (std::path::PathBuf, std::path::PathBuf) {
+    use tiff::encoder::colortype::Gray32Float;
+    use tiff::tags::Tag;
+    let dir = std::env::temp_dir().join(format!("{dir}-{}", std::process::id()));
+    let tiles = dir.join("tiles");
+    std::fs::create_dir_all(&tiles).expect("temp dir");
+    let t = terrain();
+    let n = 257u32;
+    for ty in 0..4 {
+        for tx in 0..4 {
+            let data: Vec<f32> = (0..n * n)
+                .map(|i| {
+                    let (x, y) = (tx * (n - 1) + i % n, ty * (n - 1) + i / n);
+                    t.heights()[(y * SIZE + x) as usize]
+                })
+                .collect();
+            let path = tiles.join(format!("t{tx}{ty}.tif"));
+            let mut file = std::fs::File::create(&path).expect("create");
+            let mut enc = tiff::encoder::TiffEncoder::new(&mut file).expect("encoder");
+            let mut img = enc.new_image::<Gray32Float>(n, n).expect("image");
+            let s = f64::from(SPACING);
+            let (x0, y0) = (
+                f64::from(tx * (n - 1)) * s,
+                1e5 - f64::from(ty * (n - 1)) * s,
+            );
+            img.encoder()
+                .write_tag(Tag::ModelPixelScaleTag, &[s, s, 0.0][..])
+                .expect("scale");
+            img.encoder()
+                .write_tag(Tag::ModelTiepointTag, &[0.0, 0.0, 0.0, x0, y0, 0.0][..])
+                .expect("tiepoint");
+            // Projected model (UTM 33N), pixel-is-point.
+            let keys: [u16; 12] = [1, 1, 0, 2, 1024, 0, 1, 1, 1025, 0, 1, 2];
+            img.encoder()
+                .write_tag(Tag::GeoKeyDirectoryTag, &keys[..])
+                .expect("geokeys");
+            img.write_data(&data).expect("data");
+        }
+    }
+    let set = dir.join("set");
+    let opts = BakeOptions {
+        max_error: Some(0.05),
+        tile: 32,
+        zstd_level: 3,
+        ..BakeOptions::default()
+    };
+    let load = clipsat::source::LoadOptions::default();
+    package::set_bake::bake_set(&tiles, &load, &opts, &set, clipsat::Progress::default())
+        .expect("bake the set");
+    (dir, set)
+}
+
+/// A package set streams as a package does: within the budget, allocating nothing per frame while its
+/// tiles' decodes fill the shared rANS lookups with one part's tables after another.
+#[test]
+fn a_package_set_streams_without_allocating() {
+    let (dir, set) = baked_set("clipsat-stream-set");
+    let mut p = profile();
+    // The smallest tile cache beside the set's parts and shared lookups.
+    p.budget.cpu_memory_bytes +=
+        Package::open(&set).expect("open").header().set_bytes + (128 << 10);
+    let budget = p.budget.update_samples_per_frame;
+    let mut a = Clipmap::streamed(
+        Package::open(&set).expect("open"),
+        &p,
+        ClipmapOptions::default(),
+    )
+    .expect("streamed clipmap");
+    let frames = 1500;
+    let mut hashes = Vec::with_capacity(frames as usize);
+    fly(&mut a, 100, budget, &mut hashes);
+    let before = a.tile_cache().expect("streamed").stats();
+    let allocations = count(|| fly_from(&mut a, 100..frames, budget, &mut hashes));
+    let after = a.tile_cache().expect("streamed").stats();
+    assert_eq!(allocations, 0, "allocations while streaming a set");
+    assert!(after.decoded > before.decoded, "{before:?} -> {after:?}");
+    let mut b = Clipmap::streamed(
+        Package::open(&set).expect("open"),
+        &p,
+        ClipmapOptions::default(),
+    )
+    .expect("streamed clipmap");
+    let mut again = Vec::with_capacity(frames as usize);
+    fly(&mut b, frames, budget, &mut again);
+    assert_eq!(hashes, again, "frame hashes differ between runs");
+    let _ = std::fs::remove_dir_all(&dir);
+}
