@@ -433,36 +433,39 @@ pub fn finish(plan: &mut SetPlan, progress: Progress<'_>) -> Result<(u64, usize)
     // the last cell's).
     let level = super::format::level_sizes(idx.width, idx.height)[k];
     let (w, h) = (level.0 as usize, level.1 as usize);
-    let mut heights = vec![0f32; w * h];
     let (nc, nr) = (idx.columns.len(), idx.rows.len());
+    // The top's key: its parts' keys, so that it stands while they do.
     let mut top_key = Hash64::new();
-    for (n, cell) in plan.cells.iter().enumerate() {
-        let (i, j) = (n % nc, n / nc);
-        let part = Package::open(&plan.part_path(n))?;
-        top_key.write_bytes(idx.parts[n].key.as_bytes());
-        let units = part.decode_level(k)?;
-        let d = part.header().levels[k];
-        let (pw, ph) = (d.width as usize, d.height as usize);
-        // A cell's last column and row are the next cell's first.
-        let own_w = if i + 1 < nc { pw - 1 } else { pw };
-        let own_h = if j + 1 < nr { ph - 1 } else { ph };
-        let (x0, y0) = ((cell[0] >> k) as usize, (cell[1] >> k) as usize);
-        for y in 0..own_h {
-            for x in 0..own_w {
-                heights[(y0 + y) * w + x0 + x] = part.metres(units[y * pw + x]);
-            }
-        }
+    for p in &idx.parts {
+        top_key.write_bytes(p.key.as_bytes());
     }
-    // Level K + 1, the top's level 0, filtered from level K as one package's pyramid is.
-    let (tw, th, heights) = crate::bake::pyramid::coarser(level.0, level.1, heights);
     let top_file = format!("top-{}.clipsat", hex(top_key.finish()));
     let top_path = plan.dir.join(&top_file);
-    let top_opts = BakeOptions {
-        part: 0,
-        quantum: Some((idx.quantum, false)),
-        ..plan.opts.clone()
-    };
-    if Package::open(&top_path).is_err() {
+    if !super::is_package(&top_path) {
+        let mut heights = vec![0f32; w * h];
+        for (n, cell) in plan.cells.iter().enumerate() {
+            let (i, j) = (n % nc, n / nc);
+            let part = Package::open(&plan.part_path(n))?;
+            let units = part.decode_level(k)?;
+            let d = part.header().levels[k];
+            let (pw, ph) = (d.width as usize, d.height as usize);
+            // A cell's last column and row are the next cell's first.
+            let own_w = if i + 1 < nc { pw - 1 } else { pw };
+            let own_h = if j + 1 < nr { ph - 1 } else { ph };
+            let (x0, y0) = ((cell[0] >> k) as usize, (cell[1] >> k) as usize);
+            for y in 0..own_h {
+                for x in 0..own_w {
+                    heights[(y0 + y) * w + x0 + x] = part.metres(units[y * pw + x]);
+                }
+            }
+        }
+        // Level K + 1, the top's level 0, filtered from level K as one package's pyramid is.
+        let (tw, th, heights) = crate::bake::pyramid::coarser(level.0, level.1, heights);
+        let top_opts = BakeOptions {
+            part: 0,
+            quantum: Some((idx.quantum, false)),
+            ..plan.opts.clone()
+        };
         let scale = f64::from(2u32 << k);
         #[expect(clippy::cast_possible_truncation, reason = "a spacing in metres")]
         let spacing = (f64::from(idx.spacing) * scale) as f32;
