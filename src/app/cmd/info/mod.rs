@@ -241,9 +241,23 @@ fn package_info(pkg: &clipsat::package::Package, as_json: bool) -> Result<()> {
             "shading_bytes": cpu.shading,
         }));
     }
+    // A package set's composition, from its index.
+    let set = clipsat::package::set::is_set(pkg.path())
+        .then(|| clipsat::package::set::Index::read(&clipsat::package::set::index_path(pkg.path())))
+        .transpose()?;
+    let set_json = set.as_ref().map(|i| {
+        json!({
+            "parts": i.parts.len(),
+            "columns": i.columns.len(),
+            "rows": i.rows.len(),
+            "part_levels": i.part_levels,
+            "top": i.top,
+        })
+    });
     if as_json {
         super::print_json(&json!({
             "package": pkg.path().display().to_string(),
+            "set": set_json,
             "width": h.width,
             "height": h.height,
             "spacing_m": h.spacing,
@@ -266,6 +280,19 @@ fn package_info(pkg: &clipsat::package::Package, as_json: bool) -> Result<()> {
         return Ok(());
     }
     outln!("package   {}", pkg.path().display());
+    if let Some(i) = &set {
+        outln!(
+            "set       {} parts ({} x {} cells), each levels 0..={}; the top {} levels {}..={}; SAT LOD \
+             tables built from the heights on first use",
+            i.parts.len(),
+            i.columns.len(),
+            i.rows.len(),
+            i.part_levels - 1,
+            i.top,
+            i.part_levels,
+            h.levels.len() - 1
+        );
+    }
     outln!(
         "samples   {} x {} at {} m, {} levels, {} tiles of {}^2 ({})",
         h.width,
