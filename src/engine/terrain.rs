@@ -483,12 +483,7 @@ fn imagery_key(path: &Path, grid: &Extent, options: &ImageryOptions) -> Result<u
     // misreads, a JPEG upside down or long texels, so it is baked again.
     h.write_bytes(crate::package::imagery::TILE_CODER.as_bytes());
     h.write_u32(source::READ_REVISION);
-    h.write_u64(meta.len());
-    let mtime = meta
-        .modified()
-        .ok()
-        .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok());
-    h.write_u64(mtime.map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX)));
+    package::stamp(&mut h, &meta);
     Ok(h.finish())
 }
 
@@ -536,14 +531,7 @@ fn package_key(spec: &TerrainSpec, load: &LoadOptions, revision: u32) -> Result<
     }
     h.write_bytes(key.as_bytes());
     if let TerrainSpec::File(path) = spec {
-        let stamp = |meta: &std::fs::Metadata, h: &mut Hash64| {
-            h.write_u64(meta.len());
-            let mtime = meta
-                .modified()
-                .ok()
-                .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok());
-            h.write_u64(mtime.map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX)));
-        };
+        let stamp = |meta: &std::fs::Metadata, h: &mut Hash64| package::stamp(h, meta);
         // Each file it reads (a mosaic's tiles and list), and the sidecars a loader reads its layout or
         // spacing from (a world file, a .prj, an ESRI .hdr): editing one bakes again.
         let mosaic = source::is_mosaic(path);

@@ -263,26 +263,16 @@ impl Header {
         }
     }
 
-    /// A part's header ([`Header::part`]): the finest `levels` levels of [`Header::new`]'s.
-    #[expect(clippy::too_many_arguments, reason = "Header::new's geometry and the part's levels")]
-    pub fn new_part(
-        width: u32,
-        height: u32,
-        spacing: f32,
-        origin: (f64, f64),
-        quantum: f64,
-        codec: CodecKind,
-        tile: u32,
-        levels: u32,
-    ) -> Self {
-        let mut h = Self::new(width, height, spacing, origin, quantum, codec, tile);
-        let keep = (levels as usize).clamp(1, h.levels.len());
-        let tiles = h.levels.get(keep).map_or(h.tiles.len(), |l| l.first_tile);
-        h.levels.truncate(keep);
-        h.models.truncate(keep);
-        h.tiles.truncate(tiles);
-        h.part = u32::try_from(keep).expect("under 32 levels");
-        h
+    /// This header made a part's ([`Header::part`]): its finest `levels` levels.
+    #[must_use]
+    pub fn into_part(mut self, levels: u32) -> Self {
+        let keep = (levels as usize).clamp(1, self.levels.len());
+        let tiles = self.levels.get(keep).map_or(self.tiles.len(), |l| l.first_tile);
+        self.levels.truncate(keep);
+        self.models.truncate(keep);
+        self.tiles.truncate(tiles);
+        self.part = u32::try_from(keep).expect("under 32 levels");
+        self
     }
 
     /// The largest coarse sample U may read in each axis for a tile of `level` (the coarser level's last
@@ -586,11 +576,10 @@ impl Header {
                 "header length {len}, a {width} x {height} package in {tile}-sample tiles needs {need}"
             )));
         }
-        let mut h = if part > 0 {
-            Self::new_part(width, height, spacing, origin, quantum, codec, tile, part)
-        } else {
-            Self::new(width, height, spacing, origin, quantum, codec, tile)
-        };
+        let mut h = Self::new(width, height, spacing, origin, quantum, codec, tile);
+        if part > 0 {
+            h = h.into_part(part);
+        }
         h.max_error = max_error;
         h.range = range;
         h.models = models;

@@ -68,6 +68,17 @@ pub(crate) fn threads() -> usize {
         .min(8)
 }
 
+/// A file's size and modification time into a cache key `h`: what keys a package, an imagery package or
+/// a package set's part to the files it was baked from (editing one bakes again).
+pub(crate) fn stamp(h: &mut crate::hash::Hash64, meta: &std::fs::Metadata) {
+    h.write_u64(meta.len());
+    let mtime = meta
+        .modified()
+        .ok()
+        .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok());
+    h.write_u64(mtime.map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX)));
+}
+
 thread_local! {
     /// Set while this thread bakes one of several packages that run side by side ([`one_thread`]).
     static ONE_THREAD: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };

@@ -206,12 +206,7 @@ fn stamp(h: &mut Hash64, sources: &[PathBuf]) -> Result<()> {
     for s in sources {
         let meta = std::fs::metadata(s).map_err(|e| Error::io(s, "cannot read", e))?;
         h.write_bytes(s.display().to_string().as_bytes());
-        h.write_u64(meta.len());
-        let mtime = meta
-            .modified()
-            .ok()
-            .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok());
-        h.write_u64(mtime.map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX)));
+        super::stamp(h, &meta);
     }
     Ok(())
 }

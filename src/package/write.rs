@@ -227,28 +227,18 @@ pub fn bake_source(
             ),
         ));
     }
-    let mut header = if opts.part > 0 {
-        Header::new_part(
-            src.width(),
-            src.height(),
-            src.spacing(),
-            src.origin(),
-            q,
-            opts.codec,
-            opts.tile,
-            opts.part,
-        )
-    } else {
-        Header::new(
-            src.width(),
-            src.height(),
-            src.spacing(),
-            src.origin(),
-            q,
-            opts.codec,
-            opts.tile,
-        )
-    };
+    let mut header = Header::new(
+        src.width(),
+        src.height(),
+        src.spacing(),
+        src.origin(),
+        q,
+        opts.codec,
+        opts.tile,
+    );
+    if opts.part > 0 {
+        header = header.into_part(opts.part);
+    }
     header.max_error = max_error;
     let steps = levels::steps(header.levels.len(), quant, max_error);
     let mut coded = levels::code_levels(&mut spilled, &header, quant, &steps, out)?;
