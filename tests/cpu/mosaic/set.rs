@@ -248,3 +248,98 @@ fn a_set_refuses_what_it_cannot_cut() {
     .to_string();
     assert!(err.contains("resampling the rows east-west"), "{err}");
 }
+
+/// A missing tile's cell takes the samples of its west and north edges from the tiles that share them,
+/// as the mosaic does: they had been the fill height, the land ending one sample short of its tile (a
+/// cliff along the sea's cell in a render that the one package did not have).
+#[test]
+fn a_missing_tiles_cell_keeps_its_neighbours_edges() {
+    let Some(src) = Grid::shared_tile() else {
+        return;
+    };
+    let dir = temp_dir("set-missing-edges");
+    let world = src
+        .upsampled(2)
+        .crop(700, 400, 1025, 1025)
+        .placed(11.25, 57.8, 1.0 / 3600.0);
+    let paths = write_geotiff_tiles(&dir.join("tiles"), &world, 513);
+    std::fs::remove_file(&paths[3]).expect("remove the south-east tile");
+    let tiles = dir.join("tiles");
+    let set = dir.join("set");
+    let fill = LoadOptions {
+        fill_height: Some(-5.0),
+        ..LoadOptions::default()
+    };
+    set_bake::bake_set(
+        &tiles,
+        &fill,
+        &BakeOptions::default(),
+        &set,
+        Default::default(),
+    )
+    .expect("bake with a fill height");
+    let pkg = Package::open(&set).expect("open");
+    let level0 = pkg.decode_level0().expect("decode");
+    let (_, want) = read_all(&tiles, &fill);
+    for i in 512..1025 {
+        for (x, y) in [(512, i), (i, 512)] {
+            assert_eq!(
+                pkg.metres(level0[y * 1025 + x]),
+                want[y * 1025 + x],
+                "sample ({x}, {y}) on the missing tile's edge"
+            );
+        }
+    }
+}
+
+/// A part's key holds neither the grid's size nor the tiles' paths as spelt: tiles added east bake their
+/// own cells and the top alone (every part had been baked again, the grid's width in every key), and
+/// the same folder named another way (`tiles/.`, or relative from elsewhere) bakes nothing again.
+#[test]
+fn a_set_bakes_again_only_what_changed() {
+    let Some(src) = Grid::shared_tile() else {
+        return;
+    };
+    let dir = temp_dir("set-grows");
+    // 3 x 2 tiles of 513^2; the first two columns baked, then the third added.
+    let world = src
+        .upsampled(2)
+        .crop(700, 400, 1537, 1025)
+        .placed(11.25, 57.8, 1.0 / 3600.0);
+    std::fs::create_dir_all(dir.join("all")).expect("create a folder");
+    let all = write_geotiff_tiles(&dir.join("all"), &world, 513);
+    let tiles = dir.join("tiles");
+    let copy = |east: bool| {
+        for p in &all {
+            let name = p.file_name().expect("a tile's name");
+            if name.to_string_lossy().starts_with("tile_2_") == east {
+                std::fs::copy(p, tiles.join(name)).expect("copy a tile");
+            }
+        }
+    };
+    copy(false);
+    let set = dir.join("set");
+    let bake = |spec: &Path| {
+        set_bake::bake_set(
+            spec,
+            &LoadOptions::default(),
+            &BakeOptions::default(),
+            &set,
+            Default::default(),
+        )
+        .expect("bake the set")
+    };
+    assert_eq!(bake(&tiles).baked, 4);
+    assert_eq!(
+        bake(&tiles.join(".")).baked,
+        0,
+        "the same tiles named another way"
+    );
+    copy(true);
+    let grown = bake(&tiles);
+    assert_eq!(
+        (grown.cells, grown.baked),
+        (6, 2),
+        "the east column's cells alone"
+    );
+}
