@@ -213,13 +213,40 @@ fn cell_sources(tiles: &[(PathBuf, [u32; 4])], c: [u32; 4], last: (u32, u32)) ->
         .map(|(p, _)| p.clone())
         .collect();
     if !own.is_empty() {
-        return own;
+        // Tiles coarser than the grid that abut rather than share their edges (Copernicus tiles of 2400
+        // columns a degree beside ones of 3600) leave a seam short of the cell's last column or row,
+        // which the mosaic reads as linear between their last sample and the next tile's first: the
+        // cell reads the tiles east and south that hold those too.
+        let reach = |a: usize| own_rects(tiles, &own).map(|r| r[a]).max().unwrap_or(0);
+        let seam_x = c[2] != last.0 && reach(2) + 1 < c[2];
+        let seam_y = c[3] != last.1 && reach(3) + 1 < c[3];
+        if !seam_x && !seam_y {
+            return own;
+        }
+        let next = tiles.iter().filter(|(p, r)| {
+            !own.contains(p)
+                && ((seam_x && r[0] == c[2]) || (seam_y && r[1] == c[3]))
+                && r[0] <= c[2]
+                && r[2] >= c[0]
+                && r[1] <= c[3]
+                && r[3] >= c[1]
+        });
+        let next: Vec<PathBuf> = next.map(|(p, _)| p.clone()).collect();
+        return own.into_iter().chain(next).collect();
     }
     tiles
         .iter()
         .filter(|(_, r)| r[0] <= ex && r[2] >= c[0] && r[1] <= ey && r[3] >= c[1])
         .map(|(p, _)| p.clone())
         .collect()
+}
+
+/// The rectangles of the tiles `of`.
+fn own_rects<'a>(
+    tiles: &'a [(PathBuf, [u32; 4])],
+    of: &'a [PathBuf],
+) -> impl Iterator<Item = [u32; 4]> + 'a {
+    tiles.iter().filter(|(p, _)| of.contains(p)).map(|(_, r)| *r)
 }
 
 /// Whether the tile rectangle `r` reaches past cell `c`'s first column and row (a tile of its own, not

@@ -343,3 +343,50 @@ fn a_set_bakes_again_only_what_changed() {
         "the east column's cells alone"
     );
 }
+
+/// Copernicus tiles as they come across 50 N: each starts on its degree line without sharing an edge,
+/// 720 samples a degree south of it and 480 columns north (here a fifth of GLO-30's). The set's level 0
+/// is the mosaic's, sample for sample: the column between a north tile's last sample and the next
+/// tile's first, which the mosaic reads as linear between them, included.
+#[test]
+fn a_set_of_copernicus_tiles_reads_as_its_mosaic() {
+    let dir = temp_dir("set-copernicus");
+    let tiles = dir.join("tiles");
+    for (lat, lon, cols) in [
+        (51.0, 8.0, 480),
+        (51.0, 9.0, 480),
+        (50.0, 8.0, 720),
+        (50.0, 9.0, 720),
+    ] {
+        super::real_tiles::copernicus_tile(
+            &tiles.join(format!("N{}E00{lon}.tif", lat - 1.0)),
+            (lon, lat),
+            (cols, 720),
+            super::real_tiles::slope,
+        );
+    }
+    let load = LoadOptions::default();
+    let set = dir.join("set");
+    set_bake::bake_set(
+        &tiles,
+        &load,
+        &BakeOptions::default(),
+        &set,
+        Default::default(),
+    )
+    .expect("bake the set");
+    let pkg = Package::open(&set).expect("open the set");
+    let (g, want) = read_all(&tiles, &load);
+    let w = g.width as usize;
+    let level0 = pkg.decode_level0().expect("decode");
+    let bound = pkg.header().max_error * 1.01;
+    for (i, (&k, &v)) in level0.iter().zip(&want).enumerate() {
+        let got = pkg.metres(k);
+        assert!(
+            f64::from((got - v).abs()) <= bound,
+            "sample ({}, {}): {got}, the mosaic's {v}",
+            i % w,
+            i / w
+        );
+    }
+}
