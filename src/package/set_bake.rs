@@ -345,9 +345,10 @@ impl SetPlan {
     }
 
     /// Whether cell `n`'s part is there (a bake writes it whole or not at all, under a name that holds
-    /// its key; the set's open checks it in full).
+    /// its key). Opened, not only its first bytes read: a part cut short or with a damaged header (a
+    /// disk full, a copy stopped) is baked again rather than failing every bake after by name.
     pub fn part_stands(&self, n: usize) -> bool {
-        super::is_package(&self.part_path(n))
+        Package::open(&self.part_path(n)).is_ok()
     }
 }
 

@@ -390,3 +390,53 @@ fn a_set_of_copernicus_tiles_reads_as_its_mosaic() {
         );
     }
 }
+
+/// A part cut short (a disk full, a copy stopped) or with a damaged header is baked again by the next
+/// bake: it had stood (its first bytes were a package's), and every bake after failed on it by name
+/// until it was removed by hand.
+#[test]
+fn a_damaged_part_is_baked_again() {
+    let Some(src) = Grid::shared_tile() else {
+        return;
+    };
+    let dir = temp_dir("set-damaged");
+    let world = src
+        .upsampled(2)
+        .crop(700, 400, 1025, 1025)
+        .placed(11.25, 57.8, 1.0 / 3600.0);
+    write_geotiff_tiles(&dir.join("tiles"), &world, 513);
+    let tiles = dir.join("tiles");
+    let set = dir.join("set");
+    let bake = || {
+        set_bake::bake_set(
+            &tiles,
+            &LoadOptions::default(),
+            &BakeOptions::default(),
+            &set,
+            Default::default(),
+        )
+        .expect("bake the set")
+    };
+    bake();
+    let whole = files(&set);
+    let plan = set_bake::plan(
+        &tiles,
+        &LoadOptions::default(),
+        &BakeOptions::default(),
+        &set,
+    )
+    .expect("plan");
+    let (cut, header) = (plan.part_path(1), plan.part_path(2));
+    let len = std::fs::metadata(&cut).expect("a part").len();
+    std::fs::OpenOptions::new()
+        .write(true)
+        .open(&cut)
+        .and_then(|f| f.set_len(len / 2))
+        .expect("cut a part short");
+    let mut bytes = std::fs::read(&header).expect("a part");
+    bytes[20] ^= 0xff;
+    std::fs::write(&header, bytes).expect("damage a part's header");
+    let again = bake();
+    assert_eq!(again.baked, 2, "the two damaged parts baked again");
+    assert!(files(&set) == whole, "the set as it was");
+}
