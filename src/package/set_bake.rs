@@ -169,8 +169,20 @@ pub fn plan(spec: &Path, load: &LoadOptions, opts: &BakeOptions, dir: &Path) -> 
         lod_tables: false,
         ..opts.clone()
     };
-    for c in &cells {
+    for (n, c) in cells.iter().enumerate() {
         let sources = cell_sources(&tiles, *c, (grid.width - 1, grid.height - 1));
+        // Refused here, before any cell is baked: without it the set could never be finished.
+        let own = tiles.iter().any(|(p, r)| inside(r, *c) && sources.contains(p));
+        if !own && load.fill_height.is_none() {
+            return Err(Error::format(
+                spec,
+                format!(
+                    "no tile covers cell {n} (grid columns {} to {}, rows {} to {}): a package set reads \
+                     a missing tile's cell as the fill height, and none is given",
+                    c[0], c[2], c[1], c[3]
+                ),
+            ));
+        }
         let key = cell_key(&index, &part_opts, load, *c, &sources)?;
         index.parts.push(PartEntry {
             file: format!("part-{}-{}-{key}.clipsat", c[0], c[1]),
@@ -190,22 +202,67 @@ pub fn plan(spec: &Path, load: &LoadOptions, opts: &BakeOptions, dir: &Path) -> 
 
 /// The tiles inside cell `c`: its last column and row are the next cell's first (unless `last`, the
 /// grid's), and its first the last of a tile to the west or north that shares its edge, which the cell
-/// does not read.
+/// does not read. A cell with no tile inside (a missing tile's) reads those that share its first column
+/// or row: the mosaic's samples there are theirs, not the fill height.
 fn cell_sources(tiles: &[(PathBuf, [u32; 4])], c: [u32; 4], last: (u32, u32)) -> Vec<PathBuf> {
     let ex = if c[2] == last.0 { c[2] } else { c[2] - 1 };
     let ey = if c[3] == last.1 { c[3] } else { c[3] - 1 };
-    tiles
+    let own: Vec<PathBuf> = tiles
         .iter()
         .filter(|(_, r)| r[0] <= ex && r[2] > c[0] && r[1] <= ey && r[3] > c[1])
         .map(|(p, _)| p.clone())
+        .collect();
+    if !own.is_empty() {
+        // Tiles coarser than the grid that abut rather than share their edges (Copernicus tiles of 2400
+        // columns a degree beside ones of 3600) leave a seam short of the cell's last column or row,
+        // which the mosaic reads as linear between their last sample and the next tile's first: the
+        // cell reads the tiles east and south that hold those too.
+        let reach = |a: usize| own_rects(tiles, &own).map(|r| r[a]).max().unwrap_or(0);
+        let seam_x = c[2] != last.0 && reach(2) + 1 < c[2];
+        let seam_y = c[3] != last.1 && reach(3) + 1 < c[3];
+        if !seam_x && !seam_y {
+            return own;
+        }
+        let next = tiles.iter().filter(|(p, r)| {
+            !own.contains(p)
+                && ((seam_x && r[0] == c[2]) || (seam_y && r[1] == c[3]))
+                && r[0] <= c[2]
+                && r[2] >= c[0]
+                && r[1] <= c[3]
+                && r[3] >= c[1]
+        });
+        let next: Vec<PathBuf> = next.map(|(p, _)| p.clone()).collect();
+        return own.into_iter().chain(next).collect();
+    }
+    tiles
+        .iter()
+        .filter(|(_, r)| r[0] <= ex && r[2] >= c[0] && r[1] <= ey && r[3] >= c[1])
+        .map(|(p, _)| p.clone())
         .collect()
+}
+
+/// The rectangles of the tiles `of`.
+fn own_rects<'a>(
+    tiles: &'a [(PathBuf, [u32; 4])],
+    of: &'a [PathBuf],
+) -> impl Iterator<Item = [u32; 4]> + 'a {
+    tiles.iter().filter(|(p, _)| of.contains(p)).map(|(_, r)| *r)
+}
+
+/// Whether the tile rectangle `r` reaches past cell `c`'s first column and row (a tile of its own, not
+/// one that only shares its west or north edge).
+fn inside(r: &[u32; 4], c: [u32; 4]) -> bool {
+    r[2] > c[0] && r[3] > c[1]
 }
 
 /// Each file's path, size and modification time into `h`.
 fn stamp(h: &mut Hash64, sources: &[PathBuf]) -> Result<()> {
     for s in sources {
         let meta = std::fs::metadata(s).map_err(|e| Error::io(s, "cannot read", e))?;
-        h.write_bytes(s.display().to_string().as_bytes());
+        // The file, however it is named (`tiles/x.hgt`, `tiles/./x.hgt`, relative from another folder):
+        // the same tiles named another way keep their parts.
+        let file = std::fs::canonicalize(s).unwrap_or_else(|_| s.clone());
+        h.write_bytes(file.display().to_string().as_bytes());
         super::stamp(h, &meta);
     }
     Ok(())
@@ -246,6 +303,7 @@ fn choose_tile(g: u32, asked: u32, side: u32) -> Option<(u32, u32)> {
 }
 
 /// A part's key: the set's parameters, the cell, and each source's path, size and modification time.
+/// Not the grid's size, which a part's bytes do not depend on: tiles added east keep the others' parts.
 fn cell_key(
     index: &Index,
     opts: &BakeOptions,
@@ -256,11 +314,9 @@ fn cell_key(
     let mut h = Hash64::new();
     h.write_bytes(
         format!(
-            "set {INDEX_FORMAT} readers r{} grid {} x {} spacing {} tile {} levels {} quantum {} {} \
-             bound {} codec {} zstd {} fill {:?} cell {cell:?}",
+            "set {INDEX_FORMAT} readers r{} spacing {} tile {} levels {} quantum {} {} bound {} codec {} \
+             zstd {} fill {:?} cell {cell:?}",
             crate::source::READ_REVISION,
-            index.width,
-            index.height,
             index.spacing,
             opts.tile,
             opts.part,
@@ -284,9 +340,10 @@ impl SetPlan {
     }
 
     /// Whether cell `n`'s part is there (a bake writes it whole or not at all, under a name that holds
-    /// its key; the set's open checks it in full).
+    /// its key). Opened, not only its first bytes read: a part cut short or with a damaged header (a
+    /// disk full, a copy stopped) is baked again rather than failing every bake after by name.
     pub fn part_stands(&self, n: usize) -> bool {
-        super::is_package(&self.part_path(n))
+        Package::open(&self.part_path(n)).is_ok()
     }
 }
 

@@ -15,6 +15,7 @@ mod imagery;
 mod mosaic_info;
 mod real_tiles;
 mod render_json;
+mod set_input;
 mod stream_rss;
 mod view_xvfb;
 

@@ -184,6 +184,21 @@ fn run_parts(args: &BakeArgs, targs: &TerrainArgs, dir: &std::path::Path) -> Res
             "--parts bakes a tile mosaic (a folder, list, glob or VRT of tiles) as a package set",
         )),
     };
+    // A folder holding a set reads as the set, not as tiles (it had been refused as holding no tile).
+    if clipsat::package::set::is_set(&spec) {
+        return Err(invalid(&format!(
+            "{} is a package set: draw it with --terrain, or bake the tiles it was baked from",
+            spec.display()
+        )));
+    }
+    // A set baked into its tiles' folder would turn `--terrain` on that folder from the tiles to the set.
+    let same = |a: &std::path::Path, b: &std::path::Path| matches!((a.canonicalize(), b.canonicalize()), (Ok(a), Ok(b)) if a == b);
+    if spec.is_dir() && same(&spec, dir) {
+        return Err(invalid(&format!(
+            "--parts {} is the tiles' own folder: give the set a folder of its own",
+            dir.display()
+        )));
+    }
     if targs.imagery.is_some() {
         return Err(invalid(
             "--parts bakes heights alone: bake the imagery with a whole package (--out), or drape it \

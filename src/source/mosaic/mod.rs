@@ -572,8 +572,8 @@ pub(crate) fn cells(spec: &Path, opts: &LoadOptions) -> Result<(RowGrid, Vec<Til
 /// The grid rectangle `[x0, y0, x1, y1]` (inclusive) of the mosaic `spec`, read from the tiles `sources`
 /// alone (all that reach it where `None`); samples with no data are [`LoadOptions::fill_height`], or
 /// filled from their neighbours inside the rectangle (as one file's voids are). The last column and row,
-/// where none of the sources reaches them (tiles that abut rather than share their edges), repeat the
-/// ones before: a package set's cell reads its own tiles alone.
+/// where none of the sources reaches them (tiles that abut rather than share their edges) and they are
+/// not the grid's, repeat the ones before: a package set's cell reads its own tiles alone.
 pub(crate) fn window(
     spec: &Path,
     opts: &LoadOptions,
@@ -599,8 +599,11 @@ pub(crate) fn window(
             .iter()
             .any(|t| t.col0 <= x && x <= t.col1 && t.row0 <= y && y <= t.row1)
     };
-    let edge_x: Vec<bool> = (y0..=y1).map(|y| !reach(x1, y)).collect();
-    let edge_y: Vec<bool> = (x0..=x1).map(|x| !reach(x, y1)).collect();
+    // Not at the grid's last column or row: the mosaic's samples there (a seam past a coarser tile's
+    // east or south sample, the fill height) are level 0's, and no next part holds them.
+    let (last_x, last_y) = (x1 + 1 == l.grid.width, y1 + 1 == l.grid.height);
+    let edge_x: Vec<bool> = (y0..=y1).map(|y| !last_x && !reach(x1, y)).collect();
+    let edge_y: Vec<bool> = (x0..=x1).map(|x| !last_y && !reach(x, y1)).collect();
     let g = l.grid.clone();
     let mut mosaic = Mosaic::new(l, opts);
     let (gw, w, h) = (

@@ -12,7 +12,7 @@ use clipsat::source::{self, LoadOptions, RowSource};
 /// A north-up f32 GeoTIFF as a Copernicus DEM tile is: geographic (EPSG 4326), pixel-is-point, its
 /// north-west sample on (`lon`, `lat`), `cols` x `rows` samples `1 / cols` and `1 / rows` degrees apart
 /// over one degree, heights `z(lon, lat)`.
-fn copernicus_tile(
+pub(super) fn copernicus_tile(
     path: &Path,
     (lon, lat): (f64, f64),
     (cols, rows): (u32, u32),
@@ -255,7 +255,7 @@ fn imagery_over_the_antimeridian_is_placed_where_it_lies() {
     clippy::cast_possible_truncation,
     reason = "heights of a few thousand metres"
 )]
-fn slope(lon: f64, lat: f64) -> f32 {
+pub(super) fn slope(lon: f64, lat: f64) -> f32 {
     (100.0 + 360.0 * (lon - 8.0) + 720.0 * (lat - 48.0)) as f32
 }
 

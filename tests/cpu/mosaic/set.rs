@@ -248,3 +248,195 @@ fn a_set_refuses_what_it_cannot_cut() {
     .to_string();
     assert!(err.contains("resampling the rows east-west"), "{err}");
 }
+
+/// A missing tile's cell takes the samples of its west and north edges from the tiles that share them,
+/// as the mosaic does: they had been the fill height, the land ending one sample short of its tile (a
+/// cliff along the sea's cell in a render that the one package did not have).
+#[test]
+fn a_missing_tiles_cell_keeps_its_neighbours_edges() {
+    let Some(src) = Grid::shared_tile() else {
+        return;
+    };
+    let dir = temp_dir("set-missing-edges");
+    let world = src
+        .upsampled(2)
+        .crop(700, 400, 1025, 1025)
+        .placed(11.25, 57.8, 1.0 / 3600.0);
+    let paths = write_geotiff_tiles(&dir.join("tiles"), &world, 513);
+    std::fs::remove_file(&paths[3]).expect("remove the south-east tile");
+    let tiles = dir.join("tiles");
+    let set = dir.join("set");
+    let fill = LoadOptions {
+        fill_height: Some(-5.0),
+        ..LoadOptions::default()
+    };
+    set_bake::bake_set(
+        &tiles,
+        &fill,
+        &BakeOptions::default(),
+        &set,
+        Default::default(),
+    )
+    .expect("bake with a fill height");
+    let pkg = Package::open(&set).expect("open");
+    let level0 = pkg.decode_level0().expect("decode");
+    let (_, want) = read_all(&tiles, &fill);
+    for i in 512..1025 {
+        for (x, y) in [(512, i), (i, 512)] {
+            assert_eq!(
+                pkg.metres(level0[y * 1025 + x]),
+                want[y * 1025 + x],
+                "sample ({x}, {y}) on the missing tile's edge"
+            );
+        }
+    }
+}
+
+/// A part's key holds neither the grid's size nor the tiles' paths as spelt: tiles added east bake their
+/// own cells and the top alone (every part had been baked again, the grid's width in every key), and
+/// the same folder named another way (`tiles/.`, or relative from elsewhere) bakes nothing again.
+#[test]
+fn a_set_bakes_again_only_what_changed() {
+    let Some(src) = Grid::shared_tile() else {
+        return;
+    };
+    let dir = temp_dir("set-grows");
+    // 3 x 2 tiles of 513^2; the first two columns baked, then the third added.
+    let world = src
+        .upsampled(2)
+        .crop(700, 400, 1537, 1025)
+        .placed(11.25, 57.8, 1.0 / 3600.0);
+    std::fs::create_dir_all(dir.join("all")).expect("create a folder");
+    let all = write_geotiff_tiles(&dir.join("all"), &world, 513);
+    let tiles = dir.join("tiles");
+    let copy = |east: bool| {
+        for p in &all {
+            let name = p.file_name().expect("a tile's name");
+            if name.to_string_lossy().starts_with("tile_2_") == east {
+                std::fs::copy(p, tiles.join(name)).expect("copy a tile");
+            }
+        }
+    };
+    copy(false);
+    let set = dir.join("set");
+    let bake = |spec: &Path| {
+        set_bake::bake_set(
+            spec,
+            &LoadOptions::default(),
+            &BakeOptions::default(),
+            &set,
+            Default::default(),
+        )
+        .expect("bake the set")
+    };
+    assert_eq!(bake(&tiles).baked, 4);
+    assert_eq!(
+        bake(&tiles.join(".")).baked,
+        0,
+        "the same tiles named another way"
+    );
+    copy(true);
+    let grown = bake(&tiles);
+    assert_eq!(
+        (grown.cells, grown.baked),
+        (6, 2),
+        "the east column's cells alone"
+    );
+}
+
+/// Copernicus tiles as they come across 50 N: each starts on its degree line without sharing an edge,
+/// 720 samples a degree south of it and 480 columns north (here a fifth of GLO-30's). The set's level 0
+/// is the mosaic's, sample for sample: the column between a north tile's last sample and the next
+/// tile's first, which the mosaic reads as linear between them, included.
+#[test]
+fn a_set_of_copernicus_tiles_reads_as_its_mosaic() {
+    let dir = temp_dir("set-copernicus");
+    let tiles = dir.join("tiles");
+    for (lat, lon, cols) in [
+        (51.0, 8.0, 480),
+        (51.0, 9.0, 480),
+        (50.0, 8.0, 720),
+        (50.0, 9.0, 720),
+    ] {
+        super::real_tiles::copernicus_tile(
+            &tiles.join(format!("N{}E00{lon}.tif", lat - 1.0)),
+            (lon, lat),
+            (cols, 720),
+            super::real_tiles::slope,
+        );
+    }
+    let load = LoadOptions::default();
+    let set = dir.join("set");
+    set_bake::bake_set(
+        &tiles,
+        &load,
+        &BakeOptions::default(),
+        &set,
+        Default::default(),
+    )
+    .expect("bake the set");
+    let pkg = Package::open(&set).expect("open the set");
+    let (g, want) = read_all(&tiles, &load);
+    let w = g.width as usize;
+    let level0 = pkg.decode_level0().expect("decode");
+    let bound = pkg.header().max_error * 1.01;
+    for (i, (&k, &v)) in level0.iter().zip(&want).enumerate() {
+        let got = pkg.metres(k);
+        assert!(
+            f64::from((got - v).abs()) <= bound,
+            "sample ({}, {}): {got}, the mosaic's {v}",
+            i % w,
+            i / w
+        );
+    }
+}
+
+/// A part cut short (a disk full, a copy stopped) or with a damaged header is baked again by the next
+/// bake: it had stood (its first bytes were a package's), and every bake after failed on it by name
+/// until it was removed by hand.
+#[test]
+fn a_damaged_part_is_baked_again() {
+    let Some(src) = Grid::shared_tile() else {
+        return;
+    };
+    let dir = temp_dir("set-damaged");
+    let world = src
+        .upsampled(2)
+        .crop(700, 400, 1025, 1025)
+        .placed(11.25, 57.8, 1.0 / 3600.0);
+    write_geotiff_tiles(&dir.join("tiles"), &world, 513);
+    let tiles = dir.join("tiles");
+    let set = dir.join("set");
+    let bake = || {
+        set_bake::bake_set(
+            &tiles,
+            &LoadOptions::default(),
+            &BakeOptions::default(),
+            &set,
+            Default::default(),
+        )
+        .expect("bake the set")
+    };
+    bake();
+    let whole = files(&set);
+    let plan = set_bake::plan(
+        &tiles,
+        &LoadOptions::default(),
+        &BakeOptions::default(),
+        &set,
+    )
+    .expect("plan");
+    let (cut, header) = (plan.part_path(1), plan.part_path(2));
+    let len = std::fs::metadata(&cut).expect("a part").len();
+    std::fs::OpenOptions::new()
+        .write(true)
+        .open(&cut)
+        .and_then(|f| f.set_len(len / 2))
+        .expect("cut a part short");
+    let mut bytes = std::fs::read(&header).expect("a part");
+    bytes[20] ^= 0xff;
+    std::fs::write(&header, bytes).expect("damage a part's header");
+    let again = bake();
+    assert_eq!(again.baked, 2, "the two damaged parts baked again");
+    assert!(files(&set) == whole, "the set as it was");
+}
