@@ -44,10 +44,6 @@ pub struct Index {
     pub lattice: bool,
     /// The bound every level is within, metres.
     pub max_error: f64,
-    /// What the quantum was chosen from (the first cell's tiles and the options), hashed: a bake again
-    /// with the same takes the quantum from here instead of reading the cell.
-    #[serde(default)]
-    pub quantum_key: String,
     /// The tile codec's name.
     pub codec: String,
     /// The grid column where each column of parts starts, ascending from 0.

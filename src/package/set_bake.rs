@@ -8,7 +8,7 @@
 use std::path::{Path, PathBuf};
 
 use super::set::{Index, PartEntry, INDEX_FORMAT, INDEX_NAME};
-use super::write::{bake, source_quantum, BakeOptions, BakeReport, FLOAT_MAX_ERROR};
+use super::write::{bake, BakeOptions, BakeReport, FLOAT_MAX_ERROR};
 use super::Package;
 use crate::hash::{hex, Hash64};
 use crate::progress::Progress;
@@ -57,7 +57,7 @@ pub struct SetReport {
 }
 
 /// Plans the set of the tile mosaic `spec` in `dir`: the cells, the tile side and levels per part, the
-/// quantum (from the first cell's samples, as one file's bake chooses it), and each part's key.
+/// quantum (by the tiles' sample types), and each part's key.
 pub fn plan(spec: &Path, load: &LoadOptions, opts: &BakeOptions, dir: &Path) -> Result<SetPlan> {
     if load.resample_ew {
         return Err(Error::format(
@@ -101,7 +101,6 @@ pub fn plan(spec: &Path, load: &LoadOptions, opts: &BakeOptions, dir: &Path) -> 
         quantum: 0.0,
         lattice: false,
         max_error: 0.0,
-        quantum_key: String::new(),
         codec: opts.codec.name().to_string(),
         columns,
         rows,
@@ -131,36 +130,24 @@ pub fn plan(spec: &Path, load: &LoadOptions, opts: &BakeOptions, dir: &Path) -> 
             ),
         ));
     }
-    // The quantum and bound, from the first cell as one file's bake would choose them from its samples
-    // (or from the index of the bake before, where the first cell's tiles and the options are the same).
-    let first_sources = cell_sources(&tiles, cells[0], (grid.width - 1, grid.height - 1));
-    let quantum_key = {
-        let mut h = Hash64::new();
-        h.write_bytes(format!("{:?} {:?} {}", opts.max_error, load, crate::source::READ_REVISION).as_bytes());
-        stamp(&mut h, &first_sources)?;
-        hex(h.finish())
-    };
-    let before = Index::read(&dir.join(INDEX_NAME))
-        .ok()
-        .filter(|b| b.quantum_key == quantum_key);
-    let (q, lattice, max_error) = match before {
-        Some(b) => (b.quantum, b.lattice, b.max_error),
-        None => {
-            let first = crate::source::mosaic_window(spec, load, cells[0], Some(&first_sources))?;
-            let quantum = source_quantum(&first);
-            let max_error = opts
-                .max_error
-                .unwrap_or_else(|| quantum.map_or(FLOAT_MAX_ERROR, |q| q * 0.5));
-            match quantum {
-                Some(q) if q * 0.5 <= max_error * (1.0 + 1e-9) => (q, true, max_error),
-                _ => (2.0 * max_error, false, max_error),
-            }
-        }
+    // The quantum and bound, by the tiles' sample types rather than any one cell's samples, so that they
+    // do not depend on which tile a bake reads first: the metre lattice for whole-metre tiles at the
+    // grid's spacing (a missing tile's fill height and a filled void rounded to it, within the bound),
+    // else twice the bound, as one file's bake chooses for float data.
+    let whole = crate::source::mosaic_integer_tiles(spec, load)?
+        && load.height_offset.fract() == 0.0
+        && load.fill_height.is_none_or(|f| f.fract() == 0.0);
+    let max_error = opts
+        .max_error
+        .unwrap_or(if whole { 0.5 } else { FLOAT_MAX_ERROR });
+    let (q, lattice) = if whole && 0.5 <= max_error * (1.0 + 1e-9) {
+        (1.0, true)
+    } else {
+        (2.0 * max_error, false)
     };
     index.quantum = q;
     index.lattice = lattice;
     index.max_error = max_error;
-    index.quantum_key = quantum_key;
     let part_opts = BakeOptions {
         max_error: Some(max_error),
         tile,
@@ -466,6 +453,8 @@ fn bake_cells(plan: &SetPlan, todo: &[usize], progress: Progress<'_>) -> Result<
 /// Bakes the top from the parts' level K, writes the index and removes the parts and tops of the folder
 /// that the index does not name. Every part must stand. Returns the set's bytes and the files removed.
 pub fn finish(plan: &mut SetPlan, progress: Progress<'_>) -> Result<(u64, usize)> {
+    // A killed bake's temporaries, whether or not this one bakes anything.
+    crate::temp::sweep(&plan.dir);
     let idx = &plan.index;
     let k = idx.part_levels as usize - 1;
     let missing: Vec<usize> = (0..plan.cells.len())
@@ -528,10 +517,18 @@ pub fn finish(plan: &mut SetPlan, progress: Progress<'_>) -> Result<(u64, usize)
     plan.index.top = top_file;
     let text = plan.index.to_text()?;
     let index_path = plan.dir.join(INDEX_NAME);
-    let tmp = plan.dir.join(format!("{INDEX_NAME}.tmp{}", crate::temp_suffix()));
-    std::fs::write(&tmp, text)
-        .and_then(|()| std::fs::rename(&tmp, &index_path))
-        .map_err(|e| Error::io(&index_path, "cannot write", e))?;
+    // Locked while written, renamed into place: a killed bake's leaves a `.part` the next sweeps.
+    let mut tmp = crate::temp::TempFile::create(
+        plan.dir.join(format!("{INDEX_NAME}.tmp{}", crate::temp_suffix())),
+    )?;
+    {
+        use std::io::Write;
+        tmp.file
+            .write_all(text.as_bytes())
+            .and_then(|()| tmp.file.sync_all())
+            .map_err(|e| Error::io(&tmp.path, "cannot write", e))?;
+    }
+    tmp.persist(&index_path)?;
     // The parts and tops of earlier bakes that the index does not name.
     let named: Vec<&str> = plan
         .index

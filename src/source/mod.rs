@@ -250,7 +250,9 @@ pub fn mosaic_geo(path: &Path, opts: &LoadOptions) -> Result<Option<GeoExtent>> 
 
 /// A tile mosaic's grid and its tiles' rectangles on it, and a rectangle of it read alone: a package
 /// set's cells (`package::set_bake`).
-pub(crate) use mosaic::{cells as mosaic_cells, window as mosaic_window};
+pub(crate) use mosaic::{
+    cells as mosaic_cells, integer_tiles as mosaic_integer_tiles, window as mosaic_window,
+};
 
 /// The files `path` reads: the file itself, or a mosaic's tiles (and its list file): what a cache key
 /// stamps.

@@ -554,6 +554,32 @@ pub(crate) fn load(spec: &Path, opts: &LoadOptions) -> Result<Heightmap> {
     Ok(whole(Mosaic::new(layout, opts))?.with_geo(geo))
 }
 
+/// Whether every tile of the mosaic `spec` holds whole numbers by its sample type (an SRTM tile, an
+/// integer GeoTIFF) at the grid's own spacing (a coarser tile is interpolated between them): a package
+/// set's quantum follows it, the same whichever tile a bake reads first.
+pub(crate) fn integer_tiles(spec: &Path, opts: &LoadOptions) -> Result<bool> {
+    let l = layout(spec, opts)?;
+    Ok(l.tiles.iter().all(|t| {
+        let fine = t.k == (1.0, 1.0);
+        fine && (t.meta.hgt || integer_tiff(&t.meta.path))
+    }))
+}
+
+/// Whether a TIFF's samples are integers (SampleFormat 1 or 2, the default 1), read from its header.
+fn integer_tiff(path: &Path) -> bool {
+    let Ok(file) = std::fs::File::open(path) else {
+        return false;
+    };
+    let Ok(mut dec) = tiff::decoder::Decoder::new(std::io::BufReader::new(file)) else {
+        return false;
+    };
+    match dec.find_tag(tiff::tags::Tag::SampleFormat) {
+        Ok(None) => true,
+        Ok(Some(v)) => v.into_u16_vec().is_ok_and(|f| f.iter().all(|&f| f == 1 || f == 2)),
+        Err(_) => false,
+    }
+}
+
 /// A tile's file and its rectangle on the mosaic's grid: first and last column and row, inclusive.
 pub(crate) type TileRect = (PathBuf, [u32; 4]);
 
