@@ -26,18 +26,25 @@ fn files(dir: &Path) -> Vec<(String, Vec<u8>)> {
     v
 }
 
-#[test]
-fn a_package_set_reads_as_its_mosaic() {
-    let Some(src) = Grid::shared_tile() else {
-        return;
-    };
-    let dir = temp_dir("set");
-    // 2 x 2 GeoTIFF tiles of 513^2 sharing their edges, 1" data around the coast.
+/// 2 x 2 GeoTIFF tiles of 513^2 sharing their edges, 1" data around the coast of the shared SRTM tile
+/// (upsampled), in `DIR/tiles` of a fresh folder for `test`: the folder, the grid they were cut from and
+/// the tiles' paths (north-west, north-east, south-west, south-east).
+fn coast_tiles(test: &str) -> Option<(crate::TempDir, Grid, Vec<std::path::PathBuf>)> {
+    let src = Grid::shared_tile()?;
+    let dir = temp_dir(test);
     let world = src
         .upsampled(2)
         .crop(700, 400, 1025, 1025)
         .placed(11.25, 57.8, 1.0 / 3600.0);
-    write_geotiff_tiles(&dir.join("tiles"), &world, 513);
+    let paths = write_geotiff_tiles(&dir.join("tiles"), &world, 513);
+    Some((dir, world, paths))
+}
+
+#[test]
+fn a_package_set_reads_as_its_mosaic() {
+    let Some((dir, world, _)) = coast_tiles("set") else {
+        return;
+    };
     let tiles = dir.join("tiles");
     let load = LoadOptions::default();
     let set = dir.join("set");
@@ -172,15 +179,9 @@ fn a_package_set_reads_as_its_mosaic() {
 /// A missing tile's cell (the sea in SRTM) is the fill height, and refused without one.
 #[test]
 fn a_set_fills_a_missing_tile() {
-    let Some(src) = Grid::shared_tile() else {
+    let Some((dir, _, paths)) = coast_tiles("set-missing") else {
         return;
     };
-    let dir = temp_dir("set-missing");
-    let world = src
-        .upsampled(2)
-        .crop(700, 400, 1025, 1025)
-        .placed(11.25, 57.8, 1.0 / 3600.0);
-    let paths = write_geotiff_tiles(&dir.join("tiles"), &world, 513);
     std::fs::remove_file(&paths[3]).expect("remove the south-east tile");
     let tiles = dir.join("tiles");
     let set = dir.join("set");
@@ -254,15 +255,9 @@ fn a_set_refuses_what_it_cannot_cut() {
 /// cliff along the sea's cell in a render that the one package did not have).
 #[test]
 fn a_missing_tiles_cell_keeps_its_neighbours_edges() {
-    let Some(src) = Grid::shared_tile() else {
+    let Some((dir, _, paths)) = coast_tiles("set-missing-edges") else {
         return;
     };
-    let dir = temp_dir("set-missing-edges");
-    let world = src
-        .upsampled(2)
-        .crop(700, 400, 1025, 1025)
-        .placed(11.25, 57.8, 1.0 / 3600.0);
-    let paths = write_geotiff_tiles(&dir.join("tiles"), &world, 513);
     std::fs::remove_file(&paths[3]).expect("remove the south-east tile");
     let tiles = dir.join("tiles");
     let set = dir.join("set");
@@ -396,15 +391,9 @@ fn a_set_of_copernicus_tiles_reads_as_its_mosaic() {
 /// until it was removed by hand.
 #[test]
 fn a_damaged_part_is_baked_again() {
-    let Some(src) = Grid::shared_tile() else {
+    let Some((dir, _, _)) = coast_tiles("set-damaged") else {
         return;
     };
-    let dir = temp_dir("set-damaged");
-    let world = src
-        .upsampled(2)
-        .crop(700, 400, 1025, 1025)
-        .placed(11.25, 57.8, 1.0 / 3600.0);
-    write_geotiff_tiles(&dir.join("tiles"), &world, 513);
     let tiles = dir.join("tiles");
     let set = dir.join("set");
     let bake = || {
