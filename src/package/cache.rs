@@ -62,7 +62,7 @@ impl CacheSplit {
     /// inverted): for a caller that sizes its cache by what it reads, such as the LOD tables' bake.
     pub fn budget_for_slots(header: &super::format::Header, slots: u64) -> u64 {
         let t = u64::from(header.tile);
-        let head = head_bytes(header);
+        let head = header.resident_bytes();
         let fixed = head + 4 * header.tiles.len() as u64 + TileDecoder::bytes(header.tile);
         fixed + slots * (4 * t * t + std::mem::size_of::<Slot>() as u64)
     }
@@ -72,7 +72,7 @@ impl CacheSplit {
     /// it could never fill: 257^2 streamed on desktop touched 88 MiB more than loaded whole).
     pub fn plan(header: &super::format::Header, budget: u64) -> Self {
         let t = u64::from(header.tile);
-        let head = head_bytes(header);
+        let head = header.resident_bytes();
         let map = 4 * header.tiles.len() as u64;
         let decoder = TileDecoder::bytes(header.tile);
         let slot = 4 * t * t + std::mem::size_of::<Slot>() as u64;
@@ -89,10 +89,6 @@ impl CacheSplit {
     }
 }
 
-/// The parsed header, its tile table and the rANS tables' lookup form ([`super::format::Header::resident_bytes`]).
-fn head_bytes(header: &super::format::Header) -> u64 {
-    header.resident_bytes()
-}
 
 /// The resident tiles of one package, in a fixed number of slots.
 pub struct TileCache {

@@ -288,7 +288,6 @@ impl DecodeTables {
             .into_boxed_slice()
             .try_into()
             .expect("CONTEXTS rows");
-        let slot: Box<[[u8; M as usize]; CONTEXTS]> = slot;
         let mut d = Self { slot, fc };
         d.fill(t);
         d

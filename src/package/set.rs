@@ -127,9 +127,5 @@ pub fn is_set(path: &Path) -> bool {
 
 /// The index file of the set at `path` (the file, or its folder's index).
 pub fn index_path(path: &Path) -> PathBuf {
-    if path.is_dir() {
-        path.join(INDEX_NAME)
-    } else {
-        path.to_path_buf()
-    }
+    crate::source::georef::set_index(path).unwrap_or_else(|| path.to_path_buf())
 }

@@ -344,16 +344,6 @@ pub fn bake_cell(plan: &SetPlan, n: usize, progress: Progress<'_>) -> Result<Bak
             plan.cells.len().saturating_sub(1)
         ))
     })?;
-    if plan.index.parts[n].sources.is_empty() && plan.load.fill_height.is_none() {
-        return Err(Error::format(
-            &plan.spec,
-            format!(
-                "no tile covers cell {n} (grid columns {} to {}, rows {} to {}): a package set reads a \
-                 missing tile's cell as the fill height, and none is given",
-                cell[0], cell[2], cell[1], cell[3]
-            ),
-        ));
-    }
     std::fs::create_dir_all(&plan.dir).map_err(|e| Error::io(&plan.dir, "cannot create", e))?;
     let sources: Vec<PathBuf> = plan.index.parts[n]
         .sources
@@ -430,11 +420,8 @@ fn bake_cells(plan: &SetPlan, todo: &[usize], progress: Progress<'_>) -> Result<
                         panic!("a package set's cell thread panicked");
                     }
                 }
-                Err(e) => {
-                    // No thread to run on: this one bakes what is left.
-                    let _ = e;
-                    work();
-                }
+                // No thread to run on: this one bakes what is left.
+                Err(_) => work(),
             }
         }
     });
@@ -565,7 +552,11 @@ pub fn bake_set(
     dir: &Path,
     progress: Progress<'_>,
 ) -> Result<SetReport> {
-    let mut plan = plan(spec, load, opts, dir)?;
+    bake_plan(plan(spec, load, opts, dir)?, progress)
+}
+
+/// [`bake_set`] of a plan made already.
+pub fn bake_plan(mut plan: SetPlan, progress: Progress<'_>) -> Result<SetReport> {
     let todo: Vec<usize> = (0..plan.cells.len())
         .filter(|&n| !plan.part_stands(n))
         .collect();

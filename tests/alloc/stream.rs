@@ -357,8 +357,8 @@ fn detail_pool_streams_within_budget_without_allocating() {
 }
 
 /// The test terrain as 4 x 4 projected GeoTIFF tiles of 257^2 sharing their edges, in `DIR-PID/tiles`,
-/// baked as a package set in `DIR-PID/set` (16 parts: more than the set's shared rANS lookups, so a
-/// flight fills them again as it goes): (that folder, the set).
+/// baked as a package set in `DIR-PID/set` (16 parts: more than the set's shared rANS lookups): (that
+/// folder, the set).
 fn baked_set(dir: &str) -> (std::path::PathBuf, std::path::PathBuf) {
     use tiff::encoder::colortype::Gray32Float;
     use tiff::tags::Tag;
@@ -412,7 +412,7 @@ fn baked_set(dir: &str) -> (std::path::PathBuf, std::path::PathBuf) {
 }
 
 /// A package set streams as a package does: within the budget, allocating nothing per frame while its
-/// tiles' decodes fill the shared rANS lookups with one part's tables after another.
+/// tiles' decodes take the shared rANS lookups for one part after another.
 #[test]
 fn a_package_set_streams_without_allocating() {
     let (dir, set) = baked_set("clipsat-stream-set");

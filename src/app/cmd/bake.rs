@@ -258,7 +258,7 @@ fn run_parts(args: &BakeArgs, targs: &TerrainArgs, dir: &std::path::Path) -> Res
             json!({"cells": plan.cells.len(), "bytes": bytes, "removed": removed}),
         )
     } else {
-        let r = set_bake::bake_set(&spec, &load, &opts, dir, progress)?;
+        let r = set_bake::bake_plan(plan, progress)?;
         (
             format!(
                 "{} cells, {} baked ({} kept), {} bytes; tiles of {}^2, {} levels a part ({} stale files removed)",
