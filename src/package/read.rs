@@ -511,22 +511,17 @@ impl Parts {
         let index = Index::read(&index_file)?;
         let dir = index_file.parent().unwrap_or(Path::new("."));
         let bad = |reason: String| Error::format(&index_file, format!("package set: {reason}"));
-        let codec = CodecKind::parse(&index.codec)?;
-        let mut world = Header::new(
-            index.width,
-            index.height,
-            index.spacing,
-            index.origin,
-            index.quantum,
-            codec,
-            index.tile,
-        );
+        let codec = CodecKind::parse(&index.codec)
+            .map_err(|_| bad(format!("unknown tile codec `{}`", index.codec)))?;
+        // The whole terrain's level sizes; its header, whose tile table grows with the grid the index
+        // names, is made once every part has matched its cell (each part's table lies in its file).
+        let sizes = super::format::level_sizes(index.width, index.height);
         let k = index.part_levels as usize - 1;
-        if k + 1 >= world.levels.len() {
+        if k + 1 >= sizes.len() {
             return Err(bad(format!(
                 "parts of {} levels leave no level to a top over {} levels",
                 index.part_levels,
-                world.levels.len()
+                sizes.len()
             )));
         }
         let level_tile = u64::from(index.tile) << k;
@@ -538,10 +533,10 @@ impl Parts {
             }
         }
         let top = Package::open(&dir.join(&index.top))?;
-        let kd = world.levels[k + 1];
+        let kd = sizes[k + 1];
         let th = top.header();
-        if (th.width, th.height) != (kd.width, kd.height)
-            || th.levels.len() + k + 1 != world.levels.len()
+        if (th.width, th.height) != kd
+            || th.levels.len() + k + 1 != sizes.len()
             || th.tile != index.tile
             || th.codec != codec
             || th.quantum.to_bits() != index.quantum.to_bits()
@@ -557,8 +552,8 @@ impl Parts {
                     th.levels.len(),
                     th.tile,
                     k + 1,
-                    kd.width,
-                    kd.height
+                    kd.0,
+                    kd.1
                 ),
             ));
         }
@@ -593,6 +588,15 @@ impl Parts {
             range = (range.0.min(h.range.0), range.1.max(h.range.1));
             parts.push(p);
         }
+        let mut world = Header::new(
+            index.width,
+            index.height,
+            index.spacing,
+            index.origin,
+            index.quantum,
+            codec,
+            index.tile,
+        );
         world.max_error = index.max_error;
         // Each part's header and tile table, the top, and the shared lookups (not a part's own).
         let lookups: Vec<_> = match top.header().tables.as_ref() {

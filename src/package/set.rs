@@ -99,6 +99,35 @@ impl Index {
         if index.part_levels == 0 {
             return Err(bad("parts of 0 levels".into()));
         }
+        // What a package's header is checked for (`Header::parse`): the whole terrain's header is made
+        // from these before any part is read.
+        if !(4..=4096).contains(&index.tile) || !index.tile.is_multiple_of(2) {
+            return Err(bad(format!(
+                "tile side {} is not an even size in 4..=4096",
+                index.tile
+            )));
+        }
+        if !(index.spacing.is_finite() && index.spacing > 0.0) {
+            return Err(bad(format!(
+                "spacing {} is not finite and positive",
+                index.spacing
+            )));
+        }
+        if !(index.origin.0.is_finite() && index.origin.1.is_finite()) {
+            return Err(bad("origin is not finite".into()));
+        }
+        if !(index.quantum.is_finite() && index.quantum > 0.0) {
+            return Err(bad(format!(
+                "quantum {} is not finite and positive",
+                index.quantum
+            )));
+        }
+        if !(index.max_error.is_finite() && index.max_error >= 0.0) {
+            return Err(bad(format!(
+                "error bound {} is not finite and at least 0",
+                index.max_error
+            )));
+        }
         Ok(index)
     }
 

@@ -428,4 +428,58 @@ fn a_damaged_part_is_baked_again() {
     let again = bake();
     assert_eq!(again.baked, 2, "the two damaged parts baked again");
     assert!(files(&set) == whole, "the set as it was");
+
+    // A damaged index is an error that names it, never a panic or an allocation the size of the grid it
+    // claims (a tile side of 0 divided by zero; a width of 2^32 - 1 asked for billions of tile entries).
+    let index = set.join(package::set::INDEX_NAME);
+    let text = std::fs::read_to_string(&index).expect("the index");
+    let with = |key: &str, value: &str| -> String {
+        let mut done = false;
+        text.lines()
+            .map(|l| {
+                if !done && l.starts_with(&format!("{key} = ")) {
+                    done = true;
+                    format!("{key} = {value}")
+                } else {
+                    l.to_string()
+                }
+            })
+            .collect::<Vec<_>>()
+            .join("\n")
+    };
+    for (key, value) in [
+        ("tile", "0"),
+        ("tile", "6"),
+        ("tile", "1000000"),
+        ("width", "4294967295"),
+        ("height", "4000000000"),
+        ("spacing", "nan"),
+        ("spacing", "-30.0"),
+        ("origin", "[nan, 0.0]"),
+        ("quantum", "0.0"),
+        ("max_error", "inf"),
+        ("part_levels", "0"),
+        ("part_levels", "4000000000"),
+        ("codec", "\"bogus\""),
+        ("format", "2"),
+        ("columns", "[0, 512, 512]"),
+        ("rows", "[]"),
+    ] {
+        let damaged = with(key, value);
+        assert_ne!(damaged, text, "{key} is in the index");
+        std::fs::write(&index, &damaged).expect("damage the index");
+        let err = Package::open(&set)
+            .expect_err(&format!("{key} = {value}"))
+            .to_string();
+        assert!(
+            err.contains(package::set::INDEX_NAME) || err.contains(".clipsat"),
+            "{key} = {value}: {err}"
+        );
+    }
+    for cut in [text.len() / 2, 10, 0] {
+        std::fs::write(&index, &text[..cut]).expect("cut the index short");
+        assert!(Package::open(&set).is_err(), "the index cut at {cut}");
+    }
+    std::fs::write(&index, &text).expect("the index again");
+    assert!(Package::open(&set).is_ok());
 }
