@@ -53,6 +53,10 @@ pub fn set_index(path: &Path) -> Option<std::path::PathBuf> {
     };
     use std::io::Read;
     let mut head = [0u8; SET_INDEX_MAGIC.len()];
+    // Not a FIFO or device, which opening would wait on or read without end.
+    if !file.is_file() {
+        return None;
+    }
     std::fs::File::open(&file)
         .and_then(|mut f| f.read_exact(&mut head))
         .is_ok_and(|()| head == SET_INDEX_MAGIC.as_bytes())

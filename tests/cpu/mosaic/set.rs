@@ -483,3 +483,60 @@ fn a_damaged_part_is_baked_again() {
     std::fs::write(&index, &text).expect("the index again");
     assert!(Package::open(&set).is_ok());
 }
+
+/// An index whose top or part names a set (its own index, its folder) or a file that is no package (a
+/// folder, a FIFO) is an error that names it: the set had opened itself again until the stack
+/// overflowed, a folder failed as "cannot map: No such device", and a FIFO waited for a writer forever.
+#[test]
+fn a_set_index_names_only_package_files() {
+    let Some((dir, _, _)) = coast_tiles("set-names") else {
+        return;
+    };
+    let set = dir.join("set");
+    set_bake::bake_set(
+        &dir.join("tiles"),
+        &LoadOptions::default(),
+        &BakeOptions::default(),
+        &set,
+        Default::default(),
+    )
+    .expect("bake the set");
+    let index = set.join(package::set::INDEX_NAME);
+    let text = std::fs::read_to_string(&index).expect("the index");
+    let top = text
+        .lines()
+        .find(|l| l.starts_with("top = "))
+        .expect("a top")
+        .to_string();
+    let part = text
+        .lines()
+        .find(|l| l.starts_with("file = "))
+        .expect("a part")
+        .to_string();
+    std::fs::create_dir_all(set.join("folder")).expect("a folder");
+    let fifo = set.join("fifo.clipsat");
+    #[cfg(unix)]
+    let _ = std::process::Command::new("mkfifo").arg(&fifo).status();
+    let names = [package::set::INDEX_NAME, "", ".", "../set", "folder"];
+    let fifo_name = fifo.exists().then_some("fifo.clipsat");
+    for name in names.into_iter().chain(fifo_name) {
+        for (line, key) in [(&top, "top"), (&part, "file")] {
+            let damaged = text.replacen(line.as_str(), &format!("{key} = \"{name}\""), 1);
+            std::fs::write(&index, &damaged).expect("damage the index");
+            // On a thread, so that a wait is a failure rather than a hang.
+            let (tx, rx) = std::sync::mpsc::channel();
+            let at = set.clone();
+            std::thread::spawn(move || tx.send(Package::open(&at).map(|_| ())));
+            let result = rx
+                .recv_timeout(std::time::Duration::from_secs(20))
+                .unwrap_or_else(|_| panic!("{key} = {name:?}: still opening after 20 s"));
+            let err = result.expect_err(&format!("{key} = {name:?}")).to_string();
+            assert!(
+                err.contains(package::set::INDEX_NAME) || err.contains(name),
+                "{key} = {name:?}: {err}"
+            );
+        }
+    }
+    std::fs::write(&index, &text).expect("the index again");
+    assert!(Package::open(&set).is_ok());
+}
