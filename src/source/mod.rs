@@ -335,6 +335,17 @@ fn geotiff_extent(path: &Path) -> Option<GeoExtent> {
 pub fn open_rows(path: &Path, opts: &LoadOptions) -> Result<Box<dyn RowSource>> {
     check_scale(path, opts)?;
     let rows = open_format_rows(path, opts)?;
+    // As `Heightmap::new` refuses it for a load: a georeference of steps too small or too large for an
+    // f32 of metres (a tile's 1e-300 degrees) had streamed on to a package header that was refused
+    // naming the bake's temporary file.
+    for spacing in [rows.grid().spacing, rows.grid().ew_spacing] {
+        if !(spacing.is_finite() && spacing > 0.0) {
+            return Err(Error::format(
+                path,
+                format!("sample spacing {spacing} m: must be finite and positive"),
+            ));
+        }
+    }
     if !opts.resample_ew {
         return Ok(rows);
     }

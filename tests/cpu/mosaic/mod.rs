@@ -577,3 +577,65 @@ fn a_gdal_vrt_reads_as_its_tiles() {
         refused(name, needle);
     }
 }
+
+/// A VRT whose `GeoTransform` or `DstRect` holds NaN, and tiles whose steps are too small for metres in
+/// an f32, are refused naming the file: a NaN compared false with every bound and passed the checks on
+/// where the VRT puts its tiles, and a mosaic of steps of 1e-300 degrees streamed with a spacing of 0 m.
+#[test]
+fn non_finite_places_and_spacings_are_refused() {
+    let dir = temp_dir("non-finite");
+    let g = Grid {
+        w: 11,
+        h: 11,
+        z: (0..121).collect(),
+        west: 11.0,
+        north: 58.0,
+        step: 1.0 / 3600.0,
+    };
+    write_geotiff_as(&dir.join("tiles/a.tif"), &g, None, 4326, false);
+    let refused = |path: &Path, needle: &str| {
+        let e = source::open_rows(path, &LoadOptions::default())
+            .err()
+            .unwrap_or_else(|| panic!("{}: accepted", path.display()));
+        let e = e.to_string();
+        assert!(
+            e.contains(needle) && e.contains(&path.display().to_string()),
+            "{}: {e}",
+            path.display()
+        );
+    };
+    let tile = [("tiles/a.tif", 0, 0, 11)];
+    let vrt = dir.join("a.vrt");
+    write_vrt(&vrt, &g, &tile, "");
+    read_all(&vrt, &LoadOptions::default());
+    let nan = Grid {
+        step: f64::NAN,
+        ..g.clone()
+    };
+    write_vrt(&dir.join("nan.vrt"), &nan, &tile, "");
+    refused(&dir.join("nan.vrt"), "six finite numbers");
+    let text = std::fs::read_to_string(&vrt).expect("read");
+    for (name, from, to, needle) in [
+        (
+            "dst.vrt",
+            "DstRect xOff=\"0\"",
+            "DstRect xOff=\"nan\"",
+            "<DstRect>",
+        ),
+        (
+            "src.vrt",
+            "SrcRect xOff=\"0\"",
+            "SrcRect xOff=\"nan\"",
+            "<SrcRect>",
+        ),
+    ] {
+        std::fs::write(dir.join(name), text.replacen(from, to, 1)).expect("write");
+        refused(&dir.join(name), needle);
+    }
+
+    let tiny = dir.join("tiny");
+    std::fs::create_dir_all(&tiny).expect("create");
+    let step = Grid { step: 1e-300, ..g };
+    write_geotiff_as(&tiny.join("a.tif"), &step, None, 4326, false);
+    refused(&tiny, "sample spacing");
+}
