@@ -328,9 +328,20 @@ impl SetPlan {
 
     /// Whether cell `n`'s part is there (a bake writes it whole or not at all, under a name that holds
     /// its key). Opened, not only its first bytes read: a part cut short or with a damaged header (a
-    /// disk full, a copy stopped) is baked again rather than failing every bake after by name.
+    /// disk full, a copy stopped) is baked again rather than failing every bake after by name. Matched
+    /// to its cell as the set's reader matches it: another package under its name (a copy gone wrong)
+    /// had stood, and the top was made from it past the level's end (a panic) or from the wrong
+    /// samples, a set that every bake after kept and no reader opened.
     pub fn part_stands(&self, n: usize) -> bool {
-        Package::open(&self.part_path(n)).is_ok()
+        let (Ok(p), Some(c)) = (Package::open(&self.part_path(n)), self.cells.get(n)) else {
+            return false;
+        };
+        let h = p.header();
+        (h.width, h.height) == (c[2] - c[0] + 1, c[3] - c[1] + 1)
+            && h.part == self.index.part_levels
+            && h.tile == self.index.tile
+            && h.codec == self.opts.codec
+            && h.quantum.to_bits() == self.index.quantum.to_bits()
     }
 }
 
@@ -481,6 +492,13 @@ pub fn finish(plan: &mut SetPlan, progress: Progress<'_>) -> Result<(u64, usize)
             let own_w = if i + 1 < nc { pw - 1 } else { pw };
             let own_h = if j + 1 < nr { ph - 1 } else { ph };
             let (x0, y0) = ((cell[0] >> k) as usize, (cell[1] >> k) as usize);
+            // Checked when it stood (`part_stands`); a part changed since is refused, not read past.
+            if x0 + own_w > w || y0 + own_h > h || units.len() < pw * ph {
+                return Err(Error::format(
+                    part.path(),
+                    format!("not cell {n}'s part: its level {k} is {pw} x {ph} samples; bake it again"),
+                ));
+            }
             for y in 0..own_h {
                 for x in 0..own_w {
                     heights[(y0 + y) * w + x0 + x] = part.metres(units[y * pw + x]);

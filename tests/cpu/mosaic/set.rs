@@ -540,3 +540,53 @@ fn a_set_index_names_only_package_files() {
     std::fs::write(&index, &text).expect("the index again");
     assert!(Package::open(&set).is_ok());
 }
+
+/// A package that is not its cell's part, under the part's name (a copy gone wrong), is baked again: it
+/// had stood, and the top was made from it past the end of its level (a panic, "index out of bounds")
+/// or from the wrong samples, a set that every bake after kept and no reader opened.
+#[test]
+fn a_part_that_is_not_its_cells_is_baked_again() {
+    let Some((dir, _, _)) = coast_tiles("set-foreign") else {
+        return;
+    };
+    let tiles = dir.join("tiles");
+    let set = dir.join("set");
+    let bake = || {
+        set_bake::bake_set(
+            &tiles,
+            &LoadOptions::default(),
+            &BakeOptions::default(),
+            &set,
+            Default::default(),
+        )
+        .expect("bake the set")
+    };
+    bake();
+    let whole = files(&set);
+    let plan = set_bake::plan(
+        &tiles,
+        &LoadOptions::default(),
+        &BakeOptions::default(),
+        &set,
+    )
+    .expect("plan");
+    // The whole mosaic's package in the south-east cell's place, and no top yet.
+    let hm = source::load(&tiles, &LoadOptions::default()).expect("load the mosaic");
+    let last = plan.cells.len() - 1;
+    package::bake(
+        &hm,
+        &plan.part_path(last),
+        &BakeOptions::default(),
+        Default::default(),
+    )
+    .expect("bake the whole mosaic");
+    for (name, _) in &whole {
+        if name.starts_with("top-") {
+            std::fs::remove_file(set.join(name)).expect("remove the top");
+        }
+    }
+    let again = bake();
+    assert_eq!(again.baked, 1, "the cell baked again");
+    assert!(files(&set) == whole, "the set as it was");
+    assert!(Package::open(&set).is_ok());
+}
