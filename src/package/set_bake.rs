@@ -80,15 +80,25 @@ pub fn plan(spec: &Path, load: &LoadOptions, opts: &BakeOptions, dir: &Path) -> 
         .filter(|&&s| s > 0)
         .fold(0u32, |a, &b| gcd(a, b));
     let (tile, k) = choose_tile(g, opts.tile, grid.width.min(grid.height)).ok_or_else(|| {
-        Error::format(
-            spec,
+        // One cell (every tile starts at the grid's first sample): it had said the tiles start every 0
+        // samples, where the grid is too small for the tile side.
+        let why = if g == 0 {
+            format!(
+                "its tiles make one cell of {} x {} samples, too small for parts of {}-sample tiles (a \
+                 side of more than {} samples): a package set needs a coarser level above its parts",
+                grid.width,
+                grid.height,
+                opts.tile,
+                u64::from(opts.tile) << 3
+            )
+        } else {
             format!(
                 "its tiles start every {g} samples, which no tile side from {} to {} times 2^k (k from \
-                 1 to {MAX_K}) divides: a package set needs cells a whole number of level-k tiles; \
-                 bake the mosaic into one package instead",
+                 1 to {MAX_K}) divides: a package set needs cells a whole number of level-k tiles",
                 TILE_RANGE.0, TILE_RANGE.1
-            ),
-        )
+            )
+        };
+        Error::format(spec, format!("{why}; bake the mosaic into one package instead"))
     })?;
     let mut index = Index {
         format: INDEX_FORMAT,

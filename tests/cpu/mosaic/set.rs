@@ -235,6 +235,21 @@ fn a_set_refuses_what_it_cannot_cut() {
     .expect_err("tiles every 101 samples")
     .to_string();
     assert!(err.contains("bake the mosaic into one package"), "{err}");
+    // One tile is one cell, too small for the tile side: it had said the tiles start every 0 samples.
+    let one = dir.join("one.txt");
+    std::fs::write(&one, "tiles/tile_0_0.tif\n").expect("write a list");
+    let err = set_bake::plan(
+        &one,
+        &LoadOptions::default(),
+        &BakeOptions::default(),
+        &dir.join("set"),
+    )
+    .expect_err("one small cell")
+    .to_string();
+    assert!(
+        err.contains("one cell of 102 x 102 samples") && !err.contains("every 0 samples"),
+        "{err}"
+    );
     let ew = LoadOptions {
         resample_ew: true,
         ..LoadOptions::default()
