@@ -315,16 +315,21 @@ fn layout(spec: &Path, opts: &LoadOptions) -> Result<Layout> {
             format!("a fill height of {h} m: it must be finite"),
         ));
     }
-    let (paths, _) = tile_paths(spec)?;
-    let mut metas = paths
-        .iter()
-        .map(|p| TileMeta::read(p))
-        .collect::<Result<Vec<_>>>()?;
-    let vrt = if extension(spec) == "vrt" {
+    // A VRT read once, its sources the tiles (read twice, a VRT edited between had more sources than
+    // tiles); a folder named `*.vrt` is a folder of tiles (it had been read as a VRT's file).
+    let vrt = if spec.is_file() && extension(spec) == "vrt" {
         Some(vrt::Vrt::read(spec)?)
     } else {
         None
     };
+    let paths = match &vrt {
+        Some(v) => v.sources.iter().map(|s| s.path.clone()).collect(),
+        None => tile_paths(spec)?.0,
+    };
+    let mut metas = paths
+        .iter()
+        .map(|p| TileMeta::read(p))
+        .collect::<Result<Vec<_>>>()?;
     if let Some(v) = &vrt {
         // Each source where the VRT puts it is where its own georeference does.
         for (i, m) in metas.iter().enumerate() {

@@ -639,3 +639,25 @@ fn non_finite_places_and_spacings_are_refused() {
     write_geotiff_as(&tiny.join("a.tif"), &step, None, 4326, false);
     refused(&tiny, "sample spacing");
 }
+
+/// A folder of tiles whose name ends in `.vrt` reads as a folder of tiles: it had been read as a VRT's
+/// file ("cannot read: Is a directory").
+#[test]
+fn a_folder_named_like_a_vrt_is_a_folder() {
+    let dir = temp_dir("vrt-folder");
+    let g = Grid {
+        w: 21,
+        h: 11,
+        z: (0..231).collect(),
+        west: 11.0,
+        north: 58.0,
+        step: 1.0 / 3600.0,
+    };
+    let folder = dir.join("tiles.vrt");
+    std::fs::create_dir_all(&folder).expect("create");
+    write_geotiff_tiles(&folder, &g, 11);
+    assert!(source::is_mosaic(&folder));
+    let (grid, got) = read_all(&folder, &LoadOptions::default());
+    assert_eq!((grid.width, grid.height), (21, 11));
+    assert_eq!(got, as_f32(&g));
+}
