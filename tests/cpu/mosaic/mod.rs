@@ -661,3 +661,38 @@ fn a_folder_named_like_a_vrt_is_a_folder() {
     assert_eq!((grid.width, grid.height), (21, 11));
     assert_eq!(got, as_f32(&g));
 }
+
+/// A list of tiles saved by Windows Notepad reads: its byte-order mark is no part of the first path (that
+/// tile had been missing, its name printed as if it were right), its lines end in CR LF; one saved as
+/// UTF-16 is refused saying it is not UTF-8.
+#[test]
+fn a_list_with_a_byte_order_mark_reads() {
+    let dir = temp_dir("bom");
+    let g = Grid {
+        w: 21,
+        h: 11,
+        z: (0..231).collect(),
+        west: 11.0,
+        north: 58.0,
+        step: 1.0 / 3600.0,
+    };
+    write_geotiff_tiles(&dir.join("tiles"), &g, 11);
+    let list = dir.join("tiles.txt");
+    std::fs::write(
+        &list,
+        "\u{feff}tiles/tile_0_0.tif\r\ntiles/tile_1_0.tif\r\n",
+    )
+    .expect("write");
+    let (_, got) = read_all(&list, &LoadOptions::default());
+    assert_eq!(got, as_f32(&g));
+    let utf16: Vec<u8> = "\u{feff}tiles/tile_0_0.tif\r\n"
+        .encode_utf16()
+        .flat_map(u16::to_le_bytes)
+        .collect();
+    std::fs::write(&list, utf16).expect("write");
+    let e = source::open_rows(&list, &LoadOptions::default())
+        .err()
+        .expect("a UTF-16 list")
+        .to_string();
+    assert!(e.contains("not UTF-8") && e.contains("tiles.txt"), "{e}");
+}
