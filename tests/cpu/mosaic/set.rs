@@ -479,6 +479,9 @@ fn a_damaged_part_is_baked_again() {
         ("format", "2"),
         ("columns", "[0, 512, 512]"),
         ("rows", "[]"),
+        // The georef table's: imagery over the set is placed by it.
+        ("scale", "[0.0, 0.0]"),
+        ("corner", "[nan, 59.0]"),
     ] {
         let damaged = with(key, value);
         assert_ne!(damaged, text, "{key} is in the index");
