@@ -94,8 +94,14 @@ impl Vrt {
                     }
                 }
             }
-            if s.children().any(|c| c.has_tag_name("LUT")) {
-                return Err(bad("a source with a <LUT> maps its heights; a mosaic reads them as they are".into()));
+            // GDAL maps a ComplexSource's values through each of these (an exponent between SrcMin..SrcMax
+            // and DstMin..DstMax, a palette's component); a mosaic had read the raw values.
+            for tag in ["LUT", "Exponent", "ColorTableComponent"] {
+                if s.children().any(|c| c.has_tag_name(tag)) {
+                    return Err(bad(format!(
+                        "a source with a <{tag}> maps its heights; a mosaic reads them as they are"
+                    )));
+                }
             }
             let file = s
                 .children()

@@ -571,6 +571,25 @@ fn a_gdal_vrt_reads_as_its_tiles() {
             "resamples",
         ),
         ("broken.vrt", text[..text.len() / 2].to_string(), "not XML"),
+        // Values GDAL maps (it had read them raw).
+        (
+            "exponent.vrt",
+            text.replacen(
+                "</ComplexSource>",
+                "<Exponent>2</Exponent></ComplexSource>",
+                1,
+            ),
+            "<Exponent> maps its heights",
+        ),
+        (
+            "palette.vrt",
+            text.replacen(
+                "</ComplexSource>",
+                "<ColorTableComponent>1</ColorTableComponent></ComplexSource>",
+                1,
+            ),
+            "<ColorTableComponent> maps its heights",
+        ),
     ];
     for (name, body, needle) in edits {
         std::fs::write(dir.join(name), body).expect("write");
