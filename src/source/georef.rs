@@ -93,6 +93,10 @@ impl GeoRef {
     /// The georeference of the TIFF at `path`, or `None` for a file that is not a TIFF or has no
     /// ModelPixelScale and ModelTiepoint (a rotated or unusable one is `None` too).
     pub fn read(path: &Path) -> Option<Self> {
+        // Not a FIFO or device, which opening would wait on or read without end.
+        if !path.is_file() {
+            return None;
+        }
         let file = std::fs::File::open(path).ok()?;
         let mut dec = Decoder::new(BufReader::new(file)).ok()?;
         let size = dec.dimensions().ok()?;

@@ -414,6 +414,11 @@ fn check_scale(path: &Path, opts: &LoadOptions) -> Result<()> {
 /// The first (up to) 8 bytes of a file, for magic-number checks.
 fn read_magic(path: &Path) -> Result<Vec<u8>> {
     use std::io::Read;
+    // A FIFO (or device) is no terrain file: opening a FIFO waits for a writer without end.
+    let meta = std::fs::metadata(path).map_err(|e| Error::io(path, "cannot open", e))?;
+    if !meta.is_file() {
+        return Err(Error::format(path, "not a regular file"));
+    }
     let f = std::fs::File::open(path).map_err(|e| Error::io(path, "cannot open", e))?;
     let mut magic = Vec::with_capacity(8);
     f.take(8)
