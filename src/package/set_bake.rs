@@ -79,24 +79,34 @@ pub fn plan(spec: &Path, load: &LoadOptions, opts: &BakeOptions, dir: &Path) -> 
         .chain(&rows)
         .filter(|&&s| s > 0)
         .fold(0u32, |a, &b| gcd(a, b));
-    let (tile, k) = choose_tile(g, opts.tile, grid.width.min(grid.height)).ok_or_else(|| {
-        // One cell (every tile starts at the grid's first sample): it had said the tiles start every 0
-        // samples, where the grid is too small for the tile side.
-        let why = if g == 0 {
-            format!(
+    let side = grid.width.min(grid.height);
+    let (tile, k) = choose_tile(g, opts.tile, side).ok_or_else(|| {
+        // A grid too small for the tile side at any k is refused for it, whatever its tiles' starts: it
+        // had said they start every 0 samples (one cell), or every 32 samples, which no side divides
+        // (16 x 2 does).
+        let small = u64::from(opts.tile) << 3 >= u64::from(side);
+        let why = match (small, g) {
+            (true, 0) => format!(
                 "its tiles make one cell of {} x {} samples, too small for parts of {}-sample tiles (a \
                  side of more than {} samples): a package set needs a coarser level above its parts",
                 grid.width,
                 grid.height,
                 opts.tile,
                 u64::from(opts.tile) << 3
-            )
-        } else {
-            format!(
+            ),
+            (true, _) => format!(
+                "its grid of {} x {} samples is too small for parts of {}-sample tiles (a side of more \
+                 than {} samples): a package set needs a coarser level above its parts",
+                grid.width,
+                grid.height,
+                opts.tile,
+                u64::from(opts.tile) << 3
+            ),
+            _ => format!(
                 "its tiles start every {g} samples, which no tile side from {} to {} times 2^k (k from \
                  1 to {MAX_K}) divides: a package set needs cells a whole number of level-k tiles",
                 TILE_RANGE.0, TILE_RANGE.1
-            )
+            ),
         };
         Error::format(spec, format!("{why}; bake the mosaic into one package instead"))
     })?;

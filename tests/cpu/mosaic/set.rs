@@ -250,6 +250,27 @@ fn a_set_refuses_what_it_cannot_cut() {
         err.contains("one cell of 102 x 102 samples") && !err.contains("every 0 samples"),
         "{err}"
     );
+    // Tiles every 32 samples on a grid too small for 16-sample tiles: refused for its size, not as if
+    // no side divided 32.
+    let small = src.crop(0, 0, 65, 65).placed(11.0, 58.0, 1.0 / 3600.0);
+    std::fs::create_dir_all(dir.join("small")).expect("create");
+    write_geotiff_tiles(&dir.join("small"), &small, 33);
+    let sixteen = BakeOptions {
+        tile: 16,
+        ..BakeOptions::default()
+    };
+    let err = set_bake::plan(
+        &dir.join("small"),
+        &LoadOptions::default(),
+        &sixteen,
+        &dir.join("set"),
+    )
+    .expect_err("a grid of 65 samples")
+    .to_string();
+    assert!(
+        err.contains("grid of 65 x 65 samples is too small"),
+        "{err}"
+    );
     let ew = LoadOptions {
         resample_ew: true,
         ..LoadOptions::default()
