@@ -473,9 +473,11 @@ impl ImageryPackage {
     pub fn is_imagery_package(path: &Path) -> bool {
         use std::io::Read as _;
         let mut magic = [0u8; 8];
-        std::fs::File::open(path)
-            .and_then(|mut f| f.read_exact(&mut magic))
-            .is_ok()
+        // Not a FIFO or device, which opening would wait on or read without end.
+        path.is_file()
+            && std::fs::File::open(path)
+                .and_then(|mut f| f.read_exact(&mut magic))
+                .is_ok()
             && &magic == MAGIC
     }
 

@@ -89,7 +89,9 @@ pub fn is_package(path: &Path) -> bool {
     }
     use std::io::Read;
     let mut magic = [0u8; 8];
-    std::fs::File::open(path)
+    // Not a FIFO or device, which opening would wait on or read without end.
+    path.is_file()
+        && std::fs::File::open(path)
         .and_then(|mut f| f.read_exact(&mut magic))
         .is_ok_and(|()| magic == super::format::MAGIC)
 }
@@ -117,6 +119,10 @@ impl Package {
                 tables: None,
                 set: Some(Box::new(parts)),
             });
+        }
+        // A folder, a FIFO or a device is no package: mapping one fails obscurely, opening a FIFO waits.
+        if !std::fs::metadata(path).map_err(|e| Error::io(path, "cannot open", e))?.is_file() {
+            return Err(Error::format(path, "not a clipsat package: not a regular file"));
         }
         let file = std::fs::File::open(path).map_err(|e| Error::io(path, "cannot open", e))?;
         let len = file
@@ -532,7 +538,18 @@ impl Parts {
                 )));
             }
         }
-        let top = Package::open(&dir.join(&index.top))?;
+        // A part or the top that names a set (this index, its folder) would open the set again, without
+        // end: each is one package file.
+        let file = |name: &str, what: &str| {
+            let path = dir.join(name);
+            if super::set::is_set(&path) {
+                return Err(bad(format!(
+                    "its {what} `{name}` is a package set's index or folder, not a package file"
+                )));
+            }
+            Ok(path)
+        };
+        let top = Package::open(&file(&index.top, "top")?)?;
         let kd = sizes[k + 1];
         let th = top.header();
         if (th.width, th.height) != kd
@@ -562,7 +579,7 @@ impl Parts {
         for (n, entry) in index.parts.iter().enumerate() {
             let (i, j) = (n % index.columns.len(), n / index.columns.len());
             let (x0, y0, x1, y1) = index.cell(i, j);
-            let p = Package::open_with(&dir.join(&entry.file), false)?;
+            let p = Package::open_with(&file(&entry.file, "part")?, false)?;
             let h = p.header();
             if (h.width, h.height) != (x1 - x0 + 1, y1 - y0 + 1)
                 || h.part != index.part_levels

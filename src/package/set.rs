@@ -122,6 +122,13 @@ impl Index {
                 index.quantum
             )));
         }
+        // Imagery over the set is placed by it: a scale of 0 had been refused as the imagery extent
+        // option's, which was never given.
+        if index.georef.as_ref().is_some_and(|g| !g.usable()) {
+            return Err(bad(
+                "georef has a corner or pixel size that is not finite, or a size of 0".into(),
+            ));
+        }
         if !(index.max_error.is_finite() && index.max_error >= 0.0) {
             return Err(bad(format!(
                 "error bound {} is not finite and at least 0",

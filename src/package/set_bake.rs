@@ -79,16 +79,36 @@ pub fn plan(spec: &Path, load: &LoadOptions, opts: &BakeOptions, dir: &Path) -> 
         .chain(&rows)
         .filter(|&&s| s > 0)
         .fold(0u32, |a, &b| gcd(a, b));
-    let (tile, k) = choose_tile(g, opts.tile, grid.width.min(grid.height)).ok_or_else(|| {
-        Error::format(
-            spec,
-            format!(
+    let side = grid.width.min(grid.height);
+    let (tile, k) = choose_tile(g, opts.tile, side).ok_or_else(|| {
+        // A grid too small for the tile side at any k is refused for it, whatever its tiles' starts: it
+        // had said they start every 0 samples (one cell), or every 32 samples, which no side divides
+        // (16 x 2 does).
+        let small = u64::from(opts.tile) << 3 >= u64::from(side);
+        let why = match (small, g) {
+            (true, 0) => format!(
+                "its tiles make one cell of {} x {} samples, too small for parts of {}-sample tiles (a \
+                 side of more than {} samples): a package set needs a coarser level above its parts",
+                grid.width,
+                grid.height,
+                opts.tile,
+                u64::from(opts.tile) << 3
+            ),
+            (true, _) => format!(
+                "its grid of {} x {} samples is too small for parts of {}-sample tiles (a side of more \
+                 than {} samples): a package set needs a coarser level above its parts",
+                grid.width,
+                grid.height,
+                opts.tile,
+                u64::from(opts.tile) << 3
+            ),
+            _ => format!(
                 "its tiles start every {g} samples, which no tile side from {} to {} times 2^k (k from \
-                 1 to {MAX_K}) divides: a package set needs cells a whole number of level-k tiles; \
-                 bake the mosaic into one package instead",
+                 1 to {MAX_K}) divides: a package set needs cells a whole number of level-k tiles",
                 TILE_RANGE.0, TILE_RANGE.1
             ),
-        )
+        };
+        Error::format(spec, format!("{why}; bake the mosaic into one package instead"))
     })?;
     let mut index = Index {
         format: INDEX_FORMAT,
@@ -328,9 +348,20 @@ impl SetPlan {
 
     /// Whether cell `n`'s part is there (a bake writes it whole or not at all, under a name that holds
     /// its key). Opened, not only its first bytes read: a part cut short or with a damaged header (a
-    /// disk full, a copy stopped) is baked again rather than failing every bake after by name.
+    /// disk full, a copy stopped) is baked again rather than failing every bake after by name. Matched
+    /// to its cell as the set's reader matches it: another package under its name (a copy gone wrong)
+    /// had stood, and the top was made from it past the level's end (a panic) or from the wrong
+    /// samples, a set that every bake after kept and no reader opened.
     pub fn part_stands(&self, n: usize) -> bool {
-        Package::open(&self.part_path(n)).is_ok()
+        let (Ok(p), Some(c)) = (Package::open(&self.part_path(n)), self.cells.get(n)) else {
+            return false;
+        };
+        let h = p.header();
+        (h.width, h.height) == (c[2] - c[0] + 1, c[3] - c[1] + 1)
+            && h.part == self.index.part_levels
+            && h.tile == self.index.tile
+            && h.codec == self.opts.codec
+            && h.quantum.to_bits() == self.index.quantum.to_bits()
     }
 }
 
@@ -481,6 +512,13 @@ pub fn finish(plan: &mut SetPlan, progress: Progress<'_>) -> Result<(u64, usize)
             let own_w = if i + 1 < nc { pw - 1 } else { pw };
             let own_h = if j + 1 < nr { ph - 1 } else { ph };
             let (x0, y0) = ((cell[0] >> k) as usize, (cell[1] >> k) as usize);
+            // Checked when it stood (`part_stands`); a part changed since is refused, not read past.
+            if x0 + own_w > w || y0 + own_h > h || units.len() < pw * ph {
+                return Err(Error::format(
+                    part.path(),
+                    format!("not cell {n}'s part: its level {k} is {pw} x {ph} samples; bake it again"),
+                ));
+            }
             for y in 0..own_h {
                 for x in 0..own_w {
                     heights[(y0 + y) * w + x0 + x] = part.metres(units[y * pw + x]);

@@ -53,6 +53,10 @@ pub fn set_index(path: &Path) -> Option<std::path::PathBuf> {
     };
     use std::io::Read;
     let mut head = [0u8; SET_INDEX_MAGIC.len()];
+    // Not a FIFO or device, which opening would wait on or read without end.
+    if !file.is_file() {
+        return None;
+    }
     std::fs::File::open(&file)
         .and_then(|mut f| f.read_exact(&mut head))
         .is_ok_and(|()| head == SET_INDEX_MAGIC.as_bytes())
@@ -60,18 +64,39 @@ pub fn set_index(path: &Path) -> Option<std::path::PathBuf> {
 }
 
 impl GeoRef {
-    /// The georeference a package set's index keeps (`None` where its tiles had none).
+    /// The georeference a package set's index keeps (`None` where its tiles had none, or where it is not
+    /// [`GeoRef::usable`]: a damaged index).
     pub fn of_set(path: &Path) -> Option<Self> {
         #[derive(serde::Deserialize)]
         struct Only {
             georef: Option<GeoRef>,
         }
         let text = std::fs::read_to_string(set_index(path)?).ok()?;
-        toml::from_str::<Only>(&text).ok()?.georef
+        toml::from_str::<Only>(&text)
+            .ok()?
+            .georef
+            .filter(Self::usable)
+    }
+
+    /// Whether imagery can be placed by it: a finite corner, finite and positive pixel sizes, pixels.
+    pub fn usable(&self) -> bool {
+        let (sx, sy) = self.scale;
+        sx.is_finite()
+            && sy.is_finite()
+            && sx > 0.0
+            && sy > 0.0
+            && self.corner.0.is_finite()
+            && self.corner.1.is_finite()
+            && self.size.0 > 0
+            && self.size.1 > 0
     }
     /// The georeference of the TIFF at `path`, or `None` for a file that is not a TIFF or has no
     /// ModelPixelScale and ModelTiepoint (a rotated or unusable one is `None` too).
     pub fn read(path: &Path) -> Option<Self> {
+        // Not a FIFO or device, which opening would wait on or read without end.
+        if !path.is_file() {
+            return None;
+        }
         let file = std::fs::File::open(path).ok()?;
         let mut dec = Decoder::new(BufReader::new(file)).ok()?;
         let size = dec.dimensions().ok()?;

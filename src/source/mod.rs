@@ -335,6 +335,17 @@ fn geotiff_extent(path: &Path) -> Option<GeoExtent> {
 pub fn open_rows(path: &Path, opts: &LoadOptions) -> Result<Box<dyn RowSource>> {
     check_scale(path, opts)?;
     let rows = open_format_rows(path, opts)?;
+    // As `Heightmap::new` refuses it for a load: a georeference of steps too small or too large for an
+    // f32 of metres (a tile's 1e-300 degrees) had streamed on to a package header that was refused
+    // naming the bake's temporary file.
+    for spacing in [rows.grid().spacing, rows.grid().ew_spacing] {
+        if !(spacing.is_finite() && spacing > 0.0) {
+            return Err(Error::format(
+                path,
+                format!("sample spacing {spacing} m: must be finite and positive"),
+            ));
+        }
+    }
     if !opts.resample_ew {
         return Ok(rows);
     }
@@ -403,6 +414,11 @@ fn check_scale(path: &Path, opts: &LoadOptions) -> Result<()> {
 /// The first (up to) 8 bytes of a file, for magic-number checks.
 fn read_magic(path: &Path) -> Result<Vec<u8>> {
     use std::io::Read;
+    // A FIFO (or device) is no terrain file: opening a FIFO waits for a writer without end.
+    let meta = std::fs::metadata(path).map_err(|e| Error::io(path, "cannot open", e))?;
+    if !meta.is_file() {
+        return Err(Error::format(path, "not a regular file"));
+    }
     let f = std::fs::File::open(path).map_err(|e| Error::io(path, "cannot open", e))?;
     let mut magic = Vec::with_capacity(8);
     f.take(8)

@@ -522,3 +522,63 @@ fn plot_projection_needs_a_terrain_in_degrees() {
     let bytes = std::fs::read(&png).expect("the plot is written");
     assert!(bytes.starts_with(b"\x89PNG"));
 }
+
+/// A FIFO given as a terrain (whatever its extension) or as imagery is refused as not a regular file:
+/// the format sniffers opened it, which waits for a writer, and the command hung.
+#[cfg(unix)]
+#[test]
+fn a_fifo_is_refused_not_waited_on() {
+    let dir = scratch("fifo");
+    let tiles = dir.join("tiles");
+    std::fs::create_dir_all(&tiles).expect("create");
+    let hm = generate(&ProceduralParams {
+        size: 65,
+        ..ProceduralParams::default()
+    })
+    .expect("terrain");
+    let heights = dir.join("heights.f32");
+    let bytes: Vec<u8> = hm.heights().iter().flat_map(|v| v.to_le_bytes()).collect();
+    std::fs::write(&heights, bytes).expect("write heights");
+    let h = heights.to_string_lossy().to_string();
+    for name in ["fifo.hgt", "fifo.tif", "fifo.clipsat", "fifo.png"] {
+        let fifo = dir.join(name);
+        let _ = std::fs::remove_file(&fifo);
+        let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+        if !made.is_ok_and(|s| s.success()) {
+            return;
+        }
+        let f = fifo.to_string_lossy().to_string();
+        let runs: [Vec<String>; 2] = [
+            vec!["info".into(), "--terrain".into(), f.clone()],
+            [
+                "bake",
+                "--terrain",
+                &h,
+                "--raw-size",
+                "65x65",
+                "--raw-format",
+                "f32",
+                "--imagery",
+                &f,
+                "--out",
+            ]
+            .iter()
+            .map(ToString::to_string)
+            .chain([dir.join("out.clipsat").to_string_lossy().to_string()])
+            .collect(),
+        ];
+        for args in runs {
+            // On a thread, so that a wait is a failure rather than a hang.
+            let (tx, rx) = std::sync::mpsc::channel();
+            let a = args.clone();
+            std::thread::spawn(move || {
+                let a: Vec<&str> = a.iter().map(String::as_str).collect();
+                let _ = tx.send(clipsat(&a));
+            });
+            let out = rx
+                .recv_timeout(std::time::Duration::from_secs(60))
+                .unwrap_or_else(|_| panic!("{args:?}: still running after 60 s"));
+            assert_refused(&out, "not a regular file", &format!("{args:?}"));
+        }
+    }
+}

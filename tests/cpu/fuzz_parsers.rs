@@ -1,6 +1,7 @@
 //! Fuzzing in `cargo test`: every parser (PNG, GeoTIFF, .hgt, ASCII grid, raw, profile TOML, scene TOML,
-//! terrain package, imagery PNG/JPEG, imagery package) runs its committed corpus, then random mutations of it for [`DEFAULT_SECS`] seconds
-//! per target (about 4 s of wall time for the file on 2 cores). No input may panic; a crash writes its input to
+//! terrain package, imagery PNG/JPEG, imagery package, a tile mosaic's list and GDAL VRT) runs its
+//! committed corpus, then random mutations of it for [`DEFAULT_SECS`] seconds per target (about 4 s of
+//! wall time for the file on 2 cores). No input may panic; a crash writes its input to
 //! `tests/fuzz/artifacts/TARGET/` and fails. The targets are the cargo-fuzz targets' bodies
 //! (`tests/fuzz/fuzz_targets/targets.rs`); the driver is `tests/fuzz/harness.rs`.
 //!
@@ -95,8 +96,18 @@ fuzz_tests!(
     parse_scene,
     load_package,
     load_imagery,
-    load_imagery_package
+    load_imagery_package,
+    load_mosaic
 );
+
+/// The tile mosaic's seeds, a list and a VRT of its two tiles, read: mutations start from a mosaic.
+#[test]
+fn mosaic_seeds_read() {
+    for (path, seed) in harness::corpus("load_mosaic") {
+        let out = targets::load_mosaic(&seed);
+        assert!(out.starts_with("ok"), "{}: {out}", path.display());
+    }
+}
 
 /// Every target has a corpus folder and a test above (a new target cannot be left out of the run).
 #[test]

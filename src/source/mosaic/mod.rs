@@ -76,7 +76,16 @@ pub(crate) fn tile_paths(spec: &Path) -> Result<(Vec<PathBuf>, Option<PathBuf>)>
         return Ok((tiles, None));
     }
     if spec.is_file() {
-        let text = std::fs::read_to_string(spec).map_err(|e| Error::io(spec, "cannot read", e))?;
+        let bytes = std::fs::read(spec).map_err(|e| Error::io(spec, "cannot read", e))?;
+        let text = String::from_utf8(bytes).map_err(|_| {
+            Error::format(
+                spec,
+                "a list of tiles that is not UTF-8 text (one path a line): save it as UTF-8",
+            )
+        })?;
+        // The byte-order mark a list saved by Windows Notepad starts with is no part of its first path
+        // (that tile had been missing, its name printed as if it were right).
+        let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
         let base = spec.parent().unwrap_or(Path::new(""));
         for line in text.lines().map(str::trim) {
             if !line.is_empty() && !line.starts_with('#') {
@@ -315,16 +324,21 @@ fn layout(spec: &Path, opts: &LoadOptions) -> Result<Layout> {
             format!("a fill height of {h} m: it must be finite"),
         ));
     }
-    let (paths, _) = tile_paths(spec)?;
-    let mut metas = paths
-        .iter()
-        .map(|p| TileMeta::read(p))
-        .collect::<Result<Vec<_>>>()?;
-    let vrt = if extension(spec) == "vrt" {
+    // A VRT read once, its sources the tiles (read twice, a VRT edited between had more sources than
+    // tiles); a folder named `*.vrt` is a folder of tiles (it had been read as a VRT's file).
+    let vrt = if spec.is_file() && extension(spec) == "vrt" {
         Some(vrt::Vrt::read(spec)?)
     } else {
         None
     };
+    let paths = match &vrt {
+        Some(v) => v.sources.iter().map(|s| s.path.clone()).collect(),
+        None => tile_paths(spec)?.0,
+    };
+    let mut metas = paths
+        .iter()
+        .map(|p| TileMeta::read(p))
+        .collect::<Result<Vec<_>>>()?;
     if let Some(v) = &vrt {
         // Each source where the VRT puts it is where its own georeference does.
         for (i, m) in metas.iter().enumerate() {

@@ -46,10 +46,15 @@ impl Vrt {
         }
         let transform = child_text(root, "GeoTransform")
             .ok_or_else(|| bad("no <GeoTransform>: a mosaic is placed by it".into()))?;
-        let numbers: Vec<f64> = transform.split(',').filter_map(|v| v.trim().parse().ok()).collect();
-        let transform: [f64; 6] = numbers
-            .try_into()
-            .map_err(|_| bad(format!("<GeoTransform> `{}` is not six numbers", transform.trim())))?;
+        // Finite: a NaN compares false with every bound, and had passed every check on the VRT's place.
+        let numbers: Vec<f64> = transform
+            .split(',')
+            .filter_map(|v| v.trim().parse().ok())
+            .filter(|v: &f64| v.is_finite())
+            .collect();
+        let transform: [f64; 6] = numbers.try_into().map_err(|_| {
+            bad(format!("<GeoTransform> `{}` is not six finite numbers", transform.trim()))
+        })?;
         if transform[2] != 0.0 || transform[4] != 0.0 || transform[1] <= 0.0 || transform[5] >= 0.0 {
             return Err(bad(format!(
                 "<GeoTransform> {transform:?} is rotated or not north up"
@@ -89,8 +94,14 @@ impl Vrt {
                     }
                 }
             }
-            if s.children().any(|c| c.has_tag_name("LUT")) {
-                return Err(bad("a source with a <LUT> maps its heights; a mosaic reads them as they are".into()));
+            // GDAL maps a ComplexSource's values through each of these (an exponent between SrcMin..SrcMax
+            // and DstMin..DstMax, a palette's component); a mosaic had read the raw values.
+            for tag in ["LUT", "Exponent", "ColorTableComponent"] {
+                if s.children().any(|c| c.has_tag_name(tag)) {
+                    return Err(bad(format!(
+                        "a source with a <{tag}> maps its heights; a mosaic reads them as they are"
+                    )));
+                }
             }
             let file = s
                 .children()
@@ -112,8 +123,16 @@ impl Vrt {
                     return Err(bad(format!("source `{name}` reads band {}: a DEM tile's is 1", b.trim())));
                 }
             }
-            let dst = rect(s, "DstRect").ok_or_else(|| bad(format!("source `{name}` has no <DstRect>")))?;
-            if let Some(src) = rect(s, "SrcRect") {
+            let dst = rect(s, "DstRect").ok_or_else(|| {
+                bad(format!("source `{name}` has no <DstRect> of four finite numbers"))
+            })?;
+            let src = rect(s, "SrcRect");
+            if src.is_none() && s.children().any(|c| c.has_tag_name("SrcRect")) {
+                return Err(bad(format!(
+                    "source `{name}` has a <SrcRect> that is not four finite numbers"
+                )));
+            }
+            if let Some(src) = src {
                 if src[0] != 0.0 || src[1] != 0.0 {
                     return Err(bad(format!(
                         "source `{name}` is cropped (SrcRect from {}, {}): a mosaic reads whole tiles",
@@ -199,12 +218,12 @@ fn child_text<'a>(node: roxmltree::Node<'a, '_>, tag: &str) -> Option<&'a str> {
     node.children().find(|c| c.has_tag_name(tag)).and_then(|c| c.text())
 }
 
-/// A `<SrcRect>` or `<DstRect>`: xOff, yOff, xSize, ySize.
+/// A `<SrcRect>` or `<DstRect>`: xOff, yOff, xSize, ySize, each finite.
 fn rect(node: roxmltree::Node<'_, '_>, tag: &str) -> Option<[f64; 4]> {
     let r = node.children().find(|c| c.has_tag_name(tag))?;
     let mut out = [0.0; 4];
     for (v, name) in out.iter_mut().zip(["xOff", "yOff", "xSize", "ySize"]) {
-        *v = r.attribute(name)?.parse().ok()?;
+        *v = r.attribute(name)?.parse().ok().filter(|v: &f64| v.is_finite())?;
     }
     Some(out)
 }

@@ -571,9 +571,147 @@ fn a_gdal_vrt_reads_as_its_tiles() {
             "resamples",
         ),
         ("broken.vrt", text[..text.len() / 2].to_string(), "not XML"),
+        // Values GDAL maps (it had read them raw).
+        (
+            "exponent.vrt",
+            text.replacen(
+                "</ComplexSource>",
+                "<Exponent>2</Exponent></ComplexSource>",
+                1,
+            ),
+            "<Exponent> maps its heights",
+        ),
+        (
+            "palette.vrt",
+            text.replacen(
+                "</ComplexSource>",
+                "<ColorTableComponent>1</ColorTableComponent></ComplexSource>",
+                1,
+            ),
+            "<ColorTableComponent> maps its heights",
+        ),
     ];
     for (name, body, needle) in edits {
         std::fs::write(dir.join(name), body).expect("write");
         refused(name, needle);
     }
+}
+
+/// A VRT whose `GeoTransform` or `DstRect` holds NaN, and tiles whose steps are too small for metres in
+/// an f32, are refused naming the file: a NaN compared false with every bound and passed the checks on
+/// where the VRT puts its tiles, and a mosaic of steps of 1e-300 degrees streamed with a spacing of 0 m.
+#[test]
+fn non_finite_places_and_spacings_are_refused() {
+    let dir = temp_dir("non-finite");
+    let g = Grid {
+        w: 11,
+        h: 11,
+        z: (0..121).collect(),
+        west: 11.0,
+        north: 58.0,
+        step: 1.0 / 3600.0,
+    };
+    write_geotiff_as(&dir.join("tiles/a.tif"), &g, None, 4326, false);
+    let refused = |path: &Path, needle: &str| {
+        let e = source::open_rows(path, &LoadOptions::default())
+            .err()
+            .unwrap_or_else(|| panic!("{}: accepted", path.display()));
+        let e = e.to_string();
+        assert!(
+            e.contains(needle) && e.contains(&path.display().to_string()),
+            "{}: {e}",
+            path.display()
+        );
+    };
+    let tile = [("tiles/a.tif", 0, 0, 11)];
+    let vrt = dir.join("a.vrt");
+    write_vrt(&vrt, &g, &tile, "");
+    read_all(&vrt, &LoadOptions::default());
+    let nan = Grid {
+        step: f64::NAN,
+        ..g.clone()
+    };
+    write_vrt(&dir.join("nan.vrt"), &nan, &tile, "");
+    refused(&dir.join("nan.vrt"), "six finite numbers");
+    let text = std::fs::read_to_string(&vrt).expect("read");
+    for (name, from, to, needle) in [
+        (
+            "dst.vrt",
+            "DstRect xOff=\"0\"",
+            "DstRect xOff=\"nan\"",
+            "<DstRect>",
+        ),
+        (
+            "src.vrt",
+            "SrcRect xOff=\"0\"",
+            "SrcRect xOff=\"nan\"",
+            "<SrcRect>",
+        ),
+    ] {
+        std::fs::write(dir.join(name), text.replacen(from, to, 1)).expect("write");
+        refused(&dir.join(name), needle);
+    }
+
+    let tiny = dir.join("tiny");
+    std::fs::create_dir_all(&tiny).expect("create");
+    let step = Grid { step: 1e-300, ..g };
+    write_geotiff_as(&tiny.join("a.tif"), &step, None, 4326, false);
+    refused(&tiny, "sample spacing");
+}
+
+/// A folder of tiles whose name ends in `.vrt` reads as a folder of tiles: it had been read as a VRT's
+/// file ("cannot read: Is a directory").
+#[test]
+fn a_folder_named_like_a_vrt_is_a_folder() {
+    let dir = temp_dir("vrt-folder");
+    let g = Grid {
+        w: 21,
+        h: 11,
+        z: (0..231).collect(),
+        west: 11.0,
+        north: 58.0,
+        step: 1.0 / 3600.0,
+    };
+    let folder = dir.join("tiles.vrt");
+    std::fs::create_dir_all(&folder).expect("create");
+    write_geotiff_tiles(&folder, &g, 11);
+    assert!(source::is_mosaic(&folder));
+    let (grid, got) = read_all(&folder, &LoadOptions::default());
+    assert_eq!((grid.width, grid.height), (21, 11));
+    assert_eq!(got, as_f32(&g));
+}
+
+/// A list of tiles saved by Windows Notepad reads: its byte-order mark is no part of the first path (that
+/// tile had been missing, its name printed as if it were right), its lines end in CR LF; one saved as
+/// UTF-16 is refused saying it is not UTF-8.
+#[test]
+fn a_list_with_a_byte_order_mark_reads() {
+    let dir = temp_dir("bom");
+    let g = Grid {
+        w: 21,
+        h: 11,
+        z: (0..231).collect(),
+        west: 11.0,
+        north: 58.0,
+        step: 1.0 / 3600.0,
+    };
+    write_geotiff_tiles(&dir.join("tiles"), &g, 11);
+    let list = dir.join("tiles.txt");
+    std::fs::write(
+        &list,
+        "\u{feff}tiles/tile_0_0.tif\r\ntiles/tile_1_0.tif\r\n",
+    )
+    .expect("write");
+    let (_, got) = read_all(&list, &LoadOptions::default());
+    assert_eq!(got, as_f32(&g));
+    let utf16: Vec<u8> = "\u{feff}tiles/tile_0_0.tif\r\n"
+        .encode_utf16()
+        .flat_map(u16::to_le_bytes)
+        .collect();
+    std::fs::write(&list, utf16).expect("write");
+    let e = source::open_rows(&list, &LoadOptions::default())
+        .err()
+        .expect("a UTF-16 list")
+        .to_string();
+    assert!(e.contains("not UTF-8") && e.contains("tiles.txt"), "{e}");
 }

@@ -235,6 +235,42 @@ fn a_set_refuses_what_it_cannot_cut() {
     .expect_err("tiles every 101 samples")
     .to_string();
     assert!(err.contains("bake the mosaic into one package"), "{err}");
+    // One tile is one cell, too small for the tile side: it had said the tiles start every 0 samples.
+    let one = dir.join("one.txt");
+    std::fs::write(&one, "tiles/tile_0_0.tif\n").expect("write a list");
+    let err = set_bake::plan(
+        &one,
+        &LoadOptions::default(),
+        &BakeOptions::default(),
+        &dir.join("set"),
+    )
+    .expect_err("one small cell")
+    .to_string();
+    assert!(
+        err.contains("one cell of 102 x 102 samples") && !err.contains("every 0 samples"),
+        "{err}"
+    );
+    // Tiles every 32 samples on a grid too small for 16-sample tiles: refused for its size, not as if
+    // no side divided 32.
+    let small = src.crop(0, 0, 65, 65).placed(11.0, 58.0, 1.0 / 3600.0);
+    std::fs::create_dir_all(dir.join("small")).expect("create");
+    write_geotiff_tiles(&dir.join("small"), &small, 33);
+    let sixteen = BakeOptions {
+        tile: 16,
+        ..BakeOptions::default()
+    };
+    let err = set_bake::plan(
+        &dir.join("small"),
+        &LoadOptions::default(),
+        &sixteen,
+        &dir.join("set"),
+    )
+    .expect_err("a grid of 65 samples")
+    .to_string();
+    assert!(
+        err.contains("grid of 65 x 65 samples is too small"),
+        "{err}"
+    );
     let ew = LoadOptions {
         resample_ew: true,
         ..LoadOptions::default()
@@ -464,6 +500,9 @@ fn a_damaged_part_is_baked_again() {
         ("format", "2"),
         ("columns", "[0, 512, 512]"),
         ("rows", "[]"),
+        // The georef table's: imagery over the set is placed by it.
+        ("scale", "[0.0, 0.0]"),
+        ("corner", "[nan, 59.0]"),
     ] {
         let damaged = with(key, value);
         assert_ne!(damaged, text, "{key} is in the index");
@@ -481,5 +520,112 @@ fn a_damaged_part_is_baked_again() {
         assert!(Package::open(&set).is_err(), "the index cut at {cut}");
     }
     std::fs::write(&index, &text).expect("the index again");
+    assert!(Package::open(&set).is_ok());
+}
+
+/// An index whose top or part names a set (its own index, its folder) or a file that is no package (a
+/// folder, a FIFO) is an error that names it: the set had opened itself again until the stack
+/// overflowed, a folder failed as "cannot map: No such device", and a FIFO waited for a writer forever.
+#[test]
+fn a_set_index_names_only_package_files() {
+    let Some((dir, _, _)) = coast_tiles("set-names") else {
+        return;
+    };
+    let set = dir.join("set");
+    set_bake::bake_set(
+        &dir.join("tiles"),
+        &LoadOptions::default(),
+        &BakeOptions::default(),
+        &set,
+        Default::default(),
+    )
+    .expect("bake the set");
+    let index = set.join(package::set::INDEX_NAME);
+    let text = std::fs::read_to_string(&index).expect("the index");
+    let top = text
+        .lines()
+        .find(|l| l.starts_with("top = "))
+        .expect("a top")
+        .to_string();
+    let part = text
+        .lines()
+        .find(|l| l.starts_with("file = "))
+        .expect("a part")
+        .to_string();
+    std::fs::create_dir_all(set.join("folder")).expect("a folder");
+    let fifo = set.join("fifo.clipsat");
+    #[cfg(unix)]
+    let _ = std::process::Command::new("mkfifo").arg(&fifo).status();
+    let names = [package::set::INDEX_NAME, "", ".", "../set", "folder"];
+    let fifo_name = fifo.exists().then_some("fifo.clipsat");
+    for name in names.into_iter().chain(fifo_name) {
+        for (line, key) in [(&top, "top"), (&part, "file")] {
+            let damaged = text.replacen(line.as_str(), &format!("{key} = \"{name}\""), 1);
+            std::fs::write(&index, &damaged).expect("damage the index");
+            // On a thread, so that a wait is a failure rather than a hang.
+            let (tx, rx) = std::sync::mpsc::channel();
+            let at = set.clone();
+            std::thread::spawn(move || tx.send(Package::open(&at).map(|_| ())));
+            let result = rx
+                .recv_timeout(std::time::Duration::from_secs(20))
+                .unwrap_or_else(|_| panic!("{key} = {name:?}: still opening after 20 s"));
+            let err = result.expect_err(&format!("{key} = {name:?}")).to_string();
+            assert!(
+                err.contains(package::set::INDEX_NAME) || err.contains(name),
+                "{key} = {name:?}: {err}"
+            );
+        }
+    }
+    std::fs::write(&index, &text).expect("the index again");
+    assert!(Package::open(&set).is_ok());
+}
+
+/// A package that is not its cell's part, under the part's name (a copy gone wrong), is baked again: it
+/// had stood, and the top was made from it past the end of its level (a panic, "index out of bounds")
+/// or from the wrong samples, a set that every bake after kept and no reader opened.
+#[test]
+fn a_part_that_is_not_its_cells_is_baked_again() {
+    let Some((dir, _, _)) = coast_tiles("set-foreign") else {
+        return;
+    };
+    let tiles = dir.join("tiles");
+    let set = dir.join("set");
+    let bake = || {
+        set_bake::bake_set(
+            &tiles,
+            &LoadOptions::default(),
+            &BakeOptions::default(),
+            &set,
+            Default::default(),
+        )
+        .expect("bake the set")
+    };
+    bake();
+    let whole = files(&set);
+    let plan = set_bake::plan(
+        &tiles,
+        &LoadOptions::default(),
+        &BakeOptions::default(),
+        &set,
+    )
+    .expect("plan");
+    // The whole mosaic's package in the south-east cell's place, and no top yet.
+    let hm = source::load(&tiles, &LoadOptions::default()).expect("load the mosaic");
+    let last = plan.cells.len() - 1;
+    package::bake(
+        &hm,
+        &plan.part_path(last),
+        &BakeOptions::default(),
+        Default::default(),
+    )
+    .expect("bake the whole mosaic");
+    for (name, _) in &whole {
+        if name.starts_with("top-") {
+            std::fs::remove_file(set.join(name)).expect("remove the top");
+        }
+    }
+    let again = bake();
+    assert_eq!(again.baked, 1, "the cell baked again");
+    assert!(files(&set) == whole, "the set as it was");
     assert!(Package::open(&set).is_ok());
 }

@@ -12,7 +12,7 @@ use clipsat::source::{self, LoadOptions, PngEncoding, RawFormat, RawLayout};
 pub(crate) type Target = fn(&[u8]) -> String;
 
 /// Every target, by name, with its body. Names match the cargo-fuzz binaries and the corpus folders.
-pub(crate) const TARGETS: [(&str, Target); 14] = [
+pub(crate) const TARGETS: [(&str, Target); 15] = [
     ("load_png", load_png),
     ("load_tiff", load_tiff),
     ("load_hgt", load_hgt),
@@ -27,6 +27,7 @@ pub(crate) const TARGETS: [(&str, Target); 14] = [
     ("load_package", load_package),
     ("load_imagery", load_imagery),
     ("load_imagery_package", load_imagery_package),
+    ("load_mosaic", load_mosaic),
 ];
 
 /// The outcome of a result: "ok" plus `ok`'s text, or the error's kind: its first few plain words, with
@@ -360,4 +361,80 @@ pub(crate) fn load_imagery_package(data: &[u8]) -> String {
             Ok(decoded)
         });
     outcome(r, |n| format!("{}", *n > 0))
+}
+
+/// A tile mosaic's list of tiles (`.txt`, odd length) or GDAL VRT (`.vrt`, even length), beside the two
+/// tiles it may name, `a.tif` and `b.tif` (4 x 4 GeoTIFF samples at 1", sharing a column), loaded whole.
+pub(crate) fn load_mosaic(data: &[u8]) -> String {
+    let dir = scratch_dir().join("mosaic");
+    let _ = std::fs::create_dir_all(&dir);
+    let step = 1.0 / 3600.0;
+    for (name, west) in [("a.tif", 11.0), ("b.tif", 11.0 + 3.0 * step)] {
+        if std::fs::write(dir.join(name), geotiff(4, 4, (west, 58.0), step)).is_err() {
+            return "cannot write".into();
+        }
+    }
+    let name = if data.len().is_multiple_of(2) {
+        "x.vrt"
+    } else {
+        "x.txt"
+    };
+    let path = dir.join(name);
+    if std::fs::write(&path, data).is_err() {
+        return "cannot write".into();
+    }
+    let r = source::load(&path, &small());
+    for file in ["x.vrt", "x.txt", "a.tif", "b.tif"] {
+        let _ = std::fs::remove_file(dir.join(file));
+    }
+    let _ = std::fs::remove_dir(&dir);
+    let _ = std::fs::remove_dir(scratch_dir());
+    outcome(r, |hm| format!("{}x{}", hm.width() > 2, hm.height() > 2))
+}
+
+/// A little-endian int16 GeoTIFF of `w` x `h` samples (w, h < 2^16), one strip: geographic (EPSG 4326),
+/// pixel-is-point, sample (0, 0) at `first` (longitude, latitude), `step` degrees apart.
+fn geotiff(w: u16, h: u16, first: (f64, f64), step: f64) -> Vec<u8> {
+    const ENTRIES: u16 = 13;
+    let data = 8 + 2 + 12 * u32::from(ENTRIES) + 4;
+    let (scale, tie, keys) = (data, data + 24, data + 72);
+    let strip = keys + 32;
+    // (tag, type: 3 SHORT, 4 LONG, 12 DOUBLE, count, value or offset)
+    let entries: [(u16, u16, u32, u32); ENTRIES as usize] = [
+        (256, 3, 1, u32::from(w)),
+        (257, 3, 1, u32::from(h)),
+        (258, 3, 1, 16),
+        (259, 3, 1, 1),
+        (262, 3, 1, 1),
+        (273, 4, 1, strip),
+        (277, 3, 1, 1),
+        (278, 3, 1, u32::from(h)),
+        (279, 4, 1, 2 * u32::from(w) * u32::from(h)),
+        (339, 3, 1, 2),
+        (33550, 12, 3, scale),
+        (33922, 12, 6, tie),
+        (34735, 3, 16, keys),
+    ];
+    let mut b = b"II*\0".to_vec();
+    b.extend_from_slice(&8u32.to_le_bytes());
+    b.extend_from_slice(&ENTRIES.to_le_bytes());
+    for (tag, kind, count, value) in entries {
+        b.extend_from_slice(&tag.to_le_bytes());
+        b.extend_from_slice(&kind.to_le_bytes());
+        b.extend_from_slice(&count.to_le_bytes());
+        b.extend_from_slice(&value.to_le_bytes());
+    }
+    b.extend_from_slice(&0u32.to_le_bytes());
+    for v in [step, step, 0.0, 0.0, 0.0, 0.0, first.0, first.1, 0.0] {
+        b.extend_from_slice(&v.to_le_bytes());
+    }
+    // Model type geographic, raster type pixel-is-point, WGS 84.
+    let geokeys: [u16; 16] = [1, 1, 0, 3, 1024, 0, 1, 2, 1025, 0, 1, 2, 2048, 0, 1, 4326];
+    for k in geokeys {
+        b.extend_from_slice(&k.to_le_bytes());
+    }
+    for i in 0..u32::from(w) * u32::from(h) {
+        b.extend_from_slice(&u16::try_from(i * 7 % 300).unwrap_or(0).to_le_bytes());
+    }
+    b
 }
