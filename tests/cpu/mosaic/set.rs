@@ -40,6 +40,17 @@ fn coast_tiles(test: &str) -> Option<(crate::TempDir, Grid, Vec<std::path::PathB
     Some((dir, world, paths))
 }
 
+/// `tiles` baked as a set in `set` with the default options: the bake's report and the set's plan.
+fn bake_default(tiles: &Path, set: &Path) -> (set_bake::SetReport, set_bake::SetPlan) {
+    let (load, opts) = (LoadOptions::default(), BakeOptions::default());
+    let report =
+        set_bake::bake_set(tiles, &load, &opts, set, Default::default()).expect("bake the set");
+    (
+        report,
+        set_bake::plan(tiles, &load, &opts, set).expect("plan"),
+    )
+}
+
 #[test]
 fn a_package_set_reads_as_its_mosaic() {
     let Some((dir, world, _)) = coast_tiles("set") else {
@@ -430,27 +441,10 @@ fn a_damaged_part_is_baked_again() {
     let Some((dir, _, _)) = coast_tiles("set-damaged") else {
         return;
     };
-    let tiles = dir.join("tiles");
-    let set = dir.join("set");
-    let bake = || {
-        set_bake::bake_set(
-            &tiles,
-            &LoadOptions::default(),
-            &BakeOptions::default(),
-            &set,
-            Default::default(),
-        )
-        .expect("bake the set")
-    };
-    bake();
+    let (tiles, set) = (dir.join("tiles"), dir.join("set"));
+    let bake = || bake_default(&tiles, &set);
+    let (_, plan) = bake();
     let whole = files(&set);
-    let plan = set_bake::plan(
-        &tiles,
-        &LoadOptions::default(),
-        &BakeOptions::default(),
-        &set,
-    )
-    .expect("plan");
     let (cut, header) = (plan.part_path(1), plan.part_path(2));
     let len = std::fs::metadata(&cut).expect("a part").len();
     std::fs::OpenOptions::new()
@@ -461,7 +455,7 @@ fn a_damaged_part_is_baked_again() {
     let mut bytes = std::fs::read(&header).expect("a part");
     bytes[20] ^= 0xff;
     std::fs::write(&header, bytes).expect("damage a part's header");
-    let again = bake();
+    let (again, _) = bake();
     assert_eq!(again.baked, 2, "the two damaged parts baked again");
     assert!(files(&set) == whole, "the set as it was");
 
@@ -588,27 +582,10 @@ fn a_part_that_is_not_its_cells_is_baked_again() {
     let Some((dir, _, _)) = coast_tiles("set-foreign") else {
         return;
     };
-    let tiles = dir.join("tiles");
-    let set = dir.join("set");
-    let bake = || {
-        set_bake::bake_set(
-            &tiles,
-            &LoadOptions::default(),
-            &BakeOptions::default(),
-            &set,
-            Default::default(),
-        )
-        .expect("bake the set")
-    };
-    bake();
+    let (tiles, set) = (dir.join("tiles"), dir.join("set"));
+    let bake = || bake_default(&tiles, &set);
+    let (_, plan) = bake();
     let whole = files(&set);
-    let plan = set_bake::plan(
-        &tiles,
-        &LoadOptions::default(),
-        &BakeOptions::default(),
-        &set,
-    )
-    .expect("plan");
     // The whole mosaic's package in the south-east cell's place, and no top yet.
     let hm = source::load(&tiles, &LoadOptions::default()).expect("load the mosaic");
     let last = plan.cells.len() - 1;
@@ -624,7 +601,7 @@ fn a_part_that_is_not_its_cells_is_baked_again() {
             std::fs::remove_file(set.join(name)).expect("remove the top");
         }
     }
-    let again = bake();
+    let (again, _) = bake();
     assert_eq!(again.baked, 1, "the cell baked again");
     assert!(files(&set) == whole, "the set as it was");
     assert!(Package::open(&set).is_ok());
