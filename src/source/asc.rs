@@ -5,7 +5,7 @@ use std::io::BufRead;
 use std::path::Path;
 
 use super::{
-    check_size, fill_voids, metres_per_degree_latitude, metres_per_degree_longitude, to_f32,
+    check_size, fill_voids, to_f32,
     GeoExtent, LoadOptions,
 };
 use crate::{Error, Result};
@@ -260,11 +260,7 @@ pub(super) fn spacing(
                 y + rows * dy * 0.5
             }
         });
-        let lat = lat.clamp(-90.0, 90.0);
-        return Ok((
-            to_f32(dy * metres_per_degree_latitude(lat)),
-            to_f32(dx * metres_per_degree_longitude(lat)),
-        ));
+        return super::geo::spacing_at(path, lat, (dy, dx));
     }
     if prj.is_none() && dy < MIN_METRES {
         return Err(Error::format(

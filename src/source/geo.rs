@@ -83,6 +83,27 @@ pub(super) fn hgt_corner(path: &Path) -> Option<(f64, f64)> {
     ((-90.0..90.0).contains(&lat) && (-180.0..180.0).contains(&lon)).then_some((lat, lon))
 }
 
+/// The N-S and E-W sample spacing, metres, of a geographic grid (the file at `path`) whose samples are
+/// `step` (N-S, E-W) degrees apart and whose middle row lies at latitude `lat`: the meridian's and the
+/// parallel's arcs there, the one metric frame it is drawn in. A middle row past a pole is a georeference
+/// damaged or not in degrees: clamped to the pole, where a degree of longitude is 0 m, such a grid was
+/// drawn about 10^16 times as wide as long.
+pub(crate) fn spacing_at(path: &Path, lat: f64, step: (f64, f64)) -> crate::Result<(f32, f32)> {
+    if !(-90.0..=90.0).contains(&lat) {
+        return Err(crate::Error::format(
+            path,
+            format!(
+                "a geographic grid whose middle row lies at latitude {lat} degrees, past the poles: \
+                 its georeference is damaged or not in degrees"
+            ),
+        ));
+    }
+    Ok((
+        super::to_f32(step.0 * metres_per_degree_latitude(lat)),
+        super::to_f32(step.1 * metres_per_degree_longitude(lat)),
+    ))
+}
+
 /// How much longer than true an E-W length at latitude `lat` is drawn in a frame whose degree of
 /// longitude is the parallel's arc at `lat0`: drawn / true - 1 (negative: drawn short). Infinite at
 /// the poles, where a degree of longitude has no length.

@@ -10,7 +10,7 @@ use tiff::tags::Tag;
 use tiff::ColorType;
 
 use super::{
-    check_size, fill_voids, height, metres_per_degree_latitude, metres_per_degree_longitude,
+    check_size, fill_voids, height,
     to_f32, LoadOptions,
 };
 use crate::{Error, Param, Result};
@@ -442,15 +442,9 @@ impl GeoTags {
         } else {
             size
         };
-        let lat = lat.clamp(-90.0, 90.0);
-        let (ns, ew) = if self.geographic {
-            (
-                size * metres_per_degree_latitude(lat),
-                size_x * metres_per_degree_longitude(lat),
-            )
-        } else {
-            (size, size_x)
-        };
-        Ok((to_f32(ns), to_f32(ew)))
+        if self.geographic {
+            return super::geo::spacing_at(path, lat, (size, size_x));
+        }
+        Ok((to_f32(size), to_f32(size_x)))
     }
 }

@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use super::{
-    check_size, fill_voids, metres_per_degree_latitude, metres_per_degree_longitude, to_f32,
+    check_size, fill_voids, to_f32,
     GeoExtent, Heightmap, LoadOptions, RowGrid, RowSource,
 };
 use crate::source::georef::GeoRef;
@@ -446,11 +446,7 @@ fn layout(spec: &Path, opts: &LoadOptions) -> Result<Layout> {
         // middle row's latitude.
         None if geographic => {
             let mid_row = f64::from(height - 1) / 2.0;
-            let lat = (north - mid_row * fine.1).clamp(-90.0, 90.0);
-            (
-                to_f32(fine.1 * metres_per_degree_latitude(lat)),
-                to_f32(fine.0 * metres_per_degree_longitude(lat)),
-            )
+            super::geo::spacing_at(spec, north - mid_row * fine.1, (fine.1, fine.0))?
         }
         None => (to_f32(fine.1), to_f32(fine.0)),
     };

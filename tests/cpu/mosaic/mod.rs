@@ -715,3 +715,32 @@ fn a_list_with_a_byte_order_mark_reads() {
         .to_string();
     assert!(e.contains("not UTF-8") && e.contains("tiles.txt"), "{e}");
 }
+
+/// A geographic grid whose rows lie past a pole (a latitude of 1000 degrees: a georeference damaged or
+/// not in degrees) is refused naming the file, loaded, streamed or as a mosaic's tile: its latitude was
+/// clamped to the pole, where a degree of longitude is 0 m, and `info` drew it 1.6e16 times as wide.
+#[test]
+fn a_geographic_grid_past_the_poles_is_refused() {
+    let dir = temp_dir("past-poles");
+    let g = Grid {
+        w: 11,
+        h: 11,
+        z: (0..121).collect(),
+        west: 11.0,
+        north: 1000.0,
+        step: 1.0 / 3600.0,
+    };
+    let one = write_geotiff(&dir.join("one.tif"), &g, None, 4326);
+    write_geotiff_tiles(&dir.join("tiles"), &g, 6);
+    for path in [one, dir.join("tiles")] {
+        let load = source::load(&path, &LoadOptions::default()).map(|_| ());
+        let rows = source::open_rows(&path, &LoadOptions::default()).map(|_| ());
+        for (how, r) in [("load", load), ("stream", rows)] {
+            let e = r
+                .err()
+                .unwrap_or_else(|| panic!("{how} {}: accepted", path.display()))
+                .to_string();
+            assert!(e.contains("past the poles"), "{how} {}: {e}", path.display());
+        }
+    }
+}
