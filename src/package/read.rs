@@ -579,6 +579,14 @@ impl Parts {
         for (n, entry) in index.parts.iter().enumerate() {
             let (i, j) = (n % index.columns.len(), n / index.columns.len());
             let (x0, y0, x1, y1) = index.cell(i, j);
+            // Another cell's part of the same size would read as this one's, wrong samples and no error.
+            let own = super::set::part_file((x0, y0), &entry.key);
+            if entry.file != own {
+                return Err(bad(format!(
+                    "part ({i}, {j}) is `{}`, not its cell's `{own}` (bake the set again)",
+                    entry.file
+                )));
+            }
             let p = Package::open_with(&file(&entry.file, "part")?, false)?;
             let h = p.header();
             if (h.width, h.height) != (x1 - x0 + 1, y1 - y0 + 1)

@@ -156,6 +156,12 @@ impl Index {
     }
 }
 
+/// The file of the part whose cell starts at grid column and row `origin`, baked with `key`: what a bake
+/// names it and the index must name it (a part's header does not say which cell it is).
+pub fn part_file(origin: (u32, u32), key: &str) -> String {
+    format!("part-{}-{}-{key}.clipsat", origin.0, origin.1)
+}
+
 /// Whether `path` is a set's index, or a folder that holds one.
 pub fn is_set(path: &Path) -> bool {
     crate::source::georef::set_index(path).is_some()

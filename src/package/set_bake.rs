@@ -192,7 +192,7 @@ pub fn plan(spec: &Path, load: &LoadOptions, opts: &BakeOptions, dir: &Path) -> 
         }
         let key = cell_key(&index, &part_opts, load, *c, &sources)?;
         index.parts.push(PartEntry {
-            file: format!("part-{}-{}-{key}.clipsat", c[0], c[1]),
+            file: super::set::part_file((c[0], c[1]), &key),
             key,
             sources: sources.iter().map(|p| p.display().to_string()).collect(),
         });

@@ -740,7 +740,11 @@ fn a_geographic_grid_past_the_poles_is_refused() {
                 .err()
                 .unwrap_or_else(|| panic!("{how} {}: accepted", path.display()))
                 .to_string();
-            assert!(e.contains("past the poles"), "{how} {}: {e}", path.display());
+            assert!(
+                e.contains("past the poles"),
+                "{how} {}: {e}",
+                path.display()
+            );
         }
     }
 }

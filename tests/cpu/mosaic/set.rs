@@ -570,6 +570,14 @@ fn a_set_index_names_only_package_files() {
             );
         }
     }
+    // Another cell's part of the same size (every cell here is 513^2) read as this cell's.
+    let parts: Vec<&str> = text.lines().filter(|l| l.starts_with("file = ")).collect();
+    let swapped = text.replacen(parts[0], parts[3], 1);
+    std::fs::write(&index, &swapped).expect("name another cell's part");
+    let err = Package::open(&set)
+        .expect_err("another cell's part")
+        .to_string();
+    assert!(err.contains("not its cell's"), "{err}");
     std::fs::write(&index, &text).expect("the index again");
     assert!(Package::open(&set).is_ok());
 }
