@@ -369,11 +369,14 @@ impl SetPlan {
 /// one stands.
 pub fn bake_cell(plan: &SetPlan, n: usize, progress: Progress<'_>) -> Result<BakeReport> {
     let cell = *plan.cells.get(n).ok_or_else(|| {
-        Error::terrain(format!(
-            "no cell {n}: the set has {} cells (0 to {})",
-            plan.cells.len(),
-            plan.cells.len().saturating_sub(1)
-        ))
+        Error::format(
+            &plan.spec,
+            format!(
+                "no cell {n}: the set has {} cells (0 to {})",
+                plan.cells.len(),
+                plan.cells.len().saturating_sub(1)
+            ),
+        )
     })?;
     std::fs::create_dir_all(&plan.dir).map_err(|e| Error::io(&plan.dir, "cannot create", e))?;
     let sources: Vec<PathBuf> = plan.index.parts[n]
