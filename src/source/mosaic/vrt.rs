@@ -33,7 +33,10 @@ impl Vrt {
     /// with no scaling or lookup table) of the whole of each tile's band 1, a north-up geotransform.
     pub(super) fn read(path: &Path) -> Result<Self> {
         let bad = |reason: String| Error::format(path, format!("GDAL VRT: {reason}"));
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, "cannot read", e))?;
+        let bytes = std::fs::read(path).map_err(|e| Error::io(path, "cannot read", e))?;
+        let text = String::from_utf8(bytes).map_err(|_| {
+            Error::format(path, "a GDAL VRT that is not UTF-8 text (GDAL writes UTF-8): save it as UTF-8")
+        })?;
         let doc = roxmltree::Document::parse(&text).map_err(|e| bad(format!("not XML: {e}")))?;
         let root = doc.root_element();
         if root.tag_name().name() != "VRTDataset" {

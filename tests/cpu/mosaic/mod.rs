@@ -595,6 +595,14 @@ fn a_gdal_vrt_reads_as_its_tiles() {
         std::fs::write(dir.join(name), body).expect("write");
         refused(name, needle);
     }
+    // Saved as UTF-16 with its byte-order mark (Notepad's "Unicode"): said so, not a reader's "stream
+    // did not contain valid UTF-8".
+    let utf16: Vec<u8> = [0xff, 0xfe]
+        .into_iter()
+        .chain(text.encode_utf16().flat_map(u16::to_le_bytes))
+        .collect();
+    std::fs::write(dir.join("utf16.vrt"), utf16).expect("write");
+    refused("utf16.vrt", "not UTF-8 text");
 }
 
 /// A VRT whose `GeoTransform` or `DstRect` holds NaN, and tiles whose steps are too small for metres in
