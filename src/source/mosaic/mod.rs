@@ -260,6 +260,25 @@ impl TileMeta {
             Some(_) => false,
             None => model_type(path) == Some(2),
         };
+        // Degrees on the globe (a pixel's slack past a pole, a turn either way of longitude for tiles
+        // given in 0..360 or across the antimeridian): past them a georeference is damaged or not in
+        // degrees, and tiles at a longitude of 1e15 had been joined into a mosaic of no meaning.
+        let (w, n) = geo.corner;
+        let (e, s) = (
+            w + geo.scale.0 * f64::from(geo.size.0),
+            n - geo.scale.1 * f64::from(geo.size.1),
+        );
+        if geographic
+            && !(n <= 90.0 + geo.scale.1 && s >= -90.0 - geo.scale.1 && w >= -360.0 && e <= 720.0)
+        {
+            return Err(Error::format(
+                path,
+                format!(
+                    "a geographic tile from {w} to {e} degrees east and {s} to {n} north: not on the \
+                     globe, its georeference is damaged or not in degrees"
+                ),
+            ));
+        }
         Ok(Self {
             path: path.into(),
             hgt: false,

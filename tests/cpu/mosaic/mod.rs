@@ -725,8 +725,9 @@ fn a_list_with_a_byte_order_mark_reads() {
 }
 
 /// A geographic grid whose rows lie past a pole (a latitude of 1000 degrees: a georeference damaged or
-/// not in degrees) is refused naming the file, loaded, streamed or as a mosaic's tile: its latitude was
-/// clamped to the pole, where a degree of longitude is 0 m, and `info` drew it 1.6e16 times as wide.
+/// not in degrees) is refused naming the file, loaded or streamed: its latitude was clamped to the pole,
+/// where a degree of longitude is 0 m, and `info` drew it 1.6e16 times as wide. A mosaic's tile past a
+/// pole, or at a longitude of 1e15 (joined before into a mosaic of no meaning), is refused too.
 #[test]
 fn a_geographic_grid_past_the_poles_is_refused() {
     let dir = temp_dir("past-poles");
@@ -740,7 +741,18 @@ fn a_geographic_grid_past_the_poles_is_refused() {
     };
     let one = write_geotiff(&dir.join("one.tif"), &g, None, 4326);
     write_geotiff_tiles(&dir.join("tiles"), &g, 6);
-    for path in [one, dir.join("tiles")] {
+    let far = Grid {
+        west: 1e15,
+        north: 58.0,
+        ..g.clone()
+    };
+    std::fs::create_dir_all(dir.join("far")).expect("create");
+    write_geotiff_tiles(&dir.join("far"), &far, 6);
+    for (path, needle) in [
+        (one, "past the poles"),
+        (dir.join("tiles"), "not on the globe"),
+        (dir.join("far"), "not on the globe"),
+    ] {
         let load = source::load(&path, &LoadOptions::default()).map(|_| ());
         let rows = source::open_rows(&path, &LoadOptions::default()).map(|_| ());
         for (how, r) in [("load", load), ("stream", rows)] {
@@ -748,11 +760,7 @@ fn a_geographic_grid_past_the_poles_is_refused() {
                 .err()
                 .unwrap_or_else(|| panic!("{how} {}: accepted", path.display()))
                 .to_string();
-            assert!(
-                e.contains("past the poles"),
-                "{how} {}: {e}",
-                path.display()
-            );
+            assert!(e.contains(needle), "{how} {}: {e}", path.display());
         }
     }
 }
