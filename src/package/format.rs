@@ -197,6 +197,30 @@ impl LodIndex {
     }
 }
 
+/// What a package's grid must be where a file gives it (a header, or a package set's index, from which
+/// the whole terrain's header is made): a finite, positive spacing and quantum, a finite origin, and an
+/// even tile side in 4..=4096. The reason where it is not.
+pub(crate) fn check_grid(
+    spacing: f32,
+    origin: (f64, f64),
+    quantum: f64,
+    tile: u32,
+) -> std::result::Result<(), String> {
+    if !(spacing.is_finite() && spacing > 0.0) {
+        return Err(format!("spacing {spacing} is not finite and positive"));
+    }
+    if !(origin.0.is_finite() && origin.1.is_finite()) {
+        return Err("origin is not finite".into());
+    }
+    if !(quantum.is_finite() && quantum > 0.0) {
+        return Err(format!("quantum {quantum} is not finite and positive"));
+    }
+    if !(4..=4096).contains(&tile) || !tile.is_multiple_of(2) {
+        return Err(format!("tile side {tile} is not an even size in 4..=4096"));
+    }
+    Ok(())
+}
+
 /// The pyramid's level sizes for a `width x height` terrain: halving (w - 1)/2 + 1 until both sides are at
 /// most 4, as [`crate::bake::pyramid::Pyramid::build`] does.
 pub fn level_sizes(width: u32, height: u32) -> Vec<(u32, u32)> {
@@ -465,15 +489,7 @@ impl Header {
                 "{width} x {height} samples: need at least 2 x 2"
             )));
         }
-        if !(spacing.is_finite() && spacing > 0.0) {
-            return Err(bad(format!("spacing {spacing} is not finite and positive")));
-        }
-        if !(origin.0.is_finite() && origin.1.is_finite()) {
-            return Err(bad("origin is not finite".into()));
-        }
-        if !(quantum.is_finite() && quantum > 0.0) {
-            return Err(bad(format!("quantum {quantum} is not finite and positive")));
-        }
+        check_grid(spacing, origin, quantum, tile).map_err(&bad)?;
         if !(range.0.is_finite() && range.1.is_finite() && range.0 <= range.1) {
             return Err(bad(format!(
                 "height range {range:?} is not finite and ordered"
@@ -481,11 +497,6 @@ impl Header {
         }
         let codec =
             CodecKind::from_code(code).ok_or_else(|| bad(format!("unknown codec {code}")))?;
-        if !(4..=4096).contains(&tile) || !tile.is_multiple_of(2) {
-            return Err(bad(format!(
-                "tile side {tile} is not an even size in 4..=4096"
-            )));
-        }
         let mut sizes = level_sizes(width, height);
         if part > 0 && (part as usize) < sizes.len() {
             sizes.truncate(part as usize);

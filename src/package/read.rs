@@ -589,12 +589,7 @@ impl Parts {
             }
             let p = Package::open_with(&file(&entry.file, "part")?, false)?;
             let h = p.header();
-            if (h.width, h.height) != (x1 - x0 + 1, y1 - y0 + 1)
-                || h.part != index.part_levels
-                || h.tile != index.tile
-                || h.codec != codec
-                || h.quantum.to_bits() != index.quantum.to_bits()
-            {
+            if !index.fits_part(n, h, codec) {
                 return Err(Error::format(
                     p.path(),
                     format!(

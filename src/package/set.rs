@@ -10,6 +10,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+use super::format::{CodecKind, Header};
 use crate::{Error, Result};
 
 /// The index file's name in a set's folder.
@@ -99,29 +100,9 @@ impl Index {
         if index.part_levels == 0 {
             return Err(bad("parts of 0 levels".into()));
         }
-        // What a package's header is checked for (`Header::parse`): the whole terrain's header is made
-        // from these before any part is read.
-        if !(4..=4096).contains(&index.tile) || !index.tile.is_multiple_of(2) {
-            return Err(bad(format!(
-                "tile side {} is not an even size in 4..=4096",
-                index.tile
-            )));
-        }
-        if !(index.spacing.is_finite() && index.spacing > 0.0) {
-            return Err(bad(format!(
-                "spacing {} is not finite and positive",
-                index.spacing
-            )));
-        }
-        if !(index.origin.0.is_finite() && index.origin.1.is_finite()) {
-            return Err(bad("origin is not finite".into()));
-        }
-        if !(index.quantum.is_finite() && index.quantum > 0.0) {
-            return Err(bad(format!(
-                "quantum {} is not finite and positive",
-                index.quantum
-            )));
-        }
+        // What a package's header is checked for: the whole terrain's header is made from these before
+        // any part is read.
+        super::format::check_grid(index.spacing, index.origin, index.quantum, index.tile).map_err(bad)?;
         // Imagery over the set is placed by it: a scale of 0 had been refused as the imagery extent
         // option's, which was never given.
         if index.georef.as_ref().is_some_and(|g| !g.usable()) {
@@ -153,6 +134,22 @@ impl Index {
         let x1 = self.columns.get(i + 1).copied().unwrap_or(self.width - 1);
         let y1 = self.rows.get(j + 1).copied().unwrap_or(self.height - 1);
         (self.columns[i], self.rows[j], x1, y1)
+    }
+
+    /// Whether `h` is part `n`'s (row-major) as this index describes it: its cell's size, the set's part
+    /// levels, tile side, codec and quantum (a part's header does not say which cell it is). What the
+    /// set's reader checks each part for, and what a bake again keeps a part for.
+    pub(crate) fn fits_part(&self, n: usize, h: &Header, codec: CodecKind) -> bool {
+        let (i, j) = (n % self.columns.len(), n / self.columns.len());
+        if j >= self.rows.len() {
+            return false;
+        }
+        let (x0, y0, x1, y1) = self.cell(i, j);
+        (h.width, h.height) == (x1 - x0 + 1, y1 - y0 + 1)
+            && h.part == self.part_levels
+            && h.tile == self.tile
+            && h.codec == codec
+            && h.quantum.to_bits() == self.quantum.to_bits()
     }
 }
 

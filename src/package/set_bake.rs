@@ -263,7 +263,7 @@ fn inside(r: &[u32; 4], c: [u32; 4]) -> bool {
 }
 
 /// Each file's path, size and modification time into `h`.
-fn stamp(h: &mut Hash64, sources: &[PathBuf]) -> Result<()> {
+fn stamp_sources(h: &mut Hash64, sources: &[PathBuf]) -> Result<()> {
     for s in sources {
         let meta = std::fs::metadata(s).map_err(|e| Error::io(s, "cannot read", e))?;
         // The file, however it is named (`tiles/x.hgt`, `tiles/./x.hgt`, relative from another folder):
@@ -336,7 +336,7 @@ fn cell_key(
         )
         .as_bytes(),
     );
-    stamp(&mut h, sources)?;
+    stamp_sources(&mut h, sources)?;
     Ok(hex(h.finish()))
 }
 
@@ -353,15 +353,8 @@ impl SetPlan {
     /// had stood, and the top was made from it past the level's end (a panic) or from the wrong
     /// samples, a set that every bake after kept and no reader opened.
     pub fn part_stands(&self, n: usize) -> bool {
-        let (Ok(p), Some(c)) = (Package::open(&self.part_path(n)), self.cells.get(n)) else {
-            return false;
-        };
-        let h = p.header();
-        (h.width, h.height) == (c[2] - c[0] + 1, c[3] - c[1] + 1)
-            && h.part == self.index.part_levels
-            && h.tile == self.index.tile
-            && h.codec == self.opts.codec
-            && h.quantum.to_bits() == self.index.quantum.to_bits()
+        Package::open(&self.part_path(n))
+            .is_ok_and(|p| self.index.fits_part(n, p.header(), self.opts.codec))
     }
 }
 

@@ -253,11 +253,7 @@ impl ImageryRows {
 fn magic(path: &Path) -> Result<[u8; 8]> {
     use std::io::Read as _;
     let mut magic = [0u8; 8];
-    // A FIFO (or device) is no image file: opening a FIFO waits for a writer without end.
-    let meta = std::fs::metadata(path).map_err(|e| Error::io(path, "cannot read", e))?;
-    if !meta.is_file() {
-        return Err(Error::format(path, "not a regular file"));
-    }
+    super::regular_file(path, "cannot read")?;
     let mut f = std::fs::File::open(path).map_err(|e| Error::io(path, "cannot read", e))?;
     let mut n = 0;
     while n < magic.len() {

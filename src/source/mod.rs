@@ -270,10 +270,7 @@ fn load_format(path: &Path, opts: &LoadOptions) -> Result<Heightmap> {
     if is_mosaic(path) {
         return mosaic::load(path, opts);
     }
-    let meta = std::fs::metadata(path).map_err(|e| Error::io(path, "cannot read", e))?;
-    if !meta.is_file() {
-        return Err(Error::format(path, "not a regular file"));
-    }
+    let meta = regular_file(path, "cannot read")?;
     if meta.len() == 0 {
         return Err(Error::format(path, "file is empty"));
     }
@@ -366,10 +363,7 @@ fn open_format_rows(path: &Path, opts: &LoadOptions) -> Result<Box<dyn RowSource
         .map(str::to_ascii_lowercase)
         .unwrap_or_default();
     if matches!(ext.as_str(), "raw" | "r16" | "f32" | "flt" | "bil") {
-        let meta = std::fs::metadata(path).map_err(|e| Error::io(path, "cannot read", e))?;
-        if !meta.is_file() {
-            return Err(Error::format(path, "not a regular file"));
-        }
+        let meta = regular_file(path, "cannot read")?;
         if meta.len() == 0 {
             return Err(Error::format(path, "file is empty"));
         }
@@ -411,14 +405,20 @@ fn check_scale(path: &Path, opts: &LoadOptions) -> Result<()> {
     }
 }
 
-/// The first (up to) 8 bytes of a file, for magic-number checks.
-fn read_magic(path: &Path) -> Result<Vec<u8>> {
-    use std::io::Read;
-    // A FIFO (or device) is no terrain file: opening a FIFO waits for a writer without end.
-    let meta = std::fs::metadata(path).map_err(|e| Error::io(path, "cannot open", e))?;
+/// The metadata of the file at `path` (`io`: what a failure to read it says), refused where it is not
+/// a regular file: a folder, or a FIFO or device, which opening would wait on or read without end.
+pub(crate) fn regular_file(path: &Path, io: &'static str) -> Result<std::fs::Metadata> {
+    let meta = std::fs::metadata(path).map_err(|e| Error::io(path, io, e))?;
     if !meta.is_file() {
         return Err(Error::format(path, "not a regular file"));
     }
+    Ok(meta)
+}
+
+/// The first (up to) 8 bytes of a file, for magic-number checks.
+fn read_magic(path: &Path) -> Result<Vec<u8>> {
+    use std::io::Read;
+    regular_file(path, "cannot open")?;
     let f = std::fs::File::open(path).map_err(|e| Error::io(path, "cannot open", e))?;
     let mut magic = Vec::with_capacity(8);
     f.take(8)
