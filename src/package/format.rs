@@ -198,13 +198,12 @@ impl LodIndex {
 }
 
 /// What a package's grid must be where a file gives it (a header, or a package set's index, from which
-/// the whole terrain's header is made): a finite, positive spacing and quantum, a finite origin, and an
-/// even tile side in 4..=4096. The reason where it is not.
+/// the whole terrain's header is made): a finite, positive spacing and quantum and a finite origin. The
+/// reason where it is not.
 pub(crate) fn check_grid(
     spacing: f32,
     origin: (f64, f64),
     quantum: f64,
-    tile: u32,
 ) -> std::result::Result<(), String> {
     if !(spacing.is_finite() && spacing > 0.0) {
         return Err(format!("spacing {spacing} is not finite and positive"));
@@ -215,6 +214,11 @@ pub(crate) fn check_grid(
     if !(quantum.is_finite() && quantum > 0.0) {
         return Err(format!("quantum {quantum} is not finite and positive"));
     }
+    Ok(())
+}
+
+/// A package's tile side where a file gives it ([`check_grid`]): even, in 4..=4096.
+pub(crate) fn check_tile(tile: u32) -> std::result::Result<(), String> {
     if !(4..=4096).contains(&tile) || !tile.is_multiple_of(2) {
         return Err(format!("tile side {tile} is not an even size in 4..=4096"));
     }
@@ -489,7 +493,7 @@ impl Header {
                 "{width} x {height} samples: need at least 2 x 2"
             )));
         }
-        check_grid(spacing, origin, quantum, tile).map_err(&bad)?;
+        check_grid(spacing, origin, quantum).map_err(&bad)?;
         if !(range.0.is_finite() && range.1.is_finite() && range.0 <= range.1) {
             return Err(bad(format!(
                 "height range {range:?} is not finite and ordered"
@@ -497,6 +501,7 @@ impl Header {
         }
         let codec =
             CodecKind::from_code(code).ok_or_else(|| bad(format!("unknown codec {code}")))?;
+        check_tile(tile).map_err(&bad)?;
         let mut sizes = level_sizes(width, height);
         if part > 0 && (part as usize) < sizes.len() {
             sizes.truncate(part as usize);

@@ -102,7 +102,8 @@ impl Index {
         }
         // What a package's header is checked for: the whole terrain's header is made from these before
         // any part is read.
-        super::format::check_grid(index.spacing, index.origin, index.quantum, index.tile).map_err(bad)?;
+        super::format::check_tile(index.tile).map_err(bad)?;
+        super::format::check_grid(index.spacing, index.origin, index.quantum).map_err(bad)?;
         // Imagery over the set is placed by it: a scale of 0 had been refused as the imagery extent
         // option's, which was never given.
         if index.georef.as_ref().is_some_and(|g| !g.usable()) {
